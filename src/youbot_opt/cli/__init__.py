@@ -1,0 +1,70 @@
+"""Command line interface: ``youbot-opt <command> [options]``.
+
+Each sub-command lives in its own module of this package and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` to a callable
+``func(args) -> int`` (the process exit code). Running ``youbot-opt`` with no
+command runs the main job (``youbot-opt main``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from youbot_opt import __version__
+from youbot_opt.exceptions import YoubotOptError
+
+__all__ = ["main", "build_parser"]
+
+#: Sub-command modules, in the order they appear in ``--help``.
+_COMMAND_MODULES: tuple[str, ...] = ("main_job",)
+
+DEFAULT_COMMAND = "main"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the top-level argument parser with every sub-command registered.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser; each sub-parser sets ``func``.
+    """
+    parser = argparse.ArgumentParser(
+        prog="youbot-opt",
+        description="Trajectory and IK-path optimisation of rigid-body arms "
+        "(Pinocchio + CasADi).",
+    )
+    parser.add_argument("--version", action="version", version=f"youbot_opt {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _COMMAND_MODULES:
+        module = importlib.import_module(f"youbot_opt.cli.{name}")
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line and return the exit code.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when omitted.
+
+    Returns
+    -------
+    int
+        0 on success, 1 on a failed solve, 2 on bad input.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    if not argv or argv[0].startswith("-") and argv[0] not in ("-h", "--help", "--version"):
+        argv = [DEFAULT_COMMAND, *argv]
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except YoubotOptError as exc:
+        print(f"youbot-opt: error: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,138 @@
+"""Exception and warning tree of youbot_opt.
+
+Every error raised on purpose by the toolkit derives from :class:`YoubotOptError`,
+so ``except YoubotOptError`` catches exactly the toolkit's own complaints. Messages
+say what was wrong, the offending value, and what would have been valid; the same
+facts are kept as attributes where callers may want them programmatically.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = [
+    "YoubotOptError",
+    "ParameterError",
+    "ModelError",
+    "RobotNotFound",
+    "FrameNotFound",
+    "TranscriptionError",
+    "SolveFailed",
+    "UnreachableTarget",
+    "ResultFileError",
+    "YoubotOptWarning",
+]
+
+
+class YoubotOptError(Exception):
+    """Base class of every error raised by youbot_opt."""
+
+
+class ParameterError(YoubotOptError, ValueError):
+    """A user-supplied value has the wrong shape, sign, range or type.
+
+    Attributes
+    ----------
+    name : str or None
+        Name of the offending argument or field, when known.
+    value : Any
+        The offending value, when known.
+    """
+
+    def __init__(self, message: str, *, name: str | None = None, value: Any = None) -> None:
+        super().__init__(message)
+        self.name = name
+        self.value = value
+
+
+class ModelError(YoubotOptError):
+    """A robot description cannot be loaded or describes an invalid model.
+
+    Attributes
+    ----------
+    path : str or None
+        File the model came from, when known.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None) -> None:
+        super().__init__(message)
+        self.path = path
+
+
+class RobotNotFound(ModelError, LookupError):
+    """A robot name or URDF path does not resolve; the message lists what exists.
+
+    Attributes
+    ----------
+    available : tuple of str
+        Names that would have been accepted.
+    """
+
+    def __init__(
+        self, message: str, *, available: tuple[str, ...] = (), path: str | None = None
+    ) -> None:
+        super().__init__(message, path=path)
+        self.available = available
+
+
+class FrameNotFound(ModelError, LookupError):
+    """A frame name is not in the model; the message lists the model's frames.
+
+    Attributes
+    ----------
+    frame : str
+        The requested frame name.
+    available : tuple of str
+        Frame names the model has.
+    """
+
+    def __init__(self, frame: str, available: tuple[str, ...]) -> None:
+        super().__init__(f"frame {frame!r} not found; the model has frames: {', '.join(available)}")
+        self.frame = frame
+        self.available = available
+
+
+class TranscriptionError(YoubotOptError):
+    """A transcription (collocation scheme) cannot be built for the given problem."""
+
+
+class SolveFailed(YoubotOptError):
+    """Raised by ``result.raise_for_status()`` when a solve did not succeed.
+
+    Attributes
+    ----------
+    result : Any
+        The failed result object, with the best iterate the solver reached.
+    """
+
+    def __init__(self, message: str, *, result: Any = None) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+class UnreachableTarget(YoubotOptError):
+    """An end-effector target lies outside the arm's reachable set.
+
+    Attributes
+    ----------
+    index : int
+        Index of the target in the problem's list (0-based).
+    target : Any
+        The target position in [m] (or the chain's length unit).
+    verdict : Any
+        The reachability verdict object with the reach limits and nearest point.
+    """
+
+    def __init__(self, message: str, *, index: int, target: Any, verdict: Any = None) -> None:
+        super().__init__(message)
+        self.index = index
+        self.target = target
+        self.verdict = verdict
+
+
+class ResultFileError(YoubotOptError):
+    """A saved result file is missing, corrupted, or of an unsupported schema version."""
+
+
+class YoubotOptWarning(UserWarning):
+    """Recoverable problem worth the user's attention (e.g. a loosened assumption)."""
