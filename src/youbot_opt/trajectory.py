@@ -1,0 +1,173 @@
+"""Joint-space trajectories on a time grid, callable at any time (toppra style).
+
+A :class:`Trajectory` holds the knot values a collocation solve produced and
+the interpolant that belongs to its transcription:
+
+* ``"trapezoidal"``: torque and velocity piecewise linear, position piecewise
+  quadratic (the integral of the linear velocity), as in Betts, *Practical
+  Methods for Optimal Control*, sec. 4.6.
+* ``"hermite_simpson"``: torque piecewise quadratic through the knot and
+  mid-interval torques, position and velocity cubic Hermite splines (position
+  with the knot velocities as slopes, velocity with the knot accelerations).
+
+Arrays are knot-major: ``q[k]`` is the configuration at ``t[k]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+
+__all__ = ["Trajectory", "Interpolation"]
+
+Interpolation = Literal["trapezoidal", "hermite_simpson"]
+_INTERPOLATIONS: tuple[str, ...] = ("trapezoidal", "hermite_simpson")
+
+
+def _as_matrix(name: str, value: object, rows: int | None, cols: int | None) -> Array:
+    arr = np.array(value, dtype=float)
+    if arr.ndim != 2 or (rows is not None and arr.shape[0] != rows):
+        raise ParameterError(
+            f"{name} must have shape ({rows}, n), got {arr.shape}", name=name, value=arr.shape
+        )
+    if cols is not None and arr.shape[1] != cols:
+        raise ParameterError(
+            f"{name} must have {cols} columns, got shape {arr.shape}", name=name, value=arr.shape
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} contains non-finite values", name=name)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Trajectory:
+    """A joint trajectory sampled at knots, with its transcription's interpolant.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Knot times in [s], strictly increasing.
+    q : ndarray, shape (N, nq)
+        Joint positions in [rad] (or [m] for prismatic joints).
+    v : ndarray, shape (N, nv)
+        Joint velocities in [rad/s].
+    a : ndarray, shape (N, nv)
+        Joint accelerations in [rad/s^2] (forward dynamics at the knots).
+    tau : ndarray, shape (N, nv)
+        Joint torques in [N m].
+    tau_mid : ndarray, shape (N - 1, nv), optional
+        Mid-interval torques in [N m] (Hermite–Simpson only).
+    interpolation : {"trapezoidal", "hermite_simpson"}
+        Which interpolant :meth:`__call__`, :meth:`velocity` and
+        :meth:`torque` use between knots.
+    """
+
+    t: Array
+    q: Array
+    v: Array
+    a: Array
+    tau: Array
+    tau_mid: Array | None = None
+    interpolation: Interpolation = "trapezoidal"
+
+    def __post_init__(self) -> None:
+        t = np.array(self.t, dtype=float)
+        if t.ndim != 1 or t.size < 2:
+            raise ParameterError(f"t must be 1-D with >= 2 knots, got shape {t.shape}", name="t")
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
+            raise ParameterError("t must be finite and strictly increasing [s]", name="t")
+        t.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        n = t.size
+        q = _as_matrix("q", self.q, n, None)
+        object.__setattr__(self, "q", q)
+        for name in ("v", "a", "tau"):
+            object.__setattr__(self, name, _as_matrix(name, getattr(self, name), n, None))
+        nv = self.v.shape[1]
+        for name in ("a", "tau"):
+            if getattr(self, name).shape[1] != nv:
+                raise ParameterError(f"{name} must have nv = {nv} columns", name=name)
+        if self.interpolation not in _INTERPOLATIONS:
+            raise ParameterError(
+                f"interpolation must be one of {_INTERPOLATIONS}, got {self.interpolation!r}",
+                name="interpolation",
+                value=self.interpolation,
+            )
+        if self.interpolation == "hermite_simpson":
+            if self.tau_mid is None:
+                raise ParameterError("hermite_simpson trajectories need tau_mid", name="tau_mid")
+            object.__setattr__(self, "tau_mid", _as_matrix("tau_mid", self.tau_mid, n - 1, nv))
+        elif self.tau_mid is not None:
+            raise ParameterError("tau_mid is only used by hermite_simpson", name="tau_mid")
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_knots(self) -> int:
+        """Number of knots N."""
+        return int(self.t.size)
+
+    @property
+    def duration(self) -> float:
+        """Total duration ``t[-1] - t[0]`` in [s]."""
+        return float(self.t[-1] - self.t[0])
+
+    # ---------------------------------------------------------- interpolation
+    def _locate(self, time: Array) -> tuple[Array, Array, Array]:
+        """Interval index k, local time s in [s] and interval length h in [s]."""
+        if not np.all(np.isfinite(time)):
+            raise ParameterError("query times must be finite [s]", name="time")
+        tt = np.clip(time, self.t[0], self.t[-1])
+        k = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, self.n_knots - 2)
+        h = self.t[k + 1] - self.t[k]
+        return k, tt - self.t[k], h
+
+    def __call__(self, time: float | Array) -> Array:
+        """Joint positions at ``time`` [s]; shape (nq,) for a scalar, (M, nq) for (M,).
+
+        Times outside ``[t[0], t[-1]]`` are clamped to the ends.
+        """
+        return self._eval(time, "q")
+
+    def velocity(self, time: float | Array) -> Array:
+        """Joint velocities in [rad/s] at ``time`` [s] (shape as :meth:`__call__`)."""
+        return self._eval(time, "v")
+
+    def torque(self, time: float | Array) -> Array:
+        """Joint torques in [N m] at ``time`` [s] under the transcription's interpolant."""
+        return self._eval(time, "tau")
+
+    def _eval(self, time: float | Array, what: str) -> Array:
+        scalar = np.ndim(time) == 0
+        k, s, h = self._locate(np.atleast_1d(np.asarray(time, dtype=float)))
+        s, h = s[:, None], h[:, None]
+        q0, q1, v0, v1 = self.q[k], self.q[k + 1], self.v[k], self.v[k + 1]
+        a0, a1 = self.a[k], self.a[k + 1]
+        x = s / h
+        if what == "tau":
+            if self.interpolation == "trapezoidal":
+                out = self.tau[k] + x * (self.tau[k + 1] - self.tau[k])
+            else:
+                assert self.tau_mid is not None
+                u0, um, u1 = self.tau[k], self.tau_mid[k], self.tau[k + 1]
+                out = (
+                    u0 * (2 * x - 1) * (x - 1) + um * 4 * x * (1 - x) + u1 * x * (2 * x - 1)
+                )
+        elif self.interpolation == "trapezoidal":
+            if what == "v":
+                out = v0 + x * (v1 - v0)
+            else:
+                out = q0 + v0 * s + (v1 - v0) * s**2 / (2 * h)
+        else:
+            p0, p1, d0, d1 = (q0, q1, v0, v1) if what == "q" else (v0, v1, a0, a1)
+            h00 = 2 * x**3 - 3 * x**2 + 1
+            h10 = x**3 - 2 * x**2 + x
+            h01 = -2 * x**3 + 3 * x**2
+            h11 = x**3 - x**2
+            out = h00 * p0 + h10 * h * d0 + h01 * p1 + h11 * h * d1
+        return out[0] if scalar else out
