@@ -47,9 +47,17 @@ def test_scalar_query_and_clamping() -> None:
     """A scalar time returns shape (nq,); times beyond the ends clamp to the end knots."""
     traj = _constant_acceleration(5)
     assert traj(0.5).shape == (1,)
-    np.testing.assert_array_equal(traj(10.0), traj.q[-1])
+    np.testing.assert_allclose(traj(10.0), traj.q[-1], rtol=1e-15, atol=1e-15)
     assert traj.duration == pytest.approx(2.0)
     assert traj.n_knots == 5
+
+
+def test_trapezoidal_interpolant_passes_through_inconsistent_knots() -> None:
+    """Knots that violate the position defect are still interpolated (1e-15)."""
+    t = np.array([0.0, 1.0, 2.0])
+    traj = Trajectory(t=t, q=np.c_[[0.0, 5.0, -1.0]], v=np.zeros((3, 1)), a=np.zeros((3, 1)),
+                      tau=np.zeros((3, 1)))
+    np.testing.assert_allclose(traj(t)[:, 0], [0.0, 5.0, -1.0], atol=1e-15)
 
 
 def test_arrays_are_read_only() -> None:

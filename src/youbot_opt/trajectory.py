@@ -5,7 +5,9 @@ the interpolant that belongs to its transcription:
 
 * ``"trapezoidal"``: torque and velocity piecewise linear, position piecewise
   quadratic (the integral of the linear velocity), as in Betts, *Practical
-  Methods for Optimal Control*, sec. 4.6.
+  Methods for Optimal Control*, sec. 4.6. For arrays that do not satisfy the
+  trapezoidal position defect exactly (e.g. initial guesses), a term linear in
+  time absorbs the defect so that the knots are always interpolated.
 * ``"hermite_simpson"``: torque piecewise quadratic through the knot and
   mid-interval torques, position and velocity cubic Hermite splines (position
   with the knot velocities as slopes, velocity with the knot accelerations).
@@ -162,7 +164,10 @@ class Trajectory:
             if what == "v":
                 out = v0 + x * (v1 - v0)
             else:
-                out = q0 + v0 * s + (v1 - v0) * s**2 / (2 * h)
+                # Integral of the linear velocity, plus a linear correction that is
+                # zero when the position defect vanishes, so knots are interpolated.
+                defect = q1 - q0 - 0.5 * h * (v0 + v1)
+                out = q0 + v0 * s + (v1 - v0) * s**2 / (2 * h) + x * defect
         else:
             p0, p1, d0, d1 = (q0, q1, v0, v1) if what == "q" else (v0, v1, a0, a1)
             h00 = 2 * x**3 - 3 * x**2 + 1
