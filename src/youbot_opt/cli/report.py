@@ -1,0 +1,147 @@
+"""``youbot-opt report``: print a model report (joints, masses, limits, M(q), N(q), tip pose).
+
+Usage::
+
+    youbot-opt report [--robot NAME|PATH] [--q Q1 Q2 ...]
+
+The default robot is the study's youBot arm and the default configuration its
+start configuration ``(-pi/6, -pi/6, -pi/3)`` [rad]; other robots default to
+their neutral configuration.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt.model import (
+    RobotModel,
+    _as_q,
+    available_robots,
+    frame_placement,
+    load_model,
+    tip_pose,
+)
+from youbot_opt.params import STUDY_Q_START
+
+__all__ = ["register", "format_report"]
+
+_YOUBOT = "youbot"
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``report`` sub-command.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The dispatcher's sub-parsers.
+    """
+    p = sub.add_parser(
+        "report",
+        help="print a model report: joints, masses, limits, M(q), gravity torques, tip pose",
+        description="Print a model report of a robot at a configuration.",
+    )
+    p.add_argument(
+        "--robot",
+        default=_YOUBOT,
+        metavar="NAME|PATH",
+        help=f"robot name ({', '.join(available_robots())}) or URDF path (default: youbot)",
+    )
+    p.add_argument(
+        "--q",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="Q",
+        help="configuration in [rad] (default: the study's start for youbot, else neutral)",
+    )
+    p.set_defaults(func=_run)
+
+
+def _fmt(x: np.ndarray, digits: int = 6) -> str:
+    return np.array2string(np.asarray(x), precision=digits, suppress_small=True, max_line_width=100)
+
+
+def _limit_row(name: str, lo: float, hi: float, vel: float, eff: float) -> str:
+    deg = f"[{math.degrees(lo):9.2f}, {math.degrees(hi):9.2f}] deg  {math.degrees(vel):7.2f} deg/s"
+    si = f"[{lo:8.4f}, {hi:8.4f}] rad  {vel:7.4f} rad/s  {eff:7.3f} N m"
+    return f"  {name:<24} {si}   | {deg}"
+
+
+def format_report(robot: RobotModel, q: np.ndarray) -> str:
+    """Return the report text of ``robot`` at configuration ``q``.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot.
+    q : numpy.ndarray
+        Configuration in [rad], shape (nq,).
+
+    Returns
+    -------
+    str
+        Multi-line report (SI units, with data-sheet degrees beside the limits).
+    """
+    qa = _as_q(robot, q)
+    model = robot.model
+    data = robot.create_data()
+    lines = [
+        f"robot: {robot.name}  (nq={robot.nq}, nv={robot.nv})",
+        f"urdf: {robot.urdf_path if robot.urdf_path is not None else '(built in memory)'}",
+        f"tip frame: {robot.tip_frame}",
+        f"gravity: {_fmt(model.gravity.linear)} m/s^2",
+        "joints (type, body mass [kg]):",
+    ]
+    for jid in range(1, model.njoints):
+        mass = model.inertias[jid].mass
+        lines.append(f"  {model.names[jid]:<24} {model.joints[jid].shortname():<28} {mass:.6g}")
+    lines.append("limits (SI | data-sheet units; revolute joints read in degrees):")
+    lo, hi, vel, eff = robot.q_lower, robot.q_upper, robot.velocity_limit, robot.effort_limit
+    for jid in range(1, model.njoints):
+        j = model.joints[jid]
+        if j.nq != 1 or j.nv != 1:
+            lines.append(f"  {model.names[jid]:<24} (multi-dof joint, see the URDF)")
+            continue
+        iq, iv = j.idx_q, j.idx_v
+        lines.append(_limit_row(model.names[jid], lo[iq], hi[iq], vel[iv], eff[iv]))
+    lines.append(f"damping: {_fmt(robot.damping)} N m s/rad")
+    mass_matrix = pin.crba(model, data, qa)
+    mass_matrix = np.triu(mass_matrix) + np.triu(mass_matrix, 1).T
+    lines += [
+        f"q: {_fmt(qa)} rad",
+        "M(q) [kg m^2]:",
+        _fmt(mass_matrix),
+        f"gravity torque N(q): {_fmt(pin.computeGeneralizedGravity(model, data, qa))} N m",
+    ]
+    if robot.name == _YOUBOT or robot.tip_frame == "gripper_tip":
+        pose = tip_pose(robot, qa)
+        lines += [
+            f"tip position (x, z) in platform: {_fmt(pose.position)} m",
+            "tip rotation (2-D, platform x-z plane):",
+            _fmt(pose.rotation),
+        ]
+    else:
+        placement = frame_placement(robot, qa)
+        lines += [
+            f"tip position in root frame: {_fmt(placement.translation)} m",
+            "tip rotation:",
+            _fmt(placement.rotation),
+        ]
+    return "\n".join(lines)
+
+
+def _run(args: argparse.Namespace) -> int:
+    robot = load_model(args.robot)
+    if args.q is not None:
+        q = np.asarray(args.q, dtype=float)
+    elif robot.name == _YOUBOT:
+        q = np.asarray(STUDY_Q_START)
+    else:
+        q = pin.neutral(robot.model)
+    print(format_report(robot, q))
+    return 0

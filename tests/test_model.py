@@ -1,0 +1,178 @@
+"""Tests of youbot_opt.model: loading robots, limits, frames and the tip-pose convention."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from youbot_opt.cli import main as cli_main
+from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, RobotNotFound
+from youbot_opt.model import (
+    RobotModel,
+    available_robots,
+    frame_placement,
+    load_model,
+    tip_pose,
+)
+from youbot_opt.params import STUDY_Q_START, YOUBOT_PLANAR
+
+A, H = 0.184, 0.147
+L1, L2, L3 = 0.155, 0.135, 0.2175
+PI = math.pi
+# Spec trajopt.md tip-pose table: q -> (position (x, z), 2-D rotation).
+SPEC_TIP_TABLE = [
+    ((0.0, 0.0, 0.0), (A, H + L1 + L2 + L3), [[0, -1], [1, 0]]),
+    ((0.0, PI / 2, 0.0), (A - L2 - L3, H + L1), [[-1, 0], [0, -1]]),
+    ((-PI / 2, PI / 2, -PI / 2), (A + L1 + L3, H + L2), [[1, 0], [0, 1]]),
+    ((PI, -PI, PI), (A, H - L1 + L2 - L3), [[0, 1], [-1, 0]]),
+]
+
+
+@pytest.fixture(scope="module")
+def youbot() -> RobotModel:
+    """The committed youBot model."""
+    return load_model("youbot")
+
+
+@pytest.mark.parametrize(("q", "position", "rotation"), SPEC_TIP_TABLE)
+def test_tip_pose_matches_spec_table(
+    youbot: RobotModel, q: tuple[float, ...], position: tuple[float, float], rotation: list
+) -> None:
+    """tip_pose reproduces the four tip poses of the spec table."""
+    pose = tip_pose(youbot, q)
+    # 1e-12 [m]: sums of a few products of O(1) numbers, rounding is ~1e-16.
+    np.testing.assert_allclose(pose.position, position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(pose.rotation, rotation, rtol=0, atol=1e-12)
+
+
+def test_youbot_model_contents(youbot: RobotModel) -> None:
+    """The youBot model has 3 DoF, the table limits, no damping, g = 9.81 along -z."""
+    assert (youbot.nq, youbot.nv) == (3, 3)
+    assert youbot.joint_names == ("arm_joint_1", "arm_joint_2", "arm_joint_3")
+    assert youbot.tip_frame == "gripper_tip"
+    np.testing.assert_allclose(youbot.q_lower, YOUBOT_PLANAR.q_lower, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(youbot.q_upper, YOUBOT_PLANAR.q_upper, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(youbot.effort_limit, YOUBOT_PLANAR.effort_limit, atol=1e-12)
+    np.testing.assert_allclose(
+        youbot.velocity_limit, YOUBOT_PLANAR.velocity_limit, rtol=0, atol=1e-12
+    )
+    np.testing.assert_array_equal(youbot.damping, np.zeros(3))
+    np.testing.assert_array_equal(youbot.model.gravity.linear, [0.0, 0.0, -9.81])
+    assert youbot.urdf_path is not None and youbot.urdf_path.is_file()
+    assert youbot.visual_model.ngeoms >= 3 and youbot.collision_model.ngeoms >= 3
+    with pytest.raises(ValueError, match="read-only"):
+        youbot.q_lower[0] = 0.0
+
+
+def test_load_from_parameters_with_damping_and_gravity() -> None:
+    """ArmParameters build in memory; damping and gravity reach the Pinocchio model."""
+    params = dataclasses.replace(YOUBOT_PLANAR, gravity=1.62, damping=0.1)
+    robot = load_model(params)
+    assert robot.urdf_path is None
+    np.testing.assert_array_equal(robot.damping, [0.1, 0.1, 0.1])
+    np.testing.assert_array_equal(robot.model.gravity.linear, [0.0, 0.0, -1.62])
+    override = load_model("youbot", damping=0.3)
+    np.testing.assert_array_equal(override.damping, [0.3, 0.3, 0.3])
+    with pytest.raises(ParameterError, match="damping"):
+        load_model("youbot", damping=-0.1)
+
+
+@pytest.mark.parametrize("name", ["double_pendulum", "ur5", "panda"])
+def test_example_robot_data_robots_load(name: str) -> None:
+    """example-robot-data robots load with limits, their tip frame and resolvable meshes."""
+    robot = load_model(name)
+    assert robot.name == name
+    assert robot.q_lower.shape == (robot.nq,) and robot.effort_limit.shape == (robot.nv,)
+    assert np.all(robot.q_lower <= robot.q_upper)
+    robot.frame_id(robot.tip_frame)
+    assert robot.visual_model.ngeoms > 0
+    meshes = [
+        g.meshPath
+        for g in robot.visual_model.geometryObjects
+        if g.meshPath.endswith((".stl", ".dae", ".obj"))
+    ]
+    assert meshes, "expected mesh geometry"
+    assert all(Path(m).is_file() for m in meshes)
+    placement = frame_placement(robot, pin.neutral(robot.model))
+    assert np.all(np.isfinite(placement.translation))
+
+
+def test_unknown_robot_lists_names() -> None:
+    """An unknown robot name raises RobotNotFound whose message lists the available names."""
+    with pytest.raises(RobotNotFound, match="ur5") as info:
+        load_model("no_such_robot")
+    assert info.value.available == available_robots()
+    assert "youbot" in str(info.value) and "panda" in str(info.value)
+
+
+def test_missing_path(tmp_path: Path) -> None:
+    """A path that does not exist raises RobotNotFound naming the path."""
+    missing = tmp_path / "nothing.urdf"
+    with pytest.raises(RobotNotFound, match="nothing.urdf") as info:
+        load_model(missing)
+    assert info.value.path == str(missing)
+
+
+def test_malformed_urdf(tmp_path: Path) -> None:
+    """Malformed XML raises ModelError naming the file."""
+    bad = tmp_path / "bad.urdf"
+    bad.write_text('<robot name="x"><link name="a"></robot>', encoding="utf-8")
+    with pytest.raises(ModelError, match="bad.urdf") as info:
+        load_model(bad)
+    assert not isinstance(info.value, RobotNotFound)
+
+
+def test_path_source_and_shared_frame_names(tmp_path: Path) -> None:
+    """A URDF file loads by path; a frame name shared by a fixed joint and a link is usable."""
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(
+        '<robot name="one"><link name="base"/>'
+        '<link name="arm"><inertial><mass value="1"/>'
+        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>'
+        '<link name="tip"/>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="2" effort="3"/></joint>'
+        '<joint name="tip" type="fixed"><parent link="arm"/><child link="tip"/>'
+        '<origin xyz="0.5 0 0"/></joint></robot>',
+        encoding="utf-8",
+    )
+    robot = load_model(urdf)
+    assert robot.name == "one" and robot.tip_frame == "tip"
+    assert robot.model.frames[robot.frame_id("tip")].type == pin.FrameType.BODY
+    placement = frame_placement(robot, [math.pi / 2])
+    # Rotating the 0.5 m lever by pi/2 about z: (0, 0.5, 0), rounding ~1e-16.
+    np.testing.assert_allclose(placement.translation, [0.0, 0.5, 0.0], atol=1e-12)
+    with pytest.raises(FrameNotFound, match="base") as info:
+        load_model(urdf, tip_frame="nope")
+    assert "tip" in info.value.available
+
+
+@pytest.mark.parametrize(
+    ("q", "match"),
+    [([0.0, 0.0], r"shape \(3,\)"), ([0.0, float("nan"), 0.0], "finite"), ("abc", "q must")],
+)
+def test_bad_configuration(youbot: RobotModel, q: object, match: str) -> None:
+    """A q of the wrong shape or with NaN raises ParameterError naming q."""
+    with pytest.raises(ParameterError, match=match) as info:
+        tip_pose(youbot, q)  # type: ignore[arg-type]
+    assert info.value.name == "q"
+
+
+def test_cli_report(capsys: pytest.CaptureFixture[str]) -> None:
+    """`youbot-opt report` prints the tip position at the study's start configuration."""
+    assert cli_main(["report"]) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.startswith("tip position"))
+    printed = np.array([float(t) for t in line.split("[")[1].split("]")[0].split()])
+    phi = np.cumsum(STUDY_Q_START)
+    lengths = np.array([L1, L2, L3])
+    expected = [A - lengths @ np.sin(phi), H + lengths @ np.cos(phi)]
+    # The report prints 6 decimals: 5e-7 [m] is its rounding.
+    np.testing.assert_allclose(printed, expected, rtol=0, atol=5e-7)
+    assert "-65.00" in out and "9.500 N m" in out
+    assert cli_main(["report", "--q", "1", "2"]) == 2
