@@ -1,0 +1,25 @@
+"""CasADi forward/inverse dynamics of fixed-base Pinocchio models.
+
+``build_dynamics(model, backend)`` returns a :class:`Dynamics` holding the named
+CasADi Functions ``forward_dynamics`` (q, v, tau) -> a and ``inverse_dynamics``
+(q, v, a) -> tau, with the model's joint damping applied in both. The
+``"symbolic"`` backend transcribes Pinocchio's algorithms into SX expressions
+(:mod:`youbot_opt.dynamics.symbolic`); the ``"pinocchio"`` backend calls
+Pinocchio through CasADi Callbacks (:mod:`youbot_opt.dynamics.callback`).
+"""
+
+from __future__ import annotations
+
+from youbot_opt.dynamics._tree import SUPPORTED_JOINTS
+from youbot_opt.dynamics.base import BACKENDS, Dynamics, available_backends, build_dynamics
+from youbot_opt.dynamics.symbolic import SymbolicModel, build_symbolic_model
+
+__all__ = [
+    "BACKENDS",
+    "SUPPORTED_JOINTS",
+    "Dynamics",
+    "SymbolicModel",
+    "available_backends",
+    "build_dynamics",
+    "build_symbolic_model",
+]

@@ -1,0 +1,308 @@
+"""The :class:`Dynamics` pair of CasADi Functions and :func:`build_dynamics`.
+
+Every backend yields the same two named Functions with column-vector inputs,
+including the model's viscous joint damping ``b`` (``model.damping``) in both
+directions, so that one is the exact inverse of the other:
+
+* ``forward_dynamics``: (q, v, tau) -> a = ABA(q, v, tau - b∘v)
+* ``inverse_dynamics``: (q, v, a) -> tau = RNEA(q, v, a) + b∘v
+
+i.e. ``M(q) a + C(q, v) v + g(q) + b∘v = tau``. Pinocchio's own ``aba``/``rnea``
+ignore ``model.damping``; these Functions do not.
+
+Backends:
+
+* ``"symbolic"``: :mod:`youbot_opt.dynamics.symbolic`, SX expressions, exact
+  derivatives of any order (IPOPT may use the exact Hessian).
+* ``"pinocchio"``: :mod:`youbot_opt.dynamics.callback`, Pinocchio called through
+  CasADi Callbacks, exact first derivatives only (IPOPT needs
+  ``hessian_approximation = "limited-memory"``).
+* ``"pinocchio_casadi"``: Pinocchio's own CasADi bindings, only where
+  ``import pinocchio.casadi`` works (conda-forge builds; not the PyPI wheel).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.dynamics._tree import as_pin_model, read_tree
+from youbot_opt.exceptions import ParameterError
+
+__all__ = ["Dynamics", "build_dynamics", "available_backends", "BACKENDS"]
+
+_LOG = logging.getLogger(__name__)
+
+BACKENDS: tuple[str, ...] = ("symbolic", "pinocchio", "pinocchio_casadi")
+"""Every backend name :func:`build_dynamics` knows (not all may be available)."""
+
+
+def _has_pinocchio_casadi() -> bool:
+    try:
+        return importlib.util.find_spec("pinocchio.casadi") is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def available_backends() -> tuple[str, ...]:
+    """Return the backends that can be built in this environment.
+
+    Returns
+    -------
+    tuple of str
+        ``("symbolic", "pinocchio")``, plus ``"pinocchio_casadi"`` when
+        ``pinocchio.casadi`` is importable.
+    """
+    extra = ("pinocchio_casadi",) if _has_pinocchio_casadi() else ()
+    return ("symbolic", "pinocchio", *extra)
+
+
+def _vector(name: str, value: Any, size: int) -> Array:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(
+            f"{name} must be a numeric vector of length {size}", name=name, value=value
+        ) from exc
+    if arr.ndim == 2 and 1 in arr.shape:
+        arr = arr.reshape(-1)
+    if arr.shape != (size,):
+        raise ParameterError(
+            f"{name} must have shape ({size},), got {arr.shape}", name=name, value=arr.shape
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must be finite, got {arr}", name=name, value=arr)
+    return arr
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Dynamics:
+    """Forward and inverse dynamics of a fixed-base robot as CasADi Functions.
+
+    Both Functions accept numbers, SX or MX symbols (so they can be called
+    inside an NLP and ``.map(N)``-ed over knots) and include the damping below.
+
+    Attributes
+    ----------
+    backend : str
+        ``"symbolic"``, ``"pinocchio"`` or ``"pinocchio_casadi"``.
+    nq, nv : int
+        Numbers of configuration coordinates and velocities.
+    damping : ndarray, shape (nv,)
+        Viscous joint damping ``b`` applied in both Functions, in [N m s/rad]
+        (zeros when built with ``damping=False``): ``M a + nle + b∘v = tau``.
+    forward_dynamics : casadi.Function
+        ``"forward_dynamics"``: (q (nq,), v (nv,), tau (nv,)) -> a (nv,), with
+        q in [rad], v in [rad/s], tau in [N m], a in [rad/s^2].
+    inverse_dynamics : casadi.Function
+        ``"inverse_dynamics"``: (q, v, a) -> tau.
+    """
+
+    backend: str
+    nq: int
+    nv: int
+    damping: Array
+    forward_dynamics: ca.Function
+    inverse_dynamics: ca.Function
+    _keepalive: tuple[Any, ...] = field(default=(), repr=False, compare=False)
+
+    def forward(self, q: Any, v: Any, tau: Any) -> Array:
+        """Evaluate the forward dynamics numerically.
+
+        Parameters
+        ----------
+        q : array_like, shape (nq,)
+            Joint positions in [rad] (or [m] for prismatic joints).
+        v : array_like, shape (nv,)
+            Joint velocities in [rad/s].
+        tau : array_like, shape (nv,)
+            Joint torques in [N m].
+
+        Returns
+        -------
+        ndarray, shape (nv,)
+            Joint accelerations in [rad/s^2].
+
+        Raises
+        ------
+        ParameterError
+            If an input has the wrong shape or is not finite.
+        """
+        args = (_vector("q", q, self.nq), _vector("v", v, self.nv), _vector("tau", tau, self.nv))
+        return np.asarray(self.forward_dynamics(*args), dtype=float).reshape(-1)
+
+    def inverse(self, q: Any, v: Any, a: Any) -> Array:
+        """Evaluate the inverse dynamics numerically.
+
+        Parameters
+        ----------
+        q : array_like, shape (nq,)
+            Joint positions in [rad] (or [m] for prismatic joints).
+        v : array_like, shape (nv,)
+            Joint velocities in [rad/s].
+        a : array_like, shape (nv,)
+            Joint accelerations in [rad/s^2].
+
+        Returns
+        -------
+        ndarray, shape (nv,)
+            Joint torques in [N m].
+
+        Raises
+        ------
+        ParameterError
+            If an input has the wrong shape or is not finite.
+        """
+        args = (_vector("q", q, self.nq), _vector("v", v, self.nv), _vector("a", a, self.nv))
+        return np.asarray(self.inverse_dynamics(*args), dtype=float).reshape(-1)
+
+
+def _symbolic(model: Any, damping: Array) -> Dynamics:
+    from youbot_opt.dynamics.symbolic import FUNCTION_OPTIONS, build_symbolic_model
+
+    sym = build_symbolic_model(model)
+    q, v, u = (ca.SX.sym(name, sym.nv) for name in ("q", "v", "u"))
+    b = ca.DM(damping)
+    forward = ca.Function(
+        "forward_dynamics",
+        [q, v, u],
+        [sym.aba(q, v, u - b * v)],
+        ["q", "v", "tau"],
+        ["a"],
+        FUNCTION_OPTIONS,
+    )
+    inverse = ca.Function(
+        "inverse_dynamics",
+        [q, v, u],
+        [sym.rnea(q, v, u) + b * v],
+        ["q", "v", "a"],
+        ["tau"],
+        FUNCTION_OPTIONS,
+    )
+    return Dynamics(
+        backend="symbolic",
+        nq=sym.nq,
+        nv=sym.nv,
+        damping=damping,
+        forward_dynamics=forward,
+        inverse_dynamics=inverse,
+    )
+
+
+def _pinocchio(model: Any, damping: Array) -> Dynamics:
+    from youbot_opt.dynamics.callback import build_callbacks
+
+    pin_model = as_pin_model(model)
+    forward, inverse = build_callbacks(pin_model, damping)
+    return Dynamics(
+        backend="pinocchio",
+        nq=pin_model.nq,
+        nv=pin_model.nv,
+        damping=damping,
+        forward_dynamics=forward,
+        inverse_dynamics=inverse,
+        _keepalive=(forward, inverse),
+    )
+
+
+def _pinocchio_casadi(model: Any, damping: Array) -> Dynamics:
+    if not _has_pinocchio_casadi():
+        raise ParameterError(
+            "backend 'pinocchio_casadi' is unavailable: the PyPI 'pin' wheel is built without "
+            "pinocchio.casadi (conda-forge's 'pinocchio' package has it); use backend "
+            "'symbolic' (same algorithms transcribed by youbot_opt) or 'pinocchio'",
+            name="backend",
+            value="pinocchio_casadi",
+        )
+    import pinocchio.casadi as cpin  # pragma: no cover - absent from the PyPI wheel
+
+    pin_model = as_pin_model(model)  # pragma: no cover
+    cmodel = cpin.Model(pin_model)  # pragma: no cover
+    cdata = cmodel.createData()  # pragma: no cover
+    q, v, u = (ca.SX.sym(n, pin_model.nv) for n in ("q", "v", "u"))  # pragma: no cover
+    b = ca.DM(damping)  # pragma: no cover
+    forward = ca.Function(  # pragma: no cover
+        "forward_dynamics",
+        [q, v, u],
+        [cpin.aba(cmodel, cdata, q, v, u - b * v)],
+        ["q", "v", "tau"],
+        ["a"],
+    )
+    inverse = ca.Function(  # pragma: no cover
+        "inverse_dynamics",
+        [q, v, u],
+        [cpin.rnea(cmodel, cdata, q, v, u) + b * v],
+        ["q", "v", "a"],
+        ["tau"],
+    )
+    return Dynamics(  # pragma: no cover
+        backend="pinocchio_casadi",
+        nq=pin_model.nq,
+        nv=pin_model.nv,
+        damping=damping,
+        forward_dynamics=forward,
+        inverse_dynamics=inverse,
+        _keepalive=(cmodel, cdata),
+    )
+
+
+def build_dynamics(model: Any, backend: str = "symbolic", *, damping: bool = True) -> Dynamics:
+    """Build forward and inverse dynamics CasADi Functions of a fixed-base robot.
+
+    Parameters
+    ----------
+    model : pin.Model or RobotModel
+        The robot (a ``RobotModel`` is unwrapped through its ``model``
+        attribute). Joints must be 1-dof revolute or prismatic.
+    backend : str, optional
+        ``"symbolic"`` (default), ``"pinocchio"`` or ``"pinocchio_casadi"``;
+        see :func:`available_backends`.
+    damping : bool, optional
+        Apply ``model.damping`` (viscous, [N m s/rad]) in both directions
+        (default True); False gives Pinocchio's undamped ``aba``/``rnea``.
+
+    Returns
+    -------
+    Dynamics
+        The two Functions and their metadata.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown or unavailable backend (the message lists the available
+        ones), a ``model`` that is not a Pinocchio model, or a non-bool ``damping``.
+    ModelError
+        If the model has a joint type the backends do not support.
+    """
+    if backend not in BACKENDS:
+        raise ParameterError(
+            f"unknown dynamics backend {backend!r}; available backends: "
+            f"{', '.join(available_backends())}",
+            name="backend",
+            value=backend,
+        )
+    if not isinstance(damping, bool | np.bool_):
+        raise ParameterError(
+            f"damping must be True (apply model.damping) or False, got {damping!r}; "
+            "set the coefficients on the model (model.damping) or via load_model(damping=...)",
+            name="damping",
+            value=damping,
+        )
+    pin_model = as_pin_model(model)
+    tree = read_tree(pin_model)  # validates the joint types for every backend
+    b = tree.damping.copy() if damping else np.zeros(tree.nv)
+    b.setflags(write=False)
+    builders = {
+        "symbolic": _symbolic,
+        "pinocchio": _pinocchio,
+        "pinocchio_casadi": _pinocchio_casadi,
+    }
+    dynamics = builders[backend](pin_model, b)
+    _LOG.debug("built %s dynamics (nv=%d, damping=%s)", backend, tree.nv, b)
+    return dynamics
