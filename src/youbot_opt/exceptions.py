@@ -20,7 +20,15 @@ __all__ = [
     "SolveFailed",
     "UnreachableTarget",
     "ResultFileError",
+    "ViewerError",
     "YoubotOptWarning",
+    "URDFError",
+    "URDFSyntaxError",
+    "UnsafeURDFError",
+    "UnsafePathError",
+    "ResourceNotFoundError",
+    "URDFStructureError",
+    "InvalidModelError",
 ]
 
 
@@ -134,5 +142,84 @@ class ResultFileError(YoubotOptError):
     """A saved result file is missing, corrupted, or of an unsupported schema version."""
 
 
+class ViewerError(YoubotOptError):
+    """The meshcat viewer server cannot be started, reached or stopped.
+
+    Attributes
+    ----------
+    url : str or None
+        The server's ZeroMQ address, when known.
+    """
+
+    def __init__(self, message: str, *, url: str | None = None) -> None:
+        super().__init__(message)
+        self.url = url
+
+
 class YoubotOptWarning(UserWarning):
     """Recoverable problem worth the user's attention (e.g. a loosened assumption)."""
+
+
+class URDFError(ModelError):
+    """A robot description (or a file it references) breaks a rule of the strict loader.
+
+    Attributes
+    ----------
+    path : str or None
+        File that breaks the rule (the URDF, or the mesh that references a texture).
+    element : str or None
+        The offending element, e.g. ``"<mass> of link 'arm_link_1'"``.
+    line : int or None
+        1-based line of the element in ``path``, when known.
+    rule : str
+        The rule that was broken, in words.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | None = None,
+        element: str | None = None,
+        line: int | None = None,
+        rule: str = "",
+    ) -> None:
+        super().__init__(message, path=path)
+        self.element = element
+        self.line = line
+        self.rule = rule
+
+
+class URDFSyntaxError(URDFError):
+    """The file is not well-formed XML (malformed, truncated, badly encoded)."""
+
+
+class UnsafeURDFError(URDFError):
+    """The file uses an XML feature refused for safety (DOCTYPE, entities) or is not a file."""
+
+
+class UnsafePathError(URDFError):
+    """A mesh or texture reference resolves outside the allowed package directories.
+
+    Also raised for URL schemes other than ``package://`` and ``file://``, for
+    references that resolve to something other than a regular file (a device,
+    a FIFO, a directory) and for mesh formats the loader does not accept.
+    """
+
+
+class ResourceNotFoundError(URDFError):
+    """A mesh or texture reference is allowed but names no existing file."""
+
+
+class URDFStructureError(URDFError):
+    """The XML is not a URDF kinematic tree (root, names, parent/child links, loops)."""
+
+
+class InvalidModelError(URDFError):
+    """The description is a tree but not a physically valid model.
+
+    Raised for malformed or non-finite numbers, negative masses, inertias that
+    no mass distribution can have, zero joint axes, inconsistent joint limits,
+    a loaded model that disagrees with its file, and a joint-space inertia
+    matrix that is not positive definite.
+    """

@@ -257,12 +257,12 @@ def _build_pinocchio_models(
         raise RobotNotFound(
             f"URDF file {str(path)!r} does not exist", path=str(path), available=available_robots()
         )
-    try:
-        model, collision, visual = pin.buildModelsFromUrdf(
-            str(path), package_dirs=[str(p) for p in package_dirs]
-        )
-    except (RuntimeError, ValueError, OSError) as exc:
-        raise ModelError(f"cannot load URDF {str(path)!r}: {exc}", path=str(path)) from exc
+    from youbot_opt.loader import load_urdf_strict
+
+    # The strict loader refuses malformed XML, DOCTYPE/entities, resources outside
+    # ``package_dirs`` and physically invalid models, each with a URDFError (a ModelError).
+    loaded = load_urdf_strict(path, package_dirs)
+    model, visual, collision = loaded.model, loaded.visual_model, loaded.collision_model
     return model, visual, collision
 
 

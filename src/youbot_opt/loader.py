@@ -1,0 +1,394 @@
+"""Strict, safe loading of a URDF file into Pinocchio (issue 6, item 1).
+
+:func:`load_urdf_strict` runs this pipeline and raises at the first broken rule:
+
+1. The file must be a regular file of at most :data:`MAX_URDF_BYTES`
+   (:class:`~youbot_opt.exceptions.UnsafeURDFError`; a missing file raises
+   :class:`~youbot_opt.exceptions.RobotNotFound`).
+2. Strict XML parsing with every ``DOCTYPE`` and entity refused
+   (:mod:`youbot_opt.urdf_xml`).
+3. Tree and physics rules on the file's text (:mod:`youbot_opt.urdf_rules`).
+4. Mesh and texture references, including the textures inside ``.dae`` files,
+   must resolve to regular files inside ``package_dirs``
+   (:mod:`youbot_opt.urdf_resources`).
+5. Pinocchio builds the model from the *checked tree*, re-serialised with each
+   mesh and texture reference replaced by its checked absolute path: it reads
+   exactly what was checked, never resolves a path itself and never consults
+   ``ROS_PACKAGE_PATH``. What Pinocchio's URDF parser prints on the C-level
+   standard error is captured and logged (or put in the error message).
+6. :func:`check_model` compares the model with the file and requires defined
+   dynamics.
+
+Decision on singular mass matrices: a model is accepted only if its joint
+space inertia matrix ``M(q)`` is positive definite, checked at the neutral
+configuration and at 8 seeded random ones. A movable joint whose subtree
+carries no inertia about its axis (e.g. a massless link at the end of a chain)
+makes ``M`` singular, so forward dynamics are undefined; such a file is
+refused with :class:`~youbot_opt.exceptions.InvalidModelError` naming the
+joints. Massless links attached by *fixed* joints are fine: they add nothing.
+If every moving body has a positive definite spatial inertia, ``M(q)`` is
+positive definite at every ``q``; only bodies with degenerate inertia could make
+``M`` singular at configurations the samples miss.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt.exceptions import InvalidModelError, ModelError, RobotNotFound, UnsafeURDFError
+from youbot_opt.urdf_resources import (
+    allowed_roots,
+    check_mesh,
+    read_regular_file,
+    resolve_reference,
+)
+from youbot_opt.urdf_rules import check_urdf_tree, resource_references
+from youbot_opt.urdf_xml import Site, fail, parse_number, parse_xml_strict, root_of, site
+
+__all__ = ["LoadedURDF", "MAX_URDF_BYTES", "load_urdf_strict", "check_urdf_text", "check_model"]
+
+logger = logging.getLogger(__name__)
+
+#: Largest URDF file accepted, in [bytes].
+MAX_URDF_BYTES: int = 64 * 2**20
+#: Random configurations at which M(q) must be positive definite (plus neutral).
+_N_MASS_MATRIX_SAMPLES = 8
+#: M(q) counts as singular when its smallest eigenvalue is below this fraction
+#: of its largest: CRBA round-off is ~1e-16 of the largest, so the bound leaves
+#: four orders of margin while any real arm (condition number < 1e12) passes.
+_MASS_MATRIX_RCOND = 1e-12
+#: Relative tolerance between the file's inertias and the model's: the two
+#: sums differ only by floating-point reassociation (~1e-15).
+_INERTIA_MATCH_RTOL = 1e-10
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LoadedURDF:
+    """A URDF file that passed every rule, loaded into Pinocchio.
+
+    Attributes
+    ----------
+    model : pinocchio.Model
+        Kinematic and inertial model (fixed base, mimic joints as ordinary joints).
+    visual_model : pinocchio.GeometryModel
+        Visual geometries; mesh paths are the checked absolute paths.
+    collision_model : pinocchio.GeometryModel
+        Collision geometries; mesh paths are the checked absolute paths.
+    path : Path
+        The URDF file, absolute.
+    resources : tuple of Path
+        Every file the description references and that was checked (meshes,
+        and the textures and material libraries they reference), real paths.
+    """
+
+    model: pin.Model
+    visual_model: pin.GeometryModel
+    collision_model: pin.GeometryModel
+    path: Path
+    resources: tuple[Path, ...] = ()
+
+
+def _read_and_check(
+    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
+    roots = allowed_roots(package_dirs)
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise RobotNotFound(f"URDF file {name!r} does not exist", path=name)
+    try:
+        data = read_regular_file(
+            Path(name), MAX_URDF_BYTES, Site(name, "file", None), "URDF", UnsafeURDFError
+        )
+    except OSError as e:
+        raise ModelError(f"cannot read URDF file {name!r}: {e}", path=name) from e
+    tree = parse_xml_strict(data, name)
+    check_urdf_tree(tree, name)
+    references: list[tuple[ET.Element, str, Path]] = []
+    resources: list[Path] = []
+    for elem, kind in resource_references(tree, name):
+        where = site(name, elem)
+        real = resolve_reference(elem.get("filename", ""), roots, roots, where)
+        references.append((elem, "filename", real))
+        resources.append(real)
+        if kind == "mesh":
+            resources.extend(check_mesh(real, roots, where))
+    logger.debug("%s: %d resources checked", name, len(resources))
+    return tree, references, tuple(dict.fromkeys(resources))
+
+
+def check_urdf_text(
+    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+) -> ET.ElementTree:
+    """Run every check that needs only the file (steps 1-4 of the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The URDF file.
+    package_dirs : sequence of path-like
+        Folders meshes and textures may come from; ``package://pkg/...``
+        resolves to the first ``dir/pkg/...`` that exists.
+
+    Returns
+    -------
+    xml.etree.ElementTree.ElementTree
+        The parsed file; each element has a ``sourceline`` (1-based line).
+
+    Raises
+    ------
+    RobotNotFound
+        If ``path`` does not exist.
+    ModelError
+        If ``path`` cannot be read (permissions).
+    URDFError
+        One of its subclasses, naming the file, element, line and rule.
+    ParameterError
+        If a package directory is not an existing folder.
+    """
+    return _read_and_check(path, package_dirs)[0]
+
+
+@contextlib.contextmanager
+def _c_stderr_captured() -> Iterator[list[str]]:
+    """Capture what C code writes on file descriptor 2 (not thread-safe)."""
+    captured: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to capture
+        yield captured
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            captured.append(sink.read().decode("utf-8", errors="replace").strip())
+
+
+def _rotation_rpy(rpy: np.ndarray) -> np.ndarray:
+    """URDF roll-pitch-yaw (fixed axes x, y, z) to a rotation matrix: Rz(y) Ry(p) Rx(r)."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def _vector(elem: ET.Element | None, attr: str, where: Site) -> np.ndarray:
+    text = elem.get(attr, "0 0 0") if elem is not None else "0 0 0"
+    return np.array([parse_number(x, where, attr) for x in text.split()])
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _file_inertia(inertial: ET.Element, placement: pin.SE3, where: Site) -> np.ndarray:
+    """Return the 6x6 spatial inertia of an ``<inertial>`` block in a joint frame.
+
+    ``placement`` is the link frame in the joint frame. Layout as Pinocchio's
+    ``Inertia.matrix()`` (linear first): ``[[m 1, -m [c]], [m [c], I_c - m [c]^2]]``
+    with ``c`` the centre of mass in [m] and ``I_c`` the rotational inertia at
+    the centre of mass in [kg m^2], both in joint-frame axes.
+    """
+    origin = inertial.find("origin")
+    mass_elem, inertia_elem = inertial.find("mass"), inertial.find("inertia")
+    assert mass_elem is not None and inertia_elem is not None  # checked by the tree rules
+    mass = parse_number(mass_elem.get("value"), where, "value")
+    ixx, ixy, ixz, iyy, iyz, izz = (
+        parse_number(inertia_elem.get(k), where, k)
+        for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    )
+    rotation = placement.rotation @ _rotation_rpy(_vector(origin, "rpy", where))
+    com = placement.rotation @ _vector(origin, "xyz", where) + placement.translation
+    i_com = rotation @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ rotation.T
+    cross = _skew(com)
+    return np.block(
+        [[mass * np.eye(3), -mass * cross], [mass * cross, i_com - mass * cross @ cross]]
+    )
+
+
+def _check_joints(model: pin.Model, robot: ET.Element, path: str) -> None:
+    movable = [j.get("name", "") for j in robot.findall("joint") if j.get("type") != "fixed"]
+    in_model = list(model.names)[1:]
+    if sorted(movable) != sorted(in_model):
+        problem = f"file has movable joints {sorted(movable)}, model has {sorted(in_model)}"
+        raise fail(
+            InvalidModelError,
+            Site(path, "<robot>", None),
+            problem,
+            "the model has the file's joints",
+        )
+
+
+def _check_inertias(model: pin.Model, robot: ET.Element, path: str) -> None:
+    expected = [np.zeros((6, 6)) for _ in range(model.njoints)]
+    for link in robot.findall("link"):
+        where = site(path, link)
+        frame_id = model.getFrameId(link.get("name"), pin.FrameType.BODY)
+        if frame_id >= len(model.frames):
+            raise fail(
+                InvalidModelError, where, "is not a body of the model", "every link is in the model"
+            )
+        inertial = link.find("inertial")
+        if inertial is not None:
+            frame = model.frames[frame_id]
+            expected[frame.parentJoint] += _file_inertia(inertial, frame.placement, where)
+    rule = "every <inertial> of the file is in the model, unchanged"
+    for joint_id, (want, got) in enumerate(zip(expected, model.inertias, strict=True)):
+        have = got.matrix()
+        scale = max(np.abs(want).max(), np.abs(have).max())
+        if not np.all(np.isfinite(have)) or np.abs(want - have).max() > _INERTIA_MATCH_RTOL * scale:
+            problem = (
+                f"body of joint {model.names[joint_id]!r} has mass {got.mass} kg in the model, but "
+                f"its links' <inertial> blocks add up to {want[0, 0]} kg (6x6 spatial inertias "
+                f"differ by {np.abs(want - have).max():.3g})"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, rule)
+
+
+def _check_mass_matrix(model: pin.Model, path: str) -> None:
+    if model.nv == 0:
+        return
+    data = model.createData()
+    rng = np.random.default_rng(0)
+    neutral = pin.neutral(model)
+    configurations = [neutral] + [
+        pin.integrate(model, neutral, rng.uniform(-np.pi, np.pi, model.nv))
+        for _ in range(_N_MASS_MATRIX_SAMPLES)
+    ]
+    for sample, q in enumerate(configurations):
+        upper = pin.crba(model, data, q)
+        mass_matrix = np.triu(upper) + np.triu(upper, 1).T
+        eigenvalues, eigenvectors = np.linalg.eigh(mass_matrix)
+        if eigenvalues[0] > _MASS_MATRIX_RCOND * eigenvalues[-1] and eigenvalues[-1] > 0:
+            continue
+        where = "the neutral configuration" if sample == 0 else f"random configuration {sample}"
+        weak = np.abs(eigenvectors[:, 0]) > 1e-3  # joints taking part in the inertia-free motion
+        joints = sorted(
+            model.names[j]
+            for j in range(1, model.njoints)
+            if np.any(weak[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]])
+        )
+        problem = (
+            f"the joint space inertia matrix M(q) is singular at {where}: "
+            f"eigenvalues from {eigenvalues[0]:.3g} to {eigenvalues[-1]:.3g}; "
+            f"joints {joints} move without inertia (e.g. a massless link at the end of a chain)"
+        )
+        rule = "M(q) is positive definite (forward dynamics are defined)"
+        raise fail(InvalidModelError, Site(path, "<robot>", None), problem, rule)
+
+
+def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[str]) -> None:
+    """Check a loaded model against its file and require defined dynamics.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The model Pinocchio built from the file.
+    tree : xml.etree.ElementTree.ElementTree
+        The parsed file, from :func:`check_urdf_text`.
+    path : path-like
+        The file, for error messages.
+
+    Raises
+    ------
+    InvalidModelError
+        If the model's joints are not the file's movable joints, a link is
+        missing, the mass and inertia of a body differ from the sum of its
+        links' ``<inertial>`` blocks in the file (Pinocchio silently drops a
+        block it cannot parse), or ``M(q)`` is not positive definite (see the
+        module docstring).
+    """
+    name = os.fspath(path)
+    robot = root_of(tree, name)
+    _check_joints(model, robot, name)
+    _check_inertias(model, robot, name)
+    _check_mass_matrix(model, name)
+
+
+def load_urdf_strict(
+    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+) -> LoadedURDF:
+    """Check a URDF file, load it into Pinocchio and check the result.
+
+    Parameters
+    ----------
+    path : path-like
+        The URDF file.
+    package_dirs : sequence of path-like
+        Folders meshes and textures may come from; ``package://pkg/...``
+        resolves to the first ``dir/pkg/...`` that exists.
+
+    Returns
+    -------
+    LoadedURDF
+        Model, visual and collision geometry models, path and checked resources.
+
+    Raises
+    ------
+    RobotNotFound
+        If ``path`` does not exist.
+    ModelError
+        If ``path`` cannot be read (permissions).
+    URDFError
+        One of its subclasses (:class:`~youbot_opt.exceptions.URDFSyntaxError`,
+        :class:`~youbot_opt.exceptions.UnsafeURDFError`,
+        :class:`~youbot_opt.exceptions.UnsafePathError`,
+        :class:`~youbot_opt.exceptions.ResourceNotFoundError`,
+        :class:`~youbot_opt.exceptions.URDFStructureError`,
+        :class:`~youbot_opt.exceptions.InvalidModelError`), naming the file,
+        element, line and rule.
+    ParameterError
+        If a package directory is not an existing folder.
+    """
+    name = os.fspath(path)
+    tree, references, resources = _read_and_check(path, package_dirs)
+    for elem, attr, real in references:
+        elem.set(attr, os.fspath(real))
+    text = ET.tostring(root_of(tree, name), encoding="unicode")
+    dirs = [os.fspath(d) for d in allowed_roots(package_dirs)]
+    error: Exception | None = None
+    with _c_stderr_captured() as report:
+        try:
+            model = pin.buildModelFromXML(text)
+            visual = pin.buildGeomFromUrdfString(
+                model, text, pin.GeometryType.VISUAL, package_dirs=dirs
+            )
+            collision = pin.buildGeomFromUrdfString(
+                model, text, pin.GeometryType.COLLISION, package_dirs=dirs
+            )
+        except (ValueError, RuntimeError) as e:
+            error = e
+    parser_output = report[0] if report else ""
+    if error is not None:
+        problem = (
+            f"Pinocchio refused the checked description: {error}; "
+            f"its parser said: {parser_output or '-'}"
+        )
+        raise fail(
+            InvalidModelError, Site(name, "<robot>", None), problem, "Pinocchio builds the model"
+        ) from error
+    if parser_output:
+        logger.warning("Pinocchio's URDF parser reported for %s: %s", name, parser_output)
+    check_model(model, tree, name)
+    return LoadedURDF(
+        model=model,
+        visual_model=visual,
+        collision_model=collision,
+        path=Path(name).absolute(),
+        resources=resources,
+    )

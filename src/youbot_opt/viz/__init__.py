@@ -1,0 +1,52 @@
+"""Visualisation: meshcat replay, live and as standalone HTML.
+
+The names below are imported on first use, so that ``import youbot_opt`` (and
+``import youbot_opt.viz``) does not import meshcat, zmq and tornado.
+
+* :func:`replay` plays a trajectory in a live meshcat viewer;
+  :func:`export_html` writes one HTML file that plays it offline.
+* :class:`MeshcatServer` runs a meshcat server bound to 127.0.0.1 and stops it
+  again; :func:`connect` returns a client whose calls time out.
+* :func:`load_mesh_file` applies the mesh policy: which files may be embedded.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from youbot_opt.viz.mesh_policy import check_mesh_file, load_mesh_file
+    from youbot_opt.viz.meshcat_replay import export_html, replay, scene_html
+    from youbot_opt.viz.meshcat_server import MeshcatServer, connect
+
+__all__ = [
+    "replay",
+    "export_html",
+    "scene_html",
+    "MeshcatServer",
+    "connect",
+    "check_mesh_file",
+    "load_mesh_file",
+]
+
+_SOURCES = {
+    "replay": "meshcat_replay",
+    "export_html": "meshcat_replay",
+    "scene_html": "meshcat_replay",
+    "MeshcatServer": "meshcat_server",
+    "connect": "meshcat_server",
+    "check_mesh_file": "mesh_policy",
+    "load_mesh_file": "mesh_policy",
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name of this package on first use (PEP 562)."""
+    if name not in _SOURCES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_SOURCES[name]}"), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

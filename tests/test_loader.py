@@ -1,0 +1,364 @@
+"""Tests of the strict URDF loader: the hostile corpus, reference robots and the rules.
+
+The corpus (``tests/urdf_corpus``, listed in ``manifest.json`` with the expected
+error class and a message fragment for each file) is loaded file by file in
+child processes with a memory and a time cap (``tests/_load_in_subprocess.py``).
+Mesh fixtures that cannot live in git (symlinks, a FIFO, a folder named like a
+mesh) are made in a temporary copy of the corpus package.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from lxml import etree
+
+from youbot_opt import loader
+from youbot_opt.exceptions import (
+    InvalidModelError,
+    ParameterError,
+    ResourceNotFoundError,
+    RobotNotFound,
+    UnsafePathError,
+    UnsafeURDFError,
+    URDFError,
+    URDFSyntaxError,
+    YoubotOptWarning,
+)
+from youbot_opt.loader import check_model, check_urdf_text, load_urdf_strict
+from youbot_opt.urdf_resources import check_mesh
+from youbot_opt.urdf_xml import Site, parse_number, parse_xml_strict
+
+HERE = Path(__file__).resolve().parent
+CORPUS = HERE / "urdf_corpus"
+MANIFEST = json.loads((CORPUS / "manifest.json").read_text())
+HELPER = HERE / "_load_in_subprocess.py"
+ERROR_CLASSES = {
+    "URDFSyntaxError",
+    "UnsafeURDFError",
+    "UnsafePathError",
+    "ResourceNotFoundError",
+    "URDFStructureError",
+    "InvalidModelError",
+}
+ROBOTS = Path(
+    str(
+        importlib.metadata.distribution("example-robot-data").locate_file(
+            "cmeel.prefix/share/example-robot-data/robots"
+        )
+    )
+)
+ROBOT_DIRS = [ROBOTS, ROBOTS.parent.parent]  # robots/ and share/ (package://example-robot-data/...)
+YOUBOT = HERE.parent / "urdf" / "youbot_arm_planar.urdf"
+REFERENCE_ROBOTS = {
+    "ur5": ROBOTS / "ur_description/urdf/ur5_robot.urdf",
+    "panda": ROBOTS / "panda_description/urdf/panda.urdf",
+    "double_pendulum": ROBOTS / "double_pendulum_description/urdf/double_pendulum.urdf",
+    "youbot": YOUBOT,
+}
+
+
+def _make_corpus_packages(root: Path) -> Path:
+    """Copy the corpus package to ``root`` and add the fixtures git cannot hold."""
+    packages = root / "packages"
+    shutil.copytree(CORPUS / "pkg", packages)
+    meshes = packages / "corpus_pkg" / "meshes"
+    outside = root / "outside"
+    outside.mkdir()
+    shutil.copy(meshes / "box.stl", outside / "secret.stl")
+    (meshes / "escape.stl").symlink_to(outside / "secret.stl")
+    (meshes / "zero.stl").symlink_to("/dev/zero")
+    (meshes / "inside_link.stl").symlink_to("box.stl")
+    os.mkfifo(meshes / "fifo.stl")
+    (meshes / "folder.stl").mkdir()
+    return packages
+
+
+@pytest.fixture(scope="module")
+def corpus_packages(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _make_corpus_packages(tmp_path_factory.mktemp("corpus"))
+
+
+@pytest.fixture(scope="module")
+def subprocess_reports(corpus_packages: Path) -> dict[str, dict]:
+    """Load every corpus file and reference robot in capped child processes, once."""
+    jobs = [
+        {"id": e["file"], "path": str(CORPUS / e["file"]), "package_dirs": [str(corpus_packages)]}
+        for e in MANIFEST
+    ]
+    jobs += [
+        {"id": name, "path": str(path), "package_dirs": [str(d) for d in ROBOT_DIRS]}
+        for name, path in REFERENCE_ROBOTS.items()
+        if path.exists()
+    ]
+    jobs += [
+        {"id": "selftest-allocate", "selftest": "allocate"},
+        {"id": "selftest-sleep", "selftest": "sleep", "timeout": 1},
+    ]
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, str(HELPER)],
+        input=json.dumps(jobs),
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+        check=True,
+    )
+    reports = [json.loads(line) for line in done.stdout.splitlines()]
+    return {r["id"]: r for r in reports}
+
+
+def test_manifest_covers_the_corpus() -> None:
+    """Every corpus file is listed, >= 40 are hostile and every error class is exercised."""
+    on_disk = {p.relative_to(CORPUS).as_posix() for p in CORPUS.rglob("*.urdf")}
+    listed = [e["file"] for e in MANIFEST]
+    assert sorted(listed) == sorted(on_disk)
+    assert len(set(listed)) == len(listed)
+    expected = {e["expect"] for e in MANIFEST}
+    assert expected == ERROR_CLASSES | {"ok"}
+    assert sum(e["expect"] != "ok" for e in MANIFEST) >= 40
+    assert all(e["expect"] == "ok" or e["match"] for e in MANIFEST)
+
+
+@pytest.mark.parametrize("entry", MANIFEST, ids=[e["file"] for e in MANIFEST])
+def test_corpus_file(entry: dict, subprocess_reports: dict[str, dict]) -> None:
+    """In a capped child, the file loads or fails with exactly the expected class and rule."""
+    report = subprocess_reports[entry["file"]]
+    assert report["outcome"] in ("ok", "error"), report  # no time-out, kill or crash
+    got = report.get("error_class", "ok")
+    assert got == entry["expect"], report.get("message")
+    if got != "ok":
+        message = report["message"]
+        assert entry["match"] in message
+        assert entry["file"] in message or ".dae" in message or ".obj" in message  # names the file
+        assert "[rule: " in message
+
+
+def test_child_process_caps_are_enforced(subprocess_reports: dict[str, dict]) -> None:
+    """The harness really caps memory (8 GiB allocation fails) and wall time (1 s sleep killed)."""
+    assert subprocess_reports["selftest-allocate"]["error_class"] == "MemoryError"
+    assert subprocess_reports["selftest-sleep"]["outcome"] == "timeout"
+    assert subprocess_reports["selftest-sleep"]["seconds"] < 5.0  # killed near its 1 s cap
+
+
+def _movable_joint_count(path: Path) -> int:
+    tree = etree.parse(str(path), etree.XMLParser(resolve_entities=False, no_network=True))
+    return sum(j.get("type") != "fixed" for j in tree.getroot().findall("joint"))
+
+
+@pytest.mark.parametrize("name", sorted(REFERENCE_ROBOTS))
+def test_reference_robot_loads_in_child(name: str, subprocess_reports: dict[str, dict]) -> None:
+    """ur5, panda, double_pendulum and the youBot load, with one q per movable joint of the file."""
+    path = REFERENCE_ROBOTS[name]
+    if not path.exists():
+        pytest.skip(f"{path} not generated yet")
+    report = subprocess_reports[name]
+    assert report["outcome"] == "ok", report
+    assert report["nq"] == _movable_joint_count(path)  # all are revolute/prismatic: nq 1 each
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda", "double_pendulum"])
+def test_reference_robot_matches_its_file(name: str) -> None:
+    """Loaded masses and meshes agree with an independent lxml reading of the file."""
+    path = REFERENCE_ROBOTS[name]
+    loaded = load_urdf_strict(path, ROBOT_DIRS)
+    root = etree.parse(str(path)).getroot()
+    file_mass = sum(float(m.get("value")) for m in root.iter("mass"))
+    model_mass = sum(inertia.mass for inertia in loaded.model.inertias)
+    # a sum of ~10 masses in another order: round-off ~1e-15 relative
+    np.testing.assert_allclose(model_mass, file_mass, rtol=1e-12)
+    visual_meshes = root.findall("link/visual/geometry/mesh")
+    mesh_paths = [g.meshPath for g in loaded.visual_model.geometryObjects]
+    assert len(mesh_paths) == len(visual_meshes)
+    for mesh_path in mesh_paths:
+        assert Path(mesh_path) in loaded.resources
+        assert Path(mesh_path).is_relative_to(ROBOTS.resolve())
+        assert Path(mesh_path).is_file()
+
+
+def test_collada_textures_of_example_robot_data_pass_the_path_rules() -> None:
+    """anymal_c's .dae textures (ur5/panda .dae have none) resolve inside, as lxml lists them."""
+    meshes = sorted((ROBOTS / "anymal_c_simple_description/meshes").glob("*.dae"))
+    assert meshes
+    ns = {"c": "http://www.collada.org/2005/11/COLLADASchema"}
+    for dae in meshes:
+        listed = (
+            etree.parse(str(dae)).getroot().xpath("//c:library_images//c:init_from", namespaces=ns)
+        )
+        expected = {(dae.parent / e.text.strip()).resolve() for e in listed}
+        found = set(check_mesh(dae.resolve(), [ROBOTS.resolve()], Site(str(dae), "<mesh>", None)))
+        assert found == expected
+        assert expected  # each of these meshes is textured
+
+
+def test_every_truncation_is_a_syntax_error() -> None:
+    """Each of the ~3500 proper prefixes of double_pendulum.urdf is refused as malformed XML."""
+    data = REFERENCE_ROBOTS["double_pendulum"].read_bytes()
+    end = data.rindex(b"</robot>") + len(b"</robot>")
+    parse_xml_strict(data, "whole")  # the complete file parses
+    for k in range(end):
+        with pytest.raises(URDFSyntaxError):
+            parse_xml_strict(data[:k], f"prefix {k}")
+
+
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_parse_number_reads_every_finite_float(x: float) -> None:
+    """repr() and %.17e of any finite float parse back to exactly that float."""
+    where = Site("f", "<e>", 1)
+    assert parse_number(repr(x), where, "a") == x
+    assert parse_number(f"{x:.17e}", where, "a") == x
+
+
+@given(st.text(max_size=12) | st.from_regex(r"\s*[-+]?[0-9_.,eEx]{0,8}\s*", fullmatch=True))
+def test_parse_number_accepts_exactly_finite_decimals(text: str) -> None:
+    """parse_number accepts a string iff float() reads it finitely and it uses only 0-9 + - . e E.
+
+    Surrounding ASCII blanks are allowed; anything else (``1_0``, ``nan``, ``1,5``,
+    Unicode digits or spaces) is refused although ``float`` may read it.
+    """
+    try:
+        reference = float(text)
+    except ValueError:
+        reference = math.nan
+    ascii_decimal = set(text.strip(" \t\r\n")) <= set("0123456789+-.eE")
+    should_accept = ascii_decimal and math.isfinite(reference)
+    try:
+        value = parse_number(text, Site("f", "<e>", 1), "a")
+    except InvalidModelError:
+        assert not should_accept
+    else:
+        assert should_accept and value == reference
+
+
+def test_errors_name_file_element_line_and_rule() -> None:
+    """A rule violation reports the file, the element with its link, the line and the rule."""
+    path = CORPUS / "physics" / "mass_nan.urdf"
+    line = next(i for i, s in enumerate(path.read_text().splitlines(), 1) if 'value="nan"' in s)
+    with pytest.raises(InvalidModelError) as info:
+        check_urdf_text(path, [])
+    error = info.value
+    assert (error.path, error.line) == (str(path), line)
+    assert error.element == "<mass> of link 'arm'"
+    assert error.rule
+    assert str(error).startswith(f"{path}:{line}: <mass> of link 'arm': value='nan'")
+
+
+def test_check_urdf_text_keeps_source_lines(corpus_packages: Path) -> None:
+    """The returned tree's elements carry the line numbers of the file."""
+    path = CORPUS / "valid" / "minimal.urdf"
+    tree = check_urdf_text(path, [corpus_packages])
+    lines = path.read_text().splitlines()
+    joint = tree.getroot().find("joint")
+    assert joint is not None
+    assert lines[joint.sourceline - 1].strip().startswith('<joint name="shoulder"')
+
+
+def test_pinocchio_silently_drops_a_bad_inertial_and_check_model_catches_it() -> None:
+    """Pinocchio loads mass '1,5' as a massless link; check_model compares with the file."""
+    valid = (CORPUS / "valid" / "minimal.urdf").read_text()
+    broken = valid.replace('<mass value="1.0"/>', '<mass value="1,5"/>')
+    model = pin.buildModelFromXML(broken)
+    assert model.inertias[1].mass == 0.0  # the silent drop this loader exists for
+    tree = parse_xml_strict(valid.encode(), "minimal.urdf")
+    with pytest.raises(InvalidModelError, match="add up to 1.0 kg"):
+        check_model(model, tree, "minimal.urdf")
+    check_model(pin.buildModelFromXML(valid), tree, "minimal.urdf")  # the faithful model passes
+
+
+def test_urdf_path_must_be_a_small_regular_file(tmp_path: Path, monkeypatch) -> None:
+    """Devices, FIFOs, folders and too large files are refused unread; missing is not found."""
+    fifo = tmp_path / "robot.urdf"
+    os.mkfifo(fifo)
+    for path in ("/dev/zero", fifo, tmp_path):
+        with pytest.raises(UnsafeURDFError, match="not a regular file"):
+            load_urdf_strict(path, [])
+    with pytest.raises(RobotNotFound, match="does not exist"):
+        load_urdf_strict(tmp_path / "missing.urdf", [])
+    monkeypatch.setattr(loader, "MAX_URDF_BYTES", 100)
+    with pytest.raises(UnsafeURDFError, match="larger than 100 bytes"):
+        load_urdf_strict(CORPUS / "valid" / "minimal.urdf", [])
+
+
+def test_package_dirs_must_be_existing_folders(tmp_path: Path) -> None:
+    """A missing package folder or a bare string instead of a sequence is a ParameterError."""
+    urdf = CORPUS / "valid" / "single_link.urdf"
+    with pytest.raises(ParameterError, match="not an existing folder"):
+        load_urdf_strict(urdf, [tmp_path / "nowhere"])
+    with pytest.raises(ParameterError, match="sequence of folders"):
+        load_urdf_strict(urdf, str(tmp_path))  # type: ignore[arg-type]
+
+
+def test_ros_package_path_is_not_consulted(corpus_packages: Path, monkeypatch) -> None:
+    """Pinocchio alone finds package:// meshes via ROS_PACKAGE_PATH; the strict loader does not."""
+    urdf = CORPUS / "valid" / "minimal.urdf"
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(corpus_packages))
+    text = urdf.read_text()
+    model = pin.buildModelFromXML(text)
+    found = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
+    assert Path(found.geometryObjects[0].meshPath).is_file()  # Pinocchio looked there
+    with pytest.raises(ResourceNotFoundError):
+        load_urdf_strict(urdf, [])
+
+
+def test_geometry_uses_the_checked_real_paths(corpus_packages: Path) -> None:
+    """A mesh reached through an inside symlink is loaded from the checked real path."""
+    loaded = load_urdf_strict(CORPUS / "valid" / "symlink_inside.urdf", [corpus_packages])
+    real = (corpus_packages / "corpus_pkg" / "meshes" / "box.stl").resolve()
+    assert [g.meshPath for g in loaded.visual_model.geometryObjects] == [str(real)]
+    assert loaded.resources == (real,)
+
+
+def test_textured_collada_lists_its_texture(corpus_packages: Path) -> None:
+    """A .dae texture is checked and reported; the effect's image-id <init_from> is not a path."""
+    loaded = load_urdf_strict(CORPUS / "valid" / "textured_dae.urdf", [corpus_packages])
+    meshes = (corpus_packages / "corpus_pkg" / "meshes").resolve()
+    assert loaded.resources == (meshes / "textured.dae", meshes / "tex.png")
+
+
+def test_missing_obj_material_library_only_warns(tmp_path: Path) -> None:
+    """An .obj whose mtllib is missing loads with a warning (assimp uses a default material)."""
+    package = _make_corpus_packages(tmp_path)
+    (package / "corpus_pkg" / "meshes" / "tetra.mtl").unlink()
+    with pytest.warns(YoubotOptWarning, match="material library 'tetra.mtl' is missing"):
+        loaded = load_urdf_strict(CORPUS / "valid" / "obj_with_material.urdf", [package])
+    assert loaded.model.nq == 1
+
+
+def test_escape_is_checked_before_existence(corpus_packages: Path, tmp_path: Path) -> None:
+    """A reference leaving the package is unsafe even when its target does not exist."""
+    text = (CORPUS / "valid" / "minimal.urdf").read_text()
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(text.replace("package://corpus_pkg/meshes/box.stl", "/no/such/dir/x.stl"))
+    with pytest.raises(UnsafePathError, match="outside"):
+        check_urdf_text(urdf, [corpus_packages])
+
+
+def test_c_stderr_is_captured_and_restored(capfd: pytest.CaptureFixture[str]) -> None:
+    """C-level writes to fd 2 during a build are captured, and fd 2 works normally afterwards."""
+    with loader._c_stderr_captured() as captured:
+        os.write(2, b"urdfdom says hello\n")
+    os.write(2, b"after\n")
+    assert captured == ["urdfdom says hello"]
+    assert capfd.readouterr().err == "after\n"
+
+
+def test_every_error_is_a_model_error() -> None:
+    """The new classes sit under ModelError, so existing handlers keep catching them."""
+    from youbot_opt.exceptions import ModelError
+
+    for name in ERROR_CLASSES:
+        cls = getattr(sys.modules["youbot_opt.exceptions"], name)
+        assert issubclass(cls, URDFError) and issubclass(cls, ModelError)
