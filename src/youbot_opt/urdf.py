@@ -36,14 +36,17 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import yourdfpy
 from lxml import etree
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.params import YOUBOT_PLANAR, ArmParameters
+
+if TYPE_CHECKING:  # yourdfpy pulls in trimesh (~1.5 s): imported only when a URDF is built
+    import yourdfpy
 
 __all__ = [
     "build_urdf",
@@ -91,11 +94,15 @@ _ROT_TIP = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
 def _material(name: str, rgba: Sequence[float]) -> yourdfpy.Material:
+    import yourdfpy
+
     return yourdfpy.Material(name=name, color=yourdfpy.Color(rgba=np.asarray(rgba, dtype=float)))
 
 
 def _platform_link(params: ArmParameters) -> yourdfpy.Link:
     """Build the root link: a box for the youBot base and a pedestal up to joint 1 (no inertia)."""
+    import yourdfpy
+
     sx, sy, sz = _PLATFORM_SIZE
     box = yourdfpy.Geometry(box=yourdfpy.Box(size=np.array([sx, sy, sz])))
     box_origin = _transform(translation=(0.0, 0.0, sz / 2))
@@ -125,6 +132,8 @@ def _platform_link(params: ArmParameters) -> yourdfpy.Link:
 
 def _arm_link(params: ArmParameters, i: int) -> yourdfpy.Link:
     """Build moving link ``i`` (0-based): inertial at the COM, cylinder along local z."""
+    import yourdfpy
+
     link = params.links[i]
     name = LINK_NAMES[i]
     inertial = yourdfpy.Inertial(
@@ -151,6 +160,8 @@ def _arm_link(params: ArmParameters, i: int) -> yourdfpy.Link:
 
 def _arm_joint(params: ArmParameters, i: int, damping: float) -> yourdfpy.Joint:
     """Build revolute joint ``i`` (0-based) about local +y, with SI limits and damping."""
+    import yourdfpy
+
     if i == 0:
         parent = PLATFORM_LINK
         m = params.mounting
@@ -197,6 +208,8 @@ def build_urdf(
         If ``params`` is not an :class:`ArmParameters` or ``damping`` is
         negative or not finite.
     """
+    import yourdfpy
+
     if not isinstance(params, ArmParameters):
         raise ParameterError(
             f"params must be an ArmParameters, got {type(params).__name__}",
