@@ -19,7 +19,7 @@ from youbot_opt.exceptions import YoubotOptError
 __all__ = ["main", "build_parser"]
 
 #: Sub-command modules, in the order they appear in ``--help``.
-_COMMAND_MODULES: tuple[str, ...] = ("main_job", "report")
+_COMMAND_MODULES: tuple[str, ...] = ("main_job", "solve", "report", "studies", "reproduce", "ikpath")
 
 DEFAULT_COMMAND = "main"
 

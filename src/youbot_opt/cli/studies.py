@@ -1,0 +1,338 @@
+"""``youbot-opt multistart | pareto | bounds``: the study-1 sweeps from the command line.
+
+Usage::
+
+    youbot-opt multistart --starts 50 --beta 0.5 --knots 50 --seed 0 --workers 2 --out DIR
+    youbot-opt pareto --betas 0.05:0.95:0.05 --out DIR
+    youbot-opt bounds --scales 1,0.95,0.9,0.85 --out DIR
+
+Each prints progress on stderr and a table on stdout (``--json``: one JSON
+object instead). With ``--out DIR`` every finished item is saved to DIR as it
+completes, and the same command run again resumes where it stopped (a
+different command or different parameters on the same DIR is an error).
+Exit codes: 0 done, 1 no solve converged, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from typing import Any, TextIO
+
+import numpy as np
+
+from youbot_opt.exceptions import ParameterError
+
+__all__ = ["register", "parse_values"]
+
+
+def parse_values(text: str, name: str) -> tuple[float, ...]:
+    """Parse ``"a:b:step"`` (inclusive of ``b``) or ``"x,y,z"`` into floats.
+
+    Raises
+    ------
+    ParameterError
+        If the text is neither form, a number is not finite, or ``step <= 0``.
+    """
+    try:
+        if ":" in text:
+            parts = [float(p) for p in text.split(":")]
+            if len(parts) != 3:
+                raise ValueError("need start:stop:step")
+            start, stop, step = parts
+            if not (math.isfinite(step) and step > 0):
+                raise ValueError(f"step must be > 0, got {step}")
+            values = np.round(np.arange(start, stop + 0.5 * step, step), 10)
+        else:
+            values = np.array([float(p) for p in text.split(",") if p.strip()])
+    except ValueError as exc:
+        raise ParameterError(
+            f"--{name} must be 'start:stop:step' or a comma-separated list, got {text!r} ({exc})",
+            name=name,
+            value=text,
+        ) from exc
+    if values.size == 0 or not np.all(np.isfinite(values)):
+        raise ParameterError(f"--{name} must list finite numbers, got {text!r}", name=name)
+    return tuple(float(v) for v in values)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--knots", type=int, default=50, help="collocation knots (default 50)")
+    p.add_argument("--seed", type=int, default=0, help="base seed of the random starts (default 0)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="parallel worker processes (default: CPUs available; 0 = in-process)",
+    )
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="save each finished item to DIR; rerunning resumes",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
+    p.add_argument(
+        "--transcription",
+        default="trapezoidal",
+        choices=("trapezoidal", "hermite-simpson"),
+        help="collocation scheme",
+    )
+    p.add_argument(
+        "--backend", default="symbolic", choices=("symbolic", "pinocchio"), help="dynamics backend"
+    )
+    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``multistart``, ``pareto`` and ``bounds`` sub-commands.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The dispatcher's sub-parsers.
+    """
+    p = sub.add_parser(
+        "multistart",
+        help="seeded multistart of the study-1 problem",
+        description="Solve study 1 from seeded random spline guesses.",
+    )
+    _common(p)
+    p.add_argument("--starts", type=int, default=50, help="random spline starts (default 50)")
+    p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1]")
+    p.add_argument("--bound-scale", type=float, default=1.0, help="bound scale (1 = data sheet)")
+    p.add_argument("--straight", action="store_true", help="also start from the straight line")
+    p.add_argument(
+        "--obj-tol",
+        type=float,
+        default=1e-5,
+        help="relative objective tolerance of the distinct-optima clustering",
+    )
+    p.add_argument(
+        "--traj-tol",
+        type=float,
+        default=1e-2,
+        help="trajectory distance tolerance in [rad] of the clustering",
+    )
+    p.set_defaults(func=_run_multistart)
+
+    p = sub.add_parser(
+        "pareto",
+        help="warm-started weighted-sum Pareto sweep",
+        description="Sweep beta, each solve warm-started from the previous.",
+    )
+    _common(p)
+    p.add_argument("--betas", default="0.05:0.95:0.05", help="'start:stop:step' or 'a,b,c'")
+    p.add_argument("--bound-scale", type=float, default=1.0, help="bound scale (1 = data sheet)")
+    p.add_argument(
+        "--first-starts",
+        type=int,
+        default=0,
+        help="seeded starts at the first beta (default 0: straight line only)",
+    )
+    p.set_defaults(func=_run_pareto)
+
+    p = sub.add_parser(
+        "bounds",
+        help="bound-scaling sensitivity study",
+        description="Re-solve with all bounds scaled by each factor.",
+    )
+    _common(p)
+    p.add_argument("--scales", default="1,0.95,0.9,0.85", help="'a,b,c' or 'start:stop:step'")
+    p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1]")
+    p.add_argument("--starts", type=int, default=5, help="random starts per scale (default 5)")
+    p.set_defaults(func=_run_bounds)
+
+
+# ------------------------------------------------------------------ helpers
+def _solver(args: argparse.Namespace) -> Any:
+    from youbot_opt.options import IpoptOptions
+    from youbot_opt.problem import study1_problem
+    from youbot_opt.solve import TrajOptSolver
+
+    problem = study1_problem(args.knots)
+    method = args.transcription.replace("-", "_")
+    return TrajOptSolver(problem, method, IpoptOptions(max_iter=args.max_iter), args.backend)
+
+
+def _check(
+    args: argparse.Namespace, betas: tuple[float, ...] = (), scales: tuple[float, ...] = ()
+) -> None:
+    """Validate cheap arguments before the (slow) solver build."""
+    if args.knots < 2:
+        raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
+    if args.workers is not None and args.workers < 0:
+        raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
+    from youbot_opt.objectives import check_beta
+    from youbot_opt.problem import check_bound_scale
+
+    for name in ("starts", "first_starts"):
+        value = getattr(args, name, None)
+        if value is not None and value < 0:
+            raise ParameterError(f"--{name.replace('_', '-')} must be >= 0, got {value}", name=name)
+    for b in (*betas, *([args.beta] if hasattr(args, "beta") else [])):
+        check_beta(b)
+    for s in (*scales, *([args.bound_scale] if hasattr(args, "bound_scale") else [])):
+        check_bound_scale(s)
+
+
+def _executor(args: argparse.Namespace) -> tuple[Any, int | None]:
+    return ("serial", None) if args.workers == 0 else ("process", args.workers)
+
+
+class _Progress:
+    """Progress line on stderr: rewritten in place on a terminal, one line per item otherwise."""
+
+    def __init__(self, label: str, quiet: bool, stream: TextIO | None = None) -> None:
+        self.label = label
+        self.quiet = quiet
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.tic = time.perf_counter()
+
+    def __call__(self, done: int, total: int, last: Any) -> None:
+        if self.quiet:
+            return
+        f = getattr(last, "objective", math.nan)
+        what = getattr(last, "key", None) or f"beta={getattr(last, 'beta', '?')}"
+        line = (
+            f"{self.label}: {done}/{total} [{time.perf_counter() - self.tic:6.1f} s] "
+            f"{what}: {last.status} f={f:.6g}"
+        )
+        end = "" if self.tty else "\n"
+        self.stream.write(("\r" if self.tty else "") + line + end)
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and not self.quiet:
+            self.stream.write("\n")
+
+
+def _fmt(x: float, spec: str = ".6g") -> str:
+    return format(x, spec) if math.isfinite(x) else "-"
+
+
+def _emit(args: argparse.Namespace, summary: dict[str, Any], table: list[str]) -> None:
+    if args.json:
+        print(json.dumps(summary, indent=1, default=str))
+    else:
+        print("\n".join(table))
+    if args.out is not None and not args.json:
+        print(f"results in {args.out} (rerun the same command to resume)")
+
+
+# ----------------------------------------------------------------- commands
+def _run_multistart(args: argparse.Namespace) -> int:
+    from youbot_opt.multistart import run_multistart
+
+    _check(args)
+    solver = _solver(args)
+    executor, workers = _executor(args)
+    prog = _Progress("multistart", args.quiet)
+    res = run_multistart(
+        solver,
+        args.starts,
+        beta=args.beta,
+        bound_scale=args.bound_scale,
+        seed=args.seed,
+        include_straight=args.straight,
+        executor=executor,
+        workers=workers,
+        progress=prog,
+        out=args.out,
+    )
+    prog.close()
+    optima = res.distinct_optima(args.obj_tol, args.traj_tol)
+    table = [
+        f"multistart: beta = {res.beta:g}, {res.n_starts} starts (seed {res.seed}), "
+        f"success rate {100 * res.success_rate:.0f} %, {res.resumed} resumed, "
+        f"{res.wall_time:.2f} s",
+        f"{'optimum':>7} {'f':>12} {'T [s]':>9} {'W':>10} {'count':>6} {'share':>6}",
+    ]
+    for i, o in enumerate(optima):
+        table.append(
+            f"{i:>7} {o.objective:>12.6f} {o.duration:>9.4f} {o.work:>10.4f} "
+            f"{o.count:>6} {100 * o.fraction:>5.0f}%"
+        )
+    failed = [s for s in res.starts if not s.success]
+    for s in failed[:10]:
+        table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
+    summary = res.summary(args.obj_tol, args.traj_tol)
+    _emit(args, summary, table)
+    return 0 if res.best is not None else 1
+
+
+def _run_pareto(args: argparse.Namespace) -> int:
+    from youbot_opt.pareto import pareto_sweep
+
+    betas = parse_values(args.betas, "betas")
+    _check(args, betas=betas)
+    solver = _solver(args)
+    executor, workers = _executor(args)
+    prog = _Progress("pareto", args.quiet)
+    front = pareto_sweep(
+        solver,
+        betas,
+        bound_scale=args.bound_scale,
+        first_starts=args.first_starts,
+        seed=args.seed,
+        executor=executor,
+        workers=workers,
+        progress=prog,
+        out=args.out,
+    )
+    prog.close()
+    table = [
+        f"pareto: {len(front.points)} weights, {len(front.nondominated())} non-dominated, "
+        f"{front.resumed} resumed, {front.wall_time:.2f} s",
+        f"{'beta':>6} {'T [s]':>9} {'W':>11} {'f':>11} {'iter':>5} {'start':>10}  status",
+    ]
+    for p in front.points:
+        mark = " (dominated)" if p.dominated and p.success else ""
+        table.append(
+            f"{p.beta:>6.3f} {_fmt(p.duration, '.4f'):>9} {_fmt(p.work, '.4f'):>11} "
+            f"{_fmt(p.objective, '.5f'):>11} {p.iterations:>5} {p.start:>10}  "
+            f"{p.status}{mark}"
+        )
+    _emit(args, front.summary(), table)
+    return 0 if front.nondominated() else 1
+
+
+def _run_bounds(args: argparse.Namespace) -> int:
+    from youbot_opt.bound_scaling import bound_scaling_study
+
+    scales = parse_values(args.scales, "scales")
+    _check(args, scales=scales)
+    solver = _solver(args)
+    executor, workers = _executor(args)
+    prog = _Progress("bounds", args.quiet)
+    res = bound_scaling_study(
+        solver,
+        scales,
+        beta=args.beta,
+        n_starts=args.starts,
+        seed=args.seed,
+        executor=executor,
+        workers=workers,
+        progress=prog,
+        out=args.out,
+    )
+    prog.close()
+    table = [
+        f"bound scaling: beta = {res.beta:g}, {args.starts} starts + straight line per scale, "
+        f"{res.wall_time:.2f} s",
+        f"{'scale':>6} {'f':>11} {'T [s]':>9} {'W':>11} {'conv.':>6}  active bounds",
+    ]
+    for r in res.rows:
+        active = ", ".join(f"{k} x{n}" for k, n in r.active_counts().items()) or "-"
+        table.append(
+            f"{r.bound_scale:>6.3f} {_fmt(r.objective, '.5f'):>11} "
+            f"{_fmt(r.duration, '.4f'):>9} {_fmt(r.work, '.4f'):>11} "
+            f"{100 * r.multistart.success_rate:>5.0f}%  {active}"
+        )
+    _emit(args, res.summary(), table)
+    return 0 if all(r.best is not None for r in res.rows) else 1

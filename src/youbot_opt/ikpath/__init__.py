@@ -1,0 +1,83 @@
+"""Minimum-motion cyclic IK paths of planar arms (study 2, spec ``ikpath.md``).
+
+Build, check, solve, inspect::
+
+    from youbot_opt.ikpath import PlanarChain, CyclicIKProblem, solve, run_multistart
+
+    chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
+    problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
+    verdicts = check_reachability(problem)          # exact, no sampling
+    result = solve(problem, method="al")            # or "ipopt"
+    best = run_multistart(problem, n_starts=200, seed=0).best
+
+Modules: :mod:`.chain` (Pinocchio planar chains), :mod:`.robot` (the youBot arm
+as a chain), :mod:`.problem`, :mod:`.reachability`, :mod:`.bfgs`,
+:mod:`.augmented_lagrangian` (the study's method), :mod:`.ipopt` (CasADi +
+IPOPT), :mod:`.solve`, :mod:`.multistart`, :mod:`.result`, :mod:`.plots`,
+:mod:`.examples`, :mod:`.variants`.
+"""
+
+from __future__ import annotations
+
+from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
+from youbot_opt.ikpath.chain import PlanarChain, TipKinematics
+from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
+from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions, solve_ipopt
+from youbot_opt.ikpath.multistart import (
+    LocalMinimum,
+    MultistartResult,
+    cluster_minima,
+    configuration_distance,
+    make_starts,
+    run_multistart,
+)
+from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
+from youbot_opt.ikpath.reachability import (
+    Reachability,
+    ReachVerdict,
+    check_reachability,
+    decide_reachability,
+    require_reachable,
+)
+from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
+from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
+from youbot_opt.ikpath.solve import METHODS, Method, solve
+
+__all__ = [
+    "ALOptions",
+    "BFGSResult",
+    "CyclicIKProblem",
+    "EXAMPLES",
+    "Evaluation",
+    "IKPathResult",
+    "IKStatus",
+    "IpoptIKSolver",
+    "IpoptOptions",
+    "JointPath",
+    "LocalMinimum",
+    "METHODS",
+    "Method",
+    "MultistartResult",
+    "OuterIterate",
+    "PlanarChain",
+    "ReachVerdict",
+    "Reachability",
+    "STUDY_E_A",
+    "TipKinematics",
+    "chain_from_robot",
+    "check_reachability",
+    "cluster_minima",
+    "configuration_distance",
+    "decide_reachability",
+    "example_problem",
+    "make_starts",
+    "minimize_bfgs",
+    "require_reachable",
+    "run_multistart",
+    "solve",
+    "solve_augmented_lagrangian",
+    "solve_ipopt",
+    "strong_wolfe_line_search",
+    "youbot_chain",
+]

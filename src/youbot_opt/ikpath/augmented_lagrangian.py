@@ -1,0 +1,285 @@
+r"""The study's method: augmented Lagrangian with a quasi-Newton inner solver.
+
+Framework of Nocedal and Wright, *Numerical Optimization* (2nd ed.),
+Algorithm 17.4 (bound-constrained Lagrangian method). With ``c(x)`` the
+``2 s`` target constraints and ``l <= x <= u`` the joint limits:
+
+.. math::
+
+    L_A(x; \lambda, \mu) = E(x) - \lambda^\top c(x) + \tfrac{\mu}{2} \lVert c(x) \rVert^2 .
+
+Outer iteration ``k``:
+
+1. Inner solve: find ``x_k`` with ``|| x_k - P(x_k - grad L_A) ||_inf <= omega_k``
+   (``P`` = projection on the box). The inner solver is
+   :func:`~youbot_opt.ikpath.bfgs.minimize_bfgs` (BFGS with a strong Wolfe line
+   search, written here as in the study). Without limits ``P`` is the identity
+   and it is plain BFGS; with limits it runs as an active-set projected
+   quasi-Newton method whose iterates never leave the box (no barrier).
+   ``inner="lbfgsb"`` uses SciPy's L-BFGS-B instead; its function-value line
+   search stalls near ``1e-6`` in the projected gradient on these problems,
+   so it is not the default.
+2. If ``||c(x_k)||_inf <= eta_k`` (constraints improved enough):
+   stop when also ``||c||_inf <= eta*`` and the projected gradient is
+   ``<= omega*``; otherwise update the multipliers
+   ``lambda <- lambda - mu c(x_k)`` and tighten
+   ``eta <- eta / mu^0.9``, ``omega <- omega / mu`` (floored at ``eta*``, ``omega*``).
+3. Else increase the penalty ``mu <- growth * mu`` and reset
+   ``eta = 1 / mu^0.1``, ``omega = 1 / mu``. If ``stall_increases``
+   consecutive increases did not reduce the best violation by 10 %, the
+   iterate is a local minimiser of the violation (typically pinned against a
+   joint limit): stop with status ``INFEASIBLE`` instead of driving ``mu`` up.
+
+Initial multipliers are zero and ``mu_0 = 10`` (N&W; the study). Since
+``grad L_A = grad E - J^T (lambda - mu c)``, the stationarity test is the
+Lagrangian gradient with the updated multipliers, which are the ones returned
+(sign convention: ``grad E = J^T lambda`` at a KKT point without active bounds).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import Bounds, minimize
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.bfgs import minimize_bfgs
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
+
+__all__ = ["ALOptions", "solve_augmented_lagrangian"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ALOptions:
+    """Settings of the augmented Lagrangian method.
+
+    Attributes
+    ----------
+    penalty_initial : float
+        ``mu_0`` (N&W: 10).
+    penalty_growth : float
+        Factor applied to ``mu`` when the constraints did not improve enough.
+    penalty_max : float
+        Give up (status ``STALLED``) when ``mu`` would exceed this.
+    constraint_tol : float
+        ``eta*``: largest accepted ``|c_i|`` in [m].
+    stationarity_tol : float
+        ``omega*``: largest accepted projected-gradient entry of ``L_A`` in [rad].
+    max_outer_iterations : int
+        Outer iteration limit.
+    max_inner_iterations : int
+        Iteration limit of each inner solve.
+    stall_increases : int
+        Consecutive penalty increases without a 10 % reduction of the
+        violation after which the start is declared locally infeasible.
+    inner : {"bfgs", "lbfgsb"}
+        Inner solver for the bound-constrained case (unlimited problems always
+        use BFGS): the projected BFGS of :mod:`youbot_opt.ikpath.bfgs` or SciPy's
+        L-BFGS-B.
+    """
+
+    penalty_initial: float = 10.0
+    penalty_growth: float = 10.0
+    penalty_max: float = 1e8
+    constraint_tol: float = 1e-10
+    stationarity_tol: float = 1e-8
+    max_outer_iterations: int = 100
+    max_inner_iterations: int = 1000
+    stall_increases: int = 3
+    inner: str = "bfgs"
+
+    def __post_init__(self) -> None:
+        if self.inner not in ("bfgs", "lbfgsb"):
+            raise ParameterError(
+                f"ALOptions.inner must be 'bfgs' or 'lbfgsb', got {self.inner!r}",
+                name="inner",
+                value=self.inner,
+            )
+        checks = {
+            "penalty_initial": self.penalty_initial > 0,
+            "penalty_growth": self.penalty_growth > 1,
+            "penalty_max": self.penalty_max >= self.penalty_initial,
+            "constraint_tol": self.constraint_tol > 0,
+            "stationarity_tol": self.stationarity_tol > 0,
+            "max_outer_iterations": self.max_outer_iterations >= 1,
+            "max_inner_iterations": self.max_inner_iterations >= 1,
+            "stall_increases": self.stall_increases >= 1,
+        }
+        for key, ok in checks.items():
+            if not ok:
+                raise ParameterError(
+                    f"ALOptions.{key} = {getattr(self, key)!r} is invalid "
+                    "(penalties > 0, growth > 1, tolerances > 0, iteration limits >= 1)",
+                    name=key,
+                    value=getattr(self, key),
+                )
+
+
+def solve_augmented_lagrangian(
+    problem: CyclicIKProblem, x0: ArrayLike | None = None, options: ALOptions | None = None
+) -> IKPathResult:
+    """Solve the cyclic IK-path problem by the augmented Lagrangian method.
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem; its joint limits are honoured when ``problem.bounded``.
+    x0 : array_like, shape (n s,) or (s, n), optional
+        Start in [rad]; the zero vector (clipped into the limits) by default.
+    options : ALOptions, optional
+        Method settings.
+
+    Returns
+    -------
+    IKPathResult
+        ``method = "al"``; the history has one :class:`OuterIterate` per outer
+        iteration. Failures are statuses, the last iterate is kept.
+
+    Raises
+    ------
+    ParameterError
+        If ``x0`` has the wrong shape or violates the joint limits.
+    """
+    opts = ALOptions() if options is None else options
+    start = problem.check_start(x0)
+    t0 = time.perf_counter()
+    data = problem.chain.create_data()
+    lower, upper = problem.lower, problem.upper
+    bounded = problem.bounded
+    s = problem.n_targets
+    lam = np.zeros(2 * s)
+    mu = opts.penalty_initial
+    omega, eta = 1.0 / mu, 1.0 / mu**0.1
+
+    def lagrangian(x: Array) -> tuple[float, Array]:
+        ev = problem.evaluate(x, data)
+        c = ev.constraints
+        weight = (mu * c - lam).reshape(s, 2)  # d L_A / d c
+        value = ev.objective - float(lam @ c) + 0.5 * mu * float(c @ c)
+        grad = ev.gradient + np.einsum("jkn,jk->jn", ev.jacobian_blocks, weight).ravel()
+        return value, grad
+
+    x = start.copy()
+    history: list[OuterIterate] = []
+    inner_total = 0
+    best_violation, stalls = math.inf, 0
+    status, message = IKStatus.MAX_ITERATIONS, "outer iteration limit reached"
+    for k in range(opts.max_outer_iterations):
+        x_new, inner_its, inner_msg = _inner_solve(
+            lagrangian, x, lower, upper, bounded, omega, opts
+        )
+        inner_total += inner_its
+        if not np.all(np.isfinite(x_new)):
+            status, message = IKStatus.NUMERICAL_ERROR, f"non-finite iterate ({inner_msg})"
+            break
+        x = x_new
+        ev = problem.evaluate(x, data)
+        c = ev.constraints
+        violation = float(np.max(np.abs(c)))
+        _, grad = lagrangian(x)
+        stationarity = float(np.max(np.abs(x - np.clip(x - grad, lower, upper))))
+        history.append(
+            OuterIterate(
+                k, x.reshape(s, -1).copy(), ev.objective, violation, stationarity, mu, inner_its
+            )
+        )
+        _log.debug(
+            "AL %d: E=%.10g |c|=%.3g pg=%.3g mu=%.3g inner=%d (%s)",
+            k,
+            ev.objective,
+            violation,
+            stationarity,
+            mu,
+            inner_its,
+            inner_msg,
+        )
+        if not (math.isfinite(violation) and math.isfinite(stationarity)):
+            status, message = IKStatus.NUMERICAL_ERROR, "non-finite constraint or gradient"
+            break
+        if violation <= eta:
+            if violation <= opts.constraint_tol and stationarity <= opts.stationarity_tol:
+                lam = lam - mu * c
+                status = IKStatus.SUCCESS
+                message = (
+                    f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
+                    f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g}"
+                )
+                break
+            lam = lam - mu * c
+            eta = max(eta / mu**0.9, opts.constraint_tol)
+            omega = max(omega / mu, opts.stationarity_tol)
+        else:
+            stalls = stalls + 1 if violation > 0.9 * best_violation else 0
+            best_violation = min(best_violation, violation)
+            if stalls >= opts.stall_increases:
+                status = IKStatus.INFEASIBLE
+                message = (
+                    f"locally infeasible: |c| = {violation:.3g} m did not decrease over "
+                    f"{stalls} penalty increases (mu = {mu:.3g})"
+                )
+                break
+            if mu * opts.penalty_growth > opts.penalty_max:
+                status = IKStatus.STALLED
+                message = f"penalty would exceed {opts.penalty_max:g} with |c| = {violation:.2e}"
+                break
+            mu *= opts.penalty_growth
+            eta = max(1.0 / mu**0.1, opts.constraint_tol)
+            omega = max(1.0 / mu, opts.stationarity_tol)
+    return build_result(
+        problem,
+        method="al",
+        status=status,
+        x=x,
+        multipliers=lam,
+        iterations=len(history),
+        inner_iterations=inner_total,
+        wall_time=time.perf_counter() - t0,
+        message=message,
+        start=start,
+        history=tuple(history),
+    )
+
+
+def _inner_solve(
+    fun: object,
+    x: Array,
+    lower: Array,
+    upper: Array,
+    bounded: bool,
+    gtol: float,
+    opts: ALOptions,
+) -> tuple[Array, int, str]:
+    """Minimise ``L_A`` from ``x`` to projected-gradient tolerance ``gtol``."""
+    if not bounded or opts.inner == "bfgs":
+        res = minimize_bfgs(
+            fun,  # type: ignore[arg-type]
+            x,
+            lower=lower if bounded else None,
+            upper=upper if bounded else None,
+            gtol=gtol,
+            max_iterations=opts.max_inner_iterations,
+        )
+        return res.x, res.iterations, res.message
+    out = minimize(
+        fun,  # type: ignore[arg-type]
+        x,
+        jac=True,
+        method="L-BFGS-B",
+        bounds=Bounds(lower, upper),
+        options={
+            "gtol": gtol,
+            "ftol": 0.0,
+            "maxiter": opts.max_inner_iterations,
+            "maxcor": 20,
+        },
+    )
+    return np.clip(out.x, lower, upper), int(out.nit), str(out.message)

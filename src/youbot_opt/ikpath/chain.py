@@ -1,0 +1,332 @@
+r"""Planar n-link chains as Pinocchio models (study 2, spec ``ikpath.md``, "The arm").
+
+A :class:`PlanarChain` is the arm of study 2: ``n`` revolute joints about the
+plane normal (z), segment ``i`` of length ``l_i`` from joint ``i`` to joint
+``i + 1``, the last segment ending at the tip frame. The joint coordinates
+``q`` follow the study's convention up to a constant offset:
+
+.. math::
+
+    \theta = q + \text{angle\_offset}, \qquad
+    F(\theta) = b + \sum_i l_i (\cos\phi_i, \sin\phi_i), \quad
+    \phi_i = \theta_1 + \dots + \theta_i,
+
+so ``theta_1`` is the absolute angle of segment 1 from the x axis and the others
+are relative to the previous segment. With the defaults (``base = 0``,
+``angle_offset = 0``) ``q`` *is* the study's ``theta``. The offsets exist so
+that a real arm (the youBot, angles from the vertical, mounted off the platform
+origin) is the same kind of object; see :mod:`youbot_opt.ikpath.robot`.
+
+Forward kinematics and the tip Jacobian come from Pinocchio
+(``computeFrameJacobian`` in ``LOCAL_WORLD_ALIGNED``, rows x and y).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+
+__all__ = ["PlanarChain", "TipKinematics", "as_configuration"]
+
+_PIN_INF = float(np.finfo(float).max)  # Pinocchio's "no limit" value
+_LINK_RGBA = np.array([0.95, 0.55, 0.1, 1.0])
+_JOINT_RGBA = np.array([0.2, 0.2, 0.2, 1.0])
+
+
+class TipKinematics(NamedTuple):
+    """Tip position and its Jacobian at one configuration.
+
+    Attributes
+    ----------
+    position : ndarray, shape (2,)
+        Tip position in the chain's plane, in [m] (the length unit of the chain).
+    jacobian : ndarray, shape (2, n)
+        d position / d q in [m/rad].
+    """
+
+    position: Array
+    jacobian: Array
+
+
+def as_configuration(q: ArrayLike, n: int, name: str = "q") -> Array:
+    """Return ``q`` as a finite float vector of length ``n``.
+
+    Parameters
+    ----------
+    q : array_like, shape (n,)
+        Joint angles in [rad].
+    n : int
+        Expected length.
+    name : str
+        Argument name used in the error message.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        A float copy of ``q``.
+
+    Raises
+    ------
+    ParameterError
+        If ``q`` has another shape or non-finite entries.
+    """
+    arr = np.array(q, dtype=float)
+    if arr.shape != (n,):
+        raise ParameterError(
+            f"{name} must have shape ({n},), got {arr.shape}", name=name, value=arr.shape
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must be finite, got {arr}", name=name, value=arr)
+    return arr
+
+
+def _vector(name: str, value: ArrayLike | None, n: int, default: float) -> Array:
+    """Broadcast a scalar or length-``n`` sequence to a read-only float vector."""
+    if value is None:
+        arr = np.full(n, default)
+    else:
+        try:
+            arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+        except (ValueError, TypeError) as exc:
+            raise ParameterError(
+                f"{name} must be a scalar or have shape ({n},), got {np.shape(value)}",
+                name=name,
+                value=value,
+            ) from exc
+    if np.any(np.isnan(arr)):
+        raise ParameterError(f"{name} contains NaN: {arr}", name=name, value=arr)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class PlanarChain:
+    """An n-link planar revolute chain with an optional box of joint limits.
+
+    Attributes
+    ----------
+    lengths : ndarray, shape (n,)
+        Segment lengths in [m] (any length unit; all positions use it), > 0.
+    q_lower, q_upper : ndarray, shape (n,)
+        Joint limits in [rad]; a scalar is broadcast; ``None`` or +-inf means
+        unlimited. ``q_lower <= q_upper`` is required.
+    base : ndarray, shape (2,)
+        Position of joint 1 in the plane, in [m].
+    angle_offset : ndarray, shape (n,)
+        ``theta - q`` in [rad]: the study's angles are ``q + angle_offset``.
+    name : str
+        Model name.
+    tip_frame : str
+        Name of the tip frame of :attr:`model`.
+    model : pinocchio.Model
+        The chain (``JointModelRZ`` joints), built from the fields above.
+    visual_model : pinocchio.GeometryModel
+        Cylinders along the segments and small spheres at the joints (coal shapes).
+    tip_frame_id : int
+        Index of :attr:`tip_frame` in :attr:`model`.
+    """
+
+    lengths: Array
+    q_lower: Array = None  # type: ignore[assignment]
+    q_upper: Array = None  # type: ignore[assignment]
+    base: Array = None  # type: ignore[assignment]
+    angle_offset: Array = None  # type: ignore[assignment]
+    name: str = "planar_chain"
+    tip_frame: str = "tip"
+    model: pin.Model = field(init=False, repr=False)
+    visual_model: pin.GeometryModel = field(init=False, repr=False)
+    tip_frame_id: int = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        lengths = np.array(self.lengths, dtype=float)
+        if lengths.ndim != 1 or lengths.size < 1:
+            raise ParameterError(
+                f"lengths must be a non-empty 1-D sequence, got shape {lengths.shape}",
+                name="lengths",
+                value=self.lengths,
+            )
+        if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0.0):
+            raise ParameterError(
+                f"lengths must be finite and > 0, got {lengths.tolist()}",
+                name="lengths",
+                value=lengths,
+            )
+        lengths.setflags(write=False)
+        n = lengths.size
+        lower = _vector("q_lower", self.q_lower, n, -np.inf)
+        upper = _vector("q_upper", self.q_upper, n, np.inf)
+        bad = np.flatnonzero(lower > upper)
+        if bad.size:
+            i = int(bad[0])
+            raise ParameterError(
+                f"q_lower[{i}] = {lower[i]} > q_upper[{i}] = {upper[i]}; "
+                "each lower limit must not exceed its upper limit",
+                name="q_lower",
+                value=lower,
+            )
+        base = np.array((0.0, 0.0) if self.base is None else self.base, dtype=float)
+        if base.shape != (2,) or not np.all(np.isfinite(base)):
+            raise ParameterError(
+                f"base must be a finite 2-vector, got {self.base!r}", name="base", value=self.base
+            )
+        base.setflags(write=False)
+        offset = _vector("angle_offset", self.angle_offset, n, 0.0)
+        if not np.all(np.isfinite(offset)):
+            raise ParameterError(
+                f"angle_offset must be finite, got {offset}", name="angle_offset", value=offset
+            )
+        for key, val in (
+            ("lengths", lengths),
+            ("q_lower", lower),
+            ("q_upper", upper),
+            ("base", base),
+            ("angle_offset", offset),
+        ):
+            object.__setattr__(self, key, val)
+        model, visual, tip_id = _build_models(self)
+        object.__setattr__(self, "model", model)
+        object.__setattr__(self, "visual_model", visual)
+        object.__setattr__(self, "tip_frame_id", tip_id)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickle by the defining fields; the Pinocchio models are rebuilt on load."""
+        return (_rebuild, (self._spec(),))
+
+    def _spec(self) -> dict[str, Any]:
+        return {
+            "lengths": self.lengths,
+            "q_lower": self.q_lower,
+            "q_upper": self.q_upper,
+            "base": self.base,
+            "angle_offset": self.angle_offset,
+            "name": self.name,
+            "tip_frame": self.tip_frame,
+        }
+
+    @property
+    def n(self) -> int:
+        """Number of joints (``nq == nv``)."""
+        return int(self.lengths.size)
+
+    @property
+    def bounded(self) -> bool:
+        """Whether any joint limit is finite."""
+        return bool(np.any(np.isfinite(self.q_lower)) or np.any(np.isfinite(self.q_upper)))
+
+    @property
+    def package_dirs(self) -> tuple[()]:
+        """Mesh search paths (none: the visuals are primitive shapes)."""
+        return ()
+
+    @property
+    def reach(self) -> tuple[float, float]:
+        """Inner and outer radius in [m] of the workspace without joint limits.
+
+        The workspace is the annulus ``r_min <= |p - base| <= r_max`` with
+        ``r_max = sum l`` and ``r_min = max(0, l_m - sum_{i != m} l_i)``.
+        """
+        total = float(np.sum(self.lengths))
+        longest = float(np.max(self.lengths))
+        return max(0.0, 2.0 * longest - total), total
+
+    def with_limits(self, q_lower: ArrayLike | None, q_upper: ArrayLike | None) -> PlanarChain:
+        """Return a copy with other joint limits (``None`` = unlimited) in [rad]."""
+        spec = self._spec()
+        spec.update(q_lower=q_lower, q_upper=q_upper)
+        return PlanarChain(**spec)
+
+    def create_data(self) -> pin.Data:
+        """Return a fresh ``pinocchio.Data`` for :attr:`model`."""
+        return self.model.createData()
+
+    def kinematics(self, q: ArrayLike, data: pin.Data | None = None) -> TipKinematics:
+        """Tip position and Jacobian from Pinocchio.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Joint angles in [rad].
+        data : pinocchio.Data, optional
+            Work space from :meth:`create_data` (reuse it in loops).
+
+        Returns
+        -------
+        TipKinematics
+            Position (2,) in [m] and Jacobian (2, n) in [m/rad].
+        """
+        qv = as_configuration(q, self.n)
+        data = self.create_data() if data is None else data
+        jac = pin.computeFrameJacobian(
+            self.model, data, qv, self.tip_frame_id, pin.LOCAL_WORLD_ALIGNED
+        )
+        return TipKinematics(data.oMf[self.tip_frame_id].translation[:2].copy(), jac[:2].copy())
+
+    def tip_position(self, q: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Tip position ``F(q)`` in [m], shape (2,), by Pinocchio forward kinematics."""
+        qv = as_configuration(q, self.n)
+        data = self.create_data() if data is None else data
+        pin.framesForwardKinematics(self.model, data, qv)
+        return data.oMf[self.tip_frame_id].translation[:2].copy()
+
+    def tip_jacobian(self, q: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Tip Jacobian ``dF/dq`` in [m/rad], shape (2, n), from Pinocchio."""
+        return self.kinematics(q, data).jacobian
+
+    def joint_positions(self, q: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Positions in [m] of joints 1..n and the tip, shape (n + 1, 2), for drawing."""
+        qv = as_configuration(q, self.n)
+        data = self.create_data() if data is None else data
+        pin.framesForwardKinematics(self.model, data, qv)
+        pts = [data.oMi[j].translation[:2] for j in range(1, self.n + 1)]
+        pts.append(data.oMf[self.tip_frame_id].translation[:2])
+        return np.array(pts)
+
+    def theta(self, q: ArrayLike) -> Array:
+        """Return the study's angles ``theta = q + angle_offset`` in [rad]."""
+        return as_configuration(q, self.n) + self.angle_offset
+
+
+def _rebuild(spec: dict[str, Any]) -> PlanarChain:
+    return PlanarChain(**spec)
+
+
+def _build_models(chain: PlanarChain) -> tuple[pin.Model, pin.GeometryModel, int]:
+    """Build the kinematic model and a primitive-shape visual model of ``chain``."""
+    model = pin.Model()
+    model.name = chain.name
+    visual = pin.GeometryModel()
+    radius = 0.04 * float(np.mean(chain.lengths))  # [m] drawing radius of the links
+    along_x = pin.SE3(pin.utils.rotate("y", math.pi / 2.0), np.zeros(3))
+    parent = 0
+    placement = pin.SE3(pin.utils.rotate("z", float(chain.angle_offset[0])), np.r_[chain.base, 0.0])
+    for i, length in enumerate(chain.lengths):
+        jid = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint_{i + 1}")
+        model.addJointFrame(jid, -1)
+        body = pin.SE3(along_x.rotation, np.array([length / 2.0, 0.0, 0.0]))
+        link = pin.GeometryObject(f"link_{i + 1}", jid, body, coal.Cylinder(radius, float(length)))
+        link.meshColor = _LINK_RGBA
+        visual.addGeometryObject(link)
+        ball = pin.GeometryObject(
+            f"joint_{i + 1}_ball", jid, pin.SE3.Identity(), coal.Sphere(1.5 * radius)
+        )
+        ball.meshColor = _JOINT_RGBA
+        visual.addGeometryObject(ball)
+        parent = jid
+        nxt = float(chain.angle_offset[i + 1]) if i + 1 < chain.n else 0.0
+        placement = pin.SE3(pin.utils.rotate("z", nxt), np.array([length, 0.0, 0.0]))
+    tip_id = model.addFrame(pin.Frame(chain.tip_frame, parent, placement, pin.FrameType.OP_FRAME))
+    tip_ball = pin.GeometryObject("tip_ball", parent, placement, coal.Sphere(radius))
+    tip_ball.meshColor = _JOINT_RGBA
+    visual.addGeometryObject(tip_ball)
+    model.lowerPositionLimit = np.where(np.isfinite(chain.q_lower), chain.q_lower, -_PIN_INF)
+    model.upperPositionLimit = np.where(np.isfinite(chain.q_upper), chain.q_upper, _PIN_INF)
+    return model, visual, int(tip_id)

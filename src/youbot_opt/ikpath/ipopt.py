@@ -1,0 +1,270 @@
+"""The second, independent method: the same NLP in CasADi, solved by IPOPT.
+
+Independence from the augmented Lagrangian (:mod:`.augmented_lagrangian`):
+
+* kinematics: the tip position is a CasADi expression of the study's formula
+  ``F = b + sum_i l_i (cos phi_i, sin phi_i)`` written here, not Pinocchio;
+* derivatives: CasADi's algorithmic differentiation, exact Hessian of the Lagrangian;
+* algorithm: a primal-dual interior-point method (IPOPT, MUMPS) on the box
+  ``l <= x <= u`` instead of an augmented Lagrangian with BFGS.
+
+Only the problem data are shared. The result's E, residuals (Pinocchio) and
+limit violation are recomputed by :func:`~youbot_opt.ikpath.result.build_result`,
+so a wrong CasADi kinematics would show up as residuals, and the tests compare
+the two methods' optima.
+
+The NLP is built once per (chain, number of targets, limits on/off) with the
+targets as NLP parameters, so multistart re-solves it without rebuilding.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
+
+__all__ = ["IpoptOptions", "IpoptIKSolver", "solve_ipopt"]
+
+_STATUS = {
+    "Solve_Succeeded": IKStatus.SUCCESS,
+    "Solved_To_Acceptable_Level": IKStatus.SUCCESS,
+    "Maximum_Iterations_Exceeded": IKStatus.MAX_ITERATIONS,
+    "Maximum_CpuTime_Exceeded": IKStatus.MAX_ITERATIONS,
+    "Infeasible_Problem_Detected": IKStatus.INFEASIBLE,
+    "Search_Direction_Becomes_Too_Small": IKStatus.STALLED,
+    "Restoration_Failed": IKStatus.STALLED,
+    "Not_Enough_Degrees_Of_Freedom": IKStatus.INFEASIBLE,
+}
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class IpoptOptions:
+    """Settings passed to IPOPT.
+
+    Attributes
+    ----------
+    tol : float
+        IPOPT's (scaled) overall optimality tolerance.
+    constr_viol_tol : float
+        Largest accepted constraint violation in [m].
+    max_iter : int
+        Iteration limit.
+    extra : Mapping[str, Any]
+        Further IPOPT options (``{"linear_solver": "mumps"}``, ...).
+    """
+
+    tol: float = 1e-12
+    constr_viol_tol: float = 1e-11
+    max_iter: int = 3000
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not (self.tol > 0 and self.constr_viol_tol > 0 and self.max_iter >= 1):
+            raise ParameterError(
+                f"IpoptOptions need tol > 0, constr_viol_tol > 0, max_iter >= 1; got "
+                f"{self.tol}, {self.constr_viol_tol}, {self.max_iter}",
+                name="IpoptOptions",
+                value=(self.tol, self.constr_viol_tol, self.max_iter),
+            )
+
+    def as_casadi(self) -> dict[str, Any]:
+        """Return the ``nlpsol`` option dictionary."""
+        ipopt = {
+            "tol": self.tol,
+            "constr_viol_tol": self.constr_viol_tol,
+            "max_iter": self.max_iter,
+            "print_level": 0,
+            "sb": "yes",
+            "bound_relax_factor": 0.0,
+            "honor_original_bounds": "yes",
+        }
+        ipopt.update(dict(self.extra))
+        return {"ipopt": ipopt, "print_time": False}
+
+
+class _IterateRecorder(ca.Callback):  # type: ignore[misc]
+    """IPOPT iteration callback keeping each iterate (x, f, g) for the history."""
+
+    def __init__(self, nx: int, ng: int, n_par: int) -> None:
+        ca.Callback.__init__(self)
+        self.nx, self.ng, self.n_par = nx, ng, n_par
+        self.records: list[tuple[Array, float, Array]] = []
+        self.construct("ikpath_ipopt_recorder", {})
+
+    def get_n_in(self) -> int:
+        return int(ca.nlpsol_n_out())
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return str(ca.nlpsol_out(i))
+
+    def get_name_out(self, i: int) -> str:
+        return "ret"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        name = ca.nlpsol_out(i)
+        sizes = {"f": 1, "x": self.nx, "lam_x": self.nx, "g": self.ng, "lam_g": self.ng}
+        sizes["lam_p"] = self.n_par
+        return ca.Sparsity.dense(sizes.get(name, 0), 1)
+
+    def eval(self, arg: Sequence[ca.DM]) -> list[ca.DM]:
+        x = np.array(arg[0], dtype=float).ravel()
+        f = float(arg[1])
+        g = np.array(arg[2], dtype=float).ravel()
+        self.records.append((x, f, g))
+        return [ca.DM(0)]
+
+
+def _tip_expression(problem: CyclicIKProblem, q: ca.SX) -> ca.SX:
+    """CasADi tip position of the chain at one configuration ``q`` (n,)."""
+    chain = problem.chain
+    phi = ca.SX(0)
+    x, y = ca.SX(float(chain.base[0])), ca.SX(float(chain.base[1]))
+    for i in range(chain.n):
+        phi = phi + q[i] + float(chain.angle_offset[i])
+        x = x + float(chain.lengths[i]) * ca.cos(phi)
+        y = y + float(chain.lengths[i]) * ca.sin(phi)
+    return ca.vertcat(x, y)
+
+
+class IpoptIKSolver:
+    """IPOPT solver of one problem structure, built once and re-solved.
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        Fixes the chain, the number of targets and whether limits apply; the
+        targets themselves are NLP parameters.
+    options : IpoptOptions, optional
+        IPOPT settings.
+    """
+
+    def __init__(self, problem: CyclicIKProblem, options: IpoptOptions | None = None) -> None:
+        self.problem = problem
+        self.options = IpoptOptions() if options is None else options
+        s, n = problem.n_targets, problem.n_joints
+        x = ca.SX.sym("x", s * n)
+        p = ca.SX.sym("targets", 2 * s)
+        configs = [x[j * n : (j + 1) * n] for j in range(s)]
+        energy = ca.SX(0)
+        for j in range(s):
+            d = configs[(j + 1) % s] - configs[j]
+            energy = energy + 0.5 * ca.dot(d, d)
+        g = ca.vertcat(
+            *[_tip_expression(problem, configs[j]) - p[2 * j : 2 * j + 2] for j in range(s)]
+        )
+        self._recorder = _IterateRecorder(s * n, 2 * s, 2 * s)
+        opts = self.options.as_casadi()
+        opts["iteration_callback"] = self._recorder
+        self._solver = ca.nlpsol(
+            "ikpath_ipopt", "ipopt", {"x": x, "p": p, "f": energy, "g": g}, opts
+        )
+
+    def solve(
+        self, problem: CyclicIKProblem | None = None, x0: ArrayLike | None = None
+    ) -> IKPathResult:
+        """Solve from ``x0`` (default: the problem's zero start).
+
+        Parameters
+        ----------
+        problem : CyclicIKProblem, optional
+            A problem with the same structure (other targets allowed); the
+            construction problem by default.
+        x0 : array_like, shape (n s,) or (s, n), optional
+            Start in [rad].
+
+        Returns
+        -------
+        IKPathResult
+            ``method = "ipopt"``; the history has one entry per IPOPT iteration.
+
+        Raises
+        ------
+        ParameterError
+            If ``problem`` has another structure or ``x0`` is invalid.
+        """
+        prob = self.problem if problem is None else problem
+        if (
+            prob.chain is not self.problem.chain
+            or prob.n_targets != self.problem.n_targets
+            or prob.bounded != self.problem.bounded
+        ):
+            raise ParameterError(
+                "problem must have the chain, number of targets and limits this solver was "
+                "built for",
+                name="problem",
+                value=prob,
+            )
+        start = prob.check_start(x0)
+        self._recorder.records.clear()
+        t0 = time.perf_counter()
+        sol = self._solver(
+            x0=start, p=prob.targets.ravel(), lbx=prob.lower, ubx=prob.upper, lbg=0.0, ubg=0.0
+        )
+        wall = time.perf_counter() - t0
+        stats = self._solver.stats()
+        ret = str(stats.get("return_status", "unknown"))
+        x = np.array(sol["x"], dtype=float).ravel()
+        status = _STATUS.get(ret, IKStatus.NUMERICAL_ERROR)
+        if not np.all(np.isfinite(x)):
+            status, x = IKStatus.NUMERICAL_ERROR, start
+        its = stats.get("iterations", {})
+        history = tuple(
+            OuterIterate(
+                k,
+                rx.reshape(prob.n_targets, prob.n_joints),
+                rf,
+                float(np.max(np.abs(rg))) if rg.size else 0.0,
+                float(its["inf_du"][k]) if k < len(its.get("inf_du", [])) else float("nan"),
+                float(its["mu"][k]) if k < len(its.get("mu", [])) else float("nan"),
+                0,
+            )
+            for k, (rx, rf, rg) in enumerate(self._recorder.records)
+        )
+        return build_result(
+            prob,
+            method="ipopt",
+            status=status,
+            x=x,
+            multipliers=-np.array(sol["lam_g"], dtype=float).ravel(),
+            iterations=int(stats.get("iter_count", len(history))),
+            inner_iterations=0,
+            wall_time=wall,
+            message=ret,
+            start=start,
+            history=history,
+        )
+
+
+def solve_ipopt(
+    problem: CyclicIKProblem, x0: ArrayLike | None = None, options: IpoptOptions | None = None
+) -> IKPathResult:
+    """Solve the cyclic IK-path problem once with IPOPT (builds the NLP each call).
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem.
+    x0 : array_like, optional
+        Start in [rad]; the zero vector (clipped into the limits) by default.
+    options : IpoptOptions, optional
+        IPOPT settings.
+
+    Returns
+    -------
+    IKPathResult
+        ``method = "ipopt"``.
+    """
+    return IpoptIKSolver(problem, options).solve(problem, x0)

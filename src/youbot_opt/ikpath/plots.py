@@ -1,0 +1,273 @@
+"""Figures of IK-path results (matplotlib, no pyplot state: safe under Agg).
+
+Every function takes result objects and returns a ``matplotlib.figure.Figure``
+(or draws on a given ``Axes``): the arm at every visited configuration with
+the targets (:func:`plot_arm_path`), the convergence history
+(:func:`plot_convergence`), the reachable workspace under the joint limits
+with the targets and their verdicts (:func:`plot_workspace`) and the minima
+found by a multistart (:func:`plot_minima`). :func:`save_figures` writes them
+as PNG files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from youbot_opt.ikpath.multistart import MultistartResult
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability import ReachVerdict, check_reachability
+from youbot_opt.ikpath.result import IKPathResult
+
+__all__ = [
+    "plot_arm_path",
+    "plot_convergence",
+    "plot_workspace",
+    "plot_minima",
+    "save_figures",
+]
+
+_GRID_POINTS = 120_000  # joint-grid size for the workspace image
+
+
+def _new_axes(ax: Axes | None, size: tuple[float, float] = (6.0, 6.0)) -> tuple[Figure, Axes]:
+    if ax is not None:
+        return ax.figure, ax  # type: ignore[return-value]
+    fig = Figure(figsize=size, layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _mark_targets(ax: Axes, targets: np.ndarray, colors: Sequence[str] | None = None) -> None:
+    for j, (x, y) in enumerate(targets):
+        c = "k" if colors is None else colors[j]
+        ax.plot(x, y, marker="x", color=c, markersize=10, markeredgewidth=2, zorder=5)
+        ax.annotate(f"p{j + 1}", (x, y), textcoords="offset points", xytext=(6, 6), color=c)
+
+
+def plot_arm_path(result: IKPathResult, ax: Axes | None = None) -> Figure:
+    """Draw the arm at every configuration of the path, with the targets.
+
+    Parameters
+    ----------
+    result : IKPathResult
+        A solve result.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (a new figure by default).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
+    fig, ax = _new_axes(ax)
+    chain = result.problem.chain
+    data = chain.create_data()
+    cmap = mpl.colormaps["viridis"]
+    s = result.problem.n_targets
+    for j, q in enumerate(result.configurations):
+        pts = chain.joint_positions(q, data)
+        color = cmap(j / max(1, s - 1))
+        ax.plot(pts[:, 0], pts[:, 1], "-o", color=color, lw=2.5, ms=5, label=f"q{j + 1}")
+    tips = result.tip_positions()
+    closed = np.vstack([tips, tips[:1]])
+    ax.plot(closed[:, 0], closed[:, 1], ":", color="0.5", lw=1)
+    _mark_targets(ax, result.problem.targets)
+    ax.plot(*chain.base, "ks", ms=8)
+    ax.set_aspect("equal")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(
+        f"{result.method}: E = {result.objective:.6g} rad², max residual "
+        f"{result.max_residual():.1e} m ({result.status.value})"
+    )
+    return fig
+
+
+def plot_convergence(result: IKPathResult) -> Figure:
+    """Distance to the final iterate, E and constraint violation per outer iteration.
+
+    Parameters
+    ----------
+    result : IKPathResult
+        A result with a non-empty history.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Three stacked panels sharing the iteration axis.
+    """
+    fig = Figure(figsize=(6.5, 7.0), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    hist = result.history
+    it = np.array([h.iteration for h in hist])
+    final = result.configurations
+    dist = np.array([np.linalg.norm(h.x - final) for h in hist])
+    axes[0].semilogy(it, np.maximum(dist, 1e-17), "o-")
+    axes[0].set_ylabel("|x_k - x*| [rad]")
+    axes[1].plot(it, [h.objective for h in hist], "o-")
+    axes[1].axhline(result.objective, color="0.5", ls="--", lw=1)
+    axes[1].set_ylabel("E [rad²]")
+    axes[2].semilogy(it, np.maximum([h.violation for h in hist], 1e-17), "o-", label="max |c|")
+    axes[2].semilogy(
+        it, np.maximum([h.stationarity for h in hist], 1e-17), "s--", label="stationarity"
+    )
+    axes[2].set_ylabel("max |c| [m], stationarity")
+    axes[2].set_xlabel("outer iteration" if result.method == "al" else "IPOPT iteration")
+    axes[2].legend(fontsize=8)
+    for a in axes:
+        a.grid(True, alpha=0.3)
+    axes[0].set_title(f"convergence ({result.method}, {len(hist)} iterations)")
+    return fig
+
+
+def _workspace_points(problem: CyclicIKProblem) -> np.ndarray:
+    """Tips of a regular joint grid over the limits (display only; verdicts are exact)."""
+    chain = problem.chain
+    n = chain.n
+    per = max(2, int(round(_GRID_POINTS ** (1.0 / n))))
+    axes = []
+    for lo, hi in zip(chain.q_lower, chain.q_upper, strict=True):
+        if not problem.use_limits or not (np.isfinite(lo) and np.isfinite(hi)):
+            lo, hi = -np.pi, np.pi
+        axes.append(np.linspace(lo, hi, per))
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, n)
+    phi = np.cumsum(grid + chain.angle_offset, axis=1)
+    return chain.base + np.column_stack([np.cos(phi) @ chain.lengths, np.sin(phi) @ chain.lengths])
+
+
+def plot_workspace(
+    problem: CyclicIKProblem,
+    verdicts: Sequence[ReachVerdict] | None = None,
+    ax: Axes | None = None,
+) -> Figure:
+    """Draw the reachable workspace under the joint limits, the targets and their verdicts.
+
+    The shading is the image of a regular joint grid (for display only); the
+    target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability`
+    (green: reachable, red: unreachable with a line to the nearest reachable point,
+    orange: undecided). The dashed circles are the workspace without limits.
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem (chain, targets, limits on/off).
+    verdicts : sequence of ReachVerdict, optional
+        Verdicts to show (computed if omitted).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
+    fig, ax = _new_axes(ax)
+    verdicts = check_reachability(problem) if verdicts is None else verdicts
+    pts = _workspace_points(problem)
+    ax.hexbin(pts[:, 0], pts[:, 1], gridsize=120, cmap="Blues", mincnt=1, bins="log")
+    r_min, r_max = problem.chain.reach
+    t = np.linspace(0, 2 * np.pi, 400)
+    for r in (r_min, r_max):
+        if r > 0:
+            ax.plot(
+                problem.chain.base[0] + r * np.cos(t),
+                problem.chain.base[1] + r * np.sin(t),
+                "--",
+                color="0.4",
+                lw=1,
+            )
+    palette = {"reachable": "tab:green", "unreachable": "tab:red", "undecided": "tab:orange"}
+    colors = [palette[v.status.value] for v in verdicts]
+    _mark_targets(ax, problem.targets, colors)
+    for v in verdicts:
+        if not v.reachable:
+            ax.plot([v.target[0], v.nearest[0]], [v.target[1], v.nearest[1]], "-", color="tab:red")
+            ax.plot(*v.nearest, "o", color="tab:red", mfc="none")
+    ax.plot(*problem.chain.base, "ks", ms=8)
+    ax.set_aspect("equal")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    limits = "joint limits" if problem.bounded else "no joint limits"
+    ax.set_title(f"workspace, {limits} (grid image); exact verdicts", fontsize=10)
+    return fig
+
+
+def plot_minima(result: MultistartResult) -> Figure:
+    """Bar chart of the distinct local minima (E) and how many starts found each.
+
+    Parameters
+    ----------
+    result : MultistartResult
+        A multistart run.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
+    fig, ax = _new_axes(None, (7.0, 4.0))
+    minima = result.minima[:15]
+    labels = [f"{m.objective:.4g}" for m in minima]
+    ax.bar(range(len(minima)), [m.count for m in minima], color="tab:blue")
+    ax.set_xticks(range(len(minima)), labels, rotation=45, ha="right")
+    ax.set_xlabel("E of the local minimum [rad²]")
+    ax.set_ylabel("starts")
+    failed = result.n_starts - result.n_success
+    ax.set_title(
+        f"{result.method}: {result.n_starts} starts (seed {result.seed}), "
+        f"{len(result.minima)} minima, {failed} failed"
+    )
+    ax.grid(True, axis="y", alpha=0.3)
+    return fig
+
+
+def save_figures(
+    result: IKPathResult | MultistartResult,
+    out_dir: str | Path,
+    *,
+    verdicts: Sequence[ReachVerdict] | None = None,
+    dpi: int = 110,
+) -> list[Path]:
+    """Write the arm path, convergence, workspace (and minima) figures as PNG files.
+
+    Parameters
+    ----------
+    result : IKPathResult or MultistartResult
+        What to draw (for a multistart, its best result plus the minima chart).
+    out_dir : str or Path
+        Directory (created if missing).
+    verdicts : sequence of ReachVerdict, optional
+        Reachability verdicts for the workspace figure.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    best = result.best if isinstance(result, MultistartResult) else result
+    figures = {
+        "ikpath_arm.png": plot_arm_path(best),
+        "ikpath_workspace.png": plot_workspace(best.problem, verdicts),
+    }
+    if best.history:
+        figures["ikpath_convergence.png"] = plot_convergence(best)
+    if isinstance(result, MultistartResult):
+        figures["ikpath_minima.png"] = plot_minima(result)
+    paths = []
+    for name, fig in figures.items():
+        path = out / name
+        fig.savefig(path, dpi=dpi)
+        paths.append(path)
+    return paths

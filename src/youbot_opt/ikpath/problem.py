@@ -1,0 +1,230 @@
+r"""The cyclic IK-path problem of study 2 (spec ``ikpath.md``, "The problem").
+
+Visit targets ``p_1 .. p_s`` in order and return to ``p_1`` with the least
+total joint motion:
+
+.. math::
+
+    \min_{Q} \; E(Q) = \tfrac12 \sum_{j=1}^{s} \lVert q_{j+1} - q_j \rVert^2,
+    \quad q_{s+1} \equiv q_1, \qquad
+    \text{s.t.}\; F(q_j) = p_j,\; \ell \le q_j \le u \;(j = 1..s).
+
+``Q`` is the ``(s, n)`` array of configurations; solvers work on its row-major
+flattening ``x = Q.ravel()`` (``n s`` unknowns) and the ``2 s`` equality
+constraints ``c(x) = (F(q_1) - p_1, ..., F(q_s) - p_s)``. The problem is a pure
+specification: it evaluates E, c and their derivatives (``F`` and ``dF/dq``
+from Pinocchio) but holds no solver state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.chain import PlanarChain
+
+__all__ = ["CyclicIKProblem", "Evaluation"]
+
+
+class Evaluation(NamedTuple):
+    """Objective, constraints and their derivatives at one point.
+
+    Attributes
+    ----------
+    objective : float
+        ``E`` in [rad^2].
+    gradient : ndarray, shape (s * n,)
+        ``dE/dx`` in [rad].
+    constraints : ndarray, shape (2 * s,)
+        ``c(x) = F(q_j) - p_j`` stacked, in [m].
+    jacobian_blocks : ndarray, shape (s, 2, n)
+        ``dF(q_j)/dq_j`` in [m/rad]; ``dc/dx`` is block diagonal with these blocks.
+    """
+
+    objective: float
+    gradient: Array
+    constraints: Array
+    jacobian_blocks: Array
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class CyclicIKProblem:
+    """Minimum-motion cyclic joint path through tip targets.
+
+    Attributes
+    ----------
+    chain : PlanarChain
+        The arm (its ``q_lower``/``q_upper`` are the joint limits).
+    targets : ndarray, shape (s, 2)
+        Tip targets in [m], visited in order and cyclically; ``s >= 2``.
+    use_limits : bool
+        Whether the chain's joint limits are constraints of the problem.
+    """
+
+    chain: PlanarChain
+    targets: Array
+    use_limits: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.chain, PlanarChain):
+            raise ParameterError(
+                f"chain must be a PlanarChain, got {type(self.chain).__name__}",
+                name="chain",
+                value=self.chain,
+            )
+        targets = np.array(self.targets, dtype=float)
+        if targets.ndim != 2 or targets.shape[1] != 2:
+            raise ParameterError(
+                f"targets must have shape (s, 2), got {targets.shape}",
+                name="targets",
+                value=targets.shape,
+            )
+        if targets.shape[0] < 2:
+            raise ParameterError(
+                f"a cyclic path needs at least 2 targets, got {targets.shape[0]}",
+                name="targets",
+                value=targets.shape[0],
+            )
+        if not np.all(np.isfinite(targets)):
+            raise ParameterError(
+                f"targets must be finite, got {targets.tolist()}", name="targets", value=targets
+            )
+        targets.setflags(write=False)
+        object.__setattr__(self, "targets", targets)
+        object.__setattr__(self, "use_limits", bool(self.use_limits))
+
+    @property
+    def n_targets(self) -> int:
+        """Number of targets ``s``."""
+        return int(self.targets.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints ``n``."""
+        return self.chain.n
+
+    @property
+    def n_variables(self) -> int:
+        """Number of unknowns ``n s``."""
+        return self.n_targets * self.n_joints
+
+    @property
+    def bounded(self) -> bool:
+        """Whether finite joint limits are constraints of this problem."""
+        return self.use_limits and self.chain.bounded
+
+    @property
+    def lower(self) -> Array:
+        """Lower bound on ``x`` in [rad], shape (n s,); -inf where unlimited."""
+        if not self.use_limits:
+            return np.full(self.n_variables, -np.inf)
+        return np.tile(self.chain.q_lower, self.n_targets)
+
+    @property
+    def upper(self) -> Array:
+        """Upper bound on ``x`` in [rad], shape (n s,); +inf where unlimited."""
+        if not self.use_limits:
+            return np.full(self.n_variables, np.inf)
+        return np.tile(self.chain.q_upper, self.n_targets)
+
+    def as_configurations(self, x: ArrayLike, name: str = "x") -> Array:
+        """Return ``x`` (shape (n s,) or (s, n)) as a finite (s, n) array in [rad].
+
+        Raises
+        ------
+        ParameterError
+            If the size is not ``n s`` or an entry is not finite.
+        """
+        arr = np.array(x, dtype=float)
+        if arr.size != self.n_variables or arr.ndim not in (1, 2):
+            raise ParameterError(
+                f"{name} must have shape ({self.n_variables},) or "
+                f"({self.n_targets}, {self.n_joints}), got {arr.shape}",
+                name=name,
+                value=arr.shape,
+            )
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError(f"{name} must be finite", name=name, value=arr)
+        return arr.reshape(self.n_targets, self.n_joints)
+
+    def objective(self, x: ArrayLike) -> float:
+        """``E = 1/2 sum_j |q_{j+1} - q_j|^2`` (cyclic) in [rad^2]."""
+        q = self.as_configurations(x)
+        return 0.5 * float(np.sum((np.roll(q, -1, axis=0) - q) ** 2))
+
+    def objective_gradient(self, x: ArrayLike) -> Array:
+        """``dE/dx`` in [rad], shape (n s,): ``2 q_j - q_{j-1} - q_{j+1}`` per block."""
+        q = self.as_configurations(x)
+        return (2.0 * q - np.roll(q, 1, axis=0) - np.roll(q, -1, axis=0)).ravel()
+
+    def tip_positions(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Tip positions ``F(q_j)`` in [m], shape (s, 2), by Pinocchio."""
+        q = self.as_configurations(x)
+        data = self.chain.create_data() if data is None else data
+        return np.array([self.chain.tip_position(qj, data) for qj in q])
+
+    def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
+        """``c(x) = F(q_j) - p_j`` stacked, shape (2 s,), in [m]."""
+        return (self.tip_positions(x, data) - self.targets).ravel()
+
+    def residuals(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Per-target residual ``|F(q_j) - p_j|`` in [m], shape (s,)."""
+        return np.linalg.norm(self.tip_positions(x, data) - self.targets, axis=1)
+
+    def limit_violation(self, x: ArrayLike) -> float:
+        """Largest joint-limit violation in [rad] (0 when within limits or unlimited)."""
+        xv = self.as_configurations(x).ravel()
+        over = np.maximum(self.lower - xv, xv - self.upper)
+        return float(max(0.0, np.max(over)))
+
+    def evaluate(self, x: ArrayLike, data: pin.Data | None = None) -> Evaluation:
+        """Objective, gradient, constraints and constraint Jacobian blocks at ``x``."""
+        q = self.as_configurations(x)
+        data = self.chain.create_data() if data is None else data
+        s, n = q.shape
+        c = np.empty((s, 2))
+        blocks = np.empty((s, 2, n))
+        model, fid = self.chain.model, self.chain.tip_frame_id
+        frame = pin.LOCAL_WORLD_ALIGNED
+        for j in range(s):  # hot loop: Pinocchio directly (q[j] is validated above)
+            blocks[j] = pin.computeFrameJacobian(model, data, q[j], fid, frame)[:2]
+            c[j] = data.oMf[fid].translation[:2] - self.targets[j]
+        nxt = q[np.r_[1:s, 0]]
+        prv = q[np.r_[s - 1, 0 : s - 1]]
+        diff = nxt - q
+        grad = (2.0 * q - prv - nxt).ravel()
+        return Evaluation(0.5 * float(np.sum(diff * diff)), grad, c.ravel(), blocks)
+
+    def default_start(self) -> Array:
+        """Return the study's start: the zero vector clipped into the limits, shape (n s,)."""
+        return np.clip(np.zeros(self.n_variables), self.lower, self.upper)
+
+    def check_start(self, x0: ArrayLike | None) -> Array:
+        """Validate an initial guess (``None`` = :meth:`default_start`), shape (n s,).
+
+        Raises
+        ------
+        ParameterError
+            If ``x0`` has the wrong size, is not finite, or lies outside the limits.
+        """
+        if x0 is None:
+            return self.default_start()
+        x = self.as_configurations(x0, name="x0").ravel().copy()
+        lo, hi = self.lower, self.upper
+        bad = np.flatnonzero((x < lo) | (x > hi))
+        if bad.size:
+            k = int(bad[0])
+            j, i = divmod(k, self.n_joints)
+            raise ParameterError(
+                f"the start x0 violates the joint limits: configuration {j}, joint {i} is "
+                f"{x[k]:.6g} rad, expected within [{lo[k]:.6g}, {hi[k]:.6g}] rad",
+                name="x0",
+                value=x[k],
+            )
+        return x

@@ -1,0 +1,598 @@
+r"""Reachability of tip targets, decided without sampling (spec ``ikpath.md``).
+
+Every target gets a :class:`ReachVerdict` *before* optimising. A target ``p``
+counts as reachable when its distance to the workspace ``W`` is at most
+``tol`` (default 1e-9 m); every verdict carries its evidence:
+
+* ``REACHABLE``: a witness configuration ``q`` within the joint limits whose
+  tip, computed by Pinocchio, is within ``tol`` of ``p``.
+* ``UNREACHABLE``: a certified lower bound ``distance_lower > tol`` on
+  ``dist(p, W)``, plus the nearest reachable point found (``nearest``, a tip
+  position of a configuration within the limits) and its distance.
+* ``UNDECIDED`` (only possible for chains of 4+ links with limits when the
+  evaluation budget runs out): the certified interval
+  ``[distance_lower, distance_upper]``.
+
+How the decision is made:
+
+* **No limits** (or every joint range spans 2 pi): the exact annulus test
+  ``r_min <= |p - base| <= r_max``; the witness is built in closed form by
+  placing the wrist of the first ``k - 1`` links on the circle of radius
+  ``l_k`` about ``p``, recursively.
+* **Limits, 1 or 2 links**: closed form (nearest point on arcs; see
+  :mod:`youbot_opt.ikpath._geometry`).
+* **Limits, n >= 3 links**: branch and bound over the first ``m = n - 2``
+  angles. For fixed outer angles the distance ``g`` from ``p`` to the
+  workspace of the last two links is computed *exactly* in closed form. Moving
+  ``theta_k`` by ``delta`` rotates everything after joint ``k`` about joint
+  ``k``, which moves the set relative to ``p`` by at most
+  ``|p - c_k| |delta|``; hence on a box with centre ``theta_c`` and
+  half-widths ``h``
+
+  .. math::
+
+      g(\theta) \ge g(\theta_c) - \sum_k \rho_k h_k, \qquad
+      \rho_k = |p - c_k(\theta_c)| + \sum_{i<k} h_i (l_i + \dots + l_{k-1}),
+
+  a rigorous Lipschitz bound (``c_k`` = position of joint ``k``). Boxes whose
+  bound exceeds ``tol`` are discarded; the rest are bisected. For ``n = 3``
+  this is a 1-D sweep of ``theta_1`` that always terminates; the root
+  interval's end points are evaluated too, so targets reachable only at a
+  limit (l = (3, 2, 2), |theta| <= pi/2, p = (0, 7): theta = (pi/2, 0, 0)) are
+  found exactly. For ``n > 3`` the search is (n - 2)-dimensional and limited
+  by ``max_evaluations``. The exact distance to the unlimited annulus is a
+  lower bound too. A local bounded least-squares polish (deterministic,
+  from the best box) speeds up finding witnesses on slivers.
+
+Floating-point rounding (about 1e-15 relative) is covered by a margin of
+``1e-12 (1 + |p - base| + sum l)`` subtracted from every lower bound.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import least_squares
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError, UnreachableTarget
+from youbot_opt.ikpath._geometry import TWO_PI, nearest_on_arc, two_link_nearest
+from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.problem import CyclicIKProblem
+
+__all__ = [
+    "Reachability",
+    "ReachVerdict",
+    "decide_reachability",
+    "check_reachability",
+    "require_reachable",
+]
+
+
+class Reachability(Enum):
+    """Verdict on one target."""
+
+    REACHABLE = "reachable"
+    UNREACHABLE = "unreachable"
+    UNDECIDED = "undecided"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class ReachVerdict:
+    """Reachability verdict of one target, with its evidence.
+
+    Attributes
+    ----------
+    index : int
+        0-based index of the target in its problem.
+    target : ndarray, shape (2,)
+        Target in [m].
+    status : Reachability
+        The verdict.
+    method : str
+        ``"annulus"``, ``"closed_form"`` or ``"branch_and_bound"``.
+    witness : ndarray, shape (n,) or None
+        Configuration in [rad] within the limits reaching the target (REACHABLE only).
+    witness_error : float
+        ``|F(witness) - target|`` in [m] by Pinocchio (NaN without witness).
+    distance_lower, distance_upper : float
+        Certified bounds on the distance from the target to the workspace in [m].
+    nearest : ndarray, shape (2,)
+        Tip position in [m] of :attr:`nearest_q`: the reachable point nearest to
+        the target that was found (the target itself, up to ``tol``, if reachable).
+    nearest_q : ndarray, shape (n,)
+        Configuration in [rad] within the limits whose tip is :attr:`nearest`.
+    reach : tuple of float
+        ``(r_min, r_max)`` in [m]: radii of the workspace annulus about the base
+        without joint limits.
+    limited : bool
+        Whether joint limits were part of the decision.
+    tolerance : float
+        ``tol`` in [m].
+    evaluations : int
+        Closed-form sub-problem evaluations used.
+    """
+
+    index: int
+    target: Array
+    status: Reachability
+    method: str
+    witness: Array | None
+    witness_error: float
+    distance_lower: float
+    distance_upper: float
+    nearest: Array
+    nearest_q: Array
+    reach: tuple[float, float]
+    limited: bool
+    tolerance: float
+    evaluations: int
+
+    @property
+    def reachable(self) -> bool:
+        """Whether the verdict is REACHABLE."""
+        return self.status is Reachability.REACHABLE
+
+    def describe(self) -> str:
+        """One-line human-readable statement of the verdict and its evidence."""
+        p = f"p{self.index + 1} = ({self.target[0]:.6g}, {self.target[1]:.6g})"
+        lim = "under the joint limits" if self.limited else "without joint limits"
+        reach = f"reach {self.reach[0]:.6g} <= |p - base| <= {self.reach[1]:.6g} m without limits"
+        near = f"({self.nearest[0]:.6g}, {self.nearest[1]:.6g})"
+        if self.status is Reachability.REACHABLE and self.witness is not None:
+            return (
+                f"target {p}: reachable {lim} ({self.method}); witness q = "
+                f"{np.round(self.witness, 6).tolist()} rad, tip error {self.witness_error:.2g} m"
+            )
+        if self.status is Reachability.UNREACHABLE:
+            return (
+                f"target {p}: unreachable {lim} ({self.method}): at least "
+                f"{self.distance_lower:.6g} m from the workspace ({reach}); nearest reachable "
+                f"point {near} at {self.distance_upper:.6g} m"
+            )
+        return (
+            f"target {p}: undecided {lim} after {self.evaluations} evaluations: "
+            f"distance to the workspace in [{self.distance_lower:.3g}, "
+            f"{self.distance_upper:.3g}] m ({reach}); nearest point found {near}"
+        )
+
+
+def _theta_ranges(chain: PlanarChain, use_limits: bool) -> list[tuple[float, float]] | None:
+    """``(lo, width)`` ranges of the study angles, or None when no joint is limited."""
+    ranges = []
+    limited = False
+    for lo, hi, off in zip(chain.q_lower, chain.q_upper, chain.angle_offset, strict=True):
+        if not use_limits or not (math.isfinite(lo) and math.isfinite(hi)) or hi - lo >= TWO_PI:
+            ranges.append((-math.pi + off, TWO_PI))
+        else:
+            ranges.append((lo + off, hi - lo))
+            limited = True
+    return ranges if limited else None
+
+
+def _unlimited_angles(lengths: Array, vx: float, vy: float) -> list[float]:
+    """Absolute segment angles of an unlimited chain (base at 0) whose tip is at v.
+
+    ``v`` must lie in the chain's annulus. The wrist of the first ``k - 1``
+    links is put at the radius in the middle of the feasible interval, which
+    keeps the construction away from singular triangles.
+    """
+    k = lengths.size
+    if k == 1:
+        return [math.atan2(vy, vx)]
+    sub = lengths[:-1]
+    m_sub = max(0.0, 2.0 * float(np.max(sub)) - float(np.sum(sub)))
+    big_sub = float(np.sum(sub))
+    lk = float(lengths[-1])
+    r = math.hypot(vx, vy)
+    lo, hi = max(m_sub, abs(r - lk)), min(big_sub, r + lk)
+    rho = 0.5 * (lo + hi) if hi >= lo else (hi if abs(r - lk) > big_sub else lo)
+    if r == 0.0:
+        wx, wy = rho, 0.0
+    else:
+        cos_d = (r * r + rho * rho - lk * lk) / (2.0 * r * rho) if rho > 0.0 else 1.0
+        delta = math.acos(min(1.0, max(-1.0, cos_d)))
+        ux, uy = vx / r, vy / r
+        wx = rho * (ux * math.cos(delta) - uy * math.sin(delta))
+        wy = rho * (ux * math.sin(delta) + uy * math.cos(delta))
+    return [*_unlimited_angles(sub, wx, wy), math.atan2(vy - wy, vx - wx)]
+
+
+def _q_from_phi(chain: PlanarChain, phi: list[float]) -> Array:
+    """Joint coordinates from absolute segment angles (wrapped to (-pi, pi])."""
+    theta = np.diff(np.r_[0.0, phi])
+    q = theta - chain.angle_offset
+    return np.arctan2(np.sin(q), np.cos(q))
+
+
+def _verdict(
+    chain: PlanarChain,
+    p: Array,
+    index: int,
+    *,
+    status: Reachability,
+    method: str,
+    q: Array,
+    lower: float,
+    limited: bool,
+    tol: float,
+    evaluations: int,
+) -> ReachVerdict:
+    """Assemble a verdict, verifying the configuration ``q`` with Pinocchio."""
+    tip = chain.tip_position(q)
+    err = float(np.linalg.norm(tip - p))
+    q = np.array(q, dtype=float)
+    q.setflags(write=False)
+    tip.setflags(write=False)
+    reachable = status is Reachability.REACHABLE
+    return ReachVerdict(
+        index=index,
+        target=p,
+        status=status,
+        method=method,
+        witness=q if reachable else None,
+        witness_error=err if reachable else math.nan,
+        distance_lower=0.0 if reachable else lower,
+        distance_upper=err,
+        nearest=tip,
+        nearest_q=q,
+        reach=chain.reach,
+        limited=limited,
+        tolerance=tol,
+        evaluations=evaluations,
+    )
+
+
+def _annulus(chain: PlanarChain, p: Array, index: int, tol: float, limited: bool) -> ReachVerdict:
+    """Exact verdict without joint limits."""
+    r_min, r_max = chain.reach
+    v = p - chain.base
+    r = float(np.hypot(*v))
+    dist = max(0.0, r - r_max, r_min - r)
+    u = v / r if r > 0.0 else np.array([1.0, 0.0])
+    goal = u * min(max(r, r_min), r_max)
+    q = _q_from_phi(chain, _unlimited_angles(chain.lengths, float(goal[0]), float(goal[1])))
+    status = Reachability.REACHABLE if dist <= tol else Reachability.UNREACHABLE
+    return _verdict(
+        chain,
+        p,
+        index,
+        status=status,
+        method="annulus",
+        q=q,
+        lower=dist,
+        limited=limited,
+        tol=tol,
+        evaluations=1,
+    )
+
+
+def decide_reachability(
+    chain: PlanarChain,
+    target: ArrayLike,
+    *,
+    use_limits: bool = True,
+    tol: float = 1e-9,
+    max_evaluations: int = 20_000,
+    nearest_tol: float = 1e-6,
+    index: int = 0,
+) -> ReachVerdict:
+    """Decide whether ``chain`` can put its tip on ``target``.
+
+    Parameters
+    ----------
+    chain : PlanarChain
+        The arm (limits, base and angle offsets included).
+    target : array_like, shape (2,)
+        Target in [m].
+    use_limits : bool
+        Whether the chain's joint limits apply.
+    tol : float
+        Distance in [m] up to which a target counts as reached (> 0).
+    max_evaluations : int
+        Budget of closed-form evaluations for the branch and bound (n >= 3);
+        once decided, at most a tenth of it is spent refining the nearest point.
+    nearest_tol : float
+        For unreachable targets, keep refining until the nearest point found is
+        within ``max(nearest_tol, 1e-3 * distance)`` in [m] of the certified
+        lower bound (or the budget runs out).
+    index : int
+        Index of the target, reported in the verdict.
+
+    Returns
+    -------
+    ReachVerdict
+        The verdict with its evidence.
+
+    Raises
+    ------
+    ParameterError
+        If the target is not a finite 2-vector or ``tol <= 0``.
+    """
+    p = np.array(target, dtype=float)
+    if p.shape != (2,) or not np.all(np.isfinite(p)):
+        raise ParameterError(
+            f"target must be a finite 2-vector, got {target!r}", name="target", value=target
+        )
+    if not tol > 0.0:
+        raise ParameterError(f"tol must be > 0, got {tol!r}", name="tol", value=tol)
+    p.setflags(write=False)
+    ranges = _theta_ranges(chain, use_limits)
+    if ranges is None:
+        return _annulus(chain, p, index, tol, limited=False)
+    if chain.n <= 2:
+        return _closed_form(chain, p, ranges, index, tol)
+    return _BranchAndBound(chain, p, ranges, tol, max_evaluations, nearest_tol, index).run()
+
+
+def _closed_form(
+    chain: PlanarChain, p: Array, ranges: list[tuple[float, float]], index: int, tol: float
+) -> ReachVerdict:
+    """Exact verdict for 1- and 2-link chains with limits."""
+    bx, by = float(chain.base[0]), float(chain.base[1])
+    if chain.n == 1:
+        d, t = nearest_on_arc(float(p[0]), float(p[1]), bx, by, float(chain.lengths[0]), *ranges[0])
+        theta = np.array([ranges[0][0] + t])
+    else:
+        near = two_link_nearest(
+            float(p[0]),
+            float(p[1]),
+            bx,
+            by,
+            0.0,
+            float(chain.lengths[0]),
+            float(chain.lengths[1]),
+            ranges[0],
+            ranges[1],
+        )
+        d, theta = near.distance, np.array([near.alpha, near.beta])
+    q = np.clip(theta - chain.angle_offset, chain.q_lower, chain.q_upper)
+    status = Reachability.REACHABLE if d <= tol else Reachability.UNREACHABLE
+    return _verdict(
+        chain,
+        p,
+        index,
+        status=status,
+        method="closed_form",
+        q=q,
+        lower=d,
+        limited=True,
+        tol=tol,
+        evaluations=1,
+    )
+
+
+class _BranchAndBound:
+    """Lipschitz branch and bound over the first n - 2 angles (see the module docstring)."""
+
+    def __init__(
+        self,
+        chain: PlanarChain,
+        p: Array,
+        ranges: list[tuple[float, float]],
+        tol: float,
+        max_evaluations: int,
+        nearest_tol: float,
+        index: int,
+    ) -> None:
+        self.chain, self.p, self.ranges, self.tol, self.index = chain, p, ranges, tol, index
+        self.max_evaluations, self.nearest_tol = max_evaluations, nearest_tol
+        self.m = chain.n - 2
+        self.lengths = [float(v) for v in chain.lengths]
+        self.margin = 1e-12 * (1.0 + float(np.hypot(*(p - chain.base))) + sum(self.lengths))
+        self.px, self.py = float(p[0]), float(p[1])
+        self.evaluations = 0
+        self.best_d = math.inf
+        self.best_theta = np.array([r[0] for r in ranges])
+        self.polishes = 0
+        self.last_polish = math.inf
+        r_min, r_max = chain.reach
+        r = math.hypot(self.px - float(chain.base[0]), self.py - float(chain.base[1]))
+        self.annulus_gap = max(0.0, r - r_max, r_min - r)  # exact distance without limits
+
+    def _g(self, outer: Array) -> tuple[float, Array | None, list[tuple[float, float]]]:
+        """Exact distance for fixed outer angles, the full theta if it is the best, joints."""
+        self.evaluations += 1
+        x, y = float(self.chain.base[0]), float(self.chain.base[1])
+        phi = 0.0
+        joints = [(x, y)]
+        for k in range(self.m):
+            phi += float(outer[k])
+            x += self.lengths[k] * math.cos(phi)
+            y += self.lengths[k] * math.sin(phi)
+            joints.append((x, y))
+        near = two_link_nearest(
+            self.px,
+            self.py,
+            x,
+            y,
+            phi,
+            self.lengths[self.m],
+            self.lengths[self.m + 1],
+            self.ranges[self.m],
+            self.ranges[self.m + 1],
+        )
+        theta = None
+        if near.distance < self.best_d:
+            theta = np.append(outer, (near.alpha, near.beta))
+            self.best_d, self.best_theta = near.distance, theta
+        return near.distance, theta, joints
+
+    def _lipschitz(self, joints: list[tuple[float, float]], half: Array) -> float:
+        """``sum_k rho_k h_k`` for a box with the given centre joint positions."""
+        px, py = float(self.p[0]), float(self.p[1])
+        total = 0.0
+        for k in range(self.m):
+            rho = math.hypot(px - joints[k][0], py - joints[k][1])
+            rho += sum(half[i] * sum(self.lengths[i:k]) for i in range(k))
+            total += rho * float(half[k])
+        return total
+
+    def _q(self, theta: Array) -> Array:
+        return np.clip(theta - self.chain.angle_offset, self.chain.q_lower, self.chain.q_upper)
+
+    def _witness_ok(self, theta: Array) -> bool:
+        q = self._q(theta)
+        return float(np.linalg.norm(self.chain.tip_position(q) - self.p)) <= self.tol
+
+    def _should_polish(self, bound: float) -> bool:
+        """Polish near a sliver (tiny distance) or to tighten the nearest point once decided."""
+        if self.polishes >= 4:
+            return False
+        if bound > self.tol:  # decided unreachable: improve the nearest point
+            return self.best_d < 0.5 * self.last_polish
+        return self.best_d <= 1e-4 * self.margin * 1e12 and self.best_d < 0.1 * self.last_polish
+
+    def _polish(self) -> bool:
+        """Local bounded least squares from the best point; True if it reaches p."""
+        self.polishes += 1
+        self.last_polish = self.best_d
+        chain, lo, hi = self.chain, self.chain.q_lower, self.chain.q_upper
+        q0 = self._q(self.best_theta)
+        free = hi > lo
+        data = chain.create_data()
+
+        def full(z: Array) -> Array:
+            q = q0.copy()
+            q[free] = z
+            return q
+
+        def res(z: Array) -> Array:
+            return chain.tip_position(full(z), data) - self.p
+
+        def jac(z: Array) -> Array:
+            return chain.tip_jacobian(full(z), data)[:, free]
+
+        sol = least_squares(
+            res,
+            q0[free],
+            jac=jac,
+            bounds=(lo[free], hi[free]),
+            method="trf",
+            xtol=1e-14,
+            ftol=1e-15,
+            gtol=1e-15,
+            max_nfev=40,
+        )
+        q = np.clip(full(sol.x), lo, hi)
+        d = float(np.linalg.norm(chain.tip_position(q) - self.p))
+        if d < self.best_d:
+            self.best_d, self.best_theta = d, q + chain.angle_offset
+        return d <= self.tol
+
+    def _result(self, status: Reachability, lower: float) -> ReachVerdict:
+        return _verdict(
+            self.chain,
+            self.p,
+            self.index,
+            status=status,
+            method="branch_and_bound",
+            q=self._q(self.best_theta),
+            lower=lower,
+            limited=True,
+            tol=self.tol,
+            evaluations=self.evaluations,
+        )
+
+    def run(self) -> ReachVerdict:
+        """Search until decided (and the nearest point is accurate) or out of budget."""
+        lo = np.array([r[0] for r in self.ranges[: self.m]])
+        hi = lo + np.array([r[1] for r in self.ranges[: self.m]])
+        if self.m <= 10:  # the root box's corners: targets reachable only at a limit
+            for corner in itertools.product(*zip(lo, hi, strict=True)):
+                self._g(np.array(corner))
+                if self.best_d <= self.tol and self._witness_ok(self.best_theta):
+                    return self._result(Reachability.REACHABLE, 0.0)
+        counter = itertools.count()
+        heap: list[tuple[float, int, Array, Array]] = []
+
+        def push(b_lo: Array, b_hi: Array) -> bool:
+            centre, half = 0.5 * (b_lo + b_hi), 0.5 * (b_hi - b_lo)
+            d, theta, joints = self._g(centre)
+            if theta is not None and d <= self.tol and self._witness_ok(theta):
+                return True
+            bound = d - self._lipschitz(joints, half) - self.margin
+            heapq.heappush(heap, (bound, next(counter), b_lo, b_hi))
+            return False
+
+        if push(lo, hi):
+            return self._result(Reachability.REACHABLE, 0.0)
+        decided_at = None
+        while heap:
+            bound, _, b_lo, b_hi = heap[0]
+            bound = max(bound, self.annulus_gap)
+            if bound > self.tol and decided_at is None:
+                decided_at = self.evaluations
+            gap = max(self.nearest_tol, 1e-3 * self.best_d)
+            if bound > self.tol and self.best_d - bound <= gap:
+                return self._result(Reachability.UNREACHABLE, bound)
+            spent = self.evaluations - (decided_at or 0)
+            if self.evaluations >= self.max_evaluations or (
+                decided_at is not None and spent >= self.max_evaluations // 10
+            ):
+                status = Reachability.UNREACHABLE if bound > self.tol else Reachability.UNDECIDED
+                return self._result(status, max(bound, 0.0))
+            if self._should_polish(bound) and self._polish() and self._witness_ok(self.best_theta):
+                return self._result(Reachability.REACHABLE, 0.0)
+            heapq.heappop(heap)
+            if bound > self.best_d:
+                continue
+            half = 0.5 * (b_hi - b_lo)
+            k = int(np.argmax(half * (1.0 + np.arange(self.m, 0, -1))))
+            mid = 0.5 * (b_lo[k] + b_hi[k])
+            left_hi, right_lo = b_hi.copy(), b_lo.copy()
+            left_hi[k], right_lo[k] = mid, mid
+            if push(b_lo, left_hi) or push(right_lo, b_hi):
+                return self._result(Reachability.REACHABLE, 0.0)
+        return self._result(Reachability.UNREACHABLE, max(self.best_d, self.annulus_gap))
+
+
+def check_reachability(problem: CyclicIKProblem, **kwargs: float) -> tuple[ReachVerdict, ...]:
+    """Verdicts for every target of ``problem`` (limits as the problem says).
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem.
+    **kwargs
+        ``tol``, ``max_evaluations``, ``nearest_tol`` of :func:`decide_reachability`.
+
+    Returns
+    -------
+    tuple of ReachVerdict
+        One verdict per target, in order.
+    """
+    return tuple(
+        decide_reachability(
+            problem.chain,
+            p,
+            use_limits=problem.use_limits,
+            index=j,
+            **kwargs,  # type: ignore[arg-type]
+        )
+        for j, p in enumerate(problem.targets)
+    )
+
+
+def require_reachable(
+    problem: CyclicIKProblem, verdicts: tuple[ReachVerdict, ...] | None = None
+) -> tuple[ReachVerdict, ...]:
+    """Return the verdicts, raising for the first unreachable target.
+
+    Raises
+    ------
+    UnreachableTarget
+        Naming the target, the reach limits and the nearest reachable point;
+        ``verdict`` holds the :class:`ReachVerdict`.
+    """
+    verdicts = check_reachability(problem) if verdicts is None else verdicts
+    for v in verdicts:
+        if v.status is Reachability.UNREACHABLE:
+            raise UnreachableTarget(v.describe(), index=v.index, target=v.target, verdict=v)
+    return verdicts

@@ -1,0 +1,269 @@
+"""Results of an IK-path solve: status, optimum, residuals, history, replay hooks.
+
+A failed solve is a status, not an exception (Drake style): the result keeps
+the best iterate the solver reached. :meth:`IKPathResult.raise_for_status`
+turns a failure into :class:`~youbot_opt.exceptions.SolveFailed`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError, SolveFailed
+from youbot_opt.ikpath.problem import CyclicIKProblem
+
+__all__ = ["IKStatus", "OuterIterate", "IKPathResult", "JointPath", "build_result"]
+
+
+class IKStatus(Enum):
+    """Outcome of one IK-path solve."""
+
+    SUCCESS = "success"
+    """Stationarity and feasibility tolerances met (and residuals verified)."""
+    MAX_ITERATIONS = "max_iterations"
+    """Iteration limit reached before the tolerances were met."""
+    STALLED = "stalled"
+    """No further progress possible (penalty at its cap, or the solver gave up)."""
+    INFEASIBLE = "infeasible"
+    """The solver reports the constraints as locally infeasible."""
+    NUMERICAL_ERROR = "numerical_error"
+    """Non-finite values or a solver-internal error."""
+    CRASHED = "crashed"
+    """The solve raised an exception (multistart keeps going); see the message."""
+
+
+class OuterIterate(NamedTuple):
+    """One outer iteration of a solver, kept for convergence plots.
+
+    Attributes
+    ----------
+    iteration : int
+        0-based outer iteration index.
+    x : ndarray, shape (s, n)
+        Configurations in [rad] after this iteration.
+    objective : float
+        ``E`` in [rad^2].
+    violation : float
+        Largest constraint violation in [m] (inf-norm of ``c``).
+    stationarity : float
+        Inf-norm of the (projected) gradient of the Lagrangian used by the solver.
+    penalty : float
+        Penalty parameter ``mu`` (augmented Lagrangian) or barrier ``mu`` (IPOPT).
+    inner_iterations : int
+        Inner (BFGS / L-BFGS-B) iterations spent in this outer iteration (0 for IPOPT).
+    """
+
+    iteration: int
+    x: Array
+    objective: float
+    violation: float
+    stationarity: float
+    penalty: float
+    inner_iterations: int
+
+
+class JointPath(NamedTuple):
+    """A sampled joint-space path.
+
+    Attributes
+    ----------
+    s : ndarray, shape (N,)
+        Path parameter: target ``j`` is at ``s = j`` (0-based); ``s = n_targets``
+        closes the cycle back at target 0.
+    q : ndarray, shape (N, n)
+        Joint angles in [rad].
+    """
+
+    s: Array
+    q: Array
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class IKPathResult:
+    """Result of one IK-path solve.
+
+    Attributes
+    ----------
+    problem : CyclicIKProblem
+        The problem solved.
+    method : str
+        ``"al"`` (augmented Lagrangian) or ``"ipopt"``.
+    status : IKStatus
+        Outcome.
+    configurations : ndarray, shape (s, n)
+        Final (or best) configurations in [rad].
+    objective : float
+        ``E`` at :attr:`configurations` in [rad^2], recomputed by the problem.
+    residuals : ndarray, shape (s,)
+        ``|F(q_j) - p_j|`` in [m], recomputed with Pinocchio.
+    limit_violation : float
+        Largest joint-limit violation in [rad] (0 if none or no limits).
+    multipliers : ndarray, shape (s, 2)
+        Multipliers ``lambda`` of ``F(q_j) - p_j = 0`` with the sign convention
+        ``grad E = sum_j J_j^T lambda_j`` at a KKT point without active bounds
+        (i.e. the Lagrangian is ``E - lambda . c``).
+    iterations : int
+        Outer iterations (augmented Lagrangian) or IPOPT iterations.
+    inner_iterations : int
+        Total inner iterations (0 for IPOPT).
+    wall_time : float
+        Solve time in [s].
+    message : str
+        Solver message.
+    start : ndarray, shape (s, n)
+        Initial guess in [rad].
+    history : tuple of OuterIterate
+        Per outer iteration record (may be empty).
+    """
+
+    problem: CyclicIKProblem
+    method: str
+    status: IKStatus
+    configurations: Array
+    objective: float
+    residuals: Array
+    limit_violation: float
+    multipliers: Array
+    iterations: int
+    inner_iterations: int
+    wall_time: float
+    message: str
+    start: Array
+    history: tuple[OuterIterate, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        for key in ("configurations", "residuals", "multipliers", "start"):
+            arr = np.array(getattr(self, key), dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+
+    @property
+    def success(self) -> bool:
+        """Whether :attr:`status` is :attr:`IKStatus.SUCCESS`."""
+        return self.status is IKStatus.SUCCESS
+
+    @property
+    def E(self) -> float:  # noqa: N802 - the study's symbol
+        """Alias of :attr:`objective` (the study's symbol), in [rad^2]."""
+        return self.objective
+
+    @property
+    def model(self) -> pin.Model:
+        """Pinocchio model of the chain (for replay)."""
+        return self.problem.chain.model
+
+    @property
+    def visual_model(self) -> pin.GeometryModel:
+        """Primitive-shape visual model of the chain (for replay)."""
+        return self.problem.chain.visual_model
+
+    def max_residual(self) -> float:
+        """Largest target residual in [m]."""
+        return float(np.max(self.residuals))
+
+    def raise_for_status(self) -> IKPathResult:
+        """Return ``self`` if successful, else raise :class:`SolveFailed` carrying it."""
+        if not self.success:
+            raise SolveFailed(
+                f"IK-path solve ({self.method}) ended with status {self.status.value}: "
+                f"{self.message}; E = {self.objective:.6g}, largest residual "
+                f"{self.max_residual():.3g} m, limit violation {self.limit_violation:.3g} rad",
+                result=self,
+            )
+        return self
+
+    def tip_positions(self) -> Array:
+        """Tip positions in [m] of :attr:`configurations`, shape (s, 2), by Pinocchio."""
+        return self.problem.tip_positions(self.configurations)
+
+    def joint_path(self, samples_per_segment: int = 20) -> JointPath:
+        """Joint-space path through the configurations, closed back to the first.
+
+        Consecutive configurations are joined by straight lines in joint space
+        (the motion whose squared length ``E`` sums).
+
+        Parameters
+        ----------
+        samples_per_segment : int
+            Samples per segment (>= 1); the end point of the cycle is included.
+
+        Returns
+        -------
+        JointPath
+            ``s`` of shape (s_targets * samples_per_segment + 1,) and ``q`` of
+            shape (N, n) in [rad]; ``q[k * samples_per_segment]`` is configuration
+            ``k`` and the last row equals the first.
+
+        Raises
+        ------
+        ParameterError
+            If ``samples_per_segment < 1``.
+        """
+        m = int(samples_per_segment)
+        if m < 1 or m != samples_per_segment:
+            raise ParameterError(
+                f"samples_per_segment must be an integer >= 1, got {samples_per_segment!r}",
+                name="samples_per_segment",
+                value=samples_per_segment,
+            )
+        q = self.configurations
+        closed = np.vstack([q, q[:1]])
+        s_knots = np.arange(closed.shape[0], dtype=float)
+        s = np.linspace(0.0, float(q.shape[0]), q.shape[0] * m + 1)
+        path = np.column_stack([np.interp(s, s_knots, closed[:, i]) for i in range(q.shape[1])])
+        return JointPath(s, path)
+
+    def summary(self) -> str:
+        """Return a few human-readable lines describing the result."""
+        lines = [
+            f"method {self.method}: {self.status.value} ({self.message})",
+            f"E = {self.objective:.10g} rad^2, largest residual {self.max_residual():.3g} m, "
+            f"limit violation {self.limit_violation:.3g} rad",
+            f"{self.iterations} iterations ({self.inner_iterations} inner), "
+            f"{self.wall_time * 1e3:.1f} ms",
+        ]
+        return "\n".join(lines)
+
+
+def build_result(
+    problem: CyclicIKProblem,
+    *,
+    method: str,
+    status: IKStatus,
+    x: Array,
+    multipliers: Array,
+    iterations: int,
+    inner_iterations: int,
+    wall_time: float,
+    message: str,
+    start: Array,
+    history: tuple[OuterIterate, ...] = (),
+) -> IKPathResult:
+    """Assemble an :class:`IKPathResult`, recomputing E, residuals and limit violation.
+
+    The residuals come from Pinocchio through the problem, independently of the
+    solver's own constraint evaluation (CasADi for IPOPT).
+    """
+    q = problem.as_configurations(x)
+    return IKPathResult(
+        problem=problem,
+        method=method,
+        status=status,
+        configurations=q,
+        objective=problem.objective(q),
+        residuals=problem.residuals(q),
+        limit_violation=problem.limit_violation(q),
+        multipliers=np.asarray(multipliers, dtype=float).reshape(problem.n_targets, 2),
+        iterations=int(iterations),
+        inner_iterations=int(inner_iterations),
+        wall_time=float(wall_time),
+        message=message,
+        start=problem.as_configurations(start, name="start"),
+        history=history,
+    )

@@ -1,0 +1,203 @@
+"""Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
+
+The study minimises a weighted sum of two named terms,
+
+.. math::
+
+    f = \\beta\\, T + (1 - \\beta)\\, W, \\qquad
+    T = (N - 1)\\,\\Delta t, \\qquad
+    W = \\int_0^T \\tau(t)\\cdot\\tau(t)\\, dt,
+
+with the *true* duration ``T = (N - 1) dt`` (the study's code used ``N dt``)
+and the work-like effort ``W`` in [N^2 m^2 s] approximated by the quadrature
+rule that belongs to the transcription:
+
+* trapezoidal: ``W = sum_k dt (w_k + w_{k+1}) / 2`` with ``w_k = tau_k . tau_k``
+  (the study's formula);
+* Hermite-Simpson: Simpson's rule ``W = sum_k dt (w_k + 4 w_{k+1/2} + w_{k+1}) / 6``
+  with the mid-interval torque.
+
+The helpers here work on plain numbers and on CasADi expressions alike (they
+only use ``+``, ``*`` and a dot product with constant weights), so the NLP and
+the numeric re-evaluation of a result share one definition.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+
+__all__ = [
+    "Objective",
+    "QuadratureRule",
+    "check_beta",
+    "duration",
+    "quadrature_weights",
+    "work",
+]
+
+QuadratureRule = Literal["trapezoidal", "simpson"]
+
+
+def check_beta(beta: float) -> float:
+    """Validate a time weight.
+
+    Parameters
+    ----------
+    beta : float
+        Weight of the duration term, in [0, 1] (dimensionless).
+
+    Returns
+    -------
+    float
+        ``beta`` as a float.
+
+    Raises
+    ------
+    ParameterError
+        If ``beta`` is not a finite number in [0, 1].
+    """
+    try:
+        value = float(beta)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(
+            f"beta must be a number in [0, 1], got {beta!r}", name="beta", value=beta
+        ) from exc
+    if not math.isfinite(value) or not 0.0 <= value <= 1.0:
+        raise ParameterError(
+            f"beta must be in [0, 1] (1 = time only, 0 = work only), got {beta!r}",
+            name="beta",
+            value=beta,
+        )
+    return value
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Objective:
+    """Weighted sum of duration and work, ``f = beta * T + (1 - beta) * W``.
+
+    Attributes
+    ----------
+    beta : float
+        Weight of the duration ``T`` in [s]; ``1 - beta`` weighs the work ``W``
+        in [N^2 m^2 s]. In [0, 1]; the study's base case is 0.5.
+    """
+
+    beta: float = 0.5
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "beta", check_beta(self.beta))
+
+    @classmethod
+    def time(cls) -> Objective:
+        """Pure minimum time (``beta = 1``)."""
+        return cls(beta=1.0)
+
+    @classmethod
+    def work(cls) -> Objective:
+        """Pure minimum work ``integral of tau . tau`` (``beta = 0``)."""
+        return cls(beta=0.0)
+
+    def value(self, duration: Any, work: Any, beta: Any = None) -> Any:
+        """Objective value for a duration [s] and a work [N^2 m^2 s].
+
+        Parameters
+        ----------
+        duration : float or casadi expression
+            ``T`` in [s].
+        work : float or casadi expression
+            ``W`` in [N^2 m^2 s].
+        beta : float or casadi expression, optional
+            Overrides :attr:`beta` (e.g. with an NLP parameter).
+
+        Returns
+        -------
+        float or casadi expression
+            ``beta * T + (1 - beta) * W``.
+        """
+        b = self.beta if beta is None else beta
+        return b * duration + (1 - b) * work
+
+
+def duration(dt: Any, n_knots: int) -> Any:
+    """True duration ``T = (N - 1) dt`` in [s] of ``N`` knots with common step ``dt`` [s]."""
+    return (n_knots - 1) * dt
+
+
+def quadrature_weights(rule: QuadratureRule, n_knots: int) -> tuple[Array, Array | None]:
+    """Weights ``(w_knots, w_mid)`` with ``W = dt * (w_knots . p + w_mid . p_mid)``.
+
+    Parameters
+    ----------
+    rule : {"trapezoidal", "simpson"}
+        Quadrature rule of the transcription.
+    n_knots : int
+        Number of knots ``N`` (>= 2).
+
+    Returns
+    -------
+    w_knots : ndarray, shape (N,)
+        Weights of the knot powers ``p_k = tau_k . tau_k`` (dimensionless,
+        multiplied by ``dt`` in [s]).
+    w_mid : ndarray, shape (N - 1,) or None
+        Weights of the mid-interval powers (Simpson only).
+
+    Raises
+    ------
+    ParameterError
+        On an unknown rule or fewer than 2 knots.
+    """
+    if n_knots < 2:
+        raise ParameterError(f"n_knots must be >= 2, got {n_knots}", name="n_knots", value=n_knots)
+    w = np.ones(n_knots)
+    w[0] = w[-1] = 0.5
+    if rule == "trapezoidal":
+        return w, None
+    if rule == "simpson":
+        return w / 3.0, np.full(n_knots - 1, 4.0 / 6.0)
+    raise ParameterError(
+        f"rule must be 'trapezoidal' or 'simpson', got {rule!r}", name="rule", value=rule
+    )
+
+
+def work(
+    dt: float, tau: Array, tau_mid: Array | None = None, rule: QuadratureRule = "trapezoidal"
+) -> float:
+    """Work-like effort ``W`` in [N^2 m^2 s] of knot torques (numeric).
+
+    Parameters
+    ----------
+    dt : float
+        Common time step in [s].
+    tau : ndarray, shape (N, nv)
+        Knot torques in [N m].
+    tau_mid : ndarray, shape (N - 1, nv), optional
+        Mid-interval torques in [N m]; required by ``rule="simpson"``.
+    rule : {"trapezoidal", "simpson"}
+        Quadrature rule.
+
+    Returns
+    -------
+    float
+        ``W`` by the chosen rule.
+
+    Raises
+    ------
+    ParameterError
+        If Simpson's rule is asked for without ``tau_mid``.
+    """
+    tau = np.asarray(tau, dtype=float)
+    w_knots, w_mid = quadrature_weights(rule, tau.shape[0])
+    total = float(np.sum(tau * tau, axis=1) @ w_knots)
+    if w_mid is not None:
+        if tau_mid is None:
+            raise ParameterError("Simpson's rule needs tau_mid", name="tau_mid")
+        mid = np.asarray(tau_mid, dtype=float)
+        total += float(np.sum(mid * mid, axis=1) @ w_mid)
+    return dt * total

@@ -1,0 +1,302 @@
+"""Comparison tables of the study-1 reproduction, as markdown and JSON.
+
+:func:`markdown_report` turns the JSON form of a
+:class:`~youbot_opt.reproduction.runs.Study1Reproduction` (``to_json()``, or the
+file :func:`write_report` saved) into the tables of
+``docs/trajopt_reproduction.md``: the base case (study's reported figure |
+study's transcription reproduced | correct transcriptions), the deviations one
+at a time, the weight extremes, the Pareto front and the refinement in knots,
+each with its forward-simulation certificate. Tables are built from the saved
+JSON only, so they can be regenerated without solving again.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+__all__ = ["STUDY_REPORTED", "markdown_report", "write_report", "pareto_knee"]
+
+STUDY_REPORTED: dict[str, str] = {
+    "objective": "9.359 (92 % of starts)",
+    "optima": "9.359 (92 %), 11.070 (8 %)",
+    "dt_s": "~0.050",
+    "duration_s": "~2.4",
+    "beta_high": "~1.4 s (beta near 1)",
+    "beta_low": "61 s (beta near 0)",
+    "pareto": "corner near beta = 0.5",
+}
+"""The study's figures (spec ``trajopt.md``, "Figures the study reported"), verbatim."""
+
+JSON_NAME = "study1_reproduction.json"
+MARKDOWN_NAME = "study1_reproduction.md"
+
+
+def _f(x: Any, digits: int = 4) -> str:
+    """Format a number with ``digits`` significant digits; a dash for missing values."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, int):
+        return str(x)
+    return f"{x:.{digits}g}"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _cert(rec: dict[str, Any] | None, key: str = "certificate") -> dict[str, Any]:
+    cert = (rec or {}).get(key)
+    return cert if isinstance(cert, dict) else {}
+
+
+def _verdict(cert: dict[str, Any]) -> str:
+    if not cert:
+        return "-"
+    return "passes" if cert.get("ok") else "fails"
+
+
+def _base_table(data: dict[str, Any]) -> str:
+    keys = list(data["base"])
+    header = ["quantity", "study reported", *[data["base"][k]["best"]["label"] for k in keys]]
+    best = {k: data["base"][k]["best"] for k in keys}
+
+    def optima(k: str) -> str:
+        ms = data["base"][k]
+        return ", ".join(
+            f"{_f(o['objective'], 5)} ({o['count']}/{ms['n_starts']})" for o in ms["optima"]
+        )
+
+    def row(name: str, reported: str, fn: Any) -> list[str]:
+        return [name, reported, *[fn(k) for k in keys]]
+
+    rows = [
+        row(
+            "f, as its NLP defines it",
+            STUDY_REPORTED["objective"],
+            lambda k: _f(best[k]["objective"], 5),
+        ),
+        row("f with T = (n-1) dt", "-", lambda k: _f(best[k]["objective_true"], 5)),
+        row("distinct optima (count/starts)", STUDY_REPORTED["optima"], optima),
+        row(
+            "converged starts", "~95 %", lambda k: f"{100 * data['base'][k]['success_rate']:.0f} %"
+        ),
+        row("dt [s]", STUDY_REPORTED["dt_s"], lambda k: _f(best[k]["dt_s"])),
+        row("T = (n-1) dt [s]", STUDY_REPORTED["duration_s"], lambda k: _f(best[k]["duration_s"])),
+        row("T in its objective [s]", "-", lambda k: _f(best[k]["duration_code_s"])),
+        row("W [N^2 m^2 s]", "-", lambda k: _f(best[k]["work"])),
+    ]
+    for key, arm in (("certificate", "own model"), ("certificate_paper", "paper arm, b = 0")):
+        rows += [
+            row(f"certificate ({arm})", "-", lambda k, key=key: _verdict(_cert(best[k], key))),
+            row(f"  local position error [rad] ({arm})", "-",
+                lambda k, key=key: _f(_cert(best[k], key).get("local_position_max_rad"), 3)),
+            row(f"  local velocity error [rad/s] ({arm})", "-",
+                lambda k, key=key: _f(_cert(best[k], key).get("local_velocity_max_rad_s"), 3)),
+            row(f"  feedback/plan torque RMS ({arm})", "-",
+                lambda k, key=key: _f(_cert(best[k], key).get("feedback_rms_ratio"), 3)),
+            row(f"  tracking error [rad] ({arm})", "-",
+                lambda k, key=key: _f(_cert(best[k], key).get("tracking_position_error_rad"), 3)),
+        ]  # fmt: skip
+    return _table(header, rows)
+
+
+def _ablation_table(data: dict[str, Any]) -> str:
+    header = [
+        "deviations", "beta", "f (own)", "T [s]", "W", "dt [s]", "tau at knot 1 [N m]",
+        "tau at knot n [N m]", "local pos. err. [rad]", "feedback RMS", "certificate",
+    ]  # fmt: skip
+    rows = []
+    for r in data["ablation"]:
+        cert = _cert(r, "certificate_paper")
+        rows.append([
+            r["deviations"], _f(r["beta"], 3), _f(r["objective"], 5), _f(r["duration_s"]),
+            _f(r["work"]), _f(r["dt_s"]), " ".join(f"{t:.2f}" for t in r["tau_first"]),
+            " ".join(f"{t:.2f}" for t in r["tau_last"]),
+            _f(cert.get("local_position_max_rad"), 3), _f(cert.get("feedback_rms_ratio"), 3),
+            _verdict(cert),
+        ])  # fmt: skip
+    return _table(header, rows)
+
+
+def _extremes_table(data: dict[str, Any]) -> str:
+    header = [
+        "variant", "beta", "f (own)", "T [s]", "W", "optima: T [s] (count)",
+        "closest to q = 0 [rad]", "time near q = 0 [s]", "certificate (own / paper)",
+    ]  # fmt: skip
+    rows = [
+        ["study reported", "~1", "-", STUDY_REPORTED["beta_high"], "-", "-", "-", "-", "-"],
+        ["study reported", "~0", "-", STUDY_REPORTED["beta_low"], "-", "-", "-", "-", "-"],
+    ]
+    for key, entries in data["extremes"].items():
+        for e in entries:
+            b = e["best"] or {}
+            opts = ", ".join(f"{_f(o['duration_s'], 3)} ({o['count']})" for o in e["optima"])
+            rows.append([
+                b.get("label", key), _f(e["beta"], 3), _f(b.get("objective"), 5),
+                _f(b.get("duration_s")), _f(b.get("work")), opts,
+                _f(b.get("upright_distance_rad"), 2), _f(b.get("upright_time_s"), 3),
+                f"{_verdict(_cert(b))} / {_verdict(_cert(b, 'certificate_paper'))}",
+            ])  # fmt: skip
+    return _table(header, rows)
+
+
+def pareto_knee(points: list[dict[str, Any]]) -> float | None:
+    """Weight of the front's corner: the non-dominated point farthest from the chord.
+
+    ``T`` and ``W`` are normalised to [0, 1] over the non-dominated points, and
+    the corner is the point with the largest distance to the line through the
+    two ends of the front (the "knee").
+
+    Parameters
+    ----------
+    points : list of dict
+        Records with ``beta``, ``duration_s``, ``work``, ``success`` and ``dominated``.
+
+    Returns
+    -------
+    float or None
+        ``beta`` of the corner; ``None`` with fewer than three non-dominated points.
+    """
+    front = [p for p in points if p.get("success") and not p.get("dominated")]
+    front.sort(key=lambda p: p["duration_s"])
+    if len(front) < 3:
+        return None
+    t = [p["duration_s"] for p in front]
+    w = [p["work"] for p in front]
+    span_t, span_w = (max(t) - min(t)) or 1.0, (max(w) - min(w)) or 1.0
+    xs = [(x - min(t)) / span_t for x in t]
+    ys = [(y - min(w)) / span_w for y in w]
+    dx, dy = xs[-1] - xs[0], ys[-1] - ys[0]
+    norm = math.hypot(dx, dy) or 1.0
+    dist = [abs(dy * (x - xs[0]) - dx * (y - ys[0])) / norm for x, y in zip(xs, ys, strict=True)]
+    return float(front[max(range(len(front)), key=dist.__getitem__)]["beta"])
+
+
+def _pareto_table(data: dict[str, Any]) -> str:
+    keys = list(data["pareto"])
+    betas = sorted({p["beta"] for k in keys for p in data["pareto"][k]})
+    header = ["beta"] + [f"{k}: T [s] / W / cert." for k in keys]
+    rows = []
+    for b in betas:
+        row = [_f(b, 3)]
+        for k in keys:
+            p = next((p for p in data["pareto"][k] if p["beta"] == b), None)
+            if p is None or not p.get("success"):
+                row.append("-" if p is None else p.get("status", "-"))
+                continue
+            mark = " (dominated)" if p.get("dominated") else ""
+            verdict = _verdict(_cert(p, "certificate_paper"))
+            row.append(f"{_f(p['duration_s'])} / {_f(p['work'])} / {verdict}{mark}")
+        rows.append(row)
+    rows.append(["corner (knee) beta", *[_f(pareto_knee(data["pareto"][k]), 3) for k in keys]])
+    return _table(header, rows)
+
+
+def _refinement_table(data: dict[str, Any]) -> str:
+    header = [
+        "variant", "knots", "status", "f (own)", "T [s]", "W", "dt [s]", "iterations",
+        "local pos. err. [rad]", "local vel. err. [rad/s]", "feedback RMS", "tracking err. [rad]",
+        "certificate (paper arm)",
+    ]  # fmt: skip
+    rows = []
+    for r in data["refinement"]:
+        cert = _cert(r, "certificate_paper")
+        rows.append([
+            r["label"], str(r["n_knots"]), r["status"], _f(r["objective"], 7),
+            _f(r["duration_s"], 6), _f(r["work"], 6), _f(r["dt_s"]), str(r["iterations"]),
+            _f(cert.get("local_position_max_rad"), 3), _f(cert.get("local_velocity_max_rad_s"), 3),
+            _f(cert.get("feedback_rms_ratio"), 3), _f(cert.get("tracking_position_error_rad"), 3),
+            _verdict(cert),
+        ])  # fmt: skip
+    return _table(header, rows)
+
+
+def markdown_report(data: dict[str, Any]) -> str:
+    """All comparison tables as one markdown document.
+
+    Parameters
+    ----------
+    data : dict
+        ``Study1Reproduction.to_json()`` or the saved JSON file's content.
+
+    Returns
+    -------
+    str
+        Markdown with one section per part of the reproduction (sections that
+        were not run are omitted).
+    """
+    cfg = data["config"]
+    parts = [
+        "# Study 1 reproduced: tables",
+        f"n = {cfg['n_knots']} knots, beta = {cfg['beta']}, {cfg['n_starts']} seeded random "
+        f"spline starts (seed {cfg['seed']}), IPOPT tol {cfg['tol']:g}. Certificates: "
+        "`youbot_opt.verify.certify` default tolerances; 'own model' is the arm the NLP "
+        "describes (b = 0.1 for the study's code), 'paper arm' has b = 0.",
+    ]
+    sections = [
+        ("base", "Base case (beta = 0.5)", _base_table),
+        (
+            "ablation",
+            "The study's deviations one at a time (paper-arm certificate)",
+            _ablation_table,
+        ),
+        ("extremes", "Weight extremes", _extremes_table),
+        ("pareto", "Pareto front (paper-arm certificate)", _pareto_table),
+        ("refinement", "Refinement in knots (beta = 0.5)", _refinement_table),
+    ]
+    for key, title, build in sections:
+        if data.get(key):
+            parts += [f"## {title}", build(data)]
+    timings = ", ".join(f"{k} {v:.0f} s" for k, v in data.get("timings", {}).items())
+    parts.append(f"Wall time per section: {timings}.")
+    return "\n\n".join(parts) + "\n"
+
+
+def write_report(data: dict[str, Any], out_dir: str | os.PathLike[str]) -> tuple[Path, Path]:
+    """Write the JSON figures and the markdown tables to ``out_dir`` (created if needed).
+
+    Parameters
+    ----------
+    data : dict
+        ``Study1Reproduction.to_json()``.
+    out_dir : path-like
+        Output directory.
+
+    Returns
+    -------
+    tuple of Path
+        The JSON and markdown files (``study1_reproduction.json``, ``.md``).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    json_path, md_path = out / JSON_NAME, out / MARKDOWN_NAME
+    text = json.dumps(_clean(data), indent=1, allow_nan=False, default=_jsonable)
+    json_path.write_text(text + "\n")
+    md_path.write_text(markdown_report(data))
+    return json_path, md_path
+
+
+def _clean(x: Any) -> Any:
+    """``x`` with non-finite floats replaced by ``None`` (strict JSON), recursively."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_clean(v) for v in x]
+    return x
+
+
+def _jsonable(x: Any) -> Any:
+    """Fallback for numpy scalars and other simple objects in the records."""
+    if hasattr(x, "tolist"):
+        return x.tolist()
+    return str(x)

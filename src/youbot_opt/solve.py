@@ -1,0 +1,388 @@
+"""Build the trajectory NLP once, solve it many times: :class:`TrajOptSolver`.
+
+``TrajOptSolver(problem, method, options, backend)`` builds the robot's CasADi
+dynamics, transcribes the problem and creates the IPOPT solver once;
+:meth:`TrajOptSolver.solve` then takes the sweep parameters -- the time weight
+``beta`` (an NLP parameter), the bound scale and the boundary states (which
+only change the numeric bounds ``lbx``/``ubx``/``lbg``/``ubg``) -- so sweeps
+never rebuild. :func:`solve` is the one-off wrapper.
+
+Each result is checked independently of IPOPT's flag: the constraints are
+re-evaluated at the returned point and compared with their bounds, the
+decision variables with theirs, and everything must be finite; only then is a
+converged solve reported as a success (:mod:`youbot_opt.result`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.initial_guess import resolve_guess
+from youbot_opt.objectives import check_beta
+from youbot_opt.objectives import work as work_of
+from youbot_opt.options import IpoptOptions
+from youbot_opt.problem import BoundaryState, TrajOptProblem, check_bound_scale
+from youbot_opt.result import SolveStatus, TrajOptResult, status_from_ipopt
+from youbot_opt.trajectory import Trajectory
+from youbot_opt.transcription import Transcription, get_transcription
+from youbot_opt.transcription.base import BOUND_NAMES, TranscribedNLP
+
+__all__ = ["TrajOptSolver", "solve", "DEFAULT_FEASIBILITY_TOL"]
+
+_log = logging.getLogger(__name__)
+
+DEFAULT_FEASIBILITY_TOL = 1e-6
+"""Largest constraint or bound violation a successful result may have (units of each row)."""
+
+_SECOND_ORDER_BACKENDS = ("symbolic", "pinocchio_casadi")
+
+
+def _boundary(name: str, value: Any, default: BoundaryState) -> BoundaryState:
+    if value is None:
+        return default
+    if isinstance(value, BoundaryState):
+        return value
+    if isinstance(value, tuple) and len(value) == 2:
+        return BoundaryState(q=value[0], v=value[1])
+    try:
+        return BoundaryState(q=value)
+    except ParameterError as exc:
+        raise ParameterError(
+            f"{name} must be a BoundaryState, a (q, v) pair or a q vector: {exc}", name=name
+        ) from exc
+
+
+class TrajOptSolver:
+    """A transcribed trajectory problem with its IPOPT solver, built once.
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        The problem spec.
+    method : str or Transcription
+        ``"trapezoidal"`` (default, the study's), ``"hermite_simpson"`` or an instance.
+    options : IpoptOptions, optional
+        IPOPT settings; silent defaults when omitted.
+    backend : str
+        Dynamics backend of :func:`youbot_opt.dynamics.build_dynamics`:
+        ``"symbolic"`` (default; exact Hessian, expanded to SX) or ``"pinocchio"``
+        (Callback, limited-memory Hessian).
+    dynamics : Dynamics, optional
+        A prebuilt dynamics object (must match ``problem.robot``); overrides ``backend``.
+    feasibility_tol : float
+        Largest violation a successful result may have.
+
+    Attributes
+    ----------
+    nlp : TranscribedNLP
+        The symbolic NLP (inspect it before solving).
+    build_time : float
+        Wall time in [s] spent building dynamics, NLP and solver.
+    """
+
+    def __init__(
+        self,
+        problem: TrajOptProblem,
+        method: str | Transcription = "trapezoidal",
+        options: IpoptOptions | None = None,
+        backend: str = "symbolic",
+        *,
+        dynamics: Any = None,
+        feasibility_tol: float = DEFAULT_FEASIBILITY_TOL,
+    ) -> None:
+        if not isinstance(problem, TrajOptProblem):
+            raise ParameterError(
+                f"problem must be a TrajOptProblem, got {type(problem).__name__}", name="problem"
+            )
+        if not feasibility_tol > 0:
+            raise ParameterError(
+                f"feasibility_tol must be > 0, got {feasibility_tol!r}", name="feasibility_tol"
+            )
+        tic = time.perf_counter()
+        self.problem = problem
+        self.method = get_transcription(method)
+        self.options = options if options is not None else IpoptOptions()
+        if not isinstance(self.options, IpoptOptions):
+            raise ParameterError("options must be an IpoptOptions", name="options")
+        if dynamics is None:
+            from youbot_opt.dynamics import build_dynamics
+
+            dynamics = build_dynamics(problem.robot, backend, damping=problem.damping)
+        self.dynamics = dynamics
+        self.backend = str(dynamics.backend)
+        self.feasibility_tol = float(feasibility_tol)
+        self.nlp: TranscribedNLP = self.method.build(problem, dynamics.forward_dynamics)
+        symbolic = self.backend in _SECOND_ORDER_BACKENDS
+        self._exact_hessian = self.options.exact_hessian(symbolic)
+        nlp_fun = ca.Function(
+            "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
+        )
+        self._nlp_function = nlp_fun.expand() if symbolic else nlp_fun
+        opts = self.options.to_casadi(self._exact_hessian)
+        self._solver = ca.nlpsol("trajopt", "ipopt", self._nlp_function, opts)
+        self._warm_solver: Any = None
+        self.build_time = time.perf_counter() - tic
+        _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
+
+    # ----------------------------------------------------------------- solve
+    def solve(
+        self,
+        beta: float | None = None,
+        bound_scale: float = 1.0,
+        guess: Any = None,
+        start: Any = None,
+        goal: Any = None,
+        *,
+        seed: int | None = None,
+        warm_start: bool = True,
+    ) -> TrajOptResult:
+        """Solve with the given sweep parameters (no rebuild).
+
+        Parameters
+        ----------
+        beta : float, optional
+            Time weight in [0, 1]; the problem's objective default when omitted.
+        bound_scale : float
+            Factor > 0 on the bound families of ``problem.scaled_bounds`` (1.0 = data sheet).
+        guess : None, Trajectory or TrajOptResult
+            Initial guess (straight line when ``None``); resampled to the knots.
+        start, goal : BoundaryState, (q, v) pair or q vector, optional
+            Override the problem's boundary states.
+        seed : int, optional
+            Seed that produced ``guess`` (recorded in the result only).
+        warm_start : bool
+            When ``guess`` is a result of the same transcription and size, start
+            IPOPT from its primal *and* dual solution (``warm_start_init_point``,
+            small initial barrier parameter): a neighbouring sweep point then
+            converges in a few iterations. ``False`` uses only its trajectory.
+
+        Returns
+        -------
+        TrajOptResult
+            The solution or, on failure, the last iterate with a failure status.
+
+        Raises
+        ------
+        ParameterError
+            On a bad ``beta``, ``bound_scale``, boundary state or guess.
+        """
+        problem = self.problem
+        beta = problem.objective.beta if beta is None else check_beta(beta)
+        bound_scale = check_bound_scale(bound_scale)
+        start_state = _boundary("start", start, problem.start)
+        goal_state = _boundary("goal", goal, problem.goal)
+        problem.check_boundary(bound_scale, start_state, goal_state)
+        guess_traj = resolve_guess(problem, guess, start=start_state, goal=goal_state)
+        nlp = self.nlp
+        dt_range = self._dt_range()
+        warm = self._warm_start_point(guess) if warm_start else None
+        if warm is not None:
+            x0, lam_x0, lam_g0 = warm
+            solver = self._warm()
+        else:
+            values = self.method.knot_guess(guess_traj, problem.n_knots)
+            if problem.duration is not None:
+                values["dt"] = np.array(dt_range[0])
+            x0 = nlp.variables.pack(values)
+            lam_x0, lam_g0 = np.zeros(nlp.n_variables), np.zeros(nlp.n_constraints)
+            solver = self._solver
+        if not np.all(np.isfinite(x0)):
+            raise ParameterError("the initial guess is not finite", name="guess")
+        lbx, ubx = nlp.variable_bounds(problem.bounds(bound_scale), dt_range)
+        lbg, ubg = nlp.constraint_bounds(start_state, goal_state)
+
+        wall, cpu = time.perf_counter(), time.process_time()
+        error = ""
+        try:
+            sol = solver(
+                x0=x0, p=beta, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg, lam_x0=lam_x0, lam_g0=lam_g0
+            )
+            x = np.asarray(sol["x"], dtype=float).ravel()
+            lam_x = np.asarray(sol["lam_x"], dtype=float).ravel()
+            lam_g = np.asarray(sol["lam_g"], dtype=float).ravel()
+        except RuntimeError as exc:  # evaluation errors inside CasADi/IPOPT
+            error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+            x, lam_x, lam_g = x0.copy(), np.full_like(x0, np.nan), np.full(nlp.n_constraints, np.nan)
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        stats = solver.stats()
+        return self._result(
+            x, lam_x, lam_g, stats, error,
+            beta=beta, bound_scale=bound_scale, start=start_state, goal=goal_state,
+            bounds=(lbx, ubx, lbg, ubg), guess=guess_traj, wall=wall, cpu=cpu, seed=seed,
+        )  # fmt: skip
+
+    # --------------------------------------------------------------- helpers
+    def _warm(self) -> Any:
+        """The warm-start IPOPT instance, sharing the derivative Functions (built once)."""
+        if self._warm_solver is None:
+            opts = self.options.to_casadi(self._exact_hessian, warm_start=True)
+            for option, name in (("grad_f", "nlp_grad_f"), ("jac_g", "nlp_jac_g")):
+                opts[option] = self._solver.get_function(name)
+            if self._exact_hessian:
+                opts["hess_lag"] = self._solver.get_function("nlp_hess_l")
+            self._warm_solver = ca.nlpsol("trajopt_warm", "ipopt", self._nlp_function, opts)
+        return self._warm_solver
+
+    def _warm_start_point(self, guess: Any) -> tuple[Array, Array, Array] | None:
+        """Primal-dual start ``(x0, lam_x0, lam_g0)`` from a compatible previous result."""
+        if not isinstance(guess, TrajOptResult) or guess.method != self.method.name:
+            return None
+        nlp = self.nlp
+        try:
+            x0 = nlp.variables.pack(dict(guess.variables))
+            lam_x0 = nlp.variables.pack(
+                {
+                    name: guess.multipliers[f"{BOUND_NAMES[name]}_lower"]
+                    + guess.multipliers[f"{BOUND_NAMES[name]}_upper"]
+                    for name in nlp.variables.blocks
+                }
+            )
+            lam_g0 = nlp.constraints.pack({k: guess.multipliers[k] for k in nlp.constraints.blocks})
+        except (KeyError, ValueError):  # other size, or no multipliers (failed solve)
+            return None
+        if self.problem.duration is not None:
+            x0[nlp.variables["dt"].offset] = self._dt_range()[0]
+        finite = np.all(np.isfinite(x0)) and np.all(np.isfinite(lam_x0))
+        return (x0, lam_x0, lam_g0) if finite and np.all(np.isfinite(lam_g0)) else None
+
+    def _dt_range(self) -> tuple[float, float]:
+        p = self.problem
+        if p.duration is not None:
+            dt = p.duration / (p.n_knots - 1)
+            return dt, dt
+        return p.dt_min, p.dt_max
+
+    def _result(
+        self,
+        x: Array,
+        lam_x: Array,
+        lam_g: Array,
+        stats: dict[str, Any],
+        error: str,
+        *,
+        beta: float,
+        bound_scale: float,
+        start: BoundaryState,
+        goal: BoundaryState,
+        bounds: tuple[Array, Array, Array, Array],
+        guess: Trajectory,
+        wall: float,
+        cpu: float,
+        seed: int | None,
+    ) -> TrajOptResult:
+        nlp, problem = self.nlp, self.problem
+        lbx, ubx, lbg, ubg = bounds
+        solver_status = str(stats.get("return_status", "unknown")) if not error else "error"
+        status = status_from_ipopt(solver_status)
+        message = solver_status if not error else f"solver error: {error}"
+        variables = nlp.variables.unpack(x)
+        dt = float(variables["dt"][0, 0])
+
+        finite = bool(np.all(np.isfinite(x)))
+        g = np.full(nlp.n_constraints, np.nan)
+        a = np.full((problem.n_knots, problem.nv), np.nan)
+        if finite:
+            _, g_dm = self._nlp_function(x, beta)
+            g = np.asarray(g_dm, dtype=float).ravel()
+            fd = self.dynamics.forward_dynamics.map(problem.n_knots)
+            a = np.asarray(fd(variables["q"].T, variables["v"].T, variables["tau"].T)).T
+        total_time = (problem.n_knots - 1) * dt
+        work = work_of(dt, variables["tau"], variables.get("tau_mid"), nlp.rule)
+        objective = beta * total_time + (1.0 - beta) * work
+        violation = max(
+            float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0)),
+            float(np.max(np.maximum(lbx - x, x - ubx), initial=0.0)),
+        )
+        all_finite = finite and bool(np.all(np.isfinite(g)) and np.all(np.isfinite(a)))
+        all_finite = all_finite and np.isfinite(objective)
+        if not all_finite:
+            status = SolveStatus.NON_FINITE
+            message = f"{message}; non-finite values in the solution, constraints or dynamics"
+            violation = float("inf")
+        elif status.success and not violation <= self.feasibility_tol:
+            status = SolveStatus.CONSTRAINT_VIOLATION
+            message = (
+                f"{message}, but the solution violates a constraint or bound by "
+                f"{violation:.3g} > feasibility_tol = {self.feasibility_tol:.3g}"
+            )
+        elif status.success and dt <= 0.0:
+            status = SolveStatus.CONSTRAINT_VIOLATION
+            message = f"{message}, but the time step dt = {dt:.3g} s is not positive"
+
+        trajectory = None
+        if all_finite and dt > 0.0:
+            trajectory = self.method.trajectory(variables, a)
+
+        multipliers: dict[str, Array] = {}
+        if np.all(np.isfinite(lam_x)):
+            for name, block in nlp.variables.blocks.items():
+                lam = block.take(lam_x)
+                family = BOUND_NAMES[name]
+                multipliers[f"{family}_lower"] = np.minimum(lam, 0.0)
+                multipliers[f"{family}_upper"] = np.maximum(lam, 0.0)
+        if np.all(np.isfinite(lam_g)):
+            multipliers.update(nlp.constraints.unpack(lam_g))
+        for arr in (*multipliers.values(), *variables.values()):
+            arr.setflags(write=False)
+        history = np.asarray(stats.get("iterations", {}).get("obj", []), dtype=float)
+        history.setflags(write=False)
+        return TrajOptResult(
+            problem=problem,
+            method=self.method.name,
+            backend=self.backend,
+            status=status,
+            message=message,
+            solver_status=solver_status,
+            trajectory=trajectory,
+            variables=variables,
+            duration=total_time,
+            dt=dt,
+            work=work,
+            objective=objective,
+            beta=beta,
+            bound_scale=bound_scale,
+            start=start,
+            goal=goal,
+            iterations=int(stats.get("iter_count", 0)),
+            wall_time=wall,
+            cpu_time=cpu,
+            objective_history=history,
+            max_violation=violation,
+            multipliers=multipliers,
+            guess=guess,
+            options=self.options,
+            seed=seed,
+        )
+
+
+def solve(
+    problem: TrajOptProblem,
+    *,
+    method: str | Transcription = "trapezoidal",
+    options: IpoptOptions | None = None,
+    backend: str = "symbolic",
+    beta: float | None = None,
+    bound_scale: float = 1.0,
+    guess: Any = None,
+    start: Any = None,
+    goal: Any = None,
+    seed: int | None = None,
+) -> TrajOptResult:
+    """Build a :class:`TrajOptSolver` and solve once (see its parameters).
+
+    Returns
+    -------
+    TrajOptResult
+        The result; check ``result.success`` or call ``result.raise_for_status()``.
+    """
+    solver = TrajOptSolver(problem, method, options, backend)
+    return solver.solve(
+        beta=beta, bound_scale=bound_scale, guess=guess, start=start, goal=goal, seed=seed
+    )

@@ -1,0 +1,51 @@
+"""Plot functions draw what the result holds (Agg, no pyplot state)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.colors import to_rgba
+
+from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.plots import plot_arm_path, plot_convergence, plot_workspace
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.solve import solve
+
+
+@pytest.fixture(scope="module")
+def result():
+    return solve(example_problem("B"))
+
+
+def test_arm_path_draws_every_configuration(result):
+    """One polyline per configuration, through the Pinocchio joint positions."""
+    ax = plot_arm_path(result).axes[0]
+    arms = [line for line in ax.lines if line.get_label().startswith("q")]
+    assert len(arms) == result.problem.n_targets
+    pts = result.problem.chain.joint_positions(result.configurations[2])
+    np.testing.assert_allclose(np.column_stack(arms[2].get_data()), pts, atol=1e-12)
+
+
+def test_convergence_panels_follow_the_history(result):
+    """Three panels with one point per outer iteration; E panel ends at the final E."""
+    fig = plot_convergence(result)
+    assert len(fig.axes) == 3
+    e_line = fig.axes[1].lines[0]
+    assert len(e_line.get_xdata()) == len(result.history)
+    assert e_line.get_ydata()[-1] == pytest.approx(result.objective, abs=1e-12)
+
+
+def test_workspace_marks_verdicts():
+    """Targets are green when reachable, red when not, with a line to the nearest point."""
+    chain = PlanarChain(lengths=[3, 2, 2], q_lower=-np.pi / 2, q_upper=np.pi / 2)
+    prob = CyclicIKProblem(chain=chain, targets=[(0.0, 7.0), (0.0, 7.1)])
+    ax = plot_workspace(prob).axes[0]
+    markers = [ln for ln in ax.lines if ln.get_marker() == "x"]
+    assert [to_rgba(m.get_color()) for m in markers] == [to_rgba("tab:green"), to_rgba("tab:red")]
+    red_lines = [
+        ln
+        for ln in ax.lines
+        if ln.get_marker() in ("None", "") and to_rgba(ln.get_color()) == to_rgba("tab:red")
+    ]
+    np.testing.assert_allclose(red_lines[0].get_xydata(), [[0.0, 7.1], [0.0, 7.0]], atol=1e-12)

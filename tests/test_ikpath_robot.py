@@ -1,0 +1,65 @@
+"""The youBot arm as a planar chain: same tip as the robot model, IK paths of the real arm."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from youbot_opt.exceptions import ModelError
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.robot import chain_from_robot
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.model import load_model, tip_pose
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_model("youbot")
+
+
+@pytest.fixture(scope="module")
+def chain(robot):
+    return chain_from_robot(robot)
+
+
+def test_chain_matches_the_spec_table(chain):
+    """The four tip poses of the spec table (a = 0.184, h = 0.147) are reproduced (1e-12 m)."""
+    a, h, l1, l2, l3 = 0.184, 0.147, 0.155, 0.135, 0.2175
+    table = {
+        (0, 0, 0): (a, h + l1 + l2 + l3),
+        (0, np.pi / 2, 0): (a - l2 - l3, h + l1),
+        (-np.pi / 2, np.pi / 2, -np.pi / 2): (a + l1 + l3, h + l2),
+        (np.pi, -np.pi, np.pi): (a, h - l1 + l2 - l3),
+    }
+    for q, p in table.items():
+        np.testing.assert_allclose(chain.tip_position(q), p, atol=1e-12)
+    np.testing.assert_allclose(chain.angle_offset, [np.pi / 2, 0, 0], atol=1e-12)
+
+
+def test_chain_matches_robot_tip_pose(chain, robot, rng):
+    """At 30 random configurations the chain's tip equals model.tip_pose (1e-12 m)."""
+    for q in rng.uniform(robot.q_lower, robot.q_upper, (30, 3)):
+        np.testing.assert_allclose(chain.tip_position(q), tip_pose(robot, q).position, atol=1e-12)
+    np.testing.assert_array_equal(chain.q_lower, robot.q_lower)
+
+
+def test_youbot_ik_path_through_tool_tip_targets(chain, robot):
+    """A joint path of the real arm reaches the targets (robot FK, 1e-9 m) within its limits."""
+    targets = [(0.30, 0.30), (0.10, 0.50), (0.35, 0.10), (0.25, 0.45)]
+    res = solve(CyclicIKProblem(chain=chain, targets=targets), method="al").raise_for_status()
+    for q, p in zip(res.configurations, targets, strict=True):
+        assert np.linalg.norm(tip_pose(robot, q).position - p) < 1e-9
+    assert np.all(res.configurations >= robot.q_lower) and np.all(
+        res.configurations <= robot.q_upper
+    )
+    ipopt = solve(
+        CyclicIKProblem(chain=chain, targets=targets), method="ipopt", x0=res.configurations
+    )
+    # both stop at stationarity ~1e-8; E agrees to well below 1e-8 (measured ~1e-12)
+    assert ipopt.objective == pytest.approx(res.objective, abs=1e-8)
+
+
+def test_non_planar_robot_is_refused():
+    """A spatial arm (UR5) is not a planar x-z chain: ModelError."""
+    with pytest.raises(ModelError, match="not a"):
+        chain_from_robot(load_model("ur5"))

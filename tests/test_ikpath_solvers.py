@@ -1,0 +1,182 @@
+"""Both IK-path methods against an enumerated global optimum and against each other."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from youbot_opt.exceptions import ParameterError, SolveFailed, UnreachableTarget
+from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.multistart import configuration_distance
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.ikpath.solve import solve
+
+LA, LB = 1.0, 0.8
+TARGETS_2 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.4, -1.0)]
+
+
+def _two_link_optimum(targets):
+    """Global optimum of a 2-link cyclic path by enumeration (independent of both solvers).
+
+    A 2-link arm has two IK solutions per target (elbow +/-) up to 2 pi windings, so
+    E is minimised over 2^s elbow choices and, joint by joint (E separates), over
+    windings m_j in {-2..2} of every configuration but the first.
+    """
+    sols = []
+    for px, py in targets:
+        c = (px * px + py * py - LA * LA - LB * LB) / (2 * LA * LB)
+        pair = []
+        for b in (np.arccos(c), -np.arccos(c)):
+            a = np.arctan2(py, px) - np.arctan2(LB * np.sin(b), LA + LB * np.cos(b))
+            pair.append(np.array([a, b]))
+        sols.append(pair)
+    s = len(targets)
+    best = (np.inf, None)
+    for elbows in itertools.product((0, 1), repeat=s):
+        q = np.array([sols[j][e] for j, e in enumerate(elbows)])
+        total, chosen = 0.0, q.copy()
+        for i in range(2):
+            col_best = (np.inf, None)
+            for m in itertools.product(range(-2, 3), repeat=s - 1):
+                col = q[:, i] + 2 * np.pi * np.r_[0, m]
+                e = 0.5 * np.sum((np.roll(col, -1) - col) ** 2)
+                if e < col_best[0]:
+                    col_best = (e, col)
+            total += col_best[0]
+            chosen[:, i] = col_best[1]
+        if total < best[0]:
+            best = (total, chosen)
+    return best
+
+
+@pytest.fixture(scope="module")
+def two_link():
+    prob = CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return prob, _two_link_optimum(TARGETS_2)
+
+
+@pytest.mark.parametrize("method", ["al", "ipopt"])
+def test_methods_reach_enumerated_optimum(two_link, method, rng):
+    """From a start 0.1 rad off the enumerated optimum each method converges to it.
+
+    Tolerances: E to 1e-9 (stationarity 1e-8 gives E errors ~1e-16; 1e-9 absorbs
+    the constraint tolerance 1e-10 times multipliers O(1)); configurations to 1e-6 rad.
+    """
+    prob, (e_star, q_star) = two_link
+    x0 = q_star + rng.uniform(-0.1, 0.1, q_star.shape)
+    res = solve(prob, method=method, x0=x0)
+    assert res.status is IKStatus.SUCCESS, res.message
+    assert res.objective == pytest.approx(e_star, abs=1e-9)
+    assert configuration_distance(res.configurations, q_star) < 1e-6
+    assert res.max_residual() < 1e-9
+
+
+def test_al_kkt_with_independent_jacobian():
+    """At example A's AL optimum grad E = sum_j J_j^T lambda_j, numpy Jacobian (1e-7)."""
+    prob = example_problem("A")
+    res = solve_augmented_lagrangian(prob)
+    assert res.success
+    q = res.configurations
+    lengths = prob.chain.lengths
+    grad = (2 * q - np.roll(q, 1, axis=0) - np.roll(q, -1, axis=0)).ravel()
+    jt_lam = []
+    for qj, lam in zip(q, res.multipliers, strict=True):
+        phi = np.cumsum(qj)
+        # dF/dq_k = sum_{i >= k} l_i (-sin phi_i, cos phi_i)
+        jx = -np.cumsum((lengths * np.sin(phi))[::-1])[::-1]
+        jy = np.cumsum((lengths * np.cos(phi))[::-1])[::-1]
+        jt_lam.append(jx * lam[0] + jy * lam[1])
+    # the AL stops at projected-gradient 1e-8 of L_A, which is this residual
+    np.testing.assert_allclose(grad, np.ravel(jt_lam), atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["A", "B"])
+def test_methods_agree_on_study_examples(name, rng):
+    """AL (from zero) and IPOPT (from a perturbed AL optimum) agree on E, q and multipliers.
+
+    Both stop at stationarity ~1e-8 with constraints ~1e-10: E agrees to 1e-9, q to
+    1e-6 rad, multipliers to 1e-6 (measured ~1e-10, 1e-8, 4e-9).
+    """
+    prob = example_problem(name)
+    al = solve(prob, method="al")
+    x0 = np.clip(
+        al.configurations.ravel() + rng.uniform(-0.02, 0.02, prob.n_variables),
+        prob.lower,
+        prob.upper,
+    )
+    ip = solve(prob, method="ipopt", x0=x0)
+    assert al.success and ip.success
+    assert al.objective == pytest.approx(ip.objective, abs=1e-9)
+    assert configuration_distance(al.configurations, ip.configurations) < 1e-6
+    np.testing.assert_allclose(al.multipliers, ip.multipliers, atol=1e-6)
+
+
+def test_example_b_optimum_satisfies_limits():
+    """Example B: the AL optimum meets the targets (1e-9 m) and the limits exactly, one active."""
+    prob = example_problem("B")
+    res = solve(prob, method="al")
+    assert res.success
+    assert res.max_residual() < 1e-9
+    assert res.limit_violation == 0.0
+    assert np.all(np.abs(res.configurations) <= np.pi / 2)
+    assert np.isclose(np.abs(res.configurations), np.pi / 2, atol=1e-12).any()  # a limit is active
+    assert res.objective == pytest.approx(15.6058914, abs=1e-6)
+
+
+def test_al_history_records_outer_iterations():
+    """The AL history has one entry per outer iteration ending at the returned iterate."""
+    res = solve_augmented_lagrangian(example_problem("A"))
+    assert len(res.history) == res.iterations >= 2
+    last = res.history[-1]
+    np.testing.assert_array_equal(last.x, res.configurations)
+    assert last.violation <= 1e-10
+    assert [h.iteration for h in res.history] == list(range(res.iterations))
+
+
+def test_lbfgsb_inner_solver_option():
+    """The SciPy L-BFGS-B inner solver keeps the iterates within the limits."""
+    res = solve_augmented_lagrangian(
+        example_problem("B"), options=ALOptions(inner="lbfgsb", max_outer_iterations=8)
+    )
+    assert res.limit_violation == 0.0
+    assert res.max_residual() < 1e-6
+
+
+def test_locally_infeasible_start_is_a_status():
+    """A start pinned against the limits fails as INFEASIBLE with the last iterate, not a raise."""
+    prob = example_problem("B")
+    x0 = np.tile([-np.pi / 2, -np.pi / 2, -np.pi / 2], 5)
+    res = solve(prob, method="al", x0=x0)
+    assert res.status is not IKStatus.SUCCESS
+    with pytest.raises(SolveFailed) as info:
+        res.raise_for_status()
+    assert info.value.result is res
+
+
+def test_ipopt_solver_is_reused_for_other_targets():
+    """One IPOPT build solves problems that differ only in their targets."""
+    prob = example_problem("A")
+    solver = IpoptIKSolver(prob, IpoptOptions())
+    moved = CyclicIKProblem(chain=prob.chain, targets=prob.targets + 0.1)
+    res = solver.solve(moved, x0=solve(moved, method="al").configurations)
+    assert res.success and res.max_residual() < 1e-9
+    other = CyclicIKProblem(chain=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=prob.targets)
+    with pytest.raises(ParameterError, match="built for"):
+        solver.solve(other)
+
+
+def test_solve_rejects_unreachable_and_bad_method():
+    """solve() stops before optimising on an unreachable target and names bad methods."""
+    prob = CyclicIKProblem(chain=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=[(0, 7.1), (5, 0)])
+    with pytest.raises(UnreachableTarget, match=r"target p1 = \(0, 7.1\): unreachable"):
+        solve(prob)
+    with pytest.raises(ParameterError, match="choose one of al, ipopt"):
+        solve(example_problem("A"), method="sqp")  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="must be IpoptOptions"):
+        solve(example_problem("A"), method="ipopt", options=ALOptions())

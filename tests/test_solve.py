@@ -1,0 +1,349 @@
+"""Tests of the trajectory solver (youbot_opt.solve, youbot_opt.result).
+
+Every solution is re-checked with Pinocchio's numeric ABA and numpy, a path
+independent of the CasADi expressions IPOPT saw.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from youbot_opt.exceptions import ParameterError, SolveFailed
+from youbot_opt.model import load_model
+from youbot_opt.objectives import Objective
+from youbot_opt.options import IpoptOptions
+from youbot_opt.problem import BoundaryState, TrajOptProblem, study1_problem
+from youbot_opt.result import SolveStatus
+from youbot_opt.solve import TrajOptSolver, solve
+
+SLIDER_URDF = """<?xml version="1.0"?>
+<robot name="slider">
+  <link name="base"/>
+  <link name="cart">
+    <inertial><origin xyz="0 0 0"/><mass value="2.0"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+  </link>
+  <joint name="slide" type="prismatic">
+    <parent link="base"/><child link="cart"/><axis xyz="1 0 0"/>
+    <limit lower="-5" upper="5" velocity="10" effort="4"/>
+  </joint>
+</robot>
+"""
+"""A 2 kg cart on a horizontal rail (gravity off along the joint), force bound 4 N."""
+
+SLIDER_MASS, SLIDER_FORCE, SLIDER_DISTANCE = 2.0, 4.0, 1.0  # [kg], [N], [m]
+
+
+@pytest.fixture(scope="module")
+def youbot():
+    return load_model("youbot")
+
+
+@pytest.fixture(scope="module")
+def base_solver(youbot):
+    return TrajOptSolver(study1_problem(robot=youbot), "trapezoidal")
+
+
+@pytest.fixture(scope="module")
+def base_result(base_solver):
+    return base_solver.solve(beta=0.5)
+
+
+@pytest.fixture(scope="module")
+def slider(tmp_path_factory):
+    path = tmp_path_factory.mktemp("urdf") / "slider.urdf"
+    path.write_text(SLIDER_URDF)
+    return load_model(path)
+
+
+def _slider_problem(slider, n, objective):
+    return TrajOptProblem(
+        robot=slider,
+        start=BoundaryState(q=[0.0]),
+        goal=BoundaryState(q=[SLIDER_DISTANCE]),
+        n_knots=n,
+        objective=objective,
+    )
+
+
+def _aba(robot, q, v, tau):
+    """Accelerations by Pinocchio's ABA with the model's damping (independent of CasADi)."""
+    model, data = robot.model, robot.model.createData()
+    b = np.asarray(robot.damping)
+    return np.array([pin.aba(model, data, *s) - 0 for s in zip(q, v, tau - b * v, strict=True)])
+
+
+def _check_trapezoidal(result, tol):
+    """Max trapezoidal defect of a result, recomputed with pin.aba and numpy."""
+    robot, traj = result.problem.robot, result.trajectory
+    q, v, tau, dt = traj.q, traj.v, traj.tau, result.dt
+    a = _aba(robot, q, v, tau)
+    dq = q[1:] - q[:-1] - dt / 2 * (v[1:] + v[:-1])
+    dv = v[1:] - v[:-1] - dt / 2 * (a[1:] + a[:-1])
+    np.testing.assert_allclose(dq, 0.0, atol=tol)
+    np.testing.assert_allclose(dv, 0.0, atol=tol)
+    np.testing.assert_allclose(traj.a, a, atol=1e-9)  # the result's a is ABA at the knots
+
+
+def _check_bounds(result, tol):
+    b = result.bounds()
+    traj = result.trajectory
+    for x, lo, hi in ((traj.q, b.q_lower, b.q_upper), (traj.v, b.v_lower, b.v_upper),
+                      (traj.tau, b.tau_lower, b.tau_upper)):  # fmt: skip
+        assert np.all(x >= lo - tol) and np.all(x <= hi + tol)
+    np.testing.assert_allclose(traj.q[0], result.start.q, atol=tol)
+    np.testing.assert_allclose(traj.q[-1], result.goal.q, atol=tol)
+    np.testing.assert_allclose(traj.v[[0, -1]], 0.0, atol=tol)
+
+
+# ------------------------------------------------------------------ study 1
+def test_base_case_is_a_dynamically_consistent_solution(base_result):
+    """Study-1 base case converges; pin.aba defects < 1e-8 and bounds hold within 1e-7."""
+    r = base_result
+    assert r.status is SolveStatus.SOLVED and r.success
+    # IPOPT stops with constraint violation ~1e-11; 1e-8 leaves room for round-off
+    # in the 50 independent ABA evaluations.
+    _check_trapezoidal(r, tol=1e-8)
+    # IPOPT relaxes bounds by 1e-8 relative (bound_relax_factor): |bound| <= 9.5 -> 1e-7.
+    _check_bounds(r, tol=1e-7)
+    assert r.max_violation < 1e-7
+
+
+def test_base_case_objective_terms(base_result):
+    """T = (N - 1) dt, W = sum dt (w_k + w_k+1) / 2 and f = (T + W) / 2, recomputed (1e-12)."""
+    r = base_result
+    tau = r.trajectory.tau
+    w = np.sum(tau**2, axis=1)
+    work = sum(r.dt * (w[k] + w[k + 1]) / 2 for k in range(49))
+    assert r.duration == pytest.approx(49 * r.dt, rel=1e-12)
+    assert r.trajectory.duration == pytest.approx(r.duration, rel=1e-12)
+    assert r.work == pytest.approx(work, rel=1e-12)
+    assert r.objective == pytest.approx(0.5 * r.duration + 0.5 * work, rel=1e-12)
+    # IPOPT's own final objective agrees with the recomputed one.
+    assert r.objective_history[-1] == pytest.approx(r.objective, rel=1e-9)
+    assert r.objective_history.size == r.iterations + 1
+
+
+def test_base_case_regression(base_result):
+    """The base-case optimum stays at f = 8.26980, T = 2.19400 s (reference run, 1e-5 rel).
+
+    Not an independent oracle: it guards against silent changes; the value lies
+    below the study's 9.359 because the study's code integrated the wrong
+    accelerations (spec, "What the study's code actually computed").
+    """
+    assert base_result.objective == pytest.approx(8.269796, rel=1e-5)
+    assert base_result.duration == pytest.approx(2.194004, rel=1e-5)
+
+
+def test_time_reversed_motion_has_the_same_cost(base_solver, base_result, youbot):
+    """Swapping start and goal gives the same optimum (1e-6 rel): tau(T - t) is feasible backwards.
+
+    Without damping M a + C(q, v) v + g is invariant under v -> -v, so the
+    time-reversed motion needs the same torques, duration and work.
+    """
+    p = base_solver.problem
+    r = base_solver.solve(start=p.goal, goal=p.start)
+    assert r.success
+    assert r.objective == pytest.approx(base_result.objective, rel=1e-6)
+    np.testing.assert_allclose(r.trajectory.q[::-1], base_result.trajectory.q, atol=1e-4)
+
+
+def test_multiplier_sign_convention(base_solver, base_result):
+    """grad f + J_g' lam_g + lam_x = 0 by finite differences; lam > 0 at upper, < 0 at lower bounds."""
+    r, nlp = base_result, base_solver.nlp
+    lam_x = np.zeros(nlp.n_variables)
+    for name, block in nlp.variables.blocks.items():
+        from youbot_opt.transcription.base import BOUND_NAMES
+
+        fam = BOUND_NAMES[name]
+        lam = r.multipliers[f"{fam}_lower"] + r.multipliers[f"{fam}_upper"]
+        lam_x[block.offset : block.offset + block.size] = lam.ravel()
+    lam_g = nlp.constraints.pack({k: r.multipliers[k] for k in nlp.constraints.blocks})
+    x = nlp.variables.pack(dict(r.variables))
+    fun = ca.Function("fg", [nlp.x, nlp.p], [nlp.f, nlp.g]).expand()
+    h = 1e-6  # central differences: error ~ h^2 |f'''| ~ 1e-11, round-off ~ 1e-16 / h ~ 1e-10
+    grad = np.zeros_like(x)
+    jt_lam = np.zeros_like(x)
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = h
+        fp, gp = fun(x + e, 0.5)
+        fm, gm = fun(x - e, 0.5)
+        grad[i] = float(fp - fm) / (2 * h)
+        jt_lam[i] = (np.asarray(gp - gm).ravel() @ lam_g) / (2 * h)
+    residual = grad + jt_lam + lam_x
+    # IPOPT's dual infeasibility at tol = 1e-8 plus the FD error: 1e-6 absolute
+    # against gradients of size ~ max|grad f| ~ 1e2.
+    assert np.max(np.abs(residual)) < 1e-6 * max(1.0, np.max(np.abs(grad)))
+    rows = r.active_bounds(1e-6)
+    uppers = [a for a in rows if a.name.endswith("_upper")]
+    lowers = [a for a in rows if a.name.endswith("_lower")]
+    assert uppers and lowers  # the base case has speed bounds active both ways
+    assert all(a.multiplier > 0 for a in uppers)
+    assert all(a.multiplier < 0 for a in lowers)
+    assert {a.name for a in rows} <= {"velocity_upper", "velocity_lower"}
+
+
+def test_multipliers_predict_the_bound_scale_sensitivity(base_solver, base_result):
+    """d f* / d s = -sum lam_x * bound / s (first-order sensitivity), within 2 %.
+
+    Every bound is s times its data-sheet value, so a central difference of
+    re-solves at s = 1 +- 0.002 must match the multipliers' prediction.
+    """
+    r = base_result
+    b = r.bounds()
+    pairs = {"position": (b.q_lower, b.q_upper), "velocity": (b.v_lower, b.v_upper),
+             "torque": (b.tau_lower, b.tau_upper)}  # fmt: skip
+    predicted = 0.0
+    for fam, (lo, hi) in pairs.items():
+        predicted -= np.sum(r.multipliers[f"{fam}_lower"] * lo + r.multipliers[f"{fam}_upper"] * hi)
+    ds = 2e-3
+    fp = base_solver.solve(bound_scale=1 + ds, guess=r).objective
+    fm = base_solver.solve(bound_scale=1 - ds, guess=r).objective
+    # 2 %: the central difference has an O(ds^2) curvature error plus active-set
+    # changes at the ends of the speed arcs.
+    assert (fp - fm) / (2 * ds) == pytest.approx(predicted, rel=0.02)
+    assert predicted < 0  # looser bounds, lower cost
+
+
+def test_hermite_simpson_base_case(youbot):
+    """Hermite-Simpson solves the base case; its Simpson defects, rechecked with pin.aba, vanish."""
+    r = solve(study1_problem(robot=youbot), method="hermite_simpson")
+    assert r.success and r.trajectory.interpolation == "hermite_simpson"
+    robot, dt = youbot, r.dt
+    q, v, tau = r.variables["q"], r.variables["v"], r.variables["tau"]
+    qm, vm, taum = r.variables["q_mid"], r.variables["v_mid"], r.variables["tau_mid"]
+    a, am = _aba(robot, q, v, tau), _aba(robot, qm, vm, taum)
+    np.testing.assert_allclose(q[1:] - q[:-1] - dt / 6 * (v[:-1] + 4 * vm + v[1:]), 0, atol=1e-8)
+    np.testing.assert_allclose(v[1:] - v[:-1] - dt / 6 * (a[:-1] + 4 * am + a[1:]), 0, atol=1e-8)
+    np.testing.assert_allclose(qm - (q[:-1] + q[1:]) / 2 - dt / 8 * (v[:-1] - v[1:]), 0, atol=1e-8)
+    # Hermite-Simpson is 4th order: at 50 knots it lies within 3 % of the trapezoidal value.
+    assert 8.0 < r.objective < 8.27
+
+
+def test_pinocchio_backend_reaches_the_same_optimum(youbot):
+    """The Callback backend (limited-memory Hessian) finds the symbolic optimum (1e-6 rel)."""
+    problem = study1_problem(15, robot=youbot)
+    ref = solve(problem)
+    cb = solve(problem, backend="pinocchio")
+    assert ref.success and cb.success and cb.backend == "pinocchio"
+    assert cb.objective == pytest.approx(ref.objective, rel=1e-6)
+
+
+def test_warm_start_from_a_result(base_solver, base_result):
+    """Re-solving from the solution converges in a handful of iterations to the same f (1e-8)."""
+    r = base_solver.solve(guess=base_result)
+    assert r.success and r.iterations <= 10
+    assert r.objective == pytest.approx(base_result.objective, rel=1e-8)
+
+
+def test_fixed_duration(youbot):
+    """With duration = 3 s the result lasts 3 s (1e-12) and dt = 3 / 49."""
+    r = solve(study1_problem(20, robot=youbot, duration=3.0))
+    assert r.success
+    assert r.duration == pytest.approx(3.0, rel=1e-12)
+    assert r.dt == pytest.approx(3.0 / 19, rel=1e-12)
+
+
+# ------------------------------------------------------------ analytic toys
+@pytest.mark.parametrize("n", [11, 21])
+def test_double_integrator_minimum_time(slider, n):
+    """Rest-to-rest min time of a double integrator: T* = 2 sqrt(d / a_max).
+
+    Hermite-Simpson represents the bang-bang optimum exactly (1e-7 rel: IPOPT's
+    1e-8 bound relaxation); the trapezoid overestimates it by at most
+    1/M^2 for M intervals (measured ~0.98/M^2).
+    """
+    t_star = 2 * np.sqrt(SLIDER_DISTANCE / (SLIDER_FORCE / SLIDER_MASS))
+    hs = solve(_slider_problem(slider, n, Objective.time()), method="hermite_simpson")
+    tr = solve(_slider_problem(slider, n, Objective.time()), method="trapezoidal")
+    assert hs.success and tr.success
+    assert hs.duration == pytest.approx(t_star, rel=1e-7)
+    assert 0 < tr.duration / t_star - 1 <= 1.05 / (n - 1) ** 2
+
+
+def test_double_integrator_time_and_work_and_method_agreement(slider):
+    """beta = 0.5: T* = (36 (1 - b) m^2 d^2 / b)^(1/4); methods agree better as knots grow.
+
+    Optimal force is linear in time, so Hermite-Simpson is exact (1e-8 rel) and
+    the trapezoid converges at second order.
+    """
+    beta, m, d = 0.5, SLIDER_MASS, SLIDER_DISTANCE
+    t_star = (36 * (1 - beta) * m**2 * d**2 / beta) ** 0.25
+    f_star = beta * t_star + (1 - beta) * 12 * m**2 * d**2 / t_star**3
+    gaps = []
+    for n in (6, 11, 21):
+        hs = solve(_slider_problem(slider, n, Objective(beta=beta)), method="hermite_simpson")
+        tr = solve(_slider_problem(slider, n, Objective(beta=beta)))
+        assert hs.success and tr.success
+        assert hs.duration == pytest.approx(t_star, rel=1e-8)
+        assert hs.objective == pytest.approx(f_star, rel=1e-8)
+        gaps.append(abs(tr.objective - hs.objective) / f_star)
+    # Second order: halving the step divides the gap by ~4; require > 3.
+    assert gaps[0] > 3 * gaps[1] > 9 * gaps[2]
+    assert gaps[2] < 1 / 20**2
+
+
+# -------------------------------------------------------------- any robot
+def test_ur5_short_horizon(youbot):
+    """UR5 point-to-point in 10 knots: success, pin.aba defects < 1e-8, bounds hold."""
+    ur5 = load_model("ur5")
+    q0 = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])
+    q1 = np.array([0.8, -0.6, 0.4, -1.2, -0.3, 0.5])
+    problem = TrajOptProblem(
+        robot=ur5, start=BoundaryState(q=q0), goal=BoundaryState(q=q1), n_knots=10
+    )
+    r = solve(problem)
+    assert r.success, r.message
+    _check_trapezoidal(r, tol=1e-8)
+    _check_bounds(r, tol=1e-6)  # UR5 bounds are up to 150 N m: 1e-8 relative relaxation
+
+
+# ---------------------------------------------------------------- failures
+def test_iteration_cap_is_a_status_with_the_last_iterate(youbot):
+    """max_iter = 2 returns MAX_ITERATIONS (not success) with a finite iterate; raise_for_status raises."""
+    r = solve(study1_problem(robot=youbot), options=IpoptOptions(max_iter=2))
+    assert r.status is SolveStatus.MAX_ITERATIONS and not r.success
+    assert r.iterations == 2 and r.trajectory is not None
+    assert r.max_violation > 1e-6  # two iterations cannot close the defects
+    with pytest.raises(SolveFailed, match="max_iterations") as info:
+        r.raise_for_status()
+    assert info.value.result is r
+
+
+def test_infeasible_duration_is_a_status(youbot):
+    """Moving 2.1 rad in 0.2 s at <= 1.57 rad/s is impossible: INFEASIBLE, not an exception."""
+    r = solve(study1_problem(20, robot=youbot, duration=0.2))
+    assert r.status is SolveStatus.INFEASIBLE and not r.success
+    assert r.max_violation > 0.1
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"beta": 1.5}, "beta must be in"),
+        ({"bound_scale": 0.0}, "bound_scale must be finite and > 0"),
+        ({"bound_scale": 0.5}, r"start\.q\[2\]"),
+        ({"start": [3.0, 0.0, 0.0]}, r"start\.q\[0\] = 3"),
+        ({"goal": [0.0, 0.0]}, r"goal\.q must have shape \(3,\)"),
+        ({"guess": "straight"}, "guess must be None, a Trajectory"),
+    ],
+)
+def test_bad_solve_arguments(base_solver, kwargs, match):
+    """Bad sweep parameters raise ParameterError naming the value and the limit."""
+    with pytest.raises(ParameterError, match=match):
+        base_solver.solve(**kwargs)
+
+
+def test_bad_solver_arguments(youbot):
+    """Unknown backend and transcription names raise ParameterError listing the valid ones."""
+    problem = study1_problem(5, robot=youbot)
+    with pytest.raises(ParameterError, match="symbolic"):
+        TrajOptSolver(problem, backend="nope")
+    with pytest.raises(ParameterError, match="choose one of"):
+        TrajOptSolver(problem, method="euler")
+    with pytest.raises(ParameterError, match="TrajOptProblem"):
+        TrajOptSolver("problem")  # type: ignore[arg-type]

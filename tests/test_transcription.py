@@ -1,0 +1,150 @@
+"""Tests of the collocation transcriptions (youbot_opt.transcription)."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from youbot_opt.dynamics import build_dynamics
+from youbot_opt.exceptions import ParameterError, TranscriptionError
+from youbot_opt.model import load_model
+from youbot_opt.problem import study1_problem
+from youbot_opt.transcription import (
+    HermiteSimpsonCollocation,
+    TrapezoidalCollocation,
+    get_transcription,
+)
+
+METHODS = [TrapezoidalCollocation(), HermiteSimpsonCollocation()]
+
+
+@pytest.fixture(scope="module")
+def youbot():
+    return load_model("youbot", damping=0.1)
+
+
+@pytest.fixture(scope="module")
+def dynamics(youbot):
+    return build_dynamics(youbot, "symbolic")
+
+
+@pytest.mark.parametrize("n", [2, 50, 73])
+def test_trapezoidal_counts_match_the_study(youbot, dynamics, n):
+    """Trapezoidal: 9n + 1 variables and 6(n - 1) + 12 equalities for the 3-joint youBot."""
+    nlp = TrapezoidalCollocation().build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
+    assert nlp.n_variables == 9 * n + 1
+    assert nlp.n_constraints == 6 * (n - 1) + 12
+    assert nlp.x.numel() == nlp.n_variables and nlp.g.numel() == nlp.n_constraints
+
+
+@pytest.mark.parametrize("n", [2, 50])
+def test_hermite_simpson_counts(youbot, dynamics, n):
+    """Hermite-Simpson: 9(2n - 1) + 1 variables and 12(n - 1) + 12 equalities."""
+    nlp = HermiteSimpsonCollocation().build(
+        study1_problem(n, robot=youbot), dynamics.forward_dynamics
+    )
+    assert nlp.n_variables == 9 * (2 * n - 1) + 1
+    assert nlp.n_constraints == 12 * (n - 1) + 12
+    assert nlp.g.numel() == nlp.n_constraints
+
+
+def _polynomial_motion(robot, n, coeffs, dt):
+    """Knot and midpoint values of q(t) = sum_i c_i t^i with RNEA torques (independent of CasADi)."""
+    model, data = robot.model, robot.model.createData()
+    b = np.asarray(robot.damping)
+
+    def states(t):
+        q = sum(c * t[:, None] ** i for i, c in enumerate(coeffs))
+        v = sum(i * c * t[:, None] ** (i - 1) for i, c in enumerate(coeffs) if i >= 1)
+        a = sum(i * (i - 1) * c * t[:, None] ** (i - 2) for i, c in enumerate(coeffs) if i >= 2)
+        v = v + 0 * q
+        a = a + 0 * q
+        tau = np.array([pin.rnea(model, data, *s) + b * s[1] for s in zip(q, v, a, strict=True)])
+        return q, v, tau
+
+    t = dt * np.arange(n)
+    q, v, tau = states(t)
+    qm, vm, taum = states(t[:-1] + dt / 2)
+    return {"q": q, "v": v, "tau": tau, "q_mid": qm, "v_mid": vm, "tau_mid": taum, "dt": dt}
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_defects_vanish_for_constant_acceleration(youbot, dynamics, method):
+    """Defects are zero (1e-10) on q = q0 + v0 t + a t^2 / 2 with inverse-dynamics torques."""
+    n, dt = 12, 0.07
+    q0, v0, a0 = np.array([-0.5, 0.3, -0.9]), np.array([0.4, -0.2, 0.6]), np.array([1.5, -2.0, 3.0])
+    values = _polynomial_motion(youbot, n, [q0, v0, a0 / 2], dt)
+    nlp = method.build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
+    x = nlp.variables.pack(values)
+    g = np.asarray(ca.Function("g", [nlp.x], [nlp.g])(x)).ravel()
+    blocks = nlp.constraints.unpack(g)
+    # Trapezoid and Simpson are exact for this quadratic q (linear v, constant a);
+    # the remaining error is ABA(RNEA(.)) round-off, ~1e-13 for accelerations of O(1).
+    for name in blocks:
+        if name.startswith(("defect", "midpoint")):
+            np.testing.assert_allclose(blocks[name], 0.0, atol=1e-10, err_msg=name)
+    np.testing.assert_allclose(blocks["start_position"][0], values["q"][0], atol=1e-15)
+    np.testing.assert_allclose(blocks["goal_velocity"][0], values["v"][-1], atol=1e-15)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_defects_do_not_vanish_for_a_quartic_motion(youbot, dynamics, method):
+    """A quartic q(t) leaves defects of order dt^3 or more: the check above can fail."""
+    n, dt = 12, 0.07
+    coeffs = [np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.array([5.0, -4.0, 6.0])]
+    values = _polynomial_motion(youbot, n, coeffs, dt)
+    nlp = method.build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
+    g = np.asarray(ca.Function("g", [nlp.x], [nlp.g])(nlp.variables.pack(values))).ravel()
+    blocks = nlp.constraints.unpack(g)
+    worst = max(np.max(np.abs(v)) for k, v in blocks.items() if k.startswith(("defect", "mid")))
+    # q = c t^4: the trapezoid errs by ~ dt^3 |q'''| ~ 1e-2 rad, the Hermite midpoint
+    # interpolation by ~ dt^4 |q''''| / 384 ~ 1e-5 rad; round-off is ~1e-15.
+    assert worst > 1e-6
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_objective_terms(youbot, dynamics, method):
+    """The NLP's duration is (N - 1) dt and its objective beta T + (1 - beta) W (1e-12 rel)."""
+    n, dt = 9, 0.11
+    nlp = method.build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
+    rng = np.random.default_rng(3)
+    values = {name: rng.normal(size=(b.count, b.width)) for name, b in nlp.variables.blocks.items()}
+    values["dt"] = np.array([[dt]])
+    x = nlp.variables.pack(values)
+    f, total, w = ca.Function("f", [nlp.x, nlp.p], [nlp.f, nlp.duration, nlp.work])(x, 0.3)
+    power = np.sum(values["tau"] ** 2, axis=1)
+    if method.name == "trapezoidal":
+        expected_w = sum(dt * (power[k] + power[k + 1]) / 2 for k in range(n - 1))
+    else:
+        pm = np.sum(values["tau_mid"] ** 2, axis=1)
+        expected_w = sum(dt * (power[k] + 4 * pm[k] + power[k + 1]) / 6 for k in range(n - 1))
+    assert float(total) == pytest.approx((n - 1) * dt, rel=1e-12)
+    assert float(w) == pytest.approx(expected_w, rel=1e-12)
+    assert float(f) == pytest.approx(0.3 * (n - 1) * dt + 0.7 * expected_w, rel=1e-12)
+
+
+def test_layout_round_trip(youbot, dynamics):
+    """pack() and unpack() are inverse, with knot-major blocks."""
+    nlp = HermiteSimpsonCollocation().build(study1_problem(4, robot=youbot), dynamics.forward_dynamics)
+    x = np.arange(nlp.n_variables, dtype=float)
+    blocks = nlp.variables.unpack(x)
+    np.testing.assert_array_equal(nlp.variables.pack(blocks), x)
+    np.testing.assert_array_equal(blocks["q"][1], [3.0, 4.0, 5.0])
+
+
+def test_get_transcription_names():
+    """Names map to strategy objects; unknown names list the valid ones."""
+    assert isinstance(get_transcription("hermite-simpson"), HermiteSimpsonCollocation)
+    assert isinstance(get_transcription("trapezoidal"), TrapezoidalCollocation)
+    with pytest.raises(ParameterError, match="choose one of"):
+        get_transcription("euler")
+
+
+def test_dynamics_of_the_wrong_size_is_rejected(youbot):
+    """A forward-dynamics Function for 2 joints cannot transcribe the 3-joint youBot."""
+    q, v, tau = (ca.SX.sym(name, 2) for name in ("q", "v", "tau"))
+    bad = ca.Function("forward_dynamics", [q, v, tau], [q + v + tau])
+    with pytest.raises(TranscriptionError, match="forward dynamics must map"):
+        TrapezoidalCollocation().build(study1_problem(5, robot=youbot), bad)
