@@ -28,13 +28,22 @@ import numpy as np
 
 from youbot_opt.sweep_store import atomic_write_bytes
 
-__all__ = ["DEFAULT_ROOT", "run_folder", "json_ready", "write_summary", "save_figure", "print_outputs"]
+__all__ = [
+    "DEFAULT_ROOT",
+    "run_folder",
+    "json_ready",
+    "write_summary",
+    "save_figure",
+    "print_outputs",
+]
 
 DEFAULT_ROOT = Path("youbot_opt_runs")
 """Parent of the per-run folders made when no ``--out`` is given (relative to the cwd)."""
 
 
-def run_folder(command: str, out: str | Path | None = None, *, root: str | Path | None = None) -> Path:
+def run_folder(
+    command: str, out: str | Path | None = None, *, root: str | Path | None = None
+) -> Path:
     """Create (if needed) and return the output folder of one run.
 
     Parameters
@@ -93,7 +102,9 @@ def json_ready(value: Any) -> Any:
     return value
 
 
-def write_summary(folder: str | Path, summary: Mapping[str, Any], name: str = "summary.json") -> Path:
+def write_summary(
+    folder: str | Path, summary: Mapping[str, Any], name: str = "summary.json"
+) -> Path:
     """Write ``summary`` as indented JSON to ``folder/name`` atomically; return the path."""
     path = Path(folder) / name
     atomic_write_bytes(path, (json.dumps(json_ready(summary), indent=2) + "\n").encode())
@@ -101,7 +112,7 @@ def write_summary(folder: str | Path, summary: Mapping[str, Any], name: str = "s
 
 
 def save_figure(fig: Any, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
-    """Save a matplotlib figure as ``folder/name`` (PNG unless ``name`` says otherwise) and close it."""
+    """Save a matplotlib figure as ``folder/name`` (PNG unless a suffix is given); close it."""
     import matplotlib.pyplot as plt
 
     path = Path(folder) / (name if Path(name).suffix else f"{name}.png")
@@ -110,8 +121,13 @@ def save_figure(fig: Any, folder: str | Path, name: str, *, dpi: int = 120) -> P
     return path
 
 
-def print_outputs(folder: str | Path, files: Iterable[str | Path] = (), stream: IO[str] | None = None) -> None:
-    """Print the run folder and the files written in it (to stderr by default, so ``--json`` stdout stays clean)."""
+def print_outputs(
+    folder: str | Path, files: Iterable[str | Path] = (), stream: IO[str] | None = None
+) -> None:
+    """Print the run folder and the files written in it.
+
+    Goes to stderr by default, so that ``--json`` keeps stdout one JSON object.
+    """
     out = sys.stderr if stream is None else stream
     folder = Path(folder)
     print(f"output folder: {folder.resolve()}", file=out)
