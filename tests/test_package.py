@@ -28,3 +28,15 @@ def test_cli_help_runs() -> None:
         [sys.executable, "-m", "youbot_opt", "--help"], capture_output=True, text=True, check=True
     )
     assert "youbot-opt" in out.stdout
+
+
+def test_lazy_public_names_resolve_and_are_exported() -> None:
+    """Every lazily imported name is in ``__all__`` and resolves to the object of its module."""
+    import importlib
+
+    import youbot_opt
+
+    for name, module in youbot_opt._LAZY.items():
+        assert name in youbot_opt.__all__
+        assert getattr(youbot_opt, name) is getattr(importlib.import_module(module), name)
+    assert set(youbot_opt.__all__) <= set(dir(youbot_opt))

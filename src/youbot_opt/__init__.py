@@ -7,7 +7,9 @@ lives in :mod:`youbot_opt.viz` (imported lazily) and IK paths in
 
 from __future__ import annotations
 
+import importlib
 import logging
+from typing import TYPE_CHECKING, Any
 
 from youbot_opt.dynamics import Dynamics, available_backends, build_dynamics
 from youbot_opt.exceptions import (
@@ -51,6 +53,59 @@ from youbot_opt.params import (
 from youbot_opt.trajectory import Trajectory
 from youbot_opt.urdf import build_urdf, urdf_string, write_urdf
 
+if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
+    from youbot_opt.bound_scaling import BoundScalingResult, bound_scaling_study
+    from youbot_opt.io import load_result, save_result
+    from youbot_opt.multistart import MultistartResult, run_multistart
+    from youbot_opt.options import IpoptOptions
+    from youbot_opt.pareto import ParetoFront, pareto_sweep
+    from youbot_opt.problem import BoundaryState, JointBounds, TrajOptProblem, study1_problem
+    from youbot_opt.result import SolveStatus, TrajOptResult
+    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.spline_guess import random_spline_guess
+    from youbot_opt.verify import Certificate, Tolerances, certify
+
+_LAZY: dict[str, str] = {
+    # trajectory optimisation: problem -> solver -> result (imports CasADi/SciPy on first use)
+    "BoundaryState": "youbot_opt.problem",
+    "JointBounds": "youbot_opt.problem",
+    "TrajOptProblem": "youbot_opt.problem",
+    "study1_problem": "youbot_opt.problem",
+    "IpoptOptions": "youbot_opt.options",
+    "TrajOptSolver": "youbot_opt.solve",
+    "SolveStatus": "youbot_opt.result",
+    "TrajOptResult": "youbot_opt.result",
+    "save_result": "youbot_opt.io",
+    "load_result": "youbot_opt.io",
+    # independent checks
+    "Certificate": "youbot_opt.verify",
+    "Tolerances": "youbot_opt.verify",
+    "certify": "youbot_opt.verify",
+    # initial guesses and studies
+    "random_spline_guess": "youbot_opt.spline_guess",
+    "MultistartResult": "youbot_opt.multistart",
+    "run_multistart": "youbot_opt.multistart",
+    "ParetoFront": "youbot_opt.pareto",
+    "pareto_sweep": "youbot_opt.pareto",
+    "BoundScalingResult": "youbot_opt.bound_scaling",
+    "bound_scaling_study": "youbot_opt.bound_scaling",
+}
+"""Public names imported on first access, so ``import youbot_opt`` stays fast."""
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'youbot_opt' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
+
 __version__ = "0.1.0"
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
@@ -82,8 +137,28 @@ __all__ = [
     "Dynamics",
     "available_backends",
     "build_dynamics",
-    # trajectories
+    # trajectories and trajectory optimisation
     "Trajectory",
+    "BoundaryState",
+    "JointBounds",
+    "TrajOptProblem",
+    "study1_problem",
+    "IpoptOptions",
+    "TrajOptSolver",
+    "SolveStatus",
+    "TrajOptResult",
+    "save_result",
+    "load_result",
+    "Certificate",
+    "Tolerances",
+    "certify",
+    "random_spline_guess",
+    "MultistartResult",
+    "run_multistart",
+    "ParetoFront",
+    "pareto_sweep",
+    "BoundScalingResult",
+    "bound_scaling_study",
     # errors
     "FrameNotFound",
     "InvalidModelError",

@@ -15,7 +15,10 @@ Conventions (shared by every transcription):
 * Boundary conditions are equality rows of ``g`` (blocks ``start_position``,
   ``start_velocity``, ``goal_position``, ``goal_velocity``) whose values enter
   only through ``lbg = ubg``: a new start or goal needs no rebuild.
-* Joint bounds enter only through ``lbx``/``ubx``, the time weight only through
+* Joint bounds enter only through ``lbx``/``ubx`` -- and, for a scheme whose
+  interpolant can leave the bounds between knots, through the ``lbg``/``ubg``
+  of its *path* blocks (inequality rows of ``g`` held within a bound family,
+  :meth:`Transcription.path_constraints`) -- the time weight only through
   ``p``: bound scaling and ``beta`` sweeps reuse one NLP.
 * The forward dynamics is evaluated by the per-knot Function mapped over the
   knots (``F.map(N)``).
@@ -127,6 +130,10 @@ class TranscribedNLP:
         The objective's terms ``T`` [s] and ``W`` [N^2 m^2 s] as expressions of ``x``.
     variables, constraints : Layout
         Named blocks of ``x`` and ``g``.
+    path_bounds : mapping of str to str
+        Inequality blocks of ``g`` -> the variable family (``"q"``, ``"v"`` or
+        ``"tau"``) whose bounds they must stay within; every other block of
+        ``g`` is an equality.
     """
 
     method: str
@@ -142,6 +149,7 @@ class TranscribedNLP:
     work: Any
     variables: Layout
     constraints: Layout
+    path_bounds: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def n_variables(self) -> int:
@@ -150,8 +158,18 @@ class TranscribedNLP:
 
     @property
     def n_constraints(self) -> int:
-        """Number of equality constraints (rows of ``g``)."""
+        """Number of constraint rows of ``g`` (equalities and path inequalities)."""
         return self.constraints.size
+
+    @property
+    def n_inequalities(self) -> int:
+        """Number of path-inequality rows of ``g`` (zero for trapezoidal collocation)."""
+        return sum(self.constraints[name].size for name in self.path_bounds)
+
+    @property
+    def n_equalities(self) -> int:
+        """Number of equality rows of ``g`` (defects and boundary conditions)."""
+        return self.n_constraints - self.n_inequalities
 
     def variable_bounds(self, bounds: JointBounds, dt_range: tuple[float, float]) -> tuple[Array, Array]:
         """``(lbx, ubx)`` from joint bounds and the time-step range ``dt_range`` in [s]."""
@@ -165,15 +183,42 @@ class TranscribedNLP:
                 lo[name], hi[name] = lower[base], upper[base]
         return self.variables.pack(lo), self.variables.pack(hi)
 
-    def constraint_bounds(self, start: BoundaryState, goal: BoundaryState) -> tuple[Array, Array]:
-        """``(lbg, ubg)``: zero defects and the boundary states (equalities)."""
+    def constraint_bounds(
+        self, start: BoundaryState, goal: BoundaryState, bounds: JointBounds | None = None
+    ) -> tuple[Array, Array]:
+        """``(lbg, ubg)``: zero defects, the boundary states and the path bounds.
+
+        Parameters
+        ----------
+        start, goal : BoundaryState
+            Boundary states (equalities).
+        bounds : JointBounds, optional
+            Scaled joint bounds for the path blocks; required when the
+            transcription has any (:attr:`path_bounds`).
+
+        Raises
+        ------
+        TranscriptionError
+            If the NLP has path blocks and ``bounds`` is missing.
+        """
         values: dict[str, Any] = {name: 0.0 for name in self.constraints.blocks}
         values["start_position"] = start.q
         values["start_velocity"] = start.velocity
         values["goal_position"] = goal.q
         values["goal_velocity"] = goal.velocity
-        g = self.constraints.pack(values)
-        return g, g.copy()
+        lbg = self.constraints.pack(values)
+        if not self.path_bounds:
+            return lbg, lbg.copy()
+        if bounds is None:
+            raise TranscriptionError(
+                f"the {self.method} NLP has path constraints {sorted(self.path_bounds)}: "
+                "constraint_bounds needs the joint bounds (bounds=problem.bounds(scale))"
+            )
+        upper = dict(values)
+        for name, family in self.path_bounds.items():
+            values[name] = getattr(bounds, f"{family}_lower")
+            upper[name] = getattr(bounds, f"{family}_upper")
+        return self.constraints.pack(values), self.constraints.pack(upper)
 
 
 class Transcription(ABC):
@@ -209,6 +254,20 @@ class Transcription(ABC):
             Accelerations ``(nv, count)`` at each group of :meth:`dynamics_points`;
             the defects must be affine in them (they are, for collocation).
         """
+
+    def path_constraints(
+        self, sym: dict[str, Any], accel: dict[str, Any]
+    ) -> list[tuple[str, str, Any]]:
+        """Inequality blocks that keep the interpolant within the joint bounds between knots.
+
+        Returns
+        -------
+        list of (name, family, expression)
+            Block name, the variable family (``"q"``, ``"v"`` or ``"tau"``) whose
+            bounds apply, and an expression of shape ``(nv, count)``, affine in
+            ``accel`` like the defects. None by default.
+        """
+        return []
 
     @abstractmethod
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
@@ -269,6 +328,7 @@ class Transcription(ABC):
             work=parts.work,
             variables=Layout(blocks),
             constraints=parts.constraints,
+            path_bounds=MappingProxyType(dict(parts.path_bounds)),
         )
 
     def expressions(
@@ -288,7 +348,8 @@ class Transcription(ABC):
             ("goal_position", q[:, n - 1]),
             ("goal_velocity", v[:, n - 1]),
         ]
-        g_blocks = defects + boundary
+        path = self.path_constraints(sym, accel)
+        g_blocks = defects + boundary + [(name, expr) for name, _, expr in path]
         g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
         constraints = Layout([(name, nv, expr.size2()) for name, expr in g_blocks])
         dt = sym["dt"]
@@ -299,7 +360,14 @@ class Transcription(ABC):
         work = dt * work
         total_time = duration(dt, n)
         f = problem.objective.value(total_time, work, beta)
-        return Expressions(f=f, g=g, duration=total_time, work=work, constraints=constraints)
+        return Expressions(
+            f=f,
+            g=g,
+            duration=total_time,
+            work=work,
+            constraints=constraints,
+            path_bounds={name: family for name, family, _ in path},
+        )
 
 
 class Expressions(NamedTuple):
