@@ -81,3 +81,16 @@ def test_projected_bfgs_matches_lbfgsb_on_bounded_rosenbrock():
     # both stop at projected gradient ~1e-10; the reduced Hessian is well conditioned here
     np.testing.assert_allclose(ours.x, ref.x, atol=1e-6)
     assert ours.f == pytest.approx(ref.fun, abs=1e-10)
+
+
+def test_bfgs_deadline_stops_before_the_next_iteration():
+    """A passed deadline returns the start untouched; a far one changes nothing."""
+    x0 = np.zeros(4)
+    stopped = minimize_bfgs(_rosen, x0, gtol=1e-10, deadline=0.0)  # perf_counter() > 0 always
+    assert stopped.iterations == 0 and not stopped.converged
+    assert stopped.message == "time limit reached"
+    np.testing.assert_array_equal(stopped.x, x0)
+    free = minimize_bfgs(_rosen, x0, gtol=1e-10)
+    far = minimize_bfgs(_rosen, x0, gtol=1e-10, deadline=float("inf"))
+    assert far.iterations == free.iterations and far.converged
+    np.testing.assert_array_equal(far.x, free.x)

@@ -123,3 +123,28 @@ def test_bad_configuration_shape_raises():
         chain.tip_position([0.0, 0.0, 0.0])
     with pytest.raises(ParameterError, match="finite"):
         chain.tip_position([0.0, np.nan])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"q_lower": np.inf, "q_upper": np.inf}, r"q_lower\[0\] = inf leaves joint 0 no value"),
+        ({"q_lower": -np.inf, "q_upper": -np.inf}, r"q_upper\[0\] = -inf leaves joint 0"),
+        ({"q_lower": [0.0, np.inf], "q_upper": 1.0}, r"q_lower\[1\] = inf"),
+        ({"q_lower": [0.0, np.nan]}, "q_lower contains NaN"),
+    ],
+)
+def test_infinite_limits_that_leave_no_value_are_rejected(kwargs, match):
+    """+inf as a lower or -inf as an upper limit is an empty range: ParameterError naming it."""
+    with pytest.raises(ParameterError, match=match):
+        PlanarChain(lengths=[1.0, 1.0], **kwargs)
+
+
+def test_infinite_limits_on_their_own_side_mean_no_limit():
+    """-inf lower / +inf upper equal None: unbounded joint, Pinocchio's max-float limit."""
+    chain = PlanarChain(lengths=[1.0, 1.0], q_lower=[-np.inf, -1.0], q_upper=[np.inf, 1.0])
+    assert chain.bounded  # joint 2 is limited
+    free = PlanarChain(lengths=[1.0, 1.0], q_lower=-np.inf, q_upper=np.inf)
+    assert not free.bounded
+    assert free.model.upperPositionLimit[0] == np.finfo(float).max
+    np.testing.assert_array_equal(chain.model.lowerPositionLimit, [-np.finfo(float).max, -1.0])

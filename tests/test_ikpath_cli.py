@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import base64
 import json
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
+import umsgpack
 
 from youbot_opt.cli import main
+from youbot_opt.ikpath.io import load_ikpath_result
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """Run every command in a temporary cwd: default run folders land there."""
+    monkeypatch.chdir(tmp_path)
 
 
 def _json(capsys, argv):
@@ -18,7 +29,9 @@ def _json(capsys, argv):
 
 def test_example_b_json(capsys):
     """Example B from the zero start: success, E = 15.6058914, limits met, all targets reachable."""
-    code, doc, _ = _json(capsys, ["ikpath", "--example", "B", "--json", "--no-progress"])
+    code, doc, _ = _json(
+        capsys, ["ikpath", "--example", "B", "--json", "--no-progress", "--no-replay"]
+    )
     assert code == 0
     assert doc["status"] == "success"
     assert doc["E"] == pytest.approx(15.6058914, abs=1e-6)
@@ -52,6 +65,8 @@ def test_unreachable_target_exits_2_with_verdict(capsys):
     assert [v["verdict"] for v in doc["reachability"]] == ["unreachable", "reachable"]
     np.testing.assert_allclose(doc["reachability"][1]["witness"], [np.pi / 2, 0, 0], atol=1e-9)
     assert "unreachable" in err and "(0, 7.1)" in err
+    files = sorted(p.name for p in Path(doc["output_folder"]).iterdir())
+    assert files == ["ikpath_workspace.png", "summary.json"]
 
 
 @pytest.mark.parametrize(
@@ -86,30 +101,64 @@ def test_bad_input_exits_2(capsys, argv, match):
     assert match in capsys.readouterr().err
 
 
-def test_text_summary_and_plots(capsys, tmp_path):
-    """The text summary names the best E and the study's value; --out writes PNG files."""
+def test_text_summary_and_run_folder(capsys, tmp_path):
+    """The text summary names the best E and the study's value; --out gets every output."""
+    out = tmp_path / "run"
     code = main(
-        [
-            "ikpath",
-            "--example",
-            "A",
-            "--starts",
-            "2",
-            "--workers",
-            "1",
-            "--out",
-            str(tmp_path),
-            "--no-progress",
-        ]
-    )
-    text = capsys.readouterr().out
+        ["ikpath", "--example", "A", "--starts", "2", "--workers", "1", "--out", str(out),
+         "--no-progress"]
+    )  # fmt: skip
+    captured = capsys.readouterr()
     assert code == 0
-    assert "best: E = 0.8405135867" in text and "study reported E = 0.905" in text
-    pngs = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert "best: E = 0.8405135867" in captured.out and "study reported E = 0.905" in captured.out
+    assert f"output folder: {out.resolve()}" in captured.err
+    pngs = sorted(p.name for p in out.glob("*.png"))
     assert pngs == [
         "ikpath_arm.png",
         "ikpath_convergence.png",
         "ikpath_minima.png",
         "ikpath_workspace.png",
     ]
-    assert all((tmp_path / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
+    assert all((out / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
+    summary = json.loads((out / "summary.json").read_text())
+    saved = load_ikpath_result(out / "result.json")
+    assert saved.objective == summary["E"]
+    np.testing.assert_array_equal(saved.configurations, summary["configurations"])
+    page = (out / "replay.html").read_text(encoding="utf-8")
+    blob = re.search(r"var commands = (\[.*?\]);", page, re.S)
+    kinds = [umsgpack.unpackb(base64.b64decode(c))["type"] for c in json.loads(blob.group(1))]
+    assert kinds.count("set_animation") == 1
+    assert sorted(summary["files"]) == sorted(p.name for p in out.iterdir())
+
+
+def test_json_stdout_is_the_summary_and_default_folder_is_new(capsys, tmp_path):
+    """--json prints one object equal to summary.json; without --out a new folder per run."""
+    argv = ["ikpath", "--example", "B", "--json", "--no-progress", "--no-replay"]
+    code, first, err = _json(capsys, argv)
+    assert code == 0 and "output folder:" in err
+    code, second, _ = _json(capsys, argv)
+    assert code == 0
+    folders = sorted((tmp_path / "youbot_opt_runs").iterdir())
+    assert len(folders) == 2 and all(f.name.startswith("ikpath-") for f in folders)
+    assert first["output_folder"] != second["output_folder"]
+    for doc in (first, second):
+        folder = tmp_path / "youbot_opt_runs" / doc["output_folder"].rsplit("/", 1)[1]
+        assert json.loads((folder / "summary.json").read_text()) == doc
+        assert not (folder / "replay.html").exists()
+
+
+def test_wall_time_cap_is_reported_as_time_limit(capsys):
+    """--max-wall-time 1e-9: the solve stops at once with status time_limit and exit code 1."""
+    argv = ["ikpath", "--example", "B", "--max-wall-time", "1e-9", "--json", "--no-progress"]
+    code, doc, _ = _json(capsys, [*argv, "--no-replay"])
+    assert code == 1
+    assert doc["status"] == "time_limit"
+    assert np.all(np.isfinite(np.array(doc["configurations"])))
+
+
+def test_ipopt_on_a_one_link_chain_is_refused_with_advice(capsys):
+    """A 1-link chain with --method ipopt: exit 2, the message suggests method='al'."""
+    argv = ["ikpath", "--lengths", "1", "--target", "1", "0", "--target", "0", "1"]
+    code = main([*argv, "--method", "ipopt", "--no-progress", "--no-replay"])
+    err = capsys.readouterr().err
+    assert code == 2 and "at least 2 free joints" in err and "method='al'" in err

@@ -95,3 +95,10 @@ def test_wrong_x_size_raises(problem):
     """An iterate of the wrong size names the expected shapes."""
     with pytest.raises(ParameterError, match=r"\(12,\) or \(4, 3\)"):
         problem.objective(np.zeros(11))
+
+
+def test_default_start_is_finite_with_one_sided_limits():
+    """Limits with -inf/+inf sides give a finite clipped zero start (no 'x must be finite')."""
+    chain = PlanarChain(lengths=[1.0, 1.0], q_lower=[0.2, -np.inf], q_upper=[np.inf, -0.1])
+    prob = CyclicIKProblem(chain=chain, targets=[(1.0, 1.0), (0.5, 1.2)])
+    np.testing.assert_array_equal(prob.default_start(), [0.2, -0.1, 0.2, -0.1])

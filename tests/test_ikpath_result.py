@@ -1,13 +1,21 @@
-"""IK-path result: joint path for replay, status handling, summary."""
+"""IK-path result: joint path for replay, status handling, self re-check, summary."""
 
 from __future__ import annotations
+
+import dataclasses
+import json
+import math
 
 import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
+from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.ikpath.io import _digest, load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKStatus, build_result
 from youbot_opt.ikpath.solve import solve
 
 
@@ -51,3 +59,104 @@ def test_raise_for_status(result):
     with pytest.raises(SolveFailed, match="max_iterations") as info:
         capped.raise_for_status()
     assert info.value.result is capped
+
+
+def _claim(problem, x, *, status=IKStatus.SUCCESS, tol=1e-10):
+    """A result claiming ``status`` for configurations ``x`` (as a solver would build it)."""
+    n = problem.n_variables
+    return build_result(
+        problem,
+        method="al",
+        status=status,
+        x=x,
+        multipliers=np.zeros(2 * problem.n_targets),
+        iterations=1,
+        inner_iterations=0,
+        wall_time=0.0,
+        message="claimed",
+        start=np.zeros(n),
+        constraint_tol=tol,
+    )
+
+
+def test_replace_with_nan_configurations_is_not_a_success(result):
+    """dataclasses.replace(r, configurations=NaN) of a success re-checks: NUMERICAL_ERROR."""
+    assert result.success
+    nan = np.full_like(result.configurations, np.nan)
+    bad = dataclasses.replace(result, configurations=nan)
+    assert bad.status is IKStatus.NUMERICAL_ERROR and not bad.success
+    assert "re-check failed: non-finite values in configurations" in bad.message
+    with pytest.raises(SolveFailed, match="numerical_error"):
+        bad.raise_for_status()
+    inf_e = dataclasses.replace(result, objective=math.inf)
+    assert inf_e.status is IKStatus.NUMERICAL_ERROR and "objective" in inf_e.message
+
+
+def test_replace_with_moved_configuration_or_stale_figures_fails_the_recheck(result):
+    """A joint moved by 1e-3 rad misses its target and leaves E stale: CHECK_FAILED."""
+    q = np.array(result.configurations)
+    q[2, 1] += 1e-3
+    moved = dataclasses.replace(result, configurations=q)
+    assert moved.status is IKStatus.CHECK_FAILED
+    assert "target 2 missed by" in moved.message and "reported E" in moved.message
+    stale = dataclasses.replace(result, objective=result.objective + 1e-6)
+    assert stale.status is IKStatus.CHECK_FAILED and "reported E" in stale.message
+    same = dataclasses.replace(result)  # nothing changed: still a success
+    assert same.success and same.message == result.message
+
+
+def test_recheck_uses_the_solver_constraint_tolerance():
+    """A residual of 1e-9 m passes with constraint_tol 1e-9 m, fails with 5e-10 m.
+
+    Turning joint 1 of an exact solution by delta moves the tip on a circle of
+    radius |p| about the base: residual 2 |p| sin(delta / 2) (closed form).
+    """
+    chain = PlanarChain(lengths=[1.0, 1.0])
+    q = np.array([[0.3, 0.9], [1.2, -0.4]])
+    targets = [chain.tip_position(qj) for qj in q]
+    problem = CyclicIKProblem(chain=chain, targets=targets)
+    radius = float(np.linalg.norm(targets[0]))
+    delta = 2.0 * math.asin(1e-9 / (2.0 * radius))
+    x = q.copy()
+    x[0, 0] += delta
+    ok = _claim(problem, x, tol=1e-9)  # allowed sqrt(2) * 1e-9 + 3e-12 m > 1e-9 m
+    assert ok.success, ok.message
+    assert ok.max_residual() == pytest.approx(1e-9, rel=1e-5)  # rounding of 1e-16 m in 1e-9 m
+    tight = _claim(problem, x, tol=5e-10)  # allowed 7.1e-10 m < 1e-9 m
+    assert tight.status is IKStatus.CHECK_FAILED and "target 0 missed by 1e-09 m" in tight.message
+
+
+def test_claimed_success_outside_the_limits_fails_the_recheck():
+    """Targets met exactly but a joint 0.2 rad past its limit: CHECK_FAILED, not success."""
+    chain = PlanarChain(lengths=[1.0, 1.0], q_lower=-0.5, q_upper=0.5)
+    q = np.array([[0.7, 0.1], [0.2, 0.3]])
+    problem = CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+    res = _claim(problem, q)
+    assert res.status is IKStatus.CHECK_FAILED
+    assert "joint limits violated by 0.2 rad" in res.message
+    free = CyclicIKProblem(chain=chain, targets=problem.targets, use_limits=False)
+    assert _claim(free, q).success  # the same configurations without the limits
+
+
+def test_failures_are_kept_and_tolerance_is_validated():
+    """Only claimed successes are re-checked; constraint_tol must be finite and > 0."""
+    problem = example_problem("A")
+    far = _claim(problem, np.zeros(problem.n_variables), status=IKStatus.MAX_ITERATIONS)
+    assert far.status is IKStatus.MAX_ITERATIONS and far.message == "claimed"
+    for tol in (0.0, -1e-9, math.nan, math.inf):
+        with pytest.raises(ParameterError, match="constraint_tol"):
+            _claim(problem, np.zeros(problem.n_variables), tol=tol)
+
+
+def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(result, tmp_path):
+    """The tolerance is saved; a file without it (older writer) loads with ALOptions' default."""
+    custom = solve(example_problem("B"), options=ALOptions(constraint_tol=1e-9))
+    assert custom.success and custom.constraint_tol == 1e-9
+    assert load_ikpath_result(save_ikpath_result(custom, tmp_path / "c")).constraint_tol == 1e-9
+    path = save_ikpath_result(result, tmp_path / "old.json")
+    doc = json.loads(path.read_text())
+    del doc["result"]["constraint_tol"]
+    doc["sha256"] = _digest(doc["result"])
+    path.write_text(json.dumps(doc))
+    old = load_ikpath_result(path)
+    assert old.constraint_tol == ALOptions().constraint_tol and old.success

@@ -180,3 +180,131 @@ def test_solve_rejects_unreachable_and_bad_method():
         solve(example_problem("A"), method="sqp")  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="must be IpoptOptions"):
         solve(example_problem("A"), method="ipopt", options=ALOptions())
+
+
+def _tips_problem(chain, n_targets, seed):
+    """Targets = tips of seeded configurations inside the middle half of the limits."""
+    rng = np.random.default_rng(seed)
+    lo = np.maximum(chain.q_lower, -np.pi)
+    hi = np.minimum(chain.q_upper, np.pi)
+    mid, half = 0.5 * (lo + hi), 0.25 * (hi - lo)
+    q = rng.uniform(mid - half, mid + half, (n_targets, chain.n))
+    return CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+
+
+@pytest.mark.parametrize("case", ["youbot", "four_link_limited", "five_link_free"])
+def test_methods_agree_on_more_problems(case, rng):
+    """AL and IPOPT reach the same optimum on the youBot arm and on 4- and 5-link chains.
+
+    IPOPT starts from a perturbed AL optimum (0.02 rad), so both must find the same
+    local minimum. Tolerances as for the study examples: E 1e-9, q 1e-6 rad.
+    """
+    from youbot_opt.ikpath.robot import youbot_chain
+
+    if case == "youbot":
+        prob = _tips_problem(youbot_chain(), 4, seed=1)
+    elif case == "four_link_limited":
+        chain = PlanarChain(lengths=[1.0, 0.8, 0.6, 0.4], q_lower=-2.0, q_upper=2.0)
+        prob = _tips_problem(chain, 5, seed=2)
+    else:
+        prob = _tips_problem(PlanarChain(lengths=[1.0, 0.9, 0.7, 0.5, 0.3]), 6, seed=3)
+    al = solve(prob, method="al")
+    assert al.success, al.message
+    x0 = np.clip(
+        al.configurations.ravel() + rng.uniform(-0.02, 0.02, prob.n_variables),
+        prob.lower,
+        prob.upper,
+    )
+    ip = solve(prob, method="ipopt", x0=x0)
+    assert ip.success, ip.message
+    assert al.max_residual() < 1e-9 and ip.max_residual() < 1e-9
+    assert al.limit_violation == 0.0 and ip.limit_violation == 0.0
+    assert al.objective == pytest.approx(ip.objective, abs=1e-9)
+    assert configuration_distance(al.configurations, ip.configurations) < 1e-6
+
+
+def test_one_link_chain_has_the_closed_form_optimum():
+    """1 link, targets (1, 0) and (0, 1): q = 0 and pi/2, E = (pi/2)^2 (Jacobian shape (2, 1))."""
+    prob = CyclicIKProblem(chain=PlanarChain(lengths=[1.0]), targets=[(1.0, 0.0), (0.0, 1.0)])
+    assert prob.chain.tip_jacobian([0.3]).shape == (2, 1)
+    res = solve(prob, method="al")
+    assert res.success, res.message
+    # E is exact up to the AL's constraint tolerance 1e-10 times multipliers O(1)
+    assert res.objective == pytest.approx((np.pi / 2) ** 2, abs=1e-9)
+    np.testing.assert_allclose(res.configurations.ravel(), [0.0, np.pi / 2], atol=1e-9)
+
+
+def test_ipopt_acceptable_level_is_rechecked():
+    """IPOPT's 'acceptable' stop with targets missed is not reported as a success."""
+    prob = example_problem("A")
+    loose = {"acceptable_iter": 1, "acceptable_tol": 1e20, "acceptable_constr_viol_tol": 1e20}
+    loose |= {"acceptable_dual_inf_tol": 1e20, "acceptable_compl_inf_tol": 1e20}
+    res = solve(prob, method="ipopt", options=IpoptOptions(extra=loose))
+    assert res.message == "Solved_To_Acceptable_Level"
+    assert res.max_residual() > 1e-3  # stopped early, targets missed
+    assert res.status is IKStatus.STALLED
+
+
+@pytest.mark.parametrize("inner", ["bfgs", "lbfgsb"])
+def test_al_wall_time_cap_is_a_time_limit_status_with_the_last_iterate(inner):
+    """max_wall_time = 1 ns: TIME_LIMIT after the first inner check, a finite in-box iterate."""
+    prob = example_problem("B")
+    res = solve(prob, method="al", options=ALOptions(max_wall_time=1e-9, inner=inner))
+    assert res.status is IKStatus.TIME_LIMIT, res.message
+    assert "wall-time limit 1e-09 s reached" in res.message
+    assert res.iterations == 1 and res.inner_iterations <= 1  # SciPy's callback runs after one
+    assert np.all(np.isfinite(res.configurations)) and res.limit_violation == 0.0
+    np.testing.assert_array_equal(res.history[-1].x, res.configurations)
+    with pytest.raises(SolveFailed, match="time_limit"):
+        res.raise_for_status()
+
+
+def test_al_generous_wall_time_cap_changes_nothing():
+    """A cap that is not reached gives the uncapped result (same iterates, same E)."""
+    prob = example_problem("A")
+    free = solve(prob, method="al")
+    capped = solve(prob, method="al", options=ALOptions(max_wall_time=600.0))
+    assert capped.success and capped.iterations == free.iterations
+    np.testing.assert_array_equal(capped.configurations, free.configurations)
+
+
+def test_ipopt_time_limits_map_to_the_time_limit_status():
+    """IPOPT's wall-time and CPU-time exits are TIME_LIMIT, not NUMERICAL_ERROR."""
+    from youbot_opt.ikpath.ipopt import _STATUS
+
+    assert _STATUS["Maximum_WallTime_Exceeded"] is IKStatus.TIME_LIMIT
+    assert _STATUS["Maximum_CpuTime_Exceeded"] is IKStatus.TIME_LIMIT
+    res = solve(example_problem("A"), method="ipopt", options=IpoptOptions(max_wall_time=1e-9))
+    assert res.message == "Maximum_WallTime_Exceeded"
+    assert res.status is IKStatus.TIME_LIMIT and np.all(np.isfinite(res.configurations))
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, np.nan, np.inf, True, "1"])
+def test_bad_wall_time_caps_raise(value):
+    """A wall-time cap must be None or a finite number of seconds > 0."""
+    with pytest.raises(ParameterError, match="max_wall_time"):
+        ALOptions(max_wall_time=value)
+    with pytest.raises(ParameterError, match="max_wall_time"):
+        IpoptOptions(max_wall_time=value)
+
+
+def test_ipopt_refuses_chains_with_fewer_than_two_free_joints():
+    """1 link (or 2 with one fixed joint): IPOPT lacks degrees of freedom; AL solves it."""
+    from youbot_opt.ikpath.multistart import run_multistart
+
+    one = CyclicIKProblem(chain=PlanarChain(lengths=[1.0]), targets=[(1.0, 0.0), (0.0, 1.0)])
+    with pytest.raises(ParameterError, match=r"at least 2 free joints, got 1 .*method='al'"):
+        solve(one, method="ipopt")
+    with pytest.raises(ParameterError, match="at least 2 free joints"):
+        run_multistart(one, method="ipopt", n_starts=2, max_workers=1)
+    fixed = PlanarChain(lengths=[1.0, 1.0], q_lower=[-3.0, 0.5], q_upper=[3.0, 0.5])
+    q = np.array([[0.2, 0.5], [1.1, 0.5]])
+    prob = CyclicIKProblem(chain=fixed, targets=[fixed.tip_position(qj) for qj in q])
+    with pytest.raises(ParameterError, match=r"got 1 \(of 2\)"):
+        solve(prob, method="ipopt")
+    res = solve(prob, method="al")
+    # joint 2 is fixed at 0.5 rad, so joint 1 is fixed by each target: the drawn q
+    assert res.success, res.message
+    np.testing.assert_allclose(res.configurations, q, atol=1e-9)
+    free = CyclicIKProblem(chain=fixed, targets=prob.targets, use_limits=False)
+    assert solve(free, method="ipopt").success  # without the limits both joints are free

@@ -130,3 +130,18 @@ def test_write_is_atomic(result, tmp_path, monkeypatch):
         save_result(result, path)
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.npz"]
+
+
+def test_feasibility_tolerance_round_trips(tmp_path) -> None:
+    """A result judged at a looser tolerance is re-judged at that tolerance when loaded."""
+    import dataclasses
+
+    from youbot_opt.io import load_result, save_result
+    from youbot_opt.problem import study1_problem
+    from youbot_opt.solve import TrajOptSolver
+
+    result = TrajOptSolver(study1_problem(10), "trapezoidal").solve(beta=0.5)
+    loose = dataclasses.replace(result, feasibility_tol=1e-4)
+    back = load_result(save_result(loose, tmp_path / "r.npz"), robot=result.problem.robot)
+    assert back.feasibility_tol == 1e-4
+    assert back.status == loose.status

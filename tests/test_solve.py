@@ -18,6 +18,8 @@ from youbot_opt.options import IpoptOptions
 from youbot_opt.problem import BoundaryState, TrajOptProblem, study1_problem
 from youbot_opt.result import SolveStatus
 from youbot_opt.solve import TrajOptSolver, solve
+from youbot_opt.transcription import HermiteSimpsonCollocation
+from youbot_opt.verify import check_bounds as certify_bounds
 
 SLIDER_URDF = """<?xml version="1.0"?>
 <robot name="slider">
@@ -152,7 +154,7 @@ def test_time_reversed_motion_has_the_same_cost(base_solver, base_result, youbot
 
 
 def test_multiplier_sign_convention(base_solver, base_result):
-    """grad f + J_g' lam_g + lam_x = 0 by finite differences; lam > 0 at upper, < 0 at lower bounds."""
+    """grad f + J_g' lam_g + lam_x = 0 by finite differences; lam > 0 upper, < 0 lower bounds."""
     r, nlp = base_result, base_solver.nlp
     lam_x = np.zeros(nlp.n_variables)
     for name, block in nlp.variables.blocks.items():
@@ -222,6 +224,68 @@ def test_hermite_simpson_base_case(youbot):
     np.testing.assert_allclose(qm - (q[:-1] + q[1:]) / 2 - dt / 8 * (v[:-1] - v[1:]), 0, atol=1e-8)
     # Hermite-Simpson is 4th order: at 50 knots it lies within 3 % of the trapezoidal value.
     assert 8.0 < r.objective < 8.27
+
+
+class _HermiteSimpsonWithoutHull(HermiteSimpsonCollocation):
+    """HS bounding only the knot and midpoint velocities (the scheme before the hull rows)."""
+
+    unbounded = ()
+
+    def path_constraints(self, sym, accel):
+        return []
+
+
+def _speed_overshoot(result, samples_per_interval=400):
+    """Largest relative speed-bound excess of the result's Trajectory, sampled densely.
+
+    400 samples per interval: the cubic's maximum between two samples exceeds the
+    larger sample by at most (h / 400)^2 max|d^2v/dt^2| / 8 ~ 1e-8 rad/s here.
+    """
+    traj, b = result.trajectory, result.bounds()
+    t = np.linspace(traj.t[0], traj.t[-1], samples_per_interval * (traj.n_knots - 1) + 1)
+    v = traj.velocity(t)
+    return float(np.max(np.maximum(v - b.v_upper, b.v_lower - v) / b.v_upper))
+
+
+@pytest.mark.parametrize("n", [50, 100])
+def test_hermite_simpson_speed_bound_holds_between_knots(youbot, n):
+    """HS velocity interpolant stays within the speed bounds everywhere (dense sampling, 1e-6 rel).
+
+    The Bernstein control points of every interval's velocity cubic are bounded,
+    so by the convex-hull property the excess is only IPOPT's bound relaxation
+    (1e-8 relative); 1e-6 is far below the certificate's 1e-2.
+    """
+    r = solve(study1_problem(n, robot=youbot), method="hermite_simpson")
+    assert r.success
+    assert _speed_overshoot(r) < 1e-6
+    checks = {(c.quantity, c.where): c for c in certify_bounds(r.trajectory, r.bounds())}
+    assert checks["velocity", "between"].relative < 1e-6
+
+
+def test_hermite_simpson_without_hull_rows_overshoots(youbot):
+    """Control: bounding only knot and midpoint speeds lets the cubic overshoot by > 1e-2."""
+    r = solve(study1_problem(50, robot=youbot), method=_HermiteSimpsonWithoutHull())
+    assert r.success
+    # 8.4 % on joint 2 at t ~ 2.15 s (reference run); the certificate allows 1 %.
+    assert _speed_overshoot(r) > 1e-2
+
+
+def test_hermite_simpson_trajectory_matches_the_midpoint_variables(youbot):
+    """The HS Trajectory passes through q_mid, v_mid, tau_mid with slope a_mid there (1e-8)."""
+    r = solve(study1_problem(20, robot=youbot), method="hermite_simpson")
+    traj, var = r.trajectory, r.variables
+    tm = traj.t[:-1] + 0.5 * r.dt
+    # The Hermite midpoint conditions hold to IPOPT's constraint violation (~1e-11);
+    # 1e-8 is round-off headroom.
+    np.testing.assert_allclose(traj(tm), var["q_mid"], atol=1e-8)
+    np.testing.assert_allclose(traj.velocity(tm), var["v_mid"], atol=1e-8)
+    np.testing.assert_allclose(traj.torque(tm), var["tau_mid"], atol=1e-12)
+    am = _aba(youbot, var["q_mid"], var["v_mid"], var["tau_mid"])
+    # Central difference of a cubic: truncation O(eps^2 |v'''|) ~ 1e-12 and
+    # round-off ~1e-16 / eps ~ 1e-8 (|v| ~ 1 rad/s); the Simpson defect holds to ~1e-9.
+    eps = 1e-4 * r.dt
+    slope = (traj.velocity(tm + eps) - traj.velocity(tm - eps)) / (2 * eps)
+    np.testing.assert_allclose(slope, am, atol=1e-6)
 
 
 def test_pinocchio_backend_reaches_the_same_optimum(youbot):
@@ -304,7 +368,7 @@ def test_ur5_short_horizon(youbot):
 
 # ---------------------------------------------------------------- failures
 def test_iteration_cap_is_a_status_with_the_last_iterate(youbot):
-    """max_iter = 2 returns MAX_ITERATIONS (not success) with a finite iterate; raise_for_status raises."""
+    """max_iter = 2 gives MAX_ITERATIONS with a finite iterate; raise_for_status raises."""
     r = solve(study1_problem(robot=youbot), options=IpoptOptions(max_iter=2))
     assert r.status is SolveStatus.MAX_ITERATIONS and not r.success
     assert r.iterations == 2 and r.trajectory is not None
@@ -347,3 +411,40 @@ def test_bad_solver_arguments(youbot):
         TrajOptSolver(problem, method="euler")
     with pytest.raises(ParameterError, match="TrajOptProblem"):
         TrajOptSolver("problem")  # type: ignore[arg-type]
+
+
+def test_without_a_compiler_the_solver_falls_back_to_the_vm(youbot, monkeypatch, base_result):
+    """No C compiler: one warning, VM kernels, and the same optimum as compiled kernels (1e-9)."""
+    from youbot_opt.exceptions import YoubotOptWarning
+
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    with pytest.warns(YoubotOptWarning, match="no C compiler"):
+        solver = TrajOptSolver(study1_problem(robot=youbot))
+    assert not solver.compiled
+    r = solver.solve(beta=0.5)
+    # Same NLP and derivatives, evaluated by another code path: IPOPT takes the same
+    # steps up to round-off, so the optima agree far below the 1e-8 tolerance.
+    assert r.success and r.objective == pytest.approx(base_result.objective, rel=1e-9)
+
+
+def test_structured_and_casadi_derivatives_reach_the_same_optimum(youbot, base_result):
+    """CasADi's AD of the whole expanded graph finds the structured-derivative optimum (1e-9)."""
+    import casadi as ca
+
+    solver = TrajOptSolver(study1_problem(robot=youbot), compile=False)
+    nlp = solver.nlp
+    reference = ca.nlpsol(
+        "reference",
+        "ipopt",
+        ca.Function("nlp", [nlp.x, nlp.p], [nlp.f, nlp.g], ["x", "p"], ["f", "g"]).expand(),
+        solver.options.to_casadi(True),
+    )
+    problem = solver.problem
+    bounds = problem.bounds(1.0)
+    lbx, ubx = nlp.variable_bounds(bounds, (problem.dt_min, problem.dt_max))
+    lbg, ubg = nlp.constraint_bounds(problem.start, problem.goal, bounds)
+    x0 = nlp.variables.pack(solver.method.knot_guess(base_result.guess, problem.n_knots))
+    sol = reference(x0=x0, p=0.5, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    assert reference.stats()["success"]
+    # Both converge to tol = 1e-8 on the same NLP; the optimum is locally unique.
+    assert float(sol["f"]) == pytest.approx(base_result.objective, rel=1e-9)

@@ -35,23 +35,27 @@ def test_trapezoidal_counts_match_the_study(youbot, dynamics, n):
     """Trapezoidal: 9n + 1 variables and 6(n - 1) + 12 equalities for the 3-joint youBot."""
     nlp = TrapezoidalCollocation().build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
     assert nlp.n_variables == 9 * n + 1
-    assert nlp.n_constraints == 6 * (n - 1) + 12
+    assert nlp.n_constraints == nlp.n_equalities == 6 * (n - 1) + 12
+    assert nlp.n_inequalities == 0
     assert nlp.x.numel() == nlp.n_variables and nlp.g.numel() == nlp.n_constraints
 
 
 @pytest.mark.parametrize("n", [2, 50])
 def test_hermite_simpson_counts(youbot, dynamics, n):
-    """Hermite-Simpson: 9(2n - 1) + 1 variables and 12(n - 1) + 12 equalities."""
+    """Hermite-Simpson: 9(2n - 1) + 1 variables, 12(n - 1) + 12 equalities, 6(n - 1) path rows."""
     nlp = HermiteSimpsonCollocation().build(
         study1_problem(n, robot=youbot), dynamics.forward_dynamics
     )
     assert nlp.n_variables == 9 * (2 * n - 1) + 1
-    assert nlp.n_constraints == 12 * (n - 1) + 12
-    assert nlp.g.numel() == nlp.n_constraints
+    assert nlp.n_equalities == 12 * (n - 1) + 12
+    # Two inner Bernstein control points of the velocity cubic per interval and joint.
+    assert nlp.n_inequalities == 6 * (n - 1)
+    assert nlp.n_constraints == nlp.n_equalities + nlp.n_inequalities == nlp.g.numel()
+    assert dict(nlp.path_bounds) == {"velocity_control_left": "v", "velocity_control_right": "v"}
 
 
 def _polynomial_motion(robot, n, coeffs, dt):
-    """Knot and midpoint values of q(t) = sum_i c_i t^i with RNEA torques (independent of CasADi)."""
+    """Knot and midpoint values of q(t) = sum_i c_i t^i with RNEA torques (no CasADi)."""
     model, data = robot.model, robot.model.createData()
     b = np.asarray(robot.damping)
 
@@ -127,7 +131,9 @@ def test_objective_terms(youbot, dynamics, method):
 
 def test_layout_round_trip(youbot, dynamics):
     """pack() and unpack() are inverse, with knot-major blocks."""
-    nlp = HermiteSimpsonCollocation().build(study1_problem(4, robot=youbot), dynamics.forward_dynamics)
+    nlp = HermiteSimpsonCollocation().build(
+        study1_problem(4, robot=youbot), dynamics.forward_dynamics
+    )
     x = np.arange(nlp.n_variables, dtype=float)
     blocks = nlp.variables.unpack(x)
     np.testing.assert_array_equal(nlp.variables.pack(blocks), x)
@@ -148,3 +154,51 @@ def test_dynamics_of_the_wrong_size_is_rejected(youbot):
     bad = ca.Function("forward_dynamics", [q, v, tau], [q + v + tau])
     with pytest.raises(TranscriptionError, match="forward dynamics must map"):
         TrapezoidalCollocation().build(study1_problem(5, robot=youbot), bad)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
+    """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9)."""
+    from youbot_opt.codegen import find_compiler
+    from youbot_opt.transcription.derivatives import (
+        compile_kernels,
+        dynamics_kernels,
+        structured_functions,
+    )
+
+    problem = study1_problem(6, robot=youbot)
+    nlp = method.build(problem, dynamics.forward_dynamics)
+    kernels = dynamics_kernels(dynamics.forward_dynamics)
+    variants = [structured_functions(method, problem, kernels)]
+    if find_compiler() is not None:  # the compiled kernels must agree too
+        compiled = compile_kernels(kernels)
+        assert compiled is not kernels
+        variants.append(structured_functions(method, problem, compiled, values=kernels))
+    box = {
+        "q": (youbot.q_lower, youbot.q_upper),
+        "v": (-youbot.velocity_limit, youbot.velocity_limit),
+        "tau": (-youbot.effort_limit, youbot.effort_limit),
+    }
+    values = {
+        name: rng.uniform(*box[name.removesuffix("_mid")], (block.count, 3))
+        for name, block in nlp.variables.blocks.items()
+        if name != "dt"
+    }
+    values["dt"] = rng.uniform(0.02, 0.2)
+    x = nlp.variables.pack(values)
+    lam_g = rng.normal(size=nlp.n_constraints)
+    lag = 0.7 * nlp.f + ca.dot(ca.MX(lam_g), nlp.g)
+    plain = ca.Function(
+        "plain",
+        [nlp.x, nlp.p],
+        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
+    )
+    reference = [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
+    for fns in variants:
+        f1, g1 = fns.nlp(x, 0.3)
+        _, jac1 = fns.jac_g(x, 0.3)
+        hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
+        # Same derivatives by two assembly routes; entries are O(1e3) at most (1/I
+        # of the wrist), so 1e-9 absolute is ~1e4 ulps.
+        for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
+            np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)

@@ -56,7 +56,9 @@ def find_compiler() -> str | None:
     return None
 
 
-def compile_function(function: ca.Function, *, flags: tuple[str, ...] = COMPILE_FLAGS) -> ca.Function:
+def compile_function(
+    function: ca.Function, *, flags: tuple[str, ...] = COMPILE_FLAGS
+) -> ca.Function:
     """Compiled, disk-cached equivalent of ``function`` (or ``function`` itself on failure).
 
     Parameters
@@ -91,7 +93,9 @@ def compile_function(function: ca.Function, *, flags: tuple[str, ...] = COMPILE_
     gen.add(function)
     code = gen.dump()
     key = hashlib.sha256(
-        "\0".join([code, Path(compiler).name, *flags, ca.__version__]).encode()
+        "\0".join(
+            [code, Path(compiler).name, *flags, str(getattr(ca, "__version__", "unknown"))]
+        ).encode()
     ).hexdigest()[:20]
     directory = cache_dir()
     library = directory / f"{name}_{key}.so"
@@ -110,7 +114,9 @@ def compile_function(function: ca.Function, *, flags: tuple[str, ...] = COMPILE_
     return ca.external(name, str(library))
 
 
-def _compile(code: str, compiler: str, flags: tuple[str, ...], directory: Path, library: Path) -> None:
+def _compile(
+    code: str, compiler: str, flags: tuple[str, ...], directory: Path, library: Path
+) -> None:
     """Compile ``code`` into ``library`` atomically."""
     directory.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:

@@ -36,7 +36,7 @@ from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.objectives import Objective
 from youbot_opt.options import IpoptOptions
 from youbot_opt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.result import SolveStatus, TrajOptResult
+from youbot_opt.result import DEFAULT_FEASIBILITY_TOL, SolveStatus, TrajOptResult
 from youbot_opt.trajectory import Trajectory
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result"]
@@ -122,6 +122,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
         "iterations": result.iterations,
         "options": result.options.to_dict(),
         "seed": result.seed,
+        "feasibility_tol": float(result.feasibility_tol),
         "interpolation": {
             "trajectory": None if result.trajectory is None else result.trajectory.interpolation,
             "guess": None if result.guess is None else result.guess.interpolation,
@@ -284,6 +285,7 @@ def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptRe
             guess=_trajectory(_group(arrays, "guess"), meta["interpolation"]["guess"]),
             options=IpoptOptions(**opts),
             seed=meta["seed"],
+            feasibility_tol=float(meta.get("feasibility_tol", DEFAULT_FEASIBILITY_TOL)),
         )
     except ResultFileError:
         raise

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
@@ -120,7 +121,7 @@ class Trajectory:
         return float(self.t[-1] - self.t[0])
 
     # ---------------------------------------------------------- interpolation
-    def _locate(self, time: Array) -> tuple[Array, Array, Array]:
+    def _locate(self, time: Array) -> tuple[NDArray[np.intp], Array, Array]:
         """Interval index k, local time s in [s] and interval length h in [s]."""
         if not np.all(np.isfinite(time)):
             raise ParameterError("query times must be finite [s]", name="time")
@@ -157,9 +158,7 @@ class Trajectory:
             else:
                 assert self.tau_mid is not None
                 u0, um, u1 = self.tau[k], self.tau_mid[k], self.tau[k + 1]
-                out = (
-                    u0 * (2 * x - 1) * (x - 1) + um * 4 * x * (1 - x) + u1 * x * (2 * x - 1)
-                )
+                out = u0 * (2 * x - 1) * (x - 1) + um * 4 * x * (1 - x) + u1 * x * (2 * x - 1)
         elif self.interpolation == "trapezoidal":
             if what == "v":
                 out = v0 + x * (v1 - v0)

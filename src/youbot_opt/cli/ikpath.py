@@ -10,6 +10,17 @@ Examples::
 Reachability of every target is decided first (exactly, no sampling); an
 unreachable target ends the command with exit status 2 and the verdict. The
 exit status is 0 when the best start succeeded and 1 otherwise.
+
+Every run writes one folder (``--out DIR``, or a new
+``youbot_opt_runs/ikpath-<UTC time>``; see :mod:`youbot_opt.cli._output`):
+``summary.json`` (the ``--json`` object), ``result.json`` (the best result,
+:func:`youbot_opt.ikpath.io.load_ikpath_result` reads it), the figures
+``ikpath_arm.png``, ``ikpath_convergence.png``, ``ikpath_workspace.png``,
+``ikpath_minima.png`` and ``replay.html`` (standalone meshcat animation of the
+best path, linear in joint space, ``--segment-time`` seconds per move). An
+unreachable target still writes the summary and the workspace figure. The
+folder and its files are listed on stderr, so ``--json`` keeps stdout one
+JSON object.
 """
 
 from __future__ import annotations
@@ -18,13 +29,18 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from youbot_opt.cli._output import json_ready, print_outputs, run_folder, save_figure, write_summary
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
+from youbot_opt.ikpath.io import save_ikpath_result
+from youbot_opt.ikpath.ipopt import IpoptOptions
 from youbot_opt.ikpath.multistart import START_KINDS, MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import Reachability, ReachVerdict, check_reachability
@@ -62,8 +78,27 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
     run.add_argument("--start-kind", choices=START_KINDS, default="feasible")
     run.add_argument("--workers", type=int, default=None, help="processes (default: CPUs)")
+    run.add_argument(
+        "--max-wall-time",
+        type=float,
+        default=None,
+        metavar="S",
+        help="wall-time limit of each start's solve [s] (status time_limit when reached)",
+    )
     out = p.add_argument_group("output")
-    out.add_argument("--out", metavar="DIR", help="write PNG plots to DIR")
+    out.add_argument(
+        "--out",
+        metavar="DIR",
+        help="run folder (default: a new youbot_opt_runs/ikpath-<UTC time> in the cwd)",
+    )
+    out.add_argument(
+        "--segment-time",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="replay: duration of each move between targets [s] (default 1)",
+    )
+    out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=_run)
@@ -233,8 +268,6 @@ def _print_text(doc: dict[str, Any]) -> None:
             f"study reported E = {doc['study_E']} from the zero guess "
             f"(difference {doc['study_E'] - doc['E']:+.4f} rad^2; see docs/ikpath.md)"
         )
-    for path in doc.get("plots", []):
-        print(f"wrote {path}")
 
 
 def _progress_bar(done: int, total: int, best: float) -> None:
@@ -247,38 +280,75 @@ def _progress_bar(done: int, total: int, best: float) -> None:
     sys.stderr.flush()
 
 
+def _write_outputs(
+    args: argparse.Namespace,
+    problem: CyclicIKProblem,
+    verdicts: tuple[ReachVerdict, ...],
+    ms: MultistartResult | None,
+    doc: dict[str, Any],
+) -> tuple[Path, list[Path]]:
+    """Write the run folder: figures, replay, saved result, then ``summary.json``."""
+    from youbot_opt.ikpath.plots import plot_arm_path, plot_convergence, plot_minima, plot_workspace
+
+    folder = run_folder("ikpath", args.out)
+    files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
+    if ms is not None:
+        best = ms.best
+        files.append(save_figure(plot_arm_path(best), folder, "ikpath_arm.png"))
+        if best.history:
+            files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
+        files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
+        files.append(save_ikpath_result(best, folder / "result.json"))
+        if not args.no_replay:
+            from youbot_opt.ikpath.replay import export_ikpath_html
+
+            files.append(
+                export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)
+            )
+    doc["output_folder"] = str(folder.resolve())
+    doc["files"] = [f.name for f in files] + ["summary.json"]
+    files.append(write_summary(folder, doc))
+    return folder, files
+
+
 def _run(args: argparse.Namespace) -> int:
+    if not (math.isfinite(args.segment_time) and args.segment_time > 0):
+        raise ParameterError(
+            f"--segment-time must be a positive duration in [s], got {args.segment_time}",
+            name="segment_time",
+            value=args.segment_time,
+        )
     problem = _problem(args)
     verdicts = check_reachability(problem)
     unreachable = [v for v in verdicts if v.status is Reachability.UNREACHABLE]
-    if unreachable:
-        doc = _report(args, problem, verdicts, None)
-        if args.json:
-            print(json.dumps(doc, indent=2))
-        else:
-            _print_text(doc)
-        for v in unreachable:
-            print(f"youbot-opt: error: {v.describe()}", file=sys.stderr)
-        return 2
-    workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
-    show = not args.no_progress and sys.stderr.isatty()
-    ms = run_multistart(
-        problem,
-        method=args.method,
-        n_starts=args.starts,
-        seed=args.seed,
-        starts=args.start_kind,
-        max_workers=workers,
-        progress=_progress_bar if show else None,
-        check_reachability=False,
-    )
+    ms = None
+    if not unreachable:
+        workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
+        show = not args.no_progress and sys.stderr.isatty()
+        options: ALOptions | IpoptOptions | None = None
+        if args.max_wall_time is not None:
+            kind = ALOptions if args.method == "al" else IpoptOptions
+            options = kind(max_wall_time=args.max_wall_time)
+        ms = run_multistart(
+            problem,
+            method=args.method,
+            options=options,
+            n_starts=args.starts,
+            seed=args.seed,
+            starts=args.start_kind,
+            max_workers=workers,
+            progress=_progress_bar if show else None,
+            check_reachability=False,
+        )
     doc = _report(args, problem, verdicts, ms)
-    if args.out:
-        from youbot_opt.ikpath.plots import save_figures
-
-        doc["plots"] = [str(p) for p in save_figures(ms, args.out, verdicts=verdicts)]
+    folder, files = _write_outputs(args, problem, verdicts, ms, doc)
     if args.json:
-        print(json.dumps(doc, indent=2))
+        print(json.dumps(json_ready(doc), indent=2))
     else:
         _print_text(doc)
+    print_outputs(folder, files)
+    for v in unreachable:
+        print(f"youbot-opt: error: {v.describe()}", file=sys.stderr)
+    if ms is None:
+        return 2
     return 0 if ms.best.success else 1

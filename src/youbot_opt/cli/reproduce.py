@@ -2,15 +2,25 @@
 
 Usage::
 
-    youbot-opt reproduce-study1 [--quick] [--out DIR] [--starts K] [--seed S]
+    youbot-opt reproduce-study1 [--quick] [--out DIR] [--starts K] [--search-starts K] [--seed S]
                                 [--workers W] [--serial] [--from-json FILE]
 
 Runs :func:`youbot_opt.reproduction.reproduce_study1` (the full study takes
-several minutes on 2 cores; ``--quick`` runs a subset in about 15 s), writes
-``study1_reproduction.json`` and ``study1_reproduction.md`` to ``DIR``
-(default ``reproduction_study1``) and prints the markdown tables.
-``--from-json`` rebuilds the tables from a saved JSON file without solving.
-Exit code 0 when every base-case solve converged, 1 otherwise.
+6 minutes wall on 2 cores; ``--quick`` runs a subset in about 10 s) with
+progress on stderr, prints the markdown tables on stdout and writes everything
+it computed to one output folder (``DIR``, or a new
+``youbot_opt_runs/reproduce-study1-<UTC date>-<UTC time>``;
+:mod:`youbot_opt.cli._output`)::
+
+    study1_reproduction.json   every record (figures, certificates, settings)
+    study1_reproduction.md     the tables
+    summary.json               headline figures of the base case
+    repro_*.png                figures (youbot_opt.reproduction.figures)
+    results/<name>.npz         each solve behind a record (youbot_opt.io)
+
+``--from-json FILE`` rebuilds the tables, summary and figures from a saved
+JSON file without solving. Exit code 0 when every base-case multistart
+converged at least once, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -40,8 +50,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "ones; write JSON and markdown tables.",
     )
     p.add_argument("--quick", action="store_true", help="a fast subset (about 15 s)")
-    p.add_argument("--out", default="reproduction_study1", metavar="DIR",
-                   help="output directory (default: reproduction_study1)")  # fmt: skip
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="output folder (default: new, under youbot_opt_runs/)")  # fmt: skip
+    p.add_argument("--search-starts", type=int, default=None, metavar="K",
+                   help="second-optimum search starts (default: 200, quick: 2)")  # fmt: skip
     p.add_argument("--starts", type=int, default=None, metavar="K",
                    help="spline starts of the base case (default: 50, quick: 3)")  # fmt: skip
     p.add_argument("--seed", type=int, default=0, help="base seed of every multistart")
@@ -53,10 +65,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _run(args: argparse.Namespace) -> int:
+    from youbot_opt.cli._output import print_outputs, run_folder
     from youbot_opt.exceptions import ParameterError
-    from youbot_opt.reproduction.report import write_report
     from youbot_opt.reproduction.runs import ReproductionConfig, reproduce_study1
 
+    results: dict[str, Any] = {}
     if args.from_json is not None:
         try:
             data = json.loads(Path(args.from_json).read_text())
@@ -64,23 +77,75 @@ def _run(args: argparse.Namespace) -> int:
             raise ParameterError(
                 f"cannot read {args.from_json!r}: {exc}", name="from_json"
             ) from exc
+        folder = run_folder("reproduce-study1", args.out)
     else:
         changes: dict[str, Any] = {"seed": args.seed, "workers": args.workers}
         if args.starts is not None:
             changes["n_starts"] = args.starts
+        if args.search_starts is not None:
+            changes["search_starts"] = args.search_starts
         if args.serial:
             changes["executor"] = "serial"
         config = (
             ReproductionConfig.quick(**changes) if args.quick else ReproductionConfig(**changes)
         )
+        folder = run_folder("reproduce-study1", args.out)
         tic = time.perf_counter()
 
         def progress(message: str) -> None:
             print(f"[{time.perf_counter() - tic:7.1f} s] {message}", file=sys.stderr, flush=True)
 
-        data = reproduce_study1(config, progress=progress).to_json()
-    json_path, md_path = write_report(data, args.out)
-    print(md_path.read_text())
-    print(f"wrote {json_path} and {md_path}", file=sys.stderr)
+        reproduction = reproduce_study1(config, progress=progress)
+        data, results = reproduction.to_json(), reproduction.results
+    files = _write_outputs(data, results, folder)
+    print((folder / files[1].name).read_text())
+    print_outputs(folder, files)
     ok = all(b["best"] is not None and b["success_rate"] > 0 for b in data["base"].values())
     return 0 if ok else 1
+
+
+def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) -> list[Path]:
+    """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first)."""
+    from youbot_opt.cli._output import save_figure, write_summary
+    from youbot_opt.io import save_result
+    from youbot_opt.reproduction.figures import FIGURES
+    from youbot_opt.reproduction.report import write_report
+
+    files = list(write_report(data, folder))
+    if results:  # the solves first: nothing below can lose them
+        (folder / "results").mkdir(exist_ok=True)
+        for name, result in results.items():
+            save_result(result, folder / "results" / f"{name}.npz")
+        files.append(folder / "results")
+    files.append(write_summary(folder, _summary(data)))
+    for stem, (drawable, draw) in FIGURES.items():
+        if drawable(data):
+            files.append(save_figure(draw(data), folder, f"{stem}.png", dpi=90))
+    return files
+
+
+def _summary(data: dict[str, Any]) -> dict[str, Any]:
+    """Headline figures: each variant's base-case optimum, certificate and optima."""
+    summary: dict[str, Any] = {"command": "reproduce-study1", "config": data["config"]}
+    for key, base in data["base"].items():
+        best = base.get("best") or {}
+        cert = best.get("certificate_paper") or {}
+        summary[key] = {
+            "label": best.get("label"),
+            "objective": best.get("objective"),
+            "objective_true": best.get("objective_true"),
+            "dt_s": best.get("dt_s"),
+            "duration_s": best.get("duration_s"),
+            "work": best.get("work"),
+            "success_rate": base.get("success_rate"),
+            "optima": [(o["objective"], o["count"]) for o in base.get("optima", [])],
+            "certificate_paper_ok": cert.get("ok"),
+            "feedback_rms_ratio": cert.get("feedback_rms_ratio"),
+        }
+    for key, search in (data.get("search") or {}).items():
+        summary[f"search_{key}"] = {
+            "n_starts": search["n_starts"],
+            "statuses": search.get("statuses"),
+            "optima": [(o["objective"], o["count"]) for o in search["optima"]],
+        }
+    return summary

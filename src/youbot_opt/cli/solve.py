@@ -1,5 +1,14 @@
 """``youbot-opt solve``: one trajectory solve (or a multistart) from the command line.
 
+Every run writes an output folder (``--out DIR``, or a new
+``youbot_opt_runs/solve-<date>-<time>``; :mod:`youbot_opt.cli._output`):
+``summary.json``, ``result.npz`` (:func:`youbot_opt.io.save_result`), the
+figures ``trajectory.png``, ``arm.png`` and ``convergence.png`` (plus
+``multistart.png`` with ``--starts > 1``) and ``replay.html``, a standalone
+meshcat replay of the solution (of the distinct optima, side by side, after a
+multistart). The table goes to stdout and the folder's listing after it; with
+``--json`` stdout holds one JSON object only and the listing goes to stderr.
+
 Exit codes: 0 success, 1 failed solve (the result is still printed and saved),
 2 bad input.
 """
@@ -18,7 +27,18 @@ import numpy as np
 
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["register", "run_solve", "format_result", "certificate_of"]
+__all__ = [
+    "register",
+    "run_solve",
+    "format_result",
+    "certificate_of",
+    "open_folder",
+    "write_solve_outputs",
+    "optima_replay",
+    "draw_figure",
+    "replay_html",
+    "report_outputs",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -32,28 +52,67 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "direct collocation with IPOPT.",
     )
     p.add_argument("--robot", default="youbot", help="robot name or URDF path (default: youbot)")
-    p.add_argument("--start", type=float, nargs="+", metavar="Q",
-                   help="start joint positions [rad] (default for the youBot: the study's)")
-    p.add_argument("--goal", type=float, nargs="+", metavar="Q",
-                   help="goal joint positions [rad] (default for the youBot: the study's)")
+    p.add_argument(
+        "--start",
+        type=float,
+        nargs="+",
+        metavar="Q",
+        help="start joint positions [rad] (default for the youBot: the study's)",
+    )
+    p.add_argument(
+        "--goal",
+        type=float,
+        nargs="+",
+        metavar="Q",
+        help="goal joint positions [rad] (default for the youBot: the study's)",
+    )
     p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1] (default 0.5)")
     p.add_argument("--knots", type=int, default=50, help="number of knots (default 50)")
-    p.add_argument("--transcription", choices=("trapezoidal", "hermite-simpson"),
-                   default="trapezoidal", help="collocation scheme (default trapezoidal)")
-    p.add_argument("--guess", choices=("straight", "spline"), default="straight",
-                   help="initial guess: straight line or the study's random feasible spline")
+    p.add_argument(
+        "--transcription",
+        choices=("trapezoidal", "hermite-simpson"),
+        default="trapezoidal",
+        help="collocation scheme (default trapezoidal)",
+    )
+    p.add_argument(
+        "--guess",
+        choices=("straight", "spline"),
+        default="straight",
+        help="initial guess: straight line or the study's random feasible spline",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the spline guess(es) (default 0)")
-    p.add_argument("--starts", type=int, default=1,
-                   help="number of random starts; > 1 runs a multistart (default 1)")
-    p.add_argument("--bound-scale", type=float, default=1.0,
-                   help="scale of all bounds, 1.0 = data sheet (default 1.0)")
-    p.add_argument("--damping", type=float, default=None,
-                   help="youBot joint damping [N m s/rad] (the study's code: 0.1; default 0)")
-    p.add_argument("--backend", choices=("symbolic", "pinocchio"), default="symbolic",
-                   help="dynamics backend (default symbolic: exact Hessian)")
+    p.add_argument(
+        "--starts",
+        type=int,
+        default=1,
+        help="number of random starts; > 1 runs a multistart (default 1)",
+    )
+    p.add_argument(
+        "--bound-scale",
+        type=float,
+        default=1.0,
+        help="scale of all bounds, 1.0 = data sheet (default 1.0)",
+    )
+    p.add_argument(
+        "--damping",
+        type=float,
+        default=None,
+        help="youBot joint damping [N m s/rad] (the study's code: 0.1; default 0)",
+    )
+    p.add_argument(
+        "--backend",
+        choices=("symbolic", "pinocchio"),
+        default="symbolic",
+        help="dynamics backend (default symbolic: exact Hessian)",
+    )
     p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap (default 3000)")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="directory to save result.npz and summary.json in")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run_solve)  # fmt: skip
 
@@ -86,7 +145,7 @@ def _problem(args: argparse.Namespace) -> Any:
 
 
 def certificate_of(result: Any) -> Any:
-    """The :func:`youbot_opt.verify.certify` certificate of ``result``, or None if unavailable."""
+    """Return the :func:`youbot_opt.verify.certify` certificate of ``result``, or None."""
     if result.trajectory is None:
         return None
     try:
@@ -126,6 +185,116 @@ def format_result(result: Any, certificate: Any = None, *, max_active: int = 12)
     return "\n".join(lines)
 
 
+def open_folder(command: str, out: str | Path | None) -> Path:
+    """Create the run's output folder (:func:`youbot_opt.cli._output.run_folder`).
+
+    Raises
+    ------
+    ParameterError
+        If ``out`` exists and is not a folder, or cannot be created.
+    """
+    from youbot_opt.cli._output import run_folder
+
+    try:
+        return run_folder(command, out)
+    except OSError as exc:
+        raise ParameterError(
+            f"cannot use the output folder (--out): {exc}", name="out", value=out
+        ) from exc
+
+
+def draw_figure(folder: Path, name: str, make: Any, *args: Any, **kwargs: Any) -> Path | None:
+    """Draw and save one figure; a figure that cannot be drawn is logged and skipped."""
+    from youbot_opt.cli._output import save_figure
+
+    try:
+        fig = make(*args, **kwargs)
+    except ParameterError as exc:  # e.g. no converged run to draw
+        _log.warning("figure %s not drawn: %s", name, exc)
+        return None
+    return save_figure(fig, folder, name)
+
+
+def write_solve_outputs(
+    folder: Path, result: Any, summary: dict[str, Any], multistart: Any = None
+) -> list[Path]:
+    """Write a solve's result, figures, replay and summary into ``folder``.
+
+    Parameters
+    ----------
+    folder : Path
+        The run's output folder.
+    result : TrajOptResult
+        The solution (the best start's after a multistart).
+    summary : dict
+        The JSON summary; ``"output_folder"`` and ``"files"`` are added.
+    multistart : MultistartResult, optional
+        The multistart the result comes from: adds its histogram, and the
+        replay shows its distinct optima side by side.
+
+    Returns
+    -------
+    list of Path
+        The files written, ``summary.json`` last.
+    """
+    from youbot_opt.cli._output import write_summary
+    from youbot_opt.io import save_result
+    from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_multistart, plot_trajectory
+
+    files: list[Path | None] = [save_result(result, folder / "result.npz")]
+    if result.trajectory is not None:
+        files.append(draw_figure(folder, "trajectory.png", plot_trajectory, result))
+        files.append(draw_figure(folder, "arm.png", plot_arm_2d, None, result))
+    runs = multistart if multistart is not None else [result]
+    files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
+    if multistart is not None:
+        files.append(draw_figure(folder, "multistart.png", plot_multistart, multistart))
+        files.append(optima_replay(folder, multistart))
+    elif result.trajectory is not None:
+        files.append(replay_html(folder, [result], [f"f = {result.objective:.5g}"]))
+    written = [f for f in files if f is not None]
+    summary["output_folder"] = str(folder.resolve())
+    summary["files"] = [f.name for f in written] + ["summary.json"]
+    written.append(write_summary(folder, summary))
+    return written
+
+
+def optima_replay(
+    folder: Path, multistart: Any, obj_tol: float = 1e-5, traj_tol: float = 1e-2, limit: int = 6
+) -> Path | None:
+    """Write ``replay.html`` with up to ``limit`` distinct optima of a multistart, side by side."""
+    optima = multistart.distinct_optima(obj_tol, traj_tol)[:limit]
+    labels = [
+        f"optimum {i + 1}: f = {o.objective:.5g}, {o.count} of {o.n_starts} starts"
+        for i, o in enumerate(optima)
+    ]
+    return replay_html(folder, [o.best.result for o in optima], labels)
+
+
+def replay_html(folder: Path, results: list[Any], labels: list[str]) -> Path | None:
+    """Write ``replay.html``: the results side by side (one: the plain replay)."""
+    kept = [(r, lab) for r, lab in zip(results, labels, strict=True) if r is not None]
+    if not kept or any(r.trajectory is None for r, _ in kept):
+        return None
+    if len(kept) == 1:
+        from youbot_opt.viz.meshcat_replay import export_html
+
+        traj = kept[0][0].trajectory
+        return export_html(kept[0][0].problem.robot, traj.t, traj.q, folder / "replay.html")
+    from youbot_opt.viz.meshcat_results import export_results_html
+
+    return export_results_html(
+        [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]
+    )
+
+
+def report_outputs(folder: Path, files: list[Path], as_json: bool) -> None:
+    """Print the output folder and its files: to stdout, or to stderr under ``--json``."""
+    from youbot_opt.cli._output import print_outputs
+
+    print_outputs(folder, files, stream=sys.stderr if as_json else sys.stdout)
+
+
 def _json_ready(obj: Any) -> Any:
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
@@ -143,11 +312,14 @@ def run_solve(args: argparse.Namespace) -> int:
 
     if args.starts < 1:
         raise ParameterError(f"--starts must be >= 1, got {args.starts}", name="starts")
+    if args.knots < 2:
+        raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
     problem = _problem(args)
     method = args.transcription.replace("-", "_")
     options = IpoptOptions(max_iter=args.max_iter)
     solver = TrajOptSolver(problem, method, options, args.backend)
     extra: dict[str, Any] = {"build_time_s": solver.build_time}
+    ms = None
     if args.starts > 1:
         try:
             from youbot_opt.multistart import run_multistart
@@ -182,16 +354,12 @@ def run_solve(args: argparse.Namespace) -> int:
     summary = {**result.summary(), **extra}
     if certificate is not None:
         summary["certificate"] = certificate.summary()
-    if args.out is not None:
-        from youbot_opt.io import save_result
-
-        args.out.mkdir(parents=True, exist_ok=True)
-        summary["result_file"] = str(save_result(result, args.out / "result.npz"))
-        (args.out / "summary.json").write_text(json.dumps(_json_ready(summary), indent=2) + "\n")
+    folder = open_folder("solve", args.out)
+    files = write_solve_outputs(folder, result, summary, ms)
     if args.json:
         print(json.dumps(_json_ready(summary)))
     else:
         print(format_result(result, certificate))
-        if args.out is not None:
-            print(f"\nsaved {summary['result_file']}")
+        print()
+    report_outputs(folder, files, args.json)
     return 0 if result.success else 1

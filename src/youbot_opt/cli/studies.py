@@ -7,9 +7,20 @@ Usage::
     youbot-opt bounds --scales 1,0.95,0.9,0.85 --out DIR
 
 Each prints progress on stderr and a table on stdout (``--json``: one JSON
-object instead). With ``--out DIR`` every finished item is saved to DIR as it
-completes, and the same command run again resumes where it stopped (a
-different command or different parameters on the same DIR is an error).
+object instead) and writes an output folder (``--out DIR``, or a new
+``youbot_opt_runs/<command>-<date>-<time>``; :mod:`youbot_opt.cli._output`)::
+
+    summary.json     the sweep's summary (what --json prints)
+    manifest.json    the sweep store (:class:`youbot_opt.sweep_store.SweepStore`): the
+    items/           sweep's parameters, and every finished item as it completes
+    *.png            multistart: multistart.png, convergence.png, trajectory.png (best);
+                     pareto: pareto.png; bounds: bound_scaling.png
+    replay.html      standalone meshcat replay, side by side: the distinct optima,
+                     points along the front, or the best solution at each scale
+
+The same command run again with ``--out`` on the same folder resumes where it
+stopped (a different command or different parameters on the same folder is an
+error). The folder's listing follows the table on stdout (stderr with ``--json``).
 Exit codes: 0 done, 1 no solve converged, 2 bad input.
 """
 
@@ -20,10 +31,12 @@ import json
 import math
 import sys
 import time
+from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
 
+from youbot_opt.cli.solve import draw_figure, open_folder, replay_html, report_outputs
 from youbot_opt.exceptions import ParameterError
 
 __all__ = ["register", "parse_values"]
@@ -72,7 +85,8 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--out",
         default=None,
         metavar="DIR",
-        help="save each finished item to DIR; rerunning resumes",
+        help="output folder (default: a new youbot_opt_runs/<command>-<date>-<time>); "
+        "each finished item is saved there as it completes and rerunning resumes",
     )
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
     p.add_argument(
@@ -216,13 +230,31 @@ def _fmt(x: float, spec: str = ".6g") -> str:
     return format(x, spec) if math.isfinite(x) else "-"
 
 
-def _emit(args: argparse.Namespace, summary: dict[str, Any], table: list[str]) -> None:
+_STORE = ("manifest.json", "items")  # the sweep store's files, at the top of the run folder
+
+
+def _emit(
+    args: argparse.Namespace,
+    folder: Path,
+    summary: dict[str, Any],
+    table: list[str],
+    files: list[Path | None],
+) -> None:
+    """Write summary.json, print the table (or the JSON) and where the outputs are."""
+    from youbot_opt.cli._output import json_ready, write_summary
+
+    written = [f for f in files if f is not None]
+    summary["output_folder"] = str(folder.resolve())
+    summary["files"] = [f.name for f in written] + [_STORE[0], f"{_STORE[1]}/", "summary.json"]
+    written += [folder / name for name in _STORE] + [write_summary(folder, summary)]
     if args.json:
-        print(json.dumps(summary, indent=1, default=str))
+        print(json.dumps(json_ready(summary), indent=1, default=str))
     else:
         print("\n".join(table))
-    if args.out is not None and not args.json:
-        print(f"results in {args.out} (rerun the same command to resume)")
+        print()
+    report_outputs(folder, written, args.json)
+    stream = sys.stderr if args.json else sys.stdout
+    print(f"rerun with --out {folder} to resume", file=stream)
 
 
 # ----------------------------------------------------------------- commands
@@ -231,6 +263,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
 
     _check(args)
     solver = _solver(args)
+    folder = open_folder("multistart", args.out)  # the sweep store shares it
     executor, workers = _executor(args)
     prog = _Progress("multistart", args.quiet)
     res = run_multistart(
@@ -243,7 +276,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
         executor=executor,
         workers=workers,
         progress=prog,
-        out=args.out,
+        out=folder,
     )
     prog.close()
     optima = res.distinct_optima(args.obj_tol, args.traj_tol)
@@ -262,7 +295,18 @@ def _run_multistart(args: argparse.Namespace) -> int:
     for s in failed[:10]:
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
     summary = res.summary(args.obj_tol, args.traj_tol)
-    _emit(args, summary, table)
+    files: list[Path | None] = []
+    if res.best is not None and res.best.result is not None:
+        from youbot_opt.cli.solve import optima_replay
+        from youbot_opt.viz.plots import plot_convergence, plot_multistart, plot_trajectory
+
+        files += [
+            draw_figure(folder, "multistart.png", plot_multistart, res),
+            draw_figure(folder, "convergence.png", plot_convergence, res),
+            draw_figure(folder, "trajectory.png", plot_trajectory, res.best.result),
+            optima_replay(folder, res, args.obj_tol, args.traj_tol),
+        ]
+    _emit(args, folder, summary, table, files)
     return 0 if res.best is not None else 1
 
 
@@ -272,6 +316,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
     betas = parse_values(args.betas, "betas")
     _check(args, betas=betas)
     solver = _solver(args)
+    folder = open_folder("pareto", args.out)  # the sweep store shares it
     executor, workers = _executor(args)
     prog = _Progress("pareto", args.quiet)
     front = pareto_sweep(
@@ -283,7 +328,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
         executor=executor,
         workers=workers,
         progress=prog,
-        out=args.out,
+        out=folder,
     )
     prog.close()
     table = [
@@ -298,7 +343,19 @@ def _run_pareto(args: argparse.Namespace) -> int:
             f"{_fmt(p.objective, '.5f'):>11} {p.iterations:>5} {p.start:>10}  "
             f"{p.status}{mark}"
         )
-    _emit(args, front.summary(), table)
+    files: list[Path | None] = []
+    best = [p for p in front.nondominated() if p.result is not None]
+    if best:
+        from youbot_opt.viz.plots import plot_pareto
+
+        picks = sorted({round(i * (len(best) - 1) / 4) for i in range(5)})  # ends + 3 between
+        shown = sorted((best[i] for i in picks), key=lambda p: p.beta)
+        labels = [f"beta = {p.beta:g}: T = {p.duration:.3f} s, W = {p.work:.4g}" for p in shown]
+        files += [
+            draw_figure(folder, "pareto.png", plot_pareto, front),
+            replay_html(folder, [p.result for p in shown], labels),
+        ]
+    _emit(args, folder, front.summary(), table, files)
     return 0 if front.nondominated() else 1
 
 
@@ -308,6 +365,7 @@ def _run_bounds(args: argparse.Namespace) -> int:
     scales = parse_values(args.scales, "scales")
     _check(args, scales=scales)
     solver = _solver(args)
+    folder = open_folder("bounds", args.out)  # the sweep store shares it
     executor, workers = _executor(args)
     prog = _Progress("bounds", args.quiet)
     res = bound_scaling_study(
@@ -319,7 +377,7 @@ def _run_bounds(args: argparse.Namespace) -> int:
         executor=executor,
         workers=workers,
         progress=prog,
-        out=args.out,
+        out=folder,
     )
     prog.close()
     table = [
@@ -334,5 +392,17 @@ def _run_bounds(args: argparse.Namespace) -> int:
             f"{_fmt(r.duration, '.4f'):>9} {_fmt(r.work, '.4f'):>11} "
             f"{100 * r.multistart.success_rate:>5.0f}%  {active}"
         )
-    _emit(args, res.summary(), table)
+    files: list[Path | None] = []
+    solved = [
+        (r, r.best.result) for r in res.rows if r.best is not None and r.best.result is not None
+    ]
+    if solved:
+        from youbot_opt.viz.plots import plot_bound_scaling
+
+        labels = [f"{r.bound_scale:.0%} bounds: f = {x.objective:.5g}" for r, x in solved]
+        files += [
+            draw_figure(folder, "bound_scaling.png", plot_bound_scaling, res),
+            replay_html(folder, [x for _, x in solved], labels),
+        ]
+    _emit(args, folder, res.summary(), table, files)
     return 0 if all(r.best is not None for r in res.rows) else 1

@@ -13,8 +13,9 @@ Build, check, solve, inspect::
 Modules: :mod:`.chain` (Pinocchio planar chains), :mod:`.robot` (the youBot arm
 as a chain), :mod:`.problem`, :mod:`.reachability`, :mod:`.bfgs`,
 :mod:`.augmented_lagrangian` (the study's method), :mod:`.ipopt` (CasADi +
-IPOPT), :mod:`.solve`, :mod:`.multistart`, :mod:`.result`, :mod:`.plots`,
-:mod:`.examples`, :mod:`.variants`.
+IPOPT), :mod:`.solve`, :mod:`.multistart`, :mod:`.result`, :mod:`.io` (save
+and load), :mod:`.plots`, :mod:`.replay` (meshcat, live and HTML),
+:mod:`.examples`.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_la
 from youbot_opt.ikpath.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
 from youbot_opt.ikpath.chain import PlanarChain, TipKinematics
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
+from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions, solve_ipopt
 from youbot_opt.ikpath.multistart import (
     LocalMinimum,
@@ -40,6 +42,7 @@ from youbot_opt.ikpath.reachability import (
     decide_reachability,
     require_reachable,
 )
+from youbot_opt.ikpath.replay import export_ikpath_html, replay_ikpath, replay_track
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
 from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
 from youbot_opt.ikpath.solve import METHODS, Method, solve
@@ -71,10 +74,15 @@ __all__ = [
     "configuration_distance",
     "decide_reachability",
     "example_problem",
+    "export_ikpath_html",
+    "load_ikpath_result",
     "make_starts",
     "minimize_bfgs",
+    "replay_ikpath",
+    "replay_track",
     "require_reachable",
     "run_multistart",
+    "save_ikpath_result",
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",

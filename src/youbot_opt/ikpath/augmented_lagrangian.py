@@ -30,6 +30,10 @@ Outer iteration ``k``:
    iterate is a local minimiser of the violation (typically pinned against a
    joint limit): stop with status ``INFEASIBLE`` instead of driving ``mu`` up.
 
+With ``ALOptions.max_wall_time`` set, the inner solvers stop starting new
+iterations at the deadline and the solve ends with status ``TIME_LIMIT`` and
+the last iterate (within the box), unless that iterate passes the stopping test.
+
 Initial multipliers are zero and ``mu_0 = 10`` (N&W; the study). Since
 ``grad L_A = grad E - J^T (lambda - mu c)``, the stationarity test is the
 Lagrangian gradient with the updated multipliers, which are the ones returned
@@ -85,6 +89,11 @@ class ALOptions:
         Inner solver for the bound-constrained case (unlimited problems always
         use BFGS): the projected BFGS of :mod:`youbot_opt.ikpath.bfgs` or SciPy's
         L-BFGS-B.
+    max_wall_time : float or None
+        Wall-clock limit of the whole solve in [s] (``None``: no limit). Checked
+        before every inner iteration; when it is reached the solve stops with
+        status ``TIME_LIMIT`` and the last iterate (unless that iterate already
+        meets the stopping test). The overshoot is at most one inner iteration.
     """
 
     penalty_initial: float = 10.0
@@ -96,8 +105,21 @@ class ALOptions:
     max_inner_iterations: int = 1000
     stall_increases: int = 3
     inner: str = "bfgs"
+    max_wall_time: float | None = None
 
     def __post_init__(self) -> None:
+        if self.max_wall_time is not None and not (
+            isinstance(self.max_wall_time, (int, float))
+            and not isinstance(self.max_wall_time, bool)
+            and math.isfinite(self.max_wall_time)
+            and self.max_wall_time > 0
+        ):
+            raise ParameterError(
+                f"ALOptions.max_wall_time must be None or a finite time > 0 [s], "
+                f"got {self.max_wall_time!r}",
+                name="max_wall_time",
+                value=self.max_wall_time,
+            )
         if self.inner not in ("bfgs", "lbfgsb"):
             raise ParameterError(
                 f"ALOptions.inner must be 'bfgs' or 'lbfgsb', got {self.inner!r}",
@@ -152,6 +174,7 @@ def solve_augmented_lagrangian(
     opts = ALOptions() if options is None else options
     start = problem.check_start(x0)
     t0 = time.perf_counter()
+    deadline = None if opts.max_wall_time is None else t0 + float(opts.max_wall_time)
     data = problem.chain.create_data()
     lower, upper = problem.lower, problem.upper
     bounded = problem.bounded
@@ -175,7 +198,7 @@ def solve_augmented_lagrangian(
     status, message = IKStatus.MAX_ITERATIONS, "outer iteration limit reached"
     for k in range(opts.max_outer_iterations):
         x_new, inner_its, inner_msg = _inner_solve(
-            lagrangian, x, lower, upper, bounded, omega, opts
+            lagrangian, x, lower, upper, bounded, omega, opts, deadline
         )
         inner_total += inner_its
         if not np.all(np.isfinite(x_new)):
@@ -205,15 +228,26 @@ def solve_augmented_lagrangian(
         if not (math.isfinite(violation) and math.isfinite(stationarity)):
             status, message = IKStatus.NUMERICAL_ERROR, "non-finite constraint or gradient"
             break
+        if (
+            violation <= eta
+            and violation <= opts.constraint_tol
+            and stationarity <= opts.stationarity_tol
+        ):
+            lam = lam - mu * c
+            status = IKStatus.SUCCESS
+            message = (
+                f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
+                f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g}"
+            )
+            break
+        if _past(deadline):
+            status = IKStatus.TIME_LIMIT
+            message = (
+                f"wall-time limit {opts.max_wall_time:g} s reached with |c| = {violation:.2e} m, "
+                f"projected gradient {stationarity:.2e} ({inner_msg})"
+            )
+            break
         if violation <= eta:
-            if violation <= opts.constraint_tol and stationarity <= opts.stationarity_tol:
-                lam = lam - mu * c
-                status = IKStatus.SUCCESS
-                message = (
-                    f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
-                    f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g}"
-                )
-                break
             lam = lam - mu * c
             eta = max(eta / mu**0.9, opts.constraint_tol)
             omega = max(omega / mu, opts.stationarity_tol)
@@ -245,8 +279,14 @@ def solve_augmented_lagrangian(
         wall_time=time.perf_counter() - t0,
         message=message,
         start=start,
+        constraint_tol=opts.constraint_tol,
         history=tuple(history),
     )
+
+
+def _past(deadline: float | None) -> bool:
+    """Whether the wall-clock ``deadline`` (``time.perf_counter`` value) has passed."""
+    return deadline is not None and time.perf_counter() >= deadline
 
 
 def _inner_solve(
@@ -257,8 +297,9 @@ def _inner_solve(
     bounded: bool,
     gtol: float,
     opts: ALOptions,
+    deadline: float | None = None,
 ) -> tuple[Array, int, str]:
-    """Minimise ``L_A`` from ``x`` to projected-gradient tolerance ``gtol``."""
+    """Minimise ``L_A`` from ``x`` to projected-gradient tolerance ``gtol`` (until ``deadline``)."""
     if not bounded or opts.inner == "bfgs":
         res = minimize_bfgs(
             fun,  # type: ignore[arg-type]
@@ -267,8 +308,14 @@ def _inner_solve(
             upper=upper if bounded else None,
             gtol=gtol,
             max_iterations=opts.max_inner_iterations,
+            deadline=deadline,
         )
         return res.x, res.iterations, res.message
+
+    def stop_at_deadline(intermediate_result: object) -> None:
+        if _past(deadline):
+            raise StopIteration  # SciPy >= 1.11 ends the run and returns the iterate
+
     out = minimize(
         fun,  # type: ignore[arg-type]
         x,
@@ -281,5 +328,6 @@ def _inner_solve(
             "maxiter": opts.max_inner_iterations,
             "maxcor": 20,
         },
+        callback=None if deadline is None else stop_at_deadline,
     )
     return np.clip(out.x, lower, upper), int(out.nit), str(out.message)

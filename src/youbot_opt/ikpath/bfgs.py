@@ -25,6 +25,7 @@ to the tolerance the augmented Lagrangian asks for (``1e-9`` and below).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -221,6 +222,7 @@ def minimize_bfgs(
     max_iterations: int = 1000,
     c1: float = 1e-4,
     c2: float = 0.9,
+    deadline: float | None = None,
 ) -> BFGSResult:
     """Minimise a smooth function with BFGS and a strong-Wolfe line search (N&W Alg. 6.1).
 
@@ -246,6 +248,10 @@ def minimize_bfgs(
         Iteration limit.
     c1, c2 : float
         Wolfe constants (``0 < c1 < c2 < 1``; 0.9 is the quasi-Newton default).
+    deadline : float, optional
+        ``time.perf_counter()`` value in [s] after which no further iteration
+        starts (message ``"time limit reached"``; ``converged`` then tells
+        whether the gradient test holds at the returned iterate).
 
     Returns
     -------
@@ -272,6 +278,8 @@ def minimize_bfgs(
             return BFGSResult(x, f, g, it, evals, False, "non-finite function or gradient")
         if pgnorm <= gtol:
             return BFGSResult(x, f, g, it, evals, True, "gradient below tolerance")
+        if deadline is not None and time.perf_counter() >= deadline:
+            return BFGSResult(x, f, g, it, evals, False, "time limit reached")
         binding = ((x <= lo) & (g > 0.0)) | ((x >= hi) & (g < 0.0))
         if binding_prev is not None and np.any(binding != binding_prev):
             h_inv, fresh = eye.copy(), True

@@ -117,8 +117,10 @@ class PlanarChain:
     lengths : ndarray, shape (n,)
         Segment lengths in [m] (any length unit; all positions use it), > 0.
     q_lower, q_upper : ndarray, shape (n,)
-        Joint limits in [rad]; a scalar is broadcast; ``None`` or +-inf means
-        unlimited. ``q_lower <= q_upper`` is required.
+        Joint limits in [rad]; a scalar is broadcast. ``None``, ``-inf`` in
+        ``q_lower`` and ``+inf`` in ``q_upper`` mean "no limit" on that side;
+        ``+inf`` as a lower or ``-inf`` as an upper limit (an empty range) and
+        NaN are rejected, and ``q_lower <= q_upper`` is required.
     base : ndarray, shape (2,)
         Position of joint 1 in the plane, in [m].
     angle_offset : ndarray, shape (n,)
@@ -164,6 +166,19 @@ class PlanarChain:
         n = lengths.size
         lower = _vector("q_lower", self.q_lower, n, -np.inf)
         upper = _vector("q_upper", self.q_upper, n, np.inf)
+        for key, arr, empty, side in (
+            ("q_lower", lower, np.inf, "lower"),
+            ("q_upper", upper, -np.inf, "upper"),
+        ):
+            wrong = np.flatnonzero(arr == empty)
+            if wrong.size:
+                i = int(wrong[0])
+                raise ParameterError(
+                    f"{key}[{i}] = {arr[i]} leaves joint {i} no value; {key} must be finite, "
+                    f"or {-empty} (or None) for no {side} limit",
+                    name=key,
+                    value=arr,
+                )
         bad = np.flatnonzero(lower > upper)
         if bad.size:
             i = int(bad[0])
@@ -268,6 +283,7 @@ class PlanarChain:
         jac = pin.computeFrameJacobian(
             self.model, data, qv, self.tip_frame_id, pin.LOCAL_WORLD_ALIGNED
         )
+        jac = np.reshape(jac, (6, self.n))  # a 1-joint model returns shape (6,)
         return TipKinematics(data.oMf[self.tip_frame_id].translation[:2].copy(), jac[:2].copy())
 
     def tip_position(self, q: ArrayLike, data: pin.Data | None = None) -> Array:

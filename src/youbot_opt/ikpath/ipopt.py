@@ -19,6 +19,7 @@ targets as NLP parameters, so multistart re-solves it without rebuilding.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -33,18 +34,20 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
 
-__all__ = ["IpoptOptions", "IpoptIKSolver", "solve_ipopt"]
+__all__ = ["IpoptOptions", "IpoptIKSolver", "check_degrees_of_freedom", "solve_ipopt"]
 
 _STATUS = {
     "Solve_Succeeded": IKStatus.SUCCESS,
-    "Solved_To_Acceptable_Level": IKStatus.SUCCESS,
+    "Solved_To_Acceptable_Level": IKStatus.SUCCESS,  # re-checked in solve()
     "Maximum_Iterations_Exceeded": IKStatus.MAX_ITERATIONS,
-    "Maximum_CpuTime_Exceeded": IKStatus.MAX_ITERATIONS,
+    "Maximum_CpuTime_Exceeded": IKStatus.TIME_LIMIT,
+    "Maximum_WallTime_Exceeded": IKStatus.TIME_LIMIT,
     "Infeasible_Problem_Detected": IKStatus.INFEASIBLE,
     "Search_Direction_Becomes_Too_Small": IKStatus.STALLED,
     "Restoration_Failed": IKStatus.STALLED,
-    "Not_Enough_Degrees_Of_Freedom": IKStatus.INFEASIBLE,
 }
+# Not listed, hence NUMERICAL_ERROR: "Not_Enough_Degrees_Of_Freedom" says nothing about
+# feasibility, and check_degrees_of_freedom() refuses such problems before IPOPT runs.
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -59,6 +62,10 @@ class IpoptOptions:
         Largest accepted constraint violation in [m].
     max_iter : int
         Iteration limit.
+    max_wall_time : float or None
+        Wall-clock limit of one IPOPT solve in [s] (IPOPT's ``max_wall_time``;
+        ``None``: no limit). Reaching it gives status ``TIME_LIMIT`` with
+        IPOPT's last iterate.
     extra : Mapping[str, Any]
         Further IPOPT options (``{"linear_solver": "mumps"}``, ...).
     """
@@ -66,9 +73,22 @@ class IpoptOptions:
     tol: float = 1e-12
     constr_viol_tol: float = 1e-11
     max_iter: int = 3000
+    max_wall_time: float | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if self.max_wall_time is not None and not (
+            isinstance(self.max_wall_time, (int, float))
+            and not isinstance(self.max_wall_time, bool)
+            and math.isfinite(self.max_wall_time)
+            and self.max_wall_time > 0
+        ):
+            raise ParameterError(
+                f"IpoptOptions.max_wall_time must be None or a finite time > 0 [s], "
+                f"got {self.max_wall_time!r}",
+                name="max_wall_time",
+                value=self.max_wall_time,
+            )
         if not (self.tol > 0 and self.constr_viol_tol > 0 and self.max_iter >= 1):
             raise ParameterError(
                 f"IpoptOptions need tol > 0, constr_viol_tol > 0, max_iter >= 1; got "
@@ -88,6 +108,8 @@ class IpoptOptions:
             "bound_relax_factor": 0.0,
             "honor_original_bounds": "yes",
         }
+        if self.max_wall_time is not None:
+            ipopt["max_wall_time"] = float(self.max_wall_time)
         ipopt.update(dict(self.extra))
         return {"ipopt": ipopt, "print_time": False}
 
@@ -127,6 +149,37 @@ class _IterateRecorder(ca.Callback):  # type: ignore[misc]
         return [ca.DM(0)]
 
 
+def check_degrees_of_freedom(problem: CyclicIKProblem) -> None:
+    """Refuse a problem IPOPT cannot take: fewer free unknowns than target equations.
+
+    Each target gives 2 equations and each configuration has ``n_free`` free
+    joints (joints whose limits coincide are fixed), so IPOPT needs
+    ``n_free >= 2``; otherwise it stops with ``Not_Enough_Degrees_Of_Freedom``
+    and reports a feasible problem as infeasible. Such a chain (one link, say)
+    has its configurations fixed by the targets up to ``2 pi`` windings; the
+    augmented Lagrangian method (``method="al"``) handles it.
+
+    Raises
+    ------
+    ParameterError
+        If fewer than 2 joints are free.
+    """
+    if problem.bounded:
+        free = int(np.count_nonzero(problem.chain.q_lower < problem.chain.q_upper))
+    else:
+        free = problem.n_joints
+    if free < 2:
+        s = problem.n_targets
+        raise ParameterError(
+            f"method 'ipopt' needs at least 2 free joints, got {free} (of "
+            f"{problem.n_joints}): {free * s} unknowns for {2 * s} target equations, which "
+            "IPOPT refuses (Not_Enough_Degrees_Of_Freedom) even when the targets are "
+            "reachable; use method='al' for this chain",
+            name="method",
+            value="ipopt",
+        )
+
+
 def _tip_expression(problem: CyclicIKProblem, q: ca.SX) -> ca.SX:
     """CasADi tip position of the chain at one configuration ``q`` (n,)."""
     chain = problem.chain
@@ -149,9 +202,15 @@ class IpoptIKSolver:
         targets themselves are NLP parameters.
     options : IpoptOptions, optional
         IPOPT settings.
+
+    Raises
+    ------
+    ParameterError
+        If fewer than 2 joints are free (see :func:`check_degrees_of_freedom`).
     """
 
     def __init__(self, problem: CyclicIKProblem, options: IpoptOptions | None = None) -> None:
+        check_degrees_of_freedom(problem)
         self.problem = problem
         self.options = IpoptOptions() if options is None else options
         s, n = problem.n_targets, problem.n_joints
@@ -220,6 +279,13 @@ class IpoptIKSolver:
         status = _STATUS.get(ret, IKStatus.NUMERICAL_ERROR)
         if not np.all(np.isfinite(x)):
             status, x = IKStatus.NUMERICAL_ERROR, start
+        elif status is IKStatus.SUCCESS and ret != "Solve_Succeeded":
+            # IPOPT's "acceptable" level uses its own (loose, user-settable) tolerances:
+            # a success only if the targets are met to constr_viol_tol (Pinocchio check)
+            # and the limits hold.
+            worst = float(np.max(prob.residuals(x)))
+            if worst > self.options.constr_viol_tol or prob.limit_violation(x) > 0.0:
+                status = IKStatus.STALLED
         its = stats.get("iterations", {})
         history = tuple(
             OuterIterate(
@@ -244,6 +310,7 @@ class IpoptIKSolver:
             wall_time=wall,
             message=ret,
             start=start,
+            constraint_tol=self.options.constr_viol_tol,
             history=history,
         )
 
@@ -266,5 +333,10 @@ def solve_ipopt(
     -------
     IKPathResult
         ``method = "ipopt"``.
+
+    Raises
+    ------
+    ParameterError
+        If fewer than 2 joints are free (see :func:`check_degrees_of_freedom`).
     """
     return IpoptIKSolver(problem, options).solve(problem, x0)

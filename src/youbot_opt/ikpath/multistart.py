@@ -41,7 +41,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath._geometry import two_link_ik
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, _theta_ranges
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, build_result
@@ -337,7 +337,20 @@ def _best_windings(col: Array) -> Array:
     return col[0] + np.r_[0.0, np.cumsum(steps[:-1])]
 
 
-def _crashed(problem: CyclicIKProblem, method: str, x0: Array, message: str) -> IKPathResult:
+def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> float:
+    """Return the largest accepted ``|c_i|`` in [m] of ``method`` with ``options``."""
+    if method == "al":
+        return (options if isinstance(options, ALOptions) else ALOptions()).constraint_tol
+    return (options if isinstance(options, IpoptOptions) else IpoptOptions()).constr_viol_tol
+
+
+def _crashed(
+    problem: CyclicIKProblem,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    x0: Array,
+    message: str,
+) -> IKPathResult:
     return build_result(
         problem,
         method=method,
@@ -349,6 +362,7 @@ def _crashed(problem: CyclicIKProblem, method: str, x0: Array, message: str) -> 
         wall_time=0.0,
         message=message,
         start=x0,
+        constraint_tol=_constraint_tol(method, options),
     )
 
 
@@ -370,7 +384,7 @@ def _solve_chunk(
                     solver = IpoptIKSolver(problem, options)  # type: ignore[arg-type]
                 out.append(solver.solve(problem, x0))
         except Exception as exc:  # noqa: BLE001 - one bad start must not end the run
-            out.append(_crashed(problem, method, x0, f"{type(exc).__name__}: {exc}"))
+            out.append(_crashed(problem, method, options, x0, f"{type(exc).__name__}: {exc}"))
     return out
 
 
@@ -425,8 +439,18 @@ def run_multistart(
     -------
     MultistartResult
         All results in start order and the distinct minima, best first.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown method, foreign options, ``max_workers < 1``, or
+        ``method="ipopt"`` on a chain with fewer than 2 free joints.
+    UnreachableTarget
+        If ``check_reachability`` and a target is unreachable.
     """
     check_method(method, options)
+    if method == "ipopt":
+        check_degrees_of_freedom(problem)
     verdicts = check_targets(problem) if check_reachability else ()
     x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=verdicts)
     workers = int(max_workers or os.cpu_count() or 1)
@@ -471,7 +495,7 @@ def run_multistart(
                 except Exception as exc:  # noqa: BLE001 - a lost chunk must not end the run
                     _log.warning("multistart chunk at start %d failed: %s", first, exc)
                     msg = f"chunk failed: {type(exc).__name__}: {exc}"
-                    chunk_results = [_crashed(problem, method, x0, msg) for x0 in chunk]
+                    chunk_results = [_crashed(problem, method, options, x0, msg) for x0 in chunk]
                 collect(first, chunk_results)
         finally:
             if own:

@@ -17,6 +17,7 @@ from pathlib import Path
 import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
 from youbot_opt.ikpath.multistart import MultistartResult
@@ -149,7 +150,8 @@ def plot_workspace(
 ) -> Figure:
     """Draw the reachable workspace under the joint limits, the targets and their verdicts.
 
-    The shading is the image of a regular joint grid (for display only); the
+    The shaded hexagons are the cells hit by the tips of a regular joint grid
+    over the limits (about 120 000 configurations; for display only); the
     target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability`
     (green: reachable, red: unreachable with a line to the nearest reachable point,
     orange: undecided). The dashed circles are the workspace without limits.
@@ -171,7 +173,16 @@ def plot_workspace(
     fig, ax = _new_axes(ax)
     verdicts = check_reachability(problem) if verdicts is None else verdicts
     pts = _workspace_points(problem)
-    ax.hexbin(pts[:, 0], pts[:, 1], gridsize=120, cmap="Blues", mincnt=1, bins="log")
+    ax.hexbin(  # one colour for every cell a grid tip falls in: the region, not a density
+        pts[:, 0],
+        pts[:, 1],
+        C=np.ones(len(pts)),
+        reduce_C_function=np.max,
+        gridsize=90,
+        cmap=ListedColormap(["#b9d3ee"]),
+        linewidths=0.2,
+        edgecolors="#b9d3ee",
+    )
     r_min, r_max = problem.chain.reach
     t = np.linspace(0, 2 * np.pi, 400)
     for r in (r_min, r_max):
@@ -221,9 +232,10 @@ def plot_minima(result: MultistartResult) -> Figure:
     ax.set_xlabel("E of the local minimum [rad²]")
     ax.set_ylabel("starts")
     failed = result.n_starts - result.n_success
+    shown = f", lowest {len(minima)} shown" if len(minima) < len(result.minima) else ""
     ax.set_title(
         f"{result.method}: {result.n_starts} starts (seed {result.seed}), "
-        f"{len(result.minima)} minima, {failed} failed"
+        f"{len(result.minima)} minima{shown}, {failed} failed"
     )
     ax.grid(True, axis="y", alpha=0.3)
     return fig

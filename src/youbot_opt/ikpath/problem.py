@@ -193,7 +193,8 @@ class CyclicIKProblem:
         model, fid = self.chain.model, self.chain.tip_frame_id
         frame = pin.LOCAL_WORLD_ALIGNED
         for j in range(s):  # hot loop: Pinocchio directly (q[j] is validated above)
-            blocks[j] = pin.computeFrameJacobian(model, data, q[j], fid, frame)[:2]
+            jac = pin.computeFrameJacobian(model, data, q[j], fid, frame)
+            blocks[j] = np.reshape(jac, (6, n))[:2]  # a 1-joint model returns shape (6,)
             c[j] = data.oMf[fid].translation[:2] - self.targets[j]
         nxt = q[np.r_[1:s, 0]]
         prv = q[np.r_[s - 1, 0 : s - 1]]

@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import coal
 import numpy as np
@@ -34,6 +34,8 @@ from youbot_opt.ikpath.result import IKPathResult
 
 if TYPE_CHECKING:
     import meshcat
+
+    from youbot_opt.viz.meshcat_scene import RobotLike
 
 __all__ = [
     "ReplayRobot",
@@ -91,7 +93,7 @@ def replay_targets(result: IKPathResult) -> Array:
 
 
 def replay_robot(result: IKPathResult) -> ReplayRobot:
-    """The chain of ``result`` with a visible marker at every target.
+    """Return the chain of ``result`` with a visible marker at every target.
 
     The markers are spheres fixed to the world (joint 0) at the targets, with
     a radius of 1.3 link radii, so that they scale with the arm (the viewer's
@@ -206,7 +208,7 @@ def replay_ikpath(
 
     t, q = replay_track(result, segment_time)
     return replay(
-        replay_robot(result),
+        cast("RobotLike", replay_robot(result)),
         t,
         q,
         viewer=viewer,
@@ -226,7 +228,7 @@ def export_ikpath_html(
     others: Sequence[IKPathResult] = (),
     fps: float = 30.0,
 ) -> Path:
-    """Write a standalone HTML file that plays the IK path offline (:func:`youbot_opt.viz.export_html`).
+    """Write a standalone HTML file that plays the IK path offline (``viz.export_html``).
 
     Parameters
     ----------
@@ -250,7 +252,7 @@ def export_ikpath_html(
 
     t, q = replay_track(result, segment_time)
     return export_html(
-        replay_robot(result),
+        cast("RobotLike", replay_robot(result)),
         t,
         q,
         path,

@@ -7,6 +7,7 @@ turns a failure into :class:`~youbot_opt.exceptions.SolveFailed`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import NamedTuple
@@ -30,12 +31,18 @@ class IKStatus(Enum):
     """Iteration limit reached before the tolerances were met."""
     STALLED = "stalled"
     """No further progress possible (penalty at its cap, or the solver gave up)."""
+    TIME_LIMIT = "time_limit"
+    """Wall-clock (or CPU) time limit reached; the last iterate is kept."""
     INFEASIBLE = "infeasible"
     """The solver reports the constraints as locally infeasible."""
     NUMERICAL_ERROR = "numerical_error"
     """Non-finite values or a solver-internal error."""
     CRASHED = "crashed"
     """The solve raised an exception (multistart keeps going); see the message."""
+    CHECK_FAILED = "check_failed"
+    """The solver claimed success but the result failed its re-check on construction
+    (targets missed beyond the solver's tolerance, limits violated, or reported
+    figures that do not belong to the configurations); see the message."""
 
 
 class OuterIterate(NamedTuple):
@@ -118,8 +125,23 @@ class IKPathResult:
         Solver message.
     start : ndarray, shape (s, n)
         Initial guess in [rad].
+    constraint_tol : float
+        Largest ``|c_i|`` in [m] the solver accepts at a solution
+        (``ALOptions.constraint_tol`` or ``IpoptOptions.constr_viol_tol``).
     history : tuple of OuterIterate
         Per outer iteration record (may be empty).
+
+    Notes
+    -----
+    A result that claims :attr:`IKStatus.SUCCESS` re-checks itself on
+    construction (also after ``dataclasses.replace``), independently of the
+    solver's flag: every number must be finite (else
+    :attr:`IKStatus.NUMERICAL_ERROR`), every residual recomputed by Pinocchio
+    from :attr:`configurations` must be within ``sqrt(2) * constraint_tol``
+    plus rounding, the joint limits must hold exactly, and the reported
+    ``objective``, ``residuals`` and ``limit_violation`` must be those of the
+    configurations (else :attr:`IKStatus.CHECK_FAILED`). A downgraded result
+    says why in :attr:`message`.
     """
 
     problem: CyclicIKProblem
@@ -135,6 +157,7 @@ class IKPathResult:
     wall_time: float
     message: str
     start: Array
+    constraint_tol: float
     history: tuple[OuterIterate, ...] = field(default=())
 
     def __post_init__(self) -> None:
@@ -142,6 +165,18 @@ class IKPathResult:
             arr = np.array(getattr(self, key), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
+        if not (self.constraint_tol > 0.0 and math.isfinite(self.constraint_tol)):
+            raise ParameterError(
+                f"constraint_tol must be finite and > 0 [m], got {self.constraint_tol!r}",
+                name="constraint_tol",
+                value=self.constraint_tol,
+            )
+        if self.status is IKStatus.SUCCESS:
+            downgrade = _recheck(self)
+            if downgrade is not None:
+                status, why = downgrade
+                object.__setattr__(self, "status", status)
+                object.__setattr__(self, "message", f"{self.message}; re-check failed: {why}")
 
     @property
     def success(self) -> bool:
@@ -231,6 +266,62 @@ class IKPathResult:
         return "\n".join(lines)
 
 
+def _recheck(result: IKPathResult) -> tuple[IKStatus, str] | None:
+    """Status a claimed success deserves, with the reason, or None if it holds.
+
+    Recomputes the residuals (Pinocchio), E and the limit violation from the
+    configurations; see the Notes of :class:`IKPathResult`.
+    """
+    problem = result.problem
+    q = result.configurations
+    figures: dict[str, Array | float] = {
+        "configurations": q,
+        "objective": result.objective,
+        "residuals": result.residuals,
+        "limit_violation": result.limit_violation,
+        "multipliers": result.multipliers,
+    }
+    nonfinite = [k for k, v in figures.items() if not np.all(np.isfinite(v))]
+    if nonfinite:
+        return IKStatus.NUMERICAL_ERROR, f"non-finite values in {', '.join(nonfinite)}"
+    want = (problem.n_targets, problem.n_joints)
+    if q.shape != want or result.residuals.shape != (want[0],):
+        return IKStatus.CHECK_FAILED, (
+            f"configurations of shape {q.shape} and residuals of shape "
+            f"{result.residuals.shape}, expected {want} and ({want[0]},)"
+        )
+    residuals = problem.residuals(q)
+    energy = problem.objective(q)
+    excess = problem.limit_violation(q)
+    chain = problem.chain
+    # Rounding of the tip position [m]: Pinocchio vs the solver's own kinematics
+    # (the same Pinocchio calls for AL, CasADi's closed form for IPOPT) differ by
+    # a few ulps of the largest coordinate; 1e-12 per metre of reach covers it.
+    rounding = 1e-12 * (1.0 + float(np.sum(chain.lengths)) + float(np.max(np.abs(chain.base))))
+    allowed = math.sqrt(2.0) * result.constraint_tol + rounding  # |c_j|_2 <= sqrt(2) |c|_inf
+    worst = int(np.argmax(residuals))
+    wrong = []
+    if residuals[worst] > allowed:
+        wrong.append(
+            f"target {worst} missed by {residuals[worst]:.3g} m > {allowed:.3g} m "
+            f"(sqrt(2) * constraint_tol {result.constraint_tol:.3g} m + rounding)"
+        )
+    if excess > 0.0:
+        wrong.append(f"joint limits violated by {excess:.3g} rad")
+    # Reported figures against the recomputed ones: build_result computes them
+    # with these very calls, so only a changed field makes them differ; 1e-9
+    # (in [rad^2] relative, in [m]) is the tolerance of the result files.
+    if not abs(result.objective - energy) <= 1e-9 * max(1.0, abs(energy)):
+        wrong.append(f"reported E = {result.objective:.12g} rad^2, recomputed {energy:.12g}")
+    if not np.all(np.abs(result.residuals - residuals) <= 1e-9):
+        wrong.append("reported residuals differ from the recomputed ones by more than 1e-9 m")
+    if not abs(result.limit_violation - excess) <= 1e-9:
+        wrong.append(
+            f"reported limit violation {result.limit_violation:.3g} rad, recomputed {excess:.3g}"
+        )
+    return (IKStatus.CHECK_FAILED, "; ".join(wrong)) if wrong else None
+
+
 def build_result(
     problem: CyclicIKProblem,
     *,
@@ -243,12 +334,15 @@ def build_result(
     wall_time: float,
     message: str,
     start: Array,
+    constraint_tol: float,
     history: tuple[OuterIterate, ...] = (),
 ) -> IKPathResult:
     """Assemble an :class:`IKPathResult`, recomputing E, residuals and limit violation.
 
     The residuals come from Pinocchio through the problem, independently of the
-    solver's own constraint evaluation (CasADi for IPOPT).
+    solver's own constraint evaluation (CasADi for IPOPT). ``constraint_tol``
+    [m] is the solver's largest accepted ``|c_i|``; a claimed success is
+    re-checked against it (see :class:`IKPathResult`).
     """
     q = problem.as_configurations(x)
     return IKPathResult(
@@ -265,5 +359,6 @@ def build_result(
         wall_time=float(wall_time),
         message=message,
         start=problem.as_configurations(start, name="start"),
+        constraint_tol=float(constraint_tol),
         history=history,
     )

@@ -3,31 +3,34 @@
 * :mod:`~youbot_opt.reproduction.study1` -- the study's own transcription with
   its four deviations, each switchable (:class:`StudyTranscription`,
   :class:`StudyDeviations`);
+* :mod:`~youbot_opt.reproduction.records` -- the compared variants and the
+  JSON-ready record of a solve or multistart, with its certificates;
 * :mod:`~youbot_opt.reproduction.runs` -- :func:`reproduce_study1`: base case,
-  deviations one at a time, weight extremes, Pareto front and refinement, for
-  the study's and the correct transcriptions, every solution certified;
-* :mod:`~youbot_opt.reproduction.report` -- the comparison tables (markdown + JSON).
+  second-optimum search, deviations one at a time, weight extremes, Pareto
+  front and refinement, for the study's and the correct transcriptions, every
+  solution certified;
+* :mod:`~youbot_opt.reproduction.study_guess` and :mod:`~youbot_opt.reproduction.search`
+  -- the study's random starts read literally (LP vertices) and a multistart from
+  them, which finds the study's second optimum;
+* :mod:`~youbot_opt.reproduction.report` -- the comparison tables (markdown + JSON);
+* :mod:`~youbot_opt.reproduction.figures` -- the figures, from the JSON alone.
 
 Command line: ``youbot-opt reproduce-study1 [--quick] [--out DIR]``.
 """
 
 from __future__ import annotations
 
+from youbot_opt.reproduction.records import VARIANTS, Variant, ablation_variant
 from youbot_opt.reproduction.report import markdown_report, pareto_knee, write_report
-from youbot_opt.reproduction.runs import (
-    VARIANTS,
-    ReproductionConfig,
-    Study1Reproduction,
-    Variant,
-    ablation_variant,
-    reproduce_study1,
-)
+from youbot_opt.reproduction.runs import ReproductionConfig, Study1Reproduction, reproduce_study1
+from youbot_opt.reproduction.search import cluster_optima, vertex_multistart
 from youbot_opt.reproduction.study1 import (
     DEVIATION_NAMES,
     STUDY_DAMPING,
     StudyDeviations,
     StudyTranscription,
 )
+from youbot_opt.reproduction.study_guess import vertex_spline_guess
 
 __all__ = [
     "DEVIATION_NAMES",
@@ -39,8 +42,11 @@ __all__ = [
     "StudyTranscription",
     "Variant",
     "ablation_variant",
+    "cluster_optima",
     "markdown_report",
     "pareto_knee",
     "reproduce_study1",
+    "vertex_multistart",
+    "vertex_spline_guess",
     "write_report",
 ]

@@ -7,13 +7,16 @@
 * the correct transcriptions (trapezoidal and Hermite--Simpson) on the paper's
   arm (no damping) and on the arm with the code's damping b = 0.1 N m s/rad,
 
-in five sections: the base case (beta = 0.5, n = 50, seeded random-spline
-multistart as the study did), the deviations switched on alone and left out
+in six sections: the base case (beta = 0.5, n = 50, seeded random-spline
+multistart as the study did), a search for the study's second optimum with
+the study's solver settings, the deviations switched on alone and left out
 one at a time, the beta extremes, the weighted-sum Pareto front, and the
 optimum as knots are added. Every solution is certified by forward simulation
 (:func:`youbot_opt.verify.certify`) against the arm its NLP describes and
-against the paper's arm. Every figure is a JSON-ready record (:func:`record`)
-that :mod:`youbot_opt.reproduction.report` turns into tables.
+against the paper's arm. Every figure is a JSON-ready record
+(:func:`~youbot_opt.reproduction.records.record`) that
+:mod:`youbot_opt.reproduction.report` turns into tables; the results behind
+them are kept in :attr:`Study1Reproduction.results`.
 """
 
 from __future__ import annotations
@@ -22,110 +25,33 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
-
-import numpy as np
+from typing import Any
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.model import RobotModel, load_model
 from youbot_opt.multistart import MultistartResult, run_multistart
 from youbot_opt.options import IpoptOptions
 from youbot_opt.pareto import DEFAULT_BETAS, pareto_sweep
-from youbot_opt.problem import study1_problem
-from youbot_opt.reproduction.study1 import (
-    DEVIATION_NAMES,
-    STUDY_DAMPING,
-    StudyDeviations,
-    StudyTranscription,
+from youbot_opt.reproduction.records import (
+    VARIANTS,
+    ArmSolvers,
+    ablation_variant,
+    optima_record,
+    record,
 )
+from youbot_opt.reproduction.search import (
+    cluster_optima,
+    converged_results,
+    search_record,
+    vertex_multistart,
+)
+from youbot_opt.reproduction.study1 import DEVIATION_NAMES, StudyDeviations
 from youbot_opt.result import TrajOptResult
 from youbot_opt.solve import TrajOptSolver
-from youbot_opt.transcription import Transcription, get_transcription
-from youbot_opt.verify import certify
 
-__all__ = [
-    "VARIANTS",
-    "ReproductionConfig",
-    "Study1Reproduction",
-    "Variant",
-    "ablation_variant",
-    "record",
-    "reproduce_study1",
-]
+__all__ = ["ReproductionConfig", "Study1Reproduction", "reproduce_study1"]
 
 _log = logging.getLogger(__name__)
 Progress = Callable[[str], None]
-
-
-class Variant(NamedTuple):
-    """A transcription on an arm: one column of the comparison.
-
-    Attributes
-    ----------
-    key : str
-        Identifier (``"study"``, ``"trapezoidal"``, ``"hermite_simpson_b0.1"``, ...).
-    label : str
-        Human-readable name for the tables.
-    method : str
-        ``"study1_code"``, ``"trapezoidal"`` or ``"hermite_simpson"``.
-    deviations : StudyDeviations or None
-        The study's deviations (``method == "study1_code"`` only).
-    damping : float
-        Joint damping of the arm model in [N m s/rad] (0 for the paper's arm;
-        the study's code adds its damping through deviation (3) instead).
-    """
-
-    key: str
-    label: str
-    method: str
-    deviations: StudyDeviations | None = None
-    damping: float = 0.0
-
-    def transcription(self) -> Transcription:
-        """Return the transcription strategy of this variant."""
-        if self.deviations is not None:
-            return StudyTranscription(self.deviations)
-        return get_transcription(self.method)
-
-    @property
-    def model_damping(self) -> float:
-        """Damping in [N m s/rad] of the dynamics the NLP describes."""
-        return self.deviations.damping if self.deviations is not None else self.damping
-
-    def objective(self, result: TrajOptResult) -> float:
-        """Return the objective as this variant's NLP defines it (the study's code: T = n dt)."""
-        if self.deviations is not None:
-            return self.deviations.objective(result)
-        return float(result.objective)
-
-
-def ablation_variant(deviations: StudyDeviations) -> Variant:
-    """Make the variant of the study's transcription with ``deviations``, keyed by their label."""
-    return Variant(
-        key=f"deviations {deviations.label}",
-        label=f"deviations {deviations.label}",
-        method=StudyTranscription.name,
-        deviations=deviations,
-    )
-
-
-VARIANTS: dict[str, Variant] = {
-    v.key: v
-    for v in (
-        Variant("study", "study's code, deviations (1)-(4)", "study1_code", StudyDeviations()),
-        Variant("trapezoidal", "trapezoidal, b = 0", "trapezoidal"),
-        Variant("hermite_simpson", "Hermite-Simpson, b = 0", "hermite_simpson"),
-        Variant("trapezoidal_b0.1", "trapezoidal, b = 0.1", "trapezoidal", None, STUDY_DAMPING),
-        Variant(
-            "hermite_simpson_b0.1",
-            "Hermite-Simpson, b = 0.1",
-            "hermite_simpson",
-            None,
-            STUDY_DAMPING,
-        ),
-    )
-}
-"""The comparison's columns: the study's code, and the correct transcriptions with b = 0 and 0.1."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -158,6 +84,12 @@ class ReproductionConfig:
     pareto_first_starts : int
         Seeded starts (plus the straight line) at the sweep's first weight; the
         others are warm-started from their neighbour.
+    search_starts : int
+        Starts of the second-optimum search: the study's random starts read
+        literally (:func:`~youbot_opt.reproduction.study_guess.vertex_spline_guess`,
+        base seed ``seed``) at the base case, solved with the study's
+        transcription and with the correct trapezoidal one: does the study's
+        second optimum f = 11.070 appear, and in which? 0 skips the search.
     refinement_knots : tuple of int
         Knot counts of the refinement section.
     refinement_variants : tuple of str
@@ -183,6 +115,7 @@ class ReproductionConfig:
     extreme_starts: int = 50
     pareto_betas: tuple[float, ...] = DEFAULT_BETAS
     pareto_first_starts: int = 10
+    search_starts: int = 200
     refinement_knots: tuple[int, ...] = (50, 100, 200, 400, 800)
     refinement_variants: tuple[str, ...] = ("trapezoidal", "hermite_simpson", "study")
     tol: float = 1e-10
@@ -200,6 +133,12 @@ class ReproductionConfig:
         for name in ("n_starts", "ablation_starts", "extreme_starts"):
             if getattr(self, name) < 1:
                 raise ParameterError(f"{name} must be >= 1", name=name, value=getattr(self, name))
+        if self.search_starts < 0:
+            raise ParameterError(
+                f"search_starts must be >= 0 (0 skips the search), got {self.search_starts!r}",
+                name="search_starts",
+                value=self.search_starts,
+            )
         if self.executor not in ("process", "serial"):
             raise ParameterError(
                 f"executor must be 'process' or 'serial', got {self.executor!r}", name="executor"
@@ -210,12 +149,14 @@ class ReproductionConfig:
         """Make a fast subset for tests and smoke runs (about 15 s).
 
         The study's code and the correct trapezoidal transcription, 3 starts at the
-        base case, no ablation, one extreme weight, two Pareto weights, and the
-        trapezoidal refinement 50 -> 100 knots; ``changes`` override fields.
+        base case, 2 second-optimum search starts, no ablation, one extreme weight, two
+        Pareto weights, and the trapezoidal refinement 50 -> 100 knots;
+        ``changes`` override fields.
         """
         base: dict[str, Any] = dict(
             variants=("study", "trapezoidal"),
             n_starts=3,
+            search_starts=2,
             ablation_starts=1,
             ablation_betas=(),
             extreme_betas=(0.95,),
@@ -230,104 +171,8 @@ class ReproductionConfig:
         return cls(**base)
 
     def options(self) -> IpoptOptions:
-        """IPOPT options of every solve."""
+        """IPOPT options of every solve but the second-optimum search."""
         return IpoptOptions(tol=self.tol, max_iter=self.max_iter)
-
-
-class _Solvers:
-    """Each (variant, knots) solver built once; arm models by damping."""
-
-    def __init__(self, options: IpoptOptions) -> None:
-        self.options = options
-        self._robots: dict[float, RobotModel] = {}
-        self._solvers: dict[tuple[str, int], TrajOptSolver] = {}
-
-    def robot(self, damping: float) -> RobotModel:
-        if damping not in self._robots:
-            self._robots[damping] = load_model("youbot", damping=damping or None)
-        return self._robots[damping]
-
-    def get(self, variant: Variant, n_knots: int) -> TrajOptSolver:
-        key = (variant.key, n_knots)
-        if key not in self._solvers:
-            problem = study1_problem(n_knots, robot=self.robot(variant.damping))
-            self._solvers[key] = TrajOptSolver(problem, variant.transcription(), self.options)
-        return self._solvers[key]
-
-
-def _certificate(result: TrajOptResult, robot: RobotModel) -> dict[str, Any] | None:
-    if result.trajectory is None:
-        return None
-    cert = certify(result, robot=robot, damping=True)
-    out = cert.summary()
-    out["failures"] = cert.failures()
-    return out
-
-
-def record(
-    variant: Variant, result: TrajOptResult, solvers: Any = None, **extra: Any
-) -> dict[str, Any]:
-    """JSON-ready figures of one solve, with its certificates.
-
-    Parameters
-    ----------
-    variant : Variant
-        What was solved.
-    result : TrajOptResult
-        The solve.
-    solvers : optional
-        Source of the arm models for the certificates (internal); without it no
-        certificate is computed.
-    **extra
-        Further fields (e.g. ``count`` of a local optimum).
-
-    Returns
-    -------
-    dict
-        ``objective`` (the variant's own, the study's code with T = n dt),
-        ``objective_true`` (T = (n - 1) dt), ``duration_s`` (true), ``duration_code_s``
-        (the T its objective used), ``dt_s``, ``work``, status, iterations, the knot-1
-        and last-knot torques [N m], ``certificate`` (against the arm the NLP
-        describes, damping included) and ``certificate_paper`` (the paper's arm, b = 0).
-    """
-    n = result.problem.n_knots
-    dev = variant.deviations
-    row: dict[str, Any] = {
-        "variant": variant.key,
-        "label": variant.label,
-        "deviations": None if dev is None else dev.label,
-        "n_knots": n,
-        "beta": result.beta,
-        "status": result.status.value,
-        "success": result.success,
-        "objective": variant.objective(result),
-        "objective_true": float(result.objective),
-        "duration_s": float(result.duration),
-        "duration_code_s": float(dev.duration(result.dt, n) if dev else result.duration),
-        "dt_s": float(result.dt),
-        "work": float(result.work),
-        "iterations": int(result.iterations),
-        "solve_time_s": float(result.wall_time),
-        "seed": result.seed,
-        "tau_first": np.asarray(result.variables["tau"][0]).tolist(),
-        "tau_last": np.asarray(result.variables["tau"][-1]).tolist(),
-        **_upright(result),
-        **extra,
-    }
-    if solvers is not None and result.success:
-        own = _certificate(result, solvers.robot(variant.model_damping))
-        paper = own if variant.model_damping == 0.0 else _certificate(result, solvers.robot(0.0))
-        row["certificate"], row["certificate_paper"] = own, paper
-    return row
-
-
-def _upright(result: TrajOptResult, radius: float = 0.1) -> dict[str, float]:
-    """Closest approach to the upright, stretched arm ``q = 0`` [rad] and time spent near it [s]."""
-    dist = np.max(np.abs(np.asarray(result.variables["q"])), axis=1)
-    return {
-        "upright_distance_rad": float(np.min(dist)),
-        "upright_time_s": float(np.count_nonzero(dist < radius) * result.dt),
-    }
 
 
 def _multistart(
@@ -339,29 +184,6 @@ def _multistart(
     )  # fmt: skip
 
 
-def _optima(variant: Variant, ms: MultistartResult, solvers: _Solvers) -> dict[str, Any]:
-    """Best record plus every distinct optimum (objective, T, W, count) of a multistart."""
-    optima = []
-    for opt in ms.distinct_optima(obj_tol=1e-6, traj_tol=1e-2):
-        res = opt.best.result
-        assert res is not None
-        optima.append({
-            "objective": variant.objective(res), "objective_true": opt.objective,
-            "duration_s": opt.duration, "work": opt.work, "count": opt.count,
-            "fraction": opt.fraction, **_upright(res),
-        })  # fmt: skip
-    best = ms.best
-    return {
-        "n_starts": ms.n_starts,
-        "success_rate": ms.success_rate,
-        "wall_time_s": ms.wall_time,
-        "best": None
-        if best is None or best.result is None
-        else record(variant, best.result, solvers),
-        "optima": optima,
-    }
-
-
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Study1Reproduction:
     """Every figure of the reproduction, as JSON-ready records.
@@ -371,7 +193,12 @@ class Study1Reproduction:
     config : ReproductionConfig
         What was run.
     base : dict
-        Variant key -> multistart at (beta, n_knots): ``best`` record, ``optima``, rates.
+        Variant key -> multistart at (beta, n_knots): ``best`` record (with its
+        ``trajectory`` arrays), ``optima``, rates.
+    search : dict
+        Variant key (``"study"``, ``"trapezoidal"``) -> the second-optimum search
+        from vertex-LP starts (as ``base``, every optimum with its own record);
+        empty when skipped.
     ablation : list of dict
         Records of the study's transcription with deviation sets (none, each alone,
         each left out, all) at each ablation weight, best of the starts.
@@ -383,15 +210,21 @@ class Study1Reproduction:
         Records of the refinement (variant x knots), each warm-started from the coarser.
     timings : dict
         Wall time of each section in [s].
+    results : dict
+        Name -> the :class:`TrajOptResult` behind each record (``base_study``,
+        ``pareto_trapezoidal_beta0.50``, ``refinement_hermite_simpson_n800``,
+        ...); not part of :meth:`to_json`.
     """
 
     config: ReproductionConfig
     base: dict[str, Any] = field(default_factory=dict)
+    search: dict[str, Any] = field(default_factory=dict)
     ablation: list[dict[str, Any]] = field(default_factory=list)
     extremes: dict[str, Any] = field(default_factory=dict)
     pareto: dict[str, Any] = field(default_factory=dict)
     refinement: list[dict[str, Any]] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    results: dict[str, TrajOptResult] = field(default_factory=dict, repr=False)
 
     def to_json(self) -> dict[str, Any]:
         """Return the whole reproduction as a JSON-ready dictionary."""
@@ -401,6 +234,7 @@ class Study1Reproduction:
         return {
             "config": cfg,
             "base": self.base,
+            "search": self.search,
             "ablation": self.ablation,
             "extremes": self.extremes,
             "pareto": self.pareto,
@@ -435,42 +269,59 @@ def reproduce_study1(
     """
     config = ReproductionConfig() if config is None else config
     say = progress or (lambda message: _log.info("%s", message))
-    solvers = _Solvers(config.options())
+    solvers = ArmSolvers(config.options())
     out = Study1Reproduction(config=config)
     variants = [VARIANTS[k] for k in config.variants]
     n = config.n_knots
-    best_results: dict[str, TrajOptResult] = {}
+    keep = out.results
+
+    def store(name: str, ms: MultistartResult) -> None:
+        if ms.best is not None and ms.best.result is not None:
+            keep[name] = ms.best.result
 
     tic = time.perf_counter()
     for v in variants:
         say(f"base case: {v.label}, {config.n_starts} starts")
         ms = _multistart(solvers.get(v, n), config, config.n_starts, config.beta)
-        out.base[v.key] = _optima(v, ms, solvers)
-        if ms.best is not None and ms.best.result is not None:
-            best_results[v.key] = ms.best.result
+        out.base[v.key] = optima_record(v, ms, solvers, with_trajectory=True)
+        store(f"base_{v.key}", ms)
     out.timings["base"] = time.perf_counter() - tic
+
+    if config.search_starts:
+        tic = time.perf_counter()
+        for key in ("study", "trapezoidal"):
+            v = VARIANTS[key]
+            say(f"second-optimum search: {v.label}, {config.search_starts} vertex-LP starts")
+            starts = vertex_multistart(
+                solvers.get(v, n).problem, v.transcription(), config.options(),
+                config.search_starts, beta=config.beta, seed=config.seed,
+                executor=config.executor, workers=config.workers,  # type: ignore[arg-type]
+            )  # fmt: skip
+            out.search[key] = search_record(v, starts, solvers)
+            for i, members in enumerate(cluster_optima(converged_results(starts), v.objective)):
+                keep[f"search_{key}_optimum{i + 1}"] = members[0]
+        out.timings["search"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
     for dev in _ablation_sets():
         v = ablation_variant(dev)
         say(f"ablation: {v.label}")
         for beta in config.ablation_betas:
-            best = _multistart(solvers.get(v, n), config, config.ablation_starts, beta).best
-            if best is not None and best.result is not None:
-                out.ablation.append(record(v, best.result, solvers))
+            ms = _multistart(solvers.get(v, n), config, config.ablation_starts, beta)
+            if ms.best is not None and ms.best.result is not None:
+                out.ablation.append(record(v, ms.best.result, solvers))
+                store(f"ablation_{_slug(dev.label)}_beta{beta:.2f}", ms)
     out.timings["ablation"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
     for v in variants:
         say(f"extremes: {v.label}")
         solver = solvers.get(v, n)
-        out.extremes[v.key] = [
-            {
-                "beta": b,
-                **_optima(v, _multistart(solver, config, config.extreme_starts, b), solvers),
-            }
-            for b in config.extreme_betas
-        ]
+        out.extremes[v.key] = []
+        for b in config.extreme_betas:
+            ms = _multistart(solver, config, config.extreme_starts, b)
+            out.extremes[v.key].append({"beta": b, **optima_record(v, ms, solvers)})
+            store(f"extreme_{v.key}_beta{b:.2f}", ms)
     out.timings["extremes"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
@@ -480,21 +331,30 @@ def reproduce_study1(
             solvers.get(v, n), config.pareto_betas, first_starts=config.pareto_first_starts,
             seed=config.seed, executor=config.executor, workers=config.workers,  # type: ignore[arg-type]
         )  # fmt: skip
-        out.pareto[v.key] = [
-            record(v, p.result, solvers, dominated=p.dominated) if p.result is not None
-            else {"variant": v.key, "beta": p.beta, "status": p.status, "success": False}
-            for p in front.points
-        ]  # fmt: skip
+        out.pareto[v.key] = []
+        for p in front.points:
+            if p.result is None:
+                rec = {"variant": v.key, "beta": p.beta, "status": p.status, "success": False}
+            else:
+                rec = record(v, p.result, solvers, dominated=p.dominated)
+                keep[f"pareto_{v.key}_beta{p.beta:.2f}"] = p.result
+            out.pareto[v.key].append(rec)
     out.timings["pareto"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
     for key in config.refinement_variants:
         v = VARIANTS[key]
-        previous: TrajOptResult | None = best_results.get(key)
+        previous: TrajOptResult | None = keep.get(f"base_{key}")
         for k in config.refinement_knots:
             say(f"refinement: {v.label}, {k} knots")
             result = solvers.get(v, k).solve(beta=config.beta, guess=previous)
             out.refinement.append(record(v, result, solvers))
+            keep[f"refinement_{key}_n{k}"] = result
             previous = result if result.success else previous
     out.timings["refinement"] = time.perf_counter() - tic
     return out
+
+
+def _slug(label: str) -> str:
+    """Return a file-name-safe form of a deviation label: ``"(1)+(3)"`` -> ``"1_3"``."""
+    return "_".join(c for c in label.replace("(", " ").replace(")", " ").replace("+", " ").split())

@@ -29,7 +29,7 @@ _METHODS: dict[str, type[Transcription]] = {
 
 
 def get_transcription(method: str | Transcription) -> Transcription:
-    """A transcription object from its name or itself.
+    """Return a transcription object from its name (or the object itself).
 
     Parameters
     ----------

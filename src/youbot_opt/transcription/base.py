@@ -28,7 +28,9 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import casadi as ca
@@ -71,7 +73,7 @@ class Block:
         return self.width * self.count
 
     def take(self, vector: Array) -> Array:
-        """The block of ``vector`` as a knot-major array ``(count, width)`` (a copy)."""
+        """Return the block of ``vector`` as a knot-major array ``(count, width)`` (a copy)."""
         return np.array(vector[self.offset : self.offset + self.size], dtype=float).reshape(
             self.count, self.width
         )
@@ -134,6 +136,9 @@ class TranscribedNLP:
         Inequality blocks of ``g`` -> the variable family (``"q"``, ``"v"`` or
         ``"tau"``) whose bounds they must stay within; every other block of
         ``g`` is an equality.
+    unbounded : tuple of str
+        Variable blocks given no bounds of their own in :meth:`variable_bounds`
+        because the path blocks imply them (Hermite-Simpson's ``v_mid``).
     """
 
     method: str
@@ -150,6 +155,7 @@ class TranscribedNLP:
     variables: Layout
     constraints: Layout
     path_bounds: Mapping[str, str] = field(default_factory=dict)
+    unbounded: tuple[str, ...] = ()
 
     @property
     def n_variables(self) -> int:
@@ -171,14 +177,18 @@ class TranscribedNLP:
         """Number of equality rows of ``g`` (defects and boundary conditions)."""
         return self.n_constraints - self.n_inequalities
 
-    def variable_bounds(self, bounds: JointBounds, dt_range: tuple[float, float]) -> tuple[Array, Array]:
+    def variable_bounds(
+        self, bounds: JointBounds, dt_range: tuple[float, float]
+    ) -> tuple[Array, Array]:
         """``(lbx, ubx)`` from joint bounds and the time-step range ``dt_range`` in [s]."""
         lower = {"q": bounds.q_lower, "v": bounds.v_lower, "tau": bounds.tau_lower}
         upper = {"q": bounds.q_upper, "v": bounds.v_upper, "tau": bounds.tau_upper}
         lo: dict[str, Any] = {"dt": dt_range[0]}
         hi: dict[str, Any] = {"dt": dt_range[1]}
         for name in self.variables.blocks:
-            if name != "dt":
+            if name in self.unbounded:
+                lo[name], hi[name] = -np.inf, np.inf
+            elif name != "dt":
                 base = name.removesuffix("_mid")
                 lo[name], hi[name] = lower[base], upper[base]
         return self.variables.pack(lo), self.variables.pack(hi)
@@ -227,6 +237,8 @@ class Transcription(ABC):
     name: ClassVar[str]
     interpolation: ClassVar[Interpolation]
     rule: ClassVar[QuadratureRule]
+    unbounded: ClassVar[tuple[str, ...]] = ()
+    """Variable blocks without bounds of their own (implied by path constraints)."""
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
@@ -271,7 +283,7 @@ class Transcription(ABC):
 
     @abstractmethod
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
-        """Initial values of every variable block from a guess trajectory."""
+        """Return initial values of every variable block from a guess trajectory."""
 
     @abstractmethod
     def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
@@ -329,6 +341,7 @@ class Transcription(ABC):
             variables=Layout(blocks),
             constraints=parts.constraints,
             path_bounds=MappingProxyType(dict(parts.path_bounds)),
+            unbounded=tuple(self.unbounded),
         )
 
     def expressions(
@@ -378,6 +391,8 @@ class Expressions(NamedTuple):
     duration: Any
     work: Any
     constraints: Layout
+    path_bounds: Mapping[str, str] = MappingProxyType({})
+    """Inequality blocks of ``g`` -> bound family (see :attr:`TranscribedNLP.path_bounds`)."""
 
 
 def uniform_times(guess: Trajectory, n_knots: int) -> tuple[float, Array]:

@@ -1,4 +1,4 @@
-"""Exact NLP derivatives assembled from per-point dynamics kernels (the fast path).
+r"""Exact NLP derivatives assembled from per-point dynamics kernels (the fast path).
 
 CasADi can differentiate the whole transcribed NLP itself (``expand`` to SX,
 then a colored sparse Hessian of the full graph); that costs O(N) symbolic work
@@ -11,9 +11,9 @@ objective does not involve ``A``. With the Lagrangian ``l = s f + lam . g`` and
 
 .. math::
 
-    \\nabla g = g_x + g_A J_A, \\qquad
-    \\nabla^2 l = l_{xx} + J_A^\\top l_{Ax} + l_{xA} J_A + J_A^\\top l_{AA} J_A
-                 + \\sum_k \\sum_i (l_A)_{k,i} \\nabla^2 \\mathrm{FD}_i(z_k).
+    \nabla g = g_x + g_A J_A, \qquad
+    \nabla^2 l = l_{xx} + J_A^\top l_{Ax} + l_{xA} J_A + J_A^\top l_{AA} J_A
+                 + \sum_k \sum_i (l_A)_{k,i} \nabla^2 \mathrm{FD}_i(z_k).
 
 Only three small per-point kernels touch the dynamics -- ``a``, ``dA/dz`` and
 ``sum_i w_i nabla^2 FD_i`` -- and they are mapped over the points (``F.map``)
@@ -37,7 +37,13 @@ if TYPE_CHECKING:
     from youbot_opt.problem import TrajOptProblem
     from youbot_opt.transcription.base import Transcription
 
-__all__ = ["NLPFunctions", "Kernels", "dynamics_kernels", "structured_functions"]
+__all__ = [
+    "NLPFunctions",
+    "Kernels",
+    "compile_kernels",
+    "dynamics_kernels",
+    "structured_functions",
+]
 
 
 class Kernels(NamedTuple):
@@ -83,7 +89,11 @@ def dynamics_kernels(forward_dynamics: ca.Function) -> Kernels:
         If the Function cannot be expanded to SX (e.g. a Callback backend).
     """
     try:
-        fd = forward_dynamics.expand() if not forward_dynamics.is_a("SXFunction") else forward_dynamics
+        fd = (
+            forward_dynamics.expand()
+            if not forward_dynamics.is_a("SXFunction")
+            else forward_dynamics
+        )
     except RuntimeError as exc:
         raise TranscriptionError(
             f"structured derivatives need an SX-expandable forward dynamics: {exc}"
@@ -106,8 +116,24 @@ def dynamics_kernels(forward_dynamics: ca.Function) -> Kernels:
     )
 
 
+def compile_kernels(kernels: Kernels) -> Kernels:
+    """Compile the kernels to C, cached on disk (:func:`youbot_opt.codegen.compile_function`).
+
+    Returns ``kernels`` itself (the same object, after the codegen warning) if
+    any kernel cannot be compiled. The compiled Functions have no derivatives
+    of their own, so pass the SX kernels as ``values`` to
+    :func:`structured_functions`.
+    """
+    from youbot_opt.codegen import compile_function
+
+    compiled = Kernels(*(compile_function(k) for k in kernels))
+    if any(c is k for c, k in zip(compiled, kernels, strict=True)):
+        return kernels
+    return compiled
+
+
 def _block_diagonal(values: Any, rows: int, cols: int, count: int) -> Any:
-    """Block-diagonal matrix of ``count`` dense ``rows x cols`` blocks side by side in ``values``."""
+    """Block-diagonal matrix of ``count`` dense ``rows x cols`` blocks stored side by side."""
     pattern = ca.diagcat(*[ca.Sparsity.dense(rows, cols)] * count)
     return ca.SX(pattern, ca.vec(values))
 
@@ -156,9 +182,7 @@ def structured_functions(
     lam_f = ca.SX.sym("lam_f")
 
     # Selection z = P x of each group's point states, point-major (q_k, v_k, tau_k).
-    select = {
-        grp: ca.evalf(ca.jacobian(ca.vec(ca.vertcat(*points[grp])), x)) for grp in groups
-    }
+    select = {grp: ca.evalf(ca.jacobian(ca.vec(ca.vertcat(*points[grp])), x)) for grp in groups}
     a_all = ca.vertcat(*[ca.vec(accel[grp]) for grp in groups])
     j_ax = ca.vertcat(
         *[
@@ -185,11 +209,14 @@ def structured_functions(
     a_in = [accel[grp] for grp in groups]
     j_in = [jac_sym[grp] for grp in groups]
     h_in = [hess_sym[grp] for grp in groups]
-    fg_sx = ca.Function("nlp_fg_sx", [x, *a_in, beta], [f, g])
+    f_sx = ca.Function("nlp_f_sx", [x, beta], [f])  # f never involves A: no dynamics
+    g_sx = ca.Function("nlp_g_sx", [x, *a_in, beta], [g])
     grad_sx = ca.Function("nlp_grad_f_sx", [x, beta], [f, ca.gradient(f, x)])
     jac_sx = ca.Function("nlp_jac_g_sx", [x, *a_in, *j_in, beta], [g, jac_g])
     weight_sx = ca.Function("nlp_weights_sx", [x, *a_in, lam_g, lam_f, beta], weights)
-    hess_sx = ca.Function("nlp_hess_sx", [x, *a_in, *j_in, *h_in, lam_g, lam_f, beta], [ca.triu(hess)])
+    hess_sx = ca.Function(
+        "nlp_hess_sx", [x, *a_in, *j_in, *h_in, lam_g, lam_f, beta], [ca.triu(hess)]
+    )
 
     # MX wrappers: slice the point states out of x, map the kernels, assemble.
     xm, pm = ca.MX.sym("x", x.numel()), ca.MX.sym("p")
@@ -201,13 +228,13 @@ def structured_functions(
 
     zs = {grp: states(grp) for grp in groups}
     a_val = [values.forward.map(counts[grp])(*zs[grp]) for grp in groups]
-    f_val, g_val = fg_sx(xm, *a_val, pm)
+    f_val, g_val = f_sx(xm, pm), g_sx(xm, *a_val, pm)
     jac_out = {grp: kernels.jacobian.map(counts[grp])(*zs[grp]) for grp in groups}
     a_k = [jac_out[grp][0] for grp in groups]
     j_k = [jac_out[grp][1] for grp in groups]
     g_k, jac_val = jac_sx(xm, *a_k, *j_k, pm)
-    w_k = weight_sx(xm, *a_k, lgm, lfm, pm)
-    w_k = [w_k] if len(groups) == 1 else w_k
+    w_out = weight_sx(xm, *a_k, lgm, lfm, pm)
+    w_k: list[Any] = [w_out] if len(groups) == 1 else list(w_out)
     h_k = [
         kernels.hessian.map(counts[grp])(*zs[grp], w) for grp, w in zip(groups, w_k, strict=True)
     ]

@@ -1,4 +1,4 @@
-"""Trapezoidal direct collocation: the study's transcription, done correctly.
+r"""Trapezoidal direct collocation: the study's transcription, done correctly.
 
 For ``N`` knots with a common step ``dt`` (Betts, *Practical Methods for
 Optimal Control*, sec. 4.5; spec ``trajopt.md``) the decision variables are
@@ -7,9 +7,9 @@ study's ``9n + 1`` for the 3-joint youBot -- and the defects are
 
 .. math::
 
-    q_{k+1} - q_k - \\tfrac{dt}{2}(v_k + v_{k+1}) = 0, \\qquad
-    v_{k+1} - v_k - \\tfrac{dt}{2}(a_k + a_{k+1}) = 0, \\qquad
-    a_k = \\mathrm{FD}(q_k, v_k, \\tau_k),
+    q_{k+1} - q_k - \tfrac{dt}{2}(v_k + v_{k+1}) = 0, \qquad
+    v_{k+1} - v_k - \tfrac{dt}{2}(a_k + a_{k+1}) = 0, \qquad
+    a_k = \mathrm{FD}(q_k, v_k, \tau_k),
 
 ``2 nv (N - 1)`` equalities, plus ``4 nv`` boundary equalities: the study's
 ``6(n - 1) + 12`` for ``nv = 3``. Unlike the study's code, every knot's
@@ -43,7 +43,7 @@ class TrapezoidalCollocation(Transcription):
         return [("q", nv, n_knots), ("v", nv, n_knots), ("tau", nv, n_knots), ("dt", 1, 1)]
 
     def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
-        """The dynamics is evaluated at the ``N`` knots."""
+        """Evaluate the dynamics at the ``N`` knots."""
         return {"knots": (sym["q"], sym["v"], sym["tau"])}
 
     def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
@@ -64,7 +64,7 @@ class TrapezoidalCollocation(Transcription):
         dt = float(values["dt"].ravel()[0])
         n = values["q"].shape[0]
         return Trajectory(
-            t=dt * np.arange(n),
+            t=np.arange(n, dtype=np.float64) * np.float64(dt),
             q=values["q"],
             v=values["v"],
             a=a,

@@ -19,6 +19,8 @@ loaded (no textures), coloured with the URDF colour.
 packed exactly as a server would receive them, and written with meshcat's
 viewer script (``main.min.js``, inlined) into one HTML file that plays offline.
 Append ``#t=<seconds>`` to its address to show the pose at that time, paused.
+
+Several results at once, labelled: :mod:`youbot_opt.viz.meshcat_results`.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ _HTML = """<!DOCTYPE html>
 <style>body { margin: 0; } #meshcat-pane { width: 100vw; height: 100vh; overflow: hidden; }</style>
 </head>
 <body>
-<div id="meshcat-pane"></div>
+<div id="meshcat-pane"></div>@LEGEND@
 <script>@MAIN_MIN_JS@</script>
 <script>
 (function () {
@@ -122,6 +124,7 @@ def replay(
     spacing: Array | None = None,
     realtime: bool = True,
     speed: float = 1.0,
+    label: str | None = None,
 ) -> meshcat.Visualizer:
     """Play a trajectory in a live meshcat viewer.
 
@@ -155,6 +158,8 @@ def replay(
         can be scrubbed; the call returns at once.
     speed : float
         Playback speed factor for ``realtime`` (2.0 plays twice as fast).
+    label : str, optional
+        Scene name of the main copy; default: the robot's name.
 
     Returns
     -------
@@ -176,7 +181,7 @@ def replay(
         )
     scene.check_robot(robot)
     runs = scene.layout_runs(
-        robot, t, q, ghosts=ghosts, extra=extra, spacing=spacing, root=frame_path
+        robot, t, q, ghosts=ghosts, extra=extra, spacing=spacing, root=frame_path, label=label
     )
     checked_targets = scene.check_targets(targets)
     vis, owned = _viewer(viewer)
@@ -252,12 +257,24 @@ def scene_html(
         robot, t, q, ghosts=ghosts, extra=extra, spacing=spacing, root=frame_path
     )
     checked_targets = scene.check_targets(targets)
+    return _page(robot, runs, fps=fps, ee_path=ee_path, targets=checked_targets, loop=loop)
+
+
+def _page(
+    robot: RobotLike,
+    runs: Sequence[scene.Run],
+    *,
+    fps: float,
+    ee_path: bool,
+    targets: Array | None,
+    loop: bool,
+    legend: str = "",
+) -> str:
+    """Record the scene and animation of ``runs`` and return the standalone page."""
     times = scene.frame_times(runs, fps)
     recorder = _Recorder()
     vis = meshcat.Visualizer(window=recorder)
-    nodes = scene.build_scene(
-        vis, robot, runs, ee_path=ee_path, targets=checked_targets, ee_times=times
-    )
+    nodes = scene.build_scene(vis, robot, runs, ee_path=ee_path, targets=targets, ee_times=times)
     target = scene.set_camera(vis, scene.scene_points(robot, runs, times), centred=True)
     scene.show_at(vis, robot, runs, nodes, float(times[0]))
     animation = scene.animation(vis, robot, runs, nodes, times, fps)
@@ -267,7 +284,7 @@ def scene_html(
     title = re.sub(r"[<>&\"']", "_", f"{robot.name} replay")
     target_three = json.dumps([target[0], target[2], -target[1]])  # three.js is y-up
     page = _HTML.replace("@TITLE@", title).replace("@COMMANDS@", commands)
-    page = page.replace("@TARGET@", target_three)
+    page = page.replace("@TARGET@", target_three).replace("@LEGEND@", legend)
     return page.replace("@MAIN_MIN_JS@", main_js)  # last: the script is not searched for markers
 
 

@@ -41,11 +41,14 @@ __all__ = [
     "show_at",
     "animation",
     "set_camera",
+    "side_by_side_spacing",
+    "PLANAR_SPACING",
 ]
 
 GHOST_OPACITY = 0.35  # [-] opacity of ghost copies
 TARGET_RADIUS = 0.02  # [m] radius of the target spheres
 SPACING_IN_REACHES = 2.2  # [-] default distance between side-by-side copies, in arm reaches
+PLANAR_SPACING = 1.3  # [-] distance between copies of a planar motion, in its in-plane extent
 _PALETTE = (0xE4572E, 0x17BEBB, 0x76B041, 0xFFC914, 0x8E44AD, 0x2E86AB)  # end-effector paths
 _TARGET_COLOR = 0xD62728
 _ELEVATION = np.deg2rad(25.0)  # [rad] of the camera above the scene's best-fit plane
@@ -169,6 +172,7 @@ def layout_runs(
     extra: Sequence[tuple[object, object, str]],
     spacing: object,
     root: str,
+    label: str | None = None,
 ) -> list[Run]:
     """Validate every trajectory and place the copies.
 
@@ -188,6 +192,8 @@ def layout_runs(
         along y. The copies are centred on the origin.
     root : str
         Scene path under which the copies are placed.
+    label : str, optional
+        Scene name of the main copy; default: the robot's name.
 
     Returns
     -------
@@ -212,7 +218,7 @@ def layout_runs(
         if step.shape != (3,) or not np.all(np.isfinite(step)):
             raise ParameterError("spacing must be a finite (3,) vector in [m]", name="spacing")
     offsets = [(k - len(extra) / 2.0) * step for k in range(1 + len(extra))]
-    names = [_node_name(robot.name)]
+    names = [_node_name(robot.name if label is None else str(label))]
     runs = [Run(node=f"{root}/{names[0]}", t=main[0], q=main[1], offset=offsets[0],
                 opacity=1.0, color=_PALETTE[0], with_targets=True)]  # fmt: skip
     for i, (tk, qk) in enumerate(ghost_tracks):
@@ -227,6 +233,49 @@ def layout_runs(
         runs.append(Run(node=f"{root}/{names[-1]}", t=tk, q=qk, offset=offsets[k],
                         opacity=1.0, color=color, with_targets=True))  # fmt: skip
     return runs
+
+
+def side_by_side_spacing(robot: RobotLike, tracks: Sequence[tuple[Array, Array]]) -> Array:
+    """Offset in [m] between side-by-side copies that keeps a planar motion face on.
+
+    A motion whose joint origins and tip stay in one vertical plane (the
+    youBot's x-z plane) is spaced along the plane's horizontal direction
+    (positive x first), so that the camera, which looks along the plane's
+    normal, sees every copy face on, by :data:`PLANAR_SPACING` times the
+    motion's extent along that direction. Any other motion is spaced along y
+    by :data:`SPACING_IN_REACHES` times the largest tip distance from the base
+    (the default of :func:`layout_runs`).
+
+    Parameters
+    ----------
+    robot : RobotLike
+        The robot.
+    tracks : sequence of (t, q)
+        The trajectories: times in [s], configurations in [rad].
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        The spacing, for the ``spacing`` argument of :func:`layout_runs`.
+    """
+    reach = max(float(np.max(np.linalg.norm(ee_points(robot, t, q, t), axis=1))) for t, q in tracks)
+    points = np.concatenate([scene_points(robot, [_track_run(t, q)], t)[1:] for t, q in tracks])
+    singular, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)[1:]
+    normal = axes[-1]
+    if singular[-1] <= 1e-6 * max(singular[0], 1e-12) and abs(normal[2]) < 0.5:
+        direction = np.cross(normal, [0.0, 0.0, 1.0])
+        direction /= np.linalg.norm(direction)
+        if direction[0] < -1e-9 or (abs(direction[0]) <= 1e-9 and direction[1] < 0):
+            direction = -direction
+        extent = float(np.ptp(points @ direction))  # [m]
+        return PLANAR_SPACING * max(extent, 0.25) * direction
+    return np.array([0.0, SPACING_IN_REACHES * max(reach, 0.25), 0.0])
+
+
+def _track_run(t: Array, q: Array) -> Run:
+    """Make a bare run at the origin, to measure a track."""
+    return Run(node="", t=np.asarray(t, dtype=float), q=np.asarray(q, dtype=float),
+               offset=np.zeros(3), opacity=1.0, color=0, with_targets=False)  # fmt: skip
 
 
 def frame_times(runs: Sequence[Run], fps: float) -> Array:

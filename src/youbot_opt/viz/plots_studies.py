@@ -20,6 +20,8 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from youbot_opt.exceptions import ParameterError
@@ -27,7 +29,6 @@ from youbot_opt.viz.plots_trajopt import QUANTITIES, bound_pairs, new_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
     from youbot_opt.bound_scaling import BoundScalingResult
     from youbot_opt.multistart import MultistartResult
@@ -35,7 +36,8 @@ if TYPE_CHECKING:
 
 __all__ = ["plot_pareto", "plot_bound_scaling", "plot_multistart"]
 
-_W_LABEL = r"work $W$ [N$^2$ m$^2$ s]"
+_W_UNIT = r"N$^2$ m$^2$ s"  # unit of the work W = int tau . tau dt
+_W_LABEL = f"work $W$ [{_W_UNIT}]"
 
 
 def _axis_fraction(values: np.ndarray, limits: tuple[float, float], log: bool) -> np.ndarray:
@@ -129,7 +131,15 @@ def plot_pareto(
     ax.set_xlabel("duration $T$ [s]")
     ax.set_ylabel(_W_LABEL)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="upper right", fontsize="small")
+    handles = [
+        Line2D([], [], color="0.6", linewidth=1.0, marker="o", markerfacecolor=cmap(0.5),
+               markeredgecolor="k", markeredgewidth=0.5, label="non-dominated"),
+    ]  # fmt: skip
+    if worse:
+        handles.append(
+            Line2D([], [], color="0.45", marker="x", linestyle="none", label="dominated")
+        )
+    ax.legend(handles=handles, loc="upper right", fontsize="small")
     failed = len(front.points) - len(ok)
     ax.set_title(
         title
@@ -230,7 +240,7 @@ def plot_bound_scaling(
     ]
     labels = [
         f"{row.bound_scale:.0%} bounds: f = {res.objective:.4f},\nT = {res.duration:.3f} s, "
-        f"W = {res.work:.4g}"
+        f"W = {res.work:.4g} {_W_UNIT}"
         for row, res in solved
     ]
     missing = [row.bound_scale for row in study.rows if all(row is not r for r, _ in solved)]
@@ -282,9 +292,15 @@ def plot_multistart(
     bins: int | Sequence[float] = 40,
     max_marked: int = 8,
     title: str | None = None,
-    figsize: tuple[float, float] = (9.0, 4.5),
+    figsize: tuple[float, float] = (11.0, 4.5),
 ) -> Figure:
-    """Histogram of the converged starts' final objectives, the distinct optima marked and counted.
+    """Histogram of the converged starts' final objectives, and the distinct optima counted.
+
+    Left: the histogram of the final objectives, each marked optimum a dashed
+    vertical line. Right: one bar per marked optimum (lowest objective first)
+    with its number of starts, labelled with its objective to 6 digits, ``T``
+    and ``W``: optima that differ in trajectory but hardly in objective (their
+    lines coincide on the left) stay apart there.
 
     Parameters
     ----------
@@ -301,15 +317,15 @@ def plot_multistart(
         Largest number of optima marked (those with the most starts); the
         title says how many more there are.
     title : str, optional
-        Axes title; default: starts, converged, failures by status, optima.
+        Figure title; default: starts, converged, failures by status, optima.
     figsize : tuple of float
         Figure size in [inch].
 
     Returns
     -------
     matplotlib.figure.Figure
-        The figure. Each marked optimum is a vertical line labelled
-        ``"optimum <i>: f = ..., <count> starts (<fraction>)"``.
+        The figure: ``axes[0]`` the histogram, whose vertical lines are
+        labelled ``"optimum <i>"``; ``axes[1]`` the bars (heights = counts).
 
     Raises
     ------
@@ -323,30 +339,46 @@ def plot_multistart(
         )
     objectives = np.array([s.objective for s in converged], dtype=float)
     optima = ms.distinct_optima(obj_tol, traj_tol)
-    fig, axes = new_figure(1, 1, figsize)
-    ax: Axes = axes[0, 0]
+    fig = Figure(figsize=figsize, layout="constrained")
+    ax, bars = fig.subplots(1, 2, width_ratios=(3, 2))
     edges = _bin_edges(objectives, bins)
     ax.hist(
         objectives, bins=edges.tolist(), color="0.75", edgecolor="0.35", label="converged starts"
     )
-    marked = sorted(optima, key=lambda o: -o.count)[: max(int(max_marked), 0)]
+    marked = sorted(
+        sorted(optima, key=lambda o: -o.count)[: max(int(max_marked), 0)],
+        key=lambda o: o.objective,
+    )
     cmap = colormaps["tab10"]
-    for i, opt in enumerate(sorted(marked, key=lambda o: o.objective)):
-        ax.axvline(
-            opt.objective, color=cmap(i % 10), linestyle="--", linewidth=1.5,
-            label=(
-                f"optimum {i + 1}: f = {opt.objective:.4f} (T = {opt.duration:.3f} s, "
-                f"W = {opt.work:.4g}), {opt.count} starts ({opt.fraction:.0%})"
-            ),
-        )  # fmt: skip
+    colours = [cmap(i % 10) for i in range(len(marked))]
+    for i, opt in enumerate(marked):
+        ax.axvline(opt.objective, color=colours[i], linestyle="--", linewidth=1.5,
+                   label=f"optimum {i + 1}")  # fmt: skip
     ax.set_xlabel(r"final objective $f = \beta T + (1-\beta) W$")
     ax.set_ylabel("number of starts")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(loc="upper right", fontsize="small")
+    positions = np.arange(len(marked))
+    bars.bar(positions, [o.count for o in marked], color=colours, edgecolor="0.35")
+    bars.set_xticks(
+        positions,
+        [
+            f"{i + 1}: f = {o.objective:.6g}\nT = {o.duration:.4g} s\nW = {o.work:.5g}"
+            for i, o in enumerate(marked)
+        ],
+        fontsize="small",
+    )
+    pad = max(0.75, (3 - len(marked)) / 2 + 0.5)  # a lone bar keeps a bar's width
+    bars.set_xlim(-pad, len(marked) - 1 + pad)
+    bars.set_xlabel(f"distinct optimum (W in {_W_UNIT})")
+    bars.set_ylabel("starts reaching it")
+    bars.yaxis.set_major_locator(MaxNLocator(integer=True))
+    bars.grid(True, axis="y", alpha=0.3)
     failures = Counter(s.status for s in ms.starts if not s.success)
     failed = ", ".join(f"{n} {status}" for status, n in sorted(failures.items()))
     more = f", {len(optima) - len(marked)} more not marked" if len(optima) > len(marked) else ""
-    ax.set_title(
+    fig.suptitle(
         title
         or (
             f"{ms.n_starts} starts at $\\beta$ = {ms.beta:g}: {len(converged)} converged"
@@ -355,5 +387,4 @@ def plot_multistart(
         ),
         fontsize="medium",
     )
-    fig.legend(loc="outside lower center", fontsize="small", ncols=1)
     return fig

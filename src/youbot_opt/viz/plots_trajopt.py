@@ -12,7 +12,9 @@ a stroboscopic picture of the study's 2-D animation).
 
 Lines carry labels so that tests and users can find them: a joint curve is
 labelled with the joint name, a dashed bound ``"_bound <quantity> <joint>
-<lower|upper>"`` (the leading underscore keeps it out of legends).
+<lower|upper>"`` (the leading underscore keeps it out of legends), or
+``"_bound <quantity> all <lower|upper>"`` for a bound every joint shares
+(drawn once, in grey, instead of one line per joint on top of each other).
 """
 
 from __future__ import annotations
@@ -114,6 +116,22 @@ def _joint_names(names: Sequence[str] | None, nv: int, result: TrajOptResult | N
     return names
 
 
+def _draw_bounds(ax: Axes, key: str, bounds: tuple[Array, Array], names: Sequence[str]) -> None:
+    """Dashed bound lines of one quantity: once in grey if all joints share it, else per joint."""
+    for side, levels in zip(("lower", "upper"), bounds, strict=True):
+        levels = np.asarray(levels, dtype=float).ravel()
+        shared = levels.size > 1 and bool(np.all(np.isfinite(levels)))
+        if shared and np.ptp(levels) <= 1e-12 * max(1.0, float(np.max(np.abs(levels)))):
+            ax.axhline(float(levels[0]), color="0.3", linestyle="--", linewidth=1.0, alpha=0.8,
+                       zorder=1, label=f"_bound {key} all {side}")  # fmt: skip
+            continue
+        for j, level in enumerate(levels):
+            if np.isfinite(level):
+                label = f"_bound {key} {names[j]} {side}"
+                ax.axhline(float(level), color=joint_colour(j), linestyle="--", linewidth=1.0,
+                           alpha=0.8, zorder=1, label=label)  # fmt: skip
+
+
 def result_title(result: TrajOptResult) -> str:
     """One-line description of a solve: robot, beta, bound scale, T, W, f and status."""
     return (
@@ -152,7 +170,8 @@ def plot_trajectory(
         Legend entries; default: the robot's joint names (``"joint 1"``, ...
         for a bare trajectory).
     title : str, optional
-        Figure title; default: robot, beta, bound scale, T, W, f and status.
+        Title over the top axes; default: robot, beta, bound scale, T, W, f
+        and status.
     figsize : tuple of float
         Figure size in [inch].
 
@@ -170,6 +189,7 @@ def plot_trajectory(
     traj, result = _resolve_trajectory(result_or_trajectory)
     nv = traj.v.shape[1]
     names = _joint_names(joint_names, nv, result)
+    own_bounds = bounds is None and result is not None  # the result's scaled bounds
     if bounds is None and result is not None:
         bounds = result.bounds()
     limits = bound_pairs(bounds) if (bounds is not None and show_bounds) else {}
@@ -183,29 +203,24 @@ def plot_trajectory(
     for ax, (key, quantity, label) in zip(axes[:, 0], QUANTITIES, strict=True):
         values = getattr(traj, key)
         for j in range(nv):
-            colour = joint_colour(j)
-            ax.plot(traj.t, values[:, j], color=colour, marker=".", markersize=3, label=names[j])
-            if key in limits:
-                lo, hi = limits[key]
-                for side, level in (("lower", lo[j]), ("upper", hi[j])):
-                    ax.axhline(
-                        float(level), color=colour, linestyle="--", linewidth=1.0, alpha=0.8,
-                        zorder=1, label=f"_bound {key} {names[j]} {side}",
-                    )  # fmt: skip
+            ax.plot(traj.t, values[:, j], color=joint_colour(j), marker=".", markersize=3,
+                    label=names[j])  # fmt: skip
+        if key in limits:
+            _draw_bounds(ax, key, limits[key], names)
         ax.set_ylabel(f"joint {quantity} {label}")
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("time t [s]")
     axes[-1, 0].set_xlim(float(traj.t[0]), float(traj.t[-1]))
     handles, labels = axes[0, 0].get_legend_handles_labels()
     if limits:
-        scale = f" ({result.bound_scale:.0%})" if result is not None and bounds is None else ""
+        scale = f" ({result.bound_scale:.0%})" if result is not None and own_bounds else ""
         handles.append(Line2D([], [], color="0.3", linestyle="--", linewidth=1.0))
         labels.append(f"bounds{scale}")
     fig.legend(handles, labels, loc="outside right upper")
     if title is None and result is not None:
         title = result_title(result)
-    if title:
-        fig.suptitle(title, fontsize="medium")
+    if title:  # over the top axes, clear of the legend at the right
+        axes[0, 0].set_title(title, fontsize="medium")
     return fig
 
 
@@ -246,6 +261,7 @@ def plot_convergence(
     results: Any,
     *,
     log: bool = True,
+    max_legend: int = 12,
     title: str | None = None,
     figsize: tuple[float, float] = (9.0, 4.5),
 ) -> Figure:
@@ -254,7 +270,9 @@ def plot_convergence(
     One line per start: IPOPT's objective at iterations ``0 .. iterations``
     (``TrajOptResult.objective_history``; iteration 0 is the initial guess).
     Converged starts are solid and end in a dot, failed ones dotted and end in
-    a cross.
+    a cross. Up to ``max_legend`` runs are named in the legend with their
+    final objective; beyond that, a colour bar gives the run number and the
+    legend only the line styles.
 
     Parameters
     ----------
@@ -262,6 +280,8 @@ def plot_convergence(
         The runs (starts that raised, having no history, are skipped).
     log : bool
         Logarithmic objective axis (symmetric-log if an objective is <= 0).
+    max_legend : int
+        Largest number of runs listed one by one in the legend.
     title : str, optional
         Axes title; default: the number of runs and how many converged.
     figsize : tuple of float
@@ -298,7 +318,19 @@ def plot_convergence(
     ax.grid(True, which="both", alpha=0.3)
     n_ok = sum(ok for _, _, ok in items)
     ax.set_title(title or f"Convergence of {len(items)} runs ({n_ok} converged)")
-    fig.legend(loc="outside right upper", fontsize="small", ncols=1 + len(items) // 16)
+    if len(items) <= max_legend:
+        fig.legend(loc="outside right upper", fontsize="small")
+        return fig
+    done = Line2D([], [], color="0.3", marker="o", label=f"converged ({n_ok})")
+    styles = [done] if n_ok else []
+    if n_ok < len(items):
+        failed = f"failed ({len(items) - n_ok})"
+        styles.append(Line2D([], [], color="0.3", linestyle=":", marker="x", label=failed))
+    ax.legend(handles=styles, loc="upper right", fontsize="small")
+    norm = Normalize(0, max(len(items) - 1, 1))
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="run number")
+    bar.locator = MaxNLocator(integer=True)
+    bar.update_ticks()
     return fig
 
 

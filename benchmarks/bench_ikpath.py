@@ -1,0 +1,257 @@
+"""Benchmark the IK-path solvers of study 2: both methods, four problems, multistart.
+
+Run ``python benchmarks/bench_ikpath.py [--quick] [--repeats N] [--starts N] [--json]``.
+Everything is measured in one run, so the ratios compare like with like.
+
+Problems:
+
+* **A**, **B**: the study's examples (3 links, 5 targets; B with
+  ``|theta_i| <= pi/2``), :func:`youbot_opt.ikpath.example_problem`.
+* **7-link**: lengths ``(1, .9, .8, .7, .6, .5, .4)`` through 12 targets, the
+  tips of 12 configurations drawn uniformly in ``[-pi, pi]^7`` with
+  ``numpy.random.default_rng(2026)`` (reachable by construction), no limits.
+* **7-link lim**: the same arm with ``|theta_i| <= pi/2`` and targets drawn
+  the same way inside the limits.
+
+Measurements:
+
+* **Single solve** from the study's start (the zero vector, clipped into the
+  limits), repeated ``--repeats`` times: median wall and CPU time
+  (``time.process_time``) of the solver alone, iterations (AL: outer and
+  inner BFGS; IPOPT: its iterations), status, ``E`` and the largest residual.
+  IPOPT is timed on a prebuilt :class:`~youbot_opt.ikpath.IpoptIKSolver` (as
+  multistart uses it); its NLP build time is listed apart, and so is the
+  exact reachability check that :func:`~youbot_opt.ikpath.solve` runs first.
+  The two methods may stop in different local minima from this start (the
+  ``E`` column says so); the ratio is the time ratio all the same.
+* **Multistart** (:func:`~youbot_opt.ikpath.run_multistart`, seed 0,
+  ``--starts`` feasible starts) with 1 worker (in process) and 2 worker
+  processes (pool start-up included): wall time, starts per second, the
+  median per-start solve time, how many starts succeeded and how many found
+  the best ``E``.
+
+The machine's load average is printed: on a shared machine wall times are
+inflated by other processes, CPU times much less so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from youbot_opt.ikpath import (
+    CyclicIKProblem,
+    IpoptIKSolver,
+    PlanarChain,
+    check_reachability,
+    example_problem,
+    run_multistart,
+    solve_augmented_lagrangian,
+)
+
+SEVEN_LINKS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)  # [m]
+SEVEN_TARGETS = 12
+SEVEN_SEED = 2026
+E_TOL = 1e-6  # relative: starts whose E is within this of the best "found the best"
+
+
+def seven_link_problem(limited: bool) -> CyclicIKProblem:
+    """The 7-link chain through 12 reachable targets (tips of seeded configurations)."""
+    limit = math.pi / 2.0 if limited else math.pi  # [rad]
+    chain = PlanarChain(
+        lengths=SEVEN_LINKS,
+        q_lower=-limit if limited else None,
+        q_upper=limit if limited else None,
+        name="seven_link" + ("_limited" if limited else ""),
+    )
+    rng = np.random.default_rng(SEVEN_SEED)
+    q = rng.uniform(-limit, limit, (SEVEN_TARGETS, chain.n))
+    return CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+
+
+def problems() -> dict[str, CyclicIKProblem]:
+    """The benchmark problems by name."""
+    return {
+        "A": example_problem("A"),
+        "B": example_problem("B"),
+        "7-link": seven_link_problem(limited=False),
+        "7-link lim": seven_link_problem(limited=True),
+    }
+
+
+def _timed(fn: Callable[[], Any]) -> tuple[Any, float, float]:
+    """``fn()``, its wall time and its CPU time in [s]."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    value = fn()
+    return value, time.perf_counter() - wall, time.process_time() - cpu
+
+
+def _repeat(fn: Callable[[], Any], repeats: int) -> tuple[Any, float, float]:
+    """Last value of ``fn()`` and the median wall and CPU time in [s] of ``repeats`` calls."""
+    walls, cpus, value = [], [], None
+    for _ in range(repeats):
+        value, wall, cpu = _timed(fn)
+        walls.append(wall)
+        cpus.append(cpu)
+    return value, statistics.median(walls), statistics.median(cpus)
+
+
+def _row(result: Any, wall: float, cpu: float) -> dict[str, Any]:
+    return {
+        "status": result.status.value,
+        "E": result.objective,
+        "max_residual": result.max_residual(),
+        "limit_violation": result.limit_violation,
+        "iterations": result.iterations,
+        "inner_iterations": result.inner_iterations,
+        "wall": wall,
+        "cpu": cpu,
+    }
+
+
+def bench_single(problem: CyclicIKProblem, repeats: int) -> dict[str, Any]:
+    """Both methods from the study's start: medians over ``repeats`` solves."""
+    _, reach_wall, _ = _repeat(lambda: check_reachability(problem), repeats)
+    al, al_wall, al_cpu = _repeat(lambda: solve_augmented_lagrangian(problem), repeats)
+    solver, build_wall, build_cpu = _repeat(lambda: IpoptIKSolver(problem), min(repeats, 3))
+    ip, ip_wall, ip_cpu = _repeat(lambda: solver.solve(problem), repeats)
+    return {
+        "reachability_wall": reach_wall,
+        "ipopt_build_wall": build_wall,
+        "ipopt_build_cpu": build_cpu,
+        "al": _row(al, al_wall, al_cpu),
+        "ipopt": _row(ip, ip_wall, ip_cpu),
+        "wall_ratio_al_over_ipopt": al_wall / ip_wall,
+        "cpu_ratio_al_over_ipopt": al_cpu / max(ip_cpu, 1e-9),
+    }
+
+
+def bench_multistart(problem: CyclicIKProblem, method: str, n_starts: int) -> dict[str, Any]:
+    """Multistart with 1 and 2 workers: throughput and how often the best E is found."""
+    out: dict[str, Any] = {}
+    for workers in (1, 2):
+        ms, wall, cpu = _timed(
+            lambda w=workers: run_multistart(
+                problem, method=method, n_starts=n_starts, seed=0, max_workers=w
+            )
+        )
+        ok = [r for r in ms.results if r.success]
+        best = min((r.objective for r in ok), default=math.inf)
+        found = sum(1 for r in ok if r.objective <= best + E_TOL * max(1.0, abs(best)))
+        out[str(workers)] = {
+            "wall": wall,
+            "parent_cpu": cpu,
+            "starts_per_second": n_starts / wall,
+            "median_start_wall": statistics.median(r.wall_time for r in ms.results),
+            "n_success": len(ok),
+            "best_E": best,
+            "found_best": found,
+            "distinct_minima": len(ms.minima),
+        }
+    out["speedup_2_over_1"] = out["1"]["wall"] / out["2"]["wall"]
+    return out
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:9.1f}"
+
+
+def print_report(report: dict[str, Any]) -> None:
+    """Print the tables of :func:`main`'s report."""
+    load = report["load_average"]
+    print(
+        f"bench_ikpath: {report['cpu_count']} CPUs, load average "
+        f"{load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; repeats {report['repeats']}, "
+        f"multistart starts {report['starts']}"
+    )
+    print("\nSingle solve from the zero start (medians; IPOPT solve on a prebuilt NLP)")
+    head = (
+        f"{'problem':<11}{'method':<7}{'status':<15}{'E [rad^2]':>14}{'max res [m]':>12}"
+        f"{'iters':>7}{'inner':>7}{'wall [ms]':>10}{'CPU [ms]':>10}"
+    )
+    print(head)
+    print("-" * len(head))
+    for name, case in report["single"].items():
+        for method in ("al", "ipopt"):
+            r = case[method]
+            print(
+                f"{name:<11}{method:<7}{r['status']:<15}{r['E']:>14.8f}{r['max_residual']:>12.1e}"
+                f"{r['iterations']:>7d}{r['inner_iterations']:>7d}{_ms(r['wall'])} "
+                f"{_ms(r['cpu'])}"
+            )
+        print(
+            f"{'':<11}AL/IPOPT time ratio: wall {case['wall_ratio_al_over_ipopt']:.1f}x, "
+            f"CPU {case['cpu_ratio_al_over_ipopt']:.1f}x; IPOPT build "
+            f"{case['ipopt_build_wall'] * 1e3:.1f} ms; reachability check "
+            f"{case['reachability_wall'] * 1e3:.1f} ms"
+        )
+    print(f"\nMultistart, {report['starts']} seeded feasible starts (seed 0)")
+    head = (
+        f"{'problem':<11}{'method':<7}{'workers':>8}{'wall [s]':>10}{'starts/s':>10}"
+        f"{'per start [ms]':>15}{'success':>9}{'best E':>14}{'found best':>11}{'minima':>7}"
+    )
+    print(head)
+    print("-" * len(head))
+    for name, methods in report["multistart"].items():
+        for method, runs in methods.items():
+            for workers in ("1", "2"):
+                r = runs[workers]
+                print(
+                    f"{name:<11}{method:<7}{workers:>8}{r['wall']:>10.2f}"
+                    f"{r['starts_per_second']:>10.1f}{r['median_start_wall'] * 1e3:>15.1f}"
+                    f"{r['n_success']:>9d}{r['best_E']:>14.8f}{r['found_best']:>11d}"
+                    f"{r['distinct_minima']:>7d}"
+                )
+            print(f"{'':<18}2 workers / 1 worker speed-up: {runs['speedup_2_over_1']:.2f}x")
+        al, ip = methods["al"], methods["ipopt"]
+        print(
+            f"{'':<18}throughput IPOPT/AL: 1 worker "
+            f"{ip['1']['starts_per_second'] / al['1']['starts_per_second']:.1f}x, 2 workers "
+            f"{ip['2']['starts_per_second'] / al['2']['starts_per_second']:.1f}x"
+        )
+    print(f"\ntotal benchmark time {report['elapsed']:.1f} s")
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    """Run the benchmark and print (or dump as JSON) its report."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="3 repeats, 8 starts")
+    parser.add_argument("--repeats", type=int, default=None, help="single-solve repeats (5)")
+    parser.add_argument("--starts", type=int, default=None, help="multistart starts (24)")
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    args = parser.parse_args(argv)
+    repeats = args.repeats or (3 if args.quick else 5)
+    n_starts = args.starts or (8 if args.quick else 24)
+    if repeats < 1 or n_starts < 2:
+        parser.error("--repeats must be >= 1 and --starts >= 2")
+    t0 = time.perf_counter()
+    cases = problems()
+    report: dict[str, Any] = {
+        "cpu_count": os.cpu_count(),
+        "load_average": list(os.getloadavg()),
+        "repeats": repeats,
+        "starts": n_starts,
+        "single": {name: bench_single(p, repeats) for name, p in cases.items()},
+        "multistart": {
+            name: {m: bench_multistart(p, m, n_starts) for m in ("al", "ipopt")}
+            for name, p in cases.items()
+        },
+    }
+    report["elapsed"] = time.perf_counter() - t0
+    if args.json:
+        print(json.dumps(report, indent=1))
+    else:
+        print_report(report)
+    return report
+
+
+if __name__ == "__main__":
+    main()

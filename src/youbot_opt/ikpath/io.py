@@ -1,0 +1,256 @@
+"""Save and load IK-path results: one JSON file with a schema name, version and checksum.
+
+File layout (schema ``youbot_opt.ikpath_result``, version :data:`SCHEMA_VERSION`)::
+
+    {"schema": "youbot_opt.ikpath_result", "schema_version": 1,
+     "versions": {"youbot_opt": ..., "pinocchio": ..., "numpy": ...},
+     "sha256": <hex digest of the canonical JSON of "result">,
+     "result": {"chain": {...}, "targets": [[x, y], ...], "use_limits": ...,
+                "method": ..., "status": ..., "configurations": [[...], ...],
+                "objective": ..., "residuals": [...], "limit_violation": ...,
+                "multipliers": [[...], ...], "iterations": ..., "inner_iterations": ...,
+                "wall_time": ..., "message": ..., "start": [[...], ...],
+                "constraint_tol": ...,
+                "history": [{"iteration": ..., "x": [[...]], "objective": ..., ...}, ...]}}
+
+Infinite joint limits are written as ``null``; every other number is finite or
+``null`` (NaN). Loading rebuilds the chain and the problem, recomputes E, the
+residuals (Pinocchio) and the limit violation from the configurations and
+refuses a file whose stored values disagree (or whose checksum does not
+match), whose schema is another one, or whose version is newer than this
+code reads. Writes are atomic. A file without ``constraint_tol`` (written
+before that field existed) is read with the default tolerance of its method.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt.exceptions import ResultFileError, YoubotOptError
+from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
+from youbot_opt.sweep_store import atomic_write_bytes
+
+__all__ = ["SCHEMA", "SCHEMA_VERSION", "save_ikpath_result", "load_ikpath_result"]
+
+SCHEMA = "youbot_opt.ikpath_result"
+SCHEMA_VERSION = 1
+_RECHECK_TOL = 1e-9  # [rad^2, m] largest accepted |stored - recomputed| of E and residuals
+
+
+def _num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _limits(values: np.ndarray) -> list[float | None]:
+    return [_num(v) for v in values]
+
+
+def _body(result: IKPathResult) -> dict[str, Any]:
+    chain = result.problem.chain
+    return {
+        "chain": {
+            "lengths": chain.lengths.tolist(),
+            "q_lower": _limits(chain.q_lower),
+            "q_upper": _limits(chain.q_upper),
+            "base": chain.base.tolist(),
+            "angle_offset": chain.angle_offset.tolist(),
+            "name": chain.name,
+            "tip_frame": chain.tip_frame,
+        },
+        "targets": result.problem.targets.tolist(),
+        "use_limits": result.problem.use_limits,
+        "method": result.method,
+        "status": result.status.value,
+        "configurations": result.configurations.tolist(),
+        "objective": result.objective,
+        "residuals": result.residuals.tolist(),
+        "limit_violation": result.limit_violation,
+        "multipliers": result.multipliers.tolist(),
+        "iterations": result.iterations,
+        "inner_iterations": result.inner_iterations,
+        "wall_time": result.wall_time,
+        "message": result.message,
+        "start": result.start.tolist(),
+        "constraint_tol": result.constraint_tol,
+        "history": [
+            {
+                "iteration": h.iteration,
+                "x": np.asarray(h.x).tolist(),
+                "objective": _num(h.objective),
+                "violation": _num(h.violation),
+                "stationarity": _num(h.stationarity),
+                "penalty": _num(h.penalty),
+                "inner_iterations": h.inner_iterations,
+            }
+            for h in result.history
+        ],
+    }
+
+
+def _digest(body: dict[str, Any]) -> str:
+    canonical = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def save_ikpath_result(result: IKPathResult, path: str | os.PathLike[str]) -> Path:
+    """Write ``result`` to ``path`` as JSON (``.json`` appended if missing), atomically.
+
+    Parameters
+    ----------
+    result : IKPathResult
+        The result (failed ones too).
+    path : str or path-like
+        Target file; its folder must exist.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    from youbot_opt import __version__
+
+    target = Path(path)
+    if target.suffix != ".json":
+        target = target.with_name(target.name + ".json")
+    body = _body(result)
+    doc = {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "versions": {
+            "youbot_opt": __version__,
+            "pinocchio": str(pin.__version__),
+            "numpy": str(np.__version__),
+        },
+        "sha256": _digest(body),
+        "result": body,
+    }
+    atomic_write_bytes(target, (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode())
+    return target
+
+
+def _array(values: Any, default: float = math.nan) -> np.ndarray:
+    return np.array([default if v is None else v for v in values], dtype=float)
+
+
+def _parse(body: dict[str, Any]) -> IKPathResult:
+    spec = body["chain"]
+    chain = PlanarChain(
+        lengths=spec["lengths"],
+        q_lower=_array(spec["q_lower"], -math.inf),
+        q_upper=_array(spec["q_upper"], math.inf),
+        base=spec["base"],
+        angle_offset=spec["angle_offset"],
+        name=str(spec["name"]),
+        tip_frame=str(spec["tip_frame"]),
+    )
+    problem = CyclicIKProblem(
+        chain=chain, targets=body["targets"], use_limits=bool(body["use_limits"])
+    )
+    s, n = problem.n_targets, problem.n_joints
+
+    def num(value: Any) -> float:
+        return math.nan if value is None else float(value)
+
+    history = tuple(
+        OuterIterate(
+            int(h["iteration"]),
+            np.array(h["x"], dtype=float).reshape(s, n),
+            num(h["objective"]),
+            num(h["violation"]),
+            num(h["stationarity"]),
+            num(h["penalty"]),
+            int(h["inner_iterations"]),
+        )
+        for h in body["history"]
+    )
+    return build_result(
+        problem,
+        method=str(body["method"]),
+        status=IKStatus(body["status"]),
+        x=np.array(body["configurations"], dtype=float),
+        multipliers=np.array(body["multipliers"], dtype=float),
+        iterations=int(body["iterations"]),
+        inner_iterations=int(body["inner_iterations"]),
+        wall_time=float(body["wall_time"]),
+        message=str(body["message"]),
+        start=np.array(body["start"], dtype=float),
+        constraint_tol=float(body.get("constraint_tol", _default_tol(str(body["method"])))),
+        history=history,
+    )
+
+
+def _default_tol(method: str) -> float:
+    """Default ``|c_i|`` tolerance in [m] of ``method`` (files without ``constraint_tol``)."""
+    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.ipopt import IpoptOptions
+
+    if method == "ipopt":
+        return IpoptOptions().constr_viol_tol
+    return ALOptions().constraint_tol
+
+
+def load_ikpath_result(path: str | os.PathLike[str]) -> IKPathResult:
+    """Read a result written by :func:`save_ikpath_result`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file.
+
+    Returns
+    -------
+    IKPathResult
+        The result; E, residuals and limit violation recomputed (Pinocchio).
+
+    Raises
+    ------
+    ResultFileError
+        If the file is missing or not JSON, of another schema, of a newer (or
+        invalid) schema version, fails its checksum, is incomplete, or its
+        stored E / residuals disagree with the recomputed ones by more than 1e-9.
+    """
+    source = Path(path)
+    try:
+        doc = json.loads(source.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ResultFileError(f"{source}: cannot read an IK-path result: {exc}") from exc
+    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+        found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
+        raise ResultFileError(f"{source}: unknown schema {found!r}, expected {SCHEMA!r}")
+    version = doc.get("schema_version")
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version:
+        raise ResultFileError(f"{source}: invalid schema version {version!r}")
+    if version > SCHEMA_VERSION:
+        written_by = doc.get("versions", {}).get("youbot_opt", "?")
+        raise ResultFileError(
+            f"{source}: schema version {version} is newer than this youbot_opt reads "
+            f"(1..{SCHEMA_VERSION}); the file was written by youbot_opt {written_by}: upgrade"
+        )
+    body = doc.get("result")
+    if not isinstance(body, dict) or doc.get("sha256") != _digest(body):
+        raise ResultFileError(f"{source}: checksum mismatch; the file is corrupt")
+    try:
+        result = _parse(body)
+        stored_e = float(body["objective"])
+        stored_res = np.array(body["residuals"], dtype=float)
+    except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
+        raise ResultFileError(f"{source}: incomplete or invalid IK-path result: {exc}") from exc
+    if stored_res.shape != result.residuals.shape or not (
+        abs(stored_e - result.objective) <= _RECHECK_TOL
+        and np.all(np.abs(stored_res - result.residuals) <= _RECHECK_TOL)
+    ):
+        raise ResultFileError(
+            f"{source}: stored E = {stored_e!r} or residuals disagree with the ones recomputed "
+            f"from the configurations (E = {result.objective!r}); the file is corrupt"
+        )
+    return result

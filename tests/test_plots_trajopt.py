@@ -1,0 +1,161 @@
+"""Figures of one trajectory solve (youbot_opt.viz.plots_trajopt), drawn headless from real solves.
+
+Each test reads the artists back from the figure and compares them with the
+result they were drawn from and with independent references (the data-sheet
+limits times the bound scale, the planar tip formula of the study).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+from youbot_opt.analytic import tip_pose_analytic
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.multistart import run_multistart
+from youbot_opt.options import IpoptOptions
+from youbot_opt.params import YOUBOT_PLANAR
+from youbot_opt.problem import study1_problem
+from youbot_opt.solve import TrajOptSolver
+from youbot_opt.trajectory import Trajectory
+from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_trajectory
+
+N_KNOTS = 20  # small problem: the figures, not the study's numbers, are under test
+SCALE = 0.9  # bound scale of the solve drawn (the bounds drawn must follow it)
+
+
+@pytest.fixture(scope="module")
+def solver() -> TrajOptSolver:
+    """One 20-knot study-1 solver for the module."""
+    return TrajOptSolver(study1_problem(N_KNOTS))
+
+
+@pytest.fixture(scope="module")
+def result(solver):
+    """A converged solve at beta = 0.5 with every bound scaled by 0.9."""
+    res = solver.solve(beta=0.5, bound_scale=SCALE)
+    assert res.success
+    return res
+
+
+def _render(fig) -> None:
+    """Draw the figure on an Agg canvas, as saving it would (layout and text included)."""
+    FigureCanvasAgg(fig).draw()
+
+
+def _lines(ax, prefix: str = "") -> dict[str, object]:
+    """Lines of ``ax`` by label, those whose label starts with ``prefix``."""
+    return {ln.get_label(): ln for ln in ax.get_lines() if ln.get_label().startswith(prefix)}
+
+
+def test_plot_trajectory_draws_every_joint_and_the_scaled_bounds(result):
+    """q, v, tau curves are the knots; dashed bounds sit at 0.9 x the data sheet."""
+    fig = plot_trajectory(result)
+    _render(fig)
+    traj, robot = result.trajectory, result.problem.robot
+    names = list(robot.joint_names)
+    assert len(fig.axes) == 3
+    limits = {  # data-sheet limits x scale: the reference, read from the robot model
+        "q": (SCALE * robot.q_lower, SCALE * robot.q_upper),
+        "v": (-SCALE * robot.velocity_limit, SCALE * robot.velocity_limit),
+        "tau": (-SCALE * robot.effort_limit, SCALE * robot.effort_limit),
+    }
+    units = ("[rad]", "[rad/s]", "[N m]")
+    for ax, key, unit in zip(fig.axes, ("q", "v", "tau"), units, strict=True):
+        assert unit in ax.get_ylabel()
+        curves = _lines(ax, "arm_joint")
+        assert sorted(curves) == names
+        for j, name in enumerate(names):
+            np.testing.assert_array_equal(curves[name].get_xdata(), traj.t)
+            np.testing.assert_array_equal(curves[name].get_ydata(), getattr(traj, key)[:, j])
+        bounds = _lines(ax, "_bound")
+        lo, hi = limits[key]
+        if np.ptp(hi) == 0.0:  # the youBot's speed limits are equal: one grey pair of lines
+            assert sorted(bounds) == [f"_bound {key} all lower", f"_bound {key} all upper"]
+            assert bounds[f"_bound {key} all lower"].get_ydata()[0] == pytest.approx(lo[0])
+            assert bounds[f"_bound {key} all upper"].get_ydata()[0] == pytest.approx(hi[0])
+        else:  # one pair per joint, in the joint's colour
+            assert len(bounds) == 2 * len(names)
+            for j, name in enumerate(names):
+                low, up = bounds[f"_bound {key} {name} lower"], bounds[f"_bound {key} {name} upper"]
+                assert low.get_ydata()[0] == pytest.approx(lo[j], rel=1e-12)
+                assert up.get_ydata()[0] == pytest.approx(hi[j], rel=1e-12)
+                assert low.get_linestyle() == "--" and low.get_color() == curves[name].get_color()
+    assert "[s]" in fig.axes[-1].get_xlabel()
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert legend == [*names, "bounds (90%)"]
+    assert f"T = {result.duration:.3f} s" in fig.axes[0].get_title()
+
+
+def test_plot_trajectory_of_a_bare_trajectory_and_bad_input(result):
+    """A bare trajectory has no bounds and generic joint names; mismatched names raise."""
+    traj = result.trajectory
+    fig = plot_trajectory(traj)
+    assert not _lines(fig.axes[0], "_bound")
+    assert sorted(_lines(fig.axes[0], "joint")) == ["joint 1", "joint 2", "joint 3"]
+    fig = plot_trajectory(result, show_bounds=False)
+    assert not any(_lines(ax, "_bound") for ax in fig.axes)
+    with pytest.raises(ParameterError, match="joint_names must have 3 entries"):
+        plot_trajectory(result, joint_names=["a", "b"])
+    with pytest.raises(ParameterError, match="expected a TrajOptResult or a Trajectory"):
+        plot_trajectory(np.zeros((3, 3)))  # type: ignore[arg-type]
+
+
+def test_plot_convergence_follows_each_runs_objective_history(solver, result):
+    """One line per run through its IPOPT objectives; a failed run is dotted and ends in x."""
+    failed = TrajOptSolver(study1_problem(N_KNOTS), options=IpoptOptions(max_iter=3)).solve()
+    assert not failed.success
+    fig = plot_convergence([result, failed])
+    _render(fig)
+    (ax,) = fig.axes
+    ok_line, bad_line = ax.get_lines()
+    np.testing.assert_array_equal(ok_line.get_ydata(), result.objective_history)
+    np.testing.assert_array_equal(ok_line.get_xdata(), np.arange(result.iterations + 1))
+    np.testing.assert_array_equal(bad_line.get_ydata(), failed.objective_history)
+    assert (ok_line.get_linestyle(), ok_line.get_marker()) == ("-", "o")
+    assert (bad_line.get_linestyle(), bad_line.get_marker()) == (":", "x")
+    assert ax.get_yscale() == "log"
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert texts[0].endswith(f"f = {result.objective:.4f}")
+    assert failed.status.value in texts[1]
+    assert ax.get_title() == "Convergence of 2 runs (1 converged)"
+
+
+def test_plot_convergence_of_a_multistart_uses_a_colour_bar_beyond_max_legend(solver):
+    """More runs than max_legend: a colour bar numbers them and the legend counts the styles."""
+    ms = run_multistart(solver, 3, beta=0.5, seed=0, executor="serial", include_straight=True)
+    fig = plot_convergence(ms, max_legend=2)
+    _render(fig)
+    ax, bar = fig.axes
+    assert len(ax.get_lines()) == ms.n_starts
+    for line, start in zip(ax.get_lines(), ms.starts, strict=True):
+        np.testing.assert_array_equal(line.get_ydata(), start.result.objective_history)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [f"converged ({ms.n_starts})"]
+    assert bar.get_ylabel() == "run number"
+    with pytest.raises(ParameterError, match="no result with an objective history"):
+        plot_convergence([])
+
+
+def test_plot_arm_2d_draws_the_study_tip_positions(result):
+    """Pose lines end at the tip of the study's planar formula; the tip path is dashed."""
+    fig = plot_arm_2d(None, result, n_frames=4)
+    _render(fig)
+    ax = fig.axes[0]
+    poses = [line for line in ax.get_lines() if str(line.get_gid()).startswith("pose")]
+    assert len(poses) == 4
+    traj = result.trajectory
+    times = np.linspace(traj.t[0], traj.t[-1], 4)
+    for line, time in zip(poses, times, strict=True):
+        tip = tip_pose_analytic(YOUBOT_PLANAR, traj(time)).position  # platform (x, z) [m]
+        # Pinocchio FK against the study's trigonometry: equal to rounding (1e-12 m).
+        np.testing.assert_allclose([line.get_xdata()[-1], line.get_ydata()[-1]], tip, atol=1e-12)
+    (path,) = [line for line in ax.get_lines() if line.get_label() == "tip path"]
+    assert path.get_linestyle() == "--"
+    start = tip_pose_analytic(YOUBOT_PLANAR, traj.q[0]).position
+    np.testing.assert_allclose([path.get_xdata()[0], path.get_ydata()[0]], start, atol=1e-12)
+    assert ax.get_xlabel() == "platform x [m]" and ax.get_ylabel() == "platform z [m]"
+    with pytest.raises(ParameterError, match="plane must be two distinct axes"):
+        plot_arm_2d(None, result, plane="xx")
+    with pytest.raises(ParameterError, match="robot is required"):
+        plot_arm_2d(None, Trajectory(t=traj.t, q=traj.q, v=traj.v, a=traj.a, tau=traj.tau))
