@@ -40,3 +40,46 @@ def test_lazy_public_names_resolve_and_are_exported() -> None:
         assert name in youbot_opt.__all__
         assert getattr(youbot_opt, name) is getattr(importlib.import_module(module), name)
     assert set(youbot_opt.__all__) <= set(dir(youbot_opt))
+
+
+def _readme() -> str:
+    from pathlib import Path
+
+    return (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
+
+
+def test_ci_runs_exactly_the_readme_test_command() -> None:
+    """.ci/run's command line is the README's test command, character for character."""
+    import re
+    from pathlib import Path
+
+    quick_start = re.search(r"## Quick start.*?```bash\n(.*?)```", _readme(), re.DOTALL)
+    assert quick_start is not None, "README has no Quick start bash block"
+    lines = [ln for ln in quick_start.group(1).splitlines() if ln.strip()]
+    assert len(lines) == 2, "the Quick start is exactly two commands"
+    test_command = lines[1].split("#")[0].strip()
+    ci = (Path(__file__).resolve().parent.parent / ".ci" / "run").read_text(encoding="utf-8")
+    ci_commands = [
+        ln.strip() for ln in ci.splitlines() if ln.strip() and not ln.lstrip().startswith("#")
+    ]
+    assert ci_commands[-1] == test_command
+
+
+def test_readme_python_example_runs(tmp_path, monkeypatch) -> None:
+    """The README's Python API example runs and prints what its comments claim."""
+    import contextlib
+    import io
+    import re
+
+    block = re.search(r"## Python API.*?```python\n(.*?)```", _readme(), re.DOTALL)
+    assert block is not None
+    monkeypatch.chdir(tmp_path)
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(block.group(1), "README.md", "exec"), {})
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("SolveStatus.SOLVED 8.0997")  # HS, 50 knots, beta = 0.5
+    assert lines[1] == "True"  # the certificate passes
+    assert lines[2] == "19"
+    assert lines[3].startswith("IKStatus.SUCCESS 0.8405")
+    assert (tmp_path / "replay.html").stat().st_size > 100_000

@@ -7,6 +7,9 @@ The names below are imported on first use, so that ``import youbot_opt`` (and
   :func:`export_html` writes one HTML file that plays it offline.
 * :class:`MeshcatServer` runs a meshcat server bound to 127.0.0.1 and stops it
   again; :func:`connect` returns a client whose calls time out.
+* :func:`replay_results` and :func:`export_results_html` do the same for one or
+  several :class:`~youbot_opt.result.TrajOptResult` objects (side by side or as
+  ghosts), with each result's own time grid.
 * :func:`load_mesh_file` applies the mesh policy: which files may be embedded.
 """
 
@@ -18,12 +21,15 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from youbot_opt.viz.mesh_policy import check_mesh_file, load_mesh_file
     from youbot_opt.viz.meshcat_replay import export_html, replay, scene_html
+    from youbot_opt.viz.meshcat_results import export_results_html, replay_results
     from youbot_opt.viz.meshcat_server import MeshcatServer, connect
 
 __all__ = [
     "replay",
     "export_html",
     "scene_html",
+    "replay_results",
+    "export_results_html",
     "MeshcatServer",
     "connect",
     "check_mesh_file",
@@ -34,6 +40,8 @@ _SOURCES = {
     "replay": "meshcat_replay",
     "export_html": "meshcat_replay",
     "scene_html": "meshcat_replay",
+    "replay_results": "meshcat_results",
+    "export_results_html": "meshcat_results",
     "MeshcatServer": "meshcat_server",
     "connect": "meshcat_server",
     "check_mesh_file": "mesh_policy",
