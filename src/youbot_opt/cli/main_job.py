@@ -50,9 +50,14 @@ def _run(args: argparse.Namespace) -> int:
     result = solver.solve(beta=0.5)
     nlp = solver.nlp
     print(f"NLP build     {solver.build_time:.3f} s "
-          f"({nlp.n_variables} variables, {nlp.n_constraints} equalities)")  # fmt: skip
+          f"({nlp.n_variables} variables, {nlp.n_equalities} equalities)")  # fmt: skip
     certificate = certificate_of(result)
     print(format_result(result, certificate))
+    if result.success and certificate is not None and not certificate.passed():
+        print("\nnote: IPOPT solved the NLP, but the arm cannot follow this plan within the "
+              "certificate's tolerances:\n      the 50-knot trapezoidal transcription is too "
+              "coarse here. `youbot-opt solve --knots 100`\n      or `youbot-opt solve "
+              "--transcription hermite-simpson` gives plans that pass.")  # fmt: skip
     summary = {**result.summary(), "build_time_s": solver.build_time}
     if certificate is not None:
         summary["certificate"] = certificate.summary()
