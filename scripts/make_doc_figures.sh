@@ -4,9 +4,9 @@
 #
 #   bash scripts/make_doc_figures.sh            # about 30 s on 2 cores
 #
-# Runs the main job and the three study-1 studies into a temporary folder, copies their
-# PNG figures into docs/img/, and photographs two exported meshcat replays (the main job's
-# and the Pareto sweep's) with headless Chromium (skipped, with a message, if Chromium is
+# Runs the main job, the three study-1 studies and IK-path example A into a temporary folder, copies their
+# PNG figures into docs/img/, and photographs three exported meshcat replays (the main
+# job's, the Pareto sweep's and example A's) with headless Chromium (skipped, with a message, if Chromium is
 # not installed: `CI=1 bash scripts/install_browser.sh` installs it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,6 +18,7 @@ youbot-opt main --out "$out/main" > /dev/null
 youbot-opt multistart --starts 50 --seed 0 --out "$out/multistart" --quiet > /dev/null
 youbot-opt pareto --out "$out/pareto" --quiet > /dev/null
 youbot-opt bounds --out "$out/bounds" --quiet > /dev/null
+youbot-opt ikpath --example A --out "$out/ikpath" --no-progress > /dev/null 2>&1
 
 cp "$out/main/trajectory.png" "$img/fig_trajectory.png"
 cp "$out/main/arm.png" "$img/fig_arm.png"
@@ -43,5 +44,6 @@ else
     }
     shoot "$(realpath "$out/main/replay.html")" 1.2 800 600 "$img/meshcat_replay_youbot.png"
     shoot "$(realpath "$out/pareto/replay.html")" 1.0 1000 560 "$img/fig_replay_pareto.png"
+    shoot "$(realpath "$out/ikpath/replay.html")" 1.0 800 600 "$img/meshcat_replay_ikpath_a.png"
 fi
-ls -l "$img"/fig_*.png "$img"/meshcat_replay_youbot.png
+ls -l "$img"/fig_*.png "$img"/meshcat_replay_*.png
