@@ -1,17 +1,27 @@
 """Symbolic (CasADi SX) dynamics vs Pinocchio's own algorithms.
 
-Tolerances: both sides evaluate the same recursive algorithms in IEEE double
-precision, only with different operation order, so they agree to a few ulps
-times the condition of the computation (errors measured ~1e-14 relative). A
-relative tolerance of 1e-9 (with an absolute floor of 1e-9 times the size of
-the reference) is therefore tight enough to catch any modelling error (a wrong
-axis, lever or sign changes results at the 1e-3 level or more) while leaving
-room for the conditioning of M^-1 on the 9-dof panda (cond(M) ~ 1e4).
+Tolerances. Both sides evaluate the same recursive algorithms in IEEE double
+precision (eps = 2.2e-16), only with a different operation order, so they
+differ by rounding alone. Every comparison is made relative to the largest
+entry of the reference, ``|actual - desired| <= tol * max(1, max|desired|)``,
+because the quantities span O(1e-2) (double-pendulum M) to O(1e4) (its
+accelerations at unit torques), and rounding scales with the largest term:
+
+* ``RTOL = 1e-12`` for what forward recursions give directly (placements,
+  RNEA, CRBA, gravity, nonlinear effects, inverse dynamics and its
+  Jacobian): each entry is a sum of O(100) rounded products, error
+  ~100 eps ~ 2e-14 of the largest entry; measured <= 2e-15 on all five robots.
+* ``RTOL_SOLVE = 1e-10`` for what goes through M^-1 (ABA, the CRBA linear
+  solve, forward dynamics and its Jacobian, round trips): rounding is
+  amplified by cond(M) (~1e4 on the panda), a bound of ~1e-12..1e-11;
+  measured <= 1.0e-13 (panda, forward-dynamics Jacobian).
+
+Both are >= 100x above the measured error and many orders below any modelling
+error (a wrong axis, lever, sign or damping term changes results by 1e-3 or more).
 """
 
 from __future__ import annotations
 
-import importlib.metadata
 from pathlib import Path
 
 import casadi as ca
@@ -26,9 +36,11 @@ from youbot_opt.dynamics import (
     build_symbolic_model,
 )
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError
+from youbot_opt.model import example_robot_data_dir
 
-RTOL = 1e-9  # machine-precision scale, see module docstring
-N_STATES = 4
+RTOL = 1e-12  # direct recursions: O(100) roundings of the largest term, see module docstring
+RTOL_SOLVE = 1e-10  # through M^-1: rounding times cond(M) ~ 1e4, see module docstring
+N_STATES = 10
 
 PLANAR_3R_URDF = """<?xml version="1.0"?>
 <robot name="planar_3r">
@@ -68,9 +80,8 @@ ERD_URDFS = {
 
 
 def _erd_path(name: str) -> Path:
-    dist = importlib.metadata.distribution("example-robot-data")
-    root = Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
-    return root / ERD_URDFS[name]
+    """URDF of an example-robot-data robot, located by the package's own locator."""
+    return example_robot_data_dir() / "example-robot-data" / "robots" / ERD_URDFS[name]
 
 
 def _load(name: str) -> pin.Model:
@@ -105,11 +116,23 @@ def _sym_mat(m: np.ndarray) -> np.ndarray:
     return np.triu(m) + np.triu(m, 1).T
 
 
-def _close(actual: object, desired: np.ndarray, rtol: float = RTOL) -> None:
+def _close(actual: object, desired: np.ndarray, rtol: float) -> None:
+    """Assert ``|actual - desired| <= rtol * max(1, max|desired|)`` entrywise."""
     desired = np.asarray(desired, dtype=float)
     actual = np.asarray(actual, dtype=float).reshape(desired.shape)
     scale = max(1.0, float(np.abs(desired).max()))
-    np.testing.assert_allclose(actual, desired, rtol=rtol, atol=rtol * scale)
+    np.testing.assert_allclose(actual, desired, rtol=0, atol=rtol * scale)
+
+
+def _with_damping(model: pin.Model) -> pin.Model:
+    """The model itself, given damping b = 0.05..0.2 [N m s/rad] if it has none.
+
+    So that the damping terms of the Jacobians (-M^-1 diag(b), +diag(b)) are
+    exercised on every robot, not only on those whose URDF declares damping.
+    """
+    if not np.any(model.damping > 0):
+        model.damping = np.linspace(0.05, 0.2, model.nv)
+    return model
 
 
 MODEL_NAMES = ["double_pendulum", "ur5", "panda", "planar_3r", "youbot"]
@@ -127,6 +150,32 @@ def panda_dyn() -> tuple[pin.Model, object]:
     return model, build_dynamics(model, "symbolic")
 
 
+JACOBIAN_MODELS = ["youbot", "double_pendulum", "ur5", "panda", "planar_3r"]
+
+
+@pytest.fixture(scope="module", params=JACOBIAN_MODELS)
+def jacobian_case(
+    request: pytest.FixtureRequest,
+) -> tuple[pin.Model, ca.Function, ca.Function]:
+    """(damped model, d forward_dynamics / d(q, v, tau), d inverse_dynamics / d(q, v, a))."""
+    model = _with_damping(_load(request.param))
+    dyn = build_dynamics(model, "symbolic")
+    nv = model.nv
+    q_s, v_s, u_s = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("u", nv)
+    x = ca.vertcat(q_s, v_s, u_s)
+    jac_fd = ca.Function(
+        "jacobian_forward_dynamics",
+        [q_s, v_s, u_s],
+        [ca.jacobian(dyn.forward_dynamics(q_s, v_s, u_s), x)],
+    )
+    jac_id = ca.Function(
+        "jacobian_inverse_dynamics",
+        [q_s, v_s, u_s],
+        [ca.jacobian(dyn.inverse_dynamics(q_s, v_s, u_s), x)],
+    )
+    return model, jac_fd, jac_id
+
+
 def test_planar_3r_uses_unaligned_axis() -> None:
     """The youBot-like test arm really exercises RevoluteUnaligned with axis (0, -1, 0)."""
     model = _load("planar_3r")
@@ -136,20 +185,20 @@ def test_planar_3r_uses_unaligned_axis() -> None:
 
 
 def test_algorithms_match_pinocchio(case: tuple[str, pin.Model, object]) -> None:
-    """ABA, RNEA, CRBA, gravity, NLE and CRBA forward dynamics equal Pinocchio's (1e-9 rel)."""
+    """ABA, CRBA forward dynamics (1e-10), RNEA, CRBA, gravity, NLE (1e-12) equal Pinocchio's."""
     name, model, sym = case
     data = model.createData()
     for q, v, tau, a in _random_states(model, seed=len(name)):
-        _close(sym.aba(q, v, tau), pin.aba(model, data, q, v, tau))
-        _close(sym.forward_dynamics_crba(q, v, tau), pin.aba(model, data, q, v, tau))
-        _close(sym.rnea(q, v, a), pin.rnea(model, data, q, v, a))
-        _close(sym.mass_matrix(q), _sym_mat(pin.crba(model, data, q)))
-        _close(sym.generalized_gravity(q), pin.computeGeneralizedGravity(model, data, q))
-        _close(sym.nonlinear_effects(q, v), pin.nonLinearEffects(model, data, q, v))
+        _close(sym.aba(q, v, tau), pin.aba(model, data, q, v, tau), RTOL_SOLVE)
+        _close(sym.forward_dynamics_crba(q, v, tau), pin.aba(model, data, q, v, tau), RTOL_SOLVE)
+        _close(sym.rnea(q, v, a), pin.rnea(model, data, q, v, a), RTOL)
+        _close(sym.mass_matrix(q), _sym_mat(pin.crba(model, data, q)), RTOL)
+        _close(sym.generalized_gravity(q), pin.computeGeneralizedGravity(model, data, q), RTOL)
+        _close(sym.nonlinear_effects(q, v), pin.nonLinearEffects(model, data, q, v), RTOL)
 
 
 def test_kinematics_match_pinocchio(case: tuple[str, pin.Model, object]) -> None:
-    """Joint and frame placements equal Pinocchio's oMi / oMf (1e-9 rel, unit-size data)."""
+    """Joint and frame placements equal Pinocchio's oMi / oMf (1e-12, unit-size data)."""
     name, model, sym = case
     data = model.createData()
     frame_fns = {f.name: sym.frame_placement(f.name) for f in model.frames}
@@ -157,29 +206,29 @@ def test_kinematics_match_pinocchio(case: tuple[str, pin.Model, object]) -> None
         pin.framesForwardKinematics(model, data, q)
         rotations, translations = sym.forward_kinematics(q)
         for i in range(1, model.njoints):
-            _close(rotations[:, 3 * (i - 1) : 3 * i], data.oMi[i].rotation)
-            _close(translations[:, i - 1], data.oMi[i].translation)
+            _close(rotations[:, 3 * (i - 1) : 3 * i], data.oMi[i].rotation, RTOL)
+            _close(translations[:, i - 1], data.oMi[i].translation, RTOL)
         for fid, frame in enumerate(model.frames):
             rot, pos = frame_fns[frame.name](q)
-            _close(rot, data.oMf[fid].rotation)
-            _close(pos, data.oMf[fid].translation)
+            _close(rot, data.oMf[fid].rotation, RTOL)
+            _close(pos, data.oMf[fid].translation, RTOL)
 
 
 def test_armature_matches_pinocchio() -> None:
-    """Nonzero armature enters M, ABA and RNEA exactly as in Pinocchio (1e-9 rel)."""
+    """Nonzero armature enters M, RNEA (1e-12) and ABA (1e-10) exactly as in Pinocchio."""
     model = _load("ur5")
     model.armature = np.linspace(0.05, 0.3, model.nv)
     sym = build_symbolic_model(model)
     data = model.createData()
-    for q, v, tau, a in _random_states(model, seed=3, n=2):
-        _close(sym.mass_matrix(q), _sym_mat(pin.crba(model, data, q)))
-        _close(sym.aba(q, v, tau), pin.aba(model, data, q, v, tau))
-        _close(sym.rnea(q, v, a), pin.rnea(model, data, q, v, a))
+    for q, v, tau, a in _random_states(model, seed=3, n=5):
+        _close(sym.mass_matrix(q), _sym_mat(pin.crba(model, data, q)), RTOL)
+        _close(sym.aba(q, v, tau), pin.aba(model, data, q, v, tau), RTOL_SOLVE)
+        _close(sym.rnea(q, v, a), pin.rnea(model, data, q, v, a), RTOL)
 
 
 @pytest.mark.parametrize("name", ["planar_3r", "panda", "youbot"])
 def test_dynamics_include_damping(name: str) -> None:
-    """forward/inverse_dynamics equal pin.aba(tau - b v) / pin.rnea + b v (1e-9 rel)."""
+    """forward/inverse_dynamics equal pin.aba(tau - b v) (1e-10) / pin.rnea + b v (1e-12)."""
     model = _load(name)
     assert np.any(model.damping > 0)
     dyn = build_dynamics(model, "symbolic")
@@ -187,65 +236,78 @@ def test_dynamics_include_damping(name: str) -> None:
     b = model.damping
     np.testing.assert_array_equal(dyn.damping, b)
     for q, v, tau, a in _random_states(model, seed=11):
-        _close(dyn.forward_dynamics(q, v, tau), pin.aba(model, data, q, v, tau - b * v))
-        _close(dyn.inverse_dynamics(q, v, a), pin.rnea(model, data, q, v, a) + b * v)
+        _close(
+            dyn.forward_dynamics(q, v, tau), pin.aba(model, data, q, v, tau - b * v), RTOL_SOLVE
+        )
+        _close(dyn.inverse_dynamics(q, v, a), pin.rnea(model, data, q, v, a) + b * v, RTOL)
 
 
 def test_damping_false_is_plain_pinocchio() -> None:
-    """With damping=False the Functions reduce to Pinocchio's aba/rnea (1e-9 rel)."""
+    """With damping=False the Functions reduce to Pinocchio's aba (1e-10) / rnea (1e-12)."""
     model = _load("panda")
     dyn = build_dynamics(model, "symbolic", damping=False)
     data = model.createData()
     np.testing.assert_array_equal(dyn.damping, np.zeros(model.nv))
-    for q, v, tau, a in _random_states(model, seed=5, n=2):
-        _close(dyn.forward_dynamics(q, v, tau), pin.aba(model, data, q, v, tau))
-        _close(dyn.inverse_dynamics(q, v, a), pin.rnea(model, data, q, v, a))
+    for q, v, tau, a in _random_states(model, seed=5, n=5):
+        _close(dyn.forward_dynamics(q, v, tau), pin.aba(model, data, q, v, tau), RTOL_SOLVE)
+        _close(dyn.inverse_dynamics(q, v, a), pin.rnea(model, data, q, v, a), RTOL)
 
 
 def test_forward_inverse_roundtrip(panda_dyn: tuple[pin.Model, object]) -> None:
-    """inverse(forward(tau)) = tau with damping on (1e-9 rel; cond(M) ~ 1e4 leaves margin)."""
+    """inverse(forward(tau)) = tau with damping on (1e-10: passes through M^-1, cond ~ 1e4)."""
     model, dyn = panda_dyn
     for q, v, tau, _ in _random_states(model, seed=2):
         acc = dyn.forward(q, v, tau)
-        _close(dyn.inverse(q, v, acc), tau)
+        _close(dyn.inverse(q, v, acc), tau, RTOL_SOLVE)
 
 
-def test_jacobians_match_pinocchio_and_fd(panda_dyn: tuple[pin.Model, object]) -> None:
-    """CasADi Jacobians equal Pinocchio's analytic derivatives (1e-8) and central FD (1e-6)."""
-    model, dyn = panda_dyn
+def _central_differences(fn: object, z0: np.ndarray, nv: int, h: float) -> np.ndarray:
+    """Central-difference Jacobian of ``fn(q, v, x)`` w.r.t. z = (q, v, x), step ``h``."""
+    cols = []
+    for e in np.eye(3 * nv):
+        plus, minus = np.split(z0 + h * e, 3), np.split(z0 - h * e, 3)
+        cols.append((np.asarray(fn(*plus)) - np.asarray(fn(*minus))) / (2 * h))
+    return np.column_stack(cols)
+
+
+def test_jacobians_match_pinocchio_and_fd(
+    jacobian_case: tuple[pin.Model, ca.Function, ca.Function],
+) -> None:
+    """CasADi Jacobians (with damping) equal Pinocchio's analytic derivatives and central FD."""
+    model, jac_fd, jac_id = jacobian_case
     data = model.createData()
     b = model.damping
+    assert np.all(b > 0)  # the damping terms below are really exercised
     nv = model.nv
-    q_s, v_s, u_s = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("u", nv)
-    x = ca.vertcat(q_s, v_s, u_s)
-    jac_fd = ca.Function(
-        "jf", [q_s, v_s, u_s], [ca.jacobian(dyn.forward_dynamics(q_s, v_s, u_s), x)]
-    )
-    jac_id = ca.Function(
-        "ji", [q_s, v_s, u_s], [ca.jacobian(dyn.inverse_dynamics(q_s, v_s, u_s), x)]
-    )
-    for q, v, tau, a in _random_states(model, seed=13, n=2):
+    for q, v, tau, a in _random_states(model, seed=13, n=5):
+        # Forward dynamics a = ABA(q, v, tau - b v): the chain rule through tau - b v
+        # gives da/dv = dABA/dv - M^-1 diag(b). Through M^-1: RTOL_SOLVE (measured 1e-13).
         da_dq, da_dv, minv = pin.computeABADerivatives(model, data, q, v, tau - b * v)
         ref_fd = np.hstack([da_dq, da_dv - minv @ np.diag(b), minv])
-        # Pinocchio's derivatives are exact up to rounding (~1e-12 on O(100) entries).
-        _close(jac_fd(q, v, tau), ref_fd, rtol=1e-8)
+        _close(jac_fd(q, v, tau), ref_fd, RTOL_SOLVE)
+        # Inverse dynamics tau = RNEA(q, v, a) + b v: direct recursion, RTOL (measured 2e-15).
         dt_dq, dt_dv, dt_da = pin.computeRNEADerivatives(model, data, q, v, a)
         ref_id = np.hstack([dt_dq, dt_dv + np.diag(b), dt_da])
-        _close(jac_id(q, v, a), ref_id, rtol=1e-8)
-        # Third, independent check: central differences of Pinocchio itself.
-        # Step 1e-6 gives truncation O(h^2 |a'''|) ~ 1e-10 and rounding
-        # O(eps |a| / h) ~ 1e-9, so 1e-6 (relative to the Jacobian's size) is safe.
+        _close(jac_id(q, v, a), ref_id, RTOL)
+        # Third, independent check: central differences of Pinocchio itself with
+        # the damping applied by hand. Step 1e-6 gives truncation O(h^2 |f^(3)|)
+        # ~1e-10 and rounding O(eps |f| / h) ~1e-9 of the largest entry, so 1e-6
+        # (relative to the Jacobian's largest entry) is safe.
         h = 1e-6
-        z0 = np.concatenate([q, v, tau])
-        cols = []
-        for k in range(3 * nv):
-            dz = np.zeros(3 * nv)
-            dz[k] = h
-            zp, zm = z0 + dz, z0 - dz
-            fp = pin.aba(model, data, zp[:nv], zp[nv : 2 * nv], zp[2 * nv :] - b * zp[nv : 2 * nv])
-            fm = pin.aba(model, data, zm[:nv], zm[nv : 2 * nv], zm[2 * nv :] - b * zm[nv : 2 * nv])
-            cols.append((fp - fm) / (2 * h))
-        _close(jac_fd(q, v, tau), np.column_stack(cols), rtol=1e-6)
+        fd_fd = _central_differences(
+            lambda q_, v_, u_: pin.aba(model, data, q_, v_, u_ - b * v_),
+            np.concatenate([q, v, tau]),
+            nv,
+            h,
+        )
+        _close(jac_fd(q, v, tau), fd_fd, 1e-6)
+        fd_id = _central_differences(
+            lambda q_, v_, a_: pin.rnea(model, data, q_, v_, a_) + b * v_,
+            np.concatenate([q, v, a]),
+            nv,
+            h,
+        )
+        _close(jac_id(q, v, a), fd_id, 1e-6)
 
 
 def test_second_derivatives_exact() -> None:
@@ -268,7 +330,7 @@ def test_second_derivatives_exact() -> None:
             for e in np.eye(3 * nv)
         ]
     )
-    _close(hess_fn(z0), fd, rtol=1e-6)
+    _close(hess_fn(z0), fd, 1e-6)
 
 
 def test_mx_map_over_knots(panda_dyn: tuple[pin.Model, object]) -> None:
@@ -342,16 +404,103 @@ def test_backend_errors() -> None:
             build_dynamics(model, "pinocchio_casadi")
 
 
-def test_numeric_wrapper_validates(panda_dyn: tuple[pin.Model, object]) -> None:
-    """Wrong-shaped or non-finite inputs to forward()/inverse() raise ParameterError."""
-    _, dyn = panda_dyn
-    z = np.zeros(9)
-    with pytest.raises(ParameterError, match=r"q must have shape \(9,\)"):
-        dyn.forward(np.zeros(8), z, z)
-    with pytest.raises(ParameterError, match="tau must be finite"):
-        dyn.forward(z, z, np.full(9, np.nan))
-    with pytest.raises(ParameterError, match="a must be finite"):
-        dyn.inverse(z, z, np.full(9, np.inf))
+BAD_INPUTS = [
+    # (method, argument, bad value, expected message); nv = 2 (double pendulum).
+    (
+        "forward",
+        "q",
+        np.zeros(3),
+        r"q \(joint positions in \[rad\] or \[m\]\) must have shape \(2,\) or \(2, 1\), "
+        r"got shape \(3,\)",
+    ),
+    (
+        "forward",
+        "v",
+        np.zeros(3),
+        r"v \(joint velocities in \[rad/s\] or \[m/s\]\) must have shape \(2,\) or \(2, 1\), "
+        r"got shape \(3,\)",
+    ),
+    (
+        "forward",
+        "v",
+        np.array([0.0, np.nan]),
+        r"v \(joint velocities .*\) must be finite, got \[ *0\. +nan\] "
+        r"\(non-finite at indices \[1\]\)",
+    ),
+    (
+        "forward",
+        "tau",
+        np.zeros((2, 2)),
+        r"tau \(joint torques in \[N m\]\) must have shape \(2,\) or \(2, 1\), got shape \(2, 2\)",
+    ),
+    (
+        "forward",
+        "tau",
+        np.array([np.inf, 1.0]),
+        r"tau \(joint torques in \[N m\]\) must be finite, got \[ *inf +1\.\] "
+        r"\(non-finite at indices \[0\]\)",
+    ),
+    (
+        "forward",
+        "tau",
+        "ab",
+        r"tau \(joint torques in \[N m\]\) must be a numeric vector of shape \(2,\), got 'ab'",
+    ),
+    (
+        "inverse",
+        "v",
+        np.zeros(1),
+        r"v \(joint velocities .*\) must have shape \(2,\) or \(2, 1\), got shape \(1,\)",
+    ),
+    (
+        "inverse",
+        "v",
+        np.array([np.nan, -np.inf]),
+        r"v \(joint velocities .*\) must be finite, got \[ *nan +-inf\] "
+        r"\(non-finite at indices \[0, 1\]\)",
+    ),
+    (
+        "inverse",
+        "a",
+        np.zeros(4),
+        r"a \(joint accelerations in \[rad/s\^2\]\) must have shape \(2,\) or \(2, 1\), "
+        r"got shape \(4,\)",
+    ),
+    (
+        "inverse",
+        "a",
+        np.array([0.0, np.inf]),
+        r"a \(joint accelerations .*\) must be finite, got \[ *0\. +inf\] "
+        r"\(non-finite at indices \[1\]\)",
+    ),
+]
+
+
+@pytest.fixture(scope="module", params=["symbolic", "pinocchio"])
+def pendulum_dyn(request: pytest.FixtureRequest) -> object:
+    return build_dynamics(_load("double_pendulum"), request.param)
+
+
+@pytest.mark.parametrize(("method", "arg", "bad", "match"), BAD_INPUTS)
+def test_numeric_wrapper_validates(
+    pendulum_dyn: object, method: str, arg: str, bad: object, match: str
+) -> None:
+    """Wrong-shaped, non-finite or non-numeric q, v, tau, a raise ParameterError naming the
+    argument, its meaning and unit, the expected shape and the offending shape or entries."""
+    good = {"q": np.zeros(2), "v": np.zeros(2), "tau": np.zeros(2), "a": np.zeros(2)}
+    names = ("q", "v", "tau") if method == "forward" else ("q", "v", "a")
+    args = [bad if name == arg else good[name] for name in names]
+    with pytest.raises(ParameterError, match=match) as info:
+        getattr(pendulum_dyn, method)(*args)
+    assert info.value.name == arg
+
+
+def test_numeric_wrapper_accepts_columns(pendulum_dyn: object) -> None:
+    """Column vectors (nv, 1), as CasADi returns them, give the same result (exactly)."""
+    q, v, tau = np.array([0.3, -0.2]), np.array([1.0, 0.5]), np.array([0.1, -0.4])
+    flat = pendulum_dyn.forward(q, v, tau)
+    np.testing.assert_array_equal(pendulum_dyn.forward(*(x[:, None] for x in (q, v, tau))), flat)
+    assert flat.shape == (2,)
 
 
 def test_frame_not_found() -> None:

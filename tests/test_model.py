@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
 import math
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, Rob
 from youbot_opt.model import (
     RobotModel,
     available_robots,
+    example_robot_data_dir,
     frame_placement,
     load_model,
     tip_pose,
@@ -100,6 +102,39 @@ def test_example_robot_data_robots_load(name: str) -> None:
     assert all(Path(m).is_file() for m in meshes)
     placement = frame_placement(robot, pin.neutral(robot.model))
     assert np.all(np.isfinite(placement.translation))
+
+
+def test_example_robot_data_dir_locates_urdfs() -> None:
+    """example_robot_data_dir() is the share folder holding example-robot-data/robots, and the
+    URDFs there build the same models load_model gives (the dynamics tests rely on both)."""
+    robots = example_robot_data_dir() / "example-robot-data" / "robots"
+    assert robots.is_dir()
+    for name, rel in [
+        ("double_pendulum", "double_pendulum_description/urdf/double_pendulum.urdf"),
+        ("ur5", "ur_description/urdf/ur5_robot.urdf"),
+        ("panda", "panda_description/urdf/panda.urdf"),
+    ]:
+        path = robots / rel
+        assert path.is_file(), path
+        direct = pin.buildModelFromUrdf(str(path))
+        loaded = load_model(name).model
+        assert (direct.nq, direct.nv) == (loaded.nq, loaded.nv)
+        assert list(direct.names) == list(loaded.names)
+        # Same file parsed twice: masses identical to the last bit.
+        np.testing.assert_array_equal(
+            [i.mass for i in direct.inertias], [i.mass for i in loaded.inertias]
+        )
+
+
+def test_example_robot_data_missing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without example-robot-data, the locator raises ModelError with the pip command."""
+
+    def missing(name: str) -> None:
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "distribution", missing)
+    with pytest.raises(ModelError, match="pip install example-robot-data"):
+        example_robot_data_dir()
 
 
 def test_unknown_robot_lists_names() -> None:

@@ -63,21 +63,40 @@ def available_backends() -> tuple[str, ...]:
     return ("symbolic", "pinocchio", *extra)
 
 
-def _vector(name: str, value: Any, size: int) -> Array:
+_Q = "joint positions in [rad] or [m]"
+_V = "joint velocities in [rad/s] or [m/s]"
+
+
+def _vector(name: str, value: Any, size: int, meaning: str) -> Array:
+    """Return ``value`` as a finite float array of shape (size,), else raise ParameterError.
+
+    A column ``(size, 1)`` or row ``(1, size)`` is accepted and flattened. The
+    message names the argument and its ``meaning`` (e.g. "joint velocities in
+    [rad/s]"), the expected shape, and the offending shape or entries.
+    """
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ParameterError(
-            f"{name} must be a numeric vector of length {size}", name=name, value=value
+            f"{name} ({meaning}) must be a numeric vector of shape ({size},), got {value!r}",
+            name=name,
+            value=value,
         ) from exc
     if arr.ndim == 2 and 1 in arr.shape:
         arr = arr.reshape(-1)
     if arr.shape != (size,):
         raise ParameterError(
-            f"{name} must have shape ({size},), got {arr.shape}", name=name, value=arr.shape
+            f"{name} ({meaning}) must have shape ({size},) or ({size}, 1), got shape {arr.shape}",
+            name=name,
+            value=arr.shape,
         )
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{name} must be finite, got {arr}", name=name, value=arr)
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ParameterError(
+            f"{name} ({meaning}) must be finite, got {arr} (non-finite at indices {bad.tolist()})",
+            name=name,
+            value=arr,
+        )
     return arr
 
 
@@ -134,7 +153,11 @@ class Dynamics:
         ParameterError
             If an input has the wrong shape or is not finite.
         """
-        args = (_vector("q", q, self.nq), _vector("v", v, self.nv), _vector("tau", tau, self.nv))
+        args = (
+            _vector("q", q, self.nq, _Q),
+            _vector("v", v, self.nv, _V),
+            _vector("tau", tau, self.nv, "joint torques in [N m]"),
+        )
         return np.asarray(self.forward_dynamics(*args), dtype=float).reshape(-1)
 
     def inverse(self, q: Any, v: Any, a: Any) -> Array:
@@ -159,7 +182,11 @@ class Dynamics:
         ParameterError
             If an input has the wrong shape or is not finite.
         """
-        args = (_vector("q", q, self.nq), _vector("v", v, self.nv), _vector("a", a, self.nv))
+        args = (
+            _vector("q", q, self.nq, _Q),
+            _vector("v", v, self.nv, _V),
+            _vector("a", a, self.nv, "joint accelerations in [rad/s^2]"),
+        )
         return np.asarray(self.inverse_dynamics(*args), dtype=float).reshape(-1)
 
 

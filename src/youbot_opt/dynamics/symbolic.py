@@ -82,11 +82,16 @@ def _world_placements(tree: TreeSpec, local: list[_Placement]) -> list[_Placemen
     return world
 
 
-def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr, *, with_gravity: bool = True) -> Expr:
-    """Joint torques ``M a + C v + g`` (plus armature ``a``) by recursive Newton-Euler."""
+def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
+    """Joint torques ``M a + C v + g`` (plus armature ``a``) by recursive Newton-Euler.
+
+    Gravity always enters, as in Pinocchio, through the fictitious root
+    acceleration ``-gravity``; ``g(q)`` and ``C(q, v) v + g(q)`` are this
+    function at ``v = a = 0`` and ``a = 0``.
+    """
     local = _joint_placements(tree, q)
     n = len(tree.joints)
-    root_acc = ca.DM(-tree.gravity) if with_gravity else ca.DM.zeros(6)
+    root_acc = ca.DM(-tree.gravity)
     vel: list[Expr] = []
     acc: list[Expr] = []
     forces: list[Expr] = []
