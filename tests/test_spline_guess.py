@@ -47,7 +47,7 @@ def test_limits_met_at_every_knot(youbot, bound_scale) -> None:
     vmax = bound_scale * youbot.velocity_limit
     for seed in range(10):
         # 2 s for a 2.1 rad move of joint 3: speed limits bind (1.57 rad/s at 100 %).
-        g = _guess(youbot, seed, n=21, bound_scale=bound_scale)
+        g = _guess(youbot, seed, n=21, dt=0.1, bound_scale=bound_scale)
         assert np.all(g.q >= lower) and np.all(g.q <= upper)
         assert np.all(np.abs(g.v) <= vmax)
 
@@ -132,10 +132,26 @@ def test_impossible_requests_raise(youbot) -> None:
         random_spline_guess(youbot, Q_START, (Q_GOAL, np.array([0.0, 2.0, 0.0])), 20, seed=0)
     # 2.1 rad for joint 3 in 0.4 s needs 5.2 rad/s on average, above 1.57 rad/s.
     with pytest.raises(ParameterError, match="no polynomial of degree"):
-        random_spline_guess(youbot, (Q_START, np.zeros(3)), (Q_GOAL, np.zeros(3)), 5, seed=0)
+        random_spline_guess(
+            youbot, (Q_START, np.zeros(3)), (Q_GOAL, np.zeros(3)), 5, seed=0, dt=0.1
+        )
     with pytest.raises(ParameterError, match="n_knots"):
         random_spline_guess(youbot, Q_START, Q_GOAL, 1, seed=0)
     with pytest.raises(ParameterError, match="orders"):
         random_spline_guess(youbot, Q_START, Q_GOAL, 20, seed=0, orders=(2,))
     with pytest.raises(ParameterError, match=r"start\.q must"):
         random_spline_guess(youbot, Q_START[:2], Q_GOAL, 20, seed=0)
+
+
+@pytest.mark.parametrize("n", [5, 50])
+def test_default_time_step_is_the_multistart_one(youbot, n) -> None:
+    """Default dt = default_dt0 (4.9 s in all): 5 knots now get a feasible, slow guess."""
+    from youbot_opt.problem import study1_problem
+    from youbot_opt.start_jobs import default_dt0
+
+    g = _guess(youbot, 0, n=n)
+    dt0 = default_dt0(study1_problem(n))
+    # Same arithmetic (4.9 / (n - 1)) on both sides: equal to round-off of k * dt.
+    np.testing.assert_allclose(g.t, dt0 * np.arange(n), rtol=1e-15, atol=1e-15)
+    assert g.duration == pytest.approx(4.9, rel=1e-15)
+    assert np.all(np.abs(g.v) <= youbot.velocity_limit)  # the LP's knot limits, exactly

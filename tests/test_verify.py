@@ -385,3 +385,37 @@ def test_study1_certificates_improve_with_knots() -> None:
     # the motion (measured 0.4 s of 2.26 s): the open loop is no test of a plan.
     assert cert.ok, cert.failures()
     assert cert.open_loop_divergence_time < 0.5 * cert.duration
+
+
+def test_study1_hermite_simpson_certificates_improve_with_knots() -> None:
+    """HS study 1 at 25/50/100 knots: local error and feedback shrink fast and stay within bounds.
+
+    Measured (Hermite-Simpson, beta 0.5): local position 6.5e-3 / 5.4e-4 / 7.3e-5
+    rad, local velocity 0.092 / 0.012 / 2.2e-3 rad/s, feedback RMS ratio 6.5e-3 /
+    1.2e-3 / 2.4e-4. Tolerances are twice the measurements. Halving the step
+    divides the local position error by 12 and 7.4 (the active-set switches of
+    the bang-bang-like optimum keep it below the smooth-case 16): require > 4,
+    i.e. better than the trapezoid's ~O(h) at its worst interval, and feedback
+    ratios (measured 5.5x, 5.0x) by > 3. Each plan passes its certificate. The
+    three solves and certificates take ~1 s, so the test is not marked slow.
+    """
+    from youbot_opt.problem import study1_problem
+    from youbot_opt.solve import solve
+
+    limits = {25: (0.013, 0.19, 0.013), 50: (1.1e-3, 0.025, 2.4e-3), 100: (1.5e-4, 4.4e-3, 4.8e-4)}
+    previous = None
+    for n, (position_tol, velocity_tol, feedback_tol) in limits.items():
+        result = solve(study1_problem(n), beta=0.5, method="hermite_simpson")
+        assert result.success, result.message
+        cert = certify(result)
+        assert cert.ok, cert.failures()
+        assert cert.local_position_max < position_tol
+        assert cert.local_velocity_max < velocity_tol
+        assert cert.feedback_rms < feedback_tol
+        # IPOPT's 1e-8 relative bound relaxation, at the knots and between them.
+        assert cert.worst_bound("knots").relative < 1e-6
+        assert cert.worst_bound("between").relative < 1e-6
+        if previous is not None:
+            assert cert.local_position_max < previous.local_position_max / 4
+            assert cert.feedback_rms < previous.feedback_rms / 3
+        previous = cert

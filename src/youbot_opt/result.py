@@ -4,21 +4,48 @@ A failed solve is a status, not an exception (Drake, toppra), so sweeps keep
 going; :meth:`TrajOptResult.raise_for_status` turns it into
 :class:`~youbot_opt.exceptions.SolveFailed` on demand.
 
-Multiplier sign convention (CasADi's): the gradient of the Lagrangian
+Multiplier sign convention (CasADi's, checked against IPOPT in
+``tests/test_solve.py``). The gradient of the Lagrangian
 
 .. math::
 
     L(x, \lambda_g, \lambda_x) = f(x) + \lambda_g^\top g(x) + \lambda_x^\top x
 
-vanishes at the solution. ``lam_x`` is > 0 at an active upper bound and < 0 at
-an active lower bound; ``multipliers["<family>_upper"]`` holds ``max(lam_x, 0)``
-and ``multipliers["<family>_lower"]`` holds ``min(lam_x, 0)`` of the family's
-variables (so lower-bound multipliers are <= 0). Each multiplier is the
-sensitivity ``d f* / d b`` of the optimal objective to its bound ``b`` with the
-sign flipped for lower bounds, i.e. ``-lam`` is the rate at which the objective
-would fall per unit of bound relaxation (upper bound raised or lower bound
-lowered, in the bound's unit). Equality blocks (``defect_*``,
-``start_position``, ...) carry ``lam_g`` unchanged.
+vanishes at the solution, and every multiplier ``lam`` of a row with bounds
+``lb <= row <= ub`` (a variable of ``x`` or a row of ``g``) is
+
+* ``> 0`` when the row sits at its **upper** bound ``ub``,
+* ``< 0`` when it sits at its **lower** bound ``lb``,
+* ``0`` (up to IPOPT's barrier parameter) when neither is active,
+
+and is the sensitivity of the optimal objective to the bound it touches,
+with the same sign for both sides:
+
+.. math::
+
+    \frac{\partial f^*}{\partial\, ub} = -\lambda \le 0, \qquad
+    \frac{\partial f^*}{\partial\, lb} = -\lambda \ge 0,
+
+so ``|lam|`` is the rate (objective unit per bound unit) at which the
+objective falls when the bound is relaxed (upper bound raised, lower bound
+lowered). The multiplier blocks are named as follows:
+
+* ``multipliers["<family>_upper"]`` = ``max(lam_x, 0)`` and
+  ``multipliers["<family>_lower"]`` = ``min(lam_x, 0)`` of a variable family
+  (``position``, ``velocity``, ``torque``, ``position_mid``, ..., ``dt``),
+  knot-major; upper-bound multipliers are >= 0, lower-bound ones <= 0. A
+  block without bounds of its own (Hermite-Simpson's ``v_mid``) has zeros.
+* Equality blocks of ``g`` (``defect_*``, ``midpoint_*``, ``start_position``,
+  ``goal_velocity``, ...) carry ``lam_g`` unchanged: ``d f* / d c = -lam_g``
+  for a right-hand side ``c`` (e.g. a start position).
+* Inequality path blocks of ``g`` (Hermite-Simpson's ``velocity_control_left``
+  and ``velocity_control_right``, held within the speed bounds) carry
+  ``lam_g`` unchanged, signed as above: > 0 where the row is at the upper
+  speed bound, < 0 at the lower one.
+
+:meth:`TrajOptResult.active_bounds` reports exactly the bounds the NLP has:
+variable bounds of the bounded blocks and the path-inequality rows, each with
+its signed multiplier.
 """
 
 from __future__ import annotations
@@ -27,6 +54,7 @@ import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -41,6 +69,8 @@ __all__ = [
     "SolveStatus",
     "TrajOptResult",
     "ActiveBound",
+    "BoundStructure",
+    "PathBlock",
     "ResultCheck",
     "check_result",
     "status_from_ipopt",
@@ -99,17 +129,22 @@ class ActiveBound(NamedTuple):
     Attributes
     ----------
     name : str
-        Bound name, e.g. ``"velocity_upper"``.
+        ``"<family>_<side>"`` for a variable bound (e.g. ``"velocity_upper"``)
+        or ``"<path block>_<side>"`` for a path-inequality row of ``g``
+        (e.g. ``"velocity_control_left_upper"``).
     knot : int
-        Knot (or interval, for ``*_mid`` families) index, 0-based.
+        Knot (or interval, for ``*_mid`` families and path blocks) index, 0-based.
     joint : int
         Joint index, 0-based (0 for ``dt``).
     value : float
-        Variable value at the solution (unit of the family).
+        Value of the variable or row at the solution (unit of the bound).
     bound : float
         The bound it touches.
     multiplier : float
-        ``lam_x`` of that variable (sign convention in the module docstring).
+        Its multiplier: ``max(lam_x, 0)`` / ``min(lam_x, 0)`` for an upper /
+        lower variable bound, the signed ``lam_g`` for a path row (> 0 at an
+        upper bound, < 0 at a lower one; module docstring); NaN if the solve
+        returned none.
     """
 
     name: str
@@ -118,6 +153,38 @@ class ActiveBound(NamedTuple):
     value: float
     bound: float
     multiplier: float
+
+
+class PathBlock(NamedTuple):
+    """An inequality block of the NLP's constraint vector ``g``, at the solution.
+
+    Attributes
+    ----------
+    family : str
+        Variable family whose (scaled) bounds the rows must stay within:
+        ``"q"``, ``"v"`` or ``"tau"``.
+    values : ndarray, shape (count, nv)
+        Row values at the solution, in the family's unit.
+    """
+
+    family: str
+    values: Array
+
+
+class BoundStructure(NamedTuple):
+    """Which bounds the NLP of a result actually has (besides ``lbx``/``ubx`` of every block).
+
+    Attributes
+    ----------
+    unbounded : tuple of str
+        Variable blocks without bounds of their own (Hermite-Simpson's ``v_mid``).
+    path : mapping of str to PathBlock
+        Inequality blocks of ``g`` by name (Hermite-Simpson's
+        ``velocity_control_left`` / ``_right``); empty for trapezoidal collocation.
+    """
+
+    unbounded: tuple[str, ...]
+    path: Mapping[str, PathBlock]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -174,7 +241,12 @@ class TrajOptResult:
         Seed of the random guess, when one was used.
     feasibility_tol : float
         Largest violation (units of each constraint) a successful result may
-        have; :func:`check_result` applies it.
+        have; :func:`check_result` applies it. The solver passes its own
+        ``TrajOptSolver(feasibility_tol=...)``.
+    bound_structure : BoundStructure or None
+        The NLP's unbounded blocks and path-inequality rows, as the solver
+        built them; ``None`` (e.g. a loaded result) re-derives them from the
+        transcription named by :attr:`method` (:meth:`bound_structure_of`).
 
     A success claim is re-checked on construction by :func:`check_result` (also
     after ``dataclasses.replace`` or loading); if the check fails, its status
@@ -207,6 +279,7 @@ class TrajOptResult:
     options: IpoptOptions = field(default_factory=IpoptOptions)
     seed: int | None = None
     feasibility_tol: float = DEFAULT_FEASIBILITY_TOL
+    bound_structure: BoundStructure | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not self.status.success:
@@ -240,8 +313,24 @@ class TrajOptResult:
         """Return the scaled joint bounds of this solve."""
         return self.problem.bounds(self.bound_scale)
 
+    def bound_structure_of(self) -> BoundStructure:
+        """The NLP's unbounded blocks and path rows (:attr:`bound_structure`, or re-derived).
+
+        Re-derivation evaluates the path expressions of the transcription named
+        :attr:`method` at the stored variables, with accelerations from
+        ``pin.aba``; an unregistered transcription is assumed to have neither.
+        """
+        if self.bound_structure is not None:
+            return self.bound_structure
+        return _derive_structure(self)
+
     def active_bounds(self, tol: float = 1e-6) -> list[ActiveBound]:
-        """Bounds within ``tol`` of their variable (the study's Appendix C).
+        """Bounds of the NLP within ``tol`` of their row (the study's Appendix C).
+
+        Only bounds the NLP has are reported: ``lbx``/``ubx`` of every bounded
+        variable block (not those of :attr:`BoundStructure.unbounded`, whose
+        limits are enforced through path rows) and the path-inequality rows of
+        ``g`` with their ``lam_g``.
 
         Parameters
         ----------
@@ -267,25 +356,37 @@ class TrajOptResult:
         limits["dt"] = (np.array([dt_lo]), np.array([dt_hi]))
         from youbot_opt.transcription.base import BOUND_NAMES
 
+        structure = self.bound_structure_of()
         rows: list[ActiveBound] = []
+
+        def collect(name: str, values: Array, bound: Array, side: str, lam: Array | None) -> None:
+            gap = values - bound if side == "lower" else bound - values
+            bound = np.broadcast_to(bound, values.shape)
+            for knot, joint in zip(*np.nonzero(np.isfinite(gap) & (gap <= tol)), strict=True):
+                rows.append(
+                    ActiveBound(
+                        name=name,
+                        knot=int(knot),
+                        joint=int(joint),
+                        value=float(values[knot, joint]),
+                        bound=float(bound[knot, joint]),
+                        multiplier=float("nan") if lam is None else float(lam[knot, joint]),
+                    )
+                )
+
         for block, values in self.variables.items():
+            if block in structure.unbounded:
+                continue
             family = BOUND_NAMES[block]
             lo, hi = limits[block.removesuffix("_mid")]
             for side, bound in (("lower", lo), ("upper", hi)):
                 name = f"{family}_{side}"
-                lam = self.multipliers.get(name)
-                gap = values - bound if side == "lower" else bound - values
-                for knot, joint in zip(*np.nonzero(np.isfinite(gap) & (gap <= tol)), strict=True):
-                    rows.append(
-                        ActiveBound(
-                            name=name,
-                            knot=int(knot),
-                            joint=int(joint),
-                            value=float(values[knot, joint]),
-                            bound=float(np.broadcast_to(bound, values.shape)[knot, joint]),
-                            multiplier=float("nan") if lam is None else float(lam[knot, joint]),
-                        )
-                    )
+                collect(name, values, bound, side, self.multipliers.get(name))
+        for block, path in structure.path.items():
+            lo, hi = limits[path.family]
+            lam_g = self.multipliers.get(block)
+            for side, bound in (("lower", lo), ("upper", hi)):
+                collect(f"{block}_{side}", path.values, bound, side, lam_g)
         return sorted(rows, key=lambda r: (r.name, r.knot, r.joint))
 
     def summary(self) -> dict[str, Any]:
@@ -346,6 +447,47 @@ class ResultCheck(NamedTuple):
     def passed(self) -> bool:
         """Whether :attr:`status` is a success."""
         return self.status.success
+
+
+def _transcription_named(method: str) -> Any:
+    """The transcription object of a result's ``method`` name, or None if unregistered."""
+    from youbot_opt.exceptions import ParameterError
+    from youbot_opt.transcription import get_transcription
+
+    try:
+        return get_transcription(method)
+    except ParameterError:
+        return None
+
+
+def _derive_structure(result: TrajOptResult) -> BoundStructure:
+    """:class:`BoundStructure` of a result, from its transcription's name."""
+    import casadi as ca
+
+    from youbot_opt.transcription.base import Transcription
+
+    method = _transcription_named(result.method)
+    if method is None:
+        return BoundStructure(unbounded=(), path=MappingProxyType({}))
+    unbounded = tuple(method.unbounded)
+    if type(method).path_constraints is Transcription.path_constraints:  # none
+        return BoundStructure(unbounded=unbounded, path=MappingProxyType({}))
+    from youbot_opt.tracking import _batched_aba, robot_view
+
+    view = robot_view(result.problem.robot)
+    if not result.problem.damping:
+        view = view._replace(damping=np.zeros_like(view.damping))
+    aba = _batched_aba(view)
+    sym = {k: ca.DM(np.asarray(x, dtype=float).T) for k, x in result.variables.items()}
+    accel: dict[str, Any] = {}
+    for group, (q, v, tau) in method.dynamics_points(sym).items():
+        qn, vn, taun = (np.asarray(x, dtype=float).T for x in (q, v, tau))
+        accel[group] = ca.DM(np.asarray(aba(qn, vn, taun)).reshape(vn.shape).T)
+    path = {
+        name: PathBlock(family=family, values=np.asarray(expr, dtype=float).T)
+        for name, family, expr in method.path_constraints(sym, accel)
+    }
+    return BoundStructure(unbounded=unbounded, path=MappingProxyType(path))
 
 
 def _excess(x: Array, lower: Any, upper: Any) -> float:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import time
+from types import MappingProxyType
 from typing import Any
 
 import casadi as ca
@@ -38,7 +39,14 @@ from youbot_opt.objectives import check_beta
 from youbot_opt.objectives import work as work_of
 from youbot_opt.options import IpoptOptions
 from youbot_opt.problem import BoundaryState, TrajOptProblem, check_bound_scale
-from youbot_opt.result import SolveStatus, TrajOptResult, status_from_ipopt
+from youbot_opt.result import (
+    DEFAULT_FEASIBILITY_TOL,
+    BoundStructure,
+    PathBlock,
+    SolveStatus,
+    TrajOptResult,
+    status_from_ipopt,
+)
 from youbot_opt.trajectory import Trajectory
 from youbot_opt.transcription import Transcription, get_transcription
 from youbot_opt.transcription.base import BOUND_NAMES, TranscribedNLP
@@ -51,9 +59,6 @@ from youbot_opt.transcription.derivatives import (
 __all__ = ["TrajOptSolver", "solve", "DEFAULT_FEASIBILITY_TOL"]
 
 _log = logging.getLogger(__name__)
-
-DEFAULT_FEASIBILITY_TOL = 1e-6
-"""Largest constraint or bound violation a successful result may have (units of each row)."""
 
 _SECOND_ORDER_BACKENDS = ("symbolic", "pinocchio_casadi")
 
@@ -91,7 +96,9 @@ class TrajOptSolver:
     dynamics : Dynamics, optional
         A prebuilt dynamics object (must match ``problem.robot``); overrides ``backend``.
     feasibility_tol : float
-        Largest violation a successful result may have.
+        Largest violation (unit of each row) a successful result may have;
+        also stored in every result (``TrajOptResult.feasibility_tol``), so
+        :func:`youbot_opt.result.check_result` applies the same one.
     compile : bool
         Compile the per-point dynamics kernels (value, Jacobian, weighted
         Hessian) to C with the system compiler, cached on disk
@@ -375,7 +382,17 @@ class TrajOptSolver:
                 multipliers[f"{family}_upper"] = np.maximum(lam, 0.0)
         if np.all(np.isfinite(lam_g)):
             multipliers.update(nlp.constraints.unpack(lam_g))
-        for arr in (*multipliers.values(), *variables.values()):
+        structure = BoundStructure(
+            unbounded=tuple(nlp.unbounded),
+            path=MappingProxyType(
+                {
+                    name: PathBlock(family=family, values=nlp.constraints[name].take(g))
+                    for name, family in nlp.path_bounds.items()
+                }
+            ),
+        )
+        paths = [block.values for block in structure.path.values()]
+        for arr in (*multipliers.values(), *variables.values(), *paths):
             arr.setflags(write=False)
         history = np.asarray(stats.get("iterations", {}).get("obj", []), dtype=float)
         history.setflags(write=False)
@@ -405,6 +422,8 @@ class TrajOptSolver:
             guess=guess,
             options=self.options,
             seed=seed,
+            feasibility_tol=self.feasibility_tol,
+            bound_structure=structure,
         )
 
 

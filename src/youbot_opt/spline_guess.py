@@ -5,7 +5,11 @@ to 6, chosen at random", whose coefficients meet the start and goal positions
 and velocities exactly and keep position and speed inside the (scaled) limits
 at every knot, found as a feasible point of a linear program from a random
 starting vector; the torques come from inverse dynamics of the spline, with
-the initial time step ``dt0 = 0.1`` s.
+the initial time step ``dt0 = 0.1`` s at 50 knots. At other knot counts the
+default time step keeps the guess duration at the study's 4.9 s
+(:data:`youbot_opt.initial_guess.DEFAULT_GUESS_DURATION`), as
+:func:`youbot_opt.start_jobs.default_dt0` does for multistart, so a coarse
+grid still gets a guess slow enough for the speed limits.
 
 Here "order" is the polynomial's degree ``p``: the four boundary conditions
 fix a cubic completely, so degrees 4 to 6 leave 1 to 3 free coefficients for
@@ -190,7 +194,7 @@ def random_spline_guess(
     n_knots: int,
     *,
     seed: int | np.random.Generator | None,
-    dt: float = DEFAULT_DT,
+    dt: float | None = None,
     bound_scale: float = 1.0,
     orders: tuple[int, ...] = DEFAULT_ORDERS,
     bounds: Any = None,
@@ -211,7 +215,9 @@ def random_spline_guess(
     seed : int, numpy.random.Generator or None
         Randomness; the same int gives the same guess (``None``: fresh entropy).
     dt : float, optional
-        Time step in [s]; the guess lasts ``T0 = (N - 1) dt``.
+        Time step in [s]; the guess lasts ``T0 = (N - 1) dt``. Default:
+        ``DEFAULT_GUESS_DURATION / (N - 1)`` (4.9 s in all, the study's
+        :data:`DEFAULT_DT` = 0.1 s at 50 knots), the default of multistart.
     bound_scale : float, optional
         Factor > 0 applied to the position (about zero) and speed limits, as
         :meth:`youbot_opt.problem.TrajOptProblem.bounds` does by default.
@@ -241,6 +247,10 @@ def random_spline_guess(
     nq = view.model.nq
     if isinstance(n_knots, bool) or not isinstance(n_knots, int | np.integer) or n_knots < 2:
         raise ParameterError(f"n_knots must be an int >= 2, got {n_knots!r}", name="n_knots")
+    if dt is None:
+        from youbot_opt.initial_guess import DEFAULT_GUESS_DURATION
+
+        dt = DEFAULT_GUESS_DURATION / (int(n_knots) - 1)
     if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
         raise ParameterError(f"dt must be finite and > 0 [s], got {dt!r}", name="dt", value=dt)
     if not (

@@ -9,6 +9,12 @@ meshcat replay of the solution (of the distinct optima, side by side, after a
 multistart). The table goes to stdout and the folder's listing after it; with
 ``--json`` stdout holds one JSON object only and the listing goes to stderr.
 
+With ``--starts N > 1`` the starts run in a process pool
+(:func:`youbot_opt.multistart.run_multistart`; ``--workers``, default: the
+CPUs available, 0 = serial) with a progress line per start on stderr (not
+with ``--json`` or ``--quiet``). If no start converges, the failed start with
+the smallest constraint violation is printed and saved in place of the best.
+
 Exit codes: 0 success, 1 failed solve (the result is still printed and saved),
 2 bad input.
 """
@@ -86,6 +92,15 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         type=int,
         default=1,
         help="number of random starts; > 1 runs a multistart (default 1)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="parallel starts with --starts > 1 (default: the CPUs available; 0: serial)",
+    )
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress on stderr (implied by --json)"
     )
     p.add_argument(
         "--bound-scale",
@@ -174,10 +189,13 @@ def format_result(result: Any, certificate: Any = None, *, max_active: int = 12)
     active = result.active_bounds(1e-6) if result.trajectory is not None else []
     lines += ["", f"active bounds (within 1e-6): {len(active)}"]
     if active:
-        lines.append(f"  {'bound':<16}{'knot':>5}{'joint':>6}{'value':>13}{'multiplier':>13}")
+        width = max(16, *(len(row.name) + 1 for row in active[:max_active]))
+        lines.append(
+            f"  {'bound':<{width}}{'knot':>5}{'joint':>6}{'value':>13}{'multiplier':>13}"
+        )
         for row in active[:max_active]:
             lines.append(
-                f"  {row.name:<16}{row.knot:>5}{row.joint:>6}{row.value:>13.6f}"
+                f"  {row.name:<{width}}{row.knot:>5}{row.joint:>6}{row.value:>13.6f}"
                 f"{row.multiplier:>13.4e}"
             )
         if len(active) > max_active:
@@ -305,6 +323,35 @@ def _json_ready(obj: Any) -> Any:
     return obj
 
 
+def _representative(ms: Any) -> Any:
+    """The start a multistart reports: the best converged one, else the least violated failure."""
+    best = ms.best
+    if best is not None and best.result is not None:
+        return best.result
+    failed = [s.result for s in ms.starts if s.result is not None]
+    if not failed:
+        return None
+    return min(failed, key=lambda r: (not math.isfinite(r.max_violation), r.max_violation))
+
+
+def _multistart(args: argparse.Namespace, solver: Any) -> Any:
+    """Run the starts in a process pool (serial with ``--workers 0``), progress on stderr."""
+    from youbot_opt.cli.studies import _Progress
+    from youbot_opt.multistart import run_multistart
+
+    if args.workers is not None and args.workers < 0:
+        raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
+    executor = "serial" if args.workers == 0 else "process"
+    prog = _Progress("solve", args.quiet or args.json)
+    ms = run_multistart(
+        solver, args.starts, beta=args.beta, bound_scale=args.bound_scale, seed=args.seed,
+        include_straight=args.guess == "straight", executor=executor,
+        workers=None if args.workers == 0 else args.workers, progress=prog,
+    )  # fmt: skip
+    prog.close()
+    return ms
+
+
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
     from youbot_opt.options import IpoptOptions
@@ -321,44 +368,57 @@ def run_solve(args: argparse.Namespace) -> int:
     extra: dict[str, Any] = {"build_time_s": solver.build_time}
     ms = None
     if args.starts > 1:
-        try:
-            from youbot_opt.multistart import run_multistart
-        except ImportError as exc:  # pragma: no cover - depends on the installed modules
-            raise ParameterError(
-                "--starts > 1 needs youbot_opt.multistart, which is not available", name="starts"
-            ) from exc
-        ms = run_multistart(
-            solver, args.starts, beta=args.beta, bound_scale=args.bound_scale, seed=args.seed,
-            include_straight=args.guess == "straight", executor="serial",
-        )  # fmt: skip
-        best = ms.best
-        if best is None or best.result is None:
-            print("youbot-opt: no start converged", file=sys.stderr)
-            return 1
-        result = best.result
-        extra["multistart"] = {"n_starts": ms.n_starts, "success_rate": ms.success_rate}
+        ms = _multistart(args, solver)
+        result = _representative(ms)
+        extra["multistart"] = {
+            "n_starts": ms.n_starts,
+            "success_rate": ms.success_rate,
+            "starts": [s.summary() for s in ms.starts],
+        }
     else:
         guess = None
         if args.guess == "spline":
             from youbot_opt.spline_guess import random_spline_guess
+            from youbot_opt.start_jobs import default_dt0
 
             guess = random_spline_guess(
                 problem.robot, problem.start, problem.goal, problem.n_knots, seed=args.seed,
-                bounds=problem.bounds(args.bound_scale), damping=problem.damping,
+                dt=default_dt0(problem), bounds=problem.bounds(args.bound_scale),
+                damping=problem.damping,
             )  # fmt: skip
         result = solver.solve(
             beta=args.beta, bound_scale=args.bound_scale, guess=guess,
             seed=args.seed if args.guess == "spline" else None,
         )  # fmt: skip
+    folder = open_folder("solve", args.out)
+    if result is None:  # every start raised: no iterate to report
+        summary: dict[str, Any] = {
+            "status": "error",
+            "success": False,
+            "message": "every start failed without a result",
+            **extra,
+        }
+        from youbot_opt.cli._output import write_summary
+
+        summary["output_folder"] = str(folder.resolve())
+        summary["files"] = ["summary.json"]
+        files = [write_summary(folder, summary)]
+        print(
+            json.dumps(_json_ready(summary)) if args.json else "youbot-opt: every start failed"
+        )
+        report_outputs(folder, files, args.json)
+        return 1
     certificate = certificate_of(result)
     summary = {**result.summary(), **extra}
     if certificate is not None:
         summary["certificate"] = certificate.summary()
-    folder = open_folder("solve", args.out)
-    files = write_solve_outputs(folder, result, summary, ms)
+    has_optimum = ms is not None and ms.best is not None and ms.best.result is not None
+    files = write_solve_outputs(folder, result, summary, ms if has_optimum else None)
     if args.json:
         print(json.dumps(_json_ready(summary)))
     else:
+        if ms is not None and not has_optimum:
+            print("youbot-opt: no start converged; the least violated failed start follows")
         print(format_result(result, certificate))
         print()
     report_outputs(folder, files, args.json)
