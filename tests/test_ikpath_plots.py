@@ -49,3 +49,28 @@ def test_workspace_marks_verdicts():
         if ln.get_marker() in ("None", "") and to_rgba(ln.get_color()) == to_rgba("tab:red")
     ]
     np.testing.assert_allclose(red_lines[0].get_xydata(), [[0.0, 7.1], [0.0, 7.0]], atol=1e-12)
+
+
+def test_convergence_distance_panel_has_no_fake_points(result):
+    """The distance panel plots |x_k - x*| exactly, omitting the final iterate (distance 0)."""
+    ax = plot_convergence(result).axes[0]
+    dist = [np.linalg.norm(h.x - result.configurations) for h in result.history]
+    expected = [(h.iteration, d) for h, d in zip(result.history, dist, strict=True) if d > 0]
+    assert dist[-1] == 0.0 and len(expected) < len(dist)
+    line = ax.lines[0]
+    np.testing.assert_array_equal(line.get_xdata(), [e[0] for e in expected])
+    np.testing.assert_array_equal(line.get_ydata(), [e[1] for e in expected])
+    assert any("distance 0" in t.get_text() for t in ax.texts)
+
+
+def test_workspace_legend_names_every_verdict_colour():
+    """The legend explains green/red/orange as reachable/unreachable/undecided."""
+    prob = example_problem("B")
+    legend = plot_workspace(prob).axes[0].get_legend()
+    entries = {t.get_text(): h for t, h in zip(legend.get_texts(), legend.legend_handles)}
+    for verdict, color in (
+        ("reachable", "tab:green"),
+        ("unreachable", "tab:red"),
+        ("undecided", "tab:orange"),
+    ):
+        assert to_rgba(entries[f"target: {verdict}"].get_color()) == to_rgba(color)

@@ -29,6 +29,11 @@ Outer iteration ``k``:
    consecutive increases did not reduce the best violation by 10 %, the
    iterate is a local minimiser of the violation (typically pinned against a
    joint limit): stop with status ``INFEASIBLE`` instead of driving ``mu`` up.
+   When ``mu`` would exceed ``penalty_max`` the status is ``STALLED``; if the
+   worst target's tip Jacobian is then nearly singular (LICQ fails, e.g. a
+   target on the workspace boundary reachable only by the straight arm, where
+   no multipliers exist and ``|c|`` falls only like ``mu^(-2/3)``), the
+   message says so.
 
 With ``ALOptions.max_wall_time`` set, the inner solvers stop starting new
 iterations at the deadline and the solve ends with status ``TIME_LIMIT`` and
@@ -54,7 +59,7 @@ from scipy.optimize import Bounds, minimize
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.bfgs import minimize_bfgs
-from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
 
 __all__ = ["ALOptions", "solve_augmented_lagrangian"]
@@ -263,7 +268,10 @@ def solve_augmented_lagrangian(
                 break
             if mu * opts.penalty_growth > opts.penalty_max:
                 status = IKStatus.STALLED
-                message = f"penalty would exceed {opts.penalty_max:g} with |c| = {violation:.2e}"
+                message = (
+                    f"penalty would exceed {opts.penalty_max:g} with |c| = {violation:.2e} m"
+                    f"{_licq_note(ev, lam, mu)}"
+                )
                 break
             mu *= opts.penalty_growth
             eta = max(1.0 / mu**0.1, opts.constraint_tol)
@@ -281,6 +289,36 @@ def solve_augmented_lagrangian(
         start=start,
         constraint_tol=opts.constraint_tol,
         history=tuple(history),
+    )
+
+
+_SINGULAR_RATIO = 1e-2  # sigma_min / sigma_max of a tip Jacobian below which LICQ is lost
+
+
+def _licq_note(ev: Evaluation, lam: Array, mu: float) -> str:
+    """Explain a stall at a (nearly) singular tip Jacobian, or return ``""``.
+
+    At the target ``j`` with the largest violation, if the 2 x n tip Jacobian
+    has ``sigma_min <= 1e-2 sigma_max`` the arm is (nearly) straight: the
+    constraint gradients are (nearly) dependent, LICQ fails, and at a target
+    reachable only by that arm (a point on the workspace boundary) no
+    multipliers exist. The violation there is second order in the distance
+    to the straight arm, so the penalty reduces it only like ``mu^(-2/3)``
+    and ``|lambda_j| ~ mu |c_j|`` grows without bound; no finite ``mu`` meets
+    ``constraint_tol``.
+    """
+    c = np.abs(ev.constraints.reshape(-1, 2)).max(axis=1)
+    j = int(np.argmax(c))
+    sv = np.linalg.svd(ev.jacobian_blocks[j], compute_uv=False)
+    if sv.size < 2 or sv[-1] > _SINGULAR_RATIO * sv[0]:
+        return ""
+    lam_j = float(np.linalg.norm((lam - mu * ev.constraints).reshape(-1, 2)[j]))
+    return (
+        f"; target {j + 1}: the tip Jacobian is nearly singular (singular values "
+        f"{sv[0]:.3g}, {sv[-1]:.2g} m/rad: a straight or folded arm), so LICQ fails "
+        f"(|lambda_{j + 1}| = {lam_j:.3g} grows with the penalty: no multipliers exist "
+        "if the target is reachable only by that arm, e.g. on the workspace boundary) "
+        "and the penalty reduces |c| only like mu^(-2/3) (see docs/ikpath.md)"
     )
 
 

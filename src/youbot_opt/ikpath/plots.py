@@ -19,6 +19,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -34,6 +36,7 @@ __all__ = [
 ]
 
 _GRID_POINTS = 120_000  # joint-grid size for the workspace image
+_VERDICT_COLORS = {"reachable": "tab:green", "unreachable": "tab:red", "undecided": "tab:orange"}
 
 
 def _new_axes(ax: Axes | None, size: tuple[float, float] = (6.0, 6.0)) -> tuple[Figure, Axes]:
@@ -110,15 +113,29 @@ def plot_convergence(result: IKPathResult) -> Figure:
     it = np.array([h.iteration for h in hist])
     final = result.configurations
     dist = np.array([np.linalg.norm(h.x - final) for h in hist])
-    axes[0].semilogy(it, np.maximum(dist, 1e-17), "o-")
+    moved = dist > 0.0  # the final iterate (and any equal to it) is at distance 0: omitted
+    axes[0].semilogy(it[moved], dist[moved], "o-")
     axes[0].set_ylabel("|x_k - x*| [rad]")
+    if not moved.all():
+        axes[0].text(
+            0.99,
+            0.95,
+            f"{int(np.count_nonzero(~moved))} iterate(s) equal to x* (distance 0) not shown",
+            transform=axes[0].transAxes,
+            ha="right",
+            va="top",
+            fontsize=8,
+        )
     axes[1].plot(it, [h.objective for h in hist], "o-")
     axes[1].axhline(result.objective, color="0.5", ls="--", lw=1)
     axes[1].set_ylabel("E [rad²]")
-    axes[2].semilogy(it, np.maximum([h.violation for h in hist], 1e-17), "o-", label="max |c|")
-    axes[2].semilogy(
-        it, np.maximum([h.stationarity for h in hist], 1e-17), "s--", label="stationarity"
-    )
+    for key, style, label in (
+        ("violation", "o-", "max |c|"),
+        ("stationarity", "s--", "stationarity"),
+    ):
+        values = np.array([getattr(h, key) for h in hist], dtype=float)
+        shown = values > 0.0  # exact zeros have no place on a log axis: left out, not floored
+        axes[2].semilogy(it[shown], values[shown], style, label=label)
     axes[2].set_ylabel("max |c| [m], stationarity")
     axes[2].set_xlabel("outer iteration" if result.method == "al" else "IPOPT iteration")
     axes[2].legend(fontsize=8)
@@ -154,7 +171,8 @@ def plot_workspace(
     over the limits (about 120 000 configurations; for display only); the
     target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability`
     (green: reachable, red: unreachable with a line to the nearest reachable point,
-    orange: undecided). The dashed circles are the workspace without limits.
+    orange: undecided; all three are in the legend). The dashed circles bound the
+    workspace without limits.
 
     Parameters
     ----------
@@ -170,7 +188,7 @@ def plot_workspace(
     matplotlib.figure.Figure
         The figure.
     """
-    fig, ax = _new_axes(ax)
+    fig, ax = _new_axes(ax, (8.6, 6.0))
     verdicts = check_reachability(problem) if verdicts is None else verdicts
     pts = _workspace_points(problem)
     ax.hexbin(  # one colour for every cell a grid tip falls in: the region, not a density
@@ -194,8 +212,7 @@ def plot_workspace(
                 color="0.4",
                 lw=1,
             )
-    palette = {"reachable": "tab:green", "unreachable": "tab:red", "undecided": "tab:orange"}
-    colors = [palette[v.status.value] for v in verdicts]
+    colors = [_VERDICT_COLORS[v.status.value] for v in verdicts]
     _mark_targets(ax, problem.targets, colors)
     for v in verdicts:
         if not v.reachable:
@@ -208,6 +225,22 @@ def plot_workspace(
     ax.set_ylabel("y [m]")
     limits = "joint limits" if problem.bounded else "no joint limits"
     ax.set_title(f"workspace, {limits} (grid image); exact verdicts", fontsize=10)
+    handles = [
+        Patch(facecolor="#b9d3ee", label="tips of a joint grid (display only)"),
+        Line2D([], [], ls="--", color="0.4", lw=1, label="reach without limits"),
+        Line2D([], [], ls="", marker="s", ms=7, color="k", label="base (joint 1)"),
+    ] + [
+        Line2D([], [], ls="", marker="x", mew=2, ms=9, color=color, label=f"target: {verdict}")
+        for verdict, color in _VERDICT_COLORS.items()
+    ]
+    if any(not v.reachable for v in verdicts):
+        handles.append(
+            Line2D([], [], color="tab:red", marker="o", mfc="none", label="nearest reachable point")
+        )
+    # outside the axes, so it never hides the workspace, a target or the base
+    ax.legend(
+        handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8
+    )
     return fig
 
 
