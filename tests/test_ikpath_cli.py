@@ -162,3 +162,39 @@ def test_ipopt_on_a_one_link_chain_is_refused_with_advice(capsys):
     code = main([*argv, "--method", "ipopt", "--no-progress", "--no-replay"])
     err = capsys.readouterr().err
     assert code == 2 and "at least 2 free joints" in err and "method='al'" in err
+
+
+def test_undecided_target_warns_with_interval_and_still_solves(capsys):
+    """A budget too small to decide: a stderr warning with the certified interval; JSON says so."""
+    argv = ["ikpath", "--lengths", *["1"] * 7, "--limit", "1.0471975511965976"]
+    argv += ["--target", "-2", "1", "--target", "3", "1", "--reach-evaluations", "10"]
+    code, doc, err = _json(capsys, [*argv, "--json", "--no-replay", "--no-progress"])
+    first = doc["reachability"][0]
+    assert first["verdict"] == "undecided" and doc["reachability_undecided"] == [0]
+    assert doc["reachability"][1]["verdict"] == "reachable"
+    lo, hi = first["distance_lower"], first["distance_upper"]
+    assert 0.0 <= lo <= hi
+    assert "warning: reachability of target p1 = (-2, 1) is undecided" in err
+    assert f"[{lo:.6g}, {hi:.6g}] m" in err and "--reach-evaluations" in err
+    assert doc["E"] is not None and code == (0 if doc["status"] == "success" else 1)  # solved
+    assert main([*argv[:-1], "0", "--no-progress"]) == 2
+    assert "--reach-evaluations must be >= 1, got 0" in capsys.readouterr().err
+
+
+def test_starts_show_progress_name_the_folder_and_resume(capsys, tmp_path):
+    """--starts 20: folder named before solving, progress per tenth; a rerun loads every start."""
+    out = tmp_path / "run"
+    argv = ["ikpath", "--example", "B", "--starts", "20", "--workers", "2", "--out", str(out)]
+    code, doc, err = _json(capsys, [*argv, "--json", "--no-replay"])
+    assert code == 0 and doc["resumed"] == 0 and doc["retried"] == []
+    lines = err.splitlines()
+    assert lines[0].startswith(f"ikpath: 20 start(s), each saved to {out.resolve() / 'items'}")
+    done = [int(ln.split()[1].split("/")[0]) for ln in lines if " starts done, best E " in ln]
+    assert done == [1, *range(2, 21, 2)]  # the first start, then a line per tenth (no tty)
+    assert [o["index"] for o in doc["start_outcomes"]] == list(range(20))
+    assert all(o["attempts"] == 1 for o in doc["start_outcomes"])
+    assert {"manifest.json", "items"} <= set(doc["files"])
+    code, again, err = _json(capsys, [*argv, "--json", "--no-replay"])
+    assert code == 0 and again["resumed"] == 20
+    assert "ikpath: 20/20 starts done" in err
+    assert [o["E"] for o in again["start_outcomes"]] == [o["E"] for o in doc["start_outcomes"]]

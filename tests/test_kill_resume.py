@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from youbot_opt.parallel import Task, TaskOutcome, run_tasks
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.parallel import Task, TaskOutcome, WorkerPool, run_tasks
 
 
 def _square(x: float) -> float:
@@ -65,10 +66,11 @@ def test_segfaulting_worker_is_recorded_failed_and_retried_once(
     }
     crashed = out["k2"]
     assert not crashed.ok and crashed.final and crashed.attempts == 2
-    assert "worker process crashed" in str(crashed.error)
-    # Innocent tasks that shared the broken pool may have one failed attempt, never a final failure.
-    assert all(o.ok for k, o in out.items() if k != "k2")
+    assert "worker process crashed (killed by signal SIGSEGV" in str(crashed.error)
+    # Only the task whose worker died is charged: its neighbours never see a failed attempt.
+    assert all(o.ok and o.attempts == 1 for k, o in out.items() if k != "k2")
     assert sum(1 for o in seen if o.key == "k2") == 2
+    assert len(seen) == 9  # 7 successes + 2 crashes, nothing duplicated
 
 
 def test_worker_crashing_once_succeeds_on_retry(
@@ -77,9 +79,77 @@ def test_worker_crashing_once_succeeds_on_retry(
     """A worker that crashes on the first attempt only: the retry succeeds (attempts = 2)."""
     monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "k1,k4")
     monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
-    out = run_tasks(_tasks(_square), executor="process", workers=2)
+    seen: list[TaskOutcome] = []
+    out = run_tasks(_tasks(_square), executor="process", workers=2, on_outcome=seen.append)
     assert {k: o.value for k, o in out.items()} == {f"k{i}": i * i for i in range(6)}
     assert out["k1"].attempts == 2 and out["k4"].attempts == 2
+    # Exactly the two crashes failed, each with the true reason; no innocent task was blamed.
+    failed = sorted((o.key, o.attempts) for o in seen if not o.ok)
+    assert failed == [("k1", 1), ("k4", 1)]
+    assert all("killed by signal SIGSEGV" in str(o.error) for o in seen if not o.ok)
+    assert all(o.attempts == 1 for k, o in out.items() if k not in ("k1", "k4"))
+
+
+def _sleep_then_square(x: float) -> float:
+    time.sleep(0.05)  # [s] keeps the neighbours of a hung task busy while it hangs
+    return x * x
+
+
+def test_hung_task_is_killed_at_the_timeout_and_retried_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A task that hangs forever is killed after `timeout`, twice, and marked final; others finish."""
+    monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "k3")
+    seen: list[TaskOutcome] = []
+    tic = time.monotonic()
+    out = run_tasks(
+        _tasks(_sleep_then_square), executor="process", workers=2, timeout=0.5, on_outcome=seen.append
+    )
+    elapsed = time.monotonic() - tic
+    assert {k: o.value for k, o in out.items() if o.ok} == {
+        f"k{i}": i * i for i in range(6) if i != 3
+    }
+    hung = [o for o in seen if o.key == "k3"]
+    assert [(o.attempts, o.final, o.error) for o in hung] == [
+        (1, False, "timeout after 0.5 s"),
+        (2, True, "timeout after 0.5 s"),
+    ]
+    assert all(o.attempts == 1 for k, o in out.items() if k != "k3")
+    # Two 0.5 s time-outs in a row (the retry starts after the first); the hour-long sleep was cut
+    # short. 10 s of slack covers worker start-up on a loaded 2-core machine.
+    assert 1.0 <= elapsed < 11.0
+
+
+def test_task_hanging_once_succeeds_on_retry(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A task that hangs on its first attempt only: killed at the timeout, the retry succeeds."""
+    monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "k0")
+    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
+    seen: list[TaskOutcome] = []
+    out = run_tasks(_tasks(_square, 3), executor="process", workers=1, timeout=0.3, on_outcome=seen.append)
+    assert {k: o.value for k, o in out.items()} == {"k0": 0, "k1": 1, "k2": 4}
+    assert out["k0"].attempts == 2
+    assert [o.error for o in seen if not o.ok] == ["timeout after 0.3 s"]
+
+
+def test_timeout_needs_a_worker_pool() -> None:
+    """A timeout with serial execution, or a non-positive timeout, is refused with its value."""
+    with pytest.raises(ParameterError, match="executor='serial'"):
+        run_tasks(_tasks(_square, 1), executor="serial", timeout=1.0)
+    with pytest.raises(ParameterError, match="got -1"):
+        run_tasks(_tasks(_square, 1), executor="process", timeout=-1)
+
+
+def test_worker_pool_is_reused_across_calls() -> None:
+    """A WorkerPool keeps its worker process between run_tasks calls, and replaces a dead one."""
+    with WorkerPool(1) as pool:
+        pids = [run_tasks([Task(key="p", fn=os.getpid)], executor=pool)["p"].value for _ in range(3)]
+        assert len(set(pids)) == 1 and pids[0] != os.getpid()
+        os.kill(pids[0], signal.SIGKILL)  # dies while idle: the next call gets a new worker
+        time.sleep(0.1)
+        again = run_tasks([Task(key="p", fn=os.getpid)], executor=pool)["p"]
+        assert again.ok and again.attempts == 1 and again.value != pids[0]
 
 
 def test_crash_hook_is_inert_in_serial_mode(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -91,28 +161,20 @@ def test_crash_hook_is_inert_in_serial_mode(monkeypatch: pytest.MonkeyPatch) -> 
 
 # ------------------------------------------------------- SIGKILL of the CLI sweep
 _STARTS, _KNOTS, _SEED = 24, 15, 5
+_PARETO_BETAS = "0.02:0.98:0.02"  # 49 warm-started points, ~30 ms each at 15 knots
+_SCALES, _SCALE_STARTS = (1.0, 0.95, 0.9), 5  # 3 x (5 splines + straight line) = 18 starts
 
 
-def _cli(out: Path) -> list[str]:
-    return [
-        sys.executable,
-        "-m",
-        "youbot_opt",
-        "multistart",
-        "--starts",
-        str(_STARTS),
-        "--knots",
-        str(_KNOTS),
-        "--seed",
-        str(_SEED),
-        "--workers",
-        "2",
-        "--straight",
-        "--out",
-        str(out),
-        "--json",
-        "--quiet",
-    ]
+def _cli(out: Path, command: str = "multistart") -> list[str]:
+    common = ["--knots", str(_KNOTS), "--seed", str(_SEED), "--out", str(out), "--json", "--quiet"]
+    if command == "multistart":
+        extra = ["--starts", str(_STARTS), "--workers", "2", "--straight"]
+    elif command == "pareto":
+        extra = ["--betas", _PARETO_BETAS, "--workers", "1"]
+    else:
+        scales = ",".join(str(x) for x in _SCALES)
+        extra = ["--scales", scales, "--starts", str(_SCALE_STARTS), "--workers", "2"]
+    return [sys.executable, "-m", "youbot_opt", command, *extra, *common]
 
 
 def _records(out: Path) -> int:
@@ -137,23 +199,20 @@ def _session_pids(sid: int) -> list[int]:
     return pids
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
-def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path) -> None:
-    """4 SIGKILLs at seeded random points, then a final run: same items and f, none lost."""
-    from youbot_opt.multistart import run_multistart
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import TrajOptSolver
+def _kill_repeatedly(cmd: list[str], out: Path, n_kills: int, seed: int) -> dict:  # type: ignore[type-arg]
+    """Start ``cmd`` ``n_kills`` times, SIGKILL it at seeded random points, then let it finish.
 
-    rng = np.random.default_rng(20240603)
-    out = tmp_path / "sweep"
+    Returns the final run's JSON summary, after checking that every kill landed while
+    work was left and that no pool worker outlived a killed sweep.
+    """
+    rng = np.random.default_rng(seed)
     kills = 0
-    for _ in range(4):
+    for _ in range(n_kills):
         before = _records(out)
         target = before + int(rng.integers(1, 4))  # kill after 1-3 more finished items ...
         delay = float(rng.uniform(0.0, 0.03))  # ... plus 0-30 ms, to land anywhere in a write
         proc = subprocess.Popen(
-            _cli(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
         )
         try:
             deadline = time.monotonic() + 120.0
@@ -174,22 +233,47 @@ def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path)
                 os.killpg(proc.pid, signal.SIGKILL)  # only our own session; normally empty by now
             except ProcessLookupError:
                 pass
-    assert kills == 4, "the sweep finished before all kills; make it longer"
-    assert _records(out) < _STARTS + 1  # the kills really left work to do
-
-    done = subprocess.run(_cli(out), capture_output=True, text=True, timeout=300)
+    assert kills == n_kills, "the sweep finished before all kills; make it longer"
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    resumed = json.loads(done.stdout)
-    assert 0 < resumed["resumed"] < _STARTS + 1
+    summary: dict = json.loads(done.stdout)  # type: ignore[type-arg]
+    return summary
+
+
+def _check_store(out: Path, keys: list[str]) -> None:
+    """Nothing lost or duplicated on disk: one record and one result per item, no temporaries."""
+    items = out / "items"
+    assert sorted(p.stem for p in items.glob("*.json")) == sorted(keys)
+    assert sorted(p.stem for p in items.glob("*.npz")) == sorted(keys)
+    assert [p.name for p in items.iterdir() if p.name.startswith(".")] == []
+    # A kill is not a failure of the item: every item was computed once, successfully.
+    for k in keys:
+        record = json.loads((items / f"{k}.json").read_text())
+        assert (record["state"], record["attempts"], record["reasons"]) == ("done", 1, [])
+
+
+def _cli_solver():  # type: ignore[no-untyped-def]
+    """The solver the CLI builds (trapezoidal, symbolic, IPOPT max_iter 3000)."""
+    from youbot_opt.options import IpoptOptions
+    from youbot_opt.problem import study1_problem
+    from youbot_opt.solve import TrajOptSolver
+
+    return TrajOptSolver(study1_problem(_KNOTS), "trapezoidal", IpoptOptions(max_iter=3000))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path) -> None:
+    """4 SIGKILLs at seeded random points, then a final run: same items and f, none lost."""
+    from youbot_opt.multistart import run_multistart
+
+    out = tmp_path / "sweep"
+    resumed = _kill_repeatedly(_cli(out), out, 4, seed=20240603)
+    assert 0 < resumed["resumed"] < _STARTS + 1  # the kills really left work to do
 
     # Independent reference: an uninterrupted in-process run with the same seeds.
     ref = run_multistart(
-        TrajOptSolver(study1_problem(_KNOTS)),
-        _STARTS,
-        beta=0.5,
-        seed=_SEED,
-        include_straight=True,
-        executor="serial",
+        _cli_solver(), _STARTS, beta=0.5, seed=_SEED, include_straight=True, executor="serial"
     )
     got = {s["key"]: s for s in resumed["starts"]}
     assert list(got) == [s.key for s in ref.starts]  # same set of items, in order, no duplicates
@@ -197,12 +281,56 @@ def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path)
         assert got[s.key]["seed"] == s.seed and got[s.key]["status"] == s.status
         # Same seeds, same deterministic IPOPT run: objectives agree to 1e-9.
         assert got[s.key]["objective"] == pytest.approx(s.objective, rel=0, abs=1e-9)
-    # Nothing lost or duplicated on disk: one record and one result per item, no temporaries.
-    items = out / "items"
-    assert sorted(p.stem for p in items.glob("*.json")) == sorted(got)
-    assert sorted(p.stem for p in items.glob("*.npz")) == sorted(got)
-    assert [p.name for p in items.iterdir() if p.name.startswith(".")] == []
-    assert all(json.loads((items / f"{k}.json").read_text())["attempts"] == 1 for k in got)
+    _check_store(out, list(got))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path) -> None:
+    """4 SIGKILLs of `youbot-opt pareto`, then a final run: the same 49 points, none lost."""
+    from youbot_opt.cli.studies import parse_values
+    from youbot_opt.pareto import pareto_sweep
+
+    out = tmp_path / "pareto"
+    betas = parse_values(_PARETO_BETAS, "betas")
+    resumed = _kill_repeatedly(_cli(out, "pareto"), out, 4, seed=20240604)
+    assert 0 < resumed["resumed"] < len(betas)  # the kills really left work to do
+
+    # Independent reference: the uninterrupted sweep in this process (no worker, no store).
+    ref = pareto_sweep(_cli_solver(), betas, executor="serial")
+    got = resumed["points"]
+    assert [p["beta"] for p in got] == [p.beta for p in ref.points]  # none lost or repeated
+    for g, r in zip(got, ref.points, strict=True):
+        assert (g["status"], g["start"], g["iterations"]) == (r.status, r.start, r.iterations)
+        assert g["dominated"] == r.dominated
+        # Each point warm-starts from the previous one as read back from disk, which is
+        # bit-exact, so the same deterministic IPOPT run: objectives agree to 1e-9.
+        assert g["objective"] == pytest.approx(r.objective, rel=0, abs=1e-9)
+    _check_store(out, [f"point_{k:03d}" for k in range(len(betas))])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path) -> None:
+    """4 SIGKILLs of `youbot-opt bounds`, then a final run: the same 18 starts, none lost."""
+    from youbot_opt.bound_scaling import bound_scaling_study
+
+    out = tmp_path / "bounds"
+    resumed = _kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605)
+
+    ref = bound_scaling_study(
+        _cli_solver(), _SCALES, n_starts=_SCALE_STARTS, seed=_SEED, executor="serial"
+    )
+    for g, r in zip(resumed["rows"], ref.rows, strict=True):
+        assert g["bound_scale"] == r.bound_scale and g["success_rate"] == r.multistart.success_rate
+        assert g["objective"] == pytest.approx(r.objective, rel=0, abs=1e-9)  # as above
+        assert g["active_counts"] == r.active_counts()
+    starts = [s for row in ref.rows for s in row.multistart.starts]
+    _check_store(out, [s.key for s in starts])
+    for s in starts:  # every start, not only each scale's best, equals the reference
+        summary = json.loads((out / "items" / f"{s.key}.json").read_text())["summary"]
+        assert (summary["seed"], summary["status"]) == (s.seed, s.status)
+        assert summary["objective"] == pytest.approx(s.objective, rel=0, abs=1e-9)
 
 
 # ------------------------------------------------- store + multistart, in process

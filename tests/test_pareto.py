@@ -118,6 +118,74 @@ def test_interrupted_sweep_resumes_to_the_same_front(solver: TrajOptSolver, tmp_
         pareto_sweep(solver, (0.2, 0.5), out=tmp_path)
 
 
+def test_resumed_front_reloads_the_first_point_multistart(
+    solver: TrajOptSolver, tmp_path: Path
+) -> None:
+    """After a resume, `first` (the first point's multistart) equals the uninterrupted one."""
+
+    def stop_after_one(done: int, total: int, point: ParetoPoint) -> None:
+        if done == 1:
+            raise KeyboardInterrupt  # a kill right after the first point was saved
+
+    kw = {"first_starts": 2, "seed": 4, "executor": "serial"}
+    with pytest.raises(KeyboardInterrupt):
+        pareto_sweep(solver, BETAS[:2], out=tmp_path, progress=stop_after_one, **kw)
+    resumed = pareto_sweep(solver, BETAS[:2], out=tmp_path, **kw)
+    full = pareto_sweep(solver, BETAS[:2], **kw)
+    assert resumed.resumed == 1 and resumed.first is not None and full.first is not None
+    assert resumed.first.resumed == 3  # every start read back from DIR/first_point
+    got, ref = resumed.first.summary(), full.first.summary()
+    for field in ("beta", "bound_scale", "seed", "n_starts", "success_rate", "n_errors"):
+        assert got[field] == ref[field]
+    assert [o["count"] for o in got["distinct_optima"]] == [
+        o["count"] for o in ref["distinct_optima"]
+    ]
+    for a, b in zip(resumed.first.starts, full.first.starts, strict=True):
+        assert (a.key, a.seed, a.status, a.iterations) == (b.key, b.seed, b.status, b.iterations)
+        # Same seeds, same deterministic IPOPT run; the stored result reads back exactly.
+        assert a.objective == pytest.approx(b.objective, rel=0, abs=1e-12)
+    for a, b in zip(resumed.points, full.points, strict=True):
+        assert (a.start, a.status, a.iterations) == (b.start, b.status, b.iterations)
+        assert a.objective == pytest.approx(b.objective, rel=0, abs=1e-9)  # as the resume test
+
+
+def test_crashing_point_is_recorded_failed_retried_once_and_the_sweep_goes_on(
+    solver: TrajOptSolver, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A point whose worker segfaults fails after 2 attempts with the reason; later points solve."""
+    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "point_001")
+    front = pareto_sweep(solver, BETAS, out=tmp_path / "always")
+    a, b, c = front.points
+    assert a.success and c.success and not b.success
+    assert b.status == "error" and "killed by signal SIGSEGV" in str(b.reason)
+    assert c.start == "previous"  # warm-started from point 0, the last converged point
+    record = json.loads((tmp_path / "always" / "items" / "point_001.json").read_text())
+    assert record["state"] == "failed" and record["attempts"] == 2
+    assert len(record["reasons"]) == 2 and all("crashed" in r for r in record["reasons"])
+    # A rerun does not try it a third time (attempts used up) and does not crash.
+    again = pareto_sweep(solver, BETAS, out=tmp_path / "always")
+    assert again.resumed == 3 and again.points[1].status == "error"
+
+    # Crashing on the first attempt only: the retry succeeds and the front is the usual one.
+    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
+    once = pareto_sweep(solver, BETAS, out=tmp_path / "once")
+    full = pareto_sweep(solver, BETAS, executor="serial")
+    for p, q in zip(once.points, full.points, strict=True):
+        # Same warm starts, same deterministic IPOPT run in another process: 1e-9 as above.
+        assert p.objective == pytest.approx(q.objective, rel=0, abs=1e-9)
+    record = json.loads((tmp_path / "once" / "items" / "point_001.json").read_text())
+    assert record["state"] == "done" and record["attempts"] == 2
+    assert len(record["reasons"]) == 1 and "SIGSEGV" in record["reasons"][0]
+
+
+def test_hung_point_times_out(solver: TrajOptSolver, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A point that hangs is killed at the per-point timeout, twice, and the sweep goes on."""
+    monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "point_000")
+    front = pareto_sweep(solver, BETAS[:2], timeout=1.0)
+    assert front.points[0].status == "error" and front.points[0].reason == "timeout after 1 s"
+    assert front.points[1].success and front.points[1].start == "straight"
+
+
 def test_first_point_multistart_keeps_the_best_start(solver: TrajOptSolver) -> None:
     """With first_starts, point 1 is the best of its multistart and the rest warm-start from it."""
     front = pareto_sweep(solver, BETAS[:2], first_starts=2, seed=4, executor="serial")

@@ -159,6 +159,37 @@ def test_server_listens_on_loopback_only_and_stops(server):
     vis.close()
 
 
+def test_get_image_of_a_dead_server_raises_viewer_error():
+    """get_image() on a stopped server times out with ViewerError (it once was AttributeError)."""
+    with MeshcatServer() as other:
+        vis = other.visualizer(timeout=0.5)
+    start = time.monotonic()
+    with pytest.raises(ViewerError, match=r"did not answer within 0.5 s.*needs a browser"):
+        vis.get_image()
+    # RCVTIMEO is 0.5 s; 3 s of slack covers a loaded 2-core machine.
+    assert 0.45 <= time.monotonic() - start < 3.5
+    vis.close()
+
+
+class _BodyFailed(Exception):
+    """Raised inside a with block by the test below."""
+
+
+def test_with_block_that_raises_stops_the_server():
+    """An exception in the body of `with MeshcatServer()` stops the server and frees its ports."""
+    with pytest.raises(_BodyFailed):
+        with MeshcatServer() as srv:
+            pid = srv.pid
+            ports = {_port(srv.zmq_url), _port(srv.web_url)}
+            assert ports <= {port for _, port in _listening_addresses(pid)}  # it was listening
+            raise _BodyFailed
+    assert not srv.running
+    assert _wait_dead(pid, timeout=0.1)  # close() waited for the process
+    for port in ports:  # nothing listens there any more: connections are refused
+        with socket.socket() as sock:
+            assert sock.connect_ex(("127.0.0.1", port)) != 0
+
+
 def test_call_to_a_port_without_server_times_out():
     """Connecting to an address where no server answers raises ViewerError after the time-out."""
     with socket.socket() as sock:

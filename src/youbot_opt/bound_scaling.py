@@ -158,6 +158,7 @@ def bound_scaling_study(
     progress: ProgressFn | None = None,
     out: str | os.PathLike[str] | None = None,
     max_attempts: int = 2,
+    timeout: float | None = None,
     method: Any = "trapezoidal",
     options: IpoptOptions | None = None,
     backend: str = "symbolic",
@@ -183,7 +184,7 @@ def bound_scaling_study(
         :func:`youbot_opt.multistart.default_dt0`).
     active_tol : float
         Distance from a bound, in its unit, below which it counts as active.
-    executor, workers, progress, out, max_attempts
+    executor, workers, progress, out, max_attempts, timeout
         As in :func:`youbot_opt.multistart.run_multistart` (``progress`` counts
         starts over all scales).
     method, options, backend
@@ -243,6 +244,7 @@ def bound_scaling_study(
         workers=workers,
         progress=progress,
         max_attempts=max_attempts,
+        timeout=timeout,
     )
     rows = []
     for s, jobs in zip(values, jobs_by_scale, strict=True):

@@ -292,6 +292,7 @@ def run_multistart(
     progress: ProgressFn | None = None,
     out: str | os.PathLike[str] | None = None,
     max_attempts: int = 2,
+    timeout: float | None = None,
     method: Any = "trapezoidal",
     options: IpoptOptions | None = None,
     backend: str = "symbolic",
@@ -329,6 +330,11 @@ def run_multistart(
     max_attempts : int
         Attempts per start; a start that raises or crashes its worker is retried
         until this many were made (default 2: once).
+    timeout : float, optional
+        Wall-clock limit in [s] per start attempt: a start still running then
+        is killed with its worker, recorded as failed (``"timeout after ... s"``)
+        and retried like a crash. Needs a worker process (not
+        ``executor="serial"``); default: no limit.
     method, options, backend
         Solver settings when a problem is given.
 
@@ -378,6 +384,7 @@ def run_multistart(
         workers=workers,
         progress=progress,
         max_attempts=max_attempts,
+        timeout=timeout,
     )
     return MultistartResult(
         starts=tuple(outcomes[j.key] for j in jobs),

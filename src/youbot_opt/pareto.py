@@ -10,21 +10,31 @@ straight-line guess where a warm start fails. A point is *dominated* if
 another converged point has ``T <=`` and ``W <=`` with one inequality strict;
 :meth:`ParetoFront.nondominated` returns the rest.
 
+Unless ``executor="serial"``, the points are solved one after the other in
+one persistent worker process (:class:`youbot_opt.parallel.WorkerPool`; it
+inherits the built solver under ``fork``), each task carrying the previous
+point's result as its warm start. A point whose worker crashes (segfault,
+out-of-memory kill) or runs past ``timeout`` is recorded as failed with the
+reason and retried once in a fresh worker; the sweep goes on.
+
 With ``out=DIR`` each point is saved as it is solved and a rerun resumes from
 the saved points (:mod:`youbot_opt.sweep_store`); since each point starts
-from the saved previous one, a resumed sweep gives the same points.
+from the saved previous one, a resumed sweep gives the same points, and the
+first point's multistart (``first_starts``) is reloaded from ``DIR/first_point``.
 
 The bound-scaling study lives in :mod:`youbot_opt.bound_scaling`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +44,13 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.multistart import MultistartResult, run_multistart
 from youbot_opt.objectives import check_beta
 from youbot_opt.options import IpoptOptions
-from youbot_opt.parallel import ExecutorLike
+from youbot_opt.parallel import ExecutorLike, Task, TaskOutcome, WorkerPool, run_tasks
+from youbot_opt.parallel import process_context
 from youbot_opt.problem import TrajOptProblem, check_bound_scale
 from youbot_opt.result import TrajOptResult
 from youbot_opt.solve import TrajOptSolver
-from youbot_opt.start_jobs import _as_solver, _store_for, sweep_params
+from youbot_opt.start_jobs import _as_solver, _init_worker_solver, _SolverSpec, _store_for
+from youbot_opt.start_jobs import sweep_params
 from youbot_opt.sweep_store import SweepStore
 
 __all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFAULT_BETAS"]
@@ -50,7 +62,7 @@ DEFAULT_BETAS: tuple[float, ...] = tuple(
 )
 """The study's weights: 0.05, 0.10, ..., 0.95 (19 points)."""
 
-_MAX_ATTEMPTS = 2  # a point that raised is retried once, by the next run
+_MAX_ATTEMPTS = 2  # a point that raised or crashed its worker is retried once
 
 
 def dominated_mask(
@@ -267,6 +279,17 @@ def _solve_point(
     return _point(beta, cold, "straight", elapsed)
 
 
+def _solve_point_task(
+    spec: _SolverSpec,
+    beta: float,
+    bound_scale: float,
+    previous: TrajOptResult | None,
+    cold_fallback: bool,
+) -> ParetoPoint:
+    """Worker task: one weight, with this worker's (or the parent's) solver."""
+    return _solve_point(spec.solver(), beta, bound_scale, previous, cold_fallback)
+
+
 def _check_betas(betas: Sequence[float] | np.ndarray) -> tuple[float, ...]:
     values = tuple(check_beta(float(b)) for b in np.atleast_1d(np.asarray(betas, dtype=float)))
     if not values:
@@ -290,6 +313,7 @@ def pareto_sweep(
     workers: int | None = None,
     progress: Callable[[int, int, ParetoPoint], None] | None = None,
     out: str | os.PathLike[str] | None = None,
+    timeout: float | None = None,
     method: Any = "trapezoidal",
     options: IpoptOptions | None = None,
     backend: str = "symbolic",
@@ -321,10 +345,14 @@ def pareto_sweep(
         noise; 0 for the exact definition).
     executor, workers
         Where the first point's multistart runs (:func:`youbot_opt.parallel.run_tasks`).
+        The points run in one persistent worker process, crash-isolated, unless
+        ``executor="serial"`` (then in this process).
     progress : callable ``(done, total, last_point)``, optional
         Called after each weight.
     out : path-like, optional
-        Output directory; each point is saved as it is solved and a rerun resumes.
+        Output directory; each point is saved as it is solved, and a rerun resumes.
+    timeout : float, optional
+        Wall-clock limit in [s] per point (and first-point start) attempt; not serial.
     method, options, backend
         Solver settings when a problem is given.
 
@@ -364,48 +392,65 @@ def pareto_sweep(
     first: MultistartResult | None = None
     previous: TrajOptResult | None = None
     resumed = 0
-    for k, beta in enumerate(values):
-        key = f"point_{k:03d}"
-        point: ParetoPoint | None = None
-        again, attempts = (True, 0) if store is None else store.needs_work(key, _MAX_ATTEMPTS)
-        if not again:
-            assert store is not None
-            point = _load_point(store, key, beta)
-            resumed += 1
-        elif k == 0 and first_starts > 0:
-            first = run_multistart(
-                solver,
-                first_starts,
-                beta=beta,
-                bound_scale=bound_scale,
-                seed=seed,
-                include_straight=True,
-                executor=executor,
-                workers=workers,
-                out=None if out is None else Path(out) / "first_point",
-            )
-            best = first.best
-            if best is not None and best.result is not None:
-                spent = sum(s.solve_time for s in first.starts)
-                point = _point(beta, best.result, "multistart", spent)
+    fork = process_context().get_start_method() == "fork"
+    spec = _SolverSpec.of(solver, keep=executor == "serial" or fork)
+    with contextlib.ExitStack() as stack:
+        pool: WorkerPool | None = None
+        for k, beta in enumerate(values):
+            key = f"point_{k:03d}"
+            again, attempts = (True, 0) if store is None else store.needs_work(key, _MAX_ATTEMPTS)
+            if k == 0 and first_starts > 0:
+                # Rerun on resume too: its own store in DIR/first_point loads every start.
+                first = run_multistart(
+                    solver,
+                    first_starts,
+                    beta=beta,
+                    bound_scale=bound_scale,
+                    seed=seed,
+                    include_straight=True,
+                    executor=executor,
+                    workers=workers,
+                    timeout=timeout,
+                    out=None if out is None else Path(out) / "first_point",
+                )
+            if not again:
+                assert store is not None
+                point = _load_point(store, key, beta)
+                resumed += 1
+            elif first is not None and k == 0:
+                best = first.best
+                if best is not None and best.result is not None:
+                    spent = sum(s.solve_time for s in first.starts)
+                    point = _point(beta, best.result, "multistart", spent)
+                else:
+                    point = _error_point(beta, "no start of the first point's multistart converged")
+                if store is not None:
+                    _write_point(store, key, point, attempts + 1)
             else:
-                point = _error_point(beta, "no start of the first point's multistart converged")
-        if point is None:
-            guess = previous if warm_start else None
-            try:
-                point = _solve_point(solver, beta, bound_scale, guess, cold_fallback)
-            except Exception as exc:  # one failing weight must not end the sweep
-                point = _error_point(beta, f"{type(exc).__name__}: {exc}")
-        if store is not None and again:
-            if point.result is None:
-                store.write_failed(key, point.reason or "error", attempts=attempts + 1)
-            else:
-                store.write_done(key, point.result, point.summary(), attempts=attempts + 1)
-        points.append(point)
-        if point.success and point.result is not None:
-            previous = point.result
-        if progress is not None:
-            progress(k + 1, len(values), point)
+                if pool is None and executor != "serial":
+                    pool = stack.enter_context(
+                        WorkerPool(1, initializer=_init_worker_solver, initargs=(spec,))
+                    )
+                guess = previous if warm_start else None
+                task = Task(
+                    key=key,
+                    fn=_solve_point_task,
+                    args=(spec, beta, bound_scale, guess, cold_fallback),
+                    attempts=attempts,
+                )
+                outcome = run_tasks(
+                    [task],
+                    executor="serial" if pool is None else pool,
+                    max_attempts=_MAX_ATTEMPTS,
+                    timeout=timeout,
+                    on_outcome=None if store is None else partial(_save_attempt, store),
+                )[key]
+                point = outcome.value if outcome.ok else _error_point(beta, str(outcome.error))
+            points.append(point)
+            if point.success and point.result is not None:
+                previous = point.result
+            if progress is not None:
+                progress(k + 1, len(values), point)
     mask = dominated_mask(
         [p.duration if p.success else np.nan for p in points],
         [p.work if p.success else np.nan for p in points],
@@ -419,6 +464,21 @@ def pareto_sweep(
         wall_time=time.perf_counter() - tic,
         resumed=resumed,
     )
+
+
+def _write_point(store: SweepStore, key: str, point: ParetoPoint, attempts: int) -> None:
+    if point.result is None:
+        store.write_failed(key, point.reason or "error", attempts=attempts)
+    else:
+        store.write_done(key, point.result, point.summary(), attempts=attempts)
+
+
+def _save_attempt(store: SweepStore, o: TaskOutcome) -> None:
+    """Save an attempt of a point as it ends: the point, or the failure's reason."""
+    if o.ok:
+        _write_point(store, o.key, o.value, o.attempts)
+    else:
+        store.write_failed(o.key, str(o.error), attempts=o.attempts)
 
 
 def _load_point(store: SweepStore, key: str, beta: float) -> ParetoPoint:

@@ -339,8 +339,13 @@ def solve_starts(
     workers: int | None,
     progress: ProgressFn | None,
     max_attempts: int,
+    timeout: float | None = None,
 ) -> tuple[dict[str, StartOutcome], int]:
-    """Run start jobs (loading finished ones from ``store``); outcomes by key and resumed count."""
+    """Run start jobs (loading finished ones from ``store``); outcomes by key and resumed count.
+
+    ``timeout`` is the wall-clock limit in [s] per start attempt
+    (:func:`youbot_opt.parallel.run_tasks`; ``None``: no limit).
+    """
     outcomes: dict[str, StartOutcome] = {}
     todo: list[Task] = []
     by_key = {job.key: job for job in jobs}
@@ -384,6 +389,7 @@ def solve_starts(
         initargs=(spec,) if own_pool else (),
         max_attempts=max_attempts,
         on_outcome=record,
+        timeout=timeout,
     )
     return outcomes, resumed
 

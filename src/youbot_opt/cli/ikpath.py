@@ -8,8 +8,18 @@ Examples::
     youbot-opt ikpath --robot youbot --target 0.3 0.3 --target 0.1 0.5 --target 0.35 0.1
 
 Reachability of every target is decided first (exactly, no sampling); an
-unreachable target ends the command with exit status 2 and the verdict. The
-exit status is 0 when the best start succeeded and 1 otherwise.
+unreachable target ends the command with exit status 2 and the verdict. A
+target whose verdict stays undecided (chains of 4+ links with limits, branch
+and bound budget exhausted) is solved anyway, with a warning on stderr giving
+its certified distance interval. The exit status is 0 when the best start
+succeeded and 1 otherwise.
+
+Every finished start is saved in the run folder as it completes
+(``manifest.json``, ``items/``; see :mod:`youbot_opt.ikpath.sweep`): the same
+command run again with the same ``--out DIR`` resumes, loading the finished
+starts instead of solving them again. A start that raises or whose worker
+process dies is recorded with the reason and retried once (several starts run
+in worker processes, so a crash never takes the command down).
 
 Every run writes one folder (``--out DIR``, or a new
 ``youbot_opt_runs/ikpath-<UTC time>``; see :mod:`youbot_opt.cli._output`):
@@ -20,7 +30,8 @@ Every run writes one folder (``--out DIR``, or a new
 best path, linear in joint space, ``--segment-time`` seconds per move). An
 unreachable target still writes the summary and the workspace figure. The
 folder and its files are listed on stderr, so ``--json`` keeps stdout one
-JSON object.
+JSON object; the folder is also named on stderr before the starts run, with
+progress there (a bar on a terminal, a line per tenth of the starts otherwise).
 """
 
 from __future__ import annotations
@@ -29,6 +40,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -72,12 +84,24 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     lim.add_argument("--lower", type=float, nargs="+", metavar="L", help="lower limit(s)")
     lim.add_argument("--upper", type=float, nargs="+", metavar="U", help="upper limit(s)")
     lim.add_argument("--no-limits", action="store_true", help="ignore the arm's joint limits")
+    lim.add_argument(
+        "--reach-evaluations",
+        type=int,
+        default=20_000,
+        metavar="N",
+        help="budget of the exact reachability test (branch and bound, 3+ links; default 20000)",
+    )
     run = p.add_argument_group("solver")
     run.add_argument("--method", choices=METHODS, default="al", help="al (default) or ipopt")
     run.add_argument("--starts", type=int, default=1, help="number of starts (1 = zero vector)")
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
     run.add_argument("--start-kind", choices=START_KINDS, default="feasible")
-    run.add_argument("--workers", type=int, default=None, help="processes (default: CPUs)")
+    run.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="worker processes (default: the CPUs, 1 below 8 starts)",
+    )
     run.add_argument(
         "--max-wall-time",
         type=float,
@@ -100,7 +124,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
     out.add_argument("--json", action="store_true", help="print one JSON object")
-    out.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_run)
 
 
@@ -186,6 +210,9 @@ def _report(
         "targets": problem.targets.tolist(),
         "method": args.method,
         "reachability": [_verdict_json(v) for v in verdicts],
+        "reachability_undecided": [
+            v.index for v in verdicts if v.status is Reachability.UNDECIDED
+        ],
     }
     if args.example == "A":
         doc["study_E"] = STUDY_E_A
@@ -224,6 +251,19 @@ def _report(
         wall_time=ms.wall_time,
         workers=ms.n_workers,
         starts_per_second=ms.starts_per_second(),
+        resumed=ms.resumed,
+        retried=[i for i, a in enumerate(ms.attempts) if a > 1],
+        start_outcomes=[
+            {
+                "index": i,
+                "status": r.status.value,
+                "E": r.objective,
+                "max_residual": r.max_residual(),
+                "attempts": ms.attempts[i] if ms.attempts else None,
+                "message": None if r.success else r.message,
+            }
+            for i, r in enumerate(ms.results)
+        ],
     )
     return doc
 
@@ -249,6 +289,13 @@ def _print_text(doc: dict[str, Any]) -> None:
         f"{doc['workers']} workers, {doc['wall_time']:.2f} s "
         f"({doc['starts_per_second']:.1f} starts/s); outcomes {doc['status_counts']}"
     )
+    if doc["resumed"]:
+        print(f"  {doc['resumed']} starts loaded from the output folder (resumed)")
+    if doc["retried"]:
+        print(f"  retried after a failed attempt: starts {doc['retried']}")
+    for o in doc["start_outcomes"]:
+        if o["status"] == "crashed":
+            print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")
     for m in doc["minima"][:8]:
         print(
             f"  local minimum E = {m['E']:.10f} rad^2 found by {m['count']} starts "
@@ -270,27 +317,64 @@ def _print_text(doc: dict[str, Any]) -> None:
         )
 
 
-def _progress_bar(done: int, total: int, best: float) -> None:
-    width = 30
-    fill = int(width * done / total)
-    best_txt = f"{best:.6g}" if math.isfinite(best) else "-"
-    sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} best E {best_txt}")
-    if done == total:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
+class _Progress:
+    """Progress of the starts on stderr: a bar on a terminal, else a line per tenth."""
+
+    def __init__(self, stream: Any = None) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.tic = time.perf_counter()
+        self.shown = -1
+
+    def __call__(self, done: int, total: int, best: float) -> None:
+        best_txt = f"{best:.10g}" if math.isfinite(best) else "-"
+        elapsed = time.perf_counter() - self.tic
+        if self.tty:
+            width = 30
+            fill = int(width * done / total)
+            self.stream.write(
+                f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} starts, "
+                f"best E {best_txt}, {elapsed:.1f} s"
+            )
+            if done == total:
+                self.stream.write("\n")
+        else:
+            tenth = 10 * done // total
+            if tenth == self.shown and done != total:
+                return
+            self.shown = tenth
+            self.stream.write(
+                f"ikpath: {done}/{total} starts done, best E {best_txt} rad^2, {elapsed:.1f} s\n"
+            )
+        self.stream.flush()
+
+
+def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
+    """Warn on stderr about every target whose reachability was not decided."""
+    for v in verdicts:
+        if v.status is Reachability.UNDECIDED:
+            print(
+                f"youbot-opt: warning: reachability of target p{v.index + 1} = "
+                f"({v.target[0]:.6g}, {v.target[1]:.6g}) is undecided (branch and bound "
+                f"budget exhausted after {v.evaluations} evaluations): its distance to the "
+                f"workspace is certified only to lie in [{v.distance_lower:.6g}, "
+                f"{v.distance_upper:.6g}] m; solving anyway (a failed solve may mean the "
+                "target is unreachable; a larger --reach-evaluations may decide it)",
+                file=sys.stderr,
+            )
 
 
 def _write_outputs(
     args: argparse.Namespace,
+    folder: Path,
     problem: CyclicIKProblem,
     verdicts: tuple[ReachVerdict, ...],
     ms: MultistartResult | None,
     doc: dict[str, Any],
-) -> tuple[Path, list[Path]]:
+) -> list[Path]:
     """Write the run folder: figures, replay, saved result, then ``summary.json``."""
     from youbot_opt.ikpath.plots import plot_arm_path, plot_convergence, plot_minima, plot_workspace
 
-    folder = run_folder("ikpath", args.out)
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
         best = ms.best
@@ -305,10 +389,11 @@ def _write_outputs(
             files.append(
                 export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)
             )
+        files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
     doc["output_folder"] = str(folder.resolve())
     doc["files"] = [f.name for f in files] + ["summary.json"]
     files.append(write_summary(folder, doc))
-    return folder, files
+    return files
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -319,16 +404,29 @@ def _run(args: argparse.Namespace) -> int:
             value=args.segment_time,
         )
     problem = _problem(args)
-    verdicts = check_reachability(problem)
+    if args.reach_evaluations < 1:
+        raise ParameterError(
+            f"--reach-evaluations must be >= 1, got {args.reach_evaluations}",
+            name="reach_evaluations",
+            value=args.reach_evaluations,
+        )
+    verdicts = check_reachability(problem, max_evaluations=args.reach_evaluations)
     unreachable = [v for v in verdicts if v.status is Reachability.UNREACHABLE]
+    folder = run_folder("ikpath", args.out)
     ms = None
     if not unreachable:
+        _warn_undecided(verdicts)
         workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
-        show = not args.no_progress and sys.stderr.isatty()
         options: ALOptions | IpoptOptions | None = None
         if args.max_wall_time is not None:
             kind = ALOptions if args.method == "al" else IpoptOptions
             options = kind(max_wall_time=args.max_wall_time)
+        if not args.no_progress:
+            print(
+                f"ikpath: {args.starts} start(s), each saved to {folder.resolve() / 'items'} as it "
+                f"finishes (rerun with --out {folder} to resume)",
+                file=sys.stderr,
+            )
         ms = run_multistart(
             problem,
             method=args.method,
@@ -336,12 +434,15 @@ def _run(args: argparse.Namespace) -> int:
             n_starts=args.starts,
             seed=args.seed,
             starts=args.start_kind,
+            # Several starts run in worker processes, so a crashing start cannot end the run.
+            executor="process" if args.starts > 1 else "serial",
             max_workers=workers,
-            progress=_progress_bar if show else None,
-            check_reachability=False,
+            progress=None if args.no_progress else _Progress(),
+            verdicts=verdicts,
+            out=folder,
         )
     doc = _report(args, problem, verdicts, ms)
-    folder, files = _write_outputs(args, problem, verdicts, ms, doc)
+    files = _write_outputs(args, folder, problem, verdicts, ms, doc)
     if args.json:
         print(json.dumps(json_ready(doc), indent=2))
     else:

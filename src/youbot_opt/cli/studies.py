@@ -99,6 +99,14 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--backend", default="symbolic", choices=("symbolic", "pinocchio"), help="dynamics backend"
     )
     p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap")
+    p.add_argument(
+        "--item-timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="wall-clock limit per item attempt: a solve still running then is killed, "
+        "recorded as failed and retried once (default: none; needs --workers >= 1)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 
@@ -181,6 +189,16 @@ def _check(
         raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
     if args.workers is not None and args.workers < 0:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
+    if args.item_timeout is not None:
+        if not (math.isfinite(args.item_timeout) and args.item_timeout > 0):
+            raise ParameterError(
+                f"--item-timeout must be > 0 [s], got {args.item_timeout}", name="item_timeout"
+            )
+        if args.workers == 0:
+            raise ParameterError(
+                "--item-timeout needs worker processes (--workers >= 1), got --workers 0",
+                name="item_timeout",
+            )
     from youbot_opt.objectives import check_beta
     from youbot_opt.problem import check_bound_scale
 
@@ -277,6 +295,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
         workers=workers,
         progress=prog,
         out=folder,
+        timeout=args.item_timeout,
     )
     prog.close()
     optima = res.distinct_optima(args.obj_tol, args.traj_tol)
@@ -329,6 +348,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
         workers=workers,
         progress=prog,
         out=folder,
+        timeout=args.item_timeout,
     )
     prog.close()
     table = [
@@ -378,6 +398,7 @@ def _run_bounds(args: argparse.Namespace) -> int:
         workers=workers,
         progress=prog,
         out=folder,
+        timeout=args.item_timeout,
     )
     prog.close()
     table = [

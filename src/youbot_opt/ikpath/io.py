@@ -40,7 +40,14 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
 from youbot_opt.sweep_store import atomic_write_bytes
 
-__all__ = ["SCHEMA", "SCHEMA_VERSION", "save_ikpath_result", "load_ikpath_result"]
+__all__ = [
+    "SCHEMA",
+    "SCHEMA_VERSION",
+    "encode_ikpath_result",
+    "load_ikpath_result",
+    "problem_spec",
+    "save_ikpath_result",
+]
 
 SCHEMA = "youbot_opt.ikpath_result"
 SCHEMA_VERSION = 1
@@ -55,8 +62,24 @@ def _limits(values: np.ndarray) -> list[float | None]:
     return [_num(v) for v in values]
 
 
-def _body(result: IKPathResult) -> dict[str, Any]:
-    chain = result.problem.chain
+def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
+    """JSON-ready description of ``problem``: chain, targets and ``use_limits``.
+
+    The form stored in result files (infinite limits as ``null``); sweeps put it
+    in their manifest so that a resumed sweep is known to solve the same problem.
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem.
+
+    Returns
+    -------
+    dict
+        ``{"chain": {...}, "targets": [[x, y], ...], "use_limits": bool}``,
+        lengths and targets in [m], limits in [rad].
+    """
+    chain = problem.chain
     return {
         "chain": {
             "lengths": chain.lengths.tolist(),
@@ -67,8 +90,14 @@ def _body(result: IKPathResult) -> dict[str, Any]:
             "name": chain.name,
             "tip_frame": chain.tip_frame,
         },
-        "targets": result.problem.targets.tolist(),
-        "use_limits": result.problem.use_limits,
+        "targets": problem.targets.tolist(),
+        "use_limits": problem.use_limits,
+    }
+
+
+def _body(result: IKPathResult) -> dict[str, Any]:
+    return {
+        **problem_spec(result.problem),
         "method": result.method,
         "status": result.status.value,
         "configurations": result.configurations.tolist(),
@@ -102,6 +131,40 @@ def _digest(body: dict[str, Any]) -> str:
     return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
 
 
+def encode_ikpath_result(result: IKPathResult) -> bytes:
+    """Return the file content :func:`save_ikpath_result` writes for ``result`` (UTF-8 JSON).
+
+    For writers that choose their own file name and write atomically (the
+    multistart sweep store); :func:`load_ikpath_result` reads the bytes back
+    from any file name.
+
+    Parameters
+    ----------
+    result : IKPathResult
+        The result (failed ones too).
+
+    Returns
+    -------
+    bytes
+        The JSON document with schema name, version, versions and checksum.
+    """
+    from youbot_opt import __version__
+
+    body = _body(result)
+    doc = {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "versions": {
+            "youbot_opt": __version__,
+            "pinocchio": str(pin.__version__),
+            "numpy": str(np.__version__),
+        },
+        "sha256": _digest(body),
+        "result": body,
+    }
+    return (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
+
+
 def save_ikpath_result(result: IKPathResult, path: str | os.PathLike[str]) -> Path:
     """Write ``result`` to ``path`` as JSON (``.json`` appended if missing), atomically.
 
@@ -117,24 +180,10 @@ def save_ikpath_result(result: IKPathResult, path: str | os.PathLike[str]) -> Pa
     Path
         The file written.
     """
-    from youbot_opt import __version__
-
     target = Path(path)
     if target.suffix != ".json":
         target = target.with_name(target.name + ".json")
-    body = _body(result)
-    doc = {
-        "schema": SCHEMA,
-        "schema_version": SCHEMA_VERSION,
-        "versions": {
-            "youbot_opt": __version__,
-            "pinocchio": str(pin.__version__),
-            "numpy": str(np.__version__),
-        },
-        "sha256": _digest(body),
-        "result": body,
-    }
-    atomic_write_bytes(target, (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode())
+    atomic_write_bytes(target, encode_ikpath_result(result))
     return target
 
 

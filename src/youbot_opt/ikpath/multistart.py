@@ -1,23 +1,18 @@
 """Seeded multistart of IK-path solves, run in parallel, with the distinct local minima.
 
-Start 0 is the study's zero vector (clipped into the limits). The others are
-drawn in the parent process from ``numpy.random.default_rng(seed)``, so they
-do not depend on the executor, in one of two ways:
+Start 0 is the study's zero vector; the others are drawn from
+``numpy.random.default_rng(seed)`` in the parent process
+(:func:`youbot_opt.ikpath.starts.make_starts`), so they do not depend on the
+executor.
 
-* ``"uniform"``: every variable uniform in ``[max(l, -pi), min(u, pi)]``;
-* ``"feasible"`` (default): each configuration is a random exact IK solution
-  of its target within the limits (first ``n - 2`` angles uniform in their
-  ranges, the last two in closed form with a random elbow; redrawn up to 50
-  times, else the reachability witness), and unlimited joints are shifted by
-  multiples of 2 pi so that the cyclic sum of squared steps is smallest
-  for the drawn configurations.
-  Uniform starts put independent 2 pi windings into the configurations and
-  many of them end in minima that differ from a better one only by such
-  windings; feasible starts sample the elbow branches and the redundancy
-  instead. Starts are solved in chunks (one IPOPT build per chunk) on a
-``concurrent.futures`` executor, a process pool by default. A start that
-raises becomes a ``CRASHED`` result; a chunk lost to a broken executor makes
-its starts ``CRASHED`` too; the run itself never dies of it.
+Each start is one task (:mod:`youbot_opt.ikpath.sweep`, on
+:func:`youbot_opt.parallel.run_tasks`), on a process pool by default. A start
+that raises, or whose worker process dies (segfault, out-of-memory kill), is
+charged alone: it is retried once and becomes a ``CRASHED`` result with the
+reason if it fails again; the pool is rebuilt and the run goes on. With
+``out=DIR`` every finished start is saved as it completes (atomic writes,
+:mod:`youbot_opt.sweep_store`) and rerunning the same multistart on ``DIR``
+loads the finished starts instead of solving them again.
 
 Successful results are clustered into local minima: two results are the same
 minimum when their ``E`` agree to ``e_tol`` (relative) and their
@@ -27,42 +22,45 @@ constraints (adding ``2 pi k_i`` to joint ``i`` in every configuration).
 
 from __future__ import annotations
 
-import logging
 import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath._geometry import two_link_ik
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions, check_degrees_of_freedom
+from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+from youbot_opt.ikpath.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, _theta_ranges
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, build_result
+from youbot_opt.ikpath.reachability import ReachVerdict, require_reachable
+from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
+from youbot_opt.ikpath.starts import START_KINDS, make_starts
+from youbot_opt.ikpath.sweep import open_store, solve_starts
+from youbot_opt.parallel import ExecutorLike, default_workers
 
 __all__ = [
     "LocalMinimum",
     "MultistartResult",
     "Progress",
+    "START_KINDS",
     "cluster_minima",
     "configuration_distance",
     "make_starts",
     "run_multistart",
 ]
 
-_log = logging.getLogger(__name__)
-
-START_KINDS: tuple[str, ...] = ("feasible", "uniform")
-
 Progress = Callable[[int, int, float], None]
-"""``progress(done, total, best_objective)``, called in the parent after each chunk."""
+"""``progress(done, total, best_objective)``, called in the parent as starts finish.
+
+``best_objective`` is the lowest ``E`` in [rad^2] of the successful starts so far
+(``inf`` before the first). Starts loaded from an output directory are reported
+in one call before the first solve.
+"""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
@@ -109,6 +107,13 @@ class MultistartResult:
         Elapsed time in [s].
     n_workers : int
         Parallel workers used.
+    attempts : tuple of int
+        Attempts per start, in start order, earlier runs on the same output
+        included (2: the start failed once and was retried); empty if unknown.
+    resumed : int
+        Starts loaded from the output directory instead of solved.
+    output : Path or None
+        Output directory the starts were saved to (``None``: not saved).
     """
 
     problem: CyclicIKProblem
@@ -119,6 +124,9 @@ class MultistartResult:
     verdicts: tuple[ReachVerdict, ...]
     wall_time: float
     n_workers: int
+    attempts: tuple[int, ...] = ()
+    resumed: int = 0
+    output: Path | None = None
 
     @property
     def n_starts(self) -> int:
@@ -215,179 +223,6 @@ def cluster_minima(
     )
 
 
-def make_starts(
-    problem: CyclicIKProblem,
-    n_starts: int,
-    seed: int,
-    *,
-    kind: str = "feasible",
-    verdicts: Sequence[ReachVerdict] = (),
-) -> Array:
-    """Draw the starts: the zero vector (clipped), then seeded random ones; (n_starts, n s).
-
-    Parameters
-    ----------
-    problem : CyclicIKProblem
-        The problem.
-    n_starts : int
-        Number of starts (>= 1).
-    seed : int
-        Seed of ``numpy.random.default_rng``.
-    kind : {"feasible", "uniform"}
-        How random starts are drawn (see the module docstring).
-    verdicts : sequence of ReachVerdict
-        Reachability verdicts; their witnesses are the fallback of ``"feasible"``.
-
-    Raises
-    ------
-    ParameterError
-        If ``n_starts < 1`` or ``kind`` is unknown.
-    """
-    if int(n_starts) != n_starts or n_starts < 1:
-        raise ParameterError(
-            f"n_starts must be an integer >= 1, got {n_starts!r}", name="n_starts", value=n_starts
-        )
-    if kind not in START_KINDS:
-        raise ParameterError(
-            f"unknown start kind {kind!r}; choose one of {', '.join(START_KINDS)}",
-            name="starts",
-            value=kind,
-        )
-    rng = np.random.default_rng(seed)
-    lo = np.maximum(problem.lower, -np.pi)
-    hi = np.minimum(problem.upper, np.pi)
-    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
-    starts = rng.uniform(lo, hi, size=(int(n_starts), problem.n_variables))
-    if kind == "feasible":
-        for k in range(1, int(n_starts)):
-            starts[k] = _feasible_start(problem, rng, starts[k], verdicts)
-    starts = np.clip(starts, problem.lower, problem.upper)
-    starts[0] = problem.default_start()
-    return starts
-
-
-def _feasible_start(
-    problem: CyclicIKProblem,
-    rng: np.random.Generator,
-    fallback: Array,
-    verdicts: Sequence[ReachVerdict],
-) -> Array:
-    """One start made of random exact IK solutions, unwrapped across configurations."""
-    chain = problem.chain
-    n = chain.n
-    ranges = _theta_ranges(chain, problem.use_limits) or [
-        (-np.pi + o, 2 * np.pi) for o in chain.angle_offset
-    ]
-    q = fallback.reshape(problem.n_targets, n).copy()
-    lengths = chain.lengths
-    for j, p in enumerate(problem.targets):
-        for _ in range(50):
-            theta = np.array([r[0] + rng.uniform(0.0, r[1]) for r in ranges])
-            if n == 1:  # unique solution; the witness below holds it
-                continue
-            phi = np.cumsum(theta[: n - 2])
-            w = chain.base + np.sum(
-                lengths[: n - 2, None] * np.column_stack([np.cos(phi), np.sin(phi)]), axis=0
-            )
-            psi = float(phi[-1]) if n > 2 else 0.0
-            sol = two_link_ik(
-                float(p[0]),
-                float(p[1]),
-                float(w[0]),
-                float(w[1]),
-                psi,
-                float(lengths[n - 2]),
-                float(lengths[n - 1]),
-                ranges[n - 2],
-                ranges[n - 1],
-                elbow_first=1.0 if rng.uniform() < 0.5 else -1.0,
-            )
-            if sol is not None:
-                theta[n - 2], theta[n - 1] = sol
-                q[j] = theta - chain.angle_offset
-                break
-        else:
-            if j < len(verdicts) and verdicts[j].witness is not None:
-                q[j] = verdicts[j].witness
-    if problem.use_limits:
-        periodic = ~(np.isfinite(chain.q_lower) & np.isfinite(chain.q_upper))
-    else:
-        periodic = np.ones(n, dtype=bool)
-    for i in np.flatnonzero(periodic):
-        q[:, i] = _best_windings(q[:, i])
-    return q.ravel()
-
-
-def _best_windings(col: Array) -> Array:
-    """Shift entries by multiples of 2 pi to minimise the cyclic sum of squared steps.
-
-    The steps ``d_j`` (closing step included) are taken in ``(-pi, pi]``; they
-    must sum to zero, so ``K = sum(d) / 2 pi`` of them move by ``-2 pi sign(K)``:
-    the largest ones (smallest for ``K < 0``), which is optimal because the cost
-    is convex in each step.
-    """
-    steps = np.roll(col, -1) - col
-    steps = (steps + np.pi) % (2 * np.pi) - np.pi
-    turns = int(round(float(np.sum(steps)) / (2 * np.pi)))
-    order = np.argsort(steps)
-    if turns > 0:
-        steps[order[-turns:]] -= 2 * np.pi
-    elif turns < 0:
-        steps[order[:-turns]] += 2 * np.pi
-    return col[0] + np.r_[0.0, np.cumsum(steps[:-1])]
-
-
-def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> float:
-    """Return the largest accepted ``|c_i|`` in [m] of ``method`` with ``options``."""
-    if method == "al":
-        return (options if isinstance(options, ALOptions) else ALOptions()).constraint_tol
-    return (options if isinstance(options, IpoptOptions) else IpoptOptions()).constr_viol_tol
-
-
-def _crashed(
-    problem: CyclicIKProblem,
-    method: str,
-    options: ALOptions | IpoptOptions | None,
-    x0: Array,
-    message: str,
-) -> IKPathResult:
-    return build_result(
-        problem,
-        method=method,
-        status=IKStatus.CRASHED,
-        x=x0,
-        multipliers=np.zeros(2 * problem.n_targets),
-        iterations=0,
-        inner_iterations=0,
-        wall_time=0.0,
-        message=message,
-        start=x0,
-        constraint_tol=_constraint_tol(method, options),
-    )
-
-
-def _solve_chunk(
-    problem: CyclicIKProblem,
-    method: str,
-    options: ALOptions | IpoptOptions | None,
-    starts: Array,
-) -> list[IKPathResult]:
-    """Solve several starts (worker side); exceptions become CRASHED results."""
-    out: list[IKPathResult] = []
-    solver: IpoptIKSolver | None = None
-    for x0 in starts:
-        try:
-            if method == "al":
-                out.append(solve_augmented_lagrangian(problem, x0, options))  # type: ignore[arg-type]
-            else:
-                if solver is None:
-                    solver = IpoptIKSolver(problem, options)  # type: ignore[arg-type]
-                out.append(solver.solve(problem, x0))
-        except Exception as exc:  # noqa: BLE001 - one bad start must not end the run
-            out.append(_crashed(problem, method, options, x0, f"{type(exc).__name__}: {exc}"))
-    return out
-
-
 def run_multistart(
     problem: CyclicIKProblem,
     *,
@@ -396,13 +231,15 @@ def run_multistart(
     seed: int = 0,
     starts: str = "feasible",
     options: ALOptions | IpoptOptions | None = None,
-    executor: Executor | None = None,
+    executor: ExecutorLike | None = None,
     max_workers: int | None = None,
-    chunk_size: int | None = None,
     progress: Progress | None = None,
     check_reachability: bool = True,
     e_tol: float = 1e-6,
     q_tol: float = 1e-3,
+    out: str | os.PathLike[str] | None = None,
+    max_attempts: int = 2,
+    verdicts: Sequence[ReachVerdict] | None = None,
 ) -> MultistartResult:
     """Solve from ``n_starts`` seeded starts in parallel and report the distinct minima.
 
@@ -420,20 +257,33 @@ def run_multistart(
         How random starts are drawn (see the module docstring).
     options : ALOptions or IpoptOptions, optional
         Settings of the method.
-    executor : concurrent.futures.Executor, optional
-        Where to run the chunks; not shut down here. By default a
-        ``ProcessPoolExecutor`` with ``max_workers`` processes is created and
-        shut down (``max_workers = 1`` runs in this process without a pool).
+    executor : {"process", "serial"} or concurrent.futures.Executor, optional
+        Where the starts run (see :func:`youbot_opt.parallel.run_tasks`): a
+        process pool owned by this call and rebuilt if a worker dies, this
+        process, or an executor of the caller (not shut down here; a broken
+        one cannot be rebuilt). Default: ``"serial"`` when ``max_workers`` is
+        1, else ``"process"``.
     max_workers : int, optional
-        Workers of the default pool (default: ``os.cpu_count()``).
-    chunk_size : int, optional
-        Starts per task (default: about four tasks per worker, at most 25).
+        Starts in flight at once (default: the CPUs available).
     progress : callable, optional
-        ``progress(done, total, best_objective)`` after each chunk.
+        ``progress(done, total, best_objective)`` as starts finish (see :data:`Progress`).
     check_reachability : bool
-        Decide every target's reachability first (raises ``UnreachableTarget``).
+        Decide every target's reachability first (raises ``UnreachableTarget``,
+        warns about undecided ones); ignored when ``verdicts`` are given.
     e_tol, q_tol : float
         Clustering tolerances (see :func:`cluster_minima`).
+    out : path-like, optional
+        Output directory: each finished start is saved there as it completes
+        (``manifest.json``, ``items/``), and a rerun with the same problem,
+        method, options, ``n_starts``, ``seed`` and ``starts`` resumes.
+    max_attempts : int
+        Attempts per start in total, earlier runs on ``out`` included; a start
+        that raises or crashes its worker is retried until this many were
+        made (default 2: once).
+    verdicts : sequence of ReachVerdict, optional
+        Verdicts of the targets already decided by the caller (e.g. with
+        another budget); used instead of deciding again (an unreachable one
+        still raises). Their witnesses are the fallback of feasible starts.
 
     Returns
     -------
@@ -443,71 +293,93 @@ def run_multistart(
     Raises
     ------
     ParameterError
-        For an unknown method, foreign options, ``max_workers < 1``, or
-        ``method="ipopt"`` on a chain with fewer than 2 free joints.
+        For an unknown method, foreign options, ``max_workers < 1``,
+        ``method="ipopt"`` on a chain with fewer than 2 free joints, or an
+        ``out`` holding another sweep.
     UnreachableTarget
         If ``check_reachability`` and a target is unreachable.
+    ResultFileError
+        If a file in ``out`` is corrupted or from a newer schema.
     """
+    t0 = time.perf_counter()
     check_method(method, options)
     if method == "ipopt":
         check_degrees_of_freedom(problem)
-    verdicts = check_targets(problem) if check_reachability else ()
-    x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=verdicts)
-    workers = int(max_workers or os.cpu_count() or 1)
-    if workers < 1:
+    if max_workers is not None and (
+        isinstance(max_workers, bool) or not isinstance(max_workers, int) or max_workers < 1
+    ):
         raise ParameterError(
-            f"max_workers must be >= 1, got {max_workers!r}", name="max_workers", value=max_workers
+            f"max_workers must be an int >= 1, got {max_workers!r}",
+            name="max_workers",
+            value=max_workers,
         )
-    size = chunk_size or max(1, min(25, math.ceil(len(x0s) / (4 * workers))))
-    chunks = [(i, x0s[i : i + size]) for i in range(0, len(x0s), size)]
-    results: list[IKPathResult | None] = [None] * len(x0s)
+    found: tuple[ReachVerdict, ...] = ()
+    if verdicts is not None:
+        found = require_reachable(problem, tuple(verdicts))
+    elif check_reachability:
+        found = check_targets(problem)
+    x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
+    if executor is None:
+        workers = max_workers or default_workers()
+        executor = "serial" if workers == 1 else "process"
+    elif executor == "serial":
+        workers = 1
+    elif executor == "process":
+        workers = max_workers or default_workers()
+    else:  # the caller's pool or executor: its size unless max_workers says otherwise
+        size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
+        workers = max_workers or int(size or default_workers())
+    store = None
+    if out is not None:
+        store = open_store(
+            out,
+            problem,
+            method=method,
+            options=options,
+            n_starts=len(x0s),
+            seed=int(seed),
+            kind=starts,
+        )
     best = math.inf
     done = 0
-    t0 = time.perf_counter()
 
-    def collect(first: int, chunk_results: list[IKPathResult]) -> None:
+    def on_final(index: int, result: IKPathResult) -> None:
         nonlocal best, done
-        for k, r in enumerate(chunk_results):
-            results[first + k] = r
-            if r.success:
-                best = min(best, r.objective)
-        done += len(chunk_results)
+        done += 1
+        if result.success:
+            best = min(best, result.objective)
         if progress is not None:
             progress(done, len(x0s), best)
 
-    if executor is None and workers == 1:
-        for first, chunk in chunks:
-            collect(first, _solve_chunk(problem, method, options, chunk))
-        n_used = 1
-    else:
-        own = executor is None
-        pool = ProcessPoolExecutor(max_workers=workers) if executor is None else executor
-        n_used = workers if own else int(getattr(executor, "_max_workers", 0) or 0)
-        try:
-            futures = {
-                pool.submit(_solve_chunk, problem, method, options, chunk): (first, chunk)
-                for first, chunk in chunks
-            }
-            for fut in as_completed(futures):
-                first, chunk = futures[fut]
-                try:
-                    chunk_results = fut.result()
-                except Exception as exc:  # noqa: BLE001 - a lost chunk must not end the run
-                    _log.warning("multistart chunk at start %d failed: %s", first, exc)
-                    msg = f"chunk failed: {type(exc).__name__}: {exc}"
-                    chunk_results = [_crashed(problem, method, options, x0, msg) for x0 in chunk]
-                collect(first, chunk_results)
-        finally:
-            if own:
-                pool.shutdown(wait=True, cancel_futures=True)
-    final = tuple(r for r in results if r is not None)
+    def on_resumed(results: Sequence[IKPathResult]) -> None:
+        nonlocal best, done
+        done = len(results)
+        best = min((r.objective for r in results if r.success), default=math.inf)
+        if progress is not None and results:
+            progress(done, len(x0s), best)
+
+    outcome = solve_starts(
+        problem,
+        x0s,
+        method=method,
+        options=options,
+        executor=executor,
+        workers=workers,
+        store=store,
+        max_attempts=max_attempts,
+        on_resumed=on_resumed,
+        on_final=on_final,
+    )
     return MultistartResult(
         problem=problem,
         method=method,
         seed=int(seed),
-        results=final,
-        minima=cluster_minima(final, e_tol=e_tol, q_tol=q_tol),
-        verdicts=verdicts,
+        results=outcome.results,
+        minima=cluster_minima(outcome.results, e_tol=e_tol, q_tol=q_tol),
+        verdicts=found,
         wall_time=time.perf_counter() - t0,
-        n_workers=n_used,
+        n_workers=workers,
+        attempts=outcome.attempts,
+        resumed=outcome.resumed,
+        output=None if store is None else store.directory,
     )

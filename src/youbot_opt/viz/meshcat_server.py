@@ -18,6 +18,7 @@ raises :class:`~youbot_opt.exceptions.ViewerError` instead of hanging.
 from __future__ import annotations
 
 import atexit
+import io
 import logging
 import os
 import selectors
@@ -34,6 +35,7 @@ from typing import IO, Any
 import meshcat
 import umsgpack
 import zmq
+from meshcat.commands import CaptureImage
 
 from youbot_opt.exceptions import ParameterError, ViewerError
 
@@ -319,6 +321,27 @@ class _TimeoutWindow:
 
     def get_scene(self) -> str:
         return self._request([b"get_scene"]).decode()
+
+    def get_image(self) -> Any:
+        """Capture the viewer as a PIL image; needs a browser showing it (else times out)."""
+        from PIL import Image
+
+        data = CaptureImage().lower()
+        try:
+            reply = self._request([data["type"].encode(), b"", umsgpack.packb(data)])
+        except ViewerError as e:
+            raise ViewerError(
+                f"{e} (get_image also needs a browser showing {self.web_url}: the browser "
+                "renders the image)",
+                url=self.zmq_url,
+            ) from e
+        try:
+            return Image.open(io.BytesIO(reply))
+        except OSError as e:
+            raise ViewerError(
+                f"meshcat server at {self.zmq_url} sent {len(reply)} bytes that are not an image",
+                url=self.zmq_url,
+            ) from e
 
     def wait(self, timeout: float | None = None) -> str:
         """Block until a browser is connected, at most ``timeout`` [s] (the default time-out)."""

@@ -1,0 +1,298 @@
+"""IK multistarts that survive: resume from disk, crashed workers retried, SIGKILLed CLI runs.
+
+The crash tests use the private hook of :mod:`youbot_opt.parallel`
+(``YOUBOT_OPT_TEST_CRASH``: listed task keys SIGSEGV their pool worker).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_ikpath_solvers import LA, LB, TARGETS_2
+from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.ikpath import sweep as sweep_mod
+from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.io import load_ikpath_result
+from youbot_opt.ikpath.multistart import run_multistart
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKStatus
+
+N = 6  # starts of the in-process tests
+
+
+@pytest.fixture(scope="module")
+def two_link():
+    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+
+
+@pytest.fixture(scope="module")
+def reference(two_link):
+    """An uninterrupted serial run without output folder: the independent reference."""
+    return run_multistart(two_link, n_starts=N, seed=4, max_workers=1)
+
+
+@pytest.fixture
+def solver_calls(monkeypatch):
+    """Count the AL solves made in this process (serial runs)."""
+    calls: list[int] = []
+    real = sweep_mod.solve_augmented_lagrangian
+
+    def counting(problem, x0, options):
+        calls.append(1)
+        return real(problem, x0, options)
+
+    monkeypatch.setattr(sweep_mod, "solve_augmented_lagrangian", counting)
+    return calls
+
+
+def _record(out: Path, key: str) -> dict:
+    return json.loads((out / "items" / f"{key}.json").read_text())
+
+
+def _same_results(got, ref) -> None:
+    """Same starts and, start by start, the same status and E to 1e-12 and q to 1e-12."""
+    assert len(got.results) == len(ref.results)
+    for a, b in zip(got.results, ref.results, strict=True):
+        # Same start, same deterministic solver; a loaded result is recomputed from its
+        # configurations, which JSON round-trips exactly: only rounding can differ.
+        assert a.status is b.status
+        assert a.objective == pytest.approx(b.objective, rel=0, abs=1e-12)
+        np.testing.assert_allclose(a.configurations, b.configurations, rtol=0, atol=1e-12)
+
+
+def test_resume_loads_finished_starts_instead_of_solving(
+    two_link, reference, solver_calls, tmp_path
+):
+    """A rerun solves only the starts without a record (orphan payloads too), then nothing."""
+    first = run_multistart(two_link, n_starts=N, seed=4, max_workers=1, out=tmp_path)
+    assert len(solver_calls) == N and first.resumed == 0 and first.output == tmp_path
+    _same_results(first, reference)
+    items = tmp_path / "items"
+    assert sorted(p.name for p in items.iterdir()) == sorted(
+        [f"start_{i:04d}.json" for i in range(N)] + [f"start_{i:04d}.ikpath" for i in range(N)]
+    )
+    # As if killed: start 2 before anything was written, start 4 between payload and record.
+    (items / "start_0002.json").unlink()
+    (items / "start_0002.ikpath").unlink()
+    (items / "start_0004.json").unlink()
+    solver_calls.clear()
+    progress: list[tuple[int, int, float]] = []
+    second = run_multistart(
+        two_link,
+        n_starts=N,
+        seed=4,
+        max_workers=1,
+        out=tmp_path,
+        progress=lambda *a: progress.append(a),
+    )
+    assert len(solver_calls) == 2 and second.resumed == N - 2
+    assert [p[0] for p in progress] == [N - 2, N - 1, N] and all(p[1] == N for p in progress)
+    _same_results(second, reference)
+    solver_calls.clear()
+    third = run_multistart(two_link, n_starts=N, seed=4, max_workers=1, out=tmp_path)
+    assert solver_calls == [] and third.resumed == N and third.attempts == (1,) * N
+    _same_results(third, reference)
+    assert [m.count for m in third.minima] == [m.count for m in reference.minima]
+
+
+def test_resume_refuses_other_parameters(two_link, tmp_path):
+    """An output folder of another multistart (seed, method) is refused, naming the difference."""
+    run_multistart(two_link, n_starts=2, seed=4, max_workers=1, out=tmp_path)
+    with pytest.raises(ParameterError, match=r"seed: stored 4, now 5"):
+        run_multistart(two_link, n_starts=2, seed=5, max_workers=1, out=tmp_path)
+    with pytest.raises(ParameterError, match=r"method: stored 'al', now 'ipopt'"):
+        run_multistart(two_link, method="ipopt", n_starts=2, seed=4, max_workers=1, out=tmp_path)
+
+
+@pytest.mark.parametrize("method", ["al", "ipopt"])
+def test_worker_crashing_once_is_retried_and_succeeds(
+    two_link, method, monkeypatch, tmp_path
+):
+    """One segfault: only that start is charged (2 attempts), every start succeeds, E as serial."""
+    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0002")
+    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
+    out = tmp_path / "out"
+    res = run_multistart(two_link, method=method, n_starts=N, seed=4, max_workers=2, out=out)
+    ref = run_multistart(two_link, method=method, n_starts=N, seed=4, max_workers=1)
+    assert (tmp_path / "crashed-start_0002").exists()  # the hook really fired
+    assert res.attempts == (1, 1, 2, 1, 1, 1)
+    assert res.n_success == N
+    _same_results(res, ref)
+    rec = _record(out, "start_0002")
+    assert rec["state"] == "done" and rec["attempts"] == 2
+    assert len(rec["reasons"]) == 1 and "worker process crashed" in rec["reasons"][0]
+
+
+def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
+    two_link, reference, monkeypatch, tmp_path, solver_calls
+):
+    """A start that always segfaults: failed after 2 attempts with reasons; a rerun keeps it."""
+    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0001")
+    res = run_multistart(two_link, n_starts=N, seed=4, max_workers=2, out=tmp_path)
+    crashed = res.results[1]
+    assert crashed.status is IKStatus.CRASHED and "worker process crashed" in crashed.message
+    assert res.attempts == (1, 2, 1, 1, 1, 1)
+    assert all(r.success for i, r in enumerate(res.results) if i != 1)
+    rec = _record(tmp_path, "start_0001")
+    assert rec["state"] == "failed" and rec["attempts"] == 2 and rec["payload"] is None
+    assert len(rec["reasons"]) == 2 and all("worker process crashed" in r for r in rec["reasons"])
+    assert not (tmp_path / "items" / "start_0001.ikpath").exists()
+    # Out of attempts: a rerun loads everything (no third attempt) and reports the reason.
+    monkeypatch.delenv("YOUBOT_OPT_TEST_CRASH")
+    again = run_multistart(two_link, n_starts=N, seed=4, max_workers=1, out=tmp_path)
+    assert solver_calls == [] and again.resumed == N
+    assert again.results[1].status is IKStatus.CRASHED
+    assert again.results[1].message == rec["reasons"][-1]
+    for i in (0, 2, 3, 4, 5):
+        assert again.results[i].objective == pytest.approx(
+            reference.results[i].objective, rel=0, abs=1e-12
+        )  # rounding only: same start, same solver
+
+
+def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
+    """Truncated result, newer-schema result or record, non-JSON record: ResultFileError."""
+    run_multistart(two_link, n_starts=2, seed=4, max_workers=1, out=tmp_path)
+    items = tmp_path / "items"
+
+    def rerun() -> None:
+        run_multistart(two_link, n_starts=2, seed=4, max_workers=1, out=tmp_path)
+
+    payload = items / "start_0000.ikpath"
+    good = payload.read_bytes()
+    payload.write_bytes(good[: len(good) // 2])  # torn, as by a disk fault
+    with pytest.raises(ResultFileError, match=r"start_0000.*delete items/start_0000.json"):
+        rerun()
+    doc = json.loads(good)
+    payload.write_text(json.dumps({**doc, "schema_version": 2}))
+    with pytest.raises(ResultFileError, match="schema version 2 is newer"):
+        rerun()
+    payload.write_text(json.dumps({**doc, "sha256": "0" * 64}))
+    with pytest.raises(ResultFileError, match="checksum mismatch"):
+        rerun()
+    payload.write_bytes(good)
+    record = items / "start_0001.json"
+    rec_good = record.read_text()
+    record.write_text(json.dumps({**json.loads(rec_good), "schema_version": 99}))
+    with pytest.raises(ResultFileError, match="newer"):
+        rerun()
+    record.write_text(rec_good[:-20])
+    with pytest.raises(ResultFileError, match="start_0001.json is corrupted"):
+        rerun()
+    record.write_text(rec_good)
+    rerun()  # restored files resume without complaint
+
+
+# ------------------------------------------------------- SIGKILL of the CLI sweep
+_STARTS, _SEED = 48, 7
+
+
+def _cli(out: Path) -> list[str]:
+    return [
+        sys.executable,
+        "-m",
+        "youbot_opt",
+        "ikpath",
+        "--example",
+        "A",
+        "--starts",
+        str(_STARTS),
+        "--seed",
+        str(_SEED),
+        "--workers",
+        "2",
+        "--out",
+        str(out),
+        "--json",
+        "--no-replay",
+        "--no-progress",
+    ]
+
+
+def _records(out: Path) -> int:
+    items = out / "items"
+    if not items.is_dir():
+        return 0
+    return len([p for p in items.glob("*.json") if not p.name.startswith(".")])
+
+
+def _session_pids(sid: int) -> list[int]:
+    """Live processes of session ``sid`` (the CLI and its workers)."""
+    pids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigkilled_cli_multistart_resumes_to_the_uninterrupted_result(tmp_path):
+    """4 SIGKILLs at seeded random points, then a final run: same starts and E, none lost."""
+    rng = np.random.default_rng(20240611)
+    out = tmp_path / "run"
+    kills = 0
+    for _ in range(4):
+        target = _records(out) + int(rng.integers(1, 4))  # kill after 1-3 more starts ...
+        delay = float(rng.uniform(0.0, 0.03))  # ... plus 0-30 ms, to land anywhere in a write
+        proc = subprocess.Popen(
+            _cli(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+        )
+        try:
+            deadline = time.monotonic() + 120.0
+            while _records(out) < target and proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.002)
+            time.sleep(delay)
+            if proc.poll() is None:
+                os.kill(proc.pid, signal.SIGKILL)
+                kills += 1
+            proc.wait(timeout=30)
+            deadline = time.monotonic() + 5.0  # orphaned workers notice and exit
+            while _session_pids(proc.pid) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert _session_pids(proc.pid) == [], "workers outlived the killed multistart"
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)  # only our own session; normally empty
+            except ProcessLookupError:
+                pass
+    assert kills == 4, "the multistart finished before all kills; make it longer"
+    assert 0 < _records(out) < _STARTS  # the kills really left work to do
+
+    done = subprocess.run(_cli(out), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert 0 < doc["resumed"] < _STARTS
+
+    # Independent reference: one uninterrupted in-process run of the same multistart.
+    ref = run_multistart(example_problem("A"), n_starts=_STARTS, seed=_SEED, max_workers=1)
+    got = doc["start_outcomes"]
+    assert [o["index"] for o in got] == list(range(_STARTS))  # every start once, in order
+    for o, r in zip(got, ref.results, strict=True):
+        assert o["status"] == r.status.value and o["attempts"] == 1  # a kill is no attempt
+        # Same start, same deterministic solver: only rounding may differ.
+        assert o["E"] == pytest.approx(r.objective, rel=0, abs=1e-12)
+    assert doc["E"] == pytest.approx(ref.best.objective, rel=0, abs=1e-12)
+    assert [m["count"] for m in doc["minima"]] == [m.count for m in ref.minima]
+    # On disk: exactly one record and one result per start, no temporaries left.
+    items = out / "items"
+    keys = [f"start_{i:04d}" for i in range(_STARTS)]
+    assert sorted(p.stem for p in items.glob("*.json")) == keys
+    assert sorted(p.stem for p in items.glob("*.ikpath")) == keys
+    assert [p.name for p in items.iterdir() if p.name.startswith(".")] == []
+    for key, r in zip(keys, ref.results, strict=True):
+        saved = load_ikpath_result(items / f"{key}.ikpath")
+        assert saved.objective == pytest.approx(r.objective, rel=0, abs=1e-12)
