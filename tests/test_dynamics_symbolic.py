@@ -236,9 +236,7 @@ def test_dynamics_include_damping(name: str) -> None:
     b = model.damping
     np.testing.assert_array_equal(dyn.damping, b)
     for q, v, tau, a in _random_states(model, seed=11):
-        _close(
-            dyn.forward_dynamics(q, v, tau), pin.aba(model, data, q, v, tau - b * v), RTOL_SOLVE
-        )
+        _close(dyn.forward_dynamics(q, v, tau), pin.aba(model, data, q, v, tau - b * v), RTOL_SOLVE)
         _close(dyn.inverse_dynamics(q, v, a), pin.rnea(model, data, q, v, a) + b * v, RTOL)
 
 

@@ -115,9 +115,7 @@ def test_resume_refuses_other_parameters(two_link, tmp_path):
 
 
 @pytest.mark.parametrize("method", ["al", "ipopt"])
-def test_worker_crashing_once_is_retried_and_succeeds(
-    two_link, method, monkeypatch, tmp_path
-):
+def test_worker_crashing_once_is_retried_and_succeeds(two_link, method, monkeypatch, tmp_path):
     """One segfault: only that start is charged (2 attempts), every start succeeds, E as serial."""
     monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0002")
     monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))

@@ -67,7 +67,9 @@ def test_workspace_legend_names_every_verdict_colour():
     """The legend explains green/red/orange as reachable/unreachable/undecided."""
     prob = example_problem("B")
     legend = plot_workspace(prob).axes[0].get_legend()
-    entries = {t.get_text(): h for t, h in zip(legend.get_texts(), legend.legend_handles)}
+    entries = {
+        t.get_text(): h for t, h in zip(legend.get_texts(), legend.legend_handles, strict=True)
+    }
     for verdict, color in (
         ("reachable", "tab:green"),
         ("unreachable", "tab:red"),

@@ -145,9 +145,7 @@ def test_lbfgsb_inner_solver_reaches_the_default_optimum():
     default = solve_augmented_lagrangian(prob)
     # L-BFGS-B's line search stalls near 1e-6 in the projected gradient (module
     # docstring of augmented_lagrangian), so it is asked for 1e-6 instead of 1e-8.
-    res = solve_augmented_lagrangian(
-        prob, options=ALOptions(inner="lbfgsb", stationarity_tol=1e-6)
-    )
+    res = solve_augmented_lagrangian(prob, options=ALOptions(inner="lbfgsb", stationarity_tol=1e-6))
     assert default.success, default.message
     assert res.status is IKStatus.SUCCESS, res.message
     assert res.limit_violation == 0.0

@@ -98,12 +98,16 @@ def _sleep_then_square(x: float) -> float:
 def test_hung_task_is_killed_at_the_timeout_and_retried_once(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """A task that hangs forever is killed after `timeout`, twice, and marked final; others finish."""
+    """A task that hangs is killed after `timeout`, twice, and marked final; others finish."""
     monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "k3")
     seen: list[TaskOutcome] = []
     tic = time.monotonic()
     out = run_tasks(
-        _tasks(_sleep_then_square), executor="process", workers=2, timeout=0.5, on_outcome=seen.append
+        _tasks(_sleep_then_square),
+        executor="process",
+        workers=2,
+        timeout=0.5,
+        on_outcome=seen.append,
     )
     elapsed = time.monotonic() - tic
     assert {k: o.value for k, o in out.items() if o.ok} == {
@@ -127,7 +131,9 @@ def test_task_hanging_once_succeeds_on_retry(
     monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "k0")
     monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
     seen: list[TaskOutcome] = []
-    out = run_tasks(_tasks(_square, 3), executor="process", workers=1, timeout=0.3, on_outcome=seen.append)
+    out = run_tasks(
+        _tasks(_square, 3), executor="process", workers=1, timeout=0.3, on_outcome=seen.append
+    )
     assert {k: o.value for k, o in out.items()} == {"k0": 0, "k1": 1, "k2": 4}
     assert out["k0"].attempts == 2
     assert [o.error for o in seen if not o.ok] == ["timeout after 0.3 s"]
@@ -144,7 +150,9 @@ def test_timeout_needs_a_worker_pool() -> None:
 def test_worker_pool_is_reused_across_calls() -> None:
     """A WorkerPool keeps its worker process between run_tasks calls, and replaces a dead one."""
     with WorkerPool(1) as pool:
-        pids = [run_tasks([Task(key="p", fn=os.getpid)], executor=pool)["p"].value for _ in range(3)]
+        pids = [
+            run_tasks([Task(key="p", fn=os.getpid)], executor=pool)["p"].value for _ in range(3)
+        ]
         assert len(set(pids)) == 1 and pids[0] != os.getpid()
         os.kill(pids[0], signal.SIGKILL)  # dies while idle: the next call gets a new worker
         time.sleep(0.1)

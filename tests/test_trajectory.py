@@ -13,9 +13,7 @@ def _constant_acceleration(n: int, acc: float = 1.7) -> Trajectory:
     t = np.linspace(0.0, 2.0, n)
     q = 0.3 + 0.2 * t + 0.5 * acc * t**2
     v = 0.2 + acc * t
-    return Trajectory(
-        t=t, q=q[:, None], v=v[:, None], a=np.full((n, 1), acc), tau=np.c_[t]
-    )
+    return Trajectory(t=t, q=q[:, None], v=v[:, None], a=np.full((n, 1), acc), tau=np.c_[t])
 
 
 def test_trapezoidal_interpolant_exact_for_constant_acceleration() -> None:
@@ -33,8 +31,13 @@ def test_hermite_simpson_interpolant_exact_for_cubic_and_quadratic_torque() -> N
     tm = 0.5 * (t[:-1] + t[1:])
     q, v, a = t**3 - t, 3 * t**2 - 1, 6 * t
     traj = Trajectory(
-        t=t, q=q[:, None], v=v[:, None], a=a[:, None], tau=(t**2)[:, None],
-        tau_mid=(tm**2)[:, None], interpolation="hermite_simpson",
+        t=t,
+        q=q[:, None],
+        v=v[:, None],
+        a=a[:, None],
+        tau=(t**2)[:, None],
+        tau_mid=(tm**2)[:, None],
+        interpolation="hermite_simpson",
     )
     ts = np.linspace(0.0, 1.0, 77)
     np.testing.assert_allclose(traj(ts)[:, 0], ts**3 - ts, atol=1e-12)
@@ -55,8 +58,9 @@ def test_scalar_query_and_clamping() -> None:
 def test_trapezoidal_interpolant_passes_through_inconsistent_knots() -> None:
     """Knots that violate the position defect are still interpolated (1e-15)."""
     t = np.array([0.0, 1.0, 2.0])
-    traj = Trajectory(t=t, q=np.c_[[0.0, 5.0, -1.0]], v=np.zeros((3, 1)), a=np.zeros((3, 1)),
-                      tau=np.zeros((3, 1)))
+    traj = Trajectory(
+        t=t, q=np.c_[[0.0, 5.0, -1.0]], v=np.zeros((3, 1)), a=np.zeros((3, 1)), tau=np.zeros((3, 1))
+    )
     np.testing.assert_allclose(traj(t)[:, 0], [0.0, 5.0, -1.0], atol=1e-15)
 
 
@@ -80,7 +84,10 @@ def test_arrays_are_read_only() -> None:
 def test_bad_input_names_the_field(kwargs: dict, match: str) -> None:
     """Malformed trajectories raise ParameterError naming the field."""
     base = dict(
-        t=[0.0, 0.5, 1.0], q=np.zeros((3, 1)), v=np.zeros((3, 1)), a=np.zeros((3, 1)),
+        t=[0.0, 0.5, 1.0],
+        q=np.zeros((3, 1)),
+        v=np.zeros((3, 1)),
+        a=np.zeros((3, 1)),
         tau=np.zeros((3, 1)),
     )
     base.update(kwargs)

@@ -53,7 +53,10 @@ def inverse_dynamics(problem: TrajOptProblem, q: Array, v: Array, a: Array) -> A
     data = model.createData()
     damping = np.asarray(problem.robot.damping, dtype=float) if problem.damping else 0.0
     return np.array(
-        [pin.rnea(model, data, qk, vk, ak) + damping * vk for qk, vk, ak in zip(q, v, a, strict=True)]
+        [
+            pin.rnea(model, data, qk, vk, ak) + damping * vk
+            for qk, vk, ak in zip(q, v, a, strict=True)
+        ]
     )
 
 
@@ -108,7 +111,7 @@ def resolve_guess(
     start: BoundaryState | None = None,
     goal: BoundaryState | None = None,
 ) -> Trajectory:
-    """The trajectory a solve starts from.
+    """Return the trajectory a solve starts from.
 
     Parameters
     ----------

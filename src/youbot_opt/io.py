@@ -52,7 +52,7 @@ def _versions() -> dict[str, str]:
     return {
         "youbot_opt": __version__,
         "pinocchio": str(pin.__version__),
-        "casadi": str(ca.__version__),
+        "casadi": str(ca.__version__),  # type: ignore[attr-defined]
         "numpy": str(np.__version__),
     }
 
@@ -117,7 +117,15 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
         "goal": _state(result.goal),
         "scalars": {
             k: float(getattr(result, k))
-            for k in ("duration", "dt", "work", "objective", "wall_time", "cpu_time", "max_violation")
+            for k in (
+                "duration",
+                "dt",
+                "work",
+                "objective",
+                "wall_time",
+                "cpu_time",
+                "max_violation",
+            )
         },
         "iterations": result.iterations,
         "options": result.options.to_dict(),
@@ -134,7 +142,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as handle:
-            np.savez_compressed(handle, **arrays)
+            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, target)
@@ -204,7 +212,9 @@ def _robot(desc: dict[str, Any]) -> Any:
     try:
         robot = load_model(source)
     except YoubotOptError as exc:
-        raise ResultFileError(f"cannot reload robot {name!r} from {source}: {exc}; pass robot=") from exc
+        raise ResultFileError(
+            f"cannot reload robot {name!r} from {source}: {exc}; pass robot="
+        ) from exc
     damping = np.asarray(desc.get("model_damping", []), dtype=float)
     if damping.shape == (robot.nv,):
         robot.model.damping = damping
@@ -266,7 +276,9 @@ def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptRe
             status=SolveStatus(meta["status"]),
             message=meta["message"],
             solver_status=meta["solver_status"],
-            trajectory=_trajectory(_group(arrays, "trajectory"), meta["interpolation"]["trajectory"]),
+            trajectory=_trajectory(
+                _group(arrays, "trajectory"), meta["interpolation"]["trajectory"]
+            ),
             variables=variables,
             duration=scalars["duration"],
             dt=scalars["dt"],

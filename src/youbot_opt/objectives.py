@@ -1,4 +1,4 @@
-"""Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
+r"""Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
 
 The study minimises a weighted sum of two named terms,
 
@@ -126,7 +126,7 @@ class Objective:
 
 
 def duration(dt: Any, n_knots: int) -> Any:
-    """True duration ``T = (N - 1) dt`` in [s] of ``N`` knots with common step ``dt`` [s]."""
+    """Return the true duration ``T = (N - 1) dt`` in [s] of ``N`` knots, common step ``dt`` [s]."""
     return (n_knots - 1) * dt
 
 

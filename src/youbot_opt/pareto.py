@@ -44,13 +44,24 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.multistart import MultistartResult, run_multistart
 from youbot_opt.objectives import check_beta
 from youbot_opt.options import IpoptOptions
-from youbot_opt.parallel import ExecutorLike, Task, TaskOutcome, WorkerPool, run_tasks
-from youbot_opt.parallel import process_context
+from youbot_opt.parallel import (
+    ExecutorLike,
+    Task,
+    TaskOutcome,
+    WorkerPool,
+    process_context,
+    run_tasks,
+)
 from youbot_opt.problem import TrajOptProblem, check_bound_scale
 from youbot_opt.result import TrajOptResult
 from youbot_opt.solve import TrajOptSolver
-from youbot_opt.start_jobs import _as_solver, _init_worker_solver, _SolverSpec, _store_for
-from youbot_opt.start_jobs import sweep_params
+from youbot_opt.start_jobs import (
+    _as_solver,
+    _init_worker_solver,
+    _SolverSpec,
+    _store_for,
+    sweep_params,
+)
 from youbot_opt.sweep_store import SweepStore
 
 __all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFAULT_BETAS"]

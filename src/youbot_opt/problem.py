@@ -46,11 +46,13 @@ _FAMILIES: tuple[str, ...] = ("position", "velocity", "torque")
 
 
 def _vector(name: str, value: Any, size: int | None = None) -> Array:
-    """A finite, read-only float vector, or ParameterError naming ``name``."""
+    """Return a finite, read-only float vector, or raise ParameterError naming ``name``."""
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be a vector of numbers, got {value!r}", name=name) from exc
+        raise ParameterError(
+            f"{name} must be a vector of numbers, got {value!r}", name=name
+        ) from exc
     if arr.ndim != 1 or (size is not None and arr.size != size):
         want = f"({size},)" if size is not None else "(n,)"
         raise ParameterError(
@@ -143,7 +145,9 @@ class JointBounds:
             (tau, self.tau_lower, self.tau_upper),
         ):
             x = np.atleast_2d(x)
-            worst = max(worst, float(np.max(lo - x, initial=0.0)), float(np.max(x - hi, initial=0.0)))
+            worst = max(
+                worst, float(np.max(lo - x, initial=0.0)), float(np.max(x - hi, initial=0.0))
+            )
         return worst
 
 
@@ -195,7 +199,9 @@ class TrajOptProblem:
         for name in ("start", "goal"):
             state = getattr(self, name)
             if not isinstance(state, BoundaryState):
-                raise ParameterError(f"{name} must be a BoundaryState, got {type(state).__name__}", name=name)
+                raise ParameterError(
+                    f"{name} must be a BoundaryState, got {type(state).__name__}", name=name
+                )
             if state.q.size != nq:
                 raise ParameterError(
                     f"{name}.q must have shape ({nq},) for robot {self.robot.name!r}, "
@@ -206,7 +212,9 @@ class TrajOptProblem:
         if isinstance(self.n_knots, bool) or not isinstance(self.n_knots, int | np.integer):
             raise ParameterError(f"n_knots must be an int, got {self.n_knots!r}", name="n_knots")
         if self.n_knots < 2:
-            raise ParameterError(f"n_knots must be >= 2, got {self.n_knots}", name="n_knots", value=self.n_knots)
+            raise ParameterError(
+                f"n_knots must be >= 2, got {self.n_knots}", name="n_knots", value=self.n_knots
+            )
         object.__setattr__(self, "n_knots", int(self.n_knots))
         if not isinstance(self.objective, Objective):
             raise ParameterError("objective must be an Objective", name="objective")
@@ -334,7 +342,7 @@ def study1_problem(
     damping: float | None = None,
     **kwargs: Any,
 ) -> TrajOptProblem:
-    """The study-1 problem: youBot from (-pi/6, -pi/6, -pi/3) to (pi/6, pi/6, pi/3) at rest.
+    """Return the study-1 problem: youBot from (-pi/6, -pi/6, -pi/3) to (pi/6, pi/6, pi/3) at rest.
 
     Parameters
     ----------

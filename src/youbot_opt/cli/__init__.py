@@ -19,7 +19,14 @@ from youbot_opt.exceptions import YoubotOptError
 __all__ = ["main", "build_parser"]
 
 #: Sub-command modules, in the order they appear in ``--help``.
-_COMMAND_MODULES: tuple[str, ...] = ("main_job", "solve", "report", "studies", "reproduce", "ikpath")
+_COMMAND_MODULES: tuple[str, ...] = (
+    "main_job",
+    "solve",
+    "report",
+    "studies",
+    "reproduce",
+    "ikpath",
+)
 
 DEFAULT_COMMAND = "main"
 
@@ -34,8 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     """
     parser = argparse.ArgumentParser(
         prog="youbot-opt",
-        description="Trajectory and IK-path optimisation of rigid-body arms "
-        "(Pinocchio + CasADi).",
+        description="Trajectory and IK-path optimisation of rigid-body arms (Pinocchio + CasADi).",
     )
     parser.add_argument("--version", action="version", version=f"youbot_opt {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -210,9 +210,7 @@ def _report(
         "targets": problem.targets.tolist(),
         "method": args.method,
         "reachability": [_verdict_json(v) for v in verdicts],
-        "reachability_undecided": [
-            v.index for v in verdicts if v.status is Reachability.UNDECIDED
-        ],
+        "reachability_undecided": [v.index for v in verdicts if v.status is Reachability.UNDECIDED],
     }
     if args.example == "A":
         doc["study_E"] = STUDY_E_A

@@ -27,7 +27,7 @@ import logging
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -99,9 +99,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         default=None,
         help="parallel starts with --starts > 1 (default: the CPUs available; 0: serial)",
     )
-    p.add_argument(
-        "--quiet", action="store_true", help="no progress on stderr (implied by --json)"
-    )
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr (implied by --json)")
     p.add_argument(
         "--bound-scale",
         type=float,
@@ -190,9 +188,7 @@ def format_result(result: Any, certificate: Any = None, *, max_active: int = 12)
     lines += ["", f"active bounds (within 1e-6): {len(active)}"]
     if active:
         width = max(16, *(len(row.name) + 1 for row in active[:max_active]))
-        lines.append(
-            f"  {'bound':<{width}}{'knot':>5}{'joint':>6}{'value':>13}{'multiplier':>13}"
-        )
+        lines.append(f"  {'bound':<{width}}{'knot':>5}{'joint':>6}{'value':>13}{'multiplier':>13}")
         for row in active[:max_active]:
             lines.append(
                 f"  {row.name:<{width}}{row.knot:>5}{row.joint:>6}{row.value:>13.6f}"
@@ -324,7 +320,7 @@ def _json_ready(obj: Any) -> Any:
 
 
 def _representative(ms: Any) -> Any:
-    """The start a multistart reports: the best converged one, else the least violated failure."""
+    """Return the start to report: the best converged one, else the least violated failure."""
     best = ms.best
     if best is not None and best.result is not None:
         return best.result
@@ -341,7 +337,7 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
 
     if args.workers is not None and args.workers < 0:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
-    executor = "serial" if args.workers == 0 else "process"
+    executor: Literal["serial", "process"] = "serial" if args.workers == 0 else "process"
     prog = _Progress("solve", args.quiet or args.json)
     ms = run_multistart(
         solver, args.starts, beta=args.beta, bound_scale=args.bound_scale, seed=args.seed,
@@ -403,9 +399,7 @@ def run_solve(args: argparse.Namespace) -> int:
         summary["output_folder"] = str(folder.resolve())
         summary["files"] = ["summary.json"]
         files = [write_summary(folder, summary)]
-        print(
-            json.dumps(_json_ready(summary)) if args.json else "youbot-opt: every start failed"
-        )
+        print(json.dumps(_json_ready(summary)) if args.json else "youbot-opt: every start failed")
         report_outputs(folder, files, args.json)
         return 1
     certificate = certificate_of(result)

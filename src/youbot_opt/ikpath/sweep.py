@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import threading
 import uuid
 from collections.abc import Callable, Mapping
@@ -114,7 +115,7 @@ def _crashed_result(
     x0: Array,
     message: str,
 ) -> IKPathResult:
-    """The ``CRASHED`` result of a start that produced no result (``x`` = its start)."""
+    """Return the ``CRASHED`` result of a start that produced no result (``x`` = its start)."""
     return build_result(
         problem,
         method=method,
@@ -156,7 +157,7 @@ def _save_payload(result: IKPathResult, path: Path) -> None:
 
 
 def open_store(
-    out: str | Path,
+    out: str | os.PathLike[str],
     problem: CyclicIKProblem,
     *,
     method: str,
@@ -355,4 +356,3 @@ def solve_starts(
         attempts=tuple(attempts),
         resumed=resumed,
     )
-
