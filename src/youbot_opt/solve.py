@@ -37,7 +37,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.initial_guess import resolve_guess
 from youbot_opt.objectives import check_beta
 from youbot_opt.objectives import work as work_of
-from youbot_opt.options import IpoptOptions
+from youbot_opt.options import IpoptOptions, single_threaded_blas
 from youbot_opt.problem import BoundaryState, TrajOptProblem, check_bound_scale
 from youbot_opt.result import (
     DEFAULT_FEASIBILITY_TOL,
@@ -169,6 +169,7 @@ class TrajOptSolver:
                 "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
             )
         opts = self.options.to_casadi(self._exact_hessian)
+        single_threaded_blas()
         self._solver = ca.nlpsol(
             "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
         )

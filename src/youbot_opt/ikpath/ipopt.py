@@ -33,6 +33,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
+from youbot_opt.options import single_threaded_blas
 
 __all__ = ["IpoptOptions", "IpoptIKSolver", "check_degrees_of_freedom", "solve_ipopt"]
 
@@ -249,6 +250,7 @@ class IpoptIKSolver:
         self._recorder = _IterateRecorder(s * n, 2 * s, 2 * s)
         opts = self.options.as_casadi()
         opts["iteration_callback"] = self._recorder
+        single_threaded_blas()
         self._solver = ca.nlpsol(
             "ikpath_ipopt", "ipopt", {"x": x, "p": p, "f": energy, "g": g}, opts
         )
