@@ -33,6 +33,7 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.best_iterate import BestIterateRecorder, Iterate, better, violation_of
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.initial_guess import resolve_guess
 from youbot_opt.objectives import check_beta
@@ -169,6 +170,11 @@ class TrajOptSolver:
                 "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
             )
         opts = self.options.to_casadi(self._exact_hessian)
+        # keeps the best iterate, returned when a solve fails (youbot_opt.best_iterate)
+        self._recorder = BestIterateRecorder(
+            "trajopt_iterates", self.nlp.n_variables, self.nlp.n_constraints, self.nlp.p.numel()
+        )
+        opts["iteration_callback"] = self._recorder
         single_threaded_blas()
         self._solver = ca.nlpsol(
             "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
@@ -245,6 +251,7 @@ class TrajOptSolver:
         lbx, ubx = nlp.variable_bounds(joint_bounds, dt_range)
         lbg, ubg = nlp.constraint_bounds(start_state, goal_state, joint_bounds)
 
+        self._recorder.reset((lbx, ubx, lbg, ubg), self.feasibility_tol)
         wall, cpu = time.perf_counter(), time.process_time()
         error = ""
         try:
@@ -263,17 +270,52 @@ class TrajOptSolver:
             )
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         stats = solver.stats()
+        note = ""
+        if error or not status_from_ipopt(str(stats.get("return_status", ""))).success:
+            x, lam_x, lam_g, note = self._best_iterate(x, lam_x, lam_g, beta, (lbx, ubx, lbg, ubg))
         return self._result(
-            x, lam_x, lam_g, stats, error,
+            x, lam_x, lam_g, stats, error, note,
             beta=beta, bound_scale=bound_scale, start=start_state, goal=goal_state,
             bounds=(lbx, ubx, lbg, ubg), guess=guess_traj, wall=wall, cpu=cpu, seed=seed,
         )  # fmt: skip
 
     # --------------------------------------------------------------- helpers
+    def _best_iterate(
+        self,
+        x: Array,
+        lam_x: Array,
+        lam_g: Array,
+        beta: float,
+        bounds: tuple[Array, Array, Array, Array],
+    ) -> tuple[Array, Array, Array, str]:
+        """After a failed solve: the best recorded iterate if it beats the returned one."""
+        best, count = self._recorder.best, self._recorder.count
+        if best is None:
+            return x, lam_x, lam_g, ""
+        final = None
+        if np.all(np.isfinite(x)):
+            f_dm, g_dm = self._nlp_function(x, beta)
+            g = np.asarray(g_dm, dtype=float).ravel()
+            if np.all(np.isfinite(g)) and np.isfinite(float(f_dm)):
+                final = Iterate(x, lam_x, lam_g, float(f_dm), violation_of(x, g, bounds), -1)
+        if final is not None and not better(best, final, self.feasibility_tol):
+            return x, lam_x, lam_g, ""
+        last = (
+            f"violation {final.violation:.3g}, objective {final.objective:.6g}"
+            if final is not None
+            else "not finite"
+        )
+        note = (
+            f"returned the best iterate, {best.iteration} of {count - 1} (violation "
+            f"{best.violation:.3g}, objective {best.objective:.6g}), not the last ({last})"
+        )
+        return best.x.copy(), best.lam_x.copy(), best.lam_g.copy(), note
+
     def _warm(self) -> Any:
         """Return the warm-start IPOPT instance (built once, sharing the derivative Functions)."""
         if self._warm_solver is None:
             opts = self.options.to_casadi(self._exact_hessian, warm_start=True)
+            opts["iteration_callback"] = self._recorder
             if self._derivatives:
                 opts.update(self._derivatives)
             else:
@@ -320,6 +362,7 @@ class TrajOptSolver:
         lam_g: Array,
         stats: dict[str, Any],
         error: str,
+        note: str = "",
         *,
         beta: float,
         bound_scale: float,
@@ -336,6 +379,8 @@ class TrajOptSolver:
         solver_status = str(stats.get("return_status", "unknown")) if not error else "error"
         status = status_from_ipopt(solver_status)
         message = solver_status if not error else f"solver error: {error}"
+        if note:
+            message = f"{message}; {note}"
         variables = nlp.variables.unpack(x)
         dt = float(variables["dt"][0, 0])
 

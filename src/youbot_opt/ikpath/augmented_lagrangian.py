@@ -58,6 +58,7 @@ from scipy.optimize import Bounds, minimize
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.best import pick_best
 from youbot_opt.ikpath.bfgs import minimize_bfgs
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
@@ -276,6 +277,10 @@ def solve_augmented_lagrangian(
             mu *= opts.penalty_growth
             eta = max(1.0 / mu**0.1, opts.constraint_tol)
             omega = max(1.0 / mu, opts.stationarity_tol)
+    if status is not IKStatus.SUCCESS and history and np.all(np.isfinite(x)):
+        visited = (h.x.ravel() for h in history)
+        x, note = pick_best(problem, x, visited, opts.constraint_tol)
+        message = f"{message}; {note}" if note else message
     return build_result(
         problem,
         method="al",

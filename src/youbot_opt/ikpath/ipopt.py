@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.best import pick_best
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
 from youbot_opt.options import single_threaded_blas
@@ -315,6 +316,13 @@ class IpoptIKSolver:
             worst = float(np.max(prob.residuals(x)))
             if worst > self.options.constr_viol_tol:
                 status = IKStatus.STALLED
+        if status is not IKStatus.SUCCESS and np.all(np.isfinite(x)):
+            visited = (
+                _project_onto_box(rx, prob.lower, prob.upper)[0]
+                for rx, _, _ in self._recorder.records
+            )
+            x, note = pick_best(prob, x, visited, self.options.constr_viol_tol)
+            message = f"{message}; {note}" if note else message
         its = stats.get("iterations", {})
         history = tuple(
             OuterIterate(
