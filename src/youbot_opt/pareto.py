@@ -21,8 +21,7 @@ With ``out=DIR`` each point is saved as it is solved and a rerun resumes from
 the saved points (:mod:`youbot_opt.sweep_store`); since each point starts
 from the saved previous one, a resumed sweep gives the same points, and the
 first point's multistart (``first_starts``) is reloaded from ``DIR/first_point``.
-
-The bound-scaling study lives in :mod:`youbot_opt.bound_scaling`.
+(The bound-scaling study lives in :mod:`youbot_opt.bound_scaling`.)
 """
 
 from __future__ import annotations
@@ -68,9 +67,7 @@ __all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFA
 
 _log = logging.getLogger(__name__)
 
-DEFAULT_BETAS: tuple[float, ...] = tuple(
-    float(b) for b in np.round(np.arange(0.05, 0.951, 0.05), 10)
-)
+DEFAULT_BETAS: tuple[float, ...] = tuple(float(b) for b in np.round(np.arange(1, 20) / 20, 10))
 """The study's weights: 0.05, 0.10, ..., 0.95 (19 points)."""
 
 _MAX_ATTEMPTS = 2  # a point that raised or crashed its worker is retried once
