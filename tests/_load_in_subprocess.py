@@ -12,7 +12,10 @@ loaded in a fresh process, with ``RLIMIT_AS`` (memory) and ``RLIMIT_CPU`` set in
 the child and a wall-clock time-out enforced here (SIGKILL). One JSON line per
 job is printed on stdout: ``{"id", "outcome", "error_class", "message",
 "seconds", "nq"}`` with ``outcome`` in ``ok``, ``error``, ``timeout``,
-``killed`` (signal, e.g. the CPU limit), ``crashed`` (no report).
+``killed`` (signal, e.g. the CPU limit), ``crashed`` (no report). An error
+report also carries the error's ``path``, ``element``, ``line`` and ``rule``
+attributes (``error_path`` ...; None for errors without them) and the class
+of its ``__cause__`` (``cause_class``).
 """
 
 from __future__ import annotations
@@ -53,7 +56,12 @@ def _run_job(loader: types.ModuleType, job: dict) -> dict:
     try:
         loaded = loader.load_urdf_strict(job["path"], job["package_dirs"])
     except Exception as e:  # report every error class, the test decides
-        return {"outcome": "error", "error_class": type(e).__name__, "message": str(e)}
+        report = {"outcome": "error", "error_class": type(e).__name__, "message": str(e)}
+        for attr in ("path", "element", "line", "rule"):  # URDFError's site, if any
+            report[f"error_{attr}"] = getattr(e, attr, None)
+        cause = e.__cause__
+        report["cause_class"] = type(cause).__name__ if cause is not None else None
+        return report
     return {"outcome": "ok", "nq": loaded.model.nq}
 
 

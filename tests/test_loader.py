@@ -13,6 +13,7 @@ import importlib.metadata
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -28,6 +29,7 @@ from lxml import etree
 from youbot_opt import loader
 from youbot_opt.exceptions import (
     InvalidModelError,
+    ModelError,
     ParameterError,
     ResourceNotFoundError,
     RobotNotFound,
@@ -131,6 +133,9 @@ def test_manifest_covers_the_corpus() -> None:
     assert expected == ERROR_CLASSES | {"ok"}
     assert sum(e["expect"] != "ok" for e in MANIFEST) >= 40
     assert all(e["expect"] == "ok" or e["match"] for e in MANIFEST)
+    # every hostile mesh or texture reference states the URDF element its error must name
+    on_meshes = [e for e in MANIFEST if e["file"].startswith(("paths/", "missing/"))]
+    assert all("element" in e for e in on_meshes)
 
 
 @pytest.mark.parametrize("entry", MANIFEST, ids=[e["file"] for e in MANIFEST])
@@ -143,8 +148,18 @@ def test_corpus_file(entry: dict, subprocess_reports: dict[str, dict]) -> None:
     if got != "ok":
         message = report["message"]
         assert entry["match"] in message
-        assert entry["file"] in message or ".dae" in message or ".obj" in message  # names the file
-        assert "[rule: " in message
+        # Every error is raised from the URDF file and names it, the element and the rule,
+        # also when the broken rule lies inside a mesh the element references.
+        assert report["error_path"] == str(CORPUS / entry["file"])
+        assert entry["file"] in message
+        assert report["error_element"] and f": {report['error_element']}: " in message
+        assert report["error_rule"] and message.endswith(f"[rule: {report['error_rule']}]")
+        if "element" in entry:  # a mesh or texture reference: the exact element, at its line
+            assert report["error_element"] == entry["element"]
+            lines = (CORPUS / entry["file"]).read_text().splitlines()
+            assert "filename=" in lines[report["error_line"] - 1]
+        if "it references breaks a rule" in message:  # re-raised with the mesh's error chained
+            assert report["cause_class"] == got
 
 
 def test_child_process_caps_are_enforced(subprocess_reports: dict[str, dict]) -> None:
@@ -329,12 +344,134 @@ def test_textured_collada_lists_its_texture(corpus_packages: Path) -> None:
 
 
 def test_missing_obj_material_library_only_warns(tmp_path: Path) -> None:
-    """An .obj whose mtllib is missing loads with a warning (assimp uses a default material)."""
+    """An .obj whose mtllib is missing loads with a warning naming the URDF element and the .obj."""
     package = _make_corpus_packages(tmp_path)
     (package / "corpus_pkg" / "meshes" / "tetra.mtl").unlink()
-    with pytest.warns(YoubotOptWarning, match="material library 'tetra.mtl' is missing"):
-        loaded = load_urdf_strict(CORPUS / "valid" / "obj_with_material.urdf", [package])
+    urdf = CORPUS / "valid" / "obj_with_material.urdf"
+    line = next(i for i, s in enumerate(urdf.read_text().splitlines(), 1) if "tetra.obj" in s)
+    obj = (package / "corpus_pkg" / "meshes" / "tetra.obj").resolve()
+    element = "<visual><geometry><mesh filename='package://corpus_pkg/meshes/tetra.obj'>"
+    expected = f"{urdf}:{line}: {element} of link 'arm': {obj}:2: material library 'tetra.mtl'"
+    with pytest.warns(YoubotOptWarning, match=re.escape(expected) + " is missing"):
+        loaded = load_urdf_strict(urdf, [package])
     assert loaded.model.nq == 1
+
+
+def test_error_inside_a_mesh_is_raised_from_the_urdf_element(corpus_packages: Path) -> None:
+    """A .dae texture escaping is reported at the URDF's <mesh>, the .dae's error chained."""
+    urdf = CORPUS / "paths" / "dae_texture_dotdot.urdf"
+    dae = (corpus_packages / "corpus_pkg" / "meshes" / "evil_texture_dotdot.dae").resolve()
+    urdf_line = next(
+        i for i, s in enumerate(urdf.read_text().splitlines(), 1) if "evil_texture_dotdot" in s
+    )
+    dae_line = next(i for i, s in enumerate(dae.read_text().splitlines(), 1) if "etc/passwd" in s)
+    with pytest.raises(UnsafePathError) as info:
+        load_urdf_strict(urdf, [corpus_packages])
+    error, cause = info.value, info.value.__cause__
+    assert (error.path, error.line) == (str(urdf), urdf_line)
+    assert error.element == (
+        "<visual><geometry><mesh filename='package://corpus_pkg/meshes/evil_texture_dotdot.dae'>"
+        " of link 'arm'"
+    )
+    assert isinstance(cause, UnsafePathError)  # same class, the original kept as the cause
+    assert (cause.path, cause.line, cause.element) == (str(dae), dae_line, "<init_from>")
+    assert error.rule == cause.rule == "resources resolve inside the package directories"
+    assert str(error).startswith(f"{urdf}:{urdf_line}: {error.element}: the mesh {str(dae)!r}")
+    assert str(error).endswith(str(cause))
+
+
+@pytest.mark.parametrize(
+    ("dae", "detail"),
+    [
+        ("evil_texture_dotdot", ".dae -> ../../"),
+        ("evil_texture_http", ".dae -> http://example.com/tex.png'"),
+        ("missing_texture", ".dae -> no_such_texture.png': it does not exist"),
+        ("broken", ".dae': not well-formed XML"),
+    ],
+)
+def test_meshcat_policy_names_the_referencing_object_mesh_texture_and_rule(
+    corpus_packages: Path, dae: str, detail: str
+) -> None:
+    """The HTML export's mesh policy refuses the corpus's bad .dae files as informatively."""
+    from youbot_opt.viz.mesh_policy import load_mesh_file
+
+    mesh = corpus_packages / "corpus_pkg" / "meshes" / f"{dae}.dae"
+    who = "robot 'corpus', visual geometry 'arm_0'"
+    with pytest.raises(ModelError) as info:
+        load_mesh_file(mesh, [corpus_packages], referenced_by=who)
+    message = str(info.value)
+    assert message.startswith(f"{who}: refusing to embed '{mesh}")
+    assert f"{mesh.stem}{detail}" in message
+    assert re.search(r"\(rule: [^)]+\)$", message)
+
+
+@pytest.mark.parametrize(
+    ("name", "joint", "array", "expected"),
+    [
+        ("minimal", "shoulder", "lowerPositionLimit", "revolute joint 'shoulder' has the lower"),
+        ("minimal", "shoulder", "upperPositionLimit", "revolute joint 'shoulder' has the upper"),
+        ("minimal", "shoulder", "velocityLimit", "'shoulder' has the velocity limit (on |v|)"),
+        ("minimal", "shoulder", "effortLimit", "'shoulder' has the effort limit (on |tau|)"),
+        ("continuous_and_prismatic", "slide", "upperPositionLimit", "prismatic joint 'slide'"),
+        ("continuous_and_prismatic", "shoulder", "velocityLimit", "the file gives no limit"),
+        ("mimic_and_continuous_limit", "finger_joint", "lowerPositionLimit", "'finger_joint'"),
+        ("mimic_and_continuous_limit", "spin", "effortLimit", "continuous joint 'spin' has"),
+        ("floating_and_planar", "free", "velocityLimit", "floating joint 'free' has the velocity"),
+        ("floating_and_planar", "slide_plane", "effortLimit", "planar joint 'slide_plane'"),
+    ],
+)
+def test_check_model_compares_joint_limits_with_the_file(
+    name: str, joint: str, array: str, expected: str
+) -> None:
+    """A model whose limit is not the file's <limit> (or finite where the file has none) fails."""
+    text = (CORPUS / "valid" / f"{name}.urdf").read_text()
+    tree = parse_xml_strict(text.encode(), f"{name}.urdf")
+    check_model(pin.buildModelFromXML(text), tree, f"{name}.urdf")  # the faithful model passes
+    model = pin.buildModelFromXML(text)
+    joint_id = model.getJointId(joint)
+    index = (model.idx_qs if "Position" in array else model.idx_vs)[joint_id]
+    values = getattr(model, array).copy()
+    # 1e-6 on limits of order 1 is 1e6 times the loader's 1e-12 relative tolerance
+    values[index] = values[index] + 1e-6 if np.isfinite(values[index]) else 5.0
+    setattr(model, array, values)
+    with pytest.raises(InvalidModelError, match=re.escape(expected)) as info:
+        check_model(model, tree, f"{name}.urdf")
+    assert info.value.rule.startswith("the model's joint limits are the file's <limit>")
+
+
+def test_mimic_joint_built_as_mimic_has_no_own_limits() -> None:
+    """With mimic=True the mimicking joint has no coordinates: its <limit> is not compared."""
+    text = (CORPUS / "valid" / "mimic_and_continuous_limit.urdf").read_text()
+    model = pin.buildModelFromXML(text, mimic=True)
+    assert model.nvs[model.getJointId("finger_joint")] == 0
+    check_model(model, parse_xml_strict(text.encode(), "mimic.urdf"), "mimic.urdf")
+
+
+@pytest.mark.parametrize("name", sorted(REFERENCE_ROBOTS))
+def test_reference_robot_limits_match_an_lxml_reading(name: str) -> None:
+    """The loaded position, velocity and effort limits are the <limit> values lxml reads."""
+    path = REFERENCE_ROBOTS[name]
+    if not path.exists():
+        pytest.skip(f"{path} not generated yet")
+    model = load_urdf_strict(path, ROBOT_DIRS).model
+    movable = 0
+    for joint in etree.parse(str(path)).getroot().findall("joint"):
+        assert joint.get("type") in ("revolute", "prismatic", "fixed")  # all these robots have
+        if joint.get("type") == "fixed":
+            continue
+        movable += 1
+        limit = joint.find("limit")
+        joint_id = model.getJointId(joint.get("name"))
+        iq, iv = model.idx_qs[joint_id], model.idx_vs[joint_id]
+        got = (
+            model.lowerPositionLimit[iq],
+            model.upperPositionLimit[iq],
+            model.velocityLimit[iv],
+            model.effortLimit[iv],
+        )
+        want = tuple(float(limit.get(k, "0")) for k in ("lower", "upper", "velocity", "effort"))
+        assert got == want  # the same decimals read by correctly rounded parsers: exactly equal
+    assert movable == model.nv
 
 
 def test_escape_is_checked_before_existence(corpus_packages: Path, tmp_path: Path) -> None:
@@ -357,8 +494,6 @@ def test_c_stderr_is_captured_and_restored(capfd: pytest.CaptureFixture[str]) ->
 
 def test_every_error_is_a_model_error() -> None:
     """The new classes sit under ModelError, so existing handlers keep catching them."""
-    from youbot_opt.exceptions import ModelError
-
     for name in ERROR_CLASSES:
         cls = getattr(sys.modules["youbot_opt.exceptions"], name)
         assert issubclass(cls, URDFError) and issubclass(cls, ModelError)

@@ -534,6 +534,7 @@ def test_export_refuses_a_robot_with_an_escaping_mesh(ur5, package, tmp_path):
     )
     target = tmp_path / "out.html"
     t, q = _ramp(ur5, n=2, duration=1.0)
-    with pytest.raises(ModelError, match="outside.png"):
+    with pytest.raises(ModelError, match="outside.png") as err:
         export_html(robot, t, q, target)
+    assert "geometry object 'bad'" in str(err.value)  # names what referenced the mesh
     assert not target.exists()

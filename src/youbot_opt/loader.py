@@ -16,8 +16,9 @@
    exactly what was checked, never resolves a path itself and never consults
    ``ROS_PACKAGE_PATH``. What Pinocchio's URDF parser prints on the C-level
    standard error is captured and logged (or put in the error message).
-6. :func:`check_model` compares the model with the file and requires defined
-   dynamics.
+6. :func:`check_model` compares the model with the file (joints, joint limits,
+   inertias), requires finite placements, inertias and ``M(q)`` (a huge
+   ``<origin>`` makes them overflow) and defined dynamics.
 
 Decision on singular mass matrices: a model is accepted only if its joint
 space inertia matrix ``M(q)`` is positive definite, checked at the neutral
@@ -45,15 +46,21 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from youbot_opt.exceptions import InvalidModelError, ModelError, RobotNotFound, UnsafeURDFError
+from youbot_opt.exceptions import (
+    InvalidModelError,
+    ModelError,
+    RobotNotFound,
+    UnsafeURDFError,
+    URDFError,
+)
 from youbot_opt.urdf_resources import (
     allowed_roots,
     check_mesh,
     read_regular_file,
     resolve_reference,
 )
-from youbot_opt.urdf_rules import check_urdf_tree, resource_references
-from youbot_opt.urdf_xml import Site, fail, parse_number, parse_xml_strict, root_of, site
+from youbot_opt.urdf_rules import check_urdf_tree, file_inertia, file_limits, resource_references
+from youbot_opt.urdf_xml import Site, fail, parse_xml_strict, root_of, site
 
 __all__ = ["LoadedURDF", "MAX_URDF_BYTES", "load_urdf_strict", "check_urdf_text", "check_model"]
 
@@ -70,6 +77,13 @@ _MASS_MATRIX_RCOND = 1e-12
 #: Relative tolerance between the file's inertias and the model's: the two
 #: sums differ only by floating-point reassociation (~1e-15).
 _INERTIA_MATCH_RTOL = 1e-10
+#: Relative tolerance between the file's joint limits and the model's: both are
+#: the same decimal text read by correctly rounded parsers (urdfdom and
+#: :func:`~youbot_opt.urdf_xml.parse_number`), so they agree exactly; 1e-12
+#: only allows a last-bit difference, far below any intended change of a limit.
+_LIMIT_MATCH_RTOL = 1e-12
+#: Rule of the finiteness checks (item 3 of the audit: a huge ``<origin>``).
+_FINITE_RULE = "every <origin> is in range: placements, spatial inertias and M(q) are finite"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -98,6 +112,22 @@ class LoadedURDF:
     resources: tuple[Path, ...] = ()
 
 
+def _in_mesh(error: URDFError, where: Site, mesh: Path) -> URDFError:
+    """Re-raise a rule broken inside a mesh file from the URDF element that references it.
+
+    The error keeps its class and rule; its site becomes the URDF element, and
+    the message keeps the mesh file's own site (file, line, element) and problem.
+    """
+    line = f":{where.line}" if where.line is not None else ""
+    message = (
+        f"{where.path}{line}: {where.element}: the mesh {os.fspath(mesh)!r} it references "
+        f"breaks a rule: {error}"
+    )
+    return type(error)(
+        message, path=where.path, element=where.element, line=where.line, rule=error.rule
+    )
+
+
 def _read_and_check(
     path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
 ) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
@@ -115,13 +145,17 @@ def _read_and_check(
     check_urdf_tree(tree, name)
     references: list[tuple[ET.Element, str, Path]] = []
     resources: list[Path] = []
-    for elem, kind in resource_references(tree, name):
-        where = site(name, elem)
+    for elem, kind, where in resource_references(tree, name):
         real = resolve_reference(elem.get("filename", ""), roots, roots, where)
         references.append((elem, "filename", real))
         resources.append(real)
         if kind == "mesh":
-            resources.extend(check_mesh(real, roots, where))
+            try:
+                resources.extend(check_mesh(real, roots, where))
+            except URDFError as e:
+                if e.path == where.path:  # already names the URDF element
+                    raise
+                raise _in_mesh(e, where, real) from e
     logger.debug("%s: %d resources checked", name, len(resources))
     return tree, references, tuple(dict.fromkeys(resources))
 
@@ -178,49 +212,6 @@ def _c_stderr_captured() -> Iterator[list[str]]:
             captured.append(sink.read().decode("utf-8", errors="replace").strip())
 
 
-def _rotation_rpy(rpy: np.ndarray) -> np.ndarray:
-    """URDF roll-pitch-yaw (fixed axes x, y, z) to a rotation matrix: Rz(y) Ry(p) Rx(r)."""
-    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
-    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return rz @ ry @ rx
-
-
-def _vector(elem: ET.Element | None, attr: str, where: Site) -> np.ndarray:
-    text = elem.get(attr, "0 0 0") if elem is not None else "0 0 0"
-    return np.array([parse_number(x, where, attr) for x in text.split()])
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _file_inertia(inertial: ET.Element, placement: pin.SE3, where: Site) -> np.ndarray:
-    """Return the 6x6 spatial inertia of an ``<inertial>`` block in a joint frame.
-
-    ``placement`` is the link frame in the joint frame. Layout as Pinocchio's
-    ``Inertia.matrix()`` (linear first): ``[[m 1, -m [c]], [m [c], I_c - m [c]^2]]``
-    with ``c`` the centre of mass in [m] and ``I_c`` the rotational inertia at
-    the centre of mass in [kg m^2], both in joint-frame axes.
-    """
-    origin = inertial.find("origin")
-    mass_elem, inertia_elem = inertial.find("mass"), inertial.find("inertia")
-    assert mass_elem is not None and inertia_elem is not None  # checked by the tree rules
-    mass = parse_number(mass_elem.get("value"), where, "value")
-    ixx, ixy, ixz, iyy, iyz, izz = (
-        parse_number(inertia_elem.get(k), where, k)
-        for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    )
-    rotation = placement.rotation @ _rotation_rpy(_vector(origin, "rpy", where))
-    com = placement.rotation @ _vector(origin, "xyz", where) + placement.translation
-    i_com = rotation @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ rotation.T
-    cross = _skew(com)
-    return np.block(
-        [[mass * np.eye(3), -mass * cross], [mass * cross, i_com - mass * cross @ cross]]
-    )
-
-
 def _check_joints(model: pin.Model, robot: ET.Element, path: str) -> None:
     movable = [j.get("name", "") for j in robot.findall("joint") if j.get("type") != "fixed"]
     in_model = list(model.names)[1:]
@@ -232,6 +223,60 @@ def _check_joints(model: pin.Model, robot: ET.Element, path: str) -> None:
             problem,
             "the model has the file's joints",
         )
+
+
+def _check_placements(model: pin.Model, path: str) -> None:
+    """Require finite joint and frame placements (sums of huge fixed-joint origins overflow)."""
+    placements = [
+        (f"joint {n!r}", p) for n, p in zip(model.names, model.jointPlacements, strict=True)
+    ]
+    placements += [(f"frame {f.name!r}", f.placement) for f in model.frames]
+    for what, placement in placements:
+        if not np.all(np.isfinite(placement.homogeneous)):
+            problem = (
+                f"the placement of {what} in the model is not finite "
+                f"(translation {placement.translation.tolist()} m): its <origin>s are out of range"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
+
+
+def _check_limits(model: pin.Model, robot: ET.Element, path: str) -> None:
+    """Compare each movable joint's position, velocity and effort limits with the file."""
+    rule = "the model's joint limits are the file's <limit> (lower, upper, velocity, effort)"
+    for joint in robot.findall("joint"):
+        jtype, name = joint.get("type", ""), joint.get("name", "")
+        if jtype == "fixed":
+            continue
+        joint_id = model.getJointId(name)
+        nv = model.nvs[joint_id]
+        if nv == 0:  # a mimic joint built with mimic=True: it has no own coordinates
+            continue
+        limit = joint.find("limit")
+        where = site(path, limit, f"joint {name!r}") if limit is not None else site(path, joint)
+        position, velocity, effort, units = file_limits(joint, nv, where)
+        iq, iv = model.idx_qs[joint_id], model.idx_vs[joint_id]
+        compared = [
+            ("velocity limit (on |v|)", velocity, model.velocityLimit[iv : iv + nv], units[1]),
+            ("effort limit (on |tau|)", effort, model.effortLimit[iv : iv + nv], units[2]),
+        ]
+        if position is not None:
+            compared[:0] = [
+                (f"{side} position limit", np.array([bound]), limits[iq : iq + 1], units[0])
+                for side, bound, limits in (
+                    ("lower", position[0], model.lowerPositionLimit),
+                    ("upper", position[1], model.upperPositionLimit),
+                )
+            ]
+        for quantity, want, have, unit in compared:
+            if np.all(np.isclose(want, have, rtol=_LIMIT_MATCH_RTOL, atol=0.0)):
+                continue
+            unit = f" {unit}" if unit else ""
+            in_file = f"{want.tolist()}{unit}" if np.all(np.isfinite(want)) else "no limit"
+            problem = (
+                f"{jtype} joint {name!r} has the {quantity} {have.tolist()}{unit} "
+                f"in the model, but the file gives {in_file}"
+            )
+            raise fail(InvalidModelError, where, problem, rule)
 
 
 def _check_inertias(model: pin.Model, robot: ET.Element, path: str) -> None:
@@ -246,12 +291,33 @@ def _check_inertias(model: pin.Model, robot: ET.Element, path: str) -> None:
         inertial = link.find("inertial")
         if inertial is not None:
             frame = model.frames[frame_id]
-            expected[frame.parentJoint] += _file_inertia(inertial, frame.placement, where)
+            block = file_inertia(
+                inertial, frame.placement.rotation, frame.placement.translation, where
+            )
+            if not np.all(np.isfinite(block)):
+                distance = np.abs(block[3:, :3]).max() / block[0, 0]  # max |c_i| of m [c]
+                problem = (
+                    f"its centre of mass lies {distance:.3g} m from the frame of joint "
+                    f"{model.names[frame.parentJoint]!r} (its <origin>, or those of the fixed "
+                    "joints between, are out of range): the 6x6 spatial inertia there, with "
+                    "terms m |c|^2, is not finite"
+                )
+                owner = f"link {link.get('name')!r}"
+                raise fail(InvalidModelError, site(path, inertial, owner), problem, _FINITE_RULE)
+            expected[frame.parentJoint] += block
     rule = "every <inertial> of the file is in the model, unchanged"
     for joint_id, (want, got) in enumerate(zip(expected, model.inertias, strict=True)):
-        have = got.matrix()
+        with np.errstate(over="ignore", invalid="ignore"):
+            have = got.matrix()
+        if not (np.all(np.isfinite(want)) and np.all(np.isfinite(have))):
+            problem = (
+                f"the spatial inertia of the body of joint {model.names[joint_id]!r} is not "
+                f"finite (in the file: {np.all(np.isfinite(want))}, in the model: "
+                f"{np.all(np.isfinite(have))}): its links' <origin>s are out of range"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
         scale = max(np.abs(want).max(), np.abs(have).max())
-        if not np.all(np.isfinite(have)) or np.abs(want - have).max() > _INERTIA_MATCH_RTOL * scale:
+        if np.abs(want - have).max() > _INERTIA_MATCH_RTOL * scale:
             problem = (
                 f"body of joint {model.names[joint_id]!r} has mass {got.mass} kg in the model, but "
                 f"its links' <inertial> blocks add up to {want[0, 0]} kg (6x6 spatial inertias "
@@ -271,12 +337,21 @@ def _check_mass_matrix(model: pin.Model, path: str) -> None:
         for _ in range(_N_MASS_MATRIX_SAMPLES)
     ]
     for sample, q in enumerate(configurations):
+        where = "the neutral configuration" if sample == 0 else f"random configuration {sample}"
         upper = pin.crba(model, data, q)
         mass_matrix = np.triu(upper) + np.triu(upper, 1).T
+        if not np.all(np.isfinite(mass_matrix)):
+            pin.framesForwardKinematics(model, data, q)
+            reach = max(np.abs(placement.translation).max() for placement in data.oMf)
+            problem = (
+                f"the joint space inertia matrix M(q) is not finite at {where}: joint "
+                f"<origin>s are out of range (bodies up to {reach:.3g} m from the base, "
+                "so the terms m r^2 overflow)"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
         eigenvalues, eigenvectors = np.linalg.eigh(mass_matrix)
         if eigenvalues[0] > _MASS_MATRIX_RCOND * eigenvalues[-1] and eigenvalues[-1] > 0:
             continue
-        where = "the neutral configuration" if sample == 0 else f"random configuration {sample}"
         weak = np.abs(eigenvectors[:, 0]) > 1e-3  # joints taking part in the inertia-free motion
         joints = sorted(
             model.names[j]
@@ -307,15 +382,23 @@ def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[
     Raises
     ------
     InvalidModelError
-        If the model's joints are not the file's movable joints, a link is
-        missing, the mass and inertia of a body differ from the sum of its
-        links' ``<inertial>`` blocks in the file (Pinocchio silently drops a
-        block it cannot parse), or ``M(q)`` is not positive definite (see the
-        module docstring).
+        If the model's joints are not the file's movable joints; a joint's
+        position limits (revolute and prismatic), velocity limit (symmetric, on
+        ``|v|``) or effort limit differ from its ``<limit>`` (``inf`` where the
+        file gives none: continuous joints without ``<limit>``, floating and
+        planar joints; mimic joints built with ``mimic=True`` have no own
+        limits and are skipped); a link is missing; an ``<origin>`` is so far
+        out that a placement, a spatial inertia or ``M(q)`` is not finite; the
+        mass and inertia of a body differ from the sum of its links'
+        ``<inertial>`` blocks in the file (Pinocchio silently drops a block it
+        cannot parse); or ``M(q)`` is not positive definite (see the module
+        docstring).
     """
     name = os.fspath(path)
     robot = root_of(tree, name)
     _check_joints(model, robot, name)
+    _check_limits(model, robot, name)
+    _check_placements(model, name)
     _check_inertias(model, robot, name)
     _check_mass_matrix(model, name)
 

@@ -294,6 +294,15 @@ def check_mesh(real: Path, roots: Sequence[Path], where: Site) -> tuple[Path, ..
         the format is not in :data:`MESH_SUFFIXES`.
     UnsafeURDFError, URDFSyntaxError
         If a ``.dae`` file has a ``DOCTYPE`` or is not well-formed XML.
+
+    Notes
+    -----
+    Errors about the mesh file itself (format, size, not a regular file) name
+    ``where``. Errors found *inside* the mesh (a texture, a material library,
+    the ``.dae``'s XML) name the mesh file, line and element (their ``path`` is
+    the mesh); :func:`youbot_opt.loader.load_urdf_strict` re-raises them from
+    ``where`` with the same class and rule. The warning for a missing ``.obj``
+    material library names both.
     """
     suffix = real.suffix.lower()
     if suffix not in MESH_SUFFIXES:
@@ -323,9 +332,10 @@ def check_mesh(real: Path, roots: Sequence[Path], where: Site) -> tuple[Path, ..
         elif suffix == ".dae":
             raise missing[0]
         else:  # assimp falls back to a default material when the library is missing
+            at = f":{where.line}" if where.line is not None else ""
             warnings.warn(
-                f"{ref_site.path}:{ref_site.line}: material library {ref!r} is missing; "
-                "assimp will use a default material",
+                f"{where.path}{at}: {where.element}: {ref_site.path}:{ref_site.line}: "
+                f"material library {ref!r} is missing; assimp will use a default material",
                 YoubotOptWarning,
                 stacklevel=3,
             )

@@ -23,19 +23,29 @@ Physical rules (``m`` mass, ``I`` rotational inertia at the centre of mass):
 
 The first broken rule raises; the error names file, element, line and rule.
 Mesh and texture references are checked by :mod:`youbot_opt.urdf_resources`.
+:func:`file_inertia` and :func:`file_limits` read what a checked file says in
+the form Pinocchio holds it, for :func:`youbot_opt.loader.check_model`.
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
+from typing import NamedTuple
 
 import numpy as np
 
 from youbot_opt.exceptions import InvalidModelError, URDFStructureError
 from youbot_opt.urdf_xml import NUMBER_RULE, Site, fail, parse_number, root_of, site
 
-__all__ = ["JOINT_TYPES", "check_urdf_tree", "resource_references"]
+__all__ = [
+    "JOINT_TYPES",
+    "FileLimits",
+    "check_urdf_tree",
+    "file_inertia",
+    "file_limits",
+    "resource_references",
+]
 
 #: Joint types of the URDF specification (all supported by Pinocchio).
 JOINT_TYPES: tuple[str, ...] = (
@@ -61,6 +71,12 @@ _INERTIA_RTOL = 1e-6
 #: Absolute tolerance of the inertia rules in [kg m^2], for round-off such as
 #: 1e-35 off-diagonal terms: far below any real part (1 g at 1 mm: 1e-9 kg m^2).
 _INERTIA_ATOL = 1e-12
+#: Units of (position, velocity, effort) limits by URDF joint type.
+_LIMIT_UNITS = {
+    "revolute": ("rad", "rad/s", "N m"),
+    "continuous": ("rad", "rad/s", "N m"),
+    "prismatic": ("m", "m/s", "N"),
+}
 _TREE_RULE = "the links form one tree (one root, one parent joint per link, no loops)"
 _OPTIONAL_NUMBERS = (  # (element, attributes, must be >= 0) of <joint>
     ("dynamics", ("damping", "friction"), True),
@@ -304,7 +320,26 @@ def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
     _check_tree(links, joints, path)
 
 
-def resource_references(tree: ET.ElementTree, path: str) -> Iterator[tuple[ET.Element, str]]:
+def _owner(elem: ET.Element) -> str:
+    """Describe a direct child of ``<robot>``: ``link 'arm'``, ``<gazebo reference='arm'>``."""
+    if elem.tag in ("link", "joint"):
+        return f"{elem.tag} {elem.get('name')!r}"
+    keys = [k for k in ("name", "reference") if elem.get(k) is not None]
+    return "<" + " ".join([elem.tag, *(f"{k}={elem.get(k)!r}" for k in keys)]) + ">"
+
+
+def _reference_site(path: str, chain: list[ET.Element]) -> Site:
+    """Site of the last element of ``chain`` (from a child of ``<robot>`` down to it)."""
+    *outer, elem = chain
+    owner = _owner(outer[0]) if outer else "robot"
+    inner = "".join(
+        f"<{e.tag} name={e.get('name')!r}>" if e.get("name") else f"<{e.tag}>" for e in outer[1:]
+    )
+    text = f"{inner}<{elem.tag} filename={elem.get('filename')!r}> of {owner}"
+    return Site(path, text, getattr(elem, "sourceline", None))
+
+
+def resource_references(tree: ET.ElementTree, path: str) -> Iterator[tuple[ET.Element, str, Site]]:
     """Yield every file reference of a URDF: ``<mesh filename>`` and ``<texture filename>``.
 
     Parameters
@@ -316,11 +351,139 @@ def resource_references(tree: ET.ElementTree, path: str) -> Iterator[tuple[ET.El
 
     Yields
     ------
-    tuple of (Element, str)
-        The element and its kind (``"mesh"`` or ``"texture"``); the reference
-        is its ``filename`` attribute. References anywhere in the file count,
-        also in elements the URDF parsers ignore (e.g. ``<gazebo>``).
+    tuple of (Element, str, Site)
+        The element, its kind (``"mesh"`` or ``"texture"``) and where it is,
+        for error messages: its line and the chain of elements from its link
+        (or other top-level element) down to it, e.g.
+        ``<visual><geometry><mesh filename='package://p/m.dae'> of link 'arm'``.
+        The reference is its ``filename`` attribute. References anywhere in
+        the file count, also in elements the URDF parsers ignore (e.g. ``<gazebo>``).
     """
-    for elem in root_of(tree, path).iter():
+    stack: list[tuple[ET.Element, list[ET.Element]]] = [
+        (child, [child]) for child in reversed(root_of(tree, path))
+    ]
+    while stack:  # depth first, in document order
+        elem, chain = stack.pop()
         if elem.tag in ("mesh", "texture") and elem.get("filename") is not None:
-            yield elem, elem.tag
+            yield elem, elem.tag, _reference_site(path, chain)
+        stack.extend((child, [*chain, child]) for child in reversed(elem))
+
+
+class FileLimits(NamedTuple):
+    """The limits a URDF gives one movable joint, as Pinocchio should hold them.
+
+    Attributes
+    ----------
+    position : tuple of float or None
+        ``(lower, upper)`` in [rad] or [m] for revolute and prismatic joints;
+        None for the others (a continuous joint's configuration is
+        ``(cos, sin)``, whose bounds are Pinocchio's own).
+    velocity : ndarray, shape (nv,)
+        Symmetric bound on ``|v|`` per velocity coordinate, in [rad/s] or
+        [m/s]; ``inf`` where the file gives none.
+    effort : ndarray, shape (nv,)
+        Bound on ``|tau|`` in [N m] or [N]; ``inf`` where the file gives none.
+    units : tuple of str
+        Units of position, velocity and effort (empty for floating and planar).
+    """
+
+    position: tuple[float, float] | None
+    velocity: np.ndarray
+    effort: np.ndarray
+    units: tuple[str, str, str]
+
+
+def file_limits(joint: ET.Element, nv: int, where: Site) -> FileLimits:
+    """Read a checked joint's ``<limit>``.
+
+    Parameters
+    ----------
+    joint : Element
+        A movable ``<joint>`` that passed :func:`check_urdf_tree`.
+    nv : int
+        Its number of velocity coordinates in the model.
+    where : Site
+        Its ``<limit>``, for error messages.
+
+    Returns
+    -------
+    FileLimits
+        Continuous joints without ``<limit>``, and floating and planar joints
+        (whose ``<limit>`` URDF does not define and Pinocchio ignores), have
+        infinite velocity and effort limits.
+    """
+    limit, jtype = joint.find("limit"), joint.get("type", "")
+    units = _LIMIT_UNITS.get(jtype, ("", "", ""))
+    unbounded = np.full(nv, np.inf)
+    if limit is None or jtype not in _LIMIT_UNITS:
+        return FileLimits(None, unbounded, unbounded, units)
+    lower, upper, velocity, effort = (
+        parse_number(limit.get(k, "0"), where, k) for k in ("lower", "upper", "velocity", "effort")
+    )
+    position = (lower, upper) if jtype != "continuous" else None
+    return FileLimits(position, np.full(nv, velocity), np.full(nv, effort), units)
+
+
+def _rotation_rpy(rpy: np.ndarray) -> np.ndarray:
+    """URDF roll-pitch-yaw (fixed axes x, y, z) to a rotation matrix: Rz(y) Ry(p) Rx(r)."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def _vector(elem: ET.Element | None, attr: str, where: Site) -> np.ndarray:
+    text = elem.get(attr, "0 0 0") if elem is not None else "0 0 0"
+    return np.array([parse_number(x, where, attr) for x in text.split()])
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def file_inertia(
+    inertial: ET.Element, rotation: np.ndarray, translation: np.ndarray, where: Site
+) -> np.ndarray:
+    """Return the 6x6 spatial inertia of a checked ``<inertial>`` block in a joint frame.
+
+    Layout as Pinocchio's ``Inertia.matrix()`` (linear first):
+    ``[[m 1, -m [c]], [m [c], I_c - m [c]^2]]`` with ``c`` the centre of mass
+    in [m] and ``I_c`` the rotational inertia at the centre of mass in
+    [kg m^2], both in joint-frame axes.
+
+    Parameters
+    ----------
+    inertial : Element
+        An ``<inertial>`` that passed :func:`check_urdf_tree`.
+    rotation : ndarray, shape (3, 3)
+        Orientation of the link frame in the joint frame.
+    translation : ndarray, shape (3,)
+        Position of the link frame in the joint frame, in [m].
+    where : Site
+        The link, for error messages.
+
+    Returns
+    -------
+    ndarray, shape (6, 6)
+        The spatial inertia; zero for a massless link. Entries are not finite
+        when an ``<origin>`` is so far out that ``m |c|^2`` overflows (the
+        caller reports it).
+    """
+    origin = inertial.find("origin")
+    mass_elem, inertia_elem = inertial.find("mass"), inertial.find("inertia")
+    assert mass_elem is not None and inertia_elem is not None  # checked by the tree rules
+    mass = parse_number(mass_elem.get("value"), where, "value")
+    ixx, ixy, ixz, iyy, iyz, izz = (
+        parse_number(inertia_elem.get(k), where, k) for k in _INERTIA_KEYS
+    )
+    if mass == 0:  # no inertia either (rule above): adds nothing, wherever it is
+        return np.zeros((6, 6))
+    axes = rotation @ _rotation_rpy(_vector(origin, "rpy", where))
+    with np.errstate(over="ignore", invalid="ignore"):  # huge origins: the caller reports
+        com = rotation @ _vector(origin, "xyz", where) + translation
+        i_com = axes @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ axes.T
+        cross = _skew(com)
+        return np.block(
+            [[mass * np.eye(3), -mass * cross], [mass * cross, i_com - mass * cross @ cross]]
+        )

@@ -170,7 +170,7 @@ def write_corpus() -> list[dict]:
 
 
 
-    def add(group, name, expect, match, why, text=None, *, subs=(), data=None):
+    def add(group, name, expect, match, why, text=None, *, subs=(), data=None, element=None):
         if data is None:
             if text is None:
                 text = BASE
@@ -182,11 +182,22 @@ def write_corpus() -> list[dict]:
         path = OUT / group / f"{name}.urdf"
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
-        entries.append({"file": f"{group}/{name}.urdf", "expect": expect, "match": match, "why": why})
+        entry = {"file": f"{group}/{name}.urdf", "expect": expect, "match": match, "why": why}
+        if element is not None:  # the URDF element the error must name (mesh and texture rules)
+            entry["element"] = element
+        entries.append(entry)
 
 
     def mesh(ref):
         return [(MESH, f'filename="{ref}"')]
+
+
+    def visual(ref, tag="mesh", path="<visual><geometry>", owner="link 'arm'"):
+        return f"{path}<{tag} filename={ref!r}> of {owner}"
+
+
+    def on_mesh(ref):  # the template's visual mesh replaced; errors must name that element
+        return {"subs": mesh(ref), "element": visual(ref)}
 
 
     # ---------------------------------------------------------------- syntax
@@ -214,7 +225,7 @@ def write_corpus() -> list[dict]:
     add("syntax", "nul_byte", SYNTAX, "not well-formed", "a NUL byte inside the document",
         data=BASE.replace("{why}", "NUL byte").encode().replace(b'name="arm"', b'name="a\x00rm"', 1))
     add("syntax", "dae_truncated", SYNTAX, "broken.dae", "a COLLADA mesh that is cut off",
-        subs=mesh("package://corpus_pkg/meshes/broken.dae"))
+        **on_mesh("package://corpus_pkg/meshes/broken.dae"))
 
     # ---------------------------------------------------------------- unsafe XML
     U = "UnsafeURDFError"
@@ -238,49 +249,52 @@ def write_corpus() -> list[dict]:
     add("unsafe_xml", "plain_doctype", U, "<!DOCTYPE> is refused", "a harmless-looking DOCTYPE (every DOCTYPE is refused)",
         text=BASE.replace('<robot name="corpus">', "<!DOCTYPE robot>\n<robot name=\"corpus\">"))
     add("unsafe_xml", "dae_external_entity", U, "evil_entity.dae", "a COLLADA mesh with an XXE DOCTYPE",
-        subs=mesh("package://corpus_pkg/meshes/evil_entity.dae"))
+        **on_mesh("package://corpus_pkg/meshes/evil_entity.dae"))
 
     # ---------------------------------------------------------------- unsafe paths
     P = "UnsafePathError"
     out = ", outside ["
     add("paths", "package_dotdot", P, out, "package:// with ../ climbing out to /etc/passwd",
-        subs=mesh("package://corpus_pkg/" + "../" * 12 + "etc/passwd"))
+        **on_mesh("package://corpus_pkg/" + "../" * 12 + "etc/passwd"))
     add("paths", "relative_dotdot", P, out, "a relative path with ../ climbing out",
-        subs=mesh("../" * 12 + "etc/hostname"))
+        **on_mesh("../" * 12 + "etc/hostname"))
     add("paths", "absolute_outside", P, out, "an absolute path outside the package directories",
-        subs=mesh("/etc/passwd"))
+        **on_mesh("/etc/passwd"))
     add("paths", "file_uri_outside", P, out, "a file:// URI outside the package directories",
-        subs=mesh("file:///etc/passwd"))
+        **on_mesh("file:///etc/passwd"))
     add("paths", "file_uri_relative", P, "refused URL form", "a file:// URI with a relative (cwd-dependent) path",
-        subs=mesh("file://corpus_pkg/meshes/box.stl"))
+        **on_mesh("file://corpus_pkg/meshes/box.stl"))
     add("paths", "http_mesh", P, "refused URL form (http:)", "a mesh fetched over http://",
-        subs=mesh("http://127.0.0.1:9/box.stl"))
+        **on_mesh("http://127.0.0.1:9/box.stl"))
     add("paths", "https_mesh", P, "refused URL form (https:)", "a mesh fetched over https://",
-        subs=mesh("https://example.com/box.stl"))
+        **on_mesh("https://example.com/box.stl"))
     add("paths", "ftp_mesh", P, "refused URL form (ftp:)", "a mesh fetched over ftp://",
-        subs=mesh("ftp://example.com/box.stl"))
+        **on_mesh("ftp://example.com/box.stl"))
     add("paths", "data_uri", P, "refused URL form (data:)", "an inline data: URI",
-        subs=mesh("data:model/stl;base64,c29saWQ="))
+        **on_mesh("data:model/stl;base64,c29saWQ="))
     add("paths", "dev_zero", P, out, "the device /dev/zero as a mesh (endless read)",
-        subs=mesh("/dev/zero"))
+        **on_mesh("/dev/zero"))
     add("paths", "proc_environ", P, out, "/proc/self/environ as a mesh (leaks secrets)",
-        subs=mesh("/proc/self/environ"))
+        **on_mesh("/proc/self/environ"))
     add("paths", "symlink_escape", P, out, "a symlink inside the package pointing outside it",
-        subs=mesh("package://corpus_pkg/meshes/escape.stl"))
+        **on_mesh("package://corpus_pkg/meshes/escape.stl"))
     add("paths", "symlink_dev_zero", P, out, "a symlink inside the package pointing to /dev/zero",
-        subs=mesh("package://corpus_pkg/meshes/zero.stl"))
+        **on_mesh("package://corpus_pkg/meshes/zero.stl"))
     add("paths", "fifo", P, "not a regular file", "a FIFO inside the package (a read would block)",
-        subs=mesh("package://corpus_pkg/meshes/fifo.stl"))
+        **on_mesh("package://corpus_pkg/meshes/fifo.stl"))
     add("paths", "directory", P, "not a regular file", "a folder named like a mesh",
-        subs=mesh("package://corpus_pkg/meshes/folder.stl"))
+        **on_mesh("package://corpus_pkg/meshes/folder.stl"))
     add("paths", "unsupported_format", P, "refused format", "a mesh format outside .stl/.dae/.obj/.ply",
-        subs=mesh("package://corpus_pkg/meshes/model.fbx"))
+        **on_mesh("package://corpus_pkg/meshes/model.fbx"))
     add("paths", "collision_outside", P, out, "a collision mesh outside the package directories",
-        subs=[("    <visual>", '    <collision>\n      <geometry>\n        <mesh filename="/etc/shadow"/>\n      </geometry>\n    </collision>\n    <visual>')])
+        subs=[("    <visual>", '    <collision>\n      <geometry>\n        <mesh filename="/etc/shadow"/>\n      </geometry>\n    </collision>\n    <visual>')],
+        element=visual("/etc/shadow", path="<collision><geometry>"))
     add("paths", "texture_outside", P, out, "a material texture outside the package directories",
-        subs=[("      </geometry>\n    </visual>", '      </geometry>\n      <material name="skin">\n        <texture filename="/etc/passwd"/>\n      </material>\n    </visual>')])
+        subs=[("      </geometry>\n    </visual>", '      </geometry>\n      <material name="skin">\n        <texture filename="/etc/passwd"/>\n      </material>\n    </visual>')],
+        element=visual("/etc/passwd", tag="texture", path="<visual><material name='skin'>"))
     add("paths", "gazebo_mesh_outside", P, out, "a mesh in an element URDF parsers ignore (<gazebo>)",
-        subs=[(END, '  <gazebo reference="arm">\n    <visual>\n      <geometry>\n        <mesh filename="/etc/passwd"/>\n      </geometry>\n    </visual>\n  </gazebo>\n' + END)])
+        subs=[(END, '  <gazebo reference="arm">\n    <visual>\n      <geometry>\n        <mesh filename="/etc/passwd"/>\n      </geometry>\n    </visual>\n  </gazebo>\n' + END)],
+        element=visual("/etc/passwd", owner="<gazebo reference='arm'>"))
     for name, why in [
         ("absolute", "a COLLADA texture with an absolute path (meshcat would send it to the browser)"),
         ("dotdot", "a COLLADA texture climbing out with ../"),
@@ -290,23 +304,23 @@ def write_corpus() -> list[dict]:
         ("ref_1_5", "a COLLADA 1.5 <init_from><ref> texture outside"),
     ]:
         add("paths", f"dae_texture_{name}", P, "refused URL form" if name == "http" else out, why,
-            subs=mesh(f"package://corpus_pkg/meshes/evil_texture_{name}.dae"))
+            **on_mesh(f"package://corpus_pkg/meshes/evil_texture_{name}.dae"))
     add("paths", "obj_mtllib_escape", P, out, "an OBJ material library climbing out with ../",
-        subs=mesh("package://corpus_pkg/meshes/evil_mtllib.obj"))
+        **on_mesh("package://corpus_pkg/meshes/evil_mtllib.obj"))
 
     # ---------------------------------------------------------------- missing resources
     M = "ResourceNotFoundError"
     add("missing", "mesh_missing", M, "does not exist", "a mesh file that does not exist",
-        subs=mesh("package://corpus_pkg/meshes/no_such_mesh.stl"))
+        **on_mesh("package://corpus_pkg/meshes/no_such_mesh.stl"))
     add("missing", "unknown_package", M, "does not exist", "a package no package directory holds",
-        subs=mesh("package://no_such_pkg/meshes/box.stl"))
+        **on_mesh("package://no_such_pkg/meshes/box.stl"))
     add("missing", "relative_missing", M, "does not exist", "a relative path found in no package directory",
-        subs=mesh("corpus_pkg/meshes/no_such_mesh.stl"))
+        **on_mesh("corpus_pkg/meshes/no_such_mesh.stl"))
     add("missing", "package_absolute_rest", M, "does not exist",
         "package:///etc/passwd: resolved like Pinocchio (dir + '/' + rest), i.e. inside, where it does not exist",
-        subs=mesh("package:///etc/passwd"))
+        **on_mesh("package:///etc/passwd"))
     add("missing", "dae_texture_missing", M, "no_such_texture.png", "a COLLADA texture that does not exist",
-        subs=mesh("package://corpus_pkg/meshes/missing_texture.dae"))
+        **on_mesh("package://corpus_pkg/meshes/missing_texture.dae"))
 
     # ---------------------------------------------------------------- structure
     T = "URDFStructureError"
@@ -417,6 +431,24 @@ def write_corpus() -> list[dict]:
         subs=[('<origin xyz="0 0 0.1" rpy="0 0 0"/>', '<origin xyz="0 0.1 0" rpy="0 0 0"/>'),
               (INERTIA, '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>')])
 
+    add("physics", "origin_huge_inertial", INVALID, "centre of mass lies 1e+200 m from the frame of joint 'shoulder'",
+        "an <inertial> origin at 1e200 m: the spatial inertia (m |c|^2) overflows",
+        subs=[('<origin xyz="0 0 0.1" rpy="0 0 0"/>', '<origin xyz="1e200 0 0.1" rpy="0 0 0"/>')])
+    add("physics", "origin_huge_joint", INVALID, "M(q) is not finite at the neutral configuration",
+        "a joint origin at 1e200 m: the joint space inertia matrix overflows",
+        subs=[(END, '  <link name="hand">\n    <inertial>\n      <mass value="0.5"/>\n'
+                    '      <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>\n    </inertial>\n  </link>\n'
+                    '  <joint name="wrist" type="revolute">\n    <parent link="arm"/>\n    <child link="hand"/>\n'
+                    '    <origin xyz="1e200 0 0"/>\n    <axis xyz="0 1 0"/>\n'
+                    '    <limit lower="-1" upper="1" effort="1" velocity="1"/>\n  </joint>\n' + END)])
+    add("physics", "origin_huge_fixed_chain", INVALID, "placement of frame 'tool_joint_2' in the model is not finite",
+        "two fixed joints 1.5e308 m long each: the tool frame's position overflows to infinity",
+        subs=[(END, '  <link name="tool_1"/>\n  <link name="tool_2"/>\n'
+                    '  <joint name="tool_joint_1" type="fixed">\n    <parent link="arm"/>\n    <child link="tool_1"/>\n'
+                    '    <origin xyz="1.5e308 0 0"/>\n  </joint>\n'
+                    '  <joint name="tool_joint_2" type="fixed">\n    <parent link="tool_1"/>\n    <child link="tool_2"/>\n'
+                    '    <origin xyz="1.5e308 0 0"/>\n  </joint>\n' + END)])
+
     # ---------------------------------------------------------------- valid
     V = "ok"
     add("valid", "minimal", V, "", "the corpus template: one revolute joint, an STL mesh")
@@ -450,6 +482,27 @@ def write_corpus() -> list[dict]:
         subs=mesh("package://corpus_pkg/meshes/textured.dae"))
     add("valid", "obj_with_material", V, "", "an OBJ mesh with its material library",
         subs=mesh("package://corpus_pkg/meshes/tetra.obj"))
+    add("valid", "mimic_and_continuous_limit", V, "",
+        "a revolute joint mimicking another and a continuous joint with velocity and effort limits (limits must match the model)",
+        subs=[(END, '  <link name="finger">\n    <inertial>\n      <origin xyz="0 0 0.02"/>\n      <mass value="0.1"/>\n'
+                    '      <inertia ixx="0.0001" ixy="0" ixz="0" iyy="0.0001" iyz="0" izz="0.0001"/>\n    </inertial>\n  </link>\n'
+                    '  <joint name="finger_joint" type="revolute">\n    <parent link="arm"/>\n    <child link="finger"/>\n'
+                    '    <origin xyz="0 0 0.2"/>\n    <axis xyz="1 0 0"/>\n    <limit lower="-0.5" upper="0.25" effort="3" velocity="1.5"/>\n'
+                    '    <mimic joint="shoulder" multiplier="0.5" offset="0"/>\n  </joint>\n'
+                    '  <link name="wheel">\n    <inertial>\n      <mass value="0.2"/>\n'
+                    '      <inertia ixx="0.0002" ixy="0" ixz="0" iyy="0.0002" iyz="0" izz="0.0003"/>\n    </inertial>\n  </link>\n'
+                    '  <joint name="spin" type="continuous">\n    <parent link="finger"/>\n    <child link="wheel"/>\n'
+                    '    <origin xyz="0 0 0.05"/>\n    <axis xyz="0 0 1"/>\n    <limit effort="7" velocity="4"/>\n  </joint>\n' + END)])
+    add("valid", "floating_and_planar", V, "",
+        "a floating and a planar joint, whose <limit> URDF leaves undefined (Pinocchio ignores it: no limits)",
+        subs=[(END, '  <link name="puck">\n    <inertial>\n      <mass value="0.3"/>\n'
+                    '      <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>\n    </inertial>\n  </link>\n'
+                    '  <link name="drone">\n    <inertial>\n      <mass value="0.2"/>\n'
+                    '      <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>\n    </inertial>\n  </link>\n'
+                    '  <joint name="slide_plane" type="planar">\n    <parent link="arm"/>\n    <child link="puck"/>\n'
+                    '    <axis xyz="0 0 1"/>\n    <limit lower="-1" upper="1" effort="5" velocity="1"/>\n  </joint>\n'
+                    '  <joint name="free" type="floating">\n    <parent link="puck"/>\n    <child link="drone"/>\n'
+                    '    <limit lower="-1" upper="1" effort="5" velocity="1"/>\n  </joint>\n' + END)])
     add("valid", "rotated_inertial", V, "", "an inertial with a rotated origin and off-diagonal terms (model must match the file)",
         subs=[('<origin xyz="0 0 0.1" rpy="0 0 0"/>', '<origin xyz="0.01 -0.02 0.1" rpy="0.4 -0.3 1.2"/>'),
               (INERTIA, '<inertia ixx="0.01" ixy="0.001" ixz="-0.0005" iyy="0.012" iyz="0.0002" izz="0.004"/>')])

@@ -19,8 +19,10 @@ files of the machine into a page. The rules:
    the viewer never follows an ``.obj`` file's ``mtllib``.
 
 Every refusal is a :class:`~youbot_opt.exceptions.ModelError` whose message
-names the file and the rule it breaks; nothing is embedded before the checks
-pass. A file swapped between the check and the read by someone with write
+names the file and the rule it breaks, and, when the caller passes
+``referenced_by`` (e.g. the robot and geometry object), what referenced the
+mesh; a texture's refusal names the ``.dae`` file and the texture. Nothing is
+embedded before the checks pass. A file swapped between the check and the read by someone with write
 access to the package directories is out of scope.
 """
 
@@ -109,12 +111,20 @@ def _inside(path: Path, roots: Sequence[Path]) -> bool:
     return any(path.is_relative_to(root) for root in roots)
 
 
-def _refuse(file: str | Path, rule: str, detail: str) -> ModelError:
-    return ModelError(f"refusing to embed {str(file)!r}: {detail} (rule: {rule})", path=str(file))
+def _refuse(file: str | Path, rule: str, detail: str, referenced_by: str = "") -> ModelError:
+    prefix = f"{referenced_by}: " if referenced_by else ""
+    return ModelError(
+        f"{prefix}refusing to embed {str(file)!r}: {detail} (rule: {rule})", path=str(file)
+    )
 
 
 def _check_inside(
-    named: str | Path, candidate: Path, roots: Sequence[Path], what: str, suffixes: Sequence[str]
+    named: str | Path,
+    candidate: Path,
+    roots: Sequence[Path],
+    what: str,
+    suffixes: Sequence[str],
+    referenced_by: str,
 ) -> Path:
     """Resolve ``candidate`` (following symlinks) and check rules 1/2 for it."""
     if not roots:
@@ -122,12 +132,16 @@ def _check_inside(
             named,
             f"{what}s must lie inside the robot's package directories",
             "the robot declares no existing package directory",
+            referenced_by,
         )
     try:
         resolved = candidate.resolve(strict=True)
     except (OSError, RuntimeError) as e:
-        raise ModelError(
-            f"{what} {str(named)!r} does not exist or cannot be resolved: {e}", path=str(named)
+        raise _refuse(
+            named,
+            f"{what}s are existing files",
+            f"it does not exist or cannot be resolved: {e}",
+            referenced_by,
         ) from e
     if not _inside(resolved, roots):
         raise _refuse(
@@ -135,19 +149,25 @@ def _check_inside(
             f"{what}s must lie inside the robot's package directories "
             f"{', '.join(str(r) for r in roots)}",
             f"it resolves to {str(resolved)!r}",
+            referenced_by,
         )
     if not resolved.is_file():
-        raise _refuse(named, f"{what}s must be regular files", f"{str(resolved)!r} is not one")
+        raise _refuse(
+            named, f"{what}s must be regular files", f"{str(resolved)!r} is not one", referenced_by
+        )
     if resolved.suffix.lower() not in suffixes:
         raise _refuse(
             named,
             f"{what}s must have one of the suffixes {', '.join(suffixes)}",
             f"its suffix is {resolved.suffix!r}",
+            referenced_by,
         )
     return resolved
 
 
-def check_mesh_file(mesh_path: str | Path, package_dirs: Sequence[str | Path]) -> Path:
+def check_mesh_file(
+    mesh_path: str | Path, package_dirs: Sequence[str | Path], *, referenced_by: str = ""
+) -> Path:
     """Check a mesh file against rule 1 and return its resolved path.
 
     Parameters
@@ -156,6 +176,9 @@ def check_mesh_file(mesh_path: str | Path, package_dirs: Sequence[str | Path]) -
         The mesh file as the geometry object names it (``GeometryObject.meshPath``).
     package_dirs : sequence of str or Path
         The robot's package directories.
+    referenced_by : str
+        What references the mesh, put first in error messages, e.g.
+        ``"robot 'ur5', visual geometry 'wrist_1_link_0'"``; empty to omit.
 
     Returns
     -------
@@ -170,8 +193,9 @@ def check_mesh_file(mesh_path: str | Path, package_dirs: Sequence[str | Path]) -
     """
     text = str(mesh_path)
     if _SCHEME.match(text) and not _WINDOWS_DRIVE.match(text):
-        raise _refuse(text, "meshes are named by local file paths", "it is a URL")
-    return _check_inside(text, Path(text), _roots(package_dirs), "mesh", MESH_SUFFIXES)
+        raise _refuse(text, "meshes are named by local file paths", "it is a URL", referenced_by)
+    roots = _roots(package_dirs)
+    return _check_inside(text, Path(text), roots, "mesh", MESH_SUFFIXES, referenced_by)
 
 
 def dae_texture_references(
@@ -200,9 +224,7 @@ def dae_texture_references(
     try:
         root = ET.fromstring(dae_bytes)
     except ET.ParseError as e:
-        raise ModelError(
-            f"COLLADA file {str(path)!r} is not well-formed XML: {e}", path=str(path)
-        ) from e
+        raise _refuse(path, "COLLADA files are well-formed XML", f"not well-formed XML: {e}") from e
     refs: list[TextureReference] = []
     for library in root.iter():
         if _local(library.tag) != "library_images":
@@ -218,7 +240,9 @@ def _local(tag: object) -> str:
     return str(tag).rsplit("}", 1)[-1]
 
 
-def _texture_uri(dae_path: Path, ref: TextureReference, roots: Sequence[Path]) -> str:
+def _texture_uri(
+    dae_path: Path, ref: TextureReference, roots: Sequence[Path], referenced_by: str
+) -> str:
     """Check one texture reference against rule 2 and return its ``data:`` URI.
 
     ``dae_path`` is the COLLADA file as named (before resolving symlinks): its
@@ -228,16 +252,21 @@ def _texture_uri(dae_path: Path, ref: TextureReference, roots: Sequence[Path]) -
     if target.lower().startswith("data:image/"):
         return ref.key
     named = f"{dae_path} -> {target}"
+    rule = "textures are named by relative paths"
     if _SCHEME.match(target) and not _WINDOWS_DRIVE.match(target):
-        raise _refuse(named, "textures are named by relative paths", "it is a URL")
+        raise _refuse(named, rule, "it is a URL", referenced_by)
     if target.startswith(("/", "\\")) or _WINDOWS_DRIVE.match(target):
-        raise _refuse(named, "textures are named by relative paths", "it is an absolute path")
-    resolved = _check_inside(named, dae_path.parent / target, roots, "texture", TEXTURE_SUFFIXES)
+        raise _refuse(named, rule, "it is an absolute path", referenced_by)
+    resolved = _check_inside(
+        named, dae_path.parent / target, roots, "texture", TEXTURE_SUFFIXES, referenced_by
+    )
     mime = mimetypes.guess_type(resolved.name)[0] or "application/octet-stream"
     return f"data:{mime};base64,{base64.b64encode(resolved.read_bytes()).decode('ascii')}"
 
 
-def load_mesh_file(mesh_path: str | Path, package_dirs: Sequence[str | Path]) -> MeshFile:
+def load_mesh_file(
+    mesh_path: str | Path, package_dirs: Sequence[str | Path], *, referenced_by: str = ""
+) -> MeshFile:
     """Check a mesh file (and a COLLADA file's textures) and read what to embed.
 
     Parameters
@@ -246,6 +275,9 @@ def load_mesh_file(mesh_path: str | Path, package_dirs: Sequence[str | Path]) ->
         The mesh file as the geometry object names it.
     package_dirs : sequence of str or Path
         The robot's package directories.
+    referenced_by : str
+        What references the mesh, put first in error messages, e.g.
+        ``"robot 'ur5', visual geometry 'wrist_1_link_0'"``; empty to omit.
 
     Returns
     -------
@@ -257,13 +289,19 @@ def load_mesh_file(mesh_path: str | Path, package_dirs: Sequence[str | Path]) ->
     ModelError
         If the mesh or one of its textures breaks a rule of this module.
     """
-    resolved = check_mesh_file(mesh_path, package_dirs)
+    resolved = check_mesh_file(mesh_path, package_dirs, referenced_by=referenced_by)
     data = resolved.read_bytes()
     fmt = resolved.suffix.lower().lstrip(".")
     resources: dict[str, str] = {}
     if fmt == "dae":
         roots = _roots(package_dirs)
-        for ref in dae_texture_references(data, path=resolved):
-            resources[ref.key] = _texture_uri(Path(mesh_path), ref, roots)
+        try:
+            references = dae_texture_references(data, path=resolved)
+        except ModelError as e:
+            if not referenced_by:
+                raise
+            raise ModelError(f"{referenced_by}: {e}", path=e.path) from e
+        for ref in references:
+            resources[ref.key] = _texture_uri(Path(mesh_path), ref, roots, referenced_by)
     logger.debug("mesh %s passed the policy (%d textures)", resolved, len(resources))
     return MeshFile(path=resolved, format=fmt, data=data, resources=MappingProxyType(resources))

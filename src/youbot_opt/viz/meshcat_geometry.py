@@ -162,7 +162,8 @@ def set_object_command(
     material = mg.MeshPhongMaterial(color=_rgb(go.meshColor), opacity=alpha, transparent=alpha < 1)
     geom, mesh_path = go.geometry, str(go.meshPath)
     if Path(mesh_path).suffix:  # a mesh file (primitives are named "BOX", "CYLINDER", ...)
-        mesh = load_mesh_file(mesh_path, package_dirs)  # the policy decides, for every mesh file
+        # the policy decides, for every mesh file; errors name the geometry object
+        mesh = load_mesh_file(mesh_path, package_dirs, referenced_by=f"geometry object {go.name!r}")
         scale = np.diag([*np.asarray(go.meshScale, dtype=float), 1.0])
         if mesh.format != "dae":
             return mc.SetObject(_MeshFileGeometry(mesh.format, mesh.data, scale), material, path)
