@@ -7,16 +7,13 @@ The crash tests use the private hook of :mod:`youbot_opt.parallel`
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from _sigkill import kill_repeatedly
 from test_ikpath_solvers import LA, LB, TARGETS_2
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath import sweep as sweep_mod
@@ -216,63 +213,12 @@ def _cli(out: Path) -> list[str]:
     ]
 
 
-def _records(out: Path) -> int:
-    items = out / "items"
-    if not items.is_dir():
-        return 0
-    return len([p for p in items.glob("*.json") if not p.name.startswith(".")])
-
-
-def _session_pids(sid: int) -> list[int]:
-    """Live processes of session ``sid`` (the CLI and its workers)."""
-    pids = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[3]) == sid and fields[0] != "Z":
-            pids.append(int(stat.parent.name))
-    return pids
-
-
 @pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_sigkilled_cli_multistart_resumes_to_the_uninterrupted_result(tmp_path):
     """4 SIGKILLs at seeded random points, then a final run: same starts and E, none lost."""
-    rng = np.random.default_rng(20240611)
     out = tmp_path / "run"
-    kills = 0
-    for _ in range(4):
-        target = _records(out) + int(rng.integers(1, 4))  # kill after 1-3 more starts ...
-        delay = float(rng.uniform(0.0, 0.03))  # ... plus 0-30 ms, to land anywhere in a write
-        proc = subprocess.Popen(
-            _cli(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-        )
-        try:
-            deadline = time.monotonic() + 120.0
-            while _records(out) < target and proc.poll() is None and time.monotonic() < deadline:
-                time.sleep(0.002)
-            time.sleep(delay)
-            if proc.poll() is None:
-                os.kill(proc.pid, signal.SIGKILL)
-                kills += 1
-            proc.wait(timeout=30)
-            deadline = time.monotonic() + 5.0  # orphaned workers notice and exit
-            while _session_pids(proc.pid) and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert _session_pids(proc.pid) == [], "workers outlived the killed multistart"
-        finally:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)  # only our own session; normally empty
-            except ProcessLookupError:
-                pass
-    assert kills == 4, "the multistart finished before all kills; make it longer"
-    assert 0 < _records(out) < _STARTS  # the kills really left work to do
-
-    done = subprocess.run(_cli(out), capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    doc = json.loads(done.stdout)
+    doc = kill_repeatedly(_cli(out), out, 4, seed=20240611)
     assert 0 < doc["resumed"] < _STARTS
 
     # Independent reference: one uninterrupted in-process run of the same multistart.

@@ -9,15 +9,14 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
 import pytest
 
+from _sigkill import kill_repeatedly
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.parallel import Task, TaskOutcome, WorkerPool, run_tasks
 
@@ -185,69 +184,6 @@ def _cli(out: Path, command: str = "multistart") -> list[str]:
     return [sys.executable, "-m", "youbot_opt", command, *extra, *common]
 
 
-def _records(out: Path) -> int:
-    items = out / "items"
-    return (
-        len([p for p in items.glob("*.json") if not p.name.startswith(".")])
-        if items.is_dir()
-        else 0
-    )
-
-
-def _session_pids(sid: int) -> list[int]:
-    """Live processes of session ``sid`` (the CLI and its pool workers)."""
-    pids = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[3]) == sid and fields[0] != "Z":
-            pids.append(int(stat.parent.name))
-    return pids
-
-
-def _kill_repeatedly(cmd: list[str], out: Path, n_kills: int, seed: int) -> dict:  # type: ignore[type-arg]
-    """Start ``cmd`` ``n_kills`` times, SIGKILL it at seeded random points, then let it finish.
-
-    Returns the final run's JSON summary, after checking that every kill landed while
-    work was left and that no pool worker outlived a killed sweep.
-    """
-    rng = np.random.default_rng(seed)
-    kills = 0
-    for _ in range(n_kills):
-        before = _records(out)
-        target = before + int(rng.integers(1, 4))  # kill after 1-3 more finished items ...
-        delay = float(rng.uniform(0.0, 0.03))  # ... plus 0-30 ms, to land anywhere in a write
-        proc = subprocess.Popen(
-            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-        )
-        try:
-            deadline = time.monotonic() + 120.0
-            while _records(out) < target and proc.poll() is None and time.monotonic() < deadline:
-                time.sleep(0.005)
-            time.sleep(delay)
-            if proc.poll() is None:
-                os.kill(proc.pid, signal.SIGKILL)
-                kills += 1
-            proc.wait(timeout=30)
-            # The orphaned pool workers notice the dead parent and exit by themselves.
-            deadline = time.monotonic() + 5.0
-            while _session_pids(proc.pid) and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert _session_pids(proc.pid) == [], "pool workers outlived the killed sweep"
-        finally:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)  # only our own session; normally empty by now
-            except ProcessLookupError:
-                pass
-    assert kills == n_kills, "the sweep finished before all kills; make it longer"
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    summary: dict = json.loads(done.stdout)  # type: ignore[type-arg]
-    return summary
-
-
 def _check_store(out: Path, keys: list[str]) -> None:
     """Nothing lost or duplicated on disk: one record and one result per item, no temporaries."""
     items = out / "items"
@@ -276,7 +212,7 @@ def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path)
     from youbot_opt.multistart import run_multistart
 
     out = tmp_path / "sweep"
-    resumed = _kill_repeatedly(_cli(out), out, 4, seed=20240603)
+    resumed = kill_repeatedly(_cli(out), out, 4, seed=20240603)
     assert 0 < resumed["resumed"] < _STARTS + 1  # the kills really left work to do
 
     # Independent reference: an uninterrupted in-process run with the same seeds.
@@ -301,7 +237,7 @@ def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path)
 
     out = tmp_path / "pareto"
     betas = parse_values(_PARETO_BETAS, "betas")
-    resumed = _kill_repeatedly(_cli(out, "pareto"), out, 4, seed=20240604)
+    resumed = kill_repeatedly(_cli(out, "pareto"), out, 4, seed=20240604)
     assert 0 < resumed["resumed"] < len(betas)  # the kills really left work to do
 
     # Independent reference: the uninterrupted sweep in this process (no worker, no store).
@@ -324,7 +260,7 @@ def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path)
     from youbot_opt.bound_scaling import bound_scaling_study
 
     out = tmp_path / "bounds"
-    resumed = _kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605)
+    resumed = kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605)
 
     ref = bound_scaling_study(
         _cli_solver(), _SCALES, n_starts=_SCALE_STARTS, seed=_SEED, executor="serial"

@@ -22,7 +22,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 
-__all__ = ["Iterate", "BestIterateRecorder", "violation_of", "better"]
+__all__ = ["Iterate", "NlpsolIterationCallback", "BestIterateRecorder", "violation_of", "better"]
 
 
 class Iterate(NamedTuple):
@@ -69,12 +69,12 @@ def better(a: Iterate, b: Iterate | None, feasibility_tol: float) -> bool:
     return a.violation < b.violation
 
 
-class BestIterateRecorder(ca.Callback):  # type: ignore[misc]
-    """IPOPT ``iteration_callback`` that keeps the best iterate of the current run.
+class NlpsolIterationCallback(ca.Callback):  # type: ignore[misc]
+    """Base of IPOPT ``iteration_callback`` objects: takes every ``nlpsol`` output.
 
-    Call :meth:`reset` with the run's bounds before each solve; :attr:`best`
-    then holds the best finite iterate seen (or None) and :attr:`count` the
-    number of iterates.
+    Subclasses implement :meth:`record`, which receives the iterate's outputs
+    by name (``x``, ``f``, ``g``, ``lam_x``, ``lam_g``, ``lam_p``) as flat
+    arrays and floats; IPOPT is never asked to stop.
 
     Parameters
     ----------
@@ -87,20 +87,12 @@ class BestIterateRecorder(ca.Callback):  # type: ignore[misc]
     def __init__(self, name: str, nx: int, ng: int, n_par: int) -> None:
         ca.Callback.__init__(self)
         self._sizes = {"f": 1, "x": nx, "g": ng, "lam_x": nx, "lam_g": ng, "lam_p": n_par}
-        self._bounds: tuple[Array, Array, Array, Array] | None = None
-        self._tol = 0.0
-        self.best: Iterate | None = None
-        self.count = 0
         self.construct(name, {})
 
-    def reset(self, bounds: tuple[Array, Array, Array, Array], feasibility_tol: float) -> None:
-        """Forget the previous run; rank the next one's iterates against these bounds."""
-        self._bounds = tuple(np.asarray(b, dtype=float).ravel() for b in bounds)  # type: ignore[assignment]
-        self._tol = float(feasibility_tol)
-        self.best = None
-        self.count = 0
+    def record(self, values: dict[str, Array]) -> None:
+        """Take one iterate's outputs (override)."""
+        raise NotImplementedError
 
-    # -- casadi.Callback interface
     def get_n_in(self) -> int:
         """Return the number of inputs: every output of ``nlpsol``."""
         return int(ca.nlpsol_n_out())
@@ -122,24 +114,48 @@ class BestIterateRecorder(ca.Callback):  # type: ignore[misc]
         return ca.Sparsity.dense(self._sizes.get(str(ca.nlpsol_out(i)), 0), 1)
 
     def eval(self, arg: Sequence[ca.DM]) -> list[ca.DM]:
-        """Rank this iterate and keep it if it is the best so far; never stop IPOPT."""
+        """Pass the iterate to :meth:`record`; never stop IPOPT."""
         names = [str(ca.nlpsol_out(i)) for i in range(len(arg))]
-        values = dict(zip(names, arg, strict=True))
+        self.record({k: np.array(v, dtype=float).ravel() for k, v in zip(names, arg, strict=True)})
+        return [ca.DM(0)]
+
+
+class BestIterateRecorder(NlpsolIterationCallback):
+    """IPOPT ``iteration_callback`` that keeps the best iterate of the current run.
+
+    Call :meth:`reset` with the run's bounds before each solve; :attr:`best`
+    then holds the best finite iterate seen (or None) and :attr:`count` the
+    number of iterates. Parameters as for :class:`NlpsolIterationCallback`.
+    """
+
+    def __init__(self, name: str, nx: int, ng: int, n_par: int) -> None:
+        self._bounds: tuple[Array, Array, Array, Array] | None = None
+        self._tol = 0.0
+        self.best: Iterate | None = None
+        self.count = 0
+        super().__init__(name, nx, ng, n_par)
+
+    def reset(self, bounds: tuple[Array, Array, Array, Array], feasibility_tol: float) -> None:
+        """Forget the previous run; rank the next one's iterates against these bounds."""
+        self._bounds = tuple(np.asarray(b, dtype=float).ravel() for b in bounds)  # type: ignore[assignment]
+        self._tol = float(feasibility_tol)
+        self.best = None
+        self.count = 0
+
+    def record(self, values: dict[str, Array]) -> None:
+        """Rank this iterate and keep it if it is the best so far."""
         iteration = self.count
         self.count += 1
-        x = np.array(values["x"], dtype=float).ravel()
-        g = np.array(values["g"], dtype=float).ravel()
-        objective = float(values["f"])
+        x, g, objective = values["x"], values["g"], float(values["f"][0])
         if self._bounds is None or not (np.all(np.isfinite(x)) and np.all(np.isfinite(g))):
-            return [ca.DM(0)]
+            return
         candidate = Iterate(
             x=x,
-            lam_x=np.array(values["lam_x"], dtype=float).ravel(),
-            lam_g=np.array(values["lam_g"], dtype=float).ravel(),
+            lam_x=values["lam_x"],
+            lam_g=values["lam_g"],
             objective=objective,
             violation=violation_of(x, g, self._bounds),
             iteration=iteration,
         )
         if np.isfinite(objective) and better(candidate, self.best, self._tol):
             self.best = candidate
-        return [ca.DM(0)]

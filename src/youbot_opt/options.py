@@ -30,7 +30,7 @@ from typing import Any, Literal
 
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["IpoptOptions", "HessianMode", "WARM_START", "single_threaded_blas"]
+__all__ = ["IpoptOptions", "HessianMode", "WARM_START", "single_threaded_blas", "check_time_limit"]
 
 WARM_START: Mapping[str, Any] = MappingProxyType(
     {
@@ -190,3 +190,29 @@ def single_threaded_blas() -> None:
     """
     if not os.environ.get("OPENBLAS_NUM_THREADS"):  # unset or empty: OpenBLAS's default
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
+def check_time_limit(value: object, name: str) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is None or a finite time > 0 [s].
+
+    Parameters
+    ----------
+    value : object
+        The limit to check, in [s] (None: no limit).
+    name : str
+        Qualified field name for the message, e.g. ``"ALOptions.max_wall_time"``.
+    """
+    if value is None:
+        return
+    if (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and value > 0
+    ):
+        return
+    raise ParameterError(
+        f"{name} must be None or a finite time > 0 [s], got {value!r}",
+        name=name.rsplit(".", 1)[-1],
+        value=value,
+    )

@@ -62,6 +62,7 @@ from youbot_opt.ikpath.best import pick_best
 from youbot_opt.ikpath.bfgs import minimize_bfgs
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
+from youbot_opt.options import check_time_limit
 
 __all__ = ["ALOptions", "solve_augmented_lagrangian"]
 
@@ -114,18 +115,7 @@ class ALOptions:
     max_wall_time: float | None = None
 
     def __post_init__(self) -> None:
-        if self.max_wall_time is not None and not (
-            isinstance(self.max_wall_time, (int, float))
-            and not isinstance(self.max_wall_time, bool)
-            and math.isfinite(self.max_wall_time)
-            and self.max_wall_time > 0
-        ):
-            raise ParameterError(
-                f"ALOptions.max_wall_time must be None or a finite time > 0 [s], "
-                f"got {self.max_wall_time!r}",
-                name="max_wall_time",
-                value=self.max_wall_time,
-            )
+        check_time_limit(self.max_wall_time, "ALOptions.max_wall_time")
         if self.inner not in ("bfgs", "lbfgsb"):
             raise ParameterError(
                 f"ALOptions.inner must be 'bfgs' or 'lbfgsb', got {self.inner!r}",

@@ -19,9 +19,8 @@ targets as NLP parameters, so multistart re-solves it without rebuilding.
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,11 +29,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
+from youbot_opt.best_iterate import NlpsolIterationCallback
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.best import pick_best
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.options import single_threaded_blas
+from youbot_opt.options import check_time_limit, single_threaded_blas
 
 __all__ = ["IpoptOptions", "IpoptIKSolver", "check_degrees_of_freedom", "solve_ipopt"]
 
@@ -79,18 +79,7 @@ class IpoptOptions:
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.max_wall_time is not None and not (
-            isinstance(self.max_wall_time, (int, float))
-            and not isinstance(self.max_wall_time, bool)
-            and math.isfinite(self.max_wall_time)
-            and self.max_wall_time > 0
-        ):
-            raise ParameterError(
-                f"IpoptOptions.max_wall_time must be None or a finite time > 0 [s], "
-                f"got {self.max_wall_time!r}",
-                name="max_wall_time",
-                value=self.max_wall_time,
-            )
+        check_time_limit(self.max_wall_time, "IpoptOptions.max_wall_time")
         if not (self.tol > 0 and self.constr_viol_tol > 0 and self.max_iter >= 1):
             raise ParameterError(
                 f"IpoptOptions need tol > 0, constr_viol_tol > 0, max_iter >= 1; got "
@@ -122,39 +111,16 @@ class IpoptOptions:
         return {"ipopt": ipopt, "print_time": False}
 
 
-class _IterateRecorder(ca.Callback):  # type: ignore[misc]
+class _IterateRecorder(NlpsolIterationCallback):
     """IPOPT iteration callback keeping each iterate (x, f, g) for the history."""
 
     def __init__(self, nx: int, ng: int, n_par: int) -> None:
-        ca.Callback.__init__(self)
-        self.nx, self.ng, self.n_par = nx, ng, n_par
         self.records: list[tuple[Array, float, Array]] = []
-        self.construct("ikpath_ipopt_recorder", {})
+        super().__init__("ikpath_ipopt_recorder", nx, ng, n_par)
 
-    def get_n_in(self) -> int:
-        return int(ca.nlpsol_n_out())
-
-    def get_n_out(self) -> int:
-        return 1
-
-    def get_name_in(self, i: int) -> str:
-        return str(ca.nlpsol_out(i))
-
-    def get_name_out(self, i: int) -> str:
-        return "ret"
-
-    def get_sparsity_in(self, i: int) -> ca.Sparsity:
-        name = ca.nlpsol_out(i)
-        sizes = {"f": 1, "x": self.nx, "lam_x": self.nx, "g": self.ng, "lam_g": self.ng}
-        sizes["lam_p"] = self.n_par
-        return ca.Sparsity.dense(sizes.get(name, 0), 1)
-
-    def eval(self, arg: Sequence[ca.DM]) -> list[ca.DM]:
-        x = np.array(arg[0], dtype=float).ravel()
-        f = float(arg[1])
-        g = np.array(arg[2], dtype=float).ravel()
-        self.records.append((x, f, g))
-        return [ca.DM(0)]
+    def record(self, values: dict[str, Array]) -> None:
+        """Keep the iterate's configurations, E and constraint values."""
+        self.records.append((values["x"], float(values["f"][0]), values["g"]))
 
 
 def check_degrees_of_freedom(problem: CyclicIKProblem) -> None:
