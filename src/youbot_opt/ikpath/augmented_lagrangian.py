@@ -17,12 +17,14 @@ Outer iteration ``k``:
    and it is plain BFGS; with limits it runs as an active-set projected
    quasi-Newton method whose iterates never leave the box (no barrier).
    ``inner="lbfgsb"`` uses SciPy's L-BFGS-B instead; its function-value line
-   search stalls near ``1e-6`` in the projected gradient on these problems,
-   so it is not the default.
+   search cannot resolve gradients below about ``sqrt(mu |J|^2 eps |L_A|)``,
+   so it is not the default (docs/ikpath.md, "Stopping test").
 2. If ``||c(x_k)||_inf <= eta_k`` (constraints improved enough):
-   stop when also ``||c||_inf <= eta*`` and the projected gradient is
-   ``<= omega*``; otherwise update the multipliers
-   ``lambda <- lambda - mu c(x_k)`` and tighten
+   stop when also ``||c||_inf <= eta*`` and the projected gradient of the
+   Lagrangian is ``<= omega*`` with the AL estimate ``lambda - mu c`` or with
+   the least-squares estimate at ``x_k`` (:func:`first_order_multipliers`);
+   otherwise update the multipliers ``lambda <- lambda - mu c(x_k)`` (the
+   least-squares estimate when the inner solve could not move) and tighten
    ``eta <- eta / mu^0.9``, ``omega <- omega / mu`` (floored at ``eta*``, ``omega*``).
 3. Else increase the penalty ``mu <- growth * mu`` and reset
    ``eta = 1 / mu^0.1``, ``omega = 1 / mu``. If ``stall_increases``
@@ -64,7 +66,7 @@ from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
 from youbot_opt.options import check_time_limit
 
-__all__ = ["ALOptions", "solve_augmented_lagrangian"]
+__all__ = ["ALOptions", "first_order_multipliers", "solve_augmented_lagrangian"]
 
 _log = logging.getLogger(__name__)
 
@@ -205,7 +207,11 @@ def solve_augmented_lagrangian(
         c = ev.constraints
         violation = float(np.max(np.abs(c)))
         _, grad = lagrangian(x)
-        stationarity = float(np.max(np.abs(x - np.clip(x - grad, lower, upper))))
+        # Stationarity with the AL's own estimate lam - mu c, and with the
+        # least-squares estimate at x; either multiplier vector certifies a KKT point.
+        lam_ls, stationarity_ls = first_order_multipliers(ev, x, lower, upper)
+        stationarity_al = float(np.max(np.abs(x - np.clip(x - grad, lower, upper))))
+        stationarity = min(stationarity_al, stationarity_ls)
         history.append(
             OuterIterate(
                 k, x.reshape(s, -1).copy(), ev.objective, violation, stationarity, mu, inner_its
@@ -229,7 +235,7 @@ def solve_augmented_lagrangian(
             and violation <= opts.constraint_tol
             and stationarity <= opts.stationarity_tol
         ):
-            lam = lam - mu * c
+            lam = lam - mu * c if stationarity_al <= stationarity_ls else lam_ls
             status = IKStatus.SUCCESS
             message = (
                 f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
@@ -244,7 +250,10 @@ def solve_augmented_lagrangian(
             )
             break
         if violation <= eta:
-            lam = lam - mu * c
+            # An inner solve that could not move (its line search lost in the rounding
+            # of L_A) leaves c unchanged; repeating lam - mu c would then drift the
+            # multipliers by mu c per iteration, so restart from the estimate at x.
+            lam = lam - mu * c if inner_its > 0 else lam_ls
             eta = max(eta / mu**0.9, opts.constraint_tol)
             omega = max(omega / mu, opts.stationarity_tol)
         else:
@@ -315,6 +324,48 @@ def _licq_note(ev: Evaluation, lam: Array, mu: float) -> str:
         "if the target is reachable only by that arm, e.g. on the workspace boundary) "
         "and the penalty reduces |c| only like mu^(-2/3) (see docs/ikpath.md)"
     )
+
+
+def first_order_multipliers(
+    ev: Evaluation, x: Array, lower: Array, upper: Array
+) -> tuple[Array, float]:
+    """Least-squares multiplier estimate at ``x`` and the KKT residual it gives.
+
+    ``dc/dx`` is block diagonal, so each target's two multipliers solve their own
+    least-squares problem ``min || (grad_j E - J_j^T lambda_j)_F ||`` over the joints
+    ``F`` of ``q_j`` strictly inside the limits (Nocedal and Wright, eq. 18.21). The
+    residual is the projected gradient of the Lagrangian ``E - lambda^T c``:
+    unlike the augmented Lagrangian's gradient it has no component along the
+    stiff constraint normals (curvature ``mu |J|^2``), whose rounding noise
+    grows with the penalty.
+
+    Parameters
+    ----------
+    ev : Evaluation
+        Objective, constraints and Jacobian blocks at ``x``.
+    x : ndarray, shape (n s,)
+        Point in [rad], inside ``[lower, upper]``.
+    lower, upper : ndarray, shape (n s,)
+        Joint limits in [rad] (infinite where unbounded).
+
+    Returns
+    -------
+    multipliers : ndarray, shape (2 s,)
+        ``lambda`` in [rad^2/m] (sign convention ``grad E = J^T lambda``).
+    residual : float
+        ``max | x - P(x - (grad E - J^T lambda)) |`` in [rad].
+    """
+    s, _, n = ev.jacobian_blocks.shape
+    gradient = ev.gradient.reshape(s, n)
+    free = ((x > lower) & (x < upper)).reshape(s, n)
+    lam = np.zeros((s, 2))
+    for j in range(s):
+        if free[j].any():
+            lam[j] = np.linalg.lstsq(
+                ev.jacobian_blocks[j][:, free[j]].T, gradient[j, free[j]], rcond=None
+            )[0]
+    residual = ev.gradient - np.einsum("jkn,jk->jn", ev.jacobian_blocks, lam).ravel()
+    return lam.ravel(), float(np.max(np.abs(x - np.clip(x - residual, lower, upper))))
 
 
 def _past(deadline: float | None) -> bool:
