@@ -26,10 +26,10 @@ import time
 
 import numpy as np
 
-from youbot_opt.multistart import run_multistart
-from youbot_opt.pareto import DEFAULT_BETAS, pareto_sweep
-from youbot_opt.problem import study1_problem
-from youbot_opt.solve import TrajOptSolver
+from youbot_opt.trajopt.multistart import run_multistart
+from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 TARGET_MULTISTART = 2.0  # [s] wall, 50 starts on 2 cores
 TARGET_PARETO = 0.5  # [s] wall, 19 warm-started points

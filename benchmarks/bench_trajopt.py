@@ -48,12 +48,12 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import minimize
 
-from youbot_opt.initial_guess import resolve_guess
-from youbot_opt.multistart import run_multistart
-from youbot_opt.options import IpoptOptions
-from youbot_opt.pareto import DEFAULT_BETAS, pareto_sweep
-from youbot_opt.problem import study1_problem
-from youbot_opt.solve import TrajOptSolver
+from youbot_opt.trajopt.guess import resolve_guess
+from youbot_opt.trajopt.multistart import run_multistart
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 TARGET_SOLVE_CPU = 0.05  # [s] base case, CPU
 TARGET_BUILD = 0.5  # [s] base case NLP build (cached kernels)

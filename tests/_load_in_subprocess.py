@@ -35,14 +35,14 @@ DEFAULT_MEMORY = 2 * 2**30  # [bytes] address space per child
 
 
 def _import_loader() -> types.ModuleType:
-    """Import youbot_opt.loader without executing the package's __init__ (heavy re-exports)."""
+    """Import youbot_opt.robot.strict.loader without executing the package's __init__ (heavy re-exports)."""
     spec = importlib.util.find_spec("youbot_opt")
     assert spec is not None and spec.submodule_search_locations is not None
     package = types.ModuleType("youbot_opt")
     package.__path__ = list(spec.submodule_search_locations)
     package.__spec__ = spec
     sys.modules["youbot_opt"] = package
-    import youbot_opt.loader as loader
+    import youbot_opt.robot.strict.loader as loader
 
     return loader
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from youbot_opt import TrajOptSolver, study1_problem
-from youbot_opt.best_iterate import Iterate, better
-from youbot_opt.options import IpoptOptions
-from youbot_opt.result import SolveStatus
+from youbot_opt.nlp.best_iterate import Iterate, better
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.result import SolveStatus
 
 
 def _it(violation: float, objective: float) -> Iterate:

@@ -19,7 +19,7 @@ import umsgpack
 from PIL import Image
 
 from youbot_opt.cli import main
-from youbot_opt.io import load_result
+from youbot_opt.trajopt.io import load_result
 
 SOLVE_KEYS = {"status", "objective", "duration_s", "work", "iterations", "solve_time_s"}
 QUICK = ["--knots", "15"]  # small problems: the outputs, not the numbers, are under test

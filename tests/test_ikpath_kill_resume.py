@@ -1,6 +1,6 @@
 """IK multistarts that survive: resume from disk, crashed workers retried, SIGKILLed CLI runs.
 
-The crash tests use the private hook of :mod:`youbot_opt.parallel`
+The crash tests use the private hook of :mod:`youbot_opt.sweeps.tasks`
 (``YOUBOT_OPT_TEST_CRASH``: listed task keys SIGSEGV their pool worker).
 """
 

@@ -17,7 +17,7 @@ import umsgpack  # noqa: E402
 from youbot_opt.exceptions import ParameterError, ResultFileError  # noqa: E402
 from youbot_opt.ikpath.examples import example_problem  # noqa: E402
 from youbot_opt.ikpath.io import _digest, load_ikpath_result, save_ikpath_result  # noqa: E402
-from youbot_opt.ikpath.replay import (  # noqa: E402
+from youbot_opt.viz.meshcat.ikpath import (  # noqa: E402
     export_ikpath_html,
     replay_ikpath,
     replay_robot,

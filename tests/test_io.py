@@ -1,4 +1,4 @@
-"""Tests of result files (youbot_opt.io): round trip, schema checks, atomic writes."""
+"""Tests of result files (youbot_opt.trajopt.io): round trip, schema checks, atomic writes."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.io import SCHEMA_VERSION, load_result, save_result
-from youbot_opt.model import load_model
-from youbot_opt.options import IpoptOptions
-from youbot_opt.problem import study1_problem
-from youbot_opt.result import SolveStatus
-from youbot_opt.solve import solve
+from youbot_opt.trajopt.io import SCHEMA_VERSION, load_result, save_result
+from youbot_opt.robot.model import load_model
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.result import SolveStatus
+from youbot_opt.trajopt.solver import solve
 
 
 @pytest.fixture(scope="module")
@@ -136,9 +136,9 @@ def test_feasibility_tolerance_round_trips(tmp_path) -> None:
     """A result judged at a looser tolerance is re-judged at that tolerance when loaded."""
     import dataclasses
 
-    from youbot_opt.io import load_result, save_result
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.trajopt.io import load_result, save_result
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     result = TrajOptSolver(study1_problem(10), "trapezoidal").solve(beta=0.5)
     loose = dataclasses.replace(result, feasibility_tol=1e-4)

@@ -1,6 +1,6 @@
 """Sweeps that survive: crashing workers, failing items, and SIGKILL of the whole CLI sweep.
 
-The crash tests use the private hook of :mod:`youbot_opt.parallel`
+The crash tests use the private hook of :mod:`youbot_opt.sweeps.tasks`
 (``YOUBOT_OPT_TEST_CRASH``): listed keys SIGSEGV their pool worker.
 """
 
@@ -18,7 +18,7 @@ import pytest
 
 from _sigkill import kill_repeatedly
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.parallel import Task, TaskOutcome, WorkerPool, run_tasks
+from youbot_opt.sweeps.tasks import Task, TaskOutcome, WorkerPool, run_tasks
 
 
 def _square(x: float) -> float:
@@ -198,9 +198,9 @@ def _check_store(out: Path, keys: list[str]) -> None:
 
 def _cli_solver():  # type: ignore[no-untyped-def]
     """The solver the CLI builds (trapezoidal, symbolic, IPOPT max_iter 3000)."""
-    from youbot_opt.options import IpoptOptions
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     return TrajOptSolver(study1_problem(_KNOTS), "trapezoidal", IpoptOptions(max_iter=3000))
 
@@ -209,7 +209,7 @@ def _cli_solver():  # type: ignore[no-untyped-def]
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path) -> None:
     """4 SIGKILLs at seeded random points, then a final run: same items and f, none lost."""
-    from youbot_opt.multistart import run_multistart
+    from youbot_opt.trajopt.multistart import run_multistart
 
     out = tmp_path / "sweep"
     resumed = kill_repeatedly(_cli(out), out, 4, seed=20240603)
@@ -233,7 +233,7 @@ def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path)
 def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path) -> None:
     """4 SIGKILLs of `youbot-opt pareto`, then a final run: the same 49 points, none lost."""
     from youbot_opt.cli.studies import parse_values
-    from youbot_opt.pareto import pareto_sweep
+    from youbot_opt.trajopt.pareto import pareto_sweep
 
     out = tmp_path / "pareto"
     betas = parse_values(_PARETO_BETAS, "betas")
@@ -257,7 +257,7 @@ def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path)
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path) -> None:
     """4 SIGKILLs of `youbot-opt bounds`, then a final run: the same 18 starts, none lost."""
-    from youbot_opt.bound_scaling import bound_scaling_study
+    from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 
     out = tmp_path / "bounds"
     resumed = kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605)
@@ -281,8 +281,8 @@ def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path)
 @pytest.fixture(scope="module")
 def small_solver():  # type: ignore[no-untyped-def]
     """A 15-knot study-1 solver, built once for the tests below."""
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     return TrajOptSolver(study1_problem(_KNOTS))
 
@@ -293,7 +293,7 @@ def test_segfaulting_start_is_stored_failed_and_retried_once(
     monkeypatch: pytest.MonkeyPatch,  # type: ignore[no-untyped-def]
 ) -> None:
     """A start whose worker segfaults is stored as failed (2 attempts, 2 reasons); the rest done."""
-    from youbot_opt.multistart import run_multistart
+    from youbot_opt.trajopt.multistart import run_multistart
 
     monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0001")
     res = run_multistart(small_solver, 4, seed=1, executor="process", workers=2, out=tmp_path)
@@ -312,7 +312,7 @@ def test_segfaulting_start_is_stored_failed_and_retried_once(
 def test_resume_refuses_corrupted_and_newer_files(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """A corrupted result file or a newer-schema record in the output stops the resume."""
     from youbot_opt.exceptions import ResultFileError
-    from youbot_opt.multistart import run_multistart
+    from youbot_opt.trajopt.multistart import run_multistart
 
     first = run_multistart(small_solver, 2, seed=2, executor="serial", out=tmp_path)
     again = run_multistart(small_solver, 2, seed=2, executor="serial", out=tmp_path)

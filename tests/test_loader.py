@@ -26,7 +26,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from lxml import etree
 
-from youbot_opt import loader
+from youbot_opt.robot.strict import loader
 from youbot_opt.exceptions import (
     InvalidModelError,
     ModelError,
@@ -39,9 +39,9 @@ from youbot_opt.exceptions import (
     URDFSyntaxError,
     YoubotOptWarning,
 )
-from youbot_opt.loader import check_model, check_urdf_text, load_urdf_strict
-from youbot_opt.urdf_resources import check_mesh
-from youbot_opt.urdf_xml import Site, parse_number, parse_xml_strict
+from youbot_opt.robot.strict.loader import check_model, check_urdf_text, load_urdf_strict
+from youbot_opt.robot.strict.resources import check_mesh
+from youbot_opt.robot.strict.xml import Site, parse_number, parse_xml_strict
 
 HERE = Path(__file__).resolve().parent
 CORPUS = HERE / "urdf_corpus"
@@ -393,7 +393,7 @@ def test_meshcat_policy_names_the_referencing_object_mesh_texture_and_rule(
     corpus_packages: Path, dae: str, detail: str
 ) -> None:
     """The HTML export's mesh policy refuses the corpus's bad .dae files as informatively."""
-    from youbot_opt.viz.mesh_policy import load_mesh_file
+    from youbot_opt.robot.strict.meshes import load_mesh_file
 
     mesh = corpus_packages / "corpus_pkg" / "meshes" / f"{dae}.dae"
     who = "robot 'corpus', visual geometry 'arm_0'"

@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.model: loading robots, limits, frames and the tip-pose convention."""
+"""Tests of youbot_opt.robot.model: loading robots, limits, frames and the tip-pose convention."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 
 from youbot_opt.cli import main as cli_main
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, RobotNotFound
-from youbot_opt.model import (
+from youbot_opt.robot.model import (
     RobotModel,
     available_robots,
     example_robot_data_dir,
@@ -21,7 +21,7 @@ from youbot_opt.model import (
     load_model,
     tip_pose,
 )
-from youbot_opt.params import STUDY_Q_START, YOUBOT_PLANAR
+from youbot_opt.robot.params import STUDY_Q_START, YOUBOT_PLANAR
 
 A, H = 0.184, 0.147
 L1, L2, L3 = 0.155, 0.135, 0.2175

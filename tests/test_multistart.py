@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.multistart: seeds, clustering, parallel = serial, failures, CLI."""
+"""Tests of youbot_opt.trajopt.multistart: seeds, clustering, parallel = serial, failures, CLI."""
 
 from __future__ import annotations
 
@@ -11,16 +11,16 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.multistart import (
+from youbot_opt.trajopt.multistart import (
     MultistartResult,
     StartOutcome,
     run_multistart,
     start_seeds,
     trajectory_distance,
 )
-from youbot_opt.problem import study1_problem
-from youbot_opt.solve import TrajOptSolver
-from youbot_opt.trajectory import Trajectory
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.trajectory import Trajectory
 
 N_KNOTS = 20  # small problem: the tests check the machinery, not the study's figures
 
@@ -101,7 +101,7 @@ def test_distinct_optima_cluster_by_objective_and_trajectory() -> None:
 
 def test_parallel_equals_serial_and_reproduces_single_solves(solver: TrajOptSolver) -> None:
     """Process-pool and serial multistarts agree exactly; each start equals its own direct solve."""
-    from youbot_opt.spline_guess import random_spline_guess
+    from youbot_opt.trajopt.spline_guess import random_spline_guess
 
     calls: list[tuple[int, int]] = []
     kw = {"beta": 0.5, "seed": 3, "include_straight": True}
@@ -135,7 +135,7 @@ def test_a_failing_start_does_not_stop_the_run(
     solver: TrajOptSolver, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A start whose guess raises is an 'error' start with its reason, tried twice."""
-    import youbot_opt.spline_guess as sg
+    import youbot_opt.trajopt.spline_guess as sg
 
     real = sg.random_spline_guess
     bad_seed = start_seeds(0, 2)[1]

@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.params: the study's tables, SI conversions and validation."""
+"""Tests of youbot_opt.robot.params: the study's tables, SI conversions and validation."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.params import (
+from youbot_opt.robot.params import (
     STUDY_Q_GOAL,
     STUDY_Q_START,
     YOUBOT_PLANAR,

@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.pareto and youbot_opt.bound_scaling: fronts, warm starts, resume, CLI."""
+"""Tests of youbot_opt.trajopt.pareto and youbot_opt.trajopt.bound_scaling: fronts, warm starts, resume, CLI."""
 
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from youbot_opt.bound_scaling import bound_scaling_study
+from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.cli import main
 from youbot_opt.cli.studies import parse_values
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.pareto import DEFAULT_BETAS, ParetoFront, ParetoPoint, dominated_mask, pareto_sweep
-from youbot_opt.problem import study1_problem
-from youbot_opt.solve import TrajOptSolver
+from youbot_opt.trajopt.pareto import DEFAULT_BETAS, ParetoFront, ParetoPoint, dominated_mask, pareto_sweep
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 N_KNOTS = 20
 BETAS = (0.2, 0.5, 0.8)

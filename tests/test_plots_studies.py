@@ -1,4 +1,4 @@
-"""Figures of the study-1 sweeps (youbot_opt.viz.plots_studies), drawn headless from real sweeps.
+"""Figures of the study-1 sweeps (youbot_opt.viz.plots.studies), drawn headless from real sweeps.
 
 The artists are read back and compared with the sweep results they show:
 histogram counts and optimum counts, the front's points and dominance marks,
@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from youbot_opt.bound_scaling import bound_scaling_study
+from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.multistart import MultistartResult, run_multistart
-from youbot_opt.pareto import ParetoFront, dominated_mask, pareto_sweep
-from youbot_opt.problem import study1_problem
-from youbot_opt.solve import TrajOptSolver
+from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
+from youbot_opt.trajopt.pareto import ParetoFront, dominated_mask, pareto_sweep
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.viz.plots import plot_bound_scaling, plot_multistart, plot_pareto
 
 N_KNOTS = 20  # small problem: at 20 knots, seed 0, four starts reach three distinct optima

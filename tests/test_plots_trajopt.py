@@ -1,4 +1,4 @@
-"""Figures of one trajectory solve (youbot_opt.viz.plots_trajopt), drawn headless from real solves.
+"""Figures of one trajectory solve (youbot_opt.viz.plots.trajopt), drawn headless from real solves.
 
 Each test reads the artists back from the figure and compares them with the
 result they were drawn from and with independent references (the data-sheet
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from youbot_opt.analytic import tip_pose_analytic
+from youbot_opt.robot.analytic import tip_pose_analytic
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.multistart import run_multistart
-from youbot_opt.options import IpoptOptions
-from youbot_opt.params import YOUBOT_PLANAR
-from youbot_opt.problem import study1_problem
-from youbot_opt.solve import TrajOptSolver
-from youbot_opt.trajectory import Trajectory
+from youbot_opt.trajopt.multistart import run_multistart
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.robot.params import YOUBOT_PLANAR
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_trajectory
 
 N_KNOTS = 20  # small problem: the figures, not the study's numbers, are under test

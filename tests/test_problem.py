@@ -1,4 +1,4 @@
-"""Tests of the problem spec (youbot_opt.problem) and objective terms (youbot_opt.objectives)."""
+"""Tests of the problem spec (youbot_opt.trajopt.problem) and objective terms (youbot_opt.trajopt.objectives)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.model import load_model
-from youbot_opt.objectives import Objective, quadrature_weights, work
-from youbot_opt.problem import BoundaryState, TrajOptProblem, study1_problem
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.objectives import Objective, quadrature_weights, work
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, study1_problem
 
 # The study's data sheet (spec trajopt.md, "Joint limits"), typed in here
-# independently of youbot_opt.params.
+# independently of youbot_opt.robot.params.
 SHEET_LOWER_DEG = np.array([-65.0, -151.0, -102.5])
 SHEET_UPPER_DEG = np.array([90.0, 146.0, 102.5])
 SHEET_SPEED_DEG_S = np.array([90.0, 90.0, 90.0])

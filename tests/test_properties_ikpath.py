@@ -5,7 +5,7 @@ reachable targets (tip positions of random configurations) and arbitrary ones,
 both methods and small iteration caps. Every call must raise a documented
 error (:class:`UnreachableTarget`; :class:`ParameterError` when IPOPT is asked
 to solve a 1-link chain) or return a result
-whose success is confirmed by :func:`~youbot_opt.verify.check_ik_result`
+whose success is confirmed by :func:`~youbot_opt.trajopt.certify.check_ik_result`
 (closed-form kinematics, not Pinocchio or CasADi). Invalid inputs (lengths,
 limits, targets, NaN/inf, shapes, options, starts) raise ParameterError.
 Runs are derandomized and database-free.
@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, SolveFailed, UnreachableTarget
 from youbot_opt.ikpath import ALOptions, CyclicIKProblem, IpoptOptions, PlanarChain, solve
-from youbot_opt.verify import check_ik_result
+from youbot_opt.trajopt.certify import check_ik_result
 
 PROPERTY = settings(
     deadline=None,

@@ -6,7 +6,7 @@ wrong shapes, NaN/inf, tiny iteration and CPU-time caps). Every call must
 either raise a documented :class:`~youbot_opt.exceptions.YoubotOptError` or
 return a result whose status survives checks written out in this file
 (finiteness, bounds, boundary states, collocation defects with ``pin.aba``,
-the reported T, W, f), not :func:`~youbot_opt.result.check_result`: a success
+the reported T, W, f), not :func:`~youbot_opt.trajopt.result.check_result`: a success
 passes all of them, a failure fails one or carries IPOPT's failure flag. Runs are
 derandomized and database-free, so CI sees the same examples every time.
 """
@@ -24,12 +24,12 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
-from youbot_opt.model import load_model
-from youbot_opt.options import IpoptOptions
-from youbot_opt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.result import SolveStatus, TrajOptResult, check_result
-from youbot_opt.solve import TrajOptSolver
-from youbot_opt.verify import check_bounds
+from youbot_opt.robot.model import load_model
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.result import SolveStatus, TrajOptResult, check_result
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.certify import check_bounds
 
 PROPERTY = settings(
     deadline=None,

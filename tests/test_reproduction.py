@@ -12,14 +12,14 @@ import pytest
 
 from youbot_opt.dynamics import build_dynamics
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.model import load_model
-from youbot_opt.problem import study1_problem
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.reproduction.study1 import (
     DEVIATION_NAMES,
     StudyDeviations,
     StudyTranscription,
 )
-from youbot_opt.transcription import TrapezoidalCollocation
+from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 
 
 @pytest.fixture(scope="module")
@@ -145,7 +145,7 @@ def test_bad_deviations_are_rejected(youbot, dynamics):
 
 def test_structured_derivatives_match_casadi(youbot, dynamics, rng):
     """The solver's structured derivatives of the study's NLP equal CasADi's own (1e-9)."""
-    from youbot_opt.transcription.derivatives import dynamics_kernels, structured_functions
+    from youbot_opt.trajopt.transcription.derivatives import dynamics_kernels, structured_functions
 
     problem = study1_problem(6, robot=youbot)
     method = StudyTranscription()
@@ -171,8 +171,8 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, rng):
 
 def test_switched_off_deviations_solve_like_the_main_transcription(youbot):
     """No deviation = TrapezoidalCollocation, damping only = the damped arm's trapezoid (1e-7)."""
-    from youbot_opt.options import IpoptOptions
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     opts = IpoptOptions(tol=1e-10)
     damped = load_model("youbot", damping=0.1)
@@ -205,7 +205,7 @@ def quick(tmp_path_factory):
 def test_quick_cli_writes_the_tables(quick, tmp_path):
     """The command exits 0, writes its outputs, and --from-json rebuilds the same tables."""
     from youbot_opt.cli import main
-    from youbot_opt.io import load_result
+    from youbot_opt.trajopt.io import load_result
 
     code, out, data = quick
     assert code == 0
@@ -295,8 +295,8 @@ def test_config_validation():
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_vertex_guess_meets_the_study_constraints(youbot, seed):
     """Vertex-LP starts: boundary states, knot limits, degree <= 6, tau by the hand dynamics."""
-    from youbot_opt import analytic
-    from youbot_opt.params import YOUBOT_PLANAR
+    from youbot_opt.robot import analytic
+    from youbot_opt.robot.params import YOUBOT_PLANAR
     from youbot_opt.reproduction.study_guess import vertex_spline_guess
 
     problem = study1_problem(50, robot=youbot)
@@ -339,9 +339,9 @@ def test_vertex_guess_rejects_bad_arguments(youbot):
 
 def test_second_optimum_from_a_vertex_start(youbot):
     """A vertex-LP start reaches the study's second optimum f = 11.070; the correct NLP does not."""
-    from youbot_opt.options import IpoptOptions
+    from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.reproduction.study_guess import vertex_spline_guess
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     problem = study1_problem(50, robot=youbot)
     # Seed 3325975866 is start 164 of `youbot-opt reproduce-study1`'s search (base seed 0),

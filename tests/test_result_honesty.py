@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import InvalidModelError, SolveFailed
-from youbot_opt.model import load_model
-from youbot_opt.options import IpoptOptions
-from youbot_opt.problem import study1_problem
-from youbot_opt.result import SolveStatus, TrajOptResult, check_result
-from youbot_opt.solve import TrajOptSolver
+from youbot_opt.robot.model import load_model
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.result import SolveStatus, TrajOptResult, check_result
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 URDF = Path(__file__).resolve().parents[1] / "urdf" / "youbot_arm_planar.urdf"
 

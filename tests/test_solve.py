@@ -1,4 +1,4 @@
-"""Tests of the trajectory solver (youbot_opt.solve, youbot_opt.result).
+"""Tests of the trajectory solver (youbot_opt.trajopt.solver, youbot_opt.trajopt.result).
 
 Every solution is re-checked with Pinocchio's numeric ABA and numpy, a path
 independent of the CasADi expressions IPOPT saw.
@@ -12,14 +12,14 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
-from youbot_opt.model import load_model
-from youbot_opt.objectives import Objective
-from youbot_opt.options import IpoptOptions
-from youbot_opt.problem import BoundaryState, TrajOptProblem, study1_problem
-from youbot_opt.result import SolveStatus
-from youbot_opt.solve import TrajOptSolver, solve
-from youbot_opt.transcription import HermiteSimpsonCollocation
-from youbot_opt.verify import check_bounds as certify_bounds
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.objectives import Objective
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, study1_problem
+from youbot_opt.trajopt.result import SolveStatus
+from youbot_opt.trajopt.solver import TrajOptSolver, solve
+from youbot_opt.trajopt.transcription import HermiteSimpsonCollocation
+from youbot_opt.trajopt.certify import check_bounds as certify_bounds
 
 SLIDER_URDF = """<?xml version="1.0"?>
 <robot name="slider">
@@ -158,7 +158,7 @@ def test_multiplier_sign_convention(base_solver, base_result):
     r, nlp = base_result, base_solver.nlp
     lam_x = np.zeros(nlp.n_variables)
     for name, block in nlp.variables.blocks.items():
-        from youbot_opt.transcription.base import BOUND_NAMES
+        from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
         fam = BOUND_NAMES[name]
         lam = r.multipliers[f"{fam}_lower"] + r.multipliers[f"{fam}_upper"]
@@ -375,7 +375,7 @@ def test_panda_minimum_time_short_horizon():
     T = 0.243408 s in 23 iterations; local position error 3.7e-4 rad, feedback
     RMS ratio 1.7e-3, far inside the certificate's 5e-2 and 5e-2.
     """
-    from youbot_opt.verify import certify
+    from youbot_opt.trajopt.certify import certify
 
     panda = load_model("panda")
     q0 = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.6, 0.8, 0.02, 0.02])
@@ -611,8 +611,8 @@ def test_one_bound_perturbed_changes_f_by_minus_lambda_delta(base_solver, base_r
 # -------------------------------------------------------- feasibility tolerance
 def test_feasibility_tol_reaches_the_result(youbot):
     """TrajOptSolver(feasibility_tol=...) is the result's; its status and check_result agree."""
-    from youbot_opt.result import DEFAULT_FEASIBILITY_TOL, check_result
-    from youbot_opt.solve import DEFAULT_FEASIBILITY_TOL as SOLVE_DEFAULT
+    from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL, check_result
+    from youbot_opt.trajopt.solver import DEFAULT_FEASIBILITY_TOL as SOLVE_DEFAULT
 
     assert SOLVE_DEFAULT is DEFAULT_FEASIBILITY_TOL  # one definition
     problem = study1_problem(15, robot=youbot)
@@ -676,8 +676,8 @@ def test_cli_spline_guess_at_five_knots_uses_the_multistart_dt0(in_tmp, capsys, 
     import json
 
     from youbot_opt.cli import main
-    from youbot_opt.io import load_result
-    from youbot_opt.start_jobs import default_dt0
+    from youbot_opt.trajopt.io import load_result
+    from youbot_opt.trajopt.sweep import default_dt0
 
     assert main(["solve", "--knots", "5", "--guess", "spline", "--json", "--out", "run"]) == 0
     assert json.loads(capsys.readouterr().out)["success"] is True

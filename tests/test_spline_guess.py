@@ -9,9 +9,9 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.model import load_model
-from youbot_opt.problem import BoundaryState
-from youbot_opt.spline_guess import bernstein_matrix, random_spline_guess
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.problem import BoundaryState
+from youbot_opt.trajopt.spline_guess import bernstein_matrix, random_spline_guess
 
 Q_START = np.array([-math.pi / 6, -math.pi / 6, -math.pi / 3])
 Q_GOAL = -Q_START
@@ -146,8 +146,8 @@ def test_impossible_requests_raise(youbot) -> None:
 @pytest.mark.parametrize("n", [5, 50])
 def test_default_time_step_is_the_multistart_one(youbot, n) -> None:
     """Default dt = default_dt0 (4.9 s in all): 5 knots now get a feasible, slow guess."""
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.start_jobs import default_dt0
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.sweep import default_dt0
 
     g = _guess(youbot, 0, n=n)
     dt0 = default_dt0(study1_problem(n))

@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.sweep_store: atomic writes, resume, manifest checks, schema errors."""
+"""Tests of youbot_opt.sweeps.store: atomic writes, resume, manifest checks, schema errors."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError, ResultFileError
-from youbot_opt.sweep_store import SCHEMA_VERSION, SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.store import SCHEMA_VERSION, SweepStore, atomic_write_bytes
 
 
 def _save(payload: np.ndarray, path: Path) -> None:

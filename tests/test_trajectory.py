@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajectory import Trajectory
+from youbot_opt.trajopt.trajectory import Trajectory
 
 
 def _constant_acceleration(n: int, acc: float = 1.7) -> Trajectory:

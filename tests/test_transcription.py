@@ -1,4 +1,4 @@
-"""Tests of the collocation transcriptions (youbot_opt.transcription)."""
+"""Tests of the collocation transcriptions (youbot_opt.trajopt.transcription)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 
 from youbot_opt.dynamics import build_dynamics
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.model import load_model
-from youbot_opt.problem import study1_problem
-from youbot_opt.transcription import (
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.trajopt.transcription import (
     HermiteSimpsonCollocation,
     TrapezoidalCollocation,
     get_transcription,
@@ -159,8 +159,8 @@ def test_dynamics_of_the_wrong_size_is_rejected(youbot):
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
 def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
     """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9)."""
-    from youbot_opt.codegen import find_compiler
-    from youbot_opt.transcription.derivatives import (
+    from youbot_opt.nlp.codegen import find_compiler
+    from youbot_opt.trajopt.transcription.derivatives import (
         compile_kernels,
         dynamics_kernels,
         structured_functions,

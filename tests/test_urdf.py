@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.urdf: params -> URDF -> Pinocchio round trip and the committed file."""
+"""Tests of youbot_opt.robot.urdf: params -> URDF -> Pinocchio round trip and the committed file."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.params import YOUBOT_PLANAR
-from youbot_opt.urdf import (
+from youbot_opt.robot.params import YOUBOT_PLANAR
+from youbot_opt.robot.urdf import (
     JOINT_NAMES,
     LINK_NAMES,
     TIP_FRAME,
@@ -22,7 +22,7 @@ from youbot_opt.urdf import (
     write_urdf,
 )
 
-REGENERATE = "python -m youbot_opt.urdf"
+REGENERATE = "python -m youbot_opt.robot.urdf"
 TOL = 1e-12  # [SI] decimal round trip is exact; 1e-16 rotations from rpy=pi are well below
 
 

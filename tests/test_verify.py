@@ -12,10 +12,10 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.model import load_model
-from youbot_opt.tracking import PDGains, simulate
-from youbot_opt.trajectory import Trajectory
-from youbot_opt.verify import (
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.simulate import PDGains, simulate
+from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.trajopt.certify import (
     Tolerances,
     certify,
     check_bounds,
@@ -361,8 +361,8 @@ def test_bad_inputs_raise(youbot) -> None:
 @pytest.mark.slow
 def test_study1_certificates_improve_with_knots() -> None:
     """Study 1 solved at 25/50/100 knots: local error and feedback within shrinking tolerances."""
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import solve
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.solver import solve
 
     # Measured (trapezoidal, beta 0.5): local position 0.14 / 0.017 / 0.0068 rad,
     # feedback RMS ratio 0.076 / 0.053 / 0.02. The optimum saturates torques and reverses
@@ -399,8 +399,8 @@ def test_study1_hermite_simpson_certificates_improve_with_knots() -> None:
     ratios (measured 5.5x, 5.0x) by > 3. Each plan passes its certificate. The
     three solves and certificates take ~1 s, so the test is not marked slow.
     """
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import solve
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.solver import solve
 
     limits = {25: (0.013, 0.19, 0.013), 50: (1.1e-3, 0.025, 2.4e-3), 100: (1.5e-4, 4.4e-3, 4.8e-4)}
     previous = None

@@ -25,11 +25,11 @@ import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, ViewerError  # noqa: E402
-from youbot_opt.model import load_model  # noqa: E402
+from youbot_opt.robot.model import load_model  # noqa: E402
 from youbot_opt.viz import MeshcatServer, connect, export_html, load_mesh_file, replay  # noqa: E402
-from youbot_opt.viz.mesh_policy import check_mesh_file, dae_texture_references  # noqa: E402
-from youbot_opt.viz.meshcat_geometry import set_object_command  # noqa: E402
-from youbot_opt.viz.meshcat_replay import scene_html  # noqa: E402
+from youbot_opt.robot.strict.meshes import check_mesh_file, dae_texture_references  # noqa: E402
+from youbot_opt.viz.meshcat.geometry import set_object_command  # noqa: E402
+from youbot_opt.viz.meshcat.replay import scene_html  # noqa: E402
 
 # ------------------------------------------------------------------ helpers
 
@@ -204,7 +204,7 @@ def test_call_to_a_port_without_server_times_out():
 
 _CHILD = """
 import signal, sys, time
-from youbot_opt.viz.meshcat_server import MeshcatServer
+from youbot_opt.viz.meshcat.server import MeshcatServer
 mode = sys.argv[1]
 if mode == "chain":
     def previous(signum, frame):

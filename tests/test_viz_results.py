@@ -14,16 +14,16 @@ import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
 from youbot_opt.exceptions import ParameterError  # noqa: E402
-from youbot_opt.problem import study1_problem  # noqa: E402
-from youbot_opt.result import TrajOptResult  # noqa: E402
-from youbot_opt.solve import TrajOptSolver  # noqa: E402
+from youbot_opt.trajopt.problem import study1_problem  # noqa: E402
+from youbot_opt.trajopt.result import TrajOptResult  # noqa: E402
+from youbot_opt.trajopt.solver import TrajOptSolver  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402
-from youbot_opt.viz.meshcat_results import (  # noqa: E402
+from youbot_opt.viz.meshcat.results import (  # noqa: E402
     export_results_html,
     replay_results,
     result_tracks,
 )
-from youbot_opt.viz.meshcat_scene import GHOST_OPACITY, PLANAR_SPACING  # noqa: E402
+from youbot_opt.viz.meshcat.scene import GHOST_OPACITY, PLANAR_SPACING  # noqa: E402
 
 BETAS = (0.2, 0.5, 0.9)
 

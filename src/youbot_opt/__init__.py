@@ -32,8 +32,8 @@ from youbot_opt.exceptions import (
     YoubotOptError,
     YoubotOptWarning,
 )
-from youbot_opt.loader import LoadedURDF, check_model, check_urdf_text, load_urdf_strict
-from youbot_opt.model import (
+from youbot_opt.robot.strict.loader import LoadedURDF, check_model, check_urdf_text, load_urdf_strict
+from youbot_opt.robot.model import (
     RobotModel,
     TipPose,
     available_robots,
@@ -41,7 +41,7 @@ from youbot_opt.model import (
     load_model,
     tip_pose,
 )
-from youbot_opt.params import (
+from youbot_opt.robot.params import (
     STUDY_Q_GOAL,
     STUDY_Q_START,
     YOUBOT_PLANAR,
@@ -50,45 +50,45 @@ from youbot_opt.params import (
     LinkParameters,
     PlatformMounting,
 )
-from youbot_opt.trajectory import Trajectory
-from youbot_opt.urdf import build_urdf, urdf_string, write_urdf
+from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.robot.urdf import build_urdf, urdf_string, write_urdf
 
 if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
-    from youbot_opt.bound_scaling import BoundScalingResult, bound_scaling_study
-    from youbot_opt.io import load_result, save_result
-    from youbot_opt.multistart import MultistartResult, run_multistart
-    from youbot_opt.options import IpoptOptions
-    from youbot_opt.pareto import ParetoFront, pareto_sweep
-    from youbot_opt.problem import BoundaryState, JointBounds, TrajOptProblem, study1_problem
-    from youbot_opt.result import SolveStatus, TrajOptResult
-    from youbot_opt.solve import TrajOptSolver
-    from youbot_opt.spline_guess import random_spline_guess
-    from youbot_opt.verify import Certificate, Tolerances, certify
+    from youbot_opt.trajopt.bound_scaling import BoundScalingResult, bound_scaling_study
+    from youbot_opt.trajopt.io import load_result, save_result
+    from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.trajopt.pareto import ParetoFront, pareto_sweep
+    from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem, study1_problem
+    from youbot_opt.trajopt.result import SolveStatus, TrajOptResult
+    from youbot_opt.trajopt.solver import TrajOptSolver
+    from youbot_opt.trajopt.spline_guess import random_spline_guess
+    from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
 
 _LAZY: dict[str, str] = {
     # trajectory optimisation: problem -> solver -> result (imports CasADi/SciPy on first use)
-    "BoundaryState": "youbot_opt.problem",
-    "JointBounds": "youbot_opt.problem",
-    "TrajOptProblem": "youbot_opt.problem",
-    "study1_problem": "youbot_opt.problem",
-    "IpoptOptions": "youbot_opt.options",
-    "TrajOptSolver": "youbot_opt.solve",
-    "SolveStatus": "youbot_opt.result",
-    "TrajOptResult": "youbot_opt.result",
-    "save_result": "youbot_opt.io",
-    "load_result": "youbot_opt.io",
+    "BoundaryState": "youbot_opt.trajopt.problem",
+    "JointBounds": "youbot_opt.trajopt.problem",
+    "TrajOptProblem": "youbot_opt.trajopt.problem",
+    "study1_problem": "youbot_opt.trajopt.problem",
+    "IpoptOptions": "youbot_opt.nlp.ipopt",
+    "TrajOptSolver": "youbot_opt.trajopt.solver",
+    "SolveStatus": "youbot_opt.trajopt.result",
+    "TrajOptResult": "youbot_opt.trajopt.result",
+    "save_result": "youbot_opt.trajopt.io",
+    "load_result": "youbot_opt.trajopt.io",
     # independent checks
-    "Certificate": "youbot_opt.verify",
-    "Tolerances": "youbot_opt.verify",
-    "certify": "youbot_opt.verify",
+    "Certificate": "youbot_opt.trajopt.certify",
+    "Tolerances": "youbot_opt.trajopt.certify",
+    "certify": "youbot_opt.trajopt.certify",
     # initial guesses and studies
-    "random_spline_guess": "youbot_opt.spline_guess",
-    "MultistartResult": "youbot_opt.multistart",
-    "run_multistart": "youbot_opt.multistart",
-    "ParetoFront": "youbot_opt.pareto",
-    "pareto_sweep": "youbot_opt.pareto",
-    "BoundScalingResult": "youbot_opt.bound_scaling",
-    "bound_scaling_study": "youbot_opt.bound_scaling",
+    "random_spline_guess": "youbot_opt.trajopt.spline_guess",
+    "MultistartResult": "youbot_opt.trajopt.multistart",
+    "run_multistart": "youbot_opt.trajopt.multistart",
+    "ParetoFront": "youbot_opt.trajopt.pareto",
+    "pareto_sweep": "youbot_opt.trajopt.pareto",
+    "BoundScalingResult": "youbot_opt.trajopt.bound_scaling",
+    "bound_scaling_study": "youbot_opt.trajopt.bound_scaling",
 }
 """Public names imported on first access, so ``import youbot_opt`` stays fast."""
 
@@ -106,7 +106,7 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
 
 
-__version__ = "0.1.0"
+from youbot_opt._version import __version__  # noqa: E402
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

@@ -13,14 +13,14 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from youbot_opt import __version__
+from youbot_opt._version import __version__
 from youbot_opt.exceptions import YoubotOptError
 
 __all__ = ["main", "build_parser"]
 
 #: Sub-command modules, in the order they appear in ``--help``.
 _COMMAND_MODULES: tuple[str, ...] = (
-    "main_job",
+    "main_command",
     "solve",
     "report",
     "studies",

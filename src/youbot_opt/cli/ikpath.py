@@ -22,7 +22,7 @@ process dies is recorded with the reason and retried once (several starts run
 in worker processes, so a crash never takes the command down).
 
 Every run writes one folder (``--out DIR``, or a new
-``youbot_opt_runs/ikpath-<UTC time>``; see :mod:`youbot_opt.cli._output`):
+``youbot_opt_runs/ikpath-<UTC time>``; see :mod:`youbot_opt.cli.output`):
 ``summary.json`` (the ``--json`` object), ``result.json`` (the best result,
 :func:`youbot_opt.ikpath.io.load_ikpath_result` reads it), the figures
 ``ikpath_arm.png``, ``ikpath_convergence.png``, ``ikpath_workspace.png``,
@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt.cli._output import json_ready, print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.output import json_ready, print_outputs, run_folder, save_figure, write_summary
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.chain import PlanarChain
@@ -371,7 +371,7 @@ def _write_outputs(
     doc: dict[str, Any],
 ) -> list[Path]:
     """Write the run folder: figures, replay, saved result, then ``summary.json``."""
-    from youbot_opt.ikpath.plots import plot_arm_path, plot_convergence, plot_minima, plot_workspace
+    from youbot_opt.viz.plots.ikpath import plot_arm_path, plot_convergence, plot_minima, plot_workspace
 
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
@@ -382,7 +382,7 @@ def _write_outputs(
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
         files.append(save_ikpath_result(best, folder / "result.json"))
         if not args.no_replay:
-            from youbot_opt.ikpath.replay import export_ikpath_html
+            from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
 
             files.append(
                 export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)

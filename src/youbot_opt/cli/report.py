@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from youbot_opt.model import (
+from youbot_opt.robot.model import (
     RobotModel,
     _as_q,
     available_robots,
@@ -25,7 +25,7 @@ from youbot_opt.model import (
     load_model,
     tip_pose,
 )
-from youbot_opt.params import STUDY_Q_START
+from youbot_opt.robot.params import STUDY_Q_START
 
 __all__ = ["register", "format_report"]
 

@@ -10,13 +10,13 @@ Runs :func:`youbot_opt.reproduction.reproduce_study1` (the full study takes
 progress on stderr, prints the markdown tables on stdout and writes everything
 it computed to one output folder (``DIR``, or a new
 ``youbot_opt_runs/reproduce-study1-<UTC date>-<UTC time>``;
-:mod:`youbot_opt.cli._output`)::
+:mod:`youbot_opt.cli.output`)::
 
     study1_reproduction.json   every record (figures, certificates, settings)
     study1_reproduction.md     the tables
     summary.json               headline figures of the base case
     repro_*.png                figures (youbot_opt.reproduction.figures)
-    results/<name>.npz         each solve behind a record (youbot_opt.io)
+    results/<name>.npz         each solve behind a record (youbot_opt.trajopt.io)
 
 ``--from-json FILE`` rebuilds the tables, summary and figures from a saved
 JSON file without solving. Exit code 0 when every base-case multistart
@@ -65,7 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.cli._output import print_outputs, run_folder
+    from youbot_opt.cli.output import print_outputs, run_folder
     from youbot_opt.exceptions import ParameterError
     from youbot_opt.reproduction.runs import ReproductionConfig, reproduce_study1
 
@@ -106,8 +106,8 @@ def _run(args: argparse.Namespace) -> int:
 
 def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) -> list[Path]:
     """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first)."""
-    from youbot_opt.cli._output import save_figure, write_summary
-    from youbot_opt.io import save_result
+    from youbot_opt.cli.output import save_figure, write_summary
+    from youbot_opt.trajopt.io import save_result
     from youbot_opt.reproduction.figures import FIGURES
     from youbot_opt.reproduction.report import write_report
 

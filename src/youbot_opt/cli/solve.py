@@ -1,8 +1,8 @@
 """``youbot-opt solve``: one trajectory solve (or a multistart) from the command line.
 
 Every run writes an output folder (``--out DIR``, or a new
-``youbot_opt_runs/solve-<date>-<time>``; :mod:`youbot_opt.cli._output`):
-``summary.json``, ``result.npz`` (:func:`youbot_opt.io.save_result`), the
+``youbot_opt_runs/solve-<date>-<time>``; :mod:`youbot_opt.cli.output`):
+``summary.json``, ``result.npz`` (:func:`youbot_opt.trajopt.io.save_result`), the
 figures ``trajectory.png``, ``arm.png`` and ``convergence.png`` (plus
 ``multistart.png`` with ``--starts > 1``) and ``replay.html``, a standalone
 meshcat replay of the solution (of the distinct optima, side by side, after a
@@ -10,7 +10,7 @@ multistart). The table goes to stdout and the folder's listing after it; with
 ``--json`` stdout holds one JSON object only and the listing goes to stderr.
 
 With ``--starts N > 1`` the starts run in a process pool
-(:func:`youbot_opt.multistart.run_multistart`; ``--workers``, default: the
+(:func:`youbot_opt.trajopt.multistart.run_multistart`; ``--workers``, default: the
 CPUs available, 0 = serial) with a progress line per start on stderr (not
 with ``--json`` or ``--quiet``). If no start converges, the failed start with
 the smallest constraint violation is printed and saved in place of the best.
@@ -131,8 +131,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _problem(args: argparse.Namespace) -> Any:
-    from youbot_opt.model import load_model
-    from youbot_opt.problem import BoundaryState, TrajOptProblem, study1_problem
+    from youbot_opt.robot.model import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, study1_problem
 
     is_youbot = args.robot == "youbot"
     if args.damping is not None and not is_youbot:
@@ -146,7 +146,7 @@ def _problem(args: argparse.Namespace) -> Any:
             f"robot {robot.name!r}",
             name="start",
         )
-    from youbot_opt.objectives import Objective
+    from youbot_opt.trajopt.objectives import Objective
 
     return TrajOptProblem(
         robot=robot,
@@ -158,11 +158,11 @@ def _problem(args: argparse.Namespace) -> Any:
 
 
 def certificate_of(result: Any) -> Any:
-    """Return the :func:`youbot_opt.verify.certify` certificate of ``result``, or None."""
+    """Return the :func:`youbot_opt.trajopt.certify.certify` certificate of ``result``, or None."""
     if result.trajectory is None:
         return None
     try:
-        from youbot_opt.verify import certify
+        from youbot_opt.trajopt.certify import certify
     except ImportError:  # pragma: no cover - verify is part of the package
         return None
     return certify(result)
@@ -200,14 +200,14 @@ def format_result(result: Any, certificate: Any = None, *, max_active: int = 12)
 
 
 def open_folder(command: str, out: str | Path | None) -> Path:
-    """Create the run's output folder (:func:`youbot_opt.cli._output.run_folder`).
+    """Create the run's output folder (:func:`youbot_opt.cli.output.run_folder`).
 
     Raises
     ------
     ParameterError
         If ``out`` exists and is not a folder, or cannot be created.
     """
-    from youbot_opt.cli._output import run_folder
+    from youbot_opt.cli.output import run_folder
 
     try:
         return run_folder(command, out)
@@ -219,7 +219,7 @@ def open_folder(command: str, out: str | Path | None) -> Path:
 
 def draw_figure(folder: Path, name: str, make: Any, *args: Any, **kwargs: Any) -> Path | None:
     """Draw and save one figure; a figure that cannot be drawn is logged and skipped."""
-    from youbot_opt.cli._output import save_figure
+    from youbot_opt.cli.output import save_figure
 
     try:
         fig = make(*args, **kwargs)
@@ -251,8 +251,8 @@ def write_solve_outputs(
     list of Path
         The files written, ``summary.json`` last.
     """
-    from youbot_opt.cli._output import write_summary
-    from youbot_opt.io import save_result
+    from youbot_opt.cli.output import write_summary
+    from youbot_opt.trajopt.io import save_result
     from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_multistart, plot_trajectory
 
     files: list[Path | None] = [save_result(result, folder / "result.npz")]
@@ -291,11 +291,11 @@ def replay_html(folder: Path, results: list[Any], labels: list[str]) -> Path | N
     if not kept or any(r.trajectory is None for r, _ in kept):
         return None
     if len(kept) == 1:
-        from youbot_opt.viz.meshcat_replay import export_html
+        from youbot_opt.viz.meshcat.replay import export_html
 
         traj = kept[0][0].trajectory
         return export_html(kept[0][0].problem.robot, traj.t, traj.q, folder / "replay.html")
-    from youbot_opt.viz.meshcat_results import export_results_html
+    from youbot_opt.viz.meshcat.results import export_results_html
 
     return export_results_html(
         [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]
@@ -304,7 +304,7 @@ def replay_html(folder: Path, results: list[Any], labels: list[str]) -> Path | N
 
 def report_outputs(folder: Path, files: list[Path], as_json: bool) -> None:
     """Print the output folder and its files: to stdout, or to stderr under ``--json``."""
-    from youbot_opt.cli._output import print_outputs
+    from youbot_opt.cli.output import print_outputs
 
     print_outputs(folder, files, stream=sys.stderr if as_json else sys.stdout)
 
@@ -333,7 +333,7 @@ def _representative(ms: Any) -> Any:
 def _multistart(args: argparse.Namespace, solver: Any) -> Any:
     """Run the starts in a process pool (serial with ``--workers 0``), progress on stderr."""
     from youbot_opt.cli.studies import _Progress
-    from youbot_opt.multistart import run_multistart
+    from youbot_opt.trajopt.multistart import run_multistart
 
     if args.workers is not None and args.workers < 0:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
@@ -350,8 +350,8 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
-    from youbot_opt.options import IpoptOptions
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     if args.starts < 1:
         raise ParameterError(f"--starts must be >= 1, got {args.starts}", name="starts")
@@ -374,8 +374,8 @@ def run_solve(args: argparse.Namespace) -> int:
     else:
         guess = None
         if args.guess == "spline":
-            from youbot_opt.spline_guess import random_spline_guess
-            from youbot_opt.start_jobs import default_dt0
+            from youbot_opt.trajopt.spline_guess import random_spline_guess
+            from youbot_opt.trajopt.sweep import default_dt0
 
             guess = random_spline_guess(
                 problem.robot, problem.start, problem.goal, problem.n_knots, seed=args.seed,
@@ -394,7 +394,7 @@ def run_solve(args: argparse.Namespace) -> int:
             "message": "every start failed without a result",
             **extra,
         }
-        from youbot_opt.cli._output import write_summary
+        from youbot_opt.cli.output import write_summary
 
         summary["output_folder"] = str(folder.resolve())
         summary["files"] = ["summary.json"]

@@ -8,10 +8,10 @@ Usage::
 
 Each prints progress on stderr and a table on stdout (``--json``: one JSON
 object instead) and writes an output folder (``--out DIR``, or a new
-``youbot_opt_runs/<command>-<date>-<time>``; :mod:`youbot_opt.cli._output`)::
+``youbot_opt_runs/<command>-<date>-<time>``; :mod:`youbot_opt.cli.output`)::
 
     summary.json     the sweep's summary (what --json prints)
-    manifest.json    the sweep store (:class:`youbot_opt.sweep_store.SweepStore`): the
+    manifest.json    the sweep store (:class:`youbot_opt.sweeps.store.SweepStore`): the
     items/           sweep's parameters, and every finished item as it completes
     *.png            multistart: multistart.png, convergence.png, trajectory.png (best);
                      pareto: pareto.png; bounds: bound_scaling.png
@@ -172,9 +172,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 # ------------------------------------------------------------------ helpers
 def _solver(args: argparse.Namespace) -> Any:
-    from youbot_opt.options import IpoptOptions
-    from youbot_opt.problem import study1_problem
-    from youbot_opt.solve import TrajOptSolver
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
 
     problem = study1_problem(args.knots)
     method = args.transcription.replace("-", "_")
@@ -199,8 +199,8 @@ def _check(
                 "--item-timeout needs worker processes (--workers >= 1), got --workers 0",
                 name="item_timeout",
             )
-    from youbot_opt.objectives import check_beta
-    from youbot_opt.problem import check_bound_scale
+    from youbot_opt.trajopt.objectives import check_beta
+    from youbot_opt.trajopt.problem import check_bound_scale
 
     for name in ("starts", "first_starts"):
         value = getattr(args, name, None)
@@ -259,7 +259,7 @@ def _emit(
     files: list[Path | None],
 ) -> None:
     """Write summary.json, print the table (or the JSON) and where the outputs are."""
-    from youbot_opt.cli._output import json_ready, write_summary
+    from youbot_opt.cli.output import json_ready, write_summary
 
     written = [f for f in files if f is not None]
     summary["output_folder"] = str(folder.resolve())
@@ -277,7 +277,7 @@ def _emit(
 
 # ----------------------------------------------------------------- commands
 def _run_multistart(args: argparse.Namespace) -> int:
-    from youbot_opt.multistart import run_multistart
+    from youbot_opt.trajopt.multistart import run_multistart
 
     _check(args)
     solver = _solver(args)
@@ -330,7 +330,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
 
 
 def _run_pareto(args: argparse.Namespace) -> int:
-    from youbot_opt.pareto import pareto_sweep
+    from youbot_opt.trajopt.pareto import pareto_sweep
 
     betas = parse_values(args.betas, "betas")
     _check(args, betas=betas)
@@ -380,7 +380,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
 
 
 def _run_bounds(args: argparse.Namespace) -> int:
-    from youbot_opt.bound_scaling import bound_scaling_study
+    from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 
     scales = parse_values(args.scales, "scales")
     _check(args, scales=scales)

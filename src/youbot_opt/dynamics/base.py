@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.dynamics._tree import as_pin_model, read_tree
+from youbot_opt.dynamics.tree import as_pin_model, read_tree
 from youbot_opt.exceptions import ParameterError
 
 __all__ = ["Dynamics", "build_dynamics", "available_backends", "BACKENDS"]

@@ -27,7 +27,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.dynamics import spatial
-from youbot_opt.dynamics._tree import JointSpec, TreeSpec, as_pin_model, read_tree
+from youbot_opt.dynamics.tree import JointSpec, TreeSpec, as_pin_model, read_tree
 from youbot_opt.exceptions import FrameNotFound
 
 __all__ = ["SymbolicModel", "build_symbolic_model", "FUNCTION_OPTIONS"]

@@ -42,7 +42,7 @@ from youbot_opt.ikpath.reachability import (
     decide_reachability,
     require_reachable,
 )
-from youbot_opt.ikpath.replay import export_ikpath_html, replay_ikpath, replay_track
+from youbot_opt.viz.meshcat.ikpath import export_ikpath_html, replay_ikpath, replay_track
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
 from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
 from youbot_opt.ikpath.solve import METHODS, Method, solve

@@ -60,11 +60,11 @@ from scipy.optimize import Bounds, minimize
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.best import pick_best
+from youbot_opt.ikpath.best_iterate import pick_best
 from youbot_opt.ikpath.bfgs import minimize_bfgs
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.options import check_time_limit
+from youbot_opt.nlp.ipopt import check_time_limit
 
 __all__ = ["ALOptions", "first_order_multipliers", "solve_augmented_lagrangian"]
 

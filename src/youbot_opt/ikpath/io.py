@@ -38,7 +38,7 @@ from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.sweep_store import atomic_write_bytes
+from youbot_opt.sweeps.store import atomic_write_bytes
 
 __all__ = [
     "SCHEMA",
@@ -148,7 +148,7 @@ def encode_ikpath_result(result: IKPathResult) -> bytes:
     bytes
         The JSON document with schema name, version, versions and checksum.
     """
-    from youbot_opt import __version__
+    from youbot_opt._version import __version__
 
     body = _body(result)
     doc = {

@@ -29,12 +29,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
-from youbot_opt.best_iterate import NlpsolIterationCallback
+from youbot_opt.nlp.best_iterate import NlpsolIterationCallback
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.best import pick_best
+from youbot_opt.ikpath.best_iterate import pick_best
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.options import check_time_limit, single_threaded_blas
+from youbot_opt.nlp.ipopt import check_time_limit, single_threaded_blas
 
 __all__ = ["IpoptOptions", "IpoptIKSolver", "check_degrees_of_freedom", "solve_ipopt"]
 

@@ -6,12 +6,12 @@ Start 0 is the study's zero vector; the others are drawn from
 executor.
 
 Each start is one task (:mod:`youbot_opt.ikpath.sweep`, on
-:func:`youbot_opt.parallel.run_tasks`), on a process pool by default. A start
+:func:`youbot_opt.sweeps.tasks.run_tasks`), on a process pool by default. A start
 that raises, or whose worker process dies (segfault, out-of-memory kill), is
 charged alone: it is retried once and becomes a ``CRASHED`` result with the
 reason if it fails again; the pool is rebuilt and the run goes on. With
 ``out=DIR`` every finished start is saved as it completes (atomic writes,
-:mod:`youbot_opt.sweep_store`) and rerunning the same multistart on ``DIR``
+:mod:`youbot_opt.sweeps.store`) and rerunning the same multistart on ``DIR``
 loads the finished starts instead of solving them again.
 
 Successful results are clustered into local minima: two results are the same
@@ -41,7 +41,7 @@ from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import START_KINDS, make_starts
 from youbot_opt.ikpath.sweep import open_store, solve_starts
-from youbot_opt.parallel import ExecutorLike, default_workers
+from youbot_opt.sweeps.tasks import ExecutorLike, default_workers
 
 __all__ = [
     "LocalMinimum",
@@ -258,7 +258,7 @@ def run_multistart(
     options : ALOptions or IpoptOptions, optional
         Settings of the method.
     executor : {"process", "serial"} or concurrent.futures.Executor, optional
-        Where the starts run (see :func:`youbot_opt.parallel.run_tasks`): a
+        Where the starts run (see :func:`youbot_opt.sweeps.tasks.run_tasks`): a
         process pool owned by this call and rebuilt if a worker dies, this
         process, or an executor of the caller (not shut down here; a broken
         one cannot be rebuilt). Default: ``"serial"`` when ``max_workers`` is

@@ -20,10 +20,10 @@ How the decision is made:
   placing the wrist of the first ``k - 1`` links on the circle of radius
   ``l_k`` about ``p``, recursively.
 * **Limits, 1 or 2 links**: closed form (nearest point on arcs; see
-  :mod:`youbot_opt.ikpath._geometry`).
+  :mod:`youbot_opt.ikpath.geometry`).
 * **Limits, n >= 3 links**: branch and bound over the first ``n - 2`` angles
   with exact closed-form distances to the workspace of the last two links and
-  a rigorous Lipschitz bound (:mod:`youbot_opt.ikpath._branch_and_bound`).
+  a rigorous Lipschitz bound (:mod:`youbot_opt.ikpath.branch_and_bound`).
   For ``n = 3`` it always decides; for ``n > 3`` it is limited by
   ``max_evaluations``.
 
@@ -42,8 +42,8 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath._branch_and_bound import BranchAndBound
-from youbot_opt.ikpath._geometry import TWO_PI, nearest_on_arc, two_link_nearest
+from youbot_opt.ikpath.branch_and_bound import BranchAndBound
+from youbot_opt.ikpath.geometry import TWO_PI, nearest_on_arc, two_link_nearest
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
 

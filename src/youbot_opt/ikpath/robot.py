@@ -18,9 +18,9 @@ so the chain's coordinates are the robot's own joint angles ``q`` and its
 targets are tool-tip positions ``(x, z)`` in the platform frame.
 
 :func:`chain_from_robot` reads these numbers from any loaded
-:class:`~youbot_opt.model.RobotModel` whose joints all turn about the
+:class:`~youbot_opt.robot.model.RobotModel` whose joints all turn about the
 platform's y axis (joint origins and tip at ``q = 0``), then verifies the chain
-against :func:`youbot_opt.model.tip_pose` at 20 seeded configurations and
+against :func:`youbot_opt.robot.model.tip_pose` at 20 seeded configurations and
 refuses robots that are not such planar chains.
 """
 
@@ -36,7 +36,7 @@ from youbot_opt.exceptions import ModelError
 from youbot_opt.ikpath.chain import PlanarChain
 
 if TYPE_CHECKING:
-    from youbot_opt.model import RobotModel
+    from youbot_opt.robot.model import RobotModel
 
 __all__ = ["chain_from_robot", "youbot_chain"]
 
@@ -48,7 +48,7 @@ def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarCha
 
     Parameters
     ----------
-    robot : youbot_opt.model.RobotModel
+    robot : youbot_opt.robot.model.RobotModel
         A loaded robot (``load_model("youbot")``): revolute joints about the
         platform y axis, tip frame ``robot.tip_frame``.
     name : str, optional
@@ -66,7 +66,7 @@ def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarCha
         If the robot is not a planar revolute chain in the x-z plane (the
         chain's tip differs from ``tip_pose`` by more than 1e-10 m somewhere).
     """
-    from youbot_opt.model import tip_pose  # the owner of the youBot plane convention
+    from youbot_opt.robot.model import tip_pose  # the owner of the youBot plane convention
 
     model: pin.Model = robot.model
     nq = int(model.nq)
@@ -116,6 +116,6 @@ def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarCha
 
 def youbot_chain() -> PlanarChain:
     """Return the youBot arm (``load_model("youbot")``) as a planar chain (see the module doc)."""
-    from youbot_opt.model import load_model
+    from youbot_opt.robot.model import load_model
 
     return chain_from_robot(load_model("youbot"))

@@ -25,7 +25,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath._geometry import two_link_ik
+from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, _theta_ranges
 

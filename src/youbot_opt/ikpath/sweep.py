@@ -3,12 +3,12 @@
 The machinery behind :func:`youbot_opt.ikpath.multistart.run_multistart`:
 
 * each start is one keyed task (``"start_0007"``) of
-  :func:`youbot_opt.parallel.run_tasks`: a start that raises, or whose worker
+  :func:`youbot_opt.sweeps.tasks.run_tasks`: a start that raises, or whose worker
   process dies (segfault, out-of-memory kill), is a failed attempt with its
   reason and is retried once; the broken pool is rebuilt and the sweep goes on.
   A start that fails every attempt becomes an ``IKStatus.CRASHED`` result
   whose message is the last reason;
-* with an output directory, a :class:`~youbot_opt.sweep_store.SweepStore`
+* with an output directory, a :class:`~youbot_opt.sweeps.store.SweepStore`
   (kind ``"ikpath_multistart"``) saves every finished start as it completes,
   atomically: the result file ``items/<key>.ikpath`` (the JSON of
   :func:`youbot_opt.ikpath.io.encode_ikpath_result`, schema
@@ -41,8 +41,8 @@ from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, probl
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, build_result
-from youbot_opt.parallel import ExecutorLike, Task, TaskOutcome, run_tasks
-from youbot_opt.sweep_store import SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.tasks import ExecutorLike, Task, TaskOutcome, run_tasks
+from youbot_opt.sweeps.store import SweepStore, atomic_write_bytes
 
 __all__ = [
     "PAYLOAD_SUFFIX",
@@ -277,7 +277,7 @@ def solve_starts(
     options : ALOptions or IpoptOptions or None
         Settings of the method.
     executor : {"process", "serial"} or concurrent.futures.Executor
-        See :func:`youbot_opt.parallel.run_tasks`.
+        See :func:`youbot_opt.sweeps.tasks.run_tasks`.
     workers : int
         Tasks in flight at once (>= 1).
     store : SweepStore, optional

@@ -3,7 +3,7 @@
 A :class:`Variant` is one column of the comparison: a transcription on an arm
 (the study's code with its deviations, or a correct transcription with or
 without the code's damping). :func:`record` turns one solve into a JSON-ready
-row with its forward-simulation certificates (:func:`youbot_opt.verify.certify`)
+row with its forward-simulation certificates (:func:`youbot_opt.trajopt.certify.certify`)
 against the arm its NLP describes and against the paper's arm;
 :func:`optima_record` does the same for a multistart, with its distinct optima.
 """
@@ -14,15 +14,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from youbot_opt.model import RobotModel, load_model
-from youbot_opt.multistart import MultistartResult
-from youbot_opt.options import IpoptOptions
-from youbot_opt.problem import study1_problem
+from youbot_opt.robot.model import RobotModel, load_model
+from youbot_opt.trajopt.multistart import MultistartResult
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.reproduction.study1 import STUDY_DAMPING, StudyDeviations, StudyTranscription
-from youbot_opt.result import TrajOptResult
-from youbot_opt.solve import TrajOptSolver
-from youbot_opt.transcription import Transcription, get_transcription
-from youbot_opt.verify import certify
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.transcription import Transcription, get_transcription
+from youbot_opt.trajopt.certify import certify
 
 __all__ = ["VARIANTS", "ArmSolvers", "Variant", "ablation_variant", "optima_record", "record"]
 

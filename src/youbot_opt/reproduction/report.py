@@ -291,7 +291,7 @@ def markdown_report(data: dict[str, Any]) -> str:
         "# Study 1 reproduced: tables",
         f"n = {cfg['n_knots']} knots, beta = {cfg['beta']}, {cfg['n_starts']} seeded random "
         f"spline starts (seed {cfg['seed']}), IPOPT tol {cfg['tol']:g}. Certificates: "
-        "`youbot_opt.verify.certify` default tolerances; 'own model' is the arm the NLP "
+        "`youbot_opt.trajopt.certify.certify` default tolerances; 'own model' is the arm the NLP "
         "describes (b = 0.1 for the study's code), 'paper arm' has b = 0.",
     ]
     sections = [

@@ -12,7 +12,7 @@ multistart as the study did), a search for the study's second optimum with
 the study's solver settings, the deviations switched on alone and left out
 one at a time, the beta extremes, the weighted-sum Pareto front, and the
 optimum as knots are added. Every solution is certified by forward simulation
-(:func:`youbot_opt.verify.certify`) against the arm its NLP describes and
+(:func:`youbot_opt.trajopt.certify.certify`) against the arm its NLP describes and
 against the paper's arm. Every figure is a JSON-ready record
 (:func:`~youbot_opt.reproduction.records.record`) that
 :mod:`youbot_opt.reproduction.report` turns into tables; the results behind
@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.multistart import MultistartResult, run_multistart
-from youbot_opt.options import IpoptOptions
-from youbot_opt.pareto import DEFAULT_BETAS, pareto_sweep
+from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
 from youbot_opt.reproduction.records import (
     VARIANTS,
     ArmSolvers,
@@ -45,8 +45,8 @@ from youbot_opt.reproduction.search import (
     vertex_multistart,
 )
 from youbot_opt.reproduction.study1 import DEVIATION_NAMES, StudyDeviations
-from youbot_opt.result import TrajOptResult
-from youbot_opt.solve import TrajOptSolver
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 __all__ = ["ReproductionConfig", "Study1Reproduction", "reproduce_study1"]
 

@@ -3,10 +3,10 @@
 :func:`vertex_multistart` solves one problem from ``K`` seeded
 :func:`~youbot_opt.reproduction.study_guess.vertex_spline_guess` starts (the
 literal reading of the study's random starts) on a process pool
-(:func:`youbot_opt.parallel.run_tasks`; a start that raises is a failed start,
+(:func:`youbot_opt.sweeps.tasks.run_tasks`; a start that raises is a failed start,
 the run goes on), and :func:`cluster_optima` groups the converged solves into
 distinct local optima by objective and trajectory distance, as
-:meth:`youbot_opt.multistart.MultistartResult.distinct_optima` does for the
+:meth:`youbot_opt.trajopt.multistart.MultistartResult.distinct_optima` does for the
 main API's starts; :func:`search_record` summarises a run for the
 reproduction's JSON (statuses, each optimum with its seeds and certificates).
 """
@@ -17,14 +17,14 @@ from collections.abc import Callable, Sequence
 from typing import Any, Literal, NamedTuple
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.multistart import start_seeds, trajectory_distance
-from youbot_opt.options import IpoptOptions
-from youbot_opt.parallel import Task, run_tasks
-from youbot_opt.problem import TrajOptProblem
+from youbot_opt.trajopt.multistart import start_seeds, trajectory_distance
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.sweeps.tasks import Task, run_tasks
+from youbot_opt.trajopt.problem import TrajOptProblem
 from youbot_opt.reproduction.records import ArmSolvers, Variant, record
-from youbot_opt.result import TrajOptResult
-from youbot_opt.solve import TrajOptSolver
-from youbot_opt.transcription import Transcription
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.transcription import Transcription
 
 __all__ = [
     "VertexStart",
@@ -95,7 +95,7 @@ def vertex_multistart(
     beta : float
         Time weight in [0, 1].
     seed : int
-        Base seed; start ``i`` uses ``youbot_opt.multistart.start_seeds(seed, n)[i]``.
+        Base seed; start ``i`` uses ``youbot_opt.trajopt.multistart.start_seeds(seed, n)[i]``.
     executor : {"process", "serial"}
         Where starts run: a process pool (each worker builds the solver once)
         or this process.
@@ -161,7 +161,7 @@ def cluster_optima(
     obj_tol : float
         Relative objective tolerance: ``|f - f_c| <= obj_tol max(1, |f_c|)``.
     traj_tol : float
-        Largest :func:`youbot_opt.multistart.trajectory_distance` in [rad] within a cluster.
+        Largest :func:`youbot_opt.trajopt.multistart.trajectory_distance` in [rad] within a cluster.
 
     Returns
     -------

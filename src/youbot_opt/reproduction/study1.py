@@ -23,7 +23,7 @@ C(q, v) v - N(q) - b v)``, interval ``k`` of the velocity collocation reads
 
 The position collocation, the bounds, the boundary conditions and the
 trapezoidal work ``W`` are the study's and are unchanged. With every deviation
-off the transcription is :class:`~youbot_opt.transcription.TrapezoidalCollocation`.
+off the transcription is :class:`~youbot_opt.trajopt.transcription.TrapezoidalCollocation`.
 
 Results keep the project's conventions: :attr:`TrajOptResult.duration` is the
 true ``(n - 1) dt``, :attr:`TrajOptResult.objective` uses it, and the knot
@@ -42,12 +42,12 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.transcription import TrapezoidalCollocation
-from youbot_opt.transcription.base import Expressions
+from youbot_opt.trajopt.transcription import TrapezoidalCollocation
+from youbot_opt.trajopt.transcription.base import Expressions
 
 if TYPE_CHECKING:
-    from youbot_opt.problem import TrajOptProblem
-    from youbot_opt.result import TrajOptResult
+    from youbot_opt.trajopt.problem import TrajOptProblem
+    from youbot_opt.trajopt.result import TrajOptResult
 
 __all__ = [
     "DEVIATION_NAMES",
@@ -186,7 +186,7 @@ class StudyTranscription(TrapezoidalCollocation):
     defects and the time term differ (module docstring). Use it on a problem
     whose robot has no damping of its own (``study1_problem()``): deviation
     (3) adds the damping inside the transcription, so the problem, and hence
-    :func:`youbot_opt.verify.certify`, keeps the study's paper arm.
+    :func:`youbot_opt.trajopt.certify.certify`, keeps the study's paper arm.
     """
 
     name = "study1_code"
@@ -208,7 +208,7 @@ class StudyTranscription(TrapezoidalCollocation):
         """Evaluate the dynamics at the knots, deviation (3) folded in: ``FD(q, v, tau - b v)``.
 
         ``tau - b v`` stays a linear selection of the decision variables, as the
-        structured derivatives of :mod:`youbot_opt.transcription.derivatives` require.
+        structured derivatives of :mod:`youbot_opt.trajopt.transcription.derivatives` require.
         """
         q, v, tau = sym["q"], sym["v"], sym["tau"]
         b = self.deviations.damping

@@ -4,7 +4,7 @@ Spec ``trajopt.md``, "How the study solved it": each start is a random
 polynomial per joint (degree 4 to 6 at random) meeting the start and goal
 positions and velocities and the position and speed limits at every knot,
 "found as any feasible point of a linear program from a random starting
-vector". The main API's :func:`youbot_opt.spline_guess.random_spline_guess`
+vector". The main API's :func:`youbot_opt.trajopt.spline_guess.random_spline_guess`
 reads that as the L1 projection of a random target onto the feasible set,
 which keeps the target's shape; :func:`vertex_spline_guess` reads it as the LP
 solution for a random cost vector ``c`` (standard normal), i.e. a vertex of
@@ -37,9 +37,9 @@ from scipy.optimize import linprog
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.problem import TrajOptProblem
-from youbot_opt.spline_guess import DEFAULT_DT, DEFAULT_ORDERS, bernstein_matrix
-from youbot_opt.trajectory import Trajectory
+from youbot_opt.trajopt.problem import TrajOptProblem
+from youbot_opt.trajopt.spline_guess import DEFAULT_DT, DEFAULT_ORDERS, bernstein_matrix
+from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["vertex_spline_guess"]
 

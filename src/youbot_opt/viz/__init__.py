@@ -8,7 +8,7 @@ The names below are imported on first use, so that ``import youbot_opt`` (and
 * :class:`MeshcatServer` runs a meshcat server bound to 127.0.0.1 and stops it
   again; :func:`connect` returns a client whose calls time out.
 * :func:`replay_results` and :func:`export_results_html` do the same for one or
-  several :class:`~youbot_opt.result.TrajOptResult` objects (side by side or as
+  several :class:`~youbot_opt.trajopt.result.TrajOptResult` objects (side by side or as
   ghosts), with each result's own time grid.
 * :func:`load_mesh_file` applies the mesh policy: which files may be embedded.
 """
@@ -19,10 +19,10 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from youbot_opt.viz.mesh_policy import check_mesh_file, load_mesh_file
-    from youbot_opt.viz.meshcat_replay import export_html, replay, scene_html
-    from youbot_opt.viz.meshcat_results import export_results_html, replay_results
-    from youbot_opt.viz.meshcat_server import MeshcatServer, connect
+    from youbot_opt.robot.strict.meshes import check_mesh_file, load_mesh_file
+    from youbot_opt.viz.meshcat.replay import export_html, replay, scene_html
+    from youbot_opt.viz.meshcat.results import export_results_html, replay_results
+    from youbot_opt.viz.meshcat.server import MeshcatServer, connect
 
 __all__ = [
     "replay",
@@ -37,15 +37,15 @@ __all__ = [
 ]
 
 _SOURCES = {
-    "replay": "meshcat_replay",
-    "export_html": "meshcat_replay",
-    "scene_html": "meshcat_replay",
-    "replay_results": "meshcat_results",
-    "export_results_html": "meshcat_results",
-    "MeshcatServer": "meshcat_server",
-    "connect": "meshcat_server",
-    "check_mesh_file": "mesh_policy",
-    "load_mesh_file": "mesh_policy",
+    "replay": "youbot_opt.viz.meshcat.replay",
+    "export_html": "youbot_opt.viz.meshcat.replay",
+    "scene_html": "youbot_opt.viz.meshcat.replay",
+    "replay_results": "youbot_opt.viz.meshcat.results",
+    "export_results_html": "youbot_opt.viz.meshcat.results",
+    "MeshcatServer": "youbot_opt.viz.meshcat.server",
+    "connect": "youbot_opt.viz.meshcat.server",
+    "check_mesh_file": "youbot_opt.robot.strict.meshes",
+    "load_mesh_file": "youbot_opt.robot.strict.meshes",
 }
 
 
@@ -53,7 +53,7 @@ def __getattr__(name: str) -> Any:
     """Import a public name of this package on first use (PEP 562)."""
     if name not in _SOURCES:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{_SOURCES[name]}"), name)
+    return getattr(importlib.import_module(_SOURCES[name]), name)
 
 
 def __dir__() -> list[str]:

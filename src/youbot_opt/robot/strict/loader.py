@@ -1,0 +1,477 @@
+"""Strict, safe loading of a URDF file into Pinocchio (issue 6, item 1).
+
+:func:`load_urdf_strict` runs this pipeline and raises at the first broken rule:
+
+1. The file must be a regular file of at most :data:`MAX_URDF_BYTES`
+   (:class:`~youbot_opt.exceptions.UnsafeURDFError`; a missing file raises
+   :class:`~youbot_opt.exceptions.RobotNotFound`).
+2. Strict XML parsing with every ``DOCTYPE`` and entity refused
+   (:mod:`youbot_opt.robot.strict.xml`).
+3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.strict.rules`).
+4. Mesh and texture references, including the textures inside ``.dae`` files,
+   must resolve to regular files inside ``package_dirs``
+   (:mod:`youbot_opt.robot.strict.resources`).
+5. Pinocchio builds the model from the *checked tree*, re-serialised with each
+   mesh and texture reference replaced by its checked absolute path: it reads
+   exactly what was checked, never resolves a path itself and never consults
+   ``ROS_PACKAGE_PATH``. What Pinocchio's URDF parser prints on the C-level
+   standard error is captured and logged (or put in the error message).
+6. :func:`check_model` compares the model with the file (joints, joint limits,
+   inertias), requires finite placements, inertias and ``M(q)`` (a huge
+   ``<origin>`` makes them overflow) and defined dynamics.
+
+Decision on singular mass matrices: a model is accepted only if its joint
+space inertia matrix ``M(q)`` is positive definite, checked at the neutral
+configuration and at 8 seeded random ones. A movable joint whose subtree
+carries no inertia about its axis (e.g. a massless link at the end of a chain)
+makes ``M`` singular, so forward dynamics are undefined; such a file is
+refused with :class:`~youbot_opt.exceptions.InvalidModelError` naming the
+joints. Massless links attached by *fixed* joints are fine: they add nothing.
+If every moving body has a positive definite spatial inertia, ``M(q)`` is
+positive definite at every ``q``; only bodies with degenerate inertia could make
+``M`` singular at configurations the samples miss.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt.exceptions import (
+    InvalidModelError,
+    ModelError,
+    RobotNotFound,
+    UnsafeURDFError,
+    URDFError,
+)
+from youbot_opt.robot.strict.resources import (
+    allowed_roots,
+    check_mesh,
+    read_regular_file,
+    resolve_reference,
+)
+from youbot_opt.robot.strict.rules import check_urdf_tree, file_inertia, file_limits, resource_references
+from youbot_opt.robot.strict.xml import Site, fail, parse_xml_strict, root_of, site
+
+__all__ = ["LoadedURDF", "MAX_URDF_BYTES", "load_urdf_strict", "check_urdf_text", "check_model"]
+
+logger = logging.getLogger(__name__)
+
+#: Largest URDF file accepted, in [bytes].
+MAX_URDF_BYTES: int = 64 * 2**20
+#: Random configurations at which M(q) must be positive definite (plus neutral).
+_N_MASS_MATRIX_SAMPLES = 8
+#: M(q) counts as singular when its smallest eigenvalue is below this fraction
+#: of its largest: CRBA round-off is ~1e-16 of the largest, so the bound leaves
+#: four orders of margin while any real arm (condition number < 1e12) passes.
+_MASS_MATRIX_RCOND = 1e-12
+#: Relative tolerance between the file's inertias and the model's: the two
+#: sums differ only by floating-point reassociation (~1e-15).
+_INERTIA_MATCH_RTOL = 1e-10
+#: Relative tolerance between the file's joint limits and the model's: both are
+#: the same decimal text read by correctly rounded parsers (urdfdom and
+#: :func:`~youbot_opt.robot.strict.xml.parse_number`), so they agree exactly; 1e-12
+#: only allows a last-bit difference, far below any intended change of a limit.
+_LIMIT_MATCH_RTOL = 1e-12
+#: Rule of the finiteness checks (item 3 of the audit: a huge ``<origin>``).
+_FINITE_RULE = "every <origin> is in range: placements, spatial inertias and M(q) are finite"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LoadedURDF:
+    """A URDF file that passed every rule, loaded into Pinocchio.
+
+    Attributes
+    ----------
+    model : pinocchio.Model
+        Kinematic and inertial model (fixed base, mimic joints as ordinary joints).
+    visual_model : pinocchio.GeometryModel
+        Visual geometries; mesh paths are the checked absolute paths.
+    collision_model : pinocchio.GeometryModel
+        Collision geometries; mesh paths are the checked absolute paths.
+    path : Path
+        The URDF file, absolute.
+    resources : tuple of Path
+        Every file the description references and that was checked (meshes,
+        and the textures and material libraries they reference), real paths.
+    """
+
+    model: pin.Model
+    visual_model: pin.GeometryModel
+    collision_model: pin.GeometryModel
+    path: Path
+    resources: tuple[Path, ...] = ()
+
+
+def _in_mesh(error: URDFError, where: Site, mesh: Path) -> URDFError:
+    """Re-raise a rule broken inside a mesh file from the URDF element that references it.
+
+    The error keeps its class and rule; its site becomes the URDF element, and
+    the message keeps the mesh file's own site (file, line, element) and problem.
+    """
+    line = f":{where.line}" if where.line is not None else ""
+    message = (
+        f"{where.path}{line}: {where.element}: the mesh {os.fspath(mesh)!r} it references "
+        f"breaks a rule: {error}"
+    )
+    return type(error)(
+        message, path=where.path, element=where.element, line=where.line, rule=error.rule
+    )
+
+
+def _read_and_check(
+    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
+    roots = allowed_roots(package_dirs)
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise RobotNotFound(f"URDF file {name!r} does not exist", path=name)
+    try:
+        data = read_regular_file(
+            Path(name), MAX_URDF_BYTES, Site(name, "file", None), "URDF", UnsafeURDFError
+        )
+    except OSError as e:
+        raise ModelError(f"cannot read URDF file {name!r}: {e}", path=name) from e
+    tree = parse_xml_strict(data, name)
+    check_urdf_tree(tree, name)
+    references: list[tuple[ET.Element, str, Path]] = []
+    resources: list[Path] = []
+    for elem, kind, where in resource_references(tree, name):
+        real = resolve_reference(elem.get("filename", ""), roots, roots, where)
+        references.append((elem, "filename", real))
+        resources.append(real)
+        if kind == "mesh":
+            try:
+                resources.extend(check_mesh(real, roots, where))
+            except URDFError as e:
+                if e.path == where.path:  # already names the URDF element
+                    raise
+                raise _in_mesh(e, where, real) from e
+    logger.debug("%s: %d resources checked", name, len(resources))
+    return tree, references, tuple(dict.fromkeys(resources))
+
+
+def check_urdf_text(
+    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+) -> ET.ElementTree:
+    """Run every check that needs only the file (steps 1-4 of the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The URDF file.
+    package_dirs : sequence of path-like
+        Folders meshes and textures may come from; ``package://pkg/...``
+        resolves to the first ``dir/pkg/...`` that exists.
+
+    Returns
+    -------
+    xml.etree.ElementTree.ElementTree
+        The parsed file; each element has a ``sourceline`` (1-based line).
+
+    Raises
+    ------
+    RobotNotFound
+        If ``path`` does not exist.
+    ModelError
+        If ``path`` cannot be read (permissions).
+    URDFError
+        One of its subclasses, naming the file, element, line and rule.
+    ParameterError
+        If a package directory is not an existing folder.
+    """
+    return _read_and_check(path, package_dirs)[0]
+
+
+@contextlib.contextmanager
+def _c_stderr_captured() -> Iterator[list[str]]:
+    """Capture what C code writes on file descriptor 2 (not thread-safe)."""
+    captured: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to capture
+        yield captured
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            captured.append(sink.read().decode("utf-8", errors="replace").strip())
+
+
+def _check_joints(model: pin.Model, robot: ET.Element, path: str) -> None:
+    movable = [j.get("name", "") for j in robot.findall("joint") if j.get("type") != "fixed"]
+    in_model = list(model.names)[1:]
+    if sorted(movable) != sorted(in_model):
+        problem = f"file has movable joints {sorted(movable)}, model has {sorted(in_model)}"
+        raise fail(
+            InvalidModelError,
+            Site(path, "<robot>", None),
+            problem,
+            "the model has the file's joints",
+        )
+
+
+def _check_placements(model: pin.Model, path: str) -> None:
+    """Require finite joint and frame placements (sums of huge fixed-joint origins overflow)."""
+    placements = [
+        (f"joint {n!r}", p) for n, p in zip(model.names, model.jointPlacements, strict=True)
+    ]
+    placements += [(f"frame {f.name!r}", f.placement) for f in model.frames]
+    for what, placement in placements:
+        if not np.all(np.isfinite(placement.homogeneous)):
+            problem = (
+                f"the placement of {what} in the model is not finite "
+                f"(translation {placement.translation.tolist()} m): its <origin>s are out of range"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
+
+
+def _check_limits(model: pin.Model, robot: ET.Element, path: str) -> None:
+    """Compare each movable joint's position, velocity and effort limits with the file."""
+    rule = "the model's joint limits are the file's <limit> (lower, upper, velocity, effort)"
+    for joint in robot.findall("joint"):
+        jtype, name = joint.get("type", ""), joint.get("name", "")
+        if jtype == "fixed":
+            continue
+        joint_id = model.getJointId(name)
+        nv = model.nvs[joint_id]
+        if nv == 0:  # a mimic joint built with mimic=True: it has no own coordinates
+            continue
+        limit = joint.find("limit")
+        where = site(path, limit, f"joint {name!r}") if limit is not None else site(path, joint)
+        position, velocity, effort, units = file_limits(joint, nv, where)
+        iq, iv = model.idx_qs[joint_id], model.idx_vs[joint_id]
+        compared = [
+            ("velocity limit (on |v|)", velocity, model.velocityLimit[iv : iv + nv], units[1]),
+            ("effort limit (on |tau|)", effort, model.effortLimit[iv : iv + nv], units[2]),
+        ]
+        if position is not None:
+            compared[:0] = [
+                (f"{side} position limit", np.array([bound]), limits[iq : iq + 1], units[0])
+                for side, bound, limits in (
+                    ("lower", position[0], model.lowerPositionLimit),
+                    ("upper", position[1], model.upperPositionLimit),
+                )
+            ]
+        for quantity, want, have, unit in compared:
+            if np.all(np.isclose(want, have, rtol=_LIMIT_MATCH_RTOL, atol=0.0)):
+                continue
+            unit = f" {unit}" if unit else ""
+            in_file = f"{want.tolist()}{unit}" if np.all(np.isfinite(want)) else "no limit"
+            problem = (
+                f"{jtype} joint {name!r} has the {quantity} {have.tolist()}{unit} "
+                f"in the model, but the file gives {in_file}"
+            )
+            raise fail(InvalidModelError, where, problem, rule)
+
+
+def _check_inertias(model: pin.Model, robot: ET.Element, path: str) -> None:
+    expected = [np.zeros((6, 6)) for _ in range(model.njoints)]
+    for link in robot.findall("link"):
+        where = site(path, link)
+        frame_id = model.getFrameId(link.get("name"), pin.FrameType.BODY)
+        if frame_id >= len(model.frames):
+            raise fail(
+                InvalidModelError, where, "is not a body of the model", "every link is in the model"
+            )
+        inertial = link.find("inertial")
+        if inertial is not None:
+            frame = model.frames[frame_id]
+            block = file_inertia(
+                inertial, frame.placement.rotation, frame.placement.translation, where
+            )
+            if not np.all(np.isfinite(block)):
+                distance = np.abs(block[3:, :3]).max() / block[0, 0]  # max |c_i| of m [c]
+                problem = (
+                    f"its centre of mass lies {distance:.3g} m from the frame of joint "
+                    f"{model.names[frame.parentJoint]!r} (its <origin>, or those of the fixed "
+                    "joints between, are out of range): the 6x6 spatial inertia there, with "
+                    "terms m |c|^2, is not finite"
+                )
+                owner = f"link {link.get('name')!r}"
+                raise fail(InvalidModelError, site(path, inertial, owner), problem, _FINITE_RULE)
+            expected[frame.parentJoint] += block
+    rule = "every <inertial> of the file is in the model, unchanged"
+    for joint_id, (want, got) in enumerate(zip(expected, model.inertias, strict=True)):
+        with np.errstate(over="ignore", invalid="ignore"):
+            have = got.matrix()
+        if not (np.all(np.isfinite(want)) and np.all(np.isfinite(have))):
+            problem = (
+                f"the spatial inertia of the body of joint {model.names[joint_id]!r} is not "
+                f"finite (in the file: {np.all(np.isfinite(want))}, in the model: "
+                f"{np.all(np.isfinite(have))}): its links' <origin>s are out of range"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
+        scale = max(np.abs(want).max(), np.abs(have).max())
+        if np.abs(want - have).max() > _INERTIA_MATCH_RTOL * scale:
+            problem = (
+                f"body of joint {model.names[joint_id]!r} has mass {got.mass} kg in the model, but "
+                f"its links' <inertial> blocks add up to {want[0, 0]} kg (6x6 spatial inertias "
+                f"differ by {np.abs(want - have).max():.3g})"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, rule)
+
+
+def _check_mass_matrix(model: pin.Model, path: str) -> None:
+    if model.nv == 0:
+        return
+    data = model.createData()
+    rng = np.random.default_rng(0)
+    neutral = pin.neutral(model)
+    configurations = [neutral] + [
+        pin.integrate(model, neutral, rng.uniform(-np.pi, np.pi, model.nv))
+        for _ in range(_N_MASS_MATRIX_SAMPLES)
+    ]
+    for sample, q in enumerate(configurations):
+        where = "the neutral configuration" if sample == 0 else f"random configuration {sample}"
+        upper = pin.crba(model, data, q)
+        mass_matrix = np.triu(upper) + np.triu(upper, 1).T
+        if not np.all(np.isfinite(mass_matrix)):
+            pin.framesForwardKinematics(model, data, q)
+            reach = max(np.abs(placement.translation).max() for placement in data.oMf)
+            problem = (
+                f"the joint space inertia matrix M(q) is not finite at {where}: joint "
+                f"<origin>s are out of range (bodies up to {reach:.3g} m from the base, "
+                "so the terms m r^2 overflow)"
+            )
+            raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
+        eigenvalues, eigenvectors = np.linalg.eigh(mass_matrix)
+        if eigenvalues[0] > _MASS_MATRIX_RCOND * eigenvalues[-1] and eigenvalues[-1] > 0:
+            continue
+        weak = np.abs(eigenvectors[:, 0]) > 1e-3  # joints taking part in the inertia-free motion
+        joints = sorted(
+            model.names[j]
+            for j in range(1, model.njoints)
+            if np.any(weak[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]])
+        )
+        problem = (
+            f"the joint space inertia matrix M(q) is singular at {where}: "
+            f"eigenvalues from {eigenvalues[0]:.3g} to {eigenvalues[-1]:.3g}; "
+            f"joints {joints} move without inertia (e.g. a massless link at the end of a chain)"
+        )
+        rule = "M(q) is positive definite (forward dynamics are defined)"
+        raise fail(InvalidModelError, Site(path, "<robot>", None), problem, rule)
+
+
+def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[str]) -> None:
+    """Check a loaded model against its file and require defined dynamics.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The model Pinocchio built from the file.
+    tree : xml.etree.ElementTree.ElementTree
+        The parsed file, from :func:`check_urdf_text`.
+    path : path-like
+        The file, for error messages.
+
+    Raises
+    ------
+    InvalidModelError
+        If the model's joints are not the file's movable joints; a joint's
+        position limits (revolute and prismatic), velocity limit (symmetric, on
+        ``|v|``) or effort limit differ from its ``<limit>`` (``inf`` where the
+        file gives none: continuous joints without ``<limit>``, floating and
+        planar joints; mimic joints built with ``mimic=True`` have no own
+        limits and are skipped); a link is missing; an ``<origin>`` is so far
+        out that a placement, a spatial inertia or ``M(q)`` is not finite; the
+        mass and inertia of a body differ from the sum of its links'
+        ``<inertial>`` blocks in the file (Pinocchio silently drops a block it
+        cannot parse); or ``M(q)`` is not positive definite (see the module
+        docstring).
+    """
+    name = os.fspath(path)
+    robot = root_of(tree, name)
+    _check_joints(model, robot, name)
+    _check_limits(model, robot, name)
+    _check_placements(model, name)
+    _check_inertias(model, robot, name)
+    _check_mass_matrix(model, name)
+
+
+def load_urdf_strict(
+    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+) -> LoadedURDF:
+    """Check a URDF file, load it into Pinocchio and check the result.
+
+    Parameters
+    ----------
+    path : path-like
+        The URDF file.
+    package_dirs : sequence of path-like
+        Folders meshes and textures may come from; ``package://pkg/...``
+        resolves to the first ``dir/pkg/...`` that exists.
+
+    Returns
+    -------
+    LoadedURDF
+        Model, visual and collision geometry models, path and checked resources.
+
+    Raises
+    ------
+    RobotNotFound
+        If ``path`` does not exist.
+    ModelError
+        If ``path`` cannot be read (permissions).
+    URDFError
+        One of its subclasses (:class:`~youbot_opt.exceptions.URDFSyntaxError`,
+        :class:`~youbot_opt.exceptions.UnsafeURDFError`,
+        :class:`~youbot_opt.exceptions.UnsafePathError`,
+        :class:`~youbot_opt.exceptions.ResourceNotFoundError`,
+        :class:`~youbot_opt.exceptions.URDFStructureError`,
+        :class:`~youbot_opt.exceptions.InvalidModelError`), naming the file,
+        element, line and rule.
+    ParameterError
+        If a package directory is not an existing folder.
+    """
+    name = os.fspath(path)
+    tree, references, resources = _read_and_check(path, package_dirs)
+    for elem, attr, real in references:
+        elem.set(attr, os.fspath(real))
+    text = ET.tostring(root_of(tree, name), encoding="unicode")
+    dirs = [os.fspath(d) for d in allowed_roots(package_dirs)]
+    error: Exception | None = None
+    with _c_stderr_captured() as report:
+        try:
+            model = pin.buildModelFromXML(text)
+            visual = pin.buildGeomFromUrdfString(
+                model, text, pin.GeometryType.VISUAL, package_dirs=dirs
+            )
+            collision = pin.buildGeomFromUrdfString(
+                model, text, pin.GeometryType.COLLISION, package_dirs=dirs
+            )
+        except (ValueError, RuntimeError) as e:
+            error = e
+    parser_output = report[0] if report else ""
+    if error is not None:
+        problem = (
+            f"Pinocchio refused the checked description: {error}; "
+            f"its parser said: {parser_output or '-'}"
+        )
+        raise fail(
+            InvalidModelError, Site(name, "<robot>", None), problem, "Pinocchio builds the model"
+        ) from error
+    if parser_output:
+        logger.warning("Pinocchio's URDF parser reported for %s: %s", name, parser_output)
+    check_model(model, tree, name)
+    return LoadedURDF(
+        model=model,
+        visual_model=visual,
+        collision_model=collision,
+        path=Path(name).absolute(),
+        resources=resources,
+    )

@@ -1,0 +1,367 @@
+"""Run independent sweep items in worker processes; one failure never stops the sweep.
+
+:func:`run_tasks` runs keyed tasks on ``"process"`` (a :class:`WorkerPool` it
+owns, default), on a caller's :class:`WorkerPool` (kept across calls), on
+``"serial"`` (in-process) or on any :class:`concurrent.futures.Executor`, and
+reports every attempt through ``on_outcome`` as it ends, so the caller can
+save it (:mod:`youbot_opt.sweeps.store`). In a worker pool:
+
+* a task that raises becomes a failed attempt ``"<Exception>: <message>"``;
+* each worker runs one task at a time and the parent knows which, so a worker
+  that dies (segfault, out-of-memory kill) charges a failed attempt, with the
+  signal, to exactly its own task; it is replaced, the others carry on;
+* with ``timeout``, a task still running after that long is killed with its
+  worker and fails with ``"timeout after <timeout> s"``;
+* a task gets at most ``max_attempts`` attempts (default 2: one retry),
+  counting those of earlier runs.
+
+The worker processes live in :mod:`youbot_opt.sweeps.pool` (how they are
+started, how they notice a dead parent, and the private crash/hang test hooks).
+Serially, a crash takes the caller down; a caller's ``Executor`` that breaks
+does not say which task crashed, so all tasks in flight fail.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
+from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures.thread import BrokenThreadPool
+from dataclasses import dataclass, replace
+from multiprocessing.connection import wait as wait_ready
+from typing import Any, Literal
+
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.pool import (
+    _STOP_WAIT,
+    WorkerPool,
+    _check_workers,
+    _death_reason,
+    _invoke,
+    _reason,
+    _Worker,
+    default_workers,
+    process_context,
+)
+
+__all__ = ["Task", "TaskOutcome", "ExecutorLike", "WorkerPool", "run_tasks"]
+__all__ += ["process_context", "default_workers"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Task:
+    """One keyed unit of work: ``fn(*args)``, run in a worker.
+
+    Attributes
+    ----------
+    key : str
+        Unique key of the item.
+    fn : callable
+        A module-level (picklable) function.
+    args : tuple
+        Its positional arguments (picklable for process pools).
+    attempts : int
+        Attempts already made in earlier runs (from a store).
+    """
+
+    key: str
+    fn: Callable[..., Any]
+    args: tuple[Any, ...] = ()
+    attempts: int = 0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TaskOutcome:
+    """Outcome of one attempt of a task.
+
+    Attributes
+    ----------
+    key : str
+        Task key.
+    value : Any
+        What ``fn`` returned (``None`` for a failed attempt).
+    error : str or None
+        Why the attempt failed; ``None`` on success.
+    attempts : int
+        Attempts made so far, including this one.
+    final : bool
+        True if no further attempt will be made (success, or attempts used up).
+    wall_time : float
+        Wall time of the attempt in [s] (measured in the worker; for crashes
+        and time-outs, as seen by the parent).
+    """
+
+    key: str
+    value: Any
+    error: str | None
+    attempts: int
+    final: bool
+    wall_time: float
+
+    @property
+    def ok(self) -> bool:
+        """True if the attempt returned a value."""
+        return self.error is None
+
+
+ExecutorLike = Literal["process", "serial"] | Executor | WorkerPool
+
+
+# ------------------------------------------------------------------- runner
+class _Runner:
+    """State of one :func:`run_tasks` call (pending queues, attempts)."""
+
+    def __init__(
+        self,
+        tasks: list[Task],
+        workers: int,
+        max_attempts: int,
+        timeout: float | None,
+        on_outcome: Callable[[TaskOutcome], None] | None,
+    ) -> None:
+        self.tasks = {t.key: t for t in tasks}
+        self.attempts = {t.key: t.attempts for t in tasks}
+        self.pending = deque(t.key for t in tasks)
+        self.retry: deque[str] = deque()
+        self.workers = workers
+        self.max_attempts = max_attempts
+        self.timeout = timeout
+        self.on_outcome = on_outcome
+        self.outcomes: dict[str, TaskOutcome] = {}
+
+    def next_key(self) -> str:
+        return self.retry.popleft() if self.retry else self.pending.popleft()
+
+    def emit(
+        self, key: str, value: Any, error: str | None, wall: float, *, final: bool = False
+    ) -> None:
+        self.attempts[key] += 1
+        n = self.attempts[key]
+        final = final or error is None or n >= self.max_attempts
+        outcome = TaskOutcome(
+            key=key, value=value, error=error, attempts=n, final=final, wall_time=wall
+        )
+        if error is not None:
+            _log.warning("task %s failed (attempt %d of %d): %s", key, n, self.max_attempts, error)
+        if not final:
+            self.retry.append(key)
+        self.outcomes[key] = outcome
+        if self.on_outcome is not None:
+            self.on_outcome(outcome)
+
+    def run_serial(self) -> None:
+        while self.pending or self.retry:
+            key = self.next_key()
+            task = self.tasks[key]
+            tic = time.perf_counter()
+            try:
+                value = task.fn(*task.args)
+            except Exception as exc:  # one failing task must not end the sweep
+                self.emit(key, None, _reason(exc), time.perf_counter() - tic)
+            else:
+                self.emit(key, value, None, time.perf_counter() - tic)
+
+    def run_workers(self, pool: WorkerPool) -> None:
+        busy: list[_Worker] = []
+        limit = min(self.workers, pool.workers)
+        try:
+            while self.pending or self.retry or busy:
+                while len(busy) < limit and (self.pending or self.retry):
+                    key = self.next_key()
+                    task = self.tasks[key]
+                    worker = pool._take()
+                    try:
+                        worker.conn.send((key, task.fn, task.args))
+                    except (BrokenPipeError, ConnectionError):  # died idle: not this task's fault
+                        worker.stop(kill=True)
+                        self.retry.appendleft(key)
+                        continue
+                    except Exception as exc:  # the task does not pickle
+                        pool._give_back(worker)
+                        self.emit(key, None, f"cannot send the task: {_reason(exc)}", 0.0)
+                        continue
+                    worker.key, worker.started = key, time.monotonic()
+                    busy.append(worker)
+                if not busy:  # every task just sent failed to pickle: go on with the queues
+                    continue
+                wait_for = None
+                if self.timeout is not None:
+                    first = min(w.started for w in busy)
+                    wait_for = max(0.0, first + self.timeout - time.monotonic())
+                handles: list[Any] = [w.conn for w in busy] + [w.process.sentinel for w in busy]
+                ready = set(wait_ready(handles, timeout=wait_for))
+                for worker in list(busy):
+                    if worker.conn in ready or worker.process.sentinel in ready:
+                        busy.remove(worker)
+                        self._collect(pool, worker)
+                    elif (
+                        self.timeout is not None
+                        and time.monotonic() - worker.started >= self.timeout
+                    ):
+                        busy.remove(worker)
+                        key = str(worker.key)
+                        worker.stop(kill=True)
+                        self.emit(key, None, f"timeout after {self.timeout:g} s", self.timeout)
+        finally:
+            for worker in busy:  # interrupted (e.g. KeyboardInterrupt): abandon their tasks
+                worker.stop(kill=True)
+
+    def _collect(self, pool: WorkerPool, worker: _Worker) -> None:
+        """Read the reply of a worker that became ready, or charge its task with its death."""
+        key = str(worker.key)
+        wall = time.monotonic() - worker.started
+        try:
+            reply = worker.conn.recv() if worker.conn.poll() else None
+        except (EOFError, OSError):
+            reply = None
+        if reply is None:
+            worker.process.join(_STOP_WAIT)
+            exitcode = worker.process.exitcode
+            worker.stop(kill=True)
+            self.emit(key, None, _death_reason(exitcode), wall)
+            return
+        pool._give_back(worker)
+        got, error, value, wall = reply
+        assert got == key, f"worker answered for {got!r} while running {key!r}"
+        self.emit(key, value, error, wall)
+
+    def run_executor(self, pool: Executor) -> None:
+        """Run on a caller's executor: it cannot be rebuilt, so a broken one ends the sweep."""
+        inflight: dict[Future[Any], str] = {}
+        while self.pending or self.retry or inflight:
+            while len(inflight) < self.workers and (self.pending or self.retry):
+                key = self.next_key()
+                task = self.tasks[key]
+                inflight[pool.submit(_invoke, key, task.fn, task.args)] = key
+            done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+            broken: list[str] = []
+            for fut in done:
+                key = inflight.pop(fut)
+                exc = fut.exception()
+                if isinstance(exc, BrokenProcessPool | BrokenThreadPool):
+                    broken.append(key)
+                elif exc is not None:
+                    self.emit(key, None, _reason(exc), 0.0)
+                else:
+                    value, wall = fut.result()
+                    self.emit(key, value, None, wall)
+            if broken:
+                why = "the executor broke (a worker crashed) and cannot be rebuilt by youbot_opt"
+                for key in [*broken, *inflight.values()]:
+                    self.emit(key, None, f"worker process crashed or was lost; {why}", 0.0)
+                self._abandon(why)
+                return
+
+    def _abandon(self, why: str) -> None:
+        for key in self.retry:  # already failed once here: no further attempt
+            prev = self.outcomes[key]
+            outcome = replace(prev, error=f"{prev.error}; {why}", final=True)
+            self.outcomes[key] = outcome
+            if self.on_outcome is not None:
+                self.on_outcome(outcome)
+        for key in self.pending:
+            self.emit(key, None, why, 0.0, final=True)
+        self.retry.clear()
+        self.pending.clear()
+
+
+def run_tasks(
+    tasks: Iterable[Task],
+    *,
+    executor: ExecutorLike = "process",
+    workers: int | None = None,
+    initializer: Callable[..., Any] | None = None,
+    initargs: tuple[Any, ...] = (),
+    max_attempts: int = 2,
+    on_outcome: Callable[[TaskOutcome], None] | None = None,
+    timeout: float | None = None,
+) -> dict[str, TaskOutcome]:
+    """Run keyed tasks, retrying failures, and report each attempt as it ends.
+
+    Parameters
+    ----------
+    tasks : iterable of Task
+        The work, with unique keys.
+    executor : {"process", "serial"}, WorkerPool or concurrent.futures.Executor
+        ``"process"`` (default): a :class:`WorkerPool` owned by this call;
+        a ``WorkerPool``: its workers (kept open; its own initializer applies);
+        ``"serial"``: in this process; an ``Executor``: used as is (not shut
+        down; ``initializer`` is not run on it, and a broken executor ends the
+        remaining tasks as failed).
+    workers : int, optional
+        Tasks in flight at once; default: the CPUs available (a pool's size).
+    initializer : callable, optional
+        Run once in every worker process of an owned pool (e.g. to build a solver).
+    initargs : tuple
+        Its arguments (not pickled under ``fork``).
+    max_attempts : int
+        Attempts per task in total, including earlier runs' (>= 1).
+    on_outcome : callable, optional
+        Called in this process with every :class:`TaskOutcome`, in completion order.
+    timeout : float, optional
+        Wall-clock limit in [s] per attempt (worker pools only; default none):
+        a task still running then is killed with its worker and recorded as
+        failed with ``"timeout after <timeout> s"``.
+
+    Returns
+    -------
+    dict of str to TaskOutcome
+        The last outcome of each task run here, by key.
+
+    Raises
+    ------
+    ParameterError
+        On duplicate keys, ``workers < 1``, ``max_attempts < 1``, a
+        ``timeout <= 0`` or one without a worker pool, or an unknown executor.
+    """
+    task_list = list(tasks)
+    keys = [t.key for t in task_list]
+    if len(set(keys)) != len(keys):
+        dup = sorted({k for k in keys if keys.count(k) > 1})
+        raise ParameterError(f"task keys must be unique, repeated: {dup}", name="tasks")
+    if workers is None:
+        if isinstance(executor, WorkerPool):
+            workers = executor.workers
+        else:
+            workers = getattr(executor, "_max_workers", None) or default_workers()
+    _check_workers(workers)
+    if isinstance(max_attempts, bool) or not isinstance(max_attempts, int) or max_attempts < 1:
+        raise ParameterError(
+            f"max_attempts must be an int >= 1, got {max_attempts!r}", name="max_attempts"
+        )
+    pooled = executor == "process" or isinstance(executor, WorkerPool)
+    if not (pooled or executor == "serial" or isinstance(executor, Executor)):
+        raise ParameterError(
+            f"executor must be 'process', 'serial', a WorkerPool or a "
+            f"concurrent.futures.Executor, got {executor!r}",
+            name="executor",
+        )
+    if timeout is not None:
+        if not (isinstance(timeout, int | float) and math.isfinite(timeout) and timeout > 0):
+            raise ParameterError(f"timeout must be > 0 [s], got {timeout!r}", name="timeout")
+        if not pooled:
+            raise ParameterError(
+                f"a timeout needs executor='process' or a WorkerPool (a task cannot be "
+                f"stopped otherwise), got executor={executor!r}",
+                name="timeout",
+            )
+    runner = _Runner(task_list, workers, max_attempts, timeout, on_outcome)
+    if executor == "serial":
+        if initializer is not None:
+            initializer(*initargs)
+        runner.run_serial()
+    elif isinstance(executor, WorkerPool):
+        runner.run_workers(executor)
+    elif executor == "process":
+        with WorkerPool(workers, initializer=initializer, initargs=initargs) as pool:
+            runner.run_workers(pool)
+    else:
+        assert isinstance(executor, Executor)
+        runner.run_executor(executor)
+    return runner.outcomes

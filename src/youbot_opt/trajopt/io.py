@@ -1,0 +1,305 @@
+"""Save and load trajectory results: one ``.npz`` file with embedded JSON metadata.
+
+File layout (schema ``youbot_opt.trajopt_result``, version :data:`SCHEMA_VERSION`):
+
+* numeric arrays under ``"<group>__<name>"`` keys -- ``variables__q``,
+  ``multipliers__velocity_upper``, ``trajectory__tau``, ``guess__t``,
+  ``objective_history`` ...;
+* ``"metadata"``: the UTF-8 bytes of a JSON object with the schema name and
+  version, the versions of youbot_opt, Pinocchio, CasADi and numpy, the
+  problem description (robot name and URDF path, boundary states, knots,
+  bound families, damping), transcription, backend, status, scalars, solver
+  options, seed, and a SHA-256 checksum of every array.
+
+Nothing is pickled (``allow_pickle=False``). Writes are atomic: the file is
+written to a temporary file in the target directory, synced, and moved into
+place with :func:`os.replace`, so a crash never leaves a half-written result.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ResultFileError, YoubotOptError
+from youbot_opt.trajopt.objectives import Objective
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL, SolveStatus, TrajOptResult
+from youbot_opt.trajopt.trajectory import Trajectory
+
+__all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result"]
+
+SCHEMA = "youbot_opt.trajopt_result"
+SCHEMA_VERSION = 1
+_TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid")
+
+
+def _versions() -> dict[str, str]:
+    from youbot_opt._version import __version__
+
+    return {
+        "youbot_opt": __version__,
+        "pinocchio": str(pin.__version__),
+        "casadi": str(ca.__version__),  # type: ignore[attr-defined]
+        "numpy": str(np.__version__),
+    }
+
+
+def _digest(arr: Array) -> str:
+    return hashlib.sha256(np.ascontiguousarray(arr).tobytes()).hexdigest()
+
+
+def _state(state: BoundaryState) -> dict[str, list[float]]:
+    return {"q": state.q.tolist(), "v": state.velocity.tolist()}
+
+
+def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
+    """Write ``result`` to ``path`` (``.npz`` appended if missing), atomically.
+
+    Parameters
+    ----------
+    result : TrajOptResult
+        The result to save (failed results too).
+    path : str or path-like
+        Target file; its directory must exist.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    ResultFileError
+        If the directory does not exist or the file cannot be written.
+    """
+    target = Path(path)
+    if target.suffix != ".npz":
+        target = target.with_name(target.name + ".npz")
+    if not target.parent.is_dir():
+        raise ResultFileError(f"cannot save result: directory {target.parent} does not exist")
+    arrays: dict[str, Array] = {"objective_history": np.asarray(result.objective_history)}
+    for group, values in (("variables", result.variables), ("multipliers", result.multipliers)):
+        for name, arr in values.items():
+            arrays[f"{group}__{name}"] = np.asarray(arr, dtype=float)
+    for group, traj in (("trajectory", result.trajectory), ("guess", result.guess)):
+        if traj is not None:
+            for name in _TRAJ_FIELDS:
+                value = getattr(traj, name)
+                if value is not None:
+                    arrays[f"{group}__{name}"] = np.asarray(value, dtype=float)
+    meta: dict[str, Any] = {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "versions": _versions(),
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "problem": result.problem.describe(),
+        "method": result.method,
+        "backend": result.backend,
+        "status": result.status.value,
+        "message": result.message,
+        "solver_status": result.solver_status,
+        "beta": result.beta,
+        "bound_scale": result.bound_scale,
+        "start": _state(result.start),
+        "goal": _state(result.goal),
+        "scalars": {
+            k: float(getattr(result, k))
+            for k in (
+                "duration",
+                "dt",
+                "work",
+                "objective",
+                "wall_time",
+                "cpu_time",
+                "max_violation",
+            )
+        },
+        "iterations": result.iterations,
+        "options": result.options.to_dict(),
+        "seed": result.seed,
+        "feasibility_tol": float(result.feasibility_tol),
+        "interpolation": {
+            "trajectory": None if result.trajectory is None else result.trajectory.interpolation,
+            "guess": None if result.guess is None else result.guess.interpolation,
+        },
+        "checksums": {key: _digest(arr) for key, arr in arrays.items()},
+    }
+    payload = json.dumps(meta, allow_nan=True, sort_keys=True).encode("utf-8")
+    arrays["metadata"] = np.frombuffer(payload, dtype=np.uint8)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, target)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise ResultFileError(f"cannot write result file {target}: {exc}") from exc
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
+
+
+def _read(path: Path) -> tuple[dict[str, Any], dict[str, Array]]:
+    """Metadata and checksum-verified arrays of a result file."""
+    if not path.is_file():
+        raise ResultFileError(f"result file {path} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {key: np.array(npz[key]) for key in npz.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise ResultFileError(f"{path} is not a readable result file (corrupted?): {exc}") from exc
+    if "metadata" not in arrays:
+        raise ResultFileError(f"{path} has no metadata entry; not a youbot_opt result file")
+    try:
+        meta = json.loads(arrays.pop("metadata").tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ResultFileError(f"{path}: metadata is not valid JSON (corrupted file)") from exc
+    if not isinstance(meta, dict) or meta.get("schema") != SCHEMA:
+        raise ResultFileError(f"{path}: unknown schema {meta.get('schema')!r}, expected {SCHEMA!r}")
+    version = meta.get("schema_version")
+    if not isinstance(version, int) or version > SCHEMA_VERSION or version < 1:
+        raise ResultFileError(
+            f"{path}: schema version {version!r} is not supported (this youbot_opt reads "
+            f"versions 1..{SCHEMA_VERSION}; the file was written by youbot_opt "
+            f"{meta.get('versions', {}).get('youbot_opt', '?')}; upgrade youbot_opt to read it)"
+        )
+    checksums = meta.get("checksums", {})
+    if set(checksums) != set(arrays):
+        raise ResultFileError(f"{path}: arrays do not match the metadata's list (corrupted file)")
+    for key, arr in arrays.items():
+        if _digest(arr) != checksums[key]:
+            raise ResultFileError(f"{path}: checksum mismatch in array {key!r} (corrupted file)")
+    return meta, arrays
+
+
+def _group(arrays: dict[str, Array], group: str) -> dict[str, Array]:
+    prefix = f"{group}__"
+    return {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
+
+
+def _trajectory(values: dict[str, Array], interpolation: str | None) -> Trajectory | None:
+    if interpolation is None or not values:
+        return None
+    return Trajectory(
+        **{name: values.get(name) for name in _TRAJ_FIELDS},  # type: ignore[arg-type]
+        interpolation=interpolation,  # type: ignore[arg-type]
+    )
+
+
+def _robot(desc: dict[str, Any]) -> Any:
+    from youbot_opt.robot.model import available_robots, load_model
+
+    name, urdf = desc["robot"], desc.get("urdf_path")
+    source = name if name in available_robots() else urdf
+    if source is None:
+        raise ResultFileError(f"cannot reload robot {name!r}: no URDF path saved; pass robot=")
+    try:
+        robot = load_model(source)
+    except YoubotOptError as exc:
+        raise ResultFileError(
+            f"cannot reload robot {name!r} from {source}: {exc}; pass robot="
+        ) from exc
+    damping = np.asarray(desc.get("model_damping", []), dtype=float)
+    if damping.shape == (robot.nv,):
+        robot.model.damping = damping
+    return robot
+
+
+def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptResult:
+    """Read a result written by :func:`save_result`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.npz`` file.
+    robot : RobotModel, optional
+        The robot to attach; reloaded from the saved name or URDF path (with
+        the saved joint damping) when omitted.
+
+    Returns
+    -------
+    TrajOptResult
+        The result, with its problem rebuilt.
+
+    Raises
+    ------
+    ResultFileError
+        If the file is missing, corrupted (bad zip, bad JSON, checksum
+        mismatch), of another schema or of a newer schema version.
+    """
+    path = Path(path)
+    meta, arrays = _read(path)
+    try:
+        desc = meta["problem"]
+        if robot is None:
+            robot = _robot(desc)
+        problem = TrajOptProblem(
+            robot=robot,
+            start=BoundaryState(q=desc["start_q"], v=desc["start_v"]),
+            goal=BoundaryState(q=desc["goal_q"], v=desc["goal_v"]),
+            n_knots=int(desc["n_knots"]),
+            objective=Objective(beta=desc["beta"]),
+            duration=desc["duration"],
+            scaled_bounds=tuple(desc["scaled_bounds"]),
+            dt_min=desc["dt_min"],
+            dt_max=np.inf if desc["dt_max"] is None else desc["dt_max"],
+            damping=bool(desc["damping"]),
+        )
+        opts = dict(meta["options"])
+        scalars = meta["scalars"]
+        variables = _group(arrays, "variables")
+        multipliers = _group(arrays, "multipliers")
+        for arr in (*variables.values(), *multipliers.values()):
+            arr.setflags(write=False)
+        history = arrays["objective_history"]
+        history.setflags(write=False)
+        return TrajOptResult(
+            problem=problem,
+            method=meta["method"],
+            backend=meta["backend"],
+            status=SolveStatus(meta["status"]),
+            message=meta["message"],
+            solver_status=meta["solver_status"],
+            trajectory=_trajectory(
+                _group(arrays, "trajectory"), meta["interpolation"]["trajectory"]
+            ),
+            variables=variables,
+            duration=scalars["duration"],
+            dt=scalars["dt"],
+            work=scalars["work"],
+            objective=scalars["objective"],
+            beta=float(meta["beta"]),
+            bound_scale=float(meta["bound_scale"]),
+            start=BoundaryState(q=meta["start"]["q"], v=meta["start"]["v"]),
+            goal=BoundaryState(q=meta["goal"]["q"], v=meta["goal"]["v"]),
+            iterations=int(meta["iterations"]),
+            wall_time=scalars["wall_time"],
+            cpu_time=scalars["cpu_time"],
+            objective_history=history,
+            max_violation=scalars["max_violation"],
+            multipliers=multipliers,
+            guess=_trajectory(_group(arrays, "guess"), meta["interpolation"]["guess"]),
+            options=IpoptOptions(**opts),
+            seed=meta["seed"],
+            feasibility_tol=float(meta.get("feasibility_tol", DEFAULT_FEASIBILITY_TOL)),
+        )
+    except ResultFileError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc

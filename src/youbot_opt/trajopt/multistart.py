@@ -1,0 +1,396 @@
+"""Seeded multistart of trajectory solves, in parallel, with the distinct local optima.
+
+The study ran 50 random starts per ``beta`` (spec ``trajopt.md``, "How the
+study solved it"): each start is a random feasible polynomial spline guess
+(:func:`youbot_opt.trajopt.spline_guess.random_spline_guess`), optionally with the
+straight line added. :func:`run_multistart` derives the seed of start ``i``
+from a base seed with :class:`numpy.random.SeedSequence` (``spawn``), so the
+starts, and hence the results, do not depend on the executor or on the order
+in which starts finish.
+
+Starts run on a process pool by default; each worker holds one
+:class:`~youbot_opt.trajopt.solver.TrajOptSolver` (inherited from the parent under
+``fork``, built once in the pool initializer otherwise) and reuses it for all
+its starts. A start that raises, or whose worker crashes, is a failed start
+with the reason (retried once); the run goes on (:mod:`youbot_opt.sweeps.tasks`).
+With ``out=DIR`` every finished start is saved as it completes and a rerun
+resumes (:mod:`youbot_opt.sweeps.store`).
+
+Converged results are clustered into distinct local optima by objective and
+by :func:`trajectory_distance` (:meth:`MultistartResult.distinct_optima`).
+The job machinery (seeds, worker solvers, storage) is in :mod:`youbot_opt.trajopt.sweep`.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.objectives import check_beta
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.sweeps.tasks import ExecutorLike
+from youbot_opt.trajopt.problem import TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.sweep import (
+    ProgressFn,
+    StartOutcome,
+    _as_solver,
+    _store_for,
+    default_dt0,
+    make_jobs,
+    solve_starts,
+    start_seeds,
+    sweep_params,
+)
+from youbot_opt.trajopt.trajectory import Trajectory
+
+__all__ = [
+    "LocalOptimum",
+    "MultistartResult",
+    "StartOutcome",
+    "default_dt0",
+    "run_multistart",
+    "start_seeds",
+    "trajectory_distance",
+]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LocalOptimum:
+    """A cluster of converged starts that reached the same local optimum.
+
+    Attributes
+    ----------
+    members : tuple of StartOutcome
+        The member starts, lowest objective first.
+    n_starts : int
+        Number of starts of the multistart (for :attr:`fraction`).
+    """
+
+    members: tuple[StartOutcome, ...]
+    n_starts: int
+
+    @classmethod
+    def of(cls, members: Sequence[StartOutcome], n_starts: int) -> LocalOptimum:
+        """Build a cluster from its members (sorted by objective here)."""
+        if not members:
+            raise ParameterError("a local optimum needs at least one member", name="members")
+        return cls(members=tuple(sorted(members, key=lambda s: s.objective)), n_starts=n_starts)
+
+    @property
+    def best(self) -> StartOutcome:
+        """The lowest member (its ``result`` is the representative trajectory)."""
+        return self.members[0]
+
+    @property
+    def objective(self) -> float:
+        """Lowest objective among the members."""
+        return self.best.objective
+
+    @property
+    def duration(self) -> float:
+        """``T`` of the lowest member in [s]."""
+        return self.best.duration
+
+    @property
+    def work(self) -> float:
+        """``W`` of the lowest member in [N^2 m^2 s]."""
+        return self.best.work
+
+    @property
+    def count(self) -> int:
+        """Number of member starts."""
+        return len(self.members)
+
+    @property
+    def fraction(self) -> float:
+        """``count`` over the number of starts of the multistart."""
+        return self.count / max(self.n_starts, 1)
+
+    @property
+    def seeds(self) -> tuple[int | None, ...]:
+        """Seeds of the members (``None`` for the straight line)."""
+        return tuple(s.seed for s in self.members)
+
+    @property
+    def objective_spread(self) -> float:
+        """Largest objective minus smallest among the members."""
+        return self.members[-1].objective - self.best.objective
+
+    def __repr__(self) -> str:
+        return (
+            f"LocalOptimum(objective={self.objective:.6g}, count={self.count}, "
+            f"duration={self.duration:.4g}, work={self.work:.4g})"
+        )
+
+
+def trajectory_distance(a: Trajectory, b: Trajectory, n_samples: int = 201) -> float:
+    """RMS joint-position difference of two trajectories on a common normalised time.
+
+    Both are resampled at ``s = linspace(0, 1, n_samples)`` of their own
+    durations (``q_a(s T_a)`` against ``q_b(s T_b)``), so motions that follow
+    the same path at different speeds are close.
+
+    Parameters
+    ----------
+    a, b : Trajectory
+        Trajectories with the same number of joints.
+    n_samples : int
+        Number of normalised-time samples (>= 2).
+
+    Returns
+    -------
+    float
+        RMS over samples and joints, in [rad].
+    """
+    if a.q.shape[1] != b.q.shape[1]:
+        raise ParameterError(
+            f"trajectories have {a.q.shape[1]} and {b.q.shape[1]} joints", name="b"
+        )
+    s = np.linspace(0.0, 1.0, max(int(n_samples), 2))
+    qa = a(a.t[0] + s * a.duration)
+    qb = b(b.t[0] + s * b.duration)
+    return float(np.sqrt(np.mean((qa - qb) ** 2)))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MultistartResult:
+    """All starts of a multistart, with the best one and the distinct optima.
+
+    Attributes
+    ----------
+    starts : tuple of StartOutcome
+        Every start, the straight line first (if used), then by index.
+    beta : float
+        Time weight of every solve.
+    bound_scale : float
+        Bound scale factor of every solve.
+    seed : int
+        Base seed the start seeds were derived from.
+    wall_time : float
+        Wall time of the whole run in [s] (resumed starts cost nothing).
+    resumed : int
+        Number of starts loaded from the output directory instead of solved.
+    """
+
+    starts: tuple[StartOutcome, ...]
+    beta: float
+    bound_scale: float
+    seed: int
+    wall_time: float = 0.0
+    resumed: int = 0
+
+    @property
+    def n_starts(self) -> int:
+        """Number of starts."""
+        return len(self.starts)
+
+    @property
+    def converged(self) -> tuple[StartOutcome, ...]:
+        """Starts whose solve succeeded."""
+        return tuple(s for s in self.starts if s.success)
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of starts that converged (0 if there are none)."""
+        return len(self.converged) / self.n_starts if self.starts else 0.0
+
+    @property
+    def best(self) -> StartOutcome | None:
+        """Converged start with the lowest objective (``None`` if none converged)."""
+        ok = self.converged
+        return min(ok, key=lambda s: s.objective) if ok else None
+
+    def distinct_optima(
+        self, obj_tol: float = 1e-5, traj_tol: float = 1e-2
+    ) -> tuple[LocalOptimum, ...]:
+        """Cluster converged starts into distinct local optima.
+
+        Starts are taken in order of increasing objective; each joins the first
+        cluster whose lowest member is within ``obj_tol`` (relative,
+        ``|f - f_c| <= obj_tol max(1, |f_c|)``) in objective and within
+        ``traj_tol`` in :func:`trajectory_distance`, else starts a new cluster.
+
+        Parameters
+        ----------
+        obj_tol : float
+            Relative objective tolerance (> 0).
+        traj_tol : float
+            Trajectory distance tolerance in [rad] (> 0).
+
+        Returns
+        -------
+        tuple of LocalOptimum
+            Sorted by objective, lowest first.
+        """
+        if not (obj_tol > 0 and traj_tol > 0):
+            raise ParameterError(
+                f"obj_tol and traj_tol must be > 0, got {obj_tol!r}, {traj_tol!r}", name="obj_tol"
+            )
+        clusters: list[list[StartOutcome]] = []
+        for s in sorted(self.converged, key=lambda s: s.objective):
+            for members in clusters:
+                rep = members[0]
+                if abs(s.objective - rep.objective) > obj_tol * max(1.0, abs(rep.objective)):
+                    continue
+                ta = s.result.trajectory if s.result is not None else None
+                tb = rep.result.trajectory if rep.result is not None else None
+                if ta is None or tb is None or trajectory_distance(ta, tb) <= traj_tol:
+                    members.append(s)
+                    break
+            else:
+                clusters.append([s])
+        return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
+
+    def summary(self, obj_tol: float = 1e-5, traj_tol: float = 1e-2) -> dict[str, Any]:
+        """JSON-ready summary: rates, best start, distinct optima, every start's figures."""
+        best = self.best
+        return {
+            "beta": self.beta,
+            "bound_scale": self.bound_scale,
+            "seed": self.seed,
+            "n_starts": self.n_starts,
+            "success_rate": self.success_rate,
+            "n_errors": sum(s.status == "error" for s in self.starts),
+            "resumed": self.resumed,
+            "wall_time_s": self.wall_time,
+            "best": None if best is None else best.summary(),
+            "distinct_optima": [
+                {
+                    "objective": o.objective,
+                    "duration_s": o.duration,
+                    "work": o.work,
+                    "count": o.count,
+                    "fraction": o.fraction,
+                    "seeds": list(o.seeds),
+                    "objective_spread": o.objective_spread,
+                }
+                for o in self.distinct_optima(obj_tol, traj_tol)
+            ],
+            "starts": [s.summary() for s in self.starts],
+        }
+
+
+def run_multistart(
+    solver_or_problem: TrajOptSolver | TrajOptProblem,
+    n_starts: int = 50,
+    *,
+    beta: float | None = None,
+    bound_scale: float = 1.0,
+    seed: int = 0,
+    include_straight: bool = False,
+    dt0: float | None = None,
+    executor: ExecutorLike = "process",
+    workers: int | None = None,
+    progress: ProgressFn | None = None,
+    out: str | os.PathLike[str] | None = None,
+    max_attempts: int = 2,
+    timeout: float | None = None,
+    method: Any = "trapezoidal",
+    options: IpoptOptions | None = None,
+    backend: str = "symbolic",
+) -> MultistartResult:
+    """Solve from ``n_starts`` seeded random spline guesses (and the straight line).
+
+    Parameters
+    ----------
+    solver_or_problem : TrajOptSolver or TrajOptProblem
+        A built solver (reused), or a problem to build one for with
+        ``method``, ``options`` and ``backend``.
+    n_starts : int
+        Number of random spline starts (the study: 50).
+    beta : float, optional
+        Time weight in [0, 1]; the problem's default when omitted.
+    bound_scale : float
+        Bound scale factor (> 0, 1.0 = data sheet), for the guesses and the solves.
+    seed : int
+        Base seed; start ``i`` uses ``start_seeds(seed, n_starts)[i]``.
+    include_straight : bool
+        Also solve from the straight-line guess.
+    dt0 : float, optional
+        Time step of the spline guesses in [s]; default
+        :func:`default_dt0`: the study's 0.1 s at 50 knots, and the same guess
+        duration (4.9 s) at other knot counts.
+    executor : {"process", "serial"} or concurrent.futures.Executor
+        Where starts run (see :func:`youbot_opt.sweeps.tasks.run_tasks`).
+    workers : int, optional
+        Parallel starts; default: the CPUs available.
+    progress : callable ``(done, total, last_start)``, optional
+        Called in this process as each start finishes.
+    out : path-like, optional
+        Output directory: each finished start is saved there and a rerun with
+        the same parameters resumes.
+    max_attempts : int
+        Attempts per start; a start that raises or crashes its worker is retried
+        until this many were made (default 2: once).
+    timeout : float, optional
+        Wall-clock limit in [s] per start attempt: a start still running then
+        is killed with its worker, recorded as failed (``"timeout after ... s"``)
+        and retried like a crash. Needs a worker process (not
+        ``executor="serial"``); default: no limit.
+    method, options, backend
+        Solver settings when a problem is given.
+
+    Returns
+    -------
+    MultistartResult
+        Every start, ``best``, ``success_rate`` and ``distinct_optima()``.
+
+    Raises
+    ------
+    ParameterError
+        On bad arguments, or if ``out`` holds a sweep with other parameters.
+    ResultFileError
+        If a saved item in ``out`` is corrupted or from a newer schema.
+    """
+    tic = time.perf_counter()
+    solver = _as_solver(solver_or_problem, method, options, backend)
+    beta = solver.problem.objective.beta if beta is None else check_beta(beta)
+    bound_scale = check_bound_scale(bound_scale)
+    solver.problem.check_boundary(bound_scale)
+    dt0 = default_dt0(solver.problem) if dt0 is None else float(dt0)
+    jobs = make_jobs(
+        n_starts,
+        seed=seed,
+        beta=beta,
+        bound_scale=bound_scale,
+        include_straight=include_straight,
+        dt0=dt0,
+    )
+    store = None
+    if out is not None:
+        params = {
+            **sweep_params(solver),
+            "n_starts": n_starts,
+            "beta": beta,
+            "bound_scale": bound_scale,
+            "seed": seed,
+            "include_straight": include_straight,
+            "dt0": dt0,
+        }
+        store = _store_for(Path(out), "multistart", params, solver)
+    outcomes, resumed = solve_starts(
+        solver,
+        jobs,
+        store=store,
+        executor=executor,
+        workers=workers,
+        progress=progress,
+        max_attempts=max_attempts,
+        timeout=timeout,
+    )
+    return MultistartResult(
+        starts=tuple(outcomes[j.key] for j in jobs),
+        beta=beta,
+        bound_scale=bound_scale,
+        seed=seed,
+        wall_time=time.perf_counter() - tic,
+        resumed=resumed,
+    )

@@ -1,0 +1,499 @@
+"""Weighted-sum Pareto sweep of duration against work, warm-started along ``beta``.
+
+The study traced the time/work trade-off by solving ``f = beta T + (1 - beta) W``
+for ``beta = 0.05 .. 0.95`` in steps of 0.05 (spec ``trajopt.md``).
+:func:`pareto_sweep` solves the weights in the order given, each from the
+previous point's solution (one NLP, re-solved with ``beta`` as a parameter),
+optionally from several seeded starts at the first point
+(:func:`youbot_opt.trajopt.multistart.run_multistart`), and falls back to the
+straight-line guess where a warm start fails. A point is *dominated* if
+another converged point has ``T <=`` and ``W <=`` with one inequality strict;
+:meth:`ParetoFront.nondominated` returns the rest.
+
+Unless ``executor="serial"``, the points are solved one after the other in
+one persistent worker process (:class:`youbot_opt.sweeps.tasks.WorkerPool`; it
+inherits the built solver under ``fork``), each task carrying the previous
+point's result as its warm start. A point whose worker crashes (segfault,
+out-of-memory kill) or runs past ``timeout`` is recorded as failed with the
+reason and retried once in a fresh worker; the sweep goes on.
+
+With ``out=DIR`` each point is saved as it is solved and a rerun resumes from
+the saved points (:mod:`youbot_opt.sweeps.store`); since each point starts
+from the saved previous one, a resumed sweep gives the same points, and the
+first point's multistart (``first_starts``) is reloaded from ``DIR/first_point``.
+(The bound-scaling study lives in :mod:`youbot_opt.trajopt.bound_scaling`.)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
+from youbot_opt.trajopt.objectives import check_beta
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.sweeps.tasks import (
+    ExecutorLike,
+    Task,
+    TaskOutcome,
+    WorkerPool,
+    process_context,
+    run_tasks,
+)
+from youbot_opt.trajopt.problem import TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.sweep import (
+    _as_solver,
+    _init_worker_solver,
+    _SolverSpec,
+    _store_for,
+    sweep_params,
+)
+from youbot_opt.sweeps.store import SweepStore
+
+__all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFAULT_BETAS"]
+
+_log = logging.getLogger(__name__)
+
+DEFAULT_BETAS: tuple[float, ...] = tuple(float(b) for b in np.round(np.arange(1, 20) / 20, 10))
+"""The study's weights: 0.05, 0.10, ..., 0.95 (19 points)."""
+
+_MAX_ATTEMPTS = 2  # a point that raised or crashed its worker is retried once
+
+
+def dominated_mask(
+    duration: Sequence[float], work: Sequence[float], rtol: float = 0.0
+) -> np.ndarray:
+    """Which points are dominated in (duration, work), both minimised.
+
+    Point ``i`` is dominated if some ``j`` has ``T_j <= T_i`` and ``W_j <= W_i``
+    with at least one strict. With ``rtol > 0`` differences within
+    ``rtol max(|a|, |b|)`` count as ties, so solver noise on two copies of the
+    same solution marks neither as dominated. Non-finite points are marked
+    dominated.
+
+    Parameters
+    ----------
+    duration : sequence of float
+        ``T`` in [s].
+    work : sequence of float
+        ``W`` in [N^2 m^2 s].
+    rtol : float
+        Relative tie tolerance (>= 0; 0 is the exact definition).
+
+    Returns
+    -------
+    ndarray of bool
+        True where dominated.
+    """
+    if not rtol >= 0:
+        raise ParameterError(f"rtol must be >= 0, got {rtol!r}", name="rtol")
+    t = np.asarray(duration, dtype=float)
+    w = np.asarray(work, dtype=float)
+    finite = np.isfinite(t) & np.isfinite(w)
+    tt, ww = np.where(finite, t, 0.0), np.where(finite, w, 0.0)
+    tol_t = rtol * np.maximum(np.abs(tt)[None, :], np.abs(tt)[:, None])
+    tol_w = rtol * np.maximum(np.abs(ww)[None, :], np.abs(ww)[:, None])
+    dt = tt[None, :] - tt[:, None]  # [i, j] = T_j - T_i
+    dw = ww[None, :] - ww[:, None]
+    le = (dt <= tol_t) & (dw <= tol_w)
+    lt = (dt < -tol_t) | (dw < -tol_w)
+    dominated = np.any(le & lt & finite[None, :], axis=1)
+    return dominated | ~finite
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ParetoPoint:
+    """One weight of the sweep.
+
+    Attributes
+    ----------
+    beta : float
+        Time weight in [0, 1].
+    duration : float
+        ``T`` in [s] (NaN on error).
+    work : float
+        ``W`` in [N^2 m^2 s] (NaN on error).
+    objective : float
+        ``beta T + (1 - beta) W``.
+    status : str
+        :class:`~youbot_opt.trajopt.result.SolveStatus` value, or ``"error"``.
+    success : bool
+        Whether the solve converged and passed its checks.
+    iterations : int
+        IPOPT iterations of the kept solve.
+    solve_time : float
+        Wall time of the solves of this point in [s].
+    start : str
+        Where the kept solve started: ``"previous"`` (warm start),
+        ``"straight"`` or ``"multistart"`` (best of the first point's starts).
+    dominated : bool
+        True if another converged point is at least as good in T and W and
+        better in one (always True for failed points).
+    result : TrajOptResult or None
+        The kept solve.
+    reason : str or None
+        Why the point failed, if it did.
+    """
+
+    beta: float
+    duration: float
+    work: float
+    objective: float
+    status: str
+    success: bool
+    iterations: int
+    solve_time: float
+    start: str
+    dominated: bool = False
+    result: TrajOptResult | None = None
+    reason: str | None = None
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready figures (everything but the result)."""
+
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "beta": self.beta,
+            "duration_s": num(self.duration),
+            "work": num(self.work),
+            "objective": num(self.objective),
+            "status": self.status,
+            "success": self.success,
+            "iterations": self.iterations,
+            "solve_time_s": self.solve_time,
+            "start": self.start,
+            "dominated": self.dominated,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ParetoFront:
+    """Result of :func:`pareto_sweep`.
+
+    Attributes
+    ----------
+    points : tuple of ParetoPoint
+        One per weight, in sweep order, ``dominated`` marked.
+    bound_scale : float
+        Bound scale factor of every solve.
+    first : MultistartResult or None
+        The multistart at the first weight, when one was run.
+    wall_time : float
+        Wall time of the sweep in [s].
+    resumed : int
+        Points loaded from the output directory.
+    """
+
+    points: tuple[ParetoPoint, ...]
+    bound_scale: float = 1.0
+    first: MultistartResult | None = None
+    wall_time: float = 0.0
+    resumed: int = 0
+
+    def nondominated(self) -> tuple[ParetoPoint, ...]:
+        """Converged, non-dominated points, by increasing duration."""
+        keep = [p for p in self.points if p.success and not p.dominated]
+        return tuple(sorted(keep, key=lambda p: (p.duration, p.work)))
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of weights whose solve converged."""
+        return sum(p.success for p in self.points) / len(self.points) if self.points else 0.0
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary of every point."""
+        return {
+            "bound_scale": self.bound_scale,
+            "n_points": len(self.points),
+            "success_rate": self.success_rate,
+            "n_nondominated": len(self.nondominated()),
+            "resumed": self.resumed,
+            "wall_time_s": self.wall_time,
+            "points": [p.summary() for p in self.points],
+        }
+
+
+def _point(beta: float, result: TrajOptResult, start: str, solve_time: float) -> ParetoPoint:
+    return ParetoPoint(
+        beta=beta,
+        duration=float(result.duration),
+        work=float(result.work),
+        objective=float(result.objective),
+        status=result.status.value,
+        success=result.success,
+        iterations=int(result.iterations),
+        solve_time=solve_time,
+        start=start,
+        result=result,
+        reason=None if result.success else result.message,
+    )
+
+
+def _error_point(beta: float, reason: str) -> ParetoPoint:
+    nan = float("nan")
+    return ParetoPoint(
+        beta=beta,
+        duration=nan,
+        work=nan,
+        objective=nan,
+        status="error",
+        success=False,
+        iterations=0,
+        solve_time=0.0,
+        start="none",
+        reason=reason,
+    )
+
+
+def _solve_point(
+    solver: TrajOptSolver,
+    beta: float,
+    bound_scale: float,
+    previous: TrajOptResult | None,
+    cold_fallback: bool,
+) -> ParetoPoint:
+    """Warm-started solve of one weight, with the straight-line fallback."""
+    elapsed = 0.0
+    if previous is not None:
+        warm = solver.solve(beta=beta, bound_scale=bound_scale, guess=previous)
+        elapsed += warm.wall_time
+        if warm.success or not cold_fallback:
+            return _point(beta, warm, "previous", elapsed)
+        _log.info(
+            "beta = %g: warm start failed (%s); retrying from the straight line",
+            beta,
+            warm.status.value,
+        )
+    cold = solver.solve(beta=beta, bound_scale=bound_scale, guess=None)
+    elapsed += cold.wall_time
+    if previous is not None and not cold.success:
+        return _point(beta, warm, "previous", elapsed)
+    return _point(beta, cold, "straight", elapsed)
+
+
+def _solve_point_task(
+    spec: _SolverSpec,
+    beta: float,
+    bound_scale: float,
+    previous: TrajOptResult | None,
+    cold_fallback: bool,
+) -> ParetoPoint:
+    """Worker task: one weight, with this worker's (or the parent's) solver."""
+    return _solve_point(spec.solver(), beta, bound_scale, previous, cold_fallback)
+
+
+def _check_betas(betas: Sequence[float] | np.ndarray) -> tuple[float, ...]:
+    values = tuple(check_beta(float(b)) for b in np.atleast_1d(np.asarray(betas, dtype=float)))
+    if not values:
+        raise ParameterError("betas must not be empty", name="betas")
+    if len(set(values)) != len(values):
+        raise ParameterError(f"betas must be distinct, got {list(values)}", name="betas")
+    return values
+
+
+def pareto_sweep(
+    solver_or_problem: TrajOptSolver | TrajOptProblem,
+    betas: Sequence[float] | np.ndarray = DEFAULT_BETAS,
+    *,
+    bound_scale: float = 1.0,
+    first_starts: int = 0,
+    seed: int = 0,
+    warm_start: bool = True,
+    cold_fallback: bool = True,
+    dominance_rtol: float = 1e-6,
+    executor: ExecutorLike = "process",
+    workers: int | None = None,
+    progress: Callable[[int, int, ParetoPoint], None] | None = None,
+    out: str | os.PathLike[str] | None = None,
+    timeout: float | None = None,
+    method: Any = "trapezoidal",
+    options: IpoptOptions | None = None,
+    backend: str = "symbolic",
+) -> ParetoFront:
+    """Solve every weight in ``betas`` in order, each warm-started from the previous one.
+
+    Parameters
+    ----------
+    solver_or_problem : TrajOptSolver or TrajOptProblem
+        A built solver (reused for every weight), or a problem.
+    betas : sequence of float
+        Time weights in [0, 1], distinct, solved in this order (default: the
+        study's 0.05 .. 0.95 step 0.05).
+    bound_scale : float
+        Bound scale factor (> 0).
+    first_starts : int
+        If > 0, the first weight is solved by a multistart of this many seeded
+        spline starts plus the straight line (on ``executor``), keeping the
+        best; else from the straight line.
+    seed : int
+        Base seed of the first point's multistart.
+    warm_start : bool
+        Start each weight from the previous solution (else from the straight line).
+    cold_fallback : bool
+        Where a warm start fails, also try the straight line.
+    dominance_rtol : float
+        Relative tolerance below which differences in T or W are ties when
+        marking dominated points (default 1e-6, above IPOPT's ``tol`` = 1e-8
+        noise; 0 for the exact definition).
+    executor, workers
+        Where the first point's multistart runs (:func:`youbot_opt.sweeps.tasks.run_tasks`).
+        The points run in one persistent worker process, crash-isolated, unless
+        ``executor="serial"`` (then in this process).
+    progress : callable ``(done, total, last_point)``, optional
+        Called after each weight.
+    out : path-like, optional
+        Output directory; each point is saved as it is solved, and a rerun resumes.
+    timeout : float, optional
+        Wall-clock limit in [s] per point (and first-point start) attempt; not serial.
+    method, options, backend
+        Solver settings when a problem is given.
+
+    Returns
+    -------
+    ParetoFront
+        The points with ``dominated`` marked.
+
+    Raises
+    ------
+    ParameterError
+        On bad arguments, or if ``out`` holds a sweep with other parameters.
+    ResultFileError
+        If a saved point is corrupted or from a newer schema.
+    """
+    tic = time.perf_counter()
+    solver = _as_solver(solver_or_problem, method, options, backend)
+    values = _check_betas(betas)
+    bound_scale = check_bound_scale(bound_scale)
+    if isinstance(first_starts, bool) or not isinstance(first_starts, int) or first_starts < 0:
+        raise ParameterError(
+            f"first_starts must be an int >= 0, got {first_starts!r}", name="first_starts"
+        )
+    store: SweepStore | None = None
+    if out is not None:
+        params = {
+            **sweep_params(solver),
+            "betas": list(values),
+            "bound_scale": bound_scale,
+            "first_starts": first_starts,
+            "seed": seed,
+            "warm_start": warm_start,
+            "cold_fallback": cold_fallback,
+        }
+        store = _store_for(Path(out), "pareto", params, solver)
+    points: list[ParetoPoint] = []
+    first: MultistartResult | None = None
+    previous: TrajOptResult | None = None
+    resumed = 0
+    fork = process_context().get_start_method() == "fork"
+    spec = _SolverSpec.of(solver, keep=executor == "serial" or fork)
+    with contextlib.ExitStack() as stack:
+        pool: WorkerPool | None = None
+        for k, beta in enumerate(values):
+            key = f"point_{k:03d}"
+            again, attempts = (True, 0) if store is None else store.needs_work(key, _MAX_ATTEMPTS)
+            if k == 0 and first_starts > 0:
+                # Rerun on resume too: its own store in DIR/first_point loads every start.
+                first = run_multistart(
+                    solver,
+                    first_starts,
+                    beta=beta,
+                    bound_scale=bound_scale,
+                    seed=seed,
+                    include_straight=True,
+                    executor=executor,
+                    workers=workers,
+                    timeout=timeout,
+                    out=None if out is None else Path(out) / "first_point",
+                )
+            if not again:
+                assert store is not None
+                point = _load_point(store, key, beta)
+                resumed += 1
+            elif first is not None and k == 0:
+                best = first.best
+                if best is not None and best.result is not None:
+                    spent = sum(s.solve_time for s in first.starts)
+                    point = _point(beta, best.result, "multistart", spent)
+                else:
+                    point = _error_point(beta, "no start of the first point's multistart converged")
+                if store is not None:
+                    _write_point(store, key, point, attempts + 1)
+            else:
+                if pool is None and executor != "serial":
+                    pool = stack.enter_context(
+                        WorkerPool(1, initializer=_init_worker_solver, initargs=(spec,))
+                    )
+                guess = previous if warm_start else None
+                task = Task(
+                    key=key,
+                    fn=_solve_point_task,
+                    args=(spec, beta, bound_scale, guess, cold_fallback),
+                    attempts=attempts,
+                )
+                outcome = run_tasks(
+                    [task],
+                    executor="serial" if pool is None else pool,
+                    max_attempts=_MAX_ATTEMPTS,
+                    timeout=timeout,
+                    on_outcome=None if store is None else partial(_save_attempt, store),
+                )[key]
+                point = outcome.value if outcome.ok else _error_point(beta, str(outcome.error))
+            points.append(point)
+            if point.success and point.result is not None:
+                previous = point.result
+            if progress is not None:
+                progress(k + 1, len(values), point)
+    mask = dominated_mask(
+        [p.duration if p.success else np.nan for p in points],
+        [p.work if p.success else np.nan for p in points],
+        rtol=dominance_rtol,
+    )
+    marked = tuple(replace(p, dominated=bool(d)) for p, d in zip(points, mask, strict=True))
+    return ParetoFront(
+        points=marked,
+        bound_scale=bound_scale,
+        first=first,
+        wall_time=time.perf_counter() - tic,
+        resumed=resumed,
+    )
+
+
+def _write_point(store: SweepStore, key: str, point: ParetoPoint, attempts: int) -> None:
+    if point.result is None:
+        store.write_failed(key, point.reason or "error", attempts=attempts)
+    else:
+        store.write_done(key, point.result, point.summary(), attempts=attempts)
+
+
+def _save_attempt(store: SweepStore, o: TaskOutcome) -> None:
+    """Save an attempt of a point as it ends: the point, or the failure's reason."""
+    if o.ok:
+        _write_point(store, o.key, o.value, o.attempts)
+    else:
+        store.write_failed(o.key, str(o.error), attempts=o.attempts)
+
+
+def _load_point(store: SweepStore, key: str, beta: float) -> ParetoPoint:
+    record = store.record(key)
+    assert record is not None
+    if record.state == "failed":
+        return _error_point(beta, record.reasons[-1] if record.reasons else "failed")
+    result: TrajOptResult = store.load(key)
+    s = record.summary
+    return _point(beta, result, str(s.get("start", "previous")), float(s.get("solve_time_s", 0.0)))

@@ -1,0 +1,380 @@
+"""Point-to-point trajectory problem: a plain, immutable spec with no CasADi inside.
+
+A :class:`TrajOptProblem` says *what* to optimise (spec ``trajopt.md``, "The
+optimisation problem"): a robot, rest-or-moving start and goal states
+(:class:`BoundaryState`), the number of knots, the joint bounds taken from the
+model (scaled by ``bound_scale``), the objective ``beta T + (1 - beta) W`` and
+whether the common time step is free (the study) or the duration fixed. *How*
+it is transcribed and solved lives in :mod:`youbot_opt.trajopt.transcription` and
+:mod:`youbot_opt.trajopt.solver`.
+
+Bound scaling. The study scaled *all* bounds, position included, to 100, 95,
+90 and 85 % of the data sheet. ``bound_scale`` multiplies each bound family
+listed in :attr:`TrajOptProblem.scaled_bounds` (default: position, velocity and
+torque, as in the study). Position bounds are scaled about zero (``s *
+q_lower``, ``s * q_upper``), which is what multiplying the data sheet's
+numbers means; pass ``scaled_bounds=("velocity", "torque")`` to keep the
+position range of the data sheet.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.objectives import Objective
+
+if TYPE_CHECKING:
+    from youbot_opt.robot.model import RobotModel
+
+__all__ = [
+    "BoundaryState",
+    "BoundFamily",
+    "JointBounds",
+    "TrajOptProblem",
+    "check_bound_scale",
+    "study1_problem",
+]
+
+BoundFamily = Literal["position", "velocity", "torque"]
+_FAMILIES: tuple[str, ...] = ("position", "velocity", "torque")
+
+
+def _vector(name: str, value: Any, size: int | None = None) -> Array:
+    """Return a finite, read-only float vector, or raise ParameterError naming ``name``."""
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(
+            f"{name} must be a vector of numbers, got {value!r}", name=name
+        ) from exc
+    if arr.ndim != 1 or (size is not None and arr.size != size):
+        want = f"({size},)" if size is not None else "(n,)"
+        raise ParameterError(
+            f"{name} must have shape {want}, got {arr.shape}", name=name, value=arr.shape
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must be finite, got {arr.tolist()}", name=name, value=arr)
+    arr.setflags(write=False)
+    return arr
+
+
+def check_bound_scale(bound_scale: float) -> float:
+    """Validate a bound scale factor (1.0 = data sheet, must be > 0).
+
+    Raises
+    ------
+    ParameterError
+        If ``bound_scale`` is not a finite number > 0.
+    """
+    try:
+        value = float(bound_scale)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(
+            f"bound_scale must be a number > 0, got {bound_scale!r}", name="bound_scale"
+        ) from exc
+    if not math.isfinite(value) or value <= 0.0:
+        raise ParameterError(
+            f"bound_scale must be finite and > 0 (1.0 = data sheet), got {bound_scale!r}",
+            name="bound_scale",
+            value=bound_scale,
+        )
+    return value
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BoundaryState:
+    """Joint state at the start or the goal of the motion.
+
+    Attributes
+    ----------
+    q : ndarray, shape (nq,)
+        Joint positions in [rad] ([m] for prismatic joints).
+    v : ndarray, shape (nv,)
+        Joint velocities in [rad/s]; zeros (rest) when omitted.
+    """
+
+    q: Array
+    v: Array | None = None
+
+    def __post_init__(self) -> None:
+        q = _vector("q", self.q)
+        object.__setattr__(self, "q", q)
+        v = np.zeros(q.size) if self.v is None else self.v
+        object.__setattr__(self, "v", _vector("v", v, q.size))
+
+    @property
+    def velocity(self) -> Array:
+        """Joint velocities in [rad/s] (never None after construction)."""
+        assert self.v is not None
+        return self.v
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class JointBounds:
+    """Box bounds on the knot values, already scaled.
+
+    Attributes
+    ----------
+    q_lower, q_upper : ndarray, shape (nv,)
+        Position bounds in [rad].
+    v_lower, v_upper : ndarray, shape (nv,)
+        Velocity bounds in [rad/s].
+    tau_lower, tau_upper : ndarray, shape (nv,)
+        Torque bounds in [N m].
+    """
+
+    q_lower: Array
+    q_upper: Array
+    v_lower: Array
+    v_upper: Array
+    tau_lower: Array
+    tau_upper: Array
+
+    def violation(self, q: Array, v: Array, tau: Array) -> float:
+        """Largest bound violation (>= 0) of knot-major arrays, in their units."""
+        worst = 0.0
+        for x, lo, hi in (
+            (q, self.q_lower, self.q_upper),
+            (v, self.v_lower, self.v_upper),
+            (tau, self.tau_lower, self.tau_upper),
+        ):
+            x = np.atleast_2d(x)
+            worst = max(
+                worst, float(np.max(lo - x, initial=0.0)), float(np.max(x - hi, initial=0.0))
+            )
+        return worst
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TrajOptProblem:
+    """Point-to-point, time/work-optimal motion of a fixed-base robot.
+
+    Attributes
+    ----------
+    robot : RobotModel
+        The robot (Pinocchio model and its limits, :mod:`youbot_opt.robot.model`).
+    start, goal : BoundaryState
+        Joint states at ``t = 0`` and at ``t = T``.
+    n_knots : int
+        Number of collocation knots ``N`` (>= 2); the study used 50.
+    objective : Objective
+        Default time weight ``beta`` (overridable per solve).
+    duration : float or None
+        Fixed total duration in [s]; ``None`` (default) leaves the common time
+        step ``dt`` free, as in the study.
+    scaled_bounds : tuple of {"position", "velocity", "torque"}
+        Bound families multiplied by ``bound_scale`` (default all three, as in
+        the study).
+    dt_min, dt_max : float
+        Bounds on the free time step in [s] (``dt > 0`` in the study).
+    damping : bool
+        Apply the model's viscous joint damping in the dynamics.
+    """
+
+    robot: RobotModel
+    start: BoundaryState
+    goal: BoundaryState
+    n_knots: int = 50
+    objective: Objective = field(default_factory=Objective)
+    duration: float | None = None
+    scaled_bounds: tuple[BoundFamily, ...] = ("position", "velocity", "torque")
+    dt_min: float = 1e-6  # [s]
+    dt_max: float = math.inf  # [s]
+    damping: bool = True
+
+    def __post_init__(self) -> None:
+        nq, nv = int(self.robot.nq), int(self.robot.nv)
+        if nq != nv:
+            raise ParameterError(
+                f"robot {self.robot.name!r} has nq = {nq} != nv = {nv}; only revolute and "
+                "prismatic joints (nq == nv) are supported",
+                name="robot",
+            )
+        for name in ("start", "goal"):
+            state = getattr(self, name)
+            if not isinstance(state, BoundaryState):
+                raise ParameterError(
+                    f"{name} must be a BoundaryState, got {type(state).__name__}", name=name
+                )
+            if state.q.size != nq:
+                raise ParameterError(
+                    f"{name}.q must have shape ({nq},) for robot {self.robot.name!r}, "
+                    f"got {state.q.shape}",
+                    name=name,
+                    value=state.q.shape,
+                )
+        if isinstance(self.n_knots, bool) or not isinstance(self.n_knots, int | np.integer):
+            raise ParameterError(f"n_knots must be an int, got {self.n_knots!r}", name="n_knots")
+        if self.n_knots < 2:
+            raise ParameterError(
+                f"n_knots must be >= 2, got {self.n_knots}", name="n_knots", value=self.n_knots
+            )
+        object.__setattr__(self, "n_knots", int(self.n_knots))
+        if not isinstance(self.objective, Objective):
+            raise ParameterError("objective must be an Objective", name="objective")
+        if self.duration is not None:
+            if not math.isfinite(self.duration) or self.duration <= 0.0:
+                raise ParameterError(
+                    f"duration must be finite and > 0 [s] or None (free), got {self.duration!r}",
+                    name="duration",
+                    value=self.duration,
+                )
+            object.__setattr__(self, "duration", float(self.duration))
+        families = tuple(self.scaled_bounds)
+        bad = [f for f in families if f not in _FAMILIES]
+        if bad:
+            raise ParameterError(
+                f"scaled_bounds entries must be among {_FAMILIES}, got {bad}", name="scaled_bounds"
+            )
+        object.__setattr__(self, "scaled_bounds", families)
+        if not (0.0 < self.dt_min < self.dt_max) or math.isnan(self.dt_max):
+            raise ParameterError(
+                f"need 0 < dt_min < dt_max [s], got dt_min={self.dt_min}, dt_max={self.dt_max}",
+                name="dt_min",
+            )
+        self.check_boundary(1.0)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def nv(self) -> int:
+        """Number of joint velocities (= joint positions) of the robot."""
+        return int(self.robot.nv)
+
+    # ----------------------------------------------------------------- bounds
+    def bounds(self, bound_scale: float = 1.0) -> JointBounds:
+        """Joint bounds scaled by ``bound_scale`` (see the module docstring).
+
+        Parameters
+        ----------
+        bound_scale : float
+            Factor > 0 applied to each family in :attr:`scaled_bounds`; 1.0 is
+            the data sheet.
+
+        Returns
+        -------
+        JointBounds
+            Position [rad], velocity [rad/s] and torque [N m] bounds.
+        """
+        s = check_bound_scale(bound_scale)
+        r = self.robot
+
+        def fam(name: str) -> float:
+            return s if name in self.scaled_bounds else 1.0
+
+        vmax = fam("velocity") * np.asarray(r.velocity_limit, dtype=float)
+        tmax = fam("torque") * np.asarray(r.effort_limit, dtype=float)
+        return JointBounds(
+            q_lower=fam("position") * np.asarray(r.q_lower, dtype=float),
+            q_upper=fam("position") * np.asarray(r.q_upper, dtype=float),
+            v_lower=-vmax,
+            v_upper=vmax,
+            tau_lower=-tmax,
+            tau_upper=tmax,
+        )
+
+    def check_boundary(
+        self,
+        bound_scale: float = 1.0,
+        start: BoundaryState | None = None,
+        goal: BoundaryState | None = None,
+    ) -> None:
+        """Check that start and goal states lie inside the scaled bounds.
+
+        Raises
+        ------
+        ParameterError
+            Naming the state, joint, value and limit that is violated.
+        """
+        b = self.bounds(bound_scale)
+        for name, state in (("start", start or self.start), ("goal", goal or self.goal)):
+            if state.q.size != self.nv:
+                raise ParameterError(
+                    f"{name}.q must have shape ({self.nv},), got {state.q.shape}", name=name
+                )
+            for what, x, lo, hi, unit in (
+                ("q", state.q, b.q_lower, b.q_upper, "rad"),
+                ("v", state.velocity, b.v_lower, b.v_upper, "rad/s"),
+            ):
+                bad = np.flatnonzero((x < lo) | (x > hi))
+                if bad.size:
+                    j = int(bad[0])
+                    raise ParameterError(
+                        f"{name}.{what}[{j}] = {x[j]:.6g} {unit} is outside the bounds "
+                        f"[{lo[j]:.6g}, {hi[j]:.6g}] {unit} at bound_scale = {bound_scale:g}",
+                        name=f"{name}.{what}",
+                        value=float(x[j]),
+                    )
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description (robot name and URDF path, boundary, sizes)."""
+        urdf = getattr(self.robot, "urdf_path", None)
+        return {
+            "robot": str(self.robot.name),
+            "urdf_path": None if urdf is None else str(urdf),
+            "nq": int(self.robot.nq),
+            "nv": self.nv,
+            "start_q": self.start.q.tolist(),
+            "start_v": self.start.velocity.tolist(),
+            "goal_q": self.goal.q.tolist(),
+            "goal_v": self.goal.velocity.tolist(),
+            "n_knots": self.n_knots,
+            "beta": self.objective.beta,
+            "duration": self.duration,
+            "scaled_bounds": list(self.scaled_bounds),
+            "dt_min": self.dt_min,
+            "dt_max": None if math.isinf(self.dt_max) else self.dt_max,
+            "damping": self.damping,
+            "model_damping": np.asarray(self.robot.damping, dtype=float).tolist(),
+        }
+
+
+def study1_problem(
+    n_knots: int = 50,
+    *,
+    robot: RobotModel | None = None,
+    beta: float = 0.5,
+    damping: float | None = None,
+    **kwargs: Any,
+) -> TrajOptProblem:
+    """Return the study-1 problem: youBot from (-pi/6, -pi/6, -pi/3) to (pi/6, pi/6, pi/3) at rest.
+
+    Parameters
+    ----------
+    n_knots : int
+        Number of knots (the study: 50).
+    robot : RobotModel, optional
+        The planar youBot; loaded with :func:`youbot_opt.robot.model.load_model` when omitted.
+    beta : float
+        Default time weight in [0, 1] (the base case: 0.5).
+    damping : float, optional
+        Joint damping in [N m s/rad] for the loaded youBot (the study's code
+        used 0.1; the paper and the default model have none). Ignored when
+        ``robot`` is given.
+    **kwargs
+        Further :class:`TrajOptProblem` fields (``duration``, ``scaled_bounds``, ...).
+
+    Returns
+    -------
+    TrajOptProblem
+        The problem, with both boundary velocities zero.
+    """
+    from youbot_opt.robot.params import STUDY_Q_GOAL, STUDY_Q_START
+
+    if robot is None:
+        from youbot_opt.robot.model import load_model
+
+        robot = load_model("youbot", damping=damping)
+    return TrajOptProblem(
+        robot=robot,
+        start=BoundaryState(q=np.array(STUDY_Q_START)),
+        goal=BoundaryState(q=np.array(STUDY_Q_GOAL)),
+        n_knots=n_knots,
+        objective=Objective(beta=beta),
+        **kwargs,
+    )

@@ -1,0 +1,492 @@
+"""Forward simulation of a planned trajectory with Pinocchio's numeric ABA.
+
+The code path :mod:`youbot_opt.trajopt.certify` checks plans with, independent of the
+collocation equations: ``pin.aba`` for the accelerations, SciPy's adaptive
+``solve_ivp`` (DOP853) for the integration. ``pin.aba`` ignores
+``model.damping``, so the damping ``b`` [N m s/rad] is applied as a torque,
+``a = ABA(q, v, tau - b * v)``, the model of the transcriptions.
+
+Two simulations of the whole motion are provided (the one-interval *local*
+check, :func:`youbot_opt.trajopt.certify.integrate_intervals`, shares the helpers):
+
+* :func:`simulate` with ``gains=None``: the open-loop simulation of the whole
+  motion from the first knot. The arm is open-loop unstable about most
+  motions, so this drifts from any plan, valid or not; it is reported but is
+  not a test of validity. ``stop_deviation`` ends it once the arm is that far
+  from the plan (further figures would measure chaos, not the plan).
+* :func:`simulate` with :class:`PDGains`: the arm follows the plan with a PD
+  feedback torque added to the planned torque,
+  ``tau = tau_plan(t) + Kp (q_plan(t) - q) + Kd (v_plan(t) - v)``, with gain
+  matrices scaled by the joint-space inertia (see :class:`PDGains`). A plan
+  the arm can follow needs little feedback.
+
+Inside an interval, every interpolant of :class:`~youbot_opt.trajopt.trajectory.Trajectory`
+is a polynomial of degree <= 3 in time. Calling the trajectory at every
+right-hand-side evaluation would dominate the cost, so each interval's
+polynomials are recovered once from four samples of the trajectory's own
+interpolants and checked at two more points (an interpolant of higher
+degree is refused with :class:`~youbot_opt.exceptions.ParameterError`). The
+feedback law is folded into these polynomials too, so a right-hand side costs
+one small matrix product and one ``pin.aba`` call.
+
+Only robots with ``nq == nv`` (revolute and prismatic joints) are supported.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+import pinocchio as pin
+from scipy.integrate import solve_ivp
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.trajectory import Trajectory
+
+__all__ = [
+    "RobotView",
+    "PDGains",
+    "Simulation",
+    "simulate",
+    "robot_view",
+    "sample_times",
+]
+
+_LOG = logging.getLogger(__name__)
+
+DEFAULT_RTOL = 1e-10
+"""Default relative tolerance of the integrator (DOP853)."""
+DEFAULT_ATOL = 1e-12
+"""Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
+
+
+class RobotView(NamedTuple):
+    """What the simulations need from a robot, with the limits in SI units.
+
+    Attributes
+    ----------
+    name : str
+        Robot name (the model's name for a bare ``pin.Model``).
+    model : pinocchio.Model
+        The kinematic and inertial model.
+    damping : ndarray, shape (nv,)
+        Viscous joint damping in [N m s/rad].
+    q_lower, q_upper : ndarray, shape (nq,)
+        Position limits in [rad].
+    velocity_limit : ndarray, shape (nv,)
+        Speed limits in [rad/s] (symmetric).
+    effort_limit : ndarray, shape (nv,)
+        Torque limits in [N m] (symmetric).
+    """
+
+    name: str
+    model: Any
+    damping: Array
+    q_lower: Array
+    q_upper: Array
+    velocity_limit: Array
+    effort_limit: Array
+
+
+def robot_view(robot: Any) -> RobotView:
+    """Collect the model, damping and limits of a robot in one view.
+
+    Parameters
+    ----------
+    robot : RobotModel, pinocchio.Model or RobotView
+        A :class:`youbot_opt.robot.model.RobotModel` (anything with ``.model`` holding a
+        ``pin.Model`` and the SI limit properties), a bare ``pin.Model``, whose
+        ``damping``, ``lowerPositionLimit``, ``upperPositionLimit``,
+        ``velocityLimit`` and ``effortLimit`` are used, or a view (returned as is).
+
+    Returns
+    -------
+    RobotView
+        The model with float copies of its damping [N m s/rad] and limits.
+
+    Raises
+    ------
+    ParameterError
+        If ``robot`` is neither, or if ``nq != nv``.
+    """
+    if isinstance(robot, RobotView):
+        view = robot
+    else:
+        bare = isinstance(robot, pin.Model)
+        model = robot if bare else getattr(robot, "model", None)
+        if not isinstance(model, pin.Model):
+            raise ParameterError(
+                f"robot must be a RobotModel (with a pin.Model in .model) or a pin.Model, "
+                f"got {type(robot).__name__}",
+                name="robot",
+                value=type(robot).__name__,
+            )
+        src = model if bare else robot
+        names = ("q_lower", "q_upper", "velocity_limit", "effort_limit")
+        pin_names = ("lowerPositionLimit", "upperPositionLimit", "velocityLimit", "effortLimit")
+        damping = getattr(src, "damping", None)
+        view = RobotView(
+            name=str(model.name if bare else getattr(robot, "name", model.name)),
+            model=model,
+            damping=np.array(model.damping if damping is None else damping, dtype=float),
+            **{
+                name: np.array(getattr(src, pin_name if bare else name), dtype=float)
+                for name, pin_name in zip(names, pin_names, strict=True)
+            },
+        )
+    model = view.model
+    if model.nq != model.nv:
+        raise ParameterError(
+            f"robot {view.name!r} has nq = {model.nq} != nv = {model.nv}; forward "
+            "simulation supports revolute and prismatic joints only",
+            name="robot",
+            value=(model.nq, model.nv),
+        )
+    return view
+
+
+def _check_dimensions(trajectory: Trajectory, view: RobotView) -> None:
+    nq, nv = view.model.nq, view.model.nv
+    if trajectory.q.shape[1] != nq or trajectory.v.shape[1] != nv:
+        raise ParameterError(
+            f"trajectory has nq = {trajectory.q.shape[1]}, nv = {trajectory.v.shape[1]} but "
+            f"robot {view.name!r} has nq = {nq}, nv = {nv}",
+            name="trajectory",
+            value=trajectory.q.shape,
+        )
+
+
+def _damped_aba(view: RobotView) -> Any:
+    """``(q, v, tau) -> ABA(q, v, tau - b * v)`` for one state."""
+    model, data, damping = view.model, view.model.createData(), view.damping
+
+    def fd(q: Array, v: Array, tau: Array) -> Array:
+        return np.asarray(pin.aba(model, data, q, v, tau - damping * v))
+
+    return fd
+
+
+def _batched_aba(view: RobotView) -> Any:
+    """``(q, v, tau) -> ABA(q, v, tau - b * v)`` for knot-major stacks of shape (n, nv)."""
+    damping = view.damping
+    if hasattr(pin, "abaInParallel"):
+        pool = pin.ModelPool(view.model, 1)
+
+        def batch(q: Array, v: Array, tau: Array) -> Array:
+            # Pinocchio's batched ABA takes column-major (nv, n) stacks.
+            out = pin.abaInParallel(1, pool, q.T, v.T, (tau - damping * v).T)
+            return np.asarray(out).reshape(q.shape[1], q.shape[0]).T  # 1-D when nv == 1
+
+        return batch
+    single = _damped_aba(view)
+    return lambda q, v, tau: np.array([single(*row) for row in zip(q, v, tau, strict=True)])
+
+
+# Chebyshev–Lobatto nodes of degree 3 on [0, 1], and two check points.
+_NODES = 0.5 * (1.0 - np.cos(np.pi * np.arange(4) / 3.0))
+_CHECK = np.array([0.1, 0.6])
+_FIT_RTOL = 1e-9
+
+
+def _powers(s: float) -> Array:
+    return np.array([1.0, s, s * s, s * s * s])
+
+
+class _IntervalPolynomials:
+    """The plan's interpolants (q, v, tau) as cubic polynomials per interval.
+
+    ``coef[k]`` has shape (4, nq + 2 nv): the coefficients of 1, s, s^2, s^3 of
+    ``[q, v, tau]`` in the local normalised time ``s = (t - t[k]) / h[k]``.
+    """
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        self.t0 = trajectory.t[:-1]
+        self.h = np.diff(trajectory.t)
+        self.nq = trajectory.q.shape[1]
+        self.nv = trajectory.v.shape[1]
+        inv_vander = np.linalg.inv(np.vander(_NODES, 4, increasing=True))
+        samples = self._sample(trajectory, _NODES)
+        self.coef = np.einsum("ij,njc->nic", inv_vander, samples)
+        check = self._sample(trajectory, _CHECK)
+        fitted = np.stack([self.at(s) for s in _CHECK], axis=1)
+        scale = 1.0 + np.max(np.abs(samples), axis=1, keepdims=True)
+        if not np.all(np.abs(fitted - check) <= _FIT_RTOL * scale):
+            raise ParameterError(
+                f"the {trajectory.interpolation!r} interpolant is not a cubic polynomial in "
+                "each interval; the simulation supports polynomial interpolants of degree <= 3",
+                name="trajectory",
+                value=trajectory.interpolation,
+            )
+
+    def _sample(self, trajectory: Trajectory, nodes: Array) -> Array:
+        times = (self.t0[:, None] + nodes[None, :] * self.h[:, None]).ravel()
+        vals = np.hstack([trajectory(times), trajectory.velocity(times), trajectory.torque(times)])
+        return vals.reshape(self.h.size, nodes.size, -1)
+
+    def at(self, s: float) -> Array:
+        """``[q, v, tau]`` of every interval at local time ``s``, shape (n, nq + 2 nv)."""
+        return np.tensordot(_powers(s), self.coef, axes=(0, 1))
+
+    def torques(self, s: float) -> Array:
+        """Torques in [N m] of every interval at local time ``s``, shape (n, nv)."""
+        return self.at(s)[:, self.nq + self.nv :]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PDGains:
+    """PD tracking gains scaled by the joint-space inertia along the plan.
+
+    In interval ``k`` the gain matrices are ``Kp = bandwidth**2 * M(qm)`` and
+    ``Kd = 2 * damping_ratio * bandwidth * M(qm)``, with ``M(qm)`` the mass matrix
+    (CRBA) at the plan's configuration in the middle of the interval, held
+    constant over the interval. Then ``M^-1 Kp`` and ``M^-1 Kd`` are close to
+    scalar, so the tracking error obeys approximately
+    ``e'' + 2 zeta w e' + w**2 e = M^-1 * (torque the plan leaves unexplained)``
+    on every joint alike. The controller is not computed-torque: no Coriolis,
+    gravity or damping torque is added, so the feedback torque measures what the
+    plan's own torque leaves unexplained. (Diagonal gains from the diagonal of M
+    would be far stiffer than intended on the distal joints, whose effective
+    inertia ``1 / (M^-1)_ii`` is much smaller than ``M_ii``: closed-loop poles
+    near -1500 1/s for the youBot at 20 rad/s.)
+
+    Attributes
+    ----------
+    bandwidth : float
+        Closed-loop natural frequency ``w`` in [rad/s]. The default 20 rad/s is
+        about three times the open-loop divergence rate of the youBot arm
+        standing up (``sqrt(g / l)`` with ``l`` about 0.25 m).
+    damping_ratio : float
+        Damping ratio ``zeta`` of the closed loop (dimensionless), 1 = critical.
+    """
+
+    bandwidth: float = 20.0
+    damping_ratio: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("bandwidth", "damping_ratio"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and np.isfinite(value) and value > 0.0):
+                raise ParameterError(
+                    f"{name} must be a positive finite number, got {value!r}",
+                    name=name,
+                    value=value,
+                )
+
+    def matrices(self, robot: Any, q: Array) -> tuple[Array, Array]:
+        """Gain matrices at configurations ``q``.
+
+        Parameters
+        ----------
+        robot : RobotModel, pinocchio.Model or RobotView
+            The robot (see :func:`robot_view`).
+        q : ndarray, shape (M, nq)
+            Configurations in [rad].
+
+        Returns
+        -------
+        kp : ndarray, shape (M, nv, nv)
+            Position gains in [N m/rad].
+        kd : ndarray, shape (M, nv, nv)
+            Velocity gains in [N m s/rad].
+        """
+        view = robot_view(robot)
+        data = view.model.createData()
+        qs = np.atleast_2d(np.asarray(q, dtype=float))
+        mass = np.array([pin.crba(view.model, data, qk) for qk in qs])
+        # crba fills the upper triangle only.
+        mass = np.triu(mass) + np.swapaxes(np.triu(mass, 1), 1, 2)
+        w = self.bandwidth
+        return w**2 * mass, 2.0 * self.damping_ratio * w * mass
+
+
+class Simulation(NamedTuple):
+    """A simulated motion sampled on a time grid.
+
+    Attributes
+    ----------
+    t : ndarray, shape (M,)
+        Sample times in [s] (the knots and ``samples_per_interval - 1`` points
+        between consecutive knots, see :func:`sample_times`).
+    q : ndarray, shape (M, nq)
+        Simulated positions in [rad]; NaN after a stop.
+    v : ndarray, shape (M, nv)
+        Simulated velocities in [rad/s]; NaN after a stop.
+    tau_plan : ndarray, shape (M, nv)
+        The plan's torque interpolant in [N m].
+    tau_feedback : ndarray, shape (M, nv)
+        Feedback torque in [N m] (zero for an open-loop simulation).
+    stop_time : float or None
+        Time in [s] at which the simulation stopped early (``stop_deviation``
+        reached or integrator failure), ``None`` if it reached the end.
+    message : str
+        Why it stopped early ("" if it did not).
+    """
+
+    t: Array
+    q: Array
+    v: Array
+    tau_plan: Array
+    tau_feedback: Array
+    stop_time: float | None
+    message: str
+
+
+def sample_times(t: Array, samples_per_interval: int) -> Array:
+    """Knots plus ``samples_per_interval - 1`` equally spaced times inside each interval.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Knot times in [s].
+    samples_per_interval : int
+        Number of sub-intervals per knot interval (>= 1).
+
+    Returns
+    -------
+    ndarray, shape ((N - 1) * samples_per_interval + 1,)
+        Sample times in [s]; sample ``k * samples_per_interval`` is knot ``k``.
+
+    Raises
+    ------
+    ParameterError
+        If ``samples_per_interval`` is not an integer >= 1.
+    """
+    if int(samples_per_interval) != samples_per_interval or samples_per_interval < 1:
+        raise ParameterError(
+            f"samples_per_interval must be an integer >= 1, got {samples_per_interval!r}",
+            name="samples_per_interval",
+            value=samples_per_interval,
+        )
+    m = int(samples_per_interval)
+    t = np.asarray(t, dtype=float)
+    frac = np.arange(m) / m
+    inner = (t[:-1, None] + frac[None, :] * np.diff(t)[:, None]).ravel()
+    return np.append(inner, t[-1])
+
+
+def simulate(
+    trajectory: Trajectory,
+    robot: Any,
+    *,
+    gains: PDGains | None = None,
+    samples_per_interval: int = 20,
+    stop_deviation: float | None = None,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+    method: str = "DOP853",
+) -> Simulation:
+    """Simulate the whole motion from the first knot, open loop or with PD tracking.
+
+    The torque applied is ``trajectory.torque(t)`` plus, when ``gains`` is given,
+    ``Kp (trajectory(t) - q) + Kd (trajectory.velocity(t) - v)`` (see
+    :class:`PDGains`). The integration restarts at every knot (the interpolants
+    have kinks there), the state being carried over.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The plan, with N knots.
+    robot : RobotModel, pinocchio.Model or RobotView
+        The robot (see :func:`robot_view`).
+    gains : PDGains, optional
+        Feedback gains; ``None`` simulates open loop.
+    samples_per_interval : int, optional
+        Output samples per knot interval (see :func:`sample_times`).
+    stop_deviation : float, optional
+        Stop once ``max_i |q_i - q_plan_i(t)|`` reaches this value in [rad];
+        ``None`` never stops early.
+    rtol, atol : float, optional
+        Integrator tolerances (``atol`` in [rad] and [rad/s]).
+    method : str, optional
+        ``solve_ivp`` method.
+
+    Returns
+    -------
+    Simulation
+        The simulated states and torques at :func:`sample_times`.
+
+    Raises
+    ------
+    ParameterError
+        If sizes disagree, the robot or interpolant is unsupported, or
+        ``stop_deviation`` is not positive.
+    """
+    view = robot_view(robot)
+    _check_dimensions(trajectory, view)
+    if stop_deviation is not None and not stop_deviation > 0.0:
+        raise ParameterError(
+            f"stop_deviation must be > 0 [rad] or None, got {stop_deviation!r}",
+            name="stop_deviation",
+            value=stop_deviation,
+        )
+    model, data = view.model, view.model.createData()
+    nv = model.nv
+    polys = _IntervalPolynomials(trajectory)
+    m = int(samples_per_interval)
+    times = sample_times(trajectory.t, m)
+    n = trajectory.n_knots - 1
+    if gains is None:
+        kp = kd = np.zeros((n, nv, nv))
+    else:
+        kp, kd = gains.matrices(view, trajectory(polys.t0 + 0.5 * polys.h))
+    gain = np.concatenate([kp, kd], axis=2)  # (n, nv, 2 nv) acting on [q, v]
+    # Net joint torque tau_plan + K (x_plan - x) - b v = (closed-loop cubic in s) - K' x.
+    net_coef = polys.coef[:, :, 2 * nv :] + np.einsum(
+        "kij,ksj->ksi", gain, polys.coef[:, :, : 2 * nv]
+    )
+    gain_state = gain.copy()
+    gain_state[:, :, nv:] += np.diag(view.damping)
+    q_coef = polys.coef[:, :, :nv]
+    states = np.full((times.size, 2 * nv), np.nan)
+    states[0] = np.concatenate([trajectory.q[0], trajectory.v[0]])
+    stop_time: float | None = None
+    message = ""
+
+    for k in range(n):
+        t0, h = polys.t0[k], polys.h[k]
+
+        def rhs(t: float, x: Array, k: int = k, t0: float = t0, h: float = h) -> Array:
+            tau = _powers((t - t0) / h) @ net_coef[k] - gain_state[k] @ x
+            return np.concatenate([x[nv:], pin.aba(model, data, x[:nv], x[nv:], tau)])
+
+        events = None
+        if stop_deviation is not None:
+
+            def deviation(t: float, x: Array, k: int = k, t0: float = t0, h: float = h) -> float:
+                q_plan = _powers((t - t0) / h) @ q_coef[k]
+                return float(np.max(np.abs(x[:nv] - q_plan)) - stop_deviation)
+
+            deviation.terminal = True  # type: ignore[attr-defined]
+            deviation.direction = 1.0  # type: ignore[attr-defined]
+            events = deviation
+        t_eval = times[k * m + 1 : (k + 1) * m + 1]
+        span = (trajectory.t[k], trajectory.t[k + 1])
+        sol = solve_ivp(
+            rhs, span, states[k * m], method=method, rtol=rtol, atol=atol, t_eval=t_eval,
+            events=events,
+        )  # fmt: skip
+        y = np.asarray(sol.y, dtype=float).reshape(2 * nv, -1)  # [] if stopped before t_eval
+        got = y.shape[1]
+        states[k * m + 1 : k * m + 1 + got] = y.T
+        if sol.status == 1:
+            stop_time = float(sol.t_events[0][0])
+            message = f"deviation from the plan reached {stop_deviation:g} rad"
+            break
+        if not sol.success or got != m:
+            stop_time = float(sol.t[-1]) if sol.t.size else float(span[0])
+            message = f"integrator failed in interval {k}: {sol.message}"
+            _LOG.warning("simulation stopped: %s", message)
+            break
+    q, v = states[:, :nv], states[:, nv:]
+    tau_plan = trajectory.torque(times)
+    # Sample j belongs to interval (j - 1) // m (sample 0 to interval 0).
+    interval = np.maximum(np.arange(times.size) - 1, 0) // m
+    error = np.hstack([trajectory(times) - q, trajectory.velocity(times) - v])
+    tau_fb = np.einsum("jab,jb->ja", gain[interval], error)
+    return Simulation(
+        t=times, q=q, v=v, tau_plan=tau_plan, tau_feedback=tau_fb, stop_time=stop_time,
+        message=message,
+    )  # fmt: skip

@@ -1,0 +1,499 @@
+"""Build the trajectory NLP once, solve it many times: :class:`TrajOptSolver`.
+
+``TrajOptSolver(problem, method, options, backend)`` builds the robot's CasADi
+dynamics, transcribes the problem and creates the IPOPT solver once;
+:meth:`TrajOptSolver.solve` then takes the sweep parameters -- the time weight
+``beta`` (an NLP parameter), the bound scale and the boundary states (which
+only change the numeric bounds ``lbx``/``ubx``/``lbg``/``ubg``) -- so sweeps
+never rebuild. :func:`solve` is the one-off wrapper.
+
+With a twice-differentiable dynamics backend, IPOPT gets exact derivatives
+assembled from three per-point dynamics kernels mapped over the knots
+(:mod:`youbot_opt.trajopt.transcription.derivatives`), compiled to C and cached on disk
+when a compiler exists (:mod:`youbot_opt.nlp.codegen`). Measured on the study-1
+base case (``benchmarks/bench_trajopt.py --levers``) this beats CasADi's AD of
+the whole graph, expanded to SX or not, in both build and solve time; at 1600
+knots the build drops from ~11 s to ~1 s. Other backends (Callbacks) get
+CasADi's AD of the transcribed MX graph and a limited-memory Hessian.
+
+Each result is checked independently of IPOPT's flag: the constraints are
+re-evaluated at the returned point and compared with their bounds, the
+decision variables with theirs, and everything must be finite; only then is a
+converged solve reported as a success (:mod:`youbot_opt.trajopt.result`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from types import MappingProxyType
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.guess import resolve_guess
+from youbot_opt.trajopt.objectives import check_beta
+from youbot_opt.trajopt.objectives import work as work_of
+from youbot_opt.nlp.ipopt import IpoptOptions, single_threaded_blas
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.result import (
+    DEFAULT_FEASIBILITY_TOL,
+    BoundStructure,
+    PathBlock,
+    SolveStatus,
+    TrajOptResult,
+    status_from_ipopt,
+)
+from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.trajopt.transcription import Transcription, get_transcription
+from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
+from youbot_opt.trajopt.transcription.derivatives import (
+    compile_kernels,
+    dynamics_kernels,
+    structured_functions,
+)
+
+__all__ = ["TrajOptSolver", "solve", "DEFAULT_FEASIBILITY_TOL"]
+
+_log = logging.getLogger(__name__)
+
+_SECOND_ORDER_BACKENDS = ("symbolic", "pinocchio_casadi")
+
+
+def _boundary(name: str, value: Any, default: BoundaryState) -> BoundaryState:
+    if value is None:
+        return default
+    if isinstance(value, BoundaryState):
+        return value
+    if isinstance(value, tuple) and len(value) == 2:
+        return BoundaryState(q=value[0], v=value[1])
+    try:
+        return BoundaryState(q=value)
+    except ParameterError as exc:
+        raise ParameterError(
+            f"{name} must be a BoundaryState, a (q, v) pair or a q vector: {exc}", name=name
+        ) from exc
+
+
+class TrajOptSolver:
+    """A transcribed trajectory problem with its IPOPT solver, built once.
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        The problem spec.
+    method : str or Transcription
+        ``"trapezoidal"`` (default, the study's), ``"hermite_simpson"`` or an instance.
+    options : IpoptOptions, optional
+        IPOPT settings; silent defaults when omitted.
+    backend : str
+        Dynamics backend of :func:`youbot_opt.dynamics.build_dynamics`:
+        ``"symbolic"`` (default; exact Hessian, expanded to SX) or ``"pinocchio"``
+        (Callback, limited-memory Hessian).
+    dynamics : Dynamics, optional
+        A prebuilt dynamics object (must match ``problem.robot``); overrides ``backend``.
+    feasibility_tol : float
+        Largest violation (unit of each row) a successful result may have;
+        also stored in every result (``TrajOptResult.feasibility_tol``), so
+        :func:`youbot_opt.trajopt.result.check_result` applies the same one.
+    compile : bool
+        Compile the per-point dynamics kernels (value, Jacobian, weighted
+        Hessian) to C with the system compiler, cached on disk
+        (:mod:`youbot_opt.nlp.codegen`; about 2 s once per robot, then ~5 ms to
+        load). Without a compiler CasADi's virtual machine runs them (same
+        results, ~2x slower solves). Only used by the second-order backends.
+
+    Attributes
+    ----------
+    nlp : TranscribedNLP
+        The symbolic NLP (inspect it before solving).
+    build_time : float
+        Wall time in [s] spent building dynamics, NLP and solver.
+    compiled : bool
+        Whether the solver runs compiled dynamics kernels.
+    """
+
+    def __init__(
+        self,
+        problem: TrajOptProblem,
+        method: str | Transcription = "trapezoidal",
+        options: IpoptOptions | None = None,
+        backend: str = "symbolic",
+        *,
+        dynamics: Any = None,
+        feasibility_tol: float = DEFAULT_FEASIBILITY_TOL,
+        compile: bool = True,
+    ) -> None:
+        if not isinstance(problem, TrajOptProblem):
+            raise ParameterError(
+                f"problem must be a TrajOptProblem, got {type(problem).__name__}", name="problem"
+            )
+        if not feasibility_tol > 0:
+            raise ParameterError(
+                f"feasibility_tol must be > 0, got {feasibility_tol!r}", name="feasibility_tol"
+            )
+        tic = time.perf_counter()
+        self.problem = problem
+        self.method = get_transcription(method)
+        self.options = options if options is not None else IpoptOptions()
+        if not isinstance(self.options, IpoptOptions):
+            raise ParameterError("options must be an IpoptOptions", name="options")
+        if dynamics is None:
+            from youbot_opt.dynamics import build_dynamics
+
+            dynamics = build_dynamics(problem.robot, backend, damping=problem.damping)
+        self.dynamics = dynamics
+        self.backend = str(dynamics.backend)
+        self.feasibility_tol = float(feasibility_tol)
+        self.nlp: TranscribedNLP = self.method.build(problem, dynamics.forward_dynamics)
+        symbolic = self.backend in _SECOND_ORDER_BACKENDS
+        self._exact_hessian = self.options.exact_hessian(symbolic)
+        self.compiled = False
+        self._derivatives: dict[str, ca.Function] = {}
+        if symbolic:
+            # Structured exact derivatives from per-point kernels (compiled to C when
+            # possible): O(1) symbolic work on the dynamics, however many knots.
+            kernels = dynamics_kernels(dynamics.forward_dynamics)
+            fast = compile_kernels(kernels) if compile else kernels
+            self.compiled = fast is not kernels
+            fns = structured_functions(self.method, problem, fast, values=kernels)
+            self._nlp_function = fns.nlp
+            self._derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g}
+            if self._exact_hessian:
+                self._derivatives["hess_lag"] = fns.hess_lag
+        else:
+            self._nlp_function = ca.Function(
+                "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
+            )
+        opts = self.options.to_casadi(self._exact_hessian)
+        # keeps the best iterate, returned when a solve fails (youbot_opt.nlp.best_iterate)
+        self._recorder = BestIterateRecorder(
+            "trajopt_iterates", self.nlp.n_variables, self.nlp.n_constraints, self.nlp.p.numel()
+        )
+        opts["iteration_callback"] = self._recorder
+        single_threaded_blas()
+        self._solver = ca.nlpsol(
+            "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
+        )
+        self._warm_solver: Any = None
+        self.build_time = time.perf_counter() - tic
+        _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
+
+    # ----------------------------------------------------------------- solve
+    def solve(
+        self,
+        beta: float | None = None,
+        bound_scale: float = 1.0,
+        guess: Any = None,
+        start: Any = None,
+        goal: Any = None,
+        *,
+        seed: int | None = None,
+        warm_start: bool = True,
+    ) -> TrajOptResult:
+        """Solve with the given sweep parameters (no rebuild).
+
+        Parameters
+        ----------
+        beta : float, optional
+            Time weight in [0, 1]; the problem's objective default when omitted.
+        bound_scale : float
+            Factor > 0 on the bound families of ``problem.scaled_bounds`` (1.0 = data sheet).
+        guess : None, Trajectory or TrajOptResult
+            Initial guess (straight line when ``None``); resampled to the knots.
+        start, goal : BoundaryState, (q, v) pair or q vector, optional
+            Override the problem's boundary states.
+        seed : int, optional
+            Seed that produced ``guess`` (recorded in the result only).
+        warm_start : bool
+            When ``guess`` is a result of the same transcription and size, start
+            IPOPT from its primal *and* dual solution (``warm_start_init_point``,
+            small initial barrier parameter): a neighbouring sweep point then
+            converges in a few iterations. ``False`` uses only its trajectory.
+
+        Returns
+        -------
+        TrajOptResult
+            The solution or, on failure, the last iterate with a failure status.
+
+        Raises
+        ------
+        ParameterError
+            On a bad ``beta``, ``bound_scale``, boundary state or guess.
+        """
+        problem = self.problem
+        beta = problem.objective.beta if beta is None else check_beta(beta)
+        bound_scale = check_bound_scale(bound_scale)
+        start_state = _boundary("start", start, problem.start)
+        goal_state = _boundary("goal", goal, problem.goal)
+        problem.check_boundary(bound_scale, start_state, goal_state)
+        guess_traj = resolve_guess(problem, guess, start=start_state, goal=goal_state)
+        nlp = self.nlp
+        dt_range = self._dt_range()
+        warm = self._warm_start_point(guess) if warm_start else None
+        if warm is not None:
+            x0, lam_x0, lam_g0 = warm
+            solver = self._warm()
+        else:
+            values = self.method.knot_guess(guess_traj, problem.n_knots)
+            if problem.duration is not None:
+                values["dt"] = np.array(dt_range[0])
+            x0 = nlp.variables.pack(values)
+            lam_x0, lam_g0 = np.zeros(nlp.n_variables), np.zeros(nlp.n_constraints)
+            solver = self._solver
+        if not np.all(np.isfinite(x0)):
+            raise ParameterError("the initial guess is not finite", name="guess")
+        joint_bounds = problem.bounds(bound_scale)
+        lbx, ubx = nlp.variable_bounds(joint_bounds, dt_range)
+        lbg, ubg = nlp.constraint_bounds(start_state, goal_state, joint_bounds)
+
+        self._recorder.reset((lbx, ubx, lbg, ubg), self.feasibility_tol)
+        wall, cpu = time.perf_counter(), time.process_time()
+        error = ""
+        try:
+            sol = solver(
+                x0=x0, p=beta, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg, lam_x0=lam_x0, lam_g0=lam_g0
+            )
+            x = np.asarray(sol["x"], dtype=float).ravel()
+            lam_x = np.asarray(sol["lam_x"], dtype=float).ravel()
+            lam_g = np.asarray(sol["lam_g"], dtype=float).ravel()
+        except RuntimeError as exc:  # evaluation errors inside CasADi/IPOPT
+            error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+            x, lam_x, lam_g = (
+                x0.copy(),
+                np.full_like(x0, np.nan),
+                np.full(nlp.n_constraints, np.nan),
+            )
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        stats = solver.stats()
+        note = ""
+        if error or not status_from_ipopt(str(stats.get("return_status", ""))).success:
+            x, lam_x, lam_g, note = self._best_iterate(x, lam_x, lam_g, beta, (lbx, ubx, lbg, ubg))
+        return self._result(
+            x, lam_x, lam_g, stats, error, note,
+            beta=beta, bound_scale=bound_scale, start=start_state, goal=goal_state,
+            bounds=(lbx, ubx, lbg, ubg), guess=guess_traj, wall=wall, cpu=cpu, seed=seed,
+        )  # fmt: skip
+
+    # --------------------------------------------------------------- helpers
+    def _best_iterate(
+        self,
+        x: Array,
+        lam_x: Array,
+        lam_g: Array,
+        beta: float,
+        bounds: tuple[Array, Array, Array, Array],
+    ) -> tuple[Array, Array, Array, str]:
+        """After a failed solve: the best recorded iterate if it beats the returned one."""
+        best, count = self._recorder.best, self._recorder.count
+        if best is None:
+            return x, lam_x, lam_g, ""
+        final = None
+        if np.all(np.isfinite(x)):
+            f_dm, g_dm = self._nlp_function(x, beta)
+            g = np.asarray(g_dm, dtype=float).ravel()
+            if np.all(np.isfinite(g)) and np.isfinite(float(f_dm)):
+                final = Iterate(x, lam_x, lam_g, float(f_dm), violation_of(x, g, bounds), -1)
+        if final is not None and not better(best, final, self.feasibility_tol):
+            return x, lam_x, lam_g, ""
+        last = (
+            f"violation {final.violation:.3g}, objective {final.objective:.6g}"
+            if final is not None
+            else "not finite"
+        )
+        note = (
+            f"returned the best iterate, {best.iteration} of {count - 1} (violation "
+            f"{best.violation:.3g}, objective {best.objective:.6g}), not the last ({last})"
+        )
+        return best.x.copy(), best.lam_x.copy(), best.lam_g.copy(), note
+
+    def _warm(self) -> Any:
+        """Return the warm-start IPOPT instance (built once, sharing the derivative Functions)."""
+        if self._warm_solver is None:
+            opts = self.options.to_casadi(self._exact_hessian, warm_start=True)
+            opts["iteration_callback"] = self._recorder
+            if self._derivatives:
+                opts.update(self._derivatives)
+            else:
+                for option, name in (("grad_f", "nlp_grad_f"), ("jac_g", "nlp_jac_g")):
+                    opts[option] = self._solver.get_function(name)
+                if self._exact_hessian:
+                    opts["hess_lag"] = self._solver.get_function("nlp_hess_l")
+            self._warm_solver = ca.nlpsol("trajopt_warm", "ipopt", self._nlp_function, opts)
+        return self._warm_solver
+
+    def _warm_start_point(self, guess: Any) -> tuple[Array, Array, Array] | None:
+        """Primal-dual start ``(x0, lam_x0, lam_g0)`` from a compatible previous result."""
+        if not isinstance(guess, TrajOptResult) or guess.method != self.method.name:
+            return None
+        nlp = self.nlp
+        try:
+            x0 = nlp.variables.pack(dict(guess.variables))
+            lam_x0 = nlp.variables.pack(
+                {
+                    name: guess.multipliers[f"{BOUND_NAMES[name]}_lower"]
+                    + guess.multipliers[f"{BOUND_NAMES[name]}_upper"]
+                    for name in nlp.variables.blocks
+                }
+            )
+            lam_g0 = nlp.constraints.pack({k: guess.multipliers[k] for k in nlp.constraints.blocks})
+        except (KeyError, ValueError):  # other size, or no multipliers (failed solve)
+            return None
+        if self.problem.duration is not None:
+            x0[nlp.variables["dt"].offset] = self._dt_range()[0]
+        finite = np.all(np.isfinite(x0)) and np.all(np.isfinite(lam_x0))
+        return (x0, lam_x0, lam_g0) if finite and np.all(np.isfinite(lam_g0)) else None
+
+    def _dt_range(self) -> tuple[float, float]:
+        p = self.problem
+        if p.duration is not None:
+            dt = p.duration / (p.n_knots - 1)
+            return dt, dt
+        return p.dt_min, p.dt_max
+
+    def _result(
+        self,
+        x: Array,
+        lam_x: Array,
+        lam_g: Array,
+        stats: dict[str, Any],
+        error: str,
+        note: str = "",
+        *,
+        beta: float,
+        bound_scale: float,
+        start: BoundaryState,
+        goal: BoundaryState,
+        bounds: tuple[Array, Array, Array, Array],
+        guess: Trajectory,
+        wall: float,
+        cpu: float,
+        seed: int | None,
+    ) -> TrajOptResult:
+        nlp, problem = self.nlp, self.problem
+        lbx, ubx, lbg, ubg = bounds
+        solver_status = str(stats.get("return_status", "unknown")) if not error else "error"
+        status = status_from_ipopt(solver_status)
+        message = solver_status if not error else f"solver error: {error}"
+        if note:
+            message = f"{message}; {note}"
+        variables = nlp.variables.unpack(x)
+        dt = float(variables["dt"][0, 0])
+
+        finite = bool(np.all(np.isfinite(x)))
+        g = np.full(nlp.n_constraints, np.nan)
+        a = np.full((problem.n_knots, problem.nv), np.nan)
+        if finite:
+            _, g_dm = self._nlp_function(x, beta)
+            g = np.asarray(g_dm, dtype=float).ravel()
+            fd = self.dynamics.forward_dynamics.map(problem.n_knots)
+            a = np.asarray(fd(variables["q"].T, variables["v"].T, variables["tau"].T)).T
+        total_time = (problem.n_knots - 1) * dt
+        work = work_of(dt, variables["tau"], variables.get("tau_mid"), nlp.rule)
+        objective = beta * total_time + (1.0 - beta) * work
+        violation = max(
+            float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0)),
+            float(np.max(np.maximum(lbx - x, x - ubx), initial=0.0)),
+        )
+        all_finite = finite and bool(np.all(np.isfinite(g)) and np.all(np.isfinite(a)))
+        all_finite = all_finite and np.isfinite(objective)
+        if not all_finite:
+            status = SolveStatus.NON_FINITE
+            message = f"{message}; non-finite values in the solution, constraints or dynamics"
+            violation = float("inf")
+        elif status.success and not violation <= self.feasibility_tol:
+            status = SolveStatus.CONSTRAINT_VIOLATION
+            message = (
+                f"{message}, but the solution violates a constraint or bound by "
+                f"{violation:.3g} > feasibility_tol = {self.feasibility_tol:.3g}"
+            )
+        elif status.success and dt <= 0.0:
+            status = SolveStatus.CONSTRAINT_VIOLATION
+            message = f"{message}, but the time step dt = {dt:.3g} s is not positive"
+
+        trajectory = None
+        if all_finite and dt > 0.0:
+            trajectory = self.method.trajectory(variables, a)
+
+        multipliers: dict[str, Array] = {}
+        if np.all(np.isfinite(lam_x)):
+            for name, block in nlp.variables.blocks.items():
+                lam = block.take(lam_x)
+                family = BOUND_NAMES[name]
+                multipliers[f"{family}_lower"] = np.minimum(lam, 0.0)
+                multipliers[f"{family}_upper"] = np.maximum(lam, 0.0)
+        if np.all(np.isfinite(lam_g)):
+            multipliers.update(nlp.constraints.unpack(lam_g))
+        structure = BoundStructure(
+            unbounded=tuple(nlp.unbounded),
+            path=MappingProxyType(
+                {
+                    name: PathBlock(family=family, values=nlp.constraints[name].take(g))
+                    for name, family in nlp.path_bounds.items()
+                }
+            ),
+        )
+        paths = [block.values for block in structure.path.values()]
+        for arr in (*multipliers.values(), *variables.values(), *paths):
+            arr.setflags(write=False)
+        history = np.asarray(stats.get("iterations", {}).get("obj", []), dtype=float)
+        history.setflags(write=False)
+        return TrajOptResult(
+            problem=problem,
+            method=self.method.name,
+            backend=self.backend,
+            status=status,
+            message=message,
+            solver_status=solver_status,
+            trajectory=trajectory,
+            variables=variables,
+            duration=total_time,
+            dt=dt,
+            work=work,
+            objective=objective,
+            beta=beta,
+            bound_scale=bound_scale,
+            start=start,
+            goal=goal,
+            iterations=int(stats.get("iter_count", 0)),
+            wall_time=wall,
+            cpu_time=cpu,
+            objective_history=history,
+            max_violation=violation,
+            multipliers=multipliers,
+            guess=guess,
+            options=self.options,
+            seed=seed,
+            feasibility_tol=self.feasibility_tol,
+            bound_structure=structure,
+        )
+
+
+def solve(
+    problem: TrajOptProblem,
+    *,
+    method: str | Transcription = "trapezoidal",
+    options: IpoptOptions | None = None,
+    backend: str = "symbolic",
+    beta: float | None = None,
+    bound_scale: float = 1.0,
+    guess: Any = None,
+    start: Any = None,
+    goal: Any = None,
+    seed: int | None = None,
+) -> TrajOptResult:
+    """Build a :class:`TrajOptSolver` and solve once (see its parameters).
+
+    Returns
+    -------
+    TrajOptResult
+        The result; check ``result.success`` or call ``result.raise_for_status()``.
+    """
+    solver = TrajOptSolver(problem, method, options, backend)
+    return solver.solve(
+        beta=beta, bound_scale=bound_scale, guess=guess, start=start, goal=goal, seed=seed
+    )

@@ -1,0 +1,334 @@
+"""Random feasible polynomial guesses: the study's initial guesses (spec ``trajopt.md``).
+
+The study started every solve from a random polynomial per joint, "of order 4
+to 6, chosen at random", whose coefficients meet the start and goal positions
+and velocities exactly and keep position and speed inside the (scaled) limits
+at every knot, found as a feasible point of a linear program from a random
+starting vector; the torques come from inverse dynamics of the spline, with
+the initial time step ``dt0 = 0.1`` s at 50 knots. At other knot counts the
+default time step keeps the guess duration at the study's 4.9 s
+(:data:`youbot_opt.trajopt.guess.DEFAULT_GUESS_DURATION`), as
+:func:`youbot_opt.trajopt.sweep.default_dt0` does for multistart, so a coarse
+grid still gets a guess slow enough for the speed limits.
+
+Here "order" is the polynomial's degree ``p``: the four boundary conditions
+fix a cubic completely, so degrees 4 to 6 leave 1 to 3 free coefficients for
+the random draw. Each joint's polynomial is written in the Bernstein basis of
+degree ``p`` over the normalised time ``s = t / T0`` in [0, 1] (``T0 = (N - 1)
+dt``); its coefficients (control points) have the unit of the position, the
+boundary conditions fix the first two and the last two, and the knot limits
+are linear in them.
+
+The linear program, per joint. Variables: the control points ``b`` (p + 1) and
+slacks ``e`` (p + 1). Objective: minimise ``sum(e)`` with ``-e <= b - r <= e``,
+the L1 distance from ``b`` to a random target ``r`` whose control points are
+drawn uniformly between the joint's scaled position limits. Constraints: the
+boundary conditions (equalities) and ``lower <= q(t_k) <= upper``,
+``|v(t_k)| <= v_max`` at every knot. The LP is bounded (its objective is a sum
+of non-negative slacks), so it has an optimum whenever it is feasible,
+whatever the number of knots. A random linear objective ``c . b`` (the
+other reading of "a random starting point") is not used: it is unbounded
+when there are fewer knots than coefficients, and otherwise drives the
+solution to a vertex where many knot limits are active, a guess that rides the
+speed limits; the L1 projection of a random target keeps the target's shape
+wherever it is feasible.
+
+Feasibility does not depend on the random target, only on the degree: when the
+LP of a drawn degree is infeasible, that degree is dropped and another one is
+drawn from the rest (at most ``len(orders)`` tries); if none is feasible,
+:class:`~youbot_opt.exceptions.ParameterError` says why.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from scipy.optimize import linprog
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.simulate import robot_view
+from youbot_opt.trajopt.trajectory import Trajectory
+
+__all__ = ["DEFAULT_DT", "DEFAULT_ORDERS", "random_spline_guess", "bernstein_matrix"]
+
+_LOG = logging.getLogger(__name__)
+
+DEFAULT_DT = 0.1  # [s]
+"""The study's initial time step ``dt0`` in [s]."""
+DEFAULT_ORDERS: tuple[int, ...] = (4, 5, 6)
+"""Polynomial degrees drawn from (the study's "order 4 to 6")."""
+
+_MARGIN = 1e-7
+"""Relative margin (of the limit's half range) kept from the limits at interior knots,
+so that the LP solver's feasibility tolerance (1e-7 absolute in HiGHS) cannot
+push a knot outside them."""
+
+
+def bernstein_matrix(degree: int, s: Array) -> Array:
+    """Bernstein basis polynomials of ``degree`` at normalised times ``s``.
+
+    Parameters
+    ----------
+    degree : int
+        Polynomial degree ``p >= 0``.
+    s : ndarray, shape (M,)
+        Normalised times in [0, 1].
+
+    Returns
+    -------
+    ndarray, shape (M, p + 1)
+        ``B[k, j] = C(p, j) s_k^j (1 - s_k)^(p - j)``.
+    """
+    s = np.asarray(s, dtype=float)[:, None]
+    j = np.arange(degree + 1)[None, :]
+    binom = np.array([math.comb(degree, int(i)) for i in range(degree + 1)], dtype=float)
+    return binom * s**j * (1.0 - s) ** (degree - j)
+
+
+def _difference(degree: int) -> Array:
+    """Forward-difference matrix D (p x (p + 1)): (D b)_j = b_{j+1} - b_j."""
+    return np.eye(degree, degree + 1, k=1) - np.eye(degree, degree + 1)
+
+
+def _boundary_state(name: str, value: Any, nq: int) -> tuple[Array, Array]:
+    """(q, v) from a pair, an object with ``.q``/``.v``, or a bare q vector (v = 0)."""
+    if hasattr(value, "q"):
+        q, v = value.q, getattr(value, "v", None)
+    elif isinstance(value, tuple | list) and len(value) == 2 and np.ndim(value[0]) == 1:
+        q, v = value
+    else:
+        q, v = value, None
+    try:
+        q = np.array(q, dtype=float)
+        v = np.zeros(nq) if v is None else np.array(v, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(
+            f"{name} must be a (q, v) pair, an object with .q and .v, or a q vector; got {value!r}",
+            name=name,
+        ) from exc
+    for what, arr in (("q", q), ("v", v)):
+        if arr.shape != (nq,) or not np.all(np.isfinite(arr)):
+            raise ParameterError(
+                f"{name}.{what} must be a finite vector of shape ({nq},), got {arr!r}",
+                name=f"{name}.{what}",
+                value=arr,
+            )
+    return q, v
+
+
+def _check_inside(name: str, x: Array, lo: Array, hi: Array, unit: str, where: str) -> None:
+    bad = np.flatnonzero((x < lo) | (x > hi))
+    if bad.size:
+        j = int(bad[0])
+        raise ParameterError(
+            f"{name}[{j}] = {x[j]:.6g} {unit} is outside the limits [{lo[j]:.6g}, {hi[j]:.6g}] "
+            f"{unit} ({where}); no guess can meet it",
+            name=name,
+            value=float(x[j]),
+        )
+
+
+def _solve_lp(
+    degree: int,
+    s: Array,
+    duration: float,
+    boundary: tuple[float, float, float, float],
+    limits: tuple[float, float, float],
+    target: Array,
+) -> Array | None:
+    """Control points of one joint, or None if the LP is infeasible."""
+    q0, v0, q1, v1 = boundary
+    lo, hi, vmax = limits
+    p = degree
+    basis = bernstein_matrix(p, s)
+    # d q / d t at the knots: (p / T0) * B_{p-1}(s) D b.
+    speed = (p / duration) * bernstein_matrix(p - 1, s) @ _difference(p)
+    interior = slice(1, s.size - 1)
+    q_margin = _MARGIN * 0.5 * (hi - lo) if math.isfinite(hi - lo) else 0.0
+    v_margin = _MARGIN * vmax if math.isfinite(vmax) else 0.0
+    eye = np.eye(p + 1)
+    rows = [
+        (np.hstack([eye, -eye]), target),  # b - e <= r
+        (np.hstack([-eye, -eye]), -target),  # -b - e <= -r
+    ]
+    zeros = np.zeros((s.size, p + 1))
+    for matrix, bound, margin, knots in (
+        (basis, hi, q_margin, interior),
+        (-basis, -lo, q_margin, interior),
+        (speed, vmax, v_margin, slice(None)),
+        (-speed, vmax, v_margin, slice(None)),
+    ):
+        if math.isfinite(bound):
+            block = np.hstack([matrix, zeros])[knots]
+            rows.append((block, np.full(block.shape[0], bound - margin)))
+    a_ub = np.vstack([r[0] for r in rows])
+    b_ub = np.concatenate([r[1] for r in rows])
+    a_eq = np.zeros((4, 2 * (p + 1)))
+    a_eq[0, 0] = a_eq[1, p] = 1.0
+    a_eq[2, [0, 1]] = np.array([-1.0, 1.0]) * p / duration
+    a_eq[3, [p - 1, p]] = np.array([-1.0, 1.0]) * p / duration
+    b_eq = np.array([q0, q1, v0, v1])
+    cost = np.concatenate([np.zeros(p + 1), np.ones(p + 1)])
+    bounds = [(None, None)] * (p + 1) + [(0.0, None)] * (p + 1)
+    res = linprog(cost, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method="highs")
+    if res.status != 0:
+        _LOG.debug("spline LP of degree %d: %s", p, res.message)
+        return None
+    points = np.array(res.x[: p + 1], dtype=float)
+    # Impose the boundary conditions exactly (the LP meets them to its tolerance).
+    points[0], points[p] = q0, q1
+    points[1] = q0 + v0 * duration / p
+    points[p - 1] = q1 - v1 * duration / p
+    return points
+
+
+def random_spline_guess(
+    robot: Any,
+    start: Any,
+    goal: Any,
+    n_knots: int,
+    *,
+    seed: int | np.random.Generator | None,
+    dt: float | None = None,
+    bound_scale: float = 1.0,
+    orders: tuple[int, ...] = DEFAULT_ORDERS,
+    bounds: Any = None,
+    damping: bool = True,
+) -> Trajectory:
+    """Draw a random polynomial motion per joint within the knot limits (the study's guesses).
+
+    Parameters
+    ----------
+    robot : RobotModel or pinocchio.Model
+        The robot (limits, damping and inertia; see
+        :func:`youbot_opt.trajopt.simulate.robot_view`).
+    start, goal : BoundaryState, (q, v) pair, or q vector
+        Boundary states: positions in [rad], velocities in [rad/s] (zero for a
+        bare q vector).
+    n_knots : int
+        Number of knots N >= 2.
+    seed : int, numpy.random.Generator or None
+        Randomness; the same int gives the same guess (``None``: fresh entropy).
+    dt : float, optional
+        Time step in [s]; the guess lasts ``T0 = (N - 1) dt``. Default:
+        ``DEFAULT_GUESS_DURATION / (N - 1)`` (4.9 s in all, the study's
+        :data:`DEFAULT_DT` = 0.1 s at 50 knots), the default of multistart.
+    bound_scale : float, optional
+        Factor > 0 applied to the position (about zero) and speed limits, as
+        :meth:`youbot_opt.trajopt.problem.TrajOptProblem.bounds` does by default.
+    orders : tuple of int, optional
+        Polynomial degrees (>= 3) drawn from, independently per joint.
+    bounds : JointBounds, optional
+        Explicit scaled bounds (``q_lower``, ``q_upper``, ``v_upper`` are used);
+        overrides ``bound_scale``.
+    damping : bool, optional
+        Add the joint damping torque ``b v`` to the inverse dynamics.
+
+    Returns
+    -------
+    Trajectory
+        Trapezoidal-interpolated knots ``t_k = k dt``; q, v, a are the
+        polynomials and their derivatives at the knots, and
+        ``tau = RNEA(q, v, a) + b v``.
+
+    Raises
+    ------
+    ParameterError
+        On bad arguments, a start or goal outside the scaled limits, or when no
+        degree in ``orders`` admits a polynomial within the knot limits (for
+        example, a motion too long for the speed limit in ``T0``).
+    """
+    view = robot_view(robot)
+    nq = view.model.nq
+    if isinstance(n_knots, bool) or not isinstance(n_knots, int | np.integer) or n_knots < 2:
+        raise ParameterError(f"n_knots must be an int >= 2, got {n_knots!r}", name="n_knots")
+    if dt is None:
+        from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION
+
+        dt = DEFAULT_GUESS_DURATION / (int(n_knots) - 1)
+    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+        raise ParameterError(f"dt must be finite and > 0 [s], got {dt!r}", name="dt", value=dt)
+    if not (
+        isinstance(bound_scale, int | float) and math.isfinite(bound_scale) and bound_scale > 0
+    ):
+        raise ParameterError(
+            f"bound_scale must be finite and > 0, got {bound_scale!r}", name="bound_scale"
+        )
+    orders = tuple(orders)
+    if not orders or any(
+        isinstance(p, bool) or not isinstance(p, int | np.integer) or p < 3 for p in orders
+    ):
+        raise ParameterError(
+            f"orders must be a non-empty tuple of polynomial degrees >= 3, got {orders!r}",
+            name="orders",
+            value=orders,
+        )
+    q0, v0 = _boundary_state("start", start, nq)
+    q1, v1 = _boundary_state("goal", goal, nq)
+    if bounds is None:
+        lower, upper = bound_scale * view.q_lower, bound_scale * view.q_upper
+        vmax = bound_scale * view.velocity_limit
+    else:
+        lower = np.asarray(bounds.q_lower, dtype=float)
+        upper = np.asarray(bounds.q_upper, dtype=float)
+        vmax = np.asarray(bounds.v_upper, dtype=float)
+    for name, x, lo, hi, unit in (
+        ("start.q", q0, lower, upper, "rad"),
+        ("goal.q", q1, lower, upper, "rad"),
+        ("start.v", v0, -vmax, vmax, "rad/s"),
+        ("goal.v", v1, -vmax, vmax, "rad/s"),
+    ):
+        where = "the given bounds" if bounds is not None else f"bound_scale = {bound_scale:g}"
+        _check_inside(name, x, lo, hi, unit, where)
+
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    n = int(n_knots)
+    duration = (n - 1) * float(dt)
+    s = np.linspace(0.0, 1.0, n)
+    q, v, a = np.empty((n, nq)), np.empty((n, nq)), np.empty((n, nq))
+    for j in range(nq):
+        span = max(abs(q1[j] - q0[j]), math.pi)
+        lo_t = lower[j] if math.isfinite(lower[j]) else min(q0[j], q1[j]) - span
+        hi_t = upper[j] if math.isfinite(upper[j]) else max(q0[j], q1[j]) + span
+        candidates = sorted(set(int(p) for p in orders))
+        points = None
+        while candidates:
+            p = int(rng.choice(candidates))
+            target = rng.uniform(lo_t, hi_t, p + 1)
+            points = _solve_lp(
+                p, s, duration, (q0[j], v0[j], q1[j], v1[j]), (lower[j], upper[j], vmax[j]), target
+            )
+            if points is not None:
+                break
+            candidates.remove(p)
+        if points is None:
+            need = abs(q1[j] - q0[j]) / duration
+            raise ParameterError(
+                f"no polynomial of degree {sorted(set(orders))} moves joint {j} from "
+                f"q = {q0[j]:.6g} rad, v = {v0[j]:.6g} rad/s to q = {q1[j]:.6g} rad, "
+                f"v = {v1[j]:.6g} rad/s in T0 = {duration:.6g} s within [{lower[j]:.6g}, "
+                f"{upper[j]:.6g}] rad and |v| <= {vmax[j]:.6g} rad/s at {n} knots (mean speed "
+                f"needed {need:.3g} rad/s); raise n_knots or dt, or relax bound_scale",
+                name="goal",
+                value=float(q1[j]),
+            )
+        diff = _difference(p)
+        q[:, j] = bernstein_matrix(p, s) @ points
+        v[:, j] = (p / duration) * bernstein_matrix(p - 1, s) @ (diff @ points)
+        a[:, j] = (
+            (p * (p - 1) / duration**2)
+            * bernstein_matrix(p - 2, s)
+            @ (_difference(p - 1) @ diff @ points)
+        )
+        _LOG.debug("joint %d: degree %d", j, p)
+
+    model, data = view.model, view.model.createData()
+    b = view.damping if damping else np.zeros(nq)
+    tau = np.array([pin.rnea(model, data, q[k], v[k], a[k]) + b * v[k] for k in range(n)])
+    t = np.arange(n, dtype=float) * float(dt)
+    return Trajectory(t=t, q=q, v=v, a=a, tau=tau, interpolation="trapezoidal")

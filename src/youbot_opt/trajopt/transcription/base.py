@@ -1,0 +1,403 @@
+"""Transcription protocol: how a :class:`TrajOptProblem` becomes a CasADi NLP.
+
+A transcription is a strategy object (rockit's ``ocp.method(...)``): it turns
+the plain problem spec plus the robot's CasADi forward dynamics into a
+:class:`TranscribedNLP` -- decision vector ``x``, parameter ``p = (beta,)``,
+objective ``f`` and constraint vector ``g`` -- together with the named layout
+of ``x`` and ``g`` so that solutions and multipliers can be read back by name
+and knot.
+
+Conventions (shared by every transcription):
+
+* Every variable block is a CasADi matrix of shape ``(nv, count)``, one column
+  per knot (or interval); ``x`` stacks the blocks' columns, so the numpy view
+  of a block is knot-major ``(count, nv)``.
+* Boundary conditions are equality rows of ``g`` (blocks ``start_position``,
+  ``start_velocity``, ``goal_position``, ``goal_velocity``) whose values enter
+  only through ``lbg = ubg``: a new start or goal needs no rebuild.
+* Joint bounds enter only through ``lbx``/``ubx`` -- and, for a scheme whose
+  interpolant can leave the bounds between knots, through the ``lbg``/``ubg``
+  of its *path* blocks (inequality rows of ``g`` held within a bound family,
+  :meth:`Transcription.path_constraints`) -- the time weight only through
+  ``p``: bound scaling and ``beta`` sweeps reuse one NLP.
+* The forward dynamics is evaluated by the per-knot Function mapped over the
+  knots (``F.map(N)``).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+
+import casadi as ca
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import TranscriptionError
+from youbot_opt.trajopt.objectives import QuadratureRule, duration, quadrature_weights
+from youbot_opt.trajopt.trajectory import Interpolation, Trajectory
+
+if TYPE_CHECKING:
+    from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
+
+__all__ = ["Block", "Layout", "TranscribedNLP", "Transcription", "Expressions", "BOUND_NAMES"]
+
+BOUND_NAMES: dict[str, str] = {
+    "q": "position",
+    "v": "velocity",
+    "tau": "torque",
+    "q_mid": "position_mid",
+    "v_mid": "velocity_mid",
+    "tau_mid": "torque_mid",
+    "dt": "dt",
+}
+"""Variable block -> name of its bound family in the multiplier dictionary."""
+
+
+@dataclass(frozen=True, slots=True)
+class Block:
+    """A named slice of a stacked vector holding ``count`` columns of ``width`` rows."""
+
+    name: str
+    offset: int
+    width: int
+    count: int
+
+    @property
+    def size(self) -> int:
+        """Number of scalars in the block."""
+        return self.width * self.count
+
+    def take(self, vector: Array) -> Array:
+        """Return the block of ``vector`` as a knot-major array ``(count, width)`` (a copy)."""
+        return np.array(vector[self.offset : self.offset + self.size], dtype=float).reshape(
+            self.count, self.width
+        )
+
+
+class Layout:
+    """Ordered named blocks of a stacked vector (``x`` or ``g``)."""
+
+    def __init__(self, blocks: list[tuple[str, int, int]]) -> None:
+        self.blocks: dict[str, Block] = {}
+        offset = 0
+        for name, width, count in blocks:
+            self.blocks[name] = Block(name, offset, width, count)
+            offset += width * count
+        self.size = offset
+
+    def __getitem__(self, name: str) -> Block:
+        return self.blocks[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.blocks
+
+    def unpack(self, vector: Array) -> dict[str, Array]:
+        """Every block of ``vector`` as knot-major arrays, by name."""
+        vector = np.asarray(vector, dtype=float).ravel()
+        if vector.size != self.size:
+            raise TranscriptionError(f"vector has {vector.size} entries, layout has {self.size}")
+        return {name: block.take(vector) for name, block in self.blocks.items()}
+
+    def pack(self, values: dict[str, Array]) -> Array:
+        """Stack knot-major arrays (broadcast to each block's shape) into one vector."""
+        out = np.empty(self.size)
+        for name, block in self.blocks.items():
+            arr = np.broadcast_to(np.asarray(values[name], dtype=float), (block.count, block.width))
+            out[block.offset : block.offset + block.size] = arr.ravel()
+        return out
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TranscribedNLP:
+    """The NLP of one problem under one transcription (symbolic, not yet solved).
+
+    Attributes
+    ----------
+    method : str
+        Transcription name (``"trapezoidal"``, ``"hermite_simpson"``).
+    interpolation : str
+        :class:`~youbot_opt.trajopt.trajectory.Trajectory` interpolation of its solutions.
+    rule : str
+        Quadrature rule of the work term.
+    n_knots, nv : int
+        Number of knots and of joints.
+    x, p, f, g : casadi.MX
+        Decision vector, parameter ``(beta,)``, objective and constraints.
+    duration, work : casadi.MX
+        The objective's terms ``T`` [s] and ``W`` [N^2 m^2 s] as expressions of ``x``.
+    variables, constraints : Layout
+        Named blocks of ``x`` and ``g``.
+    path_bounds : mapping of str to str
+        Inequality blocks of ``g`` -> the variable family (``"q"``, ``"v"`` or
+        ``"tau"``) whose bounds they must stay within; every other block of
+        ``g`` is an equality.
+    unbounded : tuple of str
+        Variable blocks given no bounds of their own in :meth:`variable_bounds`
+        because the path blocks imply them (Hermite-Simpson's ``v_mid``).
+    """
+
+    method: str
+    interpolation: Interpolation
+    rule: QuadratureRule
+    n_knots: int
+    nv: int
+    x: Any
+    p: Any
+    f: Any
+    g: Any
+    duration: Any
+    work: Any
+    variables: Layout
+    constraints: Layout
+    path_bounds: Mapping[str, str] = field(default_factory=dict)
+    unbounded: tuple[str, ...] = ()
+
+    @property
+    def n_variables(self) -> int:
+        """Number of decision variables."""
+        return self.variables.size
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of constraint rows of ``g`` (equalities and path inequalities)."""
+        return self.constraints.size
+
+    @property
+    def n_inequalities(self) -> int:
+        """Number of path-inequality rows of ``g`` (zero for trapezoidal collocation)."""
+        return sum(self.constraints[name].size for name in self.path_bounds)
+
+    @property
+    def n_equalities(self) -> int:
+        """Number of equality rows of ``g`` (defects and boundary conditions)."""
+        return self.n_constraints - self.n_inequalities
+
+    def variable_bounds(
+        self, bounds: JointBounds, dt_range: tuple[float, float]
+    ) -> tuple[Array, Array]:
+        """``(lbx, ubx)`` from joint bounds and the time-step range ``dt_range`` in [s]."""
+        lower = {"q": bounds.q_lower, "v": bounds.v_lower, "tau": bounds.tau_lower}
+        upper = {"q": bounds.q_upper, "v": bounds.v_upper, "tau": bounds.tau_upper}
+        lo: dict[str, Any] = {"dt": dt_range[0]}
+        hi: dict[str, Any] = {"dt": dt_range[1]}
+        for name in self.variables.blocks:
+            if name in self.unbounded:
+                lo[name], hi[name] = -np.inf, np.inf
+            elif name != "dt":
+                base = name.removesuffix("_mid")
+                lo[name], hi[name] = lower[base], upper[base]
+        return self.variables.pack(lo), self.variables.pack(hi)
+
+    def constraint_bounds(
+        self, start: BoundaryState, goal: BoundaryState, bounds: JointBounds | None = None
+    ) -> tuple[Array, Array]:
+        """``(lbg, ubg)``: zero defects, the boundary states and the path bounds.
+
+        Parameters
+        ----------
+        start, goal : BoundaryState
+            Boundary states (equalities).
+        bounds : JointBounds, optional
+            Scaled joint bounds for the path blocks; required when the
+            transcription has any (:attr:`path_bounds`).
+
+        Raises
+        ------
+        TranscriptionError
+            If the NLP has path blocks and ``bounds`` is missing.
+        """
+        values: dict[str, Any] = {name: 0.0 for name in self.constraints.blocks}
+        values["start_position"] = start.q
+        values["start_velocity"] = start.velocity
+        values["goal_position"] = goal.q
+        values["goal_velocity"] = goal.velocity
+        lbg = self.constraints.pack(values)
+        if not self.path_bounds:
+            return lbg, lbg.copy()
+        if bounds is None:
+            raise TranscriptionError(
+                f"the {self.method} NLP has path constraints {sorted(self.path_bounds)}: "
+                "constraint_bounds needs the joint bounds (bounds=problem.bounds(scale))"
+            )
+        upper = dict(values)
+        for name, family in self.path_bounds.items():
+            values[name] = getattr(bounds, f"{family}_lower")
+            upper[name] = getattr(bounds, f"{family}_upper")
+        return self.constraints.pack(values), self.constraints.pack(upper)
+
+
+class Transcription(ABC):
+    """Strategy turning a :class:`TrajOptProblem` into a :class:`TranscribedNLP`."""
+
+    name: ClassVar[str]
+    interpolation: ClassVar[Interpolation]
+    rule: ClassVar[QuadratureRule]
+    unbounded: ClassVar[tuple[str, ...]] = ()
+    """Variable blocks without bounds of their own (implied by path constraints)."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+    @abstractmethod
+    def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
+        """Layout of ``x``: ``(name, width, count)`` per block, ``dt`` last."""
+
+    @abstractmethod
+    def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
+        """Where the dynamics is evaluated: group name -> ``(q, v, tau)``, each ``(nv, count)``.
+
+        The keys name the accelerations passed to :meth:`collocation`.
+        """
+
+    @abstractmethod
+    def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
+        """Defect blocks ``(name, expression of shape (nv, count))``.
+
+        Parameters
+        ----------
+        sym : dict
+            Variable blocks by name (CasADi matrices ``(nv, count)``; ``dt`` is 1x1).
+        accel : dict
+            Accelerations ``(nv, count)`` at each group of :meth:`dynamics_points`;
+            the defects must be affine in them (they are, for collocation).
+        """
+
+    def path_constraints(
+        self, sym: dict[str, Any], accel: dict[str, Any]
+    ) -> list[tuple[str, str, Any]]:
+        """Inequality blocks that keep the interpolant within the joint bounds between knots.
+
+        Returns
+        -------
+        list of (name, family, expression)
+            Block name, the variable family (``"q"``, ``"v"`` or ``"tau"``) whose
+            bounds apply, and an expression of shape ``(nv, count)``, affine in
+            ``accel`` like the defects. None by default.
+        """
+        return []
+
+    @abstractmethod
+    def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
+        """Return initial values of every variable block from a guess trajectory."""
+
+    @abstractmethod
+    def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
+        """Solution trajectory from unpacked variables and knot accelerations ``a``."""
+
+    def build(self, problem: TrajOptProblem, forward_dynamics: ca.Function) -> TranscribedNLP:
+        """Transcribe ``problem`` with the per-knot dynamics ``forward_dynamics``.
+
+        Parameters
+        ----------
+        problem : TrajOptProblem
+            The problem spec.
+        forward_dynamics : casadi.Function
+            ``(q[nv], v[nv], tau[nv]) -> a[nv]`` in [rad/s^2].
+
+        Returns
+        -------
+        TranscribedNLP
+            The symbolic NLP and its layouts.
+
+        Raises
+        ------
+        TranscriptionError
+            If the dynamics Function does not match the robot's size.
+        """
+        nv, n = problem.nv, problem.n_knots
+        if forward_dynamics.n_in() != 3 or any(
+            forward_dynamics.size1_in(i) != nv for i in range(3)
+        ):
+            raise TranscriptionError(
+                f"forward dynamics must map (q[{nv}], v[{nv}], tau[{nv}]) -> a[{nv}], got "
+                f"{forward_dynamics}"
+            )
+        blocks = self.variable_blocks(nv, n)
+        sym = {name: ca.MX.sym(name, width, count) for name, width, count in blocks}
+        x = ca.vertcat(*[ca.vec(sym[name]) for name, _, _ in blocks])
+        accel = {
+            group: forward_dynamics.map(q.size2())(q, v, tau)
+            for group, (q, v, tau) in self.dynamics_points(sym).items()
+        }
+        beta = ca.MX.sym("beta")
+        parts = self.expressions(problem, sym, accel, beta)
+        return TranscribedNLP(
+            method=self.name,
+            interpolation=self.interpolation,
+            rule=self.rule,
+            n_knots=n,
+            nv=nv,
+            x=x,
+            p=beta,
+            f=parts.f,
+            g=parts.g,
+            duration=parts.duration,
+            work=parts.work,
+            variables=Layout(blocks),
+            constraints=parts.constraints,
+            path_bounds=MappingProxyType(dict(parts.path_bounds)),
+            unbounded=tuple(self.unbounded),
+        )
+
+    def expressions(
+        self, problem: TrajOptProblem, sym: dict[str, Any], accel: dict[str, Any], beta: Any
+    ) -> Expressions:
+        """Objective, constraints and their terms from variables and accelerations.
+
+        Works with SX and MX alike; :meth:`build` passes the mapped dynamics as
+        ``accel``, :mod:`youbot_opt.trajopt.transcription.derivatives` passes free symbols.
+        """
+        nv, n = problem.nv, problem.n_knots
+        q, v = sym["q"], sym["v"]
+        defects = self.collocation(sym, accel)
+        boundary = [
+            ("start_position", q[:, 0]),
+            ("start_velocity", v[:, 0]),
+            ("goal_position", q[:, n - 1]),
+            ("goal_velocity", v[:, n - 1]),
+        ]
+        path = self.path_constraints(sym, accel)
+        g_blocks = defects + boundary + [(name, expr) for name, _, expr in path]
+        g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
+        constraints = Layout([(name, nv, expr.size2()) for name, expr in g_blocks])
+        dt = sym["dt"]
+        w_knots, w_mid = quadrature_weights(self.rule, n)
+        work = ca.mtimes(ca.sum1(sym["tau"] ** 2), ca.DM(w_knots))
+        if w_mid is not None:
+            work += ca.mtimes(ca.sum1(sym["tau_mid"] ** 2), ca.DM(w_mid))
+        work = dt * work
+        total_time = duration(dt, n)
+        f = problem.objective.value(total_time, work, beta)
+        return Expressions(
+            f=f,
+            g=g,
+            duration=total_time,
+            work=work,
+            constraints=constraints,
+            path_bounds={name: family for name, family, _ in path},
+        )
+
+
+class Expressions(NamedTuple):
+    """Symbolic pieces of a transcription (see :meth:`Transcription.expressions`)."""
+
+    f: Any
+    g: Any
+    duration: Any
+    work: Any
+    constraints: Layout
+    path_bounds: Mapping[str, str] = MappingProxyType({})
+    """Inequality blocks of ``g`` -> bound family (see :attr:`TranscribedNLP.path_bounds`)."""
+
+
+def uniform_times(guess: Trajectory, n_knots: int) -> tuple[float, Array]:
+    """Time step [s] and ``n_knots`` uniform times spanning ``guess``."""
+    dt = guess.duration / (n_knots - 1)
+    if not math.isfinite(dt) or dt <= 0.0:
+        raise TranscriptionError(f"guess duration must be > 0 [s], got {guess.duration}")
+    return dt, guess.t[0] + dt * np.arange(n_knots)

@@ -1,0 +1,500 @@
+"""Figures of one trajectory solve: joint curves, IPOPT convergence, the arm in 2-D.
+
+Each function takes a result object and returns a new
+:class:`matplotlib.figure.Figure` built without :mod:`matplotlib.pyplot`, so
+it works under any backend (``Agg`` included), leaves no global figure
+behind, and can be saved with ``fig.savefig(path)`` or shown in a notebook.
+These are the study's plots (spec ``trajopt.md``, "How the study solved it"):
+joint angles, speeds and torques against time with the bounds dashed
+(:func:`plot_trajectory`), objective against iteration for several starts
+(:func:`plot_convergence`) and the arm on its platform (:func:`plot_arm_2d`,
+a stroboscopic picture of the study's 2-D animation).
+
+Lines carry labels so that tests and users can find them: a joint curve is
+labelled with the joint name, a dashed bound ``"_bound <quantity> <joint>
+<lower|upper>"`` (the leading underscore keeps it out of legends), or
+``"_bound <quantity> all <lower|upper>"`` for a bound every joint shares
+(drawn once, in grey, instead of one line per joint on top of each other).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+import pinocchio as pin
+from matplotlib import colormaps
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Rectangle
+from matplotlib.ticker import FormatStrFormatter, MaxNLocator
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.problem import JointBounds
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from youbot_opt.robot.model import RobotModel
+
+__all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "QUANTITIES"]
+
+QUANTITIES: tuple[tuple[str, str, str], ...] = (
+    ("q", "angle", "q [rad]"),
+    ("v", "speed", "v [rad/s]"),
+    ("tau", "torque", r"$\tau$ [N m]"),
+)
+"""Trajectory arrays plotted, with their short name and axis label (unit in brackets)."""
+
+_W_UNIT = r"N$^2$ m$^2$ s"  # unit of the work W = int tau . tau dt
+
+
+def joint_colour(j: int) -> Any:
+    """Colour of joint ``j`` (0-based) in every figure (matplotlib's ``tab10`` cycle)."""
+    return colormaps["tab10"](j % 10)
+
+
+def new_figure(
+    nrows: int,
+    ncols: int,
+    figsize: tuple[float, float],
+    *,
+    sharex: bool | Literal["none", "all", "row", "col"] = False,
+) -> tuple[Figure, Any]:
+    """Make a constrained-layout figure and its ``(nrows, ncols)`` array of axes (no pyplot)."""
+    fig = Figure(figsize=figsize, layout="constrained")
+    axes = fig.subplots(nrows, ncols, sharex=sharex, squeeze=False)
+    return fig, axes
+
+
+def bound_pairs(bounds: JointBounds) -> dict[str, tuple[Array, Array]]:
+    """Lower and upper bounds by trajectory array name (``"q"``, ``"v"``, ``"tau"``)."""
+    return {
+        "q": (bounds.q_lower, bounds.q_upper),
+        "v": (bounds.v_lower, bounds.v_upper),
+        "tau": (bounds.tau_lower, bounds.tau_upper),
+    }
+
+
+def _resolve_trajectory(
+    result_or_trajectory: TrajOptResult | Trajectory,
+) -> tuple[Trajectory, TrajOptResult | None]:
+    if isinstance(result_or_trajectory, TrajOptResult):
+        traj = result_or_trajectory.trajectory
+        if traj is None:
+            raise ParameterError(
+                "the result has no trajectory to plot (status "
+                f"{result_or_trajectory.status.value}: {result_or_trajectory.message})",
+                name="result_or_trajectory",
+            )
+        return traj, result_or_trajectory
+    if isinstance(result_or_trajectory, Trajectory):
+        return result_or_trajectory, None
+    raise ParameterError(
+        f"expected a TrajOptResult or a Trajectory, got {type(result_or_trajectory).__name__}",
+        name="result_or_trajectory",
+    )
+
+
+def _joint_names(names: Sequence[str] | None, nv: int, result: TrajOptResult | None) -> list[str]:
+    if names is None:
+        if result is not None:
+            names = tuple(result.problem.robot.joint_names)
+        else:
+            names = tuple(f"joint {j + 1}" for j in range(nv))
+    names = [str(n) for n in names]
+    if len(names) != nv:
+        raise ParameterError(
+            f"joint_names must have {nv} entries, got {len(names)}", name="joint_names"
+        )
+    return names
+
+
+def _draw_bounds(ax: Axes, key: str, bounds: tuple[Array, Array], names: Sequence[str]) -> None:
+    """Dashed bound lines of one quantity: once in grey if all joints share it, else per joint."""
+    for side, levels in zip(("lower", "upper"), bounds, strict=True):
+        levels = np.asarray(levels, dtype=float).ravel()
+        shared = levels.size > 1 and bool(np.all(np.isfinite(levels)))
+        if shared and np.ptp(levels) <= 1e-12 * max(1.0, float(np.max(np.abs(levels)))):
+            ax.axhline(float(levels[0]), color="0.3", linestyle="--", linewidth=1.0, alpha=0.8,
+                       zorder=1, label=f"_bound {key} all {side}")  # fmt: skip
+            continue
+        for j, level in enumerate(levels):
+            if np.isfinite(level):
+                label = f"_bound {key} {names[j]} {side}"
+                ax.axhline(float(level), color=joint_colour(j), linestyle="--", linewidth=1.0,
+                           alpha=0.8, zorder=1, label=label)  # fmt: skip
+
+
+def result_title(result: TrajOptResult) -> str:
+    """One-line description of a solve: robot, beta, bound scale, T, W, f and status."""
+    return (
+        f"{result.problem.robot.name}: $\\beta$ = {result.beta:g}, bounds "
+        f"{result.bound_scale:.0%}, T = {result.duration:.3f} s, W = {result.work:.4g} {_W_UNIT}, "
+        f"f = {result.objective:.4f} ({result.status.value})"
+    )
+
+
+def plot_trajectory(
+    result_or_trajectory: TrajOptResult | Trajectory,
+    bounds: JointBounds | None = None,
+    *,
+    show_bounds: bool = True,
+    joint_names: Sequence[str] | None = None,
+    title: str | None = None,
+    figsize: tuple[float, float] = (9.0, 7.5),
+) -> Figure:
+    """Joint angles, speeds and torques against time, with the bounds dashed.
+
+    Three stacked axes sharing the time axis [s]; one line per joint through
+    the knot values (small markers at the knots), and each joint's lower and
+    upper bound as a dashed line of the same colour.
+
+    Parameters
+    ----------
+    result_or_trajectory : TrajOptResult or Trajectory
+        A solve (its trajectory, scaled bounds and joint names are used) or a
+        bare trajectory.
+    bounds : JointBounds, optional
+        Bounds to draw; default: the result's scaled bounds (none for a bare
+        trajectory).
+    show_bounds : bool
+        Draw the bounds (dashed).
+    joint_names : sequence of str, optional
+        Legend entries; default: the robot's joint names (``"joint 1"``, ...
+        for a bare trajectory).
+    title : str, optional
+        Title over the top axes; default: robot, beta, bound scale, T, W, f
+        and status.
+    figsize : tuple of float
+        Figure size in [inch].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure; ``fig.axes[0..2]`` hold q [rad], v [rad/s] and tau [N m].
+
+    Raises
+    ------
+    ParameterError
+        If the result has no trajectory, or ``joint_names`` or ``bounds`` do
+        not match its joints.
+    """
+    traj, result = _resolve_trajectory(result_or_trajectory)
+    nv = traj.v.shape[1]
+    names = _joint_names(joint_names, nv, result)
+    own_bounds = bounds is None and result is not None  # the result's scaled bounds
+    if bounds is None and result is not None:
+        bounds = result.bounds()
+    limits = bound_pairs(bounds) if (bounds is not None and show_bounds) else {}
+    for key, (lo, hi) in limits.items():
+        if np.size(lo) != nv or np.size(hi) != nv:
+            raise ParameterError(
+                f"bounds of {key} have {np.size(lo)} entries, the trajectory has {nv} joints",
+                name="bounds",
+            )
+    fig, axes = new_figure(len(QUANTITIES), 1, figsize, sharex=True)
+    for ax, (key, quantity, label) in zip(axes[:, 0], QUANTITIES, strict=True):
+        values = getattr(traj, key)
+        for j in range(nv):
+            ax.plot(traj.t, values[:, j], color=joint_colour(j), marker=".", markersize=3,
+                    label=names[j])  # fmt: skip
+        if key in limits:
+            _draw_bounds(ax, key, limits[key], names)
+        ax.set_ylabel(f"joint {quantity} {label}")
+        ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("time t [s]")
+    axes[-1, 0].set_xlim(float(traj.t[0]), float(traj.t[-1]))
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if limits:
+        scale = f" ({result.bound_scale:.0%})" if result is not None and own_bounds else ""
+        handles.append(Line2D([], [], color="0.3", linestyle="--", linewidth=1.0))
+        labels.append(f"bounds{scale}")
+    fig.legend(handles, labels, loc="outside right upper")
+    if title is None and result is not None:
+        title = result_title(result)
+    if title:  # over the top axes, clear of the legend at the right
+        axes[0, 0].set_title(title, fontsize="medium")
+    return fig
+
+
+def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
+    """(label, objective history, success) of each result, start or multistart."""
+    from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
+
+    if isinstance(results, MultistartResult):
+        results = results.starts
+    if isinstance(results, TrajOptResult):
+        results = [results]
+    items: list[tuple[str, Array, bool]] = []
+    for i, item in enumerate(results):
+        if isinstance(item, StartOutcome):
+            if item.result is None:
+                continue  # the start raised: no history
+            label = "straight line" if item.index < 0 else f"start {item.index}"
+            res = item.result
+        elif isinstance(item, TrajOptResult):
+            res = item
+            label = f"seed {res.seed}" if res.seed is not None else f"run {i}"
+        else:
+            raise ParameterError(
+                "results must be TrajOptResults, StartOutcomes or a MultistartResult, got "
+                f"{type(item).__name__}",
+                name="results",
+            )
+        history = np.asarray(res.objective_history, dtype=float)
+        if history.size:
+            status = "" if res.success else f", {res.status.value}"
+            items.append((f"{label}: f = {res.objective:.4f}{status}", history, res.success))
+    if not items:
+        raise ParameterError("no result with an objective history to plot", name="results")
+    return items
+
+
+def plot_convergence(
+    results: Any,
+    *,
+    log: bool = True,
+    max_legend: int = 12,
+    title: str | None = None,
+    figsize: tuple[float, float] = (9.0, 4.5),
+) -> Figure:
+    """Objective against IPOPT iteration for several starts.
+
+    One line per start: IPOPT's objective at iterations ``0 .. iterations``
+    (``TrajOptResult.objective_history``; iteration 0 is the initial guess).
+    Converged starts are solid and end in a dot, failed ones dotted and end in
+    a cross. Up to ``max_legend`` runs are named in the legend with their
+    final objective; beyond that, a colour bar gives the run number and the
+    legend only the line styles.
+
+    Parameters
+    ----------
+    results : MultistartResult, sequence of StartOutcome or of TrajOptResult
+        The runs (starts that raised, having no history, are skipped).
+    log : bool
+        Logarithmic objective axis (symmetric-log if an objective is <= 0).
+    max_legend : int
+        Largest number of runs listed one by one in the legend.
+    title : str, optional
+        Axes title; default: the number of runs and how many converged.
+    figsize : tuple of float
+        Figure size in [inch].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (one axes).
+
+    Raises
+    ------
+    ParameterError
+        If no run has an objective history.
+    """
+    items = _convergence_items(results)
+    fig, axes = new_figure(1, 1, figsize)
+    ax: Axes = axes[0, 0]
+    cmap = colormaps["viridis"]
+    for k, (label, history, ok) in enumerate(items):
+        ax.plot(
+            np.arange(history.size), history, color=cmap(k / max(len(items) - 1, 1)),
+            linestyle="-" if ok else ":", marker="o" if ok else "x", markevery=[-1],
+            markersize=4, linewidth=1.2, label=label,
+        )  # fmt: skip
+    if log:
+        finite = np.concatenate([h[np.isfinite(h)] for _, h, _ in items])
+        ax.set_yscale("log" if finite.size and np.all(finite > 0) else "symlog")
+        ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("IPOPT iteration")
+    ax.set_ylabel(r"objective $f = \beta T + (1-\beta) W$")
+    ax.grid(True, which="both", alpha=0.3)
+    n_ok = sum(ok for _, _, ok in items)
+    ax.set_title(title or f"Convergence of {len(items)} runs ({n_ok} converged)")
+    if len(items) <= max_legend:
+        fig.legend(loc="outside right upper", fontsize="small")
+        return fig
+    done = Line2D([], [], color="0.3", marker="o", label=f"converged ({n_ok})")
+    styles = [done] if n_ok else []
+    if n_ok < len(items):
+        failed = f"failed ({len(items) - n_ok})"
+        styles.append(Line2D([], [], color="0.3", linestyle=":", marker="x", label=failed))
+    ax.legend(handles=styles, loc="upper right", fontsize="small")
+    norm = Normalize(0, max(len(items) - 1, 1))
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="run number")
+    bar.locator = MaxNLocator(integer=True)
+    bar.update_ticks()
+    return fig
+
+
+# ------------------------------------------------------------------- 2-D arm
+def _plane_axes(plane: str) -> tuple[int, int]:
+    names = {"x": 0, "y": 1, "z": 2}
+    if len(plane) != 2 or plane[0] not in names or plane[1] not in names or plane[0] == plane[1]:
+        raise ParameterError(
+            f"plane must be two distinct axes among x, y, z (e.g. 'xz'), got {plane!r}",
+            name="plane",
+            value=plane,
+        )
+    return names[plane[0]], names[plane[1]]
+
+
+def chain_points(robot: RobotModel, q: Array, data: pin.Data | None = None) -> Array:
+    """Root-frame positions in [m] of the joints from the root to the tip frame, then the tip.
+
+    Joints are those on the kinematic path to ``robot.tip_frame`` (``oMi``
+    after ``pin.framesForwardKinematics``), ordered from the root; the last row
+    is the tip frame's origin (``oMf``). Shape (k + 1, 3).
+    """
+    model = robot.model
+    fid = robot.frame_id(robot.tip_frame)
+    data = robot.create_data() if data is None else data
+    pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
+    path: list[int] = []
+    joint = int(model.frames[fid].parentJoint)
+    while joint > 0:
+        path.append(joint)
+        joint = int(model.parents[joint])
+    pts = [np.array(data.oMi[j].translation) for j in reversed(path)]
+    pts.append(np.array(data.oMf[fid].translation))
+    return np.array(pts)
+
+
+def _root_name(robot: RobotModel) -> str:
+    """Name of the root body (the youBot's ``"platform"``), for axis labels."""
+    for frame in robot.model.frames:
+        if int(frame.parentJoint) == 0 and frame.type == pin.FrameType.BODY:
+            return str(frame.name)
+    return "root"
+
+
+def _root_shapes(robot: RobotModel, rows: tuple[int, int]) -> list[tuple[Array, Array, Any]]:
+    """Project the root-attached boxes and cylinders: (lower corner, size, colour) rectangles."""
+    shapes = []
+    for go in robot.visual_model.geometryObjects:
+        if int(go.parentJoint) != 0:
+            continue
+        geom = go.geometry
+        if hasattr(geom, "halfSide"):
+            half = np.asarray(geom.halfSide, dtype=float)
+        elif hasattr(geom, "radius") and hasattr(geom, "halfLength"):
+            half = np.array([geom.radius, geom.radius, geom.halfLength], dtype=float)
+        else:
+            continue
+        signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        corners = (go.placement.rotation @ (signs * half).T).T + go.placement.translation
+        flat = corners[:, list(rows)]
+        lo, hi = flat.min(axis=0), flat.max(axis=0)
+        shapes.append((lo, hi - lo, tuple(np.asarray(go.meshColor, dtype=float))))
+    return shapes
+
+
+def plot_arm_2d(
+    robot: RobotModel | None,
+    trajectory: Trajectory | TrajOptResult,
+    *,
+    n_frames: int = 8,
+    times: Sequence[float] | Array | None = None,
+    plane: str = "xz",
+    show_platform: bool = True,
+    tip_path: bool = True,
+    tip_samples: int = 200,
+    title: str | None = None,
+    figsize: tuple[float, float] = (7.5, 6.0),
+) -> Figure:
+    """Draw the arm on its platform at several times (a stroboscopic picture of the motion).
+
+    Each pose is drawn as a line through the joints on the path to the tip
+    frame and the tip (Pinocchio frame placements, projected on ``plane``),
+    coloured by time; the tip path is dashed, the platform's box and cylinder
+    geometry (visual objects fixed to the root) drawn as rectangles.
+
+    Parameters
+    ----------
+    robot : RobotModel or None
+        The robot; ``None`` takes ``trajectory.problem.robot`` of a result.
+    trajectory : Trajectory or TrajOptResult
+        The motion (a result's ``trajectory``).
+    n_frames : int
+        Number of poses drawn, evenly spaced in time from start to end (>= 2).
+    times : sequence of float, optional
+        Times in [s] of the poses, instead of ``n_frames``.
+    plane : str
+        Root-frame axes of the drawing plane, horizontal then vertical
+        (``"xz"``: the youBot's platform x-z plane).
+    show_platform : bool
+        Draw the root-attached box and cylinder geometry.
+    tip_path : bool
+        Draw the tip's path over the whole motion (dashed).
+    tip_samples : int
+        Samples of the dashed tip path (>= 2).
+    title : str, optional
+        Axes title; default: robot name, number of poses and duration.
+    figsize : tuple of float
+        Figure size in [inch].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure. Pose lines are labelled ``"t = <time> s"`` with
+        ``gid = "pose <k>"``; the tip path is labelled ``"tip path"``.
+
+    Raises
+    ------
+    ParameterError
+        On a bad ``plane``, ``n_frames``, ``times`` or a missing robot.
+    """
+    traj, result = _resolve_trajectory(trajectory)
+    if robot is None:
+        if result is None:
+            raise ParameterError("robot is required for a bare Trajectory", name="robot")
+        robot = result.problem.robot
+    rows = _plane_axes(plane)
+    if times is None:
+        if isinstance(n_frames, bool) or not isinstance(n_frames, int) or n_frames < 2:
+            raise ParameterError(f"n_frames must be an int >= 2, got {n_frames!r}", name="n_frames")
+        poses_t = np.linspace(float(traj.t[0]), float(traj.t[-1]), n_frames)
+    else:
+        poses_t = np.asarray(times, dtype=float).ravel()
+        if poses_t.size == 0 or not np.all(np.isfinite(poses_t)):
+            raise ParameterError("times must be a non-empty list of finite times [s]", name="times")
+    if tip_samples < 2:
+        raise ParameterError(f"tip_samples must be >= 2, got {tip_samples!r}", name="tip_samples")
+
+    fig, axes = new_figure(1, 1, figsize)
+    ax: Axes = axes[0, 0]
+    if show_platform:
+        for corner, size, colour in _root_shapes(robot, rows):
+            ax.add_patch(Rectangle(tuple(corner), size[0], size[1], color=colour, alpha=0.5))
+    cmap, norm = colormaps["viridis"], Normalize(float(traj.t[0]), float(traj.t[-1]))
+    for k, time in enumerate(poses_t):
+        pts = chain_points(robot, traj(float(time)))[:, list(rows)]
+        ax.plot(
+            pts[:, 0], pts[:, 1], "-o", color=cmap(norm(time)), markersize=4, linewidth=2.5,
+            alpha=0.9, label=f"t = {time:.2f} s", gid=f"pose {k}",
+        )  # fmt: skip
+    if tip_path:
+        dense = np.linspace(float(traj.t[0]), float(traj.t[-1]), int(tip_samples))
+        data = robot.create_data()
+        tips = np.array([chain_points(robot, q, data)[-1] for q in traj(dense)])[:, list(rows)]
+        ax.plot(tips[:, 0], tips[:, 1], "--", color="0.35", linewidth=1.0, label="tip path")
+    ax.set_aspect("equal", adjustable="box")
+    root = _root_name(robot)
+    ax.set_xlabel(f"{root} {'xyz'[rows[0]]} [m]")
+    ax.set_ylabel(f"{root} {'xyz'[rows[1]]} [m]")
+    ax.grid(True, alpha=0.3)
+    fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="time t [s]")
+    if tip_path:
+        ax.legend(handles=[ax.get_lines()[-1]], loc="best", fontsize="small")
+    ax.set_title(
+        title or f"{robot.name}: {poses_t.size} poses over {traj.duration:.3g} s",
+        fontsize="medium",
+    )
+    return fig
