@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Install headless Chromium (Debian's `chromium` package) for tests/test_viz_browser.py.
+# Install headless Chromium (Debian's `chromium` package) for tests/viz/test_viz_browser.py.
 # Idempotent and quick: does nothing when a Chromium binary is already on PATH.
 # It installs only in CI (CI set): on a developer's machine it prints how to install
 # and exits 0, and the browser test skips with that reason.

@@ -5,7 +5,7 @@ going; :meth:`TrajOptResult.raise_for_status` turns it into
 :class:`~youbot_opt.exceptions.SolveFailed` on demand.
 
 Multiplier sign convention (CasADi's, checked against IPOPT in
-``tests/test_solve.py``). The gradient of the Lagrangian
+``tests/trajopt/test_solve.py``). The gradient of the Lagrangian
 
 .. math::
 

@@ -1,6 +1,6 @@
 """Load URDF files with the strict loader, each in its own capped child process.
 
-Run as ``python tests/_load_in_subprocess.py < jobs.json``. ``jobs.json`` is a
+Run as ``python tests/robot/_load_in_subprocess.py < jobs.json``. ``jobs.json`` is a
 JSON list of jobs ``{"id": str, "path": str, "package_dirs": [str, ...]}``,
 optionally with ``"timeout"`` in [s] and ``"memory"`` in [bytes] overriding the
 defaults (20 s, 2 GiB), or with ``"selftest": "allocate" | "sleep"`` instead of

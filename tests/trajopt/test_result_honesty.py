@@ -23,7 +23,7 @@ from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.trajopt.result import SolveStatus, TrajOptResult, check_result
 from youbot_opt.trajopt.solver import TrajOptSolver
 
-URDF = Path(__file__).resolve().parents[1] / "urdf" / "youbot_arm_planar.urdf"
+URDF = Path(__file__).resolve().parents[2] / "urdf" / "youbot_arm_planar.urdf"
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,8 @@
 """Tests of the strict URDF loader: the hostile corpus, reference robots and the rules.
 
-The corpus (``tests/urdf_corpus``, listed in ``manifest.json`` with the expected
+The corpus (``tests/robot/urdf_corpus``, listed in ``manifest.json`` with the expected
 error class and a message fragment for each file) is loaded file by file in
-child processes with a memory and a time cap (``tests/_load_in_subprocess.py``).
+child processes with a memory and a time cap (``tests/robot/_load_in_subprocess.py``).
 Mesh fixtures that cannot live in git (symlinks, a FIFO, a folder named like a
 mesh) are made in a temporary copy of the corpus package.
 """
@@ -63,7 +63,7 @@ ROBOTS = Path(
     )
 )
 ROBOT_DIRS = [ROBOTS, ROBOTS.parent.parent]  # robots/ and share/ (package://example-robot-data/...)
-YOUBOT = HERE.parent / "urdf" / "youbot_arm_planar.urdf"
+YOUBOT = HERE.parents[1] / "urdf" / "youbot_arm_planar.urdf"
 REFERENCE_ROBOTS = {
     "ur5": ROBOTS / "ur_description/urdf/ur5_robot.urdf",
     "panda": ROBOTS / "panda_description/urdf/panda.urdf",

@@ -1,10 +1,10 @@
-"""Regenerate the hostile-URDF corpus: ``python tests/urdf_corpus/_generate.py``.
+"""Regenerate the hostile-URDF corpus: ``python tests/robot/urdf_corpus/_generate.py``.
 
 Writes the URDF files (one folder per expected outcome), ``manifest.json``
 (file -> expected error class, a fragment of the expected message and why the
 file is hostile) and the small mesh package ``pkg/corpus_pkg``. Fixtures git
 cannot hold (symlinks, a FIFO, a folder named like a mesh) are made by
-``tests/test_loader.py`` in a temporary copy of the package. Output is
+``tests/robot/test_loader.py`` in a temporary copy of the package. Output is
 deterministic.
 """
 
