@@ -56,6 +56,7 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
+from youbot_opt.sweeps.options import SweepOptions
 
 SEVEN_LINKS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)  # [m]
 SEVEN_TARGETS = 12
@@ -140,7 +141,7 @@ def bench_multistart(problem: CyclicIKProblem, method: str, n_starts: int) -> di
     for workers in (1, 2):
         ms, wall, cpu = _timed(
             lambda w=workers: run_multistart(
-                problem, method=method, n_starts=n_starts, seed=0, max_workers=w
+                problem, method=method, n_starts=n_starts, seed=0, sweep=SweepOptions(workers=w)
             )
         )
         ok = [r for r in ms.results if r.success]

@@ -26,9 +26,10 @@ import time
 
 import numpy as np
 
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import run_multistart
 from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
-from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 TARGET_MULTISTART = 2.0  # [s] wall, 50 starts on 2 cores
@@ -53,11 +54,12 @@ def main() -> None:
 
     tic = time.perf_counter()
     par = run_multistart(
-        solver, n_starts, beta=0.5, seed=0, executor="process", workers=args.workers
-    )
+        solver, n_starts, beta=0.5, seed=0,
+        sweep=SweepOptions(executor="process", workers=args.workers),
+    )  # fmt: skip
     t_par = time.perf_counter() - tic
     tic = time.perf_counter()
-    ser = run_multistart(solver, n_starts, beta=0.5, seed=0, executor="serial")
+    ser = run_multistart(solver, n_starts, beta=0.5, seed=0, sweep=SweepOptions(executor="serial"))
     t_ser = time.perf_counter() - tic
     same = all(
         (a.status, a.iterations) == (b.status, b.iterations)

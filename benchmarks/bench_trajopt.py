@@ -48,11 +48,12 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import minimize
 
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.guess import resolve_guess
 from youbot_opt.trajopt.multistart import run_multistart
-from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
-from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 TARGET_SOLVE_CPU = 0.05  # [s] base case, CPU
@@ -271,14 +272,18 @@ def main() -> None:
     # -- multistart and Pareto sweep on the base-case solver
     ms, ms_wall, _ = _timed(
         lambda: run_multistart(
-            solver, n_starts, beta=BETA, seed=0, executor="process", workers=args.workers
-        )
+            solver,
+            n_starts,
+            beta=BETA,
+            seed=0,
+            sweep=SweepOptions(executor="process", workers=args.workers),
+        )  # fmt: skip
     )
     # default: the points run one after another in one crash-isolated worker process
     front, pareto_wall, _ = _timed(lambda: pareto_sweep(solver, betas))
     # in-process (no isolation): its CPU time is the solver work itself
     _, pareto_serial_wall, pareto_cpu = _timed(
-        lambda: pareto_sweep(solver, betas, executor="serial")
+        lambda: pareto_sweep(solver, betas, sweep=SweepOptions(executor="serial"))
     )
     optima = ms.distinct_optima()
     out["multistart"] = {

@@ -81,5 +81,5 @@ def test_readme_python_example_runs(tmp_path, monkeypatch) -> None:
     assert lines[0].startswith("SolveStatus.SOLVED 8.0997")  # HS, 50 knots, beta = 0.5
     assert lines[1] == "True"  # the certificate passes
     assert lines[2] == "19"
-    assert lines[3].startswith("IKStatus.SUCCESS 0.8405")
+    assert lines[3].startswith("SolveStatus.SOLVED 0.8405")
     assert (tmp_path / "replay.html").stat().st_size > 100_000

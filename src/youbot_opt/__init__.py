@@ -11,7 +11,6 @@ import importlib
 import logging
 from typing import TYPE_CHECKING, Any
 
-from youbot_opt.dynamics import Dynamics, available_backends, build_dynamics
 from youbot_opt.exceptions import (
     FrameNotFound,
     InvalidModelError,
@@ -32,48 +31,82 @@ from youbot_opt.exceptions import (
     YoubotOptError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict.loader import LoadedURDF, check_model, check_urdf_text, load_urdf_strict
-from youbot_opt.robot.model import (
-    RobotModel,
-    TipPose,
-    available_robots,
-    frame_placement,
-    load_model,
-    tip_pose,
-)
-from youbot_opt.robot.params import (
-    STUDY_Q_GOAL,
-    STUDY_Q_START,
-    YOUBOT_PLANAR,
-    ArmParameters,
-    JointLimits,
-    LinkParameters,
-    PlatformMounting,
-)
-from youbot_opt.trajopt.trajectory import Trajectory
-from youbot_opt.robot.urdf import build_urdf, urdf_string, write_urdf
 
 if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
+    from youbot_opt.dynamics import Dynamics, available_backends, build_dynamics
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.nlp.status import SolveStatus
+    from youbot_opt.reproduction.study1 import study1_problem
+    from youbot_opt.robot.model import (
+        RobotModel,
+        TipPose,
+        available_robots,
+        frame_placement,
+        load_model,
+        tip_pose,
+    )
+    from youbot_opt.robot.params import (
+        STUDY_Q_GOAL,
+        STUDY_Q_START,
+        YOUBOT_PLANAR,
+        ArmParameters,
+        JointLimits,
+        LinkParameters,
+        PlatformMounting,
+    )
+    from youbot_opt.robot.strict.loader import (
+        LoadedURDF,
+        check_model,
+        check_urdf_text,
+        load_urdf_strict,
+    )
+    from youbot_opt.robot.urdf import build_urdf, urdf_string, write_urdf
+    from youbot_opt.sweeps.options import SweepOptions
     from youbot_opt.trajopt.bound_scaling import BoundScalingResult, bound_scaling_study
+    from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
     from youbot_opt.trajopt.io import load_result, save_result
     from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
-    from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.trajopt.pareto import ParetoFront, pareto_sweep
-    from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem, study1_problem
-    from youbot_opt.trajopt.result import SolveStatus, TrajOptResult
+    from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
+    from youbot_opt.trajopt.result import TrajOptResult
     from youbot_opt.trajopt.solver import TrajOptSolver
     from youbot_opt.trajopt.spline_guess import random_spline_guess
-    from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
+    from youbot_opt.trajopt.trajectory import Trajectory
 
 _LAZY: dict[str, str] = {
+    # models, parameters, URDF and dynamics (import Pinocchio and CasADi on first use)
+    "Dynamics": "youbot_opt.dynamics",
+    "available_backends": "youbot_opt.dynamics",
+    "build_dynamics": "youbot_opt.dynamics",
+    "LoadedURDF": "youbot_opt.robot.strict.loader",
+    "check_model": "youbot_opt.robot.strict.loader",
+    "check_urdf_text": "youbot_opt.robot.strict.loader",
+    "load_urdf_strict": "youbot_opt.robot.strict.loader",
+    "RobotModel": "youbot_opt.robot.model",
+    "TipPose": "youbot_opt.robot.model",
+    "available_robots": "youbot_opt.robot.model",
+    "frame_placement": "youbot_opt.robot.model",
+    "load_model": "youbot_opt.robot.model",
+    "tip_pose": "youbot_opt.robot.model",
+    "STUDY_Q_GOAL": "youbot_opt.robot.params",
+    "STUDY_Q_START": "youbot_opt.robot.params",
+    "YOUBOT_PLANAR": "youbot_opt.robot.params",
+    "ArmParameters": "youbot_opt.robot.params",
+    "JointLimits": "youbot_opt.robot.params",
+    "LinkParameters": "youbot_opt.robot.params",
+    "PlatformMounting": "youbot_opt.robot.params",
+    "Trajectory": "youbot_opt.trajopt.trajectory",
+    "build_urdf": "youbot_opt.robot.urdf",
+    "urdf_string": "youbot_opt.robot.urdf",
+    "write_urdf": "youbot_opt.robot.urdf",
     # trajectory optimisation: problem -> solver -> result (imports CasADi/SciPy on first use)
     "BoundaryState": "youbot_opt.trajopt.problem",
     "JointBounds": "youbot_opt.trajopt.problem",
     "TrajOptProblem": "youbot_opt.trajopt.problem",
-    "study1_problem": "youbot_opt.trajopt.problem",
+    "study1_problem": "youbot_opt.reproduction.study1",
     "IpoptOptions": "youbot_opt.nlp.ipopt",
     "TrajOptSolver": "youbot_opt.trajopt.solver",
-    "SolveStatus": "youbot_opt.trajopt.result",
+    "SolveStatus": "youbot_opt.nlp.status",
     "TrajOptResult": "youbot_opt.trajopt.result",
     "save_result": "youbot_opt.trajopt.io",
     "load_result": "youbot_opt.trajopt.io",
@@ -89,6 +122,7 @@ _LAZY: dict[str, str] = {
     "pareto_sweep": "youbot_opt.trajopt.pareto",
     "BoundScalingResult": "youbot_opt.trajopt.bound_scaling",
     "bound_scaling_study": "youbot_opt.trajopt.bound_scaling",
+    "SweepOptions": "youbot_opt.sweeps.options",
 }
 """Public names imported on first access, so ``import youbot_opt`` stays fast."""
 
@@ -159,6 +193,7 @@ __all__ = [
     "pareto_sweep",
     "BoundScalingResult",
     "bound_scaling_study",
+    "SweepOptions",
     # errors
     "FrameNotFound",
     "InvalidModelError",

@@ -33,7 +33,7 @@ def test_example_b_json(capsys):
         capsys, ["ikpath", "--example", "B", "--json", "--no-progress", "--no-replay"]
     )
     assert code == 0
-    assert doc["status"] == "success"
+    assert doc["status"] == "solved"
     assert doc["E"] == pytest.approx(15.6058914, abs=1e-6)
     q = np.array(doc["configurations"])
     assert q.shape == (5, 3) and np.all(np.abs(q) <= np.pi / 2)
@@ -152,7 +152,7 @@ def test_wall_time_cap_is_reported_as_time_limit(capsys):
     argv = ["ikpath", "--example", "B", "--max-wall-time", "1e-9", "--json", "--no-progress"]
     code, doc, _ = _json(capsys, [*argv, "--no-replay"])
     assert code == 1
-    assert doc["status"] == "time_limit"
+    assert doc["status"] == "max_time"
     assert np.all(np.isfinite(np.array(doc["configurations"])))
 
 
@@ -176,7 +176,7 @@ def test_undecided_target_warns_with_interval_and_still_solves(capsys):
     assert 0.0 <= lo <= hi
     assert "warning: reachability of target p1 = (-2, 1) is undecided" in err
     assert f"[{lo:.6g}, {hi:.6g}] m" in err and "--reach-evaluations" in err
-    assert doc["E"] is not None and code == (0 if doc["status"] == "success" else 1)  # solved
+    assert doc["E"] is not None and code == (0 if doc["status"] == "solved" else 1)  # solved
     assert main([*argv[:-1], "0", "--no-progress"]) == 2
     assert "--reach-evaluations must be >= 1, got 0" in capsys.readouterr().err
 
@@ -198,3 +198,12 @@ def test_starts_show_progress_name_the_folder_and_resume(capsys, tmp_path):
     assert code == 0 and again["resumed"] == 20
     assert "ikpath: 20/20 starts done" in err
     assert [o["E"] for o in again["start_outcomes"]] == [o["E"] for o in doc["start_outcomes"]]
+
+
+def test_single_start_prints_one_run(capsys):
+    """With the default one start, the text reads as one run: no multistart or zero-start line."""
+    code = main(["ikpath", "--example", "A", "--no-progress", "--no-replay"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "one start (the zero vector)" in out and "result: E = 0.8405135867" in out
+    assert "multistart:" not in out and "zero start" not in out and "best:" not in out

@@ -16,7 +16,6 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from test_dynamics_symbolic import (
     MODEL_NAMES,
     RTOL,
@@ -26,8 +25,9 @@ from test_dynamics_symbolic import (
     _random_states,
     _with_damping,
 )
-from youbot_opt.robot import analytic
+
 from youbot_opt.dynamics import build_dynamics
+from youbot_opt.robot import analytic
 from youbot_opt.robot.model import load_model
 from youbot_opt.robot.params import YOUBOT_PLANAR
 

@@ -1,7 +1,7 @@
 """IK multistarts that survive: resume from disk, crashed workers retried, SIGKILLed CLI runs.
 
-The crash tests use the private hook of :mod:`youbot_opt.sweeps.tasks`
-(``YOUBOT_OPT_TEST_CRASH``: listed task keys SIGSEGV their pool worker).
+The crash tests wrap chosen tasks (the ``faults`` fixture, ``tests/_faults.py``):
+those keys SIGSEGV their pool worker; the package has no test hooks.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_ikpath_solvers import LA, LB, TARGETS_2
 
 from _sigkill import kill_repeatedly
-from test_ikpath_solvers import LA, LB, TARGETS_2
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.chain import PlanarChain
@@ -23,6 +23,7 @@ from youbot_opt.ikpath.io import load_ikpath_result
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.sweeps.options import SweepOptions
 
 N = 6  # starts of the in-process tests
 
@@ -35,7 +36,7 @@ def two_link():
 @pytest.fixture(scope="module")
 def reference(two_link):
     """An uninterrupted serial run without output folder: the independent reference."""
-    return run_multistart(two_link, n_starts=N, seed=4, max_workers=1)
+    return run_multistart(two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=1))
 
 
 @pytest.fixture
@@ -71,7 +72,9 @@ def test_resume_loads_finished_starts_instead_of_solving(
     two_link, reference, solver_calls, tmp_path
 ):
     """A rerun solves only the starts without a record (orphan payloads too), then nothing."""
-    first = run_multistart(two_link, n_starts=N, seed=4, max_workers=1, out=tmp_path)
+    first = run_multistart(
+        two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
+    )
     assert len(solver_calls) == N and first.resumed == 0 and first.output == tmp_path
     _same_results(first, reference)
     items = tmp_path / "items"
@@ -88,15 +91,15 @@ def test_resume_loads_finished_starts_instead_of_solving(
         two_link,
         n_starts=N,
         seed=4,
-        max_workers=1,
-        out=tmp_path,
-        progress=lambda *a: progress.append(a),
+        sweep=SweepOptions(workers=1, out=tmp_path, progress=lambda *a: progress.append(a)),
     )
     assert len(solver_calls) == 2 and second.resumed == N - 2
     assert [p[0] for p in progress] == [N - 2, N - 1, N] and all(p[1] == N for p in progress)
     _same_results(second, reference)
     solver_calls.clear()
-    third = run_multistart(two_link, n_starts=N, seed=4, max_workers=1, out=tmp_path)
+    third = run_multistart(
+        two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
+    )
     assert solver_calls == [] and third.resumed == N and third.attempts == (1,) * N
     _same_results(third, reference)
     assert [m.count for m in third.minima] == [m.count for m in reference.minima]
@@ -104,21 +107,28 @@ def test_resume_loads_finished_starts_instead_of_solving(
 
 def test_resume_refuses_other_parameters(two_link, tmp_path):
     """An output folder of another multistart (seed, method) is refused, naming the difference."""
-    run_multistart(two_link, n_starts=2, seed=4, max_workers=1, out=tmp_path)
+    run_multistart(two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path))
     with pytest.raises(ParameterError, match=r"seed: stored 4, now 5"):
-        run_multistart(two_link, n_starts=2, seed=5, max_workers=1, out=tmp_path)
+        run_multistart(two_link, n_starts=2, seed=5, sweep=SweepOptions(workers=1, out=tmp_path))
     with pytest.raises(ParameterError, match=r"method: stored 'al', now 'ipopt'"):
-        run_multistart(two_link, method="ipopt", n_starts=2, seed=4, max_workers=1, out=tmp_path)
+        run_multistart(
+            two_link,
+            method="ipopt",
+            n_starts=2,
+            seed=4,
+            sweep=SweepOptions(workers=1, out=tmp_path),
+        )
 
 
 @pytest.mark.parametrize("method", ["al", "ipopt"])
-def test_worker_crashing_once_is_retried_and_succeeds(two_link, method, monkeypatch, tmp_path):
+def test_worker_crashing_once_is_retried_and_succeeds(two_link, method, faults, tmp_path):
     """One segfault: only that start is charged (2 attempts), every start succeeds, E as serial."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0002")
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
+    faults(crash={"start_0002"}, once_dir=tmp_path)
     out = tmp_path / "out"
-    res = run_multistart(two_link, method=method, n_starts=N, seed=4, max_workers=2, out=out)
-    ref = run_multistart(two_link, method=method, n_starts=N, seed=4, max_workers=1)
+    res = run_multistart(
+        two_link, method=method, n_starts=N, seed=4, sweep=SweepOptions(workers=2, out=out)
+    )
+    ref = run_multistart(two_link, method=method, n_starts=N, seed=4, sweep=SweepOptions(workers=1))
     assert (tmp_path / "crashed-start_0002").exists()  # the hook really fired
     assert res.attempts == (1, 1, 2, 1, 1, 1)
     assert res.n_success == N
@@ -129,11 +139,11 @@ def test_worker_crashing_once_is_retried_and_succeeds(two_link, method, monkeypa
 
 
 def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
-    two_link, reference, monkeypatch, tmp_path, solver_calls
+    two_link, reference, faults, tmp_path, solver_calls
 ):
     """A start that always segfaults: failed after 2 attempts with reasons; a rerun keeps it."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0001")
-    res = run_multistart(two_link, n_starts=N, seed=4, max_workers=2, out=tmp_path)
+    faults(crash={"start_0001"})
+    res = run_multistart(two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=2, out=tmp_path))
     crashed = res.results[1]
     assert crashed.status is IKStatus.CRASHED and "worker process crashed" in crashed.message
     assert res.attempts == (1, 2, 1, 1, 1, 1)
@@ -143,8 +153,10 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
     assert len(rec["reasons"]) == 2 and all("worker process crashed" in r for r in rec["reasons"])
     assert not (tmp_path / "items" / "start_0001.ikpath").exists()
     # Out of attempts: a rerun loads everything (no third attempt) and reports the reason.
-    monkeypatch.delenv("YOUBOT_OPT_TEST_CRASH")
-    again = run_multistart(two_link, n_starts=N, seed=4, max_workers=1, out=tmp_path)
+    faults()  # none any more
+    again = run_multistart(
+        two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
+    )
     assert solver_calls == [] and again.resumed == N
     assert again.results[1].status is IKStatus.CRASHED
     assert again.results[1].message == rec["reasons"][-1]
@@ -156,11 +168,11 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
 
 def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
     """Truncated result, newer-schema result or record, non-JSON record: ResultFileError."""
-    run_multistart(two_link, n_starts=2, seed=4, max_workers=1, out=tmp_path)
+    run_multistart(two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path))
     items = tmp_path / "items"
 
     def rerun() -> None:
-        run_multistart(two_link, n_starts=2, seed=4, max_workers=1, out=tmp_path)
+        run_multistart(two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path))
 
     payload = items / "start_0000.ikpath"
     good = payload.read_bytes()
@@ -222,7 +234,9 @@ def test_sigkilled_cli_multistart_resumes_to_the_uninterrupted_result(tmp_path):
     assert 0 < doc["resumed"] < _STARTS
 
     # Independent reference: one uninterrupted in-process run of the same multistart.
-    ref = run_multistart(example_problem("A"), n_starts=_STARTS, seed=_SEED, max_workers=1)
+    ref = run_multistart(
+        example_problem("A"), n_starts=_STARTS, seed=_SEED, sweep=SweepOptions(workers=1)
+    )
     got = doc["start_outcomes"]
     assert [o["index"] for o in got] == list(range(_STARTS))  # every start once, in order
     for o, r in zip(got, ref.results, strict=True):

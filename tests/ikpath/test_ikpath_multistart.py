@@ -6,8 +6,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 import pytest
-
 from test_ikpath_solvers import LA, LB, TARGETS_2, _two_link_optimum
+
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.chain import PlanarChain
@@ -20,6 +20,7 @@ from youbot_opt.ikpath.multistart import (
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.sweeps.options import SweepOptions
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +54,9 @@ def test_multistart_finds_enumerated_global_optimum(two_link, method):
     decide what is found; 40 starts miss the best one with probability (15/16)^39 < 0.1.
     """
     e_star, q_star = _two_link_optimum(TARGETS_2)
-    res = run_multistart(two_link, method=method, n_starts=40, seed=0, max_workers=1)
+    res = run_multistart(
+        two_link, method=method, n_starts=40, seed=0, sweep=SweepOptions(workers=1)
+    )
     assert min(m.objective for m in res.minima) >= e_star - 1e-9
     assert res.best.objective == pytest.approx(e_star, abs=1e-9)
     assert configuration_distance(res.best.configurations, q_star) < 1e-6
@@ -66,13 +69,14 @@ def test_multistart_finds_enumerated_global_optimum(two_link, method):
 def test_process_pool_equals_serial_and_reports_progress(two_link):
     """A 2-process pool gives the serial run's per-start results; progress counts every start."""
     calls = []
-    serial = run_multistart(two_link, n_starts=8, seed=1, max_workers=1)
+    serial = run_multistart(two_link, n_starts=8, seed=1, sweep=SweepOptions(workers=1))
     pooled = run_multistart(
         two_link,
         n_starts=8,
         seed=1,
-        max_workers=2,
-        progress=lambda done, total, best: calls.append((done, total, best)),
+        sweep=SweepOptions(
+            workers=2, progress=lambda done, total, best: calls.append((done, total, best))
+        ),
     )
     # Same start, same deterministic solver in another process: equal to rounding (1e-12).
     np.testing.assert_allclose(
@@ -97,12 +101,12 @@ def test_a_raising_start_is_retried_once_then_crashed(two_link, monkeypatch):
         return real(problem, x0, options)
 
     monkeypatch.setattr(sweep_mod, "solve_augmented_lagrangian", flaky)
-    res = run_multistart(two_link, n_starts=4, seed=0, max_workers=1)
+    res = run_multistart(two_link, n_starts=4, seed=0, sweep=SweepOptions(workers=1))
     assert res.results[0].status is IKStatus.CRASHED
     assert res.results[0].message == "RuntimeError: boom"
     assert len(calls) == 2 and res.attempts == (2, 1, 1, 1)
     assert all(r.success for r in res.results[1:])
-    assert res.status_counts() == {"crashed": 1, "success": 3}
+    assert res.status_counts() == {"crashed": 1, "solved": 3}
 
 
 class _LosingExecutor(ThreadPoolExecutor):
@@ -123,9 +127,9 @@ class _LosingExecutor(ThreadPoolExecutor):
 
 def test_a_lost_start_is_retried_on_any_executor(two_link):
     """The start whose future fails is retried and succeeds; the others are charged nothing."""
-    reference = run_multistart(two_link, n_starts=4, seed=0, max_workers=1)
+    reference = run_multistart(two_link, n_starts=4, seed=0, sweep=SweepOptions(workers=1))
     with _LosingExecutor() as pool:
-        res = run_multistart(two_link, n_starts=4, seed=0, executor=pool)
+        res = run_multistart(two_link, n_starts=4, seed=0, sweep=SweepOptions(executor=pool))
     assert res.attempts == (2, 1, 1, 1)
     assert all(r.success for r in res.results)
     # Same starts, same solver, threads of this process: equal to rounding (1e-12).
@@ -147,7 +151,7 @@ def test_configuration_distance_ignores_common_2pi_shifts(rng):
 
 def test_clustering_merges_equal_minima(two_link):
     """Results within the tolerances form one minimum whose count is the number of members."""
-    res = run_multistart(two_link, n_starts=10, seed=2, max_workers=1)
+    res = run_multistart(two_link, n_starts=10, seed=2, sweep=SweepOptions(workers=1))
     merged = cluster_minima(res.results, e_tol=1e6, q_tol=1e6)
     assert len(merged) == 1 and merged[0].count == res.n_success
     again = res.distinct_optima()  # default tolerances: the same clustering as res.minima

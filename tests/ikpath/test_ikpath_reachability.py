@@ -11,9 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.geometry import two_link_nearest
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.geometry import two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import (
     Reachability,

@@ -9,14 +9,16 @@ import math
 import numpy as np
 import pytest
 
+from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.io import _digest, load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKStatus, build_result
+from youbot_opt.ikpath.result import build_result
 from youbot_opt.ikpath.solve import solve
+from youbot_opt.nlp.status import SolveStatus
 
 
 @pytest.fixture(scope="module")
@@ -51,17 +53,17 @@ def test_raise_for_status(result):
     """Success returns the result; a failure raises SolveFailed carrying the result."""
     assert result.raise_for_status() is result
     failed = solve(example_problem("A"), method="ipopt", options=None, x0=None)
-    assert failed.status is IKStatus.SUCCESS  # zero start converges (to a poor minimum) for IPOPT
+    assert failed.status is SolveStatus.SOLVED  # zero start converges (to a poor minimum) for IPOPT
     from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 
     capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
-    assert capped.status is IKStatus.MAX_ITERATIONS
+    assert capped.status is SolveStatus.MAX_ITERATIONS
     with pytest.raises(SolveFailed, match="max_iterations") as info:
         capped.raise_for_status()
     assert info.value.result is capped
 
 
-def _claim(problem, x, *, status=IKStatus.SUCCESS, tol=1e-10):
+def _claim(problem, x, *, status=SolveStatus.SOLVED, tol=1e-10):
     """A result claiming ``status`` for configurations ``x`` (as a solver would build it)."""
     n = problem.n_variables
     return build_result(
@@ -84,12 +86,12 @@ def test_replace_with_nan_configurations_is_not_a_success(result):
     assert result.success
     nan = np.full_like(result.configurations, np.nan)
     bad = dataclasses.replace(result, configurations=nan)
-    assert bad.status is IKStatus.NUMERICAL_ERROR and not bad.success
+    assert bad.status is SolveStatus.NON_FINITE and not bad.success
     assert "re-check failed: non-finite values in configurations" in bad.message
-    with pytest.raises(SolveFailed, match="numerical_error"):
+    with pytest.raises(SolveFailed, match="non_finite"):
         bad.raise_for_status()
     inf_e = dataclasses.replace(result, objective=math.inf)
-    assert inf_e.status is IKStatus.NUMERICAL_ERROR and "objective" in inf_e.message
+    assert inf_e.status is SolveStatus.NON_FINITE and "objective" in inf_e.message
 
 
 def test_replace_with_moved_configuration_or_stale_figures_fails_the_recheck(result):
@@ -97,10 +99,10 @@ def test_replace_with_moved_configuration_or_stale_figures_fails_the_recheck(res
     q = np.array(result.configurations)
     q[2, 1] += 1e-3
     moved = dataclasses.replace(result, configurations=q)
-    assert moved.status is IKStatus.CHECK_FAILED
+    assert moved.status is SolveStatus.CONSTRAINT_VIOLATION
     assert "target 2 missed by" in moved.message and "reported E" in moved.message
     stale = dataclasses.replace(result, objective=result.objective + 1e-6)
-    assert stale.status is IKStatus.CHECK_FAILED and "reported E" in stale.message
+    assert stale.status is SolveStatus.CONSTRAINT_VIOLATION and "reported E" in stale.message
     same = dataclasses.replace(result)  # nothing changed: still a success
     assert same.success and same.message == result.message
 
@@ -123,7 +125,10 @@ def test_recheck_uses_the_solver_constraint_tolerance():
     assert ok.success, ok.message
     assert ok.max_residual() == pytest.approx(1e-9, rel=1e-5)  # rounding of 1e-16 m in 1e-9 m
     tight = _claim(problem, x, tol=5e-10)  # allowed 7.1e-10 m < 1e-9 m
-    assert tight.status is IKStatus.CHECK_FAILED and "target 0 missed by 1e-09 m" in tight.message
+    assert (
+        tight.status is SolveStatus.CONSTRAINT_VIOLATION
+        and "target 0 missed by 1e-09 m" in tight.message
+    )
 
 
 def test_claimed_success_outside_the_limits_fails_the_recheck():
@@ -132,7 +137,7 @@ def test_claimed_success_outside_the_limits_fails_the_recheck():
     q = np.array([[0.7, 0.1], [0.2, 0.3]])
     problem = CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
     res = _claim(problem, q)
-    assert res.status is IKStatus.CHECK_FAILED
+    assert res.status is SolveStatus.CONSTRAINT_VIOLATION
     assert "joint limits violated by 0.2 rad" in res.message
     free = CyclicIKProblem(chain=chain, targets=problem.targets, use_limits=False)
     assert _claim(free, q).success  # the same configurations without the limits
@@ -141,8 +146,8 @@ def test_claimed_success_outside_the_limits_fails_the_recheck():
 def test_failures_are_kept_and_tolerance_is_validated():
     """Only claimed successes are re-checked; constraint_tol must be finite and > 0."""
     problem = example_problem("A")
-    far = _claim(problem, np.zeros(problem.n_variables), status=IKStatus.MAX_ITERATIONS)
-    assert far.status is IKStatus.MAX_ITERATIONS and far.message == "claimed"
+    far = _claim(problem, np.zeros(problem.n_variables), status=SolveStatus.MAX_ITERATIONS)
+    assert far.status is SolveStatus.MAX_ITERATIONS and far.message == "claimed"
     for tol in (0.0, -1e-9, math.nan, math.inf):
         with pytest.raises(ParameterError, match="constraint_tol"):
             _claim(problem, np.zeros(problem.n_variables), tol=tol)
@@ -156,7 +161,7 @@ def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(re
     path = save_ikpath_result(result, tmp_path / "old.json")
     doc = json.loads(path.read_text())
     del doc["result"]["constraint_tol"]
-    doc["sha256"] = _digest(doc["result"])
+    doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
     old = load_ikpath_result(path)
     assert old.constraint_tol == ALOptions().constraint_tol and old.success

@@ -21,8 +21,9 @@ from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.multistart import configuration_distance
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.ikpath.solve import solve
+from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.sweeps.options import SweepOptions
 
 LA, LB = 1.0, 0.8
 TARGETS_2 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.4, -1.0)]
@@ -78,7 +79,7 @@ def test_methods_reach_enumerated_optimum(two_link, method, rng):
     prob, (e_star, q_star) = two_link
     x0 = q_star + rng.uniform(-0.1, 0.1, q_star.shape)
     res = solve(prob, method=method, x0=x0)
-    assert res.status is IKStatus.SUCCESS, res.message
+    assert res.status is SolveStatus.SOLVED, res.message
     assert res.objective == pytest.approx(e_star, abs=1e-9)
     assert configuration_distance(res.configurations, q_star) < 1e-6
     assert res.max_residual() < 1e-9
@@ -155,7 +156,7 @@ def test_lbfgsb_inner_solver_reaches_the_default_optimum():
     # 1e-6 instead of 1e-8.
     res = solve_augmented_lagrangian(prob, options=ALOptions(inner="lbfgsb", stationarity_tol=1e-6))
     assert default.success, default.message
-    assert res.status is IKStatus.SUCCESS, res.message
+    assert res.status is SolveStatus.SOLVED, res.message
     assert res.limit_violation == 0.0
     assert np.all(np.abs(res.configurations) <= np.pi / 2)
     # |c|_inf <= 1e-10 m per coordinate, so |c_j|_2 <= sqrt(2) 1e-10 m
@@ -210,7 +211,7 @@ def test_lbfgsb_verdict_does_not_depend_on_the_blas_kernel(kernel):
     )
     assert out.returncode == 0, out.stderr
     status, objective, residual = out.stdout.split()
-    assert status == "success"
+    assert status == "solved"
     assert float(objective) == pytest.approx(15.605891397951, abs=1e-9)
     assert float(residual) <= np.sqrt(2) * 1e-10
 
@@ -220,7 +221,7 @@ def test_locally_infeasible_start_is_a_status():
     prob = example_problem("B")
     x0 = np.tile([-np.pi / 2, -np.pi / 2, -np.pi / 2], 5)
     res = solve(prob, method="al", x0=x0)
-    assert res.status is not IKStatus.SUCCESS
+    assert res.status is not SolveStatus.SOLVED
     with pytest.raises(SolveFailed) as info:
         res.raise_for_status()
     assert info.value.result is res
@@ -229,7 +230,7 @@ def test_locally_infeasible_start_is_a_status():
 def test_ipopt_solver_is_reused_for_other_targets():
     """One IPOPT build solves problems that differ only in their targets."""
     prob = example_problem("A")
-    solver = IpoptIKSolver(prob, IpoptOptions())
+    solver = IpoptIKSolver(prob, IpoptOptions.for_ikpath())
     moved = CyclicIKProblem(chain=prob.chain, targets=prob.targets + 0.1)
     res = solver.solve(moved, x0=solve(moved, method="al").configurations)
     assert res.success and res.max_residual() < 1e-9
@@ -306,10 +307,10 @@ def test_ipopt_acceptable_level_is_rechecked():
     prob = example_problem("A")
     loose = {"acceptable_iter": 1, "acceptable_tol": 1e20, "acceptable_constr_viol_tol": 1e20}
     loose |= {"acceptable_dual_inf_tol": 1e20, "acceptable_compl_inf_tol": 1e20}
-    res = solve(prob, method="ipopt", options=IpoptOptions(extra=loose))
+    res = solve(prob, method="ipopt", options=IpoptOptions.for_ikpath(extra=loose))
     assert res.message == "Solved_To_Acceptable_Level"
     assert res.max_residual() > 1e-3  # stopped early, targets missed
-    assert res.status is IKStatus.STALLED
+    assert res.status is SolveStatus.STALLED
 
 
 @pytest.mark.parametrize("inner", ["bfgs", "lbfgsb"])
@@ -317,12 +318,12 @@ def test_al_wall_time_cap_is_a_time_limit_status_with_the_last_iterate(inner):
     """max_wall_time = 1 ns: TIME_LIMIT after the first inner check, a finite in-box iterate."""
     prob = example_problem("B")
     res = solve(prob, method="al", options=ALOptions(max_wall_time=1e-9, inner=inner))
-    assert res.status is IKStatus.TIME_LIMIT, res.message
+    assert res.status is SolveStatus.MAX_TIME, res.message
     assert "wall-time limit 1e-09 s reached" in res.message
     assert res.iterations == 1 and res.inner_iterations <= 1  # SciPy's callback runs after one
     assert np.all(np.isfinite(res.configurations)) and res.limit_violation == 0.0
     np.testing.assert_array_equal(res.history[-1].x, res.configurations)
-    with pytest.raises(SolveFailed, match="time_limit"):
+    with pytest.raises(SolveFailed, match="max_time"):
         res.raise_for_status()
 
 
@@ -339,11 +340,13 @@ def test_ipopt_time_limits_map_to_the_time_limit_status():
     """IPOPT's wall-time and CPU-time exits are TIME_LIMIT, not NUMERICAL_ERROR."""
     from youbot_opt.ikpath.ipopt import _STATUS
 
-    assert _STATUS["Maximum_WallTime_Exceeded"] is IKStatus.TIME_LIMIT
-    assert _STATUS["Maximum_CpuTime_Exceeded"] is IKStatus.TIME_LIMIT
-    res = solve(example_problem("A"), method="ipopt", options=IpoptOptions(max_wall_time=1e-9))
+    assert _STATUS["Maximum_WallTime_Exceeded"] is SolveStatus.MAX_TIME
+    assert _STATUS["Maximum_CpuTime_Exceeded"] is SolveStatus.MAX_TIME
+    res = solve(
+        example_problem("A"), method="ipopt", options=IpoptOptions.for_ikpath(max_wall_time=1e-9)
+    )
     assert res.message == "Maximum_WallTime_Exceeded"
-    assert res.status is IKStatus.TIME_LIMIT and np.all(np.isfinite(res.configurations))
+    assert res.status is SolveStatus.MAX_TIME and np.all(np.isfinite(res.configurations))
 
 
 @pytest.mark.parametrize("value", [0.0, -1.0, np.nan, np.inf, True, "1"])
@@ -363,7 +366,7 @@ def test_ipopt_refuses_chains_with_fewer_than_two_free_joints():
     with pytest.raises(ParameterError, match=r"at least 2 free joints, got 1 .*method='al'"):
         solve(one, method="ipopt")
     with pytest.raises(ParameterError, match="at least 2 free joints"):
-        run_multistart(one, method="ipopt", n_starts=2, max_workers=1)
+        run_multistart(one, method="ipopt", n_starts=2, sweep=SweepOptions(workers=1))
     fixed = PlanarChain(lengths=[1.0, 1.0], q_lower=[-3.0, 0.5], q_upper=[3.0, 0.5])
     q = np.array([[0.2, 0.5], [1.1, 0.5]])
     prob = CyclicIKProblem(chain=fixed, targets=[fixed.tip_position(qj) for qj in q])
@@ -461,10 +464,10 @@ def test_ipopt_ends_within_the_limits_at_an_active_straight_arm(rng):
     converged = 0
     for x0 in rng.uniform(prob.lower, prob.upper, (20, prob.n_variables)):
         res = solver.solve(prob, x0)
-        assert res.limit_violation == 0.0 and res.status is not IKStatus.CHECK_FAILED
+        assert res.limit_violation == 0.0 and res.status is not SolveStatus.CONSTRAINT_VIOLATION
         if res.message.startswith("Solve_Succeeded"):
             converged += 1
-            assert res.status is IKStatus.SUCCESS, res.message
+            assert res.status is SolveStatus.SOLVED, res.message
             np.testing.assert_allclose(res.configurations[0], [half_pi, 0, 0], atol=1e-7)
             assert min(abs(res.objective - 2.30787901), abs(res.objective - 6.93217280)) < 1e-7
     assert converged >= 10  # measured 14 of 20
@@ -475,9 +478,19 @@ def test_ipopt_iterate_outside_the_limits_is_projected(rng):
     half_pi = np.pi / 2
     chain = PlanarChain(lengths=[3.0, 2.0, 2.0], q_lower=-half_pi, q_upper=half_pi)
     prob = CyclicIKProblem(chain=chain, targets=[(0.0, 7.0), (5.0, 0.0)])
-    solver = IpoptIKSolver(prob, IpoptOptions(extra={"slack_move": 1.8189894035458565e-12}))
+    solver = IpoptIKSolver(
+        prob, IpoptOptions.for_ikpath(extra={"slack_move": 1.8189894035458565e-12})
+    )
     projected = [solver.solve(prob, x0) for x0 in rng.uniform(prob.lower, prob.upper, (20, 6))]
     projected = [r for r in projected if "projected onto the joint limits" in r.message]
     assert projected  # measured 8 of 20, moved by up to 5.7e-12 rad
     for res in projected:
         assert res.limit_violation == 0.0 and "joint limits violated" not in res.message
+
+
+def test_ipopt_refuses_options_without_constraint_tolerance():
+    """The IK-path IPOPT solver needs constr_viol_tol [m]; the message names for_ikpath."""
+    with pytest.raises(ParameterError, match="for_ikpath"):
+        IpoptIKSolver(example_problem("A"), IpoptOptions(max_iter=10))
+    with pytest.raises(ParameterError, match="max_iter >= 1"):
+        IpoptIKSolver(example_problem("A"), IpoptOptions.for_ikpath(max_iter=0))

@@ -5,7 +5,7 @@ reachable targets (tip positions of random configurations) and arbitrary ones,
 both methods and small iteration caps. Every call must raise a documented
 error (:class:`UnreachableTarget`; :class:`ParameterError` when IPOPT is asked
 to solve a 1-link chain) or return a result
-whose success is confirmed by :func:`~youbot_opt.trajopt.certify.check_ik_result`
+whose success is confirmed by :func:`~youbot_opt.ikpath.check.check_ik_result`
 (closed-form kinematics, not Pinocchio or CasADi). Invalid inputs (lengths,
 limits, targets, NaN/inf, shapes, options, starts) raise ParameterError.
 Runs are derandomized and database-free.
@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, SolveFailed, UnreachableTarget
 from youbot_opt.ikpath import ALOptions, CyclicIKProblem, IpoptOptions, PlanarChain, solve
-from youbot_opt.trajopt.certify import check_ik_result
+from youbot_opt.ikpath.check import check_ik_result
 
 PROPERTY = settings(
     deadline=None,
@@ -45,7 +45,7 @@ def _residual_tol(method: str, options: Any) -> float:
     if method == "al":
         tol = (options or ALOptions()).constraint_tol
     else:
-        tol = (options or IpoptOptions()).constr_viol_tol
+        tol = (options or IpoptOptions.for_ikpath()).constr_viol_tol
     return math.sqrt(2.0) * tol + 1e-12
 
 
@@ -80,7 +80,7 @@ _AL = st.builds(
     max_outer_iterations=st.sampled_from([1, 3, 100]),
     max_inner_iterations=st.sampled_from([2, 50, 1000]),
 )
-_IPOPT = st.builds(IpoptOptions, max_iter=st.sampled_from([1, 5, 3000]))
+_IPOPT = st.builds(IpoptOptions.for_ikpath, max_iter=st.sampled_from([1, 5, 3000]))
 
 
 @settings(PROPERTY, max_examples=40)
@@ -157,7 +157,7 @@ def test_one_invalid_ik_input_raises_parameter_error(field, data) -> None:
         targets = value
     elif field == "options":
         call["method"] = "al" if value == "ipopt-options-for-al" else "ipopt"
-        call["options"] = IpoptOptions() if call["method"] == "al" else ALOptions()
+        call["options"] = IpoptOptions.for_ikpath() if call["method"] == "al" else ALOptions()
     else:
         call[field] = value
     with pytest.raises(ParameterError) as info:
@@ -196,7 +196,7 @@ def test_ipopt_acceptable_level_with_large_residual_is_not_a_success(solved_ik) 
     loose = {"acceptable_iter": 1, "acceptable_constr_viol_tol": 1e20}
     loose |= {"acceptable_tol": 1e20, "acceptable_dual_inf_tol": 1e20}
     loose |= {"acceptable_compl_inf_tol": 1e20}
-    result = solve(problem, method="ipopt", options=IpoptOptions(extra=loose))
+    result = solve(problem, method="ipopt", options=IpoptOptions.for_ikpath(extra=loose))
     assert result.message == "Solved_To_Acceptable_Level"
     assert not check_ik_result(result).passed  # the targets are missed (9.3 m measured)
     assert not result.success

@@ -57,13 +57,17 @@ def test_converged_solve_keeps_ipopts_final_iterate() -> None:
 @pytest.mark.parametrize("method", ["ipopt", "al"])
 def test_failed_ik_path_returns_the_least_violating_iterate(method: str) -> None:
     """Stopped early on example A, both IK methods return their least-violating iterate."""
-    from youbot_opt.ikpath import ALOptions, IKStatus, example_problem, solve
+    from youbot_opt.ikpath import ALOptions, SolveStatus, example_problem, solve
     from youbot_opt.ikpath import IpoptOptions as IKIpoptOptions
 
-    options = IKIpoptOptions(max_iter=4) if method == "ipopt" else ALOptions(max_outer_iterations=2)
+    options = (
+        IKIpoptOptions.for_ikpath(max_iter=4)
+        if method == "ipopt"
+        else ALOptions(max_outer_iterations=2)
+    )
     problem = example_problem("A")
     result = solve(problem, method=method, options=options)
-    assert result.status is IKStatus.MAX_ITERATIONS
+    assert result.status is SolveStatus.MAX_ITERATIONS
     # The history keeps every iterate's max |c| (IPOPT: each iteration; AL: each outer
     # one); none meets the 1e-10 m tolerance this early, so the best is the least violating.
     violations = np.array([h.violation for h in result.history])

@@ -12,13 +12,13 @@ import pytest
 
 from youbot_opt.dynamics import build_dynamics
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.robot.model import load_model
-from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.reproduction.study1 import (
     DEVIATION_NAMES,
     StudyDeviations,
     StudyTranscription,
+    study1_problem,
 )
+from youbot_opt.robot.model import load_model
 from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 
 
@@ -295,9 +295,9 @@ def test_config_validation():
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_vertex_guess_meets_the_study_constraints(youbot, seed):
     """Vertex-LP starts: boundary states, knot limits, degree <= 6, tau by the hand dynamics."""
+    from youbot_opt.reproduction.study_guess import vertex_spline_guess
     from youbot_opt.robot import analytic
     from youbot_opt.robot.params import YOUBOT_PLANAR
-    from youbot_opt.reproduction.study_guess import vertex_spline_guess
 
     problem = study1_problem(50, robot=youbot)
     guess = vertex_spline_guess(problem, seed)

@@ -35,7 +35,7 @@ DEFAULT_MEMORY = 2 * 2**30  # [bytes] address space per child
 
 
 def _import_loader() -> types.ModuleType:
-    """Import youbot_opt.robot.strict.loader without executing the package's __init__ (heavy re-exports)."""
+    """Import youbot_opt.robot.strict.loader without running the package's __init__."""
     spec = importlib.util.find_spec("youbot_opt")
     assert spec is not None and spec.submodule_search_locations is not None
     package = types.ModuleType("youbot_opt")

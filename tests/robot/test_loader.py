@@ -26,7 +26,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 from lxml import etree
 
-from youbot_opt.robot.strict import loader
 from youbot_opt.exceptions import (
     InvalidModelError,
     ModelError,
@@ -39,6 +38,7 @@ from youbot_opt.exceptions import (
     URDFSyntaxError,
     YoubotOptWarning,
 )
+from youbot_opt.robot.strict import loader
 from youbot_opt.robot.strict.loader import check_model, check_urdf_text, load_urdf_strict
 from youbot_opt.robot.strict.resources import check_mesh
 from youbot_opt.robot.strict.xml import Site, parse_number, parse_xml_strict
@@ -383,10 +383,13 @@ def test_error_inside_a_mesh_is_raised_from_the_urdf_element(corpus_packages: Pa
 @pytest.mark.parametrize(
     ("dae", "detail"),
     [
-        ("evil_texture_dotdot", ".dae -> ../../"),
-        ("evil_texture_http", ".dae -> http://example.com/tex.png'"),
-        ("missing_texture", ".dae -> no_such_texture.png': it does not exist"),
-        ("broken", ".dae': not well-formed XML"),
+        (
+            "evil_texture_dotdot",
+            "<init_from>: '../../../../../../../../../../etc/passwd' resolves to",
+        ),
+        ("evil_texture_http", "<init_from>: reference 'http://example.com/tex.png' uses a refused"),
+        ("missing_texture", "no_such_texture.png', which does not exist"),
+        ("broken", ": document: not well-formed XML"),
     ],
 )
 def test_meshcat_policy_names_the_referencing_object_mesh_texture_and_rule(
@@ -397,12 +400,46 @@ def test_meshcat_policy_names_the_referencing_object_mesh_texture_and_rule(
 
     mesh = corpus_packages / "corpus_pkg" / "meshes" / f"{dae}.dae"
     who = "robot 'corpus', visual geometry 'arm_0'"
-    with pytest.raises(ModelError) as info:
+    with pytest.raises(URDFError) as info:
         load_mesh_file(mesh, [corpus_packages], referenced_by=who)
-    message = str(info.value)
-    assert message.startswith(f"{who}: refusing to embed '{mesh}")
-    assert f"{mesh.stem}{detail}" in message
-    assert re.search(r"\(rule: [^)]+\)$", message)
+    message, error = str(info.value), info.value
+    assert message.startswith(f"{mesh}: {who}: the mesh '{mesh.resolve()}' it references")
+    assert f"{mesh.resolve()}:" in message and detail in message  # the .dae, its line, the texture
+    assert error.rule and message.endswith(f"[rule: {error.rule}]")
+    assert type(error.__cause__) is type(error)
+
+
+@pytest.mark.parametrize(
+    "entry",
+    [e for e in MANIFEST if "element" in e and "<mesh " in e["element"]],
+    ids=lambda e: e["file"],
+)
+def test_replay_and_loader_refuse_each_hostile_mesh_by_the_same_rule(
+    corpus_packages: Path, subprocess_reports: dict[str, dict], entry: dict
+) -> None:
+    """Each hostile mesh reference of the corpus is refused by the replay as by the loader."""
+    from youbot_opt.robot.strict.meshes import load_mesh_file
+
+    ref = re.search(r"filename='([^']*)'", entry["element"]).group(1)  # as in the file
+    report = subprocess_reports[entry["file"]]
+    with pytest.raises(URDFError) as info:
+        load_mesh_file(ref, [corpus_packages], referenced_by="geometry object 'arm_0'")
+    assert type(info.value).__name__ == report["error_class"] == entry["expect"]
+    assert info.value.rule == report["error_rule"]
+    assert entry["match"] in str(info.value)
+
+
+def test_replay_accepts_every_mesh_the_loader_accepts(corpus_packages: Path) -> None:
+    """The valid corpus files' meshes (stl, dae with texture, obj, symlink inside) embed."""
+    from youbot_opt.robot.strict.meshes import load_mesh_file
+
+    valid = [CORPUS / e["file"] for e in MANIFEST if e["expect"] == "ok"]
+    for urdf in valid:
+        loaded = load_urdf_strict(urdf, [corpus_packages])
+        for go in loaded.visual_model.geometryObjects:
+            if Path(go.meshPath).suffix:
+                mesh = load_mesh_file(go.meshPath, [corpus_packages])
+                assert mesh.data and mesh.path == Path(go.meshPath)
 
 
 @pytest.mark.parametrize(

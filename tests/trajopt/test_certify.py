@@ -13,15 +13,14 @@ from scipy.linalg import expm
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import load_model
-from youbot_opt.trajopt.simulate import PDGains, simulate
-from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.certify import (
     Tolerances,
     certify,
     check_bounds,
     integrate_intervals,
-    robot_bounds,
 )
+from youbot_opt.trajopt.simulate import PDGains, simulate
+from youbot_opt.trajopt.trajectory import Trajectory
 
 DAMPING = 0.1  # [N m s/rad], the study code's joint damping
 Q_START = np.array([-math.pi / 6, -math.pi / 6, -math.pi / 3])
@@ -303,7 +302,7 @@ def test_tracking_exact_youbot_plan_feedback_small_and_shrinking(youbot, exact) 
 # -------------------------------------------------------------------------------- bounds
 def test_bound_violation_between_knots_detected(youbot) -> None:
     """Knots on the upper position limit with v = +w, -w overshoot it by w h / 4 at mid-interval."""
-    bounds = robot_bounds(youbot)
+    bounds = youbot.bounds()
     upper = bounds.q_upper[0]
     w, h = 1.0, 0.2  # [rad/s], [s]
     q = np.tile(Q_START, (3, 1))
@@ -325,7 +324,7 @@ def test_bound_violation_between_knots_detected(youbot) -> None:
 def test_scaled_bounds_flag_knot_violation(youbot, exact) -> None:
     """A plan within the data sheet violates 85 % bounds at the knots, by the computed amount."""
     traj = exact(50)
-    bounds = robot_bounds(youbot, 0.85)
+    bounds = youbot.bounds(0.85)
     checks = {(c.quantity, c.where): c for c in check_bounds(traj, bounds)}
     excess = np.max(np.abs(traj.tau) - bounds.tau_upper)
     assert checks["torque", "knots"].excess == pytest.approx(excess, rel=1e-12)
@@ -361,7 +360,7 @@ def test_bad_inputs_raise(youbot) -> None:
 @pytest.mark.slow
 def test_study1_certificates_improve_with_knots() -> None:
     """Study 1 solved at 25/50/100 knots: local error and feedback within shrinking tolerances."""
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import solve
 
     # Measured (trapezoidal, beta 0.5): local position 0.14 / 0.017 / 0.0068 rad,
@@ -399,7 +398,7 @@ def test_study1_hermite_simpson_certificates_improve_with_knots() -> None:
     ratios (measured 5.5x, 5.0x) by > 3. Each plan passes its certificate. The
     three solves and certificates take ~1 s, so the test is not marked slow.
     """
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import solve
 
     limits = {25: (0.013, 0.19, 0.013), 50: (1.1e-3, 0.025, 2.4e-3), 100: (1.5e-4, 4.4e-3, 4.8e-4)}

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.trajopt.io import SCHEMA_VERSION, load_result, save_result
-from youbot_opt.robot.model import load_model
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.io import SCHEMA_VERSION, load_result, save_result
 from youbot_opt.trajopt.result import SolveStatus
 from youbot_opt.trajopt.solver import solve
 
@@ -136,8 +136,8 @@ def test_feasibility_tolerance_round_trips(tmp_path) -> None:
     """A result judged at a looser tolerance is re-judged at that tolerance when loaded."""
     import dataclasses
 
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.io import load_result, save_result
-    from youbot_opt.trajopt.problem import study1_problem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     result = TrajOptSolver(study1_problem(10), "trapezoidal").solve(beta=0.5)

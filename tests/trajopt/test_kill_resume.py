@@ -1,7 +1,7 @@
 """Sweeps that survive: crashing workers, failing items, and SIGKILL of the whole CLI sweep.
 
-The crash tests use the private hook of :mod:`youbot_opt.sweeps.tasks`
-(``YOUBOT_OPT_TEST_CRASH``): listed keys SIGSEGV their pool worker.
+The crash and hang tests wrap the function of chosen tasks (``tests/_faults.py``):
+those keys SIGSEGV (or hang) their pool worker; the package has no test hooks.
 """
 
 from __future__ import annotations
@@ -16,9 +16,11 @@ from pathlib import Path
 
 import pytest
 
+from _faults import faulty
 from _sigkill import kill_repeatedly
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.tasks import Task, TaskOutcome, WorkerPool, run_tasks
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
 
 
 def _square(x: float) -> float:
@@ -53,13 +55,11 @@ def test_failing_task_is_recorded_and_retried_once(executor: str) -> None:
     assert len(seen) == 7  # 5 successes + 2 failed attempts, nothing duplicated
 
 
-def test_segfaulting_worker_is_recorded_failed_and_retried_once(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
+def test_segfaulting_worker_is_recorded_failed_and_retried_once() -> None:
     """A task whose worker always segfaults fails after 2 attempts; the pool is rebuilt."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "k2")
     seen: list[TaskOutcome] = []
-    out = run_tasks(_tasks(_square, 8), executor="process", workers=2, on_outcome=seen.append)
+    tasks = faulty(_tasks(_square, 8), crash={"k2"})
+    out = run_tasks(tasks, executor="process", workers=2, on_outcome=seen.append)
     assert {k: o.value for k, o in out.items() if o.ok} == {
         f"k{i}": i * i for i in range(8) if i != 2
     }
@@ -72,14 +72,11 @@ def test_segfaulting_worker_is_recorded_failed_and_retried_once(
     assert len(seen) == 9  # 7 successes + 2 crashes, nothing duplicated
 
 
-def test_worker_crashing_once_succeeds_on_retry(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
+def test_worker_crashing_once_succeeds_on_retry(tmp_path: Path) -> None:
     """A worker that crashes on the first attempt only: the retry succeeds (attempts = 2)."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "k1,k4")
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
     seen: list[TaskOutcome] = []
-    out = run_tasks(_tasks(_square), executor="process", workers=2, on_outcome=seen.append)
+    tasks = faulty(_tasks(_square), crash={"k1", "k4"}, once_dir=tmp_path)
+    out = run_tasks(tasks, executor="process", workers=2, on_outcome=seen.append)
     assert {k: o.value for k, o in out.items()} == {f"k{i}": i * i for i in range(6)}
     assert out["k1"].attempts == 2 and out["k4"].attempts == 2
     # Exactly the two crashes failed, each with the true reason; no innocent task was blamed.
@@ -94,15 +91,12 @@ def _sleep_then_square(x: float) -> float:
     return x * x
 
 
-def test_hung_task_is_killed_at_the_timeout_and_retried_once(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
+def test_hung_task_is_killed_at_the_timeout_and_retried_once() -> None:
     """A task that hangs is killed after `timeout`, twice, and marked final; others finish."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "k3")
     seen: list[TaskOutcome] = []
     tic = time.monotonic()
     out = run_tasks(
-        _tasks(_sleep_then_square),
+        faulty(_tasks(_sleep_then_square), hang={"k3"}),
         executor="process",
         workers=2,
         timeout=0.5,
@@ -123,16 +117,11 @@ def test_hung_task_is_killed_at_the_timeout_and_retried_once(
     assert 1.0 <= elapsed < 11.0
 
 
-def test_task_hanging_once_succeeds_on_retry(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
+def test_task_hanging_once_succeeds_on_retry(tmp_path: Path) -> None:
     """A task that hangs on its first attempt only: killed at the timeout, the retry succeeds."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "k0")
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
     seen: list[TaskOutcome] = []
-    out = run_tasks(
-        _tasks(_square, 3), executor="process", workers=1, timeout=0.3, on_outcome=seen.append
-    )
+    tasks = faulty(_tasks(_square, 3), hang={"k0"}, once_dir=tmp_path)
+    out = run_tasks(tasks, executor="process", workers=1, timeout=0.3, on_outcome=seen.append)
     assert {k: o.value for k, o in out.items()} == {"k0": 0, "k1": 1, "k2": 4}
     assert out["k0"].attempts == 2
     assert [o.error for o in seen if not o.ok] == ["timeout after 0.3 s"]
@@ -159,10 +148,9 @@ def test_worker_pool_is_reused_across_calls() -> None:
         assert again.ok and again.attempts == 1 and again.value != pids[0]
 
 
-def test_crash_hook_is_inert_in_serial_mode(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The private crash hook never fires outside pool workers (serial runs are safe)."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "k0")
-    out = run_tasks(_tasks(_square, 2), executor="serial")
+def test_test_crash_is_inert_in_serial_mode() -> None:
+    """The tests' injected crash never fires outside pool workers (serial runs are safe)."""
+    out = run_tasks(faulty(_tasks(_square, 2), crash={"k0"}), executor="serial")
     assert out["k0"].value == 0 and out["k0"].attempts == 1
 
 
@@ -199,7 +187,7 @@ def _check_store(out: Path, keys: list[str]) -> None:
 def _cli_solver():  # type: ignore[no-untyped-def]
     """The solver the CLI builds (trapezoidal, symbolic, IPOPT max_iter 3000)."""
     from youbot_opt.nlp.ipopt import IpoptOptions
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     return TrajOptSolver(study1_problem(_KNOTS), "trapezoidal", IpoptOptions(max_iter=3000))
@@ -217,7 +205,12 @@ def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path)
 
     # Independent reference: an uninterrupted in-process run with the same seeds.
     ref = run_multistart(
-        _cli_solver(), _STARTS, beta=0.5, seed=_SEED, include_straight=True, executor="serial"
+        _cli_solver(),
+        _STARTS,
+        beta=0.5,
+        seed=_SEED,
+        include_straight=True,
+        sweep=SweepOptions(executor="serial"),
     )
     got = {s["key"]: s for s in resumed["starts"]}
     assert list(got) == [s.key for s in ref.starts]  # same set of items, in order, no duplicates
@@ -241,7 +234,7 @@ def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path)
     assert 0 < resumed["resumed"] < len(betas)  # the kills really left work to do
 
     # Independent reference: the uninterrupted sweep in this process (no worker, no store).
-    ref = pareto_sweep(_cli_solver(), betas, executor="serial")
+    ref = pareto_sweep(_cli_solver(), betas, sweep=SweepOptions(executor="serial"))
     got = resumed["points"]
     assert [p["beta"] for p in got] == [p.beta for p in ref.points]  # none lost or repeated
     for g, r in zip(got, ref.points, strict=True):
@@ -263,7 +256,11 @@ def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path)
     resumed = kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605)
 
     ref = bound_scaling_study(
-        _cli_solver(), _SCALES, n_starts=_SCALE_STARTS, seed=_SEED, executor="serial"
+        _cli_solver(),
+        _SCALES,
+        n_starts=_SCALE_STARTS,
+        seed=_SEED,
+        sweep=SweepOptions(executor="serial"),
     )
     for g, r in zip(resumed["rows"], ref.rows, strict=True):
         assert g["bound_scale"] == r.bound_scale and g["success_rate"] == r.multistart.success_rate
@@ -281,7 +278,7 @@ def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path)
 @pytest.fixture(scope="module")
 def small_solver():  # type: ignore[no-untyped-def]
     """A 15-knot study-1 solver, built once for the tests below."""
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     return TrajOptSolver(study1_problem(_KNOTS))
@@ -290,13 +287,14 @@ def small_solver():  # type: ignore[no-untyped-def]
 def test_segfaulting_start_is_stored_failed_and_retried_once(
     small_solver,
     tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,  # type: ignore[no-untyped-def]
+    faults,  # type: ignore[no-untyped-def]
 ) -> None:
     """A start whose worker segfaults is stored as failed (2 attempts, 2 reasons); the rest done."""
     from youbot_opt.trajopt.multistart import run_multistart
 
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "start_0001")
-    res = run_multistart(small_solver, 4, seed=1, executor="process", workers=2, out=tmp_path)
+    faults(crash={"start_0001"})
+    sweep = SweepOptions(executor="process", workers=2, out=tmp_path)
+    res = run_multistart(small_solver, 4, seed=1, sweep=sweep)
     by_key = {s.key: s for s in res.starts}
     assert by_key["start_0001"].status == "error" and by_key["start_0001"].attempts == 2
     assert all(s.success for k, s in by_key.items() if k != "start_0001")
@@ -304,8 +302,10 @@ def test_segfaulting_start_is_stored_failed_and_retried_once(
     assert record["state"] == "failed" and record["attempts"] == 2
     assert len(record["reasons"]) == 2 and "crashed" in record["reasons"][0]
     # A rerun does not try it a third time: failures with attempts used up are final.
-    monkeypatch.delenv("YOUBOT_OPT_TEST_CRASH")
-    again = run_multistart(small_solver, 4, seed=1, executor="serial", out=tmp_path)
+    faults()  # none any more
+    again = run_multistart(
+        small_solver, 4, seed=1, sweep=SweepOptions(executor="serial", out=tmp_path)
+    )
     assert again.resumed == 4 and again.starts[1].status == "error"
 
 
@@ -314,17 +314,21 @@ def test_resume_refuses_corrupted_and_newer_files(small_solver, tmp_path: Path) 
     from youbot_opt.exceptions import ResultFileError
     from youbot_opt.trajopt.multistart import run_multistart
 
-    first = run_multistart(small_solver, 2, seed=2, executor="serial", out=tmp_path)
-    again = run_multistart(small_solver, 2, seed=2, executor="serial", out=tmp_path)
+    first = run_multistart(
+        small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path)
+    )
+    again = run_multistart(
+        small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path)
+    )
     assert again.resumed == 2
     assert [s.objective for s in again.starts] == [s.objective for s in first.starts]  # exact
     npz = tmp_path / "items" / "start_0000.npz"
     npz.write_bytes(npz.read_bytes()[:-100])  # truncated, as by a disk fault
     with pytest.raises(ResultFileError, match="start_0000"):
-        run_multistart(small_solver, 2, seed=2, executor="serial", out=tmp_path)
+        run_multistart(small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path))
     rec = tmp_path / "items" / "start_0001.json"
     rec.write_text(json.dumps({**json.loads(rec.read_text()), "schema_version": 99}))
     npz.unlink()
     (tmp_path / "items" / "start_0000.json").unlink()  # start_0000 will simply be recomputed
     with pytest.raises(ResultFileError, match="newer"):
-        run_multistart(small_solver, 2, seed=2, executor="serial", out=tmp_path)
+        run_multistart(small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path))

@@ -11,6 +11,8 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import (
     MultistartResult,
     StartOutcome,
@@ -18,7 +20,6 @@ from youbot_opt.trajopt.multistart import (
     start_seeds,
     trajectory_distance,
 )
-from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 
@@ -108,12 +109,12 @@ def test_parallel_equals_serial_and_reproduces_single_solves(solver: TrajOptSolv
     par = run_multistart(
         solver,
         3,
-        executor="process",
-        workers=2,
-        progress=lambda d, n, s: calls.append((d, n)),
         **kw,
+        sweep=SweepOptions(
+            executor="process", workers=2, progress=lambda d, n, s: calls.append((d, n))
+        ),
     )
-    ser = run_multistart(solver, 3, executor="serial", **kw)
+    ser = run_multistart(solver, 3, **kw, sweep=SweepOptions(executor="serial"))
     assert [s.key for s in par.starts] == ["straight", "start_0000", "start_0001", "start_0002"]
     assert sorted(calls) == [(1, 4), (2, 4), (3, 4), (4, 4)]
     for p, s in zip(par.starts, ser.starts, strict=True):
@@ -147,7 +148,7 @@ def test_a_failing_start_does_not_stop_the_run(
 
     monkeypatch.setattr(sg, "random_spline_guess", flaky)
     with ThreadPoolExecutor(max_workers=1) as pool:  # a caller-supplied executor
-        res = run_multistart(solver, 2, beta=0.5, seed=0, executor=pool)
+        res = run_multistart(solver, 2, beta=0.5, seed=0, sweep=SweepOptions(executor=pool))
     ok, bad = res.starts
     assert ok.success and bad.status == "error" and bad.attempts == 2
     assert bad.reason == "RuntimeError: LP solver exploded"
@@ -158,12 +159,12 @@ def test_a_failing_start_does_not_stop_the_run(
 def test_bad_arguments_raise_parameter_error(solver: TrajOptSolver) -> None:
     """Bad counts, weights, scales and inputs raise ParameterError naming the argument."""
     with pytest.raises(ParameterError, match="n_starts"):
-        run_multistart(solver, -1, executor="serial")
+        run_multistart(solver, -1, sweep=SweepOptions(executor="serial"))
     with pytest.raises(ParameterError, match="beta"):
-        run_multistart(solver, 1, beta=1.5, executor="serial")
+        run_multistart(solver, 1, beta=1.5, sweep=SweepOptions(executor="serial"))
     with pytest.raises(ParameterError, match="bound_scale"):
-        run_multistart(solver, 1, bound_scale=0.0, executor="serial")
-    with pytest.raises(ParameterError, match="TrajOptSolver or a TrajOptProblem"):
+        run_multistart(solver, 1, bound_scale=0.0, sweep=SweepOptions(executor="serial"))
+    with pytest.raises(ParameterError, match="expected a TrajOptSolver, got str"):
         run_multistart("youbot", 1)  # type: ignore[arg-type]
 
 

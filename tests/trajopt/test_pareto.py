@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.trajopt.pareto and youbot_opt.trajopt.bound_scaling: fronts, warm starts, resume, CLI."""
+"""Tests of youbot_opt.trajopt.pareto and .bound_scaling: fronts, warm starts, resume, CLI."""
 
 from __future__ import annotations
 
@@ -9,12 +9,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.cli import main
 from youbot_opt.cli.studies import parse_values
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt.pareto import DEFAULT_BETAS, ParetoFront, ParetoPoint, dominated_mask, pareto_sweep
-from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.trajopt.bound_scaling import bound_scaling_study
+from youbot_opt.trajopt.pareto import (
+    DEFAULT_BETAS,
+    ParetoFront,
+    ParetoPoint,
+    dominated_mask,
+    pareto_sweep,
+)
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 N_KNOTS = 20
@@ -106,8 +113,8 @@ def test_interrupted_sweep_resumes_to_the_same_front(solver: TrajOptSolver, tmp_
             raise KeyboardInterrupt  # stands in for Ctrl-C / a kill between two points
 
     with pytest.raises(KeyboardInterrupt):
-        pareto_sweep(solver, BETAS, out=tmp_path, progress=stop_after_two)
-    resumed = pareto_sweep(solver, BETAS, out=tmp_path)
+        pareto_sweep(solver, BETAS, sweep=SweepOptions(out=tmp_path, progress=stop_after_two))
+    resumed = pareto_sweep(solver, BETAS, sweep=SweepOptions(out=tmp_path))
     full = pareto_sweep(solver, BETAS)
     assert resumed.resumed == 2
     for a, b in zip(resumed.points, full.points, strict=True):
@@ -115,7 +122,7 @@ def test_interrupted_sweep_resumes_to_the_same_front(solver: TrajOptSolver, tmp_
         assert a.objective == pytest.approx(b.objective, rel=0, abs=1e-9)
         assert a.start == b.start
     with pytest.raises(ParameterError, match="betas"):
-        pareto_sweep(solver, (0.2, 0.5), out=tmp_path)
+        pareto_sweep(solver, (0.2, 0.5), sweep=SweepOptions(out=tmp_path))
 
 
 def test_resumed_front_reloads_the_first_point_multistart(
@@ -127,11 +134,14 @@ def test_resumed_front_reloads_the_first_point_multistart(
         if done == 1:
             raise KeyboardInterrupt  # a kill right after the first point was saved
 
-    kw = {"first_starts": 2, "seed": 4, "executor": "serial"}
+    kw = {"first_starts": 2, "seed": 4}
+    serial = SweepOptions(executor="serial")
     with pytest.raises(KeyboardInterrupt):
-        pareto_sweep(solver, BETAS[:2], out=tmp_path, progress=stop_after_one, **kw)
-    resumed = pareto_sweep(solver, BETAS[:2], out=tmp_path, **kw)
-    full = pareto_sweep(solver, BETAS[:2], **kw)
+        pareto_sweep(
+            solver, BETAS[:2], **kw, sweep=replace(serial, out=tmp_path, progress=stop_after_one)
+        )
+    resumed = pareto_sweep(solver, BETAS[:2], **kw, sweep=replace(serial, out=tmp_path))
+    full = pareto_sweep(solver, BETAS[:2], **kw, sweep=serial)
     assert resumed.resumed == 1 and resumed.first is not None and full.first is not None
     assert resumed.first.resumed == 3  # every start read back from DIR/first_point
     got, ref = resumed.first.summary(), full.first.summary()
@@ -150,11 +160,13 @@ def test_resumed_front_reloads_the_first_point_multistart(
 
 
 def test_crashing_point_is_recorded_failed_retried_once_and_the_sweep_goes_on(
-    solver: TrajOptSolver, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    solver: TrajOptSolver,
+    tmp_path: Path,
+    faults,  # type: ignore[no-untyped-def]
 ) -> None:
     """A point whose worker segfaults fails after 2 attempts with the reason; later points solve."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH", "point_001")
-    front = pareto_sweep(solver, BETAS, out=tmp_path / "always")
+    faults(crash={"point_001"})
+    front = pareto_sweep(solver, BETAS, sweep=SweepOptions(out=tmp_path / "always"))
     a, b, c = front.points
     assert a.success and c.success and not b.success
     assert b.status == "error" and "killed by signal SIGSEGV" in str(b.reason)
@@ -163,13 +175,13 @@ def test_crashing_point_is_recorded_failed_retried_once_and_the_sweep_goes_on(
     assert record["state"] == "failed" and record["attempts"] == 2
     assert len(record["reasons"]) == 2 and all("crashed" in r for r in record["reasons"])
     # A rerun does not try it a third time (attempts used up) and does not crash.
-    again = pareto_sweep(solver, BETAS, out=tmp_path / "always")
+    again = pareto_sweep(solver, BETAS, sweep=SweepOptions(out=tmp_path / "always"))
     assert again.resumed == 3 and again.points[1].status == "error"
 
     # Crashing on the first attempt only: the retry succeeds and the front is the usual one.
-    monkeypatch.setenv("YOUBOT_OPT_TEST_CRASH_ONCE_DIR", str(tmp_path))
-    once = pareto_sweep(solver, BETAS, out=tmp_path / "once")
-    full = pareto_sweep(solver, BETAS, executor="serial")
+    faults(crash={"point_001"}, once_dir=tmp_path)
+    once = pareto_sweep(solver, BETAS, sweep=SweepOptions(out=tmp_path / "once"))
+    full = pareto_sweep(solver, BETAS, sweep=SweepOptions(executor="serial"))
     for p, q in zip(once.points, full.points, strict=True):
         # Same warm starts, same deterministic IPOPT run in another process: 1e-9 as above.
         assert p.objective == pytest.approx(q.objective, rel=0, abs=1e-9)
@@ -178,17 +190,19 @@ def test_crashing_point_is_recorded_failed_retried_once_and_the_sweep_goes_on(
     assert len(record["reasons"]) == 1 and "SIGSEGV" in record["reasons"][0]
 
 
-def test_hung_point_times_out(solver: TrajOptSolver, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_hung_point_times_out(solver: TrajOptSolver, faults) -> None:  # type: ignore[no-untyped-def]
     """A point that hangs is killed at the per-point timeout, twice, and the sweep goes on."""
-    monkeypatch.setenv("YOUBOT_OPT_TEST_HANG", "point_000")
-    front = pareto_sweep(solver, BETAS[:2], timeout=1.0)
+    faults(hang={"point_000"})
+    front = pareto_sweep(solver, BETAS[:2], sweep=SweepOptions(timeout=1.0))
     assert front.points[0].status == "error" and front.points[0].reason == "timeout after 1 s"
     assert front.points[1].success and front.points[1].start == "straight"
 
 
 def test_first_point_multistart_keeps_the_best_start(solver: TrajOptSolver) -> None:
     """With first_starts, point 1 is the best of its multistart and the rest warm-start from it."""
-    front = pareto_sweep(solver, BETAS[:2], first_starts=2, seed=4, executor="serial")
+    front = pareto_sweep(
+        solver, BETAS[:2], first_starts=2, seed=4, sweep=SweepOptions(executor="serial")
+    )
     assert front.first is not None and front.first.n_starts == 3  # 2 splines + straight line
     best = min(s.objective for s in front.first.starts if s.success)
     assert front.points[0].start == "multistart" and front.points[0].objective == best
@@ -204,7 +218,7 @@ def test_pareto_rejects_bad_weights(solver: TrajOptSolver) -> None:
 
 def test_bound_scaling_shrinks_feasible_set(solver: TrajOptSolver) -> None:
     """Tighter bounds never lower f, and each active bound equals the scaled data-sheet limit."""
-    res = bound_scaling_study(solver, (1.0, 0.9), n_starts=1, executor="serial")
+    res = bound_scaling_study(solver, (1.0, 0.9), n_starts=1, sweep=SweepOptions(executor="serial"))
     full, tight = res.rows
     assert full.best is not None and tight.best is not None
     # Scaling shrinks the feasible set (start and goal stay inside): the best f cannot drop.

@@ -1,4 +1,4 @@
-"""Tests of the problem spec (youbot_opt.trajopt.problem) and objective terms (youbot_opt.trajopt.objectives)."""
+"""Tests of the problem spec (trajopt.problem) and the objective terms (trajopt.objectives)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.model import load_model
 from youbot_opt.trajopt.objectives import Objective, quadrature_weights, work
-from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, study1_problem
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
 # The study's data sheet (spec trajopt.md, "Joint limits"), typed in here
 # independently of youbot_opt.robot.params.

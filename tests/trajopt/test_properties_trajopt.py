@@ -24,12 +24,13 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
-from youbot_opt.robot.model import load_model
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.result import SolveStatus, TrajOptResult, check_result
-from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.robot.model import load_model
 from youbot_opt.trajopt.certify import check_bounds
+from youbot_opt.trajopt.check import check_result, checked
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.result import SolveStatus, TrajOptResult
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 PROPERTY = settings(
     deadline=None,
@@ -295,7 +296,7 @@ def test_corrupted_solution_is_never_a_success(
     k = int(where * arr.shape[0])
     j = min(joint, arr.shape[1] - 1)
     arr[k, j] = corruption if not math.isfinite(corruption) else arr[k, j] + corruption
-    bad = dataclasses.replace(good, variables={**good.variables, block: arr})
+    bad = checked(dataclasses.replace(good, variables={**good.variables, block: arr}))
     check = check_result(bad)
     assert not check.passed and not bad.success
     assert _independent_violations(bad)  # and this file's own checks see it too

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import InvalidModelError, SolveFailed
-from youbot_opt.robot.model import load_model
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.problem import study1_problem
-from youbot_opt.trajopt.result import SolveStatus, TrajOptResult, check_result
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.check import check_result, checked
+from youbot_opt.trajopt.result import SolveStatus, TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 URDF = Path(__file__).resolve().parents[2] / "urdf" / "youbot_arm_planar.urdf"
@@ -112,10 +113,37 @@ def test_nan_inertia_is_refused_by_the_loader(tmp_path) -> None:
 
 
 # ----------------------------------------------------------------------- corrupted results
+def _corrupt(result: TrajOptResult, **changes) -> TrajOptResult:
+    """A copy with ``changes``, passed through the check the solver and loader apply."""
+    return checked(dataclasses.replace(result, **changes))
+
+
 def _with(result: TrajOptResult, block: str, edit) -> TrajOptResult:
     arr = np.array(result.variables[block])
     edit(arr)
-    return dataclasses.replace(result, variables={**result.variables, block: arr})
+    return _corrupt(result, variables={**result.variables, block: arr})
+
+
+def test_construction_does_no_work_and_check_reruns(solved) -> None:
+    """dataclasses.replace keeps the claimed status; result.check() and checked() refute it."""
+    arr = np.array(solved.variables["q"])
+    arr[4, 1] = math.nan
+    raw = dataclasses.replace(solved, variables={**solved.variables, "q": arr})
+    assert raw.status is SolveStatus.SOLVED  # constructing a result runs no check
+    assert raw.check().status is SolveStatus.NON_FINITE
+    assert check_result(raw) == raw.check()
+    assert checked(raw).status is SolveStatus.NON_FINITE
+    assert checked(solved) is solved  # a confirmed success is returned unchanged
+
+
+def test_loaded_dishonest_result_is_downgraded(solved, tmp_path) -> None:
+    """A saved success claim with a wrong objective loads as failed (the loader checks)."""
+    from youbot_opt.trajopt.io import load_result, save_result
+
+    raw = dataclasses.replace(solved, objective=solved.objective * (1 + 1e-6))
+    assert raw.status is SolveStatus.SOLVED
+    loaded = load_result(save_result(raw, tmp_path / "dishonest.npz"), robot=solved.problem.robot)
+    _assert_failed(loaded, SolveStatus.FAILED)
 
 
 def test_nan_position_is_non_finite(solved) -> None:
@@ -127,7 +155,7 @@ def test_nan_position_is_non_finite(solved) -> None:
 
 def test_infinite_objective_is_non_finite(solved) -> None:
     """A non-finite reported figure is a failure even with finite variables."""
-    _assert_failed(dataclasses.replace(solved, objective=math.inf), SolveStatus.NON_FINITE)
+    _assert_failed(_corrupt(solved, objective=math.inf), SolveStatus.NON_FINITE)
 
 
 def test_torque_beyond_its_bound_is_a_constraint_violation(solved) -> None:
@@ -153,7 +181,7 @@ def test_velocity_off_the_dynamics_is_a_constraint_violation(solved) -> None:
 
 def test_wrong_objective_is_inconsistent(solved) -> None:
     """An objective that is not beta T + (1 - beta) W of the variables is a failure."""
-    bad = dataclasses.replace(solved, objective=solved.objective * (1 + 1e-6))
+    bad = _corrupt(solved, objective=solved.objective * (1 + 1e-6))
     _assert_failed(bad, SolveStatus.FAILED)
     assert "objective" in bad.message
 
@@ -161,12 +189,13 @@ def test_wrong_objective_is_inconsistent(solved) -> None:
 def test_missing_block_is_malformed(solved) -> None:
     """A result without its torque block is a failure, not an exception."""
     variables = {k: v for k, v in solved.variables.items() if k != "tau"}
-    _assert_failed(dataclasses.replace(solved, variables=variables), SolveStatus.FAILED)
+    _assert_failed(_corrupt(solved, variables=variables), SolveStatus.FAILED)
 
 
 def test_success_claim_without_convergence_is_withdrawn(solved) -> None:
     """status=SOLVED with IPOPT's return status at the iteration cap becomes max_iterations."""
-    bad = dataclasses.replace(solved, solver_status="Maximum_Iterations_Exceeded")
+    stats = dataclasses.replace(solved.stats, solver_status="Maximum_Iterations_Exceeded")
+    bad = _corrupt(solved, stats=stats)
     _assert_failed(bad, SolveStatus.MAX_ITERATIONS)
 
 

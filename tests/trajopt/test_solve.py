@@ -12,14 +12,15 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
-from youbot_opt.robot.model import load_model
-from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, study1_problem
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.robot.model import load_model
+from youbot_opt.trajopt.certify import check_bounds as certify_bounds
+from youbot_opt.trajopt.objectives import Objective
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import SolveStatus
 from youbot_opt.trajopt.solver import TrajOptSolver, solve
 from youbot_opt.trajopt.transcription import HermiteSimpsonCollocation
-from youbot_opt.trajopt.certify import check_bounds as certify_bounds
 
 SLIDER_URDF = """<?xml version="1.0"?>
 <robot name="slider">
@@ -611,7 +612,8 @@ def test_one_bound_perturbed_changes_f_by_minus_lambda_delta(base_solver, base_r
 # -------------------------------------------------------- feasibility tolerance
 def test_feasibility_tol_reaches_the_result(youbot):
     """TrajOptSolver(feasibility_tol=...) is the result's; its status and check_result agree."""
-    from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL, check_result
+    from youbot_opt.trajopt.check import check_result
+    from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL
     from youbot_opt.trajopt.solver import DEFAULT_FEASIBILITY_TOL as SOLVE_DEFAULT
 
     assert SOLVE_DEFAULT is DEFAULT_FEASIBILITY_TOL  # one definition

@@ -146,7 +146,7 @@ def test_impossible_requests_raise(youbot) -> None:
 @pytest.mark.parametrize("n", [5, 50])
 def test_default_time_step_is_the_multistart_one(youbot, n) -> None:
     """Default dt = default_dt0 (4.9 s in all): 5 knots now get a feasible, slow guess."""
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.sweep import default_dt0
 
     g = _guess(youbot, 0, n=n)

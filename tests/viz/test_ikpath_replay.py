@@ -14,17 +14,18 @@ meshcat = pytest.importorskip("meshcat")
 import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
+from youbot_opt._files import json_digest  # noqa: E402
 from youbot_opt.exceptions import ParameterError, ResultFileError  # noqa: E402
 from youbot_opt.ikpath.examples import example_problem  # noqa: E402
-from youbot_opt.ikpath.io import _digest, load_ikpath_result, save_ikpath_result  # noqa: E402
+from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result  # noqa: E402
+from youbot_opt.ikpath.solve import solve  # noqa: E402
+from youbot_opt.viz import MeshcatServer  # noqa: E402
 from youbot_opt.viz.meshcat.ikpath import (  # noqa: E402
     export_ikpath_html,
     replay_ikpath,
     replay_robot,
     replay_track,
 )
-from youbot_opt.ikpath.solve import solve  # noqa: E402
-from youbot_opt.viz import MeshcatServer  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -188,7 +189,7 @@ def test_load_refuses_newer_corrupt_or_foreign_files(result_a, tmp_path):
 
     def consistent_lie(doc):  # a changed E with a matching checksum: caught by the recheck
         doc["result"]["objective"] += 1e-6
-        doc["sha256"] = _digest(doc["result"])
+        doc["sha256"] = json_digest(doc["result"])
 
     _rewrite(path, consistent_lie)
     with pytest.raises(ResultFileError, match="disagree with the ones recomputed"):

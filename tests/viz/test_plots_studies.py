@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
 from youbot_opt.trajopt.pareto import ParetoFront, dominated_mask, pareto_sweep
-from youbot_opt.trajopt.problem import study1_problem
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.viz.plots import plot_bound_scaling, plot_multistart, plot_pareto
 
@@ -33,7 +34,7 @@ def solver() -> TrajOptSolver:
 @pytest.fixture(scope="module")
 def multistart(solver) -> MultistartResult:
     """Four seeded spline starts at beta = 0.5 (the study's kind of multistart)."""
-    return run_multistart(solver, 4, beta=0.5, seed=0, executor="serial")
+    return run_multistart(solver, 4, beta=0.5, seed=0, sweep=SweepOptions(executor="serial"))
 
 
 def _render(fig) -> None:
@@ -76,7 +77,7 @@ def test_plot_multistart_without_a_converged_start_raises(multistart):
 
 def test_plot_pareto_shows_the_front_and_marks_dominated_points(solver):
     """Non-dominated points joined by duration, dominated ones as crosses, betas labelled."""
-    front = pareto_sweep(solver, (0.2, 0.5, 0.8), executor="serial")
+    front = pareto_sweep(solver, (0.2, 0.5, 0.8), sweep=SweepOptions(executor="serial"))
     assert all(p.success for p in front.points)
     # Add a point with the middle point's duration and 10 % more work: dominated by it.
     extra = replace(front.points[1], beta=0.55, work=1.1 * front.points[1].work)
@@ -110,7 +111,9 @@ def test_plot_pareto_shows_the_front_and_marks_dominated_points(solver):
 
 def test_plot_bound_scaling_overlays_each_scale_with_its_bounds(solver):
     """Each panel holds every scale's curve and its bounds at scale x data sheet."""
-    study = bound_scaling_study(solver, (1.0, 0.9), beta=0.5, n_starts=0, executor="serial")
+    study = bound_scaling_study(
+        solver, (1.0, 0.9), beta=0.5, n_starts=0, sweep=SweepOptions(executor="serial")
+    )
     fig = plot_bound_scaling(study)
     _render(fig)
     robot = solver.problem.robot

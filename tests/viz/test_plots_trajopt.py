@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from youbot_opt.robot.analytic import tip_pose_analytic
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt.multistart import run_multistart
 from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.robot.analytic import tip_pose_analytic
 from youbot_opt.robot.params import YOUBOT_PLANAR
-from youbot_opt.trajopt.problem import study1_problem
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.trajopt.multistart import run_multistart
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_trajectory
@@ -124,7 +125,9 @@ def test_plot_convergence_follows_each_runs_objective_history(solver, result):
 
 def test_plot_convergence_of_a_multistart_uses_a_colour_bar_beyond_max_legend(solver):
     """More runs than max_legend: a colour bar numbers them and the legend counts the styles."""
-    ms = run_multistart(solver, 3, beta=0.5, seed=0, executor="serial", include_straight=True)
+    ms = run_multistart(
+        solver, 3, beta=0.5, seed=0, include_straight=True, sweep=SweepOptions(executor="serial")
+    )
     fig = plot_convergence(ms, max_legend=2)
     _render(fig)
     ax, bar = fig.axes
@@ -159,3 +162,10 @@ def test_plot_arm_2d_draws_the_study_tip_positions(result):
         plot_arm_2d(None, result, plane="xx")
     with pytest.raises(ParameterError, match="robot is required"):
         plot_arm_2d(None, Trajectory(t=traj.t, q=traj.q, v=traj.v, a=traj.a, tau=traj.tau))
+
+
+def test_plot_convergence_title_of_one_run(result):
+    """One run is "1 run" in the default title, not "1 runs"."""
+    fig = plot_convergence([result])
+    title = fig.axes[0].get_title()
+    assert title.startswith("Convergence of 1 run (") and "runs" not in title

@@ -200,3 +200,37 @@ def test_exported_pages_render_the_robot_and_seek_in_time(tmp_path):
     # Measured: 29 % of the middle region; 0.2 % (the y axis line) in the texture-less UR5 panel.
     green = panels["texture"][..., 1] - panels["texture"][..., [0, 2]].max(axis=-1)
     assert (green[middle] > 0.3).mean() > 0.01
+
+
+def test_page_without_webgl_shows_a_visible_message(tmp_path):
+    """With WebGL turned off, the page shows its message (DOM and pixels), not a blank page."""
+    chromium = _chromium()
+    youbot = load_model("youbot")
+    t = np.linspace(0.0, DURATION, 5)
+    q = np.outer(t / DURATION, [0.8, -1.0, 1.2])  # [rad]
+    page = export_html(youbot, t, q, tmp_path / "youbot.html")
+    common = [
+        chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-3d-apis",
+        "--disable-webgl", "--disable-quic", "--no-first-run", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={PANEL},{PANEL}",
+        "--virtual-time-budget=2000",
+    ]  # fmt: skip
+    dom = subprocess.run(
+        [*common, "--dump-dom", page.as_uri()], check=True, timeout=180, capture_output=True
+    ).stdout.decode("utf-8", "replace")
+    assert 'id="no-webgl" style="display: block;' in dom
+    assert "This replay needs WebGL" in dom
+    screenshot = tmp_path / "no_webgl.png"
+    subprocess.run(
+        [*common, f"--screenshot={screenshot}", page.as_uri()],
+        check=True,
+        timeout=180,
+        capture_output=True,
+    )
+    image = matplotlib.image.imread(screenshot)[..., :3]
+    # The message box is orange-yellow (#fd8 = (1, 0.87, 0.53)) on the white page: a blank page
+    # has no such pixel. Measured: 35 % of the 320 px square (also with --use-gl=swiftshader),
+    # 0 % when WebGL works; 1 % separates the two with margin.
+    box = (image[..., 0] > 0.9) & (np.abs(image[..., 1] - 0.87) < 0.08) & (image[..., 2] < 0.65)
+    assert box.mean() > 0.01

@@ -24,10 +24,16 @@ import coal  # noqa: E402
 import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
-from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, ViewerError  # noqa: E402
+from youbot_opt.exceptions import (  # noqa: E402
+    FrameNotFound,
+    ModelError,
+    ParameterError,
+    UnsafePathError,
+    ViewerError,
+)
 from youbot_opt.robot.model import load_model  # noqa: E402
-from youbot_opt.viz import MeshcatServer, connect, export_html, load_mesh_file, replay  # noqa: E402
 from youbot_opt.robot.strict.meshes import check_mesh_file, dae_texture_references  # noqa: E402
+from youbot_opt.viz import MeshcatServer, connect, export_html, load_mesh_file, replay  # noqa: E402
 from youbot_opt.viz.meshcat.geometry import set_object_command  # noqa: E402
 from youbot_opt.viz.meshcat.replay import scene_html  # noqa: E402
 
@@ -456,12 +462,12 @@ def package(tmp_path: Path) -> Path:
 @pytest.mark.parametrize(
     ("texture", "rule"),
     [
-        ("../../outside.png", "inside the robot's package directories"),
-        ("..&#47;..&#47;outside.png", "inside the robot's package directories"),  # XML-encoded
-        ("%2E%2E/%2E%2E/outside.png", "inside the robot's package directories"),  # %-encoded
-        ("/etc/hostname", "relative paths"),
-        ("file:///etc/hostname", "relative paths"),
-        ("http://example.com/x.png", "relative paths"),
+        ("../../outside.png", "resolve inside the package directories"),
+        ("..&#47;..&#47;outside.png", "resolve inside the package directories"),  # XML-encoded
+        ("%2E%2E/%2E%2E/outside.png", "resolve inside the package directories"),  # %-encoded
+        ("/etc/hostname", "resolve inside the package directories"),
+        ("file:///etc/hostname", "resolve inside the package directories"),
+        ("http://example.com/x.png", "uses a refused URL form (http:)"),
     ],
 )
 def test_dae_texture_outside_the_package_is_refused(package, texture, rule):
@@ -505,16 +511,119 @@ def test_mesh_policy_accepts_package_files_and_embeds_textures(package):
 @pytest.mark.parametrize(
     ("mesh", "rule"),
     [
-        ("http://example.com/m.stl", "local file paths"),
-        ("{pkg}/meshes/m.ply", "suffixes .dae, .stl, .obj"),
-        ("{pkg}/../outside.png", "inside the robot's package directories"),
+        ("http://example.com/m.stl", "uses a refused URL form (http:)"),
+        ("{pkg}/meshes/m.fbx", "mesh formats are .stl, .dae, .obj, .ply"),
+        ("{pkg}/../outside.png", "resolve inside the package directories"),
+        ("{pkg}/meshes/none.stl", "referenced files exist"),
     ],
 )
 def test_mesh_files_breaking_the_rules_are_refused(package, mesh, rule):
     """URLs, unsupported formats and files outside the package are refused as meshes."""
-    (package / "meshes" / "m.ply").write_text("ply\n")
+    (package / "meshes" / "m.fbx").write_text("Kaydara FBX\n")
     with pytest.raises(ModelError, match=re.escape(rule)):
         check_mesh_file(mesh.format(pkg=package), [package])
+
+
+def test_texture_a_browser_cannot_decode_is_refused(package):
+    """A texture inside the package but in a format browsers do not decode is not embedded."""
+    (package / "meshes" / "t.tga").write_bytes(b"\x00" * 18)
+    dae = package / "meshes" / "m.dae"
+    dae.write_text(_dae("t.tga"))
+    assert check_mesh_file(dae, [package]) == dae.resolve()  # the path policy accepts it
+    with pytest.raises(UnsafePathError, match=re.escape("embedded textures are .png")):
+        load_mesh_file(dae, [package], referenced_by="geometry object 'g'")
+
+
+_TETRA_PLY = """ply
+format ascii 1.0
+element vertex 4
+property float x
+property float y
+property float z
+element face 4
+property list uchar int vertex_indices
+end_header
+0 0 0
+0.1 0 0
+0 0.1 0
+0 0 0.1
+3 0 2 1
+3 0 1 3
+3 0 3 2
+3 1 2 3
+"""
+
+
+def _ply_urdf(mesh: str) -> str:
+    return f"""<?xml version="1.0"?>
+<robot name="plybot">
+  <link name="base"/>
+  <link name="arm">
+    <inertial>
+      <mass value="1.0"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/>
+    </inertial>
+    <visual><geometry><mesh filename="{mesh}" scale="2 2 2"/></geometry></visual>
+  </link>
+  <joint name="shoulder" type="revolute">
+    <parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-1.5" upper="1.5" effort="10" velocity="2"/>
+  </joint>
+</robot>
+"""
+
+
+def test_ply_mesh_loads_and_exports_and_outside_is_refused_by_both(tmp_path):
+    """A .ply inside the package loads and exports (as STL); outside, both refuse by one rule."""
+    package = tmp_path / "pkg"
+    (package / "plypkg" / "meshes").mkdir(parents=True)
+    (package / "plypkg" / "meshes" / "tetra.ply").write_text(_TETRA_PLY)
+    (tmp_path / "outside.ply").write_text(_TETRA_PLY)
+    (tmp_path / "robot").mkdir()
+    urdf = tmp_path / "robot" / "plybot.urdf"  # load_model adds the URDF's folder to the roots
+    urdf.write_text(_ply_urdf("package://plypkg/meshes/tetra.ply"))
+    robot = load_model(urdf, package_dirs=[package])
+    t, q = _ramp(robot, n=3, duration=1.0)
+    page = export_html(robot, t, q, tmp_path / "ply.html").read_text(encoding="utf-8")
+    (go,) = robot.visual_model.geometryObjects
+    objects = {c["path"]: c["object"] for c in _page_commands(page) if c["type"] == "set_object"}
+    (drawn,) = [o for path, o in objects.items() if path.endswith(f"/visuals/{go.name}")]
+    geometry = drawn["geometries"][0]
+    assert geometry["type"] == "_meshfile_geometry" and geometry["format"] == "stl"
+    stl = geometry["data"].data
+    assert not stl.startswith(b"solid") and int.from_bytes(stl[80:84], "little") == 4
+    corners = np.frombuffer(
+        stl[84:], dtype=np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    )
+    np.testing.assert_allclose(np.unique(corners["v"].reshape(-1, 3), axis=0).max(), 0.1, atol=1e-7)
+    np.testing.assert_allclose(np.linalg.norm(corners["n"], axis=1), 1.0, atol=1e-6)
+    np.testing.assert_array_equal(
+        np.diag(np.reshape(drawn["object"]["matrix"], (4, 4))), [2, 2, 2, 1]
+    )
+
+    outside = str(tmp_path / "outside.ply")
+    urdf.write_text(_ply_urdf(outside))
+    with pytest.raises(UnsafePathError) as by_loader:
+        load_model(urdf, package_dirs=[package])
+    visual = pin.GeometryModel()
+    visual.addGeometryObject(
+        pin.GeometryObject("arm_0", 1, pin.SE3.Identity(), coal.Sphere(0.1), outside)
+    )
+    crafted = SimpleNamespace(
+        name="plybot",
+        model=robot.model,
+        visual_model=visual,
+        package_dirs=(package,),
+        tip_frame=robot.tip_frame,
+    )
+    with pytest.raises(UnsafePathError) as by_replay:
+        export_html(crafted, t, q, tmp_path / "refused.html")
+    assert (
+        by_replay.value.rule
+        == by_loader.value.rule
+        == "resources resolve inside the package directories"
+    )
+    assert f"{outside!r} resolves to" in str(by_loader.value) and outside in str(by_replay.value)
+    assert not (tmp_path / "refused.html").exists()
 
 
 def test_export_refuses_a_robot_with_an_escaping_mesh(ur5, package, tmp_path):

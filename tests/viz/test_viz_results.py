@@ -14,7 +14,7 @@ import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
 from youbot_opt.exceptions import ParameterError  # noqa: E402
-from youbot_opt.trajopt.problem import study1_problem  # noqa: E402
+from youbot_opt.reproduction.study1 import study1_problem  # noqa: E402
 from youbot_opt.trajopt.result import TrajOptResult  # noqa: E402
 from youbot_opt.trajopt.solver import TrajOptSolver  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402

@@ -1,11 +1,15 @@
-"""``youbot-opt ikpath``: minimum-motion cyclic joint path through tip targets (study 2).
+"""youbot-opt ikpath: minimum-motion cyclic joint path through tip targets (study 2).
 
-Examples::
+Usage:
 
     youbot-opt ikpath --example A --starts 200
     youbot-opt ikpath --example B --method ipopt --starts 200 --json
-    youbot-opt ikpath --lengths 3 2 2 --limit 1.5708 --target 0 7 --target 5 0
+    youbot-opt ikpath --lengths 3 2 2 --limit 1.5708 --target 0 7 --target 5 0 --method ipopt
     youbot-opt ikpath --robot youbot --target 0.3 0.3 --target 0.1 0.5 --target 0.35 0.1
+
+The third example puts target (0, 7) at the edge of the limited workspace (the
+arm fully stretched, joint 1 at its limit): from the zero start the default
+method, al, stalls there (exit 1); IPOPT solves it.
 
 Reachability of every target is decided first (exactly, no sampling); an
 unreachable target ends the command with exit status 2 and the verdict. A
@@ -15,23 +19,22 @@ its certified distance interval. The exit status is 0 when the best start
 succeeded and 1 otherwise.
 
 Every finished start is saved in the run folder as it completes
-(``manifest.json``, ``items/``; see :mod:`youbot_opt.ikpath.sweep`): the same
-command run again with the same ``--out DIR`` resumes, loading the finished
+(manifest.json and items/, the sweep store of youbot_opt.ikpath.sweep): the
+same command run again with the same --out DIR resumes, loading the finished
 starts instead of solving them again. A start that raises or whose worker
 process dies is recorded with the reason and retried once (several starts run
 in worker processes, so a crash never takes the command down).
 
-Every run writes one folder (``--out DIR``, or a new
-``youbot_opt_runs/ikpath-<UTC time>``; see :mod:`youbot_opt.cli.output`):
-``summary.json`` (the ``--json`` object), ``result.json`` (the best result,
-:func:`youbot_opt.ikpath.io.load_ikpath_result` reads it), the figures
-``ikpath_arm.png``, ``ikpath_convergence.png``, ``ikpath_workspace.png``,
-``ikpath_minima.png`` and ``replay.html`` (standalone meshcat animation of the
-best path, linear in joint space, ``--segment-time`` seconds per move). An
-unreachable target still writes the summary and the workspace figure. The
-folder and its files are listed on stderr, so ``--json`` keeps stdout one
-JSON object; the folder is also named on stderr before the starts run, with
-progress there (a bar on a terminal, a line per tenth of the starts otherwise).
+Every run writes one folder (--out DIR, or a new
+youbot_opt_runs/ikpath-<UTC time>): summary.json (the --json object),
+result.json (the best result; youbot_opt.ikpath.io.load_ikpath_result reads
+it), the figures ikpath_arm.png, ikpath_convergence.png, ikpath_workspace.png,
+ikpath_minima.png and replay.html (standalone meshcat animation of the best
+path, linear in joint space, --segment-time seconds per move). An unreachable
+target still writes the summary and the workspace figure. The folder and its
+files are listed on stderr, so --json keeps stdout one JSON object; the folder
+is also named on stderr before the starts run, with progress there (a bar on a
+terminal, a line per tenth of the starts otherwise).
 """
 
 from __future__ import annotations
@@ -42,21 +45,21 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from youbot_opt.cli.output import json_ready, print_outputs, run_folder, save_figure, write_summary
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.chain import PlanarChain
-from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
-from youbot_opt.ikpath.io import save_ikpath_result
-from youbot_opt.ikpath.ipopt import IpoptOptions
-from youbot_opt.ikpath.multistart import START_KINDS, MultistartResult, run_multistart
-from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import Reachability, ReachVerdict, check_reachability
-from youbot_opt.ikpath.solve import METHODS
+from youbot_opt.sweeps.options import SweepOptions
+
+if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast
+    from youbot_opt.ikpath.multistart import MultistartResult
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.reachability import ReachVerdict
+
+# The choices of the parser, spelled out here so that building it imports no solver;
+# tests/cli/test_cli_help.py checks them against the library's EXAMPLES, METHODS, START_KINDS.
+EXAMPLE_NAMES: tuple[str, ...] = ("A", "B")
+METHOD_NAMES: tuple[str, ...] = ("al", "ipopt")
+START_KIND_NAMES: tuple[str, ...] = ("feasible", "uniform")
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -68,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     src = p.add_argument_group("arm and targets")
-    src.add_argument("--example", choices=sorted(EXAMPLES), help="the study's example A or B")
+    src.add_argument("--example", choices=EXAMPLE_NAMES, help="the study's example A or B")
     src.add_argument("--robot", choices=["youbot"], help="use a real arm (targets: platform x z)")
     src.add_argument("--lengths", type=float, nargs="+", metavar="L", help="link lengths [m]")
     src.add_argument(
@@ -92,10 +95,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="budget of the exact reachability test (branch and bound, 3+ links; default 20000)",
     )
     run = p.add_argument_group("solver")
-    run.add_argument("--method", choices=METHODS, default="al", help="al (default) or ipopt")
-    run.add_argument("--starts", type=int, default=1, help="number of starts (1 = zero vector)")
+    run.add_argument("--method", choices=METHOD_NAMES, default="al", help="al (default) or ipopt")
+    run.add_argument(
+        "--starts", type=int, default=1, help="number of starts (default 1: the zero vector only)"
+    )
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
-    run.add_argument("--start-kind", choices=START_KINDS, default="feasible")
+    run.add_argument("--start-kind", choices=START_KIND_NAMES, default="feasible")
     run.add_argument(
         "--workers",
         type=int,
@@ -107,7 +112,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         type=float,
         default=None,
         metavar="S",
-        help="wall-time limit of each start's solve [s] (status time_limit when reached)",
+        help="wall-time limit of each start's solve [s] (status max_time when reached)",
     )
     out = p.add_argument_group("output")
     out.add_argument(
@@ -130,6 +135,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def _problem(args: argparse.Namespace) -> CyclicIKProblem:
     """Build the problem from the command line."""
+    import numpy as np
+
+    from youbot_opt.ikpath.chain import PlanarChain
+    from youbot_opt.ikpath.examples import example_problem
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+
     if args.example:
         if args.lengths or args.target or args.robot:
             raise ParameterError(
@@ -201,6 +212,11 @@ def _report(
     verdicts: tuple[ReachVerdict, ...],
     ms: MultistartResult | None,
 ) -> dict[str, Any]:
+    import numpy as np
+
+    from youbot_opt.ikpath.examples import STUDY_E_A
+    from youbot_opt.ikpath.reachability import Reachability
+
     chain = problem.chain
     doc: dict[str, Any] = {
         "chain": chain.name,
@@ -282,6 +298,36 @@ def _print_text(doc: dict[str, Any]) -> None:
         print(f"  {v['message']}")
     if doc["E"] is None:
         return
+    if doc["starts"] == 1:
+        _print_single_start(doc)
+    else:
+        _print_multistart(doc)
+    for j, q in enumerate(doc["configurations"]):
+        print(f"  q{j + 1} = [{', '.join(f'{v:+.6f}' for v in q)}] rad")
+    if "study_E" in doc:
+        print(
+            f"study reported E = {doc['study_E']} from the zero guess "
+            f"(difference {doc['study_E'] - doc['E']:+.4f} rad^2; see docs/ikpath.md)"
+        )
+
+
+def _print_single_start(doc: dict[str, Any]) -> None:
+    """Print the one run of ``--starts 1`` (the zero start) as one run, not as a multistart."""
+    resumed = " (loaded from the output folder: resumed)" if doc["resumed"] else ""
+    print(f"one start (the zero vector), {doc['wall_time']:.2f} s{resumed}")
+    if doc["retried"]:
+        print("  retried once after a failed attempt")
+    for o in doc["start_outcomes"]:
+        if o["status"] == "crashed":
+            print(f"  failed after {o['attempts']} attempts: {o['message']}")
+    print(
+        f"result: E = {doc['E']:.10f} rad^2 ({doc['status']}); max residual "
+        f"{doc['max_residual']:.2e} m, limit violation {doc['limit_violation']:.2e} rad"
+    )
+
+
+def _print_multistart(doc: dict[str, Any]) -> None:
+    """Print the multistart's outcomes, its local minima, the zero start and the best."""
     print(
         f"multistart: {doc['starts']} starts (seed {doc['seed']}, {doc['start_kind']}), "
         f"{doc['workers']} workers, {doc['wall_time']:.2f} s "
@@ -300,19 +346,12 @@ def _print_text(doc: dict[str, Any]) -> None:
             f"(first: start {m['first_start']})"
         )
     z = doc["zero_start"]
-    print(f"zero start: {z['status']}, E = {z['E']:.10f} rad^2")
+    print(f"start 0 (the zero vector): {z['status']}, E = {z['E']:.10f} rad^2")
     print(
         f"best: E = {doc['E']:.10f} rad^2 ({doc['status']}), found by {doc['best_count']} of "
         f"{doc['starts']} starts; max residual {doc['max_residual']:.2e} m, "
         f"limit violation {doc['limit_violation']:.2e} rad"
     )
-    for j, q in enumerate(doc["configurations"]):
-        print(f"  q{j + 1} = [{', '.join(f'{v:+.6f}' for v in q)}] rad")
-    if "study_E" in doc:
-        print(
-            f"study reported E = {doc['study_E']} from the zero guess "
-            f"(difference {doc['study_E'] - doc['E']:+.4f} rad^2; see docs/ikpath.md)"
-        )
 
 
 class _Progress:
@@ -349,6 +388,8 @@ class _Progress:
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
     """Warn on stderr about every target whose reachability was not decided."""
+    from youbot_opt.ikpath.reachability import Reachability
+
     for v in verdicts:
         if v.status is Reachability.UNDECIDED:
             print(
@@ -371,7 +412,14 @@ def _write_outputs(
     doc: dict[str, Any],
 ) -> list[Path]:
     """Write the run folder: figures, replay, saved result, then ``summary.json``."""
-    from youbot_opt.viz.plots.ikpath import plot_arm_path, plot_convergence, plot_minima, plot_workspace
+    from youbot_opt.cli.output import save_figure, write_summary
+    from youbot_opt.ikpath.io import save_ikpath_result
+    from youbot_opt.viz.plots.ikpath import (
+        plot_arm_path,
+        plot_convergence,
+        plot_minima,
+        plot_workspace,
+    )
 
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
@@ -395,6 +443,12 @@ def _write_outputs(
 
 
 def _run(args: argparse.Namespace) -> int:
+    from youbot_opt.cli.output import json_ready, print_outputs, run_folder
+    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.ipopt import IpoptOptions
+    from youbot_opt.ikpath.multistart import run_multistart
+    from youbot_opt.ikpath.reachability import Reachability, check_reachability
+
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):
         raise ParameterError(
             f"--segment-time must be a positive duration in [s], got {args.segment_time}",
@@ -417,7 +471,7 @@ def _run(args: argparse.Namespace) -> int:
         workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
         options: ALOptions | IpoptOptions | None = None
         if args.max_wall_time is not None:
-            kind = ALOptions if args.method == "al" else IpoptOptions
+            kind = ALOptions if args.method == "al" else IpoptOptions.for_ikpath
             options = kind(max_wall_time=args.max_wall_time)
         if not args.no_progress:
             print(
@@ -432,12 +486,14 @@ def _run(args: argparse.Namespace) -> int:
             n_starts=args.starts,
             seed=args.seed,
             starts=args.start_kind,
-            # Several starts run in worker processes, so a crashing start cannot end the run.
-            executor="process" if args.starts > 1 else "serial",
-            max_workers=workers,
-            progress=None if args.no_progress else _Progress(),
             verdicts=verdicts,
-            out=folder,
+            sweep=SweepOptions(
+                # Several starts run in worker processes, so a crashing start cannot end the run.
+                executor="process" if args.starts > 1 else "serial",
+                workers=workers,
+                progress=None if args.no_progress else _Progress(),
+                out=folder,
+            ),
         )
     doc = _report(args, problem, verdicts, ms)
     files = _write_outputs(args, folder, problem, verdicts, ms, doc)

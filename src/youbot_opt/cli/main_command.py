@@ -40,7 +40,7 @@ def _run(args: argparse.Namespace) -> int:
         report_outputs,
         write_solve_outputs,
     )
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     tic = time.perf_counter()

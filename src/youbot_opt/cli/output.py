@@ -12,6 +12,8 @@ Layout (each file is optional; a command writes what it has)::
     result.npz       the saved result (``youbot_opt.trajopt.io``) or ``results/`` for sweeps
     *.png            figures
     replay.html      standalone meshcat replay (opens offline in any browser)
+
+Sweeps report their progress on stderr through :class:`ProgressLine`.
 """
 
 from __future__ import annotations
@@ -20,13 +22,12 @@ import datetime as _dt
 import json
 import math
 import sys
+import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TextIO
 
-import numpy as np
-
-from youbot_opt.sweeps.store import atomic_write_bytes
+from youbot_opt._files import atomic_write_bytes, json_ready
 
 __all__ = [
     "DEFAULT_ROOT",
@@ -35,6 +36,7 @@ __all__ = [
     "write_summary",
     "save_figure",
     "print_outputs",
+    "ProgressLine",
 ]
 
 DEFAULT_ROOT = Path("youbot_opt_runs")
@@ -80,28 +82,6 @@ def run_folder(
     raise FileExistsError(f"could not create a new run folder next to {base}")  # pragma: no cover
 
 
-def json_ready(value: Any) -> Any:
-    """Convert numpy scalars/arrays, paths and non-finite floats to plain JSON values.
-
-    Non-finite floats become ``None`` (JSON has no NaN); arrays become lists.
-    """
-    if isinstance(value, Mapping):
-        return {str(k): json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [json_ready(v) for v in value.tolist()]
-    if isinstance(value, np.generic):
-        return json_ready(value.item())
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Path):
-        return str(value)
-    if hasattr(value, "value") and hasattr(value, "name") and not isinstance(value, (int, str)):
-        return json_ready(value.value)  # enums
-    return value
-
-
 def write_summary(
     folder: str | Path, summary: Mapping[str, Any], name: str = "summary.json"
 ) -> Path:
@@ -138,3 +118,43 @@ def print_outputs(
         except ValueError:
             shown = p
         print(f"  {shown}", file=out)
+
+
+class ProgressLine:
+    """Progress line of a sweep on stderr: rewritten in place on a terminal, else one per item.
+
+    Parameters
+    ----------
+    label : str
+        Shown first (the command, e.g. ``"multistart"``).
+    quiet : bool
+        Print nothing.
+    stream : text stream, optional
+        Where to print (default: stderr).
+    """
+
+    def __init__(self, label: str, quiet: bool, stream: TextIO | None = None) -> None:
+        self.label = label
+        self.quiet = quiet
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.tic = time.perf_counter()
+
+    def __call__(self, done: int, total: int, last: Any) -> None:
+        """Report item ``done`` of ``total``; ``last`` is the sweep's item (status, objective)."""
+        if self.quiet:
+            return
+        f = getattr(last, "objective", math.nan)
+        what = getattr(last, "key", None) or f"beta={getattr(last, 'beta', '?')}"
+        line = (
+            f"{self.label}: {done}/{total} [{time.perf_counter() - self.tic:6.1f} s] "
+            f"{what}: {last.status} f={f:.6g}"
+        )
+        end = "" if self.tty else "\n"
+        self.stream.write(("\r" if self.tty else "") + line + end)
+        self.stream.flush()
+
+    def close(self) -> None:
+        """End the in-place line on a terminal."""
+        if self.tty and not self.quiet:
+            self.stream.write("\n")

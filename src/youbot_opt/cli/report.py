@@ -13,23 +13,22 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
 
-import numpy as np
-import pinocchio as pin
+if TYPE_CHECKING:  # Pinocchio is imported in the functions, so --help stays fast
+    import numpy as np
 
-from youbot_opt.robot.model import (
-    RobotModel,
-    _as_q,
-    available_robots,
-    frame_placement,
-    load_model,
-    tip_pose,
-)
-from youbot_opt.robot.params import STUDY_Q_START
+    from youbot_opt.robot.model import RobotModel
 
 __all__ = ["register", "format_report"]
 
 _YOUBOT = "youbot"
+
+#: The robot names of the --robot help, spelled out so that building the parser imports no
+#: Pinocchio; tests/cli/test_cli_help.py checks them against robot.model.available_robots().
+ROBOT_NAMES: tuple[str, ...] = (
+    "youbot", "double_pendulum", "ur3", "ur5", "ur10", "panda", "so101", "z1", "xarm7",
+)  # fmt: skip
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -49,7 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--robot",
         default=_YOUBOT,
         metavar="NAME|PATH",
-        help=f"robot name ({', '.join(available_robots())}) or URDF path (default: youbot)",
+        help=f"robot name ({', '.join(ROBOT_NAMES)}) or URDF path (default: youbot)",
     )
     p.add_argument(
         "--q",
@@ -63,6 +62,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _fmt(x: np.ndarray, digits: int = 6) -> str:
+    import numpy as np
+
     return np.array2string(np.asarray(x), precision=digits, suppress_small=True, max_line_width=100)
 
 
@@ -87,7 +88,12 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
     str
         Multi-line report (SI units, with data-sheet degrees beside the limits).
     """
-    qa = _as_q(robot, q)
+    import numpy as np
+    import pinocchio as pin
+
+    from youbot_opt.robot.model import as_configuration, frame_placement, tip_pose
+
+    qa = as_configuration(robot, q)
     model = robot.model
     data = robot.create_data()
     lines = [
@@ -136,6 +142,12 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+    import pinocchio as pin
+
+    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.params import STUDY_Q_START
+
     robot = load_model(args.robot)
     if args.q is not None:
         q = np.asarray(args.q, dtype=float)

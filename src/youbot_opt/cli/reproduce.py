@@ -6,7 +6,7 @@ Usage::
                                 [--workers W] [--serial] [--from-json FILE]
 
 Runs :func:`youbot_opt.reproduction.reproduce_study1` (the full study takes
-6 minutes wall on 2 cores; ``--quick`` runs a subset in about 10 s) with
+6 minutes wall on 2 cores; ``--quick`` runs a small subset) with
 progress on stderr, prints the markdown tables on stdout and writes everything
 it computed to one output folder (``DIR``, or a new
 ``youbot_opt_runs/reproduce-study1-<UTC date>-<UTC time>``;
@@ -49,7 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         description="Reproduce study 1 with the study's own transcription and the correct "
         "ones; write JSON and markdown tables.",
     )
-    p.add_argument("--quick", action="store_true", help="a fast subset (about 15 s)")
+    p.add_argument("--quick", action="store_true",
+                   help="a fast subset (3 base-case starts, 2 search starts)")  # fmt: skip
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder (default: new, under youbot_opt_runs/)")  # fmt: skip
     p.add_argument("--search-starts", type=int, default=None, metavar="K",
@@ -107,9 +108,9 @@ def _run(args: argparse.Namespace) -> int:
 def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) -> list[Path]:
     """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first)."""
     from youbot_opt.cli.output import save_figure, write_summary
-    from youbot_opt.trajopt.io import save_result
     from youbot_opt.reproduction.figures import FIGURES
     from youbot_opt.reproduction.report import write_report
+    from youbot_opt.trajopt.io import save_result
 
     files = list(write_report(data, folder))
     if results:  # the solves first: nothing below can lose them

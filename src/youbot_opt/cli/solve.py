@@ -31,6 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from youbot_opt._files import json_ready
 from youbot_opt.exceptions import ParameterError
 
 __all__ = [
@@ -63,14 +64,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         type=float,
         nargs="+",
         metavar="Q",
-        help="start joint positions [rad] (default for the youBot: the study's)",
+        help="start joint positions [rad] (default for the youBot: the study's; required "
+        "for any other robot)",
     )
     p.add_argument(
         "--goal",
         type=float,
         nargs="+",
         metavar="Q",
-        help="goal joint positions [rad] (default for the youBot: the study's)",
+        help="goal joint positions [rad] (default for the youBot: the study's; required "
+        "for any other robot)",
     )
     p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1] (default 0.5)")
     p.add_argument("--knots", type=int, default=50, help="number of knots (default 50)")
@@ -131,8 +134,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _problem(args: argparse.Namespace) -> Any:
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.robot.model import load_model
-    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, study1_problem
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
     is_youbot = args.robot == "youbot"
     if args.damping is not None and not is_youbot:
@@ -143,7 +147,9 @@ def _problem(args: argparse.Namespace) -> Any:
     if args.start is None or args.goal is None:
         raise ParameterError(
             f"--start and --goal (each {robot.nq} joint positions in rad) are required for "
-            f"robot {robot.name!r}",
+            f"robot {robot.name!r}: only the youbot has a default motion (the study's). "
+            f"`youbot-opt report --robot {args.robot}` lists the joint limits the positions "
+            f"must respect",
             name="start",
         )
     from youbot_opt.trajopt.objectives import Objective
@@ -309,16 +315,6 @@ def report_outputs(folder: Path, files: list[Path], as_json: bool) -> None:
     print_outputs(folder, files, stream=sys.stderr if as_json else sys.stdout)
 
 
-def _json_ready(obj: Any) -> Any:
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: _json_ready(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_json_ready(v) for v in obj]
-    return obj
-
-
 def _representative(ms: Any) -> Any:
     """Return the start to report: the best converged one, else the least violated failure."""
     best = ms.best
@@ -332,17 +328,20 @@ def _representative(ms: Any) -> Any:
 
 def _multistart(args: argparse.Namespace, solver: Any) -> Any:
     """Run the starts in a process pool (serial with ``--workers 0``), progress on stderr."""
-    from youbot_opt.cli.studies import _Progress
+    from youbot_opt.cli.output import ProgressLine
+    from youbot_opt.sweeps.options import SweepOptions
     from youbot_opt.trajopt.multistart import run_multistart
 
     if args.workers is not None and args.workers < 0:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
     executor: Literal["serial", "process"] = "serial" if args.workers == 0 else "process"
-    prog = _Progress("solve", args.quiet or args.json)
+    prog = ProgressLine("solve", args.quiet or args.json)
+    sweep = SweepOptions(
+        executor=executor, workers=None if args.workers == 0 else args.workers, progress=prog
+    )
     ms = run_multistart(
         solver, args.starts, beta=args.beta, bound_scale=args.bound_scale, seed=args.seed,
-        include_straight=args.guess == "straight", executor=executor,
-        workers=None if args.workers == 0 else args.workers, progress=prog,
+        include_straight=args.guess == "straight", sweep=sweep,
     )  # fmt: skip
     prog.close()
     return ms
@@ -399,7 +398,7 @@ def run_solve(args: argparse.Namespace) -> int:
         summary["output_folder"] = str(folder.resolve())
         summary["files"] = ["summary.json"]
         files = [write_summary(folder, summary)]
-        print(json.dumps(_json_ready(summary)) if args.json else "youbot-opt: every start failed")
+        print(json.dumps(json_ready(summary)) if args.json else "youbot-opt: every start failed")
         report_outputs(folder, files, args.json)
         return 1
     certificate = certificate_of(result)
@@ -409,7 +408,7 @@ def run_solve(args: argparse.Namespace) -> int:
     has_optimum = ms is not None and ms.best is not None and ms.best.result is not None
     files = write_solve_outputs(folder, result, summary, ms if has_optimum else None)
     if args.json:
-        print(json.dumps(_json_ready(summary)))
+        print(json.dumps(json_ready(summary)))
     else:
         if ms is not None and not has_optimum:
             print("youbot-opt: no start converged; the least violated failed start follows")

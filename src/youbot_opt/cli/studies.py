@@ -30,14 +30,15 @@ import argparse
 import json
 import math
 import sys
-import time
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Literal
 
 import numpy as np
 
+from youbot_opt.cli.output import ProgressLine
 from youbot_opt.cli.solve import draw_figure, open_folder, replay_html, report_outputs
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.options import SweepOptions
 
 __all__ = ["register", "parse_values"]
 
@@ -173,7 +174,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 # ------------------------------------------------------------------ helpers
 def _solver(args: argparse.Namespace) -> Any:
     from youbot_opt.nlp.ipopt import IpoptOptions
-    from youbot_opt.trajopt.problem import study1_problem
+    from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     problem = study1_problem(args.knots)
@@ -212,36 +213,17 @@ def _check(
         check_bound_scale(s)
 
 
-def _executor(args: argparse.Namespace) -> tuple[Any, int | None]:
-    return ("serial", None) if args.workers == 0 else ("process", args.workers)
-
-
-class _Progress:
-    """Progress line on stderr: rewritten in place on a terminal, one line per item otherwise."""
-
-    def __init__(self, label: str, quiet: bool, stream: TextIO | None = None) -> None:
-        self.label = label
-        self.quiet = quiet
-        self.stream = stream or sys.stderr
-        self.tty = self.stream.isatty()
-        self.tic = time.perf_counter()
-
-    def __call__(self, done: int, total: int, last: Any) -> None:
-        if self.quiet:
-            return
-        f = getattr(last, "objective", math.nan)
-        what = getattr(last, "key", None) or f"beta={getattr(last, 'beta', '?')}"
-        line = (
-            f"{self.label}: {done}/{total} [{time.perf_counter() - self.tic:6.1f} s] "
-            f"{what}: {last.status} f={f:.6g}"
-        )
-        end = "" if self.tty else "\n"
-        self.stream.write(("\r" if self.tty else "") + line + end)
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.tty and not self.quiet:
-            self.stream.write("\n")
+def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> SweepOptions:
+    """How the sweep runs: ``--workers`` (0 = serial), ``--item-timeout``, ``--out``."""
+    executor: Literal["serial", "process"] = "serial" if args.workers == 0 else "process"
+    workers = None if args.workers == 0 else args.workers
+    return SweepOptions(
+        executor=executor,
+        workers=workers,
+        timeout=args.item_timeout,
+        out=folder,
+        progress=progress,
+    )
 
 
 def _fmt(x: float, spec: str = ".6g") -> str:
@@ -282,8 +264,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
     _check(args)
     solver = _solver(args)
     folder = open_folder("multistart", args.out)  # the sweep store shares it
-    executor, workers = _executor(args)
-    prog = _Progress("multistart", args.quiet)
+    prog = ProgressLine("multistart", args.quiet)
     res = run_multistart(
         solver,
         args.starts,
@@ -291,11 +272,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
         bound_scale=args.bound_scale,
         seed=args.seed,
         include_straight=args.straight,
-        executor=executor,
-        workers=workers,
-        progress=prog,
-        out=folder,
-        timeout=args.item_timeout,
+        sweep=_sweep(args, prog, folder),
     )
     prog.close()
     optima = res.distinct_optima(args.obj_tol, args.traj_tol)
@@ -336,33 +313,19 @@ def _run_pareto(args: argparse.Namespace) -> int:
     _check(args, betas=betas)
     solver = _solver(args)
     folder = open_folder("pareto", args.out)  # the sweep store shares it
-    executor, workers = _executor(args)
-    prog = _Progress("pareto", args.quiet)
+    prog = ProgressLine("pareto", args.quiet)
     front = pareto_sweep(
         solver,
         betas,
         bound_scale=args.bound_scale,
         first_starts=args.first_starts,
         seed=args.seed,
-        executor=executor,
-        workers=workers,
-        progress=prog,
-        out=folder,
-        timeout=args.item_timeout,
+        sweep=_sweep(args, prog, folder),
     )
     prog.close()
-    table = [
-        f"pareto: {len(front.points)} weights, {len(front.nondominated())} non-dominated, "
-        f"{front.resumed} resumed, {front.wall_time:.2f} s",
-        f"{'beta':>6} {'T [s]':>9} {'W':>11} {'f':>11} {'iter':>5} {'start':>10}  status",
-    ]
-    for p in front.points:
-        mark = " (dominated)" if p.dominated and p.success else ""
-        table.append(
-            f"{p.beta:>6.3f} {_fmt(p.duration, '.4f'):>9} {_fmt(p.work, '.4f'):>11} "
-            f"{_fmt(p.objective, '.5f'):>11} {p.iterations:>5} {p.start:>10}  "
-            f"{p.status}{mark}"
-        )
+    from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
+
+    table = pareto_table(front)  # distinct points counted, W with its unit
     files: list[Path | None] = []
     best = [p for p in front.nondominated() if p.result is not None]
     if best:
@@ -375,7 +338,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
             draw_figure(folder, "pareto.png", plot_pareto, front),
             replay_html(folder, [p.result for p in shown], labels),
         ]
-    _emit(args, folder, front.summary(), table, files)
+    _emit(args, folder, pareto_summary(front), table, files)
     return 0 if front.nondominated() else 1
 
 
@@ -386,19 +349,14 @@ def _run_bounds(args: argparse.Namespace) -> int:
     _check(args, scales=scales)
     solver = _solver(args)
     folder = open_folder("bounds", args.out)  # the sweep store shares it
-    executor, workers = _executor(args)
-    prog = _Progress("bounds", args.quiet)
+    prog = ProgressLine("bounds", args.quiet)
     res = bound_scaling_study(
         solver,
         scales,
         beta=args.beta,
         n_starts=args.starts,
         seed=args.seed,
-        executor=executor,
-        workers=workers,
-        progress=prog,
-        out=folder,
-        timeout=args.item_timeout,
+        sweep=_sweep(args, prog, folder),
     )
     prog.close()
     table = [

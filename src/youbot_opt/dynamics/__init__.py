@@ -10,9 +10,9 @@ Pinocchio through CasADi Callbacks (:mod:`youbot_opt.dynamics.callback`).
 
 from __future__ import annotations
 
-from youbot_opt.dynamics.tree import SUPPORTED_JOINTS
 from youbot_opt.dynamics.base import BACKENDS, Dynamics, available_backends, build_dynamics
 from youbot_opt.dynamics.symbolic import SymbolicModel, build_symbolic_model
+from youbot_opt.dynamics.tree import SUPPORTED_JOINTS
 
 __all__ = [
     "BACKENDS",

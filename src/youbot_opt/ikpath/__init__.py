@@ -25,7 +25,7 @@ from youbot_opt.ikpath.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_
 from youbot_opt.ikpath.chain import PlanarChain, TipKinematics
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions, solve_ipopt
+from youbot_opt.ikpath.ipopt import IpoptIKSolver, solve_ipopt
 from youbot_opt.ikpath.multistart import (
     LocalMinimum,
     MultistartResult,
@@ -42,10 +42,11 @@ from youbot_opt.ikpath.reachability import (
     decide_reachability,
     require_reachable,
 )
-from youbot_opt.viz.meshcat.ikpath import export_ikpath_html, replay_ikpath, replay_track
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
 from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
 from youbot_opt.ikpath.solve import METHODS, Method, solve
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.nlp.status import SolveStatus
 
 __all__ = [
     "ALOptions",
@@ -67,6 +68,7 @@ __all__ = [
     "ReachVerdict",
     "Reachability",
     "STUDY_E_A",
+    "SolveStatus",
     "TipKinematics",
     "chain_from_robot",
     "check_reachability",
@@ -74,12 +76,9 @@ __all__ = [
     "configuration_distance",
     "decide_reachability",
     "example_problem",
-    "export_ikpath_html",
     "load_ikpath_result",
     "make_starts",
     "minimize_bfgs",
-    "replay_ikpath",
-    "replay_track",
     "require_reachable",
     "run_multistart",
     "save_ikpath_result",

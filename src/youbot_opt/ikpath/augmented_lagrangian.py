@@ -38,7 +38,7 @@ Outer iteration ``k``:
    message says so.
 
 With ``ALOptions.max_wall_time`` set, the inner solvers stop starting new
-iterations at the deadline and the solve ends with status ``TIME_LIMIT`` and
+iterations at the deadline and the solve ends with status ``MAX_TIME`` and
 the last iterate (within the box), unless that iterate passes the stopping test.
 
 Initial multipliers are zero and ``mu_0 = 10`` (N&W; the study). Since
@@ -58,13 +58,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import Bounds, minimize
 
+from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.best_iterate import pick_best
 from youbot_opt.ikpath.bfgs import minimize_bfgs
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.nlp.ipopt import check_time_limit
+from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
+from youbot_opt.nlp.status import SolveStatus
 
 __all__ = ["ALOptions", "first_order_multipliers", "solve_augmented_lagrangian"]
 
@@ -101,7 +102,7 @@ class ALOptions:
     max_wall_time : float or None
         Wall-clock limit of the whole solve in [s] (``None``: no limit). Checked
         before every inner iteration; when it is reached the solve stops with
-        status ``TIME_LIMIT`` and the last iterate (unless that iterate already
+        status ``MAX_TIME`` and the last iterate (unless that iterate already
         meets the stopping test). The overshoot is at most one inner iteration.
     """
 
@@ -193,14 +194,14 @@ def solve_augmented_lagrangian(
     history: list[OuterIterate] = []
     inner_total = 0
     best_violation, stalls = math.inf, 0
-    status, message = IKStatus.MAX_ITERATIONS, "outer iteration limit reached"
+    status, message = SolveStatus.MAX_ITERATIONS, "outer iteration limit reached"
     for k in range(opts.max_outer_iterations):
         x_new, inner_its, inner_msg = _inner_solve(
             lagrangian, x, lower, upper, bounded, omega, opts, deadline
         )
         inner_total += inner_its
         if not np.all(np.isfinite(x_new)):
-            status, message = IKStatus.NUMERICAL_ERROR, f"non-finite iterate ({inner_msg})"
+            status, message = SolveStatus.NON_FINITE, f"non-finite iterate ({inner_msg})"
             break
         x = x_new
         ev = problem.evaluate(x, data)
@@ -228,7 +229,7 @@ def solve_augmented_lagrangian(
             inner_msg,
         )
         if not (math.isfinite(violation) and math.isfinite(stationarity)):
-            status, message = IKStatus.NUMERICAL_ERROR, "non-finite constraint or gradient"
+            status, message = SolveStatus.NON_FINITE, "non-finite constraint or gradient"
             break
         if (
             violation <= eta
@@ -236,14 +237,14 @@ def solve_augmented_lagrangian(
             and stationarity <= opts.stationarity_tol
         ):
             lam = lam - mu * c if stationarity_al <= stationarity_ls else lam_ls
-            status = IKStatus.SUCCESS
+            status = SolveStatus.SOLVED
             message = (
                 f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
                 f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g}"
             )
             break
         if _past(deadline):
-            status = IKStatus.TIME_LIMIT
+            status = SolveStatus.MAX_TIME
             message = (
                 f"wall-time limit {opts.max_wall_time:g} s reached with |c| = {violation:.2e} m, "
                 f"projected gradient {stationarity:.2e} ({inner_msg})"
@@ -260,14 +261,14 @@ def solve_augmented_lagrangian(
             stalls = stalls + 1 if violation > 0.9 * best_violation else 0
             best_violation = min(best_violation, violation)
             if stalls >= opts.stall_increases:
-                status = IKStatus.INFEASIBLE
+                status = SolveStatus.INFEASIBLE
                 message = (
                     f"locally infeasible: |c| = {violation:.3g} m did not decrease over "
                     f"{stalls} penalty increases (mu = {mu:.3g})"
                 )
                 break
             if mu * opts.penalty_growth > opts.penalty_max:
-                status = IKStatus.STALLED
+                status = SolveStatus.STALLED
                 message = (
                     f"penalty would exceed {opts.penalty_max:g} with |c| = {violation:.2e} m"
                     f"{_licq_note(ev, lam, mu)}"
@@ -276,7 +277,7 @@ def solve_augmented_lagrangian(
             mu *= opts.penalty_growth
             eta = max(1.0 / mu**0.1, opts.constraint_tol)
             omega = max(1.0 / mu, opts.stationarity_tol)
-    if status is not IKStatus.SUCCESS and history and np.all(np.isfinite(x)):
+    if status is not SolveStatus.SOLVED and history and np.all(np.isfinite(x)):
         visited = (h.x.ravel() for h in history)
         x, note = pick_best(problem, x, visited, opts.constraint_tol)
         message = f"{message}; {note}" if note else message

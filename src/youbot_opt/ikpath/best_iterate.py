@@ -11,18 +11,34 @@ projection onto the box).
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.nlp.best_iterate import Iterate, better
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.nlp.best_iterate import Iterate, best_of
 
-__all__ = ["pick_best"]
+__all__ = ["rank", "pick_best"]
 
 
-def _rank(problem: CyclicIKProblem, x: Array, iteration: int) -> Iterate:
+def rank(problem: CyclicIKProblem, x: Array, iteration: int) -> Iterate:
+    """Rank configurations ``x`` [rad]: E [rad^2] and ``max |F(q_j) - p_j|`` [m] (Pinocchio).
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem (its targets and kinematics).
+    x : ndarray, shape (s * n,)
+        Configurations in [rad].
+    iteration : int
+        Iteration number (-1 for the final iterate).
+
+    Returns
+    -------
+    Iterate
+        With empty multiplier arrays.
+    """
     empty = np.zeros(0)
     violation = float(np.max(np.abs(problem.constraints(x))))
     return Iterate(x, empty, empty, problem.objective(x), violation, iteration)
@@ -55,19 +71,18 @@ def pick_best(
     note : str
         Empty, or which iterate was returned instead of the last one and why.
     """
-    best = _rank(problem, final, -1)
-    last = best
+    last = rank(problem, final, -1)
     count = 0
-    for k, x in enumerate(visited):
-        count += 1
-        x = np.asarray(x, dtype=float).ravel()
-        if not np.all(np.isfinite(x)):
-            continue
-        candidate = _rank(problem, x, k)
-        if not (np.isfinite(candidate.objective) and np.isfinite(candidate.violation)):
-            continue
-        if better(candidate, best, constraint_tol):
-            best = candidate
+
+    def ranked() -> Iterator[Iterate]:
+        nonlocal count
+        for k, x in enumerate(visited):
+            count += 1
+            x = np.asarray(x, dtype=float).ravel()
+            if np.all(np.isfinite(x)):
+                yield rank(problem, x, k)
+
+    best = best_of(last, ranked(), constraint_tol)
     if best is last:
         return final, ""
     note = (

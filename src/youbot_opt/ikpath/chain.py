@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
+from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
@@ -79,14 +80,7 @@ def as_configuration(q: ArrayLike, n: int, name: str = "q") -> Array:
     ParameterError
         If ``q`` has another shape or non-finite entries.
     """
-    arr = np.array(q, dtype=float)
-    if arr.shape != (n,):
-        raise ParameterError(
-            f"{name} must have shape ({n},), got {arr.shape}", name=name, value=arr.shape
-        )
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{name} must be finite, got {arr}", name=name, value=arr)
-    return arr
+    return check_shape(q, (n,), name)
 
 
 def _vector(name: str, value: ArrayLike | None, n: int, default: float) -> Array:

@@ -24,7 +24,6 @@ before that field existed) is read with the default tolerance of its method.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -34,11 +33,19 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from youbot_opt._files import (
+    atomic_write_bytes,
+    check_schema_header,
+    json_digest,
+    schema_header,
+    software_versions,
+)
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.sweeps.store import atomic_write_bytes
+from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.nlp.status import SolveStatus
 
 __all__ = [
     "SCHEMA",
@@ -126,11 +133,6 @@ def _body(result: IKPathResult) -> dict[str, Any]:
     }
 
 
-def _digest(body: dict[str, Any]) -> str:
-    canonical = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
-
-
 def encode_ikpath_result(result: IKPathResult) -> bytes:
     """Return the file content :func:`save_ikpath_result` writes for ``result`` (UTF-8 JSON).
 
@@ -148,18 +150,11 @@ def encode_ikpath_result(result: IKPathResult) -> bytes:
     bytes
         The JSON document with schema name, version, versions and checksum.
     """
-    from youbot_opt._version import __version__
-
     body = _body(result)
     doc = {
-        "schema": SCHEMA,
-        "schema_version": SCHEMA_VERSION,
-        "versions": {
-            "youbot_opt": __version__,
-            "pinocchio": str(pin.__version__),
-            "numpy": str(np.__version__),
-        },
-        "sha256": _digest(body),
+        **schema_header(
+            SCHEMA, SCHEMA_VERSION, software_versions(pin, np), sha256=json_digest(body)
+        ),
         "result": body,
     }
     return (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
@@ -225,7 +220,7 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
     return build_result(
         problem,
         method=str(body["method"]),
-        status=IKStatus(body["status"]),
+        status=SolveStatus(body["status"]),  # also the values of IKStatus ("success", ...)
         x=np.array(body["configurations"], dtype=float),
         multipliers=np.array(body["multipliers"], dtype=float),
         iterations=int(body["iterations"]),
@@ -241,10 +236,9 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
 def _default_tol(method: str) -> float:
     """Default ``|c_i|`` tolerance in [m] of ``method`` (files without ``constraint_tol``)."""
     from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-    from youbot_opt.ikpath.ipopt import IpoptOptions
 
     if method == "ipopt":
-        return IpoptOptions().constr_viol_tol
+        return float(IpoptOptions.for_ikpath().constr_viol_tol)  # type: ignore[arg-type]
     return ALOptions().constraint_tol
 
 
@@ -273,20 +267,9 @@ def load_ikpath_result(path: str | os.PathLike[str]) -> IKPathResult:
         doc = json.loads(source.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ResultFileError(f"{source}: cannot read an IK-path result: {exc}") from exc
-    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
-        found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
-        raise ResultFileError(f"{source}: unknown schema {found!r}, expected {SCHEMA!r}")
-    version = doc.get("schema_version")
-    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version:
-        raise ResultFileError(f"{source}: invalid schema version {version!r}")
-    if version > SCHEMA_VERSION:
-        written_by = doc.get("versions", {}).get("youbot_opt", "?")
-        raise ResultFileError(
-            f"{source}: schema version {version} is newer than this youbot_opt reads "
-            f"(1..{SCHEMA_VERSION}); the file was written by youbot_opt {written_by}: upgrade"
-        )
+    check_schema_header(doc, schema=SCHEMA, supported=SCHEMA_VERSION, source=str(source))
     body = doc.get("result")
-    if not isinstance(body, dict) or doc.get("sha256") != _digest(body):
+    if not isinstance(body, dict) or doc.get("sha256") != json_digest(body):
         raise ResultFileError(f"{source}: checksum mismatch; the file is corrupt")
     try:
         result = _parse(body)

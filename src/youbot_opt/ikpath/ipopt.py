@@ -21,94 +21,84 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Any
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
-from youbot_opt.nlp.best_iterate import NlpsolIterationCallback
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.best_iterate import pick_best
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, OuterIterate, build_result
-from youbot_opt.nlp.ipopt import check_time_limit, single_threaded_blas
+from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
+from youbot_opt.nlp.best_iterate import NlpsolIterationCallback
+from youbot_opt.nlp.ipopt import IpoptOptions, IpoptValue, single_threaded_blas
+from youbot_opt.nlp.status import IPOPT_STATUS, SolveStatus, status_from_ipopt
 
-__all__ = ["IpoptOptions", "IpoptIKSolver", "check_degrees_of_freedom", "solve_ipopt"]
+__all__ = [
+    "IpoptOptions",
+    "IpoptIKSolver",
+    "BOUND_SETTINGS",
+    "check_degrees_of_freedom",
+    "check_options",
+    "solve_ipopt",
+]
 
-_STATUS = {
-    "Solve_Succeeded": IKStatus.SUCCESS,
-    "Solved_To_Acceptable_Level": IKStatus.SUCCESS,  # re-checked in solve()
-    "Maximum_Iterations_Exceeded": IKStatus.MAX_ITERATIONS,
-    "Maximum_CpuTime_Exceeded": IKStatus.TIME_LIMIT,
-    "Maximum_WallTime_Exceeded": IKStatus.TIME_LIMIT,
-    "Infeasible_Problem_Detected": IKStatus.INFEASIBLE,
-    "Search_Direction_Becomes_Too_Small": IKStatus.STALLED,
-    "Restoration_Failed": IKStatus.STALLED,
-}
-# Not listed, hence NUMERICAL_ERROR: "Not_Enough_Degrees_Of_Freedom" says nothing about
-# feasibility, and check_degrees_of_freedom() refuses such problems before IPOPT runs.
+_STATUS: Mapping[str, SolveStatus] = MappingProxyType(
+    {
+        **IPOPT_STATUS,
+        "Solved_To_Acceptable_Level": SolveStatus.SOLVED,  # re-checked in solve()
+        "Search_Direction_Becomes_Too_Small": SolveStatus.STALLED,
+        "Restoration_Failed": SolveStatus.STALLED,
+    }
+)
+# Not listed, hence NON_FINITE (a numerical failure): "Not_Enough_Degrees_Of_Freedom" says
+# nothing about feasibility, and check_degrees_of_freedom() refuses such problems before
+# IPOPT runs.
+
+BOUND_SETTINGS: Mapping[str, IpoptValue] = MappingProxyType(
+    {
+        "bound_relax_factor": 0.0,
+        "honor_original_bounds": "yes",
+        # IPOPT moves a bound by slack_move * max(1, |bound|) when a slack gets tiny
+        # (default eps^(3/4) = 1.8e-12), so x can end that far outside the limits.
+        # solve() projects x back; with 1e-14 the projection moves the tip by at
+        # most ~1e-14 rad * reach, far below constr_viol_tol (with the default,
+        # 2.8e-12 rad at l = pi/2 moved a 7 m arm's tip by 4e-11 m > 1e-11 m).
+        "slack_move": 1e-14,
+    }
+)
+"""IPOPT settings of the IK-path NLP: the joint limits hold exactly (``extra`` overrides)."""
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class IpoptOptions:
-    """Settings passed to IPOPT.
+def check_options(options: IpoptOptions | None) -> IpoptOptions:
+    """Return the IPOPT options of an IK-path solve (``None``: :meth:`IpoptOptions.for_ikpath`).
 
-    Attributes
-    ----------
-    tol : float
-        IPOPT's (scaled) overall optimality tolerance.
-    constr_viol_tol : float
-        Largest accepted constraint violation in [m].
-    max_iter : int
-        Iteration limit.
-    max_wall_time : float or None
-        Wall-clock limit of one IPOPT solve in [s] (IPOPT's ``max_wall_time``;
-        ``None``: no limit). Reaching it gives status ``TIME_LIMIT`` with
-        IPOPT's last iterate.
-    extra : Mapping[str, Any]
-        Further IPOPT options (``{"linear_solver": "mumps"}``, ...).
+    Raises
+    ------
+    ParameterError
+        If ``options`` is not an :class:`IpoptOptions`, has no ``constr_viol_tol``
+        (the solver's success criterion in [m]) or ``max_iter < 1``.
     """
-
-    tol: float = 1e-12
-    constr_viol_tol: float = 1e-11
-    max_iter: int = 3000
-    max_wall_time: float | None = None
-    extra: Mapping[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        check_time_limit(self.max_wall_time, "IpoptOptions.max_wall_time")
-        if not (self.tol > 0 and self.constr_viol_tol > 0 and self.max_iter >= 1):
-            raise ParameterError(
-                f"IpoptOptions need tol > 0, constr_viol_tol > 0, max_iter >= 1; got "
-                f"{self.tol}, {self.constr_viol_tol}, {self.max_iter}",
-                name="IpoptOptions",
-                value=(self.tol, self.constr_viol_tol, self.max_iter),
-            )
-
-    def as_casadi(self) -> dict[str, Any]:
-        """Return the ``nlpsol`` option dictionary."""
-        ipopt = {
-            "tol": self.tol,
-            "constr_viol_tol": self.constr_viol_tol,
-            "max_iter": self.max_iter,
-            "print_level": 0,
-            "sb": "yes",
-            "bound_relax_factor": 0.0,
-            "honor_original_bounds": "yes",
-            # IPOPT moves a bound by slack_move * max(1, |bound|) when a slack gets tiny
-            # (default eps^(3/4) = 1.8e-12), so x can end that far outside the limits.
-            # solve() projects x back; with 1e-14 the projection moves the tip by at
-            # most ~1e-14 rad * reach, far below constr_viol_tol (with the default,
-            # 2.8e-12 rad at l = pi/2 moved a 7 m arm's tip by 4e-11 m > 1e-11 m).
-            "slack_move": 1e-14,
-        }
-        if self.max_wall_time is not None:
-            ipopt["max_wall_time"] = float(self.max_wall_time)
-        ipopt.update(dict(self.extra))
-        return {"ipopt": ipopt, "print_time": False}
+    if options is None:
+        return IpoptOptions.for_ikpath()
+    if not isinstance(options, IpoptOptions):
+        raise ParameterError(
+            f"options must be IpoptOptions, got {type(options).__name__}",
+            name="options",
+            value=options,
+        )
+    if options.constr_viol_tol is None or options.max_iter < 1:
+        raise ParameterError(
+            "IK-path IPOPT needs constr_viol_tol (the accepted target miss in [m]) and "
+            f"max_iter >= 1, got constr_viol_tol={options.constr_viol_tol!r}, "
+            f"max_iter={options.max_iter!r}; use IpoptOptions.for_ikpath(...) for the "
+            "IK-path defaults (tol 1e-12, constr_viol_tol 1e-11 m)",
+            name="options",
+            value=options,
+        )
+    return options
 
 
 class _IterateRecorder(NlpsolIterationCallback):
@@ -191,18 +181,21 @@ class IpoptIKSolver:
         Fixes the chain, the number of targets and whether limits apply; the
         targets themselves are NLP parameters.
     options : IpoptOptions, optional
-        IPOPT settings.
+        IPOPT settings (default :meth:`IpoptOptions.for_ikpath`); they must set
+        ``constr_viol_tol`` [m].
 
     Raises
     ------
     ParameterError
-        If fewer than 2 joints are free (see :func:`check_degrees_of_freedom`).
+        If fewer than 2 joints are free (see :func:`check_degrees_of_freedom`),
+        or for options without ``constr_viol_tol`` (see :func:`check_options`).
     """
 
     def __init__(self, problem: CyclicIKProblem, options: IpoptOptions | None = None) -> None:
         check_degrees_of_freedom(problem)
         self.problem = problem
-        self.options = IpoptOptions() if options is None else options
+        self.options = check_options(options)
+        self._constraint_tol = float(self.options.constr_viol_tol)  # type: ignore[arg-type]
         s, n = problem.n_targets, problem.n_joints
         x = ca.SX.sym("x", s * n)
         p = ca.SX.sym("targets", 2 * s)
@@ -215,7 +208,7 @@ class IpoptIKSolver:
             *[_tip_expression(problem, configs[j]) - p[2 * j : 2 * j + 2] for j in range(s)]
         )
         self._recorder = _IterateRecorder(s * n, 2 * s, 2 * s)
-        opts = self.options.as_casadi()
+        opts = self.options.to_casadi(True, solver_settings=BOUND_SETTINGS)
         opts["iteration_callback"] = self._recorder
         single_threaded_blas()
         self._solver = ca.nlpsol(
@@ -267,27 +260,27 @@ class IpoptIKSolver:
         stats = self._solver.stats()
         ret = str(stats.get("return_status", "unknown"))
         x = np.array(sol["x"], dtype=float).ravel()
-        status = _STATUS.get(ret, IKStatus.NUMERICAL_ERROR)
+        status = status_from_ipopt(ret, table=_STATUS, otherwise=SolveStatus.NON_FINITE)
         message = ret
         if not np.all(np.isfinite(x)):
-            status, x = IKStatus.NUMERICAL_ERROR, start
+            status, x = SolveStatus.NON_FINITE, start
         else:
             x, moved = _project_onto_box(x, prob.lower, prob.upper)
             if moved > 0.0:
                 message = f"{ret}; projected onto the joint limits (moved {moved:.2g} rad)"
-        if status is IKStatus.SUCCESS and ret != "Solve_Succeeded":
+        if status is SolveStatus.SOLVED and ret != "Solve_Succeeded":
             # IPOPT's "acceptable" level uses its own (loose, user-settable) tolerances:
             # a success only if the targets are met to constr_viol_tol (Pinocchio check;
             # x is already projected onto the limits).
             worst = float(np.max(prob.residuals(x)))
-            if worst > self.options.constr_viol_tol:
-                status = IKStatus.STALLED
-        if status is not IKStatus.SUCCESS and np.all(np.isfinite(x)):
+            if worst > self._constraint_tol:
+                status = SolveStatus.STALLED
+        if status is not SolveStatus.SOLVED and np.all(np.isfinite(x)):
             visited = (
                 _project_onto_box(rx, prob.lower, prob.upper)[0]
                 for rx, _, _ in self._recorder.records
             )
-            x, note = pick_best(prob, x, visited, self.options.constr_viol_tol)
+            x, note = pick_best(prob, x, visited, self._constraint_tol)
             message = f"{message}; {note}" if note else message
         its = stats.get("iterations", {})
         history = tuple(
@@ -313,7 +306,7 @@ class IpoptIKSolver:
             wall_time=wall,
             message=message,
             start=start,
-            constraint_tol=self.options.constr_viol_tol,
+            constraint_tol=self._constraint_tol,
             history=history,
         )
 
@@ -330,7 +323,7 @@ def solve_ipopt(
     x0 : array_like, optional
         Start in [rad]; the zero vector (clipped into the limits) by default.
     options : IpoptOptions, optional
-        IPOPT settings.
+        IPOPT settings (default :meth:`IpoptOptions.for_ikpath`).
 
     Returns
     -------

@@ -1,38 +1,29 @@
-"""Seeded multistart of IK-path solves, run in parallel, with the distinct local minima.
+"""Seeded multistart of IK-path solves, with the distinct local minima (spec ``ikpath.md``).
 
-Start 0 is the study's zero vector; the others are drawn from
-``numpy.random.default_rng(seed)`` in the parent process
-(:func:`youbot_opt.ikpath.starts.make_starts`), so they do not depend on the
-executor.
+Owns :func:`run_multistart`, :class:`MultistartResult`, :class:`LocalMinimum`,
+:func:`configuration_distance` and :func:`cluster_minima`. Start 0 is the
+study's zero vector; the others are drawn in the parent from
+``numpy.random.default_rng(seed)`` (:func:`youbot_opt.ikpath.starts.make_starts`),
+so they do not depend on the executor. How the starts run (crash-isolated
+workers, one retry, resumable ``out`` directory) is one
+:class:`~youbot_opt.sweeps.options.SweepOptions` (:mod:`youbot_opt.ikpath.sweep`).
+Two successful results are the same minimum when their ``E`` agree to ``e_tol``
+(relative) and their configurations to ``q_tol`` [rad] modulo common 2 pi shifts.
 
-Each start is one task (:mod:`youbot_opt.ikpath.sweep`, on
-:func:`youbot_opt.sweeps.tasks.run_tasks`), on a process pool by default. A start
-that raises, or whose worker process dies (segfault, out-of-memory kill), is
-charged alone: it is retried once and becomes a ``CRASHED`` result with the
-reason if it fails again; the pool is rebuilt and the run goes on. With
-``out=DIR`` every finished start is saved as it completes (atomic writes,
-:mod:`youbot_opt.sweeps.store`) and rerunning the same multistart on ``DIR``
-loads the finished starts instead of solving them again.
-
-Successful results are clustered into local minima: two results are the same
-minimum when their ``E`` agree to ``e_tol`` (relative) and their
-configurations agree to ``q_tol`` [rad] modulo the symmetry of ``E`` and the
-constraints (adding ``2 pi k_i`` to joint ``i`` in every configuration).
+    ms = run_multistart(problem, n_starts=100, sweep=SweepOptions(workers=4, out="runs/ik"))
 """
 
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -41,7 +32,9 @@ from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import START_KINDS, make_starts
 from youbot_opt.ikpath.sweep import open_store, solve_starts
-from youbot_opt.sweeps.tasks import ExecutorLike, default_workers
+from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import default_workers
 
 __all__ = [
     "LocalMinimum",
@@ -197,21 +190,15 @@ def cluster_minima(
     tuple of LocalMinimum
         Sorted by objective.
     """
-    order = sorted(
-        (i for i, r in enumerate(results) if r.success), key=lambda i: results[i].objective
+    groups = cluster_optima(
+        (i for i, r in enumerate(results) if r.success),
+        objective=lambda i: results[i].objective,
+        distance=lambda i, j: configuration_distance(
+            results[i].configurations, results[j].configurations
+        ),
+        obj_tol=e_tol,
+        dist_tol=q_tol,
     )
-    groups: list[list[int]] = []
-    for i in order:
-        r = results[i]
-        for g in groups:
-            rep = results[g[0]]
-            if abs(r.objective - rep.objective) <= e_tol * max(1.0, abs(rep.objective)) and (
-                configuration_distance(r.configurations, rep.configurations) <= q_tol
-            ):
-                g.append(i)
-                break
-        else:
-            groups.append([i])
     return tuple(
         LocalMinimum(
             objective=results[g[0]].objective,
@@ -231,15 +218,11 @@ def run_multistart(
     seed: int = 0,
     starts: str = "feasible",
     options: ALOptions | IpoptOptions | None = None,
-    executor: ExecutorLike | None = None,
-    max_workers: int | None = None,
-    progress: Progress | None = None,
     check_reachability: bool = True,
     e_tol: float = 1e-6,
     q_tol: float = 1e-3,
-    out: str | os.PathLike[str] | None = None,
-    max_attempts: int = 2,
     verdicts: Sequence[ReachVerdict] | None = None,
+    sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> MultistartResult:
     """Solve from ``n_starts`` seeded starts in parallel and report the distinct minima.
 
@@ -254,36 +237,30 @@ def run_multistart(
     seed : int
         Seed of the random starts.
     starts : {"feasible", "uniform"}
-        How random starts are drawn (see the module docstring).
+        How random starts are drawn (see :mod:`youbot_opt.ikpath.starts`).
     options : ALOptions or IpoptOptions, optional
         Settings of the method.
-    executor : {"process", "serial"} or concurrent.futures.Executor, optional
-        Where the starts run (see :func:`youbot_opt.sweeps.tasks.run_tasks`): a
-        process pool owned by this call and rebuilt if a worker dies, this
-        process, or an executor of the caller (not shut down here; a broken
-        one cannot be rebuilt). Default: ``"serial"`` when ``max_workers`` is
-        1, else ``"process"``.
-    max_workers : int, optional
-        Starts in flight at once (default: the CPUs available).
-    progress : callable, optional
-        ``progress(done, total, best_objective)`` as starts finish (see :data:`Progress`).
     check_reachability : bool
         Decide every target's reachability first (raises ``UnreachableTarget``,
         warns about undecided ones); ignored when ``verdicts`` are given.
     e_tol, q_tol : float
         Clustering tolerances (see :func:`cluster_minima`).
-    out : path-like, optional
-        Output directory: each finished start is saved there as it completes
-        (``manifest.json``, ``items/``), and a rerun with the same problem,
-        method, options, ``n_starts``, ``seed`` and ``starts`` resumes.
-    max_attempts : int
-        Attempts per start in total, earlier runs on ``out`` included; a start
-        that raises or crashes its worker is retried until this many were
-        made (default 2: once).
     verdicts : sequence of ReachVerdict, optional
         Verdicts of the targets already decided by the caller (e.g. with
         another budget); used instead of deciding again (an unreachable one
         still raises). Their witnesses are the fallback of feasible starts.
+    sweep : SweepOptions
+        How the starts run. ``executor``: a process pool owned by this call
+        and rebuilt if a worker dies, ``"serial"``, or the caller's pool or
+        executor (not shut down here); default ``"serial"`` when ``workers``
+        is 1, else ``"process"``. ``workers``: starts in flight (default: the
+        CPUs available, or the caller's pool size). ``max_attempts``: per
+        start, earlier runs on ``out`` included (default 2). ``timeout`` [s]
+        per start attempt (worker pools only). ``out``: each finished start is
+        saved there as it completes (``manifest.json``, ``items/``), and a
+        rerun with the same problem, method, options, ``n_starts``, ``seed``
+        and ``starts`` resumes. ``progress``: ``(done, total, best_objective)``
+        as starts finish (see :data:`Progress`).
 
     Returns
     -------
@@ -293,9 +270,8 @@ def run_multistart(
     Raises
     ------
     ParameterError
-        For an unknown method, foreign options, ``max_workers < 1``,
-        ``method="ipopt"`` on a chain with fewer than 2 free joints, or an
-        ``out`` holding another sweep.
+        For an unknown method, foreign options, ``method="ipopt"`` on a chain
+        with fewer than 2 free joints, or an ``out`` holding another sweep.
     UnreachableTarget
         If ``check_reachability`` and a target is unreachable.
     ResultFileError
@@ -305,20 +281,13 @@ def run_multistart(
     check_method(method, options)
     if method == "ipopt":
         check_degrees_of_freedom(problem)
-    if max_workers is not None and (
-        isinstance(max_workers, bool) or not isinstance(max_workers, int) or max_workers < 1
-    ):
-        raise ParameterError(
-            f"max_workers must be an int >= 1, got {max_workers!r}",
-            name="max_workers",
-            value=max_workers,
-        )
     found: tuple[ReachVerdict, ...] = ()
     if verdicts is not None:
         found = require_reachable(problem, tuple(verdicts))
     elif check_reachability:
         found = check_targets(problem)
     x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
+    executor, max_workers = sweep.executor, sweep.workers
     if executor is None:
         workers = max_workers or default_workers()
         executor = "serial" if workers == 1 else "process"
@@ -330,9 +299,9 @@ def run_multistart(
         size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
         workers = max_workers or int(size or default_workers())
     store = None
-    if out is not None:
+    if sweep.out is not None:
         store = open_store(
-            out,
+            sweep.out,
             problem,
             method=method,
             options=options,
@@ -340,6 +309,7 @@ def run_multistart(
             seed=int(seed),
             kind=starts,
         )
+    progress = sweep.progress
     best = math.inf
     done = 0
 
@@ -363,10 +333,8 @@ def run_multistart(
         x0s,
         method=method,
         options=options,
-        executor=executor,
-        workers=workers,
+        sweep=replace(sweep, executor=executor, workers=workers),
         store=store,
-        max_attempts=max_attempts,
         on_resumed=on_resumed,
         on_final=on_final,
     )

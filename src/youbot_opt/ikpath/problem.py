@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
+from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.chain import PlanarChain
@@ -78,22 +79,12 @@ class CyclicIKProblem:
                 name="chain",
                 value=self.chain,
             )
-        targets = np.array(self.targets, dtype=float)
-        if targets.ndim != 2 or targets.shape[1] != 2:
-            raise ParameterError(
-                f"targets must have shape (s, 2), got {targets.shape}",
-                name="targets",
-                value=targets.shape,
-            )
+        targets = check_shape(self.targets, ("s", 2), "targets")
         if targets.shape[0] < 2:
             raise ParameterError(
                 f"a cyclic path needs at least 2 targets, got {targets.shape[0]}",
                 name="targets",
                 value=targets.shape[0],
-            )
-        if not np.all(np.isfinite(targets)):
-            raise ParameterError(
-                f"targets must be finite, got {targets.tolist()}", name="targets", value=targets
             )
         targets.setflags(write=False)
         object.__setattr__(self, "targets", targets)

@@ -43,8 +43,8 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.branch_and_bound import BranchAndBound
-from youbot_opt.ikpath.geometry import TWO_PI, nearest_on_arc, two_link_nearest
 from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.geometry import TWO_PI, nearest_on_arc, two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
 
 __all__ = [
@@ -144,8 +144,12 @@ class ReachVerdict:
         )
 
 
-def _theta_ranges(chain: PlanarChain, use_limits: bool) -> list[tuple[float, float]] | None:
-    """``(lo, width)`` ranges of the study angles, or None when no joint is limited."""
+def theta_ranges(chain: PlanarChain, use_limits: bool) -> list[tuple[float, float]] | None:
+    """``(lo, width)`` ranges in [rad] of the study angles, or None when no joint is limited.
+
+    Used by the reachability decision and by the feasible starts
+    (:func:`youbot_opt.ikpath.starts.make_starts`).
+    """
     ranges = []
     limited = False
     for lo, hi, off in zip(chain.q_lower, chain.q_upper, chain.angle_offset, strict=True):
@@ -304,7 +308,7 @@ def decide_reachability(
     if not tol > 0.0:
         raise ParameterError(f"tol must be > 0, got {tol!r}", name="tol", value=tol)
     p.setflags(write=False)
-    ranges = _theta_ranges(chain, use_limits)
+    ranges = theta_ranges(chain, use_limits)
     if ranges is None:
         return _annulus(chain, p, index, tol, limited=False)
     if chain.n <= 2:

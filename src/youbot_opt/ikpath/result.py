@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
@@ -18,31 +17,16 @@ import pinocchio as pin
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.nlp.status import SolveStatus
 
-__all__ = ["IKStatus", "OuterIterate", "IKPathResult", "JointPath", "build_result"]
+__all__ = ["SolveStatus", "IKStatus", "OuterIterate", "IKPathResult", "JointPath", "build_result"]
 
 
-class IKStatus(Enum):
-    """Outcome of one IK-path solve."""
-
-    SUCCESS = "success"
-    """Stationarity and feasibility tolerances met (and residuals verified)."""
-    MAX_ITERATIONS = "max_iterations"
-    """Iteration limit reached before the tolerances were met."""
-    STALLED = "stalled"
-    """No further progress possible (penalty at its cap, or the solver gave up)."""
-    TIME_LIMIT = "time_limit"
-    """Wall-clock (or CPU) time limit reached; the last iterate is kept."""
-    INFEASIBLE = "infeasible"
-    """The solver reports the constraints as locally infeasible."""
-    NUMERICAL_ERROR = "numerical_error"
-    """Non-finite values or a solver-internal error."""
-    CRASHED = "crashed"
-    """The solve raised an exception (multistart keeps going); see the message."""
-    CHECK_FAILED = "check_failed"
-    """The solver claimed success but the result failed its re-check on construction
-    (targets missed beyond the solver's tolerance, limits violated, or reported
-    figures that do not belong to the configurations); see the message."""
+IKStatus = SolveStatus
+"""Deprecated alias of :class:`~youbot_opt.nlp.status.SolveStatus` (the IK-path
+names ``SUCCESS``, ``TIME_LIMIT``, ``NUMERICAL_ERROR``, ``CHECK_FAILED`` are
+aliases of its members ``SOLVED``, ``MAX_TIME``, ``NON_FINITE``,
+``CONSTRAINT_VIOLATION``); kept so that code written against it runs."""
 
 
 class OuterIterate(NamedTuple):
@@ -101,7 +85,7 @@ class IKPathResult:
         The problem solved.
     method : str
         ``"al"`` (augmented Lagrangian) or ``"ipopt"``.
-    status : IKStatus
+    status : SolveStatus
         Outcome.
     configurations : ndarray, shape (s, n)
         Final (or best) configurations in [rad].
@@ -133,20 +117,20 @@ class IKPathResult:
 
     Notes
     -----
-    A result that claims :attr:`IKStatus.SUCCESS` re-checks itself on
+    A result that claims success (:attr:`SolveStatus.SOLVED`) re-checks itself on
     construction (also after ``dataclasses.replace``), independently of the
     solver's flag: every number must be finite (else
-    :attr:`IKStatus.NUMERICAL_ERROR`), every residual recomputed by Pinocchio
+    :attr:`SolveStatus.NON_FINITE`), every residual recomputed by Pinocchio
     from :attr:`configurations` must be within ``sqrt(2) * constraint_tol``
     plus rounding, the joint limits must hold exactly, and the reported
     ``objective``, ``residuals`` and ``limit_violation`` must be those of the
-    configurations (else :attr:`IKStatus.CHECK_FAILED`). A downgraded result
+    configurations (else :attr:`SolveStatus.CONSTRAINT_VIOLATION`). A downgraded result
     says why in :attr:`message`.
     """
 
     problem: CyclicIKProblem
     method: str
-    status: IKStatus
+    status: SolveStatus
     configurations: Array
     objective: float
     residuals: Array
@@ -171,7 +155,7 @@ class IKPathResult:
                 name="constraint_tol",
                 value=self.constraint_tol,
             )
-        if self.status is IKStatus.SUCCESS:
+        if self.status.success:
             downgrade = _recheck(self)
             if downgrade is not None:
                 status, why = downgrade
@@ -180,8 +164,8 @@ class IKPathResult:
 
     @property
     def success(self) -> bool:
-        """Whether :attr:`status` is :attr:`IKStatus.SUCCESS`."""
-        return self.status is IKStatus.SUCCESS
+        """Whether :attr:`status` is a success (:attr:`SolveStatus.success`)."""
+        return self.status.success
 
     @property
     def E(self) -> float:  # noqa: N802 - the study's symbol
@@ -266,7 +250,7 @@ class IKPathResult:
         return "\n".join(lines)
 
 
-def _recheck(result: IKPathResult) -> tuple[IKStatus, str] | None:
+def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
     """Status a claimed success deserves, with the reason, or None if it holds.
 
     Recomputes the residuals (Pinocchio), E and the limit violation from the
@@ -283,10 +267,10 @@ def _recheck(result: IKPathResult) -> tuple[IKStatus, str] | None:
     }
     nonfinite = [k for k, v in figures.items() if not np.all(np.isfinite(v))]
     if nonfinite:
-        return IKStatus.NUMERICAL_ERROR, f"non-finite values in {', '.join(nonfinite)}"
+        return SolveStatus.NON_FINITE, f"non-finite values in {', '.join(nonfinite)}"
     want = (problem.n_targets, problem.n_joints)
     if q.shape != want or result.residuals.shape != (want[0],):
-        return IKStatus.CHECK_FAILED, (
+        return SolveStatus.CONSTRAINT_VIOLATION, (
             f"configurations of shape {q.shape} and residuals of shape "
             f"{result.residuals.shape}, expected {want} and ({want[0]},)"
         )
@@ -319,14 +303,14 @@ def _recheck(result: IKPathResult) -> tuple[IKStatus, str] | None:
         wrong.append(
             f"reported limit violation {result.limit_violation:.3g} rad, recomputed {excess:.3g}"
         )
-    return (IKStatus.CHECK_FAILED, "; ".join(wrong)) if wrong else None
+    return (SolveStatus.CONSTRAINT_VIOLATION, "; ".join(wrong)) if wrong else None
 
 
 def build_result(
     problem: CyclicIKProblem,
     *,
     method: str,
-    status: IKStatus,
+    status: SolveStatus,
     x: Array,
     multipliers: Array,
     iterations: int,

@@ -16,10 +16,11 @@ from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.ipopt import IpoptOptions, solve_ipopt
+from youbot_opt.ikpath.ipopt import solve_ipopt
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import Reachability, ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
+from youbot_opt.nlp.ipopt import IpoptOptions
 
 __all__ = ["Method", "METHODS", "solve", "check_targets"]
 
@@ -29,7 +30,7 @@ Method = Literal["al", "ipopt"]
 METHODS: tuple[str, ...] = ("al", "ipopt")
 
 
-def check_method(method: str, options: object) -> None:
+def check_method(method: str, options: ALOptions | IpoptOptions | None) -> None:
     """Validate ``method`` and that ``options`` belong to it.
 
     Raises
@@ -91,7 +92,8 @@ def solve(
     x0 : array_like, shape (n s,) or (s, n), optional
         Start in [rad]; the zero vector (clipped into the limits) by default.
     options : ALOptions or IpoptOptions, optional
-        Settings of the chosen method.
+        Settings of the chosen method (for ``"ipopt"``: default
+        :meth:`IpoptOptions.for_ikpath`, and ``constr_viol_tol`` must be set).
     check_reachability : bool
         Decide every target's reachability first (recommended).
 

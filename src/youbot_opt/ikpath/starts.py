@@ -27,7 +27,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, _theta_ranges
+from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
 
 __all__ = ["START_KINDS", "make_starts"]
 
@@ -95,7 +95,7 @@ def _feasible_start(
     """One start made of random exact IK solutions, unwrapped across configurations."""
     chain = problem.chain
     n = chain.n
-    ranges = _theta_ranges(chain, problem.use_limits) or [
+    ranges = theta_ranges(chain, problem.use_limits) or [
         (-np.pi + o, 2 * np.pi) for o in chain.angle_offset
     ]
     q = fallback.reshape(problem.n_targets, n).copy()

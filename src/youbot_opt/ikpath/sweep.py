@@ -1,23 +1,16 @@
 """Run the starts of an IK-path multistart: one task per start, saved as it finishes.
 
-The machinery behind :func:`youbot_opt.ikpath.multistart.run_multistart`:
+Owns what the IK-path multistart adds to the robot-agnostic sweep engine
+(:mod:`youbot_opt.sweeps`): the worker task of one start (the AL solver, or
+the worker's cached :class:`~youbot_opt.ikpath.ipopt.IpoptIKSolver`), the store
+of one multistart (:func:`open_store`: kind ``"ikpath_multistart"``, payloads
+``items/<key>.ikpath`` in the JSON of :func:`youbot_opt.ikpath.io.encode_ikpath_result`),
+and :func:`solve_starts`, the resumable start loop. A start that fails every
+attempt (it raised, or its worker died) becomes an ``IKStatus.CRASHED``
+result whose message is the last reason.
 
-* each start is one keyed task (``"start_0007"``) of
-  :func:`youbot_opt.sweeps.tasks.run_tasks`: a start that raises, or whose worker
-  process dies (segfault, out-of-memory kill), is a failed attempt with its
-  reason and is retried once; the broken pool is rebuilt and the sweep goes on.
-  A start that fails every attempt becomes an ``IKStatus.CRASHED`` result
-  whose message is the last reason;
-* with an output directory, a :class:`~youbot_opt.sweeps.store.SweepStore`
-  (kind ``"ikpath_multistart"``) saves every finished start as it completes,
-  atomically: the result file ``items/<key>.ikpath`` (the JSON of
-  :func:`youbot_opt.ikpath.io.encode_ikpath_result`, schema
-  ``youbot_opt.ikpath_result`` with its SHA-256), then the record
-  ``items/<key>.json`` (state, attempts, failure reasons). A rerun with the
-  same problem, method, options, starts and seed loads the finished starts
-  instead of solving them; other parameters are refused;
-* IPOPT workers build one :class:`~youbot_opt.ikpath.ipopt.IpoptIKSolver` per
-  process and reuse it for every start they run.
+    outcome = solve_starts(problem, x0s, method="al", options=None,
+                           sweep=SweepOptions(executor="serial"), store=None)
 """
 
 from __future__ import annotations
@@ -25,10 +18,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import threading
-import uuid
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -41,8 +31,11 @@ from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, probl
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, build_result
-from youbot_opt.sweeps.tasks import ExecutorLike, Task, TaskOutcome, run_tasks
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import Task, TaskOutcome
+from youbot_opt.sweeps.resume import run_resumable
 from youbot_opt.sweeps.store import SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.worker_solver import WorkerSolver
 
 __all__ = [
     "PAYLOAD_SUFFIX",
@@ -59,53 +52,23 @@ SWEEP_KIND = "ikpath_multistart"
 PAYLOAD_SUFFIX = ".ikpath"
 """Suffix of the stored result files (JSON; not ``.json``, which names the records)."""
 
-# Per-process (and per-thread) IPOPT solver of pool workers, keyed by the run's
-# token. The only module-level state; the parent never fills it (serial runs
-# pass their solver in the spec).
-_WORKER = threading.local()
+
+def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
+    """Worker task: one start with the AL solver (exceptions propagate: they are retried)."""
+    return solve_augmented_lagrangian(problem, x0, options)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class _SolveSpec:
-    """What a worker needs to solve a start; pickles without the prebuilt solver."""
-
-    problem: CyclicIKProblem
-    method: str
-    options: ALOptions | IpoptOptions | None
-    token: str
-    prebuilt: IpoptIKSolver | None = field(default=None, compare=False)
-
-    def __getstate__(self) -> tuple[Any, ...]:
-        return (self.problem, self.method, self.options, self.token)
-
-    def __setstate__(self, state: tuple[Any, ...]) -> None:
-        for name, value in zip(("problem", "method", "options", "token"), state, strict=True):
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "prebuilt", None)
-
-    def ipopt(self) -> IpoptIKSolver:
-        """Return the prebuilt solver, this worker's cached one, or a new one (then cached)."""
-        if self.prebuilt is not None:
-            return self.prebuilt
-        if getattr(_WORKER, "token", None) != self.token:
-            _WORKER.solver = IpoptIKSolver(self.problem, self.options)  # type: ignore[arg-type]
-            _WORKER.token = self.token
-        solver: IpoptIKSolver = _WORKER.solver
-        return solver
-
-
-def _solve_start(spec: _SolveSpec, x0: Array) -> IKPathResult:
-    """Worker task: solve one start (exceptions propagate: run_tasks records and retries)."""
-    if spec.method == "al":
-        return solve_augmented_lagrangian(spec.problem, x0, spec.options)  # type: ignore[arg-type]
-    return spec.ipopt().solve(None, x0)
+def _solve_ipopt(handle: WorkerSolver[IpoptIKSolver], x0: Array) -> IKPathResult:
+    """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
+    return handle.get().solve(None, x0)
 
 
 def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> float:
     """Return the largest accepted ``|c_i|`` in [m] of ``method`` with ``options``."""
     if method == "al":
         return (options if isinstance(options, ALOptions) else ALOptions()).constraint_tol
-    return (options if isinstance(options, IpoptOptions) else IpoptOptions()).constr_viol_tol
+    ipopt = options if isinstance(options, IpoptOptions) else IpoptOptions.for_ikpath()
+    return float(ipopt.constr_viol_tol)  # type: ignore[arg-type]
 
 
 def _crashed_result(
@@ -139,7 +102,11 @@ def start_key(index: int, n_starts: int) -> str:
 
 def _options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[str, Any]:
     """JSON-ready settings of ``method`` (defaults filled in, so None equals the defaults)."""
-    opts = options if options is not None else (ALOptions() if method == "al" else IpoptOptions())
+    opts = (
+        options
+        if options is not None
+        else (ALOptions() if method == "al" else IpoptOptions.for_ikpath())
+    )
     out: dict[str, Any] = {"type": type(opts).__name__}
     for f in dataclasses.fields(opts):
         value = getattr(opts, f.name)
@@ -257,10 +224,8 @@ def solve_starts(
     *,
     method: str,
     options: ALOptions | IpoptOptions | None,
-    executor: ExecutorLike,
-    workers: int,
+    sweep: SweepOptions,
     store: SweepStore | None = None,
-    max_attempts: int = 2,
     on_resumed: Callable[[list[IKPathResult]], None] | None = None,
     on_final: Callable[[int, IKPathResult], None] | None = None,
 ) -> SweepOutcome:
@@ -276,14 +241,12 @@ def solve_starts(
         Solver.
     options : ALOptions or IpoptOptions or None
         Settings of the method.
-    executor : {"process", "serial"} or concurrent.futures.Executor
-        See :func:`youbot_opt.sweeps.tasks.run_tasks`.
-    workers : int
-        Tasks in flight at once (>= 1).
+    sweep : SweepOptions
+        ``executor`` (``None``: ``"process"``), ``workers``, ``timeout`` in [s]
+        and ``max_attempts`` (see :func:`youbot_opt.sweeps.pool.run_tasks`);
+        ``out`` and ``progress`` are the caller's.
     store : SweepStore, optional
         Where finished starts are saved and resumed from.
-    max_attempts : int
-        Attempts per start in total, earlier runs included (default 2: a retry).
     on_resumed : callable ``(results)``, optional
         Called once, before any solve, with the results loaded from ``store``.
     on_final : callable ``(index, result)``, optional
@@ -299,60 +262,50 @@ def solve_starts(
     ResultFileError
         If a stored record or result is corrupted or from a newer schema.
     """
+    sweep = sweep.with_executor("process")
     n = len(x0s)
     keys = [start_key(i, n) for i in range(n)]
     index = {k: i for i, k in enumerate(keys)}
-    results: list[IKPathResult | None] = [None] * n
-    attempts = [0] * n
-    prebuilt = None
-    if method == "ipopt" and executor == "serial":
-        prebuilt = IpoptIKSolver(problem, options)  # type: ignore[arg-type]
-    spec = _SolveSpec(
-        problem=problem, method=method, options=options, token=uuid.uuid4().hex, prebuilt=prebuilt
-    )
-    todo: list[Task] = []
-    for i, key in enumerate(keys):
-        made = 0
-        if store is not None:
-            again, made = store.needs_work(key, max_attempts)
-            attempts[i] = made
-            if not again:
-                rec = store.record(key)
-                assert rec is not None  # needs_work said it exists
-                if rec.state == "done":
-                    results[i] = _load(store, key)
-                else:
-                    reason = rec.reasons[-1] if rec.reasons else "failed"
-                    results[i] = _crashed_result(problem, method, options, x0s[i], reason)
-                continue
-        todo.append(Task(key=key, fn=_solve_start, args=(spec, x0s[i]), attempts=made))
-    resumed = n - len(todo)
-    if on_resumed is not None:
-        on_resumed([r for r in results if r is not None])
+    if method == "al":
+        tasks = [
+            Task(key=key, fn=_solve_al, args=(problem, options, x0s[i]))
+            for i, key in enumerate(keys)
+        ]
+    else:
+        # Serial runs build the solver here; pool workers build theirs on their first start.
+        prebuilt = IpoptIKSolver(problem, options) if sweep.executor == "serial" else None  # type: ignore[arg-type]
+        handle = WorkerSolver.of(IpoptIKSolver, problem, options, prebuilt=prebuilt)
+        tasks = [
+            Task(key=key, fn=_solve_ipopt, args=(handle, x0s[i])) for i, key in enumerate(keys)
+        ]
 
-    def record(o: TaskOutcome) -> None:
-        i = index[o.key]
-        attempts[i] = o.attempts
+    def load(key: str) -> IKPathResult:
+        assert store is not None  # only finished items of a store are loaded
+        rec = store.record(key)
+        assert rec is not None  # needs_work said it exists
+        if rec.state == "done":
+            return _load(store, key)
+        reason = rec.reasons[-1] if rec.reasons else "failed"
+        return _crashed_result(problem, method, options, x0s[index[key]], reason)
+
+    def convert(o: TaskOutcome) -> IKPathResult:
         if o.ok:
             result: IKPathResult = o.value
-            if store is not None:
-                store.write_done(o.key, result, _summary(i, result), attempts=o.attempts)
-        else:
-            result = _crashed_result(problem, method, options, x0s[i], str(o.error))
-            if store is not None:
-                store.write_failed(o.key, str(o.error), attempts=o.attempts)
-        if o.final:
-            results[i] = result
-            if on_final is not None:
-                on_final(i, result)
+            return result
+        return _crashed_result(problem, method, options, x0s[index[o.key]], str(o.error))
 
-    run_tasks(
-        todo, executor=executor, workers=workers, max_attempts=max_attempts, on_outcome=record
+    got = run_resumable(
+        tasks,
+        store=store,
+        options=sweep,
+        load=load,
+        convert=convert,
+        payload=lambda key, result: (result, _summary(index[key], result)),
+        on_resumed=None if on_resumed is None else lambda done: on_resumed(list(done.values())),
+        on_final=None if on_final is None else lambda key, r, _: on_final(index[key], r),
     )
-    missing = [keys[i] for i, r in enumerate(results) if r is None]
-    assert not missing, f"run_tasks returned no final outcome for {missing}"
     return SweepOutcome(
-        results=tuple(r for r in results if r is not None),
-        attempts=tuple(attempts),
-        resumed=resumed,
+        results=tuple(got.items[k] for k in keys),
+        attempts=tuple(got.attempts[k] for k in keys),
+        resumed=got.resumed,
     )

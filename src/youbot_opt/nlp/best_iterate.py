@@ -14,7 +14,7 @@ IPOPT's own final iterate (it is the KKT point, with its multipliers).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import NamedTuple
 
 import casadi as ca
@@ -22,7 +22,14 @@ import numpy as np
 
 from youbot_opt._typing import Array
 
-__all__ = ["Iterate", "NlpsolIterationCallback", "BestIterateRecorder", "violation_of", "better"]
+__all__ = [
+    "Iterate",
+    "NlpsolIterationCallback",
+    "BestIterateRecorder",
+    "violation_of",
+    "better",
+    "best_of",
+]
 
 
 class Iterate(NamedTuple):
@@ -67,6 +74,33 @@ def better(a: Iterate, b: Iterate | None, feasibility_tol: float) -> bool:
     if a_ok != b_ok:
         return a_ok
     return a.violation < b.violation
+
+
+def best_of(final: Iterate, visited: Iterable[Iterate], feasibility_tol: float) -> Iterate:
+    """Return the best of ``final`` and the ``visited`` iterates (see the module docstring).
+
+    Parameters
+    ----------
+    final : Iterate
+        The iterate the solver ended with; it is kept unless another ranks strictly above.
+    visited : iterable of Iterate
+        Earlier iterates, in order; those with a non-finite objective or
+        violation are skipped.
+    feasibility_tol : float
+        Largest violation of a feasible iterate (unit of the rows).
+
+    Returns
+    -------
+    Iterate
+        ``final`` itself, or the first iterate that ranks best.
+    """
+    best = final
+    for candidate in visited:
+        if not (np.isfinite(candidate.objective) and np.isfinite(candidate.violation)):
+            continue
+        if better(candidate, best, feasibility_tol):
+            best = candidate
+    return best
 
 
 class NlpsolIterationCallback(ca.Callback):  # type: ignore[misc]

@@ -1,22 +1,14 @@
-"""IPOPT settings for trajectory solves (:class:`IpoptOptions`).
+"""IPOPT settings for both optimisers: :class:`IpoptOptions`, single-threaded BLAS.
 
-Defaults are chosen for the study-sized problems: silent, tight tolerance,
-MUMPS, and an exact Hessian whenever the dynamics backend is twice
-differentiable (``hessian="auto"``; the ``"pinocchio"`` Callback backend only
-has first derivatives, so it gets IPOPT's limited-memory quasi-Newton Hessian).
+One options class serves the trajectory optimiser and the IK-path solver. Its
+defaults are the trajectory solver's (silent, ``tol`` 1e-8, MUMPS, adaptive
+barrier, exact Hessian when the backend has second derivatives, no time cap:
+``max_iter`` bounds the run, see docs/design.md); :meth:`IpoptOptions.for_ikpath`
+gives the IK-path solver's (``tol`` 1e-12, ``constr_viol_tol`` 1e-11 [m],
+monotone barrier). A time cap gives status ``MAX_TIME``.
 
-**No default time cap** (``max_cpu_time=None``), by decision. The run time is
-already bounded by ``max_iter`` (3000): an IPOPT iteration costs one KKT
-factorisation, linear in the number of knots for these banded NLPs (about
-1 ms at 50 knots, the base case converging in ~20-40 iterations), so the cap
-is reached in seconds at study size and minutes at a few thousand knots,
-never an unbounded hang. A CPU-time cap would instead make the *status* of a
-seeded solve depend on the machine and its load (a start that converges on
-an idle machine would report ``max_time`` on a busy one, or with more
-parallel workers), breaking the reproducibility of multistarts and sweeps
-that the seeds promise, so it stays an explicit choice
-(``IpoptOptions(max_cpu_time=...)``, status
-:attr:`~youbot_opt.trajopt.result.SolveStatus.MAX_TIME` when hit).
+    options = IpoptOptions(max_iter=300)                   # trajectory solves
+    options = IpoptOptions.for_ikpath(max_wall_time=5.0)   # IK-path solves, 5 s cap
 """
 
 from __future__ import annotations
@@ -28,11 +20,23 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal
 
+from youbot_opt._checks import check_time_limit
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["IpoptOptions", "HessianMode", "WARM_START", "single_threaded_blas", "check_time_limit"]
+__all__ = [
+    "IpoptOptions",
+    "HessianMode",
+    "MuStrategy",
+    "IpoptValue",
+    "WARM_START",
+    "single_threaded_blas",
+    "check_time_limit",
+]
 
-WARM_START: Mapping[str, Any] = MappingProxyType(
+IpoptValue = str | int | float
+"""Type of an IPOPT option's value (IPOPT options are strings, integers or reals)."""
+
+WARM_START: Mapping[str, IpoptValue] = MappingProxyType(
     {
         "warm_start_init_point": "yes",
         "mu_init": 1e-6,
@@ -46,22 +50,31 @@ WARM_START: Mapping[str, Any] = MappingProxyType(
 """IPOPT settings for a primal-dual warm start from a nearby solution."""
 
 HessianMode = Literal["auto", "exact", "limited-memory"]
+MuStrategy = Literal["adaptive", "monotone"]
 _HESSIANS: tuple[str, ...] = ("auto", "exact", "limited-memory")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class IpoptOptions:
-    """Options passed to IPOPT through CasADi's ``nlpsol``.
+    """Options passed to IPOPT through CasADi's ``nlpsol`` (both optimisers).
 
     Attributes
     ----------
     tol : float
-        IPOPT's relative convergence tolerance (``tol``), > 0.
+        IPOPT's (scaled) overall optimality tolerance (``tol``), > 0.
+    constr_viol_tol : float or None
+        Largest accepted constraint violation (``constr_viol_tol``), in the
+        unit of the constraint rows ([m] for the IK path), > 0; ``None``
+        (default) leaves IPOPT's own (1e-4). The IK-path solver needs it set
+        (:meth:`for_ikpath`): it is that solver's success criterion.
     max_iter : int
         Iteration cap (``max_iter``), >= 0. The study's fmincon used 300.
     max_cpu_time : float or None
         CPU-time cap in [s] (``max_cpu_time``); ``None`` (default) for none:
-        ``max_iter`` bounds the run deterministically (module docstring).
+        ``max_iter`` bounds the run deterministically.
+    max_wall_time : float or None
+        Wall-clock cap of one solve in [s] (``max_wall_time``); ``None``
+        (default) for none.
     print_level : int
         IPOPT verbosity 0 (silent, default) .. 12.
     linear_solver : str
@@ -73,21 +86,34 @@ class IpoptOptions:
         IPOPT barrier-parameter update.
     extra : mapping
         Further IPOPT options by their IPOPT names (e.g. ``{"acceptable_tol": 1e-6}``);
-        they override the fields above.
+        they override the fields above and the solver's own settings.
     """
 
     tol: float = 1e-8
+    constr_viol_tol: float | None = None
     max_iter: int = 3000
     max_cpu_time: float | None = None
+    max_wall_time: float | None = None
     print_level: int = 0
     linear_solver: str = "mumps"
     hessian: HessianMode = "auto"
-    mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
-    extra: Mapping[str, Any] = field(default_factory=dict)
+    mu_strategy: MuStrategy = "adaptive"
+    extra: Mapping[str, IpoptValue] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.tol, int | float) and math.isfinite(self.tol) and self.tol > 0):
             raise ParameterError(f"tol must be a finite number > 0, got {self.tol!r}", name="tol")
+        if self.constr_viol_tol is not None and not (
+            isinstance(self.constr_viol_tol, int | float)
+            and not isinstance(self.constr_viol_tol, bool)
+            and math.isfinite(self.constr_viol_tol)
+            and self.constr_viol_tol > 0
+        ):
+            raise ParameterError(
+                f"constr_viol_tol must be None or a finite number > 0, got "
+                f"{self.constr_viol_tol!r}",
+                name="constr_viol_tol",
+            )
         if (
             isinstance(self.max_iter, bool)
             or not isinstance(self.max_iter, int)
@@ -96,13 +122,8 @@ class IpoptOptions:
             raise ParameterError(
                 f"max_iter must be an int >= 0, got {self.max_iter!r}", name="max_iter"
             )
-        if self.max_cpu_time is not None and not (
-            math.isfinite(self.max_cpu_time) and self.max_cpu_time > 0
-        ):
-            raise ParameterError(
-                f"max_cpu_time must be > 0 [s] or None, got {self.max_cpu_time!r}",
-                name="max_cpu_time",
-            )
+        check_time_limit(self.max_cpu_time, "max_cpu_time")
+        check_time_limit(self.max_wall_time, "IpoptOptions.max_wall_time")
         if not (isinstance(self.print_level, int) and 0 <= self.print_level <= 12):
             raise ParameterError(
                 f"print_level must be an int in 0..12, got {self.print_level!r}", name="print_level"
@@ -117,6 +138,40 @@ class IpoptOptions:
                 name="mu_strategy",
             )
         object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
+
+    @classmethod
+    def for_ikpath(
+        cls,
+        *,
+        tol: float = 1e-12,
+        constr_viol_tol: float = 1e-11,
+        mu_strategy: MuStrategy = "monotone",
+        **changes: Any,
+    ) -> IpoptOptions:
+        """Return the IK-path solver's defaults, with ``changes``.
+
+        The IK-path NLP is small and well scaled and is solved to rounding
+        level: ``tol`` 1e-12, ``constr_viol_tol`` 1e-11 [m] (the tip's
+        accepted distance from each target) and IPOPT's monotone barrier
+        update. Other fields keep the class defaults.
+
+        Parameters
+        ----------
+        tol : float
+            IPOPT's optimality tolerance.
+        constr_viol_tol : float
+            Largest accepted target miss in [m].
+        mu_strategy : {"adaptive", "monotone"}
+            IPOPT barrier-parameter update.
+        **changes
+            Any other field (``max_iter``, ``max_wall_time``, ``extra``, ...).
+
+        Returns
+        -------
+        IpoptOptions
+            The options.
+        """
+        return cls(tol=tol, constr_viol_tol=constr_viol_tol, mu_strategy=mu_strategy, **changes)
 
     def exact_hessian(self, available: bool) -> bool:
         """Whether the solve uses the exact Hessian, given backend support.
@@ -134,7 +189,13 @@ class IpoptOptions:
             )
         return available if self.hessian == "auto" else self.hessian == "exact"
 
-    def to_casadi(self, exact_hessian: bool, *, warm_start: bool = False) -> dict[str, Any]:
+    def to_casadi(
+        self,
+        exact_hessian: bool,
+        *,
+        warm_start: bool = False,
+        solver_settings: Mapping[str, IpoptValue] | None = None,
+    ) -> dict[str, Any]:
         """``nlpsol`` options dict (``ipopt.*`` keys, banner and timing output off).
 
         Parameters
@@ -143,8 +204,16 @@ class IpoptOptions:
             Use the exact Hessian (else IPOPT's limited-memory approximation).
         warm_start : bool
             Add IPOPT's primal-dual warm-start settings (:data:`WARM_START`).
+        solver_settings : mapping, optional
+            IPOPT options a solver sets for its own NLP (e.g. how bounds are
+            treated); :attr:`extra` overrides them.
+
+        Returns
+        -------
+        dict
+            ``{"ipopt": {...}, "print_time": False}``.
         """
-        ipopt: dict[str, Any] = {
+        ipopt: dict[str, IpoptValue] = {
             "tol": float(self.tol),
             "max_iter": int(self.max_iter),
             "print_level": int(self.print_level),
@@ -153,16 +222,27 @@ class IpoptOptions:
             "sb": "yes",
             "hessian_approximation": "exact" if exact_hessian else "limited-memory",
         }
+        if self.constr_viol_tol is not None:
+            ipopt["constr_viol_tol"] = float(self.constr_viol_tol)
         if self.max_cpu_time is not None:
             ipopt["max_cpu_time"] = float(self.max_cpu_time)
+        if self.max_wall_time is not None:
+            ipopt["max_wall_time"] = float(self.max_wall_time)
         if warm_start:
             ipopt.update(WARM_START)
+        if solver_settings is not None:
+            ipopt.update(solver_settings)
         ipopt.update(self.extra)
         return {"ipopt": ipopt, "print_time": False}
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary of the fields."""
-        return {
+        """JSON-ready dictionary of the fields.
+
+        ``constr_viol_tol`` and ``max_wall_time`` appear only when set, so
+        the dictionary (stored in result files and sweep manifests) of options
+        that do not use them is the one earlier versions wrote.
+        """
+        out: dict[str, Any] = {
             "tol": self.tol,
             "max_iter": self.max_iter,
             "max_cpu_time": self.max_cpu_time,
@@ -172,6 +252,11 @@ class IpoptOptions:
             "mu_strategy": self.mu_strategy,
             "extra": dict(self.extra),
         }
+        if self.constr_viol_tol is not None:
+            out["constr_viol_tol"] = self.constr_viol_tol
+        if self.max_wall_time is not None:
+            out["max_wall_time"] = self.max_wall_time
+        return out
 
 
 def single_threaded_blas() -> None:
@@ -190,29 +275,3 @@ def single_threaded_blas() -> None:
     """
     if not os.environ.get("OPENBLAS_NUM_THREADS"):  # unset or empty: OpenBLAS's default
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
-
-
-def check_time_limit(value: object, name: str) -> None:
-    """Raise :class:`ParameterError` unless ``value`` is None or a finite time > 0 [s].
-
-    Parameters
-    ----------
-    value : object
-        The limit to check, in [s] (None: no limit).
-    name : str
-        Qualified field name for the message, e.g. ``"ALOptions.max_wall_time"``.
-    """
-    if value is None:
-        return
-    if (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and value > 0
-    ):
-        return
-    raise ParameterError(
-        f"{name} must be None or a finite time > 0 [s], got {value!r}",
-        name=name.rsplit(".", 1)[-1],
-        value=value,
-    )

@@ -14,15 +14,19 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from youbot_opt.robot.model import RobotModel, load_model
-from youbot_opt.trajopt.multistart import MultistartResult
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.problem import study1_problem
-from youbot_opt.reproduction.study1 import STUDY_DAMPING, StudyDeviations, StudyTranscription
+from youbot_opt.reproduction.study1 import (
+    STUDY_DAMPING,
+    StudyDeviations,
+    StudyTranscription,
+    study1_problem,
+)
+from youbot_opt.robot.model import RobotModel, load_model
+from youbot_opt.trajopt.certify import certify
+from youbot_opt.trajopt.multistart import MultistartResult
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.transcription import Transcription, get_transcription
-from youbot_opt.trajopt.certify import certify
 
 __all__ = ["VARIANTS", "ArmSolvers", "Variant", "ablation_variant", "optima_record", "record"]
 

@@ -18,6 +18,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from youbot_opt._files import atomic_write_text, json_ready
+
 __all__ = ["STUDY_REPORTED", "markdown_report", "write_report", "pareto_knee"]
 
 STUDY_REPORTED: dict[str, str] = {
@@ -255,7 +257,7 @@ def _pareto_table(data: dict[str, Any]) -> str:
 
 def _refinement_table(data: dict[str, Any]) -> str:
     header = [
-        "variant", "knots", "status", "f (own)", "T [s]", "W", "dt [s]", "iterations",
+        "variant", "knots", "status", "f (own)", "T [s]", "W", "dt [s]", "IPOPT iter. (warm)",
         "local pos. err. [rad]", "local vel. err. [rad/s]", "feedback RMS", "tracking err. [rad]",
         "certificate (paper arm)",
     ]  # fmt: skip
@@ -269,7 +271,12 @@ def _refinement_table(data: dict[str, Any]) -> str:
             _f(cert.get("feedback_rms_ratio"), 3), _f(cert.get("tracking_position_error_rad"), 3),
             _why(cert),
         ])  # fmt: skip
-    return _table(header, rows)
+    note = (
+        "IPOPT iter. (warm): iterations of a warm-started solve; the first grid starts from "
+        "the base case's best solution on that grid, each finer grid from the coarser one's "
+        "solution, so it can be far below the count of a standalone straight-line solve."
+    )
+    return note + "\n\n" + _table(header, rows)
 
 
 def markdown_report(data: dict[str, Any]) -> str:
@@ -336,25 +343,8 @@ def write_report(data: dict[str, Any], out_dir: str | os.PathLike[str]) -> tuple
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     json_path, md_path = out / JSON_NAME, out / MARKDOWN_NAME
-    text = json.dumps(_clean(data), indent=1, allow_nan=False, default=_jsonable)
-    json_path.write_text(text + "\n")
-    md_path.write_text(markdown_report(data))
+    # default=str: any object json_ready leaves as it is is written as its text
+    text = json.dumps(json_ready(data), indent=1, allow_nan=False, default=str)
+    atomic_write_text(json_path, text + "\n")
+    atomic_write_text(md_path, markdown_report(data))
     return json_path, md_path
-
-
-def _clean(x: Any) -> Any:
-    """``x`` with non-finite floats replaced by ``None`` (strict JSON), recursively."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
-    return x
-
-
-def _jsonable(x: Any) -> Any:
-    """Fallback for numpy scalars and other simple objects in the records."""
-    if hasattr(x, "tolist"):
-        return x.tolist()
-    return str(x)

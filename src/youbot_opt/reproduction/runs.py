@@ -27,10 +27,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from youbot_opt._checks import check_int
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
 from youbot_opt.reproduction.records import (
     VARIANTS,
     ArmSolvers,
@@ -45,6 +44,9 @@ from youbot_opt.reproduction.search import (
     vertex_multistart,
 )
 from youbot_opt.reproduction.study1 import DEVIATION_NAMES, StudyDeviations
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
+from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
@@ -131,8 +133,7 @@ class ReproductionConfig:
                     f"{name} {bad} unknown; choose among {list(VARIANTS)}", name=name, value=bad
                 )
         for name in ("n_starts", "ablation_starts", "extreme_starts"):
-            if getattr(self, name) < 1:
-                raise ParameterError(f"{name} must be >= 1", name=name, value=getattr(self, name))
+            check_int(getattr(self, name), name, minimum=1)
         if self.search_starts < 0:
             raise ParameterError(
                 f"search_starts must be >= 0 (0 skips the search), got {self.search_starts!r}",
@@ -179,8 +180,8 @@ def _multistart(
     solver: TrajOptSolver, config: ReproductionConfig, n_starts: int, beta: float
 ) -> MultistartResult:
     return run_multistart(
-        solver, n_starts, beta=beta, seed=config.seed, executor=config.executor,  # type: ignore[arg-type]
-        workers=config.workers,
+        solver, n_starts, beta=beta, seed=config.seed,
+        sweep=SweepOptions(executor=config.executor, workers=config.workers),  # type: ignore[arg-type]
     )  # fmt: skip
 
 
@@ -292,10 +293,14 @@ def reproduce_study1(
         for key in ("study", "trapezoidal"):
             v = VARIANTS[key]
             say(f"second-optimum search: {v.label}, {config.search_starts} vertex-LP starts")
+            search_solver = TrajOptSolver(
+                solvers.get(v, n).problem, v.transcription(), config.options()
+            )
             starts = vertex_multistart(
-                solvers.get(v, n).problem, v.transcription(), config.options(),
-                config.search_starts, beta=config.beta, seed=config.seed,
-                executor=config.executor, workers=config.workers,  # type: ignore[arg-type]
+                search_solver, config.search_starts, beta=config.beta, seed=config.seed,
+                sweep=SweepOptions(
+                    executor=config.executor, workers=config.workers, max_attempts=1  # type: ignore[arg-type]
+                ),
             )  # fmt: skip
             out.search[key] = search_record(v, starts, solvers)
             for i, members in enumerate(cluster_optima(converged_results(starts), v.objective)):
@@ -329,7 +334,8 @@ def reproduce_study1(
         say(f"Pareto front: {v.label}")
         front = pareto_sweep(
             solvers.get(v, n), config.pareto_betas, first_starts=config.pareto_first_starts,
-            seed=config.seed, executor=config.executor, workers=config.workers,  # type: ignore[arg-type]
+            seed=config.seed,
+            sweep=SweepOptions(executor=config.executor, workers=config.workers),  # type: ignore[arg-type]
         )  # fmt: skip
         out.pareto[v.key] = []
         for p in front.points:

@@ -1,30 +1,32 @@
 """Multistart from the study's vertex-LP starts, and the distinct optima it finds.
 
-:func:`vertex_multistart` solves one problem from ``K`` seeded
-:func:`~youbot_opt.reproduction.study_guess.vertex_spline_guess` starts (the
-literal reading of the study's random starts) on a process pool
-(:func:`youbot_opt.sweeps.tasks.run_tasks`; a start that raises is a failed start,
-the run goes on), and :func:`cluster_optima` groups the converged solves into
-distinct local optima by objective and trajectory distance, as
-:meth:`youbot_opt.trajopt.multistart.MultistartResult.distinct_optima` does for the
-main API's starts; :func:`search_record` summarises a run for the
-reproduction's JSON (statuses, each optimum with its seeds and certificates).
+Owns the study-1 second-optimum search: :func:`vertex_multistart` solves one
+problem from ``K`` seeded :func:`~youbot_opt.reproduction.study_guess.vertex_spline_guess`
+starts (the literal reading of the study's random starts) with a built solver,
+run as one :class:`~youbot_opt.sweeps.options.SweepOptions` says (a start that
+raises is a failed start, the run goes on); :func:`cluster_optima` groups the
+converged solves into distinct local optima by objective and trajectory
+distance (:func:`youbot_opt.sweeps.cluster.cluster_optima`, this search's
+tolerances); :func:`search_record` summarises a run for the reproduction's JSON.
+
+    starts = vertex_multistart(solver, 20, beta=0.5, sweep=SweepOptions(max_attempts=1))
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, Literal, NamedTuple
+from typing import Any, NamedTuple
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt.multistart import start_seeds, trajectory_distance
-from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.tasks import Task, run_tasks
-from youbot_opt.trajopt.problem import TrajOptProblem
 from youbot_opt.reproduction.records import ArmSolvers, Variant, record
+from youbot_opt.sweeps.cluster import cluster_optima as cluster_items
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context, run_tasks
+from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
+from youbot_opt.trajopt.multistart import start_seeds, trajectory_distance
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
-from youbot_opt.trajopt.transcription import Transcription
+from youbot_opt.trajopt.sweep import check_solver, worker_solver
 
 __all__ = [
     "VertexStart",
@@ -33,9 +35,6 @@ __all__ = [
     "search_record",
     "vertex_multistart",
 ]
-
-_WORKER: dict[str, TrajOptSolver] = {}
-"""The solver of this worker process (built once by :func:`_init_worker`)."""
 
 
 class VertexStart(NamedTuple):
@@ -56,53 +55,41 @@ class VertexStart(NamedTuple):
     error: str | None = None
 
 
-def _init_worker(problem: TrajOptProblem, method: Transcription, options: IpoptOptions) -> None:
-    _WORKER["solver"] = TrajOptSolver(problem, method, options)
-
-
-def _solve(seed: int, beta: float) -> TrajOptResult:
+def _solve(handle: WorkerSolver[TrajOptSolver], seed: int, beta: float) -> TrajOptResult:
+    """Worker task: one vertex-LP start, solved with this worker's solver."""
     from youbot_opt.reproduction.study_guess import vertex_spline_guess
 
-    solver = _WORKER["solver"]
+    solver = handle.get()
     guess = vertex_spline_guess(solver.problem, seed)
     return solver.solve(beta=beta, guess=guess)
 
 
 def vertex_multistart(
-    problem: TrajOptProblem,
-    method: Transcription,
-    options: IpoptOptions,
+    solver: TrajOptSolver,
     n_starts: int,
     *,
     beta: float,
     seed: int = 0,
-    executor: Literal["process", "serial"] = "process",
-    workers: int | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    sweep: SweepOptions = SweepOptions(max_attempts=1),  # noqa: B008 - frozen, so safe
 ) -> list[VertexStart]:
-    """Solve ``problem`` from ``n_starts`` seeded vertex-LP starts.
+    """Solve ``solver``'s problem from ``n_starts`` seeded vertex-LP starts.
 
     Parameters
     ----------
-    problem : TrajOptProblem
-        The problem.
-    method : Transcription
-        Its transcription (e.g. the study's).
-    options : IpoptOptions
-        Solver options.
+    solver : TrajOptSolver
+        The built solver (e.g. with the study's transcription).
     n_starts : int
         Number of starts (>= 1).
     beta : float
         Time weight in [0, 1].
     seed : int
         Base seed; start ``i`` uses ``youbot_opt.trajopt.multistart.start_seeds(seed, n)[i]``.
-    executor : {"process", "serial"}
-        Where starts run: a process pool (each worker builds the solver once)
-        or this process.
-    workers : int, optional
-        Parallel starts (default: the CPUs available).
-    progress : callable ``(done, total)``, optional
-        Called as each start finishes.
+    sweep : SweepOptions
+        ``executor``: ``"process"`` (default; each worker holds the solver,
+        inherited under fork) or ``"serial"``; ``workers`` (default: the CPUs
+        available); ``max_attempts`` (default 1: a failed start is not
+        retried); ``progress`` ``(done, total, last_start)`` as each start
+        finishes. ``out`` and ``timeout`` are not used.
 
     Returns
     -------
@@ -112,31 +99,42 @@ def vertex_multistart(
     Raises
     ------
     ParameterError
-        On an unknown ``executor``.
+        On an executor other than ``"process"`` or ``"serial"``.
     """
+    solver = check_solver(solver)
+    sweep = sweep.with_executor("process")
+    executor = sweep.executor
     if executor not in ("process", "serial"):
         raise ParameterError(
             f"executor must be 'process' or 'serial', got {executor!r}", name="executor"
         )
+    fork = executor == "process" and process_context().get_start_method() == "fork"
+    handle = worker_solver(solver, keep=executor == "serial" or fork)
     seeds = start_seeds(seed, n_starts)
-    tasks = [Task(key=f"start_{i:04d}", fn=_solve, args=(s, beta)) for i, s in enumerate(seeds)]
+    tasks = [
+        Task(key=f"start_{i:04d}", fn=_solve, args=(handle, s, beta)) for i, s in enumerate(seeds)
+    ]
+    by_key = {t.key: s for t, s in zip(tasks, seeds, strict=True)}
     done = [0]
 
-    def tick(outcome: Any) -> None:
+    def tick(outcome: TaskOutcome) -> None:
         if outcome.final:
             done[0] += 1
-            if progress is not None:
-                progress(done[0], len(tasks))
+            if sweep.progress is not None:
+                start = VertexStart(
+                    seed=by_key[outcome.key], result=outcome.value, error=outcome.error
+                )
+                sweep.progress(done[0], len(tasks), start)
 
-    if executor == "serial":
-        _init_worker(problem, method, options)
-    try:
-        outcomes = run_tasks(
-            tasks, executor=executor, workers=workers, initializer=_init_worker,
-            initargs=(problem, method, options), max_attempts=1, on_outcome=tick,
-        )  # fmt: skip
-    finally:
-        _WORKER.clear()
+    outcomes = run_tasks(
+        tasks,
+        executor=executor,
+        workers=sweep.workers,
+        initializer=hold_solver if executor == "process" else None,
+        initargs=(handle,) if executor == "process" else (),
+        max_attempts=sweep.max_attempts,
+        on_outcome=tick,
+    )
     starts = []
     for task, s in zip(tasks, seeds, strict=True):
         out = outcomes[task.key]
@@ -168,20 +166,19 @@ def cluster_optima(
     list of list of TrajOptResult
         Clusters, each with its lowest-objective member first.
     """
-    clusters: list[list[TrajOptResult]] = []
-    for r in sorted((r for r in results if r.success), key=objective):
-        for members in clusters:
-            rep = members[0]
-            f_rep = objective(rep)
-            if abs(objective(r) - f_rep) > obj_tol * max(1.0, abs(f_rep)):
-                continue
-            assert r.trajectory is not None and rep.trajectory is not None
-            if trajectory_distance(r.trajectory, rep.trajectory) <= traj_tol:
-                members.append(r)
-                break
-        else:
-            clusters.append([r])
-    return clusters
+    return cluster_items(
+        (r for r in results if r.success),
+        objective=objective,
+        distance=_result_distance,
+        obj_tol=obj_tol,
+        dist_tol=traj_tol,
+    )
+
+
+def _result_distance(a: TrajOptResult, b: TrajOptResult) -> float:
+    """:func:`youbot_opt.trajopt.multistart.trajectory_distance` of two converged results [rad]."""
+    assert a.trajectory is not None and b.trajectory is not None
+    return trajectory_distance(a.trajectory, b.trajectory)
 
 
 def converged_results(starts: Sequence[VertexStart]) -> list[TrajOptResult]:

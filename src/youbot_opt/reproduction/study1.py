@@ -42,14 +42,18 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError, TranscriptionError
+from youbot_opt.robot.model import RobotModel, load_model
+from youbot_opt.robot.params import STUDY_Q_GOAL, STUDY_Q_START
+from youbot_opt.trajopt.objectives import Objective
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 from youbot_opt.trajopt.transcription.base import Expressions
 
 if TYPE_CHECKING:
-    from youbot_opt.trajopt.problem import TrajOptProblem
     from youbot_opt.trajopt.result import TrajOptResult
 
 __all__ = [
+    "study1_problem",
     "DEVIATION_NAMES",
     "STUDY_DAMPING",
     "StudyDeviations",
@@ -250,3 +254,45 @@ class StudyTranscription(TrapezoidalCollocation):
         total = self.deviations.duration(sym["dt"], problem.n_knots)
         f = problem.objective.value(total, parts.work, beta)
         return parts._replace(f=f, duration=total)
+
+
+def study1_problem(
+    n_knots: int = 50,
+    *,
+    robot: RobotModel | None = None,
+    beta: float = 0.5,
+    damping: float | None = None,
+    **kwargs: Any,
+) -> TrajOptProblem:
+    """Return the study-1 problem: youBot from (-pi/6, -pi/6, -pi/3) to (pi/6, pi/6, pi/3) at rest.
+
+    Parameters
+    ----------
+    n_knots : int
+        Number of knots (the study: 50).
+    robot : RobotModel, optional
+        The planar youBot; loaded with :func:`youbot_opt.robot.model.load_model` when omitted.
+    beta : float
+        Default time weight in [0, 1] (the base case: 0.5).
+    damping : float, optional
+        Joint damping in [N m s/rad] for the loaded youBot (the study's code
+        used 0.1; the paper and the default model have none). Ignored when
+        ``robot`` is given.
+    **kwargs
+        Further :class:`TrajOptProblem` fields (``duration``, ``scaled_bounds``, ...).
+
+    Returns
+    -------
+    TrajOptProblem
+        The problem, with both boundary velocities zero.
+    """
+    if robot is None:
+        robot = load_model("youbot", damping=damping)
+    return TrajOptProblem(
+        robot=robot,
+        start=BoundaryState(q=np.array(STUDY_Q_START)),
+        goal=BoundaryState(q=np.array(STUDY_Q_GOAL)),
+        n_knots=n_knots,
+        objective=Objective(beta=beta),
+        **kwargs,
+    )

@@ -29,12 +29,11 @@ polynomials (no damping: the study's formula).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pinocchio as pin
 from scipy.optimize import linprog
 
+from youbot_opt._checks import check_positive
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.problem import TrajOptProblem
@@ -122,8 +121,7 @@ def vertex_spline_guess(
         feasible LP for a joint (too few knots, or a motion too long for the
         speed limit within ``(N - 1) dt``).
     """
-    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
-        raise ParameterError(f"dt must be finite and > 0 [s], got {dt!r}", name="dt", value=dt)
+    dt = check_positive(dt, "dt", unit="s")
     if not orders or any(not isinstance(p, int) or p < 4 for p in orders):
         raise ParameterError(
             f"orders must be polynomial degrees >= 4, got {orders!r}", name="orders", value=orders

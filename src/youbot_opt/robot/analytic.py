@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import TipPose
 from youbot_opt.robot.params import ArmParameters
 
@@ -53,17 +53,7 @@ _COMPLEX_STEP = 1e-20  # [rad] imaginary step; any tiny value is exact to roundi
 
 def _vector(name: str, x: ArrayLike, n: int) -> Array:
     """Return ``x`` as a finite float array of shape (n,), else raise ParameterError."""
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be {n} numbers, got {x!r}", name=name, value=x) from exc
-    if arr.shape != (n,):
-        raise ParameterError(
-            f"{name} must have shape ({n},), got shape {arr.shape}", name=name, value=x
-        )
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{name} must be finite, got {arr}", name=name, value=x)
-    return arr
+    return check_shape(x, (n,), name)
 
 
 def _factor(angle: Any, offset: float, com: float) -> tuple[np.ndarray, np.ndarray]:

@@ -29,12 +29,13 @@ import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
+from youbot_opt._checks import check_bound_scale
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, RobotNotFound
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
@@ -42,7 +43,12 @@ from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
 
 __all__ = [
     "RobotModel",
+    "JointBounds",
+    "BoundFamily",
+    "BOUND_FAMILIES",
+    "check_bound_scale",
     "TipPose",
+    "as_robot_model",
     "available_robots",
     "load_model",
     "tip_pose",
@@ -67,6 +73,58 @@ _EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
     "z1": ("z1_description/urdf/z1.urdf", "gripperStator"),
     "xarm7": ("xarm_description/urdf/xarm7.urdf", "link_eef"),
 }
+
+
+BoundFamily = Literal["position", "velocity", "torque"]
+BOUND_FAMILIES: tuple[BoundFamily, ...] = ("position", "velocity", "torque")
+"""The joint-bound families :meth:`RobotModel.bounds` can scale (all of them by default)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class JointBounds:
+    """Box bounds on joint positions, velocities and torques, already scaled.
+
+    Attributes
+    ----------
+    q_lower, q_upper : ndarray, shape (nv,)
+        Position bounds in [rad].
+    v_lower, v_upper : ndarray, shape (nv,)
+        Velocity bounds in [rad/s].
+    tau_lower, tau_upper : ndarray, shape (nv,)
+        Torque bounds in [N m].
+    """
+
+    q_lower: Array
+    q_upper: Array
+    v_lower: Array
+    v_upper: Array
+    tau_lower: Array
+    tau_upper: Array
+
+    def violation(self, q: Array, v: Array, tau: Array) -> float:
+        """Largest bound violation (>= 0) of knot-major arrays, in their units.
+
+        Parameters
+        ----------
+        q, v, tau : ndarray, shape (n, nv) or (nv,)
+            Positions [rad], velocities [rad/s] and torques [N m].
+
+        Returns
+        -------
+        float
+            The largest excess over a bound, 0 if every value is inside.
+        """
+        worst = 0.0
+        for x, lo, hi in (
+            (q, self.q_lower, self.q_upper),
+            (v, self.v_lower, self.v_upper),
+            (tau, self.tau_lower, self.tau_upper),
+        ):
+            x = np.atleast_2d(x)
+            worst = max(
+                worst, float(np.max(lo - x, initial=0.0)), float(np.max(x - hi, initial=0.0))
+            )
+        return worst
 
 
 class TipPose(NamedTuple):
@@ -194,6 +252,124 @@ class RobotModel:
     def create_data(self) -> pin.Data:
         """Return a fresh ``pinocchio.Data`` for this model."""
         return self.model.createData()
+
+    def bounds(
+        self, scale: float = 1.0, *, families: tuple[BoundFamily, ...] = BOUND_FAMILIES
+    ) -> JointBounds:
+        """Return the joint bounds, the families in ``families`` multiplied by ``scale``.
+
+        The one place where bounds are scaled (the study scaled all three
+        families to 100, 95, 90 and 85 % of the data sheet). Position bounds
+        are scaled about zero (``scale * q_lower``, ``scale * q_upper``);
+        speed and torque bounds are symmetric.
+
+        Parameters
+        ----------
+        scale : float
+            Factor > 0 (1.0 = data sheet).
+        families : tuple of {"position", "velocity", "torque"}
+            The families scaled; the others keep their data-sheet values.
+
+        Returns
+        -------
+        JointBounds
+            Position [rad], velocity [rad/s] and torque [N m] bounds.
+
+        Raises
+        ------
+        ParameterError
+            If ``scale`` is not finite and > 0, or a family is unknown.
+        """
+        s = check_bound_scale(scale)
+        bad = [f for f in families if f not in BOUND_FAMILIES]
+        if bad:
+            raise ParameterError(
+                f"bound families must be among {BOUND_FAMILIES}, got {bad}", name="families"
+            )
+
+        def factor(family: BoundFamily) -> float:
+            return s if family in families else 1.0
+
+        vmax = factor("velocity") * np.asarray(self.model.velocityLimit, dtype=float)
+        tmax = factor("torque") * np.asarray(self.model.effortLimit, dtype=float)
+        return JointBounds(
+            q_lower=factor("position") * np.asarray(self.model.lowerPositionLimit, dtype=float),
+            q_upper=factor("position") * np.asarray(self.model.upperPositionLimit, dtype=float),
+            v_lower=-vmax,
+            v_upper=vmax,
+            tau_lower=-tmax,
+            tau_upper=tmax,
+        )
+
+    @classmethod
+    def from_pin_model(cls, model: pin.Model, tip_frame: str | None = None) -> RobotModel:
+        """Wrap a bare ``pinocchio.Model`` (no geometry, no file) as a :class:`RobotModel`.
+
+        Its limits, damping and name are the model's own.
+
+        Parameters
+        ----------
+        model : pinocchio.Model
+            The kinematic and inertial model (not copied).
+        tip_frame : str, optional
+            End-effector frame; the model's last frame by default.
+
+        Returns
+        -------
+        RobotModel
+            The robot, with empty visual and collision geometry.
+
+        Raises
+        ------
+        ParameterError
+            If ``model`` is not a ``pinocchio.Model``.
+        FrameNotFound
+            If ``tip_frame`` is not a frame of the model.
+        """
+        if not isinstance(model, pin.Model):
+            raise ParameterError(
+                f"model must be a pinocchio.Model, got {type(model).__name__}", name="model"
+            )
+        tip = model.frames[len(model.frames) - 1].name if tip_frame is None else tip_frame
+        return cls(
+            name=str(model.name),
+            model=model,
+            visual_model=pin.GeometryModel(),
+            collision_model=pin.GeometryModel(),
+            urdf_path=None,
+            package_dirs=(),
+            tip_frame=tip,
+        )
+
+
+def as_robot_model(robot: RobotModel | pin.Model) -> RobotModel:
+    """Return ``robot`` as a :class:`RobotModel` (a bare ``pinocchio.Model`` is wrapped).
+
+    Parameters
+    ----------
+    robot : RobotModel or pinocchio.Model
+        The robot.
+
+    Returns
+    -------
+    RobotModel
+        ``robot`` itself, or :meth:`RobotModel.from_pin_model` of it.
+
+    Raises
+    ------
+    ParameterError
+        If ``robot`` is neither.
+    """
+    if isinstance(robot, RobotModel):
+        return robot
+    if isinstance(robot, pin.Model):
+        return RobotModel.from_pin_model(robot)
+    raise ParameterError(
+        f"robot must be a RobotModel (load_model(...)) or a pinocchio.Model, "
+        f"got {type(robot).__name__}",
+        name="robot",
+        value=type(robot).__name__,
+    )
 
 
 def youbot_urdf_path() -> Path:
@@ -389,7 +565,7 @@ def load_model(
     )
 
 
-def _as_q(robot: RobotModel, q: ArrayLike) -> Array:
+def as_configuration(robot: RobotModel, q: ArrayLike) -> Array:
     """Return ``q`` as a finite float array of shape (nq,), else raise ParameterError."""
     try:
         arr = np.asarray(q, dtype=float)
@@ -433,7 +609,7 @@ def frame_placement(robot: RobotModel, q: ArrayLike, frame: str | None = None) -
         Unknown frame.
     """
     fid = robot.frame_id(robot.tip_frame if frame is None else frame)
-    qa = _as_q(robot, q)
+    qa = as_configuration(robot, q)
     data = robot.create_data()
     pin.framesForwardKinematics(robot.model, data, qa)
     return pin.SE3(data.oMf[fid])

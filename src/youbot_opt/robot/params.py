@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from youbot_opt._checks import check_finite, check_nonnegative, check_positive
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
@@ -51,25 +52,6 @@ STUDY_Q_START: tuple[float, float, float] = (-math.pi / 6, -math.pi / 6, -math.p
 
 STUDY_Q_GOAL: tuple[float, float, float] = (math.pi / 6, math.pi / 6, math.pi / 3)
 """Goal configuration of study 1 in [rad]."""
-
-
-def _check_finite(
-    name: str, value: float, *, positive: bool = False, nonneg: bool = False
-) -> float:
-    """Return ``value`` as a float after checking it is finite (and signed as asked)."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(
-            f"{name} must be a real number, got {value!r}", name=name, value=value
-        ) from exc
-    if not math.isfinite(x):
-        raise ParameterError(f"{name} must be finite, got {value!r}", name=name, value=value)
-    if positive and x <= 0.0:
-        raise ParameterError(f"{name} must be > 0, got {value!r}", name=name, value=value)
-    if nonneg and x < 0.0:
-        raise ParameterError(f"{name} must be >= 0, got {value!r}", name=name, value=value)
-    return x
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -102,8 +84,8 @@ class LinkParameters:
 
     def __post_init__(self) -> None:
         for name in ("length", "mass", "inertia", "radius"):
-            object.__setattr__(self, name, _check_finite(name, getattr(self, name), positive=True))
-        com = _check_finite("com_distance", self.com_distance, nonneg=True)
+            object.__setattr__(self, name, check_positive(getattr(self, name), name))
+        com = check_nonnegative(self.com_distance, "com_distance", unit="m")
         object.__setattr__(self, "com_distance", com)
         if 2.0 * self.inertia < self.axial_inertia:
             raise ParameterError(
@@ -154,9 +136,9 @@ class JointLimits:
 
     def __post_init__(self) -> None:
         for name in ("lower_deg", "upper_deg"):
-            object.__setattr__(self, name, _check_finite(name, getattr(self, name)))
+            object.__setattr__(self, name, check_finite(getattr(self, name), name, unit="deg"))
         for name in ("speed_deg_s", "torque_nm"):
-            object.__setattr__(self, name, _check_finite(name, getattr(self, name), positive=True))
+            object.__setattr__(self, name, check_positive(getattr(self, name), name))
         if not self.lower_deg < self.upper_deg:
             raise ParameterError(
                 f"upper_deg ({self.upper_deg}) must be greater than lower_deg ({self.lower_deg})",
@@ -205,7 +187,7 @@ class JointLimits:
         ParameterError
             If ``s`` is not in (0, 1].
         """
-        s = _check_finite("s", s, positive=True)
+        s = check_positive(s, "s")
         if s > 1.0:
             raise ParameterError(f"scale s must be in (0, 1], got {s}", name="s", value=s)
         p = s if position else 1.0
@@ -234,8 +216,8 @@ class PlatformMounting:
     h: float = 0.147
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "a", _check_finite("a", self.a))
-        object.__setattr__(self, "h", _check_finite("h", self.h))
+        object.__setattr__(self, "a", check_finite(self.a, "a"))
+        object.__setattr__(self, "h", check_finite(self.h, "h"))
 
 
 def _read_only(values: list[float]) -> Array:
@@ -292,8 +274,10 @@ class ArmParameters:
             )
         object.__setattr__(self, "links", links)
         object.__setattr__(self, "limits", limits)
-        object.__setattr__(self, "gravity", _check_finite("gravity", self.gravity, nonneg=True))
-        object.__setattr__(self, "damping", _check_finite("damping", self.damping, nonneg=True))
+        gravity = check_nonnegative(self.gravity, "gravity", unit="m/s^2")
+        object.__setattr__(self, "gravity", gravity)
+        damping = check_nonnegative(self.damping, "damping", unit="N m s/rad")
+        object.__setattr__(self, "damping", damping)
         if not isinstance(self.name, str) or not self.name.isidentifier():
             raise ParameterError(
                 f"name must be an identifier-like string, got {self.name!r}",

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import os
 import sys
 from collections.abc import Sequence
@@ -41,6 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from lxml import etree
 
+from youbot_opt._checks import check_nonnegative
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
@@ -217,13 +217,7 @@ def build_urdf(
             value=params,
         )
     b = params.damping if damping is None else damping
-    if not isinstance(b, int | float) or not math.isfinite(b) or b < 0:
-        raise ParameterError(
-            f"damping must be a finite number >= 0 in [N m s/rad], got {b!r}",
-            name="damping",
-            value=b,
-        )
-    b = float(b)
+    b = check_nonnegative(b, "damping", unit="N m s/rad")
     links = [_platform_link(params)]
     links += [_arm_link(params, i) for i in range(params.n_joints)]
     links.append(yourdfpy.Link(name=TIP_FRAME))

@@ -1,1 +1,11 @@
-"""sweeps."""
+"""The crash-safe sweep engine (layer L2): it knows nothing of robots.
+
+Modules: :mod:`.options` (:class:`~youbot_opt.sweeps.options.SweepOptions`, how
+every sweep runs), :mod:`.pool` (the crash-isolating worker pool and
+``run_tasks``), :mod:`.store` (the resumable on-disk store), :mod:`.resume`
+(the item loop over the store), :mod:`.worker_solver` (a built solver, cached
+once per worker) and :mod:`.cluster` (greedy clustering of local optima).
+The trajectory and IK-path sweeps supply only their tasks and payloads.
+
+    from youbot_opt.sweeps.options import SweepOptions
+"""

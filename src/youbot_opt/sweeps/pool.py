@@ -1,44 +1,57 @@
-"""Worker processes for sweeps: :class:`WorkerPool`, one task per worker at a time.
+"""Crash-isolating worker pool and :func:`run_tasks`: one failing item never stops a sweep.
 
-The pool behind :func:`youbot_opt.sweeps.tasks.run_tasks`. Each worker runs one
-``(key, fn, args)`` message at a time and answers on its own pipe, so the parent
-always knows which task a worker is running: a worker that dies (segfault,
-out-of-memory kill) or overruns a time limit is charged to exactly that task and
-replaced. Workers are forked on Linux (inheriting modules and any built solver),
-else spawned, and exit by themselves when their parent dies (a watchdog thread
-polls the parent pid every ``_PARENT_POLL`` seconds), so a killed sweep leaves no
-orphans.
+Owns how a sweep's keyed items run (spec: the sweep layer of ``ARCHITECTURE.md``).
+:func:`run_tasks` runs :class:`Task` s on ``"process"`` (a :class:`WorkerPool`
+it owns, default), on a caller's :class:`WorkerPool` (kept across calls), on
+``"serial"`` (in-process) or on any :class:`concurrent.futures.Executor`, and
+reports every attempt through ``on_outcome`` as it ends. In a worker pool each
+worker runs one task at a time and the parent knows which, so a worker that
+dies (segfault, out-of-memory kill) or overruns ``timeout`` is charged to
+exactly that task and replaced; a task gets at most ``max_attempts`` attempts.
 
-Private test hooks (pool workers only): ``YOUBOT_OPT_TEST_CRASH``
-(``YOUBOT_OPT_TEST_HANG``), comma-separated task keys, makes those tasks
-SIGSEGV their worker (sleep an hour); with ``YOUBOT_OPT_TEST_CRASH_ONCE_DIR``
-naming a directory, only on the first attempt (a marker file is left). Not API.
+    out = run_tasks([Task(key="k0", fn=math.sqrt, args=(4.0,))], executor="serial")
 """
 
 from __future__ import annotations
 
-import faulthandler
+import copyreg
+import io
+import logging
+import math
 import multiprocessing
 import os
+import pickle
 import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures.thread import BrokenThreadPool
+from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
+from multiprocessing.connection import wait as wait_ready
 from multiprocessing.context import BaseContext
 from multiprocessing.reduction import ForkingPickler
-from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Literal
 
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["WorkerPool", "default_workers", "process_context"]
+__all__ = [
+    "ExecutorLike",
+    "Task",
+    "TaskOutcome",
+    "WorkerPool",
+    "default_workers",
+    "process_context",
+    "run_tasks",
+]
 
-_CRASH_ENV = "YOUBOT_OPT_TEST_CRASH"
-_HANG_ENV = "YOUBOT_OPT_TEST_HANG"
-_CRASH_ONCE_ENV = "YOUBOT_OPT_TEST_CRASH_ONCE_DIR"
+_log = logging.getLogger(__name__)
+
 _PARENT_POLL = 0.2  # [s] how often a worker checks that its parent is alive
 _STOP_WAIT = 5.0  # [s] a stopping worker gets this long to exit before it is killed
 
@@ -58,6 +71,7 @@ def process_context() -> BaseContext:
     return multiprocessing.get_context("spawn")
 
 
+# ----------------------------------------------------------------- pickling
 def _mappingproxy(d: dict[Any, Any]) -> MappingProxyType[Any, Any]:
     return MappingProxyType(d)
 
@@ -66,9 +80,35 @@ def _reduce_mappingproxy(m: MappingProxyType[Any, Any]) -> tuple[Any, ...]:
     return _mappingproxy, (dict(m),)
 
 
-# Read-only mappings (e.g. ``IpoptOptions.extra``) cannot be pickled by default;
-# teach multiprocessing's pickler (only) to send them as a copied dict.
-ForkingPickler.register(MappingProxyType, _reduce_mappingproxy)
+class _SweepPickler(ForkingPickler):
+    """multiprocessing's pickler that also sends read-only mappings, as a copied dict.
+
+    Read-only mappings (e.g. ``IpoptOptions.extra``) cannot be pickled by
+    default. The reducer is added to this pickler's own table only, so
+    importing the package registers nothing in :mod:`multiprocessing` or
+    :mod:`copyreg`.
+    """
+
+    def __init__(self, file: Any, protocol: int | None = None) -> None:
+        super().__init__(file, protocol)
+        table = dict(getattr(self, "dispatch_table", copyreg.dispatch_table))
+        table[MappingProxyType] = _reduce_mappingproxy
+        self.dispatch_table = table
+
+
+def _dumps(obj: Any) -> bytes:
+    """Pickle ``obj`` for a worker pipe (or a process executor) with :class:`_SweepPickler`."""
+    buf = io.BytesIO()
+    _SweepPickler(buf, pickle.HIGHEST_PROTOCOL).dump(obj)
+    return buf.getvalue()
+
+
+def _send(conn: Connection, obj: Any) -> None:
+    conn.send_bytes(_dumps(obj))  # pickles first: a message that does not pickle sends nothing
+
+
+def _recv(conn: Connection) -> Any:
+    return pickle.loads(conn.recv_bytes())
 
 
 # ------------------------------------------------------------------ workers
@@ -79,31 +119,17 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
-def _test_hook_fires(env: str, key: str, tag: str) -> bool:
-    """Whether the private test hook ``env`` lists ``key`` (pool workers only, once if asked)."""
-    if os.environ.get("_YOUBOT_OPT_POOL_WORKER") != "1":
-        return False
-    if key not in {k.strip() for k in os.environ.get(env, "").split(",")}:
-        return False
-    once = os.environ.get(_CRASH_ONCE_ENV)
-    if once:
-        marker = Path(once) / f"{tag}-{key}"
-        if marker.exists():
-            return False
-        marker.touch()
-    return True
-
-
-def _invoke(key: str, fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, float]:
-    """Run one task in a worker; returns its value and wall time in [s]."""
-    if _test_hook_fires(_CRASH_ENV, key, "crashed"):
-        faulthandler.disable()  # a quiet crash: no inherited traceback dump on stderr
-        os.kill(os.getpid(), signal.SIGSEGV)
-    if _test_hook_fires(_HANG_ENV, key, "hung"):
-        time.sleep(3600.0)
+def _invoke(fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, float]:
+    """Run one task; returns its value and wall time in [s]."""
     tic = time.perf_counter()
     value = fn(*args)
     return value, time.perf_counter() - tic
+
+
+def _invoke_pickled(blob: bytes) -> bytes:
+    """Run a pickled ``(fn, args)`` in a process executor; return the pickled ``(value, wall)``."""
+    fn, args = pickle.loads(blob)
+    return _dumps(_invoke(fn, args))
 
 
 def _worker_main(
@@ -111,19 +137,21 @@ def _worker_main(
     parent: int,
     initializer: Callable[..., Any] | None,
     initargs: tuple[Any, ...],
+    init_blob: bytes | None,
 ) -> None:
     """Body of a worker process: run ``(key, fn, args)`` messages until ``None`` or EOF."""
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
-    os.environ["_YOUBOT_OPT_POOL_WORKER"] = "1"
     init_error = None
-    if initializer is not None:
-        try:
+    try:
+        if init_blob is not None:  # spawned: the initializer came pickled by _SweepPickler
+            initializer, initargs = pickle.loads(init_blob)
+        if initializer is not None:
             initializer(*initargs)
-        except Exception as exc:  # reported with every task instead of a silent death
-            init_error = f"worker initializer failed: {_reason(exc)}"
+    except Exception as exc:  # reported with every task instead of a silent death
+        init_error = f"worker initializer failed: {_reason(exc)}"
     while True:
         try:
-            message = conn.recv()
+            message = _recv(conn)
         except (EOFError, OSError):
             return
         if message is None:
@@ -133,10 +161,10 @@ def _worker_main(
         try:
             if init_error is not None:
                 raise RuntimeError(init_error)
-            value, wall = _invoke(key, fn, args)
-            conn.send((key, None, value, wall))  # pickles first: a bad value sends nothing
+            value, wall = _invoke(fn, args)
+            _send(conn, (key, None, value, wall))  # a value that does not pickle sends nothing
         except Exception as exc:  # one failing task must not end the worker
-            conn.send((key, _reason(exc), None, time.perf_counter() - tic))
+            _send(conn, (key, _reason(exc), None, time.perf_counter() - tic))
 
 
 def _reason(exc: BaseException) -> str:
@@ -163,9 +191,14 @@ class _Worker:
 
     def __init__(self, ctx: BaseContext, initializer: Any, initargs: tuple[Any, ...]) -> None:
         self.conn, child = ctx.Pipe()
+        args: tuple[Any, ...]
+        if ctx.get_start_method() == "fork":  # inherited, not pickled (e.g. a built solver)
+            args = (child, os.getpid(), initializer, initargs, None)
+        else:
+            args = (child, os.getpid(), None, (), _dumps((initializer, initargs)))
         self.process = ctx.Process(  # type: ignore[attr-defined]
             target=_worker_main,
-            args=(child, os.getpid(), initializer, initargs),
+            args=args,
             daemon=True,  # also ended by multiprocessing at interpreter exit
             name="youbot_opt-worker",
         )
@@ -180,7 +213,7 @@ class _Worker:
             self.process.kill()
         else:
             try:
-                self.conn.send(None)
+                _send(self.conn, None)
             except OSError:
                 pass
         self.process.join(None if kill else _STOP_WAIT)
@@ -257,3 +290,323 @@ def _check_workers(workers: Any) -> int:
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers must be an int >= 1, got {workers!r}", name="workers")
     return workers
+
+
+# ------------------------------------------------------------------- tasks
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Task:
+    """One keyed unit of work: ``fn(*args)``, run in a worker.
+
+    Attributes
+    ----------
+    key : str
+        Unique key of the item.
+    fn : callable
+        A module-level (picklable) function.
+    args : tuple
+        Its positional arguments (picklable for process pools).
+    attempts : int
+        Attempts already made in earlier runs (from a store).
+    """
+
+    key: str
+    fn: Callable[..., Any]
+    args: tuple[Any, ...] = ()
+    attempts: int = 0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TaskOutcome:
+    """Outcome of one attempt of a task.
+
+    Attributes
+    ----------
+    key : str
+        Task key.
+    value : Any
+        What ``fn`` returned (``None`` for a failed attempt).
+    error : str or None
+        Why the attempt failed; ``None`` on success.
+    attempts : int
+        Attempts made so far, including this one.
+    final : bool
+        True if no further attempt will be made (success, or attempts used up).
+    wall_time : float
+        Wall time of the attempt in [s] (measured in the worker; for crashes
+        and time-outs, as seen by the parent).
+    """
+
+    key: str
+    value: Any
+    error: str | None
+    attempts: int
+    final: bool
+    wall_time: float
+
+    @property
+    def ok(self) -> bool:
+        """True if the attempt returned a value."""
+        return self.error is None
+
+
+ExecutorLike = Literal["process", "serial"] | Executor | WorkerPool
+
+
+# ------------------------------------------------------------------- runner
+class _Runner:
+    """State of one :func:`run_tasks` call (pending queues, attempts)."""
+
+    def __init__(
+        self,
+        tasks: list[Task],
+        workers: int,
+        max_attempts: int,
+        timeout: float | None,
+        on_outcome: Callable[[TaskOutcome], None] | None,
+    ) -> None:
+        self.tasks = {t.key: t for t in tasks}
+        self.attempts = {t.key: t.attempts for t in tasks}
+        self.pending = deque(t.key for t in tasks)
+        self.retry: deque[str] = deque()
+        self.workers = workers
+        self.max_attempts = max_attempts
+        self.timeout = timeout
+        self.on_outcome = on_outcome
+        self.outcomes: dict[str, TaskOutcome] = {}
+
+    def next_key(self) -> str:
+        return self.retry.popleft() if self.retry else self.pending.popleft()
+
+    def emit(
+        self, key: str, value: Any, error: str | None, wall: float, *, final: bool = False
+    ) -> None:
+        self.attempts[key] += 1
+        n = self.attempts[key]
+        final = final or error is None or n >= self.max_attempts
+        outcome = TaskOutcome(
+            key=key, value=value, error=error, attempts=n, final=final, wall_time=wall
+        )
+        if error is not None:
+            _log.warning("task %s failed (attempt %d of %d): %s", key, n, self.max_attempts, error)
+        if not final:
+            self.retry.append(key)
+        self.outcomes[key] = outcome
+        if self.on_outcome is not None:
+            self.on_outcome(outcome)
+
+    def run_serial(self) -> None:
+        while self.pending or self.retry:
+            key = self.next_key()
+            task = self.tasks[key]
+            tic = time.perf_counter()
+            try:
+                value = task.fn(*task.args)
+            except Exception as exc:  # one failing task must not end the sweep
+                self.emit(key, None, _reason(exc), time.perf_counter() - tic)
+            else:
+                self.emit(key, value, None, time.perf_counter() - tic)
+
+    def run_workers(self, pool: WorkerPool) -> None:
+        busy: list[_Worker] = []
+        limit = min(self.workers, pool.workers)
+        try:
+            while self.pending or self.retry or busy:
+                while len(busy) < limit and (self.pending or self.retry):
+                    key = self.next_key()
+                    task = self.tasks[key]
+                    worker = pool._take()
+                    try:
+                        _send(worker.conn, (key, task.fn, task.args))
+                    except (BrokenPipeError, ConnectionError):  # died idle: not this task's fault
+                        worker.stop(kill=True)
+                        self.retry.appendleft(key)
+                        continue
+                    except Exception as exc:  # the task does not pickle
+                        pool._give_back(worker)
+                        self.emit(key, None, f"cannot send the task: {_reason(exc)}", 0.0)
+                        continue
+                    worker.key, worker.started = key, time.monotonic()
+                    busy.append(worker)
+                if not busy:  # every task just sent failed to pickle: go on with the queues
+                    continue
+                wait_for = None
+                if self.timeout is not None:
+                    first = min(w.started for w in busy)
+                    wait_for = max(0.0, first + self.timeout - time.monotonic())
+                handles: list[Any] = [w.conn for w in busy] + [w.process.sentinel for w in busy]
+                ready = set(wait_ready(handles, timeout=wait_for))
+                for worker in list(busy):
+                    if worker.conn in ready or worker.process.sentinel in ready:
+                        busy.remove(worker)
+                        self._collect(pool, worker)
+                    elif (
+                        self.timeout is not None
+                        and time.monotonic() - worker.started >= self.timeout
+                    ):
+                        busy.remove(worker)
+                        key = str(worker.key)
+                        worker.stop(kill=True)
+                        self.emit(key, None, f"timeout after {self.timeout:g} s", self.timeout)
+        finally:
+            for worker in busy:  # interrupted (e.g. KeyboardInterrupt): abandon their tasks
+                worker.stop(kill=True)
+
+    def _collect(self, pool: WorkerPool, worker: _Worker) -> None:
+        """Read the reply of a worker that became ready, or charge its task with its death."""
+        key = str(worker.key)
+        wall = time.monotonic() - worker.started
+        try:
+            reply = _recv(worker.conn) if worker.conn.poll() else None
+        except (EOFError, OSError):
+            reply = None
+        if reply is None:
+            worker.process.join(_STOP_WAIT)
+            exitcode = worker.process.exitcode
+            worker.stop(kill=True)
+            self.emit(key, None, _death_reason(exitcode), wall)
+            return
+        pool._give_back(worker)
+        got, error, value, wall = reply
+        assert got == key, f"worker answered for {got!r} while running {key!r}"
+        self.emit(key, value, error, wall)
+
+    def run_executor(self, pool: Executor) -> None:
+        """Run on a caller's executor: it cannot be rebuilt, so a broken one ends the sweep."""
+        inflight: dict[Future[Any], str] = {}
+        while self.pending or self.retry or inflight:
+            while len(inflight) < self.workers and (self.pending or self.retry):
+                key = self.next_key()
+                task = self.tasks[key]
+                fut: Future[Any]
+                if isinstance(pool, ProcessPoolExecutor):  # pickled here: read-only mappings too
+                    fut = pool.submit(_invoke_pickled, _dumps((task.fn, task.args)))
+                else:
+                    fut = pool.submit(_invoke, task.fn, task.args)
+                inflight[fut] = key
+            done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+            broken: list[str] = []
+            for fut in done:
+                key = inflight.pop(fut)
+                exc = fut.exception()
+                if isinstance(exc, BrokenProcessPool | BrokenThreadPool):
+                    broken.append(key)
+                elif exc is not None:
+                    self.emit(key, None, _reason(exc), 0.0)
+                else:
+                    got = fut.result()
+                    value, wall = pickle.loads(got) if isinstance(got, bytes) else got
+                    self.emit(key, value, None, wall)
+            if broken:
+                why = "the executor broke (a worker crashed) and cannot be rebuilt by youbot_opt"
+                for key in [*broken, *inflight.values()]:
+                    self.emit(key, None, f"worker process crashed or was lost; {why}", 0.0)
+                self._abandon(why)
+                return
+
+    def _abandon(self, why: str) -> None:
+        for key in self.retry:  # already failed once here: no further attempt
+            prev = self.outcomes[key]
+            outcome = replace(prev, error=f"{prev.error}; {why}", final=True)
+            self.outcomes[key] = outcome
+            if self.on_outcome is not None:
+                self.on_outcome(outcome)
+        for key in self.pending:
+            self.emit(key, None, why, 0.0, final=True)
+        self.retry.clear()
+        self.pending.clear()
+
+
+def run_tasks(
+    tasks: Iterable[Task],
+    *,
+    executor: ExecutorLike = "process",
+    workers: int | None = None,
+    initializer: Callable[..., Any] | None = None,
+    initargs: tuple[Any, ...] = (),
+    max_attempts: int = 2,
+    on_outcome: Callable[[TaskOutcome], None] | None = None,
+    timeout: float | None = None,
+) -> dict[str, TaskOutcome]:
+    """Run keyed tasks, retrying failures, and report each attempt as it ends.
+
+    Parameters
+    ----------
+    tasks : iterable of Task
+        The work, with unique keys.
+    executor : {"process", "serial"}, WorkerPool or concurrent.futures.Executor
+        ``"process"`` (default): a :class:`WorkerPool` owned by this call;
+        a ``WorkerPool``: its workers (kept open; its own initializer applies);
+        ``"serial"``: in this process; an ``Executor``: used as is (not shut
+        down; ``initializer`` is not run on it, and a broken executor ends the
+        remaining tasks as failed).
+    workers : int, optional
+        Tasks in flight at once; default: the CPUs available (a pool's size).
+    initializer : callable, optional
+        Run once in every worker process of an owned pool (e.g. to build a solver).
+    initargs : tuple
+        Its arguments (not pickled under ``fork``).
+    max_attempts : int
+        Attempts per task in total, including earlier runs' (>= 1).
+    on_outcome : callable, optional
+        Called in this process with every :class:`TaskOutcome`, in completion order.
+    timeout : float, optional
+        Wall-clock limit in [s] per attempt (worker pools only; default none):
+        a task still running then is killed with its worker and recorded as
+        failed with ``"timeout after <timeout> s"``.
+
+    Returns
+    -------
+    dict of str to TaskOutcome
+        The last outcome of each task run here, by key.
+
+    Raises
+    ------
+    ParameterError
+        On duplicate keys, ``workers < 1``, ``max_attempts < 1``, a
+        ``timeout <= 0`` or one without a worker pool, or an unknown executor.
+    """
+    task_list = list(tasks)
+    keys = [t.key for t in task_list]
+    if len(set(keys)) != len(keys):
+        dup = sorted({k for k in keys if keys.count(k) > 1})
+        raise ParameterError(f"task keys must be unique, repeated: {dup}", name="tasks")
+    if workers is None:
+        if isinstance(executor, WorkerPool):
+            workers = executor.workers
+        else:
+            workers = getattr(executor, "_max_workers", None) or default_workers()
+    _check_workers(workers)
+    if isinstance(max_attempts, bool) or not isinstance(max_attempts, int) or max_attempts < 1:
+        raise ParameterError(
+            f"max_attempts must be an int >= 1, got {max_attempts!r}", name="max_attempts"
+        )
+    pooled = executor == "process" or isinstance(executor, WorkerPool)
+    if not (pooled or executor == "serial" or isinstance(executor, Executor)):
+        raise ParameterError(
+            f"executor must be 'process', 'serial', a WorkerPool or a "
+            f"concurrent.futures.Executor, got {executor!r}",
+            name="executor",
+        )
+    if timeout is not None:
+        if not (isinstance(timeout, int | float) and math.isfinite(timeout) and timeout > 0):
+            raise ParameterError(f"timeout must be > 0 [s], got {timeout!r}", name="timeout")
+        if not pooled:
+            raise ParameterError(
+                f"a timeout needs executor='process' or a WorkerPool (a task cannot be "
+                f"stopped otherwise), got executor={executor!r}",
+                name="timeout",
+            )
+    runner = _Runner(task_list, workers, max_attempts, timeout, on_outcome)
+    if executor == "serial":
+        if initializer is not None:
+            initializer(*initargs)
+        runner.run_serial()
+    elif isinstance(executor, WorkerPool):
+        runner.run_workers(executor)
+    elif executor == "process":
+        with WorkerPool(workers, initializer=initializer, initargs=initargs) as pool:
+            runner.run_workers(pool)
+    else:
+        assert isinstance(executor, Executor)
+        runner.run_executor(executor)
+    return runner.outcomes

@@ -41,12 +41,12 @@ import logging
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from youbot_opt._files import TMP_PREFIX, atomic_write_bytes, check_schema_header, json_roundtrip
 from youbot_opt.exceptions import ParameterError, ResultFileError
 
 __all__ = ["SweepStore", "ItemRecord", "SCHEMA_VERSION", "atomic_write_bytes", "check_key"]
@@ -58,54 +58,9 @@ SCHEMA_VERSION = 1
 
 _MANIFEST = "manifest.json"
 _ITEMS = "items"
-_TMP_PREFIX = ".tmp-"
 _KEY = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 
 ItemState = Literal["done", "failed"]
-
-
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temp file, fsync, ``os.replace``).
-
-    Parameters
-    ----------
-    path : path-like
-        Destination file; its directory must exist.
-    data : bytes
-        Full new content.
-    """
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f"{_TMP_PREFIX}{target.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync_dir(target.parent)
-
-
-def _fsync_dir(directory: Path) -> None:
-    """Make a rename durable (no-op where directories cannot be opened)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _json_ready(value: Any) -> Any:
-    """``value`` as it reads back from JSON (tuples become lists, floats stay exact)."""
-    return json.loads(json.dumps(value, allow_nan=True))
 
 
 def _read_json(path: Path, what: str) -> dict[str, Any]:
@@ -120,16 +75,13 @@ def _read_json(path: Path, what: str) -> dict[str, Any]:
         raise ResultFileError(
             f"{what} {path} is corrupted (not valid JSON: {exc}); delete it to recompute"
         ) from exc
-    if not isinstance(data, dict) or not isinstance(data.get("schema_version"), int):
-        raise ResultFileError(f"{what} {path} is corrupted: no integer 'schema_version' field")
-    version = data["schema_version"]
-    if version > SCHEMA_VERSION:
-        raise ResultFileError(
-            f"{what} {path} has schema_version {version}, newer than the {SCHEMA_VERSION} this "
-            "youbot_opt reads; upgrade youbot_opt or use another output directory"
-        )
-    if version < 1:
-        raise ResultFileError(f"{what} {path} has an invalid schema_version {version}")
+    check_schema_header(
+        data,
+        schema=None,
+        supported=SCHEMA_VERSION,
+        source=f"{what} {path}",
+        remedy="upgrade youbot_opt or use another output directory",
+    )
     return data
 
 
@@ -263,7 +215,7 @@ class SweepStore:
     ) -> None:
         self.directory = Path(directory)
         self.kind = str(kind)
-        self.params: dict[str, Any] = _json_ready(dict(params))
+        self.params: dict[str, Any] = json_roundtrip(dict(params))
         self._save = save
         self._load = load
         self.suffix = suffix
@@ -286,10 +238,10 @@ class SweepStore:
 
     # ---------------------------------------------------------------- manifest
     def _clean_temporaries(self) -> None:
-        # Ours (".tmp-<name>.<random>") and those of payload writers that follow
-        # the ".<name>.<random>.tmp" convention (youbot_opt.trajopt.io).
+        # Ours (".tmp-<name>.<random>", youbot_opt._files) and the older
+        # ".<name>.<random>.tmp" ones that youbot_opt.trajopt.io used to leave.
         for folder in (self.directory, self.items_dir):
-            for tmp in (*folder.glob(f"{_TMP_PREFIX}*"), *folder.glob(".*.tmp")):
+            for tmp in (*folder.glob(f"{TMP_PREFIX}*"), *folder.glob(".*.tmp")):
                 with contextlib.suppress(OSError):
                     tmp.unlink()
                     _log.debug("removed leftover temporary file %s", tmp)
@@ -395,7 +347,7 @@ class SweepStore:
             state="done",
             attempts=attempts,
             reasons=prev.reasons if prev is not None else (),
-            summary=_json_ready(dict(summary)),
+            summary=json_roundtrip(dict(summary)),
             payload=target.name,
         )
         self._write_record(record)

@@ -9,35 +9,33 @@ the active bounds of the best solution. Which bound families are scaled is
 the problem's choice (:attr:`~youbot_opt.trajopt.problem.TrajOptProblem.scaled_bounds`;
 by default position, velocity and torque, as in the study).
 
-With ``out=DIR`` every start is saved as it finishes and a rerun resumes.
+With ``SweepOptions(out=DIR)`` every start is saved as it finishes and a rerun resumes.
+
+    res = bound_scaling_study(solver, (1.0, 0.9), n_starts=5, sweep=SweepOptions(workers=4))
 """
 
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import MultistartResult
 from youbot_opt.trajopt.objectives import check_beta
-from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.tasks import ExecutorLike
-from youbot_opt.trajopt.problem import TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.result import ActiveBound
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import (
-    ProgressFn,
     StartOutcome,
-    _as_solver,
-    _store_for,
+    check_solver,
     default_dt0,
     make_jobs,
+    open_store,
     solve_starts,
     sweep_params,
 )
@@ -144,7 +142,7 @@ class BoundScalingResult:
 
 
 def bound_scaling_study(
-    solver_or_problem: TrajOptSolver | TrajOptProblem,
+    solver: TrajOptSolver,
     scales: Sequence[float] = DEFAULT_SCALES,
     *,
     beta: float = 0.5,
@@ -153,22 +151,14 @@ def bound_scaling_study(
     include_straight: bool = True,
     dt0: float | None = None,
     active_tol: float = 1e-5,
-    executor: ExecutorLike = "process",
-    workers: int | None = None,
-    progress: ProgressFn | None = None,
-    out: str | os.PathLike[str] | None = None,
-    max_attempts: int = 2,
-    timeout: float | None = None,
-    method: Any = "trapezoidal",
-    options: IpoptOptions | None = None,
-    backend: str = "symbolic",
+    sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> BoundScalingResult:
     """Solve the problem with every bound scaled by each factor in ``scales``.
 
     Parameters
     ----------
-    solver_or_problem : TrajOptSolver or TrajOptProblem
-        A built solver (bounds are solve-time parameters, so it is reused), or a problem.
+    solver : TrajOptSolver
+        The built solver (bounds are solve-time parameters, so it is reused).
     scales : sequence of float
         Distinct bound scale factors > 0 (default: the study's 1.0, 0.95, 0.90, 0.85).
     beta : float
@@ -184,11 +174,10 @@ def bound_scaling_study(
         :func:`youbot_opt.trajopt.multistart.default_dt0`).
     active_tol : float
         Distance from a bound, in its unit, below which it counts as active.
-    executor, workers, progress, out, max_attempts, timeout
-        As in :func:`youbot_opt.trajopt.multistart.run_multistart` (``progress`` counts
+    sweep : SweepOptions
+        How the starts of all scales run, as in
+        :func:`youbot_opt.trajopt.multistart.run_multistart` (``progress`` counts
         starts over all scales).
-    method, options, backend
-        Solver settings when a problem is given.
 
     Returns
     -------
@@ -199,10 +188,10 @@ def bound_scaling_study(
     ------
     ParameterError
         On bad arguments (e.g. a scale at which start or goal leave the bounds),
-        or if ``out`` holds a sweep with other parameters.
+        or if ``sweep.out`` holds a sweep with other parameters.
     """
     tic = time.perf_counter()
-    solver = _as_solver(solver_or_problem, method, options, backend)
+    solver = check_solver(solver)
     beta = check_beta(beta)
     values = tuple(check_bound_scale(s) for s in scales)
     if not values or len(set(values)) != len(values):
@@ -225,7 +214,7 @@ def bound_scaling_study(
         for i, s in enumerate(values)
     ]
     store = None
-    if out is not None:
+    if sweep.directory is not None:
         params = {
             **sweep_params(solver),
             "scales": list(values),
@@ -235,16 +224,9 @@ def bound_scaling_study(
             "include_straight": include_straight,
             "dt0": dt0,
         }
-        store = _store_for(Path(out), "bounds", params, solver)
+        store = open_store(sweep.directory, "bounds", params, solver)
     outcomes, _ = solve_starts(
-        solver,
-        [j for jobs in jobs_by_scale for j in jobs],
-        store=store,
-        executor=executor,
-        workers=workers,
-        progress=progress,
-        max_attempts=max_attempts,
-        timeout=timeout,
+        solver, [j for jobs in jobs_by_scale for j in jobs], store=store, sweep=sweep
     )
     rows = []
     for s, jobs in zip(values, jobs_by_scale, strict=True):

@@ -1,4 +1,4 @@
-"""The certificate of a plan: its figures, tolerances and verdict (see :mod:`youbot_opt.trajopt.certify`).
+"""The certificate of a plan: figures, tolerances, verdict (:mod:`youbot_opt.trajopt.certify`).
 
 A :class:`Certificate` holds what :func:`youbot_opt.trajopt.certify.certify` measured
 by forward simulation (local one-interval errors, PD tracking effort and

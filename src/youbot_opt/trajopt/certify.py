@@ -1,56 +1,35 @@
 """Certificates: check a planned trajectory by a path independent of its transcription.
 
-:func:`certify` takes a solve result (or a bare
-:class:`~youbot_opt.trajopt.trajectory.Trajectory` and a robot) and checks it against
-Pinocchio's numeric ABA integrated by SciPy's adaptive ``solve_ivp``
-(:mod:`youbot_opt.trajopt.simulate`), never against the collocation equations that
-produced it (spec ``trajopt.md``: "prove each trajectory by forward
-simulation"). It reports:
+:func:`certify` checks a solve result (or a bare trajectory and a robot) against
+Pinocchio's numeric ABA integrated by SciPy (:mod:`youbot_opt.trajopt.simulate`),
+never against the collocation equations that produced it (spec ``trajopt.md``:
+"prove each trajectory by forward simulation"): local errors of one interval
+from every knot, PD tracking of the whole plan (feedback torque relative to the
+plan's), the open-loop drift (reported, never tested) and the bounds at and
+between knots (:func:`check_bounds`). :class:`Tolerances` holds the pass/fail
+thresholds that :attr:`Certificate.ok` applies.
 
-* **local errors** (:func:`integrate_intervals`): restart from every knot's
-  state, integrate one interval under the plan's torque interpolant, compare
-  with the next knot (position [rad], velocity [rad/s]). All intervals are
-  integrated as one stacked ODE in normalised time, so SciPy's per-step
-  overhead is paid once and one batched ABA call serves all intervals;
-* **tracking**: the arm follows the plan with an inertia-scaled PD feedback
-  (:class:`~youbot_opt.trajopt.simulate.PDGains`) added to the planned torque; the
-  feedback torque relative to the planned torque (RMS and peak, worst joint)
-  and the tracking error measure how far the plan is from a motion the arm
-  can make;
-* **open loop**: the plan's torque alone from the first knot. The arm is
-  open-loop unstable, so this drifts from any plan, valid or not: reported
-  (final-state error, time to drift by ``open_loop_stop``), never tested;
-* **bounds** at the knots and between them (the interpolants sampled
-  ``samples_per_interval`` times per interval) for position, velocity and
-  torque against the scaled bounds, with the worst excess and where.
-
-:class:`Tolerances` holds the documented pass/fail thresholds;
-:meth:`Certificate.passed` and :attr:`Certificate.ok` apply them.
+>>> certify(result).ok  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-import logging
 import math
 import time
-from typing import Any, NamedTuple
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from youbot_opt._typing import Array
-from youbot_opt.trajopt.certificate import BoundCheck, Certificate, Tolerances
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt.problem import JointBounds
+from youbot_opt.robot.model import JointBounds, RobotModel, as_robot_model
+from youbot_opt.trajopt.certificate import BoundCheck, Certificate, Tolerances
+from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.simulate import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
     PDGains,
-    RobotView,
-    _batched_aba,
-    _check_dimensions,
-    _IntervalPolynomials,
-    robot_view,
+    RobotLike,
+    integrate_intervals,
     sample_times,
     simulate,
 )
@@ -60,62 +39,16 @@ __all__ = [
     "BoundCheck",
     "Certificate",
     "Tolerances",
-    "IKCheck",
     "certify",
     "check_bounds",
-    "check_ik_result",
     "integrate_intervals",
-    "robot_bounds",
 ]
-
-_LOG = logging.getLogger(__name__)
 
 TRACKING_RTOL = 1e-8
 """Relative tolerance of the tracking and open-loop simulations (their figures
 are ratios at the 1e-5 level and above, so tighter tolerances only cost time)."""
 TRACKING_ATOL = 1e-10
 """Absolute tolerance of the tracking and open-loop simulations, in [rad] and [rad/s]."""
-
-
-def robot_bounds(robot: Any, bound_scale: float = 1.0) -> JointBounds:
-    """Scale all of the robot's limits by ``bound_scale`` (positions about zero).
-
-    This is the default bound family of
-    :meth:`youbot_opt.trajopt.problem.TrajOptProblem.bounds` (the study scaled every bound).
-
-    Parameters
-    ----------
-    robot : RobotModel, pinocchio.Model or RobotView
-        The robot (see :func:`youbot_opt.trajopt.simulate.robot_view`).
-    bound_scale : float, optional
-        Factor > 0 (1.0 = data sheet).
-
-    Returns
-    -------
-    JointBounds
-        Position [rad], velocity [rad/s] and torque [N m] bounds.
-
-    Raises
-    ------
-    ParameterError
-        If ``bound_scale`` is not finite and > 0.
-    """
-    if not (math.isfinite(bound_scale) and bound_scale > 0.0):
-        raise ParameterError(
-            f"bound_scale must be finite and > 0 (1.0 = data sheet), got {bound_scale!r}",
-            name="bound_scale",
-            value=bound_scale,
-        )
-    view = robot_view(robot)
-    s = float(bound_scale)
-    return JointBounds(
-        q_lower=s * view.q_lower,
-        q_upper=s * view.q_upper,
-        v_lower=-s * view.velocity_limit,
-        v_upper=s * view.velocity_limit,
-        tau_lower=-s * view.effort_limit,
-        tau_upper=s * view.effort_limit,
-    )
 
 
 def _worst(
@@ -136,7 +69,7 @@ def _worst(
 
 
 def check_bounds(
-    trajectory: Trajectory, bounds: Any, *, samples_per_interval: int = 20
+    trajectory: Trajectory, bounds: JointBounds, *, samples_per_interval: int = 20
 ) -> tuple[BoundCheck, ...]:
     """Worst position, velocity and torque bound excess at and between the knots.
 
@@ -145,8 +78,7 @@ def check_bounds(
     trajectory : Trajectory
         The plan.
     bounds : JointBounds
-        Scaled bounds (anything with ``q_lower``, ``q_upper``, ``v_lower``,
-        ``v_upper``, ``tau_lower``, ``tau_upper`` of shape (nv,)).
+        Scaled bounds, each of shape (nv,).
     samples_per_interval : int, optional
         Samples per interval of the interpolants (the knots excluded for ``"between"``).
 
@@ -175,71 +107,6 @@ def check_bounds(
     return tuple(checks)
 
 
-def integrate_intervals(
-    trajectory: Trajectory,
-    robot: Any,
-    *,
-    rtol: float = DEFAULT_RTOL,
-    atol: float = DEFAULT_ATOL,
-    method: str = "DOP853",
-) -> tuple[Array, Array]:
-    """Integrate every interval from its left knot's state under the plan's torque.
-
-    Interval ``k`` starts at ``(q[k], v[k])`` at time ``t[k]`` and runs to
-    ``t[k + 1]`` under ``trajectory.torque(t)``. The intervals are stacked into one
-    ODE in normalised time ``s in [0, 1]`` (``t = t[k] + s h[k]``), so the
-    integrator's error norm is taken over all intervals together.
-
-    Parameters
-    ----------
-    trajectory : Trajectory
-        The plan, with N knots.
-    robot : RobotModel, pinocchio.Model or RobotView
-        The robot the plan is for (see :func:`robot_view`).
-    rtol : float, optional
-        Relative tolerance of ``solve_ivp``.
-    atol : float, optional
-        Absolute tolerance of ``solve_ivp`` in [rad] and [rad/s].
-    method : str, optional
-        ``solve_ivp`` method (an explicit Runge–Kutta method is expected).
-
-    Returns
-    -------
-    q_end : ndarray, shape (N - 1, nq)
-        Simulated positions in [rad] at ``t[1:]`` (NaN if the integrator failed).
-    v_end : ndarray, shape (N - 1, nv)
-        Simulated velocities in [rad/s] at ``t[1:]`` (NaN if the integrator failed).
-
-    Raises
-    ------
-    ParameterError
-        If the trajectory and the robot disagree in size or the robot is unsupported.
-    """
-    view = robot_view(robot)
-    _check_dimensions(trajectory, view)
-    batch = _batched_aba(view)
-    polys = _IntervalPolynomials(trajectory)
-    nv = view.model.nv
-    h = polys.h
-    n = h.size
-
-    def rhs(s: float, x: Array) -> Array:
-        state = x.reshape(n, 2 * nv)
-        q, v = state[:, :nv], state[:, nv:]
-        acc = batch(q, v, polys.torques(s))
-        return (np.hstack([v, acc]) * h[:, None]).ravel()
-
-    x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).ravel()
-    sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol)
-    if not sol.success:
-        _LOG.warning("local integration failed: %s", sol.message)
-        nan = np.full((n, nv), np.nan)
-        return nan, nan.copy()
-    end = sol.y[:, -1].reshape(n, 2 * nv)
-    _LOG.debug("local integration: %d intervals, %d RHS evaluations", n, sol.nfev)
-    return end[:, :nv], end[:, nv:]
-
-
 def _ratio(num: Array, den: Array) -> Array:
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(
@@ -248,9 +115,13 @@ def _ratio(num: Array, den: Array) -> Array:
 
 
 def _resolve(
-    plan: Any, robot: Any, bounds: Any, bound_scale: float, damping: bool | None
-) -> tuple[Trajectory, RobotView, Any]:
-    """Trajectory, robot view (with the damping the plan assumed) and bounds of a plan."""
+    plan: TrajOptResult | Trajectory,
+    robot: RobotLike | None,
+    bounds: JointBounds | None,
+    bound_scale: float,
+    damping: bool | None,
+) -> tuple[Trajectory, RobotModel, JointBounds, bool]:
+    """Trajectory, robot, bounds and damping flag (the plan's assumption) of a plan."""
     if isinstance(plan, Trajectory):
         if robot is None:
             raise ParameterError(
@@ -258,39 +129,36 @@ def _resolve(
             )
         trajectory = plan
         use_damping = True if damping is None else bool(damping)
-    else:
-        found = getattr(plan, "trajectory", None)
-        if not isinstance(found, Trajectory):
-            status = getattr(plan, "status", None)
+    elif isinstance(plan, TrajOptResult):
+        if plan.trajectory is None:
             raise ParameterError(
                 f"cannot certify {type(plan).__name__}: expected a Trajectory or a result with "
-                f"a finite trajectory (status {status})",
+                f"a finite trajectory (status {plan.status})",
                 name="plan",
             )
-        trajectory = found
-        problem = getattr(plan, "problem", None)
+        trajectory = plan.trajectory
         if robot is None:
-            robot = getattr(problem, "robot", None)
-            if robot is None:
-                raise ParameterError("the result has no problem.robot; pass robot=", name="robot")
-        if damping is None:
-            damping = bool(getattr(problem, "damping", True))
-        use_damping = damping
-        if bounds is None and callable(getattr(plan, "bounds", None)):
+            robot = plan.problem.robot
+        use_damping = plan.problem.damping if damping is None else bool(damping)
+        if bounds is None:
             bounds = plan.bounds()
-    view = robot_view(robot)
-    if not use_damping:
-        view = view._replace(damping=np.zeros_like(view.damping))
+    else:
+        raise ParameterError(
+            f"cannot certify {type(plan).__name__}: expected a Trajectory or a result "
+            "(TrajOptResult)",
+            name="plan",
+        )
+    model = as_robot_model(robot)
     if bounds is None:
-        bounds = robot_bounds(view, bound_scale)
-    return trajectory, view, bounds
+        bounds = model.bounds(bound_scale)
+    return trajectory, model, bounds, use_damping
 
 
 def certify(
-    plan: Any,
-    robot: Any = None,
+    plan: TrajOptResult | Trajectory,
+    robot: RobotLike | None = None,
     *,
-    bounds: Any = None,
+    bounds: JointBounds | None = None,
     bound_scale: float = 1.0,
     damping: bool | None = None,
     gains: PDGains | None = None,
@@ -310,8 +178,8 @@ def certify(
     robot : RobotModel or pinocchio.Model, optional
         The robot; required for a bare trajectory, overrides the result's.
     bounds : JointBounds, optional
-        Scaled bounds; by default the result's, else :func:`robot_bounds` with
-        ``bound_scale``.
+        Scaled bounds; by default the result's, else
+        :meth:`RobotModel.bounds(bound_scale) <youbot_opt.robot.model.RobotModel.bounds>`.
     bound_scale : float, optional
         Scale of the default bounds of a bare trajectory (1.0 = data sheet).
     damping : bool, optional
@@ -342,15 +210,15 @@ def certify(
         or an option is out of range.
     """
     tic = time.perf_counter()
-    trajectory, view, bounds = _resolve(plan, robot, bounds, bound_scale, damping)
+    trajectory, model, bounds, use_damping = _resolve(plan, robot, bounds, bound_scale, damping)
     gains = PDGains() if gains is None else gains
-    q_end, v_end = integrate_intervals(trajectory, view, rtol=rtol, atol=atol)
+    q_end, v_end = integrate_intervals(trajectory, model, damping=use_damping, rtol=rtol, atol=atol)
     local_q = np.max(np.abs(q_end - trajectory.q[1:]), axis=1)
     local_v = np.max(np.abs(v_end - trajectory.v[1:]), axis=1)
 
     sim = simulate(
-        trajectory, view, gains=gains, samples_per_interval=samples_per_interval,
-        rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
+        trajectory, model, damping=use_damping, gains=gains,
+        samples_per_interval=samples_per_interval, rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
     )  # fmt: skip
     fb, plan_tau = sim.tau_feedback, sim.tau_plan
     rms = _ratio(
@@ -359,13 +227,13 @@ def certify(
     )
     peak = _ratio(np.max(np.abs(fb), axis=0), np.max(np.abs(plan_tau), axis=0))
     if sim.stop_time is not None:  # integrator failure: figures unknown
-        rms = peak = np.full(view.model.nv, np.nan)
+        rms = peak = np.full(model.nv, np.nan)
     track_q = float(np.max(np.abs(sim.q - trajectory(sim.t))))
     track_v = float(np.max(np.abs(sim.v - trajectory.velocity(sim.t))))
 
     open_loop = simulate(
-        trajectory, view, samples_per_interval=1, stop_deviation=open_loop_stop,
-        rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
+        trajectory, model, damping=use_damping, samples_per_interval=1,
+        stop_deviation=open_loop_stop, rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
     )  # fmt: skip
     if open_loop.stop_time is None:
         ol_final = float(np.max(np.abs(open_loop.q[-1] - trajectory.q[-1])))
@@ -375,7 +243,7 @@ def certify(
 
     checks = check_bounds(trajectory, bounds, samples_per_interval=samples_per_interval)
     return Certificate(
-        robot=view.name,
+        robot=model.name,
         n_knots=trajectory.n_knots,
         duration=trajectory.duration,
         interpolation=trajectory.interpolation,
@@ -393,92 +261,3 @@ def certify(
         elapsed=time.perf_counter() - tic,
         tolerances=Tolerances() if tolerances is None else tolerances,
     )
-
-
-class IKCheck(NamedTuple):
-    """Verdict of :func:`check_ik_result` on an IK-path result.
-
-    Attributes
-    ----------
-    passed : bool
-        Finite, every target met within ``residual_tol``, limits within
-        ``limit_tol`` and the reported figures equal to the recomputed ones.
-    message : str
-        What failed (empty when nothing did).
-    residual : float
-        Largest ``|F(q_j) - p_j|`` in [m] by the study's closed-form kinematics
-        (not Pinocchio, not CasADi); ``inf`` when not finite.
-    limit_violation : float
-        Largest joint-limit excess in [rad] (0 without limits).
-    """
-
-    passed: bool
-    message: str
-    residual: float
-    limit_violation: float
-
-
-def check_ik_result(
-    result: Any, *, residual_tol: float = 1e-8, limit_tol: float = 1e-12
-) -> IKCheck:
-    """Check an IK-path result independently of the solver that produced it.
-
-    The tip positions come from the study's formula
-    ``F = b + sum_i l_i (cos phi_i, sin phi_i)``, ``phi_i = sum_{k <= i} (q_k +
-    offset_k)`` evaluated here with NumPy; ``E`` is recomputed from the
-    configurations.
-
-    Parameters
-    ----------
-    result : IKPathResult
-        The result to check.
-    residual_tol : float, optional
-        Largest accepted target residual in [m] (the solvers' defaults reach ~1e-10).
-    limit_tol : float, optional
-        Largest accepted joint-limit excess in [rad] (both solvers keep their
-        iterates inside the box).
-
-    Returns
-    -------
-    IKCheck
-        The verdict and the recomputed figures.
-    """
-    problem = result.problem
-    chain = problem.chain
-    q = np.asarray(result.configurations, dtype=float)
-    inf = math.inf
-    if q.shape != (problem.n_targets, chain.n):
-        want = (problem.n_targets, chain.n)
-        return IKCheck(False, f"configurations have shape {q.shape}, want {want}", inf, inf)
-    figures: dict[str, Any] = {
-        "objective": float(result.objective),
-        "residuals": np.asarray(result.residuals, dtype=float),
-        "limit_violation": float(result.limit_violation),
-    }
-    nonfinite = [k for k, x in figures.items() if not np.all(np.isfinite(x))]
-    if not np.all(np.isfinite(q)):
-        nonfinite.insert(0, "configurations")
-    if nonfinite:
-        return IKCheck(False, f"non-finite values in {', '.join(nonfinite)}", inf, inf)
-    phi = np.cumsum(q + chain.angle_offset, axis=1)
-    tips = chain.base + np.stack([np.cos(phi) @ chain.lengths, np.sin(phi) @ chain.lengths], axis=1)
-    residuals = np.linalg.norm(tips - problem.targets, axis=1)
-    residual = float(np.max(residuals))
-    limits = 0.0
-    if problem.use_limits:
-        limits = float(np.max(np.maximum(chain.q_lower - q, q - chain.q_upper), initial=0.0))
-        limits = max(limits, 0.0)
-    energy = 0.5 * float(np.sum((np.roll(q, -1, axis=0) - q) ** 2))
-    wrong = []
-    if not residual <= residual_tol:
-        wrong.append(f"target residual {residual:.3g} m > {residual_tol:.3g} m")
-    if not limits <= limit_tol:
-        wrong.append(f"joint limits violated by {limits:.3g} rad > {limit_tol:.3g} rad")
-    # Reported figures against the recomputed ones: Pinocchio's and the closed
-    # form's tip positions agree to rounding (1e-12 on unit-size chains).
-    scale = 1.0 + float(np.sum(chain.lengths))
-    if not abs(figures["objective"] - energy) <= 1e-9 * max(1.0, energy):
-        wrong.append(f"reported E = {figures['objective']:.12g}, recomputed {energy:.12g}")
-    if not np.allclose(figures["residuals"], residuals, rtol=0.0, atol=1e-9 * scale):
-        wrong.append("reported residuals differ from the recomputed ones")
-    return IKCheck(not wrong, "; ".join(wrong), residual, limits)

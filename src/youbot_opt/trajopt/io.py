@@ -19,10 +19,8 @@ place with :func:`os.replace`, so a crash never leaves a half-written result.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import json
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -31,12 +29,26 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
+from youbot_opt._files import (
+    array_digest,
+    atomic_writer,
+    check_schema_header,
+    schema_header,
+    software_versions,
+)
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
-from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.robot.model import RobotModel, available_robots, load_model
+from youbot_opt.trajopt.check import checked
+from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL, SolveStatus, TrajOptResult
+from youbot_opt.trajopt.result import (
+    DEFAULT_FEASIBILITY_TOL,
+    SolveStats,
+    SolveStatus,
+    TrajOptResult,
+)
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result"]
@@ -44,21 +56,6 @@ __all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result"]
 SCHEMA = "youbot_opt.trajopt_result"
 SCHEMA_VERSION = 1
 _TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid")
-
-
-def _versions() -> dict[str, str]:
-    from youbot_opt._version import __version__
-
-    return {
-        "youbot_opt": __version__,
-        "pinocchio": str(pin.__version__),
-        "casadi": str(ca.__version__),  # type: ignore[attr-defined]
-        "numpy": str(np.__version__),
-    }
-
-
-def _digest(arr: Array) -> str:
-    return hashlib.sha256(np.ascontiguousarray(arr).tobytes()).hexdigest()
 
 
 def _state(state: BoundaryState) -> dict[str, list[float]]:
@@ -101,9 +98,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
                 if value is not None:
                     arrays[f"{group}__{name}"] = np.asarray(value, dtype=float)
     meta: dict[str, Any] = {
-        "schema": SCHEMA,
-        "schema_version": SCHEMA_VERSION,
-        "versions": _versions(),
+        **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "problem": result.problem.describe(),
         "method": result.method,
@@ -135,23 +130,15 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
             "trajectory": None if result.trajectory is None else result.trajectory.interpolation,
             "guess": None if result.guess is None else result.guess.interpolation,
         },
-        "checksums": {key: _digest(arr) for key, arr in arrays.items()},
+        "checksums": {key: array_digest(arr) for key, arr in arrays.items()},
     }
     payload = json.dumps(meta, allow_nan=True, sort_keys=True).encode("utf-8")
     arrays["metadata"] = np.frombuffer(payload, dtype=np.uint8)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "wb") as handle:
+        with atomic_writer(target) as handle:
             np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, target)
     except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
         raise ResultFileError(f"cannot write result file {target}: {exc}") from exc
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return target
 
 
@@ -170,20 +157,12 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, Array]]:
         meta = json.loads(arrays.pop("metadata").tobytes().decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ResultFileError(f"{path}: metadata is not valid JSON (corrupted file)") from exc
-    if not isinstance(meta, dict) or meta.get("schema") != SCHEMA:
-        raise ResultFileError(f"{path}: unknown schema {meta.get('schema')!r}, expected {SCHEMA!r}")
-    version = meta.get("schema_version")
-    if not isinstance(version, int) or version > SCHEMA_VERSION or version < 1:
-        raise ResultFileError(
-            f"{path}: schema version {version!r} is not supported (this youbot_opt reads "
-            f"versions 1..{SCHEMA_VERSION}; the file was written by youbot_opt "
-            f"{meta.get('versions', {}).get('youbot_opt', '?')}; upgrade youbot_opt to read it)"
-        )
+    check_schema_header(meta, schema=SCHEMA, supported=SCHEMA_VERSION, source=str(path))
     checksums = meta.get("checksums", {})
     if set(checksums) != set(arrays):
         raise ResultFileError(f"{path}: arrays do not match the metadata's list (corrupted file)")
     for key, arr in arrays.items():
-        if _digest(arr) != checksums[key]:
+        if array_digest(arr) != checksums[key]:
             raise ResultFileError(f"{path}: checksum mismatch in array {key!r} (corrupted file)")
     return meta, arrays
 
@@ -202,8 +181,7 @@ def _trajectory(values: dict[str, Array], interpolation: str | None) -> Trajecto
     )
 
 
-def _robot(desc: dict[str, Any]) -> Any:
-    from youbot_opt.robot.model import available_robots, load_model
+def _robot(desc: dict[str, Any]) -> RobotModel:
 
     name, urdf = desc["robot"], desc.get("urdf_path")
     source = name if name in available_robots() else urdf
@@ -221,7 +199,7 @@ def _robot(desc: dict[str, Any]) -> Any:
     return robot
 
 
-def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptResult:
+def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None) -> TrajOptResult:
     """Read a result written by :func:`save_result`.
 
     Parameters
@@ -235,7 +213,9 @@ def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptRe
     Returns
     -------
     TrajOptResult
-        The result, with its problem rebuilt.
+        The result, with its problem rebuilt; a saved success claim that the
+        independent check (:func:`youbot_opt.trajopt.check.checked`) refutes
+        is downgraded.
 
     Raises
     ------
@@ -269,13 +249,12 @@ def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptRe
             arr.setflags(write=False)
         history = arrays["objective_history"]
         history.setflags(write=False)
-        return TrajOptResult(
+        result = TrajOptResult(
             problem=problem,
             method=meta["method"],
             backend=meta["backend"],
             status=SolveStatus(meta["status"]),
             message=meta["message"],
-            solver_status=meta["solver_status"],
             trajectory=_trajectory(
                 _group(arrays, "trajectory"), meta["interpolation"]["trajectory"]
             ),
@@ -288,10 +267,13 @@ def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptRe
             bound_scale=float(meta["bound_scale"]),
             start=BoundaryState(q=meta["start"]["q"], v=meta["start"]["v"]),
             goal=BoundaryState(q=meta["goal"]["q"], v=meta["goal"]["v"]),
-            iterations=int(meta["iterations"]),
-            wall_time=scalars["wall_time"],
-            cpu_time=scalars["cpu_time"],
-            objective_history=history,
+            stats=SolveStats(
+                solver_status=meta["solver_status"],
+                iterations=int(meta["iterations"]),
+                wall_time=scalars["wall_time"],
+                cpu_time=scalars["cpu_time"],
+                objective_history=history,
+            ),
             max_violation=scalars["max_violation"],
             multipliers=multipliers,
             guess=_trajectory(_group(arrays, "guess"), meta["interpolation"]["guess"]),
@@ -303,3 +285,5 @@ def load_result(path: str | os.PathLike[str], *, robot: Any = None) -> TrajOptRe
         raise
     except (KeyError, TypeError, ValueError) as exc:
         raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc
+    # A file is data from outside: the independent check sets the status it deserves.
+    return checked(result)

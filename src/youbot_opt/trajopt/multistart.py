@@ -1,50 +1,38 @@
-"""Seeded multistart of trajectory solves, in parallel, with the distinct local optima.
+"""Seeded multistart of trajectory solves, with the distinct local optima (spec ``trajopt.md``).
 
-The study ran 50 random starts per ``beta`` (spec ``trajopt.md``, "How the
-study solved it"): each start is a random feasible polynomial spline guess
-(:func:`youbot_opt.trajopt.spline_guess.random_spline_guess`), optionally with the
-straight line added. :func:`run_multistart` derives the seed of start ``i``
-from a base seed with :class:`numpy.random.SeedSequence` (``spawn``), so the
-starts, and hence the results, do not depend on the executor or on the order
-in which starts finish.
+Owns :func:`run_multistart` (the study's 50 random starts per ``beta``: random
+feasible spline guesses, optionally plus the straight line; start ``i``'s seed
+comes from ``SeedSequence(seed).spawn``, so results do not depend on the
+executor), :class:`MultistartResult`, :class:`LocalOptimum` and
+:func:`trajectory_distance`. How starts run (crash-isolated workers, retries,
+time limits, resumable ``out`` directory) is one :class:`~youbot_opt.sweeps.options.SweepOptions`;
+the job machinery is :mod:`youbot_opt.trajopt.sweep`, the clustering
+:func:`youbot_opt.sweeps.cluster.cluster_optima`.
 
-Starts run on a process pool by default; each worker holds one
-:class:`~youbot_opt.trajopt.solver.TrajOptSolver` (inherited from the parent under
-``fork``, built once in the pool initializer otherwise) and reuses it for all
-its starts. A start that raises, or whose worker crashes, is a failed start
-with the reason (retried once); the run goes on (:mod:`youbot_opt.sweeps.tasks`).
-With ``out=DIR`` every finished start is saved as it completes and a rerun
-resumes (:mod:`youbot_opt.sweeps.store`).
-
-Converged results are clustered into distinct local optima by objective and
-by :func:`trajectory_distance` (:meth:`MultistartResult.distinct_optima`).
-The job machinery (seeds, worker solvers, storage) is in :mod:`youbot_opt.trajopt.sweep`.
+    ms = run_multistart(solver, 50, beta=0.5, sweep=SweepOptions(workers=4, out="runs/ms"))
 """
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.objectives import check_beta
-from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.tasks import ExecutorLike
-from youbot_opt.trajopt.problem import TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import (
-    ProgressFn,
     StartOutcome,
-    _as_solver,
-    _store_for,
+    check_solver,
     default_dt0,
     make_jobs,
+    open_store,
     solve_starts,
     start_seeds,
     sweep_params,
@@ -160,6 +148,13 @@ def trajectory_distance(a: Trajectory, b: Trajectory, n_samples: int = 201) -> f
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
 
 
+def _start_distance(a: StartOutcome, b: StartOutcome) -> float:
+    """:func:`trajectory_distance` of two starts' trajectories in [rad] (0 if one has none)."""
+    ta = a.result.trajectory if a.result is not None else None
+    tb = b.result.trajectory if b.result is not None else None
+    return 0.0 if ta is None or tb is None else trajectory_distance(ta, tb)
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class MultistartResult:
     """All starts of a multistart, with the best one and the distinct optima.
@@ -234,19 +229,13 @@ class MultistartResult:
             raise ParameterError(
                 f"obj_tol and traj_tol must be > 0, got {obj_tol!r}, {traj_tol!r}", name="obj_tol"
             )
-        clusters: list[list[StartOutcome]] = []
-        for s in sorted(self.converged, key=lambda s: s.objective):
-            for members in clusters:
-                rep = members[0]
-                if abs(s.objective - rep.objective) > obj_tol * max(1.0, abs(rep.objective)):
-                    continue
-                ta = s.result.trajectory if s.result is not None else None
-                tb = rep.result.trajectory if rep.result is not None else None
-                if ta is None or tb is None or trajectory_distance(ta, tb) <= traj_tol:
-                    members.append(s)
-                    break
-            else:
-                clusters.append([s])
+        clusters = cluster_optima(
+            self.converged,
+            objective=lambda s: s.objective,
+            distance=_start_distance,
+            obj_tol=obj_tol,
+            dist_tol=traj_tol,
+        )
         return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
 
     def summary(self, obj_tol: float = 1e-5, traj_tol: float = 1e-2) -> dict[str, Any]:
@@ -279,7 +268,7 @@ class MultistartResult:
 
 
 def run_multistart(
-    solver_or_problem: TrajOptSolver | TrajOptProblem,
+    solver: TrajOptSolver,
     n_starts: int = 50,
     *,
     beta: float | None = None,
@@ -287,23 +276,15 @@ def run_multistart(
     seed: int = 0,
     include_straight: bool = False,
     dt0: float | None = None,
-    executor: ExecutorLike = "process",
-    workers: int | None = None,
-    progress: ProgressFn | None = None,
-    out: str | os.PathLike[str] | None = None,
-    max_attempts: int = 2,
-    timeout: float | None = None,
-    method: Any = "trapezoidal",
-    options: IpoptOptions | None = None,
-    backend: str = "symbolic",
+    sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> MultistartResult:
     """Solve from ``n_starts`` seeded random spline guesses (and the straight line).
 
     Parameters
     ----------
-    solver_or_problem : TrajOptSolver or TrajOptProblem
-        A built solver (reused), or a problem to build one for with
-        ``method``, ``options`` and ``backend``.
+    solver : TrajOptSolver
+        The built solver, reused for every start (forked workers inherit it;
+        other workers build their own once).
     n_starts : int
         Number of random spline starts (the study: 50).
     beta : float, optional
@@ -318,25 +299,13 @@ def run_multistart(
         Time step of the spline guesses in [s]; default
         :func:`default_dt0`: the study's 0.1 s at 50 knots, and the same guess
         duration (4.9 s) at other knot counts.
-    executor : {"process", "serial"} or concurrent.futures.Executor
-        Where starts run (see :func:`youbot_opt.sweeps.tasks.run_tasks`).
-    workers : int, optional
-        Parallel starts; default: the CPUs available.
-    progress : callable ``(done, total, last_start)``, optional
-        Called in this process as each start finishes.
-    out : path-like, optional
-        Output directory: each finished start is saved there and a rerun with
-        the same parameters resumes.
-    max_attempts : int
-        Attempts per start; a start that raises or crashes its worker is retried
-        until this many were made (default 2: once).
-    timeout : float, optional
-        Wall-clock limit in [s] per start attempt: a start still running then
-        is killed with its worker, recorded as failed (``"timeout after ... s"``)
-        and retried like a crash. Needs a worker process (not
-        ``executor="serial"``); default: no limit.
-    method, options, backend
-        Solver settings when a problem is given.
+    sweep : SweepOptions
+        How the starts run: ``executor`` (default ``"process"``), ``workers``
+        (default: the CPUs available), ``timeout`` in [s] per start attempt (a
+        start still running then is killed with its worker, recorded as failed
+        and retried like a crash; not serial), ``max_attempts`` (default 2), ``out``
+        (each finished start is saved there and a rerun with the same
+        parameters resumes) and ``progress`` ``(done, total, last_start)``.
 
     Returns
     -------
@@ -346,12 +315,12 @@ def run_multistart(
     Raises
     ------
     ParameterError
-        On bad arguments, or if ``out`` holds a sweep with other parameters.
+        On bad arguments, or if ``sweep.out`` holds a sweep with other parameters.
     ResultFileError
-        If a saved item in ``out`` is corrupted or from a newer schema.
+        If a saved item in ``sweep.out`` is corrupted or from a newer schema.
     """
     tic = time.perf_counter()
-    solver = _as_solver(solver_or_problem, method, options, backend)
+    solver = check_solver(solver)
     beta = solver.problem.objective.beta if beta is None else check_beta(beta)
     bound_scale = check_bound_scale(bound_scale)
     solver.problem.check_boundary(bound_scale)
@@ -365,7 +334,7 @@ def run_multistart(
         dt0=dt0,
     )
     store = None
-    if out is not None:
+    if sweep.directory is not None:
         params = {
             **sweep_params(solver),
             "n_starts": n_starts,
@@ -375,17 +344,8 @@ def run_multistart(
             "include_straight": include_straight,
             "dt0": dt0,
         }
-        store = _store_for(Path(out), "multistart", params, solver)
-    outcomes, resumed = solve_starts(
-        solver,
-        jobs,
-        store=store,
-        executor=executor,
-        workers=workers,
-        progress=progress,
-        max_attempts=max_attempts,
-        timeout=timeout,
-    )
+        store = open_store(sweep.directory, "multistart", params, solver)
+    outcomes, resumed = solve_starts(solver, jobs, store=store, sweep=sweep)
     return MultistartResult(
         starts=tuple(outcomes[j.key] for j in jobs),
         beta=beta,

@@ -24,12 +24,12 @@ the numeric re-evaluation of a result share one definition.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
+from youbot_opt._checks import check_beta
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
@@ -43,39 +43,6 @@ __all__ = [
 ]
 
 QuadratureRule = Literal["trapezoidal", "simpson"]
-
-
-def check_beta(beta: float) -> float:
-    """Validate a time weight.
-
-    Parameters
-    ----------
-    beta : float
-        Weight of the duration term, in [0, 1] (dimensionless).
-
-    Returns
-    -------
-    float
-        ``beta`` as a float.
-
-    Raises
-    ------
-    ParameterError
-        If ``beta`` is not a finite number in [0, 1].
-    """
-    try:
-        value = float(beta)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(
-            f"beta must be a number in [0, 1], got {beta!r}", name="beta", value=beta
-        ) from exc
-    if not math.isfinite(value) or not 0.0 <= value <= 1.0:
-        raise ParameterError(
-            f"beta must be in [0, 1] (1 = time only, 0 = work only), got {beta!r}",
-            name="beta",
-            value=beta,
-        )
-    return value
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -10,18 +10,20 @@ straight-line guess where a warm start fails. A point is *dominated* if
 another converged point has ``T <=`` and ``W <=`` with one inequality strict;
 :meth:`ParetoFront.nondominated` returns the rest.
 
-Unless ``executor="serial"``, the points are solved one after the other in
-one persistent worker process (:class:`youbot_opt.sweeps.tasks.WorkerPool`; it
+Unless ``sweep.executor="serial"``, the points are solved one after the other in
+one persistent worker process (:class:`youbot_opt.sweeps.pool.WorkerPool`; it
 inherits the built solver under ``fork``), each task carrying the previous
 point's result as its warm start. A point whose worker crashes (segfault,
-out-of-memory kill) or runs past ``timeout`` is recorded as failed with the
+out-of-memory kill) or runs past ``sweep.timeout`` is recorded as failed with the
 reason and retried once in a fresh worker; the sweep goes on.
 
-With ``out=DIR`` each point is saved as it is solved and a rerun resumes from
+With ``sweep.out=DIR`` each point is saved as it is solved and a rerun resumes from
 the saved points (:mod:`youbot_opt.sweeps.store`); since each point starts
 from the saved previous one, a resumed sweep gives the same points, and the
 first point's multistart (``first_starts``) is reloaded from ``DIR/first_point``.
 (The bound-scaling study lives in :mod:`youbot_opt.trajopt.bound_scaling`.)
+
+    front = pareto_sweep(solver, (0.1, 0.5, 0.9), sweep=SweepOptions(out="runs/pareto"))
 """
 
 from __future__ import annotations
@@ -29,39 +31,25 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import partial
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, process_context, run_tasks
+from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
 from youbot_opt.trajopt.objectives import check_beta
-from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.tasks import (
-    ExecutorLike,
-    Task,
-    TaskOutcome,
-    WorkerPool,
-    process_context,
-    run_tasks,
-)
-from youbot_opt.trajopt.problem import TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
-from youbot_opt.trajopt.sweep import (
-    _as_solver,
-    _init_worker_solver,
-    _SolverSpec,
-    _store_for,
-    sweep_params,
-)
-from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.trajopt.sweep import check_solver, open_store, sweep_params, worker_solver
 
 __all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFAULT_BETAS"]
 
@@ -69,8 +57,6 @@ _log = logging.getLogger(__name__)
 
 DEFAULT_BETAS: tuple[float, ...] = tuple(float(b) for b in np.round(np.arange(1, 20) / 20, 10))
 """The study's weights: 0.05, 0.10, ..., 0.95 (19 points)."""
-
-_MAX_ATTEMPTS = 2  # a point that raised or crashed its worker is retried once
 
 
 def dominated_mask(
@@ -288,14 +274,14 @@ def _solve_point(
 
 
 def _solve_point_task(
-    spec: _SolverSpec,
+    handle: WorkerSolver[TrajOptSolver],
     beta: float,
     bound_scale: float,
     previous: TrajOptResult | None,
     cold_fallback: bool,
 ) -> ParetoPoint:
     """Worker task: one weight, with this worker's (or the parent's) solver."""
-    return _solve_point(spec.solver(), beta, bound_scale, previous, cold_fallback)
+    return _solve_point(handle.get(), beta, bound_scale, previous, cold_fallback)
 
 
 def _check_betas(betas: Sequence[float] | np.ndarray) -> tuple[float, ...]:
@@ -308,7 +294,7 @@ def _check_betas(betas: Sequence[float] | np.ndarray) -> tuple[float, ...]:
 
 
 def pareto_sweep(
-    solver_or_problem: TrajOptSolver | TrajOptProblem,
+    solver: TrajOptSolver,
     betas: Sequence[float] | np.ndarray = DEFAULT_BETAS,
     *,
     bound_scale: float = 1.0,
@@ -317,21 +303,14 @@ def pareto_sweep(
     warm_start: bool = True,
     cold_fallback: bool = True,
     dominance_rtol: float = 1e-6,
-    executor: ExecutorLike = "process",
-    workers: int | None = None,
-    progress: Callable[[int, int, ParetoPoint], None] | None = None,
-    out: str | os.PathLike[str] | None = None,
-    timeout: float | None = None,
-    method: Any = "trapezoidal",
-    options: IpoptOptions | None = None,
-    backend: str = "symbolic",
+    sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> ParetoFront:
     """Solve every weight in ``betas`` in order, each warm-started from the previous one.
 
     Parameters
     ----------
-    solver_or_problem : TrajOptSolver or TrajOptProblem
-        A built solver (reused for every weight), or a problem.
+    solver : TrajOptSolver
+        The built solver (reused for every weight).
     betas : sequence of float
         Time weights in [0, 1], distinct, solved in this order (default: the
         study's 0.05 .. 0.95 step 0.05).
@@ -339,7 +318,7 @@ def pareto_sweep(
         Bound scale factor (> 0).
     first_starts : int
         If > 0, the first weight is solved by a multistart of this many seeded
-        spline starts plus the straight line (on ``executor``), keeping the
+        spline starts plus the straight line (on ``sweep.executor``), keeping the
         best; else from the straight line.
     seed : int
         Base seed of the first point's multistart.
@@ -351,18 +330,15 @@ def pareto_sweep(
         Relative tolerance below which differences in T or W are ties when
         marking dominated points (default 1e-6, above IPOPT's ``tol`` = 1e-8
         noise; 0 for the exact definition).
-    executor, workers
-        Where the first point's multistart runs (:func:`youbot_opt.sweeps.tasks.run_tasks`).
-        The points run in one persistent worker process, crash-isolated, unless
-        ``executor="serial"`` (then in this process).
-    progress : callable ``(done, total, last_point)``, optional
-        Called after each weight.
-    out : path-like, optional
-        Output directory; each point is saved as it is solved, and a rerun resumes.
-    timeout : float, optional
-        Wall-clock limit in [s] per point (and first-point start) attempt; not serial.
-    method, options, backend
-        Solver settings when a problem is given.
+    sweep : SweepOptions
+        ``executor`` and ``workers``: where the first point's multistart runs
+        (:func:`youbot_opt.sweeps.pool.run_tasks`); the points run in one
+        persistent worker process, crash-isolated, unless ``executor="serial"``
+        (then in this process). ``timeout``: wall-clock limit in [s] per point
+        (and first-point start) attempt; not serial. ``max_attempts``: per
+        point (default 2). ``out``: output directory; each point is saved as it
+        is solved, and a rerun resumes. ``progress`` ``(done, total,
+        last_point)``: called after each weight.
 
     Returns
     -------
@@ -372,12 +348,14 @@ def pareto_sweep(
     Raises
     ------
     ParameterError
-        On bad arguments, or if ``out`` holds a sweep with other parameters.
+        On bad arguments, or if ``sweep.out`` holds a sweep with other parameters.
     ResultFileError
         If a saved point is corrupted or from a newer schema.
     """
     tic = time.perf_counter()
-    solver = _as_solver(solver_or_problem, method, options, backend)
+    solver = check_solver(solver)
+    sweep = sweep.with_executor("process")
+    executor, out, max_attempts = sweep.executor, sweep.directory, sweep.max_attempts
     values = _check_betas(betas)
     bound_scale = check_bound_scale(bound_scale)
     if isinstance(first_starts, bool) or not isinstance(first_starts, int) or first_starts < 0:
@@ -395,18 +373,18 @@ def pareto_sweep(
             "warm_start": warm_start,
             "cold_fallback": cold_fallback,
         }
-        store = _store_for(Path(out), "pareto", params, solver)
+        store = open_store(out, "pareto", params, solver)
     points: list[ParetoPoint] = []
     first: MultistartResult | None = None
     previous: TrajOptResult | None = None
     resumed = 0
     fork = process_context().get_start_method() == "fork"
-    spec = _SolverSpec.of(solver, keep=executor == "serial" or fork)
+    handle = worker_solver(solver, keep=executor == "serial" or fork)
     with contextlib.ExitStack() as stack:
         pool: WorkerPool | None = None
         for k, beta in enumerate(values):
             key = f"point_{k:03d}"
-            again, attempts = (True, 0) if store is None else store.needs_work(key, _MAX_ATTEMPTS)
+            again, attempts = (True, 0) if store is None else store.needs_work(key, max_attempts)
             if k == 0 and first_starts > 0:
                 # Rerun on resume too: its own store in DIR/first_point loads every start.
                 first = run_multistart(
@@ -416,10 +394,11 @@ def pareto_sweep(
                     bound_scale=bound_scale,
                     seed=seed,
                     include_straight=True,
-                    executor=executor,
-                    workers=workers,
-                    timeout=timeout,
-                    out=None if out is None else Path(out) / "first_point",
+                    sweep=replace(
+                        sweep,
+                        out=None if out is None else out / "first_point",
+                        progress=None,
+                    ),
                 )
             if not again:
                 assert store is not None
@@ -437,28 +416,28 @@ def pareto_sweep(
             else:
                 if pool is None and executor != "serial":
                     pool = stack.enter_context(
-                        WorkerPool(1, initializer=_init_worker_solver, initargs=(spec,))
+                        WorkerPool(1, initializer=hold_solver, initargs=(handle,))
                     )
                 guess = previous if warm_start else None
                 task = Task(
                     key=key,
                     fn=_solve_point_task,
-                    args=(spec, beta, bound_scale, guess, cold_fallback),
+                    args=(handle, beta, bound_scale, guess, cold_fallback),
                     attempts=attempts,
                 )
                 outcome = run_tasks(
                     [task],
                     executor="serial" if pool is None else pool,
-                    max_attempts=_MAX_ATTEMPTS,
-                    timeout=timeout,
+                    max_attempts=max_attempts,
+                    timeout=sweep.timeout,
                     on_outcome=None if store is None else partial(_save_attempt, store),
                 )[key]
                 point = outcome.value if outcome.ok else _error_point(beta, str(outcome.error))
             points.append(point)
             if point.success and point.result is not None:
                 previous = point.result
-            if progress is not None:
-                progress(k + 1, len(values), point)
+            if sweep.progress is not None:
+                sweep.progress(k + 1, len(values), point)
     mask = dominated_mask(
         [p.duration if p.success else np.nan for p in points],
         [p.work if p.success else np.nan for p in points],

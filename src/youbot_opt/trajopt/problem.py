@@ -21,16 +21,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any
 
 import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.robot.model import (
+    BOUND_FAMILIES,
+    BoundFamily,
+    JointBounds,
+    RobotModel,
+    check_bound_scale,
+)
 from youbot_opt.trajopt.objectives import Objective
-
-if TYPE_CHECKING:
-    from youbot_opt.robot.model import RobotModel
 
 __all__ = [
     "BoundaryState",
@@ -38,11 +42,9 @@ __all__ = [
     "JointBounds",
     "TrajOptProblem",
     "check_bound_scale",
-    "study1_problem",
 ]
 
-BoundFamily = Literal["position", "velocity", "torque"]
-_FAMILIES: tuple[str, ...] = ("position", "velocity", "torque")
+_FAMILIES: tuple[str, ...] = BOUND_FAMILIES
 
 
 def _vector(name: str, value: Any, size: int | None = None) -> Array:
@@ -62,29 +64,6 @@ def _vector(name: str, value: Any, size: int | None = None) -> Array:
         raise ParameterError(f"{name} must be finite, got {arr.tolist()}", name=name, value=arr)
     arr.setflags(write=False)
     return arr
-
-
-def check_bound_scale(bound_scale: float) -> float:
-    """Validate a bound scale factor (1.0 = data sheet, must be > 0).
-
-    Raises
-    ------
-    ParameterError
-        If ``bound_scale`` is not a finite number > 0.
-    """
-    try:
-        value = float(bound_scale)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(
-            f"bound_scale must be a number > 0, got {bound_scale!r}", name="bound_scale"
-        ) from exc
-    if not math.isfinite(value) or value <= 0.0:
-        raise ParameterError(
-            f"bound_scale must be finite and > 0 (1.0 = data sheet), got {bound_scale!r}",
-            name="bound_scale",
-            value=bound_scale,
-        )
-    return value
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -113,42 +92,6 @@ class BoundaryState:
         """Joint velocities in [rad/s] (never None after construction)."""
         assert self.v is not None
         return self.v
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class JointBounds:
-    """Box bounds on the knot values, already scaled.
-
-    Attributes
-    ----------
-    q_lower, q_upper : ndarray, shape (nv,)
-        Position bounds in [rad].
-    v_lower, v_upper : ndarray, shape (nv,)
-        Velocity bounds in [rad/s].
-    tau_lower, tau_upper : ndarray, shape (nv,)
-        Torque bounds in [N m].
-    """
-
-    q_lower: Array
-    q_upper: Array
-    v_lower: Array
-    v_upper: Array
-    tau_lower: Array
-    tau_upper: Array
-
-    def violation(self, q: Array, v: Array, tau: Array) -> float:
-        """Largest bound violation (>= 0) of knot-major arrays, in their units."""
-        worst = 0.0
-        for x, lo, hi in (
-            (q, self.q_lower, self.q_upper),
-            (v, self.v_lower, self.v_upper),
-            (tau, self.tau_lower, self.tau_upper),
-        ):
-            x = np.atleast_2d(x)
-            worst = max(
-                worst, float(np.max(lo - x, initial=0.0)), float(np.max(x - hi, initial=0.0))
-            )
-        return worst
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -261,22 +204,7 @@ class TrajOptProblem:
         JointBounds
             Position [rad], velocity [rad/s] and torque [N m] bounds.
         """
-        s = check_bound_scale(bound_scale)
-        r = self.robot
-
-        def fam(name: str) -> float:
-            return s if name in self.scaled_bounds else 1.0
-
-        vmax = fam("velocity") * np.asarray(r.velocity_limit, dtype=float)
-        tmax = fam("torque") * np.asarray(r.effort_limit, dtype=float)
-        return JointBounds(
-            q_lower=fam("position") * np.asarray(r.q_lower, dtype=float),
-            q_upper=fam("position") * np.asarray(r.q_upper, dtype=float),
-            v_lower=-vmax,
-            v_upper=vmax,
-            tau_lower=-tmax,
-            tau_upper=tmax,
-        )
+        return self.robot.bounds(bound_scale, families=self.scaled_bounds)
 
     def check_boundary(
         self,
@@ -332,49 +260,3 @@ class TrajOptProblem:
             "damping": self.damping,
             "model_damping": np.asarray(self.robot.damping, dtype=float).tolist(),
         }
-
-
-def study1_problem(
-    n_knots: int = 50,
-    *,
-    robot: RobotModel | None = None,
-    beta: float = 0.5,
-    damping: float | None = None,
-    **kwargs: Any,
-) -> TrajOptProblem:
-    """Return the study-1 problem: youBot from (-pi/6, -pi/6, -pi/3) to (pi/6, pi/6, pi/3) at rest.
-
-    Parameters
-    ----------
-    n_knots : int
-        Number of knots (the study: 50).
-    robot : RobotModel, optional
-        The planar youBot; loaded with :func:`youbot_opt.robot.model.load_model` when omitted.
-    beta : float
-        Default time weight in [0, 1] (the base case: 0.5).
-    damping : float, optional
-        Joint damping in [N m s/rad] for the loaded youBot (the study's code
-        used 0.1; the paper and the default model have none). Ignored when
-        ``robot`` is given.
-    **kwargs
-        Further :class:`TrajOptProblem` fields (``duration``, ``scaled_bounds``, ...).
-
-    Returns
-    -------
-    TrajOptProblem
-        The problem, with both boundary velocities zero.
-    """
-    from youbot_opt.robot.params import STUDY_Q_GOAL, STUDY_Q_START
-
-    if robot is None:
-        from youbot_opt.robot.model import load_model
-
-        robot = load_model("youbot", damping=damping)
-    return TrajOptProblem(
-        robot=robot,
-        start=BoundaryState(q=np.array(STUDY_Q_START)),
-        goal=BoundaryState(q=np.array(STUDY_Q_GOAL)),
-        n_knots=n_knots,
-        objective=Objective(beta=beta),
-        **kwargs,
-    )

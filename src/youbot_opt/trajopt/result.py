@@ -50,18 +50,21 @@ its signed multiplier.
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import SolveFailed
+from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
+from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
+from youbot_opt.robot.model import JointBounds
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
@@ -71,55 +74,13 @@ __all__ = [
     "BoundStructure",
     "PathBlock",
     "ResultCheck",
-    "check_result",
+    "SolveStats",
     "status_from_ipopt",
     "DEFAULT_FEASIBILITY_TOL",
 ]
 
 DEFAULT_FEASIBILITY_TOL = 1e-6
 """Largest constraint or bound violation a successful result may have (units of each row)."""
-
-
-class SolveStatus(enum.Enum):
-    """How a solve ended (``success`` only for the first two)."""
-
-    SOLVED = "solved"
-    """IPOPT converged to ``tol`` and the solution passed the independent checks."""
-    SOLVED_ACCEPTABLE = "solved_acceptable"
-    """IPOPT converged to its ``acceptable_tol`` level; checks passed."""
-    MAX_ITERATIONS = "max_iterations"
-    """Iteration cap reached; the last iterate is returned."""
-    MAX_TIME = "max_time"
-    """CPU- or wall-time cap reached."""
-    INFEASIBLE = "infeasible"
-    """IPOPT detected local infeasibility (e.g. torque bounds too tight)."""
-    NON_FINITE = "non_finite"
-    """NaN or inf in the solution, objective or constraints."""
-    CONSTRAINT_VIOLATION = "constraint_violation"
-    """IPOPT reported convergence but the solution violates constraints or bounds."""
-    FAILED = "failed"
-    """Any other solver failure (restoration failed, error in evaluation, ...)."""
-
-    @property
-    def success(self) -> bool:
-        """True for :attr:`SOLVED` and :attr:`SOLVED_ACCEPTABLE`."""
-        return self in (SolveStatus.SOLVED, SolveStatus.SOLVED_ACCEPTABLE)
-
-
-_IPOPT_STATUS: dict[str, SolveStatus] = {
-    "Solve_Succeeded": SolveStatus.SOLVED,
-    "Solved_To_Acceptable_Level": SolveStatus.SOLVED_ACCEPTABLE,
-    "Maximum_Iterations_Exceeded": SolveStatus.MAX_ITERATIONS,
-    "Maximum_CpuTime_Exceeded": SolveStatus.MAX_TIME,
-    "Maximum_WallTime_Exceeded": SolveStatus.MAX_TIME,
-    "Infeasible_Problem_Detected": SolveStatus.INFEASIBLE,
-    "Invalid_Number_Detected": SolveStatus.NON_FINITE,
-}
-
-
-def status_from_ipopt(return_status: str) -> SolveStatus:
-    """Map IPOPT's ``return_status`` string to a :class:`SolveStatus`."""
-    return _IPOPT_STATUS.get(return_status, SolveStatus.FAILED)
 
 
 class ActiveBound(NamedTuple):
@@ -186,6 +147,62 @@ class BoundStructure(NamedTuple):
     path: Mapping[str, PathBlock]
 
 
+class ResultCheck(NamedTuple):
+    """Verdict of :meth:`TrajOptResult.check`: the status a result deserves and why.
+
+    Attributes
+    ----------
+    status : SolveStatus
+        IPOPT's status (from ``solver_status``), downgraded when a check fails.
+    message : str
+        What failed (empty if nothing did).
+    finite : bool
+        Every variable and reported figure is finite.
+    bound_violation : float
+        Largest excess of a variable over its bound (``dt`` too), in its unit.
+    boundary_violation : float
+        Largest deviation of the first and last knot from start and goal, [rad] or [rad/s].
+    defect : float
+        Largest collocation defect by ``pin.aba`` (not CasADi), [rad] or [rad/s];
+        NaN for a transcription other than trapezoidal and Hermite-Simpson.
+    """
+
+    status: SolveStatus
+    message: str
+    finite: bool
+    bound_violation: float
+    boundary_violation: float
+    defect: float
+
+    @property
+    def passed(self) -> bool:
+        """Whether :attr:`status` is a success."""
+        return self.status.success
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SolveStats:
+    """What IPOPT reported about one solve (not about the solution).
+
+    Attributes
+    ----------
+    solver_status : str
+        IPOPT's own ``return_status`` string (``"error"`` if the call raised).
+    iterations : int
+        IPOPT iterations.
+    wall_time, cpu_time : float
+        Time spent in the solve call (not the NLP build) in [s].
+    objective_history : ndarray, shape (iterations + 1,)
+        IPOPT's objective per iteration (from ``stats()["iterations"]["obj"]``).
+    """
+
+    solver_status: str
+    iterations: int = 0
+    wall_time: float = 0.0
+    cpu_time: float = 0.0
+    objective_history: Array = field(default_factory=lambda: np.zeros(0))
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class TrajOptResult:
     """Solution (or best iterate) of one trajectory solve.
@@ -202,8 +219,6 @@ class TrajOptResult:
         Outcome; see :attr:`success`.
     message : str
         Human-readable outcome (IPOPT's return status and any failed check).
-    solver_status : str
-        IPOPT's own ``return_status`` string.
     trajectory : Trajectory or None
         Time grid [s], q [rad], v [rad/s], a [rad/s^2], tau [N m]; ``None``
         only if the iterate is not finite.
@@ -221,12 +236,9 @@ class TrajOptResult:
         Time weight and bound scale factor of this solve.
     start, goal : BoundaryState
         Boundary states of this solve.
-    iterations : int
-        IPOPT iterations.
-    wall_time, cpu_time : float
-        Time spent in the solve call (not the NLP build) in [s].
-    objective_history : ndarray, shape (iterations + 1,)
-        IPOPT's objective per iteration (from ``stats()["iterations"]["obj"]``).
+    stats : SolveStats
+        IPOPT's report: ``solver_status``, ``iterations``, ``wall_time``,
+        ``cpu_time``, ``objective_history`` (each also a property of the result).
     max_violation : float
         Largest violation of any equality (defects, boundary conditions) or
         bound, recomputed from the solution (units of each constraint).
@@ -240,16 +252,18 @@ class TrajOptResult:
         Seed of the random guess, when one was used.
     feasibility_tol : float
         Largest violation (units of each constraint) a successful result may
-        have; :func:`check_result` applies it. The solver passes its own
+        have; :meth:`check` applies it. The solver passes its own
         ``TrajOptSolver(feasibility_tol=...)``.
     bound_structure : BoundStructure or None
         The NLP's unbounded blocks and path-inequality rows, as the solver
         built them; ``None`` (e.g. a loaded result) re-derives them from the
         transcription named by :attr:`method` (:meth:`bound_structure_of`).
 
-    A success claim is re-checked on construction by :func:`check_result` (also
-    after ``dataclasses.replace`` or loading); if the check fails, its status
-    and message replace :attr:`status` and :attr:`message`.
+    Constructing a result does no work. The solver and
+    :func:`~youbot_opt.trajopt.io.load_result` run the independent check
+    (:func:`youbot_opt.trajopt.check.checked`) and set :attr:`status` and
+    :attr:`message` from it; :meth:`check` re-runs it on demand (e.g. after
+    ``dataclasses.replace``).
     """
 
     problem: TrajOptProblem
@@ -257,7 +271,6 @@ class TrajOptResult:
     backend: str
     status: SolveStatus
     message: str
-    solver_status: str
     trajectory: Trajectory | None
     variables: Mapping[str, Array]
     duration: float
@@ -268,10 +281,7 @@ class TrajOptResult:
     bound_scale: float
     start: BoundaryState
     goal: BoundaryState
-    iterations: int
-    wall_time: float
-    cpu_time: float
-    objective_history: Array
+    stats: SolveStats
     max_violation: float
     multipliers: Mapping[str, Array]
     guess: Trajectory | None = None
@@ -280,15 +290,56 @@ class TrajOptResult:
     feasibility_tol: float = DEFAULT_FEASIBILITY_TOL
     bound_structure: BoundStructure | None = field(default=None, compare=False)
 
-    def __post_init__(self) -> None:
-        if not self.status.success:
-            return
-        from youbot_opt.trajopt.check import check_result
+    @property
+    def solver_status(self) -> str:
+        """IPOPT's own ``return_status`` string (:attr:`SolveStats.solver_status`)."""
+        return self.stats.solver_status
 
-        check = check_result(self)
-        if not check.passed:
-            object.__setattr__(self, "status", check.status)
-            object.__setattr__(self, "message", f"{self.message}; {check.message}")
+    @property
+    def iterations(self) -> int:
+        """IPOPT iterations (:attr:`SolveStats.iterations`)."""
+        return self.stats.iterations
+
+    @property
+    def wall_time(self) -> float:
+        """Wall time of the solve call in [s] (:attr:`SolveStats.wall_time`)."""
+        return self.stats.wall_time
+
+    @property
+    def cpu_time(self) -> float:
+        """CPU time of the solve call in [s] (:attr:`SolveStats.cpu_time`)."""
+        return self.stats.cpu_time
+
+    @property
+    def objective_history(self) -> Array:
+        """IPOPT's objective per iteration (:attr:`SolveStats.objective_history`)."""
+        return self.stats.objective_history
+
+    def check(self, *, feasibility_tol: float | None = None) -> ResultCheck:
+        """Re-check the result independently of IPOPT's flag and of the NLP.
+
+        Starts from IPOPT's own status (:attr:`solver_status`) and downgrades it
+        when the stored solution is not finite (:attr:`SolveStatus.NON_FINITE`),
+        malformed or inconsistent with its reported duration, work or objective
+        (:attr:`SolveStatus.FAILED`), or -- for a converged solve -- violates a
+        variable bound, a boundary state or a collocation defect by more than
+        ``feasibility_tol`` (:attr:`SolveStatus.CONSTRAINT_VIOLATION`). The
+        defects are recomputed from the decision variables with Pinocchio's
+        ``pin.aba`` (:func:`~youbot_opt.trajopt.simulate.batched_aba`), not with
+        the CasADi dynamics inside the NLP. The result itself is not changed.
+
+        Parameters
+        ----------
+        feasibility_tol : float, optional
+            Largest accepted violation in the unit of each row ([rad], [rad/s],
+            [N m], [s]); :attr:`feasibility_tol` by default.
+
+        Returns
+        -------
+        ResultCheck
+            The status the result deserves, with the measured figures.
+        """
+        return _check(self, feasibility_tol)
 
     @property
     def success(self) -> bool:
@@ -323,9 +374,7 @@ class TrajOptResult:
         """
         if self.bound_structure is not None:
             return self.bound_structure
-        from youbot_opt.trajopt.check import derive_structure
-
-        return derive_structure(self)
+        return _derive_structure(self)
 
     def active_bounds(self, tol: float = 1e-6) -> list[ActiveBound]:
         """Bounds of the NLP within ``tol`` of their row (the study's Appendix C).
@@ -419,5 +468,171 @@ class TrajOptResult:
         }
 
 
-# Re-exported for the callers that import them from here.
-from youbot_opt.trajopt.check import ResultCheck, check_result  # noqa: E402
+def _transcription_named(method: str) -> Any:
+    """Return the transcription named ``method``, or None if it is not registered."""
+    from youbot_opt.trajopt.transcription import get_transcription  # imports CasADi
+
+    try:
+        return get_transcription(method)
+    except ParameterError:
+        return None
+
+
+def _derive_structure(result: TrajOptResult) -> BoundStructure:
+    """Return the :class:`BoundStructure` of a result, from its transcription's name.
+
+    Parameters
+    ----------
+    result : TrajOptResult
+        A result whose :attr:`~TrajOptResult.bound_structure` was not stored
+        (for example one loaded from a file).
+
+    Returns
+    -------
+    BoundStructure
+        The unbounded variable blocks and the path-inequality rows of the NLP.
+    """
+    import casadi as ca
+
+    from youbot_opt.trajopt.transcription.base import Transcription
+
+    method = _transcription_named(result.method)
+    if method is None:
+        return BoundStructure(unbounded=(), path=MappingProxyType({}))
+    unbounded = tuple(method.unbounded)
+    if type(method).path_constraints is Transcription.path_constraints:  # none
+        return BoundStructure(unbounded=unbounded, path=MappingProxyType({}))
+    aba = batched_aba(result.problem.robot, damping=result.problem.damping)
+    sym = {k: ca.DM(np.asarray(x, dtype=float).T) for k, x in result.variables.items()}
+    accel: dict[str, Any] = {}
+    for group, (q, v, tau) in method.dynamics_points(sym).items():
+        qn, vn, taun = (np.asarray(x, dtype=float).T for x in (q, v, tau))
+        accel[group] = ca.DM(np.asarray(aba(qn, vn, taun)).reshape(vn.shape).T)
+    path = {
+        name: PathBlock(family=family, values=np.asarray(expr, dtype=float).T)
+        for name, family, expr in method.path_constraints(sym, accel)
+    }
+    return BoundStructure(unbounded=unbounded, path=MappingProxyType(path))
+
+
+def _excess(x: Array, lower: Any, upper: Any) -> float:
+    return float(np.max(np.maximum(lower - x, x - upper), initial=0.0))
+
+
+def _defects(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float | None:
+    """Largest collocation defect, with accelerations from ``pin.aba`` (independent path)."""
+    problem = result.problem
+    aba = batched_aba(problem.robot, damping=problem.damping)
+    q, qd, tau = v["q"], v["v"], v["tau"]
+    a = aba(q, qd, tau).reshape(qd.shape)
+    rows: tuple[Array, ...]
+    if result.method == "hermite_simpson":
+        qm, vm = v["q_mid"], v["v_mid"]
+        am = aba(qm, vm, v["tau_mid"]).reshape(vm.shape)
+        rows = (
+            q[1:] - q[:-1] - dt / 6.0 * (qd[:-1] + 4.0 * vm + qd[1:]),
+            qd[1:] - qd[:-1] - dt / 6.0 * (a[:-1] + 4.0 * am + a[1:]),
+            qm - 0.5 * (q[:-1] + q[1:]) - dt / 8.0 * (qd[:-1] - qd[1:]),
+            vm - 0.5 * (qd[:-1] + qd[1:]) - dt / 8.0 * (a[:-1] - a[1:]),
+        )
+    elif result.method == "trapezoidal":
+        rows = (
+            q[1:] - q[:-1] - 0.5 * dt * (qd[:-1] + qd[1:]),
+            qd[1:] - qd[:-1] - 0.5 * dt * (a[:-1] + a[1:]),
+        )
+    else:  # another transcription (e.g. the study code's): no independent defect rule here
+        return None
+    return max(float(np.max(np.abs(r), initial=0.0)) for r in rows)
+
+
+def _work(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float:
+    """``W`` by the transcription's quadrature, written out here."""
+    p = np.sum(v["tau"] ** 2, axis=1)
+    if result.method == "hermite_simpson":
+        pm = np.sum(v["tau_mid"] ** 2, axis=1)
+        return float(dt / 6.0 * np.sum(p[:-1] + 4.0 * pm + p[1:]))
+    return float(0.5 * dt * np.sum(p[:-1] + p[1:]))
+
+
+def _check(result: TrajOptResult, feasibility_tol: float | None) -> ResultCheck:
+    """:meth:`TrajOptResult.check` (see there)."""
+    tol = result.feasibility_tol if feasibility_tol is None else float(feasibility_tol)
+    base = status_from_ipopt(result.solver_status)
+    inf = math.inf
+
+    def fail(status: SolveStatus, why: str, finite: bool = True) -> ResultCheck:
+        return ResultCheck(status, why, finite, inf, inf, inf)
+
+    problem = result.problem
+    n, nv = problem.n_knots, problem.nv
+    shapes = {"q": (n, nv), "v": (n, nv), "tau": (n, nv), "dt": (1, 1)}
+    if result.method == "hermite_simpson":
+        shapes.update({"q_mid": (n - 1, nv), "v_mid": (n - 1, nv), "tau_mid": (n - 1, nv)})
+    try:
+        v = {k: np.asarray(result.variables[k], dtype=float) for k in shapes}
+    except (KeyError, TypeError, ValueError) as exc:
+        return fail(SolveStatus.FAILED, f"malformed result: variables lack {exc}")
+    bad = {k: x.shape for k, x in v.items() if x.shape != shapes[k]}
+    if bad:
+        return fail(SolveStatus.FAILED, f"malformed result: variable shapes {bad}, want {shapes}")
+    names = ("objective", "duration", "dt", "work", "max_violation")
+    scalars = {name: getattr(result, name) for name in names}
+    nonfinite = [k for k, x in v.items() if not np.all(np.isfinite(x))]
+    nonfinite += [k for k, x in scalars.items() if not math.isfinite(x)]
+    if nonfinite:
+        why = f"non-finite values in {', '.join(nonfinite)}"
+        return fail(SolveStatus.NON_FINITE, why, finite=False)
+    dt = float(v["dt"][0, 0])
+    b = problem.bounds(result.bound_scale)
+    dt_lo, dt_hi = problem.dt_min, problem.dt_max
+    if problem.duration is not None:
+        dt_lo = dt_hi = problem.duration / (n - 1)
+    # Knot values only: midpoint bounds depend on the transcription (HS leaves v_mid free).
+    bound = max(_excess(v["q"], b.q_lower, b.q_upper), _excess(v["v"], b.v_lower, b.v_upper))
+    bound = max(bound, _excess(v["tau"], b.tau_lower, b.tau_upper))
+    bound = max(bound, _excess(np.array(dt), dt_lo, dt_hi))
+    start_v, goal_v = result.start.velocity, result.goal.velocity
+    boundary = max(
+        float(np.max(np.abs(d)))
+        for d in (
+            v["q"][0] - result.start.q, v["v"][0] - start_v,
+            v["q"][-1] - result.goal.q, v["v"][-1] - goal_v,
+        )
+    )  # fmt: skip
+    if not dt > 0.0:
+        why, status = f"time step dt = {dt:.3g} s <= 0", SolveStatus.CONSTRAINT_VIOLATION
+        return ResultCheck(status if base.success else base, why, True, bound, boundary, inf)
+    try:
+        found = _defects(result, v, dt)
+    except (ValueError, TypeError) as exc:  # a robot of another size
+        return fail(SolveStatus.FAILED, f"malformed result: {exc}")
+    defect = math.nan if found is None else found  # NaN: not checked
+    figures = (True, bound, boundary, defect)
+    if found is not None and not math.isfinite(found):
+        return ResultCheck(SolveStatus.NON_FINITE, "non-finite dynamics at the solution", *figures)
+    # Reported figures = those of the variables (1e-9 relative: summation order only).
+    work = _work(result, v, dt)
+    expected = {
+        "duration": (n - 1) * dt,
+        "work": work,
+        "objective": result.beta * (n - 1) * dt + (1.0 - result.beta) * work,
+    }
+    wrong = [
+        f"{k} = {scalars[k]:.9g} but the variables give {x:.9g}"
+        for k, x in expected.items()
+        if not abs(scalars[k] - x) <= 1e-9 * max(1.0, abs(x))
+    ]
+    worst = {"bound": bound, "boundary state": boundary, "collocation defect": defect}
+    over = [
+        f"{k} violated by {x:.3g}" for k, x in worst.items() if x > tol or math.isinf(x)
+    ]  # NaN: unchecked
+    if result.trajectory is None:
+        over.append("no trajectory")
+    elif not np.array_equal(result.trajectory.q, v["q"]):
+        over.append("trajectory knots differ from the variables")
+    if base.success and over:
+        msg = ", ".join(over + wrong) + f" (feasibility_tol = {tol:.3g})"
+        return ResultCheck(SolveStatus.CONSTRAINT_VIOLATION, msg, *figures)
+    if wrong:
+        return ResultCheck(SolveStatus.FAILED, "inconsistent result: " + "; ".join(wrong), *figures)
+    return ResultCheck(base, "", *figures)

@@ -1,42 +1,22 @@
 """Forward simulation of a planned trajectory with Pinocchio's numeric ABA.
 
-The code path :mod:`youbot_opt.trajopt.certify` checks plans with, independent of the
-collocation equations: ``pin.aba`` for the accelerations, SciPy's adaptive
-``solve_ivp`` (DOP853) for the integration. ``pin.aba`` ignores
-``model.damping``, so the damping ``b`` [N m s/rad] is applied as a torque,
-``a = ABA(q, v, tau - b * v)``, the model of the transcriptions.
+Owns the code path :mod:`youbot_opt.trajopt.certify` and
+:mod:`youbot_opt.trajopt.check` verify plans with, independent of the
+collocation equations (spec ``trajopt.md``, "prove each trajectory by forward
+simulation"): :func:`batched_aba` (``a = ABA(q, v, tau - b v)``, damping as a
+torque), :func:`integrate_intervals` (one interval from every knot) and
+:func:`simulate` (the whole motion, open loop or with :class:`PDGains`), all
+integrated by SciPy's ``solve_ivp``. Robots with ``nq == nv`` only.
 
-Two simulations of the whole motion are provided (the one-interval *local*
-check, :func:`youbot_opt.trajopt.certify.integrate_intervals`, shares the helpers):
-
-* :func:`simulate` with ``gains=None``: the open-loop simulation of the whole
-  motion from the first knot. The arm is open-loop unstable about most
-  motions, so this drifts from any plan, valid or not; it is reported but is
-  not a test of validity. ``stop_deviation`` ends it once the arm is that far
-  from the plan (further figures would measure chaos, not the plan).
-* :func:`simulate` with :class:`PDGains`: the arm follows the plan with a PD
-  feedback torque added to the planned torque,
-  ``tau = tau_plan(t) + Kp (q_plan(t) - q) + Kd (v_plan(t) - v)``, with gain
-  matrices scaled by the joint-space inertia (see :class:`PDGains`). A plan
-  the arm can follow needs little feedback.
-
-Inside an interval, every interpolant of :class:`~youbot_opt.trajopt.trajectory.Trajectory`
-is a polynomial of degree <= 3 in time. Calling the trajectory at every
-right-hand-side evaluation would dominate the cost, so each interval's
-polynomials are recovered once from four samples of the trajectory's own
-interpolants and checked at two more points (an interpolant of higher
-degree is refused with :class:`~youbot_opt.exceptions.ParameterError`). The
-feedback law is folded into these polynomials too, so a right-hand side costs
-one small matrix product and one ``pin.aba`` call.
-
-Only robots with ``nq == nv`` (revolute and prismatic joints) are supported.
+>>> sim = simulate(result.trajectory, robot, gains=PDGains())  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -44,16 +24,20 @@ from scipy.integrate import solve_ivp
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.robot.model import RobotModel, as_robot_model
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
-    "RobotView",
     "PDGains",
+    "RobotLike",
     "Simulation",
+    "batched_aba",
+    "integrate_intervals",
     "simulate",
-    "robot_view",
     "sample_times",
 ]
+
+AbaFunction = Callable[[Array, Array, Array], Array]
 
 _LOG = logging.getLogger(__name__)
 
@@ -63,126 +47,89 @@ DEFAULT_ATOL = 1e-12
 """Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
 
 
-class RobotView(NamedTuple):
-    """What the simulations need from a robot, with the limits in SI units.
-
-    Attributes
-    ----------
-    name : str
-        Robot name (the model's name for a bare ``pin.Model``).
-    model : pinocchio.Model
-        The kinematic and inertial model.
-    damping : ndarray, shape (nv,)
-        Viscous joint damping in [N m s/rad].
-    q_lower, q_upper : ndarray, shape (nq,)
-        Position limits in [rad].
-    velocity_limit : ndarray, shape (nv,)
-        Speed limits in [rad/s] (symmetric).
-    effort_limit : ndarray, shape (nv,)
-        Torque limits in [N m] (symmetric).
-    """
-
-    name: str
-    model: Any
-    damping: Array
-    q_lower: Array
-    q_upper: Array
-    velocity_limit: Array
-    effort_limit: Array
+RobotLike = RobotModel | pin.Model
+"""A :class:`~youbot_opt.robot.model.RobotModel` or a bare ``pinocchio.Model`` (wrapped)."""
 
 
-def robot_view(robot: Any) -> RobotView:
-    """Collect the model, damping and limits of a robot in one view.
-
-    Parameters
-    ----------
-    robot : RobotModel, pinocchio.Model or RobotView
-        A :class:`youbot_opt.robot.model.RobotModel` (anything with ``.model`` holding a
-        ``pin.Model`` and the SI limit properties), a bare ``pin.Model``, whose
-        ``damping``, ``lowerPositionLimit``, ``upperPositionLimit``,
-        ``velocityLimit`` and ``effortLimit`` are used, or a view (returned as is).
-
-    Returns
-    -------
-    RobotView
-        The model with float copies of its damping [N m s/rad] and limits.
-
-    Raises
-    ------
-    ParameterError
-        If ``robot`` is neither, or if ``nq != nv``.
-    """
-    if isinstance(robot, RobotView):
-        view = robot
-    else:
-        bare = isinstance(robot, pin.Model)
-        model = robot if bare else getattr(robot, "model", None)
-        if not isinstance(model, pin.Model):
-            raise ParameterError(
-                f"robot must be a RobotModel (with a pin.Model in .model) or a pin.Model, "
-                f"got {type(robot).__name__}",
-                name="robot",
-                value=type(robot).__name__,
-            )
-        src = model if bare else robot
-        names = ("q_lower", "q_upper", "velocity_limit", "effort_limit")
-        pin_names = ("lowerPositionLimit", "upperPositionLimit", "velocityLimit", "effortLimit")
-        damping = getattr(src, "damping", None)
-        view = RobotView(
-            name=str(model.name if bare else getattr(robot, "name", model.name)),
-            model=model,
-            damping=np.array(model.damping if damping is None else damping, dtype=float),
-            **{
-                name: np.array(getattr(src, pin_name if bare else name), dtype=float)
-                for name, pin_name in zip(names, pin_names, strict=True)
-            },
-        )
-    model = view.model
+def _robot(robot: RobotLike) -> RobotModel:
+    """``robot`` as a RobotModel with nq == nv, else ParameterError."""
+    model = as_robot_model(robot)
     if model.nq != model.nv:
         raise ParameterError(
-            f"robot {view.name!r} has nq = {model.nq} != nv = {model.nv}; forward "
+            f"robot {model.name!r} has nq = {model.nq} != nv = {model.nv}; forward "
             "simulation supports revolute and prismatic joints only",
             name="robot",
             value=(model.nq, model.nv),
         )
-    return view
+    return model
 
 
-def _check_dimensions(trajectory: Trajectory, view: RobotView) -> None:
-    nq, nv = view.model.nq, view.model.nv
+def _damping(robot: RobotModel, damping: bool) -> Array:
+    """Joint damping [N m s/rad] that acts: the model's, or zeros."""
+    b = np.array(robot.damping, dtype=float)
+    return b if damping else np.zeros_like(b)
+
+
+def _check_dimensions(trajectory: Trajectory, robot: RobotModel) -> None:
+    nq, nv = robot.nq, robot.nv
     if trajectory.q.shape[1] != nq or trajectory.v.shape[1] != nv:
         raise ParameterError(
             f"trajectory has nq = {trajectory.q.shape[1]}, nv = {trajectory.v.shape[1]} but "
-            f"robot {view.name!r} has nq = {nq}, nv = {nv}",
+            f"robot {robot.name!r} has nq = {nq}, nv = {nv}",
             name="trajectory",
             value=trajectory.q.shape,
         )
 
 
-def _damped_aba(view: RobotView) -> Any:
-    """``(q, v, tau) -> ABA(q, v, tau - b * v)`` for one state."""
-    model, data, damping = view.model, view.model.createData(), view.damping
+def batched_aba(robot: RobotLike, *, damping: bool = True) -> AbaFunction:
+    """Forward dynamics ``(q, v, tau) -> ABA(q, v, tau - b v)`` of knot-major stacks.
 
-    def fd(q: Array, v: Array, tau: Array) -> Array:
-        return np.asarray(pin.aba(model, data, q, v, tau - damping * v))
+    Pinocchio's numeric ABA (``abaInParallel`` when available, else one
+    ``pin.aba`` call per row); the viscous damping ``b`` is applied as a torque
+    because ``pin.aba`` ignores ``model.damping``.
 
-    return fd
+    Parameters
+    ----------
+    robot : RobotModel or pinocchio.Model
+        The robot (``nq == nv``).
+    damping : bool, optional
+        Apply the model's joint damping ``b`` [N m s/rad]; False uses ``b = 0``.
 
+    Returns
+    -------
+    callable
+        ``f(q, v, tau)`` taking arrays of shape (n, nv) -- positions [rad],
+        velocities [rad/s], torques [N m] -- and returning accelerations
+        [rad/s^2] of shape (n, nv) (shape (n,) when ``nv == 1`` and
+        ``abaInParallel`` is used).
 
-def _batched_aba(view: RobotView) -> Any:
-    """``(q, v, tau) -> ABA(q, v, tau - b * v)`` for knot-major stacks of shape (n, nv)."""
-    damping = view.damping
+    Raises
+    ------
+    ParameterError
+        If ``robot`` is not a robot or has ``nq != nv``.
+    """
+    robot = _robot(robot)
+    model, b = robot.model, _damping(robot, damping)
     if hasattr(pin, "abaInParallel"):
-        pool = pin.ModelPool(view.model, 1)
+        pool = pin.ModelPool(model, 1)
 
         def batch(q: Array, v: Array, tau: Array) -> Array:
             # Pinocchio's batched ABA takes column-major (nv, n) stacks.
-            out = pin.abaInParallel(1, pool, q.T, v.T, (tau - damping * v).T)
+            out = pin.abaInParallel(1, pool, q.T, v.T, (tau - b * v).T)
             return np.asarray(out).reshape(q.shape[1], q.shape[0]).T  # 1-D when nv == 1
 
         return batch
-    single = _damped_aba(view)
-    return lambda q, v, tau: np.array([single(*row) for row in zip(q, v, tau, strict=True)])
+    data = model.createData()
+
+    def rows(q: Array, v: Array, tau: Array) -> Array:
+        return np.array(
+            [
+                pin.aba(model, data, qk, vk, tk - b * vk)
+                for qk, vk, tk in zip(q, v, tau, strict=True)
+            ]
+        )
+
+    return rows
 
 
 # Chebyshev–Lobatto nodes of degree 3 on [0, 1], and two check points.
@@ -275,13 +222,13 @@ class PDGains:
                     value=value,
                 )
 
-    def matrices(self, robot: Any, q: Array) -> tuple[Array, Array]:
+    def matrices(self, robot: RobotLike, q: Array) -> tuple[Array, Array]:
         """Gain matrices at configurations ``q``.
 
         Parameters
         ----------
-        robot : RobotModel, pinocchio.Model or RobotView
-            The robot (see :func:`robot_view`).
+        robot : RobotModel or pinocchio.Model
+            The robot.
         q : ndarray, shape (M, nq)
             Configurations in [rad].
 
@@ -292,10 +239,10 @@ class PDGains:
         kd : ndarray, shape (M, nv, nv)
             Velocity gains in [N m s/rad].
         """
-        view = robot_view(robot)
-        data = view.model.createData()
+        model = as_robot_model(robot).model
+        data = model.createData()
         qs = np.atleast_2d(np.asarray(q, dtype=float))
-        mass = np.array([pin.crba(view.model, data, qk) for qk in qs])
+        mass = np.array([pin.crba(model, data, qk) for qk in qs])
         # crba fills the upper triangle only.
         mass = np.triu(mass) + np.swapaxes(np.triu(mass, 1), 1, 2)
         w = self.bandwidth
@@ -367,10 +314,79 @@ def sample_times(t: Array, samples_per_interval: int) -> Array:
     return np.append(inner, t[-1])
 
 
+def integrate_intervals(
+    trajectory: Trajectory,
+    robot: RobotLike,
+    *,
+    damping: bool = True,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+    method: str = "DOP853",
+) -> tuple[Array, Array]:
+    """Integrate every interval from its left knot's state under the plan's torque.
+
+    Interval ``k`` starts at ``(q[k], v[k])`` at time ``t[k]`` and runs to
+    ``t[k + 1]`` under ``trajectory.torque(t)``. The intervals are stacked into one
+    ODE in normalised time ``s in [0, 1]`` (``t = t[k] + s h[k]``), so the
+    integrator's error norm is taken over all intervals together.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The plan, with N knots.
+    robot : RobotModel or pinocchio.Model
+        The robot the plan is for (``nq == nv``).
+    damping : bool, optional
+        Apply the robot's joint damping ``b`` [N m s/rad] (``tau - b v``).
+    rtol : float, optional
+        Relative tolerance of ``solve_ivp``.
+    atol : float, optional
+        Absolute tolerance of ``solve_ivp`` in [rad] and [rad/s].
+    method : str, optional
+        ``solve_ivp`` method (an explicit Runge–Kutta method is expected).
+
+    Returns
+    -------
+    q_end : ndarray, shape (N - 1, nq)
+        Simulated positions in [rad] at ``t[1:]`` (NaN if the integrator failed).
+    v_end : ndarray, shape (N - 1, nv)
+        Simulated velocities in [rad/s] at ``t[1:]`` (NaN if the integrator failed).
+
+    Raises
+    ------
+    ParameterError
+        If the trajectory and the robot disagree in size or the robot is unsupported.
+    """
+    robot = _robot(robot)
+    _check_dimensions(trajectory, robot)
+    batch = batched_aba(robot, damping=damping)
+    polys = _IntervalPolynomials(trajectory)
+    nv = robot.nv
+    h = polys.h
+    n = h.size
+
+    def rhs(s: float, x: Array) -> Array:
+        state = x.reshape(n, 2 * nv)
+        q, v = state[:, :nv], state[:, nv:]
+        acc = batch(q, v, polys.torques(s))
+        return (np.hstack([v, acc]) * h[:, None]).ravel()
+
+    x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).ravel()
+    sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol)
+    if not sol.success:
+        _LOG.warning("local integration failed: %s", sol.message)
+        nan = np.full((n, nv), np.nan)
+        return nan, nan.copy()
+    end = sol.y[:, -1].reshape(n, 2 * nv)
+    _LOG.debug("local integration: %d intervals, %d RHS evaluations", n, sol.nfev)
+    return end[:, :nv], end[:, nv:]
+
+
 def simulate(
     trajectory: Trajectory,
-    robot: Any,
+    robot: RobotLike,
     *,
+    damping: bool = True,
     gains: PDGains | None = None,
     samples_per_interval: int = 20,
     stop_deviation: float | None = None,
@@ -389,8 +405,10 @@ def simulate(
     ----------
     trajectory : Trajectory
         The plan, with N knots.
-    robot : RobotModel, pinocchio.Model or RobotView
-        The robot (see :func:`robot_view`).
+    robot : RobotModel or pinocchio.Model
+        The robot (``nq == nv``).
+    damping : bool, optional
+        Apply the robot's joint damping ``b`` [N m s/rad] (``tau - b v``).
     gains : PDGains, optional
         Feedback gains; ``None`` simulates open loop.
     samples_per_interval : int, optional
@@ -414,15 +432,15 @@ def simulate(
         If sizes disagree, the robot or interpolant is unsupported, or
         ``stop_deviation`` is not positive.
     """
-    view = robot_view(robot)
-    _check_dimensions(trajectory, view)
+    robot = _robot(robot)
+    _check_dimensions(trajectory, robot)
     if stop_deviation is not None and not stop_deviation > 0.0:
         raise ParameterError(
             f"stop_deviation must be > 0 [rad] or None, got {stop_deviation!r}",
             name="stop_deviation",
             value=stop_deviation,
         )
-    model, data = view.model, view.model.createData()
+    model, data = robot.model, robot.model.createData()
     nv = model.nv
     polys = _IntervalPolynomials(trajectory)
     m = int(samples_per_interval)
@@ -431,14 +449,14 @@ def simulate(
     if gains is None:
         kp = kd = np.zeros((n, nv, nv))
     else:
-        kp, kd = gains.matrices(view, trajectory(polys.t0 + 0.5 * polys.h))
+        kp, kd = gains.matrices(robot, trajectory(polys.t0 + 0.5 * polys.h))
     gain = np.concatenate([kp, kd], axis=2)  # (n, nv, 2 nv) acting on [q, v]
     # Net joint torque tau_plan + K (x_plan - x) - b v = (closed-loop cubic in s) - K' x.
     net_coef = polys.coef[:, :, 2 * nv :] + np.einsum(
         "kij,ksj->ksi", gain, polys.coef[:, :, : 2 * nv]
     )
     gain_state = gain.copy()
-    gain_state[:, :, nv:] += np.diag(view.damping)
+    gain_state[:, :, nv:] += np.diag(_damping(robot, damping))
     q_coef = polys.coef[:, :, :nv]
     states = np.full((times.size, 2 * nv), np.nan)
     states[0] = np.concatenate([trajectory.q[0], trajectory.v[0]])

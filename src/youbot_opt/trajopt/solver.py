@@ -18,8 +18,9 @@ CasADi's AD of the transcribed MX graph and a limited-memory Hessian.
 
 Each result is checked independently of IPOPT's flag: the constraints are
 re-evaluated at the returned point and compared with their bounds, the
-decision variables with theirs, and everything must be finite; only then is a
-converged solve reported as a success (:mod:`youbot_opt.trajopt.result`).
+decision variables with theirs, and everything must be finite; then the
+independent check (:func:`youbot_opt.trajopt.check.checked`, ``pin.aba``
+without the NLP) must agree before a converged solve is reported a success.
 """
 
 from __future__ import annotations
@@ -31,19 +32,23 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
-from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
+from youbot_opt.dynamics.base import Dynamics
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
+from youbot_opt.nlp.ipopt import IpoptOptions, single_threaded_blas
+from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.guess import resolve_guess
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.objectives import work as work_of
-from youbot_opt.nlp.ipopt import IpoptOptions, single_threaded_blas
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, check_bound_scale
 from youbot_opt.trajopt.result import (
     DEFAULT_FEASIBILITY_TOL,
     BoundStructure,
     PathBlock,
+    SolveStats,
     SolveStatus,
     TrajOptResult,
     status_from_ipopt,
@@ -63,8 +68,13 @@ _log = logging.getLogger(__name__)
 
 _SECOND_ORDER_BACKENDS = ("symbolic", "pinocchio_casadi")
 
+BoundaryLike = BoundaryState | tuple[ArrayLike, ArrayLike] | ArrayLike
+"""A boundary state: a :class:`BoundaryState`, a ``(q, v)`` pair or a ``q`` vector (at rest)."""
+GuessLike = Trajectory | TrajOptResult | None
+"""An initial guess, as :func:`youbot_opt.trajopt.guess.resolve_guess` accepts it."""
 
-def _boundary(name: str, value: Any, default: BoundaryState) -> BoundaryState:
+
+def _boundary(name: str, value: BoundaryLike | None, default: BoundaryState) -> BoundaryState:
     if value is None:
         return default
     if isinstance(value, BoundaryState):
@@ -99,7 +109,7 @@ class TrajOptSolver:
     feasibility_tol : float
         Largest violation (unit of each row) a successful result may have;
         also stored in every result (``TrajOptResult.feasibility_tol``), so
-        :func:`youbot_opt.trajopt.result.check_result` applies the same one.
+        :meth:`youbot_opt.trajopt.result.TrajOptResult.check` applies the same one.
     compile : bool
         Compile the per-point dynamics kernels (value, Jacobian, weighted
         Hessian) to C with the system compiler, cached on disk
@@ -124,7 +134,7 @@ class TrajOptSolver:
         options: IpoptOptions | None = None,
         backend: str = "symbolic",
         *,
-        dynamics: Any = None,
+        dynamics: Dynamics | None = None,
         feasibility_tol: float = DEFAULT_FEASIBILITY_TOL,
         compile: bool = True,
     ) -> None:
@@ -188,9 +198,9 @@ class TrajOptSolver:
         self,
         beta: float | None = None,
         bound_scale: float = 1.0,
-        guess: Any = None,
-        start: Any = None,
-        goal: Any = None,
+        guess: GuessLike = None,
+        start: BoundaryLike | None = None,
+        goal: BoundaryLike | None = None,
         *,
         seed: int | None = None,
         warm_start: bool = True,
@@ -442,13 +452,12 @@ class TrajOptSolver:
             arr.setflags(write=False)
         history = np.asarray(stats.get("iterations", {}).get("obj", []), dtype=float)
         history.setflags(write=False)
-        return TrajOptResult(
+        result = TrajOptResult(
             problem=problem,
             method=self.method.name,
             backend=self.backend,
             status=status,
             message=message,
-            solver_status=solver_status,
             trajectory=trajectory,
             variables=variables,
             duration=total_time,
@@ -459,10 +468,13 @@ class TrajOptSolver:
             bound_scale=bound_scale,
             start=start,
             goal=goal,
-            iterations=int(stats.get("iter_count", 0)),
-            wall_time=wall,
-            cpu_time=cpu,
-            objective_history=history,
+            stats=SolveStats(
+                solver_status=solver_status,
+                iterations=int(stats.get("iter_count", 0)),
+                wall_time=wall,
+                cpu_time=cpu,
+                objective_history=history,
+            ),
             max_violation=violation,
             multipliers=multipliers,
             guess=guess,
@@ -471,6 +483,7 @@ class TrajOptSolver:
             feasibility_tol=self.feasibility_tol,
             bound_structure=structure,
         )
+        return checked(result)  # the independent check (pin.aba, no NLP) sets the status
 
 
 def solve(
@@ -481,9 +494,9 @@ def solve(
     backend: str = "symbolic",
     beta: float | None = None,
     bound_scale: float = 1.0,
-    guess: Any = None,
-    start: Any = None,
-    goal: Any = None,
+    guess: GuessLike = None,
+    start: BoundaryLike | None = None,
+    goal: BoundaryLike | None = None,
     seed: int | None = None,
 ) -> TrajOptResult:
     """Build a :class:`TrajOptSolver` and solve once (see its parameters).

@@ -49,9 +49,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.optimize import linprog
 
+from youbot_opt._checks import check_bound_scale, check_int, check_positive
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt.simulate import robot_view
+from youbot_opt.robot.model import as_robot_model
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["DEFAULT_DT", "DEFAULT_ORDERS", "random_spline_guess", "bernstein_matrix"]
@@ -205,8 +206,7 @@ def random_spline_guess(
     Parameters
     ----------
     robot : RobotModel or pinocchio.Model
-        The robot (limits, damping and inertia; see
-        :func:`youbot_opt.trajopt.simulate.robot_view`).
+        The robot (limits, damping and inertia).
     start, goal : BoundaryState, (q, v) pair, or q vector
         Boundary states: positions in [rad], velocities in [rad/s] (zero for a
         bare q vector).
@@ -243,22 +243,15 @@ def random_spline_guess(
         degree in ``orders`` admits a polynomial within the knot limits (for
         example, a motion too long for the speed limit in ``T0``).
     """
-    view = robot_view(robot)
+    view = as_robot_model(robot)
     nq = view.model.nq
-    if isinstance(n_knots, bool) or not isinstance(n_knots, int | np.integer) or n_knots < 2:
-        raise ParameterError(f"n_knots must be an int >= 2, got {n_knots!r}", name="n_knots")
+    n_knots = check_int(n_knots, "n_knots", minimum=2)
     if dt is None:
         from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION
 
         dt = DEFAULT_GUESS_DURATION / (int(n_knots) - 1)
-    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
-        raise ParameterError(f"dt must be finite and > 0 [s], got {dt!r}", name="dt", value=dt)
-    if not (
-        isinstance(bound_scale, int | float) and math.isfinite(bound_scale) and bound_scale > 0
-    ):
-        raise ParameterError(
-            f"bound_scale must be finite and > 0, got {bound_scale!r}", name="bound_scale"
-        )
+    dt = check_positive(dt, "dt", unit="s")
+    bound_scale = check_bound_scale(bound_scale)
     orders = tuple(orders)
     if not orders or any(
         isinstance(p, bool) or not isinstance(p, int | np.integer) or p < 3 for p in orders
@@ -271,8 +264,8 @@ def random_spline_guess(
     q0, v0 = _boundary_state("start", start, nq)
     q1, v1 = _boundary_state("goal", goal, nq)
     if bounds is None:
-        lower, upper = bound_scale * view.q_lower, bound_scale * view.q_upper
-        vmax = bound_scale * view.velocity_limit
+        scaled = view.bounds(bound_scale)
+        lower, upper, vmax = scaled.q_lower, scaled.q_upper, scaled.v_upper
     else:
         lower = np.asarray(bounds.q_lower, dtype=float)
         upper = np.asarray(bounds.q_upper, dtype=float)

@@ -1,20 +1,16 @@
-"""Start jobs of the trajectory sweeps: seeds, guesses, worker solvers, stored outcomes.
+"""Start jobs of the trajectory sweeps: seeds, guesses, stored outcomes (spec ``trajopt.md``).
 
-The machinery behind :func:`youbot_opt.trajopt.multistart.run_multistart`, the Pareto
-sweep's first point and :func:`youbot_opt.trajopt.bound_scaling.bound_scaling_study`:
+Owns what the trajectory multistart, the Pareto sweep's first point and the
+bound-scaling study add to the robot-agnostic sweep engine (:mod:`youbot_opt.sweeps`):
+:func:`start_seeds` (``SeedSequence(seed).spawn``, independent of the executor),
+:func:`make_jobs` (the straight line, then seeded random spline guesses at the
+scaled bounds), the worker task that builds a job's guess and solves it with the
+worker's :class:`~youbot_opt.trajopt.solver.TrajOptSolver`
+(:func:`worker_solver`), :func:`open_store` (trajectory results as payloads),
+and :func:`solve_starts`, the resumable start loop as :class:`StartOutcome` s.
 
-* :func:`start_seeds` derives start ``i``'s seed from a base seed with
-  :class:`numpy.random.SeedSequence` (``spawn``), independent of the executor;
-* a start job builds its random spline guess
-  (:func:`youbot_opt.trajopt.spline_guess.random_spline_guess`, at the scaled bounds)
-  or uses the straight line, and solves with the worker's
-  :class:`~youbot_opt.trajopt.solver.TrajOptSolver`: inherited from the parent under
-  ``fork``, else built once by the pool initializer and cached per process
-  (per thread for thread pools);
-* :func:`solve_starts` runs the jobs through :func:`youbot_opt.sweeps.tasks.run_tasks`,
-  saving each finished start to a :class:`~youbot_opt.sweeps.store.SweepStore`
-  and loading the ones a previous run finished;
-* :class:`StartOutcome` is one start's figures and result.
+    outcomes, resumed = solve_starts(solver, make_jobs(8, seed=0, beta=0.5, bound_scale=1.0,
+                                     include_straight=True, dt0=0.1), store=None, sweep=opts)
 """
 
 from __future__ import annotations
@@ -22,93 +18,67 @@ from __future__ import annotations
 import logging
 import math
 import os
-import threading
 import time
-import uuid
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.tasks import ExecutorLike, Task, TaskOutcome, process_context, run_tasks
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context
+from youbot_opt.sweeps.resume import run_resumable
+from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.problem import TrajOptProblem
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
-from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
     "StartOutcome",
+    "check_solver",
     "default_dt0",
     "make_jobs",
+    "open_store",
     "solve_starts",
     "start_seeds",
     "sweep_params",
+    "worker_solver",
 ]
 
 _log = logging.getLogger(__name__)
 
 GuessKind = Literal["spline", "straight"]
-ProgressFn = Callable[[int, int, "StartOutcome"], None]
-
-# Per-process (and per-thread) solver of pool workers: set by the pool
-# initializer, read by every start the worker runs. This is the only
-# module-level state, and it exists only inside worker processes/threads.
-_WORKER = threading.local()
 
 
-# ---------------------------------------------------------------- solver spec
-@dataclass(frozen=True, slots=True, kw_only=True)
-class _SolverSpec:
-    """Everything a worker needs to build (or find) the solver; pickles without it."""
+def worker_solver(solver: TrajOptSolver, *, keep: bool) -> WorkerSolver[TrajOptSolver]:
+    """Return the handle of ``solver`` that travels with every task of one run.
 
-    problem: TrajOptProblem
-    method: Any
-    options: IpoptOptions
-    backend: str
-    token: str
-    prebuilt: TrajOptSolver | None = field(default=None, compare=False)
+    Parameters
+    ----------
+    solver : TrajOptSolver
+        The built solver.
+    keep : bool
+        Keep the built solver in the handle (serial runs, and pools forked
+        from this process, which inherit it); otherwise each worker builds
+        its own once (per thread for thread pools).
 
-    @classmethod
-    def of(cls, solver: TrajOptSolver, *, keep: bool) -> _SolverSpec:
-        return cls(
-            problem=solver.problem,
-            method=solver.method,
-            options=solver.options,
-            backend=solver.backend,
-            token=uuid.uuid4().hex,
-            prebuilt=solver if keep else None,
-        )
-
-    def __getstate__(self) -> tuple[Any, ...]:
-        return (self.problem, self.method, self.options, self.backend, self.token)
-
-    def __setstate__(self, state: tuple[Any, ...]) -> None:
-        for name, value in zip(
-            ("problem", "method", "options", "backend", "token"), state, strict=True
-        ):
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "prebuilt", None)
-
-    def solver(self) -> TrajOptSolver:
-        """Return the prebuilt solver, this worker's cached one, or a new one (then cached)."""
-        if self.prebuilt is not None:
-            return self.prebuilt
-        if getattr(_WORKER, "token", None) != self.token:
-            _WORKER.solver = TrajOptSolver(self.problem, self.method, self.options, self.backend)
-            _WORKER.token = self.token
-        solver: TrajOptSolver = _WORKER.solver
-        return solver
-
-
-def _init_worker_solver(spec: _SolverSpec) -> None:
-    """Pool initializer: hold the solver for every start this worker runs."""
-    _WORKER.solver = spec.solver()
-    _WORKER.token = spec.token
+    Returns
+    -------
+    WorkerSolver
+        ``TrajOptSolver(problem, method, options, backend)`` as a recipe.
+    """
+    return WorkerSolver.of(
+        TrajOptSolver,
+        solver.problem,
+        solver.method,
+        solver.options,
+        solver.backend,
+        prebuilt=solver if keep else None,
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -122,9 +92,11 @@ class _StartJob:
     dt0: float
 
 
-def _solve_start(spec: _SolverSpec, job: _StartJob) -> tuple[TrajOptResult, float]:
+def _solve_start(
+    handle: WorkerSolver[TrajOptSolver], job: _StartJob
+) -> tuple[TrajOptResult, float]:
     """Worker task: build the start's guess and solve; returns the result and guess time [s]."""
-    solver = spec.solver()
+    solver = handle.get()
     problem = solver.problem
     tic = time.perf_counter()
     guess: Trajectory | None = None
@@ -290,26 +262,43 @@ def start_seeds(seed: int, n_starts: int) -> tuple[int, ...]:
     return tuple(int(c.generate_state(1, dtype=np.uint32)[0]) for c in children)
 
 
-def _as_solver(
-    solver_or_problem: TrajOptSolver | TrajOptProblem,
-    method: Any,
-    options: IpoptOptions | None,
-    backend: str,
-) -> TrajOptSolver:
-    if isinstance(solver_or_problem, TrajOptSolver):
-        return solver_or_problem
-    if isinstance(solver_or_problem, TrajOptProblem):
-        return TrajOptSolver(solver_or_problem, method, options, backend)
+def check_solver(solver: Any) -> TrajOptSolver:
+    """Return ``solver`` if it is a built :class:`~youbot_opt.trajopt.solver.TrajOptSolver`.
+
+    Raises
+    ------
+    ParameterError
+        Otherwise (a problem too: build it once with ``TrajOptSolver(problem)``).
+    """
+    if isinstance(solver, TrajOptSolver):
+        return solver
+    hint = " (build one: TrajOptSolver(problem))" if isinstance(solver, TrajOptProblem) else ""
     raise ParameterError(
-        f"expected a TrajOptSolver or a TrajOptProblem, got {type(solver_or_problem).__name__}",
-        name="solver_or_problem",
+        f"expected a TrajOptSolver, got {type(solver).__name__}{hint}", name="solver", value=solver
     )
 
 
-def _store_for(
+def open_store(
     out: str | os.PathLike[str], kind: str, params: dict[str, Any], solver: TrajOptSolver
 ) -> SweepStore:
-    """Open a store whose payloads are trajectory results (:mod:`youbot_opt.trajopt.io` files)."""
+    """Open a sweep store whose payloads are trajectory results.
+
+    Parameters
+    ----------
+    out : path-like
+        Output directory (created if missing).
+    kind : str
+        Kind of sweep (``"multistart"``, ``"pareto"``, ``"bounds"``).
+    params : dict
+        The sweep's defining parameters (a rerun with others is refused).
+    solver : TrajOptSolver
+        Its robot loads the stored results (:mod:`youbot_opt.trajopt.io` files).
+
+    Returns
+    -------
+    SweepStore
+        The store.
+    """
     from youbot_opt.trajopt.io import load_result, save_result
 
     robot = solver.problem.robot
@@ -335,63 +324,61 @@ def solve_starts(
     jobs: Sequence[_StartJob],
     *,
     store: SweepStore | None,
-    executor: ExecutorLike,
-    workers: int | None,
-    progress: ProgressFn | None,
-    max_attempts: int,
-    timeout: float | None = None,
+    sweep: SweepOptions,
 ) -> tuple[dict[str, StartOutcome], int]:
-    """Run start jobs (loading finished ones from ``store``); outcomes by key and resumed count.
+    """Run start jobs, loading the finished ones from ``store``.
 
-    ``timeout`` is the wall-clock limit in [s] per start attempt
-    (:func:`youbot_opt.sweeps.tasks.run_tasks`; ``None``: no limit).
+    Parameters
+    ----------
+    solver : TrajOptSolver
+        The built solver (inherited by forked workers, else rebuilt once per worker).
+    jobs : sequence
+        From :func:`make_jobs`.
+    store : SweepStore, optional
+        Where every attempt is saved and finished starts are loaded from.
+    sweep : SweepOptions
+        Executor, workers, timeout [s] per attempt, attempts; ``progress``
+        ``(done, total, last_start)`` is called as each start is final.
+
+    Returns
+    -------
+    tuple
+        The outcomes by key and the number of starts loaded from ``store``.
     """
-    outcomes: dict[str, StartOutcome] = {}
-    todo: list[Task] = []
-    by_key = {job.key: job for job in jobs}
+    sweep = sweep.with_executor("process")
+    executor = sweep.executor
     own_pool = executor == "process"
     fork = own_pool and process_context().get_start_method() == "fork"
-    # The spec travels with every task; pickling drops its prebuilt solver, so
+    # The handle travels with every task; pickling drops its prebuilt solver, so
     # pool workers use the one their initializer set (inherited under fork).
-    spec = _SolverSpec.of(solver, keep=executor == "serial" or fork)
-    for job in jobs:
-        attempts = 0
-        if store is not None:
-            again, attempts = store.needs_work(job.key, max_attempts)
-            if not again:
-                outcomes[job.key] = _load_start(store, job)
-                continue
-        todo.append(Task(key=job.key, fn=_solve_start, args=(spec, job), attempts=attempts))
-    resumed = len(outcomes)
-    total = len(jobs)
+    handle = worker_solver(solver, keep=executor == "serial" or fork)
+    by_key = {job.key: job for job in jobs}
+    tasks = [Task(key=job.key, fn=_solve_start, args=(handle, job)) for job in jobs]
+    progress = sweep.progress
 
-    def record(o: TaskOutcome) -> None:
+    def convert(o: TaskOutcome) -> StartOutcome:
         job = by_key[o.key]
         if o.ok:
             result, guess_time = o.value
-            start = StartOutcome._from(job, result, guess_time, o.attempts)
-            if store is not None:
-                store.write_done(job.key, result, start.summary(), attempts=o.attempts)
-        else:
-            start = StartOutcome._error(job, str(o.error), o.attempts)
-            if store is not None:
-                store.write_failed(job.key, str(o.error), attempts=o.attempts)
-        if o.final:
-            outcomes[job.key] = start
-            if progress is not None:
-                progress(len(outcomes), total, start)
+            return StartOutcome._from(job, result, guess_time, o.attempts)
+        return StartOutcome._error(job, str(o.error), o.attempts)
 
-    run_tasks(
-        todo,
-        executor=executor,
-        workers=workers,
-        initializer=_init_worker_solver if own_pool else None,
-        initargs=(spec,) if own_pool else (),
-        max_attempts=max_attempts,
-        on_outcome=record,
-        timeout=timeout,
+    def on_final(key: str, start: StartOutcome, done: int) -> None:
+        if progress is not None:
+            progress(done, len(jobs), start)
+
+    got = run_resumable(
+        tasks,
+        store=store,
+        options=sweep,
+        load=lambda key: _load_start(store, by_key[key]),  # type: ignore[arg-type]
+        convert=convert,
+        payload=lambda key, start: (start.result, start.summary()),
+        initializer=hold_solver if own_pool else None,
+        initargs=(handle,) if own_pool else (),
+        on_final=on_final,
     )
-    return outcomes, resumed
+    return got.items, got.resumed
 
 
 def _load_start(store: SweepStore, job: _StartJob) -> StartOutcome:

@@ -10,6 +10,8 @@ The names below are imported on first use, so that ``import youbot_opt`` (and
 * :func:`replay_results` and :func:`export_results_html` do the same for one or
   several :class:`~youbot_opt.trajopt.result.TrajOptResult` objects (side by side or as
   ghosts), with each result's own time grid.
+* :func:`replay_ikpath` and :func:`export_ikpath_html` do the same for a cyclic IK
+  path (:mod:`youbot_opt.ikpath`), with the targets and the tip's path drawn.
 * :func:`load_mesh_file` applies the mesh policy: which files may be embedded.
 """
 
@@ -20,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from youbot_opt.robot.strict.meshes import check_mesh_file, load_mesh_file
+    from youbot_opt.viz.meshcat.ikpath import export_ikpath_html, replay_ikpath, replay_track
     from youbot_opt.viz.meshcat.replay import export_html, replay, scene_html
     from youbot_opt.viz.meshcat.results import export_results_html, replay_results
     from youbot_opt.viz.meshcat.server import MeshcatServer, connect
@@ -34,6 +37,9 @@ __all__ = [
     "connect",
     "check_mesh_file",
     "load_mesh_file",
+    "replay_ikpath",
+    "export_ikpath_html",
+    "replay_track",
 ]
 
 _SOURCES = {
@@ -46,6 +52,9 @@ _SOURCES = {
     "connect": "youbot_opt.viz.meshcat.server",
     "check_mesh_file": "youbot_opt.robot.strict.meshes",
     "load_mesh_file": "youbot_opt.robot.strict.meshes",
+    "replay_ikpath": "youbot_opt.viz.meshcat.ikpath",
+    "export_ikpath_html": "youbot_opt.viz.meshcat.ikpath",
+    "replay_track": "youbot_opt.viz.meshcat.ikpath",
 }
 
 

@@ -56,10 +56,16 @@ from youbot_opt.exceptions import (
 from youbot_opt.robot.strict.resources import (
     allowed_roots,
     check_mesh,
+    in_mesh,
     read_regular_file,
     resolve_reference,
 )
-from youbot_opt.robot.strict.rules import check_urdf_tree, file_inertia, file_limits, resource_references
+from youbot_opt.robot.strict.rules import (
+    check_urdf_tree,
+    file_inertia,
+    file_limits,
+    resource_references,
+)
 from youbot_opt.robot.strict.xml import Site, fail, parse_xml_strict, root_of, site
 
 __all__ = ["LoadedURDF", "MAX_URDF_BYTES", "load_urdf_strict", "check_urdf_text", "check_model"]
@@ -112,22 +118,6 @@ class LoadedURDF:
     resources: tuple[Path, ...] = ()
 
 
-def _in_mesh(error: URDFError, where: Site, mesh: Path) -> URDFError:
-    """Re-raise a rule broken inside a mesh file from the URDF element that references it.
-
-    The error keeps its class and rule; its site becomes the URDF element, and
-    the message keeps the mesh file's own site (file, line, element) and problem.
-    """
-    line = f":{where.line}" if where.line is not None else ""
-    message = (
-        f"{where.path}{line}: {where.element}: the mesh {os.fspath(mesh)!r} it references "
-        f"breaks a rule: {error}"
-    )
-    return type(error)(
-        message, path=where.path, element=where.element, line=where.line, rule=error.rule
-    )
-
-
 def _read_and_check(
     path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
 ) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
@@ -155,7 +145,7 @@ def _read_and_check(
             except URDFError as e:
                 if e.path == where.path:  # already names the URDF element
                     raise
-                raise _in_mesh(e, where, real) from e
+                raise in_mesh(e, where, real) from e
     logger.debug("%s: %d resources checked", name, len(resources))
     return tree, references, tuple(dict.fromkeys(resources))
 

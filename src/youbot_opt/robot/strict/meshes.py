@@ -1,29 +1,16 @@
-"""Which mesh and texture files a meshcat scene may embed.
+"""What the meshcat replay embeds of a mesh file: its bytes, its textures, a PLY as STL.
 
-A scene sent to meshcat, and above all an exported HTML file that will be
-passed around, carries the bytes of every mesh and texture it shows. Those
-bytes may only come from the robot's own package directories
-(``robot.package_dirs``), so that a robot description cannot smuggle other
-files of the machine into a page. The rules:
-
-1. A mesh file is named by a plain local path (no ``scheme://``). Following
-   every symlink, it must resolve to a regular file inside one of the package
-   directories, and have one of the suffixes :data:`MESH_SUFFIXES`.
-2. A COLLADA (``.dae``) mesh names its textures in the ``<init_from>`` of its
-   ``<library_images>``. Each must be a relative path (after percent- and
-   XML-decoding) that, from the ``.dae`` file's folder and following symlinks,
-   resolves to a regular file inside a package directory. Absolute paths and
-   URLs (``file://``, ``http://``, ...) are refused; ``data:image/...`` URIs,
-   which name no file, are kept as they are.
-3. Wavefront (``.obj``) and STL meshes are embedded as their own bytes only;
-   the viewer never follows an ``.obj`` file's ``mtllib``.
-
-Every refusal is a :class:`~youbot_opt.exceptions.ModelError` whose message
-names the file and the rule it breaks, and, when the caller passes
-``referenced_by`` (e.g. the robot and geometry object), what referenced the
-mesh; a texture's refusal names the ``.dae`` file and the texture. Nothing is
-embedded before the checks pass. A file swapped between the check and the read by someone with write
-access to the package directories is out of scope.
+Every path decision is :mod:`youbot_opt.robot.strict.resources`'s, so the
+replay accepts exactly the meshes the strict loader accepts: a mesh resolves
+like a URDF reference to a regular file inside the package directories, with
+a format of :data:`~youbot_opt.robot.strict.resources.MESH_SUFFIXES`, and a
+COLLADA file's textures resolve from its folder by the same rules. This
+module adds what embedding needs: the bytes, each COLLADA texture as a
+``data:`` URI keyed by the ``<init_from>`` text the browser reads (inline
+``data:image/`` URIs kept; textures in :data:`TEXTURE_SUFFIXES`), and ``.ply``
+meshes, which meshcat cannot parse, as binary STL from the triangles coal
+(assimp, as in Pinocchio) reads. Errors are the loader's URDFError subclasses.
+Example: ``load_mesh_file(path, robot.package_dirs, referenced_by="geometry object 'arm_0'")``.
 """
 
 from __future__ import annotations
@@ -31,8 +18,7 @@ from __future__ import annotations
 import base64
 import logging
 import mimetypes
-import re
-import xml.etree.ElementTree as ET
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +26,23 @@ from types import MappingProxyType
 from typing import NamedTuple
 from urllib.parse import unquote
 
-from youbot_opt.exceptions import ModelError
+import coal
+import numpy as np
+
+from youbot_opt.exceptions import InvalidModelError, UnsafePathError, URDFError
+from youbot_opt.robot.strict.resources import (
+    MAX_RESOURCE_BYTES,
+    MESH_SUFFIXES,
+    PATH_RULE,
+    allowed_roots,
+    check_mesh,
+    in_mesh,
+    is_inline_image,
+    read_regular_file,
+    resolve_in_folder,
+    resolve_reference,
+)
+from youbot_opt.robot.strict.xml import Site, fail, local_name, scan_xml_strict
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -54,13 +56,11 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Mesh formats the meshcat viewer can parse, by lower-case suffix.
-MESH_SUFFIXES: tuple[str, ...] = (".dae", ".stl", ".obj")
 #: Texture image formats a browser decodes, by lower-case suffix.
 TEXTURE_SUFFIXES: tuple[str, ...] = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".webp")
-
-_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
-_WINDOWS_DRIVE = re.compile(r"^[A-Za-z]:[\\/]")
+#: Mesh formats meshcat's viewer parses itself; the others are converted to STL.
+_VIEWER_FORMATS: tuple[str, ...] = (".dae", ".stl", ".obj")
+_STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
 
 
 class TextureReference(NamedTuple):
@@ -73,10 +73,13 @@ class TextureReference(NamedTuple):
         it (XML-decoded, whitespace kept): the key of the resource map.
     target : str
         The same text stripped and percent-decoded: what it points to.
+    line : int or None
+        1-based line of the ``<init_from>`` in the COLLADA file.
     """
 
     key: str
     target: str
+    line: int | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -88,9 +91,10 @@ class MeshFile:
     path : Path
         The mesh file, symlinks resolved.
     format : str
-        ``"dae"``, ``"stl"`` or ``"obj"``.
+        Format of ``data``: ``"dae"``, ``"stl"`` or ``"obj"`` (a ``.ply`` file
+        is converted to binary STL).
     data : bytes
-        The file's content.
+        The content to embed.
     resources : Mapping of str to str
         For COLLADA files, texture ``<init_from>`` text to ``data:`` URI (read
         only); empty otherwise.
@@ -102,100 +106,30 @@ class MeshFile:
     resources: Mapping[str, str]
 
 
-def _roots(package_dirs: Sequence[str | Path]) -> tuple[Path, ...]:
-    roots = tuple(Path(d).resolve() for d in package_dirs)
-    return tuple(r for r in roots if r.is_dir())
+class _InitFromText:
+    """Collects the full text of each ``<init_from>`` inside ``<library_images>``."""
 
+    def __init__(self) -> None:
+        self.open: list[str] = []
+        self.current: tuple[list[str], int, int] | None = None  # (text, depth, line)
+        self.found: list[TextureReference] = []
 
-def _inside(path: Path, roots: Sequence[Path]) -> bool:
-    return any(path.is_relative_to(root) for root in roots)
+    def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
+        local = local_name(tag)
+        if self.current is None and local == "init_from" and "library_images" in self.open:
+            self.current = ([], len(self.open), line)
+        self.open.append(local)
 
+    def data(self, text: str) -> None:
+        if self.current is not None:
+            self.current[0].append(text)
 
-def _refuse(file: str | Path, rule: str, detail: str, referenced_by: str = "") -> ModelError:
-    prefix = f"{referenced_by}: " if referenced_by else ""
-    return ModelError(
-        f"{prefix}refusing to embed {str(file)!r}: {detail} (rule: {rule})", path=str(file)
-    )
-
-
-def _check_inside(
-    named: str | Path,
-    candidate: Path,
-    roots: Sequence[Path],
-    what: str,
-    suffixes: Sequence[str],
-    referenced_by: str,
-) -> Path:
-    """Resolve ``candidate`` (following symlinks) and check rules 1/2 for it."""
-    if not roots:
-        raise _refuse(
-            named,
-            f"{what}s must lie inside the robot's package directories",
-            "the robot declares no existing package directory",
-            referenced_by,
-        )
-    try:
-        resolved = candidate.resolve(strict=True)
-    except (OSError, RuntimeError) as e:
-        raise _refuse(
-            named,
-            f"{what}s are existing files",
-            f"it does not exist or cannot be resolved: {e}",
-            referenced_by,
-        ) from e
-    if not _inside(resolved, roots):
-        raise _refuse(
-            named,
-            f"{what}s must lie inside the robot's package directories "
-            f"{', '.join(str(r) for r in roots)}",
-            f"it resolves to {str(resolved)!r}",
-            referenced_by,
-        )
-    if not resolved.is_file():
-        raise _refuse(
-            named, f"{what}s must be regular files", f"{str(resolved)!r} is not one", referenced_by
-        )
-    if resolved.suffix.lower() not in suffixes:
-        raise _refuse(
-            named,
-            f"{what}s must have one of the suffixes {', '.join(suffixes)}",
-            f"its suffix is {resolved.suffix!r}",
-            referenced_by,
-        )
-    return resolved
-
-
-def check_mesh_file(
-    mesh_path: str | Path, package_dirs: Sequence[str | Path], *, referenced_by: str = ""
-) -> Path:
-    """Check a mesh file against rule 1 and return its resolved path.
-
-    Parameters
-    ----------
-    mesh_path : str or Path
-        The mesh file as the geometry object names it (``GeometryObject.meshPath``).
-    package_dirs : sequence of str or Path
-        The robot's package directories.
-    referenced_by : str
-        What references the mesh, put first in error messages, e.g.
-        ``"robot 'ur5', visual geometry 'wrist_1_link_0'"``; empty to omit.
-
-    Returns
-    -------
-    Path
-        The mesh file with every symlink resolved.
-
-    Raises
-    ------
-    ModelError
-        If the path is a URL, escapes the package directories, is not a
-        regular file, does not exist or has an unsupported suffix.
-    """
-    text = str(mesh_path)
-    if _SCHEME.match(text) and not _WINDOWS_DRIVE.match(text):
-        raise _refuse(text, "meshes are named by local file paths", "it is a URL", referenced_by)
-    roots = _roots(package_dirs)
-    return _check_inside(text, Path(text), roots, "mesh", MESH_SUFFIXES, referenced_by)
+    def end(self, tag: str) -> None:
+        self.open.pop()
+        if self.current is not None and len(self.open) == self.current[1]:
+            key = "".join(self.current[0])
+            self.found.append(TextureReference(key, unquote(key.strip()), self.current[2]))
+            self.current = None
 
 
 def dae_texture_references(
@@ -213,55 +147,108 @@ def dae_texture_references(
     Returns
     -------
     list of TextureReference
-        One entry per ``<image>``'s ``<init_from>`` (COLLADA 1.4 text or 1.5
-        ``<ref>``), in document order.
+        One entry per ``<init_from>`` (COLLADA 1.4 text or 1.5 ``<ref>``), in
+        document order.
 
     Raises
     ------
-    ModelError
-        If the document is not well-formed XML.
+    URDFSyntaxError, UnsafeURDFError
+        If the document is not well-formed XML, or declares a DOCTYPE or entities.
     """
+    target = _InitFromText()
+    scan_xml_strict(dae_bytes, os.fspath(path), target)
+    return target.found
+
+
+def _checked(
+    mesh_path: str | Path, package_dirs: Sequence[str | Path], referenced_by: str
+) -> tuple[Path, tuple[Path, ...], Site]:
+    """Apply the resource policy to a mesh file: its real path, the roots and its site."""
+    roots = allowed_roots(package_dirs, skip_missing=True)
+    where = Site(os.fspath(mesh_path), referenced_by or "mesh", None)
+    if not roots:
+        problem = "the robot declares no existing package directory"
+        raise fail(UnsafePathError, where, problem, PATH_RULE)
+    real = resolve_reference(os.fspath(mesh_path), roots, roots, where)
     try:
-        root = ET.fromstring(dae_bytes)
-    except ET.ParseError as e:
-        raise _refuse(path, "COLLADA files are well-formed XML", f"not well-formed XML: {e}") from e
-    refs: list[TextureReference] = []
-    for library in root.iter():
-        if _local(library.tag) != "library_images":
-            continue
-        for element in library.iter():
-            if _local(element.tag) == "init_from":
-                key = "".join(element.itertext())
-                refs.append(TextureReference(key=key, target=unquote(key.strip())))
-    return refs
+        check_mesh(real, roots, where, inline_images=True, material_warning=False)
+    except URDFError as e:
+        if (e.path, e.element, e.line) == where:  # about the mesh file itself
+            raise
+        raise in_mesh(e, where, real) from e
+    return real, roots, where
 
 
-def _local(tag: object) -> str:
-    return str(tag).rsplit("}", 1)[-1]
+def check_mesh_file(
+    mesh_path: str | Path, package_dirs: Sequence[str | Path], *, referenced_by: str = ""
+) -> Path:
+    """Check a mesh file (and what it references) against the resource policy.
 
+    Parameters
+    ----------
+    mesh_path : str or Path
+        The mesh file as the geometry object names it (``GeometryObject.meshPath``).
+    package_dirs : sequence of str or Path
+        The robot's package directories (folders that do not exist are left out).
+    referenced_by : str
+        What references the mesh, e.g. ``"geometry object 'wrist_1_link_0'"``;
+        it names the element in error messages (``"mesh"`` when empty).
 
-def _texture_uri(
-    dae_path: Path, ref: TextureReference, roots: Sequence[Path], referenced_by: str
-) -> str:
-    """Check one texture reference against rule 2 and return its ``data:`` URI.
+    Returns
+    -------
+    Path
+        The mesh file with every symlink resolved.
 
-    ``dae_path`` is the COLLADA file as named (before resolving symlinks): its
-    textures are relative to that folder, as for assimp and Pinocchio.
+    Raises
+    ------
+    UnsafePathError
+        If the path is a refused URL form, escapes the package directories,
+        is not a regular file, is too large or has a format not in
+        :data:`MESH_SUFFIXES`, or a texture or material library it names escapes.
+    ResourceNotFoundError
+        If the mesh or one of its COLLADA textures does not exist.
+    URDFSyntaxError, UnsafeURDFError
+        If a COLLADA file is not well-formed XML or declares a DOCTYPE.
     """
-    target = ref.target
-    if target.lower().startswith("data:image/"):
+    return _checked(mesh_path, package_dirs, referenced_by)[0]
+
+
+def _texture_uri(dae: Path, ref: TextureReference, roots: Sequence[Path], where: Site) -> str:
+    """Return the ``data:`` URI that replaces one COLLADA texture reference."""
+    if is_inline_image(ref.key):
         return ref.key
-    named = f"{dae_path} -> {target}"
-    rule = "textures are named by relative paths"
-    if _SCHEME.match(target) and not _WINDOWS_DRIVE.match(target):
-        raise _refuse(named, rule, "it is a URL", referenced_by)
-    if target.startswith(("/", "\\")) or _WINDOWS_DRIVE.match(target):
-        raise _refuse(named, rule, "it is an absolute path", referenced_by)
-    resolved = _check_inside(
-        named, dae_path.parent / target, roots, "texture", TEXTURE_SUFFIXES, referenced_by
-    )
-    mime = mimetypes.guess_type(resolved.name)[0] or "application/octet-stream"
-    return f"data:{mime};base64,{base64.b64encode(resolved.read_bytes()).decode('ascii')}"
+    at = Site(os.fspath(dae), "<init_from>", ref.line)
+    try:
+        real = resolve_in_folder(ref.key.strip(), roots, dae.parent, at)[0]
+        if real.suffix.lower() not in TEXTURE_SUFFIXES:
+            problem = f"texture {ref.key.strip()!r} has the format {real.suffix or '(none)'!r}"
+            rule = f"embedded textures are {', '.join(TEXTURE_SUFFIXES)} (browsers decode them)"
+            raise fail(UnsafePathError, at, problem, rule)
+        data = read_regular_file(real, MAX_RESOURCE_BYTES, at, "texture")
+    except URDFError as e:
+        raise in_mesh(e, where, dae) from e
+    mime = mimetypes.guess_type(real.name)[0] or "application/octet-stream"
+    return f"data:{mime};base64,{base64.b64encode(data).decode('ascii')}"
+
+
+def _ply_as_stl(real: Path, where: Site) -> bytes:
+    """Binary STL of the triangles coal (assimp) reads from a PLY file, unscaled."""
+    try:
+        bvh = coal.MeshLoader().load(os.fspath(real), np.ones(3))
+    except (RuntimeError, ValueError) as e:
+        problem = f"mesh {os.fspath(real)!r} is not a PLY file assimp reads: {e}"
+        raise fail(InvalidModelError, where, problem, "meshes are readable by assimp") from e
+    vertices = np.asarray(bvh.vertices(), dtype=float).reshape(-1, 3)
+    faces = [[t[0], t[1], t[2]] for t in map(bvh.tri_indices, range(bvh.num_tris))]
+    corners = vertices[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    records = np.zeros(len(corners), dtype=_STL_RECORD)
+    records["normal"] = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+    records["vertices"] = corners
+    # a binary STL header must not start with "solid" (readers take it for ASCII)
+    header = f"binary STL of {real.name}".encode()[:80].ljust(80, b" ")
+    return header + np.uint32(len(records)).tobytes() + records.tobytes()
 
 
 def load_mesh_file(
@@ -276,32 +263,31 @@ def load_mesh_file(
     package_dirs : sequence of str or Path
         The robot's package directories.
     referenced_by : str
-        What references the mesh, put first in error messages, e.g.
-        ``"robot 'ur5', visual geometry 'wrist_1_link_0'"``; empty to omit.
+        What references the mesh, e.g. ``"geometry object 'wrist_1_link_0'"``.
 
     Returns
     -------
     MeshFile
-        The mesh bytes, and for COLLADA files the textures as ``data:`` URIs.
+        The mesh bytes (a ``.ply`` file as binary STL), and for COLLADA files
+        the textures as ``data:`` URIs.
 
     Raises
     ------
-    ModelError
-        If the mesh or one of its textures breaks a rule of this module.
+    URDFError
+        As :func:`check_mesh_file`; also :class:`~youbot_opt.exceptions.UnsafePathError`
+        for a texture browsers do not decode, and
+        :class:`~youbot_opt.exceptions.InvalidModelError` for a PLY file assimp
+        cannot read.
     """
-    resolved = check_mesh_file(mesh_path, package_dirs, referenced_by=referenced_by)
-    data = resolved.read_bytes()
-    fmt = resolved.suffix.lower().lstrip(".")
+    real, roots, where = _checked(mesh_path, package_dirs, referenced_by)
+    suffix = real.suffix.lower()
+    if suffix not in _VIEWER_FORMATS:  # .ply: meshcat's viewer has no parser for it
+        data, fmt = _ply_as_stl(real, where), "stl"
+    else:
+        data, fmt = read_regular_file(real, MAX_RESOURCE_BYTES, where, "mesh"), suffix[1:]
     resources: dict[str, str] = {}
     if fmt == "dae":
-        roots = _roots(package_dirs)
-        try:
-            references = dae_texture_references(data, path=resolved)
-        except ModelError as e:
-            if not referenced_by:
-                raise
-            raise ModelError(f"{referenced_by}: {e}", path=e.path) from e
-        for ref in references:
-            resources[ref.key] = _texture_uri(Path(mesh_path), ref, roots, referenced_by)
-    logger.debug("mesh %s passed the policy (%d textures)", resolved, len(resources))
-    return MeshFile(path=resolved, format=fmt, data=data, resources=MappingProxyType(resources))
+        for ref in dae_texture_references(data, path=real):
+            resources[ref.key] = _texture_uri(real, ref, roots, where)
+    logger.debug("mesh %s passed the policy (%d textures)", real, len(resources))
+    return MeshFile(path=real, format=fmt, data=data, resources=MappingProxyType(resources))

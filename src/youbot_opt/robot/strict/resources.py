@@ -1,32 +1,15 @@
-"""Where the meshes and textures of a URDF may come from (issue 6, item 1).
+"""The one policy for files a robot description references: meshes, textures, material libraries.
 
-A reference is resolved as Pinocchio resolves it (``pinocchio::retrieveResourcePath``):
-
-* ``package://pkg/rest`` (and ``model://``): the first ``d + "/pkg/rest"``
-  that exists, for ``d`` in the package directories, in order;
-* a relative path: the first ``d + "/path"`` that exists (Pinocchio does not
-  look next to the URDF);
-* ``file:///abs/path`` and ``/abs/path``: the path itself;
-* any other scheme (``http://``, ``https://``, ``ftp://``, ``data:`` ...) is refused.
-
-The resolved path, with every symlink followed, must lie inside one of the
-allowed package directories and be a regular file (not a device such as
-``/dev/zero``, a FIFO or a directory) of at most :data:`MAX_RESOURCE_BYTES`.
-Meshes must be one of :data:`MESH_SUFFIXES`. Meshes can reference further
-files, which are checked by the same rules:
-
-* COLLADA (``.dae``): every ``<init_from>`` (or ``<ref>``, COLLADA 1.5) inside
-  ``<image>`` or ``<library_images>`` is a texture URI, relative to the ``.dae`` file's
-  folder (Pinocchio's meshcat viewer reads these files and sends them to the
-  browser). The ``.dae`` itself is parsed with the strict parser, so a
-  ``DOCTYPE`` there is refused too. Percent-encoded URIs are checked both as
-  written and decoded.
-* Wavefront (``.obj``): every ``mtllib`` material library (read by assimp);
-  a missing library only warns (:class:`~youbot_opt.exceptions.YoubotOptWarning`),
-  as assimp then uses a default material.
-
-The checks run before loading; a file swapped between the check and the load
-by someone with write access to the package directories is out of scope.
+Both the strict loader and the meshcat replay ask this module. A reference is
+resolved as Pinocchio does (``package://pkg/rest`` and relative paths: first
+existing ``d/rest`` over the package directories; ``file:///abs`` and
+``/abs``: the path itself; other schemes refused). With symlinks followed it
+must be a regular file inside the package directories of at most
+:data:`MAX_RESOURCE_BYTES`; meshes have one of :data:`MESH_SUFFIXES`. A
+``.dae`` file's textures (``<init_from>``/``<ref>`` in images) and an ``.obj``
+file's ``mtllib`` are resolved from the mesh's folder by the same rules.
+Errors are :class:`~youbot_opt.exceptions.URDFError` subclasses naming file,
+element and rule, e.g. ``check_mesh(resolve_reference(ref, roots, roots, where), roots, where)``.
 """
 
 from __future__ import annotations
@@ -46,15 +29,19 @@ from youbot_opt.exceptions import (
     URDFError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict.xml import Site, fail, scan_xml_strict
+from youbot_opt.robot.strict.xml import Site, fail, local_name, scan_xml_strict
 
 __all__ = [
     "MESH_SUFFIXES",
     "MAX_RESOURCE_BYTES",
+    "PATH_RULE",
     "allowed_roots",
-    "resolve_reference",
     "check_mesh",
+    "in_mesh",
+    "is_inline_image",
     "read_regular_file",
+    "resolve_in_folder",
+    "resolve_reference",
 ]
 
 #: Mesh formats accepted (each parsed by assimp through coal); others are refused.
@@ -62,16 +49,24 @@ MESH_SUFFIXES: tuple[str, ...] = (".stl", ".dae", ".obj", ".ply")
 #: Largest mesh or texture file accepted, in [bytes].
 MAX_RESOURCE_BYTES: int = 256 * 2**20
 _SCHEME = re.compile(r"([A-Za-z][A-Za-z0-9+.-]*):")
-_PATH_RULE = "resources resolve inside the package directories"
+#: The rule every resolved reference obeys.
+PATH_RULE = "resources resolve inside the package directories"
+_INLINE_IMAGE = "data:image/"
 
 
-def allowed_roots(package_dirs: Sequence[str | os.PathLike[str]]) -> tuple[Path, ...]:
+def allowed_roots(
+    package_dirs: Sequence[str | os.PathLike[str]], *, skip_missing: bool = False
+) -> tuple[Path, ...]:
     """Resolve the package directories (symlinks followed).
 
     Parameters
     ----------
     package_dirs : sequence of path-like
         Folders meshes and textures may come from.
+    skip_missing : bool
+        Leave out folders that do not exist instead of raising (the replay
+        draws a robot whose package folder has since been removed, as long
+        as none of its meshes is needed).
 
     Returns
     -------
@@ -81,7 +76,7 @@ def allowed_roots(package_dirs: Sequence[str | os.PathLike[str]]) -> tuple[Path,
     Raises
     ------
     ParameterError
-        If one of them is not an existing directory.
+        If one of them is not an existing directory (and not ``skip_missing``).
     """
     if isinstance(package_dirs, str | os.PathLike):
         raise ParameterError(
@@ -93,6 +88,8 @@ def allowed_roots(package_dirs: Sequence[str | os.PathLike[str]]) -> tuple[Path,
     for d in package_dirs:
         real = Path(os.path.realpath(d))
         if not real.is_dir():
+            if skip_missing:
+                continue
             raise ParameterError(
                 f"package directory {os.fspath(d)!r} is not an existing folder",
                 name="package_dirs",
@@ -203,14 +200,14 @@ def resolve_reference(
     )
     if chosen is None:
         raise fail(
-            ResourceNotFoundError, where, f"{ref!r}: no package directory to look in", _PATH_RULE
+            ResourceNotFoundError, where, f"{ref!r}: no package directory to look in", PATH_RULE
         )
     real = Path(os.path.realpath(chosen))
     if not any(real.is_relative_to(root) for root in roots):
         problem = (
             f"{ref!r} resolves to {os.fspath(real)!r}, outside {[os.fspath(r) for r in roots]}"
         )
-        raise fail(UnsafePathError, where, problem, _PATH_RULE)
+        raise fail(UnsafePathError, where, problem, PATH_RULE)
     if not real.exists():
         problem = f"{ref!r} resolves to {os.fspath(real)!r}, which does not exist"
         raise fail(ResourceNotFoundError, where, problem, "referenced files exist")
@@ -231,8 +228,63 @@ def resolve_reference(
     return real
 
 
-def _local(tag: str) -> str:
-    return tag.rsplit("}", 1)[-1].rsplit(":", 1)[-1]
+def is_inline_image(ref: str) -> bool:
+    """Whether a texture reference is an inline ``data:image/...`` URI (it names no file).
+
+    Parameters
+    ----------
+    ref : str
+        The reference as written.
+
+    Returns
+    -------
+    bool
+        True for ``data:image/...`` (any case, surrounding whitespace ignored).
+    """
+    return ref.strip().lower().startswith(_INLINE_IMAGE)
+
+
+def resolve_in_folder(
+    ref: str, roots: Sequence[Path], folder: Path, where: Site
+) -> tuple[Path, ...]:
+    """Resolve a reference made inside a mesh file (a texture, a material library).
+
+    The reference is tried as written and percent-decoded: every form that
+    exists must stay inside ``roots``; one existing form is enough (a file may
+    be literally named ``a%20b.png``).
+
+    Parameters
+    ----------
+    ref : str
+        The reference as written in the mesh file (stripped).
+    roots : sequence of Path
+        Real paths of the allowed package directories.
+    folder : Path
+        Real path of the mesh file's folder: relative references start there.
+    where : Site
+        The mesh file, line and element holding the reference.
+
+    Returns
+    -------
+    tuple of Path
+        The real paths of the forms that exist (as written first), at least one.
+
+    Raises
+    ------
+    UnsafePathError
+        As :func:`resolve_reference`, for any form.
+    ResourceNotFoundError
+        If no form names an existing file (the error of the first form).
+    """
+    resolved, missing = [], []
+    for variant in dict.fromkeys([ref, unquote(ref)]):
+        try:
+            resolved.append(resolve_reference(variant, roots, [folder], where))
+        except ResourceNotFoundError as e:
+            missing.append(e)
+    if not resolved:
+        raise missing[0]
+    return tuple(resolved)
 
 
 class _ColladaTextures:
@@ -244,7 +296,7 @@ class _ColladaTextures:
         self.found: list[tuple[str, Site]] = []
 
     def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
-        local = _local(tag)
+        local = local_name(tag)
         in_image = any(t in ("image", "library_images") for t, _, _ in self.open)
         # meshcat's viewer reads every tag containing "init_from" in <library_images>
         collect = in_image and ("init_from" in local or local == "ref")
@@ -270,7 +322,14 @@ def _obj_material_refs(data: bytes, path: Path) -> Iterator[tuple[str, Site]]:
                 yield names, where
 
 
-def check_mesh(real: Path, roots: Sequence[Path], where: Site) -> tuple[Path, ...]:
+def check_mesh(
+    real: Path,
+    roots: Sequence[Path],
+    where: Site,
+    *,
+    inline_images: bool = False,
+    material_warning: bool = True,
+) -> tuple[Path, ...]:
     """Check a resolved mesh's format and the files it references.
 
     Parameters
@@ -280,7 +339,14 @@ def check_mesh(real: Path, roots: Sequence[Path], where: Site) -> tuple[Path, ..
     roots : sequence of Path
         Real paths of the allowed package directories.
     where : Site
-        The URDF element referencing the mesh, for error messages.
+        What references the mesh (a URDF element, a geometry object), for errors.
+    inline_images : bool
+        Accept ``data:image/...`` COLLADA textures, which name no file (the
+        replay passes them to the browser as they are; assimp cannot read
+        them, so the loader refuses them as a URL form).
+    material_warning : bool
+        Warn about a missing ``.obj`` material library (assimp then uses a
+        default material; the replay never reads material libraries).
 
     Returns
     -------
@@ -299,10 +365,9 @@ def check_mesh(real: Path, roots: Sequence[Path], where: Site) -> tuple[Path, ..
     -----
     Errors about the mesh file itself (format, size, not a regular file) name
     ``where``. Errors found *inside* the mesh (a texture, a material library,
-    the ``.dae``'s XML) name the mesh file, line and element (their ``path`` is
-    the mesh); :func:`youbot_opt.robot.strict.loader.load_urdf_strict` re-raises them from
-    ``where`` with the same class and rule. The warning for a missing ``.obj``
-    material library names both.
+    the ``.dae``'s XML) name the mesh file, line and element; callers re-raise
+    them from ``where`` with :func:`in_mesh`. The warning for a missing
+    ``.obj`` material library names both.
     """
     suffix = real.suffix.lower()
     if suffix not in MESH_SUFFIXES:
@@ -314,29 +379,50 @@ def check_mesh(real: Path, roots: Sequence[Path], where: Site) -> tuple[Path, ..
     if suffix == ".dae":
         textures = _ColladaTextures(os.fspath(real))
         scan_xml_strict(data, os.fspath(real), textures)
-        refs = textures.found
+        refs = [(r, s) for r, s in textures.found if not (inline_images and is_inline_image(r))]
     else:
         refs = list(_obj_material_refs(data, real))
     found: list[Path] = []
     for ref, ref_site in refs:
-        # Every form must stay inside; one existing form is enough (a file may be
-        # literally named "a%20b.png").
-        resolved, missing = [], []
-        for variant in dict.fromkeys([ref, unquote(ref)]):
-            try:
-                resolved.append(resolve_reference(variant, roots, [real.parent], ref_site))
-            except ResourceNotFoundError as e:
-                missing.append(e)
-        if resolved:
-            found.extend(resolved)
-        elif suffix == ".dae":
-            raise missing[0]
-        else:  # assimp falls back to a default material when the library is missing
-            at = f":{where.line}" if where.line is not None else ""
-            warnings.warn(
-                f"{where.path}{at}: {where.element}: {ref_site.path}:{ref_site.line}: "
-                f"material library {ref!r} is missing; assimp will use a default material",
-                YoubotOptWarning,
-                stacklevel=3,
-            )
+        try:
+            found.extend(resolve_in_folder(ref, roots, real.parent, ref_site))
+        except ResourceNotFoundError:
+            if suffix == ".dae":
+                raise
+            if material_warning:  # assimp falls back to a default material
+                at = f":{where.line}" if where.line is not None else ""
+                warnings.warn(
+                    f"{where.path}{at}: {where.element}: {ref_site.path}:{ref_site.line}: "
+                    f"material library {ref!r} is missing; assimp will use a default material",
+                    YoubotOptWarning,
+                    stacklevel=3,
+                )
     return tuple(dict.fromkeys(found))
+
+
+def in_mesh(error: URDFError, where: Site, mesh: Path) -> URDFError:
+    """Re-raise a rule broken inside a mesh file from what references the mesh.
+
+    Parameters
+    ----------
+    error : URDFError
+        The error, naming the mesh file, line and element.
+    where : Site
+        What references the mesh (a URDF element, a geometry object).
+    mesh : Path
+        The mesh file.
+
+    Returns
+    -------
+    URDFError
+        Of the same class and rule, sited at ``where``; its message keeps the
+        mesh file's own site and problem.
+    """
+    line = f":{where.line}" if where.line is not None else ""
+    message = (
+        f"{where.path}{line}: {where.element}: the mesh {os.fspath(mesh)!r} it references "
+        f"breaks a rule: {error}"
+    )
+    return type(error)(
+        message, path=where.path, element=where.element, line=where.line, rule=error.rule
+    )

@@ -35,6 +35,7 @@ __all__ = [
     "Site",
     "XMLTarget",
     "fail",
+    "local_name",
     "parse_number",
     "parse_xml_strict",
     "root_of",
@@ -109,6 +110,22 @@ def fail(cls: type[URDFError], where: Site, problem: str, rule: str) -> URDFErro
         line=where.line,
         rule=rule,
     )
+
+
+def local_name(tag: object) -> str:
+    """Return a tag's name without its namespace (``{ns}image`` or ``ns:image`` -> ``image``).
+
+    Parameters
+    ----------
+    tag : object
+        The tag as the parser reports it.
+
+    Returns
+    -------
+    str
+        The local name.
+    """
+    return str(tag).rsplit("}", 1)[-1].rsplit(":", 1)[-1]
 
 
 class XMLTarget(Protocol):

@@ -2,9 +2,10 @@
 
 Primitive coal shapes become meshcat primitives (a capsule becomes a triangle
 mesh). Mesh files are embedded only after :mod:`youbot_opt.robot.strict.meshes`
-accepts them: STL and OBJ files as ``_meshfile_geometry`` coloured with the
-URDF colour, COLLADA files as ``_meshfile_object`` with their own materials
-and their textures as ``data:`` URIs. A translucent copy, or a COLLADA mesh
+accepts them (by the loader's own resource policy): STL, OBJ and PLY (sent as
+STL) files as ``_meshfile_geometry`` coloured with the URDF colour, COLLADA
+files as ``_meshfile_object`` with their own materials and their textures as
+``data:`` URIs. A translucent copy, or a COLLADA mesh
 whose URDF material overrides the file's, is drawn from the triangles
 Pinocchio (coal) loaded, in the URDF colour and without textures.
 """
@@ -24,7 +25,8 @@ import umsgpack
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ModelError
-from youbot_opt.robot.strict.meshes import MESH_SUFFIXES, load_mesh_file
+from youbot_opt.robot.strict.meshes import load_mesh_file
+from youbot_opt.robot.strict.resources import MESH_SUFFIXES
 
 __all__ = ["set_object_command"]
 

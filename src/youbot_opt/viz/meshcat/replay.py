@@ -66,11 +66,36 @@ _HTML = """<!DOCTYPE html>
 </head>
 <body>
 <div id="meshcat-pane"></div>@LEGEND@
+<div id="no-webgl" style="display: none; position: absolute; top: 40%; left: 10%; right: 10%;
+ padding: 1em; font: 16px sans-serif; color: #000; background: #fd8; border: 2px solid #a60">
+This replay needs WebGL, which this browser has turned off or does not support, so nothing
+can be drawn. Open the file in a browser with WebGL (or hardware acceleration) enabled. For
+a headless screenshot, run Chromium with
+<code>--headless --use-angle=swiftshader --enable-unsafe-swiftshader</code>.</div>
+<script>
+function youbotOptNoWebGL() {  // a visible message instead of a blank page
+  document.getElementById("no-webgl").style.display = "block";
+}
+(function () {
+  var canvas = document.createElement("canvas");
+  var gl = null;
+  try { gl = canvas.getContext("webgl2") || canvas.getContext("webgl"); } catch (e) { gl = null; }
+  window.youbotOptHasWebGL = !!gl;
+  if (!gl) { youbotOptNoWebGL(); }
+})();
+</script>
 <script>@MAIN_MIN_JS@</script>
 <script>
 (function () {
+  if (!window.youbotOptHasWebGL) { return; }
   var commands = @COMMANDS@;
-  var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+  var viewer;
+  try {
+    viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+  } catch (e) {
+    youbotOptNoWebGL();
+    throw e;
+  }
   window.viewer = viewer;
   for (var i = 0; i < commands.length; i++) {  // in order, synchronously
     var raw = atob(commands[i]);
@@ -257,10 +282,12 @@ def scene_html(
         robot, t, q, ghosts=ghosts, extra=extra, spacing=spacing, root=frame_path
     )
     checked_targets = scene.check_targets(targets)
-    return _page(robot, runs, fps=fps, ee_path=ee_path, targets=checked_targets, loop=loop)
+    return standalone_page(
+        robot, runs, fps=fps, ee_path=ee_path, targets=checked_targets, loop=loop
+    )
 
 
-def _page(
+def standalone_page(
     robot: RobotLike,
     runs: Sequence[scene.Run],
     *,

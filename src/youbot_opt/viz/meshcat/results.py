@@ -23,7 +23,7 @@ import numpy as np
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.viz.meshcat import scene
-from youbot_opt.viz.meshcat.replay import _page, replay
+from youbot_opt.viz.meshcat.replay import replay, standalone_page
 from youbot_opt.viz.meshcat.scene import RobotLike
 from youbot_opt.viz.meshcat.server import MeshcatServer
 
@@ -217,7 +217,9 @@ def export_results_html(
     runs = scene.layout_runs(robot, t, q, root=frame_path, label=label, **placed)
     title = "side by side, in this order" if layout == "side_by_side" else "first, then ghosts"
     legend = _legend(title, runs, [lab for _, _, lab in tracks])
-    page = _page(robot, runs, fps=fps, ee_path=ee_path, targets=None, loop=loop, legend=legend)
+    page = standalone_page(
+        robot, runs, fps=fps, ee_path=ee_path, targets=None, loop=loop, legend=legend
+    )
     target.write_text(page, encoding="utf-8")
     logger.info("wrote %s (%.1f MB)", target, len(page) / 1e6)
     return target

@@ -267,8 +267,9 @@ def plot_minima(result: MultistartResult) -> Figure:
     failed = result.n_starts - result.n_success
     shown = f", lowest {len(minima)} shown" if len(minima) < len(result.minima) else ""
     ax.set_title(
-        f"{result.method}: {result.n_starts} starts (seed {result.seed}), "
-        f"{len(result.minima)} minima{shown}, {failed} failed"
+        f"{result.method}: {result.n_starts} start{'' if result.n_starts == 1 else 's'} "
+        f"(seed {result.seed}), {len(result.minima)} "
+        f"minim{'um' if len(result.minima) == 1 else 'a'}{shown}, {failed} failed"
     )
     ax.grid(True, axis="y", alpha=0.3)
     return fig

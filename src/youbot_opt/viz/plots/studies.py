@@ -381,7 +381,8 @@ def plot_multistart(
     fig.suptitle(
         title
         or (
-            f"{ms.n_starts} starts at $\\beta$ = {ms.beta:g}: {len(converged)} converged"
+            f"{ms.n_starts} start{'' if ms.n_starts == 1 else 's'} at $\\beta$ = {ms.beta:g}: "
+            f"{len(converged)} converged"
             f"{' (' + failed + ')' if failed else ''}; {len(optima)} distinct "
             f"{'optimum' if len(optima) == 1 else 'optima'}{more}"
         ),

@@ -317,7 +317,8 @@ def plot_convergence(
     ax.set_ylabel(r"objective $f = \beta T + (1-\beta) W$")
     ax.grid(True, which="both", alpha=0.3)
     n_ok = sum(ok for _, _, ok in items)
-    ax.set_title(title or f"Convergence of {len(items)} runs ({n_ok} converged)")
+    runs = "1 run" if len(items) == 1 else f"{len(items)} runs"
+    ax.set_title(title or f"Convergence of {runs} ({n_ok} converged)")
     if len(items) <= max_legend:
         fig.legend(loc="outside right upper", fontsize="small")
         return fig

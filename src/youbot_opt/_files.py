@@ -1,0 +1,316 @@
+"""The files youbot_opt writes: atomic writes, JSON sanitising, the schema header.
+
+Owns the three things every writer of a result, record, manifest or summary
+needs, written once: :func:`atomic_write_bytes` (temporary file in the target's
+folder, ``fsync``, :func:`os.replace`, ``fsync`` of the folder: a kill leaves the
+old file or the new one, never a torn one); :func:`json_ready` (numpy values,
+paths and enums to plain JSON, non-finite floats to ``null``); and
+:func:`schema_header` / :func:`check_schema_header` (schema name, version, the
+versions of the software that wrote it, a checksum). Layer 0: no robotics.
+
+Example::
+
+    doc = {**schema_header("youbot_opt.x", 1, sha256=json_digest(body)), "result": body}
+    atomic_write_text(path, json.dumps(json_ready(doc), allow_nan=False))
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from types import ModuleType
+from typing import IO, Any
+
+import numpy as np
+
+from youbot_opt.exceptions import ResultFileError
+
+__all__ = [
+    "TMP_PREFIX",
+    "array_digest",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "atomic_writer",
+    "check_schema_header",
+    "fsync_dir",
+    "json_digest",
+    "json_ready",
+    "json_roundtrip",
+    "schema_header",
+    "software_versions",
+]
+
+TMP_PREFIX = ".tmp-"
+"""Name prefix of the temporary files of :func:`atomic_writer` (``.tmp-<name>.<random>``)."""
+
+
+# ---------------------------------------------------------------- atomic writes
+def fsync_dir(directory: str | os.PathLike[str]) -> None:
+    """Make a rename inside ``directory`` durable (no-op where folders cannot be opened).
+
+    Parameters
+    ----------
+    directory : path-like
+        The folder whose entry list is flushed to disk.
+    """
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
+    """Open a binary handle whose content replaces ``path`` atomically on success.
+
+    The handle writes to ``.tmp-<name>.<random>`` in the target's folder; on a
+    clean exit it is flushed, ``fsync``-ed, renamed over ``path`` with
+    :func:`os.replace` and the folder is ``fsync``-ed. On any exception
+    (including ``KeyboardInterrupt``) the temporary file is removed and the
+    exception propagates; ``path`` is left untouched.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file; its folder must exist.
+
+    Yields
+    ------
+    IO[bytes]
+        The handle to write the full new content to.
+    """
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f"{TMP_PREFIX}{target.name}.")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    fsync_dir(target.parent)
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (temporary file, fsync, :func:`os.replace`).
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file; its folder must exist.
+    data : bytes
+        Full new content.
+    """
+    with atomic_writer(path) as handle:
+        handle.write(data)
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "utf-8") -> None:
+    """Write ``text`` to ``path`` atomically, encoded with ``encoding`` (UTF-8 by default).
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file; its folder must exist.
+    text : str
+        Full new content.
+    encoding : str
+        Text encoding.
+    """
+    atomic_write_bytes(path, text.encode(encoding))
+
+
+# ---------------------------------------------------------------- JSON
+def json_ready(value: Any) -> Any:
+    """``value`` as strict JSON: numpy values, paths and enums converted, NaN/inf as ``None``.
+
+    Mappings become dicts with ``str`` keys, tuples and arrays lists, numpy
+    scalars Python scalars, :class:`~pathlib.Path` a string, a non-``str``/``int``
+    enum its ``value``, and non-finite floats ``None`` (JSON has no NaN). Other
+    values are returned unchanged.
+
+    Parameters
+    ----------
+    value : Any
+        A nest of mappings, sequences and scalars.
+
+    Returns
+    -------
+    Any
+        The converted nest; ``json.dumps(..., allow_nan=False)`` accepts it
+        when every leaf is a JSON scalar.
+    """
+    if isinstance(value, Mapping):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [json_ready(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        return json_ready(value.item())
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Path):
+        return str(value)
+    if hasattr(value, "value") and hasattr(value, "name") and not isinstance(value, (int, str)):
+        return json_ready(value.value)  # enums
+    return value
+
+
+def json_roundtrip(value: Any) -> Any:
+    """``value`` exactly as it reads back from JSON, non-finite floats kept as NaN/inf.
+
+    Unlike :func:`json_ready` this neither maps NaN/inf to ``None`` nor converts
+    numpy values (they raise ``TypeError``): it is for comparing parameters with
+    the ones a file holds (tuples become lists, floats stay bit-exact).
+
+    Parameters
+    ----------
+    value : Any
+        Plain JSON-serialisable data.
+
+    Returns
+    -------
+    Any
+        ``json.loads(json.dumps(value, allow_nan=True))``.
+    """
+    return json.loads(json.dumps(value, allow_nan=True))
+
+
+# ---------------------------------------------------------------- schema header
+def software_versions(*modules: ModuleType) -> dict[str, str]:
+    """Versions of youbot_opt and of ``modules``, keyed by package name.
+
+    Parameters
+    ----------
+    *modules : module
+        Imported packages with a ``__version__`` (``pinocchio``, ``numpy``, ...).
+
+    Returns
+    -------
+    dict
+        ``{"youbot_opt": ..., "<module name>": ..., ...}`` in argument order.
+    """
+    from youbot_opt._version import __version__
+
+    versions = {"youbot_opt": str(__version__)}
+    for module in modules:
+        versions[module.__name__] = str(module.__version__)  # type: ignore[attr-defined]
+    return versions
+
+
+def array_digest(arr: Any) -> str:
+    """SHA-256 hex digest of an array's C-contiguous bytes (dtype and shape not included)."""
+    return hashlib.sha256(np.ascontiguousarray(arr).tobytes()).hexdigest()
+
+
+def json_digest(body: Any) -> str:
+    """SHA-256 hex digest of the canonical JSON of ``body`` (sorted keys, no spaces, no NaN).
+
+    Raises
+    ------
+    ValueError
+        If ``body`` holds a non-finite float.
+    """
+    canonical = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def schema_header(
+    schema: str, version: int, versions: Mapping[str, str] | None = None, **checksums: Any
+) -> dict[str, Any]:
+    """Return the leading fields of a file we write: schema, version, writer versions, checksums.
+
+    Parameters
+    ----------
+    schema : str
+        Schema name, e.g. ``"youbot_opt.ikpath_result"``.
+    version : int
+        Schema version (>= 1).
+    versions : mapping, optional
+        Software versions (:func:`software_versions`); youbot_opt's alone when omitted.
+    **checksums
+        Checksum fields in the order given, e.g. ``sha256=json_digest(body)``.
+
+    Returns
+    -------
+    dict
+        ``{"schema", "schema_version", "versions", **checksums}`` in that order.
+    """
+    return {
+        "schema": schema,
+        "schema_version": int(version),
+        "versions": dict(software_versions() if versions is None else versions),
+        **checksums,
+    }
+
+
+def check_schema_header(
+    doc: Any,
+    *,
+    schema: str | None,
+    supported: int,
+    source: str,
+    remedy: str = "upgrade youbot_opt to read it",
+) -> int:
+    """Check the schema name and version of a file read back; return the version.
+
+    Parameters
+    ----------
+    doc : Any
+        The parsed document (a dict with ``schema`` and ``schema_version``).
+    schema : str or None
+        Expected schema name; ``None`` skips the name check.
+    supported : int
+        Newest schema version this code reads (1..``supported`` are accepted).
+    source : str
+        What was read, for the messages (e.g. the path).
+    remedy : str
+        What the user can do about a file of a newer version (end of that message).
+
+    Returns
+    -------
+    int
+        The file's schema version.
+
+    Raises
+    ------
+    ResultFileError
+        If the schema is another one, or the version is not an integer, < 1 or
+        newer than ``supported`` (the message names the youbot_opt that wrote it).
+    """
+    if schema is not None and (not isinstance(doc, dict) or doc.get("schema") != schema):
+        found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
+        raise ResultFileError(f"{source}: unknown schema {found!r}, expected {schema!r}")
+    if not isinstance(doc, dict):
+        raise ResultFileError(f"{source} is corrupted: a {type(doc).__name__}, not a JSON object")
+    version = doc.get("schema_version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise ResultFileError(
+            f"{source} is corrupted: no valid 'schema_version' field (expected an integer "
+            f"in 1..{supported}, got {version!r})"
+        )
+    if version > supported:
+        versions = doc.get("versions")
+        writer = versions.get("youbot_opt") if isinstance(versions, dict) else None
+        written_by = f"; the file was written by youbot_opt {writer}" if writer else ""
+        raise ResultFileError(
+            f"{source}: schema version {version} is newer than this youbot_opt reads "
+            f"(versions 1..{supported}){written_by}; {remedy}"
+        )
+    return version

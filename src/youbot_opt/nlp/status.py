@@ -1,0 +1,120 @@
+"""How a solve ended: :class:`SolveStatus`, one enum for both optimisers.
+
+A failed solve is a status, not an exception (Drake, toppra): sweeps keep
+going and the result says why. The trajectory optimiser and the IK-path
+solver report the same outcomes with the same members; :attr:`success` is
+true only for :attr:`~SolveStatus.SOLVED` and
+:attr:`~SolveStatus.SOLVED_ACCEPTABLE`. Values written by older versions
+(the IK-path ``"success"``, ``"time_limit"``, ...) still load.
+
+>>> SolveStatus("success") is SolveStatus.SOLVED, status_from_ipopt("Solve_Succeeded")
+(True, <SolveStatus.SOLVED: 'solved'>)
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from types import MappingProxyType
+
+__all__ = ["SolveStatus", "IPOPT_STATUS", "status_from_ipopt"]
+
+
+class SolveStatus(enum.Enum):
+    """How a solve ended (:attr:`success` only for the first two).
+
+    The names ``SUCCESS``, ``TIME_LIMIT``, ``NUMERICAL_ERROR`` and
+    ``CHECK_FAILED`` of the former ``IKStatus`` are aliases of
+    :attr:`SOLVED`, :attr:`MAX_TIME`, :attr:`NON_FINITE` and
+    :attr:`CONSTRAINT_VIOLATION` (deprecated: kept so that code written
+    against ``IKStatus`` runs), and their old values load
+    (``SolveStatus("success") is SolveStatus.SOLVED``).
+    """
+
+    SOLVED = "solved"
+    """Converged to the solver's tolerances, and the independent check passed."""
+    SOLVED_ACCEPTABLE = "solved_acceptable"
+    """IPOPT converged to its ``acceptable_tol`` level; the check passed."""
+    MAX_ITERATIONS = "max_iterations"
+    """Iteration limit reached before the tolerances were met."""
+    MAX_TIME = "max_time"
+    """CPU- or wall-time limit reached; the last (or best) iterate is kept."""
+    STALLED = "stalled"
+    """No further progress possible (penalty at its cap, or IPOPT gave up: restoration
+    failed, search direction too small); used by the IK-path solvers."""
+    INFEASIBLE = "infeasible"
+    """The solver reports the constraints as locally infeasible."""
+    NON_FINITE = "non_finite"
+    """NaN or inf in the iterate, objective or constraints, or a numerical error inside
+    the solver."""
+    CONSTRAINT_VIOLATION = "constraint_violation"
+    """The solver claimed success but the result failed its independent check
+    (constraints, bounds or targets missed, or reported figures that do not belong
+    to the solution); the message says why."""
+    CRASHED = "crashed"
+    """The solve raised an exception or its worker died (sweeps keep going)."""
+    FAILED = "failed"
+    """Any other solver failure (restoration failed, error in evaluation, ...)."""
+
+    # Deprecated names of the former ``IKStatus`` (enum aliases: the same members).
+    SUCCESS = "solved"
+    TIME_LIMIT = "max_time"
+    NUMERICAL_ERROR = "non_finite"
+    CHECK_FAILED = "constraint_violation"
+
+    @property
+    def success(self) -> bool:
+        """True for :attr:`SOLVED` and :attr:`SOLVED_ACCEPTABLE`."""
+        return self in (SolveStatus.SOLVED, SolveStatus.SOLVED_ACCEPTABLE)
+
+    @classmethod
+    def _missing_(cls, value: object) -> SolveStatus | None:
+        """Read the values of the former ``IKStatus`` (saved IK-path results and sweeps)."""
+        return _OLD_VALUES.get(value) if isinstance(value, str) else None
+
+
+_OLD_VALUES: dict[str, SolveStatus] = {
+    "success": SolveStatus.SOLVED,
+    "time_limit": SolveStatus.MAX_TIME,
+    "numerical_error": SolveStatus.NON_FINITE,
+    "check_failed": SolveStatus.CONSTRAINT_VIOLATION,
+}
+
+IPOPT_STATUS: Mapping[str, SolveStatus] = MappingProxyType(
+    {
+        "Solve_Succeeded": SolveStatus.SOLVED,
+        "Solved_To_Acceptable_Level": SolveStatus.SOLVED_ACCEPTABLE,
+        "Maximum_Iterations_Exceeded": SolveStatus.MAX_ITERATIONS,
+        "Maximum_CpuTime_Exceeded": SolveStatus.MAX_TIME,
+        "Maximum_WallTime_Exceeded": SolveStatus.MAX_TIME,
+        "Infeasible_Problem_Detected": SolveStatus.INFEASIBLE,
+        "Invalid_Number_Detected": SolveStatus.NON_FINITE,
+    }
+)
+"""IPOPT's ``return_status`` strings with a status of their own."""
+
+
+def status_from_ipopt(
+    return_status: str,
+    *,
+    table: Mapping[str, SolveStatus] = IPOPT_STATUS,
+    otherwise: SolveStatus = SolveStatus.FAILED,
+) -> SolveStatus:
+    """Map IPOPT's ``return_status`` string to a :class:`SolveStatus`.
+
+    Parameters
+    ----------
+    return_status : str
+        ``nlpsol.stats()["return_status"]``.
+    table : mapping, optional
+        IPOPT strings to statuses (default :data:`IPOPT_STATUS`); a solver
+        with its own reading of some strings passes an extended table.
+    otherwise : SolveStatus, optional
+        Status of a string not in ``table`` (default :attr:`SolveStatus.FAILED`).
+
+    Returns
+    -------
+    SolveStatus
+        The status.
+    """
+    return table.get(return_status, otherwise)

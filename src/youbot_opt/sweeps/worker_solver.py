@@ -1,0 +1,82 @@
+"""The worker-local cache of a built solver: build it once per worker, reuse it for every item.
+
+Owns how a sweep hands its solver to worker processes (spec: the sweep layer
+of ``ARCHITECTURE.md``). A :class:`WorkerSolver` travels with every task; it
+pickles as a recipe (``build(*args)`` and a run token) without the built
+solver, which stays behind in ``prebuilt`` for serial runs and forked pools.
+:meth:`WorkerSolver.get` returns the prebuilt solver, else the one this
+worker (process, and thread for thread pools) built for the same token, else
+builds and caches a new one; :func:`hold_solver` is the pool initializer that
+fills the cache when a worker starts. Robot-agnostic: ``build`` is any callable.
+
+    handle = WorkerSolver.of(TrajOptSolver, problem, method, options, prebuilt=solver)
+    run_tasks(tasks, initializer=hold_solver, initargs=(handle,))
+"""
+
+from __future__ import annotations
+
+import threading
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+__all__ = ["WorkerSolver", "hold_solver"]
+
+S = TypeVar("S")
+
+# Per-process (and per-thread) solver of pool workers, keyed by the run's token:
+# set by the pool initializer or the first task, read by every later task. It is
+# filled only inside workers (and by serial runs that pass no prebuilt solver).
+_CACHE = threading.local()
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WorkerSolver(Generic[S]):
+    """A solver for the items of one sweep run: prebuilt here, rebuilt once per worker.
+
+    Attributes
+    ----------
+    build : callable
+        Module-level (picklable) callable that builds the solver, e.g. a class.
+    args : tuple
+        Its positional arguments (picklable for spawned workers).
+    token : str
+        Identifies the run: a worker's cached solver is reused only for it.
+    prebuilt : object, optional
+        The solver already built in this process; not pickled.
+    """
+
+    build: Callable[..., S]
+    args: tuple[Any, ...] = ()
+    token: str = field(default_factory=lambda: uuid.uuid4().hex)
+    prebuilt: S | None = field(default=None, compare=False)
+
+    @classmethod
+    def of(cls, build: Callable[..., S], *args: Any, prebuilt: S | None = None) -> WorkerSolver[S]:
+        """Make the handle of one run (a fresh token) for ``build(*args)``."""
+        return cls(build=build, args=tuple(args), prebuilt=prebuilt)
+
+    def __getstate__(self) -> tuple[Any, ...]:
+        return (self.build, self.args, self.token)
+
+    def __setstate__(self, state: tuple[Any, ...]) -> None:
+        for name, value in zip(("build", "args", "token"), state, strict=True):
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "prebuilt", None)
+
+    def get(self) -> S:
+        """Return the prebuilt solver, this worker's cached one, or a new one (then cached)."""
+        if self.prebuilt is not None:
+            return self.prebuilt
+        if getattr(_CACHE, "token", None) != self.token:
+            _CACHE.solver = self.build(*self.args)
+            _CACHE.token = self.token
+        solver: S = _CACHE.solver
+        return solver
+
+
+def hold_solver(handle: WorkerSolver[Any]) -> None:
+    """Pool initializer: hold ``handle``'s solver for every item this worker runs."""
+    _CACHE.solver = handle.get()
+    _CACHE.token = handle.token

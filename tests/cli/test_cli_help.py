@@ -1,0 +1,205 @@
+"""The help texts: plain text, runnable examples, fast to print, and consistent choices."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from youbot_opt.cli import build_parser
+from youbot_opt.cli.pareto_table import distinct_points, pareto_summary, pareto_table
+
+README = Path(__file__).resolve().parents[2] / "README.md"
+SPHINX = re.compile(r"``|:(mod|func|class|meth|attr|data|exc|obj):`")
+HEAVY = ("casadi", "pinocchio", "scipy", "matplotlib", "meshcat")
+
+
+def _help_texts() -> dict[str, str]:
+    """The --help text of the top-level parser and of every sub-command."""
+    parser = build_parser()
+    texts = {"": parser.format_help()}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                texts[name] = sub.format_help()
+    return texts
+
+
+def _examples() -> list[tuple[str, list[str]]]:
+    """Every ``youbot-opt ...`` example line printed in a --help, as (command, argv)."""
+    found = []
+    for name, text in _help_texts().items():
+        for line in text.splitlines():
+            words = shlex.split(line) if line.startswith("    youbot-opt ") else []
+            if name and words[1:2] == [name] and not any(w.startswith("[") for w in words):
+                found.append((name, words[1:]))
+    return found
+
+
+def test_every_command_has_help():
+    """The parser has the documented commands, each with a help text."""
+    assert set(_help_texts()) >= {"", "main", "solve", "report", "pareto", "ikpath"}
+
+
+@pytest.mark.parametrize("command", sorted(_help_texts()))
+def test_help_is_plain_text(command):
+    """No Sphinx markup (double backticks, :mod:/:func:/... roles) in any --help."""
+    text = _help_texts()[command]
+    assert not SPHINX.search(text), SPHINX.search(text)
+
+
+def test_help_examples_are_found():
+    """The example extraction finds the ikpath examples (so the run test is not vacuous)."""
+    assert sum(name == "ikpath" for name, _ in _examples()) >= 4
+
+
+@pytest.mark.parametrize("argv", [a for _, a in _examples()], ids=" ".join)
+def test_help_example_runs_and_exits_0(argv, tmp_path):
+    """Each example printed in a --help runs and exits 0 (with a temporary --out)."""
+    extra = [] if "--out" in argv else ["--out", str(tmp_path / "run")]
+    proc = subprocess.run(
+        [sys.executable, "-m", "youbot_opt", *argv, *extra],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+
+
+_NO_HEAVY = """
+import sys
+from youbot_opt.cli import main
+try:
+    main({argv!r})
+except SystemExit:
+    pass
+print("HEAVY:", *sorted({{m.split(".")[0] for m in sys.modules}} & set({heavy!r})))
+"""
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--help"],
+        ["ikpath", "--help"],
+        ["solve", "--help"],
+        ["report", "--help"],
+        ["pareto", "--help"],
+        ["main", "--help"],
+        ["reproduce-study1", "--help"],
+        ["solve", "--no-such-option"],
+        ["ikpath", "--method", "nope"],
+    ],
+    ids=" ".join,
+)
+def test_help_and_argument_errors_import_no_solver(argv):
+    """Parsing --help or a bad argument imports none of CasADi, Pinocchio, SciPy, matplotlib.
+
+    This is structural: the speed itself is measured in benchmarks/bench_cli.py.
+    """
+    code = _NO_HEAVY.format(argv=argv, heavy=HEAVY)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == "HEAVY:", proc.stdout[-500:]
+
+
+def test_parser_choices_match_the_library():
+    """The choices spelled out in the CLI (to keep --help fast) equal the library's."""
+    from youbot_opt.cli import ikpath, report
+    from youbot_opt.ikpath.examples import EXAMPLES
+    from youbot_opt.ikpath.solve import METHODS
+    from youbot_opt.ikpath.starts import START_KINDS
+    from youbot_opt.robot.model import available_robots
+
+    assert ikpath.EXAMPLE_NAMES == tuple(sorted(EXAMPLES))
+    assert ikpath.METHOD_NAMES == tuple(METHODS)
+    assert ikpath.START_KIND_NAMES == tuple(START_KINDS)
+    assert report.ROBOT_NAMES == tuple(available_robots())
+
+
+def _point(beta, duration, work, success=True, dominated=False):
+    return SimpleNamespace(
+        beta=beta,
+        duration=duration,
+        work=work,
+        objective=beta * duration + (1 - beta) * work,
+        status="solved" if success else "error",
+        success=success,
+        iterations=5,
+        start="previous",
+        dominated=dominated,
+        summary=lambda: {"beta": beta},
+    )
+
+
+def _front():
+    # The study-1 front's high-beta end, as measured: three weights give the same solution
+    # (T and W agree to 2e-10 relative).
+    points = (
+        _point(0.80, 1.3766645938738038, 16.2812004540111),
+        _point(0.85, 1.3611110987882373, 16.349019245941378),
+        _point(0.90, 1.3611110981845729, 16.34901924514988),
+        _point(0.95, 1.3611110980524788, 16.349019248188462),
+        _point(0.99, float("nan"), float("nan"), success=False, dominated=True),
+    )
+    return SimpleNamespace(
+        points=points,
+        resumed=0,
+        wall_time=0.5,
+        summary=lambda: {"n_points": len(points)},
+    )
+
+
+def test_pareto_identical_points_are_one_point():
+    """Weights whose T and W agree within 1e-6 relative are one distinct point."""
+    groups = distinct_points(_front().points)
+    assert [[p.beta for p in g] for g in groups] == [[0.80], [0.85, 0.90, 0.95]]
+    # A tolerance below the measured 2e-10 spread separates them again.
+    assert len(distinct_points(_front().points, rtol=1e-12)) == 4
+
+
+def test_pareto_table_counts_distinct_points_and_gives_w_its_unit():
+    """The printed table says 4 non-dominated, 2 distinct, maps weights to points, W in units."""
+    lines = pareto_table(_front())
+    assert "4 non-dominated, 2 distinct points" in lines[0]
+    assert "W [N^2 m^2 s]" in lines[1]
+    rows = {line.split()[0]: line.split() for line in lines[2:7]}
+    assert rows["0.850"][6] == rows["0.900"][6] == rows["0.950"][6] == "P2"
+    assert rows["0.800"][6] == "P1" and rows["0.990"][6] == "-"
+    assert lines[-1].startswith("P2: one point for beta = 0.85, 0.9, 0.95")
+    summary = pareto_summary(_front())
+    assert summary["n_distinct"] == 2 and summary["distinct_rtol"] == 1e-6
+    assert summary["distinct_points"][1]["betas"] == [0.85, 0.90, 0.95]
+
+
+def test_readme_unreachable_command_is_refused(tmp_path):
+    """The README's (0, 7.1) command runs and exits 2 with a certified distance bound."""
+    match = re.search(r"`(youbot-opt ikpath [^`]*--target 0 7\.1[^`]*)`", README.read_text())
+    assert match, "README gives the (0, 7.1) command"
+    argv = shlex.split(match.group(1))[1:]
+    proc = subprocess.run(
+        [sys.executable, "-m", "youbot_opt", *argv, "--out", str(tmp_path / "run")],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "unreachable" in proc.stdout + proc.stderr
+
+
+def test_solve_other_robot_without_start_goal_says_why(capsys, tmp_path):
+    """solve --robot double_pendulum without --start/--goal exits 2 and says they are needed."""
+    from youbot_opt.cli import main
+
+    code = main(["solve", "--robot", "double_pendulum", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--start and --goal" in err and "only the youbot has a default motion" in err

@@ -1,0 +1,79 @@
+"""One SolveStatus for both optimisers; old values and names still load."""
+
+from __future__ import annotations
+
+import pytest
+
+from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
+from youbot_opt.trajopt.result import SolveStatus as TrajOptSolveStatus
+
+
+def test_one_enum_for_both_optimisers() -> None:
+    """trajopt re-exports it and IKStatus is a deprecated alias of it."""
+    assert TrajOptSolveStatus is SolveStatus and IKStatus is SolveStatus
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        ("success", SolveStatus.SOLVED),
+        ("time_limit", SolveStatus.MAX_TIME),
+        ("numerical_error", SolveStatus.NON_FINITE),
+        ("check_failed", SolveStatus.CONSTRAINT_VIOLATION),
+        ("max_iterations", SolveStatus.MAX_ITERATIONS),
+        ("stalled", SolveStatus.STALLED),
+        ("infeasible", SolveStatus.INFEASIBLE),
+        ("crashed", SolveStatus.CRASHED),
+        ("solved", SolveStatus.SOLVED),
+        ("constraint_violation", SolveStatus.CONSTRAINT_VIOLATION),
+    ],
+)
+def test_values_of_saved_files_load(old: str, new: SolveStatus) -> None:
+    """IK-path files stored IKStatus values ("success", ...); trajopt ones SolveStatus values."""
+    assert SolveStatus(old) is new
+
+
+def test_old_names_are_aliases_and_success() -> None:
+    """IKStatus.SUCCESS etc. are the same members; success only for the two solved ones."""
+    assert IKStatus.SUCCESS is SolveStatus.SOLVED and IKStatus.TIME_LIMIT is SolveStatus.MAX_TIME
+    assert IKStatus.NUMERICAL_ERROR is SolveStatus.NON_FINITE
+    assert IKStatus.CHECK_FAILED is SolveStatus.CONSTRAINT_VIOLATION
+    assert len(list(SolveStatus)) == 10  # aliases are not members of their own
+    assert {s for s in SolveStatus if s.success} == {
+        SolveStatus.SOLVED,
+        SolveStatus.SOLVED_ACCEPTABLE,
+    }
+    with pytest.raises(ValueError):
+        SolveStatus("nonsense")
+
+
+def test_status_from_ipopt() -> None:
+    """IPOPT strings map to statuses; unknown ones to ``otherwise``."""
+    assert status_from_ipopt("Solve_Succeeded") is SolveStatus.SOLVED
+    assert status_from_ipopt("Maximum_WallTime_Exceeded") is SolveStatus.MAX_TIME
+    assert status_from_ipopt("Restoration_Failed") is SolveStatus.FAILED
+    got = status_from_ipopt("Restoration_Failed", otherwise=SolveStatus.NON_FINITE)
+    assert got is SolveStatus.NON_FINITE
+
+
+def test_one_ipopt_options_class_serves_both() -> None:
+    """Trajectory defaults by default; IK-path defaults from for_ikpath; old dicts unchanged."""
+    trajopt = IpoptOptions()
+    assert trajopt.tol == 1e-8 and trajopt.constr_viol_tol is None
+    assert set(trajopt.to_dict()) == {
+        "tol", "max_iter", "max_cpu_time", "print_level", "linear_solver", "hessian",
+        "mu_strategy", "extra",
+    }  # fmt: skip
+    ik = IpoptOptions.for_ikpath(max_wall_time=2.0)
+    assert (ik.tol, ik.constr_viol_tol, ik.mu_strategy) == (1e-12, 1e-11, "monotone")
+    ipopt = ik.to_casadi(True, solver_settings={"slack_move": 1e-14})["ipopt"]
+    assert ipopt["max_wall_time"] == 2.0 and ipopt["constr_viol_tol"] == 1e-11
+    assert ipopt["slack_move"] == 1e-14
+    over = IpoptOptions.for_ikpath(extra={"slack_move": 1e-12})
+    assert (
+        over.to_casadi(True, solver_settings={"slack_move": 1e-14})["ipopt"]["slack_move"] == 1e-12
+    )
+    with pytest.raises(Exception, match="constr_viol_tol"):
+        IpoptOptions(constr_viol_tol=-1.0)

@@ -1,0 +1,203 @@
+"""The package's own imports obey the layer rules of ARCHITECTURE.md (read with ast).
+
+Rules: no import cycle between modules; no private name (``_x``, or a name from a
+private module) imported from another module; no import against the layer order
+L0 (plain helpers) < robot < dynamics, nlp, sweeps < trajopt, ikpath < viz,
+reproduction < cli. A module may import from its own package and from lower
+layers only; two packages of one layer do not import each other.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "src" / "youbot_opt"
+
+#: Layer of each top-level part of the package; the root ``__init__``/``__main__`` is on top.
+LAYERS: dict[str, int] = {
+    "exceptions": 0,
+    "_typing": 0,
+    "_checks": 0,
+    "_files": 0,
+    "_version": 0,
+    "robot": 1,
+    "dynamics": 2,
+    "nlp": 2,
+    "sweeps": 2,
+    "trajopt": 3,
+    "ikpath": 3,
+    "viz": 4,
+    "reproduction": 4,
+    "cli": 5,
+    "__init__": 6,
+    "__main__": 6,
+}
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__" and len(parts) > 1 and parts[-2] != "youbot_opt":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+MODULES = _modules()
+
+
+def _top(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _resolve(module: str, name: str | None) -> str:
+    """The module that ``from module import name`` reads: the submodule if it is one."""
+    if name is not None and f"{module}.{name}" in MODULES:
+        return f"{module}.{name}"
+    return module
+
+
+def _imports(module: str) -> list[tuple[str, str | None, int]]:
+    """``(imported module, imported name or None, line)`` for every import of ``module``."""
+    tree = ast.parse(MODULES[module].read_text(), filename=str(MODULES[module]))
+    out: list[tuple[str, str | None, int]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("youbot_opt"):
+                    out.append((alias.name, None, node.lineno))
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                raise AssertionError(f"{module}:{node.lineno}: relative import; use absolute")
+            if node.module and node.module.startswith("youbot_opt"):
+                for alias in node.names:
+                    out.append((node.module, alias.name, node.lineno))
+    return out
+
+
+GRAPH = {m: _imports(m) for m in MODULES}
+
+
+def _edges() -> dict[str, set[str]]:
+    edges: dict[str, set[str]] = {m: set() for m in MODULES}
+    for m, imports in GRAPH.items():
+        for target, name, _ in imports:
+            dep = _resolve(target, name)
+            if dep != m and dep in MODULES:
+                edges[m].add(dep)
+    return edges
+
+
+def _package_of(module: str) -> str:
+    """The package a module belongs to (its own name for a package ``__init__``)."""
+    if MODULES[module].name == "__init__.py":
+        return module
+    return module.rsplit(".", 1)[0]
+
+
+def test_every_module_has_a_layer():
+    """Each top-level module or package of youbot_opt is placed in a layer."""
+    missing = sorted({_top(m) for m in MODULES} - set(LAYERS))
+    assert not missing, f"not placed in a layer of ARCHITECTURE.md: {missing}"
+
+
+def test_no_import_cycles():
+    """The module import graph is acyclic (imports inside functions count too)."""
+    edges = _edges()
+    state: dict[str, int] = {}
+    cycles: list[list[str]] = []
+
+    def visit(node: str, stack: list[str]) -> None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(edges[node]):
+            # a package __init__ that re-exports its own submodules is not a cycle
+            if _package_of(node) == node and nxt.startswith(node + "."):
+                continue
+            if state.get(nxt) == 1:
+                cycles.append(stack[stack.index(nxt) :] + [nxt])
+            elif nxt not in state:
+                visit(nxt, stack)
+        stack.pop()
+        state[node] = 2
+
+    for m in sorted(MODULES):
+        if m not in state:
+            visit(m, [])
+    assert not cycles, "import cycles:\n" + "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_no_private_names_across_modules():
+    """No module imports a private name, or from a private module, of another module."""
+    bad = []
+    for m, imports in GRAPH.items():
+        for target, name, line in imports:
+            dep = _resolve(target, name)
+            if dep == m:
+                continue
+            private_module = any(
+                p.startswith("_") and p not in {"__init__"} for p in dep.split(".")[1:]
+            )
+            private_name = name is not None and name.startswith("_") and name != "__version__"
+            if (
+                private_module and not dep.endswith(("_typing", "_checks", "_files", "_version"))
+            ) or (private_name and dep not in {"youbot_opt._version"}):
+                bad.append(f"{m}:{line}: from {target} import {name}")
+    assert not bad, "private names imported across modules:\n" + "\n".join(bad)
+
+
+def test_no_upward_imports():
+    """A module imports only from its own layer's package or from lower layers."""
+    bad = []
+    for m, imports in GRAPH.items():
+        mine = _top(m)
+        for target, name, line in imports:
+            dep = _resolve(target, name)
+            theirs = _top(dep)
+            if theirs == mine or LAYERS[theirs] == LAYERS[mine] == 0:
+                continue  # the plain helpers of layer 0 may import each other
+            if LAYERS[theirs] >= LAYERS[mine]:
+                bad.append(f"{m}:{line}: imports {dep} (layer {LAYERS[theirs]} >= {LAYERS[mine]})")
+    assert not bad, "imports against the layer order:\n" + "\n".join(bad)
+
+
+def test_layer_0_imports_only_layer_0():
+    """The plain helpers (exceptions, _typing, _checks, _files, _version) import only each other."""
+    bad = [
+        f"{m}:{line}: imports {_resolve(target, name)}"
+        for m, imports in GRAPH.items()
+        if LAYERS[_top(m)] == 0
+        for target, name, line in imports
+        if LAYERS[_top(_resolve(target, name))] != 0
+    ]
+    assert not bad, "layer-0 modules importing the rest of youbot_opt:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize(
+    ("source", "expected"),
+    [
+        ("from youbot_opt.cli import main\n", "layer"),
+        ("from youbot_opt.trajopt.solver import _private\n", "private"),
+    ],
+)
+def test_the_rules_catch_violations(tmp_path, source, expected):
+    """The checks above fail on a planted violation (a robot module importing up or a private)."""
+    planted = "youbot_opt.robot._planted_check"
+    MODULES[planted] = tmp_path / "planted.py"
+    MODULES[planted].write_text(source)
+    GRAPH[planted] = _imports(planted)
+    try:
+        check = (
+            test_no_upward_imports if expected == "layer" else test_no_private_names_across_modules
+        )
+        with pytest.raises(AssertionError):
+            check()
+    finally:
+        del MODULES[planted], GRAPH[planted]
