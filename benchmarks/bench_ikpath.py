@@ -30,6 +30,16 @@ Measurements:
   median per-start solve time, how many starts succeeded and how many found
   the best ``E``.
 
+Spatial problems (issue 14, ``--spatial-only`` / ``--planar-only``): ur5
+(``tool0``) and panda (``panda_hand_tcp``) through 6, 9 and 12 targets, the
+frame placements of configurations drawn uniformly in the joint limits
+(clipped to ``[-pi, pi]``, ``default_rng(2026)``), even targets full poses,
+odd ones positions. Per case: ms per solve of both methods from the greedy
+start (median of ``--repeats``), starts/s of :func:`run_spatial_multistart`
+on 1 and 2 workers, and the total joint motion ``E`` of the best minimum
+against the greedy baseline (each target solved by damped least squares
+from the previous configuration, :func:`greedy_path`): the ratio must be <= 1.
+
 The machine's load average is printed: on a shared machine wall times are
 inflated by other processes, CPU times much less so.
 """
@@ -56,6 +66,10 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
+from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path, make_spatial_starts
+from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
+from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatial
+from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.sweeps.options import SweepOptions
 
 SEVEN_LINKS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)  # [m]
@@ -221,6 +235,85 @@ def print_report(report: dict[str, Any]) -> None:
     print(f"\ntotal benchmark time {report['elapsed']:.1f} s")
 
 
+def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> SpatialIKProblem:
+    """Targets at the frame placements of random in-limit configurations (poses on even ones)."""
+    from youbot_opt.robot.model import load_model
+
+    robot = load_model(robot_name)
+    model, data = robot.model, robot.model.createData()
+    base = SpatialIKProblem(
+        model=model,
+        frame=robot.tip_frame,
+        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+    )
+    rng = np.random.default_rng(seed)
+    lo = np.maximum(base.q_lower, -np.pi)
+    hi = np.minimum(base.q_upper, np.pi)
+    targets = []
+    for k in range(n_targets):
+        theta = rng.uniform(lo, hi)
+        placement = base.placement(theta, data)
+        rot = placement.rotation if k % 2 == 0 else None
+        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+    return base.with_targets(targets)
+
+
+def bench_spatial(robot: str, n_targets: int, repeats: int, n_starts: int) -> dict[str, Any]:
+    """One spatial case: both methods' ms per solve, starts/s on 1 and 2 workers, motion ratio."""
+    problem = spatial_problem(robot, n_targets)
+    greedy, greedy_ok = greedy_path(problem)
+    e_greedy = problem.objective(greedy)
+    x0 = make_spatial_starts(problem, 1, 0)[0]
+    row: dict[str, Any] = {"robot": robot, "targets": n_targets, "greedy_E": e_greedy}
+    row["greedy_ok"] = greedy_ok
+    al, wall_al, _ = _repeat(lambda: solve_spatial(problem, method="al", x0=x0), repeats)
+    ipopt_solver = SpatialIpoptSolver(problem)
+    ip, wall_ip, _ = _repeat(lambda: ipopt_solver.solve(x0), repeats)
+    row.update(
+        al_ms=wall_al * 1e3,
+        al_status=al.status.value,
+        al_E=al.objective,
+        ipopt_ms=wall_ip * 1e3,
+        ipopt_status=ip.status.value,
+        ipopt_E=ip.objective,
+    )
+    best = math.inf
+    for method in ("al", "ipopt"):
+        ms = run_spatial_multistart(problem, method=method, n_starts=n_starts, seed=0, workers=2)
+        row[f"{method}_starts_per_s_2w"] = ms.starts_per_second
+        row[f"{method}_best_E"] = ms.best.objective if ms.best.success else math.nan
+        row[f"{method}_n_success"] = sum(r.success for r in ms.results)
+        row[f"{method}_n_minima"] = len(ms.minima)
+        if ms.best.success:
+            best = min(best, ms.best.objective)
+    row["best_E"] = best if math.isfinite(best) else math.nan
+    row["motion_ratio"] = row["best_E"] / e_greedy if greedy_ok else math.nan
+    return row
+
+
+def print_spatial(rows: list[dict[str, Any]]) -> None:
+    """Print the spatial table."""
+    print("\nspatial cyclic IK paths (issue 14): solve from the greedy start, multistart")
+    head = (
+        f"{'robot':6} {'s':>3} {'AL ms':>8} {'AL status':>11} {'IPOPT ms':>9} {'IPOPT st':>11} "
+        f"{'AL st/s':>8} {'AL ok':>6} {'IP st/s':>8} {'IP ok':>6} {'best E':>10} "
+        f"{'greedy E':>10} {'ratio':>6}"
+    )
+    print(head)
+    for r in rows:
+        print(
+            f"{r['robot']:6} {r['targets']:>3} {r['al_ms']:8.1f} {r['al_status']:>11} "
+            f"{r['ipopt_ms']:9.1f} {r['ipopt_status']:>11} {r['al_starts_per_s_2w']:8.2f} "
+            f"{r['al_n_success']:>6} {r['ipopt_starts_per_s_2w']:8.2f} {r['ipopt_n_success']:>6} "
+            f"{r['best_E']:10.4f} {r['greedy_E']:10.4f}{'' if r['greedy_ok'] else '*'} "
+            f"{r['motion_ratio']:6.3f}"
+        )
+    print("(st/s: starts per second on 2 workers; ok: successful starts; * greedy missed a target)")
+    worse = [(r["robot"], r["targets"]) for r in rows if r["motion_ratio"] > 1.0]
+    undecided = [(r["robot"], r["targets"]) for r in rows if math.isnan(r["motion_ratio"])]
+    print("ours worse than greedy DLS:", worse or "never", "; no ratio:", undecided or "none")
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     """Run the benchmark and print (or dump as JSON) its report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -228,29 +321,40 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--repeats", type=int, default=None, help="single-solve repeats (5)")
     parser.add_argument("--starts", type=int, default=None, help="multistart starts (24)")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    parser.add_argument("--spatial-only", action="store_true", help="only the ur5/panda cases")
+    parser.add_argument("--planar-only", action="store_true", help="only the planar cases")
     args = parser.parse_args(argv)
     repeats = args.repeats or (3 if args.quick else 5)
     n_starts = args.starts or (8 if args.quick else 24)
     if repeats < 1 or n_starts < 2:
         parser.error("--repeats must be >= 1 and --starts >= 2")
     t0 = time.perf_counter()
-    cases = problems()
     report: dict[str, Any] = {
         "cpu_count": os.cpu_count(),
         "load_average": list(os.getloadavg()),
         "repeats": repeats,
         "starts": n_starts,
-        "single": {name: bench_single(p, repeats) for name, p in cases.items()},
-        "multistart": {
+    }
+    if not args.spatial_only:
+        cases = problems()
+        report["single"] = {name: bench_single(p, repeats) for name, p in cases.items()}
+        report["multistart"] = {
             name: {m: bench_multistart(p, m, n_starts) for m in ("al", "ipopt")}
             for name, p in cases.items()
-        },
-    }
+        }
+    if not args.planar_only:
+        sizes = (6, 12) if args.quick else (6, 9, 12)
+        report["spatial"] = [
+            bench_spatial(robot, s, repeats, n_starts) for robot in ("ur5", "panda") for s in sizes
+        ]
     report["elapsed"] = time.perf_counter() - t0
     if args.json:
         print(json.dumps(report, indent=1))
     else:
-        print_report(report)
+        if "single" in report:
+            print_report(report)
+        if "spatial" in report:
+            print_spatial(report["spatial"])
     return report
 
 

@@ -102,3 +102,9 @@ def inject(
 
     for name in _CALLERS:
         monkeypatch.setattr(importlib.import_module(name), "run_tasks", run_tasks)
+
+
+def slow_square(x: float, seconds: float) -> float:
+    """A trivial sweep task that takes ``seconds`` [s]: for kills that must land mid-sweep."""
+    time.sleep(seconds)
+    return x * x

@@ -7,11 +7,40 @@ test modules belong here.
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
+if TYPE_CHECKING:
+    from youbot_opt.robot.model import RobotModel
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+STUDY1_SOLVER_KNOTS = 20
+"""Knots of the shared :func:`study1_solver` (small: the machinery is under test there)."""
+
+
+@pytest.fixture(scope="session")
+def youbot() -> RobotModel:
+    """The committed youBot model, loaded once per session; tests must not modify it."""
+    from youbot_opt.robot.model import load_model
+
+    return load_model("youbot")
+
+
+@pytest.fixture(scope="session")
+def study1_solver(youbot: RobotModel) -> TrajOptSolver:
+    """One trapezoidal study-1 solver at 20 knots, built once and shared by test modules.
+
+    Sweeps reuse one solver in the same way; every ``solve`` call starts from
+    its own guess, so the tests sharing it do not depend on each other.
+    """
+    from youbot_opt.reproduction.study1 import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    return TrajOptSolver(study1_problem(STUDY1_SOLVER_KNOTS, robot=youbot))
 
 
 @pytest.fixture()

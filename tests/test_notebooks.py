@@ -1,4 +1,4 @@
-"""Notebooks 01-05: stripped in git, narrative, and executed headless in quick mode.
+"""Notebooks 01-06: stripped in git, narrative, and executed headless in quick mode.
 
 Each notebook is executed with nbclient in a fresh ``python3`` kernel, with
 ``YOUBOT_QUICK=1`` (small studies) and a temporary working directory, so that
@@ -30,6 +30,8 @@ EXPECTED = [
     "03_studies",
     "04_ik_path",
     "05_other_robot",
+    "06_your_robot",
+    "07_spatial_ik_path",
 ]
 CELL_TIMEOUT = 300  # [s] per cell; quick-mode cells take < 30 s on 2 busy cores
 MIN_PROSE_WORDS = 250  # words of markdown prose per notebook, formulas and code excluded
@@ -229,12 +231,36 @@ def _check_05(out: dict[str, Any], tmp: Path) -> None:
     assert len(page) > 1_000_000  # the UR5's COLLADA meshes are embedded
 
 
+def _check_06(out: dict[str, Any], tmp: Path) -> None:
+    text = out["text"]
+    assert re.search(r"Certificate: my_arm, \d+ knots, hermite_simpson, T = \S+ s: PASSED", text)
+    assert "nq = 4, nv = 3" in text and "JointModelRUBZ" in text  # continuous yaw: (cos, sin)
+    assert "finger_right_joint" in text  # the mimic finger is locked, not a motor
+    yaw_end = float(re.search(r"yaw turned from \S+ rad to (\S+) rad", text).group(1))
+    assert yaw_end > 3.14159  # [rad] planned past +pi in one coordinate
+    assert out["png"] >= 2
+    assert len(_replays(out)) == 1
+
+
+def _check_07(out: dict[str, Any], tmp: Path) -> None:
+    text = out["text"]
+    ratio = float(re.search(r"ours / greedy = (\S+)", text).group(1))
+    assert ratio <= 1.0  # the greedy path is start 0: the best minimum cannot be worse
+    al, ip = (float(x) for x in re.search(r"AL E = (\S+), IPOPT E = (\S+)", text).groups())
+    assert abs(al - ip) <= 1e-6 * al  # both methods, same start: the same minimum
+    errors = [float(x) for x in re.findall(r"(?:position|orientation) error (\S+)", text)]
+    assert errors and max(errors) <= 1e-6  # framesForwardKinematics check of every station
+    assert out["png"] >= 2
+
+
 CHECKS = {
     "01_model_and_dynamics": _check_01,
     "02_trajectory_solve": _check_02,
     "03_studies": _check_03,
     "04_ik_path": _check_04,
     "05_other_robot": _check_05,
+    "06_your_robot": _check_06,
+    "07_spatial_ik_path": _check_07,
 }
 
 

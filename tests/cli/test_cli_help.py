@@ -112,16 +112,14 @@ def test_help_and_argument_errors_import_no_solver(argv):
 
 def test_parser_choices_match_the_library():
     """The choices spelled out in the CLI (to keep --help fast) equal the library's."""
-    from youbot_opt.cli import ikpath, report
+    from youbot_opt.cli import ikpath
     from youbot_opt.ikpath.examples import EXAMPLES
     from youbot_opt.ikpath.solve import METHODS
     from youbot_opt.ikpath.starts import START_KINDS
-    from youbot_opt.robot.model import available_robots
 
     assert ikpath.EXAMPLE_NAMES == tuple(sorted(EXAMPLES))
     assert ikpath.METHOD_NAMES == tuple(METHODS)
     assert ikpath.START_KIND_NAMES == tuple(START_KINDS)
-    assert report.ROBOT_NAMES == tuple(available_robots())
 
 
 def _point(beta, duration, work, success=True, dominated=False):

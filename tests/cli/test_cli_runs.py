@@ -72,10 +72,12 @@ def test_main_job_writes_its_run_folder(capsys: pytest.CaptureFixture[str]) -> N
     folder = _only_run_folder("main")
     summary = json.loads((folder / "summary.json").read_text())
     assert SOLVE_KEYS | {"certificate", "active_bounds", "build_time_s"} <= set(summary)
-    assert summary["status"] == "solved" and summary["n_knots"] == 50
+    assert summary["status"] == "solved" and summary["certified"] is True
+    assert summary["refinement"]["rounds"][0]["n_knots"] == 50  # refined from 50 knots
     assert f"objective f   {summary['objective']:.6f}" in out
     assert f"output folder: {folder.resolve()}" in out
-    _check_folder(folder, summary, ["trajectory.png", "arm.png", "convergence.png"])
+    pngs = ["trajectory.png", "arm.png", "convergence.png", "refinement.png"]
+    _check_folder(folder, summary, pngs)
     result = load_result(folder / "result.npz")
     assert result.objective == summary["objective"]  # the saved result is the one summarised
     nodes, animated = _replay_nodes(folder / "replay.html")
@@ -98,8 +100,8 @@ def test_solve_json_prints_one_object_and_saves_the_run(
     assert f"output folder: {folder.resolve()}" in captured.err
     _check_folder(folder, summary, ["trajectory.png", "arm.png", "convergence.png"])
     assert summary["files"] == [
-        "result.npz", "trajectory.png", "arm.png", "convergence.png", "replay.html",
-        "summary.json",
+        "result.npz", "trajectory.png", "arm.png", "refinement.png", "convergence.png",
+        "replay.html", "summary.json",
     ]  # fmt: skip
     assert load_result(folder / "result.npz").iterations == summary["iterations"]
 

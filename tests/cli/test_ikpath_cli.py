@@ -207,3 +207,34 @@ def test_single_start_prints_one_run(capsys):
     assert code == 0
     assert "one start (the zero vector)" in out and "result: E = 0.8405135867" in out
     assert "multistart:" not in out and "zero start" not in out and "best:" not in out
+
+
+def test_spatial_csv_targets_with_a_pose_solve_on_ur5(capsys, tmp_path):
+    """--robot ur5 --targets FILE (named CSV columns, one quaternion): exit 0, run folder."""
+    csv_file = tmp_path / "stations.csv"
+    csv_file.write_text(
+        "x,y,z,qx,qy,qz,qw\n0.4,0.2,0.3,,,,\n0.3,-0.3,0.4,1,0,0,0\n0.5,0.0,0.2,,,,\n"
+    )
+    argv = ["ikpath", "--robot", "ur5", "--targets", str(csv_file), "--starts", "2"]
+    code, doc, err = _json(capsys, [*argv, "--no-replay", "--json"])
+    assert code == 0 and doc["status"] == "solved"
+    assert [t["kind"] for t in doc["targets"]] == ["position", "pose", "position"]
+    assert max(doc["result"]["orientation_errors_rad"]) <= 1e-6
+    assert max(doc["result"]["position_errors_m"]) <= 1e-6
+    files = sorted(p.name for p in Path(doc["output_folder"]).iterdir())
+    assert files == ["ikpath_legs.png", "ikpath_path3d.png", "result.json", "summary.json"]
+
+
+def test_spatial_unreachable_target_exits_2_with_its_certificate(capsys):
+    argv = ["ikpath", "--robot", "ur5", "--target", "3", "0", "0", "--target", "0.4", "0.2", "0.3"]
+    code, doc, err = _json(capsys, [*argv, "--json"])
+    assert code == 2 and doc["status"] == "unreachable"
+    assert doc["reachability"][0]["verdict"] == "unreachable"
+    assert doc["reachability"][0]["distance"] > doc["reachability"][0]["reach"]
+    assert "reach sphere" in err
+
+
+def test_spatial_target_of_wrong_length_exits_2(capsys):
+    argv = ["ikpath", "--robot", "ur5", "--target", "1", "2", "3", "4", "--target", "0", "0", "1"]
+    assert main(argv) == 2
+    assert "spatial targets take X Y Z" in capsys.readouterr().err

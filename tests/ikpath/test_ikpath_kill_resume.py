@@ -15,7 +15,7 @@ import pytest
 from test_ikpath_solvers import LA, LB, TARGETS_2
 
 from _sigkill import kill_repeatedly
-from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
@@ -167,26 +167,30 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
 
 
 def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
-    """Truncated result, newer-schema result or record, non-JSON record: ResultFileError."""
-    run_multistart(two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path))
+    """Torn or edited results are refused and recomputed; newer or non-JSON records raise."""
+    first = run_multistart(
+        two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
+    )
     items = tmp_path / "items"
 
-    def rerun() -> None:
-        run_multistart(two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path))
+    def rerun():
+        return run_multistart(
+            two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
+        )
 
     payload = items / "start_0000.ikpath"
     good = payload.read_bytes()
-    payload.write_bytes(good[: len(good) // 2])  # torn, as by a disk fault
-    with pytest.raises(ResultFileError, match=r"start_0000.*delete items/start_0000.json"):
-        rerun()
     doc = json.loads(good)
-    payload.write_text(json.dumps({**doc, "schema_version": 2}))
-    with pytest.raises(ResultFileError, match="schema version 2 is newer"):
-        rerun()
-    payload.write_text(json.dumps({**doc, "sha256": "0" * 64}))
-    with pytest.raises(ResultFileError, match="checksum mismatch"):
-        rerun()
-    payload.write_bytes(good)
+    for bad in (
+        good[: len(good) // 2],  # torn, as by a disk fault
+        json.dumps({**doc, "schema_version": 2}).encode(),
+        json.dumps({**doc, "sha256": "0" * 64}).encode(),
+    ):
+        payload.write_bytes(bad)
+        with pytest.warns(YoubotOptWarning, match=r"start_0000.*does not match its checksum"):
+            again = rerun()
+        assert again.resumed == 1  # start_0000 recomputed, start_0001 loaded
+        assert [r.objective for r in again.results] == [r.objective for r in first.results]
     record = items / "start_0001.json"
     rec_good = record.read_text()
     record.write_text(json.dumps({**json.loads(rec_good), "schema_version": 99}))

@@ -166,3 +166,25 @@ def test_clustering_merges_equal_minima(two_link):
                 configuration_distance(a.result.configurations, b.result.configurations) > 1e-3
             )
     assert sum(m.count for m in again) == res.n_success
+
+
+def test_starts_are_per_index_and_old_stores_keep_theirs(tmp_path):
+    """Start k does not depend on n_starts; a store without start_rng keeps its legacy draws."""
+    import json
+
+    prob = example_problem("B")
+    np.testing.assert_array_equal(make_starts(prob, 12, seed=3)[:5], make_starts(prob, 5, seed=3))
+    legacy = make_starts(prob, 4, seed=3, rng="legacy")
+    assert not np.array_equal(legacy[1:], make_starts(prob, 4, seed=3)[1:])
+    with pytest.raises(ParameterError, match="choose one of per-index, legacy"):
+        make_starts(prob, 3, seed=0, rng="global")
+    # An old store: its manifest names no start_rng. Resuming it draws the legacy starts.
+    run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
+    manifest = tmp_path / "manifest.json"
+    doc = json.loads(manifest.read_text())
+    del doc["params"]["start_rng"]
+    manifest.write_text(json.dumps(doc))
+    for item in (tmp_path / "items").iterdir():
+        item.unlink()
+    old = run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
+    np.testing.assert_array_equal([np.ravel(r.start) for r in old.results], legacy)

@@ -16,7 +16,7 @@ from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import build_result
+from youbot_opt.ikpath.result import build_result, checked
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.nlp.status import SolveStatus
 
@@ -82,15 +82,20 @@ def _claim(problem, x, *, status=SolveStatus.SOLVED, tol=1e-10):
 
 
 def test_replace_with_nan_configurations_is_not_a_success(result):
-    """dataclasses.replace(r, configurations=NaN) of a success re-checks: NUMERICAL_ERROR."""
+    """A success replaced with NaN configurations: check() says NON_FINITE, checked() sets it."""
     assert result.success
     nan = np.full_like(result.configurations, np.nan)
-    bad = dataclasses.replace(result, configurations=nan)
+    replaced = dataclasses.replace(result, configurations=nan)
+    assert replaced.status is SolveStatus.SOLVED  # construction does no work (rule 5)
+    verdict = replaced.check()
+    assert verdict.status is SolveStatus.NON_FINITE and not verdict.passed
+    assert verdict.message == "non-finite values in configurations"
+    bad = checked(replaced)
     assert bad.status is SolveStatus.NON_FINITE and not bad.success
     assert "re-check failed: non-finite values in configurations" in bad.message
     with pytest.raises(SolveFailed, match="non_finite"):
         bad.raise_for_status()
-    inf_e = dataclasses.replace(result, objective=math.inf)
+    inf_e = checked(dataclasses.replace(result, objective=math.inf))
     assert inf_e.status is SolveStatus.NON_FINITE and "objective" in inf_e.message
 
 
@@ -98,13 +103,14 @@ def test_replace_with_moved_configuration_or_stale_figures_fails_the_recheck(res
     """A joint moved by 1e-3 rad misses its target and leaves E stale: CHECK_FAILED."""
     q = np.array(result.configurations)
     q[2, 1] += 1e-3
-    moved = dataclasses.replace(result, configurations=q)
+    moved = checked(dataclasses.replace(result, configurations=q))
     assert moved.status is SolveStatus.CONSTRAINT_VIOLATION
     assert "target 2 missed by" in moved.message and "reported E" in moved.message
-    stale = dataclasses.replace(result, objective=result.objective + 1e-6)
+    stale = checked(dataclasses.replace(result, objective=result.objective + 1e-6))
     assert stale.status is SolveStatus.CONSTRAINT_VIOLATION and "reported E" in stale.message
-    same = dataclasses.replace(result)  # nothing changed: still a success
+    same = checked(dataclasses.replace(result))  # nothing changed: still a success
     assert same.success and same.message == result.message
+    assert result.check() == (SolveStatus.SOLVED, "")
 
 
 def test_recheck_uses_the_solver_constraint_tolerance():
@@ -148,6 +154,8 @@ def test_failures_are_kept_and_tolerance_is_validated():
     problem = example_problem("A")
     far = _claim(problem, np.zeros(problem.n_variables), status=SolveStatus.MAX_ITERATIONS)
     assert far.status is SolveStatus.MAX_ITERATIONS and far.message == "claimed"
+    verdict = far.check()  # the targets are missed, but a failure keeps its own status
+    assert verdict.status is SolveStatus.MAX_ITERATIONS and "missed by" in verdict.message
     for tol in (0.0, -1e-9, math.nan, math.inf):
         with pytest.raises(ParameterError, match="constraint_tol"):
             _claim(problem, np.zeros(problem.n_variables), tol=tol)
@@ -165,3 +173,17 @@ def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(re
     path.write_text(json.dumps(doc))
     old = load_ikpath_result(path)
     assert old.constraint_tol == ALOptions().constraint_tol and old.success
+
+
+def test_loader_rechecks_a_claimed_success(tmp_path):
+    """A file claiming SOLVED for a path that misses its targets loads as CONSTRAINT_VIOLATION."""
+    capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
+    assert capped.status is SolveStatus.MAX_ITERATIONS and capped.max_residual() > 1e-3
+    path = save_ikpath_result(capped, tmp_path / "claimed.json")
+    doc = json.loads(path.read_text())
+    doc["result"]["status"] = "solved"
+    doc["sha256"] = json_digest(doc["result"])
+    path.write_text(json.dumps(doc))
+    loaded = load_ikpath_result(path)
+    assert loaded.status is SolveStatus.CONSTRAINT_VIOLATION
+    assert "re-check failed: target" in loaded.message

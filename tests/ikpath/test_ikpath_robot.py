@@ -13,8 +13,9 @@ from youbot_opt.robot.model import load_model, tip_pose
 
 
 @pytest.fixture(scope="module")
-def robot():
-    return load_model("youbot")
+def robot(youbot):
+    """The session's youBot model (conftest)."""
+    return youbot
 
 
 @pytest.fixture(scope="module")

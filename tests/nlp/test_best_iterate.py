@@ -77,3 +77,65 @@ def test_failed_ik_path_returns_the_least_violating_iterate(method: str) -> None
     # recorded violation and Pinocchio's recomputation differ only by rounding.
     assert returned == pytest.approx(violations.min(), rel=1e-12, abs=1e-12)
     assert "returned the best iterate" in result.message
+
+
+class _Buffers:
+    """An iterate laid out as CasADi hands it to ``eval_buffer`` (one buffer per output)."""
+
+    def __init__(self, nx: int, ng: int) -> None:
+        self.arrays = {"x": np.zeros(nx), "f": np.zeros(1), "g": np.zeros(ng)}
+        self.arrays.update(lam_x=np.zeros(nx), lam_g=np.zeros(ng))
+        self.flag = np.ones(1)
+
+    def feed(self, recorder, x, f, g, lam=0.0) -> None:  # type: ignore[no-untyped-def]
+        a = self.arrays
+        a["x"][:], a["f"][:], a["g"][:] = x, f, g
+        a["lam_x"][:], a["lam_g"][:] = lam, -lam
+        # lam_p is not provided by IPOPT: CasADi passes None for it
+        args = [memoryview(a[k]) for k in ("x", "f", "g", "lam_x", "lam_g")] + [None]
+        assert recorder.eval_buffer(args, [memoryview(self.flag)]) == 0
+        assert self.flag[0] == 0.0  # never asks IPOPT to stop
+
+
+def test_recorder_ranks_in_place_and_keeps_copies() -> None:
+    """The recorder keeps the best iterate by the documented ranking, as its own copy.
+
+    CasADi reuses its buffers between iterations, so the best iterate must be
+    copied when it is found; non-finite iterates are counted but never kept.
+    """
+    from youbot_opt.nlp.best_iterate import BestIterateRecorder
+
+    nx, ng, tol = 2, 1, 1e-6
+    recorder = BestIterateRecorder("test_recorder", nx, ng, 1)
+    lbx, ubx = np.array([-1.0, -np.inf]), np.array([1.0, np.inf])  # x[1] unbounded
+    recorder.reset((lbx, ubx, np.zeros(ng), np.zeros(ng)), tol)
+    buffers = _Buffers(nx, ng)
+    buffers.feed(recorder, [0.0, 0.0], 5.0, 1e-2, lam=1.0)  # infeasible by 1e-2
+    buffers.feed(recorder, [2.0, 0.0], 1.0, 0.0, lam=2.0)  # bound excess 1.0: worse
+    assert recorder.best is not None and recorder.best.iteration == 0
+    buffers.feed(recorder, [0.5, 0.5], 4.0, 1e-8, lam=3.0)  # feasible: best
+    buffers.feed(recorder, [np.nan, 0.0], 0.0, 0.0, lam=4.0)  # not finite: skipped
+    buffers.feed(recorder, [0.1, 0.1], np.inf, 0.0, lam=5.0)  # objective not finite: skipped
+    buffers.feed(recorder, [0.2, np.inf], 1.0, 0.0, lam=6.0)  # inf where unbounded: skipped
+    buffers.feed(recorder, [0.2, 0.2], 1.0, np.inf, lam=7.0)  # g not finite: skipped
+    buffers.feed(recorder, [0.2, 0.2], 4.5, 0.0, lam=8.0)  # feasible, higher f: worse
+    best = recorder.best
+    assert recorder.count == 8
+    assert best.iteration == 2 and best.objective == 4.0 and best.violation == 1e-8
+    # The buffers now hold iterate 7; the kept arrays are those of iterate 2.
+    np.testing.assert_array_equal(best.x, [0.5, 0.5])
+    np.testing.assert_array_equal(best.lam_x, [3.0, 3.0])
+    np.testing.assert_array_equal(best.lam_g, [-3.0])
+    assert not np.shares_memory(best.x, buffers.arrays["x"])
+    recorder.reset((lbx, ubx, np.zeros(ng), np.zeros(ng)), tol)
+    assert recorder.best is None and recorder.count == 0
+
+
+def test_violation_of_is_not_finite_for_a_non_finite_entry() -> None:
+    """A NaN in x or g gives a NaN violation whatever its position (not a finite max)."""
+    from youbot_opt.nlp.best_iterate import violation_of
+
+    bounds = (np.full(2, -1.0), np.full(2, 1.0), np.zeros(1), np.zeros(1))
+    assert violation_of(np.array([0.0, 3.0]), np.array([0.5]), bounds) == 2.0
+    assert np.isnan(violation_of(np.array([0.0, np.nan]), np.array([0.5]), bounds))
+    assert np.isnan(violation_of(np.array([0.0, 0.0]), np.array([np.nan]), bounds))

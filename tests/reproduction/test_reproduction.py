@@ -23,11 +23,6 @@ from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 
 
 @pytest.fixture(scope="module")
-def youbot():
-    return load_model("youbot")
-
-
-@pytest.fixture(scope="module")
 def dynamics(youbot):
     return build_dynamics(youbot, "symbolic")
 

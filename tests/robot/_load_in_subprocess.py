@@ -1,6 +1,8 @@
 """Load URDF files with the strict loader, each in its own capped child process.
 
-Run as ``python tests/robot/_load_in_subprocess.py < jobs.json``. ``jobs.json`` is a
+Run as ``python tests/robot/_load_in_subprocess.py < jobs.json``, or with
+``--stream`` to read one job per line and answer each at once (the fuzz tests
+keep one helper running). ``jobs.json`` is a
 JSON list of jobs ``{"id": str, "path": str, "package_dirs": [str, ...]}``,
 optionally with ``"timeout"`` in [s] and ``"memory"`` in [bytes] overriding the
 defaults (20 s, 2 GiB), or with ``"selftest": "allocate" | "sleep"`` instead of
@@ -15,7 +17,9 @@ job is printed on stdout: ``{"id", "outcome", "error_class", "message",
 ``killed`` (signal, e.g. the CPU limit), ``crashed`` (no report). An error
 report also carries the error's ``path``, ``element``, ``line`` and ``rule``
 attributes (``error_path`` ...; None for errors without them) and the class
-of its ``__cause__`` (``cause_class``).
+of its ``__cause__`` (``cause_class``). A loaded model's report carries
+``finite_dynamics``: RNEA, CRBA and ABA finite at the neutral configuration
+and at three seeded random states (computed here, apart from the loader).
 """
 
 from __future__ import annotations
@@ -62,7 +66,26 @@ def _run_job(loader: types.ModuleType, job: dict) -> dict:
         cause = e.__cause__
         report["cause_class"] = type(cause).__name__ if cause is not None else None
         return report
-    return {"outcome": "ok", "nq": loaded.model.nq}
+    return {"outcome": "ok", "nq": loaded.model.nq, "finite_dynamics": _finite(loaded.model)}
+
+
+def _finite(model: object) -> bool:
+    """RNEA, CRBA and ABA finite at neutral and three seeded random states."""
+    import numpy as np
+    import pinocchio as pin
+
+    data, rng = model.createData(), np.random.default_rng(1)
+    neutral = pin.neutral(model)
+    for k in range(4):
+        q = neutral if k == 0 else pin.integrate(model, neutral, rng.uniform(-3, 3, model.nv))
+        v, a = rng.uniform(-1, 1, model.nv), rng.uniform(-1, 1, model.nv)
+        tau = pin.rnea(model, data, q, v, a)
+        results = [tau, pin.crba(model, data, q)]
+        if not any("Mimic" in j.shortname() for j in model.joints):
+            results.append(pin.aba(model, data, q, v, tau))
+        if not all(np.all(np.isfinite(r)) for r in results):
+            return False
+    return True
 
 
 def _child(loader: types.ModuleType, job: dict, write_fd: int) -> None:
@@ -123,8 +146,13 @@ def _supervise(loader: types.ModuleType, job: dict) -> dict:
 
 def main() -> int:
     """Read the jobs from stdin and print one JSON report line per job."""
-    jobs = json.load(sys.stdin)
     loader = _import_loader()
+    if "--stream" in sys.argv[1:]:
+        for line in sys.stdin:
+            if line.strip():
+                print(json.dumps(_supervise(loader, json.loads(line))), flush=True)
+        return 0
+    jobs = json.load(sys.stdin)
     for job in jobs:
         print(json.dumps(_supervise(loader, job)), flush=True)
     return 0

@@ -21,12 +21,6 @@ MACHINE = 1e-12  # relative to the magnitude: Pinocchio and the oracle differ by
 SOLVE = 1e-11
 
 
-@pytest.fixture(scope="module")
-def youbot() -> RobotModel:
-    """The committed youBot model (no damping)."""
-    return load_model("youbot")
-
-
 def _states(n: int = N_STATES) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Seeded random (q, v, a): angles over the full circle, speeds up to 3 rad/s."""
     rng = np.random.default_rng(0)
@@ -95,10 +89,10 @@ def test_forward_dynamics_equals_casadi_aba(symbolic: SymbolicModel) -> None:
         _close(damped.forward(q, v, tau), an.forward_dynamics(P, q, v, tau, damping=b), SOLVE)
 
 
-def test_inverse_and_forward_dynamics_with_damping() -> None:
+def test_inverse_and_forward_dynamics_with_damping(youbot: RobotModel) -> None:
     """Oracle ID/FD with b = 0.1 equal RNEA + b v and ABA(tau - b v) (Pinocchio ignores damping)."""
     b = 0.1
-    robot = load_model("youbot")
+    robot = youbot
     data = robot.create_data()
     for q, v, a in _states(5):
         tau = pin.rnea(robot.model, data, q, v, a) + b * v

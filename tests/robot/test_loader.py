@@ -534,3 +534,85 @@ def test_every_error_is_a_model_error() -> None:
     for name in ERROR_CLASSES:
         cls = getattr(sys.modules["youbot_opt.exceptions"], name)
         assert issubclass(cls, URDFError) and issubclass(cls, ModelError)
+
+
+# --- inertia policy: warn on welded links, refuse on moving ones unless lenient (issue 12) ----
+
+_POLICY_URDF = """<robot name="policy">
+  <link name="base"/>
+  <link name="camera"><inertial><mass value="{cam_mass}"/>
+    <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="{cam_izz}"/></inertial></link>
+  <link name="arm"><inertial><origin xyz="0.2 0 0"/><mass value="1"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="{arm_izz}"/></inertial></link>
+  <link name="tool"><inertial><mass value="0"/>
+    <inertia ixx="{tool_i}" ixy="0" ixz="0" iyy="{tool_i}" iyz="0" izz="{tool_i}"/>
+  </inertial></link>
+  <joint name="cam_mount" type="fixed"><parent link="base"/><child link="camera"/></joint>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+  <joint name="tool_mount" type="fixed"><parent link="arm"/><child link="tool"/>
+    <origin xyz="0.4 0 0"/></joint>
+</robot>
+"""
+
+
+def _policy_file(tmp_path: Path, **values: float) -> Path:
+    fields = {"cam_mass": 0.1, "cam_izz": 0.001, "arm_izz": 0.01, "tool_i": 0.0} | values
+    path = tmp_path / "policy.urdf"
+    path.write_text(_POLICY_URDF.format(**fields))
+    return path
+
+
+def test_implausible_inertia_on_a_welded_link_loads_with_a_warning(tmp_path: Path) -> None:
+    """A camera welded to the world breaking I1 + I2 >= I3 warns (file, link, rule), loads."""
+    path = _policy_file(tmp_path, cam_izz=0.005)
+    with pytest.warns(YoubotOptWarning) as record:
+        loaded = load_urdf_strict(path, [tmp_path])
+    (message,) = [str(w.message) for w in record]
+    assert str(path) in message and "link 'camera'" in message
+    assert "[rule: principal moments obey the triangle inequality]" in message
+    assert "welded to the world" in message and "0.1 kg" in message
+    assert loaded.model.nq == 1
+
+
+def test_implausible_inertia_on_a_moving_link_is_refused_unless_lenient(tmp_path: Path) -> None:
+    """A moving link's non-PSD inertia is refused, the message saying how to opt in."""
+    path = _policy_file(tmp_path, arm_izz=-0.05)  # about the joint: -0.05 + 1 * 0.2^2 < 0
+    with pytest.raises(InvalidModelError, match="link 'arm'") as info:
+        load_urdf_strict(path, [tmp_path])
+    assert info.value.rule == "inertia is positive semidefinite"
+    assert "strict=False" in str(info.value) and "--lenient" in str(info.value)
+    with pytest.warns(YoubotOptWarning, match=r"link 'arm'.*strict=False \(--lenient\)"):
+        with pytest.raises(InvalidModelError, match="M\\(q\\) is singular"):
+            load_urdf_strict(path, [tmp_path], strict=False)  # M(q) indefinite: still refused
+    ok = _policy_file(tmp_path, arm_izz=0.03)  # triangle broken, M(q) still positive definite
+    with pytest.warns(YoubotOptWarning, match="triangle inequality"):
+        assert load_urdf_strict(ok, [tmp_path], strict=False).model.nq == 1
+
+
+def test_massless_body_with_inertia_says_what_it_adds_to_its_parent(tmp_path: Path) -> None:
+    """A massless tool with inertia on a fixed joint: the warning names the parent's joint
+    and what Pinocchio adds to its body, which is what the model holds."""
+    path = _policy_file(tmp_path, tool_i=0.002)
+    with pytest.raises(InvalidModelError, match="mass = 0 implies inertia = 0"):
+        load_urdf_strict(path, [tmp_path])
+    with pytest.warns(YoubotOptWarning) as record:
+        loaded = load_urdf_strict(path, [tmp_path], strict=False)
+    (message,) = [str(w.message) for w in record]
+    assert "link 'tool'" in message and "body of moving joint 'j1'" in message
+    assert "adds 0 kg and rotational inertia" in message
+    body = loaded.model.inertias[loaded.model.getJointId("j1")]
+    # arm: 0.01 + m d^2 = 0.01 + 1 * 0.2^2 about z at the joint; the tool adds 0.002 kg m^2.
+    inertia_z = body.inertia[2, 2] + body.mass * (body.lever[0] ** 2 + body.lever[1] ** 2)
+    assert body.mass == 1.0 and abs(inertia_z - (0.01 + 0.04 + 0.002)) < 1e-15
+
+
+def test_locked_joints_weld_the_links_behind_them(tmp_path: Path) -> None:
+    """Behind a locked joint, an implausible inertia can change nothing: a warning only."""
+    from youbot_opt.robot.model import load_model
+
+    path = _policy_file(tmp_path, arm_izz=0.03)
+    with pytest.raises(InvalidModelError, match="link 'arm'"):
+        load_model(path)
+    with pytest.warns(YoubotOptWarning, match="link 'arm' is welded to the world"):
+        assert load_model(path, lock_joints={"j1": 0.5}).nq == 0

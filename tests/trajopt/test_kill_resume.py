@@ -310,8 +310,8 @@ def test_segfaulting_start_is_stored_failed_and_retried_once(
 
 
 def test_resume_refuses_corrupted_and_newer_files(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    """A corrupted result file or a newer-schema record in the output stops the resume."""
-    from youbot_opt.exceptions import ResultFileError
+    """A torn result file is refused and recomputed; a newer-schema record stops the resume."""
+    from youbot_opt.exceptions import ResultFileError, YoubotOptWarning
     from youbot_opt.trajopt.multistart import run_multistart
 
     first = run_multistart(
@@ -324,11 +324,50 @@ def test_resume_refuses_corrupted_and_newer_files(small_solver, tmp_path: Path) 
     assert [s.objective for s in again.starts] == [s.objective for s in first.starts]  # exact
     npz = tmp_path / "items" / "start_0000.npz"
     npz.write_bytes(npz.read_bytes()[:-100])  # truncated, as by a disk fault
-    with pytest.raises(ResultFileError, match="start_0000"):
-        run_multistart(small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path))
+    with pytest.warns(YoubotOptWarning, match=r"start_0000.*does not match its checksum"):
+        healed = run_multistart(
+            small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path)
+        )
+    assert healed.resumed == 1  # the torn start was refused and recomputed, the other loaded
+    assert [s.objective for s in healed.starts] == [s.objective for s in first.starts]
     rec = tmp_path / "items" / "start_0001.json"
     rec.write_text(json.dumps({**json.loads(rec.read_text()), "schema_version": 99}))
     npz.unlink()
     (tmp_path / "items" / "start_0000.json").unlink()  # start_0000 will simply be recomputed
     with pytest.raises(ResultFileError, match="newer"):
         run_multistart(small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path))
+
+
+def test_a_foreign_item_is_refused_and_recomputed(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """#16's scenario: an item copied from a beta=0.9 sweep into a beta=0.5 one is refused.
+
+    Its files are the beta=0.9 start's, so without the binding the resume would
+    report the beta=0.9 objective as the beta=0.5 result; refused, the start is
+    recomputed and the result equals the uninterrupted beta=0.5 run exactly
+    (same start, same deterministic solve in this process).
+    """
+    import shutil
+
+    from youbot_opt.exceptions import YoubotOptWarning
+    from youbot_opt.trajopt.multistart import run_multistart
+
+    def sweep(beta: float, out: Path):  # type: ignore[no-untyped-def]
+        return run_multistart(
+            small_solver, 1, beta=beta, seed=5, sweep=SweepOptions(executor="serial", out=out)
+        )
+
+    other, mine = sweep(0.9, tmp_path / "b09"), sweep(0.5, tmp_path / "b05")
+    assert other.starts[0].objective != mine.starts[0].objective
+    for suffix in (".json", ".npz"):
+        name = f"start_0000{suffix}"
+        shutil.copyfile(tmp_path / "b09" / "items" / name, tmp_path / "b05" / "items" / name)
+    with pytest.warns(YoubotOptWarning, match=r"'start_0000'.*written by another sweep"):
+        again = sweep(0.5, tmp_path / "b05")
+    assert again.resumed == 0
+    assert again.starts[0].objective == mine.starts[0].objective
+    # The recomputed item is bound again: the next resume loads it without a word.
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert sweep(0.5, tmp_path / "b05").resumed == 1

@@ -11,7 +11,6 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import (
     MultistartResult,
@@ -27,9 +26,10 @@ N_KNOTS = 20  # small problem: the tests check the machinery, not the study's fi
 
 
 @pytest.fixture(scope="module")
-def solver() -> TrajOptSolver:
-    """One study-1 solver at 20 knots, built once and reused by every test here."""
-    return TrajOptSolver(study1_problem(N_KNOTS))
+def solver(study1_solver: TrajOptSolver) -> TrajOptSolver:
+    """The session's 20-knot study-1 solver (conftest), built once for all modules."""
+    assert study1_solver.problem.n_knots == N_KNOTS
+    return study1_solver
 
 
 def _line(q0: np.ndarray, q1: np.ndarray, duration: float, n: int = 11) -> Trajectory:

@@ -29,9 +29,10 @@ BETAS = (0.2, 0.5, 0.8)
 
 
 @pytest.fixture(scope="module")
-def solver() -> TrajOptSolver:
-    """One 20-knot study-1 solver shared by the tests of this module."""
-    return TrajOptSolver(study1_problem(N_KNOTS))
+def solver(study1_solver: TrajOptSolver) -> TrajOptSolver:
+    """The session's 20-knot study-1 solver (conftest), built once for all modules."""
+    assert study1_solver.problem.n_knots == N_KNOTS
+    return study1_solver
 
 
 @pytest.fixture(scope="module")

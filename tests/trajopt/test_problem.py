@@ -9,7 +9,6 @@ import pytest
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model
 from youbot_opt.trajopt.objectives import Objective, quadrature_weights, work
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
@@ -19,11 +18,6 @@ SHEET_LOWER_DEG = np.array([-65.0, -151.0, -102.5])
 SHEET_UPPER_DEG = np.array([90.0, 146.0, 102.5])
 SHEET_SPEED_DEG_S = np.array([90.0, 90.0, 90.0])
 SHEET_TORQUE_NM = np.array([9.5, 6.0, 2.0])
-
-
-@pytest.fixture(scope="module")
-def youbot():
-    return load_model("youbot")
 
 
 @pytest.fixture(scope="module")

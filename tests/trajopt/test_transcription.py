@@ -42,16 +42,23 @@ def test_trapezoidal_counts_match_the_study(youbot, dynamics, n):
 
 @pytest.mark.parametrize("n", [2, 50])
 def test_hermite_simpson_counts(youbot, dynamics, n):
-    """Hermite-Simpson: 9(2n - 1) + 1 variables, 12(n - 1) + 12 equalities, 6(n - 1) path rows."""
+    """Hermite-Simpson: 9(2n - 1) + 1 variables, 12(n - 1) + 12 equalities, 12(n - 1) path rows."""
     nlp = HermiteSimpsonCollocation().build(
         study1_problem(n, robot=youbot), dynamics.forward_dynamics
     )
     assert nlp.n_variables == 9 * (2 * n - 1) + 1
     assert nlp.n_equalities == 12 * (n - 1) + 12
-    # Two inner Bernstein control points of the velocity cubic per interval and joint.
-    assert nlp.n_inequalities == 6 * (n - 1)
+    # Two inner Bernstein control points of the velocity cubic and two of the
+    # position cubic per interval and joint.
+    assert nlp.n_inequalities == 12 * (n - 1)
     assert nlp.n_constraints == nlp.n_equalities + nlp.n_inequalities == nlp.g.numel()
-    assert dict(nlp.path_bounds) == {"velocity_control_left": "v", "velocity_control_right": "v"}
+    assert dict(nlp.path_bounds) == {
+        "velocity_control_left": "v",
+        "velocity_control_right": "v",
+        "position_control_left": "q",
+        "position_control_right": "q",
+    }
+    assert set(nlp.unbounded) == {"q_mid", "v_mid"}
 
 
 def _polynomial_motion(robot, n, coeffs, dt):
@@ -202,3 +209,93 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
         # of the wrist), so 1e-9 absolute is ~1e4 ulps.
         for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
             np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
+
+
+# ------------------------------------------------------------ non-uniform grids
+def _hand_defects(method, values, a, am, h):
+    """Defects written out with per-interval steps ``h`` (numpy, from the docstrings)."""
+    q, v = values["q"], values["v"]
+    h = h[:, None]
+    if method.name == "trapezoidal":
+        return {
+            "defect_position": q[1:] - q[:-1] - 0.5 * h * (v[:-1] + v[1:]),
+            "defect_velocity": v[1:] - v[:-1] - 0.5 * h * (a[:-1] + a[1:]),
+        }
+    qm, vm = values["q_mid"], values["v_mid"]
+    return {
+        "defect_position": q[1:] - q[:-1] - h / 6 * (v[:-1] + 4 * vm + v[1:]),
+        "defect_velocity": v[1:] - v[:-1] - h / 6 * (a[:-1] + 4 * am + a[1:]),
+        "midpoint_position": qm - 0.5 * (q[:-1] + q[1:]) - h / 8 * (v[:-1] - v[1:]),
+        "midpoint_velocity": vm - 0.5 * (v[:-1] + v[1:]) - h / 8 * (a[:-1] - a[1:]),
+        "position_control_left": q[:-1] + h / 3 * v[:-1],
+        "velocity_control_right": v[1:] - h / 3 * a[1:],
+    }
+
+
+@pytest.mark.parametrize("kind", ["trapezoidal", "hermite_simpson"])
+def test_non_uniform_grid_defects_and_work_use_each_intervals_step(youbot, dynamics, kind):
+    """On a grid of fractions, interval k has step (N - 1) f_k dt in every row and in W (1e-12)."""
+    n, dt = 7, 0.09
+    fractions = np.array([1.0, 3.0, 0.5, 2.0, 1.0, 0.25])
+    method = get_transcription(kind).with_fractions(fractions)
+    nlp = method.build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
+    rng = np.random.default_rng(11)
+    values = {name: rng.normal(size=(b.count, b.width)) for name, b in nlp.variables.blocks.items()}
+    values["dt"] = np.array([[dt]])
+    x = nlp.variables.pack(values)
+    g, total, w = ca.Function("g", [nlp.x], [nlp.g, nlp.duration, nlp.work])(x)
+    blocks = nlp.constraints.unpack(np.asarray(g).ravel())
+    h = (n - 1) * fractions / fractions.sum() * dt  # independent of Transcription.ratios
+    data = youbot.model.createData()
+    b = np.asarray(youbot.damping)
+
+    def aba(q, v, tau):
+        rows = zip(q, v, tau, strict=True)
+        return np.array([pin.aba(youbot.model, data, qk, vk, tk - b * vk) for qk, vk, tk in rows])
+
+    a = aba(values["q"], values["v"], values["tau"])
+    am = aba(values["q_mid"], values["v_mid"], values["tau_mid"]) if "q_mid" in values else None
+    for name, expected in _hand_defects(method, values, a, am, h).items():
+        np.testing.assert_allclose(blocks[name], expected, rtol=1e-12, atol=1e-12, err_msg=name)
+    p = np.sum(values["tau"] ** 2, axis=1)
+    if kind == "trapezoidal":
+        expected_w = np.sum(h * (p[:-1] + p[1:]) / 2)
+    else:
+        pm = np.sum(values["tau_mid"] ** 2, axis=1)
+        expected_w = np.sum(h * (p[:-1] + 4 * pm + p[1:]) / 6)
+    assert float(total) == pytest.approx(h.sum(), rel=1e-12)
+    assert float(w) == pytest.approx(expected_w, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kind", "expected"), [("trapezoidal", 8.269796), ("hermite_simpson", 8.099726)]
+)
+def test_uniform_fractions_reproduce_the_uniform_grid(youbot, kind, expected):
+    """Equal fractions give the uniform NLP's solution to round-off; both give the pinned f.
+
+    The pinned values (README, docs/trajopt_reproduction.md) are the study-1 base
+    case at 50 knots; equal fractions change ``h_k = dt * 1.0``, an exact product.
+    """
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    problem = study1_problem(50)
+    plain = TrajOptSolver(problem, kind).solve(beta=0.5)
+    equal = TrajOptSolver(problem, get_transcription(kind).with_fractions(np.ones(49))).solve(
+        beta=0.5
+    )
+    assert plain.success and equal.success and plain.grid is None
+    assert plain.objective == pytest.approx(expected, abs=5e-7)
+    assert equal.objective == pytest.approx(plain.objective, rel=1e-12)
+    np.testing.assert_allclose(equal.trajectory.t, plain.trajectory.t, rtol=1e-12)
+
+
+def test_grid_validation(youbot, dynamics):
+    """Bad fractions and a grid of the wrong size are refused with the numbers."""
+    with pytest.raises(ParameterError, match="fractions"):
+        TrapezoidalCollocation([1.0, -1.0])
+    with pytest.raises(ParameterError, match="fractions"):
+        TrapezoidalCollocation([])
+    method = TrapezoidalCollocation([1.0, 2.0])
+    np.testing.assert_allclose(method.fractions, [1 / 3, 2 / 3])
+    with pytest.raises(TranscriptionError, match="2 intervals"):
+        method.build(study1_problem(5, robot=youbot), dynamics.forward_dynamics)

@@ -14,7 +14,6 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
@@ -26,9 +25,10 @@ N_KNOTS = 20  # small problem: at 20 knots, seed 0, four starts reach three dist
 
 
 @pytest.fixture(scope="module")
-def solver() -> TrajOptSolver:
-    """One 20-knot study-1 solver for the module."""
-    return TrajOptSolver(study1_problem(N_KNOTS))
+def solver(study1_solver: TrajOptSolver) -> TrajOptSolver:
+    """The session's 20-knot study-1 solver (conftest), built once for all modules."""
+    assert study1_solver.problem.n_knots == N_KNOTS
+    return study1_solver
 
 
 @pytest.fixture(scope="module")

@@ -27,9 +27,10 @@ SCALE = 0.9  # bound scale of the solve drawn (the bounds drawn must follow it)
 
 
 @pytest.fixture(scope="module")
-def solver() -> TrajOptSolver:
-    """One 20-knot study-1 solver for the module."""
-    return TrajOptSolver(study1_problem(N_KNOTS))
+def solver(study1_solver: TrajOptSolver) -> TrajOptSolver:
+    """The session's 20-knot study-1 solver (conftest), built once for all modules."""
+    assert study1_solver.problem.n_knots == N_KNOTS
+    return study1_solver
 
 
 @pytest.fixture(scope="module")

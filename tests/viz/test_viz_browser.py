@@ -135,10 +135,10 @@ def _pixels_off(a: np.ndarray, b: np.ndarray, threshold: float = 0.15) -> np.nda
     return eroded
 
 
-def test_exported_pages_render_the_robot_and_seek_in_time(tmp_path):
+def test_exported_pages_render_the_robot_and_seek_in_time(tmp_path, youbot):
     """Chromium draws the robots and the texture, and two seek times give two pictures."""
     chromium = _chromium()
-    youbot, ur5 = load_model("youbot"), load_model("ur5")
+    ur5 = load_model("ur5")
     t = np.linspace(0.0, DURATION, 21)
     q_end = np.array([0.8, -1.0, 1.2])  # [rad], inside the joint limits
     q = np.outer(0.5 - 0.5 * np.cos(np.pi * t / DURATION), q_end)
@@ -202,10 +202,9 @@ def test_exported_pages_render_the_robot_and_seek_in_time(tmp_path):
     assert (green[middle] > 0.3).mean() > 0.01
 
 
-def test_page_without_webgl_shows_a_visible_message(tmp_path):
+def test_page_without_webgl_shows_a_visible_message(tmp_path, youbot):
     """With WebGL turned off, the page shows its message (DOM and pixels), not a blank page."""
     chromium = _chromium()
-    youbot = load_model("youbot")
     t = np.linspace(0.0, DURATION, 5)
     q = np.outer(t / DURATION, [0.8, -1.0, 1.2])  # [rad]
     page = export_html(youbot, t, q, tmp_path / "youbot.html")

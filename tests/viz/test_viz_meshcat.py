@@ -369,9 +369,9 @@ def test_export_html_needs_no_server_and_holds_the_motion(ur5, tmp_path, monkeyp
         np.testing.assert_allclose(key_quat["value"], sign * quat, atol=1e-12)
 
 
-def test_export_html_primitives_and_parameters(tmp_path):
+def test_export_html_primitives_and_parameters(tmp_path, youbot):
     """The youBot's boxes and cylinders become meshcat primitives of the URDF size."""
-    robot = load_model("youbot")
+    robot = youbot
     t = np.array([0.0, 1.0])
     q = np.zeros((2, robot.model.nq))
     page = scene_html(robot, t, q)

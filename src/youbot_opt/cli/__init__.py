@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import sys
 from collections.abc import Sequence
 
@@ -23,6 +24,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "main_command",
     "solve",
     "report",
+    "robots",
     "studies",
     "reproduce",
     "ikpath",
@@ -51,6 +53,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+    """Write to whatever ``sys.stderr`` is at the time of each record (tests swap it)."""
+
+    @property  # type: ignore[override]
+    def stream(self) -> object:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value: object) -> None:
+        pass
+
+
+def _show_compile_progress() -> None:
+    """Show on stderr what the C compilation of dynamics kernels is doing (it can take minutes)."""
+    log = logging.getLogger("youbot_opt.nlp.codegen")
+    if not any(isinstance(h, _StderrHandler) for h in log.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(logging.Formatter("youbot-opt: %(message)s"))
+        log.addHandler(handler)
+        log.setLevel(logging.INFO)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line and return the exit code.
 
@@ -69,8 +93,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not argv or argv[0].startswith("-") and argv[0] not in ("-h", "--help", "--version"):
         argv = [DEFAULT_COMMAND, *argv]
     args = parser.parse_args(argv)
+    _show_compile_progress()
     try:
         return int(args.func(args))
     except YoubotOptError as exc:
+        from youbot_opt.sweeps.resume import ShardFinished
+
+        if isinstance(exc, ShardFinished):  # --shard I/K solved its share: a success
+            print(f"youbot-opt: {exc}", file=sys.stderr)
+            return 0
         print(f"youbot-opt: error: {exc}", file=sys.stderr)
+        return 2
+    except (MemoryError, RecursionError) as exc:  # last resort: limits are checked before
+        what = "memory" if isinstance(exc, MemoryError) else "stack"
+        print(f"youbot-opt: error: out of {what} (a size no limit foresaw; please report it)",
+              file=sys.stderr)  # fmt: skip
         return 2

@@ -6,6 +6,22 @@ Usage:
     youbot-opt ikpath --example B --method ipopt --starts 200 --json
     youbot-opt ikpath --lengths 3 2 2 --limit 1.5708 --target 0 7 --target 5 0 --method ipopt
     youbot-opt ikpath --robot youbot --target 0.3 0.3 --target 0.1 0.5 --target 0.35 0.1
+    youbot-opt ikpath --robot ur5 --target 0.4 0.2 0.3 --target 0.3 -0.3 0.4 --target 0.5 0 0.2
+    youbot-opt ikpath --robot panda --target 0.5 0.2 0.4 --target 0.4 -0.2 0.5 --method ipopt
+
+Spatial mode (any robot the loader accepts: a name or a URDF path, the frame
+--frame, default the robot's tip frame) is used when targets have 3 or more
+numbers, come from --targets FILE, or the robot is not the planar youbot:
+--target X Y Z (a position), X Y Z AX AY AZ (a position and an approach
+direction of the frame's z axis) or X Y Z QX QY QZ QW (a pose, quaternion).
+A CSV file names its columns x, y, z [, qx, qy, qz, qw | ax, ay, az]
+[, position_tol, orientation_tol, orientation_weight]; a JSON file lists
+objects with position, quaternion_xyzw or approach and the same keys. Joint
+limits are the URDF's (--limit/--lower/--upper override them, --no-limits
+drops them). Each target is decided first: reachable (a witness), unreachable
+with a certificate (outside the reach sphere: exit 2), or undecided. The run
+folder holds result.json, summary.json, ikpath_legs.png (joint motion per
+leg), ikpath_path3d.png and replay.html (targets as markers, poses as triads).
 
 The third example puts target (0, 7) at the edge of the limited workspace (the
 arm fully stretched, joint 1 at its limit): from the zero start the default
@@ -47,6 +63,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
+from youbot_opt.cli.limits import check_ikpath_size
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 
@@ -72,15 +90,37 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     src = p.add_argument_group("arm and targets")
     src.add_argument("--example", choices=EXAMPLE_NAMES, help="the study's example A or B")
-    src.add_argument("--robot", choices=["youbot"], help="use a real arm (targets: platform x z)")
+    src.add_argument(
+        "--robot",
+        metavar="NAME|PATH",
+        help="youbot (planar, targets: platform x z), or a robot name (ur5, panda, ...) or "
+        "URDF path for spatial targets",
+    )
+    src.add_argument("--frame", metavar="F", help="spatial: the frame that visits the targets")
+    src.add_argument(
+        "--targets",
+        metavar="FILE",
+        dest="targets_file",
+        help="spatial: targets from a CSV or JSON file (see above)",
+    )
+    src.add_argument(
+        "--tol", type=float, default=1e-6, help="spatial: position tolerance [m] (default 1e-6)"
+    )
+    src.add_argument(
+        "--orientation-tol",
+        type=float,
+        default=1e-6,
+        help="spatial: orientation tolerance [rad] (default 1e-6)",
+    )
     src.add_argument("--lengths", type=float, nargs="+", metavar="L", help="link lengths [m]")
     src.add_argument(
         "--target",
         type=float,
-        nargs=2,
+        nargs="+",
         action="append",
-        metavar=("X", "Y"),
-        help="a target in [m] (repeat, in visiting order)",
+        metavar="X",
+        help="a target (repeat, in visiting order): X Y [m] (planar), X Y Z, X Y Z AX AY AZ "
+        "or X Y Z QX QY QZ QW (spatial)",
     )
     lim = p.add_argument_group("joint limits [rad]")
     lim.add_argument("--limit", type=float, metavar="C", help="symmetric limits |q_i| <= C")
@@ -107,6 +147,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         default=None,
         help="worker processes (default: the CPUs, 1 below 8 starts)",
     )
+    add_scheduler_args(run)  # --starts > 1 on a Dask cluster
     run.add_argument(
         "--max-wall-time",
         type=float,
@@ -131,6 +172,15 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_run)
+
+
+def _spatial_mode(args: argparse.Namespace) -> bool:
+    """Whether the command line asks for the spatial problem (see the usage text)."""
+    if args.frame or args.targets_file:
+        return True
+    if args.robot is not None and args.robot != "youbot":
+        return True
+    return any(len(t) != 2 for t in args.target or ())
 
 
 def _problem(args: argparse.Namespace) -> CyclicIKProblem:
@@ -455,6 +505,11 @@ def _run(args: argparse.Namespace) -> int:
             name="segment_time",
             value=args.segment_time,
         )
+    check_ikpath_size(n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ()))  # noqa: E501
+    if _spatial_mode(args):
+        from youbot_opt.cli.ikpath_spatial import run_spatial
+
+        return run_spatial(args)
     problem = _problem(args)
     if args.reach_evaluations < 1:
         raise ParameterError(
@@ -489,10 +544,12 @@ def _run(args: argparse.Namespace) -> int:
             verdicts=verdicts,
             sweep=SweepOptions(
                 # Several starts run in worker processes, so a crashing start cannot end the run.
-                executor="process" if args.starts > 1 else "serial",
+                # With --scheduler / --scheduler-file they run on that Dask cluster.
+                executor=scheduler_address(args) or ("process" if args.starts > 1 else "serial"),
                 workers=workers,
                 progress=None if args.no_progress else _Progress(),
                 out=folder,
+                shard=args.shard,
             ),
         )
     doc = _report(args, problem, verdicts, ms)

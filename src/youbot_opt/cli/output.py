@@ -1,19 +1,12 @@
 """The output folder of a CLI run: where summaries, figures, replays and results go.
 
-Every ``youbot-opt`` command that produces results writes them to one folder
-per run and prints where it is. With ``--out DIR`` the folder is ``DIR``
-(re-running a sweep with the same ``DIR`` resumes it); without, a new folder
-``youbot_opt_runs/<command>-<UTC date>-<UTC time>`` under the current
-directory, never one that already exists.
+One folder per run: ``--out DIR`` (re-running a sweep there resumes it), or a
+new ``youbot_opt_runs/<command>-<UTC date>-<UTC time>``. It holds what the
+command has of ``summary.json``, ``result.npz`` (or ``results/``), ``*.png``
+and ``replay.html``; sweeps report progress on stderr through
+:class:`ProgressLine`.
 
-Layout (each file is optional; a command writes what it has)::
-
-    summary.json     one JSON object: the printed summary, machine readable
-    result.npz       the saved result (``youbot_opt.trajopt.io``) or ``results/`` for sweeps
-    *.png            figures
-    replay.html      standalone meshcat replay (opens offline in any browser)
-
-Sweeps report their progress on stderr through :class:`ProgressLine`.
+>>> folder = run_folder("solve", out=None)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -25,9 +18,12 @@ import sys
 import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import IO, Any, TextIO
+from typing import IO, TYPE_CHECKING, Any, TextIO
 
 from youbot_opt._files import atomic_write_bytes, json_ready
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
     "DEFAULT_ROOT",
@@ -91,7 +87,7 @@ def write_summary(
     return path
 
 
-def save_figure(fig: Any, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
+def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
     """Save a matplotlib figure as ``folder/name`` (PNG unless a suffix is given); close it."""
     import matplotlib.pyplot as plt
 

@@ -2,11 +2,12 @@
 
 Usage::
 
-    youbot-opt report [--robot NAME|PATH] [--q Q1 Q2 ...]
+    youbot-opt report [--robot NAME|PATH] [--package-dir DIR] [--lenient]
+                      [--lock NAME=VALUE] [--tip-frame F] [--q Q1 Q2 ...]
 
 The default robot is the study's youBot arm and the default configuration its
-start configuration ``(-pi/6, -pi/6, -pi/3)`` [rad]; other robots default to
-their neutral configuration.
+start configuration ``(-pi/6, -pi/6, -pi/3)`` [rad]; every other robot (a file
+too, whatever its robot's name) defaults to its neutral configuration.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
+
 if TYPE_CHECKING:  # Pinocchio is imported in the functions, so --help stays fast
     import numpy as np
 
@@ -22,13 +25,7 @@ if TYPE_CHECKING:  # Pinocchio is imported in the functions, so --help stays fas
 
 __all__ = ["register", "format_report"]
 
-_YOUBOT = "youbot"
-
-#: The robot names of the --robot help, spelled out so that building the parser imports no
-#: Pinocchio; tests/cli/test_cli_help.py checks them against robot.model.available_robots().
-ROBOT_NAMES: tuple[str, ...] = (
-    "youbot", "double_pendulum", "ur3", "ur5", "ur10", "panda", "so101", "z1", "xarm7",
-)  # fmt: skip
+_PLANAR_TIP = "gripper_tip"
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -44,12 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="print a model report: joints, masses, limits, M(q), gravity torques, tip pose",
         description="Print a model report of a robot at a configuration.",
     )
-    p.add_argument(
-        "--robot",
-        default=_YOUBOT,
-        metavar="NAME|PATH",
-        help=f"robot name ({', '.join(ROBOT_NAMES)}) or URDF path (default: youbot)",
-    )
+    add_robot_arguments(p)
     p.add_argument(
         "--q",
         type=float,
@@ -91,7 +83,7 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
     import numpy as np
     import pinocchio as pin
 
-    from youbot_opt.robot.model import as_configuration, frame_placement, tip_pose
+    from youbot_opt.robot.model import as_configuration, frame_placement, tip_pose, youbot_urdf_path
 
     qa = as_configuration(robot, q)
     model = robot.model
@@ -124,7 +116,8 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
         _fmt(mass_matrix),
         f"gravity torque N(q): {_fmt(pin.computeGeneralizedGravity(model, data, qa))} N m",
     ]
-    if robot.name == _YOUBOT or robot.tip_frame == "gripper_tip":
+    planar = robot.tip_frame == _PLANAR_TIP and robot.urdf_path in (None, youbot_urdf_path())
+    if planar and not robot.locked_joints:  # the study's arm: its (x, z) plane convention
         pose = tip_pose(robot, qa)
         lines += [
             f"tip position (x, z) in platform: {_fmt(pose.position)} m",
@@ -145,13 +138,12 @@ def _run(args: argparse.Namespace) -> int:
     import numpy as np
     import pinocchio as pin
 
-    from youbot_opt.robot.model import load_model
     from youbot_opt.robot.params import STUDY_Q_START
 
-    robot = load_model(args.robot)
+    robot = load_robot(args)
     if args.q is not None:
         q = np.asarray(args.q, dtype=float)
-    elif robot.name == _YOUBOT:
+    elif is_study_youbot(args):  # the built-in planar arm only, never a file named "youbot"
         q = np.asarray(STUDY_Q_START)
     else:
         q = pin.neutral(robot.model)

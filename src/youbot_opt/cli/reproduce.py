@@ -1,26 +1,15 @@
 """``youbot-opt reproduce-study1``: reproduce study 1 with its own and the correct transcription.
 
+Runs :func:`youbot_opt.reproduction.reproduce_study1` (``--quick``: a small
+subset) with progress on stderr, prints the markdown tables on stdout and
+writes everything it computed to one output folder (:mod:`youbot_opt.cli.output`);
+``--from-json FILE`` rebuilds tables and figures without solving. Exit code 0
+when every base-case multistart converged at least once, 1 otherwise. The
+folder's contents: docs/design.md, "Module notes".
+
 Usage::
 
-    youbot-opt reproduce-study1 [--quick] [--out DIR] [--starts K] [--search-starts K] [--seed S]
-                                [--workers W] [--serial] [--from-json FILE]
-
-Runs :func:`youbot_opt.reproduction.reproduce_study1` (the full study takes
-6 minutes wall on 2 cores; ``--quick`` runs a small subset) with
-progress on stderr, prints the markdown tables on stdout and writes everything
-it computed to one output folder (``DIR``, or a new
-``youbot_opt_runs/reproduce-study1-<UTC date>-<UTC time>``;
-:mod:`youbot_opt.cli.output`)::
-
-    study1_reproduction.json   every record (figures, certificates, settings)
-    study1_reproduction.md     the tables
-    summary.json               headline figures of the base case
-    repro_*.png                figures (youbot_opt.reproduction.figures)
-    results/<name>.npz         each solve behind a record (youbot_opt.trajopt.io)
-
-``--from-json FILE`` rebuilds the tables, summary and figures from a saved
-JSON file without solving. Exit code 0 when every base-case multistart
-converged at least once, 1 otherwise.
+    youbot-opt reproduce-study1 [--quick] [--out DIR] [--starts K] [--from-json FILE]
 """
 
 from __future__ import annotations

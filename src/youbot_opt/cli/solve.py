@@ -1,22 +1,15 @@
 """``youbot-opt solve``: one trajectory solve (or a multistart) from the command line.
 
-Every run writes an output folder (``--out DIR``, or a new
-``youbot_opt_runs/solve-<date>-<time>``; :mod:`youbot_opt.cli.output`):
-``summary.json``, ``result.npz`` (:func:`youbot_opt.trajopt.io.save_result`), the
-figures ``trajectory.png``, ``arm.png`` and ``convergence.png`` (plus
-``multistart.png`` with ``--starts > 1``) and ``replay.html``, a standalone
-meshcat replay of the solution (of the distinct optima, side by side, after a
-multistart). The table goes to stdout and the folder's listing after it; with
-``--json`` stdout holds one JSON object only and the listing goes to stderr.
+Solves, optionally from ``--starts N`` starts in a process pool with progress
+on stderr, refines the grid until the plan is certified (``--no-refine``
+keeps it), prints a table (``--json``: one JSON object) and writes an output
+folder (:mod:`youbot_opt.cli.output`) with ``summary.json``, ``result.npz``,
+figures and ``replay.html``. Exit codes: 0 success, 1 failed solve or
+refinement out of budget (still saved), 2 bad input.
 
-With ``--starts N > 1`` the starts run in a process pool
-(:func:`youbot_opt.trajopt.multistart.run_multistart`; ``--workers``, default: the
-CPUs available, 0 = serial) with a progress line per start on stderr (not
-with ``--json`` or ``--quiet``). If no start converges, the failed start with
-the smallest constraint violation is printed and saved in place of the best.
+Usage::
 
-Exit codes: 0 success, 1 failed solve (the result is still printed and saved),
-2 bad input.
+    youbot-opt solve --beta 0.5 --knots 50 --starts 4 --out DIR
 """
 
 from __future__ import annotations
@@ -27,14 +20,22 @@ import logging
 import math
 import sys
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from youbot_opt._files import json_ready
+from youbot_opt.cli.cluster_args import add_scheduler_args
+from youbot_opt.cli.limits import check_trajopt_size
+from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
 from youbot_opt.exceptions import ParameterError
 
 __all__ = [
+    "add_refine_arguments",
+    "refine_many",
+    "refine_result",
+    "refinement_budget",
+    "refinement_table",
     "register",
     "run_solve",
     "format_result",
@@ -58,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         description="Solve the time/work trajectory problem f = beta T + (1 - beta) W by "
         "direct collocation with IPOPT.",
     )
-    p.add_argument("--robot", default="youbot", help="robot name or URDF path (default: youbot)")
+    add_robot_arguments(p)
     p.add_argument(
         "--start",
         type=float,
@@ -103,6 +104,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="parallel starts with --starts > 1 (default: the CPUs available; 0: serial)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr (implied by --json)")
+    add_scheduler_args(p, shard=False)  # the --starts > 1 multistart runs on Dask with them
     p.add_argument(
         "--bound-scale",
         type=float,
@@ -130,18 +132,138 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    add_refine_arguments(p)
     p.set_defaults(func=run_solve)  # fmt: skip
+
+
+def add_refine_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the mesh-refinement options (on by default; ``--no-refine`` keeps the grid)."""
+    g = p.add_argument_group(
+        "mesh refinement",
+        "by default the grid of --knots is refined until every interval's collocation error "
+        "is within --error-tol and the plan passes its certificate (or the budget runs out)",
+    )
+    g.add_argument(
+        "--no-refine",
+        dest="refine",
+        action="store_false",
+        help="keep the fixed uniform grid of --knots (the result is then never certified)",
+    )
+    g.add_argument(
+        "--error-tol",
+        type=float,
+        default=1e-3,
+        help="largest relative collocation error of an interval (default 1e-3)",
+    )
+    g.add_argument("--max-rounds", type=int, default=8, help="refinement rounds (default 8)")
+    g.add_argument("--max-knots", type=int, default=1000, help="largest grid (default 1000)")
+    g.add_argument(
+        "--refine-time",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="no new refinement round after this wall time [s] (default: no limit)",
+    )
+
+
+def refinement_budget(args: argparse.Namespace) -> Any:
+    """Return the :class:`~youbot_opt.trajopt.refine.RefinementBudget` of the options."""
+    from youbot_opt.trajopt.refine import RefinementBudget
+
+    return RefinementBudget(
+        tolerance=args.error_tol,
+        max_rounds=args.max_rounds,
+        max_knots=args.max_knots,
+        time_limit=args.refine_time,
+    )
+
+
+def refine_result(solver: Any, result: Any, args: argparse.Namespace, quiet: bool = False) -> Any:
+    """Refine ``result`` (solved on ``solver``'s grid) unless ``--no-refine``; progress: stderr."""
+    if not getattr(args, "refine", False) or result is None or result.trajectory is None:
+        return result
+    from youbot_opt.trajopt.refine import refine
+
+    def progress(r: Any) -> None:
+        if not quiet:
+            verdict = {True: "passes", False: "fails", None: "not run"}[r.certificate_passed]
+            print(
+                f"refine: round {r.index}: {r.n_knots} knots, f = {r.objective:.6g}, "
+                f"T = {r.duration:.4g} s, max error {r.max_error:.3g}, certificate {verdict}",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    return refine(solver, first=result, budget=refinement_budget(args), progress=progress)
+
+
+def refine_many(
+    solver: Any, items: list[tuple[str, Any]], args: argparse.Namespace, quiet: bool = False
+) -> tuple[list[Any], list[str], list[dict[str, Any]]]:
+    """Refine the labelled results of a study (``--no-refine``: nothing, empty outputs).
+
+    Returns
+    -------
+    refined : list of TrajOptResult
+        The refined results, in order.
+    lines : list of str
+        One table line per result: label, knots, ``f``, ``T``, certified or why not.
+    summaries : list of dict
+        Per result: its label and :meth:`Refinement.summary`.
+    """
+    if not getattr(args, "refine", False) or not items:
+        return [], [], []
+    refined, summaries = [], []
+    lines = [
+        f"refined ({refinement_budget(args).describe()}):",
+        f"  {'':<14} {'knots':>6} {'f':>12} {'T [s]':>9}  certified",
+    ]
+    for label, result in items:
+        if not quiet:
+            print(f"refine: {label}", file=sys.stderr, flush=True)
+        r = refine_result(solver, result, args, quiet=True)
+        refined.append(r)
+        record = r.refinement
+        verdict = "yes" if r.certified else ("no: " + record.reason if record else "no trajectory")
+        lines.append(
+            f"  {label:<14} {r.problem.n_knots:>6} {r.objective:>12.6f} {r.duration:>9.4f}  "
+            f"{verdict}"
+        )
+        summaries.append({"label": label, **(record.summary() if record else {})})
+    return refined, lines, summaries
+
+
+def refinement_table(result: Any) -> list[str]:
+    """Lines describing a result's grid and certification (its refinement history)."""
+    record = result.refinement
+    if record is None:
+        return [
+            f"grid          fixed uniform, {result.problem.n_knots} knots "
+            "(--no-refine: not certified)"
+        ]
+    lines = [
+        f"certified     {'yes' if record.certified else 'NO'}: {record.reason}",
+        f"  {'round':>5} {'knots':>6} {'f':>12} {'T [s]':>9} {'max error':>10} "
+        f"{'fb RMS':>7} {'fb peak':>7} {'cert.':>6} {'time [s]':>8}",
+    ]
+    for r in record.rounds:
+        verdict = {True: "pass", False: "fail", None: "-"}[r.certificate_passed]
+        lines.append(
+            f"  {r.index:>5} {r.n_knots:>6} {r.objective:>12.6f} {r.duration:>9.4f} "
+            f"{r.max_error:>10.3g} {r.feedback_rms:>7.3f} {r.feedback_peak:>7.3f} "
+            f"{verdict:>6} {r.solve_time + r.check_time:>8.3f}"
+        )
+    return lines
 
 
 def _problem(args: argparse.Namespace) -> Any:
     from youbot_opt.reproduction.study1 import study1_problem
-    from youbot_opt.robot.model import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
-    is_youbot = args.robot == "youbot"
+    is_youbot = is_study_youbot(args)
     if args.damping is not None and not is_youbot:
         raise ParameterError("--damping applies to the youBot only", name="damping")
-    robot = load_model(args.robot, damping=args.damping) if is_youbot else load_model(args.robot)
+    robot = load_robot(args, damping=args.damping)
     if is_youbot and args.start is None and args.goal is None:
         return study1_problem(args.knots, robot=robot, beta=args.beta)
     if args.start is None or args.goal is None:
@@ -167,6 +289,8 @@ def certificate_of(result: Any) -> Any:
     """Return the :func:`youbot_opt.trajopt.certify.certify` certificate of ``result``, or None."""
     if result.trajectory is None:
         return None
+    if result.refinement is not None and result.refinement.certificate is not None:
+        return result.refinement.certificate  # the last round's, already computed
     try:
         from youbot_opt.trajopt.certify import certify
     except ImportError:  # pragma: no cover - verify is part of the package
@@ -188,6 +312,7 @@ def format_result(result: Any, certificate: Any = None, *, max_active: int = 12)
         f"solve time    {result.wall_time:.4f} s wall, {result.cpu_time:.4f} s CPU",
         f"max violation {result.max_violation:.2e}",
     ]
+    lines += refinement_table(result)
     if certificate is not None:
         lines += ["", str(certificate)]
     active = result.active_bounds(1e-6) if result.trajectory is not None else []
@@ -260,11 +385,15 @@ def write_solve_outputs(
     from youbot_opt.cli.output import write_summary
     from youbot_opt.trajopt.io import save_result
     from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_multistart, plot_trajectory
+    from youbot_opt.viz.plots.trajopt import plot_refinement
 
     files: list[Path | None] = [save_result(result, folder / "result.npz")]
     if result.trajectory is not None:
         files.append(draw_figure(folder, "trajectory.png", plot_trajectory, result))
         files.append(draw_figure(folder, "arm.png", plot_arm_2d, None, result))
+    if result.refinement is not None:
+        files.append(draw_figure(folder, "refinement.png", plot_refinement, result))
+        summary["refinement"] = result.refinement.summary()
     runs = multistart if multistart is not None else [result]
     files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
     if multistart is not None:
@@ -328,13 +457,15 @@ def _representative(ms: Any) -> Any:
 
 def _multistart(args: argparse.Namespace, solver: Any) -> Any:
     """Run the starts in a process pool (serial with ``--workers 0``), progress on stderr."""
+    from youbot_opt.cli.cluster_args import scheduler_address
     from youbot_opt.cli.output import ProgressLine
     from youbot_opt.sweeps.options import SweepOptions
     from youbot_opt.trajopt.multistart import run_multistart
 
     if args.workers is not None and args.workers < 0:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}", name="workers")
-    executor: Literal["serial", "process"] = "serial" if args.workers == 0 else "process"
+    executor: str = "serial" if args.workers == 0 else "process"
+    executor = scheduler_address(args) or executor  # --scheduler / --scheduler-file: Dask
     prog = ProgressLine("solve", args.quiet or args.json)
     sweep = SweepOptions(
         executor=executor, workers=None if args.workers == 0 else args.workers, progress=prog
@@ -357,6 +488,7 @@ def run_solve(args: argparse.Namespace) -> int:
     if args.knots < 2:
         raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
     problem = _problem(args)
+    check_trajopt_size(n_knots=args.knots, nq=problem.robot.nq, n_starts=args.starts, max_knots=args.max_knots if args.refine else 0)  # noqa: E501
     method = args.transcription.replace("-", "_")
     options = IpoptOptions(max_iter=args.max_iter)
     solver = TrajOptSolver(problem, method, options, args.backend)
@@ -385,6 +517,7 @@ def run_solve(args: argparse.Namespace) -> int:
             beta=args.beta, bound_scale=args.bound_scale, guess=guess,
             seed=args.seed if args.guess == "spline" else None,
         )  # fmt: skip
+    result = refine_result(solver, result, args, quiet=args.quiet or args.json)
     folder = open_folder("solve", args.out)
     if result is None:  # every start raised: no iterate to report
         summary: dict[str, Any] = {
@@ -415,4 +548,4 @@ def run_solve(args: argparse.Namespace) -> int:
         print(format_result(result, certificate))
         print()
     report_outputs(folder, files, args.json)
-    return 0 if result.success else 1
+    return 0 if result.success and (result.refinement is None or result.certified) else 1

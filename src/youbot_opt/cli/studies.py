@@ -1,27 +1,16 @@
 """``youbot-opt multistart | pareto | bounds``: the study-1 sweeps from the command line.
 
+Each prints progress on stderr and a table on stdout (``--json``: one JSON
+object), writes an output folder (:mod:`youbot_opt.cli.output`) that a rerun
+with the same ``--out`` resumes, and refines the reported plans until
+certified (``--no-refine`` keeps the grid). Exit codes: 0 done, 1 no solve
+converged, 2 bad input (folder contents: docs/design.md, "Module notes").
+
 Usage::
 
     youbot-opt multistart --starts 50 --beta 0.5 --knots 50 --seed 0 --workers 2 --out DIR
     youbot-opt pareto --betas 0.05:0.95:0.05 --out DIR
     youbot-opt bounds --scales 1,0.95,0.9,0.85 --out DIR
-
-Each prints progress on stderr and a table on stdout (``--json``: one JSON
-object instead) and writes an output folder (``--out DIR``, or a new
-``youbot_opt_runs/<command>-<date>-<time>``; :mod:`youbot_opt.cli.output`)::
-
-    summary.json     the sweep's summary (what --json prints)
-    manifest.json    the sweep store (:class:`youbot_opt.sweeps.store.SweepStore`): the
-    items/           sweep's parameters, and every finished item as it completes
-    *.png            multistart: multistart.png, convergence.png, trajectory.png (best);
-                     pareto: pareto.png; bounds: bound_scaling.png
-    replay.html      standalone meshcat replay, side by side: the distinct optima,
-                     points along the front, or the best solution at each scale
-
-The same command run again with ``--out`` on the same folder resumes where it
-stopped (a different command or different parameters on the same folder is an
-error). The folder's listing follows the table on stdout (stderr with ``--json``).
-Exit codes: 0 done, 1 no solve converged, 2 bad input.
 """
 
 from __future__ import annotations
@@ -31,12 +20,21 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
+from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
+from youbot_opt.cli.limits import check_sweep_values, check_trajopt_size
 from youbot_opt.cli.output import ProgressLine
-from youbot_opt.cli.solve import draw_figure, open_folder, replay_html, report_outputs
+from youbot_opt.cli.solve import (
+    add_refine_arguments,
+    draw_figure,
+    open_folder,
+    refine_many,
+    replay_html,
+    report_outputs,
+)
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 
@@ -59,6 +57,7 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
             start, stop, step = parts
             if not (math.isfinite(step) and step > 0):
                 raise ValueError(f"step must be > 0, got {step}")
+            check_sweep_values((stop - start) / step + 1, name)  # before the array is made
             values = np.round(np.arange(start, stop + 0.5 * step, step), 10)
         else:
             values = np.array([float(p) for p in text.split(",") if p.strip()])
@@ -109,6 +108,8 @@ def _common(p: argparse.ArgumentParser) -> None:
         "recorded as failed and retried once (default: none; needs --workers >= 1)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_scheduler_args(p)
+    add_refine_arguments(p)  # the reported plans are refined until certified (--no-refine)
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -178,6 +179,7 @@ def _solver(args: argparse.Namespace) -> Any:
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     problem = study1_problem(args.knots)
+    check_trajopt_size(n_knots=args.knots, nq=problem.robot.nq, n_starts=getattr(args, "starts", 1), max_knots=args.max_knots if getattr(args, "refine", False) else 0)  # noqa: E501
     method = args.transcription.replace("-", "_")
     return TrajOptSolver(problem, method, IpoptOptions(max_iter=args.max_iter), args.backend)
 
@@ -214,8 +216,9 @@ def _check(
 
 
 def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> SweepOptions:
-    """How the sweep runs: ``--workers`` (0 = serial), ``--item-timeout``, ``--out``."""
-    executor: Literal["serial", "process"] = "serial" if args.workers == 0 else "process"
+    """How the sweep runs: ``--workers`` (0 = serial), ``--item-timeout``, ``--out``, Dask."""
+    executor: str = "serial" if args.workers == 0 else "process"
+    executor = scheduler_address(args) or executor  # --scheduler / --scheduler-file: Dask
     workers = None if args.workers == 0 else args.workers
     return SweepOptions(
         executor=executor,
@@ -223,6 +226,7 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
         timeout=args.item_timeout,
         out=folder,
         progress=progress,
+        shard=args.shard,
     )
 
 
@@ -291,6 +295,9 @@ def _run_multistart(args: argparse.Namespace) -> int:
     for s in failed[:10]:
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
     summary = res.summary(args.obj_tol, args.traj_tol)
+    best = [("best start", res.best.result)] if res.best is not None and res.best.result else []
+    _, lines, summary["refinement"] = refine_many(solver, best, args, args.quiet or args.json)
+    table += lines
     files: list[Path | None] = []
     if res.best is not None and res.best.result is not None:
         from youbot_opt.cli.solve import optima_replay
@@ -326,8 +333,11 @@ def _run_pareto(args: argparse.Namespace) -> int:
     from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
 
     table = pareto_table(front)  # distinct points counted, W with its unit
-    files: list[Path | None] = []
     best = [p for p in front.nondominated() if p.result is not None]
+    items = [(f"beta = {p.beta:g}", p.result) for p in best]
+    _, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
+    table += lines
+    files: list[Path | None] = []
     if best:
         from youbot_opt.viz.plots import plot_pareto
 
@@ -338,7 +348,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
             draw_figure(folder, "pareto.png", plot_pareto, front),
             replay_html(folder, [p.result for p in shown], labels),
         ]
-    _emit(args, folder, pareto_summary(front), table, files)
+    _emit(args, folder, {**pareto_summary(front), "refinement": refined}, table, files)
     return 0 if front.nondominated() else 1
 
 
@@ -375,6 +385,9 @@ def _run_bounds(args: argparse.Namespace) -> int:
     solved = [
         (r, r.best.result) for r in res.rows if r.best is not None and r.best.result is not None
     ]
+    items = [(f"scale {r.bound_scale:.3f}", x) for r, x in solved]
+    _, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
+    table += lines
     if solved:
         from youbot_opt.viz.plots import plot_bound_scaling
 
@@ -383,5 +396,5 @@ def _run_bounds(args: argparse.Namespace) -> int:
             draw_figure(folder, "bound_scaling.png", plot_bound_scaling, res),
             replay_html(folder, [x for _, x in solved], labels),
         ]
-    _emit(args, folder, res.summary(), table, files)
+    _emit(args, folder, {**res.summary(), "refinement": refined}, table, files)
     return 0 if all(r.best is not None for r in res.rows) else 1

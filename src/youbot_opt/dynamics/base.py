@@ -1,24 +1,13 @@
 """The :class:`Dynamics` pair of CasADi Functions and :func:`build_dynamics`.
 
-Every backend yields the same two named Functions with column-vector inputs,
-including the model's viscous joint damping ``b`` (``model.damping``) in both
-directions, so that one is the exact inverse of the other:
+Every backend (``"symbolic"``, ``"pinocchio"``, ``"pinocchio_casadi"``)
+yields the same two named Functions, exact inverses of each other and with
+the model's viscous damping ``b`` (which Pinocchio's own ``aba``/``rnea``
+ignore): ``forward_dynamics`` (q, v, tau) -> a = ABA(q, v, tau - b v) and
+``inverse_dynamics`` (q, v, a) -> tau = RNEA(q, v, a) + b v, with ``q`` in
+angle coordinates. The backends compared: docs/design.md, "Module notes".
 
-* ``forward_dynamics``: (q, v, tau) -> a = ABA(q, v, tau - b∘v)
-* ``inverse_dynamics``: (q, v, a) -> tau = RNEA(q, v, a) + b∘v
-
-i.e. ``M(q) a + C(q, v) v + g(q) + b∘v = tau``. Pinocchio's own ``aba``/``rnea``
-ignore ``model.damping``; these Functions do not.
-
-Backends:
-
-* ``"symbolic"``: :mod:`youbot_opt.dynamics.symbolic`, SX expressions, exact
-  derivatives of any order (IPOPT may use the exact Hessian).
-* ``"pinocchio"``: :mod:`youbot_opt.dynamics.callback`, Pinocchio called through
-  CasADi Callbacks, exact first derivatives only (IPOPT needs
-  ``hessian_approximation = "limited-memory"``).
-* ``"pinocchio_casadi"``: Pinocchio's own CasADi bindings, only where
-  ``import pinocchio.casadi`` works (conda-forge builds; not the PyPI wheel).
+>>> dyn = build_dynamics(load_model("youbot"), "symbolic")  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -26,7 +15,7 @@ from __future__ import annotations
 import importlib.util
 import logging
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -34,6 +23,11 @@ import numpy as np
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.tree import as_pin_model, read_tree
 from youbot_opt.exceptions import ParameterError
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+    from youbot_opt.robot.model import RobotModel
 
 __all__ = ["Dynamics", "build_dynamics", "available_backends", "BACKENDS"]
 
@@ -112,7 +106,8 @@ class Dynamics:
     backend : str
         ``"symbolic"``, ``"pinocchio"`` or ``"pinocchio_casadi"``.
     nq, nv : int
-        Numbers of configuration coordinates and velocities.
+        Size of the ``q`` input (angle coordinates, so ``nq == nv`` even for
+        continuous joints, whose Pinocchio ``nq`` is 2) and of the velocities.
     damping : ndarray, shape (nv,)
         Viscous joint damping ``b`` applied in both Functions, in [N m s/rad]
         (zeros when built with ``damping=False``): ``M a + nle + b∘v = tau``.
@@ -229,7 +224,7 @@ def _pinocchio(model: Any, damping: Array) -> Dynamics:
     forward, inverse = build_callbacks(pin_model, damping)
     return Dynamics(
         backend="pinocchio",
-        nq=pin_model.nq,
+        nq=pin_model.nv,
         nv=pin_model.nv,
         damping=damping,
         forward_dynamics=forward,
@@ -279,14 +274,17 @@ def _pinocchio_casadi(model: Any, damping: Array) -> Dynamics:
     )
 
 
-def build_dynamics(model: Any, backend: str = "symbolic", *, damping: bool = True) -> Dynamics:
+def build_dynamics(
+    model: RobotModel | pin.Model, backend: str = "symbolic", *, damping: bool = True
+) -> Dynamics:
     """Build forward and inverse dynamics CasADi Functions of a fixed-base robot.
 
     Parameters
     ----------
     model : pin.Model or RobotModel
         The robot (a ``RobotModel`` is unwrapped through its ``model``
-        attribute). Joints must be 1-dof revolute or prismatic.
+        attribute). Joints must be 1-dof revolute, continuous or prismatic;
+        a continuous joint's entry of ``q`` is its angle in [rad].
     backend : str, optional
         ``"symbolic"`` (default), ``"pinocchio"`` or ``"pinocchio_casadi"``;
         see :func:`available_backends`.

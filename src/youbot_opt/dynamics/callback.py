@@ -1,22 +1,14 @@
 """Pinocchio's own ``aba``/``rnea`` wrapped as CasADi Callbacks (the ``"pinocchio"`` backend).
 
-Each Callback evaluates Pinocchio numerically and provides its exact first
-derivatives from ``pin.computeABADerivatives`` / ``pin.computeRNEADerivatives``
-through ``get_jacobian`` (a second Callback). Second derivatives are NOT
-available: an NLP using this backend must let IPOPT approximate the Hessian,
-``{"ipopt.hessian_approximation": "limited-memory"}``; asking CasADi for a
-Hessian raises an error.
+Each Callback evaluates Pinocchio numerically (``q`` in angle coordinates,
+damping ``b`` applied as in the symbolic backend) and provides exact first
+derivatives from ``pin.computeABADerivatives`` / ``pin.computeRNEADerivatives``;
+no second derivatives, so IPOPT must use ``hessian_approximation =
+"limited-memory"``. The Callbacks must outlive every Function that calls
+them: :func:`build_callbacks` returns them for :class:`~youbot_opt.dynamics.Dynamics`
+to hold. Details: docs/design.md, "Module notes".
 
-Joint damping ``b`` (``model.damping``) is applied as in the symbolic backend:
-``a = ABA(q, v, tau - b∘v)`` and ``tau = RNEA(q, v, a) + b∘v``, with the
-Jacobians adjusted accordingly (``da/dv = dABA/dv - M⁻¹ diag(b)``,
-``dtau/dv = dRNEA/dv + diag(b)``).
-
-The Callbacks use CasADi's copy-free ``eval_buffer`` interface (no DM
-allocation per call). CasADi only keeps a raw pointer to a Callback: the Python objects must outlive
-every Function that calls them. :func:`build_callbacks` returns them so that
-:class:`~youbot_opt.dynamics.Dynamics` can hold them; each Callback holds its
-Jacobian Callbacks.
+>>> dyn = build_dynamics(model, "pinocchio")  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -29,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.coordinates import to_pin_configuration
 
 __all__ = ["ForwardDynamicsCallback", "InverseDynamicsCallback", "build_callbacks"]
 
@@ -71,7 +64,7 @@ class _PinocchioCallback(ca.Callback):
         return self._out_name
 
     def get_sparsity_in(self, i: int) -> ca.Sparsity:
-        return ca.Sparsity.dense(self._model.nq if i == 0 else self._model.nv, 1)
+        return ca.Sparsity.dense(self._model.nv, 1)  # q in angle coordinates
 
     def get_sparsity_out(self, i: int) -> ca.Sparsity:
         return ca.Sparsity.dense(self._model.nv, 1)
@@ -97,8 +90,15 @@ class _PinocchioCallback(ca.Callback):
     def has_eval_buffer(self) -> bool:
         return True
 
+    def pin_inputs(self, arg: Any) -> list[Array]:
+        """Return the three raw inputs, q turned from angle coordinates into Pinocchio's (nq,)."""
+        q, v, x = _inputs(arg, 3)
+        if self._model.nq != self._model.nv:
+            q = to_pin_configuration(self._model, q)
+        return [q, v, x]
+
     def eval_buffer(self, arg: Any, res: Any) -> int:
-        _write(res, 0, self.value(*_inputs(arg, 3)))
+        _write(res, 0, self.value(*self.pin_inputs(arg)))
         return 0
 
 
@@ -205,7 +205,7 @@ class _JacobianCallback(ca.Callback):
         return True
 
     def eval_buffer(self, arg: Any, res: Any) -> int:
-        for i, block in enumerate(self._parent.derivatives(*_inputs(arg, 3))):
+        for i, block in enumerate(self._parent.derivatives(*self._parent.pin_inputs(arg))):
             _write(res, i, block)
         return 0
 

@@ -1,19 +1,12 @@
 """Spatial-algebra helpers on CasADi expressions, in Pinocchio's conventions.
 
-A rigid transform (Pinocchio ``SE3``) is the pair ``(R, p)``: rotation (3, 3) and
-translation (3, 1) of a child frame expressed in its parent frame, so that a
-point ``x_child`` maps to ``R @ x_child + p``. Spatial vectors are (6, 1) columns
-with the LINEAR part first, as in Pinocchio: a motion is ``(v, w)`` (linear
-velocity in [m/s], angular velocity in [rad/s]) and a force is ``(f, n)``
-(force in [N], moment in [N m]), both expressed at the origin of their frame.
+A transform is ``(R, p)``, child frame in parent (``x -> R x + p``); spatial
+vectors are (6, 1) with the linear part first: motions ``(v, w)`` in [m/s],
+[rad/s], forces ``(f, n)`` in [N], [N m]. ``act`` / ``act_inv`` are
+Pinocchio's ``SE3.act`` / ``SE3.actInv``. Arguments may be CasADi SX, MX or DM.
+Reference: Featherstone, *Rigid Body Dynamics Algorithms* (2008), ch. 2.
 
-``act`` maps a vector from the child frame to the parent frame, ``act_inv`` from
-the parent frame to the child frame (Pinocchio's ``SE3.act`` / ``SE3.actInv``).
-Reference: R. Featherstone, *Rigid Body Dynamics Algorithms*, Springer 2008,
-ch. 2; J. Carpentier et al., "The Pinocchio C++ library", SII 2019.
-
-Every function accepts CasADi ``SX``/``MX``/``DM`` arguments (numpy arrays are
-converted by CasADi's operators) and returns CasADi expressions.
+>>> act_motion(R, p, motion)  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,26 +1,20 @@
 """Rigid-body algorithms of Pinocchio transcribed into CasADi SX expressions.
 
-``pip``'s ``pin`` wheel ships no ``pinocchio.casadi``, so this module rebuilds
-the algorithms it needs from the model's own data (joint placements, axes,
-body inertias, frames, gravity, armature): forward kinematics, frame
-placements, the recursive Newton-Euler algorithm (RNEA), the composite
-rigid-body algorithm (CRBA) and Featherstone's articulated-body algorithm
-(ABA), all in Pinocchio's local (body-frame) formulation. The result is a set
-of named, ``cse``-optimised CasADi Functions that are exact to machine
-precision, differentiable to any order and usable on MX symbols inside an NLP.
+Forward kinematics, frame placements, RNEA, CRBA and ABA in Pinocchio's local
+formulation, rebuilt from the model's data because the PyPI ``pin`` wheel has
+no ``pinocchio.casadi``; named, ``cse``-optimised Functions, exact and
+differentiable to any order. Without ``model.damping``
+(:func:`youbot_opt.dynamics.build_dynamics` adds it). References:
+Featherstone, *Rigid Body Dynamics Algorithms* (2008), tables 5.1, 6.2, 7.1.
 
-References: R. Featherstone, *Rigid Body Dynamics Algorithms*, Springer 2008,
-tables 5.1, 6.2, 7.1; Pinocchio's ``rnea.hxx``, ``crba.hxx``, ``aba.hxx``.
-
-These Functions do NOT include ``model.damping`` (like Pinocchio's own
-``aba``/``rnea``); :func:`youbot_opt.dynamics.build_dynamics` adds it.
+>>> symbolic = build_symbolic_model(model)  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -29,6 +23,11 @@ from youbot_opt._typing import Array
 from youbot_opt.dynamics import spatial
 from youbot_opt.dynamics.tree import JointSpec, TreeSpec, as_pin_model, read_tree
 from youbot_opt.exceptions import FrameNotFound
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+    from youbot_opt.robot.model import RobotModel
 
 __all__ = ["SymbolicModel", "build_symbolic_model", "FUNCTION_OPTIONS"]
 
@@ -211,7 +210,8 @@ class SymbolicModel:
     Attributes
     ----------
     nq, nv : int
-        Numbers of configuration coordinates and of velocities (equal).
+        Numbers of configuration coordinates and of velocities (equal: a
+        continuous joint's coordinate is its angle, not Pinocchio's (cos, sin)).
     damping : ndarray, shape (nv,)
         The model's viscous joint damping in [N m s/rad] (unused by these Functions).
     joint_names : tuple of str
@@ -290,15 +290,17 @@ class SymbolicModel:
         return _function(name, [q], [rot, pos], ["q"], ["R", "p"])
 
 
-def build_symbolic_model(model: Any) -> SymbolicModel:
+def build_symbolic_model(model: RobotModel | pin.Model) -> SymbolicModel:
     """Transcribe a fixed-base Pinocchio model into named CasADi SX Functions.
 
     Parameters
     ----------
     model : pin.Model or RobotModel
         The robot; a ``RobotModel`` is unwrapped through its ``model`` attribute.
-        All joints must be 1-dof revolute or prismatic (RX/RY/RZ,
-        RevoluteUnaligned, PX/PY/PZ, PrismaticUnaligned).
+        All joints must be 1-dof revolute, continuous or prismatic (RX/RY/RZ,
+        RevoluteUnaligned, RUBX/RUBY/RUBZ, RevoluteUnboundedUnaligned,
+        PX/PY/PZ, PrismaticUnaligned); a continuous joint's entry of ``q`` is
+        its angle in [rad] (:mod:`youbot_opt.dynamics.coordinates`).
 
     Returns
     -------

@@ -2,8 +2,10 @@
 
 The backends never touch Pinocchio's model objects while they build
 expressions; they read this frozen snapshot instead. Only one-degree-of-freedom
-revolute and prismatic joints (``nq == nv == 1``, constant motion subspace, no
-bias acceleration) are accepted; anything else raises :class:`ModelError`.
+revolute (bounded or continuous) and prismatic joints (constant motion
+subspace, no bias acceleration) are accepted; anything else raises
+:class:`ModelError`. A continuous joint is read as a revolute joint whose
+coordinate is its unbounded angle (:mod:`youbot_opt.dynamics.coordinates`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,11 @@ _REVOLUTE_AXES: dict[str, tuple[float, float, float]] = {
     "JointModelRY": (0.0, 1.0, 0.0),
     "JointModelRZ": (0.0, 0.0, 1.0),
 }
+_CONTINUOUS_AXES: dict[str, tuple[float, float, float]] = {
+    "JointModelRUBX": (1.0, 0.0, 0.0),
+    "JointModelRUBY": (0.0, 1.0, 0.0),
+    "JointModelRUBZ": (0.0, 0.0, 1.0),
+}
 _PRISMATIC_AXES: dict[str, tuple[float, float, float]] = {
     "JointModelPX": (1.0, 0.0, 0.0),
     "JointModelPY": (0.0, 1.0, 0.0),
@@ -33,10 +40,13 @@ _PRISMATIC_AXES: dict[str, tuple[float, float, float]] = {
 SUPPORTED_JOINTS: tuple[str, ...] = (
     *_REVOLUTE_AXES,
     "JointModelRevoluteUnaligned",
+    *_CONTINUOUS_AXES,
+    "JointModelRevoluteUnboundedUnaligned",
     *_PRISMATIC_AXES,
     "JointModelPrismaticUnaligned",
 )
-"""Pinocchio joint short names the CasADi backends can transcribe."""
+"""Pinocchio joint short names the CasADi backends can transcribe (continuous ones in angle
+coordinates: one unbounded angle in [rad] instead of Pinocchio's (cos, sin))."""
 _PRISMATIC_JOINTS: frozenset[str] = frozenset({*_PRISMATIC_AXES, "JointModelPrismaticUnaligned"})
 
 
@@ -55,7 +65,8 @@ class JointSpec:
     parent : int
         Index of the parent joint (0 is the fixed universe).
     index_v : int
-        Index of the joint's coordinate in ``q`` and ``v``.
+        Index of the joint's coordinate in ``q`` and ``v`` (angle coordinates:
+        a continuous joint has one entry, its angle, in both).
     rotation, translation : ndarray, shapes (3, 3) and (3,)
         Placement of the joint frame in the parent joint frame at q = 0; [m].
     mass : float
@@ -104,7 +115,7 @@ class TreeSpec:
     damping : ndarray, shape (nv,)
         Viscous joint damping from ``model.damping`` in [N m s/rad] or [N s/m].
     nv : int
-        Number of degrees of freedom (equal to nq).
+        Number of degrees of freedom (equal to the number of angle coordinates).
     """
 
     joints: tuple[JointSpec, ...]
@@ -115,7 +126,7 @@ class TreeSpec:
 
     @property
     def nq(self) -> int:
-        """Number of configuration coordinates (equal to ``nv`` here)."""
+        """Number of angle coordinates (nv; Pinocchio's nq adds one per continuous joint)."""
         return self.nv
 
 
@@ -153,6 +164,8 @@ def as_pin_model(model: Any) -> pin.Model:
 def _joint_axis(joint: Any, kind_name: str) -> Array:
     if kind_name in _REVOLUTE_AXES:
         return np.array(_REVOLUTE_AXES[kind_name])
+    if kind_name in _CONTINUOUS_AXES:
+        return np.array(_CONTINUOUS_AXES[kind_name])
     if kind_name in _PRISMATIC_AXES:
         return np.array(_PRISMATIC_AXES[kind_name])
     axis = np.asarray(joint.extract().axis, dtype=float).reshape(3)
@@ -176,13 +189,13 @@ def read_tree(model: pin.Model) -> TreeSpec:
     ------
     ModelError
         If a joint has an unsupported type (free-flyer, spherical, planar,
-        continuous, composite, mimic, ...), naming the joint and its type.
+        composite, mimic, ...), naming the joint and its type.
     """
     joints: list[JointSpec] = []
     for i in range(1, model.njoints):
         joint = model.joints[i]
         kind_name = joint.shortname()
-        if kind_name not in SUPPORTED_JOINTS or joint.nq != 1 or joint.nv != 1:
+        if kind_name not in SUPPORTED_JOINTS or joint.nv != 1:
             raise ModelError(
                 f"joint {model.names[i]!r} has type {kind_name}, which the CasADi dynamics "
                 f"backends do not support; supported joint types: {', '.join(SUPPORTED_JOINTS)}"

@@ -10,7 +10,15 @@ Build, check, solve, inspect::
     result = solve(problem, method="al")            # or "ipopt"
     best = run_multistart(problem, n_starts=200, seed=0).best
 
-Modules: :mod:`.chain` (Pinocchio planar chains), :mod:`.robot` (the youBot arm
+Any robot, 3-D targets, poses (issue 14)::
+
+    from youbot_opt.ikpath import SpatialIKProblem, SpatialTarget, run_spatial_multistart
+    robot = load_model("ur5")
+    problem = SpatialIKProblem(model=robot.model, frame=robot.tip_frame, targets=[...])
+    best = run_spatial_multistart(problem, method="al", n_starts=16).best
+
+Modules: :mod:`.targets`, :mod:`.spatial` (problem, reachability, DLS), :mod:`.spatial_ipopt`,
+:mod:`.spatial_solve`, :mod:`.chain` (Pinocchio planar chains), :mod:`.robot` (the youBot arm
 as a chain), :mod:`.problem`, :mod:`.reachability`, :mod:`.bfgs`,
 :mod:`.augmented_lagrangian` (the study's method), :mod:`.ipopt` (CasADi +
 IPOPT), :mod:`.solve`, :mod:`.multistart`, :mod:`.result`, :mod:`.io` (save
@@ -45,6 +53,20 @@ from youbot_opt.ikpath.reachability import (
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
 from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
 from youbot_opt.ikpath.solve import METHODS, Method, solve
+from youbot_opt.ikpath.spatial import (
+    SpatialIKProblem,
+    SpatialIKResult,
+    SpatialReach,
+    SpatialVerdict,
+    check_spatial_reachability,
+    greedy_path,
+)
+from youbot_opt.ikpath.spatial_solve import (
+    SpatialMultistart,
+    run_spatial_multistart,
+    solve_spatial,
+)
+from youbot_opt.ikpath.targets import SpatialTarget, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
 
@@ -68,23 +90,34 @@ __all__ = [
     "ReachVerdict",
     "Reachability",
     "STUDY_E_A",
+    "SpatialIKProblem",
+    "SpatialIKResult",
+    "SpatialMultistart",
+    "SpatialReach",
+    "SpatialTarget",
+    "SpatialVerdict",
     "SolveStatus",
     "TipKinematics",
     "chain_from_robot",
     "check_reachability",
+    "check_spatial_reachability",
     "cluster_minima",
     "configuration_distance",
     "decide_reachability",
     "example_problem",
+    "greedy_path",
+    "load_targets",
     "load_ikpath_result",
     "make_starts",
     "minimize_bfgs",
     "require_reachable",
     "run_multistart",
+    "run_spatial_multistart",
     "save_ikpath_result",
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",
+    "solve_spatial",
     "strong_wolfe_line_search",
     "youbot_chain",
 ]

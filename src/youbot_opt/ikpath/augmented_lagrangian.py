@@ -1,50 +1,13 @@
-r"""The study's method: augmented Lagrangian with a quasi-Newton inner solver.
+"""The study's method: augmented Lagrangian with a quasi-Newton inner solver.
 
-Framework of Nocedal and Wright, *Numerical Optimization* (2nd ed.),
-Algorithm 17.4 (bound-constrained Lagrangian method). With ``c(x)`` the
-``2 s`` target constraints and ``l <= x <= u`` the joint limits:
+Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
+(bound-constrained Lagrangian method) on ``E(x)`` with the ``2 s`` target
+constraints ``c(x) = 0`` and the joint box; the inner solver is
+:func:`~youbot_opt.ikpath.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
+``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
+in docs/design.md, "Module notes".
 
-.. math::
-
-    L_A(x; \lambda, \mu) = E(x) - \lambda^\top c(x) + \tfrac{\mu}{2} \lVert c(x) \rVert^2 .
-
-Outer iteration ``k``:
-
-1. Inner solve: find ``x_k`` with ``|| x_k - P(x_k - grad L_A) ||_inf <= omega_k``
-   (``P`` = projection on the box). The inner solver is
-   :func:`~youbot_opt.ikpath.bfgs.minimize_bfgs` (BFGS with a strong Wolfe line
-   search, written here as in the study). Without limits ``P`` is the identity
-   and it is plain BFGS; with limits it runs as an active-set projected
-   quasi-Newton method whose iterates never leave the box (no barrier).
-   ``inner="lbfgsb"`` uses SciPy's L-BFGS-B instead; its function-value line
-   search cannot resolve gradients below about ``sqrt(mu |J|^2 eps |L_A|)``,
-   so it is not the default (docs/ikpath.md, "Stopping test").
-2. If ``||c(x_k)||_inf <= eta_k`` (constraints improved enough):
-   stop when also ``||c||_inf <= eta*`` and the projected gradient of the
-   Lagrangian is ``<= omega*`` with the AL estimate ``lambda - mu c`` or with
-   the least-squares estimate at ``x_k`` (:func:`first_order_multipliers`);
-   otherwise update the multipliers ``lambda <- lambda - mu c(x_k)`` (the
-   least-squares estimate when the inner solve could not move) and tighten
-   ``eta <- eta / mu^0.9``, ``omega <- omega / mu`` (floored at ``eta*``, ``omega*``).
-3. Else increase the penalty ``mu <- growth * mu`` and reset
-   ``eta = 1 / mu^0.1``, ``omega = 1 / mu``. If ``stall_increases``
-   consecutive increases did not reduce the best violation by 10 %, the
-   iterate is a local minimiser of the violation (typically pinned against a
-   joint limit): stop with status ``INFEASIBLE`` instead of driving ``mu`` up.
-   When ``mu`` would exceed ``penalty_max`` the status is ``STALLED``; if the
-   worst target's tip Jacobian is then nearly singular (LICQ fails, e.g. a
-   target on the workspace boundary reachable only by the straight arm, where
-   no multipliers exist and ``|c|`` falls only like ``mu^(-2/3)``), the
-   message says so.
-
-With ``ALOptions.max_wall_time`` set, the inner solvers stop starting new
-iterations at the deadline and the solve ends with status ``MAX_TIME`` and
-the last iterate (within the box), unless that iterate passes the stopping test.
-
-Initial multipliers are zero and ``mu_0 = 10`` (N&W; the study). Since
-``grad L_A = grad E - J^T (lambda - mu c)``, the stationarity test is the
-Lagrangian gradient with the updated multipliers, which are the ones returned
-(sign convention: ``grad E = J^T lambda`` at a KKT point without active bounds).
+>>> result = solve_augmented_lagrangian(problem, x0, ALOptions())  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -53,6 +16,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -63,11 +27,17 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.best_iterate import pick_best
 from youbot_opt.ikpath.bfgs import minimize_bfgs
-from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
+from youbot_opt.ikpath.problem import ALProblem, CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.status import SolveStatus
 
-__all__ = ["ALOptions", "first_order_multipliers", "solve_augmented_lagrangian"]
+__all__ = [
+    "ALOptions",
+    "ALRun",
+    "first_order_multipliers",
+    "run_augmented_lagrangian",
+    "solve_augmented_lagrangian",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -172,20 +142,75 @@ def solve_augmented_lagrangian(
     """
     opts = ALOptions() if options is None else options
     start = problem.check_start(x0)
+    run = run_augmented_lagrangian(problem, start, opts)
+    return build_result(
+        problem,
+        method="al",
+        status=run.status,
+        x=run.x,
+        multipliers=run.multipliers,
+        iterations=len(run.history),
+        inner_iterations=run.inner_iterations,
+        wall_time=run.wall_time,
+        message=run.message,
+        start=start,
+        constraint_tol=opts.constraint_tol,
+        history=run.history,
+    )
+
+
+class ALRun(NamedTuple):
+    """Raw outcome of :func:`run_augmented_lagrangian` (before a result is built).
+
+    Attributes
+    ----------
+    status : SolveStatus
+        Outcome.
+    message : str
+        Why the method stopped.
+    x : ndarray, shape (n s,)
+        Final (or best) iterate in [rad].
+    multipliers : ndarray, shape (s m,)
+        Multiplier estimates (sign convention ``grad E = J^T lambda``).
+    history : tuple of OuterIterate
+        One record per outer iteration.
+    inner_iterations : int
+        Total inner iterations.
+    wall_time : float
+        Time in [s].
+    """
+
+    status: SolveStatus
+    message: str
+    x: Array
+    multipliers: Array
+    history: tuple[OuterIterate, ...]
+    inner_iterations: int
+    wall_time: float
+
+
+def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) -> ALRun:
+    """Run the augmented Lagrangian loop on any :class:`ALProblem` from a checked start.
+
+    The planar :class:`CyclicIKProblem` and the spatial problem of
+    :mod:`youbot_opt.ikpath.spatial` both plug in: the constraints are ``s``
+    blocks of ``m`` rows (``m = jacobian_blocks.shape[1]``), each with its own
+    Jacobian block, which is all the loop and :func:`first_order_multipliers` use.
+    """
     t0 = time.perf_counter()
     deadline = None if opts.max_wall_time is None else t0 + float(opts.max_wall_time)
-    data = problem.chain.create_data()
+    data = problem.create_data()
     lower, upper = problem.lower, problem.upper
     bounded = problem.bounded
     s = problem.n_targets
-    lam = np.zeros(2 * s)
+    lam = np.zeros(problem.n_constraints)
     mu = opts.penalty_initial
     omega, eta = 1.0 / mu, 1.0 / mu**0.1
 
     def lagrangian(x: Array) -> tuple[float, Array]:
         ev = problem.evaluate(x, data)
         c = ev.constraints
-        weight = (mu * c - lam).reshape(s, 2)  # d L_A / d c
+        weight = (mu * c - lam).reshape(s, -1)  # d L_A / d c
         value = ev.objective - float(lam @ c) + 0.5 * mu * float(c @ c)
         grad = ev.gradient + np.einsum("jkn,jk->jn", ev.jacobian_blocks, weight).ravel()
         return value, grad
@@ -279,22 +304,9 @@ def solve_augmented_lagrangian(
             omega = max(1.0 / mu, opts.stationarity_tol)
     if status is not SolveStatus.SOLVED and history and np.all(np.isfinite(x)):
         visited = (h.x.ravel() for h in history)
-        x, note = pick_best(problem, x, visited, opts.constraint_tol)
+        x, note = pick_best(problem, x, visited, opts.constraint_tol)  # type: ignore[arg-type]
         message = f"{message}; {note}" if note else message
-    return build_result(
-        problem,
-        method="al",
-        status=status,
-        x=x,
-        multipliers=lam,
-        iterations=len(history),
-        inner_iterations=inner_total,
-        wall_time=time.perf_counter() - t0,
-        message=message,
-        start=start,
-        constraint_tol=opts.constraint_tol,
-        history=tuple(history),
-    )
+    return ALRun(status, message, x, lam, tuple(history), inner_total, time.perf_counter() - t0)
 
 
 _SINGULAR_RATIO = 1e-2  # sigma_min / sigma_max of a tip Jacobian below which LICQ is lost
@@ -312,12 +324,15 @@ def _licq_note(ev: Evaluation, lam: Array, mu: float) -> str:
     and ``|lambda_j| ~ mu |c_j|`` grows without bound; no finite ``mu`` meets
     ``constraint_tol``.
     """
-    c = np.abs(ev.constraints.reshape(-1, 2)).max(axis=1)
+    m = ev.jacobian_blocks.shape[1]
+    c = np.abs(ev.constraints.reshape(-1, m)).max(axis=1)
     j = int(np.argmax(c))
-    sv = np.linalg.svd(ev.jacobian_blocks[j], compute_uv=False)
+    block = ev.jacobian_blocks[j]
+    block = block[np.any(block != 0.0, axis=1)]  # padding rows of a spatial block are zero
+    sv = np.linalg.svd(block, compute_uv=False) if block.size else np.zeros(0)
     if sv.size < 2 or sv[-1] > _SINGULAR_RATIO * sv[0]:
         return ""
-    lam_j = float(np.linalg.norm((lam - mu * ev.constraints).reshape(-1, 2)[j]))
+    lam_j = float(np.linalg.norm((lam - mu * ev.constraints).reshape(-1, m)[j]))
     return (
         f"; target {j + 1}: the tip Jacobian is nearly singular (singular values "
         f"{sv[0]:.3g}, {sv[-1]:.2g} m/rad: a straight or folded arm), so LICQ fails "
@@ -351,15 +366,15 @@ def first_order_multipliers(
 
     Returns
     -------
-    multipliers : ndarray, shape (2 s,)
+    multipliers : ndarray, shape (m s,)
         ``lambda`` in [rad^2/m] (sign convention ``grad E = J^T lambda``).
     residual : float
         ``max | x - P(x - (grad E - J^T lambda)) |`` in [rad].
     """
-    s, _, n = ev.jacobian_blocks.shape
+    s, m, n = ev.jacobian_blocks.shape
     gradient = ev.gradient.reshape(s, n)
     free = ((x > lower) & (x < upper)).reshape(s, n)
-    lam = np.zeros((s, 2))
+    lam = np.zeros((s, m))
     for j in range(s):
         if free[j].any():
             lam[j] = np.linalg.lstsq(

@@ -1,33 +1,11 @@
-r"""Branch and bound reachability search for limited chains of 3+ links (internal).
+"""Branch and bound reachability search for limited chains of 3+ links (internal).
 
 Used by :func:`youbot_opt.ikpath.reachability.decide_reachability`, which
-turns the :class:`SearchOutcome` into a verdict.
-
-**Limits, n >= 3 links**: branch and bound over the first ``m = n - 2``
-angles. For fixed outer angles the distance ``g`` from ``p`` to the
-workspace of the last two links is computed *exactly* in closed form. Moving
-``theta_k`` by ``delta`` rotates everything after joint ``k`` about joint
-``k``, which moves the set relative to ``p`` by at most
-``|p - c_k| |delta|``; hence on a box with centre ``theta_c`` and
-half-widths ``h``
-
-.. math::
-
-    g(\theta) \ge g(\theta_c) - \sum_k \rho_k h_k, \qquad
-    \rho_k = |p - c_k(\theta_c)| + \sum_{i<k} h_i (l_i + \dots + l_{k-1}),
-
-a rigorous Lipschitz bound (``c_k`` = position of joint ``k``). Boxes whose
-bound exceeds ``tol`` are discarded; the rest are bisected. For ``n = 3``
-this is a 1-D sweep of ``theta_1`` that always terminates; the root
-interval's end points are evaluated too, so targets reachable only at a
-limit (l = (3, 2, 2), |theta| <= pi/2, p = (0, 7): theta = (pi/2, 0, 0)) are
-found exactly. For ``n > 3`` the search is (n - 2)-dimensional and limited
-by ``max_evaluations``. The exact distance to the unlimited annulus is a
-lower bound too. A local bounded least-squares polish (deterministic,
-from the best box) speeds up finding witnesses on slivers.
-
-Floating-point rounding (about 1e-15 relative) is covered by a margin of
-``1e-12 (1 + |p - base| + sum l)`` subtracted from every lower bound.
+turns the :class:`SearchOutcome` into a verdict. Boxes of the first ``n - 2``
+angles are bounded below by the exact distance to the last two links'
+workspace minus a rigorous Lipschitz term, and bisected until decided (spec
+``docs/ikpath.md``); the bound and its rounding margin are derived in
+docs/design.md, "Module notes".
 """
 
 from __future__ import annotations

@@ -105,8 +105,8 @@ def check_ik_result(
     # Reported figures against the recomputed ones: Pinocchio's and the closed
     # form's tip positions agree to rounding (1e-12 on unit-size chains).
     scale = 1.0 + float(np.sum(chain.lengths))
-    if not abs(figures["objective"] - energy) <= 1e-9 * max(1.0, energy):
-        wrong.append(f"reported E = {figures['objective']:.12g}, recomputed {energy:.12g}")
+    if not abs(float(result.objective) - energy) <= 1e-9 * max(1.0, energy):
+        wrong.append(f"reported E = {float(result.objective):.12g}, recomputed {energy:.12g}")
     if not np.allclose(figures["residuals"], residuals, rtol=0.0, atol=1e-9 * scale):
         wrong.append("reported residuals differ from the recomputed ones")
     return IKCheck(not wrong, "; ".join(wrong), residual, limits)

@@ -1,16 +1,10 @@
 """Exact planar geometry for the reachability test (internal).
 
-Closed-form nearest points on circular arcs and on the workspace of a
-2-link planar arm with joint limits. All angles in [rad], lengths in [m].
-Angle ranges are ``(lo, width)`` with ``0 <= width <= 2 pi``; ``width = 2 pi``
-is the full circle.
-
-The 2-link result is exact: the distance from ``p`` to the image of the
-rectangle ``[a_lo, a_lo + a_w] x [b_lo, b_lo + b_w]`` under
-``F(a, b) = w + la e(psi + a) + lb e(psi + a + b)`` is attained either where
-``F = p`` (closed-form IK), at a fold ``b = k pi`` (the Jacobian is singular
-only there), or on an edge of the rectangle; every fold and edge maps to a
-circular arc whose nearest point is closed-form.
+Closed-form nearest points on circular arcs and on the workspace of a 2-link
+planar arm with joint limits (angles in [rad], lengths in [m]; ranges
+``(lo, width)``, ``width = 2 pi`` the full circle). The 2-link distance is
+exact: at ``F = p``, at a fold ``b = k pi`` or on an edge of the angle box,
+each an arc (docs/design.md, "Module notes").
 """
 
 from __future__ import annotations

@@ -1,25 +1,13 @@
 """Save and load IK-path results: one JSON file with a schema name, version and checksum.
 
-File layout (schema ``youbot_opt.ikpath_result``, version :data:`SCHEMA_VERSION`)::
+Schema ``youbot_opt.ikpath_result`` (version :data:`SCHEMA_VERSION`): the
+chain, targets, configurations, reported figures and history under
+``"result"``, its SHA-256 under ``"sha256"``. Writes are atomic. Loading
+rebuilds the problem, recomputes E, residuals and limit violation, refuses a
+corrupt or newer file, and re-checks a claimed success
+(:func:`~youbot_opt.ikpath.result.build_result`; layout: docs/design.md, "Module notes").
 
-    {"schema": "youbot_opt.ikpath_result", "schema_version": 1,
-     "versions": {"youbot_opt": ..., "pinocchio": ..., "numpy": ...},
-     "sha256": <hex digest of the canonical JSON of "result">,
-     "result": {"chain": {...}, "targets": [[x, y], ...], "use_limits": ...,
-                "method": ..., "status": ..., "configurations": [[...], ...],
-                "objective": ..., "residuals": [...], "limit_violation": ...,
-                "multipliers": [[...], ...], "iterations": ..., "inner_iterations": ...,
-                "wall_time": ..., "message": ..., "start": [[...], ...],
-                "constraint_tol": ...,
-                "history": [{"iteration": ..., "x": [[...]], "objective": ..., ...}, ...]}}
-
-Infinite joint limits are written as ``null``; every other number is finite or
-``null`` (NaN). Loading rebuilds the chain and the problem, recomputes E, the
-residuals (Pinocchio) and the limit violation from the configurations and
-refuses a file whose stored values disagree (or whose checksum does not
-match), whose schema is another one, or whose version is newer than this
-code reads. Writes are atomic. A file without ``constraint_tol`` (written
-before that field existed) is read with the default tolerance of its method.
+>>> load_ikpath_result(save_ikpath_result(result, "path.json")).objective  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -253,7 +241,9 @@ def load_ikpath_result(path: str | os.PathLike[str]) -> IKPathResult:
     Returns
     -------
     IKPathResult
-        The result; E, residuals and limit violation recomputed (Pinocchio).
+        The result; E, residuals and limit violation recomputed (Pinocchio),
+        and a claimed success re-checked (:func:`~youbot_opt.ikpath.result.checked`):
+        the status is the one the check gives it.
 
     Raises
     ------

@@ -1,20 +1,13 @@
 """The second, independent method: the same NLP in CasADi, solved by IPOPT.
 
-Independence from the augmented Lagrangian (:mod:`.augmented_lagrangian`):
+Independent of the augmented Lagrangian in kinematics (the study's closed
+form as a CasADi expression, not Pinocchio), derivatives (CasADi's exact
+Hessian) and algorithm (IPOPT's interior point on the joint box); only the
+problem data are shared. The NLP is built once per chain, target count and
+limits, with the targets as parameters. Why this makes a check:
+docs/design.md, "Module notes".
 
-* kinematics: the tip position is a CasADi expression of the study's formula
-  ``F = b + sum_i l_i (cos phi_i, sin phi_i)`` written here, not Pinocchio;
-* derivatives: CasADi's algorithmic differentiation, exact Hessian of the Lagrangian;
-* algorithm: a primal-dual interior-point method (IPOPT, MUMPS) on the box
-  ``l <= x <= u`` instead of an augmented Lagrangian with BFGS.
-
-Only the problem data are shared. The result's E, residuals (Pinocchio) and
-limit violation are recomputed by :func:`~youbot_opt.ikpath.result.build_result`,
-so a wrong CasADi kinematics would show up as residuals, and the tests compare
-the two methods' optima.
-
-The NLP is built once per (chain, number of targets, limits on/off) with the
-targets as NLP parameters, so multistart re-solves it without rebuilding.
+>>> result = IpoptIKSolver(problem).solve(None, x0)  # doctest: +SKIP
 """
 
 from __future__ import annotations

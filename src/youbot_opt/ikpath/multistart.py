@@ -31,10 +31,11 @@ from youbot_opt.ikpath.reachability import ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import START_KINDS, make_starts
-from youbot_opt.ikpath.sweep import open_store, solve_starts
+from youbot_opt.ikpath.sweep import open_store, solve_starts, stored_start_rng
 from youbot_opt.sweeps.cluster import cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import default_workers
+from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 
 __all__ = [
     "LocalMinimum",
@@ -286,7 +287,8 @@ def run_multistart(
         found = require_reachable(problem, tuple(verdicts))
     elif check_reachability:
         found = check_targets(problem)
-    x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
+    rng = "per-index" if sweep.out is None else stored_start_rng(sweep.out)
+    x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found, rng=rng)
     executor, max_workers = sweep.executor, sweep.workers
     if executor is None:
         workers = max_workers or default_workers()
@@ -295,8 +297,12 @@ def run_multistart(
         workers = 1
     elif executor == "process":
         workers = max_workers or default_workers()
+    elif sweep.distributed:  # a Dask cluster: its total threads unless workers says otherwise
+        workers = max_workers or _dask_threads(executor)
     else:  # the caller's pool or executor: its size unless max_workers says otherwise
         size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
+        if size is None and is_dask_client(getattr(executor, "_client", None)):
+            size = cluster_threads(executor._client)  # client.get_executor()
         workers = max_workers or int(size or default_workers())
     store = None
     if sweep.out is not None:
@@ -308,6 +314,8 @@ def run_multistart(
             n_starts=len(x0s),
             seed=int(seed),
             kind=starts,
+            rng=rng,
+            clean=sweep.shard is None,
         )
     progress = sweep.progress
     best = math.inf
@@ -351,3 +359,14 @@ def run_multistart(
         resumed=outcome.resumed,
         output=None if store is None else store.directory,
     )
+
+
+def _dask_threads(executor: object) -> int:
+    """Total threads of the Dask cluster of a client or scheduler address."""
+    if is_dask_client(executor):
+        return cluster_threads(executor)  # type: ignore[arg-type]
+    client = connect(str(executor))
+    try:
+        return cluster_threads(client)
+    finally:
+        client.close()

@@ -19,7 +19,7 @@ from Pinocchio) but holds no solver state.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -30,7 +30,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.chain import PlanarChain
 
-__all__ = ["CyclicIKProblem", "Evaluation"]
+__all__ = ["ALProblem", "CyclicIKProblem", "Evaluation"]
 
 
 class Evaluation(NamedTuple):
@@ -42,16 +42,66 @@ class Evaluation(NamedTuple):
         ``E`` in [rad^2].
     gradient : ndarray, shape (s * n,)
         ``dE/dx`` in [rad].
-    constraints : ndarray, shape (2 * s,)
-        ``c(x) = F(q_j) - p_j`` stacked, in [m].
-    jacobian_blocks : ndarray, shape (s, 2, n)
-        ``dF(q_j)/dq_j`` in [m/rad]; ``dc/dx`` is block diagonal with these blocks.
+    constraints : ndarray, shape (m * s,)
+        ``c(x)`` stacked per target, in [m] (planar: ``F(q_j) - p_j``, ``m = 2``;
+        spatial problems: ``m`` rows per target, see :mod:`youbot_opt.ikpath.spatial`).
+    jacobian_blocks : ndarray, shape (s, m, n)
+        ``dc_j/dq_j`` in [m/rad]; ``dc/dx`` is block diagonal with these blocks.
     """
 
     objective: float
     gradient: Array
     constraints: Array
     jacobian_blocks: Array
+
+
+class ALProblem(Protocol):
+    """What the augmented Lagrangian needs of a problem (planar and spatial alike).
+
+    ``s`` targets, ``n`` joints, ``m`` constraint rows per target; ``x`` is the
+    row-major flattening of the (s, n) configurations in [rad].
+    """
+
+    @property
+    def n_targets(self) -> int:
+        """Number of targets ``s``."""
+        ...
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of constraint rows ``m s``."""
+        ...
+
+    @property
+    def lower(self) -> Array:
+        """Lower bounds of ``x`` in [rad]."""
+        ...
+
+    @property
+    def upper(self) -> Array:
+        """Upper bounds of ``x`` in [rad]."""
+        ...
+
+    @property
+    def bounded(self) -> bool:
+        """Whether finite bounds are constraints."""
+        ...
+
+    def create_data(self) -> pin.Data:
+        """Return a fresh ``pinocchio.Data``."""
+        ...
+
+    def evaluate(self, x: ArrayLike, data: pin.Data | None = None) -> Evaluation:
+        """Objective, constraints and their derivatives at ``x``."""
+        ...
+
+    def objective(self, x: ArrayLike) -> float:
+        """``E`` at ``x`` in [rad^2]."""
+        ...
+
+    def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Constraint rows ``c(x)``."""
+        ...
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
@@ -104,6 +154,15 @@ class CyclicIKProblem:
     def n_variables(self) -> int:
         """Number of unknowns ``n s``."""
         return self.n_targets * self.n_joints
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of equality constraints ``2 s``."""
+        return 2 * self.n_targets
+
+    def create_data(self) -> pin.Data:
+        """Return a fresh ``pinocchio.Data`` of the chain."""
+        return self.chain.create_data()
 
     @property
     def bounded(self) -> bool:

@@ -1,8 +1,12 @@
 """Results of an IK-path solve: status, optimum, residuals, history, replay hooks.
 
 A failed solve is a status, not an exception (Drake style): the result keeps
-the best iterate the solver reached. :meth:`IKPathResult.raise_for_status`
-turns a failure into :class:`~youbot_opt.exceptions.SolveFailed`.
+the best iterate the solver reached. Constructing a result does no work: the
+solvers and the loader assemble it with :func:`build_result`, which runs the
+re-check (:meth:`IKPathResult.check`) and sets the status (:func:`checked`).
+
+>>> result = solve(problem).raise_for_status()  # doctest: +SKIP
+>>> result.check().passed, result.joint_path(20).q.shape
 """
 
 from __future__ import annotations
@@ -17,9 +21,18 @@ import pinocchio as pin
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.nlp.status import SolveStatus, apply_check
 
-__all__ = ["SolveStatus", "IKStatus", "OuterIterate", "IKPathResult", "JointPath", "build_result"]
+__all__ = [
+    "SolveStatus",
+    "IKStatus",
+    "OuterIterate",
+    "IKPathResult",
+    "IKResultCheck",
+    "JointPath",
+    "build_result",
+    "checked",
+]
 
 
 IKStatus = SolveStatus
@@ -57,6 +70,27 @@ class OuterIterate(NamedTuple):
     stationarity: float
     penalty: float
     inner_iterations: int
+
+
+class IKResultCheck(NamedTuple):
+    """Verdict of :meth:`IKPathResult.check`: the status a result deserves and why.
+
+    Attributes
+    ----------
+    status : SolveStatus
+        The result's status, downgraded (to :attr:`SolveStatus.NON_FINITE` or
+        :attr:`SolveStatus.CONSTRAINT_VIOLATION`) when a claimed success fails.
+    message : str
+        What failed (empty if nothing did).
+    """
+
+    status: SolveStatus
+    message: str
+
+    @property
+    def passed(self) -> bool:
+        """Whether :attr:`status` is a success."""
+        return self.status.success
 
 
 class JointPath(NamedTuple):
@@ -117,15 +151,13 @@ class IKPathResult:
 
     Notes
     -----
-    A result that claims success (:attr:`SolveStatus.SOLVED`) re-checks itself on
-    construction (also after ``dataclasses.replace``), independently of the
-    solver's flag: every number must be finite (else
-    :attr:`SolveStatus.NON_FINITE`), every residual recomputed by Pinocchio
-    from :attr:`configurations` must be within ``sqrt(2) * constraint_tol``
-    plus rounding, the joint limits must hold exactly, and the reported
-    ``objective``, ``residuals`` and ``limit_violation`` must be those of the
-    configurations (else :attr:`SolveStatus.CONSTRAINT_VIOLATION`). A downgraded result
-    says why in :attr:`message`.
+    Construction only converts the arrays (read-only) and validates
+    ``constraint_tol``; it runs no check, also not after
+    ``dataclasses.replace``. The solvers and :func:`~youbot_opt.ikpath.io.load_ikpath_result`
+    build results with :func:`build_result`, which re-checks a claimed success
+    (:meth:`check`) and downgrades it (:func:`checked`); a downgraded result
+    says why in :attr:`message`. Pass a hand-made or replaced result through
+    :func:`checked` to give it the status it deserves.
     """
 
     problem: CyclicIKProblem
@@ -155,12 +187,28 @@ class IKPathResult:
                 name="constraint_tol",
                 value=self.constraint_tol,
             )
-        if self.status.success:
-            downgrade = _recheck(self)
-            if downgrade is not None:
-                status, why = downgrade
-                object.__setattr__(self, "status", status)
-                object.__setattr__(self, "message", f"{self.message}; re-check failed: {why}")
+
+    def check(self) -> IKResultCheck:
+        """Re-check the result independently of the solver's flag.
+
+        Every number must be finite (else :attr:`SolveStatus.NON_FINITE`),
+        every residual recomputed by Pinocchio from :attr:`configurations` must
+        be within ``sqrt(2) * constraint_tol`` plus rounding, the joint limits
+        must hold exactly, and the reported ``objective``, ``residuals`` and
+        ``limit_violation`` must be those of the configurations (else
+        :attr:`SolveStatus.CONSTRAINT_VIOLATION`). A failure keeps its status
+        (the check only downgrades a success). The result itself is not changed.
+
+        Returns
+        -------
+        IKResultCheck
+            The status the result deserves and what failed.
+        """
+        verdict = _recheck(self)
+        if verdict is None:
+            return IKResultCheck(self.status, "")
+        status, why = verdict
+        return IKResultCheck(status if self.status.success else self.status, why)
 
     @property
     def success(self) -> bool:
@@ -306,6 +354,25 @@ def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
     return (SolveStatus.CONSTRAINT_VIOLATION, "; ".join(wrong)) if wrong else None
 
 
+def checked(result: IKPathResult) -> IKPathResult:
+    """Return ``result`` with the status its :meth:`~IKPathResult.check` gives it.
+
+    A refuted success is downgraded, with ``"; re-check failed: <why>"``
+    appended to its message (:func:`~youbot_opt.nlp.status.apply_check`).
+
+    Parameters
+    ----------
+    result : IKPathResult
+        A result as assembled by a solver or read from a file.
+
+    Returns
+    -------
+    IKPathResult
+        ``result`` itself, or a copy with the downgraded status and message.
+    """
+    return apply_check(result, label="re-check failed: ")
+
+
 def build_result(
     problem: CyclicIKProblem,
     *,
@@ -326,10 +393,10 @@ def build_result(
     The residuals come from Pinocchio through the problem, independently of the
     solver's own constraint evaluation (CasADi for IPOPT). ``constraint_tol``
     [m] is the solver's largest accepted ``|c_i|``; a claimed success is
-    re-checked against it (see :class:`IKPathResult`).
+    re-checked against it and downgraded if it fails (:func:`checked`).
     """
     q = problem.as_configurations(x)
-    return IKPathResult(
+    result = IKPathResult(
         problem=problem,
         method=method,
         status=status,
@@ -346,3 +413,4 @@ def build_result(
         constraint_tol=float(constraint_tol),
         history=history,
     )
+    return checked(result)

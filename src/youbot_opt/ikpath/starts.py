@@ -1,8 +1,11 @@
 """Starts of an IK-path multistart: the zero vector, then seeded random ones.
 
-Start 0 is the study's zero vector (clipped into the limits). The others are
-drawn in the parent process from ``numpy.random.default_rng(seed)``, so they
-do not depend on the executor, in one of two ways:
+Start 0 is the study's zero vector (clipped into the limits). Start ``k`` is
+drawn from its own generator, ``default_rng(SeedSequence(seed, spawn_key=(k,)))``
+(the ``k``-th child of ``SeedSequence(seed).spawn``, as trajectory seeds), so
+it depends on neither the executor nor ``n_starts``: the first 1000 starts of
+a 2000-start sweep are the 1000-start sweep (``rng="legacy"``, one generator
+for all starts, reproduces stores written before), in one of two ways:
 
 * ``"uniform"``: every variable uniform in ``[max(l, -pi), min(u, pi)]``;
 * ``"feasible"`` (default): each configuration is a random exact IK solution
@@ -29,10 +32,13 @@ from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
 
-__all__ = ["START_KINDS", "make_starts"]
+__all__ = ["START_KINDS", "START_RNGS", "make_starts"]
 
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
 """How random starts can be drawn (``kind`` of :func:`make_starts`)."""
+
+START_RNGS: tuple[str, ...] = ("per-index", "legacy")
+"""Where start ``k``'s random numbers come from (``rng`` of :func:`make_starts`)."""
 
 
 def make_starts(
@@ -42,6 +48,7 @@ def make_starts(
     *,
     kind: str = "feasible",
     verdicts: Sequence[ReachVerdict] = (),
+    rng: str = "per-index",
 ) -> Array:
     """Draw the starts: the zero vector (clipped), then seeded random ones; (n_starts, n s).
 
@@ -57,11 +64,15 @@ def make_starts(
         How random starts are drawn (see the module docstring).
     verdicts : sequence of ReachVerdict
         Reachability verdicts; their witnesses are the fallback of ``"feasible"``.
+    rng : {"per-index", "legacy"}
+        ``"per-index"`` (default): start ``k`` from its own child seed, so it
+        does not depend on ``n_starts``; ``"legacy"``: one generator for all
+        starts (the draws of stores written before per-index starts).
 
     Raises
     ------
     ParameterError
-        If ``n_starts < 1`` or ``kind`` is unknown.
+        If ``n_starts < 1``, or ``kind`` or ``rng`` is unknown.
     """
     if int(n_starts) != n_starts or n_starts < 1:
         raise ParameterError(
@@ -73,14 +84,28 @@ def make_starts(
             name="starts",
             value=kind,
         )
-    rng = np.random.default_rng(seed)
+    if rng not in START_RNGS:
+        raise ParameterError(
+            f"unknown start rng {rng!r}; choose one of {', '.join(START_RNGS)}",
+            name="rng",
+            value=rng,
+        )
     lo = np.maximum(problem.lower, -np.pi)
     hi = np.minimum(problem.upper, np.pi)
     lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
-    starts = rng.uniform(lo, hi, size=(int(n_starts), problem.n_variables))
-    if kind == "feasible":
-        for k in range(1, int(n_starts)):
-            starts[k] = _feasible_start(problem, rng, starts[k], verdicts)
+    if rng == "legacy":
+        gen = np.random.default_rng(seed)
+        starts = gen.uniform(lo, hi, size=(int(n_starts), problem.n_variables))
+        if kind == "feasible":
+            for k in range(1, int(n_starts)):
+                starts[k] = _feasible_start(problem, gen, starts[k], verdicts)
+    else:
+        starts = np.empty((int(n_starts), problem.n_variables))
+        for k in range(int(n_starts)):
+            gen = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(k,)))
+            starts[k] = gen.uniform(lo, hi)
+            if kind == "feasible" and k > 0:
+                starts[k] = _feasible_start(problem, gen, starts[k], verdicts)
     starts = np.clip(starts, problem.lower, problem.upper)
     starts[0] = problem.default_start()
     return starts

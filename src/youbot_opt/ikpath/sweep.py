@@ -16,6 +16,7 @@ result whose message is the last reason.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -35,7 +36,7 @@ from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import run_resumable
 from youbot_opt.sweeps.store import SweepStore, atomic_write_bytes
-from youbot_opt.sweeps.worker_solver import WorkerSolver
+from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 
 __all__ = [
     "PAYLOAD_SUFFIX",
@@ -43,6 +44,7 @@ __all__ = [
     "SweepOutcome",
     "open_store",
     "solve_starts",
+    "stored_start_rng",
     "start_key",
 ]
 
@@ -100,16 +102,36 @@ def start_key(index: int, n_starts: int) -> str:
     return f"start_{int(index):0{width}d}"
 
 
-def _options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[str, Any]:
-    """JSON-ready settings of ``method`` (defaults filled in, so None equals the defaults)."""
+_IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
+"""The IK IPOPT settings a sweep manifest held before the unified IpoptOptions."""
+
+
+def _options_json(
+    method: str, options: ALOptions | IpoptOptions | None, *, every_field: bool = False
+) -> dict[str, Any]:
+    """JSON-ready settings of ``method`` (defaults filled in, so None equals the defaults).
+
+    IPOPT fields added since 74bfa23 are left out when they hold their default
+    (``every_field=True``: written all the same, as commit 02cdf49 did).
+    """
     opts = (
         options
         if options is not None
         else (ALOptions() if method == "al" else IpoptOptions.for_ikpath())
     )
     out: dict[str, Any] = {"type": type(opts).__name__}
+    defaults = IpoptOptions.for_ikpath()
     for f in dataclasses.fields(opts):
         value = getattr(opts, f.name)
+        if (
+            not every_field
+            and isinstance(opts, IpoptOptions)
+            and f.name not in _IPOPT_FIELDS_74BFA23
+            and value == getattr(defaults, f.name)
+        ):
+            # Fields added since 74bfa23 are written only when they differ from the
+            # default, so that a store of that version still resumes (same manifest).
+            continue
         if isinstance(value, Mapping):
             value = {
                 str(k): v if isinstance(v, str | int | float | bool | None) else repr(v)
@@ -117,6 +139,35 @@ def _options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict
             }
         out[f.name] = value
     return out
+
+
+def _stored_options_form(
+    out: str | os.PathLike[str], method: str, options: ALOptions | IpoptOptions | None
+) -> dict[str, Any]:
+    """Return the options as ``out``'s manifest holds them: every field if so, else compact."""
+    full = _options_json(method, options, every_field=True)
+    try:
+        manifest = json.loads((Path(out) / "manifest.json").read_text(encoding="utf-8"))
+        stored = manifest["params"]["options"]
+    except (OSError, ValueError, KeyError, TypeError):
+        stored = None  # no store yet, or the store itself reports the bad manifest
+    return full if stored == full else _options_json(method, options)
+
+
+def stored_start_rng(out: str | os.PathLike[str]) -> str:
+    """How the starts of the IK sweep in ``out`` were drawn (``"per-index"`` for a new one).
+
+    A manifest written before per-index starts names no ``start_rng``: its
+    starts are ``"legacy"`` ones, and resuming it keeps them.
+    """
+    manifest = Path(out) / "manifest.json"
+    if not manifest.is_file():
+        return "per-index"
+    try:
+        params = json.loads(manifest.read_text(encoding="utf-8")).get("params") or {}
+    except (OSError, ValueError, AttributeError):
+        return "per-index"  # the store itself reports the bad manifest
+    return str(params.get("start_rng", "legacy"))
 
 
 def _save_payload(result: IKPathResult, path: Path) -> None:
@@ -132,6 +183,8 @@ def open_store(
     n_starts: int,
     seed: int,
     kind: str,
+    rng: str = "per-index",
+    clean: bool = True,
 ) -> SweepStore:
     """Open (or create) the output directory of one IK-path multistart.
 
@@ -149,6 +202,12 @@ def open_store(
         Number of starts and seed of the random starts.
     kind : {"feasible", "uniform"}
         How random starts are drawn.
+    rng : {"per-index", "legacy"}
+        How their random numbers are drawn (``"legacy"``: stores written
+        before per-index starts, whose manifest does not name it).
+    clean : bool
+        Remove leftover temporary files (not in a shard run: other shards
+        may be writing into the same folder).
 
     Returns
     -------
@@ -165,11 +224,13 @@ def open_store(
     params = {
         "problem": problem_spec(problem),
         "method": method,
-        "options": _options_json(method, options),
+        "options": _stored_options_form(out, method, options),
         "n_starts": int(n_starts),
         "seed": int(seed),
         "starts": kind,
     }
+    if rng != "legacy":
+        params["start_rng"] = rng
     return SweepStore(
         out,
         kind=SWEEP_KIND,
@@ -177,6 +238,7 @@ def open_store(
         save=_save_payload,
         load=load_ikpath_result,
         suffix=PAYLOAD_SUFFIX,
+        clean=clean,
     )
 
 
@@ -263,6 +325,7 @@ def solve_starts(
         If a stored record or result is corrupted or from a newer schema.
     """
     sweep = sweep.with_executor("process")
+    init: tuple[Callable[..., Any] | None, tuple[Any, ...]] = (None, ())
     n = len(x0s)
     keys = [start_key(i, n) for i in range(n)]
     index = {k: i for i, k in enumerate(keys)}
@@ -275,9 +338,11 @@ def solve_starts(
         # Serial runs build the solver here; pool workers build theirs on their first start.
         prebuilt = IpoptIKSolver(problem, options) if sweep.executor == "serial" else None  # type: ignore[arg-type]
         handle = WorkerSolver.of(IpoptIKSolver, problem, options, prebuilt=prebuilt)
-        tasks = [
-            Task(key=key, fn=_solve_ipopt, args=(handle, x0s[i])) for i, key in enumerate(keys)
-        ]
+        # On Dask the recipe goes once per worker (initializer); tasks carry its token.
+        sent = handle.by_token() if sweep.distributed else handle
+        tasks = [Task(key=key, fn=_solve_ipopt, args=(sent, x0s[i])) for i, key in enumerate(keys)]
+        if sweep.distributed:
+            init = (hold_solver, (handle,))
 
     def load(key: str) -> IKPathResult:
         assert store is not None  # only finished items of a store are loaded
@@ -301,6 +366,8 @@ def solve_starts(
         load=load,
         convert=convert,
         payload=lambda key, result: (result, _summary(index[key], result)),
+        initializer=init[0],
+        initargs=init[1],
         on_resumed=None if on_resumed is None else lambda done: on_resumed(list(done.values())),
         on_final=None if on_final is None else lambda key, r, _: on_final(index[key], r),
     )

@@ -14,6 +14,7 @@ IPOPT's own final iterate (it is the KKT point, with its multipliers).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from typing import NamedTuple
 
@@ -56,24 +57,29 @@ class Iterate(NamedTuple):
 
 
 def violation_of(x: Array, g: Array, bounds: tuple[Array, Array, Array, Array]) -> float:
-    """Return the largest violation of ``lbg <= g <= ubg`` and ``lbx <= x <= ubx`` (>= 0)."""
+    """Return the largest violation of ``lbg <= g <= ubg`` and ``lbx <= x <= ubx`` (>= 0).
+
+    Not finite (NaN or inf) when an entry of ``x`` or ``g`` is not finite.
+    """
     lbx, ubx, lbg, ubg = bounds
-    return max(
-        float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0)),
-        float(np.max(np.maximum(lbx - x, x - ubx), initial=0.0)),
-    )
+    of_g = float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0))
+    of_x = float(np.max(np.maximum(lbx - x, x - ubx), initial=0.0))
+    return of_g + of_x if math.isnan(of_g + of_x) else max(of_g, of_x)
 
 
 def better(a: Iterate, b: Iterate | None, feasibility_tol: float) -> bool:
     """Whether iterate ``a`` ranks above ``b`` (see the module docstring)."""
-    if b is None:
-        return True
-    a_ok, b_ok = a.violation <= feasibility_tol, b.violation <= feasibility_tol
+    return b is None or _ranks_above(a.violation, a.objective, b, feasibility_tol)
+
+
+def _ranks_above(violation: float, objective: float, b: Iterate, feasibility_tol: float) -> bool:
+    """Whether an iterate with this violation and objective ranks above ``b``."""
+    a_ok, b_ok = violation <= feasibility_tol, b.violation <= feasibility_tol
     if a_ok and b_ok:
-        return a.objective < b.objective
+        return objective < b.objective
     if a_ok != b_ok:
         return a_ok
-    return a.violation < b.violation
+    return violation < b.violation
 
 
 def best_of(final: Iterate, visited: Iterable[Iterate], feasibility_tol: float) -> Iterate:
@@ -108,7 +114,10 @@ class NlpsolIterationCallback(ca.Callback):  # type: ignore[misc]
 
     Subclasses implement :meth:`record`, which receives the iterate's outputs
     by name (``x``, ``f``, ``g``, ``lam_x``, ``lam_g``, ``lam_p``) as flat
-    arrays and floats; IPOPT is never asked to stop.
+    arrays of their own (copies, safe to keep); IPOPT is never asked to stop.
+    CasADi calls :meth:`eval_buffer` with its raw buffers (no ``DM`` is built);
+    a subclass that needs less than every output overrides :meth:`take`,
+    which receives read-only views valid only during the call.
 
     Parameters
     ----------
@@ -121,11 +130,16 @@ class NlpsolIterationCallback(ca.Callback):  # type: ignore[misc]
     def __init__(self, name: str, nx: int, ng: int, n_par: int) -> None:
         ca.Callback.__init__(self)
         self._sizes = {"f": 1, "x": nx, "g": ng, "lam_x": nx, "lam_g": ng, "lam_p": n_par}
+        self._names = tuple(str(ca.nlpsol_out(i)) for i in range(ca.nlpsol_n_out()))
         self.construct(name, {})
 
     def record(self, values: dict[str, Array]) -> None:
-        """Take one iterate's outputs (override)."""
+        """Take one iterate's outputs (override this or :meth:`take`)."""
         raise NotImplementedError
+
+    def take(self, views: dict[str, Array]) -> None:
+        """Take an iterate's outputs as views into CasADi's buffers; copy them to :meth:`record`."""
+        self.record({k: v.copy() for k, v in views.items()})
 
     def get_n_in(self) -> int:
         """Return the number of inputs: every output of ``nlpsol``."""
@@ -147,10 +161,28 @@ class NlpsolIterationCallback(ca.Callback):  # type: ignore[misc]
         """Return the dense column shape of input ``i``."""
         return ca.Sparsity.dense(self._sizes.get(str(ca.nlpsol_out(i)), 0), 1)
 
+    def has_eval_buffer(self) -> bool:
+        """Ask CasADi for :meth:`eval_buffer` (raw buffers) instead of :meth:`eval` (``DM``)."""
+        return True
+
+    def eval_buffer(self, arg: Sequence[memoryview], res: Sequence[memoryview]) -> int:
+        """Pass the iterate to :meth:`take`; never stop IPOPT (the flag written is 0)."""
+        views = {}
+        for name, buffer in zip(self._names, arg, strict=True):
+            if buffer is None:  # an output IPOPT does not provide (lam_p)
+                continue
+            view = np.frombuffer(buffer, dtype=np.float64)
+            view.flags.writeable = False
+            views[name] = view
+        self.take(views)
+        np.frombuffer(res[0], dtype=np.float64)[0] = 0.0
+        return 0
+
     def eval(self, arg: Sequence[ca.DM]) -> list[ca.DM]:
-        """Pass the iterate to :meth:`record`; never stop IPOPT."""
-        names = [str(ca.nlpsol_out(i)) for i in range(len(arg))]
-        self.record({k: np.array(v, dtype=float).ravel() for k, v in zip(names, arg, strict=True)})
+        """Pass the iterate to :meth:`take` when called with ``DM`` (direct calls)."""
+        self.take(
+            {k: np.array(v, dtype=float).ravel() for k, v in zip(self._names, arg, strict=True)}
+        )
         return [ca.DM(0)]
 
 
@@ -160,6 +192,10 @@ class BestIterateRecorder(NlpsolIterationCallback):
     Call :meth:`reset` with the run's bounds before each solve; :attr:`best`
     then holds the best finite iterate seen (or None) and :attr:`count` the
     number of iterates. Parameters as for :class:`NlpsolIterationCallback`.
+
+    Per iteration it reads ``x``, ``g`` and ``f`` in place (no copy), ranks
+    them, and copies ``x``, ``lam_x``, ``lam_g`` only when the iterate ranks
+    above the best so far.
     """
 
     def __init__(self, name: str, nx: int, ng: int, n_par: int) -> None:
@@ -168,6 +204,7 @@ class BestIterateRecorder(NlpsolIterationCallback):
         self.best: Iterate | None = None
         self.count = 0
         super().__init__(name, nx, ng, n_par)
+        self._slots = tuple(self._names.index(name) for name in _RANKED)
 
     def reset(self, bounds: tuple[Array, Array, Array, Array], feasibility_tol: float) -> None:
         """Forget the previous run; rank the next one's iterates against these bounds."""
@@ -178,18 +215,52 @@ class BestIterateRecorder(NlpsolIterationCallback):
 
     def record(self, values: dict[str, Array]) -> None:
         """Rank this iterate and keep it if it is the best so far."""
+        self.take(values)
+
+    def take(self, views: dict[str, Array]) -> None:
+        """Rank this iterate (views into CasADi's buffers); copy it if it is the best so far."""
+        self._consider(*(views.get(name) for name in _RANKED))
+
+    def eval_buffer(self, arg: Sequence[memoryview], res: Sequence[memoryview]) -> int:
+        """Rank the iterate straight from CasADi's buffers (no dictionary, no copy)."""
+        self._consider(*(None if arg[i] is None else np.frombuffer(arg[i]) for i in self._slots))
+        np.frombuffer(res[0], dtype=np.float64)[0] = 0.0
+        return 0
+
+    def _consider(
+        self,
+        x: Array | None,
+        f: Array | None,
+        g: Array | None,
+        lam_x: Array | None,
+        lam_g: Array | None,
+    ) -> None:
         iteration = self.count
         self.count += 1
-        x, g, objective = values["x"], values["g"], float(values["f"][0])
-        if self._bounds is None or not (np.all(np.isfinite(x)) and np.all(np.isfinite(g))):
+        if self._bounds is None or x is None or f is None or g is None:
             return
-        candidate = Iterate(
-            x=x,
-            lam_x=values["lam_x"],
-            lam_g=values["lam_g"],
+        objective = float(f[0])
+        if not math.isfinite(objective):
+            return
+        with np.errstate(invalid="ignore"):  # inf - inf in a non-finite iterate
+            violation = violation_of(x, g, self._bounds)
+        if not math.isfinite(violation):  # some entry of x or g is not finite
+            return
+        if self.best is not None and not _ranks_above(violation, objective, self.best, self._tol):
+            return
+        self.best = Iterate(
+            x=x.copy(),
+            lam_x=_copy_or_nan(lam_x, x.size),
+            lam_g=_copy_or_nan(lam_g, g.size),
             objective=objective,
-            violation=violation_of(x, g, self._bounds),
+            violation=violation,
             iteration=iteration,
         )
-        if np.isfinite(objective) and better(candidate, self.best, self._tol):
-            self.best = candidate
+
+
+_RANKED = ("x", "f", "g", "lam_x", "lam_g")  # the nlpsol outputs the recorder reads
+
+
+def _copy_or_nan(view: Array | None, size: int) -> Array:
+    """Return a copy of ``view``, or ``size`` NaNs (multipliers not provided)."""
+    return np.full(size, np.nan) if view is None else view.copy()

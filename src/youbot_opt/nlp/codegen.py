@@ -1,17 +1,12 @@
 """Compile small CasADi Functions to C with the system compiler, cached on disk.
 
-:func:`compile_function` generates C code for a Function (CasADi's code
-generator), hashes the code together with the compiler command, and loads the
-shared library ``<cache>/<name>_<hash>.so``, compiling it first if it is not
-there. The cache lives in ``$YOUBOT_OPT_CACHE`` if set, else
-``$XDG_CACHE_HOME/youbot_opt/jit`` (``~/.cache/youbot_opt/jit``). A library is
-written to a temporary file in the cache directory and moved into place with
-:func:`os.replace`, so concurrent processes never load a half-written file.
+:func:`compile_function` generates C for a Function, hashes it with the
+compiler command and loads ``<cache>/<name>_<hash>.so`` (``$YOUBOT_OPT_CACHE``,
+else ``$XDG_CACHE_HOME/youbot_opt/jit``), compiling a missing library now or
+in the background (docs/design.md, "Time to first solve"). Without a C
+compiler the Function is returned unchanged with a warning.
 
-Without a working C compiler (``$CC``, else ``gcc``, ``cc`` or ``clang`` on the
-``PATH``) the Function is returned unchanged with a
-:class:`~youbot_opt.exceptions.YoubotOptWarning`: compilation is a speed-up,
-never a requirement.
+>>> fast = compile_function(fn, wait=True)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -21,7 +16,9 @@ import logging
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
+import time
 import warnings
 from pathlib import Path
 
@@ -29,12 +26,54 @@ import casadi as ca
 
 from youbot_opt.exceptions import YoubotOptWarning
 
-__all__ = ["cache_dir", "find_compiler", "compile_function", "COMPILE_FLAGS"]
+__all__ = [
+    "COMPILE_FLAGS",
+    "cache_dir",
+    "compile_function",
+    "estimated_compile_time",
+    "find_compiler",
+]
 
 _log = logging.getLogger(__name__)
 
 COMPILE_FLAGS: tuple[str, ...] = ("-O2", "-fPIC", "-shared")
-"""Compiler flags; ``-O2`` costs ~1 s per kernel once and runs ~5x faster than the VM."""
+"""Compiler flags (``-O2``: benchmarks/bench_first_solve.py measures compile and run times)."""
+
+SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured on ur5's kernels
+STALE_LOCK = 1800.0  # [s] a background compile older than this is presumed dead
+
+_BACKGROUND_SCRIPT = """
+import os, shutil, subprocess, sys
+compiler, source, target, library, lock, failed, tmp, *flags = sys.argv[1:]
+try:
+    if hasattr(os, "nice"):
+        os.nice(19)  # leave the cores to the solve that is running meanwhile
+    slot = open(os.path.join(os.path.dirname(library), ".compile-slot"), "w")
+    try:
+        import fcntl
+        fcntl.flock(slot, fcntl.LOCK_EX)  # one background compile at a time per cache
+    except ImportError:
+        pass
+    done = subprocess.run(
+        [compiler, *flags, source, "-o", target, "-lm"], capture_output=True, text=True
+    )
+    if done.returncode == 0:
+        os.replace(target, library)
+    else:
+        with open(failed, "w") as out:
+            out.write(done.stderr[-2000:])
+finally:
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        os.remove(lock)
+    except OSError:
+        pass
+"""
+
+
+def estimated_compile_time(code: str) -> float:
+    """Rough wall time in [s] to compile generated C ``code`` with -O2 (13 s per MB)."""
+    return SECONDS_PER_MEGABYTE * len(code) / 1e6
 
 
 def cache_dir() -> Path:
@@ -57,9 +96,13 @@ def find_compiler() -> str | None:
 
 
 def compile_function(
-    function: ca.Function, *, flags: tuple[str, ...] = COMPILE_FLAGS
+    function: ca.Function,
+    *,
+    flags: tuple[str, ...] = COMPILE_FLAGS,
+    wait: bool = True,
+    label: str | None = None,
 ) -> ca.Function:
-    """Compiled, disk-cached equivalent of ``function`` (or ``function`` itself on failure).
+    """Compiled, disk-cached equivalent of ``function`` (or ``function`` itself).
 
     Parameters
     ----------
@@ -67,28 +110,39 @@ def compile_function(
         A Function CasADi can generate C code for (SX or MX of SX, no Callbacks).
     flags : tuple of str
         Compiler flags.
+    wait : bool
+        If the library is not cached: True compiles it now (can take minutes
+        for a 7-dof robot's Hessian kernel); False starts the compiler in a
+        detached, lower-priority process and returns ``function`` uncompiled,
+        so the caller runs CasADi's virtual machine this time and loads the
+        library from the cache next time.
+    label : str, optional
+        What the Function belongs to, for the log (e.g. ``"panda's dynamics"``).
 
     Returns
     -------
     casadi.Function
-        An ``external`` Function with the same name, inputs and outputs. It has
-        no derivatives of its own: compile the derivative Functions you need.
+        An ``external`` Function with the same name, inputs and outputs when
+        the library is (now) available, else ``function``. An external Function
+        has no derivatives of its own: compile the derivative Functions you need.
 
     Warns
     -----
     YoubotOptWarning
-        If no compiler is found or compilation fails; ``function`` is returned.
+        If no compiler is found or compilation fails (now, or in an earlier
+        background process); ``function`` is returned.
     """
+    name = function.name()
+    what = f"{label} ({name})" if label else name
     compiler = find_compiler()
     if compiler is None:
         warnings.warn(
-            f"no C compiler found (set CC or install gcc): {function.name()} runs in "
+            f"no C compiler found (set CC or install gcc): {what} runs in "
             "CasADi's virtual machine instead of compiled code (slower, same results)",
             YoubotOptWarning,
             stacklevel=2,
         )
         return function
-    name = function.name()
     gen = ca.CodeGenerator(name, {"with_header": False})
     gen.add(function)
     code = gen.dump()
@@ -99,19 +153,86 @@ def compile_function(
     ).hexdigest()[:20]
     directory = cache_dir()
     library = directory / f"{name}_{key}.so"
-    if not library.is_file():
-        try:
-            _compile(code, compiler, flags, directory, library)
-        except (OSError, subprocess.CalledProcessError) as exc:
-            detail = getattr(exc, "stderr", "") or str(exc)
-            warnings.warn(
-                f"compiling {name} failed ({detail.strip()[:300]}); using CasADi's virtual "
-                "machine instead (slower, same results)",
-                YoubotOptWarning,
-                stacklevel=2,
-            )
-            return function
+    if library.is_file():
+        return ca.external(name, str(library))
+    failed = library.with_suffix(".failed")
+    if failed.is_file():
+        warnings.warn(
+            f"compiling {what} failed earlier ({failed}: "
+            f"{failed.read_text(errors='replace').strip()[:300]}); using CasADi's virtual "
+            "machine instead (slower, same results); delete that file to retry",
+            YoubotOptWarning,
+            stacklevel=2,
+        )
+        return function
+    seconds = estimated_compile_time(code)
+    if not wait:
+        _compile_in_background(code, compiler, flags, directory, library, what, seconds)
+        return function
+    _log.info(
+        "compiling %s to C (%.0f kB), about %.0f s, cached in %s for next time",
+        what,
+        len(code) / 1e3,
+        seconds,
+        directory,
+    )
+    try:
+        _compile(code, compiler, flags, directory, library)
+    except (OSError, subprocess.CalledProcessError) as exc:
+        detail = getattr(exc, "stderr", "") or str(exc)
+        warnings.warn(
+            f"compiling {what} failed ({detail.strip()[:300]}); using CasADi's virtual "
+            "machine instead (slower, same results)",
+            YoubotOptWarning,
+            stacklevel=2,
+        )
+        return function
     return ca.external(name, str(library))
+
+
+def _compile_in_background(
+    code: str,
+    compiler: str,
+    flags: tuple[str, ...],
+    directory: Path,
+    library: Path,
+    what: str,
+    seconds: float,
+) -> None:
+    """Start a detached compiler process for ``library`` unless one is already running."""
+    directory.mkdir(parents=True, exist_ok=True)
+    lock = library.with_suffix(".lock")
+    try:
+        if time.time() - lock.stat().st_mtime < STALE_LOCK:
+            _log.info("%s is being compiled by another process; not compiled this time", what)
+            return
+        lock.unlink()  # a dead process's lock
+    except FileNotFoundError:
+        pass
+    try:
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except FileExistsError:  # another process got there first
+        return
+    tmp = Path(tempfile.mkdtemp(dir=directory, prefix=".build-"))
+    source = tmp / f"{library.stem}.c"
+    source.write_text(code)
+    args = [str(source), str(tmp / library.name), str(library), str(lock)]
+    args += [str(library.with_suffix(".failed")), str(tmp)]
+    subprocess.Popen(  # noqa: S603 - our own script and the compiler found on PATH
+        [sys.executable, "-c", _BACKGROUND_SCRIPT, compiler, *args, *flags],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,  # survives the end of this process
+    )
+    _log.info(
+        "compiling %s to C in the background (%.0f kB, about %.0f s); this solve runs "
+        "CasADi's virtual machine, the next one the compiled code (cached in %s)",
+        what,
+        len(code) / 1e3,
+        seconds,
+        directory,
+    )
 
 
 def _compile(
@@ -123,7 +244,6 @@ def _compile(
         source = Path(tmp) / f"{library.stem}.c"
         source.write_text(code)
         target = Path(tmp) / library.name
-        _log.info("compiling %s with %s", library.name, compiler)
         subprocess.run(
             [compiler, *flags, str(source), "-o", str(target), "-lm"],
             check=True,

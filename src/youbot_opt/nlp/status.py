@@ -13,11 +13,20 @@ true only for :attr:`~SolveStatus.SOLVED` and
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 from collections.abc import Mapping
 from types import MappingProxyType
+from typing import Any, Protocol, TypeVar, cast
 
-__all__ = ["SolveStatus", "IPOPT_STATUS", "status_from_ipopt"]
+__all__ = [
+    "SolveStatus",
+    "IPOPT_STATUS",
+    "Checkable",
+    "Verdict",
+    "apply_check",
+    "status_from_ipopt",
+]
 
 
 class SolveStatus(enum.Enum):
@@ -118,3 +127,74 @@ def status_from_ipopt(
         The status.
     """
     return table.get(return_status, otherwise)
+
+
+class Verdict(Protocol):
+    """What a result's ``check()`` returns: the status it deserves and why."""
+
+    @property
+    def status(self) -> SolveStatus:
+        """The status the result deserves."""
+        ...
+
+    @property
+    def message(self) -> str:
+        """What failed (empty if nothing did)."""
+        ...
+
+    @property
+    def passed(self) -> bool:
+        """Whether :attr:`status` is a success."""
+        ...
+
+
+class Checkable(Protocol):
+    """A frozen result dataclass with a status, a message and an independent ``check()``."""
+
+    @property
+    def status(self) -> SolveStatus:
+        """How the solve ended."""
+        ...
+
+    @property
+    def message(self) -> str:
+        """The solver's message."""
+        ...
+
+    def check(self) -> Verdict:
+        """Re-check the result independently of the solver's flag."""
+        ...
+
+
+ResultT = TypeVar("ResultT", bound=Checkable)
+
+
+def apply_check(result: ResultT, *, label: str = "") -> ResultT:
+    """Return ``result`` with the status its independent check gives it.
+
+    A success claim that ``result.check()`` refutes is downgraded: the check's
+    status replaces ``status`` and ``"; <label><why>"`` is appended to
+    ``message``. A failure, and a success the check confirms, are returned as
+    they are (the check only downgrades).
+
+    Parameters
+    ----------
+    result : Checkable
+        A frozen result dataclass as a solver built it or a loader read it.
+    label : str, optional
+        Text put before the check's reason in the message.
+
+    Returns
+    -------
+    Checkable
+        ``result`` itself, or a copy with the downgraded status and message.
+    """
+    if not result.status.success:
+        return result
+    verdict = result.check()
+    if verdict.passed:
+        return result
+    message = f"{result.message}; {label}{verdict.message}"
+    return cast(
+        ResultT, dataclasses.replace(cast(Any, result), status=verdict.status, message=message)
+    )

@@ -1,19 +1,11 @@
 """Reproduction of study 1, both halves (spec ``trajopt.md``), kept out of the main API.
 
-* :mod:`~youbot_opt.reproduction.study1` -- the study's own transcription with
-  its four deviations, each switchable (:class:`StudyTranscription`,
-  :class:`StudyDeviations`);
-* :mod:`~youbot_opt.reproduction.records` -- the compared variants and the
-  JSON-ready record of a solve or multistart, with its certificates;
-* :mod:`~youbot_opt.reproduction.runs` -- :func:`reproduce_study1`: base case,
-  second-optimum search, deviations one at a time, weight extremes, Pareto
-  front and refinement, for the study's and the correct transcriptions, every
-  solution certified;
-* :mod:`~youbot_opt.reproduction.study_guess` and :mod:`~youbot_opt.reproduction.search`
-  -- the study's random starts read literally (LP vertices) and a multistart from
-  them, which finds the study's second optimum;
-* :mod:`~youbot_opt.reproduction.report` -- the comparison tables (markdown + JSON);
-* :mod:`~youbot_opt.reproduction.figures` -- the figures, from the JSON alone.
+:mod:`~youbot_opt.reproduction.study1` (the study's transcription and problem),
+:mod:`~youbot_opt.reproduction.records`, :mod:`~youbot_opt.reproduction.runs`
+(:func:`reproduce_study1`), :mod:`~youbot_opt.reproduction.study_guess` and
+:mod:`~youbot_opt.reproduction.search` (the study's starts, its second
+optimum), :mod:`~youbot_opt.reproduction.report` (tables) and
+:mod:`~youbot_opt.reproduction.figures`.
 
 Command line: ``youbot-opt reproduce-study1 [--quick] [--out DIR]``.
 """

@@ -1,17 +1,12 @@
 """Figures of the study-1 reproduction, drawn from its JSON records only.
 
 Each function takes the JSON form of a
-:class:`~youbot_opt.reproduction.runs.Study1Reproduction` (``to_json()`` or the
-saved ``study1_reproduction.json``) and returns a new
-:class:`matplotlib.figure.Figure` (built without :mod:`matplotlib.pyplot`), so
-``youbot-opt reproduce-study1 --from-json FILE`` redraws them without solving:
+:class:`~youbot_opt.reproduction.runs.Study1Reproduction` and returns a new
+Figure, so ``youbot-opt reproduce-study1 --from-json FILE`` redraws without
+solving: :func:`plot_base_case`, :func:`plot_fronts`, :func:`plot_refinement`;
+:data:`FIGURES` names each (``repro_*.png``).
 
-* :func:`plot_base_case` -- the beta = 0.5 optima of the study's transcription
-  and of the correct one: angles, speeds and torques against time, bounds dashed;
-* :func:`plot_fronts` -- the weighted-sum Pareto fronts of every variant;
-* :func:`plot_refinement` -- objective and certificate figures against knots.
-
-:data:`FIGURES` names each (``repro_*.png``) with a test of whether the data can draw it.
+>>> plot_fronts(json.loads(path.read_text())).savefig("fronts.png")  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,22 +1,13 @@
 """The study-1 reproduction runs: both halves, certified (spec ``trajopt.md``).
 
-:func:`reproduce_study1` solves the study's problem with
+:func:`reproduce_study1` solves the study's problem with its own
+transcription (all four deviations) and with the correct ones, on the
+paper's arm and the damped one, in six sections (base case, second-optimum
+search, deviations, beta extremes, Pareto front, refinement), certifying
+every solution by forward simulation; figures become JSON-ready records for
+:mod:`youbot_opt.reproduction.report`.
 
-* the study's own transcription (:class:`~youbot_opt.reproduction.study1.StudyTranscription`,
-  all four deviations), to reproduce its figures, and
-* the correct transcriptions (trapezoidal and Hermite--Simpson) on the paper's
-  arm (no damping) and on the arm with the code's damping b = 0.1 N m s/rad,
-
-in six sections: the base case (beta = 0.5, n = 50, seeded random-spline
-multistart as the study did), a search for the study's second optimum with
-the study's solver settings, the deviations switched on alone and left out
-one at a time, the beta extremes, the weighted-sum Pareto front, and the
-optimum as knots are added. Every solution is certified by forward simulation
-(:func:`youbot_opt.trajopt.certify.certify`) against the arm its NLP describes and
-against the paper's arm. Every figure is a JSON-ready record
-(:func:`~youbot_opt.reproduction.records.record`) that
-:mod:`youbot_opt.reproduction.report` turns into tables; the results behind
-them are kept in :attr:`Study1Reproduction.results`.
+>>> repro = reproduce_study1(ReproductionConfig.quick())  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,34 +1,13 @@
-r"""The study's own (defective) transcription, kept out of the main API.
+"""The study's own (defective) transcription, kept out of the main API.
 
-Spec ``trajopt.md``, "What the study's code actually computed": the study's
-MATLAB solved trapezoidal collocation with four deviations from the problem it
-states. :class:`StudyTranscription` reproduces that NLP exactly, with each
-deviation switchable (:class:`StudyDeviations`) so that its effect can be
-measured alone. With ``x_k = (q_k, v_k, tau_k)`` and ``a(x) = M(q)^{-1}(tau -
-C(q, v) v - N(q) - b v)``, interval ``k`` of the velocity collocation reads
+Spec ``trajopt.md``, "What the study's code actually computed":
+:class:`StudyTranscription` reproduces the NLP the study's MATLAB solved,
+trapezoidal collocation with four deviations (first knot on the left, same
+knot on the right, damping 0.1 N m s/rad, ``T = n dt``), each switchable with
+:class:`StudyDeviations`; :func:`study1_problem` builds the study's problem.
+The deviations are written out in docs/design.md, "Module notes".
 
-.. math::
-
-    v_{k+1} - v_k - \tfrac{dt}{2}\,\bigl(a(x_L) + a(x_R)\bigr) = 0,
-
-* (1) ``first_knot_left``: ``x_L = x_1`` in every interval (the study computed
-  the acceleration of knot 1 once, before its loop; ``x_1`` is a decision
-  variable, so ``a(x_1)`` is symbolic but the same in every interval);
-  otherwise ``x_L = x_k``;
-* (2) ``same_knot_right``: ``x_R = x_k`` instead of ``x_{k+1}`` (so ``tau`` at
-  the last knot enters only the work term);
-* (3) ``damping``: ``b = 0.1`` N m s/rad on every joint instead of 0;
-* (4) ``time_n_dt``: the time term is ``T = n dt`` instead of the true
-  ``(n - 1) dt``.
-
-The position collocation, the bounds, the boundary conditions and the
-trapezoidal work ``W`` are the study's and are unchanged. With every deviation
-off the transcription is :class:`~youbot_opt.trajopt.transcription.TrapezoidalCollocation`.
-
-Results keep the project's conventions: :attr:`TrajOptResult.duration` is the
-true ``(n - 1) dt``, :attr:`TrajOptResult.objective` uses it, and the knot
-accelerations of the result's trajectory are the *undamped* arm's; the value
-the study's code minimised is :meth:`StudyDeviations.objective`.
+>>> solver = TrajOptSolver(study1_problem(50), StudyTranscription())  # doctest: +SKIP
 """
 
 from __future__ import annotations

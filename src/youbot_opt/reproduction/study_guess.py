@@ -1,30 +1,13 @@
-r"""The study's random starts read literally: LP vertices of a random objective.
+"""The study's random starts read literally: LP vertices of a random objective.
 
-Spec ``trajopt.md``, "How the study solved it": each start is a random
-polynomial per joint (degree 4 to 6 at random) meeting the start and goal
-positions and velocities and the position and speed limits at every knot,
-"found as any feasible point of a linear program from a random starting
-vector". The main API's :func:`youbot_opt.trajopt.spline_guess.random_spline_guess`
-reads that as the L1 projection of a random target onto the feasible set,
-which keeps the target's shape; :func:`vertex_spline_guess` reads it as the LP
-solution for a random cost vector ``c`` (standard normal), i.e. a vertex of
-the feasible polytope, where several knot limits are active. With 50 knots the
-polytope is bounded, so the LP has a solution for every ``c``. The two readings
-give different populations of starts: the vertex reading is the one from
-which the study's second optimum (f = 11.070) reappears
-(``docs/trajopt_reproduction.md``).
+Spec ``trajopt.md``, "How the study solved it": :func:`vertex_spline_guess`
+solves, per joint, the LP of :mod:`youbot_opt.trajopt.spline_guess` with a
+random cost vector, so each start is a vertex of the feasible polytope; from
+these starts the study's second optimum (f = 11.070) reappears
+(``docs/trajopt_reproduction.md``). The LP is written out in docs/design.md,
+"Module notes".
 
-Per joint, with the Bernstein control points ``b`` (``p + 1``) of degree
-``p`` over ``s = t / T0``, ``T0 = (N - 1) dt0``:
-
-.. math::
-
-    \min_b\ c^\top b \quad \text{s.t.}\quad b_0 = q_0,\ b_p = q_1,\
-    \tfrac{p}{T_0}(b_1 - b_0) = v_0,\ \tfrac{p}{T_0}(b_p - b_{p-1}) = v_1,\
-    q_{lo} \le q(t_k) \le q_{hi}\ (0 < k < N - 1),\ |\dot q(t_k)| \le v_{max}.
-
-The guess's torques are the inverse dynamics ``M a + C v + N`` of the
-polynomials (no damping: the study's formula).
+>>> guess = vertex_spline_guess(problem, seed=0)  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,24 +1,12 @@
 """Hand-derived Lagrangian dynamics of the planar arm: the test oracle.
 
-This module codes the study's derivation (spec ``trajopt.md``, "Dynamics
-(Lagrangian, derived by hand in the study)") in plain numpy, independently of
-Pinocchio, so that the Pinocchio model built from the URDF can be checked
-against it:
+Codes the study's derivation (spec ``trajopt.md``, "Dynamics (Lagrangian,
+derived by hand in the study)") in plain numpy, independently of Pinocchio:
+``M(q) a + C(q, v) v + N(q) + b v = tau`` from planar transforms, body
+Jacobians, Christoffel symbols (complex-step ``dM/dq``) and ``N = dV/dq`` by
+hand. The derivation's steps: docs/design.md, "Module notes".
 
-* planar homogeneous transforms ``g(S, L_i)`` from joint 1 to each centre of
-  mass, products of the per-link factors ``g(L_{i-1}, L_i)``;
-* body Jacobians, column ``j`` = ``(g(S,L_i)^-1 dg(S,L_i)/dq_j)^vee`` with
-  ``vee([[0,-w,x],[w,0,y],[0,0,0]]) = (x, y, w)``;
-* ``M(q) = sum_i J_i^T diag(m_i, m_i, I_i) J_i``;
-* Christoffel ``C_ij(q, v) = 1/2 sum_h (dM_ij/dq_h + dM_ih/dq_j - dM_hj/dq_i) v_h``,
-  where ``dM/dq_h`` is obtained by complex-step differentiation of the
-  analytic ``M(q)`` (exact to rounding: no subtraction, step 1e-20);
-* ``V(q)`` as written in the spec and ``N(q) = dV/dq`` differentiated by hand.
-
-The equation of motion is ``M(q) a + C(q, v) v + N(q) + b v = tau`` where ``b``
-is the viscous joint damping (0 in the study's paper, 0.1 N m s/rad in its
-code). Angles are measured from the vertical; mirroring the plane leaves M, C
-and N unchanged, so the study's frame orientation need not match the URDF's.
+>>> M = mass_matrix(YOUBOT_PLANAR, q)  # (3, 3), [kg m^2]  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,29 +1,13 @@
 """Parameters of the planar youBot arm of study 1: the single source of truth.
 
-This module transcribes the tables of the study (``docs`` spec ``trajopt.md``,
-sections "The arm" and "Joint limits") into typed, immutable dataclasses:
+Transcribes the tables of spec ``trajopt.md`` ("The arm", "Joint limits")
+into immutable dataclasses: :class:`LinkParameters`, :class:`JointLimits`
+(data-sheet units with SI properties), :class:`PlatformMounting` and
+:class:`ArmParameters`, with :data:`YOUBOT_PLANAR`, the study's values, from
+which the URDF, the Pinocchio model, the analytic oracle and the limits are
+derived. The out-of-plane inertia completion: docs/design.md, "Module notes".
 
-* :class:`LinkParameters` -- length, centre-of-mass distance, mass and inertia
-  of one link;
-* :class:`JointLimits` -- the manufacturer's data-sheet limits of one joint, in
-  data-sheet units (degrees, deg/s, N m) with SI properties;
-* :class:`PlatformMounting` -- where joint 1 sits on the mobile platform;
-* :class:`ArmParameters` -- the whole arm, and :data:`YOUBOT_PLANAR`, the
-  study's values.
-
-Everything downstream (URDF, Pinocchio model, analytic oracle, limits of the
-optimisation) is derived from :data:`YOUBOT_PLANAR`; no other module repeats
-these numbers.
-
-Out-of-plane inertia. The study only gives the rotational inertia ``I`` about
-the joint-axis direction at the centre of mass. A 3-D model needs a full
-tensor; in the link frame (``z`` along the link, ``y`` along the joint axis)
-we complete it as ``diag(I, I, I_axial)`` with ``I_axial = m r^2 / 2``, the
-axial inertia of a solid cylinder of the link's drawing radius ``r``. The
-tensor is positive definite and obeys the triangle inequality (checked in
-:class:`LinkParameters`). Because every joint axis is parallel to ``y``, the
-planar dynamics depend only on ``I_yy = I``: the completion does not affect
-``M(q)``, ``C(q, v)`` or ``N(q)``.
+>>> YOUBOT_PLANAR.links[0].length  # [m]  # doctest: +SKIP
 """
 
 from __future__ import annotations

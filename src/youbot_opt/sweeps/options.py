@@ -23,6 +23,7 @@ from typing import Any
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.pool import ExecutorLike, WorkerPool
+from youbot_opt.sweeps.scheduler import is_dask_client, is_scheduler_address
 
 __all__ = ["SweepOptions"]
 
@@ -33,15 +34,17 @@ class SweepOptions:
 
     Attributes
     ----------
-    executor : {"process", "serial"}, WorkerPool or concurrent.futures.Executor, optional
+    executor : {"process", "serial"}, WorkerPool, Executor, distributed.Client or str, optional
         Where items run (:func:`youbot_opt.sweeps.pool.run_tasks`): a process
-        pool owned by the sweep, a caller's ``WorkerPool``, this process, or a
-        caller's executor (not shut down by the sweep). Default ``None``: the
-        sweep's default, ``"process"`` (the IK-path multistart: ``"serial"``
-        when ``workers`` is 1).
+        pool owned by the sweep, a caller's ``WorkerPool``, this process, a
+        caller's executor (not shut down by the sweep), a Dask ``Client`` or
+        a Dask scheduler address such as ``"tcp://10.0.0.5:8786"``
+        (``docs/scaling.md``). Default ``None``: the sweep's default,
+        ``"process"`` (the IK-path multistart: ``"serial"`` when ``workers``
+        is 1).
     workers : int, optional
-        Items in flight at once (>= 1); default: the CPUs available (a
-        caller's pool: its size).
+        Items (on Dask: batches) in flight at once (>= 1); default: the CPUs
+        available, a caller's pool's size, or the Dask cluster's total threads.
     timeout : float, optional
         Wall-clock limit in [s] per attempt (worker pools only): an item still
         running then is killed with its worker and recorded as failed
@@ -55,6 +58,16 @@ class SweepOptions:
     progress : callable ``(done, total, last)``, optional
         Called in this process as items finish; ``last`` is what the sweep
         reports per item (see each sweep).
+    shard : tuple of (int, int), optional
+        ``(i, k)`` with ``1 <= i <= k``: run only this share of the items
+        (positions ``i - 1, i - 1 + k, ...``) into ``out`` and stop with
+        :class:`~youbot_opt.sweeps.resume.ShardFinished`; a job array runs
+        the ``k`` shards into one shared folder and a run without ``shard``
+        collects (it loads what the shards saved and runs what is missing).
+    batch_size : int, optional
+        Items per Dask task (Dask only; default: an eighth of the items per
+        cluster thread, at most 64). A batch whose worker dies is re-run
+        item by item, so a crash is still charged to one item.
     """
 
     executor: ExecutorLike | None = None
@@ -63,15 +76,44 @@ class SweepOptions:
     max_attempts: int = 2
     out: str | os.PathLike[str] | None = None
     progress: Callable[[int, int, Any], None] | None = None
+    batch_size: int | None = None
+    shard: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         ex = self.executor
-        if not (ex in (None, "process", "serial") or isinstance(ex, WorkerPool | Executor)):
+        if not (
+            (isinstance(ex, str | None) and ex in (None, "process", "serial"))
+            or isinstance(ex, WorkerPool | Executor)
+            or is_dask_client(ex)
+            or is_scheduler_address(ex)
+        ):
             raise ParameterError(
-                f"executor must be 'process', 'serial', a WorkerPool or a "
-                f"concurrent.futures.Executor, got {ex!r}",
+                f"executor must be 'process', 'serial', a WorkerPool, a "
+                f"concurrent.futures.Executor, a Dask Client or a Dask scheduler address "
+                f"('tcp://host:port'), got {ex!r}",
                 name="executor",
                 value=ex,
+            )
+        s = self.shard
+        if s is not None:
+            ok = (
+                isinstance(s, tuple)
+                and len(s) == 2
+                and all(isinstance(x, int) and not isinstance(x, bool) for x in s)
+                and 1 <= s[0] <= s[1]
+            )
+            if not ok:
+                raise ParameterError(
+                    f"shard must be (i, k) with 1 <= i <= k, got {s!r}", name="shard", value=s
+                )
+            if self.out is None:
+                raise ParameterError(
+                    "a shard run needs out= (the folder the shards share)", name="shard", value=s
+                )
+        b = self.batch_size
+        if b is not None and (isinstance(b, bool) or not isinstance(b, int) or b < 1):
+            raise ParameterError(
+                f"batch_size must be an int >= 1, got {b!r}", name="batch_size", value=b
             )
         w = self.workers
         if w is not None and (isinstance(w, bool) or not isinstance(w, int) or w < 1):
@@ -86,6 +128,11 @@ class SweepOptions:
             isinstance(t, int | float) and not isinstance(t, bool) and math.isfinite(t) and t > 0
         ):
             raise ParameterError(f"timeout must be > 0 [s], got {t!r}", name="timeout", value=t)
+
+    @property
+    def distributed(self) -> bool:
+        """True if items run on a Dask cluster (a client or a scheduler address)."""
+        return is_dask_client(self.executor) or is_scheduler_address(self.executor)
 
     def with_executor(self, default: ExecutorLike) -> SweepOptions:
         """Return these options with ``executor`` set to ``default`` if it is ``None``."""

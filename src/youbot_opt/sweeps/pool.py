@@ -14,7 +14,9 @@ exactly that task and replaced; a task gets at most ``max_attempts`` attempts.
 
 from __future__ import annotations
 
+import contextlib
 import copyreg
+import hashlib
 import io
 import logging
 import math
@@ -36,9 +38,20 @@ from multiprocessing.connection import wait as wait_ready
 from multiprocessing.context import BaseContext
 from multiprocessing.reduction import ForkingPickler
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, Union
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.scheduler import (
+    ClusterLostError,
+    cluster_threads,
+    connect,
+    is_dask_client,
+    is_scheduler_address,
+)
+
+if TYPE_CHECKING:  # pragma: no cover - typing only; dask is optional
+    from distributed import Client
+    from distributed import Future as DaskFuture
 
 __all__ = [
     "ExecutorLike",
@@ -47,6 +60,7 @@ __all__ = [
     "WorkerPool",
     "default_workers",
     "process_context",
+    "run_batch",
     "run_tasks",
 ]
 
@@ -349,7 +363,93 @@ class TaskOutcome:
         return self.error is None
 
 
-ExecutorLike = Literal["process", "serial"] | Executor | WorkerPool
+ExecutorLike = Union[Literal["process", "serial"], Executor, WorkerPool, "Client", str]  # noqa: UP007
+"""Where items run: ``"process"``, ``"serial"``, a :class:`WorkerPool`, any
+:class:`concurrent.futures.Executor`, a :class:`distributed.Client` or a Dask
+scheduler address (``"tcp://host:8786"``)."""
+
+_MAX_BATCH = 64  # items per Dask task at most
+_DIED = "worker-died"  # a Dask batch's reply when it was started again after its worker died
+
+# Per worker thread: digest of the initializer blob already run, and its error (Dask runs).
+_INIT = threading.local()
+
+
+def _reruns_after_death() -> int:
+    """How often Dask restarted the running task after a worker died (0 outside Dask).
+
+    Asked of the scheduler (one round trip per task); the probe is sent by
+    value, so the scheduler needs no youbot_opt. Any failure reads as 0 and
+    leaves the accounting to Dask's own ``allowed-failures``.
+    """
+    try:
+        from distributed import get_client, get_worker
+
+        key = get_worker().get_current_task()
+
+        def probe(dask_scheduler: Any = None) -> int:  # noqa: ANN401 - Dask's Scheduler
+            ts = dask_scheduler.tasks.get(key)
+            return int(ts.suspicious) if ts is not None else 0
+
+        return int(get_client().run_on_scheduler(probe))
+    except Exception:  # not in a worker, or the scheduler refuses pickled code
+        return 0
+
+
+def run_batch(init: bytes | None, batch: bytes) -> bytes:
+    """Dask task: run a pickled list of ``(key, fn, args)`` and return each item's reply.
+
+    Parameters
+    ----------
+    init : bytes or None
+        Pickled ``(initializer, initargs)``, run once per worker thread (the
+        same blob is not run again), e.g. to build and hold a solver.
+    batch : bytes
+        Pickled ``[(key, fn, args), ...]``.
+
+    Returns
+    -------
+    bytes
+        Pickled ``[(key, error, value, wall), ...]`` (``error`` ``None`` on
+        success, wall times in [s]), or pickled ``"worker-died"`` when Dask
+        started this task again after its worker died: the driver then runs
+        the batch's items one by one, so a crash is charged to one item.
+    """
+    if _reruns_after_death() > 0:
+        return _dumps(_DIED)
+    init_error = None
+    if init is not None:
+        digest = hashlib.blake2b(init, digest_size=16).hexdigest()
+        if getattr(_INIT, "digest", None) != digest:
+            try:
+                initializer, initargs = pickle.loads(init)
+                initializer(*initargs)
+                _INIT.error = None
+            except Exception as exc:  # reported with every item instead of a silent failure
+                _INIT.error = f"worker initializer failed: {_reason(exc)}"
+            _INIT.digest = digest
+        init_error = _INIT.error
+    replies = []
+    for key, fn, args in pickle.loads(batch):
+        tic = time.perf_counter()
+        try:
+            if init_error is not None:
+                raise RuntimeError(init_error)
+            value, wall = _invoke(fn, args)
+            replies.append((key, None, value, wall))
+        except Exception as exc:  # one failing item must not end the batch
+            replies.append((key, _reason(exc), None, time.perf_counter() - tic))
+    try:
+        return _dumps(replies)
+    except Exception:  # some value does not pickle: charge that item alone
+        safe = []
+        for key, error, value, wall in replies:
+            try:
+                _dumps(value)
+                safe.append((key, error, value, wall))
+            except Exception as exc:
+                safe.append((key, f"cannot send the result: {_reason(exc)}", None, wall))
+        return _dumps(safe)
 
 
 # ------------------------------------------------------------------- runner
@@ -503,6 +603,125 @@ class _Runner:
                 self._abandon(why)
                 return
 
+    def run_dask(
+        self,
+        client: Client,
+        initializer: Callable[..., Any] | None,
+        initargs: tuple[Any, ...],
+        batch_size: int | None,
+    ) -> None:
+        """Run on a Dask cluster: batches of items, per-item outcomes, crash-charged singles.
+
+        ``self.workers`` batches are kept in flight (the cluster's threads by
+        default): not more, so that a task Dask finds on a dead worker was
+        running there, not queued (a queued single item would be charged a
+        crash it did not cause). The initializer travels to each worker once (scattered);
+        a batch whose worker died is re-run item by item, so a crash is
+        charged to one item. Dask's own retries are off (``retries=0``).
+        """
+        from distributed import KilledWorker, as_completed
+
+        n = len(self.pending)
+        size = batch_size or max(1, min(_MAX_BATCH, n // (8 * self.workers)))
+        solo: set[str] = set()  # items to run alone: after a crash of their batch, or a retry
+        init = None
+        if initializer is not None:
+            blob = _dumps((initializer, initargs))
+            init = self._dask_call(lambda: client.scatter(blob, broadcast=True, hash=False))
+        inflight: dict[DaskFuture, list[str]] = {}
+        done = as_completed(loop=client.loop)
+        try:
+            while self.pending or self.retry or inflight:
+                while len(inflight) < self.workers and (self.pending or self.retry):
+                    keys = self._next_batch(size, solo)
+                    items = [(k, self.tasks[k].fn, self.tasks[k].args) for k in keys]
+                    try:
+                        payload = _dumps(items)
+                    except Exception as exc:  # a task does not pickle: charge it alone
+                        if len(keys) > 1:
+                            solo.update(keys)
+                            self.pending.extendleft(reversed(keys))
+                        else:
+                            self.emit(keys[0], None, f"cannot send the task: {_reason(exc)}", 0.0)
+                        continue
+                    fut = self._dask_call(
+                        lambda p=payload: client.submit(run_batch, init, p, pure=False, retries=0)
+                    )
+                    inflight[fut] = keys
+                    done.add(fut)
+                if not inflight:
+                    continue
+                fut = next(done)
+                keys = inflight.pop(fut)
+                self._collect_dask(fut, keys, solo, KilledWorker)
+        finally:
+            for fut in inflight:  # interrupted: do not leave our work on the cluster
+                with contextlib.suppress(Exception):
+                    fut.cancel()
+
+    def _next_batch(self, size: int, solo: set[str]) -> list[str]:
+        """Keys of the next batch: one retried or solo item, else up to ``size`` fresh ones."""
+        if self.retry:
+            key = self.retry.popleft()
+            solo.add(key)
+            return [key]
+        keys = [self.pending.popleft()]
+        if keys[0] in solo:
+            return keys
+        while self.pending and len(keys) < size and self.pending[0] not in solo:
+            keys.append(self.pending.popleft())
+        return keys
+
+    def _collect_dask(
+        self, fut: DaskFuture, keys: list[str], solo: set[str], killed: type[Exception]
+    ) -> None:
+        """Turn a finished Dask batch into outcomes (or solo re-runs after a worker death)."""
+        status = fut.status
+        if status in ("cancelled", "lost") or (status == "error" and _is_cancel(fut)):
+            self.pending.extendleft(reversed(keys))  # not started or lost with the scheduler
+            raise ClusterLostError(f"the Dask scheduler or cluster went away (task {status})")
+        died = False
+        replies: Any = None
+        if status == "error":
+            exc = self._dask_call(fut.exception)
+            if isinstance(exc, killed):
+                died = True
+            else:  # the batch itself failed (e.g. its payload did not unpickle there)
+                for key in keys:
+                    self.emit(key, None, _reason(exc), 0.0)
+                return
+        else:
+            replies = pickle.loads(self._dask_call(fut.result))
+            died = replies == _DIED
+        if died:
+            if len(keys) > 1:  # nothing charged: each item runs alone next
+                solo.update(keys)
+                self.pending.extendleft(reversed(keys))
+                return
+            self.emit(
+                keys[0],
+                None,
+                "Dask worker died (e.g. a segfault or an out-of-memory kill) "
+                "while running this item",
+                0.0,
+            )
+            return
+        for key, error, value, wall in replies:
+            self.emit(key, value, error, wall)
+
+    @staticmethod
+    def _dask_call(fn: Callable[[], Any]) -> Any:
+        """Call ``fn``, turning a lost scheduler connection into :class:`ClusterLostError`."""
+        from asyncio import CancelledError as AsyncCancelled
+        from concurrent.futures import CancelledError
+
+        try:
+            return fn()
+        except (CancelledError, AsyncCancelled, OSError, TimeoutError) as exc:
+            raise ClusterLostError(
+                f"lost the connection to the Dask scheduler ({type(exc).__name__}: {exc})"
+            ) from exc
+
     def _abandon(self, why: str) -> None:
         for key in self.retry:  # already failed once here: no further attempt
             prev = self.outcomes[key]
@@ -516,6 +735,19 @@ class _Runner:
         self.pending.clear()
 
 
+def _is_cancel(fut: DaskFuture) -> bool:
+    from asyncio import CancelledError as AsyncCancelled
+    from concurrent.futures import CancelledError
+
+    try:
+        exc = fut.exception(timeout=0)
+    except (CancelledError, AsyncCancelled):
+        return True
+    except Exception:
+        return False
+    return isinstance(exc, CancelledError | AsyncCancelled)
+
+
 def run_tasks(
     tasks: Iterable[Task],
     *,
@@ -526,6 +758,7 @@ def run_tasks(
     max_attempts: int = 2,
     on_outcome: Callable[[TaskOutcome], None] | None = None,
     timeout: float | None = None,
+    batch_size: int | None = None,
 ) -> dict[str, TaskOutcome]:
     """Run keyed tasks, retrying failures, and report each attempt as it ends.
 
@@ -533,14 +766,18 @@ def run_tasks(
     ----------
     tasks : iterable of Task
         The work, with unique keys.
-    executor : {"process", "serial"}, WorkerPool or concurrent.futures.Executor
+    executor : {"process", "serial"}, WorkerPool, Executor, distributed.Client or str
         ``"process"`` (default): a :class:`WorkerPool` owned by this call;
         a ``WorkerPool``: its workers (kept open; its own initializer applies);
         ``"serial"``: in this process; an ``Executor``: used as is (not shut
         down; ``initializer`` is not run on it, and a broken executor ends the
-        remaining tasks as failed).
+        remaining tasks as failed); a Dask ``Client`` or a scheduler address
+        (``"tcp://host:8786"``, connected and closed here): batches of tasks
+        on the cluster, the initializer sent once per worker, a batch whose
+        worker died re-run task by task (see ``docs/scaling.md``).
     workers : int, optional
-        Tasks in flight at once; default: the CPUs available (a pool's size).
+        Tasks (Dask: batches) in flight at once; default: the CPUs available,
+        a pool's size, or the Dask cluster's total threads.
     initializer : callable, optional
         Run once in every worker process of an owned pool (e.g. to build a solver).
     initargs : tuple
@@ -553,6 +790,9 @@ def run_tasks(
         Wall-clock limit in [s] per attempt (worker pools only; default none):
         a task still running then is killed with its worker and recorded as
         failed with ``"timeout after <timeout> s"``.
+    batch_size : int, optional
+        Tasks per Dask task (Dask only); default: an eighth of the tasks
+        per thread, at most 64 (1 for small sweeps).
 
     Returns
     -------
@@ -564,15 +804,59 @@ def run_tasks(
     ParameterError
         On duplicate keys, ``workers < 1``, ``max_attempts < 1``, a
         ``timeout <= 0`` or one without a worker pool, or an unknown executor.
+    ClusterLostError
+        If the Dask scheduler is lost mid-run (outcomes already reported stay reported).
     """
     task_list = list(tasks)
     keys = [t.key for t in task_list]
     if len(set(keys)) != len(keys):
         dup = sorted({k for k in keys if keys.count(k) > 1})
         raise ParameterError(f"task keys must be unique, repeated: {dup}", name="tasks")
+    client = None
+    own_client = is_scheduler_address(executor)
+    if own_client:
+        client = connect(str(executor))
+    elif is_dask_client(executor):
+        client = executor  # type: ignore[assignment]
+    try:
+        return _run(
+            task_list,
+            executor,
+            client,
+            workers=workers,
+            initializer=initializer,
+            initargs=initargs,
+            max_attempts=max_attempts,
+            on_outcome=on_outcome,
+            timeout=timeout,
+            batch_size=batch_size,
+        )
+    finally:
+        if own_client and client is not None:
+            with contextlib.suppress(Exception):
+                client.close()
+
+
+def _run(
+    task_list: list[Task],
+    executor: ExecutorLike,
+    client: Client | None,
+    *,
+    workers: int | None,
+    initializer: Callable[..., Any] | None,
+    initargs: tuple[Any, ...],
+    max_attempts: int,
+    on_outcome: Callable[[TaskOutcome], None] | None,
+    timeout: float | None,
+    batch_size: int | None,
+) -> dict[str, TaskOutcome]:
     if workers is None:
         if isinstance(executor, WorkerPool):
             workers = executor.workers
+        elif client is not None:
+            workers = cluster_threads(client)
+        elif is_dask_client(getattr(executor, "_client", None)):  # client.get_executor()
+            workers = cluster_threads(executor._client)  # type: ignore[union-attr]
         else:
             workers = getattr(executor, "_max_workers", None) or default_workers()
     _check_workers(workers)
@@ -580,11 +864,18 @@ def run_tasks(
         raise ParameterError(
             f"max_attempts must be an int >= 1, got {max_attempts!r}", name="max_attempts"
         )
-    pooled = executor == "process" or isinstance(executor, WorkerPool)
-    if not (pooled or executor == "serial" or isinstance(executor, Executor)):
+    if batch_size is not None and (
+        isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1
+    ):
         raise ParameterError(
-            f"executor must be 'process', 'serial', a WorkerPool or a "
-            f"concurrent.futures.Executor, got {executor!r}",
+            f"batch_size must be an int >= 1, got {batch_size!r}", name="batch_size"
+        )
+    pooled = executor == "process" or isinstance(executor, WorkerPool)
+    if not (pooled or executor == "serial" or isinstance(executor, Executor) or client is not None):
+        raise ParameterError(
+            f"executor must be 'process', 'serial', a WorkerPool, a "
+            f"concurrent.futures.Executor, a Dask Client or a scheduler address "
+            f"('tcp://host:port'), got {executor!r}",
             name="executor",
         )
     if timeout is not None:
@@ -606,6 +897,8 @@ def run_tasks(
     elif executor == "process":
         with WorkerPool(workers, initializer=initializer, initargs=initargs) as pool:
             runner.run_workers(pool)
+    elif client is not None:
+        runner.run_dask(client, initializer, initargs, batch_size)
     else:
         assert isinstance(executor, Executor)
         runner.run_executor(executor)

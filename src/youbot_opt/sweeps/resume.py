@@ -20,13 +20,27 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any, Generic, NamedTuple, TypeVar
 
+from youbot_opt.exceptions import YoubotOptError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, run_tasks
+from youbot_opt.sweeps.scheduler import ClusterLostError
 from youbot_opt.sweeps.store import SweepStore
 
-__all__ = ["Resumed", "run_resumable"]
+__all__ = ["Resumed", "ShardFinished", "run_resumable"]
 
 T = TypeVar("T")
+
+
+class ShardFinished(YoubotOptError):
+    """A shard run (``SweepOptions(shard=(i, k))``) solved its share; not a failure.
+
+    The message says how many items this shard ran, how many of the sweep's
+    items are finished in the shared folder, and how to collect them.
+    """
+
+    def __init__(self, message: str, *, ran: int, finished: int, total: int) -> None:
+        super().__init__(message)
+        self.ran, self.finished, self.total = ran, finished, total
 
 
 class Resumed(NamedTuple, Generic[T]):
@@ -92,6 +106,10 @@ def run_resumable(
     ------
     ResultFileError
         If a stored record or payload is corrupted or from a newer schema.
+    ClusterLostError
+        If the Dask scheduler is lost: the message says what was saved and how to resume.
+    ShardFinished
+        After a shard run (``options.shard``) solved its share.
     """
     max_attempts = options.max_attempts
     items: dict[str, T] = {}
@@ -108,6 +126,10 @@ def run_resumable(
         attempts[task.key] = made
         todo.append(replace(task, attempts=made))
     resumed = len(items)
+    shard = options.shard
+    if shard is not None:  # only this shard's positions; the others are other jobs' work
+        mine = {t.key for pos, t in enumerate(tasks) if pos % shard[1] == shard[0] - 1}
+        todo = [t for t in todo if t.key in mine]
     if on_resumed is not None:
         on_resumed(dict(items))
 
@@ -125,16 +147,41 @@ def run_resumable(
             if on_final is not None:
                 on_final(o.key, item, len(items))
 
-    run_tasks(
-        todo,
-        executor="process" if options.executor is None else options.executor,
-        workers=options.workers,
-        initializer=initializer,
-        initargs=initargs,
-        max_attempts=max_attempts,
-        on_outcome=record,
-        timeout=options.timeout,
-    )
+    try:
+        run_tasks(
+            todo,
+            executor="process" if options.executor is None else options.executor,
+            workers=options.workers,
+            initializer=initializer,
+            initargs=initargs,
+            max_attempts=max_attempts,
+            on_outcome=record,
+            timeout=options.timeout,
+            batch_size=options.batch_size,
+        )
+    except ClusterLostError as exc:
+        final = len(items)
+        if store is None:
+            saved = (
+                f"{final} of {len(tasks)} items had finished, but nothing was saved (no output "
+                "directory): pass out= (--out DIR) to make a sweep resumable"
+            )
+        else:
+            saved = (
+                f"{final} of {len(tasks)} items are saved in {store.directory}; rerun the "
+                "same sweep with the same output directory to resume from there"
+            )
+        raise ClusterLostError(f"sweep stopped: {exc}. {saved}") from exc
+    if shard is not None:
+        where = store.directory if store is not None else "?"
+        raise ShardFinished(
+            f"shard {shard[0]}/{shard[1]}: ran {len(todo)} item(s); {len(items)} of "
+            f"{len(tasks)} items are finished in {where}; when every shard is done, run the "
+            "same sweep without the shard to collect them",
+            ran=len(todo),
+            finished=len(items),
+            total=len(tasks),
+        )
     missing = [t.key for t in tasks if t.key not in items]
     assert not missing, f"run_tasks returned no final outcome for {missing}"
     return Resumed(items=items, attempts=attempts, resumed=resumed)

@@ -1,60 +1,39 @@
 """A sweep's results on disk, one file per finished item, safe against kills.
 
-A :class:`SweepStore` owns an output directory::
+A :class:`SweepStore` owns ``DIR/manifest.json`` (the sweep's kind and
+defining parameters) and ``DIR/items/<key>.json`` plus ``<key><suffix>`` (one
+record and one payload per finished item, saved by caller-supplied callables).
+Every write is atomic; reopening a directory resumes it when the parameters
+match and refuses it otherwise. Crash safety, resuming and the schema-2
+binding are explained in docs/design.md, "Module notes".
 
-    DIR/manifest.json          kind of sweep + the parameters that define it
-    DIR/items/<key>.json       one record per item: done or failed, attempts, reasons, summary
-    DIR/items/<key><suffix>    the item's payload, written by a caller-supplied callable
-
-Items are keyed by strings (``"start_0007"``, ``"beta_0.0500"``), so any sweep
-(trajectory multistart, Pareto, bound scaling, IK multistart) can use it: the
-payload is saved and loaded by callables given to the store (for trajectory
-results, :func:`youbot_opt.trajopt.io.save_result` / :func:`~youbot_opt.trajopt.io.load_result`).
-
-Crash safety. Every file is written atomically: to a temporary file in the
-same directory, flushed and ``fsync``-ed, then renamed over the target with
-:func:`os.replace` (and the directory ``fsync``-ed), so a kill at any moment
-leaves either the old file or the new one, never a torn one. An item's
-payload is written *before* its record, and an item counts as finished only
-once its record exists: a kill between the two leaves an orphan payload that
-the resumed sweep overwrites. Leftover temporary files are removed when the
-store is opened.
-
-Resuming. Opening a store on an existing directory checks that the sweep's
-defining parameters equal those in the manifest (different parameters raise
-:class:`~youbot_opt.exceptions.ParameterError` listing the differences);
-finished items are then loaded instead of recomputed. A failed item (an
-exception, or a worker that crashed) is recorded with its reason and the
-number of attempts made; it is retried until ``max_attempts`` attempts have
-been made (:meth:`SweepStore.needs_work`).
-
-Every record and the manifest carry ``schema_version``; a file written by a
-newer schema, or one that is not valid JSON of the expected form, raises
-:class:`~youbot_opt.exceptions.ResultFileError`.
+>>> store = SweepStore(out, kind="pareto", params=params, save=save, load=load)  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import logging
 import math
 import os
 import re
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 from youbot_opt._files import TMP_PREFIX, atomic_write_bytes, check_schema_header, json_roundtrip
-from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 
 __all__ = ["SweepStore", "ItemRecord", "SCHEMA_VERSION", "atomic_write_bytes", "check_key"]
 
 _log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
-"""Version of the manifest and item-record format written by this module."""
+SCHEMA_VERSION = 2
+"""Version of the manifest and item-record format written by this module (2: bound items)."""
 
 _MANIFEST = "manifest.json"
 _ITEMS = "items"
@@ -122,6 +101,10 @@ class ItemRecord:
         JSON-ready figures of the item (empty for failures).
     payload : str or None
         File name of the payload inside ``items/`` (``None`` for failures).
+    sweep : str or None
+        Binding of the sweep that wrote the record (``None``: schema 1).
+    checksum : str or None
+        SHA-256 (hex) of the payload file (``None`` for failures and schema 1).
     """
 
     key: str
@@ -130,6 +113,8 @@ class ItemRecord:
     reasons: tuple[str, ...] = ()
     summary: Mapping[str, Any] = field(default_factory=dict)
     payload: str | None = None
+    sweep: str | None = None
+    checksum: str | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Return the record as written to disk."""
@@ -142,6 +127,8 @@ class ItemRecord:
             "reasons": list(self.reasons),
             "summary": dict(self.summary),
             "payload": self.payload,
+            "sweep": self.sweep,
+            "checksum": self.checksum,
         }
 
     @classmethod
@@ -170,6 +157,8 @@ class ItemRecord:
                 reasons=tuple(str(r) for r in data.get("reasons", ())),
                 summary=dict(data.get("summary") or {}),
                 payload=payload,
+                sweep=None if data.get("sweep") is None else str(data["sweep"]),
+                checksum=None if data.get("checksum") is None else str(data["checksum"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ResultFileError(f"item record {path} is corrupted: {exc}") from exc
@@ -194,6 +183,9 @@ class SweepStore:
         Reads a payload back; should raise ``ResultFileError`` on bad files.
     suffix : str
         Payload file suffix, e.g. ``".npz"``.
+    clean : bool
+        Remove leftover temporary files of killed writes (default). Shard
+        runs sharing the folder pass ``False``; the collecting run cleans.
 
     Raises
     ------
@@ -212,6 +204,7 @@ class SweepStore:
         save: Callable[[Any, Path], object],
         load: Callable[[Path], Any],
         suffix: str = ".npz",
+        clean: bool = True,
     ) -> None:
         self.directory = Path(directory)
         self.kind = str(kind)
@@ -221,17 +214,28 @@ class SweepStore:
         self.suffix = suffix
         self.items_dir = self.directory / _ITEMS
         self.items_dir.mkdir(parents=True, exist_ok=True)
-        self._clean_temporaries()
+        if clean:  # not in shard runs: another shard may be writing one right now
+            self._clean_temporaries()
+        self.binding = hashlib.sha256(
+            json.dumps({"kind": self.kind, "params": self.params}, sort_keys=True).encode()
+        ).hexdigest()
+        self._verified: set[str] = set()  # records checked (or written) by this store
+        self._refused: set[str] = set()  # records refused: recomputed, never loaded
         manifest = self.directory / _MANIFEST
         if manifest.exists():
-            self._check_manifest(_read_json(manifest, "sweep manifest"))
+            data = _read_json(manifest, "sweep manifest")
+            self._check_manifest(data)
+            # A schema-1 store has no binding: its items resume unverified, as they always did.
+            self.verifies = int(data.get("schema_version", 1)) >= 2
             self.resumed = True
         else:
+            self.verifies = True
             body = {
                 "schema": "youbot_opt.sweep",
                 "schema_version": SCHEMA_VERSION,
                 "kind": self.kind,
                 "params": self.params,
+                "binding": self.binding,
             }
             atomic_write_bytes(manifest, json.dumps(body, indent=1).encode())
             self.resumed = False
@@ -292,9 +296,48 @@ class SweepStore:
         if not path.exists():
             return None
         record = ItemRecord.from_json(_read_json(path, "item record"), path)
-        if record.key != key:
-            raise ResultFileError(f"item record {path} is for key {record.key!r}, not {key!r}")
+        if not self.verifies:
+            if record.key != key:
+                raise ResultFileError(f"item record {path} is for key {record.key!r}, not {key!r}")
+            return record
+        if key in self._verified:
+            return record
+        if key in self._refused:
+            return None
+        why = self._refusal(record, key)
+        if why is not None:
+            self._refused.add(key)
+            warnings.warn(
+                f"refused item {key!r} of the sweep in {self.directory} ({path.name}: {why}); "
+                "it is recomputed",
+                YoubotOptWarning,
+                stacklevel=2,
+            )
+            _log.warning("refused sweep item %s: %s", path, why)
+            return None
+        self._verified.add(key)
         return record
+
+    def _refusal(self, record: ItemRecord, key: str) -> str | None:
+        """Why ``record`` does not belong to this sweep (``None``: it does)."""
+        if record.key != key:
+            return f"it is the record of item {record.key!r}"
+        if record.sweep != self.binding:
+            return (
+                "it was written by another sweep (other parameters)"
+                if record.sweep
+                else "it carries no sweep binding"
+            )
+        if record.state != "done":
+            return None
+        if record.payload != self.payload_path(key).name:
+            return f"it points to payload {record.payload!r}"
+        path = self.items_dir / str(record.payload)
+        if not path.exists():
+            return f"its payload {path.name} is missing"
+        if record.checksum != _sha256(path):
+            return f"its payload {path.name} does not match its checksum (edited or torn)"
+        return None
 
     def records(self) -> dict[str, ItemRecord]:
         """Every item record in the directory, by key (sorted)."""
@@ -349,8 +392,12 @@ class SweepStore:
             reasons=prev.reasons if prev is not None else (),
             summary=json_roundtrip(dict(summary)),
             payload=target.name,
+            sweep=self.binding,
+            checksum=_sha256(target),
         )
         self._write_record(record)
+        self._refused.discard(key)
+        self._verified.add(key)
         return record
 
     def write_failed(self, key: str, reason: str, *, attempts: int) -> ItemRecord:
@@ -363,8 +410,12 @@ class SweepStore:
         """
         prev = self.record(key)
         reasons = (*(prev.reasons if prev is not None else ()), str(reason))
-        record = ItemRecord(key=key, state="failed", attempts=attempts, reasons=reasons)
+        record = ItemRecord(
+            key=key, state="failed", attempts=attempts, reasons=reasons, sweep=self.binding
+        )
         self._write_record(record)
+        self._refused.discard(key)
+        self._verified.add(key)
         return record
 
     def _write_record(self, record: ItemRecord) -> None:
@@ -392,6 +443,15 @@ class SweepStore:
 
 
 _MISSING = object()
+
+
+def _sha256(path: Path) -> str:
+    """SHA-256 (hex) of a file's bytes."""
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def _same(a: Any, b: Any) -> bool:

@@ -45,31 +45,55 @@ class WorkerSolver(Generic[S]):
         Identifies the run: a worker's cached solver is reused only for it.
     prebuilt : object, optional
         The solver already built in this process; not pickled.
+    ship : bool
+        Pickle the recipe (default). ``False`` (:meth:`by_token`): pickle only
+        the token, for tasks sent to workers that hold the solver already
+        (Dask: the initializer :func:`hold_solver` is sent once per worker).
     """
 
     build: Callable[..., S]
     args: tuple[Any, ...] = ()
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
     prebuilt: S | None = field(default=None, compare=False)
+    ship: bool = field(default=True, compare=False)
 
     @classmethod
     def of(cls, build: Callable[..., S], *args: Any, prebuilt: S | None = None) -> WorkerSolver[S]:
         """Make the handle of one run (a fresh token) for ``build(*args)``."""
         return cls(build=build, args=tuple(args), prebuilt=prebuilt)
 
+    def by_token(self) -> WorkerSolver[S]:
+        """Return this handle, pickled as its token (for workers that hold the solver already)."""
+        return WorkerSolver(
+            build=self.build, args=self.args, token=self.token, prebuilt=self.prebuilt, ship=False
+        )
+
     def __getstate__(self) -> tuple[Any, ...]:
-        return (self.build, self.args, self.token)
+        if not self.ship:
+            return (None, (), self.token, False)
+        return (self.build, self.args, self.token, True)
 
     def __setstate__(self, state: tuple[Any, ...]) -> None:
-        for name, value in zip(("build", "args", "token"), state, strict=True):
+        for name, value in zip(("build", "args", "token", "ship"), state, strict=True):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "prebuilt", None)
 
     def get(self) -> S:
-        """Return the prebuilt solver, this worker's cached one, or a new one (then cached)."""
+        """Return the prebuilt solver, this worker's cached one, or a new one (then cached).
+
+        Raises
+        ------
+        RuntimeError
+            If the handle travelled by token and this worker holds no solver for it.
+        """
         if self.prebuilt is not None:
             return self.prebuilt
         if getattr(_CACHE, "token", None) != self.token:
+            if self.build is None:
+                raise RuntimeError(
+                    f"this worker holds no solver for sweep run {self.token} "
+                    "(its initializer hold_solver did not run here)"
+                )
             _CACHE.solver = self.build(*self.args)
             _CACHE.token = self.token
         solver: S = _CACHE.solver

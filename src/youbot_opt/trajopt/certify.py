@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import JointBounds, RobotModel, as_robot_model
 from youbot_opt.trajopt.certificate import BoundCheck, Certificate, Tolerances
@@ -148,7 +149,7 @@ def _resolve(
             "(TrajOptResult)",
             name="plan",
         )
-    model = as_robot_model(robot)
+    model = angle_robot(as_robot_model(robot))  # continuous joints: one angle each
     if bounds is None:
         bounds = model.bounds(bound_scale)
     return trajectory, model, bounds, use_damping

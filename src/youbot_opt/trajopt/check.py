@@ -13,8 +13,7 @@ saved results pass every result through :func:`checked`.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
+from youbot_opt.nlp.status import apply_check
 from youbot_opt.trajopt.result import ResultCheck, TrajOptResult
 
 __all__ = ["ResultCheck", "check_result", "checked"]
@@ -57,9 +56,4 @@ def checked(result: TrajOptResult) -> TrajOptResult:
     TrajOptResult
         ``result`` itself, or a copy with the downgraded status and message.
     """
-    if not result.status.success:
-        return result
-    verdict = result.check()
-    if verdict.passed:
-        return result
-    return replace(result, status=verdict.status, message=f"{result.message}; {verdict.message}")
+    return apply_check(result)

@@ -14,7 +14,7 @@ trajectory the transcription can sample.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -23,6 +23,9 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from youbot_opt.trajopt.result import TrajOptResult
 
 __all__ = ["DEFAULT_GUESS_DURATION", "straight_line_guess", "resolve_guess", "inverse_dynamics"]
 
@@ -106,7 +109,7 @@ def straight_line_guess(
 
 def resolve_guess(
     problem: TrajOptProblem,
-    guess: Any,
+    guess: Trajectory | TrajOptResult | None,
     *,
     start: BoundaryState | None = None,
     goal: BoundaryState | None = None,

@@ -1,19 +1,12 @@
 """Save and load trajectory results: one ``.npz`` file with embedded JSON metadata.
 
-File layout (schema ``youbot_opt.trajopt_result``, version :data:`SCHEMA_VERSION`):
+Schema ``youbot_opt.trajopt_result`` (version :data:`SCHEMA_VERSION`): arrays
+under ``"<group>__<name>"`` keys and a JSON ``"metadata"`` entry (versions,
+problem, transcription, status, options, SHA-256 of every array). Nothing is
+pickled, writes are atomic, and the loader re-checks the result
+(:func:`youbot_opt.trajopt.check.checked`).
 
-* numeric arrays under ``"<group>__<name>"`` keys -- ``variables__q``,
-  ``multipliers__velocity_upper``, ``trajectory__tau``, ``guess__t``,
-  ``objective_history`` ...;
-* ``"metadata"``: the UTF-8 bytes of a JSON object with the schema name and
-  version, the versions of youbot_opt, Pinocchio, CasADi and numpy, the
-  problem description (robot name and URDF path, boundary states, knots,
-  bound families, damping), transcription, backend, status, scalars, solver
-  options, seed, and a SHA-256 checksum of every array.
-
-Nothing is pickled (``allow_pickle=False``). Writes are atomic: the file is
-written to a temporary file in the target directory, synced, and moved into
-place with :func:`os.replace`, so a crash never leaves a half-written result.
+>>> result = load_result(save_result(result, "result.npz"))  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -88,6 +81,8 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
     if not target.parent.is_dir():
         raise ResultFileError(f"cannot save result: directory {target.parent} does not exist")
     arrays: dict[str, Array] = {"objective_history": np.asarray(result.objective_history)}
+    if result.grid is not None:  # a non-uniform grid's interval fractions
+        arrays["grid"] = np.asarray(result.grid, dtype=float)
     for group, values in (("variables", result.variables), ("multipliers", result.multipliers)):
         for name, arr in values.items():
             arrays[f"{group}__{name}"] = np.asarray(arr, dtype=float)
@@ -280,6 +275,7 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
             options=IpoptOptions(**opts),
             seed=meta["seed"],
             feasibility_tol=float(meta.get("feasibility_tol", DEFAULT_FEASIBILITY_TOL)),
+            grid=arrays.get("grid"),
         )
     except ResultFileError:
         raise

@@ -1,25 +1,12 @@
-r"""Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
+"""Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
 
-The study minimises a weighted sum of two named terms,
+``f = beta T + (1 - beta) W`` with the true duration ``T = (N - 1) dt`` in [s]
+and the effort ``W`` (integral of ``tau . tau``) in [N^2 m^2 s] by the
+quadrature of the transcription: trapezoidal (the study's) or Simpson's rule
+(Hermite-Simpson). The helpers work on numbers and CasADi expressions alike,
+so the NLP and the re-evaluation of a result share one definition.
 
-.. math::
-
-    f = \\beta\\, T + (1 - \\beta)\\, W, \\qquad
-    T = (N - 1)\\,\\Delta t, \\qquad
-    W = \\int_0^T \\tau(t)\\cdot\\tau(t)\\, dt,
-
-with the *true* duration ``T = (N - 1) dt`` (the study's code used ``N dt``)
-and the work-like effort ``W`` in [N^2 m^2 s] approximated by the quadrature
-rule that belongs to the transcription:
-
-* trapezoidal: ``W = sum_k dt (w_k + w_{k+1}) / 2`` with ``w_k = tau_k . tau_k``
-  (the study's formula);
-* Hermite-Simpson: Simpson's rule ``W = sum_k dt (w_k + 4 w_{k+1/2} + w_{k+1}) / 6``
-  with the mid-interval torque.
-
-The helpers here work on plain numbers and on CasADi expressions alike (they
-only use ``+``, ``*`` and a dot product with constant weights), so the NLP and
-the numeric re-evaluation of a result share one definition.
+>>> duration(dt, n_knots=50)  # T = 49 dt [s]  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -373,7 +373,7 @@ def pareto_sweep(
             "warm_start": warm_start,
             "cold_fallback": cold_fallback,
         }
-        store = open_store(out, "pareto", params, solver)
+        store = open_store(out, "pareto", params, solver, clean=sweep.shard is None)
     points: list[ParetoPoint] = []
     first: MultistartResult | None = None
     previous: TrajOptResult | None = None

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import (
     BOUND_FAMILIES,
@@ -102,8 +103,11 @@ class TrajOptProblem:
     ----------
     robot : RobotModel
         The robot (Pinocchio model and its limits, :mod:`youbot_opt.robot.model`).
+        A robot with continuous joints is replaced by its angle-coordinate twin
+        (:func:`youbot_opt.dynamics.coordinates.angle_robot`): each such joint
+        becomes one unbounded angle in [rad] instead of Pinocchio's (cos, sin).
     start, goal : BoundaryState
-        Joint states at ``t = 0`` and at ``t = T``.
+        Joint states at ``t = 0`` and at ``t = T`` (angle coordinates).
     n_knots : int
         Number of collocation knots ``N`` (>= 2); the study used 50.
     objective : Objective
@@ -132,11 +136,13 @@ class TrajOptProblem:
     damping: bool = True
 
     def __post_init__(self) -> None:
+        # Continuous joints are planned in angle coordinates (docs/design.md).
+        object.__setattr__(self, "robot", angle_robot(self.robot))
         nq, nv = int(self.robot.nq), int(self.robot.nv)
         if nq != nv:
             raise ParameterError(
-                f"robot {self.robot.name!r} has nq = {nq} != nv = {nv}; only revolute and "
-                "prismatic joints (nq == nv) are supported",
+                f"robot {self.robot.name!r} has nq = {nq} != nv = {nv}; only revolute, "
+                "continuous and prismatic joints are supported",
                 name="robot",
             )
         for name in ("start", "goal"):

@@ -34,14 +34,15 @@ lowered). The multiplier blocks are named as follows:
   ``multipliers["<family>_lower"]`` = ``min(lam_x, 0)`` of a variable family
   (``position``, ``velocity``, ``torque``, ``position_mid``, ..., ``dt``),
   knot-major; upper-bound multipliers are >= 0, lower-bound ones <= 0. A
-  block without bounds of its own (Hermite-Simpson's ``v_mid``) has zeros.
+  block without bounds of its own (Hermite-Simpson's ``q_mid``, ``v_mid``) has zeros.
 * Equality blocks of ``g`` (``defect_*``, ``midpoint_*``, ``start_position``,
   ``goal_velocity``, ...) carry ``lam_g`` unchanged: ``d f* / d c = -lam_g``
   for a right-hand side ``c`` (e.g. a start position).
 * Inequality path blocks of ``g`` (Hermite-Simpson's ``velocity_control_left``
-  and ``velocity_control_right``, held within the speed bounds) carry
-  ``lam_g`` unchanged, signed as above: > 0 where the row is at the upper
-  speed bound, < 0 at the lower one.
+  and ``velocity_control_right``, held within the speed bounds, and
+  ``position_control_left`` / ``position_control_right`` within the position
+  bounds) carry ``lam_g`` unchanged, signed as above: > 0 where the row is at
+  the upper bound, < 0 at the lower one.
 
 :meth:`TrajOptResult.active_bounds` reports exactly the bounds the NLP has:
 variable bounds of the bounded blocks and the path-inequality rows, each with
@@ -54,7 +55,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -66,6 +67,9 @@ from youbot_opt.robot.model import JointBounds
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from youbot_opt.trajopt.refinement import Refinement
 
 __all__ = [
     "SolveStatus",
@@ -227,7 +231,7 @@ class TrajOptResult:
     duration : float
         True duration ``T = (N - 1) dt`` in [s].
     dt : float
-        Common time step in [s].
+        Mean time step ``T / (N - 1)`` in [s] (the common step of a uniform grid).
     work : float
         ``W`` (integral of ``tau . tau``) in [N^2 m^2 s] by the transcription's rule.
     objective : float
@@ -258,6 +262,14 @@ class TrajOptResult:
         The NLP's unbounded blocks and path-inequality rows, as the solver
         built them; ``None`` (e.g. a loaded result) re-derives them from the
         transcription named by :attr:`method` (:meth:`bound_structure_of`).
+    grid : ndarray, shape (N - 1,), or None
+        Each interval's fraction of ``T`` on a non-uniform grid (they sum to 1;
+        interval ``k`` lasts ``(N - 1) grid[k] dt``); ``None`` for the uniform grid.
+    refinement : Refinement or None
+        The mesh-refinement record (:mod:`youbot_opt.trajopt.refine`): per round
+        knots, objective, duration, collocation error, certificate figures and
+        time, and whether the plan is certified (:attr:`certified`). ``None``
+        for a fixed-grid solve, which is never called certified.
 
     Constructing a result does no work. The solver and
     :func:`~youbot_opt.trajopt.io.load_result` run the independent check
@@ -289,6 +301,20 @@ class TrajOptResult:
     seed: int | None = None
     feasibility_tol: float = DEFAULT_FEASIBILITY_TOL
     bound_structure: BoundStructure | None = field(default=None, compare=False)
+    grid: Array | None = None
+    refinement: Refinement | None = field(default=None, compare=False)
+
+    @property
+    def certified(self) -> bool:
+        """True only for a refined plan whose collocation error and certificate both passed."""
+        return self.refinement is not None and self.refinement.certified
+
+    def step_ratios(self) -> Array:
+        """Step ratios ``r_k = h_k / dt`` of the grid, shape ``(N - 1,)`` (ones if uniform)."""
+        n = self.problem.n_knots
+        if self.grid is None:
+            return np.ones(n - 1)
+        return (n - 1) * np.asarray(self.grid, dtype=float)
 
     @property
     def solver_status(self) -> str:
@@ -465,6 +491,8 @@ class TrajOptResult:
             "solve_time_s": self.wall_time,
             "cpu_time_s": self.cpu_time,
             "max_violation": num(self.max_violation),
+            "uniform_grid": self.grid is None,
+            "certified": self.certified,
         }
 
 
@@ -497,6 +525,8 @@ def _derive_structure(result: TrajOptResult) -> BoundStructure:
     from youbot_opt.trajopt.transcription.base import Transcription
 
     method = _transcription_named(result.method)
+    if method is not None and result.grid is not None:
+        method = method.with_fractions(result.grid)
     if method is None:
         return BoundStructure(unbounded=(), path=MappingProxyType({}))
     unbounded = tuple(method.unbounded)
@@ -525,6 +555,8 @@ def _defects(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float 
     aba = batched_aba(problem.robot, damping=problem.damping)
     q, qd, tau = v["q"], v["v"], v["tau"]
     a = aba(q, qd, tau).reshape(qd.shape)
+    if result.grid is not None:  # interval steps h_k = r_k dt as a column
+        dt = dt * result.step_ratios()[:, None]  # type: ignore[assignment]
     rows: tuple[Array, ...]
     if result.method == "hermite_simpson":
         qm, vm = v["q_mid"], v["v_mid"]
@@ -548,6 +580,12 @@ def _defects(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float 
 def _work(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float:
     """``W`` by the transcription's quadrature, written out here."""
     p = np.sum(v["tau"] ** 2, axis=1)
+    if result.grid is not None:
+        h = dt * result.step_ratios()
+        if result.method == "hermite_simpson":
+            pm = np.sum(v["tau_mid"] ** 2, axis=1)
+            return float(np.sum(h / 6.0 * (p[:-1] + 4.0 * pm + p[1:])))
+        return float(np.sum(0.5 * h * (p[:-1] + p[1:])))
     if result.method == "hermite_simpson":
         pm = np.sum(v["tau_mid"] ** 2, axis=1)
         return float(dt / 6.0 * np.sum(p[:-1] + 4.0 * pm + p[1:]))
@@ -572,6 +610,8 @@ def _check(result: TrajOptResult, feasibility_tol: float | None) -> ResultCheck:
         v = {k: np.asarray(result.variables[k], dtype=float) for k in shapes}
     except (KeyError, TypeError, ValueError) as exc:
         return fail(SolveStatus.FAILED, f"malformed result: variables lack {exc}")
+    if result.grid is not None and np.shape(result.grid) != (n - 1,):
+        return fail(SolveStatus.FAILED, f"malformed result: grid shape {np.shape(result.grid)}")
     bad = {k: x.shape for k, x in v.items() if x.shape != shapes[k]}
     if bad:
         return fail(SolveStatus.FAILED, f"malformed result: variable shapes {bad}, want {shapes}")

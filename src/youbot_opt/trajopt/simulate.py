@@ -16,13 +16,14 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, TypeAlias
 
 import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel, as_robot_model
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -47,17 +48,17 @@ DEFAULT_ATOL = 1e-12
 """Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
 
 
-RobotLike = RobotModel | pin.Model
+RobotLike: TypeAlias = RobotModel | pin.Model
 """A :class:`~youbot_opt.robot.model.RobotModel` or a bare ``pinocchio.Model`` (wrapped)."""
 
 
 def _robot(robot: RobotLike) -> RobotModel:
-    """``robot`` as a RobotModel with nq == nv, else ParameterError."""
-    model = as_robot_model(robot)
+    """``robot`` as a RobotModel with nq == nv (continuous joints in angle coordinates)."""
+    model = angle_robot(as_robot_model(robot))
     if model.nq != model.nv:
         raise ParameterError(
             f"robot {model.name!r} has nq = {model.nq} != nv = {model.nv}; forward "
-            "simulation supports revolute and prismatic joints only",
+            "simulation supports revolute, continuous and prismatic joints only",
             name="robot",
             value=(model.nq, model.nv),
         )

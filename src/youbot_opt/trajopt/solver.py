@@ -28,7 +28,7 @@ from __future__ import annotations
 import logging
 import time
 from types import MappingProxyType
-from typing import Any
+from typing import Any, cast
 
 import casadi as ca
 import numpy as np
@@ -80,9 +80,10 @@ def _boundary(name: str, value: BoundaryLike | None, default: BoundaryState) -> 
     if isinstance(value, BoundaryState):
         return value
     if isinstance(value, tuple) and len(value) == 2:
-        return BoundaryState(q=value[0], v=value[1])
+        # BoundaryState converts and validates the arrays itself.
+        return BoundaryState(q=cast(Array, value[0]), v=cast(Array, value[1]))
     try:
-        return BoundaryState(q=value)
+        return BoundaryState(q=cast(Array, value))
     except ParameterError as exc:
         raise ParameterError(
             f"{name} must be a BoundaryState, a (q, v) pair or a q vector: {exc}", name=name
@@ -110,12 +111,15 @@ class TrajOptSolver:
         Largest violation (unit of each row) a successful result may have;
         also stored in every result (``TrajOptResult.feasibility_tol``), so
         :meth:`youbot_opt.trajopt.result.TrajOptResult.check` applies the same one.
-    compile : bool
-        Compile the per-point dynamics kernels (value, Jacobian, weighted
-        Hessian) to C with the system compiler, cached on disk
-        (:mod:`youbot_opt.nlp.codegen`; about 2 s once per robot, then ~5 ms to
-        load). Without a compiler CasADi's virtual machine runs them (same
-        results, ~2x slower solves). Only used by the second-order backends.
+    compile : bool or "wait"
+        Run the per-point dynamics kernels (value, Jacobian, weighted Hessian)
+        as C compiled by the system compiler and cached on disk
+        (:mod:`youbot_opt.nlp.codegen`). True (default): use the cached
+        libraries; if they are missing, compile them in a background process
+        for the next build and run this one in CasADi's virtual machine (same
+        results; the compile takes from seconds to minutes per robot, which a
+        first solve should not wait for). ``"wait"``: compile now. False: never
+        compile. Only used by the second-order backends.
 
     Attributes
     ----------
@@ -136,7 +140,7 @@ class TrajOptSolver:
         *,
         dynamics: Dynamics | None = None,
         feasibility_tol: float = DEFAULT_FEASIBILITY_TOL,
-        compile: bool = True,
+        compile: bool | str = True,
     ) -> None:
         if not isinstance(problem, TrajOptProblem):
             raise ParameterError(
@@ -168,7 +172,9 @@ class TrajOptSolver:
             # Structured exact derivatives from per-point kernels (compiled to C when
             # possible): O(1) symbolic work on the dynamics, however many knots.
             kernels = dynamics_kernels(dynamics.forward_dynamics)
-            fast = compile_kernels(kernels) if compile else kernels
+            label = f"{problem.robot.name}'s dynamics"
+            wait = compile == "wait"
+            fast = compile_kernels(kernels, wait=wait, label=label) if compile else kernels
             self.compiled = fast is not kernels
             fns = structured_functions(self.method, problem, fast, values=kernels)
             self._nlp_function = fns.nlp
@@ -204,6 +210,7 @@ class TrajOptSolver:
         *,
         seed: int | None = None,
         warm_start: bool = True,
+        initial: tuple[Array, Array, Array] | None = None,
     ) -> TrajOptResult:
         """Solve with the given sweep parameters (no rebuild).
 
@@ -224,6 +231,10 @@ class TrajOptSolver:
             IPOPT from its primal *and* dual solution (``warm_start_init_point``,
             small initial barrier parameter): a neighbouring sweep point then
             converges in a few iterations. ``False`` uses only its trajectory.
+        initial : (x0, lam_x0, lam_g0), optional
+            An explicit primal-dual start on this NLP's layout (mesh refinement
+            interpolates one from the previous grid); overrides ``guess`` as the
+            starting point (``guess`` is still recorded) and warm-starts IPOPT.
 
         Returns
         -------
@@ -245,6 +256,8 @@ class TrajOptSolver:
         nlp = self.nlp
         dt_range = self._dt_range()
         warm = self._warm_start_point(guess) if warm_start else None
+        if initial is not None:
+            warm = self._initial_point(initial)
         if warm is not None:
             x0, lam_x0, lam_g0 = warm
             solver = self._warm()
@@ -358,6 +371,21 @@ class TrajOptSolver:
         finite = np.all(np.isfinite(x0)) and np.all(np.isfinite(lam_x0))
         return (x0, lam_x0, lam_g0) if finite and np.all(np.isfinite(lam_g0)) else None
 
+    def _initial_point(self, initial: tuple[Array, Array, Array]) -> tuple[Array, Array, Array]:
+        """Validate an explicit primal-dual start against the NLP's sizes."""
+        sizes = (self.nlp.n_variables, self.nlp.n_variables, self.nlp.n_constraints)
+        arrays = tuple(np.array(part, dtype=float).ravel() for part in initial)
+        if len(arrays) != 3 or any(a.size != n for a, n in zip(arrays, sizes, strict=True)):
+            got = [a.size for a in arrays]
+            raise ParameterError(
+                f"initial must be (x0, lam_x0, lam_g0) of sizes {list(sizes)}, got {got}",
+                name="initial",
+            )
+        x0, lam_x0, lam_g0 = arrays
+        if self.problem.duration is not None:
+            x0[self.nlp.variables["dt"].offset] = self._dt_range()[0]
+        return x0, lam_x0, lam_g0
+
     def _dt_range(self) -> tuple[float, float]:
         p = self.problem
         if p.duration is not None:
@@ -403,7 +431,14 @@ class TrajOptSolver:
             fd = self.dynamics.forward_dynamics.map(problem.n_knots)
             a = np.asarray(fd(variables["q"].T, variables["v"].T, variables["tau"].T)).T
         total_time = (problem.n_knots - 1) * dt
-        work = work_of(dt, variables["tau"], variables.get("tau_mid"), nlp.rule)
+        if self.method.uniform:
+            work = work_of(dt, variables["tau"], variables.get("tau_mid"), nlp.rule)
+        else:
+            w_knots, w_mid = self.method.quadrature(problem.n_knots)
+            work = float(np.sum(variables["tau"] ** 2, axis=1) @ w_knots)
+            if w_mid is not None:
+                work += float(np.sum(variables["tau_mid"] ** 2, axis=1) @ w_mid)
+            work *= dt
         objective = beta * total_time + (1.0 - beta) * work
         violation = max(
             float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0)),
@@ -482,6 +517,7 @@ class TrajOptSolver:
             seed=seed,
             feasibility_tol=self.feasibility_tol,
             bound_structure=structure,
+            grid=self.method.fractions,
         )
         return checked(result)  # the independent check (pin.aba, no NLP) sets the status
 

@@ -1,49 +1,20 @@
 """Random feasible polynomial guesses: the study's initial guesses (spec ``trajopt.md``).
 
-The study started every solve from a random polynomial per joint, "of order 4
-to 6, chosen at random", whose coefficients meet the start and goal positions
-and velocities exactly and keep position and speed inside the (scaled) limits
-at every knot, found as a feasible point of a linear program from a random
-starting vector; the torques come from inverse dynamics of the spline, with
-the initial time step ``dt0 = 0.1`` s at 50 knots. At other knot counts the
-default time step keeps the guess duration at the study's 4.9 s
-(:data:`youbot_opt.trajopt.guess.DEFAULT_GUESS_DURATION`), as
-:func:`youbot_opt.trajopt.sweep.default_dt0` does for multistart, so a coarse
-grid still gets a guess slow enough for the speed limits.
+Per joint a polynomial of random degree 4 to 6 (Bernstein basis over
+``s = t / T0``) that meets the start and goal states exactly and keeps
+position and speed inside the (scaled) limits at every knot: the L1
+projection of a random target onto that set, one small linear program per
+joint. Torques from inverse dynamics. The reading of the study and the LP are
+explained in docs/design.md, "Module notes".
 
-Here "order" is the polynomial's degree ``p``: the four boundary conditions
-fix a cubic completely, so degrees 4 to 6 leave 1 to 3 free coefficients for
-the random draw. Each joint's polynomial is written in the Bernstein basis of
-degree ``p`` over the normalised time ``s = t / T0`` in [0, 1] (``T0 = (N - 1)
-dt``); its coefficients (control points) have the unit of the position, the
-boundary conditions fix the first two and the last two, and the knot limits
-are linear in them.
-
-The linear program, per joint. Variables: the control points ``b`` (p + 1) and
-slacks ``e`` (p + 1). Objective: minimise ``sum(e)`` with ``-e <= b - r <= e``,
-the L1 distance from ``b`` to a random target ``r`` whose control points are
-drawn uniformly between the joint's scaled position limits. Constraints: the
-boundary conditions (equalities) and ``lower <= q(t_k) <= upper``,
-``|v(t_k)| <= v_max`` at every knot. The LP is bounded (its objective is a sum
-of non-negative slacks), so it has an optimum whenever it is feasible,
-whatever the number of knots. A random linear objective ``c . b`` (the
-other reading of "a random starting point") is not used: it is unbounded
-when there are fewer knots than coefficients, and otherwise drives the
-solution to a vertex where many knot limits are active, a guess that rides the
-speed limits; the L1 projection of a random target keeps the target's shape
-wherever it is feasible.
-
-Feasibility does not depend on the random target, only on the degree: when the
-LP of a drawn degree is infeasible, that degree is dropped and another one is
-drawn from the rest (at most ``len(orders)`` tries); if none is feasible,
-:class:`~youbot_opt.exceptions.ParameterError` says why.
+>>> guess = random_spline_guess(robot, start, goal, 50, seed=0)  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -54,6 +25,14 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import as_robot_model
 from youbot_opt.trajopt.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from youbot_opt.robot.model import RobotModel
+    from youbot_opt.trajopt.problem import BoundaryState, JointBounds
+
+    BoundaryLike = BoundaryState | tuple[ArrayLike, ArrayLike] | ArrayLike
 
 __all__ = ["DEFAULT_DT", "DEFAULT_ORDERS", "random_spline_guess", "bernstein_matrix"]
 
@@ -189,16 +168,16 @@ def _solve_lp(
 
 
 def random_spline_guess(
-    robot: Any,
-    start: Any,
-    goal: Any,
+    robot: RobotModel | pin.Model,
+    start: BoundaryLike,
+    goal: BoundaryLike,
     n_knots: int,
     *,
     seed: int | np.random.Generator | None,
     dt: float | None = None,
     bound_scale: float = 1.0,
     orders: tuple[int, ...] = DEFAULT_ORDERS,
-    bounds: Any = None,
+    bounds: JointBounds | None = None,
     damping: bool = True,
 ) -> Trajectory:
     """Draw a random polynomial motion per joint within the knot limits (the study's guesses).

@@ -279,7 +279,12 @@ def check_solver(solver: Any) -> TrajOptSolver:
 
 
 def open_store(
-    out: str | os.PathLike[str], kind: str, params: dict[str, Any], solver: TrajOptSolver
+    out: str | os.PathLike[str],
+    kind: str,
+    params: dict[str, Any],
+    solver: TrajOptSolver,
+    *,
+    clean: bool = True,
 ) -> SweepStore:
     """Open a sweep store whose payloads are trajectory results.
 
@@ -293,6 +298,9 @@ def open_store(
         The sweep's defining parameters (a rerun with others is refused).
     solver : TrajOptSolver
         Its robot loads the stored results (:mod:`youbot_opt.trajopt.io` files).
+    clean : bool
+        Remove leftover temporary files (not in a shard run: other shards
+        may be writing into the same folder).
 
     Returns
     -------
@@ -306,7 +314,9 @@ def open_store(
     def load(path: Path) -> TrajOptResult:
         return load_result(path, robot=robot)
 
-    return SweepStore(out, kind=kind, params=params, save=save_result, load=load, suffix=".npz")
+    return SweepStore(
+        out, kind=kind, params=params, save=save_result, load=load, suffix=".npz", clean=clean
+    )
 
 
 def sweep_params(solver: TrajOptSolver) -> dict[str, Any]:
@@ -352,8 +362,12 @@ def solve_starts(
     # The handle travels with every task; pickling drops its prebuilt solver, so
     # pool workers use the one their initializer set (inherited under fork).
     handle = worker_solver(solver, keep=executor == "serial" or fork)
+    # On Dask the recipe (problem included) goes once per worker with the
+    # initializer; each task then carries only the handle's token.
+    send_once = own_pool or sweep.distributed
+    sent = handle.by_token() if sweep.distributed else handle
     by_key = {job.key: job for job in jobs}
-    tasks = [Task(key=job.key, fn=_solve_start, args=(handle, job)) for job in jobs]
+    tasks = [Task(key=job.key, fn=_solve_start, args=(sent, job)) for job in jobs]
     progress = sweep.progress
 
     def convert(o: TaskOutcome) -> StartOutcome:
@@ -374,8 +388,8 @@ def solve_starts(
         load=lambda key: _load_start(store, by_key[key]),  # type: ignore[arg-type]
         convert=convert,
         payload=lambda key, start: (start.result, start.summary()),
-        initializer=hold_solver if own_pool else None,
-        initargs=(handle,) if own_pool else (),
+        initializer=hold_solver if send_once else None,
+        initargs=(handle,) if send_once else (),
         on_final=on_final,
     )
     return got.items, got.resumed

@@ -1,18 +1,12 @@
 """Joint-space trajectories on a time grid, callable at any time (toppra style).
 
-A :class:`Trajectory` holds the knot values a collocation solve produced and
-the interpolant that belongs to its transcription:
+A :class:`Trajectory` holds knot-major arrays (``q[k]`` at ``t[k]``) and the
+interpolant of its transcription: ``"trapezoidal"`` (torque and velocity
+linear, position quadratic; Betts, *Practical Methods for Optimal Control*,
+sec. 4.6) or ``"hermite_simpson"`` (torque quadratic, position and velocity
+cubic Hermite). Details: docs/design.md, "Module notes".
 
-* ``"trapezoidal"``: torque and velocity piecewise linear, position piecewise
-  quadratic (the integral of the linear velocity), as in Betts, *Practical
-  Methods for Optimal Control*, sec. 4.6. For arrays that do not satisfy the
-  trapezoidal position defect exactly (e.g. initial guesses), a term linear in
-  time absorbs the defect so that the knots are always interpolated.
-* ``"hermite_simpson"``: torque piecewise quadratic through the knot and
-  mid-interval torques, position and velocity cubic Hermite splines (position
-  with the knot velocities as slopes, velocity with the knot accelerations).
-
-Arrays are knot-major: ``q[k]`` is the configuration at ``t[k]``.
+>>> q = trajectory(0.5)  # (nq,) [rad] at t = 0.5 s  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,18 +1,13 @@
 """Visualisation: meshcat replay, live and as standalone HTML.
 
-The names below are imported on first use, so that ``import youbot_opt`` (and
-``import youbot_opt.viz``) does not import meshcat, zmq and tornado.
+The names are imported on first use, so ``import youbot_opt.viz`` does not
+import meshcat, zmq and tornado. :func:`replay` / :func:`export_html` play
+joint trajectories; :func:`replay_results` / :func:`export_results_html`
+trajectory results; :func:`replay_ikpath` / :func:`export_ikpath_html` IK
+paths; :class:`MeshcatServer` and :func:`connect` the loopback server and its
+client; :func:`load_mesh_file` the mesh policy.
 
-* :func:`replay` plays a trajectory in a live meshcat viewer;
-  :func:`export_html` writes one HTML file that plays it offline.
-* :class:`MeshcatServer` runs a meshcat server bound to 127.0.0.1 and stops it
-  again; :func:`connect` returns a client whose calls time out.
-* :func:`replay_results` and :func:`export_results_html` do the same for one or
-  several :class:`~youbot_opt.trajopt.result.TrajOptResult` objects (side by side or as
-  ghosts), with each result's own time grid.
-* :func:`replay_ikpath` and :func:`export_ikpath_html` do the same for a cyclic IK
-  path (:mod:`youbot_opt.ikpath`), with the targets and the tip's path drawn.
-* :func:`load_mesh_file` applies the mesh policy: which files may be embedded.
+>>> export_results_html([result], "replay.html")  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -8,6 +8,9 @@
 2. Strict XML parsing with every ``DOCTYPE`` and entity refused
    (:mod:`youbot_opt.robot.strict.xml`).
 3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.strict.rules`).
+   Physically implausible inertias (:func:`~youbot_opt.robot.strict.rules.implausible_inertias`)
+   follow :func:`inertia_policy`: on a link welded to the world a warning; on
+   a moving link a refusal, or a warning under ``strict=False``.
 4. Mesh and texture references, including the textures inside ``.dae`` files,
    must resolve to regular files inside ``package_dirs``
    (:mod:`youbot_opt.robot.strict.resources`).
@@ -38,6 +41,7 @@ import contextlib
 import logging
 import os
 import tempfile
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -52,7 +56,10 @@ from youbot_opt.exceptions import (
     RobotNotFound,
     UnsafeURDFError,
     URDFError,
+    YoubotOptWarning,
 )
+from youbot_opt.robot.strict.dynamics_defined import check_dynamics_defined
+from youbot_opt.robot.strict.limits import check_urdf_size
 from youbot_opt.robot.strict.resources import (
     allowed_roots,
     check_mesh,
@@ -61,14 +68,24 @@ from youbot_opt.robot.strict.resources import (
     resolve_reference,
 )
 from youbot_opt.robot.strict.rules import (
+    InertiaFinding,
     check_urdf_tree,
     file_inertia,
     file_limits,
+    implausible_inertias,
     resource_references,
+    welded_links,
 )
 from youbot_opt.robot.strict.xml import Site, fail, parse_xml_strict, root_of, site
 
-__all__ = ["LoadedURDF", "MAX_URDF_BYTES", "load_urdf_strict", "check_urdf_text", "check_model"]
+__all__ = [
+    "LoadedURDF",
+    "MAX_URDF_BYTES",
+    "load_urdf_strict",
+    "check_urdf_text",
+    "check_model",
+    "inertia_policy",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -119,7 +136,11 @@ class LoadedURDF:
 
 
 def _read_and_check(
-    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+    path: str | os.PathLike[str],
+    package_dirs: Sequence[str | os.PathLike[str]],
+    *,
+    strict: bool = True,
+    locked: frozenset[str] = frozenset(),
 ) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
     roots = allowed_roots(package_dirs)
     name = os.fspath(path)
@@ -132,7 +153,9 @@ def _read_and_check(
     except OSError as e:
         raise ModelError(f"cannot read URDF file {name!r}: {e}", path=name) from e
     tree = parse_xml_strict(data, name)
+    check_urdf_size(tree, name)  # before the quadratic rules and Pinocchio's recursive parser
     check_urdf_tree(tree, name)
+    inertia_policy(tree, name, strict=strict, locked=locked)
     references: list[tuple[ET.Element, str, Path]] = []
     resources: list[Path] = []
     for elem, kind, where in resource_references(tree, name):
@@ -391,10 +414,15 @@ def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[
     _check_placements(model, name)
     _check_inertias(model, robot, name)
     _check_mass_matrix(model, name)
+    check_dynamics_defined(model, name)  # RNEA, CRBA, ABA, M^-1 finite (issue 16)
 
 
 def load_urdf_strict(
-    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+    path: str | os.PathLike[str],
+    package_dirs: Sequence[str | os.PathLike[str]],
+    *,
+    strict: bool = True,
+    locked: frozenset[str] = frozenset(),
 ) -> LoadedURDF:
     """Check a URDF file, load it into Pinocchio and check the result.
 
@@ -405,6 +433,11 @@ def load_urdf_strict(
     package_dirs : sequence of path-like
         Folders meshes and textures may come from; ``package://pkg/...``
         resolves to the first ``dir/pkg/...`` that exists.
+    strict : bool
+        Refuse an implausible inertia on a moving link (default); False loads
+        it with a warning (:func:`inertia_policy`).
+    locked : frozenset of str
+        Movable joints the caller will lock: links behind them count as welded.
 
     Returns
     -------
@@ -429,7 +462,7 @@ def load_urdf_strict(
         If a package directory is not an existing folder.
     """
     name = os.fspath(path)
-    tree, references, resources = _read_and_check(path, package_dirs)
+    tree, references, resources = _read_and_check(path, package_dirs, strict=strict, locked=locked)
     for elem, attr, real in references:
         elem.set(attr, os.fspath(real))
     text = ET.tostring(root_of(tree, name), encoding="unicode")
@@ -465,3 +498,104 @@ def load_urdf_strict(
         path=Path(name).absolute(),
         resources=resources,
     )
+
+
+def _merged_into(robot: ET.Element, link: str) -> tuple[str, str]:
+    """Return (link, joint) of the body ``link`` belongs to in the model ('' for the world)."""
+    parent_joint = {
+        j.find("child").get("link", ""): j  # type: ignore[union-attr]
+        for j in robot.findall("joint")
+    }
+    while link in parent_joint and parent_joint[link].get("type") == "fixed":
+        link = parent_joint[link].find("parent").get("link", "")  # type: ignore[union-attr]
+    joint = parent_joint.get(link)
+    return link, ("" if joint is None else joint.get("name", ""))
+
+
+def _finding_text(finding: InertiaFinding) -> str:
+    line = f":{finding.where.line}" if finding.where.line is not None else ""
+    return (
+        f"{finding.where.path}{line}: {finding.where.element}: {finding.problem} "
+        f"[rule: {finding.rule}]"
+    )
+
+
+def _what_it_adds(robot: ET.Element, finding: InertiaFinding, welded: bool) -> str:
+    body, joint = _merged_into(robot, finding.link)
+    inertia = np.array2string(finding.inertia, precision=6, separator=", ").replace("\n", "")
+    adds = f"{finding.mass:g} kg and rotational inertia {inertia} kg m^2 (about its centre of mass)"
+    if welded:
+        return (
+            f"link {finding.link!r} is welded to the world in this fixed-base model, so it "
+            f"changes no result; Pinocchio merges it into the world body (it adds {adds})"
+        )
+    if body == finding.link:
+        return f"link {finding.link!r} is the body of moving joint {joint!r} ({adds})"
+    return (
+        f"link {finding.link!r} hangs on fixed joints from link {body!r}: Pinocchio merges it "
+        f"into the body of moving joint {joint!r}, to which it adds {adds}"
+    )
+
+
+def inertia_policy(
+    tree: ET.ElementTree,
+    path: str | os.PathLike[str],
+    *,
+    strict: bool = True,
+    locked: frozenset[str] = frozenset(),
+) -> tuple[InertiaFinding, ...]:
+    """Warn about or refuse the physically implausible inertias of a checked file.
+
+    An implausible inertia (a massless link with inertia, a non positive
+    semidefinite inertia, principal moments breaking the triangle inequality)
+    on a link welded to the world (fixed joints, or joints in ``locked``, up to
+    the root) cannot change a fixed-base result: a :class:`YoubotOptWarning`.
+    On a moving link it enters ``M(q)``: refused unless ``strict`` is False,
+    then a warning. Each message names file, element (the link), line and rule,
+    and what Pinocchio adds to the body the link is merged into.
+
+    Parameters
+    ----------
+    tree : xml.etree.ElementTree.ElementTree
+        A file that passed :func:`~youbot_opt.robot.strict.rules.check_urdf_tree`.
+    path : path-like
+        The file, for messages.
+    strict : bool
+        Refuse implausible inertias on moving links (default).
+    locked : frozenset of str
+        Movable joints that will be locked.
+
+    Returns
+    -------
+    tuple of InertiaFinding
+        The implausible inertias that were accepted (each with a warning).
+
+    Raises
+    ------
+    InvalidModelError
+        ``strict`` and an implausible inertia on a moving link; the message
+        says how to load it anyway.
+    """
+    name = os.fspath(path)
+    findings = implausible_inertias(tree, name)
+    if not findings:
+        return ()
+    robot = root_of(tree, name)
+    welded = welded_links(tree, name, locked)
+    for finding in findings:
+        on_world = finding.link in welded
+        effect = _what_it_adds(robot, finding, on_world)
+        if not on_world and strict:
+            problem = (
+                f"{finding.problem}; {effect}, so it enters M(q). To load it anyway, with a "
+                "warning, pass strict=False to load_model (command line: --lenient), or lock "
+                "the joints it moves with"
+            )
+            raise fail(InvalidModelError, finding.where, problem, finding.rule)
+        why = "" if on_world else "loaded because strict=False (--lenient), though it enters M(q): "
+        warnings.warn(
+            f"{_finding_text(finding)}; {why}{effect}",
+            YoubotOptWarning,
+            stacklevel=2,
+        )
+    return findings

@@ -208,7 +208,7 @@ def resolve_reference(
             f"{ref!r} resolves to {os.fspath(real)!r}, outside {[os.fspath(r) for r in roots]}"
         )
         raise fail(UnsafePathError, where, problem, PATH_RULE)
-    if not real.exists():
+    if not os.path.exists(real):  # False, not OSError, for a name too long (issue 16 fuzzing)
         problem = f"{ref!r} resolves to {os.fspath(real)!r}, which does not exist"
         raise fail(ResourceNotFoundError, where, problem, "referenced files exist")
     info = real.stat()

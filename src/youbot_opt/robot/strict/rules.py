@@ -5,18 +5,24 @@ a ``<robot name=...>`` root, at least one link, unique link and joint names,
 known joint types, parent and child links that exist, one root link and no
 loops, the elements URDF parsers require (``<mass>`` and ``<inertia>`` in an
 ``<inertial>``, a ``<limit>`` on revolute and prismatic joints, one shape in a
-``<geometry>``), and numbers that are finite decimals.
+``<geometry>``), numbers that are finite decimals, and mimic relations that
+follow a movable joint directly (:func:`check_mimic_graph`: no chain or cycle).
 
 Physical rules (``m`` mass, ``I`` rotational inertia at the centre of mass):
 
-* ``m >= 0``; a link with ``m = 0`` must have ``I = 0`` (no mass, no inertia).
-* ``m > 0``: the principal moments ``I1 <= I2 <= I3`` must be ``>= 0`` and obey
-  the triangle inequality ``I1 + I2 >= I3``: together these say that some mass
-  distribution has this inertia (its pseudo-inertia matrix is positive
-  semidefinite; Wensing, Kim and Slotine, IEEE RA-L 3(1), 2018). Point masses
-  and thin rods (semidefinite ``I``) are accepted: they are limits of real
-  bodies and common at sensor and tool links. Whether the dynamics are
-  defined is checked on the loaded model (:func:`youbot_opt.robot.strict.loader.check_model`).
+* ``m >= 0`` (raises).
+* Plausibility, reported by :func:`implausible_inertias` (the loader warns or
+  refuses, see :mod:`youbot_opt.robot.strict.loader`): a link with ``m = 0``
+  has ``I = 0``; for ``m > 0`` the principal moments ``I1 <= I2 <= I3`` are
+  ``>= 0`` and obey the triangle inequality ``I1 + I2 >= I3``: together these
+  say that some mass distribution has this inertia (its pseudo-inertia matrix
+  is positive semidefinite; Wensing, Kim and Slotine, IEEE RA-L 3(1), 2018).
+  Point masses and thin rods (semidefinite ``I``) are plausible: they are
+  limits of real bodies and common at sensor and tool links.
+  :func:`welded_links` names the links that cannot move in the fixed-base
+  model, where such an inertia cannot change any result. Whether the
+  dynamics are defined is checked on the loaded model
+  (:func:`youbot_opt.robot.strict.loader.check_model`).
 * Movable joints have a non-zero axis; a ``<limit>`` has ``lower <= upper``,
   ``velocity >= 0`` and ``effort >= 0``; damping and friction are ``>= 0``;
   box, cylinder and sphere sizes are ``> 0``; mesh scales are non-zero.
@@ -36,15 +42,27 @@ from typing import NamedTuple
 import numpy as np
 
 from youbot_opt.exceptions import InvalidModelError, URDFStructureError
-from youbot_opt.robot.strict.xml import NUMBER_RULE, Site, fail, parse_number, root_of, site
+from youbot_opt.robot.strict.xml import (
+    NUMBER_RULE,
+    Site,
+    fail,
+    parse_number,
+    root_of,
+    shorten,
+    site,
+)
 
 __all__ = [
     "JOINT_TYPES",
     "FileLimits",
+    "InertiaFinding",
+    "check_mimic_graph",
     "check_urdf_tree",
     "file_inertia",
     "file_limits",
+    "implausible_inertias",
     "resource_references",
+    "welded_links",
 ]
 
 #: Joint types of the URDF specification (all supported by Pinocchio).
@@ -106,7 +124,8 @@ def _numbers(
         raise _broken(where, f"attribute {attr!r} is missing", f"<{elem.tag}> has {attr!r}")
     parts = text.split()
     if len(parts) != count:
-        raise _invalid(where, f"{attr}={text!r} has {len(parts)} numbers, not {count}", NUMBER_RULE)
+        problem = f"{attr}={shorten(text)} has {len(parts)} numbers, not {count}"
+        raise _invalid(where, problem, NUMBER_RULE)
     return tuple(parse_number(p, where, attr) for p in parts)
 
 
@@ -136,21 +155,7 @@ def _check_inertial(inertial: ET.Element, path: str, owner: str) -> None:
         raise _invalid(site(path, mass_elem, owner), f"mass {mass} kg is negative", "mass >= 0")
     iw = site(path, inertia_elem, owner)
     ixx, ixy, ixz, iyy, iyz, izz = (_numbers(inertia_elem, k, 1, iw)[0] for k in _INERTIA_KEYS)
-    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    if mass == 0:
-        if np.any(inertia != 0):
-            raise _invalid(
-                iw, "a massless link has non-zero inertia", "mass = 0 implies inertia = 0"
-            )
-        return
-    moments = np.linalg.eigvalsh(inertia)  # ascending principal moments [kg m^2]
-    tol = _INERTIA_RTOL * abs(float(np.trace(inertia))) + _INERTIA_ATOL
-    if moments[0] < -tol:
-        problem = f"principal moments {moments.tolist()} kg m^2 include a negative one"
-        raise _invalid(iw, problem, "inertia is positive semidefinite")
-    if moments[0] + moments[1] < moments[2] - tol:
-        problem = f"principal moments {moments.tolist()} kg m^2 violate I1 + I2 >= I3"
-        raise _invalid(iw, problem, "principal moments obey the triangle inequality")
+    del ixx, ixy, ixz, iyy, iyz, izz  # read to check the numbers; plausibility: below
 
 
 def _check_geometry(parent: ET.Element, path: str, owner: str) -> None:
@@ -318,6 +323,7 @@ def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
     for material in robot.findall("material"):
         _check_material(material, path, "robot")
     _check_tree(links, joints, path)
+    check_mimic_graph(joints, path)
 
 
 def _owner(elem: ET.Element) -> str:
@@ -477,9 +483,11 @@ def file_inertia(
     ixx, ixy, ixz, iyy, iyz, izz = (
         parse_number(inertia_elem.get(k), where, k) for k in _INERTIA_KEYS
     )
-    if mass == 0:  # no inertia either (rule above): adds nothing, wherever it is
-        return np.zeros((6, 6))
     axes = rotation @ _rotation_rpy(_vector(origin, "rpy", where))
+    if mass == 0:  # Pinocchio keeps a massless body's rotational inertia, wherever it is
+        out = np.zeros((6, 6))
+        out[3:, 3:] = axes @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ axes.T
+        return out
     with np.errstate(over="ignore", invalid="ignore"):  # huge origins: the caller reports
         com = rotation @ _vector(origin, "xyz", where) + translation
         i_com = axes @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ axes.T
@@ -487,3 +495,170 @@ def file_inertia(
         return np.block(
             [[mass * np.eye(3), -mass * cross], [mass * cross, i_com - mass * cross @ cross]]
         )
+
+
+class InertiaFinding(NamedTuple):
+    """A physically implausible ``<inertial>`` (it breaks a plausibility rule).
+
+    Attributes
+    ----------
+    link : str
+        Name of the link.
+    where : Site
+        Its ``<inertia>`` element (file, element, line), for messages.
+    problem : str
+        What is wrong, with the values.
+    rule : str
+        The rule, in words.
+    mass : float
+        The link's mass in [kg].
+    inertia : ndarray, shape (3, 3)
+        Its rotational inertia at the centre of mass, in [kg m^2] (``<inertia>`` axes).
+    """
+
+    link: str
+    where: Site
+    problem: str
+    rule: str
+    mass: float
+    inertia: np.ndarray
+
+
+def _plausibility(mass: float, inertia: np.ndarray) -> tuple[str, str] | None:
+    """Return ``(problem, rule)`` for an implausible mass and inertia, else None."""
+    if mass == 0:
+        if np.any(inertia != 0):
+            return "a massless link has non-zero inertia", "mass = 0 implies inertia = 0"
+        return None
+    moments = np.linalg.eigvalsh(inertia)  # ascending principal moments [kg m^2]
+    tol = _INERTIA_RTOL * abs(float(np.trace(inertia))) + _INERTIA_ATOL
+    if moments[0] < -tol:
+        problem = f"principal moments {moments.tolist()} kg m^2 include a negative one"
+        return problem, "inertia is positive semidefinite"
+    if moments[0] + moments[1] < moments[2] - tol:
+        problem = f"principal moments {moments.tolist()} kg m^2 violate I1 + I2 >= I3"
+        return problem, "principal moments obey the triangle inequality"
+    return None
+
+
+def implausible_inertias(tree: ET.ElementTree, path: str) -> tuple[InertiaFinding, ...]:
+    """Return every link whose ``<inertial>`` breaks a plausibility rule.
+
+    Parameters
+    ----------
+    tree : xml.etree.ElementTree.ElementTree
+        A tree that passed :func:`check_urdf_tree`.
+    path : str
+        Its file, for messages.
+
+    Returns
+    -------
+    tuple of InertiaFinding
+        In document order; empty when every inertia is plausible (module docstring).
+    """
+    found = []
+    for link in root_of(tree, path).findall("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        owner = f"link {link.get('name')!r}"
+        mass_elem, inertia_elem = inertial.find("mass"), inertial.find("inertia")
+        assert mass_elem is not None and inertia_elem is not None  # checked by the tree rules
+        where = site(path, inertia_elem, owner)
+        mass = parse_number(mass_elem.get("value"), where, "value")
+        ixx, ixy, ixz, iyy, iyz, izz = (
+            parse_number(inertia_elem.get(k), where, k) for k in _INERTIA_KEYS
+        )
+        inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        verdict = _plausibility(mass, inertia)
+        if verdict is not None:
+            found.append(InertiaFinding(link.get("name", ""), where, *verdict, mass, inertia))
+    return tuple(found)
+
+
+def welded_links(
+    tree: ET.ElementTree, path: str, locked: frozenset[str] = frozenset()
+) -> frozenset[str]:
+    """Return the links that cannot move in the fixed-base model.
+
+    A link is welded to the world when every joint between it and the root
+    link is ``fixed`` or named in ``locked``.
+
+    Parameters
+    ----------
+    tree : xml.etree.ElementTree.ElementTree
+        A tree that passed :func:`check_urdf_tree` (one root, no loops).
+    path : str
+        Its file, for messages.
+    locked : frozenset of str
+        Movable joints that will be locked (they count as fixed).
+
+    Returns
+    -------
+    frozenset of str
+        Names of the welded links, the root link included.
+    """
+    robot = root_of(tree, path)
+    parent_of: dict[str, tuple[str, bool]] = {}  # child -> (parent, joint is rigid)
+    for joint in robot.findall("joint"):
+        parent, child = joint.find("parent"), joint.find("child")
+        assert parent is not None and child is not None  # checked by the tree rules
+        rigid = joint.get("type") == "fixed" or joint.get("name") in locked
+        parent_of[child.get("link", "")] = (parent.get("link", ""), rigid)
+    welded: set[str] = set()
+    for link in robot.findall("link"):
+        name, chain = link.get("name", ""), []
+        while name in parent_of and parent_of[name][1] and name not in welded:
+            chain.append(name)
+            name = parent_of[name][0]
+        if name in welded or name not in parent_of:  # reached the root through rigid joints
+            welded.update(chain)
+            welded.add(name)
+    return frozenset(welded)
+
+
+def check_mimic_graph(joints: dict[str, ET.Element], path: str) -> None:
+    """Refuse mimic relations that do not define each mimic joint by a free joint.
+
+    A ``<mimic joint="j">`` must name a defined, movable joint that does not
+    itself mimic another: chains (a mimics b, b mimics c) and cycles (a mimics
+    b, b mimics a) would otherwise load as independent joints.
+
+    Parameters
+    ----------
+    joints : dict of str to Element
+        The ``<joint>`` elements by name (unique names, checked).
+    path : str
+        The file, for error messages.
+
+    Raises
+    ------
+    URDFStructureError
+        Naming the joints of the unknown target, chain or cycle.
+    """
+    target = {
+        name: mimic.get("joint", "")
+        for name, joint in joints.items()
+        if (mimic := joint.find("mimic")) is not None
+    }
+    rule = "a mimic joint follows a defined movable joint that mimics no other (no chain or cycle)"
+    for name, mimicked in target.items():
+        mimic = joints[name].find("mimic")
+        assert mimic is not None  # a key of target
+        mimic_site = site(path, mimic, f"joint {shorten(name)}")
+        if mimicked not in joints or mimicked == name:
+            raise _broken(mimic_site, f"mimics {shorten(mimicked)}, not another joint", rule)
+        if joints[mimicked].get("type") == "fixed":
+            raise _broken(mimic_site, f"mimics the fixed joint {shorten(mimicked)}", rule)
+        if mimicked not in target:
+            continue
+        path_of, link = [name], mimicked
+        while link in target and link not in path_of:
+            path_of.append(link)
+            link = target[link]
+        if link in path_of:
+            cycle = " -> ".join(shorten(j) for j in [*path_of[path_of.index(link) :], link])
+            raise _broken(mimic_site, f"is part of the mimic cycle {cycle}", rule)
+        chain = " -> ".join(shorten(j) for j in [*path_of, link])
+        problem = f"mimics {shorten(mimicked)}, which mimics another joint: the chain {chain}"
+        raise _broken(mimic_site, problem, rule)

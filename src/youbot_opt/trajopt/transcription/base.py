@@ -37,14 +37,24 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import TranscriptionError
+from youbot_opt.exceptions import ParameterError, TranscriptionError
 from youbot_opt.trajopt.objectives import QuadratureRule, duration, quadrature_weights
 from youbot_opt.trajopt.trajectory import Interpolation, Trajectory
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
 
-__all__ = ["Block", "Layout", "TranscribedNLP", "Transcription", "Expressions", "BOUND_NAMES"]
+__all__ = [
+    "Block",
+    "Layout",
+    "TranscribedNLP",
+    "Transcription",
+    "Expressions",
+    "BOUND_NAMES",
+    "check_fractions",
+    "grid_times",
+    "step_ratios",
+]
 
 BOUND_NAMES: dict[str, str] = {
     "q": "position",
@@ -232,16 +242,81 @@ class TranscribedNLP:
 
 
 class Transcription(ABC):
-    """Strategy turning a :class:`TrajOptProblem` into a :class:`TranscribedNLP`."""
+    """Strategy turning a :class:`TrajOptProblem` into a :class:`TranscribedNLP`.
+
+    Parameters
+    ----------
+    fractions : array_like, optional
+        The grid: interval ``k`` lasts ``fractions[k] * T`` of the free (or
+        fixed) duration ``T``; ``N - 1`` positive numbers summing to 1
+        (normalised here). ``None`` (default) is the uniform grid, whose NLP is
+        the original one expression for expression. The decision variable
+        ``dt`` is the *mean* step ``T / (N - 1)`` on any grid, interval ``k``
+        lasting ``r_k dt`` with the step ratios ``r = (N - 1) fractions``.
+    """
 
     name: ClassVar[str]
     interpolation: ClassVar[Interpolation]
     rule: ClassVar[QuadratureRule]
     unbounded: ClassVar[tuple[str, ...]] = ()
     """Variable blocks without bounds of their own (implied by path constraints)."""
+    fractions: Array | None = None
+    """The grid's interval fractions (``None``: uniform; also for subclasses that
+    define their own ``__init__``)."""
+
+    def __init__(self, fractions: Any = None) -> None:
+        self.fractions: Array | None = None if fractions is None else check_fractions(fractions)
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}()"
+        if self.fractions is None:
+            return f"{type(self).__name__}()"
+        return f"{type(self).__name__}(fractions=<{self.fractions.size} intervals>)"
+
+    @property
+    def uniform(self) -> bool:
+        """Whether the grid is uniform (no ``fractions`` given)."""
+        return self.fractions is None
+
+    def with_fractions(self, fractions: Any) -> Transcription:
+        """Return the same scheme on another grid (``None``: uniform)."""
+        return type(self)(fractions)
+
+    def ratios(self, n_knots: int) -> Array:
+        """Step ratios ``r_k = h_k / mean(h)``, shape ``(n_knots - 1,)`` (ones if uniform)."""
+        return step_ratios(self.fractions, n_knots)
+
+    def steps(self, dt: Any, n_knots: int) -> Any:
+        """Interval steps ``h_k = r_k dt`` as a ``1 x (N - 1)`` row (``dt`` itself if uniform)."""
+        if self.fractions is None:
+            return dt
+        return dt * ca.DM(self.ratios(n_knots)).T
+
+    def per_interval(self, expr: Any, dt: Any) -> Any:
+        """``expr`` (``nv x (N - 1)``) with column ``k`` times ``h_k = r_k dt``."""
+        if self.fractions is None:
+            return dt * expr
+        return dt * ca.mtimes(expr, ca.diag(ca.DM(self.ratios(expr.size2() + 1))))
+
+    def knot_times(self, guess: Trajectory, n_knots: int) -> tuple[float, Array]:
+        """Mean step [s] and the ``n_knots`` grid times spanning ``guess``."""
+        if self.fractions is None:
+            return uniform_times(guess, n_knots)
+        self.ratios(n_knots)  # checks the size
+        return grid_times(guess, self.fractions)
+
+    def solution_times(self, dt: float, n_knots: int) -> Array:
+        """Knot times [s] of a solution with mean step ``dt`` [s], starting at 0."""
+        if self.fractions is None:
+            return np.arange(n_knots, dtype=np.float64) * np.float64(dt)
+        return np.concatenate(([0.0], np.cumsum(dt * self.ratios(n_knots))))
+
+    def check_size(self, n_knots: int) -> None:
+        """Raise :class:`TranscriptionError` unless the grid has ``n_knots - 1`` intervals."""
+        if self.fractions is not None and self.fractions.size != n_knots - 1:
+            raise TranscriptionError(
+                f"the grid has {self.fractions.size} intervals but the problem has "
+                f"{n_knots} knots ({n_knots - 1} intervals)"
+            )
 
     @abstractmethod
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
@@ -310,6 +385,7 @@ class Transcription(ABC):
             If the dynamics Function does not match the robot's size.
         """
         nv, n = problem.nv, problem.n_knots
+        self.check_size(n)
         if forward_dynamics.n_in() != 3 or any(
             forward_dynamics.size1_in(i) != nv for i in range(3)
         ):
@@ -366,7 +442,7 @@ class Transcription(ABC):
         g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
         constraints = Layout([(name, nv, expr.size2()) for name, expr in g_blocks])
         dt = sym["dt"]
-        w_knots, w_mid = quadrature_weights(self.rule, n)
+        w_knots, w_mid = self.quadrature(n)
         work = ca.mtimes(ca.sum1(sym["tau"] ** 2), ca.DM(w_knots))
         if w_mid is not None:
             work += ca.mtimes(ca.sum1(sym["tau_mid"] ** 2), ca.DM(w_mid))
@@ -381,6 +457,72 @@ class Transcription(ABC):
             constraints=constraints,
             path_bounds={name: family for name, family, _ in path},
         )
+
+    def quadrature(self, n_knots: int) -> tuple[Array, Array | None]:
+        """Work weights ``(w_knots, w_mid)`` with ``W = dt (w_knots . p + w_mid . p_mid)``.
+
+        The uniform grid uses :func:`~youbot_opt.trajopt.objectives.quadrature_weights`;
+        another grid weights each interval by its step ratio ``r_k``.
+        """
+        if self.fractions is None:
+            return quadrature_weights(self.rule, n_knots)
+        return grid_weights(self.rule, self.ratios(n_knots))
+
+
+def grid_weights(rule: QuadratureRule, ratios: Array) -> tuple[Array, Array | None]:
+    """Quadrature weights (in units of the mean step) on intervals of step ratios ``ratios``."""
+    r = np.asarray(ratios, dtype=float)
+    w = np.zeros(r.size + 1)
+    w[:-1] += 0.5 * r
+    w[1:] += 0.5 * r
+    if rule == "trapezoidal":
+        return w, None
+    if rule == "simpson":
+        return w / 3.0, 4.0 / 6.0 * r
+    raise ParameterError(
+        f"rule must be 'trapezoidal' or 'simpson', got {rule!r}", name="rule", value=rule
+    )
+
+
+def check_fractions(fractions: Any) -> Array:
+    """Validate a grid: positive finite interval fractions, normalised to sum 1.
+
+    Raises
+    ------
+    ParameterError
+        If ``fractions`` is not a 1-D array of at least one positive finite number.
+    """
+    arr = np.array(fractions, dtype=float).ravel()
+    if arr.size < 1 or not np.all(np.isfinite(arr)) or not np.all(arr > 0.0):
+        raise ParameterError(
+            "fractions must be one or more finite numbers > 0 (each interval's share of T), "
+            f"got {np.array2string(arr, threshold=8)}",
+            name="fractions",
+        )
+    arr = arr / arr.sum()
+    arr.setflags(write=False)
+    return arr
+
+
+def step_ratios(fractions: Array | None, n_knots: int) -> Array:
+    """Step ratios ``r = (N - 1) fractions`` (ones for the uniform grid ``None``)."""
+    if fractions is None:
+        return np.ones(n_knots - 1)
+    if fractions.size != n_knots - 1:
+        raise TranscriptionError(
+            f"the grid has {fractions.size} intervals but there are {n_knots} knots"
+        )
+    return (n_knots - 1) * np.asarray(fractions, dtype=float)
+
+
+def grid_times(guess: Trajectory, fractions: Array) -> tuple[float, Array]:
+    """Mean step [s] and the grid times ``t_0 + T * cumsum(fractions)`` spanning ``guess``."""
+    total = guess.duration
+    if not math.isfinite(total) or total <= 0.0:
+        raise TranscriptionError(f"guess duration must be > 0 [s], got {total}")
+    edges = np.concatenate(([0.0], np.cumsum(fractions)))
+    edges[-1] = 1.0
+    return total / fractions.size, guess.t[0] + total * edges
 
 
 class Expressions(NamedTuple):

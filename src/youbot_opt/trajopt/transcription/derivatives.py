@@ -116,17 +116,18 @@ def dynamics_kernels(forward_dynamics: ca.Function) -> Kernels:
     )
 
 
-def compile_kernels(kernels: Kernels) -> Kernels:
+def compile_kernels(kernels: Kernels, *, wait: bool = True, label: str | None = None) -> Kernels:
     """Compile the kernels to C, cached on disk (:func:`youbot_opt.nlp.codegen.compile_function`).
 
     Returns ``kernels`` itself (the same object, after the codegen warning) if
-    any kernel cannot be compiled. The compiled Functions have no derivatives
-    of their own, so pass the SX kernels as ``values`` to
-    :func:`structured_functions`.
+    any kernel cannot be compiled, or is not cached yet and ``wait`` is False
+    (then it compiles in the background for the next build; ``label`` names it
+    in the log). The compiled Functions have no derivatives of their own, so
+    pass the SX kernels as ``values`` to :func:`structured_functions`.
     """
     from youbot_opt.nlp.codegen import compile_function
 
-    compiled = Kernels(*(compile_function(k) for k in kernels))
+    compiled = Kernels(*(compile_function(k, wait=wait, label=label) for k in kernels))
     if any(c is k for c, k in zip(compiled, kernels, strict=True)):
         return kernels
     return compiled

@@ -43,6 +43,17 @@ from the curve), which vanishes as knots are added. The midpoint-velocity
 bound is implied (``v_m = (b_0 + 3 b_1 + 3 b_2 + b_3) / 8``) and would make the
 active constraints linearly dependent on a speed-limited arc, so ``v_mid``
 has no bound of its own.
+
+**Position bound between knots.** The position interpolant is the cubic
+Hermite spline with end values ``q_k, q_{k+1}`` and end slopes ``v_k, v_{k+1}``
+(its midpoint value is ``q_m`` by the Hermite midpoint condition). The same
+argument applies: its Bernstein control points ``q_k + dt/3 v_k`` and
+``q_{k+1} - dt/3 v_{k+1}`` are held within the position bounds (path blocks
+``position_control_left`` / ``position_control_right``), so the whole cubic
+stays within them, and ``q_mid`` (a convex combination of the four control
+points) has no bound of its own. The mid-interval torque ``tau_mid`` keeps
+its variable bound; the quadratic torque between the three samples is
+checked by the certificate (:func:`youbot_opt.trajopt.certify.check_bounds`).
 """
 
 from __future__ import annotations
@@ -53,7 +64,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.trajopt.trajectory import Trajectory
-from youbot_opt.trajopt.transcription.base import Transcription, uniform_times
+from youbot_opt.trajopt.transcription.base import Transcription
 
 __all__ = ["HermiteSimpsonCollocation"]
 
@@ -64,7 +75,7 @@ class HermiteSimpsonCollocation(Transcription):
     name = "hermite_simpson"
     interpolation = "hermite_simpson"
     rule = "simpson"
-    unbounded = ("v_mid",)
+    unbounded = ("q_mid", "v_mid")
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """Knot and midpoint ``q, v, tau`` and ``dt``: ``3 nv (2N - 1) + 1`` variables."""
@@ -92,10 +103,16 @@ class HermiteSimpsonCollocation(Transcription):
         qm, vm = sym["q_mid"], sym["v_mid"]
         a, am = accel["knots"], accel["midpoints"]
         q0, q1, v0, v1, a0, a1 = q[:, :-1], q[:, 1:], v[:, :-1], v[:, 1:], a[:, :-1], a[:, 1:]
-        defect_q = q1 - q0 - dt / 6 * (v0 + 4 * vm + v1)
-        defect_v = v1 - v0 - dt / 6 * (a0 + 4 * am + a1)
-        mid_q = qm - 0.5 * (q0 + q1) - dt / 8 * (v0 - v1)
-        mid_v = vm - 0.5 * (v0 + v1) - dt / 8 * (a0 - a1)
+        if self.uniform:  # the original expressions, operation for operation
+            defect_q = q1 - q0 - dt / 6 * (v0 + 4 * vm + v1)
+            defect_v = v1 - v0 - dt / 6 * (a0 + 4 * am + a1)
+            mid_q = qm - 0.5 * (q0 + q1) - dt / 8 * (v0 - v1)
+            mid_v = vm - 0.5 * (v0 + v1) - dt / 8 * (a0 - a1)
+        else:
+            defect_q = q1 - q0 - self.per_interval(v0 + 4 * vm + v1, dt) / 6
+            defect_v = v1 - v0 - self.per_interval(a0 + 4 * am + a1, dt) / 6
+            mid_q = qm - 0.5 * (q0 + q1) - self.per_interval(v0 - v1, dt) / 8
+            mid_v = vm - 0.5 * (v0 + v1) - self.per_interval(a0 - a1, dt) / 8
         return [
             ("defect_position", defect_q),
             ("defect_velocity", defect_v),
@@ -108,14 +125,28 @@ class HermiteSimpsonCollocation(Transcription):
     ) -> list[tuple[str, str, Any]]:
         """Bound the inner Bernstein control points of each interval's velocity cubic."""
         v, dt, a = sym["v"], sym["dt"], accel["knots"]
-        left = v[:, :-1] + dt / 3 * a[:, :-1]
-        right = v[:, 1:] - dt / 3 * a[:, 1:]
-        return [("velocity_control_left", "v", left), ("velocity_control_right", "v", right)]
+        q = sym["q"]
+        if self.uniform:
+            left = v[:, :-1] + dt / 3 * a[:, :-1]
+            right = v[:, 1:] - dt / 3 * a[:, 1:]
+            q_left = q[:, :-1] + dt / 3 * v[:, :-1]
+            q_right = q[:, 1:] - dt / 3 * v[:, 1:]
+        else:
+            left = v[:, :-1] + self.per_interval(a[:, :-1], dt) / 3
+            right = v[:, 1:] - self.per_interval(a[:, 1:], dt) / 3
+            q_left = q[:, :-1] + self.per_interval(v[:, :-1], dt) / 3
+            q_right = q[:, 1:] - self.per_interval(v[:, 1:], dt) / 3
+        return [
+            ("velocity_control_left", "v", left),
+            ("velocity_control_right", "v", right),
+            ("position_control_left", "q", q_left),
+            ("position_control_right", "q", q_right),
+        ]
 
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
-        """Knot and midpoint values of ``guess`` on ``n_knots`` uniform times."""
-        dt, t = uniform_times(guess, n_knots)
-        tm = t[:-1] + 0.5 * dt
+        """Knot and midpoint values of ``guess`` on the grid's ``n_knots`` times."""
+        dt, t = self.knot_times(guess, n_knots)
+        tm = t[:-1] + 0.5 * dt if self.uniform else 0.5 * (t[:-1] + t[1:])
         return {
             "q": guess(t),
             "v": guess.velocity(t),
@@ -131,7 +162,7 @@ class HermiteSimpsonCollocation(Transcription):
         dt = float(values["dt"].ravel()[0])
         n = values["q"].shape[0]
         return Trajectory(
-            t=np.arange(n, dtype=np.float64) * np.float64(dt),
+            t=self.solution_times(dt, n),
             q=values["q"],
             v=values["v"],
             a=a,

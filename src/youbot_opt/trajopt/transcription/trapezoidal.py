@@ -1,7 +1,8 @@
 r"""Trapezoidal direct collocation: the study's transcription, done correctly.
 
 For ``N`` knots with a common step ``dt`` (Betts, *Practical Methods for
-Optimal Control*, sec. 4.5; spec ``trajopt.md``) the decision variables are
+Optimal Control*, sec. 4.5; spec ``trajopt.md``; on a non-uniform grid interval
+``k`` has the step ``r_k dt``, see ``Transcription``) the decision variables are
 ``q_k, v_k, tau_k`` (``k = 0 .. N-1``) and ``dt`` -- ``3 nv N + 1`` numbers, the
 study's ``9n + 1`` for the 3-joint youBot -- and the defects are
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.trajopt.trajectory import Trajectory
-from youbot_opt.trajopt.transcription.base import Transcription, uniform_times
+from youbot_opt.trajopt.transcription.base import Transcription
 
 __all__ = ["TrapezoidalCollocation"]
 
@@ -50,13 +51,17 @@ class TrapezoidalCollocation(Transcription):
         """Position and velocity defects, ``(nv, N - 1)`` each."""
         q, v, dt = sym["q"], sym["v"], sym["dt"]
         a = accel["knots"]
-        defect_q = q[:, 1:] - q[:, :-1] - 0.5 * dt * (v[:, 1:] + v[:, :-1])
-        defect_v = v[:, 1:] - v[:, :-1] - 0.5 * dt * (a[:, 1:] + a[:, :-1])
+        if self.uniform:  # the original expressions, operation for operation
+            defect_q = q[:, 1:] - q[:, :-1] - 0.5 * dt * (v[:, 1:] + v[:, :-1])
+            defect_v = v[:, 1:] - v[:, :-1] - 0.5 * dt * (a[:, 1:] + a[:, :-1])
+        else:
+            defect_q = q[:, 1:] - q[:, :-1] - 0.5 * self.per_interval(v[:, 1:] + v[:, :-1], dt)
+            defect_v = v[:, 1:] - v[:, :-1] - 0.5 * self.per_interval(a[:, 1:] + a[:, :-1], dt)
         return [("defect_position", defect_q), ("defect_velocity", defect_v)]
 
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
-        """Knot values of ``guess`` resampled on ``n_knots`` uniform times."""
-        dt, t = uniform_times(guess, n_knots)
+        """Knot values of ``guess`` resampled on the grid's ``n_knots`` times."""
+        dt, t = self.knot_times(guess, n_knots)
         return {"q": guess(t), "v": guess.velocity(t), "tau": guess.torque(t), "dt": np.array(dt)}
 
     def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
@@ -64,7 +69,7 @@ class TrapezoidalCollocation(Transcription):
         dt = float(values["dt"].ravel()[0])
         n = values["q"].shape[0]
         return Trajectory(
-            t=np.arange(n, dtype=np.float64) * np.float64(dt),
+            t=self.solution_times(dt, n),
             q=values["q"],
             v=values["v"],
             a=a,

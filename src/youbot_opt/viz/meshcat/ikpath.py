@@ -1,20 +1,13 @@
 """Meshcat replay of IK-path results: live, or as one standalone HTML file.
 
-An :class:`~youbot_opt.ikpath.result.IKPathResult` is replayed as the cyclic
-joint path through its configurations: configuration ``j`` is shown at time
-``t_j = j * segment_time`` [s], the first configuration again at
-``s * segment_time`` (the cycle closes), and between two targets the joints
-move **linearly in joint space** (``pin.interpolate`` of the chain's revolute
-joints is linear), the motion whose squared length ``E`` sums. The tip path
-is drawn as a line, the targets are marked (red spheres of a size relative to
-the arm, part of the scene's robot, plus the viewer's own target markers).
-Other results of the same problem (e.g. the distinct minima of a multistart)
-can be overlaid as translucent ghosts.
+Turns an :class:`~youbot_opt.ikpath.result.IKPathResult` into the robot, time
+grid and configurations that :func:`~youbot_opt.viz.replay` and
+:func:`~youbot_opt.viz.export_html` draw: the cyclic path, linear in joint
+space between targets, with the targets and the tip path marked and other
+minima as ghosts; spatial results replay on the robot's own visuals
+(:func:`export_spatial_ikpath_html`). Conventions: docs/design.md, "Module notes".
 
-The drawing itself is :mod:`youbot_opt.viz` (:func:`~youbot_opt.viz.replay`,
-:func:`~youbot_opt.viz.export_html`); this module turns a result into the
-robot, the time grid and the configurations those functions take. The chain
-lies in the z = 0 plane of the viewer (its x-y plane is the study's plane).
+>>> export_ikpath_html(result, "path.html", segment_time=1.0)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -27,15 +20,18 @@ from typing import TYPE_CHECKING, Any, cast
 import coal
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.result import IKPathResult
+from youbot_opt.ikpath.spatial import SpatialIKResult
 
 if TYPE_CHECKING:
     import meshcat
 
     from youbot_opt.viz.meshcat.scene import RobotLike
+    from youbot_opt.viz.meshcat.server import MeshcatServer
 
 __all__ = [
     "ReplayRobot",
@@ -44,6 +40,10 @@ __all__ = [
     "replay_targets",
     "replay_ikpath",
     "export_ikpath_html",
+    "spatial_replay_robot",
+    "spatial_replay_track",
+    "replay_spatial_ikpath",
+    "export_spatial_ikpath_html",
 ]
 
 _TARGET_RGBA = np.array([0.84, 0.15, 0.16, 1.0])
@@ -173,7 +173,7 @@ def _ghosts(
 def replay_ikpath(
     result: IKPathResult,
     *,
-    viewer: Any = None,
+    viewer: meshcat.Visualizer | MeshcatServer | str | None = None,
     segment_time: float = 1.0,
     others: Sequence[IKPathResult] = (),
     realtime: bool = False,
@@ -260,4 +260,138 @@ def export_ikpath_html(
         frame_path="ikpath",
         targets=replay_targets(result),
         ghosts=_ghosts(result, others, segment_time),
+    )
+
+
+def _marker(name: str, placement: pin.SE3, shape: Any, rgba: ArrayLike) -> pin.GeometryObject:
+    obj = pin.GeometryObject(name, 0, placement, shape)
+    obj.meshColor = np.asarray(rgba, dtype=float)
+    return obj
+
+
+def spatial_replay_robot(
+    result: SpatialIKResult, robot: RobotLike, size: float = 0.05
+) -> ReplayRobot:
+    """Return the loaded ``robot`` (its visuals) with the targets of ``result`` as markers.
+
+    Parameters
+    ----------
+    result : SpatialIKResult
+        The path; its problem's model must be ``robot.model`` (same joints).
+    robot : RobotLike
+        E.g. ``load_model("ur5")``.
+    size : float
+        Marker size in [m]: sphere radius / 2, triad arm length.
+
+    Raises
+    ------
+    ParameterError
+        If the robot's model has another configuration size than the problem's.
+    """
+    problem = result.problem
+    if robot.model.nq != problem.model.nq:
+        raise ParameterError(
+            f"robot has nq = {robot.model.nq}, the result's model {problem.model.nq}",
+            name="robot",
+            value=robot.model.name,
+        )
+    visual = robot.visual_model.copy()
+    rod = 0.06 * size
+    for j, target in enumerate(problem.targets):
+        p = target.position
+        visual.addGeometryObject(
+            _marker(f"target_{j + 1}", pin.SE3(np.eye(3), p), coal.Sphere(size / 2), _TARGET_RGBA)
+        )
+        axes: list[tuple[Array, Sequence[float]]] = []
+        if target.rotation is not None:
+            axes = [(target.rotation[:, k], rgba) for k, rgba in enumerate(_TRIAD_RGBA)]
+        elif target.approach is not None:
+            axes = [(target.approach, (0.1, 0.1, 0.1, 1.0))]
+        for k, (direction, rgba) in enumerate(axes):
+            z = np.asarray(direction, float)
+            rot = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), z).toRotationMatrix()
+            centre = p + z * (size * 1.5)
+            visual.addGeometryObject(
+                _marker(
+                    f"target_{j + 1}_axis_{k}",
+                    pin.SE3(rot, centre),
+                    coal.Cylinder(rod, 3 * size),
+                    rgba,
+                )
+            )
+    return ReplayRobot(
+        name=robot.name,
+        model=problem.model,
+        visual_model=visual,
+        package_dirs=tuple(str(d) for d in robot.package_dirs),
+        tip_frame=problem.frame,
+    )
+
+
+_TRIAD_RGBA = ((0.9, 0.1, 0.1, 1.0), (0.1, 0.8, 0.1, 1.0), (0.1, 0.2, 0.9, 1.0))
+
+
+def spatial_replay_track(
+    result: SpatialIKResult, segment_time: float = 1.0, samples_per_leg: int = 12
+) -> tuple[Array, Array]:
+    """Return times [s] and Pinocchio configurations (nq) of the replayed cycle.
+
+    Each leg is straight in the active joint angles and sampled
+    ``samples_per_leg`` times, so that the viewer's interpolation between
+    samples (geodesic on a continuous joint's circle) follows the unwrapped angles.
+    """
+    dt = _check_segment_time(segment_time)
+    q = result.configurations
+    closed = np.vstack([q, q[:1]])
+    s = q.shape[0]
+    u = np.linspace(0.0, float(s), s * samples_per_leg + 1)
+    knots = np.arange(s + 1, dtype=float)
+    theta = np.column_stack([np.interp(u, knots, closed[:, i]) for i in range(q.shape[1])])
+    configs = np.array([result.problem.configuration(th) for th in theta])
+    return u * dt, configs
+
+
+def replay_spatial_ikpath(
+    result: SpatialIKResult,
+    robot: RobotLike,
+    *,
+    viewer: meshcat.Visualizer | MeshcatServer | str | None = None,
+    segment_time: float = 1.0,
+    realtime: bool = False,
+) -> meshcat.Visualizer:
+    """Play a spatial IK path in a live meshcat viewer (targets, triads, frame path)."""
+    from youbot_opt.viz import replay
+
+    t, q = spatial_replay_track(result, segment_time)
+    return replay(
+        cast("RobotLike", spatial_replay_robot(result, robot)),
+        t,
+        q,
+        viewer=viewer,
+        frame_path="ikpath",
+        targets=np.array([tg.position for tg in result.problem.targets]),
+        realtime=realtime,
+    )
+
+
+def export_spatial_ikpath_html(
+    result: SpatialIKResult,
+    robot: RobotLike,
+    path: str | Path,
+    *,
+    segment_time: float = 1.0,
+    fps: float = 30.0,
+) -> Path:
+    """Write a standalone HTML replay of a spatial IK path (see :func:`replay_spatial_ikpath`)."""
+    from youbot_opt.viz import export_html
+
+    t, q = spatial_replay_track(result, segment_time)
+    return export_html(
+        cast("RobotLike", spatial_replay_robot(result, robot)),
+        t,
+        q,
+        path,
+        fps=fps,
+        frame_path="ikpath",
+        targets=np.array([tg.position for tg in result.problem.targets]),
     )

@@ -1,26 +1,13 @@
 """Replay joint trajectories in meshcat: live in a viewer, or as one standalone HTML file.
 
-Inputs are plain arrays, so results of every kind can be replayed: a time grid
-``t`` of shape (N,) in [s] and configurations ``q`` of shape (N, nq). Between
-knots, configurations are interpolated on the configuration space
-(``pin.interpolate``). Several results can be shown together: as translucent
-ghosts overlaid on the first one (``ghosts``), or as labelled copies side by
-side (``extra``).
+Inputs are plain arrays: a time grid ``t`` (N,) in [s] and configurations
+``q`` (N, nq), interpolated with ``pin.interpolate``; several results can be
+overlaid as ghosts or shown side by side. :func:`export_html` needs no server:
+the recorded scene commands and meshcat's viewer script go into one HTML file
+that plays offline (``#t=<seconds>`` shows that pose, paused). Meshes follow
+:mod:`youbot_opt.robot.strict.meshes`; see docs/design.md, "Module notes".
 
-The robot is any object with the attributes of ``youbot_opt.robot.model.RobotModel``:
-``name``, ``model`` (``pin.Model``), ``visual_model`` (``pin.GeometryModel``),
-``package_dirs`` and ``tip_frame``. Mesh and texture files are embedded only as
-:mod:`youbot_opt.robot.strict.meshes` allows. Opaque meshes are sent as their files
-(COLLADA with its own materials and textures); translucent copies, and meshes
-whose URDF material overrides the file's, are sent as the triangles Pinocchio
-loaded (no textures), coloured with the URDF colour.
-
-:func:`export_html` needs no meshcat server: the scene commands are recorded,
-packed exactly as a server would receive them, and written with meshcat's
-viewer script (``main.min.js``, inlined) into one HTML file that plays offline.
-Append ``#t=<seconds>`` to its address to show the pose at that time, paused.
-
-Several results at once, labelled: :mod:`youbot_opt.viz.meshcat.results`.
+>>> export_html(robot, t, q, "replay.html")  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -1,18 +1,13 @@
 """A meshcat server that listens on the loopback interface only, and clients that time out.
 
-The PyPI ``meshcat`` (0.3.2) server, ``meshcat.servers.zmqserver``, binds its
-ZeroMQ socket to ``tcp://127.0.0.1`` but starts its tornado web server with
-``app.listen(port)``, i.e. on every interface (IPv4 ``0.0.0.0`` and IPv6
-``::``), although it prints a ``127.0.0.1`` address. :class:`MeshcatServer`
-runs the same bridge in a subprocess whose tornado application is forced to
-``127.0.0.1``, and stops it again: on :meth:`MeshcatServer.close`, at the end of
-a ``with`` block, at interpreter exit (``atexit``), on ``SIGTERM`` of this
-process (the handler chains the previous one), and, since the server watches
-its standard input, when this process dies without cleaning up.
+:class:`MeshcatServer` runs meshcat's ZeroMQ bridge in a subprocess whose web
+server is bound to 127.0.0.1 (the stock one listens on every interface) and
+stops it on close, at exit, on SIGTERM or when this process dies.
+:func:`connect` returns a ``meshcat.Visualizer`` whose calls time out, so a
+dead server raises :class:`~youbot_opt.exceptions.ViewerError`; see
+docs/design.md, "Module notes".
 
-The client, :func:`connect`, is a ``meshcat.Visualizer`` whose ZeroMQ socket
-has send and receive time-outs and no linger, so a call to a dead server
-raises :class:`~youbot_opt.exceptions.ViewerError` instead of hanging.
+>>> with MeshcatServer() as server: vis = connect(server.zmq_url)  # doctest: +SKIP
 """
 
 from __future__ import annotations

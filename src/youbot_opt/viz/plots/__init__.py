@@ -1,18 +1,12 @@
 """Matplotlib figures of trajectory solves and of the study-1 sweeps.
 
-Every function takes a result object and returns a new
-:class:`matplotlib.figure.Figure`, made without :mod:`matplotlib.pyplot` so
-that it works headless (``MPLBACKEND=Agg``) and leaves no global state; save
-it with ``fig.savefig("name.png")``, or let a notebook show it.
+Every function returns a new Figure made without pyplot (headless, no global
+state). One solve: :mod:`youbot_opt.viz.plots.trajopt`; sweeps
+(:func:`plot_multistart`, :func:`plot_pareto`, :func:`plot_bound_scaling`):
+:mod:`youbot_opt.viz.plots.studies`; IK paths of study 2:
+:mod:`youbot_opt.viz.plots.ikpath`.
 
-* One solve (:mod:`youbot_opt.viz.plots.trajopt`): :func:`plot_trajectory`
-  (angles, speeds, torques with the bounds dashed), :func:`plot_convergence`
-  (objective against IPOPT iteration for several starts) and
-  :func:`plot_arm_2d` (the arm on its platform, stroboscopic).
-* Sweeps (:mod:`youbot_opt.viz.plots.studies`): :func:`plot_multistart`,
-  :func:`plot_pareto` and :func:`plot_bound_scaling`.
-
-The IK-path figures of study 2 live in :mod:`youbot_opt.viz.plots.ikpath`.
+>>> plot_trajectory(result).savefig("trajectory.png")  # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -6,7 +6,8 @@ the targets (:func:`plot_arm_path`), the convergence history
 (:func:`plot_convergence`), the reachable workspace under the joint limits
 with the targets and their verdicts (:func:`plot_workspace`) and the minima
 found by a multistart (:func:`plot_minima`). :func:`save_figures` writes them
-as PNG files.
+as PNG files. Spatial results: the joint motion per leg (:func:`plot_leg_motion`)
+and the frame's path through the targets in 3-D (:func:`plot_spatial_path`).
 """
 
 from __future__ import annotations
@@ -26,12 +27,15 @@ from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, check_reachability
 from youbot_opt.ikpath.result import IKPathResult
+from youbot_opt.ikpath.spatial import SpatialIKResult
 
 __all__ = [
     "plot_arm_path",
     "plot_convergence",
     "plot_workspace",
     "plot_minima",
+    "plot_leg_motion",
+    "plot_spatial_path",
     "save_figures",
 ]
 
@@ -317,3 +321,57 @@ def save_figures(
         fig.savefig(path, dpi=dpi)
         paths.append(path)
     return paths
+
+
+def plot_leg_motion(result: SpatialIKResult, baseline: np.ndarray | None = None) -> Figure:
+    """Joint motion per leg of a spatial path: ``|q_{j+1,i} - q_{j,i}|`` stacked by joint.
+
+    Parameters
+    ----------
+    result : SpatialIKResult
+        The path (leg ``j`` goes from target ``j`` to ``j + 1``; the last closes the cycle).
+    baseline : ndarray, shape (s, n), optional
+        Configurations of another path (e.g. the greedy DLS baseline) whose
+        per-leg motion norm is drawn as a line for comparison.
+    """
+    legs = np.abs(result.leg_motion())
+    s, n = legs.shape
+    fig, ax = _new_axes(None, (7.0, 4.0))
+    bottom = np.zeros(s)
+    x = np.arange(s)
+    names = result.problem.joint_names
+    for i in range(n):
+        ax.bar(x, legs[:, i], bottom=bottom, label=names[i])
+        bottom += legs[:, i]
+    if baseline is not None:
+        base = np.abs(np.roll(baseline, -1, axis=0) - baseline).sum(axis=1)
+        ax.plot(x, base, "k--o", label="baseline (sum |dq|)")
+    ax.set_xticks(x, [f"{j + 1}->{(j + 1) % s + 1}" for j in range(s)])
+    ax.set_xlabel("leg (target -> target)")
+    ax.set_ylabel("joint motion |dq_i| [rad]")
+    ax.set_title(f"joint motion per leg, E = {result.objective:.4g} rad$^2$ ({result.method})")
+    ax.legend(fontsize="small", ncols=2)
+    return fig
+
+
+def plot_spatial_path(result: SpatialIKResult, samples_per_leg: int = 20) -> Figure:
+    """Draw the frame's path (straight joint-space legs) through the targets, in 3-D [m]."""
+    fig = Figure(figsize=(6.0, 6.0), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    path = result.frame_path(samples_per_leg)
+    ax.plot(path[:, 0], path[:, 1], path[:, 2], color="tab:blue", label="frame path")
+    for j, target in enumerate(result.problem.targets):
+        p = target.position
+        ax.scatter(*p, color="tab:red", s=30)
+        ax.text(*p, f" T{j + 1}", color="tab:red")
+        if target.rotation is not None:
+            for k, c in enumerate(("r", "g", "b")):
+                axis = target.rotation[:, k] * 0.05
+                ax.plot(*np.column_stack([p, p + axis]), color=c)
+        elif target.approach is not None:
+            ax.plot(*np.column_stack([p, p + 0.08 * target.approach]), color="k")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_title(f"{result.problem.frame}: {result.status.value}")
+    return fig

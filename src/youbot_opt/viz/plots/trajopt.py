@@ -1,20 +1,12 @@
 """Figures of one trajectory solve: joint curves, IPOPT convergence, the arm in 2-D.
 
-Each function takes a result object and returns a new
-:class:`matplotlib.figure.Figure` built without :mod:`matplotlib.pyplot`, so
-it works under any backend (``Agg`` included), leaves no global figure
-behind, and can be saved with ``fig.savefig(path)`` or shown in a notebook.
-These are the study's plots (spec ``trajopt.md``, "How the study solved it"):
-joint angles, speeds and torques against time with the bounds dashed
-(:func:`plot_trajectory`), objective against iteration for several starts
-(:func:`plot_convergence`) and the arm on its platform (:func:`plot_arm_2d`,
-a stroboscopic picture of the study's 2-D animation).
+The study's plots (spec ``trajopt.md``): :func:`plot_trajectory`,
+:func:`plot_convergence`, :func:`plot_arm_2d` and :func:`plot_refinement`,
+each returning a new Figure built without pyplot. Lines carry labels tests can
+find: the joint name, or ``"_bound <quantity> <joint|all> <lower|upper>"`` for
+a dashed bound.
 
-Lines carry labels so that tests and users can find them: a joint curve is
-labelled with the joint name, a dashed bound ``"_bound <quantity> <joint>
-<lower|upper>"`` (the leading underscore keeps it out of legends), or
-``"_bound <quantity> all <lower|upper>"`` for a bound every joint shares
-(drawn once, in grey, instead of one line per joint on top of each other).
+>>> plot_trajectory(result).savefig("trajectory.png")  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -42,8 +34,10 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
     from youbot_opt.robot.model import RobotModel
+    from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
+    from youbot_opt.trajopt.refinement import Refinement
 
-__all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "QUANTITIES"]
+__all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "plot_refinement", "QUANTITIES"]
 
 QUANTITIES: tuple[tuple[str, str, str], ...] = (
     ("q", "angle", "q [rad]"),
@@ -55,7 +49,7 @@ QUANTITIES: tuple[tuple[str, str, str], ...] = (
 _W_UNIT = r"N$^2$ m$^2$ s"  # unit of the work W = int tau . tau dt
 
 
-def joint_colour(j: int) -> Any:
+def joint_colour(j: int) -> tuple[float, float, float, float]:
     """Colour of joint ``j`` (0-based) in every figure (matplotlib's ``tab10`` cycle)."""
     return colormaps["tab10"](j % 10)
 
@@ -258,7 +252,7 @@ def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
 
 
 def plot_convergence(
-    results: Any,
+    results: MultistartResult | Sequence[StartOutcome] | Sequence[TrajOptResult],
     *,
     log: bool = True,
     max_legend: int = 12,
@@ -498,4 +492,61 @@ def plot_arm_2d(
         title or f"{robot.name}: {poses_t.size} poses over {traj.duration:.3g} s",
         fontsize="medium",
     )
+    return fig
+
+
+def plot_refinement(result: TrajOptResult | Refinement, *, title: str | None = None) -> Figure:
+    """Where the knots went in each refinement round, and why.
+
+    Top: the knots of every round (one row per round, a tick per knot, the
+    intervals split in the next round in red). Bottom: each interval's relative
+    collocation error against time, one step curve per round, with the
+    tolerance dashed. Rounds are labelled with their knots, ``f`` and
+    certificate verdict.
+
+    Parameters
+    ----------
+    result : TrajOptResult or Refinement
+        A refined result (:func:`youbot_opt.trajopt.refine.refine`) or its record.
+    title : str, optional
+        Figure title (default: the refinement's outcome).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ParameterError
+        If the result was not refined or no round has an error estimate.
+    """
+    record = result.refinement if isinstance(result, TrajOptResult) else result
+    if record is None:
+        raise ParameterError("the result was not refined (solve with refinement)", name="result")
+    rounds = [r for r in record.rounds if r.t.size > 1]
+    if not rounds:
+        raise ParameterError("no refinement round has an error estimate", name="result")
+    fig, axes = new_figure(2, 1, figsize=(8.0, 6.0), sharex=True)
+    ax_grid, ax_err = axes[0, 0], axes[1, 0]
+    cmap = colormaps["viridis"]
+    tol = record.budget.tolerance
+    for i, r in enumerate(rounds):
+        colour = cmap(i / max(1, len(rounds) - 1))
+        split = r.errors > tol
+        ax_grid.vlines(r.t, i - 0.35, i + 0.35, colors=[colour], linewidth=0.8)
+        starts, ends = r.t[:-1][split], r.t[1:][split]
+        ax_grid.hlines(np.full(starts.size, i), starts, ends, colors="tab:red", linewidth=2.5)
+        verdict = {True: "certified", False: "cert. fails", None: "no cert."}[r.certificate_passed]
+        label = f"round {r.index}: {r.n_knots} knots, f = {r.objective:.5g}, {verdict}"
+        ax_err.stairs(np.maximum(r.errors, 1e-16), r.t, color=colour, label=label)
+    ax_grid.set_yticks(range(len(rounds)), [f"{r.index} ({r.n_knots})" for r in rounds])
+    ax_grid.set_ylabel("round (knots)")
+    ax_grid.invert_yaxis()
+    ax_err.axhline(tol, color="k", linestyle="--", linewidth=1.0, label=f"tolerance {tol:g}")
+    ax_err.set_yscale("log")
+    ax_err.set_xlabel("t [s]")
+    ax_err.set_ylabel("relative interval error")
+    ax_err.legend(fontsize="small", loc="best")
+    status = "certified" if record.certified else "not certified"
+    ax_grid.set_title(title or f"mesh refinement: {status}, {len(record.rounds)} round(s)")
     return fig

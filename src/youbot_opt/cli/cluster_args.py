@@ -1,0 +1,123 @@
+"""The ``--scheduler`` / ``--scheduler-file`` / ``--shard`` flags of every sweeping command.
+
+A sweep given either flag runs its items on that Dask cluster instead of the
+local process pool (``pip install youbot_opt[dask]``; guide:
+``docs/scaling.md``). :func:`add_scheduler_args` adds the two exclusive
+flags and ``--shard I/K`` (a share of the items, for plain job arrays) to a
+parser; :func:`scheduler_address` turns them into the address a sweep
+connects to (``None`` when neither flag is given).
+
+    sweep = SweepOptions(executor=scheduler_address(args) or "process", out=folder)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.scheduler import is_scheduler_address
+
+__all__ = ["add_scheduler_args", "scheduler_address", "shard_arg"]
+
+
+def shard_arg(text: str) -> tuple[int, int]:
+    """Parse ``--shard I/K`` (``1 <= I <= K``) into ``(I, K)``.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If ``text`` is not two integers ``I/K`` with ``1 <= I <= K``.
+    """
+    try:
+        i, k = (int(x) for x in text.split("/"))
+    except ValueError:
+        i = k = 0
+    if not 1 <= i <= k:
+        raise argparse.ArgumentTypeError(f"expected I/K with 1 <= I <= K, e.g. 2/8; got {text!r}")
+    return i, k
+
+
+def add_scheduler_args(p: argparse.ArgumentParser, *, shard: bool = True) -> None:
+    """Add ``--scheduler`` / ``--scheduler-file`` (mutually exclusive) and ``--shard`` to ``p``.
+
+    ``shard=False`` leaves ``--shard`` out (a command whose sweep keeps no store).
+    """
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the items on this Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+        "(needs youbot_opt[dask]; see docs/scaling.md)",
+    )
+    g.add_argument(
+        "--scheduler-file",
+        default=None,
+        metavar="FILE",
+        help="run the items on the Dask scheduler described by FILE "
+        "(written by 'dask scheduler --scheduler-file FILE' or dask-jobqueue)",
+    )
+    if not shard:
+        return
+    p.add_argument(
+        "--shard",
+        type=shard_arg,
+        default=None,
+        metavar="I/K",
+        help="solve only share I of K (items I, I+K, ...) into --out and stop; a job array "
+        "runs the K shards into one folder, then a run without --shard collects",
+    )
+
+
+def scheduler_address(args: argparse.Namespace) -> str | None:
+    """Return the scheduler address named by the flags (``None``: neither flag given).
+
+    A scheduler file is read for its ``address``; the sweep connects (and
+    disconnects) itself, so the address is all a command passes on as
+    ``SweepOptions(executor=...)``.
+
+    Raises
+    ------
+    ParameterError
+        If the file is missing or names no address, the address has no known
+        scheme, or ``--workers 0`` / ``--item-timeout`` is combined with a scheduler.
+    """
+    address = getattr(args, "scheduler", None)
+    path = getattr(args, "scheduler_file", None)
+    if address is None and path is None:
+        return None
+    if getattr(args, "workers", None) == 0:
+        raise ParameterError(
+            "--workers 0 (in-process) cannot be combined with --scheduler/--scheduler-file",
+            name="workers",
+        )
+    if getattr(args, "item_timeout", None) is not None:
+        raise ParameterError(
+            "--item-timeout needs local worker processes; it cannot be combined with "
+            "--scheduler/--scheduler-file",
+            name="item_timeout",
+        )
+    if path is not None:
+        file = Path(path).expanduser()
+        try:
+            address = json.loads(file.read_text(encoding="utf-8"))["address"]
+        except FileNotFoundError as exc:
+            raise ParameterError(
+                f"--scheduler-file {str(file)!r} does not exist (start a scheduler with "
+                "'dask scheduler --scheduler-file FILE')",
+                name="scheduler_file",
+            ) from exc
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ParameterError(
+                f"--scheduler-file {str(file)!r} is not a Dask scheduler file "
+                f"(JSON with an 'address'): {exc}",
+                name="scheduler_file",
+            ) from exc
+    if not is_scheduler_address(address):
+        raise ParameterError(
+            f"--scheduler must be an address such as tcp://10.0.0.5:8786, got {address!r}",
+            name="scheduler",
+        )
+    return str(address)

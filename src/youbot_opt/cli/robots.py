@@ -1,0 +1,201 @@
+"""``youbot-opt robots``: list the robots that load by name, with dof, joint types and status.
+
+Each robot (``youbot``, ``youbot_arm_5dof`` and every URDF of
+example-robot-data, :func:`youbot_opt.robot.model.available_robots`) is
+loaded by default, then with ``--lenient``; the table gives ``nq``/``nv``,
+joint types and whether and how it loads (with the rule it breaks).
+
+Usage::
+
+    youbot-opt robots [NAME ...] [--names] [--json] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from collections import Counter
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from youbot_opt._files import atomic_write_text
+
+__all__ = ["register", "RobotSurvey", "survey"]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RobotSurvey:
+    """What loading one robot gave.
+
+    Attributes
+    ----------
+    name : str
+        Robot name.
+    path : str
+        Its URDF file.
+    status : str
+        ``"default"`` (loads), ``"lenient"`` (loads with ``strict=False`` only)
+        or ``"refused"``.
+    nq, nv : int or None
+        Configuration and velocity sizes of the fixed-base model (None if refused).
+    joint_types : str
+        Movable joints of the file by URDF type, e.g. ``"revolute 6, prismatic 2"``.
+    warnings : int
+        Implausible-inertia warnings of the load that succeeded (other warnings,
+        e.g. about meshes, are not counted).
+    reason : str
+        Why the default load failed (the rule and the element), else ``""``.
+    message : str
+        The full error message of the default load, else ``""``.
+    """
+
+    name: str
+    path: str
+    status: str
+    nq: int | None
+    nv: int | None
+    joint_types: str
+    warnings: int
+    reason: str
+    message: str
+
+
+def _joint_types(path: Path) -> str:
+    from youbot_opt.exceptions import URDFError
+    from youbot_opt.robot.strict.xml import parse_xml_strict, root_of
+
+    try:
+        root = root_of(parse_xml_strict(path.read_bytes(), str(path)), str(path))
+    except (URDFError, OSError):
+        return "?"
+    counts = Counter(
+        j.get("type", "?") for j in root.iter("joint") if j.get("type", "fixed") != "fixed"
+    )
+    return ", ".join(f"{t} {n}" for t, n in sorted(counts.items())) or "none"
+
+
+def survey(name: str) -> RobotSurvey:
+    """Load ``name`` by default, then leniently, and say what happened.
+
+    Parameters
+    ----------
+    name : str
+        A name of :func:`youbot_opt.robot.model.available_robots` or a URDF path.
+
+    Returns
+    -------
+    RobotSurvey
+        Status, sizes, joint types and the reason of a refusal.
+    """
+    from youbot_opt.exceptions import ModelError, URDFError, YoubotOptWarning
+    from youbot_opt.robot.model import example_robots, load_model, youbot_urdf_path
+
+    reason = message = ""
+    robot = None
+    status = "refused"
+    caught: list[warnings.WarningMessage] = []
+    for strict in (True, False):
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always", YoubotOptWarning)
+            try:
+                robot = load_model(name, strict=strict)
+            except ModelError as exc:
+                if strict:
+                    message = str(exc)
+                    short = f"{exc.rule} (at {exc.element})" if isinstance(exc, URDFError) else ""
+                    reason = short or message.splitlines()[0]
+                continue
+        status, caught = ("default" if strict else "lenient"), list(record)
+        break
+    count = sum(  # the inertia policy's warnings (meshes may warn too)
+        issubclass(w.category, YoubotOptWarning) and "<inertia> of link" in str(w.message)
+        for w in caught
+    )
+    count = count if robot is not None else 0
+    if robot is not None and robot.urdf_path is not None:
+        path = robot.urdf_path
+    else:
+        path = example_robots().get(name, Path(name) if name != "youbot" else youbot_urdf_path())
+    return RobotSurvey(
+        name=name,
+        path=str(path),
+        status=status,
+        nq=None if robot is None else robot.nq,
+        nv=None if robot is None else robot.nv,
+        joint_types=_joint_types(Path(path)),
+        warnings=count,
+        reason=reason,
+        message=message,
+    )
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``robots`` sub-command.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The dispatcher's sub-parsers.
+    """
+    p = sub.add_parser(
+        "robots",
+        help="list the robots that load by name: dof, joint types, loads by default or --lenient",
+        description="List the robots --robot accepts by name (youbot, youbot_arm_5dof and every "
+        "URDF of the installed example-robot-data), each loaded with a fixed base: nq/nv, the "
+        "joint types of its file, and whether it loads by default, only with --lenient, or is "
+        "refused (with the rule).",
+        epilog="examples:\n    youbot-opt robots --names\n    youbot-opt robots ur5 panda\n",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("names", nargs="*", metavar="NAME", help="robots to survey (default: all)")
+    p.add_argument("--names", dest="names_only", action="store_true", help="print names only")
+    p.add_argument("--json", action="store_true", help="print one JSON list on stdout")
+    p.add_argument("--out", default=None, metavar="FILE", help="also write the rows as JSON")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from youbot_opt.exceptions import RobotNotFound
+    from youbot_opt.robot.model import available_robots
+
+    known = available_robots()
+    names = list(args.names) or list(known)
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise RobotNotFound(
+            f"unknown robot name(s) {unknown}; `youbot-opt robots --names` lists them",
+            available=known,
+        )
+    if args.names_only:
+        print("\n".join(names))
+        if args.out:
+            atomic_write_text(args.out, json.dumps(names, indent=1) + "\n")
+        return 0
+    rows = []
+    for i, name in enumerate(names, 1):
+        if not args.json and len(names) > 3:
+            print(f"[{i}/{len(names)}] loading {name}", file=sys.stderr, flush=True)
+        rows.append(survey(name))
+    if args.out:
+        atomic_write_text(args.out, json.dumps([asdict(r) for r in rows], indent=1) + "\n")
+    if args.json:
+        print(json.dumps([asdict(r) for r in rows], indent=1))
+        return 0
+    width = max(len(r.name) for r in rows)
+    print(f"{'robot':<{width}}  {'nq/nv':>7}  {'loads':<8}  joint types / why not")
+    for r in rows:
+        dof = f"{r.nq}/{r.nv}" if r.nq is not None else "-"
+        note = r.joint_types
+        if r.status != "default":
+            note += f"; refused by default: {r.reason}"
+        if r.warnings:
+            note += f"; {r.warnings} inertia warning(s)"
+        print(f"{r.name:<{width}}  {dof:>7}  {r.status:<8}  {note}")
+    counts = Counter(r.status for r in rows)
+    print(
+        f"{len(rows)} robots: {counts['default']} load by default, {counts['lenient']} only "
+        f"with --lenient, {counts['refused']} refused"
+    )
+    return 0

@@ -1,0 +1,315 @@
+"""Spatial IK-path targets: a position, a full pose, or a position with an approach axis.
+
+A :class:`SpatialTarget` says what the chosen frame must reach: its origin at
+``position`` [m] and, optionally, its orientation equal to ``rotation`` (a
+pose) or its local ``approach_axis`` pointing along the world direction
+``approach`` (an approach axis, e.g. a drill or a suction cup: rotation about
+the axis is free). Each target carries the tolerances that decide whether it
+is met ([m] and [rad]) and the weight [m/rad] that puts orientation rows into
+the constraint's metre scale (see docs/ikpath.md, "Spatial targets").
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+
+__all__ = ["SpatialTarget", "TARGET_KINDS", "load_targets", "quaternion_to_matrix"]
+
+TARGET_KINDS: tuple[str, ...] = ("position", "pose", "approach")
+"""Kinds of targets: constraint rows 3, 6 and 5."""
+
+
+def _vector3(value: ArrayLike, name: str) -> Array:
+    arr = np.array(value, dtype=float).reshape(-1)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ParameterError(
+            f"{name} must be 3 finite numbers, got {np.asarray(value).tolist()!r}",
+            name=name,
+            value=value,
+        )
+    return arr
+
+
+def quaternion_to_matrix(quat_xyzw: ArrayLike) -> Array:
+    """Rotation matrix of a quaternion ``(x, y, z, w)`` (normalised first).
+
+    Raises
+    ------
+    ParameterError
+        If the quaternion is not 4 finite numbers of norm > 1e-9.
+    """
+    q = np.array(quat_xyzw, dtype=float).reshape(-1)
+    if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
+        raise ParameterError(
+            f"a quaternion must be 4 finite numbers (x, y, z, w) of nonzero norm, got "
+            f"{np.asarray(quat_xyzw).tolist()!r}",
+            name="quaternion",
+            value=quat_xyzw,
+        )
+    q = q / np.linalg.norm(q)
+    return np.array(pin.Quaternion(q[3], q[0], q[1], q[2]).toRotationMatrix())
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class SpatialTarget:
+    """One target of a spatial cyclic IK path.
+
+    Attributes
+    ----------
+    position : ndarray, shape (3,)
+        Position of the frame's origin in the world, in [m].
+    rotation : ndarray, shape (3, 3), optional
+        Orientation of the frame in the world (a pose target).
+    approach : ndarray, shape (3,), optional
+        World direction (normalised here) the frame's ``approach_axis`` must
+        point along (an approach target); exclusive with ``rotation``.
+    approach_axis : ndarray, shape (3,)
+        Axis of the frame (its own coordinates) that must point along
+        ``approach``; default z.
+    position_tol : float
+        Largest accepted distance from ``position`` in [m].
+    orientation_tol : float
+        Largest accepted orientation error in [rad] (rotation angle of
+        ``rotation^T R`` for a pose, angle between the axes for an approach).
+    orientation_weight : float
+        Scale in [m/rad] of the orientation rows of the constraint (1 m/rad:
+        one radian weighs like one metre when the solvers measure violation).
+    """
+
+    position: Array
+    rotation: Array | None = None
+    approach: Array | None = None
+    approach_axis: Array = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    position_tol: float = 1e-6
+    orientation_tol: float = 1e-6
+    orientation_weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position", _vector3(self.position, "position"))
+        if self.rotation is not None and self.approach is not None:
+            raise ParameterError(
+                "a target has either a rotation (pose) or an approach axis, not both",
+                name="approach",
+                value=self.approach,
+            )
+        if self.rotation is not None:
+            rot = np.array(self.rotation, dtype=float)
+            if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
+                raise ParameterError(
+                    f"rotation must be a finite 3 x 3 matrix, got shape {rot.shape}",
+                    name="rotation",
+                    value=self.rotation,
+                )
+            err = float(np.max(np.abs(rot.T @ rot - np.eye(3))))
+            if err > 1e-6 or np.linalg.det(rot) < 0:
+                raise ParameterError(
+                    f"rotation must be a rotation matrix (R^T R = I to 1e-6, det = +1), "
+                    f"got |R^T R - I| = {err:.3g}, det = {np.linalg.det(rot):.6g}",
+                    name="rotation",
+                    value=self.rotation,
+                )
+            u, _, vt = np.linalg.svd(rot)  # re-orthonormalise (rounding of the input)
+            object.__setattr__(self, "rotation", u @ vt)
+        for key in ("approach", "approach_axis"):
+            value = getattr(self, key)
+            if value is None:
+                continue
+            vec = _vector3(value, key)
+            norm = float(np.linalg.norm(vec))
+            if norm < 1e-9:
+                raise ParameterError(f"{key} must be a nonzero vector", name=key, value=value)
+            object.__setattr__(self, key, vec / norm)
+        for key in ("position_tol", "orientation_tol", "orientation_weight"):
+            value = float(getattr(self, key))
+            if not (value > 0.0 and math.isfinite(value)):
+                raise ParameterError(
+                    f"{key} must be finite and > 0, got {getattr(self, key)!r}",
+                    name=key,
+                    value=getattr(self, key),
+                )
+            object.__setattr__(self, key, value)
+        for key in ("position", "rotation", "approach", "approach_axis"):
+            value = getattr(self, key)
+            if value is not None:
+                value.setflags(write=False)
+
+    @classmethod
+    def pose(
+        cls,
+        position: ArrayLike,
+        quaternion_xyzw: ArrayLike,
+        *,
+        position_tol: float = 1e-6,
+        orientation_tol: float = 1e-6,
+        orientation_weight: float = 1.0,
+    ) -> SpatialTarget:
+        """Build a pose target from a position [m] and a quaternion ``(x, y, z, w)``."""
+        return cls(
+            position=np.asarray(position, dtype=float),
+            rotation=quaternion_to_matrix(quaternion_xyzw),
+            position_tol=position_tol,
+            orientation_tol=orientation_tol,
+            orientation_weight=orientation_weight,
+        )
+
+    @property
+    def kind(self) -> str:
+        """``"position"``, ``"pose"`` or ``"approach"``."""
+        if self.rotation is not None:
+            return "pose"
+        return "approach" if self.approach is not None else "position"
+
+    @property
+    def n_rows(self) -> int:
+        """Constraint rows: 3 (position), 6 (pose), 5 (approach)."""
+        return {"position": 3, "pose": 6, "approach": 5}[self.kind]
+
+    def approach_basis(self) -> Array:
+        """Two orthonormal world vectors perpendicular to ``approach``, shape (2, 3)."""
+        a = self.approach if self.approach is not None else np.array([0.0, 0.0, 1.0])
+        helper = np.eye(3)[int(np.argmin(np.abs(a)))]
+        b1 = np.cross(a, helper)
+        b1 /= np.linalg.norm(b1)
+        return np.vstack([b1, np.cross(a, b1)])
+
+    def errors(self, placement: pin.SE3) -> tuple[float, float]:
+        """Position error [m] and orientation error [rad] of a frame placement."""
+        pos = float(np.linalg.norm(placement.translation - self.position))
+        if self.rotation is not None:
+            ang = float(np.linalg.norm(pin.log3(self.rotation.T @ placement.rotation)))
+        elif self.approach is not None:
+            w = placement.rotation @ self.approach_axis
+            ang = math.atan2(
+                float(np.linalg.norm(np.cross(w, self.approach))), float(w @ self.approach)
+            )
+        else:
+            ang = 0.0
+        return pos, ang
+
+    def met(self, placement: pin.SE3) -> bool:
+        """Whether a frame placement meets the target within its tolerances."""
+        pos, ang = self.errors(placement)
+        return pos <= self.position_tol and ang <= self.orientation_tol
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready description (positions [m], quaternion x y z w, tolerances)."""
+        out: dict[str, object] = {"kind": self.kind, "position": self.position.tolist()}
+        if self.rotation is not None:
+            quat = pin.Quaternion(self.rotation)
+            out["quaternion_xyzw"] = [quat.x, quat.y, quat.z, quat.w]
+        if self.approach is not None:
+            out["approach"] = self.approach.tolist()
+            out["approach_axis"] = self.approach_axis.tolist()
+        out.update(
+            position_tol=self.position_tol,
+            orientation_tol=self.orientation_tol,
+            orientation_weight=self.orientation_weight,
+        )
+        return out
+
+
+_CSV_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw", "ax", "ay", "az")
+
+
+def _target_from_record(
+    rec: dict[str, object], where: str, defaults: dict[str, float]
+) -> SpatialTarget:
+    """One target from a JSON object or CSV row (see :func:`load_targets`)."""
+    kw: dict[str, object] = dict(defaults)
+    for key in ("position_tol", "orientation_tol", "orientation_weight"):
+        if rec.get(key) not in (None, ""):
+            kw[key] = float(rec[key])  # type: ignore[arg-type]
+    try:
+        if "position" in rec:
+            position = rec["position"]
+        else:
+            position = [float(rec[k]) for k in ("x", "y", "z")]  # type: ignore[arg-type]
+        quat = rec.get("quaternion_xyzw")
+        if quat is None and all(rec.get(k) not in (None, "") for k in ("qx", "qy", "qz", "qw")):
+            quat = [float(rec[k]) for k in ("qx", "qy", "qz", "qw")]  # type: ignore[arg-type]
+        approach = rec.get("approach")
+        if approach is None and all(rec.get(k) not in (None, "") for k in ("ax", "ay", "az")):
+            approach = [float(rec[k]) for k in ("ax", "ay", "az")]  # type: ignore[arg-type]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ParameterError(
+            f"{where}: a target needs a position (x, y, z [m]); got {rec!r} ({exc})",
+            name="targets",
+            value=rec,
+        ) from exc
+    if quat is not None:
+        kw["rotation"] = quaternion_to_matrix(quat)  # type: ignore[arg-type]
+    if approach is not None:
+        kw["approach"] = approach
+        if rec.get("approach_axis") is not None:
+            kw["approach_axis"] = rec["approach_axis"]
+    return SpatialTarget(position=position, **kw)  # type: ignore[arg-type]
+
+
+def load_targets(path: str | Path, **defaults: float) -> tuple[SpatialTarget, ...]:
+    """Read targets from a CSV or JSON file (by suffix).
+
+    CSV: a header with named columns ``x, y, z`` [m], optionally ``qx, qy, qz, qw``
+    (a pose, quaternion), or ``ax, ay, az`` (an approach direction), and per-row
+    ``position_tol`` [m], ``orientation_tol`` [rad], ``orientation_weight`` [m/rad].
+    JSON: a list (or ``{"targets": [...]}``) of objects with ``position``,
+    optional ``quaternion_xyzw`` or ``approach`` (+ ``approach_axis``) and the
+    same tolerance keys. ``defaults`` apply where a row gives none.
+
+    Raises
+    ------
+    ParameterError
+        Unknown suffix, unreadable file, or a row without a valid position.
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise ParameterError(
+            f"targets file {str(file)!r} does not exist", name="targets", value=str(file)
+        )
+    text = file.read_text(encoding="utf-8")
+    if file.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ParameterError(
+                f"{file}: not valid JSON ({exc})", name="targets", value=str(file)
+            ) from exc
+        records = data.get("targets") if isinstance(data, dict) else data
+        if not isinstance(records, list):
+            raise ParameterError(
+                f"{file}: expected a list of targets or {{'targets': [...]}}",
+                name="targets",
+                value=str(file),
+            )
+    elif file.suffix.lower() == ".csv":
+        reader = csv.DictReader(io.StringIO(text))
+        missing = [c for c in ("x", "y", "z") if c not in (reader.fieldnames or ())]
+        if missing:
+            raise ParameterError(
+                f"{file}: the CSV header must name the columns x, y, z (optional "
+                f"{', '.join(_CSV_COLUMNS[3:])}); missing {', '.join(missing)}",
+                name="targets",
+                value=str(file),
+            )
+        records = [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in reader]
+    else:
+        raise ParameterError(
+            f"targets file must end in .csv or .json, got {file.name!r}",
+            name="targets",
+            value=str(file),
+        )
+    return tuple(
+        _target_from_record(rec, f"{file.name} row {k + 1}", defaults)
+        for k, rec in enumerate(records)
+    )

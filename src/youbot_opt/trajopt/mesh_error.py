@@ -1,0 +1,243 @@
+r"""Collocation-error estimate per interval: :func:`collocation_error`.
+
+Along each interval the state interpolant the transcription implies (each state
+the integral of the polynomial through its derivative's collocation values:
+quadratic ``q``, ``v`` and linear torque for trapezoidal collocation, cubic
+``q``, ``v`` and quadratic torque for Hermite-Simpson) is put back into the
+dynamics, evaluated with Pinocchio's ``pin.aba`` (not the NLP's), and the
+residual ``|x'_interp - f(x_interp, tau_interp)|`` is integrated over the
+interval by composite Gauss-Legendre quadrature: the absolute local error in
+state units ([rad] for positions, [rad/s] for velocities), made relative by
+Betts' scale ``1 + max_k(|x_i|, |x_i'|)`` (Betts, *Practical Methods for Optimal
+Control*, ch. 4; OptimTraj's ``trapezoid.m`` / ``hermiteSimpson.m``).
+Rationale and measurements: docs/refinement.md.
+
+>>> collocation_error(result).max  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from youbot_opt._checks import check_int
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.simulate import RobotLike, batched_aba
+
+__all__ = ["CollocationError", "ORDERS", "collocation_error", "interval_errors"]
+
+ORDERS: dict[str, int] = {"trapezoidal": 2, "hermite_simpson": 4}
+"""Order ``p`` of each transcription: the local error of an interval of length
+``h`` scales as ``h^(p + 1)`` (Betts, ch. 4)."""
+
+
+@dataclass(frozen=True, slots=True)
+class CollocationError:
+    """Per-interval collocation error of one solution.
+
+    Attributes
+    ----------
+    method : str
+        Transcription whose interpolant was used.
+    t : ndarray, shape (N,)
+        Knot times [s].
+    absolute : ndarray, shape (N - 1, 2 nv)
+        ``integral |residual| dt`` over each interval, per state component:
+        positions first in [rad], then velocities in [rad/s].
+    scale : ndarray, shape (2 nv,)
+        Betts' scale ``1 + max over knots of (|x_i|, |x_i'|)`` per component.
+    relative : ndarray, shape (N - 1,)
+        ``max_i absolute[k, i] / scale[i]`` of each interval (dimensionless).
+    order : int
+        The transcription's order ``p`` (:data:`ORDERS`).
+    """
+
+    method: str
+    t: Array
+    absolute: Array
+    scale: Array
+    relative: Array
+    order: int
+
+    @property
+    def max(self) -> float:
+        """Largest relative interval error."""
+        return float(np.max(self.relative))
+
+    @property
+    def worst_interval(self) -> int:
+        """Index of the interval with the largest relative error."""
+        return int(np.argmax(self.relative))
+
+    @property
+    def steps(self) -> Array:
+        """Interval lengths [s]."""
+        return np.diff(self.t)
+
+
+def _gauss(segments: int, points: int) -> tuple[Array, Array]:
+    """Nodes in [0, 1] and weights (summing to 1) of composite Gauss-Legendre."""
+    x, w = np.polynomial.legendre.leggauss(points)
+    nodes = [(j + 0.5 * (x + 1.0)) / segments for j in range(segments)]
+    weights = [0.5 * w / segments for _ in range(segments)]
+    return np.concatenate(nodes), np.concatenate(weights)
+
+
+def _basis(method: str, s: Array) -> tuple[Array, Array]:
+    """Return the derivative basis ``L`` and its integral ``I`` at ``s`` in [0, 1] (rows: nodes).
+
+    Trapezoidal: linear through the values at ``s = 0, 1``; Hermite-Simpson:
+    quadratic through ``s = 0, 1/2, 1`` (columns: start, [mid,] end).
+    """
+    if method == "trapezoidal":
+        basis = np.stack([1.0 - s, s], axis=1)
+        integral = np.stack([s - 0.5 * s**2, 0.5 * s**2], axis=1)
+        return basis, integral
+    basis = np.stack([2 * (s - 0.5) * (s - 1.0), -4 * s * (s - 1.0), 2 * s * (s - 0.5)], axis=1)
+    integral = np.stack(
+        [
+            2 * (s**3 / 3 - 0.75 * s**2 + 0.5 * s),
+            -4 * (s**3 / 3 - 0.5 * s**2),
+            2 * (s**3 / 3 - 0.25 * s**2),
+        ],
+        axis=1,
+    )
+    return basis, integral
+
+
+def interval_errors(
+    method: str,
+    t: Array,
+    q: Array,
+    v: Array,
+    tau: Array,
+    robot: RobotLike,
+    *,
+    mid: tuple[Array, Array, Array] | None = None,
+    damping: bool = True,
+    segments: int = 4,
+    points: int = 5,
+) -> CollocationError:
+    """Collocation error of knot arrays under ``method``'s interpolant.
+
+    Parameters
+    ----------
+    method : {"trapezoidal", "hermite_simpson"}
+        The transcription whose interpolant is used.
+    t : ndarray, shape (N,)
+        Strictly increasing knot times [s].
+    q, v, tau : ndarray, shape (N, nv)
+        Knot positions [rad], velocities [rad/s] and torques [N m].
+    robot : RobotModel or pinocchio.Model
+        The robot; its accelerations come from ``pin.aba``.
+    mid : (q_mid, v_mid, tau_mid), each (N - 1, nv), optional
+        Mid-interval values; required by Hermite-Simpson.
+    damping : bool
+        Apply the robot's viscous joint damping.
+    segments, points : int
+        Composite Gauss-Legendre rule: ``segments`` equal pieces of each
+        interval, ``points`` nodes each (exact for polynomials of degree
+        ``2 points - 1``; the pieces localise the kinks of ``|residual|``).
+
+    Returns
+    -------
+    CollocationError
+        Absolute and relative errors per interval.
+
+    Raises
+    ------
+    ParameterError
+        On an unknown method, missing midpoints, bad shapes or times.
+    """
+    if method not in ORDERS:
+        raise ParameterError(
+            f"method must be one of {sorted(ORDERS)}, got {method!r}", name="method", value=method
+        )
+    segments = check_int(segments, "segments", minimum=1)
+    points = check_int(points, "points", minimum=1)
+    t = np.asarray(t, dtype=float).ravel()
+    q, v, tau = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, v, tau))
+    n, nv = q.shape
+    if t.shape != (n,) or v.shape != (n, nv) or tau.shape != (n, nv) or n < 2:
+        raise ParameterError(
+            f"need t (N,) and q, v, tau (N, nv) with N >= 2, got {t.shape}, {q.shape}, "
+            f"{v.shape}, {tau.shape}",
+            name="t",
+        )
+    h = np.diff(t)
+    if not np.all(h > 0.0):
+        raise ParameterError("knot times must be strictly increasing", name="t")
+    aba = batched_aba(robot, damping=damping)
+
+    def accel(qq: Array, vv: Array, tt: Array) -> Array:
+        return np.asarray(aba(qq, vv, tt), dtype=float).reshape(qq.shape)
+
+    a = accel(q, v, tau)
+    s, w = _gauss(segments, points)
+    basis, integral = _basis(method, s)  # (S, 2 or 3)
+    if method == "hermite_simpson":
+        if mid is None:
+            raise ParameterError("Hermite-Simpson needs the midpoint values", name="mid")
+        qm, vm, taum = (np.asarray(x, dtype=float).reshape(n - 1, nv) for x in mid)
+        am = accel(qm, vm, taum)
+        # columns of the derivative polynomials: (interval, node-of-poly, joint)
+        dq = np.stack([v[:-1], vm, v[1:]], axis=1)
+        dv = np.stack([a[:-1], am, a[1:]], axis=1)
+        ctrl = np.stack([tau[:-1], taum, tau[1:]], axis=1)
+        ctrl_basis = basis
+    else:
+        dq = np.stack([v[:-1], v[1:]], axis=1)
+        dv = np.stack([a[:-1], a[1:]], axis=1)
+        ctrl = np.stack([tau[:-1], tau[1:]], axis=1)
+        ctrl_basis = basis
+    hk = h[:, None, None]
+    # interpolants at the quadrature nodes: (interval, node, joint)
+    q_s = q[:-1, None, :] + hk * np.einsum("sc,kcj->ksj", integral, dq)
+    v_s = v[:-1, None, :] + hk * np.einsum("sc,kcj->ksj", integral, dv)
+    dq_s = np.einsum("sc,kcj->ksj", basis, dq)
+    dv_s = np.einsum("sc,kcj->ksj", basis, dv)
+    tau_s = np.einsum("sc,kcj->ksj", ctrl_basis, ctrl)
+    shape = q_s.shape
+    a_s = accel(q_s.reshape(-1, nv), v_s.reshape(-1, nv), tau_s.reshape(-1, nv)).reshape(shape)
+    res_q = np.abs(dq_s - v_s)  # q' of the interpolant minus its velocity [rad/s]
+    res_v = np.abs(dv_s - a_s)  # v' of the interpolant minus the dynamics [rad/s^2]
+    absolute = (
+        np.concatenate([np.einsum("s,ksj->kj", w, res_q), np.einsum("s,ksj->kj", w, res_v)], axis=1)
+        * h[:, None]
+    )
+    scale = 1.0 + np.concatenate(
+        [
+            np.maximum(np.max(np.abs(q), axis=0), np.max(np.abs(v), axis=0)),
+            np.maximum(np.max(np.abs(v), axis=0), np.max(np.abs(a), axis=0)),
+        ]
+    )
+    relative = np.max(absolute / scale, axis=1)
+    for arr in (t, absolute, scale, relative):
+        arr.setflags(write=False)
+    return CollocationError(method, t, absolute, scale, relative, ORDERS[method])
+
+
+def collocation_error(
+    result: TrajOptResult, *, segments: int = 4, points: int = 5
+) -> CollocationError:
+    """Collocation error of a solve result (see :func:`interval_errors`).
+
+    Raises
+    ------
+    ParameterError
+        If the result has no trajectory or its transcription has no error rule.
+    """
+    if result.trajectory is None:
+        raise ParameterError("the result has no trajectory (non-finite iterate)", name="result")
+    values = result.variables
+    mid = None
+    if result.method == "hermite_simpson":
+        mid = (values["q_mid"], values["v_mid"], values["tau_mid"])
+    return interval_errors(
+        result.method, result.trajectory.t, values["q"], values["v"], values["tau"],
+        result.problem.robot, mid=mid, damping=result.problem.damping,
+        segments=segments, points=points,
+    )  # fmt: skip

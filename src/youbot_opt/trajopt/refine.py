@@ -1,0 +1,313 @@
+r"""Adaptive mesh refinement until the plan is certified: :func:`refine`.
+
+Each round solves on the current grid, measures the collocation error of every
+interval (:mod:`youbot_opt.trajopt.mesh_error`) and certifies the plan by
+forward simulation (:func:`youbot_opt.trajopt.certify.certify`). Intervals
+whose error exceeds the tolerance are split into ``ceil((e / tol)^(1/m))``
+equal pieces (``m`` the error's exponent in ``h``, :data:`ERROR_EXPONENTS`),
+and the next round starts from the previous solution -- primal and dual --
+interpolated onto the new grid. It stops with a certified plan or when the
+:class:`RefinementBudget` (rounds, knots, time) runs out, and records every
+round (:class:`Refinement`). Rationale and measured histories: docs/refinement.md.
+
+>>> result = refine(TrajOptSolver(problem))  # doctest: +SKIP
+>>> result.certified, result.refinement.reason  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.certificate import Certificate
+from youbot_opt.trajopt.certify import certify
+from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
+from youbot_opt.trajopt.refinement import Refinement, RefinementBudget, RefinementRound
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
+from youbot_opt.trajopt.transcription.base import BOUND_NAMES, grid_weights
+
+__all__ = [
+    "ERROR_EXPONENTS",
+    "Refinement",
+    "RefinementBudget",
+    "RefinementRound",
+    "refine",
+    "split_grid",
+    "transfer_start",
+]
+
+_log = logging.getLogger(__name__)
+
+ERROR_EXPONENTS: dict[str, int] = {"trapezoidal": 3, "hermite_simpson": 4}
+"""Exponent ``m`` of the interval error estimate, ``e ~ h^m``: ``p + 1 = 3`` for
+trapezoidal collocation (order 2); 4 for Hermite-Simpson, whose residual along
+its cubic is ``|a_k - 2 a_m + a_{k+1}| h^2 / 48 ~ h^4`` (derived in
+tests/trajopt/test_refine.py), one power below its O(h^5) state error."""
+
+
+def split_grid(
+    t: Array, errors: Array, tolerance: float, exponent: int, max_pieces: int
+) -> tuple[Array, NDArray[np.intp]]:
+    """Split the intervals whose error exceeds ``tolerance``.
+
+    Interval ``k`` with error ``e_k > tolerance`` becomes
+    ``min(max_pieces, ceil((e_k / tolerance)^(1 / exponent)))`` (at least 2)
+    equal pieces, the count that brings ``e ~ h^exponent`` within the tolerance.
+
+    Returns
+    -------
+    fractions : ndarray
+        The new grid's interval fractions of ``T`` (summing to 1).
+    parent : ndarray of int
+        For each new interval, the index of the interval it came from.
+    """
+    h = np.diff(np.asarray(t, dtype=float))
+    ratio = np.asarray(errors, dtype=float) / tolerance
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pieces = np.ceil(ratio ** (1.0 / exponent))
+    pieces = np.where(ratio > 1.0, np.clip(pieces, 2, max_pieces), 1).astype(np.intp)
+    parent = np.repeat(np.arange(h.size), pieces)
+    fractions = np.repeat(h / pieces, pieces)
+    return fractions / fractions.sum(), parent
+
+
+def _knot_weights(t: Array) -> Array:
+    h = np.diff(t)
+    return grid_weights("trapezoidal", h)[0]
+
+
+def transfer_start(
+    old: TrajOptResult, solver: TrajOptSolver, parent: NDArray[np.intp], t_new: Array
+) -> tuple[Array, Array, Array]:
+    """Primal-dual start on ``solver``'s NLP from ``old``, interpolated onto ``t_new``.
+
+    Primal: ``old``'s trajectory sampled at the new knots (and midpoints).
+    Duals: a defect or boundary multiplier approximates the costate and is
+    copied from the parent interval; a pointwise bound multiplier is a density
+    times its quadrature weight, so knot ones are interpolated as densities
+    (per trapezoidal weight) and re-weighted, interval ones shared among the pieces.
+    """
+    nlp, method = solver.nlp, solver.method
+    n_new = t_new.size
+    if old.trajectory is None:  # the loop stops before: no error estimate without one
+        raise ParameterError("cannot transfer a result without a trajectory", name="old")
+    values = method.knot_guess(old.trajectory, n_new)
+    x0 = nlp.variables.pack(values)
+    t_old = old.trajectory.t
+    pieces = np.bincount(parent, minlength=t_old.size - 1)[parent][:, None]
+    w_old, w_new = _knot_weights(t_old), _knot_weights(t_new)
+    lam_x_blocks: dict[str, Array] = {}
+    for name, block in nlp.variables.blocks.items():
+        family = BOUND_NAMES[name]
+        lam = old.multipliers[f"{family}_lower"] + old.multipliers[f"{family}_upper"]
+        if name == "dt":
+            lam_x_blocks[name] = lam
+        elif block.count == n_new:  # knot block: densities at the knots
+            density = lam / w_old[:, None]
+            lam_x_blocks[name] = (
+                np.stack(
+                    [np.interp(t_new, t_old, density[:, j]) for j in range(block.width)], axis=1
+                )
+                * w_new[:, None]
+            )
+        else:  # interval block
+            lam_x_blocks[name] = lam[parent] / pieces
+    lam_g_blocks: dict[str, Array] = {}
+    for name, block in nlp.constraints.blocks.items():
+        lam = np.asarray(old.multipliers[name], dtype=float)
+        if block.count == 1:
+            lam_g_blocks[name] = lam
+        elif name in nlp.path_bounds:
+            lam_g_blocks[name] = lam[parent] / pieces
+        else:
+            lam_g_blocks[name] = lam[parent]
+    return x0, nlp.variables.pack(lam_x_blocks), nlp.constraints.pack(lam_g_blocks)
+
+
+def _round(
+    index: int,
+    result: TrajOptResult,
+    budget: RefinementBudget,
+    solve_time: float,
+) -> tuple[RefinementRound, CollocationError | None, Certificate | None]:
+    tic = time.perf_counter()
+    error: CollocationError | None = None
+    cert: Certificate | None = None
+    if result.trajectory is not None:
+        error = collocation_error(result)
+        wanted = budget.certify_every_round or error.max <= budget.tolerance
+        if result.success and budget.certify and wanted:
+            cert = certify(result, tolerances=budget.tolerances)
+    nan = math.nan
+    record = RefinementRound(
+        index=index,
+        n_knots=result.problem.n_knots,
+        status=result.status.value,
+        objective=result.objective,
+        duration=result.duration,
+        max_error=error.max if error is not None else nan,
+        t=error.t if error is not None else np.zeros(0),
+        errors=error.relative if error is not None else np.zeros(0),
+        certificate_passed=None if cert is None else cert.ok,
+        failures=() if cert is None else tuple(cert.failures()),
+        feedback_rms=nan if cert is None else cert.feedback_rms,
+        feedback_peak=nan if cert is None else cert.feedback_peak,
+        local_position=nan if cert is None else cert.local_position_max,
+        iterations=result.iterations,
+        solve_time=solve_time,
+        check_time=time.perf_counter() - tic,
+    )
+    return record, error, cert
+
+
+def refine(
+    solver: TrajOptSolver,
+    *,
+    beta: float | None = None,
+    bound_scale: float = 1.0,
+    guess: GuessLike = None,
+    start: BoundaryLike | None = None,
+    goal: BoundaryLike | None = None,
+    seed: int | None = None,
+    budget: RefinementBudget | None = None,
+    progress: Callable[[RefinementRound], None] | None = None,
+    first: TrajOptResult | None = None,
+) -> TrajOptResult:
+    """Solve, then refine the grid until the plan is certified or the budget runs out.
+
+    Parameters
+    ----------
+    solver : TrajOptSolver
+        The starting grid (its problem's ``n_knots`` and its transcription's grid).
+    beta, bound_scale, guess, start, goal, seed
+        As :meth:`TrajOptSolver.solve`; the guess is used in round 0 only.
+    budget : RefinementBudget, optional
+        Tolerance and limits (:class:`RefinementBudget` defaults).
+    progress : callable, optional
+        Called with each :class:`RefinementRound` as it completes.
+    first : TrajOptResult, optional
+        A result already solved on ``solver``'s grid (e.g. the best start of a
+        multistart): round 0 uses it instead of solving again. Its ``beta``,
+        bound scale and boundary states then override the arguments.
+
+    Returns
+    -------
+    TrajOptResult
+        The last round's result with :attr:`~TrajOptResult.refinement` set:
+        :attr:`~TrajOptResult.certified` is True for a certified plan; otherwise
+        ``refinement.reason`` (also appended to the message) names the failed
+        check and the budget. The status stays the solve's own.
+
+    Raises
+    ------
+    ParameterError
+        On a bad solver or budget, or any bad argument of the solve.
+    """
+    if not isinstance(solver, TrajOptSolver):
+        raise ParameterError(
+            f"solver must be a TrajOptSolver, got {type(solver).__name__}", name="solver"
+        )
+    budget = RefinementBudget() if budget is None else budget
+    if not isinstance(budget, RefinementBudget):
+        raise ParameterError("budget must be a RefinementBudget", name="budget")
+    exponent = ERROR_EXPONENTS.get(solver.method.name)
+    if exponent is None:
+        raise ParameterError(
+            f"no error estimate for transcription {solver.method.name!r}", name="solver"
+        )
+    tic = time.perf_counter()
+    if first is not None:
+        if not isinstance(first, TrajOptResult) or first.problem.n_knots != solver.problem.n_knots:
+            raise ParameterError(
+                "first must be a TrajOptResult solved on the solver's grid "
+                f"({solver.problem.n_knots} knots)",
+                name="first",
+            )
+        result, seed = first, first.seed
+        beta, bound_scale, start, goal = first.beta, first.bound_scale, first.start, first.goal
+        solve_time = first.wall_time
+    else:
+        result = solver.solve(
+            beta=beta, bound_scale=bound_scale, guess=guess, start=start, goal=goal, seed=seed
+        )
+        solve_time = time.perf_counter() - tic + solver.build_time
+    kwargs = {"beta": beta, "bound_scale": bound_scale, "start": start, "goal": goal, "seed": seed}
+    rounds: list[RefinementRound] = []
+    tolerance = budget.tolerance
+    cert: Certificate | None = None
+    while True:
+        record, error, cert = _round(len(rounds), result, budget, solve_time)
+        rounds.append(record)
+        _log.info(
+            "refinement round %d: %d knots, f = %.6g, T = %.4g s, max error %.3g, certificate %s",
+            record.index, record.n_knots, record.objective, record.duration, record.max_error,
+            record.certificate_passed,
+        )  # fmt: skip
+        if progress is not None:
+            progress(record)
+        reason = ""
+        if error is None or not result.success:
+            reason = f"the solve of round {record.index} failed ({result.status.value})"
+        elif error.max <= budget.tolerance and (
+            not budget.certify or (cert is not None and cert.ok)
+        ):
+            reason = "certified"
+        if reason or error is None:
+            break
+        if error.max <= tolerance:  # errors within tolerance, certificate not: split tighter
+            tolerance = 0.25 * error.max
+        why = (
+            f"max error {error.max:.3g} > {budget.tolerance:g}"
+            if error.max > budget.tolerance
+            else f"certificate failed ({'; '.join(record.failures)})"
+        )
+        fractions, parent = split_grid(
+            error.t, error.relative, tolerance, exponent, budget.max_pieces
+        )
+        n_new = fractions.size + 1
+        elapsed = time.perf_counter() - tic
+        if len(rounds) >= budget.max_rounds:
+            reason = f"{why} after {len(rounds)} rounds"
+        elif n_new > budget.max_knots:
+            reason = f"{why}; the next grid needs {n_new} knots"
+        elif budget.time_limit is not None and elapsed > budget.time_limit:
+            reason = f"{why} after {elapsed:.3g} s"
+        if reason:
+            reason = f"not certified: {reason} (budget: {budget.describe()})"
+            break
+        round_tic = time.perf_counter()
+        problem = dataclasses.replace(solver.problem, n_knots=n_new)
+        solver = TrajOptSolver(
+            problem, solver.method.with_fractions(fractions), solver.options,
+            dynamics=solver.dynamics, feasibility_tol=solver.feasibility_tol,
+            compile=solver.compiled,
+        )  # fmt: skip
+        t_new = solver.method.solution_times(result.duration / (n_new - 1), n_new)
+        try:
+            initial = transfer_start(result, solver, parent, t_new)
+        except KeyError:  # no multipliers (a failed solve): primal only
+            initial = None
+        previous = result
+        result = solver.solve(guess=previous.trajectory, initial=initial, **kwargs)  # type: ignore[arg-type]
+        if not result.success and initial is not None:  # warm start failed: cold, same guess
+            result = solver.solve(guess=previous.trajectory, warm_start=False, **kwargs)  # type: ignore[arg-type]
+        solve_time = time.perf_counter() - round_tic
+    refinement = Refinement(
+        certified=reason == "certified",
+        reason=reason,
+        budget=budget,
+        rounds=tuple(rounds),
+        elapsed=time.perf_counter() - tic,
+        certificate=cert,
+    )
+    message = result.message if refinement.certified else f"{result.message}; {reason}"
+    return dataclasses.replace(result, refinement=refinement, message=message)

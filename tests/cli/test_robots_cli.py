@@ -1,0 +1,64 @@
+"""``youbot-opt robots``, the shared --robot options and the report --robot FILE bug."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from youbot_opt.cli import main
+from youbot_opt.robot.model import available_robots, example_robots
+
+FIVE_DOF = Path(__file__).resolve().parents[2] / "urdf" / "youbot_arm_5dof.urdf"
+FINGERS = ["--lock", "gripper_finger_joint_l=0", "--lock", "gripper_finger_joint_r=0"]
+
+
+def test_robots_names_lists_every_name(capsys: pytest.CaptureFixture[str]) -> None:
+    """--names prints every name load_model accepts, the whole zoo included."""
+    assert main(["robots", "--names"]) == 0
+    names = capsys.readouterr().out.split()
+    assert names == list(available_robots()) and set(example_robots()) <= set(names)
+
+
+def test_robots_table_gives_dof_types_and_status(capsys: pytest.CaptureFixture[str]) -> None:
+    """A row per robot: nq/nv, joint types, and default / lenient / refused with the rule."""
+    assert main(["robots", "ur5", "romeo_small", "ur_description/ur3"]) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    assert "6/6" in rows["ur5"] and "default" in rows["ur5"] and "revolute 6" in rows["ur5"]
+    assert "lenient" in rows["romeo_small"] and "triangle inequality" in rows["romeo_small"]
+    assert (
+        "refused" in rows["ur_description/ur3"] and "<robot name=...>" in rows["ur_description/ur3"]
+    )
+    assert main(["robots", "no_such_robot"]) == 2
+
+
+def test_report_of_a_file_whose_robot_is_named_youbot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A file whose robot is named "youbot" gets its neutral q, not the study arm's (was exit 2)."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(FIVE_DOF.read_text().replace('name="youbot_arm_5dof"', 'name="youbot"'))
+    assert main(["report", "--robot", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "robot: youbot  (nq=7, nv=7)" in out and "q: [0. 0. 0. 0. 0. 0. 0.] rad" in out
+
+
+def test_report_with_lock_tip_frame_and_package_dir(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--lock, --tip-frame and --package-dir reach load_model; bad --lock is exit 2."""
+    args = ["report", "--robot", "youbot_arm_5dof", *FINGERS, "--tip-frame", "arm_link_5"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "(nq=5, nv=5)" in out and "tip frame: arm_link_5" in out
+    copy = tmp_path / "ur5.urdf"
+    copy.write_bytes(example_robots()["ur5_robot"].read_bytes())
+    from youbot_opt.robot.model import example_robot_data_dir
+
+    assert main(["report", "--robot", str(copy)]) == 2  # meshes not found
+    assert (
+        main(["report", "--robot", str(copy), "--package-dir", str(example_robot_data_dir())]) == 0
+    )
+    with pytest.raises(SystemExit) as info:
+        main(["report", "--lock", "arm_joint_1"])
+    assert info.value.code == 2

@@ -1,0 +1,86 @@
+"""Files written by youbot_opt at commit 74bfa23 load and resume with today's code.
+
+The fixtures in ``tests/fixtures/files_74bfa23`` were written by that commit
+(see the README there); they must never be regenerated.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.io import load_ikpath_result
+from youbot_opt.ikpath.multistart import run_multistart
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.sweeps.options import SweepOptions
+
+OLD = Path(__file__).resolve().parents[1] / "fixtures" / "files_74bfa23"
+
+
+def _old_store(tmp_path: Path) -> Path:
+    out = tmp_path / "ik_sweep"
+    shutil.copytree(OLD / "ik_sweep", out)
+    return out
+
+
+def _resume(out: Path, options: IpoptOptions | None = None):
+    """Run the multistart that wrote the fixture store (example A, IPOPT, 3 starts, seed 1)."""
+    return run_multistart(
+        example_problem("A"),
+        method="ipopt",
+        n_starts=3,
+        seed=1,
+        options=options,
+        sweep=SweepOptions(executor="serial", out=out),
+    )
+
+
+def test_old_ipopt_sweep_store_resumes_without_solving(tmp_path):
+    """An IK IPOPT multistart store of 74bfa23 resumes: all 3 starts loaded, manifest kept."""
+    out = _old_store(tmp_path)
+    manifest = (out / "manifest.json").read_text()
+    options = json.loads(manifest)["params"]["options"]
+    assert set(options) == {"type", "tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra"}
+    result = _resume(out)
+    assert result.resumed == 3
+    assert [r.status for r in result.results] == [SolveStatus.SOLVED] * 3
+    # The old writer's IKStatus value "success" loads as SOLVED; E as stored by 74bfa23.
+    assert result.best.objective == 7.069456165533798
+    assert (out / "manifest.json").read_text() == manifest
+
+
+def test_old_store_refuses_options_that_differ_in_a_new_field(tmp_path):
+    """A field added since 74bfa23 (hessian) set to a non-default value is a parameter change."""
+    with pytest.raises(ParameterError, match="parameters differ.*hessian"):
+        _resume(_old_store(tmp_path), IpoptOptions.for_ikpath(hessian="limited-memory"))
+
+
+def test_old_ik_result_file_loads_and_passes_the_check():
+    """An AL result file of 74bfa23 loads with its stored E, status SOLVED, and re-checks clean."""
+    stored = json.loads((OLD / "ik_al.json").read_text())["result"]
+    assert stored["status"] == "success"  # the old IKStatus value
+    result = load_ikpath_result(OLD / "ik_al.json")
+    assert result.status is SolveStatus.SOLVED and result.method == "al"
+    assert abs(result.objective - stored["objective"]) <= 1e-12  # recomputed by Pinocchio
+    assert result.check().passed
+
+
+def test_store_with_every_ipopt_field_resumes_too(tmp_path):
+    """A manifest holding every IpoptOptions field (as commit 02cdf49 wrote it) also resumes."""
+    out = _old_store(tmp_path)
+    path = out / "manifest.json"
+    manifest = json.loads(path.read_text())
+    defaults = IpoptOptions.for_ikpath()
+    full = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(defaults)}
+    full = {"type": "IpoptOptions", **full, "extra": {}}
+    assert len(full) == 11  # every field, as 02cdf49 wrote them
+    manifest["params"]["options"] = full
+    path.write_text(json.dumps(manifest, indent=1))
+    assert _resume(out).resumed == 3
