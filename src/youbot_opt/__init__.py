@@ -68,6 +68,7 @@ if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
     from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
     from youbot_opt.trajopt.pareto import ParetoFront, pareto_sweep
     from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
+    from youbot_opt.trajopt.refine import Refinement, RefinementBudget, RefinementRound, refine
     from youbot_opt.trajopt.result import TrajOptResult
     from youbot_opt.trajopt.solver import TrajOptSolver
     from youbot_opt.trajopt.spline_guess import random_spline_guess
@@ -114,6 +115,11 @@ _LAZY: dict[str, str] = {
     "Certificate": "youbot_opt.trajopt.certify",
     "Tolerances": "youbot_opt.trajopt.certify",
     "certify": "youbot_opt.trajopt.certify",
+    # adaptive mesh refinement until certified
+    "Refinement": "youbot_opt.trajopt.refine",
+    "RefinementBudget": "youbot_opt.trajopt.refine",
+    "RefinementRound": "youbot_opt.trajopt.refine",
+    "refine": "youbot_opt.trajopt.refine",
     # initial guesses and studies
     "random_spline_guess": "youbot_opt.trajopt.spline_guess",
     "MultistartResult": "youbot_opt.trajopt.multistart",
@@ -186,6 +192,10 @@ __all__ = [
     "Certificate",
     "Tolerances",
     "certify",
+    "Refinement",
+    "RefinementBudget",
+    "RefinementRound",
+    "refine",
     "random_spline_guess",
     "MultistartResult",
     "run_multistart",

@@ -62,3 +62,24 @@ def test_report_with_lock_tip_frame_and_package_dir(
     with pytest.raises(SystemExit) as info:
         main(["report", "--lock", "arm_joint_1"])
     assert info.value.code == 2
+
+
+def test_ikpath_takes_the_robot_loading_options(tmp_path):
+    """`ikpath --robot ur5 --lock J=V` plans without the locked joint (exit 0, 1 or 2, no traceback)."""
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-m", "youbot_opt", "ikpath", "--robot", "ur5", "--method", "ipopt"]
+        + ["--target", "0.3", "0.2", "0.4", "--target", "0.3", "-0.2", "0.4"]
+        + ["--lock", "shoulder_pan_joint=0.1", "--out", str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert out.returncode in (0, 1, 2), out.stderr
+    assert "Traceback" not in out.stderr
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert "shoulder_pan_joint" not in summary["joints"]
+    assert len(summary["joints"]) == 5

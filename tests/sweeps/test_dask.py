@@ -303,24 +303,41 @@ def test_cli_refuses_bad_scheduler_flags(extra, message, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_shards_into_one_folder_then_collect(tmp_path, capsys):
+def test_shards_into_one_folder_then_collect(tmp_path):
     """``ikpath --shard 1/2`` and ``2/2`` into one folder, then a plain run collects, equal.
 
     A job array without Dask: each shard solves its share and exits 0; the run
     without ``--shard`` loads every item (resumed = all) and reports what a
-    single run reports.
+    single run reports. (Subprocesses, as a job array runs them.)
     """
-    from youbot_opt.cli import main
-
     out = tmp_path / "ik"
-    argv = ["ikpath", "--example", "B", "--starts", "10", "--seed", "4", "--workers", "1",
-            "--no-progress", "--json", "--out", str(out)]  # fmt: skip
-    assert main([*argv, "--shard", "1/2"]) == 0
-    assert "shard 1/2: ran 5 item(s); 5 of 10 items are finished" in capsys.readouterr().err
-    assert main([*argv, "--shard", "2/2"]) == 0
-    assert "10 of 10 items are finished" in capsys.readouterr().err
-    assert main(argv) == 0
-    collected = json.loads(capsys.readouterr().out)
+    argv = [
+        sys.executable,
+        "-m",
+        "youbot_opt",
+        "ikpath",
+        "--example",
+        "B",
+        "--starts",
+        "10",
+        "--seed",
+        "4",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--json",
+        "--out",
+        str(out),
+    ]
+
+    def run(*extra: str) -> subprocess.CompletedProcess:  # type: ignore[type-arg]
+        done = subprocess.run([*argv, *extra], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return done
+
+    assert "shard 1/2: ran 5 item(s); 5 of 10 items are finished" in run("--shard", "1/2").stderr
+    assert "10 of 10 items are finished" in run("--shard", "2/2").stderr
+    collected = json.loads(run().stdout)
     single = ik_multistart(example_problem("B"), n_starts=10, seed=4, sweep=SweepOptions(workers=1))
     assert collected["resumed"] == 10 and collected["E"] == single.best.objective
     with pytest.raises(ParameterError, match="needs out="):

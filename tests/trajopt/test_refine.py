@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.certify import certify, check_bounds
 from youbot_opt.trajopt.io import load_result, save_result
@@ -140,12 +140,31 @@ def test_refinement_certifies_the_base_case(base_refined):
 
 
 def test_refined_result_round_trips_through_a_file(base_refined, tmp_path):
-    """The non-uniform grid is saved and loaded; the loaded result passes its own check."""
+    """Grid and refinement record are saved; the loaded plan is certified again.
+
+    Every round's scalars and arrays come back exactly (JSON floats and npz
+    arrays are lossless), and the certificate re-run on load passes. The
+    same plan saved without its record (a fixed-grid result) is never
+    certified, and ``require_certified`` says so.
+    """
     loaded = load_result(save_result(base_refined, tmp_path / "r.npz"))
     np.testing.assert_array_equal(loaded.grid, base_refined.grid)
     np.testing.assert_array_equal(loaded.trajectory.t, base_refined.trajectory.t)
     assert loaded.success and loaded.check().passed
-    assert not loaded.certified  # the record is not stored: certify again to trust a file
+    assert loaded.certified and loaded.refinement.certificate.ok
+    saved, back = base_refined.refinement, loaded.refinement
+    assert back.reason == saved.reason and back.budget == saved.budget
+    assert len(back.rounds) == len(saved.rounds)
+    for a, b in zip(saved.rounds, back.rounds, strict=True):
+        assert a.summary() == b.summary()
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.errors, b.errors)
+    assert loaded.require_certified() is loaded
+    unrefined = dataclasses.replace(base_refined, refinement=None)
+    fixed = load_result(save_result(unrefined, tmp_path / "f"))
+    assert fixed.refinement is None and not fixed.certified
+    with pytest.raises(SolveFailed, match="NOT certified: a fixed-grid result"):
+        fixed.require_certified()
 
 
 def test_refinement_plot_shows_every_round(base_refined):
@@ -183,6 +202,9 @@ def test_exhausted_budget_says_which_check_failed():
     reason = r.refinement.reason
     assert reason.startswith("not certified: max error") and "at most 1 rounds" in reason
     assert reason in r.message
+    assert r.raise_for_status() is r  # the solve itself succeeded
+    with pytest.raises(SolveFailed, match="solved, NOT certified: max error .* rounds"):
+        r.require_certified()
     with pytest.raises(ParameterError, match="max_rounds"):
         RefinementBudget(max_rounds=0)
 

@@ -65,6 +65,7 @@ from typing import TYPE_CHECKING, Any
 
 from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
 from youbot_opt.cli.limits import check_ikpath_size
+from youbot_opt.cli.robot_args import add_loading_options
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 
@@ -97,6 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "URDF path for spatial targets",
     )
     src.add_argument("--frame", metavar="F", help="spatial: the frame that visits the targets")
+    add_loading_options(src)
     src.add_argument(
         "--targets",
         metavar="FILE",
@@ -505,7 +507,9 @@ def _run(args: argparse.Namespace) -> int:
             name="segment_time",
             value=args.segment_time,
         )
-    check_ikpath_size(n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ()))  # noqa: E501
+    check_ikpath_size(
+        n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ())
+    )  # noqa: E501
     if _spatial_mode(args):
         from youbot_opt.cli.ikpath_spatial import run_spatial
 

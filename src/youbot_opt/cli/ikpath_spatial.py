@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from youbot_opt.cli.robot_args import loading_options
 from youbot_opt.exceptions import ParameterError
 
 if TYPE_CHECKING:
@@ -81,7 +82,7 @@ def run_spatial(args: argparse.Namespace) -> int:
             name="robot",
             value=args.robot,
         )
-    robot = load_model(args.robot or "youbot", tip_frame=args.frame)
+    robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
     frame = args.frame or robot.tip_frame
     targets = spatial_targets(args)
     if len(targets) < 2:

@@ -11,6 +11,7 @@ and ``replay.html``; sweeps report progress on stderr through
 
 from __future__ import annotations
 
+import argparse
 import datetime as _dt
 import json
 import math
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_ROOT",
+    "add_command",
     "run_folder",
     "json_ready",
     "write_summary",
@@ -37,6 +39,41 @@ __all__ = [
 
 DEFAULT_ROOT = Path("youbot_opt_runs")
 """Parent of the per-run folders made when no ``--out`` is given (relative to the cwd)."""
+
+
+def add_command(
+    sub: argparse._SubParsersAction,  # type: ignore[type-arg]
+    name: str,
+    *,
+    help: str,  # noqa: A002 - the argparse keyword
+    description: str,
+    **kwargs: Any,
+) -> argparse.ArgumentParser:
+    """Add one sub-command to the dispatcher and return its parser.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The dispatcher's sub-parsers.
+    name : str
+        The sub-command (``youbot-opt NAME``).
+    help : str
+        One line for ``youbot-opt --help``.
+    description : str
+        The text at the top of ``youbot-opt NAME --help``.
+    **kwargs
+        Further :meth:`argparse._SubParsersAction.add_parser` keywords
+        (``epilog``, ``formatter_class``).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The sub-command's parser, for its arguments.
+    """
+    parser: argparse.ArgumentParser = sub.add_parser(
+        name, help=help, description=description, **kwargs
+    )
+    return parser
 
 
 def run_folder(

@@ -16,6 +16,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from youbot_opt.cli.output import add_command
 from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
 
 if TYPE_CHECKING:  # Pinocchio is imported in the functions, so --help stays fast
@@ -29,14 +30,9 @@ _PLANAR_TIP = "gripper_tip"
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``report`` sub-command.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The dispatcher's sub-parsers.
-    """
-    p = sub.add_parser(
+    """Add the ``report`` sub-command."""
+    p = add_command(
+        sub,
         "report",
         help="print a model report: joints, masses, limits, M(q), gravity torques, tip pose",
         description="Print a model report of a robot at a configuration.",

@@ -21,18 +21,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+from youbot_opt.cli.output import add_command
+
 __all__ = ["register"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``reproduce-study1`` sub-command.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The dispatcher's sub-parsers.
-    """
-    p = sub.add_parser(
+    """Add the ``reproduce-study1`` sub-command."""
+    p = add_command(
+        sub,
         "reproduce-study1",
         help="reproduce study 1 (its transcription and the correct ones), certified",
         description="Reproduce study 1 with the study's own transcription and the correct "

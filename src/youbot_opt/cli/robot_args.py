@@ -17,7 +17,14 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # Pinocchio is imported in load_robot, so --help stays fast
     from youbot_opt.robot.model import RobotModel
 
-__all__ = ["add_robot_arguments", "load_robot", "parse_lock", "is_study_youbot"]
+__all__ = [
+    "add_loading_options",
+    "add_robot_arguments",
+    "is_study_youbot",
+    "load_robot",
+    "loading_options",
+    "parse_lock",
+]
 
 
 def parse_lock(text: str) -> tuple[str, float]:
@@ -50,23 +57,14 @@ def parse_lock(text: str) -> tuple[str, float]:
     return name.strip(), number
 
 
-def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str = "youbot") -> None:
-    """Add ``--robot``, ``--package-dir``, ``--lenient``, ``--lock`` and ``--tip-frame``.
+def add_loading_options(group: argparse._ActionsContainer) -> None:
+    """Add ``--package-dir``, ``--lenient`` and ``--lock`` (how a named robot is loaded).
 
     Parameters
     ----------
-    parser : argparse.ArgumentParser
-        The sub-command's parser.
-    default : str
-        Default ``--robot``.
+    group : argparse parser or argument group
+        Where the options go (``ikpath`` has its own ``--robot`` and ``--frame``).
     """
-    group = parser.add_argument_group("robot")
-    group.add_argument(
-        "--robot",
-        default=default,
-        metavar="NAME|PATH",
-        help=f"robot name (`youbot-opt robots` lists them) or URDF path (default: {default})",
-    )
     group.add_argument(
         "--package-dir",
         action="append",
@@ -88,6 +86,47 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str = "youb
         metavar="NAME=VALUE",
         help="lock a joint at a position in rad or m (repeatable)",
     )
+
+
+def loading_options(args: argparse.Namespace) -> dict[str, object]:
+    """Keyword arguments of ``load_model`` from the options of :func:`add_loading_options`.
+
+    Raises
+    ------
+    ParameterError
+        If ``--lock`` names a joint twice.
+    """
+    from youbot_opt.exceptions import ParameterError
+
+    names = [name for name, _ in args.lock]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"--lock gives joints {twice} more than once", name="lock")
+    return {
+        "package_dirs": tuple(args.package_dir),
+        "strict": not args.lenient,
+        "lock_joints": dict(args.lock) if args.lock else None,
+    }
+
+
+def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str = "youbot") -> None:
+    """Add ``--robot``, ``--package-dir``, ``--lenient``, ``--lock`` and ``--tip-frame``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The sub-command's parser.
+    default : str
+        Default ``--robot``.
+    """
+    group = parser.add_argument_group("robot")
+    group.add_argument(
+        "--robot",
+        default=default,
+        metavar="NAME|PATH",
+        help=f"robot name (`youbot-opt robots` lists them) or URDF path (default: {default})",
+    )
+    add_loading_options(group)
     group.add_argument(
         "--tip-frame", default=None, metavar="F", help="end-effector frame (default: the robot's)"
     )
@@ -119,18 +158,11 @@ def load_robot(args: argparse.Namespace, *, damping: float | None = None) -> Rob
         As :func:`youbot_opt.robot.model.load_model`; a joint locked twice
         raises ParameterError.
     """
-    from youbot_opt.exceptions import ParameterError
     from youbot_opt.robot.model import load_model
 
-    names = [name for name, _ in args.lock]
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise ParameterError(f"--lock gives joints {twice} more than once", name="lock")
     return load_model(
         args.robot,
-        package_dirs=tuple(args.package_dir),
-        strict=not args.lenient,
-        lock_joints=dict(args.lock) if args.lock else None,
         tip_frame=args.tip_frame,
         damping=damping,
+        **loading_options(args),  # type: ignore[arg-type]
     )

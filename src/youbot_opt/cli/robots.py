@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from youbot_opt._files import atomic_write_text
+from youbot_opt.cli.output import add_command
 
 __all__ = ["register", "RobotSurvey", "survey"]
 
@@ -132,14 +133,9 @@ def survey(name: str) -> RobotSurvey:
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``robots`` sub-command.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The dispatcher's sub-parsers.
-    """
-    p = sub.add_parser(
+    """Add the ``robots`` sub-command."""
+    p = add_command(
+        sub,
         "robots",
         help="list the robots that load by name: dof, joint types, loads by default or --lenient",
         description="List the robots --robot accepts by name (youbot, youbot_arm_5dof and every "

@@ -298,13 +298,21 @@ def certificate_of(result: Any) -> Any:
     return certify(result)
 
 
+def _status_line(result: Any) -> str:
+    """Return the status line: for a refined plan, whether it is certified (and why not)."""
+    record = result.refinement
+    if record is None or record.certified or not result.success:
+        return f"{result.status.value} ({result.message})"
+    return f"{result.status.value}, NOT certified: {record.reason.removeprefix('not certified: ')}"
+
+
 def format_result(result: Any, certificate: Any = None, *, max_active: int = 12) -> str:
     """Readable multi-line summary of a result (and its certificate)."""
     s = result.summary()
     lines = [
         f"{s['robot']}: {s['n_knots']} knots, {s['method']}, backend {s['backend']}, "
         f"beta = {s['beta']:g}, bound scale = {s['bound_scale']:g}",
-        f"status        {s['status']} ({result.message})",
+        f"status        {_status_line(result)}",
         f"objective f   {result.objective:.6f}   (beta T + (1 - beta) W)",
         f"duration T    {result.duration:.5f} s   (dt = {result.dt:.6f} s)",
         f"work W        {result.work:.5f} N^2 m^2 s",

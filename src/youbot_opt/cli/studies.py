@@ -26,7 +26,7 @@ import numpy as np
 
 from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
 from youbot_opt.cli.limits import check_sweep_values, check_trajopt_size
-from youbot_opt.cli.output import ProgressLine
+from youbot_opt.cli.output import ProgressLine, add_command
 from youbot_opt.cli.solve import (
     add_refine_arguments,
     draw_figure,
@@ -113,14 +113,9 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``multistart``, ``pareto`` and ``bounds`` sub-commands.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The dispatcher's sub-parsers.
-    """
-    p = sub.add_parser(
+    """Add the ``multistart``, ``pareto`` and ``bounds`` sub-commands."""
+    p = add_command(
+        sub,
         "multistart",
         help="seeded multistart of the study-1 problem",
         description="Solve study 1 from seeded random spline guesses.",
@@ -179,7 +174,12 @@ def _solver(args: argparse.Namespace) -> Any:
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     problem = study1_problem(args.knots)
-    check_trajopt_size(n_knots=args.knots, nq=problem.robot.nq, n_starts=getattr(args, "starts", 1), max_knots=args.max_knots if getattr(args, "refine", False) else 0)  # noqa: E501
+    check_trajopt_size(
+        n_knots=args.knots,
+        nq=problem.robot.nq,
+        n_starts=getattr(args, "starts", 1),
+        max_knots=args.max_knots if getattr(args, "refine", False) else 0,
+    )
     method = args.transcription.replace("-", "_")
     return TrajOptSolver(problem, method, IpoptOptions(max_iter=args.max_iter), args.backend)
 

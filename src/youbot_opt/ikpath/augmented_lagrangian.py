@@ -16,7 +16,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -33,6 +33,7 @@ from youbot_opt.nlp.status import SolveStatus
 
 __all__ = [
     "ALOptions",
+    "ALResultFields",
     "ALRun",
     "first_order_multipliers",
     "run_augmented_lagrangian",
@@ -145,17 +146,9 @@ def solve_augmented_lagrangian(
     run = run_augmented_lagrangian(problem, start, opts)
     return build_result(
         problem,
-        method="al",
-        status=run.status,
-        x=run.x,
-        multipliers=run.multipliers,
-        iterations=len(run.history),
+        **run.result_fields(start),
         inner_iterations=run.inner_iterations,
-        wall_time=run.wall_time,
-        message=run.message,
-        start=start,
         constraint_tol=opts.constraint_tol,
-        history=run.history,
     )
 
 
@@ -187,6 +180,38 @@ class ALRun(NamedTuple):
     history: tuple[OuterIterate, ...]
     inner_iterations: int
     wall_time: float
+
+    def result_fields(self, start: Array) -> ALResultFields:
+        """Return the keywords the result builders share for this run from ``start`` [rad].
+
+        Both :func:`~youbot_opt.ikpath.result.build_result` and the spatial
+        ``build_spatial_result`` take them (``method = "al"``).
+        """
+        return ALResultFields(
+            method="al",
+            status=self.status,
+            x=self.x,
+            multipliers=self.multipliers,
+            iterations=len(self.history),
+            wall_time=self.wall_time,
+            message=self.message,
+            start=start,
+            history=self.history,
+        )
+
+
+class ALResultFields(TypedDict):
+    """Result-builder keywords of one :class:`ALRun` (see :meth:`ALRun.result_fields`)."""
+
+    method: str
+    status: SolveStatus
+    x: Array
+    multipliers: Array
+    iterations: int
+    wall_time: float
+    message: str
+    start: Array
+    history: tuple[OuterIterate, ...]
 
 
 def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) -> ALRun:

@@ -30,7 +30,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.chain import PlanarChain
 
-__all__ = ["ALProblem", "CyclicIKProblem", "Evaluation"]
+__all__ = ["ALProblem", "CyclicIKProblem", "Evaluation", "path_configurations"]
 
 
 class Evaluation(NamedTuple):
@@ -102,6 +102,38 @@ class ALProblem(Protocol):
     def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
         """Constraint rows ``c(x)``."""
         ...
+
+
+def path_configurations(x: ArrayLike, n_targets: int, n_joints: int, name: str = "x") -> Array:
+    """Return a path ``x`` (shape (n s,) or (s, n)) as a finite (s, n) array in [rad].
+
+    Parameters
+    ----------
+    x : array_like, shape (n s,) or (s, n)
+        Joint angles of the ``s`` path points in [rad].
+    n_targets : int
+        Number ``s`` of path points (targets).
+    n_joints : int
+        Number ``n`` of joints (active angles) per point.
+    name : str, optional
+        Name of ``x`` in error messages.
+
+    Raises
+    ------
+    ParameterError
+        If the size is not ``n s`` or an entry is not finite.
+    """
+    arr = np.array(x, dtype=float)
+    if arr.size != n_targets * n_joints or arr.ndim not in (1, 2):
+        raise ParameterError(
+            f"{name} must have shape ({n_targets * n_joints},) or "
+            f"({n_targets}, {n_joints}), got {arr.shape}",
+            name=name,
+            value=arr.shape,
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must be finite", name=name, value=arr)
+    return arr.reshape(n_targets, n_joints)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
@@ -184,24 +216,8 @@ class CyclicIKProblem:
         return np.tile(self.chain.q_upper, self.n_targets)
 
     def as_configurations(self, x: ArrayLike, name: str = "x") -> Array:
-        """Return ``x`` (shape (n s,) or (s, n)) as a finite (s, n) array in [rad].
-
-        Raises
-        ------
-        ParameterError
-            If the size is not ``n s`` or an entry is not finite.
-        """
-        arr = np.array(x, dtype=float)
-        if arr.size != self.n_variables or arr.ndim not in (1, 2):
-            raise ParameterError(
-                f"{name} must have shape ({self.n_variables},) or "
-                f"({self.n_targets}, {self.n_joints}), got {arr.shape}",
-                name=name,
-                value=arr.shape,
-            )
-        if not np.all(np.isfinite(arr)):
-            raise ParameterError(f"{name} must be finite", name=name, value=arr)
-        return arr.reshape(self.n_targets, self.n_joints)
+        """Return ``x`` as a finite (s, n) array in [rad] (:func:`path_configurations`)."""
+        return path_configurations(x, self.n_targets, self.n_joints, name)
 
     def objective(self, x: ArrayLike) -> float:
         """``E = 1/2 sum_j |q_{j+1} - q_j|^2`` (cyclic) in [rad^2]."""

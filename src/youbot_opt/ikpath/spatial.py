@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.problem import Evaluation
+from youbot_opt.ikpath.problem import Evaluation, path_configurations
 from youbot_opt.ikpath.result import OuterIterate
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
@@ -278,24 +278,8 @@ class SpatialIKProblem:
         return data.oMf[self.frame_id].copy()
 
     def as_configurations(self, x: ArrayLike, name: str = "x") -> Array:
-        """Return ``x`` (shape (n s,) or (s, n)) as a finite (s, n) array in [rad].
-
-        Raises
-        ------
-        ParameterError
-            If the size is not ``n s`` or an entry is not finite.
-        """
-        arr = np.array(x, dtype=float)
-        if arr.size != self.n_variables or arr.ndim not in (1, 2):
-            raise ParameterError(
-                f"{name} must have shape ({self.n_variables},) or "
-                f"({self.n_targets}, {self.n_joints}), got {arr.shape}",
-                name=name,
-                value=arr.shape,
-            )
-        if not np.all(np.isfinite(arr)):
-            raise ParameterError(f"{name} must be finite", name=name, value=arr)
-        return arr.reshape(self.n_targets, self.n_joints)
+        """Return ``x`` as a finite (s, n) array in [rad] (:func:`path_configurations`)."""
+        return path_configurations(x, self.n_targets, self.n_joints, name)
 
     def block(self, j: int, theta: Array, data: pin.Data) -> tuple[Array, Array]:
         """Constraint rows ``c_j`` (m,) and Jacobian (m, n) of target ``j`` at ``theta``.

@@ -66,18 +66,7 @@ def solve_spatial(
     opts = SPATIAL_AL_OPTIONS if options is None else options
     start = problem.check_start(x0)
     run = run_augmented_lagrangian(problem, start, opts)
-    return build_spatial_result(
-        problem,
-        method="al",
-        status=run.status,
-        x=run.x,
-        multipliers=run.multipliers,
-        iterations=len(run.history),
-        wall_time=run.wall_time,
-        message=run.message,
-        start=start,
-        history=run.history,
-    )
+    return build_spatial_result(problem, **run.result_fields(start))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)

@@ -2,15 +2,17 @@
 
 Schema ``youbot_opt.trajopt_result`` (version :data:`SCHEMA_VERSION`): arrays
 under ``"<group>__<name>"`` keys and a JSON ``"metadata"`` entry (versions,
-problem, transcription, status, options, SHA-256 of every array). Nothing is
-pickled, writes are atomic, and the loader re-checks the result
-(:func:`youbot_opt.trajopt.check.checked`).
+problem, transcription, status, options, refinement record, SHA-256 of every
+array). Nothing is pickled, writes are atomic, and the loader re-checks the
+result (:func:`youbot_opt.trajopt.check.checked`) and re-runs the certificate of
+a plan saved as certified. Files without a refinement record (commit 74bfa23) load.
 
 >>> result = load_result(save_result(result, "result.npz"))  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import json
 import os
@@ -33,9 +35,12 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.model import RobotModel, available_robots, load_model
+from youbot_opt.trajopt.certificate import Tolerances
+from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.refinement import Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
     DEFAULT_FEASIBILITY_TOL,
     SolveStats,
@@ -53,6 +58,75 @@ _TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid")
 
 def _state(state: BoundaryState) -> dict[str, list[float]]:
     return {"q": state.q.tolist(), "v": state.velocity.tolist()}
+
+
+_ROUND_ARRAYS = ("t", "errors")
+
+
+def _refinement_meta(record: Refinement, arrays: dict[str, Array]) -> dict[str, Any]:
+    """JSON of a refinement record; each round's grid and errors go to ``arrays``."""
+    budget = {f.name: getattr(record.budget, f.name) for f in dataclasses.fields(record.budget)}
+    tol = record.budget.tolerances
+    budget["tolerances"] = None if tol is None else dataclasses.asdict(tol)
+    rounds = []
+    for r in record.rounds:
+        row = {f.name: getattr(r, f.name) for f in dataclasses.fields(r)}
+        for name in _ROUND_ARRAYS:
+            arrays[f"refinement__{name}_{r.index}"] = np.asarray(row.pop(name), dtype=float)
+        row["failures"] = list(r.failures)
+        rounds.append(row)
+    return {
+        "certified": record.certified,
+        "reason": record.reason,
+        "elapsed": record.elapsed,
+        "budget": budget,
+        "rounds": rounds,
+    }
+
+
+def _refinement(meta: dict[str, Any] | None, arrays: dict[str, Array]) -> Refinement | None:
+    """Rebuild the saved refinement record (certificate not attached), or None."""
+    if meta is None:
+        return None
+    budget = dict(meta["budget"])
+    tol = budget.pop("tolerances")
+    rounds = []
+    for row in meta["rounds"]:
+        index = int(row["index"])
+        values = {name: arrays[f"refinement__{name}_{index}"] for name in _ROUND_ARRAYS}
+        for arr in values.values():
+            arr.setflags(write=False)
+        rounds.append(RefinementRound(**{**row, **values, "failures": tuple(row["failures"])}))
+    return Refinement(
+        certified=bool(meta["certified"]),
+        reason=str(meta["reason"]),
+        budget=RefinementBudget(**budget, tolerances=None if tol is None else Tolerances(**tol)),
+        rounds=tuple(rounds),
+        elapsed=float(meta["elapsed"]),
+    )
+
+
+def _recertify(result: TrajOptResult) -> TrajOptResult:
+    """Re-run the certificate of a result saved as certified; downgrade it if refuted."""
+    record = result.refinement
+    if record is None or not record.certified:
+        return result
+    reason = ""
+    cert = None
+    if not result.success or result.trajectory is None:
+        reason = f"not certified: the loaded result fails its check ({result.status.value})"
+    else:
+        cert = certify(result, tolerances=record.budget.tolerances)
+        if not cert.ok:
+            failed = "; ".join(cert.failures())
+            reason = f"not certified: the certificate re-run on load fails ({failed})"
+    if reason:
+        record = dataclasses.replace(record, certified=False, reason=reason, certificate=cert)
+        message = f"{result.message}; {reason}"
+    else:
+        record = dataclasses.replace(record, certificate=cert)
+        message = result.message
+    return dataclasses.replace(result, refinement=record, message=message)
 
 
 def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
@@ -92,6 +166,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
                 value = getattr(traj, name)
                 if value is not None:
                     arrays[f"{group}__{name}"] = np.asarray(value, dtype=float)
+    refinement = None if result.refinement is None else _refinement_meta(result.refinement, arrays)
     meta: dict[str, Any] = {
         **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -125,6 +200,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
             "trajectory": None if result.trajectory is None else result.trajectory.interpolation,
             "guess": None if result.guess is None else result.guess.interpolation,
         },
+        "refinement": refinement,
         "checksums": {key: array_digest(arr) for key, arr in arrays.items()},
     }
     payload = json.dumps(meta, allow_nan=True, sort_keys=True).encode("utf-8")
@@ -210,7 +286,12 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
     TrajOptResult
         The result, with its problem rebuilt; a saved success claim that the
         independent check (:func:`youbot_opt.trajopt.check.checked`) refutes
-        is downgraded.
+        is downgraded. The refinement record (rounds, budget, verdict) is
+        restored; a result saved as certified is certified again only if it
+        passes that check and :func:`~youbot_opt.trajopt.certify.certify`,
+        re-run here with the saved tolerances (a forward simulation; the
+        certificate is attached as ``refinement.certificate``), otherwise
+        ``certified`` is False and ``refinement.reason`` says why.
 
     Raises
     ------
@@ -276,10 +357,12 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
             seed=meta["seed"],
             feasibility_tol=float(meta.get("feasibility_tol", DEFAULT_FEASIBILITY_TOL)),
             grid=arrays.get("grid"),
+            refinement=_refinement(meta.get("refinement"), arrays),
         )
     except ResultFileError:
         raise
     except (KeyError, TypeError, ValueError) as exc:
         raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc
-    # A file is data from outside: the independent check sets the status it deserves.
-    return checked(result)
+    # A file is data from outside: the independent check sets the status it deserves,
+    # and a certified plan must pass its certificate again.
+    return _recertify(checked(result))

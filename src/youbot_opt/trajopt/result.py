@@ -387,6 +387,30 @@ class TrajOptResult:
             )
         return self
 
+    def require_certified(self) -> TrajOptResult:
+        """Return ``self`` if the plan is :attr:`certified`, else raise :class:`SolveFailed`.
+
+        :attr:`status` and :attr:`success` stay the solver's verdict (a plan
+        IPOPT solved but refinement could not certify is still "solved"), so
+        :meth:`raise_for_status` accepts it; this is the stricter check.
+
+        Raises
+        ------
+        SolveFailed
+            If the solve failed, if the result is not refined (a fixed grid is
+            never certified), or if refinement stopped uncertified (the message
+            names the failed check and the budget).
+        """
+        self.raise_for_status()
+        if not self.certified:
+            why = (
+                "a fixed-grid result is never certified (solve with refine())"
+                if self.refinement is None
+                else self.refinement.reason.removeprefix("not certified: ")
+            )
+            raise SolveFailed(f"trajectory {self.status.value}, NOT certified: {why}", result=self)
+        return self
+
     def bounds(self) -> JointBounds:
         """Return the scaled joint bounds of this solve."""
         return self.problem.bounds(self.bound_scale)

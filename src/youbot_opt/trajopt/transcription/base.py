@@ -360,9 +360,23 @@ class Transcription(ABC):
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
         """Return initial values of every variable block from a guess trajectory."""
 
-    @abstractmethod
     def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
-        """Solution trajectory from unpacked variables and knot accelerations ``a``."""
+        """Solution trajectory from unpacked variables and knot accelerations ``a``.
+
+        Knots at :meth:`solution_times` of the mean step ``values["dt"]`` [s];
+        ``values["tau_mid"]`` [N m] where the method has midpoint torques.
+        """
+        dt = float(values["dt"].ravel()[0])
+        n = values["q"].shape[0]
+        return Trajectory(
+            t=self.solution_times(dt, n),
+            q=values["q"],
+            v=values["v"],
+            a=a,
+            tau=values["tau"],
+            tau_mid=values.get("tau_mid"),
+            interpolation=self.interpolation,
+        )
 
     def build(self, problem: TrajOptProblem, forward_dynamics: ca.Function) -> TranscribedNLP:
         """Transcribe ``problem`` with the per-knot dynamics ``forward_dynamics``.

@@ -156,17 +156,3 @@ class HermiteSimpsonCollocation(Transcription):
             "tau_mid": guess.torque(tm),
             "dt": np.array(dt),
         }
-
-    def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
-        """Hermite-Simpson :class:`Trajectory` of a solution."""
-        dt = float(values["dt"].ravel()[0])
-        n = values["q"].shape[0]
-        return Trajectory(
-            t=self.solution_times(dt, n),
-            q=values["q"],
-            v=values["v"],
-            a=a,
-            tau=values["tau"],
-            tau_mid=values["tau_mid"],
-            interpolation="hermite_simpson",
-        )

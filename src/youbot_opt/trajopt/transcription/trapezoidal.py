@@ -63,16 +63,3 @@ class TrapezoidalCollocation(Transcription):
         """Knot values of ``guess`` resampled on the grid's ``n_knots`` times."""
         dt, t = self.knot_times(guess, n_knots)
         return {"q": guess(t), "v": guess.velocity(t), "tau": guess.torque(t), "dt": np.array(dt)}
-
-    def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
-        """Trapezoidal :class:`Trajectory` of a solution."""
-        dt = float(values["dt"].ravel()[0])
-        n = values["q"].shape[0]
-        return Trajectory(
-            t=self.solution_times(dt, n),
-            q=values["q"],
-            v=values["v"],
-            a=a,
-            tau=values["tau"],
-            interpolation="trapezoidal",
-        )

@@ -365,15 +365,32 @@ def export_html(
     ModelError
         If a mesh breaks the mesh policy or a geometry cannot be drawn.
     """
+    target = html_target(path)
+    page = scene_html(
+        robot, t, q, fps=fps, ee_path=ee_path, targets=targets, ghosts=ghosts, extra=extra,
+        spacing=spacing, loop=loop, frame_path=frame_path,
+    )  # fmt: skip
+    return write_page(target, page)
+
+
+def html_target(path: str | Path) -> Path:
+    """Return ``path`` as the HTML file to write, checked before any work is done.
+
+    Raises
+    ------
+    ParameterError
+        If the folder of ``path`` does not exist.
+    """
     target = Path(path)
     if not target.parent.is_dir():
         raise ParameterError(
             f"folder {str(target.parent)!r} of the HTML file does not exist", name="path"
         )
-    page = scene_html(
-        robot, t, q, fps=fps, ee_path=ee_path, targets=targets, ghosts=ghosts, extra=extra,
-        spacing=spacing, loop=loop, frame_path=frame_path,
-    )  # fmt: skip
+    return target
+
+
+def write_page(target: Path, page: str) -> Path:
+    """Write the HTML ``page`` to ``target`` (UTF-8), log its size and return ``target``."""
     target.write_text(page, encoding="utf-8")
     logger.info("wrote %s (%.1f MB)", target, len(page) / 1e6)
     return target

@@ -23,7 +23,7 @@ import numpy as np
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.viz.meshcat import scene
-from youbot_opt.viz.meshcat.replay import replay, standalone_page
+from youbot_opt.viz.meshcat.replay import html_target, replay, standalone_page, write_page
 from youbot_opt.viz.meshcat.scene import RobotLike
 from youbot_opt.viz.meshcat.server import MeshcatServer
 
@@ -195,7 +195,7 @@ def export_results_html(
     Returns
     -------
     Path
-        The file written.
+        The HTML file written (``path``).
 
     Raises
     ------
@@ -204,11 +204,7 @@ def export_results_html(
     ModelError
         If a mesh breaks the mesh policy.
     """
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise ParameterError(
-            f"folder {str(target.parent)!r} of the HTML file does not exist", name="path"
-        )
+    target = html_target(path)
     if not (np.isfinite(fps) and fps > 0):
         raise ParameterError(f"fps must be a positive rate in [1/s], got {fps!r}", name="fps")
     robot, tracks = result_tracks(results, labels, robot)
@@ -220,6 +216,4 @@ def export_results_html(
     page = standalone_page(
         robot, runs, fps=fps, ee_path=ee_path, targets=None, loop=loop, legend=legend
     )
-    target.write_text(page, encoding="utf-8")
-    logger.info("wrote %s (%.1f MB)", target, len(page) / 1e6)
-    return target
+    return write_page(target, page)

@@ -297,10 +297,20 @@ def _sample(model: pin.Model, t: Array, q: Array, times: Array) -> Array:
     )
 
 
+def _tip_frame_id(robot: RobotLike) -> int:
+    """Index of the tip frame; a link's frame when a fixed joint shares its name (z1)."""
+    frames = robot.model.frames
+    matches = [i for i in range(len(frames)) if frames[i].name == robot.tip_frame]
+    if not matches:
+        raise FrameNotFound(robot.tip_frame, tuple(f.name for f in frames))
+    bodies = [i for i in matches if frames[i].type == pin.FrameType.BODY]
+    return int((bodies or matches)[0])
+
+
 def ee_points(robot: RobotLike, t: Array, q: Array, times: Array) -> Array:
     """Compute the tip positions in [m] at ``times`` [s], shape (len(times), 3), base frame."""
     model, data = robot.model, robot.model.createData()
-    frame_id = model.getFrameId(robot.tip_frame)
+    frame_id = _tip_frame_id(robot)
     points = []
     for qk in _sample(model, t, q, times):
         pin.forwardKinematics(model, data, qk)
@@ -317,7 +327,7 @@ def scene_points(robot: RobotLike, runs: Sequence[Run], times: Array) -> Array:
         The points, with each copy's offset applied, and the origin.
     """
     model, data = robot.model, robot.model.createData()
-    frame_id = model.getFrameId(robot.tip_frame)
+    frame_id = _tip_frame_id(robot)
     points = [np.zeros(3)]
     for run in runs:
         for qk in _sample(model, run.t, run.q, times):
