@@ -65,7 +65,7 @@ def test_report_with_lock_tip_frame_and_package_dir(
 
 
 def test_ikpath_takes_the_robot_loading_options(tmp_path):
-    """`ikpath --robot ur5 --lock J=V` plans without the locked joint (exit 0, 1 or 2, no traceback)."""
+    """`ikpath --robot ur5 --lock J=V` plans without the locked joint, with no traceback."""
     import json
     import subprocess
     import sys

@@ -368,8 +368,9 @@ def test_panda_minimum_time_short_horizon():
 
     Built with ``compile=False`` (CasADi's VM instead of C code generation for
     the 8-joint kernels: ~1.5 s build instead of a long C compile). Measured:
-    T = 0.243408 s in 22 iterations (23 with the finger free: its mass barely matters); local position error 3.7e-4 rad, feedback
-    RMS ratio 1.7e-3, far inside the certificate's 5e-2 and 5e-2.
+    T = 0.243408 s in 22 iterations (23 with the finger free: its mass barely
+    matters); local position error 3.7e-4 rad, feedback RMS ratio 1.7e-3, far
+    inside the certificate's 5e-2 and 5e-2.
     """
     from youbot_opt.trajopt.certify import certify
 

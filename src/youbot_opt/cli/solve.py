@@ -496,7 +496,12 @@ def run_solve(args: argparse.Namespace) -> int:
     if args.knots < 2:
         raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
     problem = _problem(args)
-    check_trajopt_size(n_knots=args.knots, nq=problem.robot.nq, n_starts=args.starts, max_knots=args.max_knots if args.refine else 0)  # noqa: E501
+    check_trajopt_size(
+        n_knots=args.knots,
+        nq=problem.robot.nq,
+        n_starts=args.starts,
+        max_knots=args.max_knots if args.refine else 0,
+    )  # noqa: E501
     method = args.transcription.replace("-", "_")
     options = IpoptOptions(max_iter=args.max_iter)
     solver = TrajOptSolver(problem, method, options, args.backend)

@@ -301,8 +301,9 @@ def run_multistart(
         workers = max_workers or _dask_threads(executor)
     else:  # the caller's pool or executor: its size unless max_workers says otherwise
         size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
-        if size is None and is_dask_client(getattr(executor, "_client", None)):
-            size = cluster_threads(executor._client)  # client.get_executor()
+        dask_client = getattr(executor, "_client", None)  # client.get_executor()
+        if size is None and dask_client is not None and is_dask_client(dask_client):
+            size = cluster_threads(dask_client)
         workers = max_workers or int(size or default_workers())
     store = None
     if sweep.out is not None:

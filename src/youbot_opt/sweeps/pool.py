@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import copyreg
+import functools
 import hashlib
 import io
 import logging
@@ -429,7 +430,7 @@ def run_batch(init: bytes | None, batch: bytes) -> bytes:
                 _INIT.error = f"worker initializer failed: {_reason(exc)}"
             _INIT.digest = digest
         init_error = _INIT.error
-    replies = []
+    replies: list[tuple[Any, str | None, Any, float]] = []
     for key, fn, args in pickle.loads(batch):
         tic = time.perf_counter()
         try:
@@ -442,7 +443,7 @@ def run_batch(init: bytes | None, batch: bytes) -> bytes:
     try:
         return _dumps(replies)
     except Exception:  # some value does not pickle: charge that item alone
-        safe = []
+        safe: list[tuple[Any, str | None, Any, float]] = []
         for key, error, value, wall in replies:
             try:
                 _dumps(value)
@@ -645,7 +646,9 @@ class _Runner:
                             self.emit(keys[0], None, f"cannot send the task: {_reason(exc)}", 0.0)
                         continue
                     fut = self._dask_call(
-                        lambda p=payload: client.submit(run_batch, init, p, pure=False, retries=0)
+                        functools.partial(
+                            client.submit, run_batch, init, payload, pure=False, retries=0
+                        )
                     )
                     inflight[fut] = keys
                     done.add(fut)

@@ -224,9 +224,7 @@ def bound_scaling_study(
             "include_straight": include_straight,
             "dt0": dt0,
         }
-        store = open_store(
-            sweep.directory, "bounds", params, solver, clean=sweep.shard is None
-        )
+        store = open_store(sweep.directory, "bounds", params, solver, clean=sweep.shard is None)
     outcomes, _ = solve_starts(
         solver, [j for jobs in jobs_by_scale for j in jobs], store=store, sweep=sweep
     )

@@ -344,9 +344,7 @@ def run_multistart(
             "include_straight": include_straight,
             "dt0": dt0,
         }
-        store = open_store(
-            sweep.directory, "multistart", params, solver, clean=sweep.shard is None
-        )
+        store = open_store(sweep.directory, "multistart", params, solver, clean=sweep.shard is None)
     outcomes, resumed = solve_starts(solver, jobs, store=store, sweep=sweep)
     return MultistartResult(
         starts=tuple(outcomes[j.key] for j in jobs),

@@ -8,7 +8,7 @@ cannot hold (symlinks, a FIFO, a folder named like a mesh) are made by
 deterministic.
 """
 
-# ruff: noqa: E501
+# ruff: noqa: E501, E741
 # fmt: off
 import json
 import struct
