@@ -30,7 +30,13 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.chain import PlanarChain
 
-__all__ = ["ALProblem", "CyclicIKProblem", "Evaluation", "path_configurations"]
+__all__ = [
+    "ALProblem",
+    "CyclicIKProblem",
+    "Evaluation",
+    "path_configurations",
+    "require_within_limits",
+]
 
 
 class Evaluation(NamedTuple):
@@ -102,6 +108,35 @@ class ALProblem(Protocol):
     def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
         """Constraint rows ``c(x)``."""
         ...
+
+
+def require_within_limits(
+    x: Array, lower: Array, upper: Array, joint_labels: list[str], unit: str = ""
+) -> None:
+    """Raise ParameterError naming the first entry of the start ``x`` outside its limits.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n s,)
+        A start, configuration-major.
+    lower, upper : ndarray, shape (n s,)
+        The limits in [rad] (or [m] for prismatic joints).
+    joint_labels : list of str
+        How each of the ``n`` joints is named in the message.
+    unit : str
+        Unit appended to the quoted numbers (``" rad"`` or ``""``).
+    """
+    bad = np.flatnonzero((x < lower) | (x > upper))
+    if bad.size:
+        k = int(bad[0])
+        j, i = divmod(k, len(joint_labels))
+        raise ParameterError(
+            f"the start x0 violates the joint limits: configuration {j}, joint "
+            f"{joint_labels[i]} is {x[k]:.6g}{unit}, expected within "
+            f"[{lower[k]:.6g}, {upper[k]:.6g}]{unit}",
+            name="x0",
+            value=x[k],
+        )
 
 
 def path_configurations(x: ArrayLike, n_targets: int, n_joints: int, name: str = "x") -> Array:
@@ -283,15 +318,6 @@ class CyclicIKProblem:
         if x0 is None:
             return self.default_start()
         x = self.as_configurations(x0, name="x0").ravel().copy()
-        lo, hi = self.lower, self.upper
-        bad = np.flatnonzero((x < lo) | (x > hi))
-        if bad.size:
-            k = int(bad[0])
-            j, i = divmod(k, self.n_joints)
-            raise ParameterError(
-                f"the start x0 violates the joint limits: configuration {j}, joint {i} is "
-                f"{x[k]:.6g} rad, expected within [{lo[k]:.6g}, {hi[k]:.6g}] rad",
-                name="x0",
-                value=x[k],
-            )
+        labels = [str(i) for i in range(self.n_joints)]
+        require_within_limits(x, self.lower, self.upper, labels, unit=" rad")
         return x

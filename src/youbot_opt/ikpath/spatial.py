@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.problem import Evaluation, path_configurations
+from youbot_opt.ikpath.problem import Evaluation, path_configurations, require_within_limits
 from youbot_opt.ikpath.result import OuterIterate
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
@@ -385,17 +385,8 @@ class SpatialIKProblem:
         if x0 is None:
             return self.default_start()
         x = self.as_configurations(x0, name="x0").ravel().copy()
-        bad = np.flatnonzero((x < self.lower) | (x > self.upper))
-        if bad.size:
-            k = int(bad[0])
-            j, i = divmod(k, self.n_joints)
-            raise ParameterError(
-                f"the start x0 violates the joint limits: configuration {j}, joint "
-                f"{self.joint_names[i]!r} is {x[k]:.6g}, expected within "
-                f"[{self.lower[k]:.6g}, {self.upper[k]:.6g}]",
-                name="x0",
-                value=x[k],
-            )
+        labels = [repr(name) for name in self.joint_names]
+        require_within_limits(x, self.lower, self.upper, labels)
         return x
 
     def reach_radius(self) -> tuple[Array, float]:
