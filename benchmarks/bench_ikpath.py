@@ -66,9 +66,10 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path, make_spatial_starts
+from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path
 from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatial
+from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.sweeps.options import SweepOptions
 

@@ -1,7 +1,7 @@
 """Mesh refinement (issue 13): histories per robot, and refined against uniform grids.
 
 Run ``python benchmarks/bench_refine.py [--quick] [--robots base,ur5,panda,kinova]
-[--figures DIR] [--json FILE]``. Everything is measured in one run:
+[--repeats 5] [--figures DIR] [--json FILE]``. Everything is measured in one run:
 
 * **Histories**: :func:`youbot_opt.trajopt.refine.refine` from a coarse uniform
   grid, per round: knots, f, T, the largest relative interval error, the
@@ -12,19 +12,23 @@ Run ``python benchmarks/bench_refine.py [--quick] [--robots base,ur5,panda,kinov
   quarter above, at most 1 rad; kinova's continuous joints are angles), 40
   trapezoidal knots each. kinova's 40-knot grid is exploited (T ~ 28 s).
 * **Refined against uniform** (base case, trapezoidal, error tolerance 1e-4):
-  the refined plan's knots, time and objective error against the converged
-  optimum f* = 8.074944 (Hermite-Simpson, 800 knots, README), and the uniform
-  grids' f and time against knots, and the smallest uniform grid reaching the
-  refined plan's objective accuracy.
+  the refined plan's knots, CPU time (every round's build, solve and error
+  estimate, and the certificate) and objective error against the converged
+  optimum f* = 8.074944 (Hermite-Simpson, 800 knots, README), against the
+  uniform grids' f and CPU time (build + solve, and their certificates
+  apart), alternating runs, medians of ``--repeats``; and the smallest uniform
+  grid reaching the refined plan's objective accuracy, with the ratios.
 
-``--figures DIR`` writes the refinement figure of each history
-(:func:`youbot_opt.viz.plots.trajopt.plot_refinement`) and the f-against-knots plot.
+``--figures DIR`` (``docs/img`` for the docs) writes the refinement figure of
+each history (:func:`youbot_opt.viz.plots.trajopt.plot_refinement`) and
+``refinement_f_vs_knots.png`` (f against knots, |f - f*| against CPU time).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import time
 import warnings
 from pathlib import Path
@@ -83,51 +87,122 @@ def history(name: str, method: str, knots: int, budget: RefinementBudget) -> dic
             **record.summary()}  # fmt: skip
 
 
-def refined_vs_uniform(grids: list[int], tolerance: float) -> dict:
-    """Base case, trapezoidal: a refined plan at ``tolerance`` against uniform grids."""
+def _cpu(fn):  # type: ignore[no-untyped-def]
+    """Run ``fn()``; return its value, CPU and wall time [s]."""
+    tic, cpu = time.perf_counter(), time.process_time()
+    value = fn()
+    return value, time.process_time() - cpu, time.perf_counter() - tic
+
+
+def refined_vs_uniform(grids: list[int], tolerance: float, repeats: int) -> dict:
+    """Base case, trapezoidal: a refined plan at ``tolerance`` against uniform grids.
+
+    Alternating runs (refine, then every uniform grid, the grid order reversed
+    every other repeat), ``repeats`` of each, medians. Each run builds its
+    solver from scratch (dynamics, kernels from the disk cache, NLP, IPOPT):
+    what a user's ``refine(TrajOptSolver(problem))`` or
+    ``TrajOptSolver(problem).solve()`` costs. The refined time includes every
+    round's build, solve and error estimate and the final certificate; the
+    uniform grids' certificates are timed separately.
+    """
     TrajOptSolver(study1_problem(50), "trapezoidal").solve()  # warm-up: kernel cache, imports
     budget = RefinementBudget(
         tolerance=tolerance, max_rounds=12, max_knots=4000, certify_every_round=False
     )
-    tic, cpu = time.perf_counter(), time.process_time()
-    result = refine(TrajOptSolver(study1_problem(50), "trapezoidal"), budget=budget)
-    refined_time = time.perf_counter() - tic
-    refined_cpu = time.process_time() - cpu
-    refined_err = abs(result.objective - F_STAR)
-    rows = []
-    for n in grids:
-        tic, cpu = time.perf_counter(), time.process_time()
-        r = TrajOptSolver(study1_problem(n), "trapezoidal").solve()
-        wall, cpu = time.perf_counter() - tic, time.process_time() - cpu
-        rows.append((n, r.objective, abs(r.objective - F_STAR), wall, cpu, certify(r).ok))
+    refined_cpu, refined_wall = [], []
+    uni = {n: {"cpu": [], "wall": [], "cert_cpu": []} for n in grids}
+    result = uniform = None
+    uniforms = {}
+    for rep in range(repeats):
+        result, cpu, wall = _cpu(
+            lambda: refine(TrajOptSolver(study1_problem(50), "trapezoidal"), budget=budget)
+        )
+        refined_cpu.append(cpu)
+        refined_wall.append(wall)
+        for n in grids if rep % 2 == 0 else grids[::-1]:
+            uniform, cpu, wall = _cpu(lambda n=n: TrajOptSolver(study1_problem(n)).solve())
+            uni[n]["cpu"].append(cpu)
+            uni[n]["wall"].append(wall)
+            cert, cpu, _ = _cpu(lambda u=uniform: certify(u))
+            uni[n]["cert_cpu"].append(cpu)
+            uniforms[n] = (uniform, cert.ok)
+    assert result is not None
+    med = statistics.median
+    refined = {
+        "knots": result.problem.n_knots,
+        "f": result.objective,
+        "error": abs(result.objective - F_STAR),
+        "cpu_s": med(refined_cpu),
+        "wall_s": med(refined_wall),
+        "certified": result.certified,
+        "rounds": [(r.n_knots, r.objective) for r in result.refinement.rounds],
+    }
+    rows = [
+        {
+            "knots": n,
+            "f": uniforms[n][0].objective,
+            "error": abs(uniforms[n][0].objective - F_STAR),
+            "cpu_s": med(uni[n]["cpu"]),
+            "wall_s": med(uni[n]["wall"]),
+            "certify_cpu_s": med(uni[n]["cert_cpu"]),
+            "certified": uniforms[n][1],
+        }
+        for n in grids
+    ]
     print(f"\nbase case, trapezoidal: refined at error tolerance {tolerance:g} against uniform "
-          f"grids (f* = {F_STAR})")  # fmt: skip
-    print(f"  refined: {result.problem.n_knots} knots, f = {result.objective:.6f}, "
-          f"|f - f*| = {refined_err:.2e}, {refined_time:.3f} s wall / {refined_cpu:.3f} s CPU "
-          f"(builds, solves, error estimates, final certificate; "
-          f"{len(result.refinement.rounds)} rounds), certified: {result.certified}")  # fmt: skip
-    print("  refined rounds, f against knots: " + ", ".join(
-        f"{r.n_knots}: {r.objective:.6f}" for r in result.refinement.rounds))  # fmt: skip
-    print(f"  {'uniform knots':>13} {'f':>12} {'|f - f*|':>10} {'build+solve s':>14} "
-          f"{'CPU s':>7} {'certified':>9}")  # fmt: skip
-    for n, f, err, wall, cpu, ok in rows:
-        print(f"  {n:>13} {f:>12.6f} {err:>10.2e} {wall:>14.3f} {cpu:>7.3f} {ok!s:>9}")
-    reaching = [row for row in rows if row[2] <= refined_err]
+          f"grids (f* = {F_STAR}); medians of {repeats} alternating runs, CPU time")  # fmt: skip
+    rounds = ", ".join(f"{k}: {f:.6f}" for k, f in refined["rounds"])
+    print(f"  refined: {refined['knots']} knots, f = {refined['f']:.6f}, |f - f*| = "
+          f"{refined['error']:.2e}, {refined['cpu_s']:.3f} s CPU / {refined['wall_s']:.3f} s wall "
+          f"(every build, solve, error estimate and the final certificate), "
+          f"certified: {refined['certified']}")  # fmt: skip
+    print(f"  refined rounds, f against knots: {rounds}")
+    print(f"  {'uniform knots':>13} {'f':>12} {'|f - f*|':>10} {'CPU s':>7} {'wall s':>7} "
+          f"{'+cert CPU s':>11} {'certified':>9}")  # fmt: skip
+    for u in rows:
+        print(f"  {u['knots']:>13} {u['f']:>12.6f} {u['error']:>10.2e} {u['cpu_s']:>7.3f} "
+              f"{u['wall_s']:>7.3f} {u['certify_cpu_s']:>11.3f} {u['certified']!s:>9}")  # fmt: skip
+    reaching = [u for u in rows if u["error"] <= refined["error"]]
+    versus: dict = {"result": result, "refined": refined, "uniform": rows, "equal": None}
     if reaching:
-        n, f, err, wall, cpu, _ = reaching[0]
-        print(f"  smallest uniform grid as accurate: {n} knots, {wall:.3f} s wall / {cpu:.3f} s "
-              f"CPU (refined: {result.problem.n_knots} knots, {refined_time:.3f} s wall / "
-              f"{refined_cpu:.3f} s CPU)")  # fmt: skip
+        u = reaching[0]
+        versus["equal"] = u
+        print(f"  smallest uniform grid as accurate: {u['knots']} knots, {u['cpu_s']:.3f} s CPU "
+              f"({u['cpu_s'] + u['certify_cpu_s']:.3f} s with its certificate); refined: "
+              f"{refined['knots']} knots, {refined['cpu_s']:.3f} s CPU -> uniform / refined = "
+              f"{u['knots'] / refined['knots']:.2f}x knots, {u['cpu_s'] / refined['cpu_s']:.2f}x "
+              f"CPU ({(u['cpu_s'] + u['certify_cpu_s']) / refined['cpu_s']:.2f}x with "
+              f"certificates)")  # fmt: skip
     else:
         print(f"  no uniform grid up to {grids[-1]} knots is as accurate as the refined plan")
-    return {
-        "result": result,
-        "refined": {"knots": result.problem.n_knots, "f": result.objective,
-                    "error": refined_err, "time_s": refined_time, "cpu_s": refined_cpu,
-                    "rounds": [(r.n_knots, r.objective) for r in result.refinement.rounds]},
-        "uniform": [{"knots": n, "f": f, "error": e, "time_s": w, "cpu_s": c, "certified": ok}
-                    for n, f, e, w, c, ok in rows],
-    }  # fmt: skip
+    return versus
+
+
+def plot_versus(versus: dict, path: Path) -> None:
+    """f against knots, and |f - f*| against CPU time, for the refined rounds and uniform grids."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10.0, 4.0), layout="constrained")
+    ax, bx = fig.subplots(1, 2)
+    uni, ref = versus["uniform"], versus["refined"]
+    ax.loglog([u["knots"] for u in uni], [u["error"] for u in uni], "o-", label="uniform grids")
+    ax.loglog([k for k, _ in ref["rounds"]], [abs(f - F_STAR) for _, f in ref["rounds"]], "s-",
+              label="refinement rounds (tolerance 1e-4)")  # fmt: skip
+    ax.set_xlabel("knots")
+    ax.set_ylabel(f"|f - f*|  (f* = {F_STAR})")
+    ax.set_title("study-1 base case, trapezoidal: f against knots")
+    ax.legend()
+    bx.loglog([u["cpu_s"] for u in uni], [u["error"] for u in uni], "o-", label="uniform grids")
+    for u in uni:
+        bx.annotate(str(u["knots"]), (u["cpu_s"], u["error"]), fontsize=7,
+                    textcoords="offset points", xytext=(3, 3))  # fmt: skip
+    bx.loglog([ref["cpu_s"]], [ref["error"]], "s", markersize=8,
+              label=f"refined, certified ({ref['knots']} knots)")  # fmt: skip
+    bx.set_xlabel("CPU time [s], median")
+    bx.set_ylabel("|f - f*|")
+    bx.set_title("against time (uniform: build + solve; refined: all + certificate)", fontsize=9)
+    bx.legend()
+    fig.savefig(path, dpi=90)
 
 
 def main() -> None:
@@ -137,19 +212,22 @@ def main() -> None:
     parser.add_argument("--tolerance", type=float, default=1e-3, help="histories' error tolerance")
     parser.add_argument("--figures", type=Path, default=None, metavar="DIR")
     parser.add_argument("--json", type=Path, default=None, metavar="FILE")
+    parser.add_argument("--repeats", type=int, default=5, help="alternating runs (medians)")
     args = parser.parse_args()
-    robots = ["base"] if args.quick else args.robots.split(",")
+    robots = ["base"] if args.quick else [r for r in args.robots.split(",") if r]
     budget = RefinementBudget(tolerance=args.tolerance, max_rounds=12, max_knots=2000)
     runs = []
     for name in robots:
         methods = ["trapezoidal", "hermite_simpson"] if name == "base" else ["trapezoidal"]
         for method in methods:
             runs.append(history(name, method, 50 if name == "base" else 40, budget))
-    grids = [50, 100, 200, 400] if args.quick else [50, 100, 150, 200, 300, 400, 600, 800, 1200]
-    versus = refined_vs_uniform(grids, 1e-4)
+    grids = (
+        [50, 200, 400, 500, 600, 700]
+        if args.quick
+        else [50, 100, 200, 300, 400, 450, 500, 550, 600, 700, 800, 1200]
+    )
+    versus = refined_vs_uniform(grids, 1e-4, args.repeats)
     if args.figures is not None:
-        from matplotlib.figure import Figure
-
         from youbot_opt.viz.plots.trajopt import plot_refinement
 
         args.figures.mkdir(parents=True, exist_ok=True)
@@ -159,19 +237,7 @@ def main() -> None:
             fig.savefig(args.figures / f"refinement_{run['robot']}_{run['method']}.png", dpi=90)
         fig = plot_refinement(versus["result"], title="base case, trapezoidal, tolerance 1e-4")
         fig.savefig(args.figures / "refinement_base_tol1e-4.png", dpi=90)
-        fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-        ax = fig.subplots()
-        uni = versus["uniform"]
-        ax.plot([u["knots"] for u in uni], [u["f"] for u in uni], "o-", label="uniform grids")
-        ref = versus["refined"]["rounds"]
-        ax.plot([k for k, _ in ref], [f for _, f in ref], "s-", label="refinement rounds (1e-4)")
-        ax.axhline(F_STAR, color="k", linestyle="--", linewidth=1, label=f"f* = {F_STAR}")
-        ax.set_xscale("log")
-        ax.set_xlabel("knots")
-        ax.set_ylabel("f")
-        ax.set_title("study-1 base case, trapezoidal: f against knots")
-        ax.legend()
-        fig.savefig(args.figures / "refinement_f_vs_knots.png", dpi=90)
+        plot_versus(versus, args.figures / "refinement_f_vs_knots.png")
     if args.json is not None:
         out = {"histories": [{k: v for k, v in r.items() if k != "result"} for r in runs],
                "versus": {k: v for k, v in versus.items() if k != "result"}}  # fmt: skip

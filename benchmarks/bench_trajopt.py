@@ -35,7 +35,10 @@ Everything is measured in one run, so the ratios compare like with like:
   400 knots -- derivative route (CasADi AD of the MX graph, of the graph
   expanded to SX, structured per-point kernels in CasADi's VM, the same
   kernels compiled to C) and IPOPT options (barrier-parameter oracle,
-  limited-memory Hessian, looser tolerance).
+  limited-memory Hessian, looser tolerance). With ``--side-by-side`` it
+  prints instead the issue-13 table through ``solve()`` (:func:`solve_levers`):
+  IPOPT's KKT settings one by one, barrier oracles, the best-iterate
+  recorder's cost, Hermite-Simpson's Bernstein rows and its compressed form.
 
 Targets (issue 3, item 8, on 2 cores): base solve <= 0.05 s CPU, build <= 0.5 s
 (cached), >= 300x faster than SLSQP, 1600 knots <= 2 s, 19-point Pareto <=
@@ -215,6 +218,233 @@ def _levers(rows: list[str]) -> None:
                 f"{label:<44} {n:>5} {build:>9.3f} {cpu:>13.4f} {res.iterations:>5} "
                 f"{res.objective:>10.6f}"
             )
+
+
+# ------------------------------------------------------- solve() levers (#13)
+def _median_solve_cpu(solver: TrajOptSolver, repeats: int) -> tuple[Any, float]:
+    """Last result and median CPU [s] of ``repeats`` solves after one warm-up solve."""
+    solver.solve(beta=BETA)
+    result, _, cpu = _repeat_solve(solver, repeats)
+    return result, cpu
+
+
+def _raw_call(solver: TrajOptSolver, recorder: bool, fns: Any = None) -> dict[str, float]:
+    """The IPOPT call alone on ``solver``'s NLP (public pieces), with or without the recorder.
+
+    Returns the call's median CPU [s] over 5 calls, the CPU IPOPT reports inside
+    the NLP functions and the callback, the iterations and the objective.
+    """
+    from youbot_opt.nlp.best_iterate import BestIterateRecorder
+    from youbot_opt.trajopt.transcription.derivatives import (
+        compile_kernels,
+        dynamics_kernels,
+        structured_functions,
+    )
+
+    nlp = solver.nlp
+    if fns is None:
+        kernels = dynamics_kernels(solver.dynamics.forward_dynamics)
+        fns = structured_functions(
+            solver.method, solver.problem, compile_kernels(kernels), values=kernels
+        )
+    opts = solver.options.to_casadi(True)
+    data = _nlp_data(solver)
+    if recorder:
+        rec = BestIterateRecorder("bench", nlp.n_variables, nlp.n_constraints, 1)
+        opts["iteration_callback"] = rec
+        rec.reset((data["lbx"], data["ubx"], data["lbg"], data["ubg"]), solver.feasibility_tol)
+    derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g, "hess_lag": fns.hess_lag}
+    ipopt = ca.nlpsol("bench", "ipopt", fns.nlp, {**opts, **derivatives})
+    ipopt(p=BETA, **data)
+    cpus = []
+    for _ in range(5):
+        sol, _, cpu = _timed(lambda: ipopt(p=BETA, **data))
+        cpus.append(cpu)
+    st = ipopt.stats()
+    functions = sum(v for k, v in st.items() if k.startswith("t_proc_nlp"))
+    return {
+        "cpu": statistics.median(cpus), "functions": functions,
+        "callback": st.get("t_proc_callback_fun", 0.0), "iterations": st["iter_count"],
+        "objective": float(sol["f"]),
+    }  # fmt: skip
+
+
+def _compressed_hs(solver: TrajOptSolver) -> dict[str, float]:
+    """Compressed Hermite-Simpson (q_m, v_m substituted, tau_m kept), CasADi AD, one IPOPT call.
+
+    The same problem as ``solver``'s (uniform grid, Bernstein rows, Simpson's
+    rule), built from the same per-point dynamics; returns the IPOPT-internal
+    CPU (call minus the CPU inside the NLP functions), iterations, objective
+    and the sizes. The derivatives are CasADi's (exact Hessian), which does
+    not change the iterates, only the function time that is subtracted.
+    """
+    from youbot_opt.trajopt.objectives import quadrature_weights
+
+    problem = solver.problem
+    fd = solver.dynamics.forward_dynamics
+    fd = fd if fd.is_a("SXFunction") else fd.expand()
+    nv, n = problem.nv, problem.n_knots
+    q, v, tau = (ca.SX.sym(name, nv, n) for name in ("q", "v", "tau"))
+    tau_m, dt, beta = ca.SX.sym("tau_m", nv, n - 1), ca.SX.sym("dt"), ca.SX.sym("beta")
+    a = fd.map(n)(q, v, tau)
+    q0, q1, v0, v1, a0, a1 = q[:, :-1], q[:, 1:], v[:, :-1], v[:, 1:], a[:, :-1], a[:, 1:]
+    q_m = 0.5 * (q0 + q1) + dt / 8 * (v0 - v1)
+    v_m = 0.5 * (v0 + v1) + dt / 8 * (a0 - a1)
+    a_m = fd.map(n - 1)(q_m, v_m, tau_m)
+    rows = [
+        q1 - q0 - dt / 6 * (v0 + 4 * v_m + v1), v1 - v0 - dt / 6 * (a0 + 4 * a_m + a1),
+        q[:, 0], v[:, 0], q[:, n - 1], v[:, n - 1],
+        v0 + dt / 3 * a0, v1 - dt / 3 * a1, q0 + dt / 3 * v0, q1 - dt / 3 * v1,
+    ]  # fmt: skip
+    w_knots, w_mid = quadrature_weights("simpson", n)
+    work = dt * (
+        ca.mtimes(ca.sum1(tau**2), ca.DM(w_knots))
+        + ca.mtimes(ca.sum1(tau_m**2), ca.DM(np.asarray(w_mid, dtype=float)))
+    )
+    x = ca.vertcat(ca.vec(q), ca.vec(v), ca.vec(tau), ca.vec(tau_m), dt)
+    nlp = {"x": x, "p": beta, "f": beta * (n - 1) * dt + (1 - beta) * work}
+    nlp["g"] = ca.vertcat(*[ca.vec(r) for r in rows])
+    ipopt = ca.nlpsol("compressed", "ipopt", nlp, solver.options.to_casadi(True))
+    b, rep = problem.bounds(1.0), (lambda arr, k: np.tile(np.asarray(arr, dtype=float), k))
+    lbx = np.concatenate([rep(b.q_lower, n), rep(b.v_lower, n), rep(b.tau_lower, 2 * n - 1)])
+    ubx = np.concatenate([rep(b.q_upper, n), rep(b.v_upper, n), rep(b.tau_upper, 2 * n - 1)])
+    ends = [problem.start.q, problem.start.velocity, problem.goal.q, problem.goal.velocity]
+    zero = np.zeros(2 * nv * (n - 1))
+    lbg = np.concatenate([zero, *ends, rep(b.v_lower, 2 * n - 2), rep(b.q_lower, 2 * n - 2)])
+    ubg = np.concatenate([zero, *ends, rep(b.v_upper, 2 * n - 2), rep(b.q_upper, 2 * n - 2)])
+    g = solver.method.knot_guess(resolve_guess(problem, None), n)
+    x0 = np.concatenate([g["q"].ravel(), g["v"].ravel(), g["tau"].ravel(), g["tau_mid"].ravel()])
+    data: dict[str, Any] = {"x0": np.append(x0, float(np.ravel(g["dt"])[0]))}
+    data.update(lbx=np.append(lbx, problem.dt_min))
+    data.update(ubx=np.append(ubx, problem.dt_max), lbg=lbg, ubg=ubg, p=BETA)
+    ipopt(**data)
+    cpus = []
+    for _ in range(3):
+        sol, _, cpu = _timed(lambda: ipopt(**data))
+        cpus.append(cpu)
+    st = ipopt.stats()
+    functions = sum(v for k, v in st.items() if k.startswith("t_proc_nlp"))
+    return {
+        "internal": statistics.median(cpus) - functions, "iterations": st["iter_count"],
+        "objective": float(sol["f"]), "n_variables": x.numel(), "n_rows": nlp["g"].numel(),
+        "hessian_nnz": ipopt.get_function("nlp_hess_l").sparsity_out(0).nnz(),
+    }  # fmt: skip
+
+
+_FAST_STEP = {"fast_step_computation": "yes"}
+_NO_MUMPS_SCALING = {"mumps_scaling": 0, "mumps_permuting_scaling": 0}
+
+
+def solve_levers(repeats: int = 10) -> list[str]:
+    """Issue 13, item 7: each lever's effect on the base case through ``solve()``, one run.
+
+    Rows per method: IPOPT's own KKT settings (the defaults before
+    ``fast_kkt``), each setting of :data:`youbot_opt.nlp.ipopt.FAST_KKT` alone,
+    all of them (the default), then barrier-oracle alternatives on top of the
+    default; the IPOPT call with and without the best-iterate recorder; for
+    Hermite-Simpson, the NLP without its Bernstein rows (a different, weaker
+    problem: the cost of exact between-knot bounds) and the compressed form.
+    Last, the iteration counts of UR5 and Panda (trapezoidal, 40 and 10 knots)
+    under the quality-function and probing oracles: why probing is no default.
+    """
+    from youbot_opt.robot.model import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+    from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollocation
+
+    class _NoHull(HermiteSimpsonCollocation):
+        unbounded = ()
+
+        def path_constraints(self, sym: Any, accel: Any) -> list[tuple[str, str, Any]]:
+            return []
+
+    settings: list[tuple[str, dict[str, Any]]] = [
+        ("IPOPT's KKT settings (fast_kkt=False, before)", {"fast_kkt": False}),
+        ("  + fast_step_computation=yes", {"fast_kkt": False, "extra": {**_FAST_STEP}}),
+        ("  + min_refinement_steps=0", {"fast_kkt": False, "extra": {"min_refinement_steps": 0}}),
+        ("  + MUMPS scaling off", {"fast_kkt": False, "extra": {**_NO_MUMPS_SCALING}}),
+        ("fast_kkt=True (the default)", {}),
+        ("  + mu_oracle=probing", {"extra": {"mu_oracle": "probing"}}),
+        ("  + mu_oracle=loqo", {"extra": {"mu_oracle": "loqo"}}),
+        ("  + mu_strategy=monotone", {"mu_strategy": "monotone"}),
+        ("  + nlp_scaling_method=none", {"extra": {"nlp_scaling_method": "none"}}),
+        ("  + mehrotra_algorithm=yes (no line search)", {"extra": {"mehrotra_algorithm": "yes"}}),
+    ]  # fmt: skip
+    out = [
+        f"{'lever (base case, through solve())':<46} {'method':<16} {'CPU [s]':>8} {'vs before':>9}"
+        f" {'iter':>4} {'f':>12}"
+    ]
+    problem = study1_problem(50)
+    for method in METHODS:
+        before = float("nan")
+        for label, kwargs in settings:
+            solver = TrajOptSolver(problem, method, options=IpoptOptions(**kwargs))
+            res, cpu = _median_solve_cpu(solver, repeats)
+            before = cpu if kwargs == {"fast_kkt": False} else before
+            out.append(
+                f"{label:<46} {method:<16} {cpu:>8.4f} {cpu / before - 1:>+8.0%} "
+                f"{res.iterations:>4} {res.objective:>12.9f}"
+            )
+        solver = TrajOptSolver(problem, method)
+        with_rec, without = _raw_call(solver, True), _raw_call(solver, False)
+        out.append(
+            f"{'IPOPT call alone, best-iterate recorder':<46} {method:<16} {with_rec['cpu']:>8.4f}"
+            f" {'':>9} {with_rec['iterations']:>4} {with_rec['objective']:>12.9f}"
+        )
+        out.append(
+            f"{'IPOPT call alone, no recorder':<46} {method:<16} {without['cpu']:>8.4f} "
+            f"{without['cpu'] / with_rec['cpu'] - 1:>+8.0%} {without['iterations']:>4} "
+            f"{without['objective']:>12.9f}"
+        )
+        out.append(
+            f"    (inside: NLP functions {with_rec['functions']:.4f} s, recorder "
+            f"{with_rec['callback']:.4f} s; IPOPT itself "
+            f"{with_rec['cpu'] - with_rec['functions'] - with_rec['callback']:.4f} s)"
+        )
+        if method == "hermite_simpson":
+            hull = TrajOptSolver(problem, _NoHull())
+            res, cpu = _median_solve_cpu(hull, repeats)
+            out.append(
+                f"{'  without the Bernstein rows (weaker problem)':<46} {method:<16} {cpu:>8.4f} "
+                f"{'':>9} {res.iterations:>4} {res.objective:>12.9f}"
+            )
+            comp = _compressed_hs(solver)
+            sep = with_rec["cpu"] - with_rec["functions"] - with_rec["callback"]
+            out.append(
+                f"    compressed form (q_m, v_m substituted): {comp['n_variables']} variables, "
+                f"{comp['n_rows']} rows (separated {solver.nlp.n_variables}, "
+                f"{solver.nlp.n_constraints}), Hessian nnz {comp['hessian_nnz']}; IPOPT itself "
+                f"{comp['internal']:.4f} s in {comp['iterations']} iterations (separated "
+                f"{sep:.4f} s in {with_rec['iterations']}), f = {comp['objective']:.9f}"
+            )
+    ur5 = load_model("ur5")
+    cases = [
+        ("UR5, 40 knots", ur5, [0.0, -1.2, 1.0, -0.5, 0.3, 0.0],
+         [0.8, -0.6, 0.4, -1.2, -0.3, 0.5], 40, 0.5),
+    ]  # fmt: skip
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the locked mimic finger
+            panda = load_model("panda")
+        cases.append(
+            ("Panda, 10 knots, min time", panda, [0.0, -0.5, 0.0, -2.0, 0.0, 1.6, 0.8, 0.02],
+             [0.5, -0.2, 0.3, -1.6, 0.2, 1.9, 0.4, 0.02], 10, 1.0)
+        )  # fmt: skip
+    except Exception as exc:  # noqa: BLE001 -- example-robot-data without panda
+        out.append(f"panda skipped: {exc}")
+    for name, robot, q0, q1, n, beta in cases:
+        prob = TrajOptProblem(
+            robot=robot, start=BoundaryState(q=np.array(q0)), goal=BoundaryState(q=np.array(q1)),
+            n_knots=n,
+        )  # fmt: skip
+        line = f"  oracle robustness, {name}, trapezoidal:"
+        for oracle in ("quality-function", "probing"):
+            opts = IpoptOptions(extra={"mu_oracle": oracle})
+            res = TrajOptSolver(prob, options=opts, compile=False).solve(beta=beta)
+            line += f" {oracle} {res.iterations} iterations (f = {res.objective:.8f});"
+        out.append(line)
+    return out
 
 
 # ---------------------------------------------------------------- side by side
@@ -476,7 +706,7 @@ def print_side_by_side(sbs: dict[str, Any]) -> None:
     )
     print(
         f"{'method':<16} {'ours CPU':>9} {'wall':>8} {'target':>8} {'':>4} {'f':>9} {'iter':>4}"
-        f" | {'Drake':<42} {'CPU':>7} {'wall':>7} {'f':>9} | {'CPU x':>6} {'wall x':>6} {'goal':>6}"
+        f" | {'Drake':<42} {'CPU':>7} {'wall':>7} {'f':>9} | {'CPU x':>7} {'wall x':>7} {'goal':>6}"
     )
     for m in METHODS:
         r = sbs[m]
@@ -489,7 +719,7 @@ def print_side_by_side(sbs: dict[str, Any]) -> None:
             ok = "" if r["drake_success"] else " (failed)"
             line += (
                 f" | {DRAKE_NAMES[m] + ok:<42} {r['drake_cpu']:>7.3f} {r['drake_wall']:>7.3f} "
-                f"{r['drake_objective']:>9.6f} | {r['ratio_cpu']:>5.0f}x {r['ratio_wall']:>5.0f}x "
+                f"{r['drake_objective']:>9.6f} | {r['ratio_cpu']:>6.1f}x {r['ratio_wall']:>6.1f}x "
                 f"{_verdict(r['ratio_cpu'], TARGET_DRAKE_RATIO, larger_is_better=True):>6}"
             )
         print(line)
@@ -540,6 +770,8 @@ def main() -> None:
         sbs = side_by_side(repeats)
         print(f"load average at start {load[0]:.2f}, at end {os.getloadavg()[0]:.2f} (2 cores)")
         print_side_by_side(sbs)
+        if args.levers:
+            print("\n" + "\n".join(solve_levers()))
         if args.json:
             print(json.dumps({"side_by_side": sbs}))
         return

@@ -17,12 +17,10 @@ import numpy as np
 
 
 def count_records(out: Path) -> int:
-    items = out / "items"
-    return (
-        len([p for p in items.glob("*.json") if not p.name.startswith(".")])
-        if items.is_dir()
-        else 0
-    )
+    """Items with a record in the sweep folder ``out`` (journal or flat record files)."""
+    from youbot_opt.sweeps.store import stored_records
+
+    return len({r.key for r in stored_records(out)})
 
 
 def session_pids(sid: int) -> list[int]:

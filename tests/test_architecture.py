@@ -180,23 +180,50 @@ def test_layer_0_imports_only_layer_0():
     assert not bad, "layer-0 modules importing the rest of youbot_opt:\n" + "\n".join(bad)
 
 
+#: Longest module docstring, in lines (ARCHITECTURE.md rule 8: "about ten lines"; the
+#: rationale goes to docs/design.md, the measurements to benchmarks/).
+MAX_DOCSTRING_LINES = 12
+
+
+def _docstring_lines(path: Path) -> int:
+    doc = ast.get_docstring(ast.parse(path.read_text()), clean=False)
+    return len(doc.splitlines()) if doc else 0
+
+
+def test_module_docstrings_are_about_ten_lines():
+    """No module docstring beyond MAX_DOCSTRING_LINES lines."""
+    long = {
+        f"{module} ({lines} lines)"
+        for module, path in MODULES.items()
+        if (lines := _docstring_lines(path)) > MAX_DOCSTRING_LINES
+    }
+    assert not long, (
+        f"module docstrings over {MAX_DOCSTRING_LINES} lines (move the rationale to "
+        "docs/design.md, 'Module notes', and the API to the class/function docstrings):\n"
+        + "\n".join(sorted(long))
+    )
+
+
 @pytest.mark.parametrize(
     ("source", "expected"),
     [
         ("from youbot_opt.cli import main\n", "layer"),
         ("from youbot_opt.trajopt.solver import _private\n", "private"),
+        ('"""A module docstring of thirteen lines.\n' + "\n" * 12 + '"""\n', "docstring"),
     ],
 )
 def test_the_rules_catch_violations(tmp_path, source, expected):
-    """The checks above fail on a planted violation (a robot module importing up or a private)."""
+    """The checks above fail on a planted violation (an upward import, a private, a long doc)."""
     planted = "youbot_opt.robot._planted_check"
     MODULES[planted] = tmp_path / "planted.py"
     MODULES[planted].write_text(source)
     GRAPH[planted] = _imports(planted)
     try:
-        check = (
-            test_no_upward_imports if expected == "layer" else test_no_private_names_across_modules
-        )
+        check = {
+            "layer": test_no_upward_imports,
+            "private": test_no_private_names_across_modules,
+            "docstring": test_module_docstrings_are_about_ten_lines,
+        }[expected]
         with pytest.raises(AssertionError):
             check()
     finally:

@@ -1,14 +1,11 @@
 """The files youbot_opt writes: atomic writes, JSON sanitising, the schema header.
 
-Owns the three things every writer of a result, record, manifest or summary
-needs, written once: :func:`atomic_write_bytes` (temporary file in the target's
-folder, ``fsync``, :func:`os.replace`, ``fsync`` of the folder: a kill leaves the
-old file or the new one, never a torn one); :func:`json_ready` (numpy values,
-paths and enums to plain JSON, non-finite floats to ``null``); and
-:func:`schema_header` / :func:`check_schema_header` (schema name, version, the
-versions of the software that wrote it, a checksum). Layer 0: no robotics.
-
-Example::
+Owns what every writer of a result, record, manifest or summary needs, written
+once: :func:`atomic_write_bytes` (a kill leaves the old file or the new one,
+never a torn one), :func:`json_ready` (numpy values, paths and enums to plain
+JSON, non-finite floats to ``null``) and :func:`schema_header` /
+:func:`check_schema_header` (schema name, version, writing software, checksum).
+Layer 0: no robotics. Example::
 
     doc = {**schema_header("youbot_opt.x", 1, sha256=json_digest(body)), "result": body}
     atomic_write_text(path, json.dumps(json_ready(doc), allow_nan=False))

@@ -160,7 +160,7 @@ def test_multistart_folder_resumes(capsys: pytest.CaptureFixture[str], tmp_path:
     summary = json.loads((folder / "summary.json").read_text())
     _check_folder(folder, summary, ["multistart.png", "convergence.png", "trajectory.png"])
     assert (folder / "manifest.json").exists()  # the sweep store shares the run folder
-    assert len(list((folder / "items").glob("*.npz"))) == 2
+    assert len(list((folder / "items").glob("*/*.npz"))) == 2  # fanned out: items/<hh>/
     nodes, animated = _replay_nodes(folder / "replay.html")
     assert animated and len(nodes) == len(summary["distinct_optima"])
     assert main([*argv, "--json"]) == 0
@@ -170,12 +170,12 @@ def test_multistart_folder_resumes(capsys: pytest.CaptureFixture[str], tmp_path:
 
 
 def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
-    """`pareto` and `bounds` write their figure and a side-by-side replay of their solutions."""
+    """`pareto` and `bounds` write their figure, one per refined plan, and a side-by-side replay."""
     base = [*QUICK, "--workers", "0", "--quiet", "--json"]
     assert main(["pareto", "--betas", "0.3,0.7", *base]) == 0
     front = json.loads(capsys.readouterr().out)
     folder = Path(front["output_folder"])
-    _check_folder(folder, front, ["pareto.png"])
+    _check_folder(folder, front, ["pareto.png", "refinement_1.png", "refinement_2.png"])
     nodes, _ = _replay_nodes(folder / "replay.html")
     assert len(nodes) == 2 and all(n.startswith("beta_0.") for n in nodes)
     page = (folder / "replay.html").read_text()
@@ -184,6 +184,6 @@ def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bounds", "--scales", "1,0.9", "--starts", "0", *base]) == 0
     study = json.loads(capsys.readouterr().out)
     folder = Path(study["output_folder"])
-    _check_folder(folder, study, ["bound_scaling.png"])
+    _check_folder(folder, study, ["bound_scaling.png", "refinement_1.png", "refinement_2.png"])
     page = (folder / "replay.html").read_text()
     assert "100% bounds: f = " in page and "90% bounds: f = " in page

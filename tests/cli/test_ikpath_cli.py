@@ -222,7 +222,14 @@ def test_spatial_csv_targets_with_a_pose_solve_on_ur5(capsys, tmp_path):
     assert max(doc["result"]["orientation_errors_rad"]) <= 1e-6
     assert max(doc["result"]["position_errors_m"]) <= 1e-6
     files = sorted(p.name for p in Path(doc["output_folder"]).iterdir())
-    assert files == ["ikpath_legs.png", "ikpath_path3d.png", "result.json", "summary.json"]
+    assert files == [
+        "ikpath_legs.png",
+        "ikpath_path3d.png",
+        "items",  # the starts, in the sweep store
+        "manifest.json",
+        "result.json",
+        "summary.json",
+    ]
 
 
 def test_spatial_unreachable_target_exits_2_with_its_certificate(capsys):

@@ -78,7 +78,12 @@ def test_store_with_every_ipopt_field_resumes_too(tmp_path):
     path = out / "manifest.json"
     manifest = json.loads(path.read_text())
     defaults = IpoptOptions.for_ikpath()
-    full = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(defaults)}
+    later = {"fast_kkt"}  # fields added after 02cdf49 (issue 13), absent from its files
+    full = {
+        f.name: getattr(defaults, f.name)
+        for f in dataclasses.fields(defaults)
+        if f.name not in later
+    }
     full = {"type": "IpoptOptions", **full, "extra": {}}
     assert len(full) == 11  # every field, as 02cdf49 wrote them
     manifest["params"]["options"] = full

@@ -24,6 +24,7 @@ from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.store import stored_record, stored_records
 
 N = 6  # starts of the in-process tests
 
@@ -54,7 +55,17 @@ def solver_calls(monkeypatch):
 
 
 def _record(out: Path, key: str) -> dict:
-    return json.loads((out / "items" / f"{key}.json").read_text())
+    rec = stored_record(out, key)  # the latest journal line of the key
+    assert rec is not None
+    return rec
+
+
+def _forget(out: Path, keys: set[str]) -> None:
+    """Drop the journal lines of ``keys``, as if the run was killed before recording them."""
+    for path in (out / "items" / "journal").glob("*.jsonl"):
+        lines = path.read_bytes().splitlines(keepends=True)
+        kept = [ln for ln in lines if json.loads(ln.split(b" ", 1)[1])["key"] not in keys]
+        path.write_bytes(b"".join(kept))
 
 
 def _same_results(got, ref) -> None:
@@ -78,13 +89,13 @@ def test_resume_loads_finished_starts_instead_of_solving(
     assert len(solver_calls) == N and first.resumed == 0 and first.output == tmp_path
     _same_results(first, reference)
     items = tmp_path / "items"
-    assert sorted(p.name for p in items.iterdir()) == sorted(
-        [f"start_{i:04d}.json" for i in range(N)] + [f"start_{i:04d}.ikpath" for i in range(N)]
-    )
+    assert sorted(p.name for p in items.glob("*/*.ikpath")) == [
+        f"start_{i:04d}.ikpath" for i in range(N)
+    ]
+    assert sorted(r.key for r in stored_records(tmp_path)) == [f"start_{i:04d}" for i in range(N)]
     # As if killed: start 2 before anything was written, start 4 between payload and record.
-    (items / "start_0002.json").unlink()
-    (items / "start_0002.ikpath").unlink()
-    (items / "start_0004.json").unlink()
+    _forget(tmp_path, {"start_0002", "start_0004"})
+    next(items.glob("*/start_0002.ikpath")).unlink()
     solver_calls.clear()
     progress: list[tuple[int, int, float]] = []
     second = run_multistart(
@@ -151,7 +162,7 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
     rec = _record(tmp_path, "start_0001")
     assert rec["state"] == "failed" and rec["attempts"] == 2 and rec["payload"] is None
     assert len(rec["reasons"]) == 2 and all("worker process crashed" in r for r in rec["reasons"])
-    assert not (tmp_path / "items" / "start_0001.ikpath").exists()
+    assert not list(tmp_path.glob("items/*/start_0001.ikpath"))
     # Out of attempts: a rerun loads everything (no third attempt) and reports the reason.
     faults()  # none any more
     again = run_multistart(
@@ -167,7 +178,7 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
 
 
 def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
-    """Torn or edited results are refused and recomputed; newer or non-JSON records raise."""
+    """Torn or edited results and torn journal lines are refused and recomputed; newer raise."""
     first = run_multistart(
         two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
     )
@@ -178,7 +189,7 @@ def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
             two_link, n_starts=2, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
         )
 
-    payload = items / "start_0000.ikpath"
+    payload = next(items.glob("*/start_0000.ikpath"))
     good = payload.read_bytes()
     doc = json.loads(good)
     for bad in (
@@ -191,16 +202,24 @@ def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
             again = rerun()
         assert again.resumed == 1  # start_0000 recomputed, start_0001 loaded
         assert [r.objective for r in again.results] == [r.objective for r in first.results]
-    record = items / "start_0001.json"
-    rec_good = record.read_text()
-    record.write_text(json.dumps({**json.loads(rec_good), "schema_version": 99}))
+    manifest = tmp_path / "manifest.json"  # the store's schema is its manifest's
+    good_manifest = manifest.read_text()
+    manifest.write_text(json.dumps({**json.loads(good_manifest), "schema_version": 99}))
     with pytest.raises(ResultFileError, match="newer"):
         rerun()
-    record.write_text(rec_good[:-20])
-    with pytest.raises(ResultFileError, match="start_0001.json is corrupted"):
-        rerun()
-    record.write_text(rec_good)
-    rerun()  # restored files resume without complaint
+    manifest.write_text(good_manifest)
+    lines = b"".join(p.read_bytes() for p in (items / "journal").glob("*.jsonl")).splitlines()
+    line = [ln for ln in lines if b'"key":"start_0001"' in ln][-1]
+    _forget(tmp_path, {"start_0001"})
+    with next((items / "journal").glob("*.jsonl")).open("ab") as fh:
+        fh.write(line[:-20])  # its line torn, as by a power cut mid-append
+    with pytest.warns(YoubotOptWarning, match="1 torn or corrupted journal line"):
+        assert rerun().resumed == 1  # its start is recomputed, never half-read
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert rerun().resumed == 2  # healed files resume without complaint
 
 
 # ------------------------------------------------------- SIGKILL of the CLI sweep
@@ -252,9 +271,9 @@ def test_sigkilled_cli_multistart_resumes_to_the_uninterrupted_result(tmp_path):
     # On disk: exactly one record and one result per start, no temporaries left.
     items = out / "items"
     keys = [f"start_{i:04d}" for i in range(_STARTS)]
-    assert sorted(p.stem for p in items.glob("*.json")) == keys
-    assert sorted(p.stem for p in items.glob("*.ikpath")) == keys
-    assert [p.name for p in items.iterdir() if p.name.startswith(".")] == []
+    assert sorted(r.key for r in stored_records(out)) == keys  # one journal line per start
+    assert sorted(p.stem for p in items.glob("*/*.ikpath")) == keys
+    assert [p.name for p in items.rglob(".*")] == []
     for key, r in zip(keys, ref.results, strict=True):
-        saved = load_ikpath_result(items / f"{key}.ikpath")
+        saved = load_ikpath_result(next(items.glob(f"*/{key}.ikpath")))
         assert saved.objective == pytest.approx(r.objective, rel=0, abs=1e-12)

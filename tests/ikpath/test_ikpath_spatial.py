@@ -9,13 +9,10 @@ import pytest
 from youbot_opt.exceptions import UnreachableTarget
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
-from youbot_opt.ikpath.spatial import (
-    SpatialIKProblem,
-    SpatialReach,
-    check_spatial_reachability,
-    make_spatial_starts,
-)
+from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik, greedy_path
+from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
 from youbot_opt.ikpath.spatial_solve import solve_spatial
+from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
 
@@ -96,9 +93,9 @@ def _ur5_problem(seed: int) -> SpatialIKProblem:
 def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk_check():
     # Each method from its own independent starts; the best minimum over both is a KKT
     # point, and the other method started there must stay on it (E to 1e-8 relative:
-    # both solve |c| to 1e-10, so E moves by O(|lambda| |c|) ~ 1e-9 at most). The
-    # methods do not find the same best minimum from 3 independent starts each: this
-    # problem has several minima (see docs/ikpath.md, "Measured").
+    # both solve |c| to 1e-10, so E moves by O(|lambda| |c|) ~ 1e-9 at most). Three
+    # starts each are too few for both to find the best basin of this problem; the
+    # independent-multistart agreement is test_spatial_agreement.py.
     problem = _mixed_panda_problem()
     results = {
         method: [
@@ -281,3 +278,27 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     html = export_spatial_ikpath_html(result, robot, tmp_path / "replay.html")
     assert html.stat().st_size > 10_000 and "meshcat" in html.read_text()[:200_000].lower()
     assert plot_leg_motion(result).axes and plot_spatial_path(result).axes
+
+
+def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
+    # A 3-joint planar chain has a 6x3 pose Jacobian: J J^T is singular, and the
+    # damped step must still be defined (it once raised LinAlgError). The in-plane
+    # pose (a rotation about z) is met; one tilted out of the plane cannot be.
+    path = tmp_path / "planar3.urdf"
+    path.write_text(_planar_urdf((1.0, 1.0, 1.0), 3.0))
+    robot = load_model(path, tip_frame="tip")
+    half = np.sin(0.25), np.cos(0.25)  # 0.5 rad about z / about x
+    in_plane = SpatialTarget.pose((1.5, 1.0, 0.0), (0.0, 0.0, half[0], half[1]))
+    tilted = SpatialTarget.pose((1.5, 1.0, 0.0), (half[0], 0.0, 0.0, half[1]))
+    problem = SpatialIKProblem(model=robot.model, frame="tip", targets=(in_plane, tilted))
+    theta, met = dls_ik(problem, 0, np.zeros(3))
+    assert met
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, theta)
+    placement = data.oMf[robot.model.getFrameId("tip")]
+    assert np.linalg.norm(placement.translation - in_plane.position) <= 1e-6
+    assert np.linalg.norm(pin.log3(in_plane.rotation.T @ placement.rotation)) <= 1e-6
+    theta, met = dls_ik(problem, 1, np.zeros(3))
+    assert not met and np.all(np.isfinite(theta))
+    path_angles, all_met = greedy_path(problem)
+    assert not all_met and np.all(np.isfinite(path_angles))

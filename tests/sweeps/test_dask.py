@@ -32,7 +32,7 @@ from youbot_opt.sweeps.options import SweepOptions  # noqa: E402
 from youbot_opt.sweeps.pool import Task, run_tasks  # noqa: E402
 from youbot_opt.sweeps.resume import run_resumable  # noqa: E402
 from youbot_opt.sweeps.scheduler import ClusterLostError, cluster_threads, connect  # noqa: E402
-from youbot_opt.sweeps.store import SweepStore  # noqa: E402
+from youbot_opt.sweeps.store import SweepStore, stored_records  # noqa: E402
 
 TESTS = str(Path(__file__).resolve().parents[1])
 
@@ -90,6 +90,24 @@ def test_trajectory_multistart_equals_the_local_pool(client):
     for a, b in zip(local.starts, remote.starts, strict=True):
         assert (a.key, a.status, a.objective) == (b.key, b.status, b.objective)
         np.testing.assert_array_equal(a.result.trajectory.q, b.result.trajectory.q)
+
+
+def test_dask_workers_write_their_own_items_into_a_shared_folder(client, tmp_path):
+    """worker_writes=True on Dask: the workers write the payloads, the driver checks and records.
+
+    Loopback workers share the folder. Results equal the local pool's; every
+    recorded payload matches the SHA-256 of its journal line.
+    """
+    from youbot_opt.sweeps.records import sha256_file
+
+    prob = example_problem("B")
+    shared = SweepOptions(executor=client, worker_writes=True, out=tmp_path)
+    got = ik_multistart(prob, n_starts=12, seed=2, sweep=shared)
+    ref = ik_multistart(prob, n_starts=12, seed=2, sweep=SweepOptions(executor="serial"))
+    assert [r.objective for r in got.results] == [r.objective for r in ref.results]
+    records = stored_records(tmp_path)
+    assert len(records) == 12
+    assert all(sha256_file(tmp_path / "items" / str(r.payload)) == r.checksum for r in records)
 
 
 def test_a_crash_is_charged_to_one_item_of_its_batch(client):
@@ -154,7 +172,7 @@ def test_a_worker_killed_mid_sweep_loses_nothing(client, tmp_path):
     killer_done = []
 
     def kill_later() -> None:
-        while len(list((tmp_path / "items").glob("*.json"))) < 3:
+        while len(stored_records(tmp_path)) < 3:
             time.sleep(0.01)
         os.kill(next(iter(pids.values())), signal.SIGKILL)
         killer_done.append(True)
@@ -167,8 +185,8 @@ def test_a_worker_killed_mid_sweep_loses_nothing(client, tmp_path):
     t.join(10)
     assert killer_done == [True]
     assert got.items == EXPECTED  # nothing lost
-    records = sorted(p.name for p in (tmp_path / "items").glob("*.json"))
-    assert records == sorted(f"{k}.json" for k in EXPECTED)  # nothing duplicated
+    done = sorted(r.key for r in stored_records(tmp_path) if r.state == "done")
+    assert done == sorted(EXPECTED)  # nothing duplicated: one done record per item
     # The killed worker's item was re-run by Dask or charged and retried: at most 2 attempts.
     assert all(1 <= a <= 2 for a in got.attempts.values())
     client.wait_for_workers(2, timeout=60)
@@ -219,7 +237,7 @@ def test_scheduler_killed_mid_sweep_says_what_was_saved_then_resumes(tmp_path):
         out = tmp_path / "run"
 
         def kill_later() -> None:
-            while len(list((out / "items").glob("*.json"))) < 4:
+            while len(stored_records(out)) < 4:
                 time.sleep(0.01)
             os.kill(procs[0].pid, signal.SIGKILL)
 
@@ -231,7 +249,7 @@ def test_scheduler_killed_mid_sweep_says_what_was_saved_then_resumes(tmp_path):
         client.close(timeout=5)
     finally:
         _stop(procs)
-    saved = len(list((out / "items").glob("*.json")))
+    saved = len({r.key for r in stored_records(out)})
     assert 4 <= saved < 16
     again = _square_sweep(out, "serial")
     assert again.items == EXPECTED and again.resumed == saved
@@ -250,7 +268,7 @@ def test_driver_killed_mid_sweep_resumes_on_the_cluster(cluster, tmp_path):
     summary = kill_repeatedly(cmd, out, n_kills=2, seed=0)
     local = ik_multistart(example_problem("B"), method="ipopt", n_starts=60, seed=5,
                           sweep=SweepOptions(workers=2))  # fmt: skip
-    assert len(list((out / "items").glob("*.json"))) == 60  # nothing lost, nothing duplicated
+    assert len({r.key for r in stored_records(out)}) == 60  # nothing lost
     assert summary is not None
     resumed = ik_multistart(example_problem("B"), method="ipopt", n_starts=60, seed=5,
                             sweep=SweepOptions(executor="serial", out=out))  # fmt: skip
@@ -281,7 +299,7 @@ def test_cli_runs_a_sweep_on_a_scheduler_file(cluster, tmp_path, capsys):
     first = json.loads(capsys.readouterr().out)
     assert main(argv) == 0
     again = json.loads(capsys.readouterr().out)
-    assert len(list((tmp_path / "run" / "items").glob("*.json"))) == 3
+    assert len({r.key for r in stored_records(tmp_path / "run")}) == 3
     assert first["best"] == again["best"]
 
 

@@ -34,6 +34,9 @@ def test_defaults_and_frozen() -> None:
         ({"max_attempts": 0}, "max_attempts must be an int >= 1, got 0"),
         ({"timeout": -1}, r"timeout must be > 0 \[s\], got -1"),
         ({"timeout": float("inf")}, "timeout must be > 0"),
+        ({"keep_results": 0}, "keep_results must be True or False, got 0"),
+        ({"keep_results": False}, "keep_results=False needs out="),
+        ({"worker_writes": "yes"}, "worker_writes must be True, False or None"),
     ],
 )
 def test_bad_options_are_refused(kwargs: dict[str, object], match: str) -> None:
@@ -56,3 +59,12 @@ def test_worker_solver_pickles_as_a_recipe_and_is_cached_per_token() -> None:
     assert other.get() == {"n": 2}  # another run's token: built anew
     hold_solver(handle)  # the pool initializer holds the prebuilt one for this token
     assert copy.get() is built
+
+
+def test_workers_write_their_items_where_they_share_the_folder() -> None:
+    """By default workers on this machine write their own items; Dask workers only if told."""
+    assert SweepOptions().writes_in_workers and SweepOptions(executor="serial").writes_in_workers
+    remote = "tcp://10.0.0.5:8786"
+    assert not SweepOptions(executor=remote).writes_in_workers
+    assert SweepOptions(executor=remote, worker_writes=True).writes_in_workers
+    assert not SweepOptions(worker_writes=False).writes_in_workers

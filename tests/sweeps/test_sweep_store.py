@@ -1,4 +1,9 @@
-"""Tests of youbot_opt.sweeps.store: atomic writes, resume, manifest checks, schema errors."""
+"""Tests of youbot_opt.sweeps.store: atomic writes, resume, manifest checks, schema errors.
+
+Also the schema-3 layout: payloads fanned out into ``items/<hh>/``, the summary
+journal (torn and foreign lines refused), group commits, flat schema-2 stores
+that still resume as they are.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from youbot_opt.exceptions import ParameterError, ResultFileError
-from youbot_opt.sweeps.store import SCHEMA_VERSION, SweepStore, atomic_write_bytes
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
+from youbot_opt.sweeps.journal import encode_line
+from youbot_opt.sweeps.store import SCHEMA_VERSION, SweepStore, atomic_write_bytes, stored_records
 
 
 def _save(payload: np.ndarray, path: Path) -> None:
@@ -66,6 +72,19 @@ def test_atomic_write_interrupted_keeps_old_file(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.bin"]
 
 
+def _flat_store(tmp_path: Path, version: int = 2) -> SweepStore:
+    """A store whose manifest says schema ``version`` (1 or 2: the flat layout)."""
+    folder = tmp_path / "sweep"
+    folder.mkdir()
+    params = {"seed": 0, "betas": [0.1, 0.2]}
+    body = {"schema": "youbot_opt.sweep", "schema_version": version, "kind": "demo",
+            "params": params}  # fmt: skip
+    (folder / "manifest.json").write_text(json.dumps(body))
+    store = _store(tmp_path)
+    assert store.layout == "flat" and store.resumed
+    return store
+
+
 def test_done_items_are_loaded_on_reopen(tmp_path: Path) -> None:
     """A reopened store reports done items as finished and returns their payload bit for bit."""
     store = _store(tmp_path)
@@ -95,8 +114,10 @@ def test_failed_items_are_retried_until_max_attempts(tmp_path: Path) -> None:
 def test_orphan_payload_without_record_is_recomputed(tmp_path: Path) -> None:
     """A payload written just before a kill (no record yet) does not count as finished."""
     store = _store(tmp_path)
+    store.payload_path("z").parent.mkdir(exist_ok=True)
     _save(np.ones(2), store.payload_path("z"))
     assert store.needs_work("z", 2) == (True, 0)
+    assert _store(tmp_path).needs_work("z", 2) == (True, 0)
 
 
 def test_leftover_temporaries_are_removed_on_open(tmp_path: Path) -> None:
@@ -124,14 +145,14 @@ def test_resume_with_other_parameters_is_an_error(tmp_path: Path) -> None:
         (json.dumps({"key": "a"}).encode(), "schema_version"),
         (json.dumps({"schema_version": SCHEMA_VERSION + 1, "key": "a"}).encode(), "newer"),
         (
-            json.dumps({"schema_version": SCHEMA_VERSION, "key": "a", "state": "?"}).encode(),
+            json.dumps({"schema_version": 2, "key": "a", "state": "?"}).encode(),
             "corrupted",
         ),
     ],
 )
 def test_bad_records_raise_result_file_error(tmp_path: Path, content: bytes, match: str) -> None:
-    """Corrupted, schema-less, newer-schema or malformed records raise ResultFileError."""
-    store = _store(tmp_path)
+    """Corrupted, schema-less, newer-schema or malformed records of a flat store raise."""
+    store = _flat_store(tmp_path)
     (store.items_dir / "a.json").write_bytes(content)
     with pytest.raises(ResultFileError, match=match):
         store.record("a")
@@ -167,3 +188,92 @@ def test_bad_keys_are_refused(tmp_path: Path, key: str) -> None:
     store = _store(tmp_path)
     with pytest.raises(ParameterError, match="item key"):
         store.write_failed(key, "r", attempts=1)
+
+
+def test_payloads_fan_out_and_the_journal_holds_the_records(tmp_path: Path) -> None:
+    """Schema 3: payloads in items/<hh>/ (hh: SHA-256 of the key), records in the journal."""
+    import hashlib
+
+    store = _store(tmp_path)
+    assert store.layout == "fanout"
+    with store.grouped():
+        for i in range(40):
+            store.write_done(f"item_{i:03d}", np.full(2, float(i)), {"i": i})
+    hh = hashlib.sha256(b"item_007").hexdigest()[:2]
+    assert store.payload_path("item_007") == store.items_dir / hh / "item_007.npy"
+    assert store.record("item_007").payload == f"{hh}/item_007.npy"
+    folders = {p.parent.name for p in store.items_dir.glob("*/*.npy")}
+    assert len(folders) > 10  # 40 keys over 256 folders: spread out, not one flat folder
+    assert not list(store.items_dir.glob("*.json")) and not list(store.items_dir.glob("*.npy"))
+    stray = store.items_dir / hh / ".tmp-item_999.npy.x1y2"  # a worker killed mid-write
+    stray.write_bytes(b"half")
+    again = _store(tmp_path)
+    assert not stray.exists()
+    assert [r.summary["i"] for r in again.records().values()] == list(range(40))
+    np.testing.assert_array_equal(again.load("item_039"), np.full(2, 39.0))
+    assert {r.key for r in stored_records(tmp_path / "sweep")} == set(again.records())
+
+
+def test_grouped_writes_become_durable_at_the_group_end(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Inside grouped() the journal lags behind; its exit (also by an exception) flushes."""
+    from youbot_opt.sweeps import store as store_module
+
+    monkeypatch.setattr(store_module, "GROUP_SECONDS", 60.0)  # no flush by time in this test
+    store = _store(tmp_path)
+    with pytest.raises(KeyboardInterrupt), store.grouped():
+        store.write_done("a", np.zeros(1), {})
+        store.write_failed("b", "crashed", attempts=1)
+        assert _store(tmp_path).records() == {}  # not yet in the journal: a kill recomputes them
+        raise KeyboardInterrupt
+    assert list(_store(tmp_path).records()) == ["a", "b"]
+    store.write_done("c", np.zeros(1), {})  # outside a group: durable at once
+    assert "c" in _store(tmp_path).records()
+
+
+def test_torn_and_foreign_journal_lines_are_refused(tmp_path: Path) -> None:
+    """A torn last line, an edited line and a line of another sweep are skipped with a warning."""
+    store = _store(tmp_path)
+    for key in ("a", "b", "c"):
+        store.write_done(key, np.zeros(1), {"k": key})
+    store.close()
+    journal = next((store.items_dir / "journal").glob("*.jsonl"))
+    lines = journal.read_bytes().splitlines(keepends=True)
+    edited = lines[1].replace(b'"k":"b"', b'"k":"B"')  # same length, checksum now wrong
+    foreign = encode_line({**json.loads(lines[2].split(b" ", 1)[1]), "sweep": "0" * 64})
+    journal.write_bytes(lines[0] + edited + foreign + b'0123456789abcdef {"key":')
+    refused = r"2 torn or corrupted journal line.*and items 'c': 1 line.*another sweep"
+    with pytest.warns(YoubotOptWarning, match=refused):
+        again = _store(tmp_path)
+    assert list(again.records()) == ["a"]
+    assert again.needs_work("b", 2) == (True, 0) and again.needs_work("c", 2) == (True, 0)
+    import warnings
+
+    with warnings.catch_warnings():  # the journal was compacted: refused once, not every time
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert list(_store(tmp_path).records()) == ["a"]
+
+
+def test_a_payload_not_matching_its_journal_checksum_is_refused(tmp_path: Path) -> None:
+    """verify() refuses (warning) an edited payload; the item then needs work again."""
+    store = _store(tmp_path)
+    store.write_done("a", np.arange(3.0), {})
+    _save(np.arange(3.0) + 1, store.payload_path("a"))  # edited after it was recorded
+    again = _store(tmp_path)
+    with pytest.warns(YoubotOptWarning, match=r"refused item 'a'.*checksum"):
+        assert not again.verify("a")
+    assert again.needs_work("a", 2) == (True, 0)
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_flat_stores_of_schema_1_and_2_resume_in_their_layout(tmp_path: Path, version: int) -> None:
+    """An old flat store resumes: its record files are read and new items stay flat."""
+    store = _flat_store(tmp_path, version)
+    store.write_done("a", np.ones(2), {"x": 1})
+    assert (store.items_dir / "a.json").is_file() and (store.items_dir / "a.npy").is_file()
+    again = _store(tmp_path)
+    assert again.layout == "flat" and again.needs_work("a", 2) == (False, 1)
+    assert json.loads((store.items_dir / "a.json").read_text())["schema_version"] == 2
+    np.testing.assert_array_equal(again.load("a"), np.ones(2))
+    assert [r.key for r in stored_records(tmp_path / "sweep")] == ["a"]

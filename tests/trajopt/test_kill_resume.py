@@ -21,6 +21,7 @@ from _sigkill import kill_repeatedly
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
+from youbot_opt.sweeps.store import stored_record, stored_records
 
 
 def _square(x: float) -> float:
@@ -175,13 +176,13 @@ def _cli(out: Path, command: str = "multistart") -> list[str]:
 def _check_store(out: Path, keys: list[str]) -> None:
     """Nothing lost or duplicated on disk: one record and one result per item, no temporaries."""
     items = out / "items"
-    assert sorted(p.stem for p in items.glob("*.json")) == sorted(keys)
-    assert sorted(p.stem for p in items.glob("*.npz")) == sorted(keys)
-    assert [p.name for p in items.iterdir() if p.name.startswith(".")] == []
+    records = stored_records(out)  # the journal: one line per recorded attempt
+    assert sorted(r.key for r in records) == sorted(keys)
+    assert sorted(p.stem for p in items.glob("*/*.npz")) == sorted(keys)
+    assert [p.name for p in items.rglob(".*")] == []
     # A kill is not a failure of the item: every item was computed once, successfully.
-    for k in keys:
-        record = json.loads((items / f"{k}.json").read_text())
-        assert (record["state"], record["attempts"], record["reasons"]) == ("done", 1, [])
+    for r in records:
+        assert (r.state, r.attempts, r.reasons) == ("done", 1, ())
 
 
 def _cli_solver():  # type: ignore[no-untyped-def]
@@ -269,7 +270,7 @@ def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path)
     starts = [s for row in ref.rows for s in row.multistart.starts]
     _check_store(out, [s.key for s in starts])
     for s in starts:  # every start, not only each scale's best, equals the reference
-        summary = json.loads((out / "items" / f"{s.key}.json").read_text())["summary"]
+        summary = stored_record(out, s.key)["summary"]  # type: ignore[index]
         assert (summary["seed"], summary["status"]) == (s.seed, s.status)
         assert summary["objective"] == pytest.approx(s.objective, rel=0, abs=1e-9)
 
@@ -298,7 +299,8 @@ def test_segfaulting_start_is_stored_failed_and_retried_once(
     by_key = {s.key: s for s in res.starts}
     assert by_key["start_0001"].status == "error" and by_key["start_0001"].attempts == 2
     assert all(s.success for k, s in by_key.items() if k != "start_0001")
-    record = json.loads((tmp_path / "items" / "start_0001.json").read_text())
+    record = stored_record(tmp_path, "start_0001")
+    assert record is not None
     assert record["state"] == "failed" and record["attempts"] == 2
     assert len(record["reasons"]) == 2 and "crashed" in record["reasons"][0]
     # A rerun does not try it a third time: failures with attempts used up are final.
@@ -322,7 +324,7 @@ def test_resume_refuses_corrupted_and_newer_files(small_solver, tmp_path: Path) 
     )
     assert again.resumed == 2
     assert [s.objective for s in again.starts] == [s.objective for s in first.starts]  # exact
-    npz = tmp_path / "items" / "start_0000.npz"
+    npz = next(tmp_path.glob("items/*/start_0000.npz"))
     npz.write_bytes(npz.read_bytes()[:-100])  # truncated, as by a disk fault
     with pytest.warns(YoubotOptWarning, match=r"start_0000.*does not match its checksum"):
         healed = run_multistart(
@@ -330,10 +332,8 @@ def test_resume_refuses_corrupted_and_newer_files(small_solver, tmp_path: Path) 
         )
     assert healed.resumed == 1  # the torn start was refused and recomputed, the other loaded
     assert [s.objective for s in healed.starts] == [s.objective for s in first.starts]
-    rec = tmp_path / "items" / "start_0001.json"
-    rec.write_text(json.dumps({**json.loads(rec.read_text()), "schema_version": 99}))
-    npz.unlink()
-    (tmp_path / "items" / "start_0000.json").unlink()  # start_0000 will simply be recomputed
+    manifest = tmp_path / "manifest.json"  # the store's schema is the manifest's
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "schema_version": 99}))
     with pytest.raises(ResultFileError, match="newer"):
         run_multistart(small_solver, 2, seed=2, sweep=SweepOptions(executor="serial", out=tmp_path))
 
@@ -358,9 +358,11 @@ def test_a_foreign_item_is_refused_and_recomputed(small_solver, tmp_path: Path) 
 
     other, mine = sweep(0.9, tmp_path / "b09"), sweep(0.5, tmp_path / "b05")
     assert other.starts[0].objective != mine.starts[0].objective
-    for suffix in (".json", ".npz"):
-        name = f"start_0000{suffix}"
-        shutil.copyfile(tmp_path / "b09" / "items" / name, tmp_path / "b05" / "items" / name)
+    # b05's records replaced by b09's journal, b09's result file copied over b05's
+    shutil.rmtree(tmp_path / "b05" / "items" / "journal")
+    shutil.copytree(tmp_path / "b09" / "items" / "journal", tmp_path / "b05" / "items" / "journal")
+    payload = next((tmp_path / "b09").glob("items/*/start_0000.npz"))
+    shutil.copyfile(payload, tmp_path / "b05" / payload.relative_to(tmp_path / "b09"))
     with pytest.warns(YoubotOptWarning, match=r"'start_0000'.*written by another sweep"):
         again = sweep(0.5, tmp_path / "b05")
     assert again.resumed == 0

@@ -14,6 +14,7 @@ from youbot_opt.cli.studies import parse_values
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.store import stored_record
 from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.trajopt.pareto import (
     DEFAULT_BETAS,
@@ -172,7 +173,7 @@ def test_crashing_point_is_recorded_failed_retried_once_and_the_sweep_goes_on(
     assert a.success and c.success and not b.success
     assert b.status == "error" and "killed by signal SIGSEGV" in str(b.reason)
     assert c.start == "previous"  # warm-started from point 0, the last converged point
-    record = json.loads((tmp_path / "always" / "items" / "point_001.json").read_text())
+    record = stored_record(tmp_path / "always", "point_001")
     assert record["state"] == "failed" and record["attempts"] == 2
     assert len(record["reasons"]) == 2 and all("crashed" in r for r in record["reasons"])
     # A rerun does not try it a third time (attempts used up) and does not crash.
@@ -186,7 +187,7 @@ def test_crashing_point_is_recorded_failed_retried_once_and_the_sweep_goes_on(
     for p, q in zip(once.points, full.points, strict=True):
         # Same warm starts, same deterministic IPOPT run in another process: 1e-9 as above.
         assert p.objective == pytest.approx(q.objective, rel=0, abs=1e-9)
-    record = json.loads((tmp_path / "once" / "items" / "point_001.json").read_text())
+    record = stored_record(tmp_path / "once", "point_001")
     assert record["state"] == "done" and record["attempts"] == 2
     assert len(record["reasons"]) == 1 and "SIGSEGV" in record["reasons"][0]
 

@@ -19,7 +19,13 @@ from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.certify import certify, check_bounds
 from youbot_opt.trajopt.io import load_result, save_result
 from youbot_opt.trajopt.mesh_error import collocation_error, interval_errors
-from youbot_opt.trajopt.refine import RefinementBudget, refine, split_grid
+from youbot_opt.trajopt.refine import (
+    RefinementBudget,
+    observed_exponents,
+    refine,
+    split_grid,
+    switching_intervals,
+)
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.transcription import HermiteSimpsonCollocation
 
@@ -112,6 +118,59 @@ def test_split_grid_pieces_follow_the_error_exponent():
     fractions, parent = split_grid(t, np.array([8.0, 27.0, 0.5, 1e6]), 1.0, 3, 4)
     np.testing.assert_array_equal(parent, [0, 0, 1, 1, 1, 2, 3, 3, 3, 3])
     np.testing.assert_allclose(fractions * 4.5, [0.5, 0.5, *[2 / 3] * 3, 1.0, *[0.125] * 4])
+
+
+def test_split_grid_takes_one_exponent_per_interval():
+    """e / tol = 8 needs 2 pieces at m = 3 but 8 at m = 1 (capped by max_pieces)."""
+    t = np.array([0.0, 1.0, 2.0])
+    _, parent = split_grid(t, np.array([8.0, 8.0]), 1.0, np.array([3.0, 1.0]), 16)
+    np.testing.assert_array_equal(np.bincount(parent), [2, 8])
+    _, parent = split_grid(t, np.array([8.0, 8.0]), 1.0, np.array([3.0, 1.0]), 4)
+    np.testing.assert_array_equal(np.bincount(parent), [2, 4])
+
+
+def test_observed_exponents_measure_the_fall_of_the_error():
+    """Hand numbers: e 8 -> 1 over 2 pieces is m = 3, 8 -> 2 is m = 2; clipped to [1, m].
+
+    Interval 0 (error 8) was split in 2 (pieces 1 and 2 of the error), interval 1
+    kept (it inherits its exponent 2.5), interval 2 (error 4) split in 4: one piece
+    grew (clipped to 1), one vanished (clipped to the method's 3), two fell by
+    4^1.5 = 8 (m = 1.5).
+    """
+    parent = np.array([0, 0, 1, 2, 2, 2, 2])
+    errors = np.array([1.0, 2.0, 0.3, 5.0, 0.0, 0.5, 0.5])
+    m = observed_exponents(np.array([8.0, 0.5, 4.0]), errors, parent, np.array([3.0, 2.5, 3.0]))
+    np.testing.assert_allclose(m, [3.0, 2.0, 2.5, 1.0, 3.0, 1.5, 1.5], rtol=1e-12)
+
+
+def test_switching_intervals_are_where_the_active_bounds_change():
+    """A velocity bound active at knots 3-5 only: intervals 2 and 5 switch, no other.
+
+    Positions at mid-range and zero torques are inactive everywhere; the
+    solved plan's own values are replaced, so the answer is known by construction.
+    """
+    r = TrajOptSolver(study1_problem(12), "trapezoidal").solve()
+    b = r.bounds()
+    v = np.zeros((12, 3))
+    v[3:6, 1] = b.v_upper[1]
+    variables = {**r.variables, "q": np.tile(0.5 * (b.q_lower + b.q_upper), (12, 1)),
+                 "v": v, "tau": np.zeros((12, 3))}  # fmt: skip
+    flagged = switching_intervals(dataclasses.replace(r, variables=variables))
+    np.testing.assert_array_equal(np.nonzero(flagged)[0], [2, 5])
+
+
+def test_on_grid_shares_the_dynamics_and_reproduces_the_uniform_grid():
+    """on_grid(equal fractions) solves the uniform NLP again (round-off) with shared kernels."""
+    solver = TrajOptSolver(study1_problem(20), "trapezoidal")
+    uniform = solver.solve(beta=0.5).raise_for_status()
+    other = solver.on_grid(np.ones(19))
+    assert other.dynamics is solver.dynamics and other.problem.n_knots == 20
+    assert other.method.fractions is not None and solver.method.fractions is None
+    again = other.solve(beta=0.5).raise_for_status()
+    assert again.objective == pytest.approx(uniform.objective, rel=1e-9)
+    np.testing.assert_allclose(again.trajectory.q, uniform.trajectory.q, atol=1e-7)
+    with pytest.raises(ParameterError, match="fractions"):
+        solver.on_grid([0.5, -0.5])
 
 
 @pytest.fixture(scope="module")
@@ -207,6 +266,46 @@ def test_exhausted_budget_says_which_check_failed():
         r.require_certified()
     with pytest.raises(ParameterError, match="max_rounds"):
         RefinementBudget(max_rounds=0)
+    with pytest.raises(ParameterError, match="safety"):
+        RefinementBudget(safety=0.0)
+
+
+def test_a_knot_budget_shrinks_the_split_before_it_stops():
+    """max_knots = 120 from 50 knots at 1e-4 (the full split wants 225): round 1 fits the budget.
+
+    Halving the pieces per interval down to 2 always fits here (at most 99
+    knots), so the refinement goes on to round 1 instead of stopping.
+    """
+    budget = RefinementBudget(tolerance=1e-4, max_knots=120, max_rounds=2)
+    r = refine(TrajOptSolver(study1_problem(50), "trapezoidal"), beta=0.5, budget=budget)
+    rounds = r.refinement.rounds
+    assert len(rounds) == 2 and 50 < rounds[1].n_knots <= 120
+    assert "after 2 rounds" in r.refinement.reason or r.certified
+
+
+def test_a_time_limit_leaves_the_certificate_incomplete():
+    """certify(time_limit) stops its simulations: NaN figures, an 'incomplete' failure.
+
+    1e-6 s runs out before the first right-hand side is evaluated, so every
+    simulation is skipped; without a limit the same plan gets every figure.
+    refine() passes what is left of its time budget: a budget spent by the
+    first solve leaves round 0's certificate incomplete, and the reason names it.
+    """
+    solver = TrajOptSolver(study1_problem(12), "trapezoidal")
+    plan = solver.solve(beta=0.5).raise_for_status()
+    cert = certify(plan, time_limit=1e-6)
+    assert cert.incomplete == "time limit 1e-06 s reached during the one-interval integrations"
+    assert not cert.ok and cert.failures()[0] == f"incomplete: {cert.incomplete}"
+    assert np.isnan(cert.feedback_rms) and np.isnan(cert.local_position_max)
+    assert str(cert).splitlines()[0].endswith(f"INCOMPLETE, {cert.incomplete}")
+    assert certify(plan).incomplete == "" and np.isfinite(certify(plan).feedback_rms)
+    budget = RefinementBudget(time_limit=1e-6, tolerance=1.0)  # errors pass: only the certificate
+    r = refine(solver, first=plan, budget=budget)
+    assert not r.certified and len(r.refinement.rounds) == 1
+    assert r.refinement.rounds[0].failures[0].startswith("incomplete: time limit")
+    assert "certificate failed (incomplete: time limit" in r.refinement.reason
+    with pytest.raises(ParameterError, match="time_limit"):
+        certify(plan, time_limit=0.0)
 
 
 def test_hermite_simpson_position_bound_holds_between_knots():

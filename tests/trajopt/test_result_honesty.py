@@ -203,3 +203,22 @@ def test_stricter_tolerance_withdraws_success(solved) -> None:
     """feasibility_tol below IPOPT's bound relaxation (1e-8 relative) fails the check."""
     check = check_result(solved, feasibility_tol=1e-15)
     assert check.status is SolveStatus.CONSTRAINT_VIOLATION and "1e-15" in check.message
+
+
+def test_check_reads_only_the_checked_solution_members(solved) -> None:
+    """check_result needs only the CheckedSolution members: a plain record of them gets the
+    result's verdict, for the converged result and for a corrupted copy (check.py does not
+    know TrajOptResult)."""
+    from youbot_opt.trajopt.check import CheckedSolution
+
+    names = [n for n in vars(CheckedSolution) if not n.startswith("_")]
+    assert set(names) >= {"problem", "variables", "solver_status", "step_ratios"}
+
+    def record(result: TrajOptResult):
+        members = {n: getattr(result, n) for n in names if n != "step_ratios"}
+        return type("Record", (), {**members, "step_ratios": lambda self: result.step_ratios()})()
+
+    bad = _with(solved, "v", lambda v: v.__setitem__((3, 2), v[3, 2] + 1e-4))
+    for result in (solved, bad):
+        assert check_result(record(result)) == result.check()
+    assert check_result(record(bad)).status is SolveStatus.CONSTRAINT_VIOLATION

@@ -155,3 +155,52 @@ def test_default_time_step_is_the_multistart_one(youbot, n) -> None:
     np.testing.assert_allclose(g.t, dt0 * np.arange(n), rtol=1e-15, atol=1e-15)
     assert g.duration == pytest.approx(4.9, rel=1e-15)
     assert np.all(np.abs(g.v) <= youbot.velocity_limit)  # the LP's knot limits, exactly
+
+
+@pytest.mark.parametrize("degree", [4, 5, 6])
+def test_bernstein_derivative_matrix_matches_the_power_basis(degree) -> None:
+    """Derivative matrices of orders 0-2 equal the derivatives of the expanded polynomial."""
+    from numpy.polynomial import Polynomial
+
+    from youbot_opt.trajopt.spline_guess import bernstein_derivative_matrix
+
+    rng = np.random.default_rng(degree)
+    points, duration = rng.normal(size=degree + 1), 4.9  # [rad], [s]
+    s = np.linspace(0.0, 1.0, 17)
+    # q(t) = sum_j b_j C(p, j) s^j (1 - s)^(p - j), s = t / T, expanded in powers of t.
+    t = Polynomial([0.0, 1.0 / duration])
+    q = sum(
+        (b * math.comb(degree, j) * t**j * (1 - t) ** (degree - j) for j, b in enumerate(points)),
+        Polynomial([0.0]),
+    )
+    for order in range(3):
+        expected = q.deriv(order)(s * duration) if order else q(s * duration)
+        got = bernstein_derivative_matrix(degree, duration, order, s) @ points
+        # Values below 10 (rad, rad/s, rad/s^2) here: 1e-12 bounds the rounding of a few
+        # dozen products, far below any wrong coefficient (>= 1e-2).
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+
+
+def test_spline_constraints_rows_margins_and_boundary() -> None:
+    """The LP rows: exact boundary states, margins inside the limits, infinite limits omitted."""
+    from youbot_opt.trajopt.spline_guess import bernstein_derivative_matrix, spline_constraints
+
+    degree, n, duration = 5, 11, 2.0
+    s = np.linspace(0.0, 1.0, n)
+    points = np.array([0.1, 0.3, -0.2, 0.4, 0.0, -0.1])
+    ends = np.array([0.0, 1.0])
+    q_end = bernstein_derivative_matrix(degree, duration, 0, ends) @ points
+    v_end = bernstein_derivative_matrix(degree, duration, 1, ends) @ points
+    boundary = (q_end[0], v_end[0], q_end[1], v_end[1])
+    lp = spline_constraints(degree, s, duration, boundary, (-1.0, 2.0, 3.0))
+    np.testing.assert_allclose(lp.a_eq @ points, lp.b_eq, rtol=0, atol=1e-12)
+    # Positions at the N - 2 interior knots, both sides; speeds at all N knots, both sides.
+    assert lp.a_ub.shape == (2 * (n - 2) + 2 * n, degree + 1)
+    # Margins: 1e-7 of the half range (1.5 rad) and of vmax (3 rad/s).
+    assert lp.b_ub[0] == pytest.approx(2.0 - 1.5e-7, rel=0, abs=1e-15)
+    assert lp.b_ub[n - 2] == pytest.approx(1.0 - 1.5e-7, rel=0, abs=1e-15)
+    assert lp.b_ub[-1] == pytest.approx(3.0 - 3e-7, rel=0, abs=1e-15)
+    unlimited = spline_constraints(degree, s, duration, boundary, (-math.inf, math.inf, 3.0))
+    assert unlimited.a_ub.shape == (2 * n, degree + 1)
+    free = spline_constraints(degree, s, duration, boundary, (-math.inf, math.inf, math.inf))
+    assert free.a_ub.shape == (0, degree + 1) and free.b_ub.shape == (0,)

@@ -1,56 +1,15 @@
-"""youbot-opt ikpath: minimum-motion cyclic joint path through tip targets (study 2).
-
-Usage:
+"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2, issue 14).
 
     youbot-opt ikpath --example A --starts 200
     youbot-opt ikpath --example B --method ipopt --starts 200 --json
     youbot-opt ikpath --lengths 3 2 2 --limit 1.5708 --target 0 7 --target 5 0 --method ipopt
     youbot-opt ikpath --robot youbot --target 0.3 0.3 --target 0.1 0.5 --target 0.35 0.1
     youbot-opt ikpath --robot ur5 --target 0.4 0.2 0.3 --target 0.3 -0.3 0.4 --target 0.5 0 0.2
-    youbot-opt ikpath --robot panda --target 0.5 0.2 0.4 --target 0.4 -0.2 0.5 --method ipopt
 
-Spatial mode (any robot the loader accepts: a name or a URDF path, the frame
---frame, default the robot's tip frame) is used when targets have 3 or more
-numbers, come from --targets FILE, or the robot is not the planar youbot:
---target X Y Z (a position), X Y Z AX AY AZ (a position and an approach
-direction of the frame's z axis) or X Y Z QX QY QZ QW (a pose, quaternion).
-A CSV file names its columns x, y, z [, qx, qy, qz, qw | ax, ay, az]
-[, position_tol, orientation_tol, orientation_weight]; a JSON file lists
-objects with position, quaternion_xyzw or approach and the same keys. Joint
-limits are the URDF's (--limit/--lower/--upper override them, --no-limits
-drops them). Each target is decided first: reachable (a witness), unreachable
-with a certificate (outside the reach sphere: exit 2), or undecided. The run
-folder holds result.json, summary.json, ikpath_legs.png (joint motion per
-leg), ikpath_path3d.png and replay.html (targets as markers, poses as triads).
-
-The third example puts target (0, 7) at the edge of the limited workspace (the
-arm fully stretched, joint 1 at its limit): from the zero start the default
-method, al, stalls there (exit 1); IPOPT solves it.
-
-Reachability of every target is decided first (exactly, no sampling); an
-unreachable target ends the command with exit status 2 and the verdict. A
-target whose verdict stays undecided (chains of 4+ links with limits, branch
-and bound budget exhausted) is solved anyway, with a warning on stderr giving
-its certified distance interval. The exit status is 0 when the best start
-succeeded and 1 otherwise.
-
-Every finished start is saved in the run folder as it completes
-(manifest.json and items/, the sweep store of youbot_opt.ikpath.sweep): the
-same command run again with the same --out DIR resumes, loading the finished
-starts instead of solving them again. A start that raises or whose worker
-process dies is recorded with the reason and retried once (several starts run
-in worker processes, so a crash never takes the command down).
-
-Every run writes one folder (--out DIR, or a new
-youbot_opt_runs/ikpath-<UTC time>): summary.json (the --json object),
-result.json (the best result; youbot_opt.ikpath.io.load_ikpath_result reads
-it), the figures ikpath_arm.png, ikpath_convergence.png, ikpath_workspace.png,
-ikpath_minima.png and replay.html (standalone meshcat animation of the best
-path, linear in joint space, --segment-time seconds per move). An unreachable
-target still writes the summary and the workspace figure. The folder and its
-files are listed on stderr, so --json keeps stdout one JSON object; the folder
-is also named on stderr before the starts run, with progress there (a bar on a
-terminal, a line per tenth of the starts otherwise).
+Targets X Y [m] are planar (--example, --lengths, --robot youbot); X Y Z, X Y Z AX AY AZ
+(approach of the frame's z axis), X Y Z QX QY QZ QW (pose) or --targets FILE are spatial
+(any --robot NAME|PATH, --frame). Exit 0: best start succeeded; 1: failed; 2: unreachable target.
+Starts are saved in --out DIR as they finish; a rerun resumes. Details: docs/ikpath.md.
 """
 
 from __future__ import annotations
@@ -59,15 +18,14 @@ import argparse
 import json
 import math
 import sys
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
+from youbot_opt.cli.ikpath_starts import print_starts, start_fields, start_sweep
 from youbot_opt.cli.limits import check_ikpath_size
 from youbot_opt.cli.robot_args import add_loading_options
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.options import SweepOptions
 
 if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast
     from youbot_opt.ikpath.multistart import MultistartResult
@@ -79,6 +37,10 @@ if TYPE_CHECKING:  # the library is imported in _run, so --help and argument err
 EXAMPLE_NAMES: tuple[str, ...] = ("A", "B")
 METHOD_NAMES: tuple[str, ...] = ("al", "ipopt")
 START_KIND_NAMES: tuple[str, ...] = ("feasible", "uniform")
+PLANAR_REACH_EVALUATIONS = 20_000
+SPATIAL_REACH_BOXES = 200_000  # ikpath.spatial_reachability.DEFAULT_INTERVAL_BOXES
+SPATIAL_REACH_SECONDS = 1.0  # ikpath.spatial_reachability.DEFAULT_INTERVAL_SECONDS
+SPATIAL_START_KIND_NAMES: tuple[str, ...] = ("mixed", "coherent", "random")
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -132,9 +94,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     lim.add_argument(
         "--reach-evaluations",
         type=int,
-        default=20_000,
+        default=None,
         metavar="N",
-        help="budget of the exact reachability test (branch and bound, 3+ links; default 20000)",
+        help="budget of the reachability test: planar, evaluations of the branch and bound "
+        f"(3+ links; default {PLANAR_REACH_EVALUATIONS}); spatial, boxes of the interval "
+        f"search per target (default {SPATIAL_REACH_BOXES}, within its "
+        f"{SPATIAL_REACH_SECONDS:g} s per target)",
     )
     run = p.add_argument_group("solver")
     run.add_argument("--method", choices=METHOD_NAMES, default="al", help="al (default) or ipopt")
@@ -142,7 +107,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--starts", type=int, default=1, help="number of starts (default 1: the zero vector only)"
     )
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
-    run.add_argument("--start-kind", choices=START_KIND_NAMES, default="feasible")
+    run.add_argument(
+        "--start-kind",
+        choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
+        default=None,
+        help="random starts: feasible (default) or uniform (planar); mixed (default), coherent "
+        "or random (spatial)",
+    )
     run.add_argument(
         "--workers",
         type=int,
@@ -318,18 +289,7 @@ def _report(
         workers=ms.n_workers,
         starts_per_second=ms.starts_per_second(),
         resumed=ms.resumed,
-        retried=[i for i, a in enumerate(ms.attempts) if a > 1],
-        start_outcomes=[
-            {
-                "index": i,
-                "status": r.status.value,
-                "E": r.objective,
-                "max_residual": r.max_residual(),
-                "attempts": ms.attempts[i] if ms.attempts else None,
-                "message": None if r.success else r.message,
-            }
-            for i, r in enumerate(ms.results)
-        ],
+        **start_fields(ms.results, ms.attempts, lambda r: {"max_residual": r.max_residual()}),
     )
     return doc
 
@@ -380,18 +340,7 @@ def _print_single_start(doc: dict[str, Any]) -> None:
 
 def _print_multistart(doc: dict[str, Any]) -> None:
     """Print the multistart's outcomes, its local minima, the zero start and the best."""
-    print(
-        f"multistart: {doc['starts']} starts (seed {doc['seed']}, {doc['start_kind']}), "
-        f"{doc['workers']} workers, {doc['wall_time']:.2f} s "
-        f"({doc['starts_per_second']:.1f} starts/s); outcomes {doc['status_counts']}"
-    )
-    if doc["resumed"]:
-        print(f"  {doc['resumed']} starts loaded from the output folder (resumed)")
-    if doc["retried"]:
-        print(f"  retried after a failed attempt: starts {doc['retried']}")
-    for o in doc["start_outcomes"]:
-        if o["status"] == "crashed":
-            print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")
+    print_starts(doc)
     for m in doc["minima"][:8]:
         print(
             f"  local minimum E = {m['E']:.10f} rad^2 found by {m['count']} starts "
@@ -404,38 +353,6 @@ def _print_multistart(doc: dict[str, Any]) -> None:
         f"{doc['starts']} starts; max residual {doc['max_residual']:.2e} m, "
         f"limit violation {doc['limit_violation']:.2e} rad"
     )
-
-
-class _Progress:
-    """Progress of the starts on stderr: a bar on a terminal, else a line per tenth."""
-
-    def __init__(self, stream: Any = None) -> None:
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.tic = time.perf_counter()
-        self.shown = -1
-
-    def __call__(self, done: int, total: int, best: float) -> None:
-        best_txt = f"{best:.10g}" if math.isfinite(best) else "-"
-        elapsed = time.perf_counter() - self.tic
-        if self.tty:
-            width = 30
-            fill = int(width * done / total)
-            self.stream.write(
-                f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} starts, "
-                f"best E {best_txt}, {elapsed:.1f} s"
-            )
-            if done == total:
-                self.stream.write("\n")
-        else:
-            tenth = 10 * done // total
-            if tenth == self.shown and done != total:
-                return
-            self.shown = tenth
-            self.stream.write(
-                f"ikpath: {done}/{total} starts done, best E {best_txt} rad^2, {elapsed:.1f} s\n"
-            )
-        self.stream.flush()
 
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
@@ -514,6 +431,17 @@ def _run(args: argparse.Namespace) -> int:
         from youbot_opt.cli.ikpath_spatial import run_spatial
 
         return run_spatial(args)
+    if args.start_kind is None:
+        args.start_kind = "feasible"
+    elif args.start_kind not in START_KIND_NAMES:
+        raise ParameterError(
+            f"--start-kind {args.start_kind} is a spatial start kind; planar targets take "
+            f"{' or '.join(START_KIND_NAMES)}",
+            name="start_kind",
+            value=args.start_kind,
+        )
+    if args.reach_evaluations is None:
+        args.reach_evaluations = PLANAR_REACH_EVALUATIONS
     problem = _problem(args)
     if args.reach_evaluations < 1:
         raise ParameterError(
@@ -527,17 +455,12 @@ def _run(args: argparse.Namespace) -> int:
     ms = None
     if not unreachable:
         _warn_undecided(verdicts)
-        workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
         options: ALOptions | IpoptOptions | None = None
         if args.max_wall_time is not None:
             kind = ALOptions if args.method == "al" else IpoptOptions.for_ikpath
             options = kind(max_wall_time=args.max_wall_time)
-        if not args.no_progress:
-            print(
-                f"ikpath: {args.starts} start(s), each saved to {folder.resolve() / 'items'} as it "
-                f"finishes (rerun with --out {folder} to resume)",
-                file=sys.stderr,
-            )
+        # With --scheduler / --scheduler-file the starts run on that Dask cluster.
+        executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
         ms = run_multistart(
             problem,
             method=args.method,
@@ -546,15 +469,7 @@ def _run(args: argparse.Namespace) -> int:
             seed=args.seed,
             starts=args.start_kind,
             verdicts=verdicts,
-            sweep=SweepOptions(
-                # Several starts run in worker processes, so a crashing start cannot end the run.
-                # With --scheduler / --scheduler-file they run on that Dask cluster.
-                executor=scheduler_address(args) or ("process" if args.starts > 1 else "serial"),
-                workers=workers,
-                progress=None if args.no_progress else _Progress(),
-                out=folder,
-                shard=args.shard,
-            ),
+            sweep=start_sweep(args, folder, executor),
         )
     doc = _report(args, problem, verdicts, ms)
     files = _write_outputs(args, folder, problem, verdicts, ms, doc)

@@ -1,31 +1,43 @@
 """The spatial mode of ``youbot-opt ikpath`` (any robot, 3-D targets, poses).
 
-Called by :mod:`youbot_opt.cli.ikpath` when the command line asks for it
-(see its usage text): builds a :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem`
-from ``--robot``/``--frame``/``--target``/``--targets``, decides every target's
+Called by :mod:`youbot_opt.cli.ikpath` when the command line asks for it:
+builds a :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem` from
+``--robot``/``--frame``/``--target``/``--targets``, decides every target's
 reachability (exit 2 with the certificate of an unreachable one), runs the
-multistart, and writes the run folder: ``result.json`` (the best path),
-``summary.json`` (the ``--json`` object), ``ikpath_legs.png``,
-``ikpath_path3d.png`` and ``replay.html``. Exit 0 when the best start
-succeeded, 1 otherwise.
+resumable multistart (``--starts``, ``--start-kind``, ``--method``,
+``--max-wall-time``, ``--workers``, ``--scheduler``/``--shard``; progress on
+stderr) into the run folder's sweep store, and writes ``result.json``
+(:func:`~youbot_opt.ikpath.spatial_io.load_spatial_result`), ``summary.json``,
+``ikpath_legs.png``, ``ikpath_path3d.png`` and ``replay.html``. Exit 0 when
+the best start succeeded, 1 otherwise.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from youbot_opt.cli.ikpath_starts import StartProgress, print_starts, start_fields, start_sweep
 from youbot_opt.cli.robot_args import loading_options
 from youbot_opt.exceptions import ParameterError
 
 if TYPE_CHECKING:
+    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.spatial import SpatialIKProblem
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.robot.model import RobotModel
     from youbot_opt.viz.meshcat.scene import RobotLike
 
-__all__ = ["run_spatial", "spatial_targets"]
+__all__ = ["SPATIAL_DEFAULT_START_KIND", "StartProgress", "run_spatial", "spatial_targets"]
+
+SPATIAL_DEFAULT_START_KIND = "mixed"
+"""``--start-kind`` of spatial runs when none is given."""
 
 
 def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
@@ -65,24 +77,43 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     return tuple(out)
 
 
-def run_spatial(args: argparse.Namespace) -> int:
-    """Run the spatial IK path from the parsed command line; return the exit status."""
-    from youbot_opt.cli.output import json_ready, print_outputs, run_folder, save_figure
-    from youbot_opt.ikpath.spatial import (
-        SpatialIKProblem,
-        SpatialReach,
-        check_spatial_reachability,
-    )
-    from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-    from youbot_opt.robot.model import load_model
-
+def _check_spatial_flags(args: argparse.Namespace) -> str:
+    """Refuse the planar-only flags; return the start kind."""
     if args.example or args.lengths:
         raise ParameterError(
             "--example/--lengths describe planar chains; spatial targets need --robot",
             name="robot",
             value=args.robot,
         )
-    robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
+    if args.reach_evaluations is not None and args.reach_evaluations < 1:
+        raise ParameterError(
+            f"--reach-evaluations must be >= 1, got {args.reach_evaluations}",
+            name="reach_evaluations",
+            value=args.reach_evaluations,
+        )
+    kind = args.start_kind or SPATIAL_DEFAULT_START_KIND
+    if kind not in ("mixed", "coherent", "random"):
+        raise ParameterError(
+            f"--start-kind {kind} is a planar start kind; spatial targets take mixed "
+            "(default), coherent or random",
+            name="start_kind",
+            value=kind,
+        )
+    if args.max_wall_time is not None and not (
+        math.isfinite(args.max_wall_time) and args.max_wall_time > 0
+    ):
+        raise ParameterError(
+            f"--max-wall-time must be a positive time in [s], got {args.max_wall_time}",
+            name="max_wall_time",
+            value=args.max_wall_time,
+        )
+    return str(kind)
+
+
+def _problem(args: argparse.Namespace, robot: RobotModel) -> SpatialIKProblem:
+    """Build the spatial problem of the command line on the loaded ``robot``."""
+    from youbot_opt.ikpath.spatial import SpatialIKProblem
+
     frame = args.frame or robot.tip_frame
     targets = spatial_targets(args)
     if len(targets) < 2:
@@ -98,9 +129,8 @@ def run_spatial(args: argparse.Namespace) -> int:
         lower, upper = -args.limit, args.limit
     lower = args.lower if args.lower is not None else lower
     upper = args.upper if args.upper is not None else upper
-    base = SpatialIKProblem(model=robot.model, frame=frame, targets=targets)
-    n = base.n_joints
-    problem = SpatialIKProblem(
+    n = SpatialIKProblem(model=robot.model, frame=frame, targets=targets).n_joints
+    return SpatialIKProblem(
         model=robot.model,
         frame=frame,
         targets=targets,
@@ -108,7 +138,39 @@ def run_spatial(args: argparse.Namespace) -> int:
         q_lower=None if lower is None else np.broadcast_to(lower, (n,)),
         q_upper=None if upper is None else np.broadcast_to(upper, (n,)),
     )
-    verdicts = check_spatial_reachability(problem)
+
+
+def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
+    """Solver options of ``--method`` with ``--max-wall-time`` (None: the defaults)."""
+    if args.max_wall_time is None:
+        return None
+    if args.method == "al":
+        from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
+
+        return replace(SPATIAL_AL_OPTIONS, max_wall_time=args.max_wall_time)
+    from youbot_opt.nlp.ipopt import IpoptOptions
+
+    return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
+
+
+def run_spatial(args: argparse.Namespace) -> int:
+    """Run the spatial IK path from the parsed command line; return the exit status."""
+    from youbot_opt.cli.cluster_args import scheduler_address
+    from youbot_opt.cli.output import json_ready, print_outputs, run_folder, save_figure
+    from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
+    from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
+    from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
+    from youbot_opt.robot.model import load_model
+
+    kind = _check_spatial_flags(args)
+    robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
+    problem = _problem(args, robot)
+    frame = problem.frame
+    targets = problem.targets
+    options = _options(args)
+    executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
+    budget = {} if args.reach_evaluations is None else {"interval_boxes": args.reach_evaluations}
+    verdicts = check_spatial_reachability(problem, **budget)
     folder = run_folder("ikpath", args.out)
     doc: dict[str, Any] = {
         "robot": robot.name,
@@ -127,6 +189,9 @@ def run_spatial(args: argparse.Namespace) -> int:
                 "distance": v.distance,
                 "reach": v.reach,
                 "message": v.message,
+                "decided_by": v.method,
+                "interval_boxes": v.boxes,
+                "interval_depth": v.depth,
             }
             for v in verdicts
         ],
@@ -135,26 +200,44 @@ def run_spatial(args: argparse.Namespace) -> int:
     files = []
     code = 2
     if not unreachable:
-        workers = args.workers if args.workers is not None else (1 if args.starts < 8 else 2)
+        for v in verdicts:
+            if v.status is SpatialReach.UNDECIDED:
+                print(
+                    f"youbot-opt: warning: reachability of target {v.index} is undecided "
+                    f"({v.message}); solving anyway (a failed solve may mean it is unreachable; "
+                    "a larger --reach-evaluations may decide it)",
+                    file=sys.stderr,
+                )
         ms = run_spatial_multistart(
-            problem, method=args.method, n_starts=args.starts, seed=args.seed, workers=workers
+            problem,
+            method=args.method,
+            n_starts=args.starts,
+            seed=args.seed,
+            starts=kind,
+            options=options,
+            sweep=start_sweep(args, folder, executor),
         )
         best = ms.best
         doc.update(
             status=best.status.value,
             E=best.objective,
             result=best.to_dict(),
+            start_index=ms.best_index,
             starts=len(ms.results),
             seed=args.seed,
+            start_kind=kind,
+            max_wall_time=args.max_wall_time,
             workers=ms.workers,
-            n_success=sum(r.success for r in ms.results),
+            n_success=ms.n_success,
+            status_counts=ms.status_counts(),
             minima=[{"E": ms.results[g[0]].objective, "count": len(g)} for g in ms.minima],
             starts_per_second=ms.starts_per_second,
             wall_time=ms.wall_time,
+            resumed=ms.resumed,
+            **start_fields(ms.results, ms.attempts),
         )
-        result_path = folder / "result.json"
-        result_path.write_text(json.dumps(json_ready(best.to_dict()), indent=2) + "\n")
-        files.append(result_path)
+        source = RobotSource.of(robot, strict=not args.lenient)
+        files.append(save_spatial_result(best, folder / "result.json", source))
         from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
 
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
@@ -170,6 +253,7 @@ def run_spatial(args: argparse.Namespace) -> int:
                     segment_time=args.segment_time,
                 )
             )
+        files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
         code = 0 if best.success else 1
     else:
         doc.update(status="unreachable", E=None, result=None)
@@ -181,20 +265,24 @@ def run_spatial(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(json_ready(doc), indent=2))
     else:
-        print(
-            f"IK path (spatial): {robot.name}, frame {frame}, {len(targets)} targets, "
-            f"method {args.method}"
-        )
-        for v in doc["reachability"]:
-            print(f"  target {v['index']}: {v['verdict']} ({v['message']})")
-        if doc["E"] is not None:
-            print(
-                f"best: E = {doc['E']:.10g} rad^2 ({doc['status']}), {doc['n_success']} of "
-                f"{doc['starts']} starts succeeded, {len(doc['minima'])} distinct minima"
-            )
-            for j, q in enumerate(doc["result"]["configurations_rad"]):
-                print(f"  q{j + 1} = [{', '.join(f'{x:+.6f}' for x in q)}] rad")
+        _print_text(doc, robot.name, frame, len(targets), args.method)
     print_outputs(folder, files)
     for v in unreachable:
         print(f"youbot-opt: error: unreachable: {v.message}", file=sys.stderr)
     return code
+
+
+def _print_text(doc: dict[str, Any], robot: str, frame: str, n_targets: int, method: str) -> None:
+    print(f"IK path (spatial): {robot}, frame {frame}, {n_targets} targets, method {method}")
+    for v in doc["reachability"]:
+        print(f"  target {v['index']}: {v['verdict']} ({v['message']})")
+    if doc["E"] is None:
+        return
+    print_starts(doc)
+    print(
+        f"best: E = {doc['E']:.10g} rad^2 ({doc['status']}, start {doc['start_index']}), "
+        f"{doc['n_success']} of {doc['starts']} starts succeeded, {len(doc['minima'])} "
+        "distinct minima"
+    )
+    for j, q in enumerate(doc["result"]["configurations_rad"]):
+        print(f"  q{j + 1} = [{', '.join(f'{x:+.6f}' for x in q)}] rad")

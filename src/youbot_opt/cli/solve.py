@@ -33,6 +33,7 @@ from youbot_opt.exceptions import ParameterError
 __all__ = [
     "add_refine_arguments",
     "refine_many",
+    "refinement_figures",
     "refine_result",
     "refinement_budget",
     "refinement_table",
@@ -231,6 +232,30 @@ def refine_many(
         )
         summaries.append({"label": label, **(record.summary() if record else {})})
     return refined, lines, summaries
+
+
+def refinement_figures(folder: Path, refined: list[Any], labels: list[str]) -> list[Path | None]:
+    """Draw each refined plan's rounds: ``refinement.png``, or ``refinement_<k>.png`` for several.
+
+    Plans without a refinement record (no trajectory to refine) are skipped;
+    ``k`` counts from 1 in the order of ``refined``, and the title names the label.
+    Nothing is drawn when nothing was refined (``--no-refine``).
+    """
+    from youbot_opt.viz.plots.trajopt import plot_refinement
+
+    if not refined:
+        return []
+    done = [(r, label) for r, label in zip(refined, labels, strict=True) if r.refinement]
+    return [
+        draw_figure(
+            folder,
+            "refinement.png" if len(done) == 1 else f"refinement_{k}.png",
+            plot_refinement,
+            r,
+            title=f"{label}: {r.refinement.reason}",
+        )
+        for k, (r, label) in enumerate(done, start=1)
+    ]
 
 
 def refinement_table(result: Any) -> list[str]:

@@ -4,9 +4,7 @@ Each prints progress on stderr and a table on stdout (``--json``: one JSON
 object), writes an output folder (:mod:`youbot_opt.cli.output`) that a rerun
 with the same ``--out`` resumes, and refines the reported plans until
 certified (``--no-refine`` keeps the grid). Exit codes: 0 done, 1 no solve
-converged, 2 bad input (folder contents: docs/design.md, "Module notes").
-
-Usage::
+converged, 2 bad input (folder contents: docs/design.md, "Module notes"). Usage::
 
     youbot-opt multistart --starts 50 --beta 0.5 --knots 50 --seed 0 --workers 2 --out DIR
     youbot-opt pareto --betas 0.05:0.95:0.05 --out DIR
@@ -32,6 +30,7 @@ from youbot_opt.cli.solve import (
     draw_figure,
     open_folder,
     refine_many,
+    refinement_figures,
     replay_html,
     report_outputs,
 )
@@ -296,9 +295,9 @@ def _run_multistart(args: argparse.Namespace) -> int:
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
     summary = res.summary(args.obj_tol, args.traj_tol)
     best = [("best start", res.best.result)] if res.best is not None and res.best.result else []
-    _, lines, summary["refinement"] = refine_many(solver, best, args, args.quiet or args.json)
+    refined, lines, summary["refinement"] = refine_many(solver, best, args, args.quiet or args.json)
     table += lines
-    files: list[Path | None] = []
+    files: list[Path | None] = refinement_figures(folder, refined, [label for label, _ in best])
     if res.best is not None and res.best.result is not None:
         from youbot_opt.cli.solve import optima_replay
         from youbot_opt.viz.plots import plot_convergence, plot_multistart, plot_trajectory
@@ -335,9 +334,9 @@ def _run_pareto(args: argparse.Namespace) -> int:
     table = pareto_table(front)  # distinct points counted, W with its unit
     best = [p for p in front.nondominated() if p.result is not None]
     items = [(f"beta = {p.beta:g}", p.result) for p in best]
-    _, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
+    plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
     table += lines
-    files: list[Path | None] = []
+    files: list[Path | None] = refinement_figures(folder, plans, [label for label, _ in items])
     if best:
         from youbot_opt.viz.plots import plot_pareto
 
@@ -386,8 +385,9 @@ def _run_bounds(args: argparse.Namespace) -> int:
         (r, r.best.result) for r in res.rows if r.best is not None and r.best.result is not None
     ]
     items = [(f"scale {r.bound_scale:.3f}", x) for r, x in solved]
-    _, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
+    plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
     table += lines
+    files += refinement_figures(folder, plans, [label for label, _ in items])
     if solved:
         from youbot_opt.viz.plots import plot_bound_scaling
 

@@ -1,29 +1,13 @@
-"""Minimum-motion cyclic IK paths of planar arms (study 2, spec ``ikpath.md``).
+"""Minimum-motion cyclic IK paths: planar arms (study 2, spec ``ikpath.md``) and any robot.
 
-Build, check, solve, inspect::
-
-    from youbot_opt.ikpath import PlanarChain, CyclicIKProblem, solve, run_multistart
+Build, check, solve, inspect (the spatial problem of issue 14 is used the same
+way, with :class:`SpatialIKProblem` and :func:`run_spatial_multistart`)::
 
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
     problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
     verdicts = check_reachability(problem)          # exact, no sampling
     result = solve(problem, method="al")            # or "ipopt"
     best = run_multistart(problem, n_starts=200, seed=0).best
-
-Any robot, 3-D targets, poses (issue 14)::
-
-    from youbot_opt.ikpath import SpatialIKProblem, SpatialTarget, run_spatial_multistart
-    robot = load_model("ur5")
-    problem = SpatialIKProblem(model=robot.model, frame=robot.tip_frame, targets=[...])
-    best = run_spatial_multistart(problem, method="al", n_starts=16).best
-
-Modules: :mod:`.targets`, :mod:`.spatial` (problem, reachability, DLS), :mod:`.spatial_ipopt`,
-:mod:`.spatial_solve`, :mod:`.chain` (Pinocchio planar chains), :mod:`.robot` (the youBot arm
-as a chain), :mod:`.problem`, :mod:`.reachability`, :mod:`.bfgs`,
-:mod:`.augmented_lagrangian` (the study's method), :mod:`.ipopt` (CasADi +
-IPOPT), :mod:`.solve`, :mod:`.multistart`, :mod:`.result`, :mod:`.io` (save
-and load), :mod:`.plots`, :mod:`.replay` (meshcat, live and HTML),
-:mod:`.examples`.
 """
 
 from __future__ import annotations
@@ -56,16 +40,20 @@ from youbot_opt.ikpath.solve import METHODS, Method, solve
 from youbot_opt.ikpath.spatial import (
     SpatialIKProblem,
     SpatialIKResult,
+    greedy_path,
+)
+from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
+from youbot_opt.ikpath.spatial_reachability import (
     SpatialReach,
     SpatialVerdict,
     check_spatial_reachability,
-    greedy_path,
 )
 from youbot_opt.ikpath.spatial_solve import (
     SpatialMultistart,
     run_spatial_multistart,
     solve_spatial,
 )
+from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
@@ -89,6 +77,7 @@ __all__ = [
     "PlanarChain",
     "ReachVerdict",
     "Reachability",
+    "RobotSource",
     "STUDY_E_A",
     "SpatialIKProblem",
     "SpatialIKResult",
@@ -108,12 +97,15 @@ __all__ = [
     "greedy_path",
     "load_targets",
     "load_ikpath_result",
+    "load_spatial_result",
     "make_starts",
+    "make_spatial_starts",
     "minimize_bfgs",
     "require_reachable",
     "run_multistart",
     "run_spatial_multistart",
     "save_ikpath_result",
+    "save_spatial_result",
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",

@@ -5,20 +5,24 @@ Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
 constraints ``c(x) = 0`` and the joint box; the inner solver is
 :func:`~youbot_opt.ikpath.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
 ``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
-in docs/design.md, "Module notes".
+in docs/design.md, "Module notes". Spatial problems switch on a safeguarded
+final phase of SQP steps (``ALOptions.newton_final``, docs/ikpath.md).
 
 >>> result = solve_augmented_lagrangian(problem, x0, ALOptions())  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import NamedTuple, TypedDict
+from typing import NamedTuple, Protocol, TypedDict
 
 import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
 from numpy.typing import ArrayLike
 from scipy.optimize import Bounds, minimize
 
@@ -35,6 +39,7 @@ __all__ = [
     "ALOptions",
     "ALResultFields",
     "ALRun",
+    "NewtonProblem",
     "first_order_multipliers",
     "run_augmented_lagrangian",
     "solve_augmented_lagrangian",
@@ -75,6 +80,25 @@ class ALOptions:
         before every inner iteration; when it is reached the solve stops with
         status ``MAX_TIME`` and the last iterate (unless that iterate already
         meets the stopping test). The overshoot is at most one inner iteration.
+    initial_multipliers : {"zero", "least_squares"}
+        ``lambda_0``: zero (N&W, the study) or the least-squares estimate at the
+        start (:func:`first_order_multipliers`; from a start that meets the targets,
+        such as the greedy path, the first inner solve then stays near them).
+    retry_least_squares : bool
+        After a failed run with ``lambda_0 = 0``, run once more from the same start
+        with the least-squares ``lambda_0`` (:func:`run_augmented_lagrangian`).
+    newton_final : bool
+        Safeguarded final phase: after an outer iteration with ``max |c_i| <=
+        newton_violation``, up to 30 SQP (Newton-KKT) steps with the exact Hessian of
+        the Lagrangian and the augmented Lagrangian as merit function
+        (:func:`_final_phase`); if they meet the stopping test the solve ends there,
+        otherwise the AL continues from its own iterate as if nothing happened. Needs
+        a problem with ``lagrangian_hessian`` (:class:`NewtonProblem`). Off by
+        default (the planar solver is the study's method as published); on for
+        spatial problems, whose nearly singular pose Jacobians make the first-order
+        multiplier updates crawl (docs/ikpath.md).
+    newton_violation : float
+        ``max |c_i|`` in [m] at which the final phase is tried.
     """
 
     penalty_initial: float = 10.0
@@ -87,9 +111,20 @@ class ALOptions:
     stall_increases: int = 3
     inner: str = "bfgs"
     max_wall_time: float | None = None
+    initial_multipliers: str = "zero"
+    retry_least_squares: bool = False
+    newton_final: bool = False
+    newton_violation: float = 1e-1
 
     def __post_init__(self) -> None:
         check_time_limit(self.max_wall_time, "ALOptions.max_wall_time")
+        if self.initial_multipliers not in ("zero", "least_squares"):
+            raise ParameterError(
+                "ALOptions.initial_multipliers must be 'zero' or 'least_squares', got "
+                f"{self.initial_multipliers!r}",
+                name="initial_multipliers",
+                value=self.initial_multipliers,
+            )
         if self.inner not in ("bfgs", "lbfgsb"):
             raise ParameterError(
                 f"ALOptions.inner must be 'bfgs' or 'lbfgsb', got {self.inner!r}",
@@ -105,6 +140,7 @@ class ALOptions:
             "max_outer_iterations": self.max_outer_iterations >= 1,
             "max_inner_iterations": self.max_inner_iterations >= 1,
             "stall_increases": self.stall_increases >= 1,
+            "newton_violation": self.newton_violation > 0,
         }
         for key, ok in checks.items():
             if not ok:
@@ -221,7 +257,40 @@ def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) 
     :mod:`youbot_opt.ikpath.spatial` both plug in: the constraints are ``s``
     blocks of ``m`` rows (``m = jacobian_blocks.shape[1]``), each with its own
     Jacobian block, which is all the loop and :func:`first_order_multipliers` use.
+    With ``opts.retry_least_squares`` a failed run with ``lambda_0 = 0`` is followed
+    by one from the same start with the least-squares ``lambda_0`` (the second
+    run's outcome is returned; times and inner iterations add up).
     """
+    first = _run_augmented_lagrangian(problem, start, opts)
+    if (
+        first.status.success
+        or not opts.retry_least_squares
+        or opts.initial_multipliers == "least_squares"
+        or first.status is SolveStatus.MAX_TIME
+    ):
+        return first
+    left = None if opts.max_wall_time is None else opts.max_wall_time - first.wall_time
+    if left is not None and left <= 0.0:
+        return first
+    retry_opts = dataclasses.replace(opts, initial_multipliers="least_squares", max_wall_time=left)
+    second = _run_augmented_lagrangian(problem, start, retry_opts)
+    return second._replace(
+        message=f"{second.message} (retried with least-squares lambda_0 after: "
+        f"{first.status.value})",
+        inner_iterations=first.inner_iterations + second.inner_iterations,
+        wall_time=first.wall_time + second.wall_time,
+    )
+
+
+def _run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) -> ALRun:
+    """One run of the loop of :func:`run_augmented_lagrangian` (no retry)."""
+    if opts.newton_final and not hasattr(problem, "lagrangian_hessian"):
+        raise ParameterError(
+            f"ALOptions.newton_final needs a problem with lagrangian_hessian "
+            f"(e.g. SpatialIKProblem), got {type(problem).__name__}",
+            name="newton_final",
+            value=True,
+        )
     t0 = time.perf_counter()
     deadline = None if opts.max_wall_time is None else t0 + float(opts.max_wall_time)
     data = problem.create_data()
@@ -229,6 +298,8 @@ def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) 
     bounded = problem.bounded
     s = problem.n_targets
     lam = np.zeros(problem.n_constraints)
+    if opts.initial_multipliers == "least_squares":
+        lam = first_order_multipliers(problem.evaluate(start, data), start, lower, upper)[0]
     mu = opts.penalty_initial
     omega, eta = 1.0 / mu, 1.0 / mu**0.1
 
@@ -300,6 +371,23 @@ def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) 
                 f"projected gradient {stationarity:.2e} ({inner_msg})"
             )
             break
+        if opts.newton_final and violation <= opts.newton_violation:
+            final = _final_phase(
+                problem,  # type: ignore[arg-type]
+                x,
+                lam - mu * c if stationarity_al <= stationarity_ls else lam_ls,
+                mu,
+                opts,
+                data,
+                deadline,
+                start_iteration=k + 1,
+                iterations=_FINAL_PHASE_STEPS,
+            )
+            _log.debug("AL %d: final phase: %s", k, final.message)
+            if final.status is SolveStatus.SOLVED:
+                history.extend(final.history)
+                status, message, x, lam = final.status, final.message, final.x, final.multipliers
+                break
         if violation <= eta:
             # An inner solve that could not move (its line search lost in the rounding
             # of L_A) leaves c unchanged; repeating lam - mu c would then drift the
@@ -332,6 +420,213 @@ def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) 
         x, note = pick_best(problem, x, visited, opts.constraint_tol)  # type: ignore[arg-type]
         message = f"{message}; {note}" if note else message
     return ALRun(status, message, x, lam, tuple(history), inner_total, time.perf_counter() - t0)
+
+
+class NewtonProblem(ALProblem, Protocol):
+    """An :class:`ALProblem` that also gives the Hessian the final (SQP) phase needs."""
+
+    def lagrangian_hessian(
+        self, x: ArrayLike, multipliers: ArrayLike, data: pin.Data | None = None
+    ) -> Array:
+        """Hessian of ``E - lambda^T c`` at ``x``, shape (n s, n s)."""
+        ...
+
+
+class _FinalPhase(NamedTuple):
+    """Outcome of :func:`_final_phase` (``sqp_steps``: Newton-KKT steps taken)."""
+
+    status: SolveStatus
+    message: str
+    x: Array
+    multipliers: Array
+    history: list[OuterIterate]
+    sqp_steps: int
+
+
+def _final_phase(
+    problem: NewtonProblem,
+    x: Array,
+    lam: Array,
+    mu: float,
+    opts: ALOptions,
+    data: pin.Data,
+    deadline: float | None,
+    *,
+    start_iteration: int,
+    iterations: int,
+) -> _FinalPhase:
+    """Run the safeguarded final phase: SQP steps with the augmented Lagrangian as merit.
+
+    From the AL iterate and its multipliers, Newton steps ``(p, p_lam)`` on the KKT
+    system ``grad E = J^T lam``, ``c = 0`` (Nocedal and Wright, eq. 18.9) with the
+    Hessian of :meth:`NewtonProblem.lagrangian_hessian`, shifted by ``delta I`` where
+    needed to be positive definite on the null space of ``J`` (a minimiser, not a
+    saddle). Joints at a limit whose Lagrangian gradient, or whose step, points out
+    of the box are held there (the projected BFGS's binding set). The multipliers
+    are the step's, ``lam + p_lam``; the step length comes from Armijo backtracking
+    on ``L_A(., lam + p_lam; mu)`` (N&W, sec. 18.5: its slope is ``-p^T H p - mu |c|^2``,
+    and ``mu`` grows tenfold while it is not negative). Steps are capped at 0.5 rad
+    per joint. The stopping test and its multipliers are the main loop's.
+    """
+    lower, upper = problem.lower, problem.upper
+    s = problem.n_targets
+    history: list[OuterIterate] = []
+    x = np.asarray(x, dtype=float).copy()
+    lam = np.asarray(lam, dtype=float).copy()
+
+    def merit(xk: Array, lk: Array) -> float:
+        ck = problem.constraints(xk, data)
+        return problem.objective(xk) - float(lk @ ck) + 0.5 * mu * float(ck @ ck)
+
+    steps = 0
+    for k in range(start_iteration, start_iteration + max(iterations, 1)):
+        ev = problem.evaluate(x, data)
+        c = ev.constraints
+        jac = _dense_jacobian(ev)
+        grad_l = ev.gradient - jac.T @ lam
+        violation = float(np.max(np.abs(c)))
+        lam_ls, stationarity_ls = first_order_multipliers(ev, x, lower, upper)
+        stationarity_own = float(np.max(np.abs(x - np.clip(x - grad_l, lower, upper))))
+        stationarity = min(stationarity_own, stationarity_ls)
+        history.append(
+            OuterIterate(k, x.reshape(s, -1).copy(), ev.objective, violation, stationarity, mu, 0)
+        )
+        _log.debug(
+            "AL %d (SQP phase): E=%.10g |c|=%.3g pg=%.3g mu=%.3g",
+            k,
+            ev.objective,
+            violation,
+            stationarity,
+            mu,
+        )
+
+        if not (math.isfinite(violation) and math.isfinite(stationarity)):
+            message = "non-finite constraint or gradient"
+            return _FinalPhase(SolveStatus.NON_FINITE, message, x, lam, history, steps)
+        if violation <= opts.constraint_tol and stationarity <= opts.stationarity_tol:
+            lam = lam if stationarity_own <= stationarity_ls else lam_ls
+            message = (
+                f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
+                f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g} (final phase from "
+                f"outer iteration {start_iteration}: {steps} SQP steps)"
+            )
+            return _FinalPhase(SolveStatus.SOLVED, message, x, lam, history, steps)
+        if _past(deadline):
+            message = (
+                f"wall-time limit {opts.max_wall_time:g} s reached in the final phase with "
+                f"|c| = {violation:.2e} m, projected gradient {stationarity:.2e}"
+            )
+            return _FinalPhase(SolveStatus.MAX_TIME, message, x, lam, history, steps)
+        with np.errstate(over="ignore", invalid="ignore"):
+            hess = problem.lagrangian_hessian(x, lam, data)
+        free = ~(((x <= lower) & (grad_l > 0.0)) | ((x >= upper) & (grad_l < 0.0)))
+        for _ in range(x.size + 1):  # joints at a limit that the step pushes out are fixed
+            step = _sqp_step(jac, hess, grad_l, c, free)
+            if step is None:
+                message = "singular or non-finite KKT system in the final phase"
+                return _FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
+            p, rows, dlam = step
+            out = free & (((x <= lower) & (p < 0.0)) | ((x >= upper) & (p > 0.0)))
+            if not np.any(out):
+                break
+            free = free & ~out
+        lam_new = lam.copy()
+        lam_new[rows] += dlam
+        # Slope of the merit along p: (grad E - J^T lam_new) p - mu |c|^2 = -p^T H p - mu |c|^2.
+        slope_e = float((ev.gradient - jac.T @ lam_new) @ p)
+        slope_c = float((jac.T @ c) @ p)
+        while not slope_e + mu * slope_c < 0.0:  # not a descent direction: raise mu
+            if mu * opts.penalty_growth > _MERIT_PENALTY_MAX:
+                message = (
+                    f"merit penalty would exceed {_MERIT_PENALTY_MAX:g} with |c| = "
+                    f"{violation:.2e} m in the final phase{_licq_note(ev, lam, mu)}"
+                )
+                return _FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
+            mu *= opts.penalty_growth
+        slope = slope_e + mu * slope_c
+        alpha = min(1.0, _NEWTON_MAX_STEP / max(float(np.max(np.abs(p))), 1e-300))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            to_lo = np.where(p < 0.0, (lower - x) / p, np.inf)
+            to_hi = np.where(p > 0.0, (upper - x) / p, np.inf)
+        alpha = min(alpha, float(np.min(np.minimum(to_lo, to_hi))))
+        phi0 = merit(x, lam_new)
+        noise = 1e-13 * (1.0 + abs(phi0))
+        for _ in range(_MERIT_BACKTRACKS):
+            x_new = np.clip(x + alpha * p, lower, upper)
+            if merit(x_new, lam_new) <= phi0 + 1e-4 * alpha * slope + noise:
+                break
+            alpha *= 0.5
+        else:
+            message = (
+                f"no decrease of the merit function in the final phase with |c| = "
+                f"{violation:.2e} m{_licq_note(ev, lam, mu)}"
+            )
+            return _FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
+        steps += 1
+        x, lam = x_new, lam_new
+    return _FinalPhase(
+        SolveStatus.MAX_ITERATIONS, "outer iteration limit reached", x, lam, history, steps
+    )
+
+
+_FINAL_PHASE_STEPS = 30  # SQP steps of one attempt of the final phase
+_MERIT_PENALTY_MAX = 1e14  # largest mu of the final phase's merit function
+_MERIT_BACKTRACKS = 40  # halvings of an SQP step before the final phase gives up
+_NEWTON_MAX_STEP = 0.5  # largest step of one joint [rad] in the final phase
+
+
+def _sqp_step(
+    jac: Array, hess: Array, grad_l: Array, c: Array, free: npt.NDArray[np.bool_]
+) -> tuple[Array, npt.NDArray[np.bool_], Array] | None:
+    """Newton step ``(p, rows, d_lam)`` of the KKT system on the ``free`` joints, or None.
+
+    Zero rows of ``J`` (padding, the z row of a planar chain) drop out; the Hessian
+    is shifted to be positive definite on the null space of ``J`` (:func:`_inertia_shift`).
+    """
+    rows = np.any(jac[:, free] != 0.0, axis=1)
+    a = jac[np.ix_(rows, free)]
+    h = hess[np.ix_(free, free)]
+    if not (np.all(np.isfinite(h)) and np.all(np.isfinite(grad_l))):
+        return None
+    try:
+        h = h + _inertia_shift(a, h) * np.eye(h.shape[0])
+        kkt = np.block([[h, a.T], [a, np.zeros((a.shape[0], a.shape[0]))]])
+        sol = np.linalg.solve(kkt, -np.concatenate([grad_l[free], c[rows]]))
+    except np.linalg.LinAlgError:
+        return None
+    nf = h.shape[0]
+    if not np.all(np.isfinite(sol)):
+        return None
+    p = np.zeros(jac.shape[1])
+    p[free] = sol[:nf]
+    return p, rows, -sol[nf:]
+
+
+def _inertia_shift(a: Array, h: Array) -> float:
+    """Return ``delta >= 0`` making ``h + delta I`` positive definite on the null space of ``a``.
+
+    Zero when the smallest eigenvalue of the reduced Hessian exceeds ``1e-8`` of
+    the Hessian's scale, else that eigenvalue's deficit plus ``1e-4`` of the scale.
+    """
+    if h.size == 0:
+        return 0.0
+    _, sv, vt = np.linalg.svd(a) if a.size else (None, np.zeros(0), np.zeros((0, h.shape[0])))
+    rank = int(np.count_nonzero(sv > 1e-10 * max(1.0, float(sv[0]) if sv.size else 1.0)))
+    z = vt[rank:].T if a.size else np.eye(h.shape[0])
+    if z.shape[1] == 0:
+        return 0.0
+    smallest = float(np.linalg.eigvalsh(z.T @ h @ z)[0])
+    scale = max(1.0, float(np.max(np.abs(h))))
+    return 0.0 if smallest > 1e-8 * scale else 1e-4 * scale - smallest
+
+
+def _dense_jacobian(ev: Evaluation) -> Array:
+    """``dc/dx`` (m s, n s) from its diagonal blocks."""
+    s, m, n = ev.jacobian_blocks.shape
+    jac = np.zeros((s * m, s * n))
+    for j in range(s):
+        jac[j * m : (j + 1) * m, j * n : (j + 1) * n] = ev.jacobian_blocks[j]
+    return jac
 
 
 _SINGULAR_RATIO = 1e-2  # sigma_min / sigma_max of a tip Jacobian below which LICQ is lost

@@ -5,7 +5,8 @@ turns the :class:`SearchOutcome` into a verdict. Boxes of the first ``n - 2``
 angles are bounded below by the exact distance to the last two links'
 workspace minus a rigorous Lipschitz term, and bisected until decided (spec
 ``docs/ikpath.md``); the bound and its rounding margin are derived in
-docs/design.md, "Module notes".
+docs/design.md, "Module notes". :func:`bisect_boxes` (split boxes on their widest
+weighted side) is shared with the spatial interval search.
 """
 
 from __future__ import annotations
@@ -22,7 +23,32 @@ from youbot_opt._typing import Array
 from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.geometry import two_link_nearest
 
-__all__ = ["BranchAndBound", "SearchOutcome"]
+__all__ = ["BranchAndBound", "SearchOutcome", "bisect_boxes"]
+
+
+def bisect_boxes(lower: Array, upper: Array, scale: Array) -> tuple[Array, Array]:
+    """Split boxes in two at the midpoint of their widest scaled side.
+
+    Parameters
+    ----------
+    lower, upper : ndarray, shape (B, n)
+        Boxes, one per row.
+    scale : ndarray, shape (n,)
+        Weight of each side: the side split is ``argmax(scale * (upper - lower))``
+        (first on ties), e.g. a lever arm [m/rad] so that angle widths compare in [m].
+
+    Returns
+    -------
+    lower, upper : ndarray, shape (2 B, n)
+        The lower halves (rows ``0..B-1``), then the upper halves.
+    """
+    rows = np.arange(lower.shape[0])
+    side = np.argmax((upper - lower) * scale, axis=1)
+    mid = 0.5 * (lower[rows, side] + upper[rows, side])
+    left_upper, right_lower = upper.copy(), lower.copy()
+    left_upper[rows, side] = mid
+    right_lower[rows, side] = mid
+    return np.concatenate([lower, right_lower]), np.concatenate([left_upper, upper])
 
 
 class SearchOutcome(NamedTuple):
@@ -210,11 +236,8 @@ class BranchAndBound:
             heapq.heappop(heap)
             if bound > self.best_d:
                 continue
-            half = 0.5 * (b_hi - b_lo)
-            k = int(np.argmax(half * (1.0 + np.arange(self.m, 0, -1))))
-            mid = 0.5 * (b_lo[k] + b_hi[k])
-            left_hi, right_lo = b_hi.copy(), b_lo.copy()
-            left_hi[k], right_lo[k] = mid, mid
-            if push(b_lo, left_hi) or push(right_lo, b_hi):
+            # Outer angles weigh more: they swing the longer rest of the chain.
+            lows, highs = bisect_boxes(b_lo[None], b_hi[None], np.arange(self.m + 1.0, 1.0, -1.0))
+            if push(lows[0], highs[0]) or push(lows[1], highs[1]):
                 return self._result("reachable", 0.0)
         return self._result("unreachable", max(self.best_d, self.annulus_gap))

@@ -1,24 +1,13 @@
-r"""Planar n-link chains as Pinocchio models (study 2, spec ``ikpath.md``, "The arm").
+"""Planar n-link chains as Pinocchio models (study 2, spec ``ikpath.md``, "The arm").
 
 A :class:`PlanarChain` is the arm of study 2: ``n`` revolute joints about the
-plane normal (z), segment ``i`` of length ``l_i`` from joint ``i`` to joint
-``i + 1``, the last segment ending at the tip frame. The joint coordinates
-``q`` follow the study's convention up to a constant offset:
+plane normal (z), segment ``i`` of length ``l_i``, the last segment ending at
+the tip frame; its angle convention (the study's, up to a constant offset) is
+in the class docstring. Forward kinematics and the tip Jacobian
+(:class:`TipKinematics`) come from Pinocchio.
 
-.. math::
-
-    \theta = q + \text{angle\_offset}, \qquad
-    F(\theta) = b + \sum_i l_i (\cos\phi_i, \sin\phi_i), \quad
-    \phi_i = \theta_1 + \dots + \theta_i,
-
-so ``theta_1`` is the absolute angle of segment 1 from the x axis and the others
-are relative to the previous segment. With the defaults (``base = 0``,
-``angle_offset = 0``) ``q`` *is* the study's ``theta``. The offsets exist so
-that a real arm (the youBot, angles from the vertical, mounted off the platform
-origin) is the same kind of object; see :mod:`youbot_opt.ikpath.robot`.
-
-Forward kinematics and the tip Jacobian come from Pinocchio
-(``computeFrameJacobian`` in ``LOCAL_WORLD_ALIGNED``, rows x and y).
+>>> PlanarChain(lengths=[3, 2, 2]).tip_position([0.0, 0.0, 0.0])  # doctest: +SKIP
+array([7., 0.])
 """
 
 from __future__ import annotations
@@ -104,7 +93,25 @@ def _vector(name: str, value: ArrayLike | None, n: int, default: float) -> Array
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class PlanarChain:
-    """An n-link planar revolute chain with an optional box of joint limits.
+    r"""An n-link planar revolute chain with an optional box of joint limits.
+
+    Segment ``i`` runs from joint ``i`` to joint ``i + 1``; the joint
+    coordinates ``q`` follow the study's convention up to a constant offset:
+
+    .. math::
+
+        \theta = q + \text{angle\_offset}, \qquad
+        F(\theta) = b + \sum_i l_i (\cos\phi_i, \sin\phi_i), \quad
+        \phi_i = \theta_1 + \dots + \theta_i,
+
+    so ``theta_1`` is the absolute angle of segment 1 from the x axis and the
+    others are relative to the previous segment. With the defaults
+    (``base = 0``, ``angle_offset = 0``) ``q`` *is* the study's ``theta``; the
+    offsets let a real arm (the youBot, angles from the vertical, mounted off
+    the platform origin) be the same kind of object
+    (:func:`youbot_opt.ikpath.robot.chain_from_robot`). Forward kinematics and
+    the tip Jacobian come from Pinocchio (``computeFrameJacobian`` in
+    ``LOCAL_WORLD_ALIGNED``, rows x and y).
 
     Attributes
     ----------

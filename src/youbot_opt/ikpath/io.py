@@ -6,6 +6,7 @@ chain, targets, configurations, reported figures and history under
 rebuilds the problem, recomputes E, residuals and limit violation, refuses a
 corrupt or newer file, and re-checks a claimed success
 (:func:`~youbot_opt.ikpath.result.build_result`; layout: docs/design.md, "Module notes").
+The document helpers (header, checksum, history, limits) serve :mod:`.spatial_io` too.
 
 >>> load_ikpath_result(save_ikpath_result(result, "path.json")).objective  # doctest: +SKIP
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -36,25 +38,155 @@ from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
 
 __all__ = [
+    "RECHECK_TOL",
     "SCHEMA",
     "SCHEMA_VERSION",
+    "encode_document",
     "encode_ikpath_result",
+    "finite_or_none",
+    "history_from_json",
+    "history_to_json",
+    "limits_from_json",
+    "limits_to_json",
     "load_ikpath_result",
     "problem_spec",
+    "read_document",
     "save_ikpath_result",
+    "write_document",
 ]
 
 SCHEMA = "youbot_opt.ikpath_result"
 SCHEMA_VERSION = 1
-_RECHECK_TOL = 1e-9  # [rad^2, m] largest accepted |stored - recomputed| of E and residuals
+RECHECK_TOL = 1e-9
+"""Largest accepted ``|stored - recomputed|`` of E [rad^2] and of the residuals or target
+errors [m, rad] of an IK-path file: both come from the same float64 formulas, which agree
+across CPUs to ~1e-15; a target moved by more than 1e-9 m (or a changed robot) is detected."""
 
 
-def _num(x: float) -> float | None:
+def finite_or_none(x: float) -> float | None:
+    """``float(x)``, or ``None`` (JSON ``null``) for an infinite or NaN ``x``."""
     return float(x) if math.isfinite(x) else None
 
 
-def _limits(values: np.ndarray) -> list[float | None]:
-    return [_num(v) for v in values]
+def limits_to_json(values: Iterable[float]) -> list[float | None]:
+    """JSON form of joint limits in [rad] or [m]: ``null`` for an infinite (absent) limit."""
+    return [finite_or_none(v) for v in values]
+
+
+def limits_from_json(values: Iterable[float | None], fill: float) -> np.ndarray:
+    """Inverse of :func:`limits_to_json`: ``null`` becomes ``fill`` (``-inf`` or ``inf``)."""
+    return np.array([fill if v is None else float(v) for v in values], dtype=float)
+
+
+def history_to_json(history: Iterable[OuterIterate]) -> list[dict[str, Any]]:
+    """JSON form of the outer iterations of a result (non-finite figures as ``null``)."""
+    return [
+        {
+            "iteration": h.iteration,
+            "x": np.asarray(h.x).tolist(),
+            "objective": finite_or_none(h.objective),
+            "violation": finite_or_none(h.violation),
+            "stationarity": finite_or_none(h.stationarity),
+            "penalty": finite_or_none(h.penalty),
+            "inner_iterations": h.inner_iterations,
+        }
+        for h in history
+    ]
+
+
+def history_from_json(
+    items: Iterable[dict[str, Any]], n_targets: int, n_joints: int
+) -> tuple[OuterIterate, ...]:
+    """Inverse of :func:`history_to_json`; each iterate's ``x`` shaped (n_targets, n_joints).
+
+    Raises
+    ------
+    KeyError, TypeError, ValueError
+        For a missing field or a value of the wrong shape or type.
+    """
+
+    def num(value: Any) -> float:
+        return math.nan if value is None else float(value)
+
+    return tuple(
+        OuterIterate(
+            int(h["iteration"]),
+            np.array(h["x"], dtype=float).reshape(n_targets, n_joints),
+            num(h["objective"]),
+            num(h["violation"]),
+            num(h["stationarity"]),
+            num(h["penalty"]),
+            int(h["inner_iterations"]),
+        )
+        for h in items
+    )
+
+
+def encode_document(schema: str, version: int, body: dict[str, Any]) -> bytes:
+    """UTF-8 JSON of ``body`` under ``"result"``, behind the schema header and its SHA-256.
+
+    Parameters
+    ----------
+    schema : str
+        Schema name, e.g. :data:`SCHEMA`.
+    version : int
+        Schema version.
+    body : dict
+        JSON-ready content (no NaN or infinity).
+
+    Returns
+    -------
+    bytes
+        The document, with the Pinocchio and numpy versions that wrote it.
+    """
+    doc = {
+        **schema_header(schema, version, software_versions(pin, np), sha256=json_digest(body)),
+        "result": body,
+    }
+    return (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
+
+
+def write_document(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` (``.json`` appended if missing) atomically; return the file."""
+    target = Path(path)
+    if target.suffix != ".json":
+        target = target.with_name(target.name + ".json")
+    atomic_write_bytes(target, data)
+    return target
+
+
+def read_document(
+    path: str | os.PathLike[str], *, schema: str, version: int, what: str
+) -> dict[str, Any]:
+    """Return the ``"result"`` body of a file written from :func:`encode_document`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file.
+    schema : str
+        The schema name the file must have.
+    version : int
+        The newest schema version this reader supports.
+    what : str
+        What the file holds, for messages (``"an IK-path result"``).
+
+    Raises
+    ------
+    ResultFileError
+        If the file is missing or not JSON, of another schema, of a newer (or
+        invalid) schema version, or fails its checksum.
+    """
+    source = Path(path)
+    try:
+        doc = json.loads(source.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ResultFileError(f"{source}: cannot read {what}: {exc}") from exc
+    check_schema_header(doc, schema=schema, supported=version, source=str(source))
+    body = doc.get("result")
+    if not isinstance(body, dict) or doc.get("sha256") != json_digest(body):
+        raise ResultFileError(f"{source}: checksum mismatch; the file is corrupt")
+    return body
 
 
 def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
@@ -78,8 +210,8 @@ def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
     return {
         "chain": {
             "lengths": chain.lengths.tolist(),
-            "q_lower": _limits(chain.q_lower),
-            "q_upper": _limits(chain.q_upper),
+            "q_lower": limits_to_json(chain.q_lower),
+            "q_upper": limits_to_json(chain.q_upper),
             "base": chain.base.tolist(),
             "angle_offset": chain.angle_offset.tolist(),
             "name": chain.name,
@@ -106,18 +238,7 @@ def _body(result: IKPathResult) -> dict[str, Any]:
         "message": result.message,
         "start": result.start.tolist(),
         "constraint_tol": result.constraint_tol,
-        "history": [
-            {
-                "iteration": h.iteration,
-                "x": np.asarray(h.x).tolist(),
-                "objective": _num(h.objective),
-                "violation": _num(h.violation),
-                "stationarity": _num(h.stationarity),
-                "penalty": _num(h.penalty),
-                "inner_iterations": h.inner_iterations,
-            }
-            for h in result.history
-        ],
+        "history": history_to_json(result.history),
     }
 
 
@@ -138,14 +259,7 @@ def encode_ikpath_result(result: IKPathResult) -> bytes:
     bytes
         The JSON document with schema name, version, versions and checksum.
     """
-    body = _body(result)
-    doc = {
-        **schema_header(
-            SCHEMA, SCHEMA_VERSION, software_versions(pin, np), sha256=json_digest(body)
-        ),
-        "result": body,
-    }
-    return (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
+    return encode_document(SCHEMA, SCHEMA_VERSION, _body(result))
 
 
 def save_ikpath_result(result: IKPathResult, path: str | os.PathLike[str]) -> Path:
@@ -163,23 +277,15 @@ def save_ikpath_result(result: IKPathResult, path: str | os.PathLike[str]) -> Pa
     Path
         The file written.
     """
-    target = Path(path)
-    if target.suffix != ".json":
-        target = target.with_name(target.name + ".json")
-    atomic_write_bytes(target, encode_ikpath_result(result))
-    return target
-
-
-def _array(values: Any, default: float = math.nan) -> np.ndarray:
-    return np.array([default if v is None else v for v in values], dtype=float)
+    return write_document(path, encode_ikpath_result(result))
 
 
 def _parse(body: dict[str, Any]) -> IKPathResult:
     spec = body["chain"]
     chain = PlanarChain(
         lengths=spec["lengths"],
-        q_lower=_array(spec["q_lower"], -math.inf),
-        q_upper=_array(spec["q_upper"], math.inf),
+        q_lower=limits_from_json(spec["q_lower"], -math.inf),
+        q_upper=limits_from_json(spec["q_upper"], math.inf),
         base=spec["base"],
         angle_offset=spec["angle_offset"],
         name=str(spec["name"]),
@@ -188,23 +294,7 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
     problem = CyclicIKProblem(
         chain=chain, targets=body["targets"], use_limits=bool(body["use_limits"])
     )
-    s, n = problem.n_targets, problem.n_joints
-
-    def num(value: Any) -> float:
-        return math.nan if value is None else float(value)
-
-    history = tuple(
-        OuterIterate(
-            int(h["iteration"]),
-            np.array(h["x"], dtype=float).reshape(s, n),
-            num(h["objective"]),
-            num(h["violation"]),
-            num(h["stationarity"]),
-            num(h["penalty"]),
-            int(h["inner_iterations"]),
-        )
-        for h in body["history"]
-    )
+    history = history_from_json(body["history"], problem.n_targets, problem.n_joints)
     return build_result(
         problem,
         method=str(body["method"]),
@@ -253,14 +343,7 @@ def load_ikpath_result(path: str | os.PathLike[str]) -> IKPathResult:
         stored E / residuals disagree with the recomputed ones by more than 1e-9.
     """
     source = Path(path)
-    try:
-        doc = json.loads(source.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ResultFileError(f"{source}: cannot read an IK-path result: {exc}") from exc
-    check_schema_header(doc, schema=SCHEMA, supported=SCHEMA_VERSION, source=str(source))
-    body = doc.get("result")
-    if not isinstance(body, dict) or doc.get("sha256") != json_digest(body):
-        raise ResultFileError(f"{source}: checksum mismatch; the file is corrupt")
+    body = read_document(source, schema=SCHEMA, version=SCHEMA_VERSION, what="an IK-path result")
     try:
         result = _parse(body)
         stored_e = float(body["objective"])
@@ -268,8 +351,8 @@ def load_ikpath_result(path: str | os.PathLike[str]) -> IKPathResult:
     except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
         raise ResultFileError(f"{source}: incomplete or invalid IK-path result: {exc}") from exc
     if stored_res.shape != result.residuals.shape or not (
-        abs(stored_e - result.objective) <= _RECHECK_TOL
-        and np.all(np.abs(stored_res - result.residuals) <= _RECHECK_TOL)
+        abs(stored_e - result.objective) <= RECHECK_TOL
+        and np.all(np.abs(stored_res - result.residuals) <= RECHECK_TOL)
     ):
         raise ResultFileError(
             f"{source}: stored E = {stored_e!r} or residuals disagree with the ones recomputed "

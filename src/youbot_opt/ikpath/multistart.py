@@ -1,14 +1,10 @@
 """Seeded multistart of IK-path solves, with the distinct local minima (spec ``ikpath.md``).
 
 Owns :func:`run_multistart`, :class:`MultistartResult`, :class:`LocalMinimum`,
-:func:`configuration_distance` and :func:`cluster_minima`. Start 0 is the
-study's zero vector; the others are drawn in the parent from
-``numpy.random.default_rng(seed)`` (:func:`youbot_opt.ikpath.starts.make_starts`),
-so they do not depend on the executor. How the starts run (crash-isolated
-workers, one retry, resumable ``out`` directory) is one
+:func:`configuration_distance` and :func:`cluster_minima`. The starts are drawn in
+the parent process, so they do not depend on the executor; how they run
+(crash-isolated workers, one retry, resumable ``out`` directory) is one
 :class:`~youbot_opt.sweeps.options.SweepOptions` (:mod:`youbot_opt.ikpath.sweep`).
-Two successful results are the same minimum when their ``E`` agree to ``e_tol``
-(relative) and their configurations to ``q_tol`` [rad] modulo common 2 pi shifts.
 
     ms = run_multistart(problem, n_starts=100, sweep=SweepOptions(workers=4, out="runs/ik"))
 """
@@ -31,10 +27,17 @@ from youbot_opt.ikpath.reachability import ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import START_KINDS, make_starts
-from youbot_opt.ikpath.sweep import open_store, solve_starts, stored_start_rng
+from youbot_opt.ikpath.sweep import (
+    PLANAR_STARTS,
+    open_store,
+    progress_callbacks,
+    solve_starts,
+    status_counts,
+    stored_start_rng,
+)
 from youbot_opt.sweeps.cluster import cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.sweeps.pool import default_workers
+from youbot_opt.sweeps.pool import ExecutorLike, default_workers
 from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 
 __all__ = [
@@ -45,6 +48,7 @@ __all__ = [
     "cluster_minima",
     "configuration_distance",
     "make_starts",
+    "resolve_executor",
     "run_multistart",
 ]
 
@@ -146,10 +150,7 @@ class MultistartResult:
 
     def status_counts(self) -> dict[str, int]:
         """Count the starts per :class:`IKStatus` value."""
-        counts: dict[str, int] = {}
-        for r in self.results:
-            counts[r.status.value] = counts.get(r.status.value, 0) + 1
-        return counts
+        return status_counts(self.results)
 
     def starts_per_second(self) -> float:
         """Throughput in [1/s]."""
@@ -176,6 +177,10 @@ def cluster_minima(
     results: Sequence[IKPathResult], *, e_tol: float = 1e-6, q_tol: float = 1e-3
 ) -> tuple[LocalMinimum, ...]:
     """Group successful results into distinct local minima, best first.
+
+    Two successful results are the same minimum when their ``E`` agree to
+    ``e_tol`` (relative) and their configurations to ``q_tol`` [rad] modulo
+    common 2 pi shifts (:func:`configuration_distance`).
 
     Parameters
     ----------
@@ -234,9 +239,11 @@ def run_multistart(
     method : {"al", "ipopt"}
         Solver.
     n_starts : int
-        Number of starts (start 0 is the zero vector).
+        Number of starts (start 0 is the study's zero vector).
     seed : int
-        Seed of the random starts.
+        Seed of the random starts, drawn in this process by
+        :func:`youbot_opt.ikpath.starts.make_starts` (one seeded generator per
+        start index), so they do not depend on the executor.
     starts : {"feasible", "uniform"}
         How random starts are drawn (see :mod:`youbot_opt.ikpath.starts`).
     options : ALOptions or IpoptOptions, optional
@@ -289,22 +296,7 @@ def run_multistart(
         found = check_targets(problem)
     rng = "per-index" if sweep.out is None else stored_start_rng(sweep.out)
     x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found, rng=rng)
-    executor, max_workers = sweep.executor, sweep.workers
-    if executor is None:
-        workers = max_workers or default_workers()
-        executor = "serial" if workers == 1 else "process"
-    elif executor == "serial":
-        workers = 1
-    elif executor == "process":
-        workers = max_workers or default_workers()
-    elif sweep.distributed:  # a Dask cluster: its total threads unless workers says otherwise
-        workers = max_workers or _dask_threads(executor)
-    else:  # the caller's pool or executor: its size unless max_workers says otherwise
-        size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
-        dask_client = getattr(executor, "_client", None)  # client.get_executor()
-        if size is None and dask_client is not None and is_dask_client(dask_client):
-            size = cluster_threads(dask_client)
-        workers = max_workers or int(size or default_workers())
+    executor, workers = resolve_executor(sweep)
     store = None
     if sweep.out is not None:
         store = open_store(
@@ -318,31 +310,14 @@ def run_multistart(
             rng=rng,
             clean=sweep.shard is None,
         )
-    progress = sweep.progress
-    best = math.inf
-    done = 0
-
-    def on_final(index: int, result: IKPathResult) -> None:
-        nonlocal best, done
-        done += 1
-        if result.success:
-            best = min(best, result.objective)
-        if progress is not None:
-            progress(done, len(x0s), best)
-
-    def on_resumed(results: Sequence[IKPathResult]) -> None:
-        nonlocal best, done
-        done = len(results)
-        best = min((r.objective for r in results if r.success), default=math.inf)
-        if progress is not None and results:
-            progress(done, len(x0s), best)
-
+    on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
     outcome = solve_starts(
         problem,
         x0s,
         method=method,
         options=options,
         sweep=replace(sweep, executor=executor, workers=workers),
+        solvers=PLANAR_STARTS,
         store=store,
         on_resumed=on_resumed,
         on_final=on_final,
@@ -360,6 +335,32 @@ def run_multistart(
         resumed=outcome.resumed,
         output=None if store is None else store.directory,
     )
+
+
+def resolve_executor(sweep: SweepOptions) -> tuple[ExecutorLike, int]:
+    """Return where the starts of a multistart run and how many run at once.
+
+    ``executor`` ``None`` becomes ``"serial"`` when ``workers`` is 1, else
+    ``"process"``; the count is ``workers`` if given, else the CPUs available,
+    the caller's pool size or the Dask cluster's total threads.
+    """
+    executor, max_workers = sweep.executor, sweep.workers
+    if executor is None:
+        workers = max_workers or default_workers()
+        executor = "serial" if workers == 1 else "process"
+    elif executor == "serial":
+        workers = 1
+    elif executor == "process":
+        workers = max_workers or default_workers()
+    elif sweep.distributed:  # a Dask cluster: its total threads unless workers says otherwise
+        workers = max_workers or _dask_threads(executor)
+    else:  # the caller's pool or executor: its size unless max_workers says otherwise
+        size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
+        dask_client = getattr(executor, "_client", None)  # client.get_executor()
+        if size is None and dask_client is not None and is_dask_client(dask_client):
+            size = cluster_threads(dask_client)
+        workers = max_workers or int(size or default_workers())
+    return executor, workers
 
 
 def _dask_threads(executor: object) -> int:

@@ -1,19 +1,13 @@
 r"""The cyclic IK-path problem of study 2 (spec ``ikpath.md``, "The problem").
 
 Visit targets ``p_1 .. p_s`` in order and return to ``p_1`` with the least
-total joint motion:
+total joint motion, :math:`E(Q) = \tfrac12 \sum_j \lVert q_{j+1} - q_j \rVert^2`
+with :math:`q_{s+1} \equiv q_1`, subject to :math:`F(q_j) = p_j` and the joint
+limits. :class:`CyclicIKProblem` is a pure specification: it evaluates E, the
+constraints and their derivatives (from Pinocchio) but holds no solver state.
 
-.. math::
-
-    \min_{Q} \; E(Q) = \tfrac12 \sum_{j=1}^{s} \lVert q_{j+1} - q_j \rVert^2,
-    \quad q_{s+1} \equiv q_1, \qquad
-    \text{s.t.}\; F(q_j) = p_j,\; \ell \le q_j \le u \;(j = 1..s).
-
-``Q`` is the ``(s, n)`` array of configurations; solvers work on its row-major
-flattening ``x = Q.ravel()`` (``n s`` unknowns) and the ``2 s`` equality
-constraints ``c(x) = (F(q_1) - p_1, ..., F(q_s) - p_s)``. The problem is a pure
-specification: it evaluates E, c and their derivatives (``F`` and ``dF/dq``
-from Pinocchio) but holds no solver state.
+>>> chain = PlanarChain(lengths=[3, 2, 2])  # doctest: +SKIP
+>>> problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (3, 2)])  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -173,7 +167,18 @@ def path_configurations(x: ArrayLike, n_targets: int, n_joints: int, name: str =
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class CyclicIKProblem:
-    """Minimum-motion cyclic joint path through tip targets.
+    r"""Minimum-motion cyclic joint path through tip targets.
+
+    .. math::
+
+        \min_{Q} \; E(Q) = \tfrac12 \sum_{j=1}^{s} \lVert q_{j+1} - q_j \rVert^2,
+        \quad q_{s+1} \equiv q_1, \qquad
+        \text{s.t.}\; F(q_j) = p_j,\; \ell \le q_j \le u \;(j = 1..s).
+
+    ``Q`` is the ``(s, n)`` array of configurations; solvers work on its
+    row-major flattening ``x = Q.ravel()`` (``n s`` unknowns) and the ``2 s``
+    equality constraints ``c(x) = (F(q_1) - p_1, ..., F(q_s) - p_s)``
+    (``F`` and ``dF/dq`` from Pinocchio).
 
     Attributes
     ----------

@@ -1,34 +1,13 @@
-r"""Reachability of tip targets, decided without sampling (spec ``ikpath.md``).
+r"""Reachability of planar tip targets, decided without sampling (spec ``docs/ikpath.md``).
 
-Every target gets a :class:`ReachVerdict` *before* optimising. A target ``p``
-counts as reachable when its distance to the workspace ``W`` is at most
-``tol`` (default 1e-9 m); every verdict carries its evidence:
-
-* ``REACHABLE``: a witness configuration ``q`` within the joint limits whose
-  tip, computed by Pinocchio, is within ``tol`` of ``p``.
-* ``UNREACHABLE``: a certified lower bound ``distance_lower > tol`` on
-  ``dist(p, W)``, plus the nearest reachable point found (``nearest``, a tip
-  position of a configuration within the limits) and its distance.
-* ``UNDECIDED`` (only possible for chains of 4+ links with limits when the
-  evaluation budget runs out): the certified interval
-  ``[distance_lower, distance_upper]``.
-
-How the decision is made:
-
-* **No limits** (or every joint range spans 2 pi): the exact annulus test
-  ``r_min <= |p - base| <= r_max``; the witness is built in closed form by
-  placing the wrist of the first ``k - 1`` links on the circle of radius
-  ``l_k`` about ``p``, recursively.
-* **Limits, 1 or 2 links**: closed form (nearest point on arcs; see
-  :mod:`youbot_opt.ikpath.geometry`).
-* **Limits, n >= 3 links**: branch and bound over the first ``n - 2`` angles
-  with exact closed-form distances to the workspace of the last two links and
-  a rigorous Lipschitz bound (:mod:`youbot_opt.ikpath.branch_and_bound`).
-  For ``n = 3`` it always decides; for ``n > 3`` it is limited by
-  ``max_evaluations``.
-
-Floating-point rounding (about 1e-15 relative) is covered by a margin of
-``1e-12 (1 + |p - base| + sum l)`` subtracted from every lower bound.
+Every target gets a :class:`ReachVerdict` before optimising, with its evidence:
+``REACHABLE`` (a witness configuration within the limits whose tip, by Pinocchio,
+is within ``tol`` = 1e-9 m), ``UNREACHABLE`` (a certified lower bound
+``distance_lower > tol`` on the distance to the workspace, and the nearest
+reachable point found) or ``UNDECIDED`` (limited chains of 4+ links when
+``max_evaluations`` runs out: the certified distance interval). Decided by the
+annulus test without limits, in closed form for 1-2 links, else by
+:mod:`~youbot_opt.ikpath.branch_and_bound` (docs/ikpath.md, "Reachability").
 """
 
 from __future__ import annotations

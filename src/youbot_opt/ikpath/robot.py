@@ -1,27 +1,13 @@
 """Real planar arms as IK-path chains: the youBot arm (spec ``trajopt.md``, "The arm").
 
-The youBot arm moves in the x-z plane of its platform; its joint angles are
-measured from the vertical, positive towards platform -x, and joint 1 sits at
-``(a, h) = (0.184, 0.147)`` m. In the IK-path convention (x right, angles
-counter-clockwise from the x axis, plane coordinates ``(x, y) := (x, z)`` of
-the platform) the same arm is a :class:`~youbot_opt.ikpath.chain.PlanarChain`
-with
+:func:`chain_from_robot` turns a loaded :class:`~youbot_opt.robot.model.RobotModel`
+whose joints all turn about the platform's y axis into a
+:class:`~youbot_opt.ikpath.chain.PlanarChain` whose coordinates are the robot's
+own joint angles and whose targets are tool-tip positions ``(x, z)`` in the
+platform frame; :func:`youbot_chain` is the youBot arm. The mapping between the
+two angle conventions is in :func:`chain_from_robot`.
 
-* ``base = (a, h)``,
-* ``angle_offset = (pi/2, 0, 0)``: the study angle ``theta_1 = q_1 + pi/2``
-  (q = 0 points up, i.e. along +z = the planar +y axis; a positive angle turns
-  towards -x, which is counter-clockwise in the (x, z) plane), the relative
-  angles ``theta_2 = q_2``, ``theta_3 = q_3``,
-* the link lengths and joint limits of the robot model,
-
-so the chain's coordinates are the robot's own joint angles ``q`` and its
-targets are tool-tip positions ``(x, z)`` in the platform frame.
-
-:func:`chain_from_robot` reads these numbers from any loaded
-:class:`~youbot_opt.robot.model.RobotModel` whose joints all turn about the
-platform's y axis (joint origins and tip at ``q = 0``), then verifies the chain
-against :func:`youbot_opt.robot.model.tip_pose` at 20 seeded configurations and
-refuses robots that are not such planar chains.
+>>> chain = youbot_chain()  # base (0.184, 0.147) m, angle_offset (pi/2, 0, 0)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -45,6 +31,19 @@ _CHECK_TOL = 1e-10  # [m] largest accepted tip mismatch between chain and robot
 
 def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarChain:
     """Build the planar chain equivalent to a robot that moves in its platform's x-z plane.
+
+    The youBot arm moves in the x-z plane of its platform; its joint angles are
+    measured from the vertical, positive towards platform -x, and joint 1 sits
+    at ``(a, h) = (0.184, 0.147)`` m. In the IK-path convention (x right, angles
+    counter-clockwise from the x axis, plane coordinates ``(x, y) := (x, z)`` of
+    the platform) the same arm is a chain with ``base = (a, h)``,
+    ``angle_offset = (pi/2, 0, 0)`` (the study angle ``theta_1 = q_1 + pi/2``:
+    q = 0 points up, along +z = the planar +y axis, and a positive angle turns
+    towards -x, counter-clockwise in the (x, z) plane; ``theta_2 = q_2``,
+    ``theta_3 = q_3``), and the link lengths and joint limits of the robot
+    model. These numbers are read from the joint origins and the tip at
+    ``q = 0``; the chain is then verified against
+    :func:`youbot_opt.robot.model.tip_pose` at 20 seeded configurations.
 
     Parameters
     ----------
@@ -115,7 +114,7 @@ def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarCha
 
 
 def youbot_chain() -> PlanarChain:
-    """Return the youBot arm (``load_model("youbot")``) as a planar chain (see the module doc)."""
+    """Return the youBot arm (``load_model("youbot")``) as a planar chain."""
     from youbot_opt.robot.model import load_model
 
     return chain_from_robot(load_model("youbot"))

@@ -1,20 +1,12 @@
 r"""Cyclic least-motion IK paths for any robot: 3-D targets, poses, joint limits.
 
-The spatial problem of issue 14: the frame ``F`` of a Pinocchio model visits
-targets ``T_1 .. T_s`` (:class:`~youbot_opt.ikpath.targets.SpatialTarget`) in
-order and returns to ``T_1`` with the least joint motion
-
-.. math::
-
-    \min_Q \tfrac12 \sum_j (q_{j+1} - q_j)^\top W (q_{j+1} - q_j),\; q_{s+1} = q_1,
-    \quad c_j(q_j) = 0,\; \ell \le q_j \le u .
-
-Unknowns are the angles of the joints that move ``F`` (others stay at their
-neutral value). Continuous joints are angles too, never wrapped: a tour
-returns every joint to its starting angle (no net turn of 2 pi). Constraint
-rows per target: position (3, [m]), then ``log3`` of the orientation error
-(pose) or the two components of the approach axis across the wanted one,
-weighted in [m/rad]; blocks are padded with zero rows to a common width.
+:class:`SpatialIKProblem` (issue 14): a frame of a Pinocchio model visits
+:class:`~youbot_opt.ikpath.targets.SpatialTarget` s in order and returns to the
+first with the least joint motion ``1/2 sum_j dq_j^T W dq_j`` (cyclic), subject
+to meeting every target and the joint limits; continuous joints are never
+wrapped. Also the result type and the greedy damped-least-squares baseline.
+Formulation, conventions and the solvers' behaviour: docs/ikpath.md
+("Spatial targets").
 """
 
 from __future__ import annotations
@@ -22,7 +14,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import cast
 
 import numpy as np
@@ -31,7 +22,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError, UnreachableTarget
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.problem import Evaluation, path_configurations, require_within_limits
 from youbot_opt.ikpath.result import OuterIterate
@@ -42,21 +33,20 @@ __all__ = [
     "SPATIAL_AL_OPTIONS",
     "SpatialIKProblem",
     "SpatialIKResult",
-    "SpatialReach",
-    "SpatialVerdict",
-    "check_spatial_reachability",
     "dls_ik",
     "greedy_path",
-    "make_spatial_starts",
-    "require_spatial_reachable",
+    "random_theta",
 ]
 
 _PIN_BIG = 1e10  # a URDF/Pinocchio limit beyond this is "no limit"
 
-SPATIAL_AL_OPTIONS = ALOptions(penalty_initial=1e3)
+SPATIAL_AL_OPTIONS = ALOptions(penalty_initial=1e3, newton_final=True, retry_least_squares=True)
 """Default AL settings of the spatial problem: ``mu_0 = 1e3`` (with ``mu_0 = 10`` the
 motion term of a 6-joint arm with 2 pi limits outweighs the penalty and the first
-inner solves leave the targets for good; measured on ur5, docs/ikpath.md)."""
+inner solves leave the targets for good; measured on ur5, docs/ikpath.md) and the
+safeguarded final SQP phase (``newton_final``: nearly singular pose Jacobians make
+the first-order multiplier updates crawl) and, after a failed run, one retry with
+least-squares initial multipliers (``retry_least_squares``)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
@@ -322,6 +312,50 @@ class SpatialIKProblem:
     def active_v(self) -> Array:
         """Velocity indices of the active joints."""
         return np.array([self.model.joints[int(j)].idx_v for j in self.active])
+
+    @property
+    def row_mask(self) -> npt.NDArray[np.bool_]:
+        """Which of the ``m`` rows of each block are constraints (False: padding), (s, m)."""
+        mask = np.zeros((self.n_targets, self.block_rows), dtype=bool)
+        for j, target in enumerate(self.targets):
+            mask[j, : target.n_rows] = True
+        return mask
+
+    def lagrangian_hessian(
+        self, x: ArrayLike, multipliers: ArrayLike, data: pin.Data | None = None
+    ) -> Array:
+        """Hessian of ``E - lambda^T c`` at ``x``, shape (n s, n s), in [rad^2/rad^2].
+
+        ``d2E`` is exact (the cyclic difference matrix times ``W``); each target's
+        ``sum_k lambda_jk d2c_jk`` is a central difference of the analytic Jacobian
+        block (step 1e-5 rad: truncation ~1e-10 |c'''|, rounding ~1e-11 |J|; used
+        only for Newton steps, whose convergence is checked on exact residuals).
+        """
+        q = self.as_configurations(x)
+        lam = np.asarray(multipliers, dtype=float).reshape(self.n_targets, self.block_rows)
+        data = self.create_data() if data is None else data
+        s, n = q.shape
+        w = np.diag(self.weights)
+        hess = np.zeros((s * n, s * n))
+        for j in range(s):  # leg j -> j + 1 (cyclic); s = 2 adds both legs to one pair
+            a, b = slice(j * n, (j + 1) * n), slice(((j + 1) % s) * n, ((j + 1) % s + 1) * n)
+            hess[a, a] += w
+            hess[b, b] += w
+            hess[a, b] -= w
+            hess[b, a] -= w
+        h = 1e-5
+        for j in range(s):
+            if not np.any(lam[j]):
+                continue
+            curv = np.empty((n, n))
+            for i in range(n):
+                step = np.zeros(n)
+                step[i] = h
+                plus = self.block(j, q[j] + step, data)[1]
+                minus = self.block(j, q[j] - step, data)[1]
+                curv[:, i] = lam[j] @ (plus - minus) / (2.0 * h)
+            hess[j * n : (j + 1) * n, j * n : (j + 1) * n] -= 0.5 * (curv + curv.T)
+        return hess
 
     def objective(self, x: ArrayLike) -> float:
         """``E = 1/2 sum_j dq_j^T W dq_j`` (cyclic), never wrapped, in [rad^2]."""
@@ -607,8 +641,10 @@ def dls_ik(
     for _ in range(max_iterations):
         if cost <= tol**2 or lam > 1e6:
             break
-        lhs = jac @ jac.T + lam**2 * np.eye(jac.shape[0])
-        trial = np.clip(theta - jac.T @ np.linalg.solve(lhs, c), lo, hi)
+        # J^T (J J^T + lam^2 I)^-1 c through the SVD of J: the same step, also where
+        # J J^T is singular to working precision (more rows than the chain can move)
+        u, sv, vt = np.linalg.svd(jac, full_matrices=False)
+        trial = np.clip(theta - vt.T @ (sv / (sv**2 + lam**2) * (u.T @ c)), lo, hi)
         c_t, jac_t = problem.block(j, trial, data)
         cost_t = float(c_t @ c_t)
         if cost_t < cost:
@@ -623,7 +659,7 @@ def dls_ik(
             if k % 2 == 0:  # near the start (keeps the path coherent)
                 seed = np.clip(np.asarray(theta0, float) + rng.normal(0.0, 0.5, theta.size), lo, hi)
             else:  # anywhere in the limits (a start trapped against a limit)
-                seed = _random_theta(problem, rng)
+                seed = random_theta(problem, rng)
             alt, ok = dls_ik(
                 problem,
                 j,
@@ -658,138 +694,8 @@ def greedy_path(problem: SpatialIKProblem, theta0: ArrayLike | None = None) -> t
     return np.array(out), ok
 
 
-def _random_theta(problem: SpatialIKProblem, rng: np.random.Generator) -> Array:
+def random_theta(problem: SpatialIKProblem, rng: np.random.Generator) -> Array:
+    """Joint angles uniform in the limits clipped to ``[-pi, pi]`` [rad] (shape (n,))."""
     lo = np.maximum(problem.lower[: problem.n_joints], -np.pi)
     hi = np.minimum(problem.upper[: problem.n_joints], np.pi)
     return rng.uniform(np.minimum(lo, hi), np.maximum(lo, hi))
-
-
-def make_spatial_starts(problem: SpatialIKProblem, n_starts: int, seed: int) -> Array:
-    """Draw starts (n_starts, n s): the greedy DLS path from zero, then coherent and random ones.
-
-    Odd starts are *coherent*: a random in-limit configuration, then each target
-    solved by DLS from the previous one (neighbouring configurations close, as
-    the planar feasible starts); even ones are uniform in the limits (clipped
-    to ``[-pi, pi]``). Deterministic in ``seed``.
-    """
-    if int(n_starts) != n_starts or n_starts < 1:
-        raise ParameterError(
-            f"n_starts must be an integer >= 1, got {n_starts!r}", name="n_starts", value=n_starts
-        )
-    rng = np.random.default_rng(seed)
-    starts = np.empty((int(n_starts), problem.n_variables))
-    starts[0] = greedy_path(problem)[0].ravel()
-    for k in range(1, int(n_starts)):
-        if k % 2:
-            starts[k] = greedy_path(problem, _random_theta(problem, rng))[0].ravel()
-        else:
-            starts[k] = np.concatenate(
-                [_random_theta(problem, rng) for _ in range(problem.n_targets)]
-            )
-    return np.clip(starts, problem.lower, problem.upper)
-
-
-# -- reachability ---------------------------------------------------------------------------
-class SpatialReach(Enum):
-    """Verdict on one spatial target."""
-
-    REACHABLE = "reachable"
-    UNREACHABLE = "unreachable"
-    UNDECIDED = "undecided"
-
-
-@dataclass(frozen=True, slots=True)
-class SpatialVerdict:
-    """Reachability of one target, with its witness or certificate.
-
-    Attributes
-    ----------
-    index : int
-        Target index (0-based).
-    status : SpatialReach
-        The verdict.
-    witness : ndarray or None
-        Joint angles [rad] within limits meeting the target (reachable).
-    distance : float
-        Distance [m] of the target from the reach sphere's centre.
-    reach : float
-        Radius [m] of the reach sphere (the certificate: ``distance > reach + tol``).
-    message : str
-        Human-readable reason.
-    """
-
-    index: int
-    status: SpatialReach
-    witness: Array | None
-    distance: float
-    reach: float
-    message: str
-
-
-def check_spatial_reachability(
-    problem: SpatialIKProblem, *, tries: int = 20, seed: int = 0
-) -> tuple[SpatialVerdict, ...]:
-    """Decide each target: reachable (DLS witness), unreachable (reach sphere), or undecided.
-
-    The certificate of unreachability is the reach sphere (:meth:`reach_radius`):
-    a target farther than ``reach + position_tol`` from its centre cannot be met by
-    any joint angles. Otherwise up to ``tries`` seeded DLS solves look for a
-    witness within tolerance and limits; none found means undecided.
-    """
-    centre, reach = problem.reach_radius()
-    rng = np.random.default_rng(seed)
-    data = problem.create_data()
-    out = []
-    for j, target in enumerate(problem.targets):
-        dist = float(np.linalg.norm(target.position - centre))
-        if dist > reach + target.position_tol:
-            out.append(
-                SpatialVerdict(
-                    j,
-                    SpatialReach.UNREACHABLE,
-                    None,
-                    dist,
-                    reach,
-                    f"target {j} at {target.position.tolist()} m is {dist:.4g} m from the first "
-                    f"joint at {centre.tolist()}, beyond the reach sphere of radius {reach:.4g} m "
-                    "(sum of link lengths)",
-                )
-            )
-            continue
-        witness = None
-        for k in range(tries):
-            theta0 = np.zeros(problem.n_joints) if k == 0 else _random_theta(problem, rng)
-            theta, met = dls_ik(problem, j, theta0, data=data)
-            if met:
-                witness = theta
-                break
-        if witness is not None:
-            out.append(
-                SpatialVerdict(j, SpatialReach.REACHABLE, witness, dist, reach, "DLS witness")
-            )
-        else:
-            out.append(
-                SpatialVerdict(
-                    j,
-                    SpatialReach.UNDECIDED,
-                    None,
-                    dist,
-                    reach,
-                    f"target {j}: inside the reach sphere but no witness in {tries} DLS tries",
-                )
-            )
-    return tuple(out)
-
-
-def require_spatial_reachable(problem: SpatialIKProblem) -> tuple[SpatialVerdict, ...]:
-    """Verdicts of every target; raise :class:`UnreachableTarget` for a certified one."""
-    verdicts = check_spatial_reachability(problem)
-    for v in verdicts:
-        if v.status is SpatialReach.UNREACHABLE:
-            raise UnreachableTarget(
-                f"unreachable: {v.message}",
-                index=v.index,
-                target=problem.targets[v.index].position,
-                verdict=v,
-            )
-    return verdicts

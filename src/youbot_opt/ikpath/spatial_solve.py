@@ -1,21 +1,26 @@
-"""Solving the spatial cyclic IK path: one solve (AL or IPOPT) and the multistart.
+"""Solving the spatial cyclic IK path: one solve (AL or IPOPT) and the resumable multistart.
 
-:func:`solve_spatial` runs the study's augmented Lagrangian (projected BFGS
-inner solver, :func:`~youbot_opt.ikpath.augmented_lagrangian.run_augmented_lagrangian`)
-or CasADi + IPOPT (:mod:`.spatial_ipopt`) on a
+:func:`solve_spatial` runs the augmented Lagrangian (projected BFGS inner
+solver) or CasADi + IPOPT (:mod:`.spatial_ipopt`) on a
 :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem`; a failed solve keeps the
 best iterate and names the blocking target. :func:`run_spatial_multistart`
-solves from the greedy, coherent and random starts of
-:func:`~youbot_opt.ikpath.spatial.make_spatial_starts` (optionally on a
-process pool) and clusters the distinct minima.
+solves from :func:`~youbot_opt.ikpath.spatial_starts.make_spatial_starts` on the
+sweep engine the planar multistart uses (:class:`~youbot_opt.sweeps.options.SweepOptions`:
+process pool or Dask, crash retry, progress, shards), saving every start in a
+:class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
+payloads in the format of :mod:`.spatial_io`) that a rerun resumes, and
+clusters the distinct minima.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import os
 import time
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,18 +28,51 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, run_augmented_lagrangian
+from youbot_opt.ikpath.multistart import resolve_executor
+from youbot_opt.ikpath.solve import check_method
 from youbot_opt.ikpath.spatial import (
     SPATIAL_AL_OPTIONS,
     SpatialIKProblem,
     SpatialIKResult,
     build_spatial_result,
-    make_spatial_starts,
-    require_spatial_reachable,
 )
-from youbot_opt.ikpath.spatial_ipopt import solve_spatial_ipopt
+from youbot_opt.ikpath.spatial_io import (
+    encode_spatial_result,
+    load_spatial_result,
+    spatial_problem_spec,
+)
+from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver, solve_spatial_ipopt
+from youbot_opt.ikpath.spatial_reachability import require_spatial_reachable
+from youbot_opt.ikpath.spatial_starts import SPATIAL_START_KINDS, make_spatial_starts
+from youbot_opt.ikpath.starts import check_start_request
+from youbot_opt.ikpath.sweep import (
+    StartSolvers,
+    crashed_result,
+    options_json,
+    progress_callbacks,
+    solve_starts,
+    starts_params,
+    starts_store,
+    status_counts,
+)
+from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.worker_solver import WorkerSolver
 
-__all__ = ["SpatialMultistart", "run_spatial_multistart", "solve_spatial"]
+__all__ = [
+    "SPATIAL_SWEEP_KIND",
+    "SpatialMultistart",
+    "open_spatial_store",
+    "run_spatial_multistart",
+    "solve_spatial",
+]
+
+SPATIAL_SWEEP_KIND = "spatial_ikpath_multistart"
+"""``kind`` of the sweep store of spatial multistarts (in its ``manifest.json``)."""
+
+_PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_spatial_result (".json" names the records)
 
 
 # -- solving ----------------------------------------------------------------------------------
@@ -43,32 +81,39 @@ def solve_spatial(
     *,
     method: str = "al",
     x0: ArrayLike | None = None,
-    options: ALOptions | None = None,
+    options: ALOptions | IpoptOptions | None = None,
     check_reachability: bool = False,
 ) -> SpatialIKResult:
     """Solve once from ``x0`` (default zero, clipped) by ``"al"`` or ``"ipopt"``.
+
+    Parameters
+    ----------
+    options : ALOptions or IpoptOptions, optional
+        Settings of the method (default :data:`SPATIAL_AL_OPTIONS` or
+        ``IpoptOptions.for_ikpath()``); ``max_wall_time`` [s] bounds the solve
+        (status ``max_time``).
 
     Raises
     ------
     UnreachableTarget
         If ``check_reachability`` and a target is certified unreachable.
     ParameterError
-        Unknown method or bad start.
+        Unknown method, options of the other method, or bad start.
     """
+    check_method(method, options)
     if check_reachability:
         require_spatial_reachable(problem)
     if method == "ipopt":
-        return solve_spatial_ipopt(problem, x0)
-    if method != "al":
-        raise ParameterError(
-            f"unknown method {method!r}; choose al or ipopt", name="method", value=method
-        )
+        if options is None:
+            return solve_spatial_ipopt(problem, x0)
+        return SpatialIpoptSolver(problem, options).solve(x0)  # type: ignore[arg-type]
     opts = SPATIAL_AL_OPTIONS if options is None else options
     start = problem.check_start(x0)
-    run = run_augmented_lagrangian(problem, start, opts)
+    run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
     return build_spatial_result(problem, **run.result_fields(start))
 
 
+# -- multistart -------------------------------------------------------------------------------
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class SpatialMultistart:
     """Results of a spatial multistart.
@@ -76,20 +121,38 @@ class SpatialMultistart:
     Attributes
     ----------
     results : tuple of SpatialIKResult
-        In start order.
+        In start order (``crashed`` for a start that failed every attempt).
     minima : tuple of tuple of int
         Start indices of each distinct minimum (successful results), best first;
         the first index of each is its lowest-E member.
     wall_time : float
         In [s].
     workers : int
-        Processes used.
+        Starts in flight at once.
+    method : str
+        ``"al"`` or ``"ipopt"``.
+    seed : int
+        Seed of the starts.
+    start_kind : str
+        How the starts were drawn (:data:`~youbot_opt.ikpath.spatial_starts.SPATIAL_START_KINDS`).
+    attempts : tuple of int
+        Attempts per start, earlier runs on the same output included.
+    resumed : int
+        Starts loaded from the output directory instead of solved.
+    output : Path or None
+        Output directory the starts were saved to.
     """
 
     results: tuple[SpatialIKResult, ...]
     minima: tuple[tuple[int, ...], ...]
     wall_time: float
     workers: int
+    method: str = "al"
+    seed: int = 0
+    start_kind: str = "mixed"
+    attempts: tuple[int, ...] = ()
+    resumed: int = 0
+    output: Path | None = None
 
     @property
     def best(self) -> SpatialIKResult:
@@ -102,14 +165,98 @@ class SpatialMultistart:
         )
 
     @property
+    def best_index(self) -> int:
+        """Start index of :attr:`best`."""
+        return self.results.index(self.best)
+
+    @property
+    def n_success(self) -> int:
+        """Number of successful starts."""
+        return sum(r.success for r in self.results)
+
+    @property
     def starts_per_second(self) -> float:
         """Throughput in [1/s]."""
         return len(self.results) / self.wall_time if self.wall_time > 0 else math.inf
 
+    def status_counts(self) -> dict[str, int]:
+        """Count the starts per status value."""
+        return status_counts(self.results)
 
-def _solve_one(args: tuple[SpatialIKProblem, str, Array]) -> SpatialIKResult:
-    problem, method, x0 = args
-    return solve_spatial(problem, method=method, x0=x0)
+
+def open_spatial_store(
+    out: str | os.PathLike[str],
+    problem: SpatialIKProblem,
+    *,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    n_starts: int,
+    seed: int,
+    kind: str,
+    clean: bool = True,
+) -> SweepStore:
+    """Open (or create) the output directory of one spatial multistart.
+
+    The manifest holds the problem (:func:`~youbot_opt.ikpath.spatial_io.spatial_problem_spec`:
+    robot fingerprint, frame, targets, limits, weights), method, options,
+    ``n_starts``, ``seed`` and start kind; reopening with any of them changed
+    raises. Stored starts are reloaded with the same forward-kinematics
+    re-check as :func:`~youbot_opt.ikpath.spatial_io.load_spatial_result`.
+
+    Raises
+    ------
+    ParameterError
+        If ``out`` holds another kind of sweep or one with other parameters.
+    ResultFileError
+        If its manifest is corrupted or from a newer schema.
+    """
+    if options is None and method == "al":
+        options = SPATIAL_AL_OPTIONS  # the defaults of solve_spatial, written out
+    spec = spatial_problem_spec(problem)
+    params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
+    load = functools.partial(load_spatial_result, robot=problem.model)
+    return starts_store(out, SPATIAL_STARTS, params, load, clean)
+
+
+def _solve_al(problem: SpatialIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
+    """Worker task: one start with the AL (exceptions propagate: they are retried)."""
+    return solve_spatial(problem, method="al", x0=x0, options=options)
+
+
+def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> SpatialIKResult:
+    """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
+    return handle.get().solve(x0)
+
+
+def _crashed(
+    problem: SpatialIKProblem,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    x0: Array,
+    message: str,
+) -> SpatialIKResult:
+    return crashed_result(build_spatial_result, problem, method, x0, message)
+
+
+def _figures(result: SpatialIKResult) -> dict[str, Any]:
+    """Figures of a start's record summary: its largest target errors in [m] and [rad]."""
+    return {
+        "max_position_error": float(np.max(result.position_errors)),
+        "max_orientation_error": float(np.max(result.orientation_errors)),
+    }
+
+
+SPATIAL_STARTS: StartSolvers[SpatialIKProblem, SpatialIKResult] = StartSolvers(
+    solve_al=_solve_al,
+    ipopt_solver=SpatialIpoptSolver,
+    solve_ipopt=_solve_ipopt,
+    crashed=_crashed,
+    figures=_figures,
+    store_kind=SPATIAL_SWEEP_KIND,
+    suffix=_PAYLOAD_SUFFIX,
+    encode=encode_spatial_result,
+)
+"""How :func:`~youbot_opt.ikpath.sweep.solve_starts` solves the starts of a spatial problem."""
 
 
 def run_spatial_multistart(
@@ -118,24 +265,98 @@ def run_spatial_multistart(
     method: str = "al",
     n_starts: int = 16,
     seed: int = 0,
-    workers: int = 1,
+    starts: str = "mixed",
+    options: ALOptions | IpoptOptions | None = None,
+    workers: int | None = None,
     e_tol: float = 1e-6,
     q_tol: float = 1e-3,
+    sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> SpatialMultistart:
     """Solve from :func:`make_spatial_starts` and cluster the distinct minima.
 
-    Two successes are one minimum when ``E`` agrees to ``e_tol`` (relative) and
-    the angles to ``q_tol`` [rad] (continuous joints modulo a common 2 pi shift).
-    ``workers > 1`` runs the starts in a process pool.
+    Parameters
+    ----------
+    problem : SpatialIKProblem
+        The problem.
+    method : {"al", "ipopt"}
+        Solver.
+    n_starts, seed : int
+        Number of starts (start 0 is the greedy DLS path) and their seed.
+    starts : {"mixed", "coherent", "random"}
+        Start kind (:mod:`youbot_opt.ikpath.spatial_starts`).
+    options : ALOptions or IpoptOptions, optional
+        Settings of the method (``max_wall_time`` [s] bounds each start's solve).
+    workers : int, optional
+        Shortcut for ``sweep.workers`` (default: 1, serial, unless ``sweep`` says otherwise).
+    e_tol, q_tol : float
+        Two successes are one minimum when ``E`` agrees to ``e_tol`` (relative)
+        and the angles to ``q_tol`` [rad] (continuous joints modulo a common 2 pi shift).
+    sweep : SweepOptions
+        How the starts run, as for the planar
+        :func:`~youbot_opt.ikpath.multistart.run_multistart`: ``executor``
+        (process pool, serial, a caller's pool, a Dask client or scheduler
+        address), ``workers``, ``timeout`` [s] per attempt, ``max_attempts``
+        (a start that raises or whose worker dies is retried; out of attempts
+        it becomes a ``crashed`` result), ``out`` (every finished start saved
+        there; a rerun with the same parameters resumes), ``shard`` and
+        ``progress`` ``(done, total, best_objective)``.
+
+    Returns
+    -------
+    SpatialMultistart
+        Results in start order and the distinct minima.
+
+    Raises
+    ------
+    ParameterError
+        Unknown method or start kind, options of the other method, ``workers``
+        contradicting ``sweep.workers``, or an ``out`` holding another sweep.
+    ResultFileError
+        If a stored start is corrupted, or disagrees with the problem.
+    ShardFinished
+        After a shard run (``sweep.shard``) solved its share.
     """
     t0 = time.perf_counter()
-    x0s = make_spatial_starts(problem, n_starts, seed)
-    jobs = [(problem, method, x0) for x0 in x0s]
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=int(workers)) as pool:
-            results = tuple(pool.map(_solve_one, jobs))
-    else:
-        results = tuple(_solve_one(job) for job in jobs)
+    check_method(method, options)
+    check_start_request(n_starts, starts, SPATIAL_START_KINDS)
+    if workers is not None:
+        if sweep.workers is not None and sweep.workers != workers:
+            raise ParameterError(
+                f"workers={workers} contradicts sweep.workers={sweep.workers}",
+                name="workers",
+                value=workers,
+            )
+        sweep = replace(sweep, workers=int(workers))
+    elif sweep.workers is None and sweep.executor is None:
+        sweep = replace(sweep, workers=1)
+    x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
+    executor, n_workers = resolve_executor(sweep)
+    sweep = replace(sweep, executor=executor, workers=n_workers)
+    store = None
+    if sweep.out is not None:
+        store = open_spatial_store(
+            sweep.out,
+            problem,
+            method=method,
+            options=options,
+            n_starts=len(x0s),
+            seed=int(seed),
+            kind=starts,
+            clean=sweep.shard is None,
+        )
+    on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
+    outcome = solve_starts(
+        problem,
+        x0s,
+        method=method,
+        options=options,
+        sweep=sweep,
+        solvers=SPATIAL_STARTS,
+        store=store,
+        on_resumed=on_resumed,
+        on_final=on_final,
+    )
+    results = outcome.results
 
     def distance(a: int, b: int) -> float:
         diff = results[a].configurations - results[b].configurations
@@ -155,5 +376,11 @@ def run_spatial_multistart(
         results=results,
         minima=tuple(tuple(g) for g in groups),
         wall_time=time.perf_counter() - t0,
-        workers=int(workers),
+        workers=n_workers,
+        method=method,
+        seed=int(seed),
+        start_kind=starts,
+        attempts=outcome.attempts,
+        resumed=outcome.resumed,
+        output=None if store is None else store.directory,
     )

@@ -1,23 +1,12 @@
 """Starts of an IK-path multistart: the zero vector, then seeded random ones.
 
-Start 0 is the study's zero vector (clipped into the limits). Start ``k`` is
-drawn from its own generator, ``default_rng(SeedSequence(seed, spawn_key=(k,)))``
-(the ``k``-th child of ``SeedSequence(seed).spawn``, as trajectory seeds), so
-it depends on neither the executor nor ``n_starts``: the first 1000 starts of
-a 2000-start sweep are the 1000-start sweep (``rng="legacy"``, one generator
-for all starts, reproduces stores written before), in one of two ways:
+Start 0 is the study's zero vector (clipped into the limits); start ``k`` is
+drawn from its own child seed, so it depends on neither the executor nor
+``n_starts``. Random starts are ``"feasible"`` (random exact IK solutions within
+the limits, the default) or ``"uniform"``; :func:`make_starts` says how each
+is drawn, and docs/design.md ("Module notes") why feasible is the default.
 
-* ``"uniform"``: every variable uniform in ``[max(l, -pi), min(u, pi)]``;
-* ``"feasible"`` (default): each configuration is a random exact IK solution
-  of its target within the limits (first ``n - 2`` angles uniform in their
-  ranges, the last two in closed form with a random elbow; redrawn up to 50
-  times, else the reachability witness), and unlimited joints are shifted by
-  multiples of 2 pi so that the cyclic sum of squared steps is smallest
-  for the drawn configurations.
-  Uniform starts put independent 2 pi windings into the configurations and
-  many of them end in minima that differ from a better one only by such
-  windings; feasible starts sample the elbow branches and the redundancy
-  instead.
+>>> x0 = make_starts(problem, n_starts=20, seed=0)  # (20, n s)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -32,7 +21,7 @@ from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
 
-__all__ = ["START_KINDS", "START_RNGS", "make_starts"]
+__all__ = ["START_KINDS", "START_RNGS", "check_start_request", "make_starts"]
 
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
 """How random starts can be drawn (``kind`` of :func:`make_starts`)."""
@@ -52,6 +41,19 @@ def make_starts(
 ) -> Array:
     """Draw the starts: the zero vector (clipped), then seeded random ones; (n_starts, n s).
 
+    Start ``k`` is drawn from its own generator,
+    ``default_rng(SeedSequence(seed, spawn_key=(k,)))`` (the ``k``-th child of
+    ``SeedSequence(seed).spawn``, as trajectory seeds), so the first 1000 starts
+    of a 2000-start sweep are the 1000-start sweep. Random starts are:
+
+    * ``"uniform"``: every variable uniform in ``[max(l, -pi), min(u, pi)]``;
+    * ``"feasible"``: each configuration is a random exact IK solution of its
+      target within the limits (first ``n - 2`` angles uniform in their ranges,
+      the last two in closed form with a random elbow; redrawn up to 50 times,
+      else the reachability witness), and unlimited joints are shifted by
+      multiples of 2 pi so that the cyclic sum of squared steps is smallest for
+      the drawn configurations.
+
     Parameters
     ----------
     problem : CyclicIKProblem
@@ -61,7 +63,7 @@ def make_starts(
     seed : int
         Seed of ``numpy.random.default_rng``.
     kind : {"feasible", "uniform"}
-        How random starts are drawn (see the module docstring).
+        How random starts are drawn (see above).
     verdicts : sequence of ReachVerdict
         Reachability verdicts; their witnesses are the fallback of ``"feasible"``.
     rng : {"per-index", "legacy"}
@@ -74,22 +76,8 @@ def make_starts(
     ParameterError
         If ``n_starts < 1``, or ``kind`` or ``rng`` is unknown.
     """
-    if int(n_starts) != n_starts or n_starts < 1:
-        raise ParameterError(
-            f"n_starts must be an integer >= 1, got {n_starts!r}", name="n_starts", value=n_starts
-        )
-    if kind not in START_KINDS:
-        raise ParameterError(
-            f"unknown start kind {kind!r}; choose one of {', '.join(START_KINDS)}",
-            name="starts",
-            value=kind,
-        )
-    if rng not in START_RNGS:
-        raise ParameterError(
-            f"unknown start rng {rng!r}; choose one of {', '.join(START_RNGS)}",
-            name="rng",
-            value=rng,
-        )
+    check_start_request(n_starts, kind, START_KINDS)
+    _check_choice(rng, START_RNGS, what="start rng", name="rng")
     lo = np.maximum(problem.lower, -np.pi)
     hi = np.minimum(problem.upper, np.pi)
     lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
@@ -109,6 +97,46 @@ def make_starts(
     starts = np.clip(starts, problem.lower, problem.upper)
     starts[0] = problem.default_start()
     return starts
+
+
+def check_start_request(n_starts: int, kind: str, kinds: Sequence[str]) -> int:
+    """Check the number of starts and the start kind of a multistart (planar or spatial).
+
+    Parameters
+    ----------
+    n_starts : int
+        Number of starts; integral floats such as ``2.0`` are accepted.
+    kind : str
+        How the random starts are drawn.
+    kinds : sequence of str
+        The valid kinds (:data:`START_KINDS`, or the spatial ones).
+
+    Returns
+    -------
+    int
+        ``n_starts``.
+
+    Raises
+    ------
+    ParameterError
+        If ``n_starts`` is not an integer >= 1 (``name="n_starts"``), or ``kind``
+        is not one of ``kinds`` (``name="starts"``, the message lists them).
+    """
+    if int(n_starts) != n_starts or n_starts < 1:
+        raise ParameterError(
+            f"n_starts must be an integer >= 1, got {n_starts!r}", name="n_starts", value=n_starts
+        )
+    _check_choice(kind, kinds, what="start kind", name="starts")
+    return int(n_starts)
+
+
+def _check_choice(value: str, choices: Sequence[str], *, what: str, name: str) -> None:
+    if value not in choices:
+        raise ParameterError(
+            f"unknown {what} {value!r}; choose one of {', '.join(choices)}",
+            name=name,
+            value=value,
+        )
 
 
 def _feasible_start(

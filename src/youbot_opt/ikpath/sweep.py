@@ -1,27 +1,28 @@
-"""Run the starts of an IK-path multistart: one task per start, saved as it finishes.
+"""Run the starts of an IK multistart (planar or spatial): one task per start, saved as it ends.
 
-Owns what the IK-path multistart adds to the robot-agnostic sweep engine
-(:mod:`youbot_opt.sweeps`): the worker task of one start (the AL solver, or
-the worker's cached :class:`~youbot_opt.ikpath.ipopt.IpoptIKSolver`), the store
-of one multistart (:func:`open_store`: kind ``"ikpath_multistart"``, payloads
-``items/<key>.ikpath`` in the JSON of :func:`youbot_opt.ikpath.io.encode_ikpath_result`),
-and :func:`solve_starts`, the resumable start loop. A start that fails every
-attempt (it raised, or its worker died) becomes an ``IKStatus.CRASHED``
-result whose message is the last reason.
+Owns what the IK multistarts add to the robot-agnostic sweep engine
+(:mod:`youbot_opt.sweeps`), once for both problem kinds: the resumable start loop
+:func:`solve_starts`, whose problem-specific parts (worker tasks, crashed result,
+summary figures, store format) come in a :class:`StartSolvers` (:data:`PLANAR_STARTS`,
+``spatial_solve.SPATIAL_STARTS``); the manifest rule (:func:`options_json`,
+:func:`starts_params`, :func:`starts_store`), start keys and progress. A start that
+fails every attempt becomes a ``CRASHED`` result whose message is the last reason.
 
-    outcome = solve_starts(problem, x0s, method="al", options=None,
+    outcome = solve_starts(problem, x0s, method="al", options=None, solvers=PLANAR_STARTS,
                            sweep=SweepOptions(executor="serial"), store=None)
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, Generic, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -31,7 +32,9 @@ from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_la
 from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, problem_spec
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, build_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
+from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import run_resumable
@@ -40,9 +43,18 @@ from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 
 __all__ = [
     "PAYLOAD_SUFFIX",
+    "PLANAR_STARTS",
     "SWEEP_KIND",
+    "StartSolvers",
     "SweepOutcome",
+    "crashed_result",
+    "encoded_saver",
     "open_store",
+    "options_json",
+    "progress_callbacks",
+    "status_counts",
+    "starts_params",
+    "starts_store",
     "solve_starts",
     "stored_start_rng",
     "start_key",
@@ -53,6 +65,10 @@ SWEEP_KIND = "ikpath_multistart"
 
 PAYLOAD_SUFFIX = ".ikpath"
 """Suffix of the stored result files (JSON; not ``.json``, which names the records)."""
+
+
+ProblemT = TypeVar("ProblemT")
+ResultT = TypeVar("ResultT", IKPathResult, SpatialIKResult)
 
 
 def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
@@ -73,6 +89,46 @@ def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> fl
     return float(ipopt.constr_viol_tol)  # type: ignore[arg-type]
 
 
+def crashed_result(
+    build: Callable[..., ResultT],
+    problem: CyclicIKProblem | SpatialIKProblem,
+    method: str,
+    x0: Array,
+    message: str,
+    **fields: Any,
+) -> ResultT:
+    """Return the ``CRASHED`` result of a start that produced none (configurations = its start).
+
+    Parameters
+    ----------
+    build : callable
+        The problem's result constructor (:func:`~youbot_opt.ikpath.result.build_result`
+        or :func:`~youbot_opt.ikpath.spatial.build_spatial_result`).
+    problem : CyclicIKProblem or SpatialIKProblem
+        The problem.
+    method : str
+        The method that was to solve the start.
+    x0 : ndarray, shape (n s,)
+        The start in [rad].
+    message : str
+        Why no result came (the last attempt's reason).
+    **fields
+        Further fields of ``build`` (zero multipliers, iterations and wall time are set here).
+    """
+    return build(
+        problem,
+        method=method,
+        status=SolveStatus.CRASHED,
+        x=x0,
+        multipliers=np.zeros(problem.n_constraints),
+        iterations=0,
+        wall_time=0.0,
+        message=message,
+        start=x0,
+        **fields,
+    )
+
+
 def _crashed_result(
     problem: CyclicIKProblem,
     method: str,
@@ -80,20 +136,66 @@ def _crashed_result(
     x0: Array,
     message: str,
 ) -> IKPathResult:
-    """Return the ``CRASHED`` result of a start that produced no result (``x`` = its start)."""
-    return build_result(
-        problem,
-        method=method,
-        status=IKStatus.CRASHED,
-        x=x0,
-        multipliers=np.zeros(2 * problem.n_targets),
-        iterations=0,
-        inner_iterations=0,
-        wall_time=0.0,
-        message=message,
-        start=x0,
-        constraint_tol=_constraint_tol(method, options),
+    tol = _constraint_tol(method, options)
+    return crashed_result(
+        build_result, problem, method, x0, message, inner_iterations=0, constraint_tol=tol
     )
+
+
+def _figures(result: IKPathResult) -> dict[str, Any]:
+    """Figures of a start's record summary: its largest residual in [m]."""
+    value = result.max_residual()
+    return {"max_residual": float(value) if math.isfinite(value) else None}
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StartSolvers(Generic[ProblemT, ResultT]):
+    """What a kind of IK problem (planar or spatial) gives :func:`solve_starts`.
+
+    Every callable is a module-level function or class, so that it pickles to
+    the workers.
+
+    Attributes
+    ----------
+    solve_al : callable ``(problem, options, x0) -> result``
+        Worker task: one start with the augmented Lagrangian (exceptions propagate).
+    ipopt_solver : callable ``(problem, options) -> solver``
+        Builds the IPOPT solver, once per worker.
+    solve_ipopt : callable ``(handle, x0) -> result``
+        Worker task: one start with the worker's solver (a :class:`WorkerSolver`).
+    crashed : callable ``(problem, method, options, x0, message) -> result``
+        The ``CRASHED`` result of a start that produced none (configurations = its start).
+    figures : callable ``(result) -> dict``
+        The problem's figures in a start's record summary (JSON-ready).
+    store_kind : str
+        ``kind`` of the problem's sweep store (in its ``manifest.json``).
+    suffix : str
+        Suffix of the stored result files (not ``.json``, which names the records).
+    encode : callable ``(result) -> bytes``
+        The content of a stored result file (the problem's result format).
+    """
+
+    solve_al: Callable[[ProblemT, ALOptions | None, Array], ResultT]
+    ipopt_solver: Callable[[ProblemT, IpoptOptions | None], object]
+    solve_ipopt: Callable[[WorkerSolver[Any], Array], ResultT]
+    crashed: Callable[[ProblemT, str, ALOptions | IpoptOptions | None, Array, str], ResultT]
+    figures: Callable[[ResultT], dict[str, Any]]
+    store_kind: str
+    suffix: str
+    encode: Callable[[ResultT], bytes]
+
+
+PLANAR_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
+    solve_al=_solve_al,
+    ipopt_solver=IpoptIKSolver,
+    solve_ipopt=_solve_ipopt,
+    crashed=_crashed_result,
+    figures=_figures,
+    store_kind=SWEEP_KIND,
+    suffix=PAYLOAD_SUFFIX,
+    encode=encode_ikpath_result,
+)
+"""How :func:`solve_starts` solves the starts of a planar :class:`CyclicIKProblem`."""
 
 
 def start_key(index: int, n_starts: int) -> str:
@@ -104,15 +206,43 @@ def start_key(index: int, n_starts: int) -> str:
 
 _IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
 """The IK IPOPT settings a sweep manifest held before the unified IpoptOptions."""
+_IPOPT_FIELDS_SINCE_02CDF49 = ("fast_kkt",)
+"""IPOPT settings added after commit 02cdf49 (which wrote every field): left out of
+both manifest forms when they hold the IK default, so stores of either form resume."""
+_AL_FIELDS_FINAL_PHASE = (
+    "initial_multipliers",
+    "retry_least_squares",
+    "newton_final",
+    "newton_violation",
+)
+"""ALOptions fields added with the spatial final phase (issue 14); written only when not
+default, so that planar stores written before them still resume."""
 
 
-def _options_json(
+def options_json(
     method: str, options: ALOptions | IpoptOptions | None, *, every_field: bool = False
 ) -> dict[str, Any]:
-    """JSON-ready settings of ``method`` (defaults filled in, so None equals the defaults).
+    """Return the JSON-ready settings of ``method`` that a sweep manifest holds.
 
+    The one rule of the planar and spatial IK sweeps. Defaults are filled in,
+    so ``None`` equals :class:`ALOptions` ``()`` or :meth:`IpoptOptions.for_ikpath`.
     IPOPT fields added since 74bfa23 are left out when they hold their default
-    (``every_field=True``: written all the same, as commit 02cdf49 did).
+    (``every_field=True``: written all the same, as commit 02cdf49 did), and so
+    are the AL fields of the spatial final phase: stores of those versions resume.
+
+    Parameters
+    ----------
+    method : {"al", "ipopt"}
+        The method.
+    options : ALOptions or IpoptOptions or None
+        Its settings.
+    every_field : bool
+        Write every IPOPT field (the manifest form of commit 02cdf49).
+
+    Returns
+    -------
+    dict
+        ``{"type": class name, field: value, ...}``.
     """
     opts = (
         options
@@ -124,10 +254,22 @@ def _options_json(
     for f in dataclasses.fields(opts):
         value = getattr(opts, f.name)
         if (
-            not every_field
-            and isinstance(opts, IpoptOptions)
-            and f.name not in _IPOPT_FIELDS_74BFA23
-            and value == getattr(defaults, f.name)
+            (
+                not every_field
+                and isinstance(opts, IpoptOptions)
+                and f.name not in _IPOPT_FIELDS_74BFA23
+                and value == getattr(defaults, f.name)
+            )
+            or (
+                isinstance(opts, IpoptOptions)
+                and f.name in _IPOPT_FIELDS_SINCE_02CDF49
+                and value == getattr(defaults, f.name)
+            )
+            or (
+                isinstance(opts, ALOptions)
+                and f.name in _AL_FIELDS_FINAL_PHASE
+                and value == getattr(ALOptions(), f.name)
+            )
         ):
             # Fields added since 74bfa23 are written only when they differ from the
             # default, so that a store of that version still resumes (same manifest).
@@ -145,13 +287,13 @@ def _stored_options_form(
     out: str | os.PathLike[str], method: str, options: ALOptions | IpoptOptions | None
 ) -> dict[str, Any]:
     """Return the options as ``out``'s manifest holds them: every field if so, else compact."""
-    full = _options_json(method, options, every_field=True)
+    full = options_json(method, options, every_field=True)
     try:
         manifest = json.loads((Path(out) / "manifest.json").read_text(encoding="utf-8"))
         stored = manifest["params"]["options"]
     except (OSError, ValueError, KeyError, TypeError):
         stored = None  # no store yet, or the store itself reports the bad manifest
-    return full if stored == full else _options_json(method, options)
+    return full if stored == full else options_json(method, options)
 
 
 def stored_start_rng(out: str | os.PathLike[str]) -> str:
@@ -170,8 +312,16 @@ def stored_start_rng(out: str | os.PathLike[str]) -> str:
     return str(params.get("start_rng", "legacy"))
 
 
-def _save_payload(result: IKPathResult, path: Path) -> None:
-    atomic_write_bytes(path, encode_ikpath_result(result))
+def _write_encoded(encode: Callable[[Any], bytes], result: Any, path: Path) -> None:
+    atomic_write_bytes(path, encode(result))
+
+
+def encoded_saver(encode: Callable[[ResultT], bytes]) -> Callable[[ResultT, Path], None]:
+    """Return the ``save`` of a sweep store whose payloads are ``encode(result)`` (atomic).
+
+    A :func:`functools.partial` of module-level functions, so it pickles to workers.
+    """
+    return functools.partial(_write_encoded, encode)
 
 
 def open_store(
@@ -187,6 +337,10 @@ def open_store(
     clean: bool = True,
 ) -> SweepStore:
     """Open (or create) the output directory of one IK-path multistart.
+
+    The store's kind is ``"ikpath_multistart"``; each start's payload is
+    ``items/<hh>/<key>.ikpath``, the JSON of
+    :func:`youbot_opt.ikpath.io.encode_ikpath_result`.
 
     Parameters
     ----------
@@ -221,31 +375,67 @@ def open_store(
     ResultFileError
         If its manifest is corrupted or from a newer schema.
     """
-    params = {
-        "problem": problem_spec(problem),
-        "method": method,
-        "options": _stored_options_form(out, method, options),
-        "n_starts": int(n_starts),
-        "seed": int(seed),
-        "starts": kind,
-    }
+    spec = problem_spec(problem)
+    params = starts_params(
+        spec, method, _stored_options_form(out, method, options), n_starts, seed, kind
+    )
     if rng != "legacy":
         params["start_rng"] = rng
+    return starts_store(out, PLANAR_STARTS, params, load_ikpath_result, clean)
+
+
+def starts_params(
+    problem: dict[str, Any],
+    method: str,
+    options: dict[str, Any],
+    n_starts: int,
+    seed: int,
+    starts: str,
+) -> dict[str, Any]:
+    """Return the parameters an IK multistart's manifest binds its store to.
+
+    ``problem`` is the problem's JSON description, ``options`` the settings of
+    :func:`options_json`, ``starts`` the start kind; a rerun with any of them
+    changed is refused by the store.
+    """
+    return {
+        "problem": problem,
+        "method": method,
+        "options": options,
+        "n_starts": int(n_starts),
+        "seed": int(seed),
+        "starts": starts,
+    }
+
+
+def starts_store(
+    out: str | os.PathLike[str],
+    solvers: StartSolvers[Any, ResultT],
+    params: dict[str, Any],
+    load: Callable[[Path], ResultT],
+    clean: bool,
+) -> SweepStore:
+    """Open (or create) the sweep store of an IK multistart in the problem's format.
+
+    Payloads are ``solvers.encode(result)``, written by the workers without a
+    per-item fsync and made durable by group; ``load`` reads and re-checks one.
+    """
     return SweepStore(
         out,
-        kind=SWEEP_KIND,
+        kind=solvers.store_kind,
         params=params,
-        save=_save_payload,
-        load=load_ikpath_result,
-        suffix=PAYLOAD_SUFFIX,
+        save=encoded_saver(solvers.encode),
+        load=load,
+        suffix=solvers.suffix,
         clean=clean,
+        encode=solvers.encode,
     )
 
 
-class SweepOutcome(NamedTuple):
+class SweepOutcome(NamedTuple, Generic[ResultT]):
     """Per-start outcome of :func:`solve_starts`, in start order."""
 
-    results: tuple[IKPathResult, ...]
+    results: tuple[ResultT, ...]
     """One result per start (``CRASHED`` for a start that failed every attempt)."""
     attempts: tuple[int, ...]
     """Attempts made per start, earlier runs included (0: none was needed here nor before)."""
@@ -253,49 +443,101 @@ class SweepOutcome(NamedTuple):
     """Starts loaded from the store instead of solved."""
 
 
-def _summary(index: int, result: IKPathResult) -> dict[str, Any]:
-    def num(x: float) -> float | None:
-        return float(x) if math.isfinite(x) else None
-
+def _summary(
+    figures: Callable[[ResultT], dict[str, Any]], index: int, result: ResultT
+) -> dict[str, Any]:
+    """Return the JSON summary of a start in its record (``figures``: the problem's own)."""
+    objective = result.objective
     return {
         "index": index,
         "status": result.status.value,
         "success": result.success,
-        "objective": num(result.objective),
-        "max_residual": num(result.max_residual()),
+        "objective": float(objective) if math.isfinite(objective) else None,
+        **figures(result),
         "iterations": result.iterations,
         "wall_time_s": result.wall_time,
     }
 
 
-def _load(store: SweepStore, key: str) -> IKPathResult:
+def _describe_start(
+    figures: Callable[[ResultT], dict[str, Any]],
+    key: str,
+    args: tuple[Any, ...],
+    result: ResultT,
+) -> tuple[ResultT, dict[str, Any]]:
+    """Worker side: the payload and summary of a solved start (index from its key)."""
+    return result, _summary(figures, int(key.rsplit("_", 1)[1]), result)
+
+
+def _load(store: SweepStore, key: str) -> Any:
     try:
-        result: IKPathResult = store.load(key)
+        result = store.load(key)
     except ResultFileError as exc:
         raise ResultFileError(
             f"{exc} (start {key!r} of the sweep in {store.directory}: delete "
-            f"items/{key}.json and items/{key}{PAYLOAD_SUFFIX} to recompute it, or use "
-            "another output directory)"
+            f"{store.payload_path(key)} to recompute it, or use another output directory)"
         ) from exc
     return result
 
 
+def status_counts(results: Iterable[IKPathResult | SpatialIKResult]) -> dict[str, int]:
+    """Count the results per status value (``{"solved": 12, "crashed": 1, ...}``)."""
+    counts: dict[str, int] = {}
+    for r in results:
+        counts[r.status.value] = counts.get(r.status.value, 0) + 1
+    return counts
+
+
+def progress_callbacks(
+    progress: Callable[[int, int, float], None] | None, total: int
+) -> tuple[
+    Callable[[Sequence[IKPathResult | SpatialIKResult]], None],
+    Callable[[int, IKPathResult | SpatialIKResult], None],
+]:
+    """Return the ``on_resumed`` and ``on_final`` of :func:`solve_starts` that feed ``progress``.
+
+    ``progress(done, total, best)`` hears of the starts loaded from the store in
+    one call before the first solve, then of every final start; ``best`` is the
+    lowest ``E`` in [rad^2] of the successful starts so far (``inf`` before the first).
+    """
+    best = math.inf
+    done = 0
+
+    def on_resumed(results: Sequence[IKPathResult | SpatialIKResult]) -> None:
+        nonlocal best, done
+        done = len(results)
+        best = min((r.objective for r in results if r.success), default=math.inf)
+        if progress is not None and results:
+            progress(done, total, best)
+
+    def on_final(index: int, result: IKPathResult | SpatialIKResult) -> None:
+        nonlocal best, done
+        done += 1
+        if result.success:
+            best = min(best, result.objective)
+        if progress is not None:
+            progress(done, total, best)
+
+    return on_resumed, on_final
+
+
 def solve_starts(
-    problem: CyclicIKProblem,
+    problem: ProblemT,
     x0s: Array,
     *,
     method: str,
     options: ALOptions | IpoptOptions | None,
     sweep: SweepOptions,
+    solvers: StartSolvers[ProblemT, ResultT],
     store: SweepStore | None = None,
-    on_resumed: Callable[[list[IKPathResult]], None] | None = None,
-    on_final: Callable[[int, IKPathResult], None] | None = None,
-) -> SweepOutcome:
+    on_resumed: Callable[[list[ResultT]], None] | None = None,
+    on_final: Callable[[int, ResultT], None] | None = None,
+) -> SweepOutcome[ResultT]:
     """Solve every start of ``x0s`` (loading those ``store`` holds), one task per start.
 
     Parameters
     ----------
-    problem : CyclicIKProblem
+    problem : CyclicIKProblem or SpatialIKProblem
         The problem.
     x0s : ndarray, shape (n_starts, n s)
         Starts in [rad].
@@ -307,6 +549,9 @@ def solve_starts(
         ``executor`` (``None``: ``"process"``), ``workers``, ``timeout`` in [s]
         and ``max_attempts`` (see :func:`youbot_opt.sweeps.pool.run_tasks`);
         ``out`` and ``progress`` are the caller's.
+    solvers : StartSolvers
+        How the problem's starts are solved: :data:`PLANAR_STARTS`, or
+        :data:`~youbot_opt.ikpath.spatial_solve.SPATIAL_STARTS`.
     store : SweepStore, optional
         Where finished starts are saved and resumed from.
     on_resumed : callable ``(results)``, optional
@@ -331,33 +576,37 @@ def solve_starts(
     index = {k: i for i, k in enumerate(keys)}
     if method == "al":
         tasks = [
-            Task(key=key, fn=_solve_al, args=(problem, options, x0s[i]))
+            Task(key=key, fn=solvers.solve_al, args=(problem, options, x0s[i]))
             for i, key in enumerate(keys)
         ]
     else:
         # Serial runs build the solver here; pool workers build theirs on their first start.
-        prebuilt = IpoptIKSolver(problem, options) if sweep.executor == "serial" else None  # type: ignore[arg-type]
-        handle = WorkerSolver.of(IpoptIKSolver, problem, options, prebuilt=prebuilt)
+        build = solvers.ipopt_solver
+        prebuilt = build(problem, options) if sweep.executor == "serial" else None  # type: ignore[arg-type]
+        handle = WorkerSolver.of(build, problem, options, prebuilt=prebuilt)
         # On Dask the recipe goes once per worker (initializer); tasks carry its token.
         sent = handle.by_token() if sweep.distributed else handle
-        tasks = [Task(key=key, fn=_solve_ipopt, args=(sent, x0s[i])) for i, key in enumerate(keys)]
+        tasks = [
+            Task(key=key, fn=solvers.solve_ipopt, args=(sent, x0s[i])) for i, key in enumerate(keys)
+        ]
         if sweep.distributed:
             init = (hold_solver, (handle,))
 
-    def load(key: str) -> IKPathResult:
+    def load(key: str) -> ResultT:
         assert store is not None  # only finished items of a store are loaded
         rec = store.record(key)
         assert rec is not None  # needs_work said it exists
         if rec.state == "done":
-            return _load(store, key)
+            loaded: ResultT = _load(store, key)
+            return loaded
         reason = rec.reasons[-1] if rec.reasons else "failed"
-        return _crashed_result(problem, method, options, x0s[index[key]], reason)
+        return solvers.crashed(problem, method, options, x0s[index[key]], reason)
 
-    def convert(o: TaskOutcome) -> IKPathResult:
+    def convert(o: TaskOutcome) -> ResultT:
         if o.ok:
-            result: IKPathResult = o.value
+            result: ResultT = o.value
             return result
-        return _crashed_result(problem, method, options, x0s[index[o.key]], str(o.error))
+        return solvers.crashed(problem, method, options, x0s[index[o.key]], str(o.error))
 
     got = run_resumable(
         tasks,
@@ -365,11 +614,13 @@ def solve_starts(
         options=sweep,
         load=load,
         convert=convert,
-        payload=lambda key, result: (result, _summary(index[key], result)),
+        payload=lambda key, result: (result, _summary(solvers.figures, index[key], result)),
         initializer=init[0],
         initargs=init[1],
         on_resumed=None if on_resumed is None else lambda done: on_resumed(list(done.values())),
         on_final=None if on_final is None else lambda key, r, _: on_final(index[key], r),
+        # workers write their own result files
+        describe=functools.partial(_describe_start, solvers.figures),
     )
     return SweepOutcome(
         results=tuple(got.items[k] for k in keys),

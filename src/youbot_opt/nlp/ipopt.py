@@ -2,10 +2,11 @@
 
 One options class serves the trajectory optimiser and the IK-path solver. Its
 defaults are the trajectory solver's (silent, ``tol`` 1e-8, MUMPS, adaptive
-barrier, exact Hessian when the backend has second derivatives, no time cap:
-``max_iter`` bounds the run, see docs/design.md); :meth:`IpoptOptions.for_ikpath`
-gives the IK-path solver's (``tol`` 1e-12, ``constr_viol_tol`` 1e-11 [m],
-monotone barrier). A time cap gives status ``MAX_TIME``.
+barrier, exact Hessian when the backend has second derivatives, fast KKT
+solves, no time cap: ``max_iter`` bounds the run, see docs/design.md);
+:meth:`IpoptOptions.for_ikpath` gives the IK-path solver's (``tol`` 1e-12,
+``constr_viol_tol`` 1e-11 [m], monotone barrier, IPOPT's own KKT settings).
+A time cap gives status ``MAX_TIME``.
 
     options = IpoptOptions(max_iter=300)                   # trajectory solves
     options = IpoptOptions.for_ikpath(max_wall_time=5.0)   # IK-path solves, 5 s cap
@@ -29,6 +30,7 @@ __all__ = [
     "MuStrategy",
     "IpoptValue",
     "WARM_START",
+    "FAST_KKT",
     "single_threaded_blas",
     "check_time_limit",
 ]
@@ -48,6 +50,19 @@ WARM_START: Mapping[str, IpoptValue] = MappingProxyType(
     }
 )
 """IPOPT settings for a primal-dual warm start from a nearby solution."""
+
+FAST_KKT: Mapping[str, IpoptValue] = MappingProxyType(
+    {
+        "fast_step_computation": "yes",
+        "min_refinement_steps": 0,
+        "mumps_scaling": 0,
+        "mumps_permuting_scaling": 0,
+    }
+)
+"""IPOPT settings of :attr:`IpoptOptions.fast_kkt`: no residual check or iterative
+refinement of the KKT solves unless IPOPT asks for it, no MUMPS scaling
+(``benchmarks/bench_trajopt.py --side-by-side --levers`` measures each; docs/design.md,
+"IPOPT: one options class")."""
 
 HessianMode = Literal["auto", "exact", "limited-memory"]
 MuStrategy = Literal["adaptive", "monotone"]
@@ -84,6 +99,11 @@ class IpoptOptions:
         derivatives and the limited-memory approximation otherwise.
     mu_strategy : {"adaptive", "monotone"}
         IPOPT barrier-parameter update.
+    fast_kkt : bool
+        Solve IPOPT's KKT systems the fast way (:data:`FAST_KKT`; default
+        True): it changes how each Newton step is computed, not the problem
+        or its optimum. :meth:`to_dict` lists it only when False, so the
+        dictionary of the defaults is the one earlier versions wrote.
     extra : mapping
         Further IPOPT options by their IPOPT names (e.g. ``{"acceptable_tol": 1e-6}``);
         they override the fields above and the solver's own settings.
@@ -98,6 +118,7 @@ class IpoptOptions:
     linear_solver: str = "mumps"
     hessian: HessianMode = "auto"
     mu_strategy: MuStrategy = "adaptive"
+    fast_kkt: bool = True
     extra: Mapping[str, IpoptValue] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -137,6 +158,10 @@ class IpoptOptions:
                 f"mu_strategy must be 'adaptive' or 'monotone', got {self.mu_strategy!r}",
                 name="mu_strategy",
             )
+        if not isinstance(self.fast_kkt, bool):
+            raise ParameterError(
+                f"fast_kkt must be True or False, got {self.fast_kkt!r}", name="fast_kkt"
+            )
         object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
 
     @classmethod
@@ -146,6 +171,7 @@ class IpoptOptions:
         tol: float = 1e-12,
         constr_viol_tol: float = 1e-11,
         mu_strategy: MuStrategy = "monotone",
+        fast_kkt: bool = False,
         **changes: Any,
     ) -> IpoptOptions:
         """Return the IK-path solver's defaults, with ``changes``.
@@ -153,7 +179,8 @@ class IpoptOptions:
         The IK-path NLP is small and well scaled and is solved to rounding
         level: ``tol`` 1e-12, ``constr_viol_tol`` 1e-11 [m] (the tip's
         accepted distance from each target) and IPOPT's monotone barrier
-        update. Other fields keep the class defaults.
+        update, with IPOPT's own KKT settings (iterative refinement, MUMPS
+        scaling). Other fields keep the class defaults.
 
         Parameters
         ----------
@@ -163,6 +190,8 @@ class IpoptOptions:
             Largest accepted target miss in [m].
         mu_strategy : {"adaptive", "monotone"}
             IPOPT barrier-parameter update.
+        fast_kkt : bool
+            Use :data:`FAST_KKT` (off: the IK path is solved to rounding level).
         **changes
             Any other field (``max_iter``, ``max_wall_time``, ``extra``, ...).
 
@@ -171,7 +200,13 @@ class IpoptOptions:
         IpoptOptions
             The options.
         """
-        return cls(tol=tol, constr_viol_tol=constr_viol_tol, mu_strategy=mu_strategy, **changes)
+        return cls(
+            tol=tol,
+            constr_viol_tol=constr_viol_tol,
+            mu_strategy=mu_strategy,
+            fast_kkt=fast_kkt,
+            **changes,
+        )
 
     def exact_hessian(self, available: bool) -> bool:
         """Whether the solve uses the exact Hessian, given backend support.
@@ -222,6 +257,12 @@ class IpoptOptions:
             "sb": "yes",
             "hessian_approximation": "exact" if exact_hessian else "limited-memory",
         }
+        if self.fast_kkt:
+            ipopt.update(
+                (k, v)
+                for k, v in FAST_KKT.items()
+                if self.linear_solver == "mumps" or not k.startswith("mumps_")
+            )
         if self.constr_viol_tol is not None:
             ipopt["constr_viol_tol"] = float(self.constr_viol_tol)
         if self.max_cpu_time is not None:
@@ -238,7 +279,8 @@ class IpoptOptions:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary of the fields.
 
-        ``constr_viol_tol`` and ``max_wall_time`` appear only when set, so
+        ``constr_viol_tol`` and ``max_wall_time`` appear only when set, and
+        ``fast_kkt`` only when False, so
         the dictionary (stored in result files and sweep manifests) of options
         that do not use them is the one earlier versions wrote.
         """
@@ -256,6 +298,8 @@ class IpoptOptions:
             out["constr_viol_tol"] = self.constr_viol_tol
         if self.max_wall_time is not None:
             out["max_wall_time"] = self.max_wall_time
+        if not self.fast_kkt:
+            out["fast_kkt"] = False
         return out
 
 

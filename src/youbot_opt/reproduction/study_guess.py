@@ -17,58 +17,17 @@ import pinocchio as pin
 from scipy.optimize import linprog
 
 from youbot_opt._checks import check_positive
-from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.problem import TrajOptProblem
-from youbot_opt.trajopt.spline_guess import DEFAULT_DT, DEFAULT_ORDERS, bernstein_matrix
+from youbot_opt.trajopt.spline_guess import (
+    DEFAULT_DT,
+    DEFAULT_ORDERS,
+    bernstein_derivative_matrix,
+    spline_constraints,
+)
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["vertex_spline_guess"]
-
-_MARGIN = 1e-7
-"""Relative margin kept from the limits (HiGHS meets constraints to 1e-7 absolute)."""
-
-
-def _derivative_matrix(degree: int, duration: float, order: int, s: Array) -> Array:
-    """Matrix mapping control points to the ``order``-th time derivative at ``s``."""
-    diff = np.eye(degree + 1)
-    for k in range(order):
-        d = degree - k
-        step = np.zeros((d, d + 1))
-        step[np.arange(d), np.arange(d)] = -1.0
-        step[np.arange(d), np.arange(1, d + 1)] = 1.0
-        diff = d / duration * step @ diff
-    return bernstein_matrix(degree - order, s) @ diff
-
-
-def _vertex(
-    degree: int,
-    s: Array,
-    duration: float,
-    boundary: tuple[float, float, float, float],
-    limits: tuple[float, float, float],
-    cost: Array,
-) -> Array | None:
-    """Control points minimising ``cost . b`` over the feasible set, or None if none."""
-    q0, v0, q1, v1 = boundary
-    lo, hi, vmax = limits
-    pos = bernstein_matrix(degree, s)[1:-1]
-    speed = _derivative_matrix(degree, duration, 1, s)
-    q_margin, v_margin = _MARGIN * 0.5 * (hi - lo), _MARGIN * vmax
-    a_ub = np.vstack([pos, -pos, speed, -speed])
-    b_ub = np.concatenate([
-        np.full(len(pos), hi - q_margin), np.full(len(pos), -lo - q_margin),
-        np.full(2 * len(speed), vmax - v_margin),
-    ])  # fmt: skip
-    a_eq = np.zeros((4, degree + 1))
-    a_eq[0, 0] = a_eq[1, degree] = 1.0
-    a_eq[2, [0, 1]] = np.array([-1.0, 1.0]) * degree / duration
-    a_eq[3, [degree - 1, degree]] = np.array([-1.0, 1.0]) * degree / duration
-    res = linprog(
-        cost, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=[q0, q1, v0, v1],
-        bounds=[(None, None)] * (degree + 1), method="highs",
-    )  # fmt: skip
-    return np.asarray(res.x, dtype=float) if res.status == 0 else None
 
 
 def vertex_spline_guess(
@@ -121,11 +80,17 @@ def vertex_spline_guess(
         candidates = sorted(set(orders))
         while candidates:
             p = int(rng.choice(candidates))
-            points = _vertex(
+            lp = spline_constraints(
                 p, s, duration, (q0[j], v0[j], q1[j], v1[j]),
-                (bounds.q_lower[j], bounds.q_upper[j], bounds.v_upper[j]), rng.normal(size=p + 1),
+                (bounds.q_lower[j], bounds.q_upper[j], bounds.v_upper[j]),
             )  # fmt: skip
-            if points is not None:
+            # A vertex of the feasible set: the minimiser of a random linear cost.
+            res = linprog(
+                rng.normal(size=p + 1), A_ub=lp.a_ub, b_ub=lp.b_ub, A_eq=lp.a_eq, b_eq=lp.b_eq,
+                bounds=[(None, None)] * (p + 1), method="highs",
+            )  # fmt: skip
+            if res.status == 0:
+                points = np.asarray(res.x, dtype=float)
                 break
             candidates.remove(p)
         else:
@@ -136,7 +101,7 @@ def vertex_spline_guess(
                 value=orders,
             )
         for row, out in enumerate((q, v, a)):
-            out[:, j] = _derivative_matrix(p, duration, row, s) @ points
+            out[:, j] = bernstein_derivative_matrix(p, duration, row, s) @ points
     data = robot.model.createData()
     tau = np.array([pin.rnea(robot.model, data, q[k], v[k], a[k]) for k in range(n)])
     t = np.arange(n, dtype=float) * float(dt)

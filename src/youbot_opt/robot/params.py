@@ -57,7 +57,7 @@ class LinkParameters:
         mass in [kg m^2].
     radius : float
         Radius of the cylinder used to draw the link in [m]; also sets the
-        axial inertia of the 3-D completion (see the module docstring).
+        axial inertia of the 3-D completion (docs/design.md, "Module notes").
     """
 
     length: float

@@ -2,9 +2,11 @@
 
 Modules: :mod:`.options` (:class:`~youbot_opt.sweeps.options.SweepOptions`, how
 every sweep runs), :mod:`.pool` (the crash-isolating worker pool and
-``run_tasks``), :mod:`.store` (the resumable on-disk store), :mod:`.resume`
-(the item loop over the store), :mod:`.worker_solver` (a built solver, cached
-once per worker) and :mod:`.cluster` (greedy clustering of local optima).
+``run_tasks``), :mod:`.tasks` (tasks, outcomes, retry queues), :mod:`.distributed`
+and :mod:`.scheduler` (Dask), :mod:`.store` (the resumable on-disk store),
+:mod:`.records` and :mod:`.journal` (its item files and summary journal),
+:mod:`.resume` (the item loop over the store), :mod:`.worker_solver` (a built
+solver, cached once per worker) and :mod:`.cluster` (clustering of local optima).
 The trajectory and IK-path sweeps supply only their tasks and payloads.
 
     from youbot_opt.sweeps.options import SweepOptions

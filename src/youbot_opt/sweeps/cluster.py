@@ -1,12 +1,11 @@
 """Greedy clustering of local optima by objective and a distance, knowing nothing of robots.
 
-Owns the one rule by which every multistart groups its converged solves into
-distinct local optima (trajectory multistart, IK-path multistart, the study's
-vertex-LP search): items are taken in order of increasing objective; each
-joins the first cluster whose representative (its first, lowest member) is
-within ``obj_tol`` in objective, relative (``|f - f_c| <= obj_tol max(1,
-|f_c|)``), and within ``dist_tol`` in the caller's ``distance``; otherwise it
-starts a new cluster. Each caller keeps its own tolerances and distance.
+The one rule by which every multistart groups its converged solves into
+distinct local optima: items in order of increasing objective, each joining the
+first cluster whose representative is within ``obj_tol`` (relative) in
+objective and ``dist_tol`` in the caller's ``distance`` (:func:`cluster_optima`);
+:func:`select_optima` applies it to a ``keep_results=False`` sweep, loading one
+full item at a time. Each caller keeps its own tolerances and distance.
 
     clusters = cluster_optima(results, objective=lambda r: r.objective,
                               distance=my_distance, obj_tol=1e-6, dist_tol=1e-3)
@@ -14,14 +13,42 @@ starts a new cluster. Each caller keeps its own tolerances and distance.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
-from typing import TypeVar
+import math
+from collections.abc import Callable, Hashable, Iterable, Mapping
+from dataclasses import dataclass, replace
+from typing import Generic, TypeVar
 
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["cluster_optima"]
+__all__ = ["KeepRule", "cluster_optima", "select_optima"]
 
 T = TypeVar("T")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class KeepRule(Generic[T]):
+    """What a sweep run with ``keep_results=False`` keeps in memory: the distinct optima.
+
+    Attributes
+    ----------
+    objective : callable ``(item) -> float or None``
+        Objective of a converged item, from its light form (summary);
+        ``None`` (or NaN) for an item that did not converge.
+    distance : callable ``(a, b) -> float`` or None
+        Distance of two full items, in the unit of ``dist_tol``; ``None``
+        keeps only the best item (one cluster, no item loaded but the best).
+    obj_tol, dist_tol : float
+        The tolerances of :func:`cluster_optima` (the caller's defaults).
+    group : callable ``(item) -> hashable``, optional
+        Items of different groups are never clustered together (e.g. the
+        bound scales of a bound-scaling study: the best of each is kept).
+    """
+
+    objective: Callable[[T], float | None]
+    distance: Callable[[T, T], float] | None = None
+    obj_tol: float = 0.0
+    dist_tol: float = 0.0
+    group: Callable[[T], Hashable] | None = None
 
 
 def cluster_optima(
@@ -76,3 +103,78 @@ def cluster_optima(
         else:
             clusters.append([item])
     return clusters
+
+
+def select_optima(
+    items: Mapping[str, T], rule: KeepRule[T], load: Callable[[str], T]
+) -> tuple[dict[str, T], list[list[str]]]:
+    """Cluster items as :func:`cluster_optima` does, loading full items only where needed.
+
+    Items are taken by increasing ``rule.objective`` (ties in the order of
+    ``items``). An item is loaded only if it starts a cluster or lies within
+    ``obj_tol`` of a representative (a distance is needed); only the
+    representatives stay loaded, so memory does not grow with the items.
+
+    Parameters
+    ----------
+    items : mapping of str to item
+        Light items (their summaries), by key.
+    rule : KeepRule
+        Objective, distance and tolerances.
+    load : callable ``(key) -> item``
+        The full item of a key (e.g. from the sweep's store).
+
+    Returns
+    -------
+    tuple of (dict, list of list of str)
+        The full representatives by key (lowest objective first, so the first
+        is the best item), and the clusters as keys, each representative first
+        (with ``rule.group``: group after group, in order of first appearance).
+    """
+    if rule.group is not None:
+        groups: dict[Hashable, dict[str, T]] = {}
+        for key, item in items.items():
+            groups.setdefault(rule.group(item), {})[key] = item
+        whole = replace(rule, group=None)
+        kept_all: dict[str, T] = {}
+        clusters_all: list[list[str]] = []
+        for members in groups.values():
+            part = select_optima(members, whole, load)
+            kept_all.update(part[0])
+            clusters_all += part[1]
+        return kept_all, clusters_all
+    if not (rule.obj_tol >= 0 and rule.dist_tol >= 0):
+        raise ParameterError(
+            f"obj_tol and dist_tol must be >= 0, got {rule.obj_tol!r}, {rule.dist_tol!r}",
+            name="obj_tol",
+        )
+    ranked: list[tuple[float, str]] = []
+    for key, item in items.items():
+        f = rule.objective(item)
+        if f is not None and not math.isnan(f):
+            ranked.append((float(f), key))
+    ranked.sort(key=lambda fk: fk[0])  # stable: ties keep the order of items
+    reps: list[tuple[float, T]] = []
+    clusters: list[list[str]] = []
+    kept: dict[str, T] = {}
+    if rule.distance is None:  # the best only
+        if not ranked:
+            return {}, []
+        best = ranked[0][1]
+        return {best: load(best)}, [[key for _, key in ranked]]
+    for f, key in ranked:
+        near = [
+            i
+            for i, (f_rep, _) in enumerate(reps)
+            if abs(f - f_rep) <= rule.obj_tol * max(1.0, abs(f_rep))
+        ]
+        full = load(key)
+        for i in near:
+            if rule.distance(full, reps[i][1]) <= rule.dist_tol:
+                clusters[i].append(key)
+                break
+        else:
+            reps.append((f, full))
+            clusters.append([key])
+            kept[key] = full
+    return kept, clusters

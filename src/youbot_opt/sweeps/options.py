@@ -68,6 +68,18 @@ class SweepOptions:
         Items per Dask task (Dask only; default: an eighth of the items per
         cluster thread, at most 64). A batch whose worker dies is re-run
         item by item, so a crash is still charged to one item.
+    keep_results : bool
+        Keep every item's full result in memory (default). ``False`` (needs
+        ``out``): the sweep keeps each item's summary and only the full
+        results of the best item and of the distinct optima; every other
+        result stays in ``out``, where it can be loaded later. Driver memory
+        then does not grow with the results (``docs/scaling.md``).
+    worker_writes : bool, optional
+        Workers write their own item files into ``out`` (the driver checks
+        each file's SHA-256 and records it) instead of sending every result
+        to the driver to write. Default ``None``: on for this machine's
+        workers, off on Dask and other executors, whose workers may not
+        share ``out``; set ``True`` when they do (a shared filesystem).
     """
 
     executor: ExecutorLike | None = None
@@ -78,6 +90,8 @@ class SweepOptions:
     progress: Callable[[int, int, Any], None] | None = None
     batch_size: int | None = None
     shard: tuple[int, int] | None = None
+    keep_results: bool = True
+    worker_writes: bool | None = None
 
     def __post_init__(self) -> None:
         ex = self.executor
@@ -110,6 +124,24 @@ class SweepOptions:
                 raise ParameterError(
                     "a shard run needs out= (the folder the shards share)", name="shard", value=s
                 )
+        if not isinstance(self.keep_results, bool):
+            raise ParameterError(
+                f"keep_results must be True or False, got {self.keep_results!r}",
+                name="keep_results",
+                value=self.keep_results,
+            )
+        if not isinstance(self.worker_writes, bool | None):
+            raise ParameterError(
+                f"worker_writes must be True, False or None, got {self.worker_writes!r}",
+                name="worker_writes",
+                value=self.worker_writes,
+            )
+        if not self.keep_results and self.out is None:
+            raise ParameterError(
+                "keep_results=False needs out= (the results not kept stay there)",
+                name="keep_results",
+                value=False,
+            )
         b = self.batch_size
         if b is not None and (isinstance(b, bool) or not isinstance(b, int) or b < 1):
             raise ParameterError(
@@ -137,6 +169,14 @@ class SweepOptions:
     def with_executor(self, default: ExecutorLike) -> SweepOptions:
         """Return these options with ``executor`` set to ``default`` if it is ``None``."""
         return self if self.executor is not None else replace(self, executor=default)
+
+    @property
+    def writes_in_workers(self) -> bool:
+        """True if workers write their own item files (see ``worker_writes``)."""
+        if self.worker_writes is not None:
+            return self.worker_writes
+        ex = self.executor
+        return ex in (None, "process", "serial") or isinstance(ex, WorkerPool)
 
     @property
     def directory(self) -> Path | None:

@@ -1,13 +1,11 @@
 """Crash-isolating worker pool and :func:`run_tasks`: one failing item never stops a sweep.
 
-Owns how a sweep's keyed items run (spec: the sweep layer of ``ARCHITECTURE.md``).
-:func:`run_tasks` runs :class:`Task` s on ``"process"`` (a :class:`WorkerPool`
-it owns, default), on a caller's :class:`WorkerPool` (kept across calls), on
-``"serial"`` (in-process) or on any :class:`concurrent.futures.Executor`, and
-reports every attempt through ``on_outcome`` as it ends. In a worker pool each
-worker runs one task at a time and the parent knows which, so a worker that
-dies (segfault, out-of-memory kill) or overruns ``timeout`` is charged to
-exactly that task and replaced; a task gets at most ``max_attempts`` attempts.
+:func:`run_tasks` runs keyed :class:`Task` s on a :class:`WorkerPool` (its own
+or the caller's), in-process (``"serial"``), on any
+:class:`concurrent.futures.Executor`, or on Dask (:mod:`.distributed`), and
+reports every attempt through ``on_outcome``. A worker that dies or overruns
+``timeout`` is charged to exactly its task and replaced; a task gets at most
+``max_attempts`` attempts. Spec: the sweep layer of ``ARCHITECTURE.md``.
 
     out = run_tasks([Task(key="k0", fn=math.sqrt, args=(4.0,))], executor="serial")
 """
@@ -15,10 +13,6 @@ exactly that task and replaced; a task gets at most ``max_attempts`` attempts.
 from __future__ import annotations
 
 import contextlib
-import copyreg
-import functools
-import hashlib
-import io
 import logging
 import math
 import multiprocessing
@@ -28,31 +22,27 @@ import signal
 import sys
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from concurrent.futures.thread import BrokenThreadPool
-from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_ready
 from multiprocessing.context import BaseContext
-from multiprocessing.reduction import ForkingPickler
-from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Literal, Union
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.distributed import run_batch, run_dask
 from youbot_opt.sweeps.scheduler import (
-    ClusterLostError,
     cluster_threads,
     connect,
     is_dask_client,
     is_scheduler_address,
 )
+from youbot_opt.sweeps.tasks import Task, TaskOutcome, TaskRunner, dumps, failure_reason, invoke
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; dask is optional
     from distributed import Client
-    from distributed import Future as DaskFuture
 
 __all__ = [
     "ExecutorLike",
@@ -86,40 +76,8 @@ def process_context() -> BaseContext:
     return multiprocessing.get_context("spawn")
 
 
-# ----------------------------------------------------------------- pickling
-def _mappingproxy(d: dict[Any, Any]) -> MappingProxyType[Any, Any]:
-    return MappingProxyType(d)
-
-
-def _reduce_mappingproxy(m: MappingProxyType[Any, Any]) -> tuple[Any, ...]:
-    return _mappingproxy, (dict(m),)
-
-
-class _SweepPickler(ForkingPickler):
-    """multiprocessing's pickler that also sends read-only mappings, as a copied dict.
-
-    Read-only mappings (e.g. ``IpoptOptions.extra``) cannot be pickled by
-    default. The reducer is added to this pickler's own table only, so
-    importing the package registers nothing in :mod:`multiprocessing` or
-    :mod:`copyreg`.
-    """
-
-    def __init__(self, file: Any, protocol: int | None = None) -> None:
-        super().__init__(file, protocol)
-        table = dict(getattr(self, "dispatch_table", copyreg.dispatch_table))
-        table[MappingProxyType] = _reduce_mappingproxy
-        self.dispatch_table = table
-
-
-def _dumps(obj: Any) -> bytes:
-    """Pickle ``obj`` for a worker pipe (or a process executor) with :class:`_SweepPickler`."""
-    buf = io.BytesIO()
-    _SweepPickler(buf, pickle.HIGHEST_PROTOCOL).dump(obj)
-    return buf.getvalue()
-
-
 def _send(conn: Connection, obj: Any) -> None:
-    conn.send_bytes(_dumps(obj))  # pickles first: a message that does not pickle sends nothing
+    conn.send_bytes(dumps(obj))  # pickles first: a message that does not pickle sends nothing
 
 
 def _recv(conn: Connection) -> Any:
@@ -134,17 +92,10 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
-def _invoke(fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, float]:
-    """Run one task; returns its value and wall time in [s]."""
-    tic = time.perf_counter()
-    value = fn(*args)
-    return value, time.perf_counter() - tic
-
-
 def _invoke_pickled(blob: bytes) -> bytes:
     """Run a pickled ``(fn, args)`` in a process executor; return the pickled ``(value, wall)``."""
     fn, args = pickle.loads(blob)
-    return _dumps(_invoke(fn, args))
+    return dumps(invoke(fn, args))
 
 
 def _worker_main(
@@ -158,12 +109,12 @@ def _worker_main(
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
     init_error = None
     try:
-        if init_blob is not None:  # spawned: the initializer came pickled by _SweepPickler
+        if init_blob is not None:  # spawned: the initializer came pickled by tasks.dumps
             initializer, initargs = pickle.loads(init_blob)
         if initializer is not None:
             initializer(*initargs)
     except Exception as exc:  # reported with every task instead of a silent death
-        init_error = f"worker initializer failed: {_reason(exc)}"
+        init_error = f"worker initializer failed: {failure_reason(exc)}"
     while True:
         try:
             message = _recv(conn)
@@ -176,15 +127,10 @@ def _worker_main(
         try:
             if init_error is not None:
                 raise RuntimeError(init_error)
-            value, wall = _invoke(fn, args)
+            value, wall = invoke(fn, args)
             _send(conn, (key, None, value, wall))  # a value that does not pickle sends nothing
         except Exception as exc:  # one failing task must not end the worker
-            _send(conn, (key, _reason(exc), None, time.perf_counter() - tic))
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
+            _send(conn, (key, failure_reason(exc), None, time.perf_counter() - tic))
 
 
 def _death_reason(exitcode: int | None) -> str:
@@ -210,7 +156,7 @@ class _Worker:
         if ctx.get_start_method() == "fork":  # inherited, not pickled (e.g. a built solver)
             args = (child, os.getpid(), initializer, initargs, None)
         else:
-            args = (child, os.getpid(), None, (), _dumps((initializer, initargs)))
+            args = (child, os.getpid(), None, (), dumps((initializer, initargs)))
         self.process = ctx.Process(  # type: ignore[attr-defined]
             target=_worker_main,
             args=args,
@@ -307,205 +253,15 @@ def _check_workers(workers: Any) -> int:
     return workers
 
 
-# ------------------------------------------------------------------- tasks
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Task:
-    """One keyed unit of work: ``fn(*args)``, run in a worker.
-
-    Attributes
-    ----------
-    key : str
-        Unique key of the item.
-    fn : callable
-        A module-level (picklable) function.
-    args : tuple
-        Its positional arguments (picklable for process pools).
-    attempts : int
-        Attempts already made in earlier runs (from a store).
-    """
-
-    key: str
-    fn: Callable[..., Any]
-    args: tuple[Any, ...] = ()
-    attempts: int = 0
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class TaskOutcome:
-    """Outcome of one attempt of a task.
-
-    Attributes
-    ----------
-    key : str
-        Task key.
-    value : Any
-        What ``fn`` returned (``None`` for a failed attempt).
-    error : str or None
-        Why the attempt failed; ``None`` on success.
-    attempts : int
-        Attempts made so far, including this one.
-    final : bool
-        True if no further attempt will be made (success, or attempts used up).
-    wall_time : float
-        Wall time of the attempt in [s] (measured in the worker; for crashes
-        and time-outs, as seen by the parent).
-    """
-
-    key: str
-    value: Any
-    error: str | None
-    attempts: int
-    final: bool
-    wall_time: float
-
-    @property
-    def ok(self) -> bool:
-        """True if the attempt returned a value."""
-        return self.error is None
-
-
 ExecutorLike = Union[Literal["process", "serial"], Executor, WorkerPool, "Client", str]  # noqa: UP007
 """Where items run: ``"process"``, ``"serial"``, a :class:`WorkerPool`, any
 :class:`concurrent.futures.Executor`, a :class:`distributed.Client` or a Dask
 scheduler address (``"tcp://host:8786"``)."""
 
-_MAX_BATCH = 64  # items per Dask task at most
-_DIED = "worker-died"  # a Dask batch's reply when it was started again after its worker died
-
-# Per worker thread: digest of the initializer blob already run, and its error (Dask runs).
-_INIT = threading.local()
-
-
-def _reruns_after_death() -> int:
-    """How often Dask restarted the running task after a worker died (0 outside Dask).
-
-    Asked of the scheduler (one round trip per task); the probe is sent by
-    value, so the scheduler needs no youbot_opt. Any failure reads as 0 and
-    leaves the accounting to Dask's own ``allowed-failures``.
-    """
-    try:
-        from distributed import get_client, get_worker
-
-        key = get_worker().get_current_task()
-
-        def probe(dask_scheduler: Any = None) -> int:  # noqa: ANN401 - Dask's Scheduler
-            ts = dask_scheduler.tasks.get(key)
-            return int(ts.suspicious) if ts is not None else 0
-
-        return int(get_client().run_on_scheduler(probe))
-    except Exception:  # not in a worker, or the scheduler refuses pickled code
-        return 0
-
-
-def run_batch(init: bytes | None, batch: bytes) -> bytes:
-    """Dask task: run a pickled list of ``(key, fn, args)`` and return each item's reply.
-
-    Parameters
-    ----------
-    init : bytes or None
-        Pickled ``(initializer, initargs)``, run once per worker thread (the
-        same blob is not run again), e.g. to build and hold a solver.
-    batch : bytes
-        Pickled ``[(key, fn, args), ...]``.
-
-    Returns
-    -------
-    bytes
-        Pickled ``[(key, error, value, wall), ...]`` (``error`` ``None`` on
-        success, wall times in [s]), or pickled ``"worker-died"`` when Dask
-        started this task again after its worker died: the driver then runs
-        the batch's items one by one, so a crash is charged to one item.
-    """
-    if _reruns_after_death() > 0:
-        return _dumps(_DIED)
-    init_error = None
-    if init is not None:
-        digest = hashlib.blake2b(init, digest_size=16).hexdigest()
-        if getattr(_INIT, "digest", None) != digest:
-            try:
-                initializer, initargs = pickle.loads(init)
-                initializer(*initargs)
-                _INIT.error = None
-            except Exception as exc:  # reported with every item instead of a silent failure
-                _INIT.error = f"worker initializer failed: {_reason(exc)}"
-            _INIT.digest = digest
-        init_error = _INIT.error
-    replies: list[tuple[Any, str | None, Any, float]] = []
-    for key, fn, args in pickle.loads(batch):
-        tic = time.perf_counter()
-        try:
-            if init_error is not None:
-                raise RuntimeError(init_error)
-            value, wall = _invoke(fn, args)
-            replies.append((key, None, value, wall))
-        except Exception as exc:  # one failing item must not end the batch
-            replies.append((key, _reason(exc), None, time.perf_counter() - tic))
-    try:
-        return _dumps(replies)
-    except Exception:  # some value does not pickle: charge that item alone
-        safe: list[tuple[Any, str | None, Any, float]] = []
-        for key, error, value, wall in replies:
-            try:
-                _dumps(value)
-                safe.append((key, error, value, wall))
-            except Exception as exc:
-                safe.append((key, f"cannot send the result: {_reason(exc)}", None, wall))
-        return _dumps(safe)
-
 
 # ------------------------------------------------------------------- runner
-class _Runner:
-    """State of one :func:`run_tasks` call (pending queues, attempts)."""
-
-    def __init__(
-        self,
-        tasks: list[Task],
-        workers: int,
-        max_attempts: int,
-        timeout: float | None,
-        on_outcome: Callable[[TaskOutcome], None] | None,
-    ) -> None:
-        self.tasks = {t.key: t for t in tasks}
-        self.attempts = {t.key: t.attempts for t in tasks}
-        self.pending = deque(t.key for t in tasks)
-        self.retry: deque[str] = deque()
-        self.workers = workers
-        self.max_attempts = max_attempts
-        self.timeout = timeout
-        self.on_outcome = on_outcome
-        self.outcomes: dict[str, TaskOutcome] = {}
-
-    def next_key(self) -> str:
-        return self.retry.popleft() if self.retry else self.pending.popleft()
-
-    def emit(
-        self, key: str, value: Any, error: str | None, wall: float, *, final: bool = False
-    ) -> None:
-        self.attempts[key] += 1
-        n = self.attempts[key]
-        final = final or error is None or n >= self.max_attempts
-        outcome = TaskOutcome(
-            key=key, value=value, error=error, attempts=n, final=final, wall_time=wall
-        )
-        if error is not None:
-            _log.warning("task %s failed (attempt %d of %d): %s", key, n, self.max_attempts, error)
-        if not final:
-            self.retry.append(key)
-        self.outcomes[key] = outcome
-        if self.on_outcome is not None:
-            self.on_outcome(outcome)
-
-    def run_serial(self) -> None:
-        while self.pending or self.retry:
-            key = self.next_key()
-            task = self.tasks[key]
-            tic = time.perf_counter()
-            try:
-                value = task.fn(*task.args)
-            except Exception as exc:  # one failing task must not end the sweep
-                self.emit(key, None, _reason(exc), time.perf_counter() - tic)
-            else:
-                self.emit(key, value, None, time.perf_counter() - tic)
+class _LocalRunner(TaskRunner):
+    """A :class:`TaskRunner` that also runs on worker pools and caller executors."""
 
     def run_workers(self, pool: WorkerPool) -> None:
         busy: list[_Worker] = []
@@ -524,7 +280,7 @@ class _Runner:
                         continue
                     except Exception as exc:  # the task does not pickle
                         pool._give_back(worker)
-                        self.emit(key, None, f"cannot send the task: {_reason(exc)}", 0.0)
+                        self.emit(key, None, f"cannot send the task: {failure_reason(exc)}", 0.0)
                         continue
                     worker.key, worker.started = key, time.monotonic()
                     busy.append(worker)
@@ -580,9 +336,9 @@ class _Runner:
                 task = self.tasks[key]
                 fut: Future[Any]
                 if isinstance(pool, ProcessPoolExecutor):  # pickled here: read-only mappings too
-                    fut = pool.submit(_invoke_pickled, _dumps((task.fn, task.args)))
+                    fut = pool.submit(_invoke_pickled, dumps((task.fn, task.args)))
                 else:
-                    fut = pool.submit(_invoke, task.fn, task.args)
+                    fut = pool.submit(invoke, task.fn, task.args)
                 inflight[fut] = key
             done, _ = wait(inflight, return_when=FIRST_COMPLETED)
             broken: list[str] = []
@@ -592,7 +348,7 @@ class _Runner:
                 if isinstance(exc, BrokenProcessPool | BrokenThreadPool):
                     broken.append(key)
                 elif exc is not None:
-                    self.emit(key, None, _reason(exc), 0.0)
+                    self.emit(key, None, failure_reason(exc), 0.0)
                 else:
                     got = fut.result()
                     value, wall = pickle.loads(got) if isinstance(got, bytes) else got
@@ -601,154 +357,8 @@ class _Runner:
                 why = "the executor broke (a worker crashed) and cannot be rebuilt by youbot_opt"
                 for key in [*broken, *inflight.values()]:
                     self.emit(key, None, f"worker process crashed or was lost; {why}", 0.0)
-                self._abandon(why)
+                self.abandon(why)
                 return
-
-    def run_dask(
-        self,
-        client: Client,
-        initializer: Callable[..., Any] | None,
-        initargs: tuple[Any, ...],
-        batch_size: int | None,
-    ) -> None:
-        """Run on a Dask cluster: batches of items, per-item outcomes, crash-charged singles.
-
-        ``self.workers`` batches are kept in flight (the cluster's threads by
-        default): not more, so that a task Dask finds on a dead worker was
-        running there, not queued (a queued single item would be charged a
-        crash it did not cause). The initializer travels to each worker once (scattered);
-        a batch whose worker died is re-run item by item, so a crash is
-        charged to one item. Dask's own retries are off (``retries=0``).
-        """
-        from distributed import KilledWorker, as_completed
-
-        n = len(self.pending)
-        size = batch_size or max(1, min(_MAX_BATCH, n // (8 * self.workers)))
-        solo: set[str] = set()  # items to run alone: after a crash of their batch, or a retry
-        init = None
-        if initializer is not None:
-            blob = _dumps((initializer, initargs))
-            init = self._dask_call(lambda: client.scatter(blob, broadcast=True, hash=False))
-        inflight: dict[DaskFuture, list[str]] = {}
-        done = as_completed(loop=client.loop)
-        try:
-            while self.pending or self.retry or inflight:
-                while len(inflight) < self.workers and (self.pending or self.retry):
-                    keys = self._next_batch(size, solo)
-                    items = [(k, self.tasks[k].fn, self.tasks[k].args) for k in keys]
-                    try:
-                        payload = _dumps(items)
-                    except Exception as exc:  # a task does not pickle: charge it alone
-                        if len(keys) > 1:
-                            solo.update(keys)
-                            self.pending.extendleft(reversed(keys))
-                        else:
-                            self.emit(keys[0], None, f"cannot send the task: {_reason(exc)}", 0.0)
-                        continue
-                    fut = self._dask_call(
-                        functools.partial(
-                            client.submit, run_batch, init, payload, pure=False, retries=0
-                        )
-                    )
-                    inflight[fut] = keys
-                    done.add(fut)
-                if not inflight:
-                    continue
-                fut = next(done)
-                keys = inflight.pop(fut)
-                self._collect_dask(fut, keys, solo, KilledWorker)
-        finally:
-            for fut in inflight:  # interrupted: do not leave our work on the cluster
-                with contextlib.suppress(Exception):
-                    fut.cancel()
-
-    def _next_batch(self, size: int, solo: set[str]) -> list[str]:
-        """Keys of the next batch: one retried or solo item, else up to ``size`` fresh ones."""
-        if self.retry:
-            key = self.retry.popleft()
-            solo.add(key)
-            return [key]
-        keys = [self.pending.popleft()]
-        if keys[0] in solo:
-            return keys
-        while self.pending and len(keys) < size and self.pending[0] not in solo:
-            keys.append(self.pending.popleft())
-        return keys
-
-    def _collect_dask(
-        self, fut: DaskFuture, keys: list[str], solo: set[str], killed: type[Exception]
-    ) -> None:
-        """Turn a finished Dask batch into outcomes (or solo re-runs after a worker death)."""
-        status = fut.status
-        if status in ("cancelled", "lost") or (status == "error" and _is_cancel(fut)):
-            self.pending.extendleft(reversed(keys))  # not started or lost with the scheduler
-            raise ClusterLostError(f"the Dask scheduler or cluster went away (task {status})")
-        died = False
-        replies: Any = None
-        if status == "error":
-            exc = self._dask_call(fut.exception)
-            if isinstance(exc, killed):
-                died = True
-            else:  # the batch itself failed (e.g. its payload did not unpickle there)
-                for key in keys:
-                    self.emit(key, None, _reason(exc), 0.0)
-                return
-        else:
-            replies = pickle.loads(self._dask_call(fut.result))
-            died = replies == _DIED
-        if died:
-            if len(keys) > 1:  # nothing charged: each item runs alone next
-                solo.update(keys)
-                self.pending.extendleft(reversed(keys))
-                return
-            self.emit(
-                keys[0],
-                None,
-                "Dask worker died (e.g. a segfault or an out-of-memory kill) "
-                "while running this item",
-                0.0,
-            )
-            return
-        for key, error, value, wall in replies:
-            self.emit(key, value, error, wall)
-
-    @staticmethod
-    def _dask_call(fn: Callable[[], Any]) -> Any:
-        """Call ``fn``, turning a lost scheduler connection into :class:`ClusterLostError`."""
-        from asyncio import CancelledError as AsyncCancelled
-        from concurrent.futures import CancelledError
-
-        try:
-            return fn()
-        except (CancelledError, AsyncCancelled, OSError, TimeoutError) as exc:
-            raise ClusterLostError(
-                f"lost the connection to the Dask scheduler ({type(exc).__name__}: {exc})"
-            ) from exc
-
-    def _abandon(self, why: str) -> None:
-        for key in self.retry:  # already failed once here: no further attempt
-            prev = self.outcomes[key]
-            outcome = replace(prev, error=f"{prev.error}; {why}", final=True)
-            self.outcomes[key] = outcome
-            if self.on_outcome is not None:
-                self.on_outcome(outcome)
-        for key in self.pending:
-            self.emit(key, None, why, 0.0, final=True)
-        self.retry.clear()
-        self.pending.clear()
-
-
-def _is_cancel(fut: DaskFuture) -> bool:
-    from asyncio import CancelledError as AsyncCancelled
-    from concurrent.futures import CancelledError
-
-    try:
-        exc = fut.exception(timeout=0)
-    except (CancelledError, AsyncCancelled):
-        return True
-    except Exception:
-        return False
-    return isinstance(exc, CancelledError | AsyncCancelled)
 
 
 def run_tasks(
@@ -762,6 +372,7 @@ def run_tasks(
     on_outcome: Callable[[TaskOutcome], None] | None = None,
     timeout: float | None = None,
     batch_size: int | None = None,
+    keep_values: bool = True,
 ) -> dict[str, TaskOutcome]:
     """Run keyed tasks, retrying failures, and report each attempt as it ends.
 
@@ -796,6 +407,11 @@ def run_tasks(
     batch_size : int, optional
         Tasks per Dask task (Dask only); default: an eighth of the tasks
         per thread, at most 64 (1 for small sweeps).
+    keep_values : bool
+        Return every task's last outcome (default); ``False`` returns only
+        those of tasks whose last attempt failed, without values
+        (``on_outcome`` still sees every outcome), so a long sweep's values
+        are not held by this call.
 
     Returns
     -------
@@ -833,6 +449,7 @@ def run_tasks(
             on_outcome=on_outcome,
             timeout=timeout,
             batch_size=batch_size,
+            keep_values=keep_values,
         )
     finally:
         if own_client and client is not None:
@@ -852,6 +469,7 @@ def _run(
     on_outcome: Callable[[TaskOutcome], None] | None,
     timeout: float | None,
     batch_size: int | None,
+    keep_values: bool,
 ) -> dict[str, TaskOutcome]:
     if workers is None:
         if isinstance(executor, WorkerPool):
@@ -890,7 +508,9 @@ def _run(
                 f"stopped otherwise), got executor={executor!r}",
                 name="timeout",
             )
-    runner = _Runner(task_list, workers, max_attempts, timeout, on_outcome)
+    runner = _LocalRunner(
+        task_list, workers, max_attempts, timeout, on_outcome, keep_values=keep_values
+    )
     if executor == "serial":
         if initializer is not None:
             initializer(*initargs)
@@ -901,7 +521,7 @@ def _run(
         with WorkerPool(workers, initializer=initializer, initargs=initargs) as pool:
             runner.run_workers(pool)
     elif client is not None:
-        runner.run_dask(client, initializer, initargs, batch_size)
+        run_dask(runner, client, initializer, initargs, batch_size)
     else:
         assert isinstance(executor, Executor)
         runner.run_executor(executor)

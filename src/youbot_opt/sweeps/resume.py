@@ -1,14 +1,12 @@
 """The item loop of a resumable sweep: load what the store holds, run the rest, save each.
 
-Owns the loop every start-based sweep shares (trajectory and IK-path
-multistarts, the bound-scaling study; spec: the sweep layer of
-``ARCHITECTURE.md``). :func:`run_resumable` asks the
-:class:`~youbot_opt.sweeps.store.SweepStore` which items are finished (done,
-or failed with their attempts used up) and loads them, runs the others with
-:func:`~youbot_opt.sweeps.pool.run_tasks` (the attempts of earlier runs
-count), and saves every attempt as it ends: a success with its payload and
-summary, a failure with its reason. The caller supplies only what differs:
-how an outcome becomes its own item type and what of it is saved.
+:func:`run_resumable` is the loop every start-based sweep shares: it loads the
+items the :class:`~youbot_opt.sweeps.store.SweepStore` holds as finished, runs
+the others with :func:`~youbot_opt.sweeps.pool.run_tasks` (earlier attempts
+count) and saves every attempt as it ends. Callers supply how an outcome
+becomes their item type and what of it is saved; ``describe`` lets workers
+write their own items, ``keep_results=False`` streams chunks and keeps only the
+distinct optima (:class:`StoredItems` reads the rest back from the journal).
 
     got = run_resumable(tasks, store=store, options=opts, load=load, convert=convert,
                         payload=lambda key, item: (item.result, item.summary()))
@@ -16,19 +14,36 @@ how an outcome becomes its own item type and what of it is saved.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
 from dataclasses import replace
 from typing import Any, Generic, NamedTuple, TypeVar
 
-from youbot_opt.exceptions import YoubotOptError
+from youbot_opt._files import json_roundtrip
+from youbot_opt.exceptions import ParameterError, YoubotOptError
+from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.sweeps.pool import Task, TaskOutcome, run_tasks
-from youbot_opt.sweeps.scheduler import ClusterLostError
-from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
+from youbot_opt.sweeps.scheduler import ClusterLostError, connect, is_scheduler_address
+from youbot_opt.sweeps.selection import Clusters, stream_optima
+from youbot_opt.sweeps.store import ItemRecord, ItemWriter, SweepStore, WrittenItem
 
-__all__ = ["Resumed", "ShardFinished", "run_resumable"]
+__all__ = [
+    "Describe",
+    "Resumed",
+    "ShardFinished",
+    "StoredAttempts",
+    "StoredItems",
+    "run_and_write",
+    "run_resumable",
+]
+
+Describe = Callable[[str, tuple[Any, ...], Any], tuple[Any, dict[str, Any]]]
+"""``(key, args, value) -> (payload, summary)``: what a worker saves of a task's value."""
 
 T = TypeVar("T")
+
+CHUNK = 4096
+"""Tasks handed to the executor at once when ``keep_results=False`` (bounded driver memory)."""
 
 
 class ShardFinished(YoubotOptError):
@@ -46,12 +61,104 @@ class ShardFinished(YoubotOptError):
 class Resumed(NamedTuple, Generic[T]):
     """What :func:`run_resumable` returns."""
 
-    items: dict[str, T]
-    """The final item of every task, by key (loaded or run here)."""
-    attempts: dict[str, int]
-    """Attempts made per key, earlier runs included (0: none was needed here nor before)."""
+    items: MutableMapping[str, T]
+    """The final item of every task, by key (loaded or run here); ``keep_results=False``:
+    a :class:`StoredItems`, read from the store's journal when asked for."""
+    attempts: Mapping[str, int]
+    """Attempts made per key, earlier runs included (0: none was needed here nor before);
+    ``keep_results=False``: a :class:`StoredAttempts`, read from the store."""
     resumed: int
     """Items loaded from the store instead of run."""
+    clusters: Sequence[Sequence[str]] = ()
+    """``keep_results=False``: the distinct optima as keys, each best first, best
+    optimum first (``select_optima``'s rule), as a :class:`~youbot_opt.sweeps.selection.Clusters`
+    (members read from disk, counted by ``len``); empty otherwise."""
+
+
+class StoredItems(MutableMapping[str, T]):
+    """The items of a ``keep_results=False`` sweep, read lazily from its store.
+
+    Keys are the tasks' keys, in task order; an item is ``light(key, record)``
+    made from the item's journal line each time it is asked for (nothing per
+    item is held), except the few items set here (the kept optima, in full).
+
+    Parameters
+    ----------
+    tasks : sequence of Task
+        The sweep's tasks (only their keys are used; may be a lazy sequence).
+    store : SweepStore
+        Where the items are recorded.
+    light : callable ``(key, record) -> item``
+        The item of a record without its payload.
+    """
+
+    def __init__(
+        self, tasks: Sequence[Task], store: SweepStore, light: Callable[[str, ItemRecord], T]
+    ) -> None:
+        self._tasks, self._store, self._light = tasks, store, light
+        self._set: dict[str, T] = {}
+
+    def __getitem__(self, key: str) -> T:
+        if key in self._set:
+            return self._set[key]
+        record = self._store.record(key)
+        if record is None:
+            raise KeyError(key)
+        return self._light(key, record)
+
+    def __setitem__(self, key: str, item: T) -> None:
+        self._set[key] = item
+
+    def __delitem__(self, key: str) -> None:
+        raise TypeError("the items of a sweep cannot be deleted")
+
+    def __iter__(self) -> Iterator[str]:
+        return (t.key for t in self._tasks if t.key in self._set or self._store.has(t.key))
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+    def __contains__(self, key: object) -> bool:
+        return isinstance(key, str) and (key in self._set or self._store.has(key))
+
+
+class StoredAttempts(Mapping[str, int]):
+    """Attempts per task key of a ``keep_results=False`` sweep, read from its store (0: none)."""
+
+    def __init__(self, tasks: Sequence[Task], store: SweepStore) -> None:
+        self._tasks, self._store = tasks, store
+
+    def __getitem__(self, key: str) -> int:
+        record = self._store.record(key)
+        return 0 if record is None else record.attempts
+
+    def __iter__(self) -> Iterator[str]:
+        return (t.key for t in self._tasks)
+
+    def __len__(self) -> int:
+        return len(self._tasks)
+
+
+def run_and_write(
+    writer: ItemWriter,
+    describe: Describe,
+    send_value: bool,
+    key: str,
+    fn: Callable[..., Any],
+    args: tuple[Any, ...],
+) -> WrittenItem:
+    """Worker task: run ``fn(*args)`` and write the item's payload into the store's folder.
+
+    Returns
+    -------
+    WrittenItem
+        Where the payload is, its SHA-256, the summary, and the value itself
+        if ``send_value`` (the driver keeps results), else ``None``.
+    """
+    value = fn(*args)
+    data, summary = describe(key, args, value)
+    name, checksum = writer.write(key, data)
+    return WrittenItem(name, checksum, json_roundtrip(dict(summary)), value if send_value else None)
 
 
 def run_resumable(
@@ -66,6 +173,9 @@ def run_resumable(
     initargs: tuple[Any, ...] = (),
     on_resumed: Callable[[dict[str, T]], None] | None = None,
     on_final: Callable[[str, T, int], None] | None = None,
+    describe: Describe | None = None,
+    light: Callable[[str, ItemRecord], T] | None = None,
+    keep: KeepRule[T] | None = None,
 ) -> Resumed[T]:
     """Run the tasks a store does not hold as finished, saving every attempt as it ends.
 
@@ -77,8 +187,8 @@ def run_resumable(
     store : SweepStore, optional
         Where finished items are loaded from and every attempt is saved.
     options : SweepOptions
-        Executor, workers, timeout [s] and ``max_attempts``; ``out`` and
-        ``progress`` are the caller's business.
+        Executor, workers, timeout [s], ``max_attempts`` and ``keep_results``;
+        ``out`` and ``progress`` are the caller's business.
     load : callable ``(key) -> item``
         A finished item from ``store`` (done or failed; see ``store.record(key)``).
     convert : callable ``(outcome) -> item``
@@ -88,22 +198,43 @@ def run_resumable(
     initializer, initargs
         Run once in every worker of a pool owned by this call (see ``run_tasks``).
     on_resumed : callable ``(items)``, optional
-        Called once, before any task runs, with the items loaded from ``store``.
+        Called once, before any task runs, with the items loaded from ``store``
+        (``keep_results=False``: a read-only mapping read from the store, valid
+        during the call).
     on_final : callable ``(key, item, n_final)``, optional
         Called in this process when an item is final; ``n_final`` counts the
         final items so far, loaded ones included.
+    describe : callable ``(key, args, value) -> (payload, summary)``, optional
+        Picklable: what a worker saves of its task's value. Given (with a
+        schema-3 store and ``options.writes_in_workers``), each worker writes its own payload file
+        (:func:`run_and_write`) and the driver checks it against the reported
+        SHA-256 before recording it; a refused file is warned about and its
+        item recomputed. A summary's ``"attempts"`` entry is set by the driver.
+    light : callable ``(key, record) -> item``, optional
+        The item of a finished record without its payload (from its summary);
+        needed for ``options.keep_results=False``.
+    keep : KeepRule, optional
+        Which full items ``options.keep_results=False`` keeps (the distinct
+        optima, :func:`~youbot_opt.sweeps.cluster.select_optima`); needed then.
 
     Returns
     -------
     Resumed
-        The items, attempts and number of resumed items.
+        The items (``keep_results=False``: light ones, full for the kept
+        optima), attempts, number of resumed items and the optima's clusters.
 
     Notes
     -----
-    ``options.executor`` ``None`` runs on ``"process"``.
+    ``options.executor`` ``None`` runs on ``"process"``. Items are recorded
+    in durable groups (:meth:`SweepStore.grouped`). With ``keep_results=False``
+    a resume reads only the journal; the final selection reads each
+    converged payload once, one at a time, and is saved (``DIR/optima.json``),
+    so a resume of an unchanged store loads only the kept optima.
 
     Raises
     ------
+    ParameterError
+        If ``keep_results=False`` lacks ``out``, ``light`` or ``keep``.
     ResultFileError
         If a stored record or payload is corrupted or from a newer schema.
     ClusterLostError
@@ -111,6 +242,268 @@ def run_resumable(
     ShardFinished
         After a shard run (``options.shard``) solved its share.
     """
+    keep_all = options.keep_results
+    if not keep_all and (store is None or light is None or keep is None):
+        why = (
+            "needs out= (the results not kept stay there)"
+            if store is None
+            else "is not supported by this sweep (its result holds every item's full result); "
+            "use keep_results=True"
+        )
+        raise ParameterError(f"keep_results=False {why}", name="keep_results", value=False)
+    if store is None:
+        return _run_all(
+            tasks,
+            None,
+            options,
+            load,
+            convert,
+            payload,
+            initializer,
+            initargs,
+            on_resumed,
+            on_final,
+            None,
+            None,
+            keep_all,
+        )
+    if keep_all:
+        with store.grouped():
+            return _run_all(
+                tasks,
+                store,
+                options,
+                load,
+                convert,
+                payload,
+                initializer,
+                initargs,
+                on_resumed,
+                on_final,
+                describe,
+                light,
+                keep_all,
+            )
+    assert light is not None
+    with store.grouped():
+        got = _stream_all(
+            tasks, store, options, convert, payload, initializer, initargs,
+            on_resumed,  # type: ignore[arg-type]  # given a read-only view, not a dict
+            on_final, describe, light,
+        )  # fmt: skip
+    assert keep is not None and light is not None
+
+    def full(key: str) -> T:
+        if not store.verify(key):  # warned; forgotten by the store, so it is run again
+            raise _Refused(key)
+        return load(key)
+
+    extra = {"obj_tol": keep.obj_tol, "dist_tol": keep.dist_tol, "best": keep.distance is None,
+             "grouped": keep.group is not None}  # fmt: skip
+    while True:  # the kept optima, loaded (a refused payload is recomputed, then chosen again)
+        fingerprint = store.fingerprint(got.items, extra)
+        saved = store.selection(fingerprint)
+        clusters: Sequence[Sequence[str]]
+        try:
+            if saved is not None:  # chosen before over exactly these items: load only those
+                clusters = saved
+                kept = {c[0]: full(c[0]) for c in saved}
+            else:
+                kept, clusters = stream_optima(got.items, keep, full)
+                store.save_selection(fingerprint, clusters)
+        except _Refused as exc:
+            redo = [t for t in tasks if t.key == exc.key]
+            with store.grouped():  # recorded in the store, which got.items reads from
+                _stream_all(
+                    redo, store, options, convert, payload, initializer, initargs, None, None,
+                    describe, light,
+                )  # fmt: skip
+            continue
+        got.items.update(kept)
+        if not isinstance(clusters, Clusters):  # an optima.json written before the members file
+            clusters = tuple(tuple(c) for c in clusters)
+        return got._replace(clusters=clusters)
+
+
+def _stream_all(
+    tasks: Sequence[Task],
+    store: SweepStore,
+    options: SweepOptions,
+    convert: Callable[[TaskOutcome], T],
+    payload: Callable[[str, T], tuple[Any, dict[str, Any]]],
+    initializer: Callable[..., Any] | None,
+    initargs: tuple[Any, ...],
+    on_resumed: Callable[[Mapping[str, T]], None] | None,
+    on_final: Callable[[str, T, int], None] | None,
+    describe: Describe | None,
+    light: Callable[[str, ItemRecord], T],
+) -> Resumed[T]:
+    """``keep_results=False``: run the unfinished tasks in chunks, keeping nothing per item.
+
+    Tasks are taken from ``tasks`` as they are needed, :data:`CHUNK` at a time;
+    what an item is comes back from the store (:class:`StoredItems`). One
+    worker pool (or Dask connection) serves every chunk.
+    """
+    max_attempts = options.max_attempts
+    items = StoredItems(tasks, store, light)
+    finished = 0
+    for task in tasks:  # what the store holds as finished (counted, not kept)
+        finished += not store.needs_work(task.key, max_attempts)[0]
+    resumed = finished
+    if on_resumed is not None:  # a view: read during the call, before anything runs
+        on_resumed(_Finished(items, store, max_attempts))
+    shard = options.shard
+    use = describe is not None and options.writes_in_workers
+    writer = store.writer() if use else None
+    ran = 0
+
+    def todo() -> Iterator[Task]:
+        for pos, task in enumerate(tasks):
+            if shard is not None and pos % shard[1] != shard[0] - 1:
+                continue  # another shard's item
+            again, made = store.needs_work(task.key, max_attempts)
+            if not again:
+                continue
+            if writer is not None:
+                args = (writer, describe, False, task.key, task.fn, task.args)
+                yield replace(task, fn=run_and_write, args=args, attempts=made)
+            else:
+                yield replace(task, attempts=made)
+
+    def record(o: TaskOutcome, chunk: dict[str, Task], redo: list[Task]) -> None:
+        nonlocal finished
+        if o.ok and isinstance(o.value, WrittenItem) and writer is not None:
+            written = o.value
+            if "attempts" in written.summary:
+                written = replace(written, summary={**written.summary, "attempts": o.attempts})
+            rec = store.accept(o.key, written, attempts=o.attempts)
+            if rec is None:  # refused (warned): a failed attempt, retried if attempts remain
+                why = "its worker-written payload was refused (checksum or file mismatch)"
+                rec = store.write_failed(o.key, why, attempts=o.attempts)
+                if o.attempts < max_attempts:
+                    redo.append(replace(chunk[o.key], attempts=o.attempts))
+                    return
+        elif o.ok:
+            data, summary = payload(o.key, convert(o))
+            rec = store.write_done(o.key, data, summary, attempts=o.attempts)
+        else:
+            rec = store.write_failed(o.key, str(o.error), attempts=o.attempts)
+        if o.final:
+            finished += 1
+            if on_final is not None:
+                on_final(o.key, light(o.key, rec), finished)
+
+    executor = "process" if options.executor is None else options.executor
+    owned: WorkerPool | None = None
+    client = None
+    stream = todo()
+    try:
+        while True:
+            part = _take(stream, CHUNK)
+            chunk = {t.key: t for t in part}
+            if len(chunk) < len(part):
+                raise ParameterError("task keys must be unique", name="tasks")
+            if not chunk:
+                break
+            if executor == "process" and owned is None:  # one pool for every chunk
+                owned = WorkerPool(options.workers, initializer=initializer, initargs=initargs)
+            if is_scheduler_address(executor) and client is None:  # one connection
+                client = connect(str(executor))
+            run = owned if executor == "process" else client if client is not None else executor
+            ran += len(chunk)
+            while part:
+                redo: list[Task] = []
+                run_tasks(
+                    part,
+                    executor=run,  # type: ignore[arg-type]
+                    workers=options.workers,
+                    initializer=None if owned is not None else initializer,
+                    initargs=() if owned is not None else initargs,
+                    max_attempts=max_attempts,
+                    on_outcome=lambda o, c=chunk, r=redo: record(o, c, r),  # type: ignore[misc]
+                    timeout=options.timeout,
+                    batch_size=options.batch_size,
+                    keep_values=False,
+                )
+                part = redo
+    except ClusterLostError as exc:
+        raise ClusterLostError(
+            f"sweep stopped: {exc}. {finished} of {len(tasks)} items are saved in "
+            f"{store.directory}; rerun the same sweep with the same output directory to "
+            "resume from there"
+        ) from exc
+    finally:
+        if owned is not None:
+            owned.close()
+        if client is not None:
+            client.close()
+    if shard is not None:
+        raise ShardFinished(
+            f"shard {shard[0]}/{shard[1]}: ran {ran} item(s); {finished} of "
+            f"{len(tasks)} items are finished in {store.directory}; when every shard is done, "
+            "run the same sweep without the shard to collect them",
+            ran=ran,
+            finished=finished,
+            total=len(tasks),
+        )
+    if finished != len(tasks):  # a repeated key was skipped as finished by its first task
+        raise ParameterError(
+            f"task keys must be unique: {len(tasks)} tasks, {finished} finished items",
+            name="tasks",
+        )
+    return Resumed(items=items, attempts=StoredAttempts(tasks, store), resumed=resumed)
+
+
+def _take(stream: Iterator[Task], n: int) -> list[Task]:
+    out: list[Task] = []
+    for task in stream:
+        out.append(task)
+        if len(out) == n:
+            break
+    return out
+
+
+class _Finished(Mapping[str, T]):
+    """The items a store holds as finished (done, or failed with attempts used up), lazily."""
+
+    def __init__(self, items: StoredItems[T], store: SweepStore, max_attempts: int) -> None:
+        self._items, self._store, self._max = items, store, max_attempts
+
+    def __getitem__(self, key: str) -> T:
+        if self._store.needs_work(key, self._max)[0]:
+            raise KeyError(key)
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return (k for k in self._items if not self._store.needs_work(k, self._max)[0])
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+
+class _Refused(Exception):
+    """A kept item's payload was refused while selecting the optima."""
+
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _run_all(
+    tasks: Sequence[Task],
+    store: SweepStore | None,
+    options: SweepOptions,
+    load: Callable[[str], T],
+    convert: Callable[[TaskOutcome], T],
+    payload: Callable[[str, T], tuple[Any, dict[str, Any]]],
+    initializer: Callable[..., Any] | None,
+    initargs: tuple[Any, ...],
+    on_resumed: Callable[[dict[str, T]], None] | None,
+    on_final: Callable[[str, T, int], None] | None,
+    describe: Describe | None,
+    light: Callable[[str, ItemRecord], T] | None,
+    keep_all: bool,
+) -> Resumed[T]:
     max_attempts = options.max_attempts
     items: dict[str, T] = {}
     attempts: dict[str, int] = {}
@@ -120,9 +513,16 @@ def run_resumable(
         if store is not None:
             again, made = store.needs_work(task.key, max_attempts)
             if not again:
-                attempts[task.key] = made
-                items[task.key] = load(task.key)
-                continue
+                if not keep_all:
+                    assert light is not None
+                    attempts[task.key] = made
+                    items[task.key] = light(task.key, store.record(task.key))  # type: ignore[arg-type]
+                    continue
+                if store.verify(task.key):
+                    attempts[task.key] = made
+                    items[task.key] = load(task.key)
+                    continue
+                made = 0  # refused (warned): recomputed from scratch
         attempts[task.key] = made
         todo.append(replace(task, attempts=made))
     resumed = len(items)
@@ -132,33 +532,75 @@ def run_resumable(
         todo = [t for t in todo if t.key in mine]
     if on_resumed is not None:
         on_resumed(dict(items))
+    use = store is not None and describe is not None and options.writes_in_workers
+    writer = store.writer() if use and store is not None else None
+    if writer is not None:
+        assert describe is not None
+        todo = [
+            replace(t, fn=run_and_write, args=(writer, describe, keep_all, t.key, t.fn, t.args))
+            for t in todo
+        ]
+    redo: list[Task] = []
+    ran = len(todo)
 
-    def record(o: TaskOutcome) -> None:
-        attempts[o.key] = o.attempts
-        item = convert(o)
-        if store is not None:
-            if o.ok:
-                data, summary = payload(o.key, item)
-                store.write_done(o.key, data, summary, attempts=o.attempts)
-            else:
-                store.write_failed(o.key, str(o.error), attempts=o.attempts)
+    def finish(o: TaskOutcome, item: T) -> None:
         if o.final:
             items[o.key] = item
             if on_final is not None:
                 on_final(o.key, item, len(items))
 
+    def record(o: TaskOutcome) -> None:
+        attempts[o.key] = o.attempts
+        if store is None:
+            finish(o, convert(o))
+            return
+        if o.ok and isinstance(o.value, WrittenItem) and writer is not None:
+            written = o.value
+            if "attempts" in written.summary:
+                written = replace(written, summary={**written.summary, "attempts": o.attempts})
+            rec = store.accept(o.key, written, attempts=o.attempts)
+            if rec is None:  # refused (warned): a failed attempt, retried if attempts remain
+                why = "its worker-written payload was refused (checksum or file mismatch)"
+                store.write_failed(o.key, why, attempts=o.attempts)
+                failed = replace(o, value=None, error=why, final=o.attempts >= max_attempts)
+                if failed.final:
+                    finish(failed, convert(failed))
+                else:
+                    task = next(t for t in todo if t.key == o.key)  # rare: a refusal
+                    redo.append(replace(task, attempts=o.attempts))
+                return
+            if keep_all:
+                finish(o, convert(replace(o, value=written.value)))
+            else:
+                assert light is not None
+                finish(o, light(o.key, rec))
+            return
+        item = convert(o)
+        if o.ok:
+            data, summary = payload(o.key, item)
+            rec = store.write_done(o.key, data, summary, attempts=o.attempts)
+        else:
+            rec = store.write_failed(o.key, str(o.error), attempts=o.attempts)
+        if o.ok and not keep_all:
+            assert light is not None
+            item = light(o.key, rec)
+        finish(o, item)
+
     try:
-        run_tasks(
-            todo,
-            executor="process" if options.executor is None else options.executor,
-            workers=options.workers,
-            initializer=initializer,
-            initargs=initargs,
-            max_attempts=max_attempts,
-            on_outcome=record,
-            timeout=options.timeout,
-            batch_size=options.batch_size,
-        )
+        while todo:
+            run_tasks(
+                todo,
+                executor="process" if options.executor is None else options.executor,
+                workers=options.workers,
+                initializer=initializer,
+                initargs=initargs,
+                max_attempts=max_attempts,
+                on_outcome=record,
+                timeout=options.timeout,
+                batch_size=options.batch_size,
+                keep_values=False,
+            )
+            todo, redo = redo, []
     except ClusterLostError as exc:
         final = len(items)
         if store is None:
@@ -175,10 +617,10 @@ def run_resumable(
     if shard is not None:
         where = store.directory if store is not None else "?"
         raise ShardFinished(
-            f"shard {shard[0]}/{shard[1]}: ran {len(todo)} item(s); {len(items)} of "
+            f"shard {shard[0]}/{shard[1]}: ran {ran} item(s); {len(items)} of "
             f"{len(tasks)} items are finished in {where}; when every shard is done, run the "
             "same sweep without the shard to collect them",
-            ran=len(todo),
+            ran=ran,
             finished=len(items),
             total=len(tasks),
         )

@@ -1,14 +1,11 @@
 """Dask distributed as a sweep executor: connecting, sizing, and the error of a lost cluster.
 
-Owns what the sweep engine needs to know about a Dask cluster (spec: the
-sweep layer of ``ARCHITECTURE.md``; guide: ``docs/scaling.md``). Dask is an
-optional extra (``pip install youbot_opt[dask]``): nothing here imports it
-until a client is asked for. :func:`connect` opens a client from a scheduler
-address or a scheduler file, :func:`cluster_threads` sizes the work kept in
-flight from the cluster (its total worker threads, never the driver's CPUs),
-:func:`is_dask_client` and :func:`is_scheduler_address` recognise what a
-caller passed as ``SweepOptions(executor=...)``, and
-:class:`ClusterLostError` is how a sweep stops when the scheduler goes away.
+Dask is an optional extra (``pip install youbot_opt[dask]``), imported only
+when a client is asked for. :func:`connect` opens a client from an address or
+a scheduler file, :func:`cluster_threads` sizes the work in flight from the
+cluster's threads, :func:`is_dask_client` / :func:`is_scheduler_address`
+recognise ``SweepOptions(executor=...)``, and :class:`ClusterLostError` stops a
+sweep whose scheduler went away. Guide: ``docs/scaling.md``.
 
     client = connect(scheduler_file="~/scheduler.json"); n = cluster_threads(client)
 """

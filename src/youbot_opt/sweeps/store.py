@@ -1,11 +1,13 @@
-"""A sweep's results on disk, one file per finished item, safe against kills.
+"""A sweep's results on disk: one payload file per finished item, a summary journal, kill-safe.
 
-A :class:`SweepStore` owns ``DIR/manifest.json`` (the sweep's kind and
-defining parameters) and ``DIR/items/<key>.json`` plus ``<key><suffix>`` (one
-record and one payload per finished item, saved by caller-supplied callables).
-Every write is atomic; reopening a directory resumes it when the parameters
-match and refuses it otherwise. Crash safety, resuming and the schema-2
-binding are explained in docs/design.md, "Module notes".
+A :class:`SweepStore` owns ``DIR/manifest.json`` (the sweep's kind and defining
+parameters), the payloads ``DIR/items/<hh>/<key><suffix>`` (fanned out into 256
+folders by the first two hex digits of SHA-256 of the key) and the journal
+``DIR/items/journal/*.jsonl`` (:mod:`.journal`: one checksummed line per attempt
+with summary, binding and payload checksum), indexed by one int per key (records
+are read back from their lines). Payloads are written atomically, by the driver
+or the worker (:class:`ItemWriter`), durable in groups before their journal
+lines (``docs/scaling.md``). Schema 1 and 2 stores (flat) resume as they are.
 
 >>> store = SweepStore(out, kind="pareto", params=params, save=save, load=load)  # doctest: +SKIP
 """
@@ -18,28 +20,98 @@ import json
 import logging
 import math
 import os
-import re
+import time
+import uuid
 import warnings
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, BinaryIO, Literal
 
-from youbot_opt._files import TMP_PREFIX, atomic_write_bytes, check_schema_header, json_roundtrip
+from youbot_opt._files import (
+    TMP_PREFIX,
+    atomic_write_bytes,
+    check_schema_header,
+    fsync_dir,
+    json_roundtrip,
+)
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
+from youbot_opt.sweeps.index import DiskIndex
+from youbot_opt.sweeps.journal import (
+    JournalWriter,
+    encode_line,
+    read_line,
+    scan_journal,
+    sync_folder,
+)
+from youbot_opt.sweeps.records import (
+    ITEMS,
+    JOURNAL,
+    RECORD_VERSION,
+    ItemRecord,
+    ItemWriter,
+    WrittenItem,
+    check_key,
+    fanout_name,
+    sha256_file,
+    stored_record,
+    stored_records,
+    write_unsynced,
+)
+from youbot_opt.sweeps.selection import Clusters
 
-__all__ = ["SweepStore", "ItemRecord", "SCHEMA_VERSION", "atomic_write_bytes", "check_key"]
+__all__ = [  # the item formats are re-exported: they were defined here before
+    "SCHEMA_VERSION",
+    "ItemRecord",
+    "ItemWriter",
+    "SweepStore",
+    "WrittenItem",
+    "atomic_write_bytes",
+    "check_key",
+    "fanout_name",
+    "stored_record",
+    "stored_records",
+    "write_unsynced",
+]
 
 _log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2
-"""Version of the manifest and item-record format written by this module (2: bound items)."""
+SCHEMA_VERSION = RECORD_VERSION
+"""Version of the manifest written by this module (3: fanned-out payloads and a
+summary journal; 2: bound flat items; 1: flat items without a binding)."""
+
+GROUP_ITEMS = 1024
+"""Journal lines a grouped store collects before it makes them durable."""
+GROUP_SECONDS = 0.1
+"""[s] longest a grouped store holds a finished item before making it durable."""
+_FLUSH_SHARE = 10.0  # a group waits at most this many times what its flush costs
 
 _MANIFEST = "manifest.json"
-_ITEMS = "items"
-_KEY = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
+_OPTIMA = "optima.json"
+_MAX_JOURNALS = 32  # journal files (one per run or shard) merged beyond this
+# An index entry is one int: byte offset, journal file number (16 bits), attempts
+# (15 bits, saturated) and done (1 bit), so that needs_work reads no line.
+_FILE_SHIFT = 16
+_FILE_BIT = 1 << _FILE_SHIFT
+_FILE_MASK = _FILE_BIT - 1
+_STATUS_SHIFT = 16
+_MAX_ATTEMPTS = (1 << (_STATUS_SHIFT - 1)) - 1
 
-ItemState = Literal["done", "failed"]
+
+def _entry(offset: int, number: int, state: str, attempts: int) -> int:
+    where = (offset << _FILE_SHIFT) | number
+    return (where << _STATUS_SHIFT) | (min(attempts, _MAX_ATTEMPTS) << 1) | (state == "done")
+
+
+def _where(entry: int) -> tuple[int, int]:
+    """Byte offset and journal file number of an index entry."""
+    where = entry >> _STATUS_SHIFT
+    return where >> _FILE_SHIFT, where & _FILE_MASK
+
+
+def _time(data: Mapping[str, Any]) -> int:
+    """Commit time of a journal line [ns] (0 if it has none)."""
+    t = data.get("t", 0)
+    return t if isinstance(t, int) else 0
 
 
 def _read_json(path: Path, what: str) -> dict[str, Any]:
@@ -64,108 +136,8 @@ def _read_json(path: Path, what: str) -> dict[str, Any]:
     return data
 
 
-def check_key(key: str) -> str:
-    """Validate an item key (a file-name-safe string), returning it.
-
-    Raises
-    ------
-    ParameterError
-        If ``key`` is not 1-100 characters of ``[A-Za-z0-9._-]`` starting alphanumeric.
-    """
-    if not isinstance(key, str) or not _KEY.match(key):
-        raise ParameterError(
-            f"item key must be 1-100 characters of [A-Za-z0-9._-] starting with a letter "
-            f"or digit, got {key!r}",
-            name="key",
-            value=key,
-        )
-    return key
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class ItemRecord:
-    """What the store knows about one item.
-
-    Attributes
-    ----------
-    key : str
-        Item key.
-    state : {"done", "failed"}
-        ``"done"``: the item produced a payload (which may itself describe a
-        failed solve); ``"failed"``: it raised or its worker crashed.
-    attempts : int
-        Attempts made so far (>= 1).
-    reasons : tuple of str
-        Why each failed attempt failed, oldest first.
-    summary : mapping
-        JSON-ready figures of the item (empty for failures).
-    payload : str or None
-        File name of the payload inside ``items/`` (``None`` for failures).
-    sweep : str or None
-        Binding of the sweep that wrote the record (``None``: schema 1).
-    checksum : str or None
-        SHA-256 (hex) of the payload file (``None`` for failures and schema 1).
-    """
-
-    key: str
-    state: ItemState
-    attempts: int
-    reasons: tuple[str, ...] = ()
-    summary: Mapping[str, Any] = field(default_factory=dict)
-    payload: str | None = None
-    sweep: str | None = None
-    checksum: str | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        """Return the record as written to disk."""
-        return {
-            "schema": "youbot_opt.sweep_item",
-            "schema_version": SCHEMA_VERSION,
-            "key": self.key,
-            "state": self.state,
-            "attempts": self.attempts,
-            "reasons": list(self.reasons),
-            "summary": dict(self.summary),
-            "payload": self.payload,
-            "sweep": self.sweep,
-            "checksum": self.checksum,
-        }
-
-    @classmethod
-    def from_json(cls, data: Mapping[str, Any], path: Path) -> ItemRecord:
-        """Parse a record read from ``path``.
-
-        Raises
-        ------
-        ResultFileError
-            If a field is missing or of the wrong type.
-        """
-        try:
-            state = data["state"]
-            if state not in ("done", "failed"):
-                raise ValueError(f"state {state!r}")
-            attempts = int(data["attempts"])
-            if attempts < 1:
-                raise ValueError(f"attempts {attempts}")
-            payload = data.get("payload")
-            if state == "done" and not isinstance(payload, str):
-                raise ValueError("a done item needs a payload file name")
-            return cls(
-                key=str(data["key"]),
-                state=state,
-                attempts=attempts,
-                reasons=tuple(str(r) for r in data.get("reasons", ())),
-                summary=dict(data.get("summary") or {}),
-                payload=payload,
-                sweep=None if data.get("sweep") is None else str(data["sweep"]),
-                checksum=None if data.get("checksum") is None else str(data["checksum"]),
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ResultFileError(f"item record {path} is corrupted: {exc}") from exc
-
-
 class SweepStore:
-    """Output directory of one sweep: manifest plus one record (and payload) per item.
+    """Output directory of one sweep: manifest, payload files and the summary journal.
 
     Parameters
     ----------
@@ -177,8 +149,9 @@ class SweepStore:
         JSON-ready parameters that define the sweep (seeds, knots, betas, ...).
         Reopening the directory with different ``kind`` or ``params`` raises.
     save : callable ``(payload, path)``
-        Writes an item's payload to ``path`` (must write atomically, as
-        :func:`youbot_opt.trajopt.io.save_result` does).
+        Writes an item's payload to ``path`` atomically (as
+        :func:`youbot_opt.trajopt.io.save_result` does); picklable if workers
+        are to write their own items.
     load : callable ``(path) -> payload``
         Reads a payload back; should raise ``ResultFileError`` on bad files.
     suffix : str
@@ -186,6 +159,17 @@ class SweepStore:
     clean : bool
         Remove leftover temporary files of killed writes (default). Shard
         runs sharing the folder pass ``False``; the collecting run cleans.
+    encode : callable ``(payload) -> bytes``, optional
+        If given, payloads are written from these bytes without a per-item
+        ``fsync`` (made durable by group, see :meth:`flush`) instead of by ``save``.
+
+    Attributes
+    ----------
+    resumed : bool
+        True if the directory already held this sweep.
+    layout : {"fanout", "flat"}
+        ``"fanout"`` (schema 3) for new stores; ``"flat"`` for a schema 1 or 2
+        store being resumed (one record file per item, as it was written).
 
     Raises
     ------
@@ -193,6 +177,17 @@ class SweepStore:
         If the directory holds a sweep with other parameters (the message lists them).
     ResultFileError
         If its manifest is corrupted or from a newer schema.
+
+    Notes
+    -----
+    Durability (schema 3): each payload is renamed into place atomically; a
+    journal line is appended only after the payload is durable (one
+    ``syncfs`` per group, then the journal's own ``fsync``). A power cut
+    loses at most the last group (at most :data:`GROUP_ITEMS` items or
+    :data:`GROUP_SECONDS` of results), which a rerun recomputes; a torn
+    journal line fails its checksum and a payload that does not match the
+    checksum of its line is refused, so no torn or wrong item is accepted.
+    Outside :meth:`grouped` every write is durable at once.
     """
 
     def __init__(
@@ -205,30 +200,45 @@ class SweepStore:
         load: Callable[[Path], Any],
         suffix: str = ".npz",
         clean: bool = True,
+        encode: Callable[[Any], bytes] | None = None,
     ) -> None:
         self.directory = Path(directory)
         self.kind = str(kind)
         self.params: dict[str, Any] = json_roundtrip(dict(params))
         self._save = save
         self._load = load
+        self._encode = encode
         self.suffix = suffix
-        self.items_dir = self.directory / _ITEMS
+        self.items_dir = self.directory / ITEMS
         self.items_dir.mkdir(parents=True, exist_ok=True)
-        if clean:  # not in shard runs: another shard may be writing one right now
-            self._clean_temporaries()
         self.binding = hashlib.sha256(
             json.dumps({"kind": self.kind, "params": self.params}, sort_keys=True).encode()
         ).hexdigest()
         self._verified: set[str] = set()  # records checked (or written) by this store
-        self._refused: set[str] = set()  # records refused: recomputed, never loaded
+        self._refused: set[str] = set()  # flat records refused: recomputed, never loaded
+        # fanout: where the last journal line of each key is, (offset << 16) | file number
+        # (a compact index on disk: a record is read back from its line when asked for)
+        self._index: MutableMapping[str, int] = DiskIndex()
+        self._journals: list[Path] = []  # the journal files the index points into
+        self._readers: dict[int, BinaryIO] = {}  # open journal files, by number (reads)
+        self._unflushed: dict[str, ItemRecord] = {}  # records whose lines are not durable yet
+        # fanout: journal lines not yet durable: (key, state, attempts, line)
+        self._lines: list[tuple[str, str, int, bytes]] = []
+        self._files: list[Path] = []  # ... and the payloads they point to
+        self._group = 0  # depth of grouped() contexts
+        self._last_flush = time.monotonic()
+        self._window = GROUP_SECONDS  # [s] adapted to the cost of a flush
+        self._journal: JournalWriter | None = None
         manifest = self.directory / _MANIFEST
         if manifest.exists():
             data = _read_json(manifest, "sweep manifest")
             self._check_manifest(data)
+            self.version = int(data.get("schema_version", 1))
             # A schema-1 store has no binding: its items resume unverified, as they always did.
-            self.verifies = int(data.get("schema_version", 1)) >= 2
+            self.verifies = self.version >= 2
             self.resumed = True
         else:
+            self.version = SCHEMA_VERSION
             self.verifies = True
             body = {
                 "schema": "youbot_opt.sweep",
@@ -239,12 +249,24 @@ class SweepStore:
             }
             atomic_write_bytes(manifest, json.dumps(body, indent=1).encode())
             self.resumed = False
+        self.layout: Literal["fanout", "flat"] = "fanout" if self.version >= 3 else "flat"
+        if clean:  # not in shard runs: another shard may be writing one right now
+            self._clean_temporaries()
+        if self.layout == "fanout":
+            self._read_journal(compact=clean)
+            made = {p.name for p in self.items_dir.iterdir()}
+            for i in range(256):  # every fan-out folder, once, so writers never need to
+                if f"{i:02x}" not in made:
+                    (self.items_dir / f"{i:02x}").mkdir(exist_ok=True)
 
     # ---------------------------------------------------------------- manifest
     def _clean_temporaries(self) -> None:
         # Ours (".tmp-<name>.<random>", youbot_opt._files) and the older
         # ".<name>.<random>.tmp" ones that youbot_opt.trajopt.io used to leave.
-        for folder in (self.directory, self.items_dir):
+        folders = [self.directory, self.items_dir]
+        if self.layout == "fanout":
+            folders += [p for p in self.items_dir.iterdir() if p.is_dir() and len(p.name) == 2]
+        for folder in folders:
             for tmp in (*folder.glob(f"{TMP_PREFIX}*"), *folder.glob(".*.tmp")):
                 with contextlib.suppress(OSError):
                     tmp.unlink()
@@ -276,22 +298,139 @@ class SweepStore:
                 value=str(self.directory),
             )
 
+    def _read_journal(self, compact: bool) -> None:
+        folder = self.items_dir / JOURNAL
+        self._journals = sorted(folder.glob("*.jsonl")) if folder.is_dir() else []
+        bad = self._scan()
+        foreign = self._foreign
+        if not (bad or foreign):
+            if compact and len(self._journals) > _MAX_JOURNALS:
+                self._compact(folder)  # one file per run or shard adds up: merge them
+            return
+        why = [f"{bad} torn or corrupted journal line(s)"] if bad else []
+        if foreign:
+            names = ", ".join(repr(k) for k in foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            why.append(f"items {names}: {self._n_foreign} line(s) written by another sweep")
+        warnings.warn(
+            f"refused {' and '.join(why)} in the sweep in {self.directory}; "
+            "those items are recomputed",
+            YoubotOptWarning,
+            stacklevel=3,
+        )
+        _log.warning("sweep %s: refused %s", self.directory, "; ".join(why))
+        if compact:  # rewrite the journal without them, so they are refused once
+            self._compact(folder)
+
+    def _scan(self) -> int:
+        """Index the last accepted line of every key (streamed); returns the bad lines."""
+        folder = self.items_dir / JOURNAL
+        self._index.clear()
+        self._foreign: list[str] = []  # the first few keys of lines of another sweep
+        self._n_foreign = 0
+        bad = 0
+        times: dict[str, int] = {}  # commit time of an indexed line, only when a key repeats
+        for number, offset, data in scan_journal(self._journals):
+            record = self._parse(data, folder)
+            if record is None:
+                bad += 1
+                continue
+            if record.sweep != self.binding:
+                self._n_foreign += 1
+                if len(self._foreign) < 6:
+                    self._foreign.append(record.key)
+                continue
+            assert data is not None
+            key = record.key
+            t = _time(data)
+            prev = self._index.get(key)
+            if prev is not None:  # rare (a failed attempt, then another run): the later line wins
+                old = times.get(key)
+                if old is None:
+                    at, num = _where(prev)
+                    line = read_line(self._journals[num], at)
+                    old = _time(line) if line is not None else 0
+                if t < old:
+                    continue
+                times[key] = t
+            self._index[key] = _entry(offset, number, record.state, record.attempts)
+        return bad
+
+    @staticmethod
+    def _parse(data: Mapping[str, Any] | None, folder: Path) -> ItemRecord | None:
+        if data is None:
+            return None
+        try:
+            record = ItemRecord.from_json(data, folder)
+            check_key(record.key)
+        except (ResultFileError, ParameterError):
+            return None
+        return record
+
+    def _compact(self, folder: Path) -> None:
+        """Replace the journal files by one holding the accepted records (atomic, durable).
+
+        Streamed: the kept lines are copied file by file, one at a time in memory.
+        """
+        self.flush()
+        old = list(self._journals)
+        now = time.time_ns()
+        target = folder / f"compact-{uuid.uuid4().hex[:12]}.jsonl"
+        tmp = folder / f"{TMP_PREFIX}{target.name}.{uuid.uuid4().hex[:8]}"
+        try:
+            with tmp.open("wb") as fh:
+                for number, offset, data in scan_journal(old):
+                    if data is None:
+                        continue
+                    entry = self._index.get(str(data.get("key")))
+                    if entry is None or _where(entry) != (offset, number):
+                        continue
+                    fh.write(encode_line({**data, "t": now}))
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, target)
+        finally:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        fsync_dir(folder)  # durable before the old files go
+        self._close_readers()
+        for path in old:
+            if path != target:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+        fsync_dir(folder)
+        self._journals = [target]
+        self._journal = None
+        self._scan()
+
     # ------------------------------------------------------------------ items
     def _record_path(self, key: str) -> Path:
         return self.items_dir / f"{check_key(key)}.json"
 
     def payload_path(self, key: str) -> Path:
         """Where the payload of ``key`` is (or will be) stored."""
+        if self.layout == "fanout":
+            return self.items_dir / fanout_name(key, self.suffix)
         return self.items_dir / f"{check_key(key)}{self.suffix}"
+
+    def writer(self) -> ItemWriter | None:
+        """Return the recipe by which workers write their own payloads (``None``: flat store)."""
+        if self.layout != "fanout":
+            return None
+        return ItemWriter(str(self.items_dir), self.suffix, self._save, self._encode)
 
     def record(self, key: str) -> ItemRecord | None:
         """Return the record of ``key``, or ``None`` if the item has not finished yet.
 
+        Fan-out stores answer from the journal (payloads are checked by
+        :meth:`verify` and :meth:`load`); flat stores read and check the record file.
+
         Raises
         ------
         ResultFileError
-            If the record is corrupted or from a newer schema.
+            If a flat store's record is corrupted or from a newer schema.
         """
+        if self.layout == "fanout":
+            return self._indexed(check_key(key))
         path = self._record_path(key)
         if not path.exists():
             return None
@@ -306,17 +445,22 @@ class SweepStore:
             return None
         why = self._refusal(record, key)
         if why is not None:
-            self._refused.add(key)
-            warnings.warn(
-                f"refused item {key!r} of the sweep in {self.directory} ({path.name}: {why}); "
-                "it is recomputed",
-                YoubotOptWarning,
-                stacklevel=2,
-            )
-            _log.warning("refused sweep item %s: %s", path, why)
+            self._refuse(key, path.name, why)
             return None
         self._verified.add(key)
         return record
+
+    def _refuse(self, key: str, where: str, why: str) -> None:
+        self._refused.add(key)
+        self._index.pop(key, None)
+        self._unflushed.pop(key, None)
+        warnings.warn(
+            f"refused item {key!r} of the sweep in {self.directory} ({where}: {why}); "
+            "it is recomputed",
+            YoubotOptWarning,
+            stacklevel=3,
+        )
+        _log.warning("refused sweep item %s in %s: %s", key, self.directory, why)
 
     def _refusal(self, record: ItemRecord, key: str) -> str | None:
         """Why ``record`` does not belong to this sweep (``None``: it does)."""
@@ -330,17 +474,80 @@ class SweepStore:
             )
         if record.state != "done":
             return None
-        if record.payload != self.payload_path(key).name:
+        expected = self.payload_path(key).relative_to(self.items_dir).as_posix()
+        if record.payload != expected:
             return f"it points to payload {record.payload!r}"
         path = self.items_dir / str(record.payload)
         if not path.exists():
             return f"its payload {path.name} is missing"
-        if record.checksum != _sha256(path):
+        if record.checksum != sha256_file(path):
             return f"its payload {path.name} does not match its checksum (edited or torn)"
         return None
 
+    def verify(self, key: str) -> bool:
+        """Check a finished item's payload against its checksum (once per store).
+
+        Returns
+        -------
+        bool
+            False if the item is not finished here or was refused (warned,
+            and forgotten: it is recomputed); True otherwise.
+        """
+        record = self.record(key)
+        if record is None:
+            return False
+        if self.layout == "flat" or key in self._verified or record.state != "done":
+            return True
+        why = self._refusal(record, key)
+        if why is not None:
+            self._refuse(key, "journal", why)
+            return False
+        self._verified.add(key)
+        return True
+
+    def keys(self) -> Iterator[str]:
+        """Iterate over the keys of every recorded item (fan-out stores: index order)."""
+        if self.layout == "fanout":
+            yield from self._index
+            yield from (k for k in self._unflushed if k not in self._index)
+            return
+        yield from (p.stem for p in self.items_dir.glob("*.json"))
+
+    def has(self, key: str) -> bool:
+        """Whether ``key`` has a record (fan-out stores: from the index, no line read)."""
+        if self.layout == "fanout":
+            return key in self._unflushed or key in self._index
+        return self.record(key) is not None
+
+    def _indexed(self, key: str) -> ItemRecord | None:
+        """Return the record of ``key``: unflushed, or read back from its journal line."""
+        record = self._unflushed.get(key)
+        if record is not None:
+            return record
+        pos = self._index.get(key)
+        if pos is None:
+            return None
+        at, number = _where(pos)
+        path = self._journals[number]
+        reader = self._readers.get(number)
+        if reader is None:
+            try:
+                reader = self._readers[number] = path.open("rb")
+            except OSError:
+                reader = None
+        record = self._parse(read_line(reader or path, at), path)
+        if record is None or record.key != key:
+            raise ResultFileError(
+                f"the sweep journal {path} changed while the store was open (the line of item "
+                f"{key!r} is gone); reopen the store"
+            )
+        return record
+
     def records(self) -> dict[str, ItemRecord]:
-        """Every item record in the directory, by key (sorted)."""
+        """Every item record of the store, by key (sorted)."""
+        if self.layout == "fanout":
+            found = {k: self._indexed(k) for k in sorted(self.keys())}
+            return {k: r for k, r in found.items() if r is not None}
         out: dict[str, ItemRecord] = {}
         for path in sorted(self.items_dir.glob("*.json")):
             rec = self.record(path.stem)
@@ -365,6 +572,13 @@ class SweepStore:
             ``n < max_attempts`` times, ``(False, n)`` for a done item or one
             that has used up its attempts.
         """
+        if self.layout == "fanout" and key not in self._unflushed:
+            entry = self._index.get(check_key(key))
+            if entry is None:
+                return True, 0
+            made = (entry & ((1 << _STATUS_SHIFT) - 1)) >> 1
+            if made < _MAX_ATTEMPTS:  # else saturated: read the line
+                return (False, made) if entry & 1 else (made < max_attempts, made)
         rec = self.record(key)
         if rec is None:
             return True, 0
@@ -375,7 +589,7 @@ class SweepStore:
     def write_done(
         self, key: str, payload: Any, summary: Mapping[str, Any], *, attempts: int = 1
     ) -> ItemRecord:
-        """Save a finished item: payload first, then its record (both atomic).
+        """Save a finished item written here: payload first, then its record.
 
         Returns
         -------
@@ -384,20 +598,68 @@ class SweepStore:
         """
         prev = self.record(key)
         target = self.payload_path(key)
-        self._save(payload, target)
+        if self._encode is not None and self.layout == "fanout":
+            data = self._encode(payload)
+            write_unsynced(target, data)
+            checksum = hashlib.sha256(data).hexdigest()
+        else:
+            self._save(payload, target)
+            checksum = sha256_file(target)
         record = ItemRecord(
             key=key,
             state="done",
             attempts=attempts,
             reasons=prev.reasons if prev is not None else (),
             summary=json_roundtrip(dict(summary)),
-            payload=target.name,
+            payload=target.relative_to(self.items_dir).as_posix(),
             sweep=self.binding,
-            checksum=_sha256(target),
+            checksum=checksum,
         )
-        self._write_record(record)
-        self._refused.discard(key)
-        self._verified.add(key)
+        self._commit(record, target)
+        return record
+
+    def accept(self, key: str, written: WrittenItem, *, attempts: int) -> ItemRecord | None:
+        """Record an item whose payload a worker wrote, after checking the file.
+
+        Returns
+        -------
+        ItemRecord or None
+            The record, or ``None`` if the file is missing, misplaced or does
+            not match the worker's checksum: the item is refused (with a
+            :class:`~youbot_opt.exceptions.YoubotOptWarning`) and not recorded.
+        """
+        target = self.payload_path(key)
+        expected = target.relative_to(self.items_dir).as_posix()
+        why = None
+        if written.payload != expected:
+            why = f"the worker wrote {written.payload!r}, not {expected!r}"
+        else:
+            try:
+                if sha256_file(target) != written.checksum:
+                    why = f"its payload {expected} does not match the checksum its worker reported"
+            except FileNotFoundError:
+                why = f"its payload {expected} is missing"
+        if why is not None:  # not recorded; the caller records a failed attempt and reruns
+            warnings.warn(
+                f"refused item {key!r} of the sweep in {self.directory} (worker-written: "
+                f"{why}); it is recomputed",
+                YoubotOptWarning,
+                stacklevel=2,
+            )
+            _log.warning("refused sweep item %s in %s: %s", key, self.directory, why)
+            return None
+        prev = self.record(key)
+        record = ItemRecord(
+            key=key,
+            state="done",
+            attempts=attempts,
+            reasons=prev.reasons if prev is not None else (),
+            summary=json_roundtrip(dict(written.summary)),
+            payload=expected,
+            sweep=self.binding,
+            checksum=written.checksum,
+        )
+        self._commit(record, target)
         return record
 
     def write_failed(self, key: str, reason: str, *, attempts: int) -> ItemRecord:
@@ -413,22 +675,163 @@ class SweepStore:
         record = ItemRecord(
             key=key, state="failed", attempts=attempts, reasons=reasons, sweep=self.binding
         )
-        self._write_record(record)
-        self._refused.discard(key)
-        self._verified.add(key)
+        self._commit(record, None)
         return record
 
-    def _write_record(self, record: ItemRecord) -> None:
-        body = json.dumps(record.to_json(), indent=1, allow_nan=True).encode()
-        atomic_write_bytes(self._record_path(record.key), body)
+    def _commit(self, record: ItemRecord, payload: Path | None) -> None:
+        key = record.key
+        self._refused.discard(key)
+        if self.layout == "flat":
+            self._verified.add(key)
+            body = json.dumps(record.to_json(max(self.version, 2)), indent=1, allow_nan=True)
+            atomic_write_bytes(self._record_path(key), body.encode())
+            return
+        self._unflushed[key] = record
+        line = encode_line({**record.to_json(), "t": time.time_ns()})
+        self._lines.append((key, record.state, record.attempts, line))
+        if payload is not None:
+            self._files.append(payload)
+        if (
+            not self._group
+            or len(self._lines) >= GROUP_ITEMS
+            or time.monotonic() - self._last_flush >= self._window
+        ):
+            self.flush()
+
+    def flush(self) -> None:
+        """Make the recorded items durable: their payloads first, then their journal lines."""
+        tic = time.monotonic()
+        if self._lines:
+            sync_folder(self.items_dir, self._files)
+            if self._journal is None:
+                self._journal = JournalWriter(self.items_dir / JOURNAL)
+            if self._journal.path not in self._journals[-1:]:
+                self._journals.append(self._journal.path)
+            number = len(self._journals) - 1
+            if number >= _FILE_BIT:  # pragma: no cover - 65536 runs or shards on one store
+                raise ResultFileError(
+                    f"the sweep in {self.directory} has {number} journal files; reopen it "
+                    "without shards running to merge them"
+                )
+            offset = self._journal.append([item[-1] for item in self._lines])
+            for key, state, attempts, line in self._lines:  # durable: read back when asked for
+                self._index[key] = _entry(offset, number, state, attempts)
+                offset += len(line)
+            self._lines, self._files = [], []
+            self._unflushed.clear()
+            # Wait ~10x a flush's cost before the next (<= 10 % of the time spent
+            # flushing), never longer than GROUP_SECONDS: slow items flush one by one.
+            cost = time.monotonic() - tic
+            self._window = min(GROUP_SECONDS, _FLUSH_SHARE * cost)
+        self._last_flush = time.monotonic()
+
+    @contextlib.contextmanager
+    def grouped(self) -> Iterator[SweepStore]:
+        """Within this context, items become durable in groups; all of them at its exit.
+
+        A group is flushed when it holds :data:`GROUP_ITEMS` items or when
+        ten times the cost of the last flush, at most :data:`GROUP_SECONDS`,
+        has passed since it (so slow items are each durable as they finish);
+        the exit flushes the rest, also on an exception.
+        """
+        self._group += 1
+        try:
+            yield self
+        finally:
+            self._group -= 1
+            self.flush()
+
+    def close(self) -> None:
+        """Flush and close the journal (safe to call more than once)."""
+        self.flush()
+        self._journal = None  # a later write starts a new journal file
+        self._close_readers()
+
+    def _close_readers(self) -> None:
+        readers, self._readers = self._readers, {}
+        for fh in readers.values():
+            fh.close()
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            self._close_readers()
+
+    def fingerprint(self, keys: Iterable[str], extra: Mapping[str, Any]) -> str:
+        """SHA-256 naming the records of ``keys`` as they are now (state, attempts, checksum).
+
+        With ``extra`` (e.g. a selection rule's tolerances) it names what a
+        selection over these items depends on (see :meth:`save_selection`).
+        """
+        digest = hashlib.sha256(json.dumps(extra, sort_keys=True).encode())
+        for key in keys:
+            rec = self.record(key)
+            line = "-" if rec is None else f"{rec.state}:{rec.attempts}:{rec.checksum}"
+            digest.update(f"{key}={line}\n".encode())
+        return digest.hexdigest()
+
+    def save_selection(
+        self, fingerprint: str, clusters: Clusters | Sequence[Sequence[str]]
+    ) -> None:
+        """Save the optima chosen over the items named by ``fingerprint`` (``DIR/optima.json``).
+
+        A :class:`~youbot_opt.sweeps.selection.Clusters` is saved as its
+        representatives and member counts, its members in
+        ``DIR/optima-<fingerprint[:16]>.sqlite`` (written first); lists as lists.
+        """
+        body: dict[str, Any] = {
+            "schema": "youbot_opt.sweep_optima",
+            "schema_version": SCHEMA_VERSION,
+            "binding": self.binding,
+            "fingerprint": fingerprint,
+        }
+        members = self.directory / f"optima-{fingerprint[:16]}.sqlite"
+        if isinstance(clusters, Clusters):
+            clusters.save(members)
+            body["representatives"] = list(clusters.representatives)
+            body["counts"] = list(clusters.counts)
+            body["members"] = members.name
+        else:
+            body["clusters"] = [list(c) for c in clusters]
+        atomic_write_bytes(self.directory / _OPTIMA, json.dumps(body).encode())
+        for old in self.directory.glob("optima-*.sqlite"):  # earlier selections' members
+            if old.name != members.name:
+                with contextlib.suppress(OSError):
+                    old.unlink()
+
+    def selection(self, fingerprint: str) -> Clusters | list[list[str]] | None:
+        """Return the optima saved for exactly these items (``None``: none, or items changed)."""
+        try:
+            data = json.loads((self.directory / _OPTIMA).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        if not isinstance(data, dict) or data.get("binding") != self.binding:
+            return None
+        if data.get("fingerprint") != fingerprint:
+            return None
+        reps, counts, name = data.get("representatives"), data.get("counts"), data.get("members")
+        if isinstance(reps, list) and isinstance(counts, list) and isinstance(name, str):
+            if not (
+                len(reps) == len(counts)
+                and all(isinstance(k, str) for k in reps)
+                and all(isinstance(n, int) and n >= 1 for n in counts)
+                and name == f"optima-{fingerprint[:16]}.sqlite"
+            ):
+                return None
+            return Clusters.open(self.directory / name, reps, counts)
+        clusters = data.get("clusters")  # written before the members moved to their own file
+        if not isinstance(clusters, list) or not all(
+            isinstance(c, list) and c and all(isinstance(k, str) for k in c) for c in clusters
+        ):
+            return None
+        return clusters
 
     def load(self, key: str) -> Any:
-        """Load the payload of a done item.
+        """Load the payload of a done item (checked against its checksum first).
 
         Raises
         ------
         ResultFileError
-            If the item is not done, or its payload is missing or unreadable.
+            If the item is not done, or its payload is missing, refused or unreadable.
         """
         rec = self.record(key)
         if rec is None or rec.state != "done" or rec.payload is None:
@@ -439,19 +842,15 @@ class SweepStore:
                 f"item {key!r} is recorded as done but its payload {path} is missing; "
                 "delete its record to recompute it"
             )
+        if self.layout == "fanout" and not self.verify(key):
+            raise ResultFileError(
+                f"item {key!r} of {self.directory} was refused (its payload {path} does not "
+                "match its checksum); rerun the sweep to recompute it"
+            )
         return self._load(path)
 
 
 _MISSING = object()
-
-
-def _sha256(path: Path) -> str:
-    """SHA-256 (hex) of a file's bytes."""
-    digest = hashlib.sha256()
-    with path.open("rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _same(a: Any, b: Any) -> bool:

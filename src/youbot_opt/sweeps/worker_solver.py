@@ -1,13 +1,10 @@
 """The worker-local cache of a built solver: build it once per worker, reuse it for every item.
 
-Owns how a sweep hands its solver to worker processes (spec: the sweep layer
-of ``ARCHITECTURE.md``). A :class:`WorkerSolver` travels with every task; it
-pickles as a recipe (``build(*args)`` and a run token) without the built
-solver, which stays behind in ``prebuilt`` for serial runs and forked pools.
-:meth:`WorkerSolver.get` returns the prebuilt solver, else the one this
-worker (process, and thread for thread pools) built for the same token, else
-builds and caches a new one; :func:`hold_solver` is the pool initializer that
-fills the cache when a worker starts. Robot-agnostic: ``build`` is any callable.
+A :class:`WorkerSolver` travels with every task and pickles as a recipe
+(``build(*args)`` and a run token); :meth:`WorkerSolver.get` returns the
+prebuilt solver (serial runs, forked pools), else the one this worker built
+for the token, else builds and caches one. :func:`hold_solver` is the pool
+initializer that fills the cache when a worker starts. ``build`` is any callable.
 
     handle = WorkerSolver.of(TrajOptSolver, problem, method, options, prebuilt=solver)
     run_tasks(tasks, initializer=hold_solver, initargs=(handle,))

@@ -2,14 +2,9 @@
 
 The study scaled all bounds to 100, 95, 90 and 85 % of the data sheet and
 re-solved the ``beta = 0.5`` problem (spec ``trajopt.md``).
-:func:`bound_scaling_study` does that with a few seeded starts per scale (the
-same start seeds at every scale, plus the straight line), all scales' starts
-sharing one executor, and reports per scale the best ``T``, ``W``, ``f`` and
-the active bounds of the best solution. Which bound families are scaled is
-the problem's choice (:attr:`~youbot_opt.trajopt.problem.TrajOptProblem.scaled_bounds`;
-by default position, velocity and torque, as in the study).
-
-With ``SweepOptions(out=DIR)`` every start is saved as it finishes and a rerun resumes.
+:func:`bound_scaling_study` does that with a few seeded starts per scale and
+reports per scale the best ``T``, ``W``, ``f`` and the active bounds of the best
+solution; with ``SweepOptions(out=DIR)`` every start is saved as it finishes.
 
     res = bound_scaling_study(solver, (1.0, 0.9), n_starts=5, sweep=SweepOptions(workers=4))
 """
@@ -25,7 +20,7 @@ from typing import Any
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.trajopt.multistart import MultistartResult
+from youbot_opt.trajopt.multistart import MultistartResult, optima_rule
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.result import ActiveBound
@@ -155,6 +150,13 @@ def bound_scaling_study(
 ) -> BoundScalingResult:
     """Solve the problem with every bound scaled by each factor in ``scales``.
 
+    Every scale gets the same start seeds, plus the straight line; all scales'
+    starts share one executor. Which bound families are scaled is the problem's
+    choice (:attr:`~youbot_opt.trajopt.problem.TrajOptProblem.scaled_bounds`; by
+    default position, velocity and torque, as in the study). With
+    ``SweepOptions(out=DIR)`` every start is saved as it finishes and a rerun
+    resumes.
+
     Parameters
     ----------
     solver : TrajOptSolver
@@ -226,7 +228,11 @@ def bound_scaling_study(
         }
         store = open_store(sweep.directory, "bounds", params, solver, clean=sweep.shard is None)
     outcomes, _ = solve_starts(
-        solver, [j for jobs in jobs_by_scale for j in jobs], store=store, sweep=sweep
+        solver,
+        [j for jobs in jobs_by_scale for j in jobs],
+        store=store,
+        sweep=sweep,
+        keep=optima_rule(group=lambda start: start.key.split("_", 1)[0]),  # per scale
     )
     rows = []
     for s, jobs in zip(values, jobs_by_scale, strict=True):

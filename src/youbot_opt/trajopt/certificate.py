@@ -153,6 +153,9 @@ class Certificate:
         Wall time of :func:`certify` in [s].
     tolerances : Tolerances
         Thresholds used by :attr:`ok` (and by :meth:`passed` when given none).
+    incomplete : str
+        Why some figures were not measured (``certify``'s time limit ran out;
+        they are NaN), or ``""``. An incomplete certificate never passes.
     """
 
     robot: str
@@ -172,6 +175,7 @@ class Certificate:
     gains: PDGains
     elapsed: float
     tolerances: Tolerances = field(default_factory=Tolerances)
+    incomplete: str = ""
 
     # ------------------------------------------------------------ aggregates
     @property
@@ -255,7 +259,8 @@ class Certificate:
             One line per failed check. A NaN figure (failed integration) fails.
         """
         tol = self.tolerances if tolerances is None else tolerances
-        return [
+        incomplete = [f"incomplete: {self.incomplete}"] if self.incomplete else []
+        return incomplete + [
             f"{label} = {value:.3g} > {limit:.3g}"
             for label, value, _, limit, _ in self._rows(tol)
             if not value <= limit
@@ -290,6 +295,7 @@ class Certificate:
             "tracking_bandwidth_rad_s": self.gains.bandwidth,
             "open_loop_stop_rad": self.open_loop_stop,
             "elapsed_s": self.elapsed,
+            "incomplete": self.incomplete,
         }
         for key, value in (
             ("local_position_max_rad", self.local_position_max),
@@ -312,6 +318,8 @@ class Certificate:
 
     def __str__(self) -> str:
         verdict = "PASSED" if self.ok else "FAILED"
+        if self.incomplete:
+            verdict = f"INCOMPLETE, {self.incomplete}"
         lines = [
             f"Certificate: {self.robot}, {self.n_knots} knots, {self.interpolation}, "
             f"T = {self.duration:.4g} s: {verdict}",

@@ -19,6 +19,7 @@ import time
 
 import numpy as np
 
+from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
@@ -168,6 +169,7 @@ def certify(
     open_loop_stop: float = 0.5,
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
+    time_limit: float | None = None,
 ) -> Certificate:
     """Check a plan by forward simulation with ``pin.aba``, independently of its transcription.
 
@@ -198,6 +200,12 @@ def certify(
         Tolerances of the local integrations (``atol`` in [rad] and [rad/s]);
         the tracking and open-loop simulations use :data:`TRACKING_RTOL` and
         :data:`TRACKING_ATOL`.
+    time_limit : float, optional
+        Wall time in [s] for the simulations (None: no limit). When it runs
+        out, the remaining simulations are skipped, their figures are NaN and
+        :attr:`Certificate.incomplete` says where it stopped: the certificate
+        fails (stiff robots, such as light fingers under 20 rad/s tracking,
+        can take minutes).
 
     Returns
     -------
@@ -211,16 +219,23 @@ def certify(
         or an option is out of range.
     """
     tic = time.perf_counter()
+    limit = check_time_limit(time_limit, "time_limit")
+    deadline = None if limit is None else tic + limit
     trajectory, model, bounds, use_damping = _resolve(plan, robot, bounds, bound_scale, damping)
     gains = PDGains() if gains is None else gains
-    q_end, v_end = integrate_intervals(trajectory, model, damping=use_damping, rtol=rtol, atol=atol)
+    q_end, v_end = integrate_intervals(
+        trajectory, model, damping=use_damping, rtol=rtol, atol=atol, deadline=deadline
+    )
     local_q = np.max(np.abs(q_end - trajectory.q[1:]), axis=1)
     local_v = np.max(np.abs(v_end - trajectory.v[1:]), axis=1)
+    incomplete = _out_of_time(deadline, limit, "the one-interval integrations")
 
     sim = simulate(
         trajectory, model, damping=use_damping, gains=gains,
         samples_per_interval=samples_per_interval, rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
+        deadline=deadline if not incomplete else tic,
     )  # fmt: skip
+    incomplete = incomplete or _out_of_time(deadline, limit, "the tracking simulation")
     fb, plan_tau = sim.tau_feedback, sim.tau_plan
     rms = _ratio(
         np.sqrt(np.trapezoid(fb**2, sim.t, axis=0)),
@@ -235,8 +250,12 @@ def certify(
     open_loop = simulate(
         trajectory, model, damping=use_damping, samples_per_interval=1,
         stop_deviation=open_loop_stop, rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
+        deadline=deadline if not incomplete else tic,
     )  # fmt: skip
-    if open_loop.stop_time is None:
+    incomplete = incomplete or _out_of_time(deadline, limit, "the open-loop simulation")
+    if incomplete:
+        ol_final = ol_time = math.nan
+    elif open_loop.stop_time is None:
         ol_final = float(np.max(np.abs(open_loop.q[-1] - trajectory.q[-1])))
         ol_time = math.inf
     else:
@@ -261,4 +280,12 @@ def certify(
         gains=gains,
         elapsed=time.perf_counter() - tic,
         tolerances=Tolerances() if tolerances is None else tolerances,
+        incomplete=incomplete,
     )
+
+
+def _out_of_time(deadline: float | None, limit: float | None, stage: str) -> str:
+    """Return the ``incomplete`` note if ``deadline`` has passed during ``stage``, else ""."""
+    if deadline is None or time.perf_counter() <= deadline:
+        return ""
+    return f"time limit {limit:g} s reached during {stage}"

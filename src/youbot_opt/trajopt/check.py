@@ -1,31 +1,223 @@
-"""Apply the independent check to a trajectory result: :func:`checked`, :func:`check_result`.
+"""The independent check of a trajectory result: :func:`check_result`, :func:`checked`.
 
-A :class:`~youbot_opt.trajopt.result.TrajOptResult` may call itself a success
-only if IPOPT converged *and* :meth:`~youbot_opt.trajopt.result.TrajOptResult.check`,
+A result may call itself a success only if IPOPT converged *and* this check,
 which does not use the NLP, agrees: every number finite, every variable within
 its bounds, the first and last knots at the start and goal, the collocation
 defects recomputed with ``pin.aba`` vanishing, T, W and f following from the
-variables. Constructing a result does no work; the solver and the loader of
-saved results pass every result through :func:`checked`.
+variables. The solver and the loader pass every result through :func:`checked`;
+:meth:`~youbot_opt.trajopt.result.TrajOptResult.check` is :func:`check_result`.
 
 >>> result = checked(result)  # status and message now the check's  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-from youbot_opt.nlp.status import apply_check
-from youbot_opt.trajopt.result import ResultCheck, TrajOptResult
+import math
+from collections.abc import Mapping
+from typing import NamedTuple, Protocol
 
-__all__ = ["ResultCheck", "check_result", "checked"]
+import numpy as np
+
+from youbot_opt._typing import Array
+from youbot_opt.nlp.status import ResultT, SolveStatus, apply_check, status_from_ipopt
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.simulate import batched_aba
+from youbot_opt.trajopt.trajectory import Trajectory
+
+__all__ = ["ResultCheck", "CheckedSolution", "check_result", "checked"]
 
 
-def check_result(result: TrajOptResult, *, feasibility_tol: float | None = None) -> ResultCheck:
-    """Classify a result independently of IPOPT's flag (:meth:`TrajOptResult.check`).
+class ResultCheck(NamedTuple):
+    """Verdict of :func:`check_result`: the status a result deserves and why.
+
+    Attributes
+    ----------
+    status : SolveStatus
+        IPOPT's status (from ``solver_status``), downgraded when a check fails.
+    message : str
+        What failed (empty if nothing did).
+    finite : bool
+        Every variable and reported figure is finite.
+    bound_violation : float
+        Largest excess of a variable over its bound (``dt`` too), in its unit.
+    boundary_violation : float
+        Largest deviation of the first and last knot from start and goal, [rad] or [rad/s].
+    defect : float
+        Largest collocation defect by ``pin.aba`` (not CasADi), [rad] or [rad/s];
+        NaN for a transcription other than trapezoidal and Hermite-Simpson.
+    """
+
+    status: SolveStatus
+    message: str
+    finite: bool
+    bound_violation: float
+    boundary_violation: float
+    defect: float
+
+    @property
+    def passed(self) -> bool:
+        """Whether :attr:`status` is a success."""
+        return self.status.success
+
+
+class CheckedSolution(Protocol):
+    """What :func:`check_result` reads of a result (a ``TrajOptResult`` has all of it).
+
+    The members are those of :class:`~youbot_opt.trajopt.result.TrajOptResult`
+    of the same names, with the same units and shapes.
+    """
+
+    @property
+    def problem(self) -> TrajOptProblem:
+        """The problem that was solved."""
+        ...
+
+    @property
+    def method(self) -> str:
+        """Transcription name (``"trapezoidal"``, ``"hermite_simpson"``, ...)."""
+        ...
+
+    @property
+    def solver_status(self) -> str:
+        """IPOPT's own ``return_status`` string."""
+        ...
+
+    @property
+    def variables(self) -> Mapping[str, Array]:
+        """Every decision-variable block, knot-major."""
+        ...
+
+    @property
+    def grid(self) -> Array | None:
+        """Interval fractions of ``T``, shape (N - 1,), or None for the uniform grid."""
+        ...
+
+    @property
+    def trajectory(self) -> Trajectory | None:
+        """The solution's trajectory (its knots must be the variables)."""
+        ...
+
+    @property
+    def start(self) -> BoundaryState:
+        """Start state of this solve."""
+        ...
+
+    @property
+    def goal(self) -> BoundaryState:
+        """Goal state of this solve."""
+        ...
+
+    @property
+    def beta(self) -> float:
+        """Time weight in [0, 1]."""
+        ...
+
+    @property
+    def bound_scale(self) -> float:
+        """Bound scale factor (1.0 = data sheet)."""
+        ...
+
+    @property
+    def objective(self) -> float:
+        """Reported ``beta T + (1 - beta) W``."""
+        ...
+
+    @property
+    def duration(self) -> float:
+        """Reported duration ``T`` in [s]."""
+        ...
+
+    @property
+    def dt(self) -> float:
+        """Reported mean time step in [s]."""
+        ...
+
+    @property
+    def work(self) -> float:
+        """Reported ``W`` in [N^2 m^2 s]."""
+        ...
+
+    @property
+    def max_violation(self) -> float:
+        """Reported largest constraint violation (units of each row)."""
+        ...
+
+    @property
+    def feasibility_tol(self) -> float:
+        """Largest violation a successful result may have (units of each row)."""
+        ...
+
+    def step_ratios(self) -> Array:
+        """Step ratios ``h_k / dt`` of the grid, shape (N - 1,)."""
+        ...
+
+
+def _excess(x: Array, lower: Array | float, upper: Array | float) -> float:
+    """Largest amount by which ``x`` leaves ``[lower, upper]`` (0 if inside)."""
+    return float(np.max(np.maximum(lower - x, x - upper), initial=0.0))
+
+
+def _defects(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> float | None:
+    """Largest collocation defect, with accelerations from ``pin.aba`` (independent path)."""
+    problem = result.problem
+    aba = batched_aba(problem.robot, damping=problem.damping)
+    q, qd, tau = v["q"], v["v"], v["tau"]
+    a = aba(q, qd, tau).reshape(qd.shape)
+    h: float | Array = dt
+    if result.grid is not None:  # interval steps h_k = r_k dt as a column
+        h = dt * result.step_ratios()[:, None]
+    rows: tuple[Array, ...]
+    if result.method == "hermite_simpson":
+        qm, vm = v["q_mid"], v["v_mid"]
+        am = aba(qm, vm, v["tau_mid"]).reshape(vm.shape)
+        rows = (
+            q[1:] - q[:-1] - h / 6.0 * (qd[:-1] + 4.0 * vm + qd[1:]),
+            qd[1:] - qd[:-1] - h / 6.0 * (a[:-1] + 4.0 * am + a[1:]),
+            qm - 0.5 * (q[:-1] + q[1:]) - h / 8.0 * (qd[:-1] - qd[1:]),
+            vm - 0.5 * (qd[:-1] + qd[1:]) - h / 8.0 * (a[:-1] - a[1:]),
+        )
+    elif result.method == "trapezoidal":
+        rows = (
+            q[1:] - q[:-1] - 0.5 * h * (qd[:-1] + qd[1:]),
+            qd[1:] - qd[:-1] - 0.5 * h * (a[:-1] + a[1:]),
+        )
+    else:  # another transcription (e.g. the study code's): no independent defect rule here
+        return None
+    return max(float(np.max(np.abs(r), initial=0.0)) for r in rows)
+
+
+def _work(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> float:
+    """``W`` by the transcription's quadrature, written out here."""
+    p = np.sum(v["tau"] ** 2, axis=1)
+    if result.grid is not None:
+        h = dt * result.step_ratios()
+        if result.method == "hermite_simpson":
+            pm = np.sum(v["tau_mid"] ** 2, axis=1)
+            return float(np.sum(h / 6.0 * (p[:-1] + 4.0 * pm + p[1:])))
+        return float(np.sum(0.5 * h * (p[:-1] + p[1:])))
+    if result.method == "hermite_simpson":
+        pm = np.sum(v["tau_mid"] ** 2, axis=1)
+        return float(dt / 6.0 * np.sum(p[:-1] + 4.0 * pm + p[1:]))
+    return float(0.5 * dt * np.sum(p[:-1] + p[1:]))
+
+
+def check_result(result: CheckedSolution, *, feasibility_tol: float | None = None) -> ResultCheck:
+    """Re-check a result independently of IPOPT's flag and of the NLP.
+
+    Starts from IPOPT's own status (``result.solver_status``) and downgrades it
+    when the stored solution is not finite (:attr:`SolveStatus.NON_FINITE`),
+    malformed or inconsistent with its reported duration, work or objective
+    (:attr:`SolveStatus.FAILED`), or -- for a converged solve -- violates a
+    variable bound, a boundary state or a collocation defect by more than
+    ``feasibility_tol`` (:attr:`SolveStatus.CONSTRAINT_VIOLATION`). The
+    defects are recomputed from the decision variables with Pinocchio's
+    ``pin.aba`` (:func:`~youbot_opt.trajopt.simulate.batched_aba`), not with
+    the CasADi dynamics inside the NLP. The result itself is not changed.
 
     Parameters
     ----------
     result : TrajOptResult
-        The result to check (not changed).
+        The result to check (any :class:`CheckedSolution`).
     feasibility_tol : float, optional
         Largest accepted violation in the unit of each row ([rad], [rad/s],
         [N m], [s]); ``result.feasibility_tol`` by default.
@@ -35,16 +227,102 @@ def check_result(result: TrajOptResult, *, feasibility_tol: float | None = None)
     ResultCheck
         The status the result deserves, with the measured figures.
     """
-    return result.check(feasibility_tol=feasibility_tol)
+    tol = result.feasibility_tol if feasibility_tol is None else float(feasibility_tol)
+    base = status_from_ipopt(result.solver_status)
+    inf = math.inf
+
+    def fail(status: SolveStatus, why: str, finite: bool = True) -> ResultCheck:
+        return ResultCheck(status, why, finite, inf, inf, inf)
+
+    problem = result.problem
+    n, nv = problem.n_knots, problem.nv
+    shapes = {"q": (n, nv), "v": (n, nv), "tau": (n, nv), "dt": (1, 1)}
+    if result.method == "hermite_simpson":
+        shapes.update({"q_mid": (n - 1, nv), "v_mid": (n - 1, nv), "tau_mid": (n - 1, nv)})
+    try:
+        v = {k: np.asarray(result.variables[k], dtype=float) for k in shapes}
+    except (KeyError, TypeError, ValueError) as exc:
+        return fail(SolveStatus.FAILED, f"malformed result: variables lack {exc}")
+    if result.grid is not None and np.shape(result.grid) != (n - 1,):
+        return fail(SolveStatus.FAILED, f"malformed result: grid shape {np.shape(result.grid)}")
+    bad = {k: x.shape for k, x in v.items() if x.shape != shapes[k]}
+    if bad:
+        return fail(SolveStatus.FAILED, f"malformed result: variable shapes {bad}, want {shapes}")
+    scalars = {
+        "objective": result.objective,
+        "duration": result.duration,
+        "dt": result.dt,
+        "work": result.work,
+        "max_violation": result.max_violation,
+    }
+    nonfinite = [k for k, x in v.items() if not np.all(np.isfinite(x))]
+    nonfinite += [k for k, x in scalars.items() if not math.isfinite(x)]
+    if nonfinite:
+        why = f"non-finite values in {', '.join(nonfinite)}"
+        return fail(SolveStatus.NON_FINITE, why, finite=False)
+    dt = float(v["dt"][0, 0])
+    b = problem.bounds(result.bound_scale)
+    dt_lo, dt_hi = problem.dt_min, problem.dt_max
+    if problem.duration is not None:
+        dt_lo = dt_hi = problem.duration / (n - 1)
+    # Knot values only: midpoint bounds depend on the transcription (HS leaves v_mid free).
+    bound = max(_excess(v["q"], b.q_lower, b.q_upper), _excess(v["v"], b.v_lower, b.v_upper))
+    bound = max(bound, _excess(v["tau"], b.tau_lower, b.tau_upper))
+    bound = max(bound, _excess(np.array(dt), dt_lo, dt_hi))
+    start_v, goal_v = result.start.velocity, result.goal.velocity
+    boundary = max(
+        float(np.max(np.abs(d)))
+        for d in (
+            v["q"][0] - result.start.q, v["v"][0] - start_v,
+            v["q"][-1] - result.goal.q, v["v"][-1] - goal_v,
+        )
+    )  # fmt: skip
+    if not dt > 0.0:
+        why, status = f"time step dt = {dt:.3g} s <= 0", SolveStatus.CONSTRAINT_VIOLATION
+        return ResultCheck(status if base.success else base, why, True, bound, boundary, inf)
+    try:
+        found = _defects(result, v, dt)
+    except (ValueError, TypeError) as exc:  # a robot of another size
+        return fail(SolveStatus.FAILED, f"malformed result: {exc}")
+    defect = math.nan if found is None else found  # NaN: not checked
+    figures = (True, bound, boundary, defect)
+    if found is not None and not math.isfinite(found):
+        return ResultCheck(SolveStatus.NON_FINITE, "non-finite dynamics at the solution", *figures)
+    # Reported figures = those of the variables (1e-9 relative: summation order only).
+    work = _work(result, v, dt)
+    expected = {
+        "duration": (n - 1) * dt,
+        "work": work,
+        "objective": result.beta * (n - 1) * dt + (1.0 - result.beta) * work,
+    }
+    wrong = [
+        f"{k} = {scalars[k]:.9g} but the variables give {x:.9g}"
+        for k, x in expected.items()
+        if not abs(scalars[k] - x) <= 1e-9 * max(1.0, abs(x))
+    ]
+    worst = {"bound": bound, "boundary state": boundary, "collocation defect": defect}
+    over = [
+        f"{k} violated by {x:.3g}" for k, x in worst.items() if x > tol or math.isinf(x)
+    ]  # NaN: unchecked
+    if result.trajectory is None:
+        over.append("no trajectory")
+    elif not np.array_equal(result.trajectory.q, v["q"]):
+        over.append("trajectory knots differ from the variables")
+    if base.success and over:
+        msg = ", ".join(over + wrong) + f" (feasibility_tol = {tol:.3g})"
+        return ResultCheck(SolveStatus.CONSTRAINT_VIOLATION, msg, *figures)
+    if wrong:
+        return ResultCheck(SolveStatus.FAILED, "inconsistent result: " + "; ".join(wrong), *figures)
+    return ResultCheck(base, "", *figures)
 
 
-def checked(result: TrajOptResult) -> TrajOptResult:
+def checked(result: ResultT) -> ResultT:
     """Return ``result`` with the status its independent check gives it.
 
     A success claim that the check refutes is downgraded: the check's status
-    replaces :attr:`~TrajOptResult.status` and its reason is appended to
-    :attr:`~TrajOptResult.message`. A failure stays as it is (the check only
-    downgrades), and so does a success the check confirms.
+    replaces ``result.status`` and its reason is appended to ``result.message``.
+    A failure stays as it is (the check only downgrades), and so does a success
+    the check confirms.
 
     Parameters
     ----------

@@ -1,15 +1,13 @@
 """Initial guesses for trajectory solves: the straight line, and guess plumbing.
 
 :func:`straight_line_guess` interpolates the joint positions linearly from the
-start to the goal at constant velocity, with the torques of inverse dynamics
-(Pinocchio's RNEA plus the joint damping) along that line. The study found
-this guess gave inconsistent fmincon results and used random feasible
-polynomial splines instead (:mod:`youbot_opt.trajopt.spline_guess`); with exact
-derivatives IPOPT converges from it reliably for the base case.
-
+start to the goal at constant velocity, with inverse-dynamics torques; the
+random feasible splines of the study are :mod:`youbot_opt.trajopt.spline_guess`.
 :func:`resolve_guess` turns what a caller passed as ``guess`` (nothing, a
 :class:`~youbot_opt.trajopt.trajectory.Trajectory`, or a previous result) into a
 trajectory the transcription can sample.
+
+>>> guess = straight_line_guess(problem, duration=4.9)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -71,6 +69,9 @@ def straight_line_guess(
     goal: BoundaryState | None = None,
 ) -> Trajectory:
     """Constant-velocity straight line in joint space from start to goal.
+
+    The torques are those of inverse dynamics (Pinocchio's RNEA plus the joint
+    damping) along the line.
 
     Parameters
     ----------

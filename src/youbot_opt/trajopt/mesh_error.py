@@ -1,16 +1,12 @@
 r"""Collocation-error estimate per interval: :func:`collocation_error`.
 
-Along each interval the state interpolant the transcription implies (each state
-the integral of the polynomial through its derivative's collocation values:
-quadratic ``q``, ``v`` and linear torque for trapezoidal collocation, cubic
-``q``, ``v`` and quadratic torque for Hermite-Simpson) is put back into the
-dynamics, evaluated with Pinocchio's ``pin.aba`` (not the NLP's), and the
-residual ``|x'_interp - f(x_interp, tau_interp)|`` is integrated over the
-interval by composite Gauss-Legendre quadrature: the absolute local error in
-state units ([rad] for positions, [rad/s] for velocities), made relative by
-Betts' scale ``1 + max_k(|x_i|, |x_i'|)`` (Betts, *Practical Methods for Optimal
-Control*, ch. 4; OptimTraj's ``trapezoid.m`` / ``hermiteSimpson.m``).
-Rationale and measurements: docs/refinement.md.
+The state interpolant the transcription implies is put back into the dynamics
+(Pinocchio's ``pin.aba``, not the NLP's) and the residual
+``|x'_interp - f(x_interp, tau_interp)|`` is integrated over each interval by
+composite Gauss-Legendre quadrature: the absolute local error in state units
+([rad], [rad/s]), made relative by Betts' scale ``1 + max_k(|x_i|, |x_i'|)``
+(Betts, *Practical Methods for Optimal Control*, ch. 4). The interpolants,
+rationale and measurements: docs/refinement.md, "The collocation-error estimate".
 
 >>> collocation_error(result).max  # doctest: +SKIP
 """

@@ -1,37 +1,36 @@
 """Seeded multistart of trajectory solves, with the distinct local optima (spec ``trajopt.md``).
 
 Owns :func:`run_multistart` (the study's 50 random starts per ``beta``: random
-feasible spline guesses, optionally plus the straight line; start ``i``'s seed
-comes from ``SeedSequence(seed).spawn``, so results do not depend on the
-executor), :class:`MultistartResult`, :class:`LocalOptimum` and
-:func:`trajectory_distance`. How starts run (crash-isolated workers, retries,
-time limits, resumable ``out`` directory) is one :class:`~youbot_opt.sweeps.options.SweepOptions`;
-the job machinery is :mod:`youbot_opt.trajopt.sweep`, the clustering
-:func:`youbot_opt.sweeps.cluster.cluster_optima`.
+feasible spline guesses, optionally plus the straight line, each seeded from
+``SeedSequence(seed).spawn`` so results do not depend on the executor),
+:class:`MultistartResult`, :class:`LocalOptimum` and :func:`trajectory_distance`.
+How starts run is one :class:`~youbot_opt.sweeps.options.SweepOptions`; the job
+machinery is :mod:`youbot_opt.trajopt.sweep`.
 
     ms = run_multistart(solver, 50, beta=0.5, sweep=SweepOptions(workers=4, out="runs/ms"))
 """
 
 from __future__ import annotations
 
+import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import (
+    StartJobs,
     StartOutcome,
     check_solver,
     default_dt0,
-    make_jobs,
     open_store,
     solve_starts,
     start_seeds,
@@ -43,7 +42,9 @@ __all__ = [
     "LocalOptimum",
     "MultistartResult",
     "StartOutcome",
+    "StoredStarts",
     "default_dt0",
+    "optima_rule",
     "run_multistart",
     "start_seeds",
     "trajectory_distance",
@@ -150,9 +151,70 @@ def trajectory_distance(a: Trajectory, b: Trajectory, n_samples: int = 201) -> f
 
 def _start_distance(a: StartOutcome, b: StartOutcome) -> float:
     """:func:`trajectory_distance` of two starts' trajectories in [rad] (0 if one has none)."""
+    if a.result is None and a.optimum is not None:  # keep_results=False: clustered by the sweep
+        return 0.0 if a.optimum == b.key else math.inf
     ta = a.result.trajectory if a.result is not None else None
     tb = b.result.trajectory if b.result is not None else None
     return 0.0 if ta is None or tb is None else trajectory_distance(ta, tb)
+
+
+def optima_rule(
+    group: Callable[[StartOutcome], Hashable] | None = None,
+) -> KeepRule[StartOutcome]:
+    """Return what a ``keep_results=False`` sweep keeps: the default ``distinct_optima()``.
+
+    Parameters
+    ----------
+    group : callable ``(start) -> hashable``, optional
+        Starts of different groups are clustered apart (e.g. per bound scale).
+
+    Returns
+    -------
+    KeepRule
+        Converged starts by objective, :func:`trajectory_distance`, the default
+        tolerances of :meth:`MultistartResult.distinct_optima` (1e-5, 1e-2 rad).
+    """
+    return KeepRule(
+        objective=lambda s: s.objective if s.success else None,
+        distance=_start_distance,
+        obj_tol=1e-5,
+        dist_tol=1e-2,
+        group=group,
+    )
+
+
+class StoredStarts(Sequence[StartOutcome]):
+    """The starts of a ``keep_results=False`` multistart, read from its folder when asked for.
+
+    Start ``i`` is ``outcomes[jobs[i].key]`` each time (its figures from the
+    sweep's journal; the kept optima in full), so a result of 10^5 starts
+    holds no start. Valid while the output folder is there.
+    """
+
+    def __init__(self, jobs: StartJobs, outcomes: Mapping[str, StartOutcome]) -> None:
+        self._jobs, self._outcomes = jobs, outcomes
+
+    def __len__(self) -> int:
+        return len(self._jobs)
+
+    @overload
+    def __getitem__(self, i: int) -> StartOutcome: ...
+    @overload
+    def __getitem__(self, i: slice) -> tuple[StartOutcome, ...]: ...
+    def __getitem__(self, i: int | slice) -> StartOutcome | tuple[StartOutcome, ...]:
+        if isinstance(i, slice):
+            return tuple(self[j] for j in range(len(self))[i])
+        return self._outcomes[self._jobs[i].key]
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Sequence):
+            return NotImplemented
+        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"StoredStarts({len(self)} starts)"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -161,8 +223,10 @@ class MultistartResult:
 
     Attributes
     ----------
-    starts : tuple of StartOutcome
-        Every start, the straight line first (if used), then by index.
+    starts : sequence of StartOutcome
+        Every start, the straight line first (if used), then by index: a
+        tuple, or with ``keep_results=False`` a :class:`StoredStarts` reading
+        each start's figures from the output folder when asked for.
     beta : float
         Time weight of every solve.
     bound_scale : float
@@ -175,7 +239,7 @@ class MultistartResult:
         Number of starts loaded from the output directory instead of solved.
     """
 
-    starts: tuple[StartOutcome, ...]
+    starts: Sequence[StartOutcome]
     beta: float
     bound_scale: float
     seed: int
@@ -280,6 +344,12 @@ def run_multistart(
 ) -> MultistartResult:
     """Solve from ``n_starts`` seeded random spline guesses (and the straight line).
 
+    How the starts run (crash-isolated workers, retries, time limits, a
+    resumable ``out`` directory) is ``sweep``; the jobs are those of
+    :func:`youbot_opt.trajopt.sweep.make_jobs`, and the distinct optima are
+    clustered by :func:`youbot_opt.sweeps.cluster.cluster_optima`
+    (:meth:`MultistartResult.distinct_optima`).
+
     Parameters
     ----------
     solver : TrajOptSolver
@@ -306,6 +376,9 @@ def run_multistart(
         and retried like a crash; not serial), ``max_attempts`` (default 2), ``out``
         (each finished start is saved there and a rerun with the same
         parameters resumes) and ``progress`` ``(done, total, last_start)``.
+        ``keep_results=False`` (needs ``out``): every start keeps its figures
+        but only the best start and each default ``distinct_optima()``
+        representative keep their ``result`` in memory (the rest stay in ``out``).
 
     Returns
     -------
@@ -325,7 +398,8 @@ def run_multistart(
     bound_scale = check_bound_scale(bound_scale)
     solver.problem.check_boundary(bound_scale)
     dt0 = default_dt0(solver.problem) if dt0 is None else float(dt0)
-    jobs = make_jobs(
+    # made when asked for (equal to make_jobs'); keep_results=False: the starts read so too
+    jobs = StartJobs(
         n_starts,
         seed=seed,
         beta=beta,
@@ -345,9 +419,11 @@ def run_multistart(
             "dt0": dt0,
         }
         store = open_store(sweep.directory, "multistart", params, solver, clean=sweep.shard is None)
-    outcomes, resumed = solve_starts(solver, jobs, store=store, sweep=sweep)
+    outcomes, resumed = solve_starts(solver, jobs, store=store, sweep=sweep, keep=optima_rule())
     return MultistartResult(
-        starts=tuple(outcomes[j.key] for j in jobs),
+        starts=tuple(outcomes[j.key] for j in jobs)
+        if sweep.keep_results
+        else StoredStarts(jobs, outcomes),
         beta=beta,
         bound_scale=bound_scale,
         seed=seed,

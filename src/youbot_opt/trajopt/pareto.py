@@ -2,26 +2,10 @@
 
 The study traced the time/work trade-off by solving ``f = beta T + (1 - beta) W``
 for ``beta = 0.05 .. 0.95`` in steps of 0.05 (spec ``trajopt.md``).
-:func:`pareto_sweep` solves the weights in the order given, each from the
-previous point's solution (one NLP, re-solved with ``beta`` as a parameter),
-optionally from several seeded starts at the first point
-(:func:`youbot_opt.trajopt.multistart.run_multistart`), and falls back to the
-straight-line guess where a warm start fails. A point is *dominated* if
-another converged point has ``T <=`` and ``W <=`` with one inequality strict;
-:meth:`ParetoFront.nondominated` returns the rest.
-
-Unless ``sweep.executor="serial"``, the points are solved one after the other in
-one persistent worker process (:class:`youbot_opt.sweeps.pool.WorkerPool`; it
-inherits the built solver under ``fork``), each task carrying the previous
-point's result as its warm start. A point whose worker crashes (segfault,
-out-of-memory kill) or runs past ``sweep.timeout`` is recorded as failed with the
-reason and retried once in a fresh worker; the sweep goes on.
-
-With ``sweep.out=DIR`` each point is saved as it is solved and a rerun resumes from
-the saved points (:mod:`youbot_opt.sweeps.store`); since each point starts
-from the saved previous one, a resumed sweep gives the same points, and the
-first point's multistart (``first_starts``) is reloaded from ``DIR/first_point``.
-(The bound-scaling study lives in :mod:`youbot_opt.trajopt.bound_scaling`.)
+:func:`pareto_sweep` solves the weights in order, each from the previous point's
+solution, in one crash-isolated worker, saving and resuming with ``sweep.out``;
+:meth:`ParetoFront.nondominated` drops the dominated points. (The bound-scaling
+study lives in :mod:`youbot_opt.trajopt.bound_scaling`.)
 
     front = pareto_sweep(solver, (0.1, 0.5, 0.9), sweep=SweepOptions(out="runs/pareto"))
 """
@@ -306,6 +290,24 @@ def pareto_sweep(
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> ParetoFront:
     """Solve every weight in ``betas`` in order, each warm-started from the previous one.
+
+    One NLP is re-solved with ``beta`` as a parameter, each weight from the
+    previous point's solution, optionally from several seeded starts at the
+    first point (:func:`youbot_opt.trajopt.multistart.run_multistart`), falling
+    back to the straight-line guess where a warm start fails. Unless
+    ``sweep.executor="serial"``, the points are solved one after the other in
+    one persistent worker process (:class:`youbot_opt.sweeps.pool.WorkerPool`;
+    it inherits the built solver under ``fork``), each task carrying the
+    previous point's result as its warm start. A point whose worker crashes
+    (segfault, out-of-memory kill) or runs past ``sweep.timeout`` is recorded as
+    failed with the reason and retried once in a fresh worker; the sweep goes
+    on. With ``sweep.out=DIR`` each point is saved as it is solved and a rerun
+    resumes from the saved points (:mod:`youbot_opt.sweeps.store`); since each
+    point starts from the saved previous one, a resumed sweep gives the same
+    points, and the first point's multistart (``first_starts``) is reloaded
+    from ``DIR/first_point``. A point is *dominated* if another converged point
+    has ``T <=`` and ``W <=`` with one inequality strict (ties within
+    ``dominance_rtol``).
 
     Parameters
     ----------

@@ -3,18 +3,10 @@
 A :class:`TrajOptProblem` says *what* to optimise (spec ``trajopt.md``, "The
 optimisation problem"): a robot, rest-or-moving start and goal states
 (:class:`BoundaryState`), the number of knots, the joint bounds taken from the
-model (scaled by ``bound_scale``), the objective ``beta T + (1 - beta) W`` and
-whether the common time step is free (the study) or the duration fixed. *How*
-it is transcribed and solved lives in :mod:`youbot_opt.trajopt.transcription` and
-:mod:`youbot_opt.trajopt.solver`.
-
-Bound scaling. The study scaled *all* bounds, position included, to 100, 95,
-90 and 85 % of the data sheet. ``bound_scale`` multiplies each bound family
-listed in :attr:`TrajOptProblem.scaled_bounds` (default: position, velocity and
-torque, as in the study). Position bounds are scaled about zero (``s *
-q_lower``, ``s * q_upper``), which is what multiplying the data sheet's
-numbers means; pass ``scaled_bounds=("velocity", "torque")`` to keep the
-position range of the data sheet.
+model (scaled by ``bound_scale``; :attr:`TrajOptProblem.scaled_bounds`), the
+objective ``beta T + (1 - beta) W`` and whether the common time step is free
+(the study) or the duration fixed. *How* it is transcribed and solved lives in
+:mod:`youbot_opt.trajopt.transcription` and :mod:`youbot_opt.trajopt.solver`.
 """
 
 from __future__ import annotations
@@ -117,7 +109,10 @@ class TrajOptProblem:
         step ``dt`` free, as in the study.
     scaled_bounds : tuple of {"position", "velocity", "torque"}
         Bound families multiplied by ``bound_scale`` (default all three, as in
-        the study).
+        the study, which scaled *all* bounds to 100, 95, 90 and 85 % of the data
+        sheet). Position bounds are scaled about zero (``s * q_lower``,
+        ``s * q_upper``), which is what multiplying the data sheet's numbers
+        means; ``("velocity", "torque")`` keeps the data sheet's position range.
     dt_min, dt_max : float
         Bounds on the free time step in [s] (``dt > 0`` in the study).
     damping : bool
@@ -197,7 +192,7 @@ class TrajOptProblem:
 
     # ----------------------------------------------------------------- bounds
     def bounds(self, bound_scale: float = 1.0) -> JointBounds:
-        """Joint bounds scaled by ``bound_scale`` (see the module docstring).
+        """Joint bounds scaled by ``bound_scale`` (see :attr:`scaled_bounds`).
 
         Parameters
         ----------

@@ -1,14 +1,12 @@
 r"""Adaptive mesh refinement until the plan is certified: :func:`refine`.
 
-Each round solves on the current grid, measures the collocation error of every
-interval (:mod:`youbot_opt.trajopt.mesh_error`) and certifies the plan by
-forward simulation (:func:`youbot_opt.trajopt.certify.certify`). Intervals
-whose error exceeds the tolerance are split into ``ceil((e / tol)^(1/m))``
-equal pieces (``m`` the error's exponent in ``h``, :data:`ERROR_EXPONENTS`),
-and the next round starts from the previous solution -- primal and dual --
-interpolated onto the new grid. It stops with a certified plan or when the
-:class:`RefinementBudget` (rounds, knots, time) runs out, and records every
-round (:class:`Refinement`). Rationale and measured histories: docs/refinement.md.
+Each round solves on the current grid, measures every interval's collocation
+error (:mod:`youbot_opt.trajopt.mesh_error`) and certifies the plan by forward
+simulation (:func:`youbot_opt.trajopt.certify.certify`). Intervals over the
+tolerance are split (:func:`split_grid`; exponents: :data:`ERROR_EXPONENTS`,
+:func:`switching_intervals`, :func:`observed_exponents`); the next round starts
+from the previous solution (:func:`transfer_start`). It stops certified or when
+the :class:`RefinementBudget` runs out. Rationale, measurements: docs/refinement.md.
 
 >>> result = refine(TrajOptSolver(problem))  # doctest: +SKIP
 >>> result.certified, result.refinement.reason  # doctest: +SKIP
@@ -41,7 +39,9 @@ __all__ = [
     "RefinementBudget",
     "RefinementRound",
     "refine",
+    "observed_exponents",
     "split_grid",
+    "switching_intervals",
     "transfer_start",
 ]
 
@@ -55,13 +55,15 @@ tests/trajopt/test_refine.py), one power below its O(h^5) state error."""
 
 
 def split_grid(
-    t: Array, errors: Array, tolerance: float, exponent: int, max_pieces: int
+    t: Array, errors: Array, tolerance: float, exponent: float | Array, max_pieces: int
 ) -> tuple[Array, NDArray[np.intp]]:
     """Split the intervals whose error exceeds ``tolerance``.
 
     Interval ``k`` with error ``e_k > tolerance`` becomes
-    ``min(max_pieces, ceil((e_k / tolerance)^(1 / exponent)))`` (at least 2)
-    equal pieces, the count that brings ``e ~ h^exponent`` within the tolerance.
+    ``min(max_pieces, ceil((e_k / tolerance)^(1 / m_k)))`` (at least 2)
+    equal pieces, the count that brings ``e ~ h^m_k`` within the tolerance;
+    ``exponent`` is ``m``, one for all intervals or one per interval
+    (:func:`observed_exponents`).
 
     Returns
     -------
@@ -72,12 +74,81 @@ def split_grid(
     """
     h = np.diff(np.asarray(t, dtype=float))
     ratio = np.asarray(errors, dtype=float) / tolerance
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pieces = np.ceil(ratio ** (1.0 / exponent))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pieces = np.ceil(ratio ** (1.0 / np.asarray(exponent, dtype=float)))
     pieces = np.where(ratio > 1.0, np.clip(pieces, 2, max_pieces), 1).astype(np.intp)
     parent = np.repeat(np.arange(h.size), pieces)
     fractions = np.repeat(h / pieces, pieces)
     return fractions / fractions.sum(), parent
+
+
+def observed_exponents(
+    parent_errors: Array, errors: Array, parent: NDArray[np.intp], exponent: float | Array
+) -> Array:
+    """Per-interval error exponents seen in the last split (Betts' order reduction).
+
+    A piece of an interval split into ``p`` pieces should have the error
+    ``e_parent / p^m``; where the solution is not smooth (a torque switching
+    between bounds) it falls more slowly. The exponent each piece showed,
+    ``log(e_parent / e_piece) / log(p)``, clipped to ``[1, m]``, predicts its
+    next split (Betts, *Practical Methods for Optimal Control*, sec. 4.7.4,
+    estimates the order reduction the same way). Unsplit intervals keep their
+    parent's exponent.
+
+    Parameters
+    ----------
+    parent_errors : ndarray, shape (n_old,)
+        Relative errors of the previous grid's intervals.
+    errors : ndarray, shape (n_new,)
+        Relative errors of the new grid's intervals.
+    parent : ndarray of int, shape (n_new,)
+        Each new interval's interval on the previous grid (:func:`split_grid`).
+    exponent : float or ndarray, shape (n_old,)
+        The exponents the previous split assumed (the method's at most).
+
+    Returns
+    -------
+    ndarray, shape (n_new,)
+        The exponent of each new interval.
+    """
+    m_old = np.broadcast_to(np.asarray(exponent, dtype=float), parent_errors.shape)[parent]
+    pieces = np.bincount(parent, minlength=parent_errors.size)[parent]
+    m_max = float(np.max(m_old, initial=1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        seen = np.log(parent_errors[parent] / errors) / np.log(pieces)
+    seen = np.clip(np.nan_to_num(seen, nan=m_max, posinf=m_max), 1.0, m_max)
+    return np.where(pieces > 1, seen, m_old)
+
+
+def switching_intervals(result: TrajOptResult, relative: float = 1e-6) -> NDArray[np.bool_]:
+    """Intervals at whose two knots a different set of joint bounds is active.
+
+    A position, velocity or torque bound counts as active at a knot when the
+    value is within ``relative`` of the bound's range from it. Where the active
+    set changes inside an interval the solution's derivative jumps there, and
+    the interval's error falls more slowly than the method's ``h^m`` (Betts,
+    sec. 4.7.4: order reduction at constraint switches); :func:`refine` splits
+    such intervals of the first grid as if ``m = 1``, the lowest exponent
+    :func:`observed_exponents` allows.
+
+    Returns
+    -------
+    ndarray of bool, shape (n_knots - 1,)
+        True where the active set changes across the interval.
+    """
+    bounds = result.bounds()
+    active = []
+    for name, lower, upper in (
+        ("q", bounds.q_lower, bounds.q_upper),
+        ("v", bounds.v_lower, bounds.v_upper),
+        ("tau", bounds.tau_lower, bounds.tau_upper),
+    ):
+        x = np.asarray(result.variables[name], dtype=float)
+        span = np.asarray(upper - lower, dtype=float)
+        margin = relative * np.where(np.isfinite(span), span, 0.0)
+        active.append((upper - x <= margin) | (x - lower <= margin))  # never at an infinite one
+    switches = np.hstack(active)
+    return np.any(switches[1:] != switches[:-1], axis=1)
 
 
 def _knot_weights(t: Array) -> Array:
@@ -138,6 +209,7 @@ def _round(
     result: TrajOptResult,
     budget: RefinementBudget,
     solve_time: float,
+    deadline: float | None,
 ) -> tuple[RefinementRound, CollocationError | None, Certificate | None]:
     tic = time.perf_counter()
     error: CollocationError | None = None
@@ -146,7 +218,9 @@ def _round(
         error = collocation_error(result)
         wanted = budget.certify_every_round or error.max <= budget.tolerance
         if result.success and budget.certify and wanted:
-            cert = certify(result, tolerances=budget.tolerances)
+            # the refinement's time budget bounds the certificate's simulations too
+            limit = None if deadline is None else max(deadline - time.perf_counter(), 1e-9)
+            cert = certify(result, tolerances=budget.tolerances, time_limit=limit)
     nan = math.nan
     record = RefinementRound(
         index=index,
@@ -225,6 +299,7 @@ def refine(
             f"no error estimate for transcription {solver.method.name!r}", name="solver"
         )
     tic = time.perf_counter()
+    deadline = None if budget.time_limit is None else tic + budget.time_limit
     if first is not None:
         if not isinstance(first, TrajOptResult) or first.problem.n_knots != solver.problem.n_knots:
             raise ParameterError(
@@ -244,8 +319,14 @@ def refine(
     rounds: list[RefinementRound] = []
     tolerance = budget.tolerance
     cert: Certificate | None = None
+    exponents: float | Array = float(exponent)
+    split: tuple[Array, NDArray[np.intp]] | None = None  # previous errors, parents
     while True:
-        record, error, cert = _round(len(rounds), result, budget, solve_time)
+        record, error, cert = _round(len(rounds), result, budget, solve_time, deadline)
+        if error is not None and split is not None:
+            exponents = observed_exponents(split[0], error.relative, split[1], exponents)
+        elif error is not None:  # first grid: a bound switching inside an interval lowers m
+            exponents = np.where(switching_intervals(result), 1.0, float(exponent))
         rounds.append(record)
         _log.info(
             "refinement round %d: %d knots, f = %.6g, T = %.4g s, max error %.3g, certificate %s",
@@ -270,9 +351,15 @@ def refine(
             if error.max > budget.tolerance
             else f"certificate failed ({'; '.join(record.failures)})"
         )
-        fractions, parent = split_grid(
-            error.t, error.relative, tolerance, exponent, budget.max_pieces
-        )
+        cap = budget.max_pieces
+        while True:  # a grid beyond max_knots: fewer pieces per interval first, then stop
+            fractions, parent = split_grid(
+                error.t, error.relative, budget.safety * tolerance, exponents, cap
+            )
+            if fractions.size + 1 <= budget.max_knots or cap == 2:
+                break
+            cap = max(2, cap // 2)
+        split = (error.relative, parent)
         n_new = fractions.size + 1
         elapsed = time.perf_counter() - tic
         if len(rounds) >= budget.max_rounds:
@@ -285,12 +372,7 @@ def refine(
             reason = f"not certified: {reason} (budget: {budget.describe()})"
             break
         round_tic = time.perf_counter()
-        problem = dataclasses.replace(solver.problem, n_knots=n_new)
-        solver = TrajOptSolver(
-            problem, solver.method.with_fractions(fractions), solver.options,
-            dynamics=solver.dynamics, feasibility_tol=solver.feasibility_tol,
-            compile=solver.compiled,
-        )  # fmt: skip
+        solver = solver.on_grid(fractions)  # shares dynamics and compiled kernels
         t_new = solver.method.solution_times(result.duration / (n_new - 1), n_new)
         try:
             initial = transfer_start(result, solver, parent, t_new)

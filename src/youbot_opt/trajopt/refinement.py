@@ -14,8 +14,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from youbot_opt._checks import check_int, check_positive, check_time_limit
+from youbot_opt._checks import check_int, check_positive, check_time_limit, check_unit_interval
 from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.certificate import Certificate, Tolerances
 
 __all__ = ["Refinement", "RefinementBudget", "RefinementRound"]
@@ -35,9 +36,12 @@ class RefinementBudget:
     max_knots : int
         Largest grid; a round that would exceed it is not solved.
     time_limit : float or None
-        Wall time in [s] after which no new round starts (None: no limit).
+        Wall time in [s] after which no new round starts (None: no limit); it
+        also limits the certificate's simulations (``certify(time_limit=...)``
+        gets what is left), whose certificate is then incomplete and fails.
     max_pieces : int
-        Most pieces one interval is split into per round.
+        Most pieces one interval is split into per round (halved, down to 2,
+        while the next grid would exceed ``max_knots``).
     certify : bool
         Also require the forward-simulation certificate to pass.
     certify_every_round : bool
@@ -46,16 +50,20 @@ class RefinementBudget:
         other rounds then have no certificate figures).
     tolerances : Tolerances or None
         The certificate's thresholds (its defaults when None).
+    safety : float
+        Intervals are split so that their predicted error is ``safety *
+        tolerance`` (in (0, 1]; a margin for what the prediction misses): 1 by default.
     """
 
     tolerance: float = 1e-3
     max_rounds: int = 8
     max_knots: int = 1000
     time_limit: float | None = None
-    max_pieces: int = 4
+    max_pieces: int = 16
     certify: bool = True
     certify_every_round: bool = True
     tolerances: Tolerances | None = None
+    safety: float = 1.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tolerance", check_positive(self.tolerance, "tolerance"))
@@ -63,6 +71,16 @@ class RefinementBudget:
         object.__setattr__(self, "max_knots", check_int(self.max_knots, "max_knots", minimum=2))
         object.__setattr__(self, "max_pieces", check_int(self.max_pieces, "max_pieces", minimum=2))
         object.__setattr__(self, "time_limit", check_time_limit(self.time_limit, "time_limit"))
+        safety = check_unit_interval(
+            self.safety, "safety", note=" and > 0 (1 = split to the tolerance)"
+        )
+        if safety == 0.0:
+            raise ParameterError(
+                "safety must be > 0 (1 = split to the tolerance), got 0.0",
+                name="safety",
+                value=self.safety,
+            )
+        object.__setattr__(self, "safety", safety)
 
     def describe(self) -> str:
         """One line: the tolerance and the limits."""

@@ -1,52 +1,13 @@
-r"""Outcome of a trajectory solve: :class:`TrajOptResult` and :class:`SolveStatus`.
+"""Outcome of a trajectory solve: :class:`TrajOptResult`, :class:`SolveStats`, active bounds.
 
 A failed solve is a status, not an exception (Drake, toppra), so sweeps keep
 going; :meth:`TrajOptResult.raise_for_status` turns it into
-:class:`~youbot_opt.exceptions.SolveFailed` on demand.
+:class:`~youbot_opt.exceptions.SolveFailed` on demand. Constructing a result
+does no work: the independent check lives in :mod:`youbot_opt.trajopt.check`
+and :meth:`TrajOptResult.check` runs it on demand. The sign convention of the
+multipliers is in the :class:`TrajOptResult` docstring.
 
-Multiplier sign convention (CasADi's, checked against IPOPT in
-``tests/trajopt/test_solve.py``). The gradient of the Lagrangian
-
-.. math::
-
-    L(x, \lambda_g, \lambda_x) = f(x) + \lambda_g^\top g(x) + \lambda_x^\top x
-
-vanishes at the solution, and every multiplier ``lam`` of a row with bounds
-``lb <= row <= ub`` (a variable of ``x`` or a row of ``g``) is
-
-* ``> 0`` when the row sits at its **upper** bound ``ub``,
-* ``< 0`` when it sits at its **lower** bound ``lb``,
-* ``0`` (up to IPOPT's barrier parameter) when neither is active,
-
-and is the sensitivity of the optimal objective to the bound it touches,
-with the same sign for both sides:
-
-.. math::
-
-    \frac{\partial f^*}{\partial\, ub} = -\lambda \le 0, \qquad
-    \frac{\partial f^*}{\partial\, lb} = -\lambda \ge 0,
-
-so ``|lam|`` is the rate (objective unit per bound unit) at which the
-objective falls when the bound is relaxed (upper bound raised, lower bound
-lowered). The multiplier blocks are named as follows:
-
-* ``multipliers["<family>_upper"]`` = ``max(lam_x, 0)`` and
-  ``multipliers["<family>_lower"]`` = ``min(lam_x, 0)`` of a variable family
-  (``position``, ``velocity``, ``torque``, ``position_mid``, ..., ``dt``),
-  knot-major; upper-bound multipliers are >= 0, lower-bound ones <= 0. A
-  block without bounds of its own (Hermite-Simpson's ``q_mid``, ``v_mid``) has zeros.
-* Equality blocks of ``g`` (``defect_*``, ``midpoint_*``, ``start_position``,
-  ``goal_velocity``, ...) carry ``lam_g`` unchanged: ``d f* / d c = -lam_g``
-  for a right-hand side ``c`` (e.g. a start position).
-* Inequality path blocks of ``g`` (Hermite-Simpson's ``velocity_control_left``
-  and ``velocity_control_right``, held within the speed bounds, and
-  ``position_control_left`` / ``position_control_right`` within the position
-  bounds) carry ``lam_g`` unchanged, signed as above: > 0 where the row is at
-  the upper bound, < 0 at the lower one.
-
-:meth:`TrajOptResult.active_bounds` reports exactly the bounds the NLP has:
-variable bounds of the bounded blocks and the path-inequality rows, each with
-its signed multiplier.
+>>> result.raise_for_status().active_bounds(tol=1e-6)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -64,6 +25,7 @@ from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
 from youbot_opt.robot.model import JointBounds
+from youbot_opt.trajopt.check import ResultCheck, check_result
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -107,7 +69,7 @@ class ActiveBound(NamedTuple):
     multiplier : float
         Its multiplier: ``max(lam_x, 0)`` / ``min(lam_x, 0)`` for an upper /
         lower variable bound, the signed ``lam_g`` for a path row (> 0 at an
-        upper bound, < 0 at a lower one; module docstring); NaN if the solve
+        upper bound, < 0 at a lower one; :class:`TrajOptResult` Notes); NaN if the solve
         returned none.
     """
 
@@ -151,39 +113,6 @@ class BoundStructure(NamedTuple):
     path: Mapping[str, PathBlock]
 
 
-class ResultCheck(NamedTuple):
-    """Verdict of :meth:`TrajOptResult.check`: the status a result deserves and why.
-
-    Attributes
-    ----------
-    status : SolveStatus
-        IPOPT's status (from ``solver_status``), downgraded when a check fails.
-    message : str
-        What failed (empty if nothing did).
-    finite : bool
-        Every variable and reported figure is finite.
-    bound_violation : float
-        Largest excess of a variable over its bound (``dt`` too), in its unit.
-    boundary_violation : float
-        Largest deviation of the first and last knot from start and goal, [rad] or [rad/s].
-    defect : float
-        Largest collocation defect by ``pin.aba`` (not CasADi), [rad] or [rad/s];
-        NaN for a transcription other than trapezoidal and Hermite-Simpson.
-    """
-
-    status: SolveStatus
-    message: str
-    finite: bool
-    bound_violation: float
-    boundary_violation: float
-    defect: float
-
-    @property
-    def passed(self) -> bool:
-        """Whether :attr:`status` is a success."""
-        return self.status.success
-
-
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SolveStats:
     """What IPOPT reported about one solve (not about the solution).
@@ -209,7 +138,7 @@ class SolveStats:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class TrajOptResult:
-    """Solution (or best iterate) of one trajectory solve.
+    r"""Solution (or best iterate) of one trajectory solve.
 
     Attributes
     ----------
@@ -247,7 +176,7 @@ class TrajOptResult:
         Largest violation of any equality (defects, boundary conditions) or
         bound, recomputed from the solution (units of each constraint).
     multipliers : mapping of str to ndarray
-        Lagrange multipliers by name and knot (see the module docstring).
+        Lagrange multipliers by name and knot (sign convention in Notes).
     guess : Trajectory or None
         The initial guess used.
     options : IpoptOptions
@@ -271,11 +200,57 @@ class TrajOptResult:
         time, and whether the plan is certified (:attr:`certified`). ``None``
         for a fixed-grid solve, which is never called certified.
 
+    Notes
+    -----
     Constructing a result does no work. The solver and
     :func:`~youbot_opt.trajopt.io.load_result` run the independent check
     (:func:`youbot_opt.trajopt.check.checked`) and set :attr:`status` and
     :attr:`message` from it; :meth:`check` re-runs it on demand (e.g. after
     ``dataclasses.replace``).
+
+    Multiplier sign convention (CasADi's, checked against IPOPT in
+    ``tests/trajopt/test_solve.py``). The gradient of the Lagrangian
+
+    .. math::
+
+        L(x, \lambda_g, \lambda_x) = f(x) + \lambda_g^\top g(x) + \lambda_x^\top x
+
+    vanishes at the solution, and every multiplier ``lam`` of a row with bounds
+    ``lb <= row <= ub`` (a variable of ``x`` or a row of ``g``) is
+
+    * ``> 0`` when the row sits at its **upper** bound ``ub``,
+    * ``< 0`` when it sits at its **lower** bound ``lb``,
+    * ``0`` (up to IPOPT's barrier parameter) when neither is active,
+
+    and is the sensitivity of the optimal objective to the bound it touches,
+    with the same sign for both sides:
+
+    .. math::
+
+        \frac{\partial f^*}{\partial\, ub} = -\lambda \le 0, \qquad
+        \frac{\partial f^*}{\partial\, lb} = -\lambda \ge 0,
+
+    so ``|lam|`` is the rate (objective unit per bound unit) at which the
+    objective falls when the bound is relaxed (upper bound raised, lower bound
+    lowered). The multiplier blocks are named as follows:
+
+    * ``multipliers["<family>_upper"]`` = ``max(lam_x, 0)`` and
+      ``multipliers["<family>_lower"]`` = ``min(lam_x, 0)`` of a variable family
+      (``position``, ``velocity``, ``torque``, ``position_mid``, ..., ``dt``),
+      knot-major; upper-bound multipliers are >= 0, lower-bound ones <= 0. A
+      block without bounds of its own (Hermite-Simpson's ``q_mid``, ``v_mid``) has zeros.
+    * Equality blocks of ``g`` (``defect_*``, ``midpoint_*``, ``start_position``,
+      ``goal_velocity``, ...) carry ``lam_g`` unchanged: ``d f* / d c = -lam_g``
+      for a right-hand side ``c`` (e.g. a start position).
+    * Inequality path blocks of ``g`` (Hermite-Simpson's ``velocity_control_left``
+      and ``velocity_control_right``, held within the speed bounds, and
+      ``position_control_left`` / ``position_control_right`` within the position
+      bounds) carry ``lam_g`` unchanged, signed as above: > 0 where the row is at
+      the upper bound, < 0 at the lower one.
+
+    :meth:`TrajOptResult.active_bounds` reports exactly the bounds the NLP has:
+    variable bounds of the bounded blocks and the path-inequality rows, each with
+    its signed multiplier.
     """
 
     problem: TrajOptProblem
@@ -344,15 +319,9 @@ class TrajOptResult:
     def check(self, *, feasibility_tol: float | None = None) -> ResultCheck:
         """Re-check the result independently of IPOPT's flag and of the NLP.
 
-        Starts from IPOPT's own status (:attr:`solver_status`) and downgrades it
-        when the stored solution is not finite (:attr:`SolveStatus.NON_FINITE`),
-        malformed or inconsistent with its reported duration, work or objective
-        (:attr:`SolveStatus.FAILED`), or -- for a converged solve -- violates a
-        variable bound, a boundary state or a collocation defect by more than
-        ``feasibility_tol`` (:attr:`SolveStatus.CONSTRAINT_VIOLATION`). The
-        defects are recomputed from the decision variables with Pinocchio's
-        ``pin.aba`` (:func:`~youbot_opt.trajopt.simulate.batched_aba`), not with
-        the CasADi dynamics inside the NLP. The result itself is not changed.
+        This is :func:`youbot_opt.trajopt.check.check_result` (see there for
+        what is checked): bounds, boundary states, the collocation defects by
+        ``pin.aba`` and the reported T, W and f. The result itself is not changed.
 
         Parameters
         ----------
@@ -365,11 +334,11 @@ class TrajOptResult:
         ResultCheck
             The status the result deserves, with the measured figures.
         """
-        return _check(self, feasibility_tol)
+        return check_result(self, feasibility_tol=feasibility_tol)
 
     @property
     def success(self) -> bool:
-        """True if IPOPT converged and :func:`check_result` passed (finite, feasible)."""
+        """True if IPOPT converged and :meth:`check` passed (finite, feasible)."""
         return self.status.success
 
     def raise_for_status(self) -> TrajOptResult:
@@ -567,136 +536,3 @@ def _derive_structure(result: TrajOptResult) -> BoundStructure:
         for name, family, expr in method.path_constraints(sym, accel)
     }
     return BoundStructure(unbounded=unbounded, path=MappingProxyType(path))
-
-
-def _excess(x: Array, lower: Any, upper: Any) -> float:
-    return float(np.max(np.maximum(lower - x, x - upper), initial=0.0))
-
-
-def _defects(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float | None:
-    """Largest collocation defect, with accelerations from ``pin.aba`` (independent path)."""
-    problem = result.problem
-    aba = batched_aba(problem.robot, damping=problem.damping)
-    q, qd, tau = v["q"], v["v"], v["tau"]
-    a = aba(q, qd, tau).reshape(qd.shape)
-    if result.grid is not None:  # interval steps h_k = r_k dt as a column
-        dt = dt * result.step_ratios()[:, None]  # type: ignore[assignment]
-    rows: tuple[Array, ...]
-    if result.method == "hermite_simpson":
-        qm, vm = v["q_mid"], v["v_mid"]
-        am = aba(qm, vm, v["tau_mid"]).reshape(vm.shape)
-        rows = (
-            q[1:] - q[:-1] - dt / 6.0 * (qd[:-1] + 4.0 * vm + qd[1:]),
-            qd[1:] - qd[:-1] - dt / 6.0 * (a[:-1] + 4.0 * am + a[1:]),
-            qm - 0.5 * (q[:-1] + q[1:]) - dt / 8.0 * (qd[:-1] - qd[1:]),
-            vm - 0.5 * (qd[:-1] + qd[1:]) - dt / 8.0 * (a[:-1] - a[1:]),
-        )
-    elif result.method == "trapezoidal":
-        rows = (
-            q[1:] - q[:-1] - 0.5 * dt * (qd[:-1] + qd[1:]),
-            qd[1:] - qd[:-1] - 0.5 * dt * (a[:-1] + a[1:]),
-        )
-    else:  # another transcription (e.g. the study code's): no independent defect rule here
-        return None
-    return max(float(np.max(np.abs(r), initial=0.0)) for r in rows)
-
-
-def _work(result: TrajOptResult, v: Mapping[str, Array], dt: float) -> float:
-    """``W`` by the transcription's quadrature, written out here."""
-    p = np.sum(v["tau"] ** 2, axis=1)
-    if result.grid is not None:
-        h = dt * result.step_ratios()
-        if result.method == "hermite_simpson":
-            pm = np.sum(v["tau_mid"] ** 2, axis=1)
-            return float(np.sum(h / 6.0 * (p[:-1] + 4.0 * pm + p[1:])))
-        return float(np.sum(0.5 * h * (p[:-1] + p[1:])))
-    if result.method == "hermite_simpson":
-        pm = np.sum(v["tau_mid"] ** 2, axis=1)
-        return float(dt / 6.0 * np.sum(p[:-1] + 4.0 * pm + p[1:]))
-    return float(0.5 * dt * np.sum(p[:-1] + p[1:]))
-
-
-def _check(result: TrajOptResult, feasibility_tol: float | None) -> ResultCheck:
-    """:meth:`TrajOptResult.check` (see there)."""
-    tol = result.feasibility_tol if feasibility_tol is None else float(feasibility_tol)
-    base = status_from_ipopt(result.solver_status)
-    inf = math.inf
-
-    def fail(status: SolveStatus, why: str, finite: bool = True) -> ResultCheck:
-        return ResultCheck(status, why, finite, inf, inf, inf)
-
-    problem = result.problem
-    n, nv = problem.n_knots, problem.nv
-    shapes = {"q": (n, nv), "v": (n, nv), "tau": (n, nv), "dt": (1, 1)}
-    if result.method == "hermite_simpson":
-        shapes.update({"q_mid": (n - 1, nv), "v_mid": (n - 1, nv), "tau_mid": (n - 1, nv)})
-    try:
-        v = {k: np.asarray(result.variables[k], dtype=float) for k in shapes}
-    except (KeyError, TypeError, ValueError) as exc:
-        return fail(SolveStatus.FAILED, f"malformed result: variables lack {exc}")
-    if result.grid is not None and np.shape(result.grid) != (n - 1,):
-        return fail(SolveStatus.FAILED, f"malformed result: grid shape {np.shape(result.grid)}")
-    bad = {k: x.shape for k, x in v.items() if x.shape != shapes[k]}
-    if bad:
-        return fail(SolveStatus.FAILED, f"malformed result: variable shapes {bad}, want {shapes}")
-    names = ("objective", "duration", "dt", "work", "max_violation")
-    scalars = {name: getattr(result, name) for name in names}
-    nonfinite = [k for k, x in v.items() if not np.all(np.isfinite(x))]
-    nonfinite += [k for k, x in scalars.items() if not math.isfinite(x)]
-    if nonfinite:
-        why = f"non-finite values in {', '.join(nonfinite)}"
-        return fail(SolveStatus.NON_FINITE, why, finite=False)
-    dt = float(v["dt"][0, 0])
-    b = problem.bounds(result.bound_scale)
-    dt_lo, dt_hi = problem.dt_min, problem.dt_max
-    if problem.duration is not None:
-        dt_lo = dt_hi = problem.duration / (n - 1)
-    # Knot values only: midpoint bounds depend on the transcription (HS leaves v_mid free).
-    bound = max(_excess(v["q"], b.q_lower, b.q_upper), _excess(v["v"], b.v_lower, b.v_upper))
-    bound = max(bound, _excess(v["tau"], b.tau_lower, b.tau_upper))
-    bound = max(bound, _excess(np.array(dt), dt_lo, dt_hi))
-    start_v, goal_v = result.start.velocity, result.goal.velocity
-    boundary = max(
-        float(np.max(np.abs(d)))
-        for d in (
-            v["q"][0] - result.start.q, v["v"][0] - start_v,
-            v["q"][-1] - result.goal.q, v["v"][-1] - goal_v,
-        )
-    )  # fmt: skip
-    if not dt > 0.0:
-        why, status = f"time step dt = {dt:.3g} s <= 0", SolveStatus.CONSTRAINT_VIOLATION
-        return ResultCheck(status if base.success else base, why, True, bound, boundary, inf)
-    try:
-        found = _defects(result, v, dt)
-    except (ValueError, TypeError) as exc:  # a robot of another size
-        return fail(SolveStatus.FAILED, f"malformed result: {exc}")
-    defect = math.nan if found is None else found  # NaN: not checked
-    figures = (True, bound, boundary, defect)
-    if found is not None and not math.isfinite(found):
-        return ResultCheck(SolveStatus.NON_FINITE, "non-finite dynamics at the solution", *figures)
-    # Reported figures = those of the variables (1e-9 relative: summation order only).
-    work = _work(result, v, dt)
-    expected = {
-        "duration": (n - 1) * dt,
-        "work": work,
-        "objective": result.beta * (n - 1) * dt + (1.0 - result.beta) * work,
-    }
-    wrong = [
-        f"{k} = {scalars[k]:.9g} but the variables give {x:.9g}"
-        for k, x in expected.items()
-        if not abs(scalars[k] - x) <= 1e-9 * max(1.0, abs(x))
-    ]
-    worst = {"bound": bound, "boundary state": boundary, "collocation defect": defect}
-    over = [
-        f"{k} violated by {x:.3g}" for k, x in worst.items() if x > tol or math.isinf(x)
-    ]  # NaN: unchecked
-    if result.trajectory is None:
-        over.append("no trajectory")
-    elif not np.array_equal(result.trajectory.q, v["q"]):
-        over.append("trajectory knots differ from the variables")
-    if base.success and over:
-        msg = ", ".join(over + wrong) + f" (feasibility_tol = {tol:.3g})"
-        return ResultCheck(SolveStatus.CONSTRAINT_VIOLATION, msg, *figures)
-    if wrong:
-        return ResultCheck(SolveStatus.FAILED, "inconsistent result: " + "; ".join(wrong), *figures)
-    return ResultCheck(base, "", *figures)

@@ -14,6 +14,7 @@ integrated by SciPy's ``solve_ivp``. Robots with ``nq == nv`` only.
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple, TypeAlias
@@ -46,6 +47,15 @@ DEFAULT_RTOL = 1e-10
 """Default relative tolerance of the integrator (DOP853)."""
 DEFAULT_ATOL = 1e-12
 """Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
+
+
+class _Deadline(Exception):
+    """Raised inside a right-hand side once the caller's wall-time deadline has passed."""
+
+
+def _check_deadline(deadline: float | None) -> None:
+    if deadline is not None and time.perf_counter() > deadline:
+        raise _Deadline
 
 
 RobotLike: TypeAlias = RobotModel | pin.Model
@@ -323,6 +333,7 @@ def integrate_intervals(
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
     method: str = "DOP853",
+    deadline: float | None = None,
 ) -> tuple[Array, Array]:
     """Integrate every interval from its left knot's state under the plan's torque.
 
@@ -345,6 +356,9 @@ def integrate_intervals(
         Absolute tolerance of ``solve_ivp`` in [rad] and [rad/s].
     method : str, optional
         ``solve_ivp`` method (an explicit Runge–Kutta method is expected).
+    deadline : float, optional
+        A ``time.perf_counter()`` value [s] after which the integration stops
+        (then the result is NaN, as for a failure).
 
     Returns
     -------
@@ -367,13 +381,19 @@ def integrate_intervals(
     n = h.size
 
     def rhs(s: float, x: Array) -> Array:
+        _check_deadline(deadline)
         state = x.reshape(n, 2 * nv)
         q, v = state[:, :nv], state[:, nv:]
         acc = batch(q, v, polys.torques(s))
         return (np.hstack([v, acc]) * h[:, None]).ravel()
 
     x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).ravel()
-    sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol)
+    try:
+        sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol)
+    except _Deadline:
+        _LOG.warning("local integration stopped: time limit reached")
+        nan = np.full((n, nv), np.nan)
+        return nan, nan.copy()
     if not sol.success:
         _LOG.warning("local integration failed: %s", sol.message)
         nan = np.full((n, nv), np.nan)
@@ -394,6 +414,7 @@ def simulate(
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
     method: str = "DOP853",
+    deadline: float | None = None,
 ) -> Simulation:
     """Simulate the whole motion from the first knot, open loop or with PD tracking.
 
@@ -421,6 +442,9 @@ def simulate(
         Integrator tolerances (``atol`` in [rad] and [rad/s]).
     method : str, optional
         ``solve_ivp`` method.
+    deadline : float, optional
+        A ``time.perf_counter()`` value [s] after which the simulation stops
+        (``stop_time`` and ``message`` say where), as for an integrator failure.
 
     Returns
     -------
@@ -468,6 +492,7 @@ def simulate(
         t0, h = polys.t0[k], polys.h[k]
 
         def rhs(t: float, x: Array, k: int = k, t0: float = t0, h: float = h) -> Array:
+            _check_deadline(deadline)
             tau = _powers((t - t0) / h) @ net_coef[k] - gain_state[k] @ x
             return np.concatenate([x[nv:], pin.aba(model, data, x[:nv], x[nv:], tau)])
 
@@ -483,10 +508,16 @@ def simulate(
             events = deviation
         t_eval = times[k * m + 1 : (k + 1) * m + 1]
         span = (trajectory.t[k], trajectory.t[k + 1])
-        sol = solve_ivp(
-            rhs, span, states[k * m], method=method, rtol=rtol, atol=atol, t_eval=t_eval,
-            events=events,
-        )  # fmt: skip
+        try:
+            sol = solve_ivp(
+                rhs, span, states[k * m], method=method, rtol=rtol, atol=atol, t_eval=t_eval,
+                events=events,
+            )  # fmt: skip
+        except _Deadline:
+            stop_time = float(span[0])
+            message = f"time limit reached in interval {k}"
+            _LOG.warning("simulation stopped: %s", message)
+            break
         y = np.asarray(sol.y, dtype=float).reshape(2 * nv, -1)  # [] if stopped before t_eval
         got = y.shape[1]
         states[k * m + 1 : k * m + 1 + got] = y.T

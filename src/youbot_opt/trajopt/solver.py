@@ -2,29 +2,18 @@
 
 ``TrajOptSolver(problem, method, options, backend)`` builds the robot's CasADi
 dynamics, transcribes the problem and creates the IPOPT solver once;
-:meth:`TrajOptSolver.solve` then takes the sweep parameters -- the time weight
-``beta`` (an NLP parameter), the bound scale and the boundary states (which
-only change the numeric bounds ``lbx``/``ubx``/``lbg``/``ubg``) -- so sweeps
-never rebuild. :func:`solve` is the one-off wrapper.
+:meth:`TrajOptSolver.solve` then takes the sweep parameters (``beta``, the bound
+scale, the boundary states), which change only an NLP parameter and numeric
+bounds, so sweeps never rebuild. :func:`solve` is the one-off wrapper. How the
+derivatives are formed and how each result is checked: :class:`TrajOptSolver`;
+why: docs/design.md, "Module notes".
 
-With a twice-differentiable dynamics backend, IPOPT gets exact derivatives
-assembled from three per-point dynamics kernels mapped over the knots
-(:mod:`youbot_opt.trajopt.transcription.derivatives`), compiled to C and cached on disk
-when a compiler exists (:mod:`youbot_opt.nlp.codegen`). Measured on the study-1
-base case (``benchmarks/bench_trajopt.py --levers``) this beats CasADi's AD of
-the whole graph, expanded to SX or not, in both build and solve time; at 1600
-knots the build drops from ~11 s to ~1 s. Other backends (Callbacks) get
-CasADi's AD of the transcribed MX graph and a limited-memory Hessian.
-
-Each result is checked independently of IPOPT's flag: the constraints are
-re-evaluated at the returned point and compared with their bounds, the
-decision variables with theirs, and everything must be finite; then the
-independent check (:func:`youbot_opt.trajopt.check.checked`, ``pin.aba``
-without the NLP) must agree before a converged solve is reported a success.
+    result = TrajOptSolver(problem, "hermite_simpson").solve(beta=0.5)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from types import MappingProxyType
@@ -57,6 +46,7 @@ from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription import Transcription, get_transcription
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
 from youbot_opt.trajopt.transcription.derivatives import (
+    Kernels,
     compile_kernels,
     dynamics_kernels,
     structured_functions,
@@ -93,6 +83,24 @@ def _boundary(name: str, value: BoundaryLike | None, default: BoundaryState) -> 
 class TrajOptSolver:
     """A transcribed trajectory problem with its IPOPT solver, built once.
 
+    The robot's CasADi dynamics, the transcription and the IPOPT solver are
+    built here; :meth:`solve` takes the sweep parameters -- the time weight
+    ``beta`` (an NLP parameter), the bound scale and the boundary states (which
+    only change the numeric bounds ``lbx``/``ubx``/``lbg``/``ubg``).
+
+    With a twice-differentiable dynamics backend, IPOPT gets exact derivatives
+    assembled from three per-point dynamics kernels mapped over the knots
+    (:mod:`youbot_opt.trajopt.transcription.derivatives`), compiled to C and
+    cached on disk when a compiler exists (:mod:`youbot_opt.nlp.codegen`).
+    Other backends (Callbacks) get CasADi's AD of the transcribed MX graph and
+    a limited-memory Hessian.
+
+    Each result is checked independently of IPOPT's flag: the constraints are
+    re-evaluated at the returned point and compared with their bounds, the
+    decision variables with theirs, and everything must be finite; then the
+    independent check (:func:`youbot_opt.trajopt.check.checked`, ``pin.aba``
+    without the NLP) must agree before a converged solve is reported a success.
+
     Parameters
     ----------
     problem : TrajOptProblem
@@ -126,7 +134,8 @@ class TrajOptSolver:
     nlp : TranscribedNLP
         The symbolic NLP (inspect it before solving).
     build_time : float
-        Wall time in [s] spent building dynamics, NLP and solver.
+        Wall time in [s] spent building dynamics and NLP (IPOPT's instance is
+        created on the first solve).
     compiled : bool
         Whether the solver runs compiled dynamics kernels.
     """
@@ -163,11 +172,10 @@ class TrajOptSolver:
         self.dynamics = dynamics
         self.backend = str(dynamics.backend)
         self.feasibility_tol = float(feasibility_tol)
-        self.nlp: TranscribedNLP = self.method.build(problem, dynamics.forward_dynamics)
         symbolic = self.backend in _SECOND_ORDER_BACKENDS
         self._exact_hessian = self.options.exact_hessian(symbolic)
         self.compiled = False
-        self._derivatives: dict[str, ca.Function] = {}
+        self._kernels: tuple[Kernels, Kernels] | None = None
         if symbolic:
             # Structured exact derivatives from per-point kernels (compiled to C when
             # possible): O(1) symbolic work on the dynamics, however many knots.
@@ -176,6 +184,16 @@ class TrajOptSolver:
             wait = compile == "wait"
             fast = compile_kernels(kernels, wait=wait, label=label) if compile else kernels
             self.compiled = fast is not kernels
+            self._kernels = (fast, kernels)
+        self._build(tic)
+
+    def _build(self, tic: float) -> None:
+        """Transcribe ``self.problem`` on ``self.method``'s grid; set up the IPOPT solvers."""
+        problem = self.problem
+        self.nlp: TranscribedNLP = self.method.build(problem, self.dynamics.forward_dynamics)
+        self._derivatives: dict[str, ca.Function] = {}
+        if self._kernels is not None:
+            fast, kernels = self._kernels
             fns = structured_functions(self.method, problem, fast, values=kernels)
             self._nlp_function = fns.nlp
             self._derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g}
@@ -185,19 +203,61 @@ class TrajOptSolver:
             self._nlp_function = ca.Function(
                 "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
             )
-        opts = self.options.to_casadi(self._exact_hessian)
         # keeps the best iterate, returned when a solve fails (youbot_opt.nlp.best_iterate)
         self._recorder = BestIterateRecorder(
             "trajopt_iterates", self.nlp.n_variables, self.nlp.n_constraints, self.nlp.p.numel()
         )
-        opts["iteration_callback"] = self._recorder
         single_threaded_blas()
-        self._solver = ca.nlpsol(
-            "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
-        )
+        # IPOPT instances are created on first use: a refinement round only warm-starts
+        self._cold_solver: Any = None
         self._warm_solver: Any = None
         self.build_time = time.perf_counter() - tic
         _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
+
+    def on_grid(self, fractions: ArrayLike) -> TrajOptSolver:
+        """Return a solver of the same problem, method, options and dynamics on another grid.
+
+        Shares this solver's dynamics and (compiled) derivative kernels, so
+        only the transcription is rebuilt: what mesh refinement does per round.
+
+        Parameters
+        ----------
+        fractions : array_like, shape (n_intervals,)
+            Interval fractions of the duration (normalised to sum 1); the new
+            problem has ``n_intervals + 1`` knots.
+
+        Returns
+        -------
+        TrajOptSolver
+            A new solver; this one is unchanged.
+
+        Raises
+        ------
+        ParameterError
+            If ``fractions`` is not one or more positive finite numbers.
+        """
+        tic = time.perf_counter()
+        method = self.method.with_fractions(fractions)
+        assert method.fractions is not None  # with_fractions(array) always sets a grid
+        new = object.__new__(TrajOptSolver)
+        new.problem = dataclasses.replace(self.problem, n_knots=method.fractions.size + 1)
+        new.method = method
+        new.options, new.dynamics, new.backend = self.options, self.dynamics, self.backend
+        new.feasibility_tol, new.compiled = self.feasibility_tol, self.compiled
+        new._exact_hessian, new._kernels = self._exact_hessian, self._kernels
+        new._build(tic)
+        return new
+
+    @property
+    def _solver(self) -> Any:
+        """The cold-start IPOPT instance (built on first use)."""
+        if self._cold_solver is None:
+            opts = self.options.to_casadi(self._exact_hessian)
+            opts["iteration_callback"] = self._recorder
+            self._cold_solver = ca.nlpsol(
+                "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
+            )
+        return self._cold_solver
 
     # ----------------------------------------------------------------- solve
     def solve(

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -34,7 +34,15 @@ if TYPE_CHECKING:
 
     BoundaryLike = BoundaryState | tuple[ArrayLike, ArrayLike] | ArrayLike
 
-__all__ = ["DEFAULT_DT", "DEFAULT_ORDERS", "random_spline_guess", "bernstein_matrix"]
+__all__ = [
+    "DEFAULT_DT",
+    "DEFAULT_ORDERS",
+    "SplineConstraints",
+    "bernstein_derivative_matrix",
+    "bernstein_matrix",
+    "random_spline_guess",
+    "spline_constraints",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -113,58 +121,129 @@ def _check_inside(name: str, x: Array, lo: Array, hi: Array, unit: str, where: s
         )
 
 
-def _solve_lp(
+class SplineConstraints(NamedTuple):
+    """Linear constraints on the ``p + 1`` Bernstein control points of one joint's polynomial.
+
+    ``a_ub @ b <= b_ub`` and ``a_eq @ b == b_eq``, as :func:`scipy.optimize.linprog`
+    takes them (see :func:`spline_constraints`).
+    """
+
+    a_ub: Array
+    b_ub: Array
+    a_eq: Array
+    b_eq: Array
+
+
+def bernstein_derivative_matrix(degree: int, duration: float, order: int, s: Array) -> Array:
+    """Matrix mapping Bernstein control points to the ``order``-th time derivative at ``s``.
+
+    Parameters
+    ----------
+    degree : int
+        Polynomial degree ``p >= order``.
+    duration : float
+        Duration ``T`` of the polynomial in [s] (``t = s T``).
+    order : int
+        Derivative order (0: the position itself).
+    s : ndarray, shape (M,)
+        Normalised times in [0, 1].
+
+    Returns
+    -------
+    ndarray, shape (M, p + 1)
+        ``d^order/dt^order`` of the polynomial at ``s`` is this matrix times the
+        control points: ``p!/(p - order)! / T^order * B_{p - order}(s) D^order``
+        with ``D`` the forward difference.
+    """
+    diff = np.eye(degree + 1)
+    for k in range(order):
+        d = degree - k
+        step = np.zeros((d, d + 1))
+        step[np.arange(d), np.arange(d)] = -1.0
+        step[np.arange(d), np.arange(1, d + 1)] = 1.0
+        diff = d / duration * step @ diff
+    return bernstein_matrix(degree - order, s) @ diff
+
+
+def spline_constraints(
     degree: int,
     s: Array,
     duration: float,
     boundary: tuple[float, float, float, float],
     limits: tuple[float, float, float],
-    target: Array,
-) -> Array | None:
-    """Control points of one joint, or None if the LP is infeasible."""
+) -> SplineConstraints:
+    """Constraints of one joint's polynomial: boundary states exactly, limits at the knots.
+
+    Equalities: position and speed at ``s = 0`` and ``s = 1`` (4 rows).
+    Inequalities: the position within ``[lo, hi]`` at the interior knots and
+    ``|speed| <= vmax`` at every knot, each tightened by a relative margin
+    (``1e-7`` of the half range, of ``vmax``) so that the LP solver's
+    feasibility tolerance (1e-7 absolute in HiGHS) cannot push a knot outside
+    the limits; rows of an infinite limit are left out.
+
+    Parameters
+    ----------
+    degree : int
+        Polynomial degree ``p``.
+    s : ndarray, shape (N,)
+        Normalised knot times in [0, 1], ``s[0] = 0`` and ``s[-1] = 1``.
+    duration : float
+        Duration ``T0`` in [s].
+    boundary : tuple of float
+        ``(q0, v0, q1, v1)``: start and goal position [rad] and speed [rad/s].
+    limits : tuple of float
+        ``(lo, hi, vmax)``: position limits [rad] and speed limit [rad/s].
+
+    Returns
+    -------
+    SplineConstraints
+        Rows in the order: upper and lower position rows, upper and lower speed rows.
+    """
     q0, v0, q1, v1 = boundary
     lo, hi, vmax = limits
     p = degree
-    basis = bernstein_matrix(p, s)
-    # d q / d t at the knots: (p / T0) * B_{p-1}(s) D b.
-    speed = (p / duration) * bernstein_matrix(p - 1, s) @ _difference(p)
-    interior = slice(1, s.size - 1)
+    position = bernstein_matrix(p, s)[1:-1]
+    speed = bernstein_derivative_matrix(p, duration, 1, s)
     q_margin = _MARGIN * 0.5 * (hi - lo) if math.isfinite(hi - lo) else 0.0
     v_margin = _MARGIN * vmax if math.isfinite(vmax) else 0.0
-    eye = np.eye(p + 1)
     rows = [
-        (np.hstack([eye, -eye]), target),  # b - e <= r
-        (np.hstack([-eye, -eye]), -target),  # -b - e <= -r
+        (matrix, np.full(matrix.shape[0], bound - margin))
+        for matrix, bound, margin in (
+            (position, hi, q_margin),
+            (-position, -lo, q_margin),
+            (speed, vmax, v_margin),
+            (-speed, vmax, v_margin),
+        )
+        if math.isfinite(bound)
     ]
-    zeros = np.zeros((s.size, p + 1))
-    for matrix, bound, margin, knots in (
-        (basis, hi, q_margin, interior),
-        (-basis, -lo, q_margin, interior),
-        (speed, vmax, v_margin, slice(None)),
-        (-speed, vmax, v_margin, slice(None)),
-    ):
-        if math.isfinite(bound):
-            block = np.hstack([matrix, zeros])[knots]
-            rows.append((block, np.full(block.shape[0], bound - margin)))
-    a_ub = np.vstack([r[0] for r in rows])
-    b_ub = np.concatenate([r[1] for r in rows])
-    a_eq = np.zeros((4, 2 * (p + 1)))
+    a_ub = np.vstack([r[0] for r in rows]) if rows else np.zeros((0, p + 1))
+    b_ub = np.concatenate([r[1] for r in rows]) if rows else np.zeros(0)
+    a_eq = np.zeros((4, p + 1))
     a_eq[0, 0] = a_eq[1, p] = 1.0
     a_eq[2, [0, 1]] = np.array([-1.0, 1.0]) * p / duration
     a_eq[3, [p - 1, p]] = np.array([-1.0, 1.0]) * p / duration
-    b_eq = np.array([q0, q1, v0, v1])
-    cost = np.concatenate([np.zeros(p + 1), np.ones(p + 1)])
-    bounds = [(None, None)] * (p + 1) + [(0.0, None)] * (p + 1)
-    res = linprog(cost, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method="highs")
+    return SplineConstraints(a_ub, b_ub, a_eq, np.array([q0, q1, v0, v1]))
+
+
+def _nearest_points(lp: SplineConstraints, target: Array) -> Array | None:
+    """Control points within ``lp`` nearest ``target`` in L1, or None if the LP is infeasible."""
+    n = target.size
+    # Variables (b, e): minimise sum(e) with -e <= b - target <= e.
+    eye = np.eye(n)
+    a_ub = np.vstack([
+        np.hstack([eye, -eye]), np.hstack([-eye, -eye]),
+        np.hstack([lp.a_ub, np.zeros_like(lp.a_ub)]),
+    ])  # fmt: skip
+    res = linprog(
+        np.concatenate([np.zeros(n), np.ones(n)]),
+        A_ub=a_ub, b_ub=np.concatenate([target, -target, lp.b_ub]),
+        A_eq=np.hstack([lp.a_eq, np.zeros_like(lp.a_eq)]), b_eq=lp.b_eq,
+        bounds=[(None, None)] * n + [(0.0, None)] * n, method="highs",
+    )  # fmt: skip
     if res.status != 0:
-        _LOG.debug("spline LP of degree %d: %s", p, res.message)
+        _LOG.debug("spline LP of degree %d: %s", n - 1, res.message)
         return None
-    points = np.array(res.x[: p + 1], dtype=float)
-    # Impose the boundary conditions exactly (the LP meets them to its tolerance).
-    points[0], points[p] = q0, q1
-    points[1] = q0 + v0 * duration / p
-    points[p - 1] = q1 - v1 * duration / p
-    return points
+    return np.array(res.x[:n], dtype=float)
 
 
 def random_spline_guess(
@@ -272,10 +351,14 @@ def random_spline_guess(
         while candidates:
             p = int(rng.choice(candidates))
             target = rng.uniform(lo_t, hi_t, p + 1)
-            points = _solve_lp(
-                p, s, duration, (q0[j], v0[j], q1[j], v1[j]), (lower[j], upper[j], vmax[j]), target
-            )
+            boundary = (q0[j], v0[j], q1[j], v1[j])
+            lp = spline_constraints(p, s, duration, boundary, (lower[j], upper[j], vmax[j]))
+            points = _nearest_points(lp, target)
             if points is not None:
+                # Impose the boundary conditions exactly (the LP meets them to its tolerance).
+                points[0], points[p] = q0[j], q1[j]
+                points[1] = q0[j] + v0[j] * duration / p
+                points[p - 1] = q1[j] - v1[j] * duration / p
                 break
             candidates.remove(p)
         if points is None:

@@ -2,12 +2,9 @@
 
 Owns what the trajectory multistart, the Pareto sweep's first point and the
 bound-scaling study add to the robot-agnostic sweep engine (:mod:`youbot_opt.sweeps`):
-:func:`start_seeds` (``SeedSequence(seed).spawn``, independent of the executor),
-:func:`make_jobs` (the straight line, then seeded random spline guesses at the
-scaled bounds), the worker task that builds a job's guess and solves it with the
-worker's :class:`~youbot_opt.trajopt.solver.TrajOptSolver`
-(:func:`worker_solver`), :func:`open_store` (trajectory results as payloads),
-and :func:`solve_starts`, the resumable start loop as :class:`StartOutcome` s.
+:func:`start_seeds`, :func:`make_jobs`, the worker task that solves a job's guess
+with the worker's solver, :func:`open_store` and :func:`solve_starts`, the
+resumable start loop as :class:`StartOutcome` s.
 
     outcomes, resumed = solve_starts(solver, make_jobs(8, seed=0, beta=0.5, bound_scale=1.0,
                                      include_straight=True, dt0=0.1), store=None, sweep=opts)
@@ -15,22 +12,26 @@ and :func:`solve_starts`, the resumable start loop as :class:`StartOutcome` s.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, MutableMapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, overload
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context
 from youbot_opt.sweeps.resume import run_resumable
-from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.selection import Clusters
+from youbot_opt.sweeps.store import ItemRecord, SweepStore
+from youbot_opt.sweeps.tasks import TaskSequence
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.problem import TrajOptProblem
 from youbot_opt.trajopt.result import TrajOptResult
@@ -38,6 +39,7 @@ from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
+    "StartJobs",
     "StartOutcome",
     "check_solver",
     "default_dt0",
@@ -155,7 +157,11 @@ class StartOutcome:
     reason : str or None
         Why the start failed (error, or the solver's message for a failed solve).
     result : TrajOptResult or None
-        The result (``None`` on error).
+        The result (``None`` on error, and for starts whose result a
+        ``keep_results=False`` sweep left in its output directory).
+    optimum : str or None
+        ``keep_results=False`` only: key of the representative of the start's
+        distinct optimum (its own key for a representative), else ``None``.
     """
 
     key: str
@@ -173,6 +179,7 @@ class StartOutcome:
     attempts: int = 1
     reason: str | None = None
     result: TrajOptResult | None = None
+    optimum: str | None = None
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready figures (everything but the result; NaN becomes ``None``)."""
@@ -335,7 +342,8 @@ def solve_starts(
     *,
     store: SweepStore | None,
     sweep: SweepOptions,
-) -> tuple[dict[str, StartOutcome], int]:
+    keep: KeepRule[StartOutcome] | None = None,
+) -> tuple[MutableMapping[str, StartOutcome], int]:
     """Run start jobs, loading the finished ones from ``store``.
 
     Parameters
@@ -348,12 +356,17 @@ def solve_starts(
         Where every attempt is saved and finished starts are loaded from.
     sweep : SweepOptions
         Executor, workers, timeout [s] per attempt, attempts; ``progress``
-        ``(done, total, last_start)`` is called as each start is final.
+        ``(done, total, last_start)`` is called as each start is final;
+        ``keep_results=False`` keeps results only for ``keep``'s optima.
+    keep : KeepRule, optional
+        Which results ``keep_results=False`` keeps (default: the best start
+        of each ``(beta, bound_scale)``); the other starts have ``result=None``.
 
     Returns
     -------
     tuple
-        The outcomes by key and the number of starts loaded from ``store``.
+        The outcomes by key (``keep_results=False``: read from ``store`` when
+        asked for) and the number of starts loaded from ``store``.
     """
     sweep = sweep.with_executor("process")
     executor = sweep.executor
@@ -366,12 +379,25 @@ def solve_starts(
     # initializer; each task then carries only the handle's token.
     send_once = own_pool or sweep.distributed
     sent = handle.by_token() if sweep.distributed else handle
-    by_key = {job.key: job for job in jobs}
-    tasks = [Task(key=job.key, fn=_solve_start, args=(sent, job)) for job in jobs]
+    lazy = isinstance(jobs, StartJobs) and not sweep.keep_results
+    job_of = jobs.job if isinstance(jobs, StartJobs) else {job.key: job for job in jobs}.__getitem__
+
+    def make_task(i: int) -> Task:
+        job = jobs[i]
+        return Task(key=job.key, fn=_solve_start, args=(sent, job))
+
+    # keep_results=False with StartJobs: tasks made as they are needed (none is held)
+    tasks = TaskSequence(len(jobs), make_task) if lazy else [make_task(i) for i in range(len(jobs))]
     progress = sweep.progress
+    optimum_of: list[Callable[[str], str | None]] = []  # set once the optima are chosen
+
+    def light(key: str, record: ItemRecord) -> StartOutcome:
+        start = _light_start(job_of(key), record)
+        rep = optimum_of[0](key) if optimum_of else None
+        return start if rep is None else dataclasses.replace(start, optimum=rep)
 
     def convert(o: TaskOutcome) -> StartOutcome:
-        job = by_key[o.key]
+        job = job_of(o.key)
         if o.ok:
             result, guess_time = o.value
             return StartOutcome._from(job, result, guess_time, o.attempts)
@@ -381,18 +407,73 @@ def solve_starts(
         if progress is not None:
             progress(done, len(jobs), start)
 
+    if keep is None:
+        keep = KeepRule(
+            objective=lambda s: s.objective if s.success else None,
+            group=lambda s: (job_of(s.key).beta, job_of(s.key).bound_scale),
+        )
     got = run_resumable(
         tasks,
         store=store,
         options=sweep,
-        load=lambda key: _load_start(store, by_key[key]),  # type: ignore[arg-type]
+        load=lambda key: _load_start(store, job_of(key)),  # type: ignore[arg-type]
         convert=convert,
         payload=lambda key, start: (start.result, start.summary()),
         initializer=hold_solver if send_once else None,
         initargs=(handle,) if send_once else (),
         on_final=on_final,
+        describe=_describe_start,
+        light=light,
+        keep=keep,
     )
-    return got.items, got.resumed
+    items = got.items
+    clusters = got.clusters
+    if isinstance(clusters, Clusters):  # keep_results=False: each start's optimum, read lazily
+        optimum_of.append(clusters.optimum_of)
+        for rep in clusters.representatives:  # the kept optima, held in full
+            items[rep] = dataclasses.replace(items[rep], optimum=rep)
+    else:  # an optima.json of a store written before the members file: held per start
+        for members in clusters:
+            for key in members:
+                items[key] = dataclasses.replace(items[key], optimum=members[0])
+    return items, got.resumed
+
+
+def _describe_start(
+    key: str, args: tuple[Any, ...], value: tuple[TrajOptResult, float]
+) -> tuple[TrajOptResult, dict[str, Any]]:
+    """Worker side: the payload (the result) and summary of a solved start."""
+    job: _StartJob = args[1]
+    result, guess_time = value
+    return result, StartOutcome._from(job, result, guess_time, 1).summary()
+
+
+def _light_start(job: _StartJob, record: ItemRecord) -> StartOutcome:
+    """Return a finished start from its stored summary alone (``result=None``)."""
+    if record.state == "failed":
+        return StartOutcome._error(job, record.reasons[-1] if record.reasons else "failed",
+                                   record.attempts)  # fmt: skip
+    s = record.summary
+
+    def num(x: Any) -> float:  # noqa: ANN401 - a JSON number or None
+        return float("nan") if x is None else float(x)
+
+    return StartOutcome(
+        key=job.key,
+        index=job.index,
+        seed=job.seed,
+        guess=job.guess,
+        status=str(s["status"]),
+        success=bool(s["success"]),
+        objective=num(s["objective"]),
+        duration=num(s["duration_s"]),
+        work=num(s["work"]),
+        iterations=int(s["iterations"]),
+        solve_time=float(s["solve_time_s"]),
+        guess_time=float(s["guess_time_s"]),
+        attempts=record.attempts,
+        reason=s.get("reason"),
+    )
 
 
 def _load_start(store: SweepStore, job: _StartJob) -> StartOutcome:
@@ -463,3 +544,69 @@ def make_jobs(
             )
         )
     return jobs
+
+
+class StartJobs(Sequence[_StartJob]):
+    """The start jobs of one multistart made when asked for; equal to :func:`make_jobs`'s.
+
+    Job ``i`` is built from its index alone (start ``k``'s seed is
+    ``SeedSequence(seed, spawn_key=(k,))``, the ``k``-th child
+    :func:`start_seeds` spawns), so a ``keep_results=False`` sweep of 10^6
+    starts never holds its jobs. Parameters as :func:`make_jobs`.
+    """
+
+    def __init__(
+        self,
+        n_starts: int,
+        *,
+        seed: int,
+        beta: float,
+        bound_scale: float,
+        include_straight: bool,
+        dt0: float,
+        prefix: str = "",
+    ) -> None:
+        make_jobs(0, seed=seed, beta=beta, bound_scale=bound_scale, include_straight=True,
+                  dt0=dt0)  # fmt: skip  # the same checks
+        if isinstance(n_starts, bool) or not isinstance(n_starts, int) or n_starts < 0:
+            raise ParameterError(f"n_starts must be an int >= 0, got {n_starts!r}", name="n_starts")
+        if n_starts == 0 and not include_straight:
+            raise ParameterError("need n_starts >= 1 or include_straight=True", name="n_starts")
+        start_seeds(seed, 0)  # checks the seed
+        self._n, self._seed, self._straight = n_starts, int(seed), bool(include_straight)
+        self._common = {"beta": beta, "bound_scale": bound_scale, "dt0": dt0}
+        self._prefix = prefix
+
+    def __len__(self) -> int:
+        return self._n + self._straight
+
+    @overload
+    def __getitem__(self, i: int) -> _StartJob: ...
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[_StartJob]: ...
+    def __getitem__(self, i: int | slice) -> _StartJob | Sequence[_StartJob]:
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        n = len(self)
+        j = i + n if i < 0 else i
+        if not 0 <= j < n:
+            raise IndexError(f"{n} start job(s), got index {i}")
+        if self._straight and j == 0:
+            return _StartJob(key=f"{self._prefix}straight", index=-1, seed=None,
+                             guess="straight", **self._common)  # fmt: skip
+        k = j - self._straight
+        child = np.random.SeedSequence(self._seed, spawn_key=(k,))
+        return _StartJob(key=f"{self._prefix}start_{k:04d}", index=k, guess="spline",
+                         seed=int(child.generate_state(1, dtype=np.uint32)[0]),
+                         **self._common)  # fmt: skip
+
+    def job(self, key: str) -> _StartJob:
+        """Return the job of ``key`` (``KeyError`` if it is not one of these jobs)."""
+        rest = key[len(self._prefix) :] if key.startswith(self._prefix) else None
+        if rest == "straight" and self._straight:
+            return self[0]
+        if rest is not None and rest.startswith("start_") and rest[6:].isdigit():
+            k = int(rest[6:])
+            if k < self._n and f"start_{k:04d}" == rest:
+                return self[k + self._straight]
+        raise KeyError(key)

@@ -1,13 +1,10 @@
 """The loaded model's dynamics are defined: checked on the numbers Pinocchio computes (issue 16).
 
-A file can pass every rule on its text and still give undefined dynamics: a
-mass and inertia of 5e-324 (subnormal) are finite and positive, ``M(q)`` has
-eigenvalues of equal size, and ``pin.aba`` returns NaN. :func:`check_dynamics_defined`
-therefore runs the algorithms users call -- RNEA, CRBA, ABA and ``M(q)^-1``
-(``pin.computeMinverse``) -- at the neutral configuration and at
-:data:`N_SAMPLES` seeded random states ``(q, v, a)``, and requires every
-result finite and ``M(q)`` well conditioned with eigenvalues in the normal
-floating-point range. Called by :func:`youbot_opt.robot.strict.loader.check_model`.
+:func:`check_dynamics_defined` runs the algorithms users call -- RNEA, CRBA, ABA
+and ``M(q)^-1`` -- at the neutral configuration and at :data:`N_SAMPLES` seeded
+random states, and requires every result finite and ``M(q)`` well conditioned.
+Called by :func:`youbot_opt.robot.strict.loader.check_model`; why the rules on
+the file's text do not suffice is in docs/design.md, "Module notes".
 
 Example: ``check_dynamics_defined(model, "arm.urdf")`` returns None or raises.
 """
@@ -48,6 +45,11 @@ def check_dynamics_defined(
     model: pin.Model, path: str, *, samples: int = N_SAMPLES, seed: int = 0
 ) -> None:
     """Require finite RNEA, CRBA, ABA and ``M^-1`` and a well-conditioned ``M(q)``.
+
+    The algorithms (RNEA, CRBA, ABA and ``pin.computeMinverse``) run at the
+    neutral configuration and at ``samples`` seeded random states
+    ``(q, v, a)``; every result must be finite and ``M(q)`` well conditioned
+    with eigenvalues in the normal floating-point range.
 
     Parameters
     ----------

@@ -1,14 +1,11 @@
 """Size limits of a URDF's kinematic tree, checked before any expensive step (issue 16).
 
-:func:`check_urdf_size` counts the joints and measures the longest chain of
-joints of a parsed file before the tree rules (quadratic in the joint count
-in places) and before Pinocchio's parser, which recurses once per level and
-ends the process with a stack overflow on a 5,000-link chain, and the
-degrees of freedom, on which the memory of Pinocchio's ``Data`` depends. The limits are
-module constants; raise them per call with the keyword arguments or for a
-whole run with the environment variables ``YOUBOT_OPT_MAX_JOINTS`` and
-``YOUBOT_OPT_MAX_TREE_DEPTH``. XML nesting and element count are limited
-earlier, while streaming (:mod:`youbot_opt.robot.strict.xml`).
+:func:`check_urdf_size` refuses a parsed file with more joints, a longer chain
+of joints or more degrees of freedom than :data:`MAX_JOINTS`,
+:data:`MAX_TREE_DEPTH` and :data:`MAX_DOF`, before the tree rules and before
+Pinocchio's parser; raise the limits per call or with the environment
+variables ``YOUBOT_OPT_MAX_JOINTS``, ``YOUBOT_OPT_MAX_TREE_DEPTH`` and
+``YOUBOT_OPT_MAX_DOF``. Why each limit is where it is: docs/design.md, "Module notes".
 
 Example: ``YOUBOT_OPT_MAX_JOINTS=5000 youbot-opt robots big.urdf``.
 """

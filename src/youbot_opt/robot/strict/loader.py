@@ -1,38 +1,14 @@
-"""Strict, safe loading of a URDF file into Pinocchio (issue 6, item 1).
+"""Strict, safe loading of a URDF file into Pinocchio: :func:`load_urdf_strict` (issue 6, item 1).
 
-:func:`load_urdf_strict` runs this pipeline and raises at the first broken rule:
+The pipeline raises at the first broken rule: size (:mod:`.limits`), strict XML
+(:mod:`.xml`), tree and physics rules (:mod:`.rules`; implausible inertias under
+:func:`inertia_policy`), mesh and texture paths inside ``package_dirs``
+(:mod:`.resources`), Pinocchio built from the checked tree, and
+:func:`check_model` (the model against the file, finite and defined dynamics).
+The steps are listed in :func:`load_urdf_strict`; why a singular ``M(q)`` is
+refused is in docs/design.md, "Module notes".
 
-1. The file must be a regular file of at most :data:`MAX_URDF_BYTES`
-   (:class:`~youbot_opt.exceptions.UnsafeURDFError`; a missing file raises
-   :class:`~youbot_opt.exceptions.RobotNotFound`).
-2. Strict XML parsing with every ``DOCTYPE`` and entity refused
-   (:mod:`youbot_opt.robot.strict.xml`).
-3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.strict.rules`).
-   Physically implausible inertias (:func:`~youbot_opt.robot.strict.rules.implausible_inertias`)
-   follow :func:`inertia_policy`: on a link welded to the world a warning; on
-   a moving link a refusal, or a warning under ``strict=False``.
-4. Mesh and texture references, including the textures inside ``.dae`` files,
-   must resolve to regular files inside ``package_dirs``
-   (:mod:`youbot_opt.robot.strict.resources`).
-5. Pinocchio builds the model from the *checked tree*, re-serialised with each
-   mesh and texture reference replaced by its checked absolute path: it reads
-   exactly what was checked, never resolves a path itself and never consults
-   ``ROS_PACKAGE_PATH``. What Pinocchio's URDF parser prints on the C-level
-   standard error is captured and logged (or put in the error message).
-6. :func:`check_model` compares the model with the file (joints, joint limits,
-   inertias), requires finite placements, inertias and ``M(q)`` (a huge
-   ``<origin>`` makes them overflow) and defined dynamics.
-
-Decision on singular mass matrices: a model is accepted only if its joint
-space inertia matrix ``M(q)`` is positive definite, checked at the neutral
-configuration and at 8 seeded random ones. A movable joint whose subtree
-carries no inertia about its axis (e.g. a massless link at the end of a chain)
-makes ``M`` singular, so forward dynamics are undefined; such a file is
-refused with :class:`~youbot_opt.exceptions.InvalidModelError` naming the
-joints. Massless links attached by *fixed* joints are fine: they add nothing.
-If every moving body has a positive definite spatial inertia, ``M(q)`` is
-positive definite at every ``q``; only bodies with degenerate inertia could make
-``M`` singular at configurations the samples miss.
+>>> loaded = load_urdf_strict("robot.urdf", package_dirs=["."])  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -176,7 +152,7 @@ def _read_and_check(
 def check_urdf_text(
     path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
 ) -> ET.ElementTree:
-    """Run every check that needs only the file (steps 1-4 of the module docstring).
+    """Run every check that needs only the file (steps 1-4 of :func:`load_urdf_strict`).
 
     Parameters
     ----------
@@ -404,8 +380,16 @@ def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[
         out that a placement, a spatial inertia or ``M(q)`` is not finite; the
         mass and inertia of a body differ from the sum of its links'
         ``<inertial>`` blocks in the file (Pinocchio silently drops a block it
-        cannot parse); or ``M(q)`` is not positive definite (see the module
-        docstring).
+        cannot parse); or ``M(q)`` is not positive definite (see Notes).
+
+    Notes
+    -----
+    A model is accepted only if its joint space inertia matrix ``M(q)`` is
+    positive definite, checked at the neutral configuration and at 8 seeded
+    random ones. A movable joint whose subtree carries no inertia about its
+    axis (e.g. a massless link at the end of a chain) makes ``M`` singular,
+    so forward dynamics are undefined; such a file is refused, naming the
+    joints. Massless links attached by *fixed* joints are fine: they add nothing.
     """
     name = os.fspath(path)
     robot = root_of(tree, name)
@@ -425,6 +409,29 @@ def load_urdf_strict(
     locked: frozenset[str] = frozenset(),
 ) -> LoadedURDF:
     """Check a URDF file, load it into Pinocchio and check the result.
+
+    The steps, each raising at the first broken rule:
+
+    1. The file must be a regular file of at most :data:`MAX_URDF_BYTES`
+       (:class:`~youbot_opt.exceptions.UnsafeURDFError`; a missing file raises
+       :class:`~youbot_opt.exceptions.RobotNotFound`).
+    2. Strict XML parsing with every ``DOCTYPE`` and entity refused
+       (:mod:`youbot_opt.robot.strict.xml`).
+    3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.strict.rules`).
+       Physically implausible inertias (:func:`~youbot_opt.robot.strict.rules.implausible_inertias`)
+       follow :func:`inertia_policy`: on a link welded to the world a warning; on
+       a moving link a refusal, or a warning under ``strict=False``.
+    4. Mesh and texture references, including the textures inside ``.dae`` files,
+       must resolve to regular files inside ``package_dirs``
+       (:mod:`youbot_opt.robot.strict.resources`).
+    5. Pinocchio builds the model from the *checked tree*, re-serialised with each
+       mesh and texture reference replaced by its checked absolute path: it reads
+       exactly what was checked, never resolves a path itself and never consults
+       ``ROS_PACKAGE_PATH``. What Pinocchio's URDF parser prints on the C-level
+       standard error is captured and logged (or put in the error message).
+    6. :func:`check_model` compares the model with the file (joints, joint limits,
+       inertias), requires finite placements, inertias and ``M(q)`` (a huge
+       ``<origin>`` makes them overflow) and defined dynamics.
 
     Parameters
     ----------

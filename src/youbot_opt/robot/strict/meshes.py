@@ -1,16 +1,12 @@
 """What the meshcat replay embeds of a mesh file: its bytes, its textures, a PLY as STL.
 
-Every path decision is :mod:`youbot_opt.robot.strict.resources`'s, so the
-replay accepts exactly the meshes the strict loader accepts: a mesh resolves
-like a URDF reference to a regular file inside the package directories, with
-a format of :data:`~youbot_opt.robot.strict.resources.MESH_SUFFIXES`, and a
-COLLADA file's textures resolve from its folder by the same rules. This
-module adds what embedding needs: the bytes, each COLLADA texture as a
-``data:`` URI keyed by the ``<init_from>`` text the browser reads (inline
-``data:image/`` URIs kept; textures in :data:`TEXTURE_SUFFIXES`), and ``.ply``
-meshes, which meshcat cannot parse, as binary STL from the triangles coal
-(assimp, as in Pinocchio) reads. Errors are the loader's URDFError subclasses.
-Example: ``load_mesh_file(path, robot.package_dirs, referenced_by="geometry object 'arm_0'")``.
+Every path decision is :mod:`youbot_opt.robot.strict.resources`'s, so the replay
+accepts exactly the meshes the strict loader accepts. :func:`load_mesh_file`
+adds what embedding needs: the bytes, each COLLADA texture as a ``data:`` URI
+and ``.ply`` meshes (which meshcat cannot parse) as binary STL. Errors are the
+loader's URDFError subclasses.
+
+>>> mesh = load_mesh_file(path, robot.package_dirs, referenced_by="link 'arm_0'")  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -255,6 +251,15 @@ def load_mesh_file(
     mesh_path: str | Path, package_dirs: Sequence[str | Path], *, referenced_by: str = ""
 ) -> MeshFile:
     """Check a mesh file (and a COLLADA file's textures) and read what to embed.
+
+    The mesh resolves like a URDF reference to a regular file inside the
+    package directories, with a format of
+    :data:`~youbot_opt.robot.strict.resources.MESH_SUFFIXES`, and a COLLADA
+    file's textures resolve from its folder by the same rules. Each texture
+    becomes a ``data:`` URI keyed by the ``<init_from>`` text the browser reads
+    (inline ``data:image/`` URIs are kept; textures in :data:`TEXTURE_SUFFIXES`),
+    and a ``.ply`` mesh becomes binary STL of the triangles coal (assimp, as in
+    Pinocchio) reads.
 
     Parameters
     ----------

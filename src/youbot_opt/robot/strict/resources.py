@@ -1,15 +1,13 @@
 """The one policy for files a robot description references: meshes, textures, material libraries.
 
-Both the strict loader and the meshcat replay ask this module. A reference is
-resolved as Pinocchio does (``package://pkg/rest`` and relative paths: first
-existing ``d/rest`` over the package directories; ``file:///abs`` and
-``/abs``: the path itself; other schemes refused). With symlinks followed it
-must be a regular file inside the package directories of at most
-:data:`MAX_RESOURCE_BYTES`; meshes have one of :data:`MESH_SUFFIXES`. A
-``.dae`` file's textures (``<init_from>``/``<ref>`` in images) and an ``.obj``
-file's ``mtllib`` are resolved from the mesh's folder by the same rules.
-Errors are :class:`~youbot_opt.exceptions.URDFError` subclasses naming file,
-element and rule, e.g. ``check_mesh(resolve_reference(ref, roots, roots, where), roots, where)``.
+Both the strict loader and the meshcat replay ask this module.
+:func:`resolve_reference` resolves a reference as Pinocchio does and requires a
+regular file inside the package directories; :func:`check_mesh` checks a mesh's
+format and resolves the files it names (a ``.dae`` file's textures, an ``.obj``
+file's ``mtllib``) from its folder by the same rules. Errors are
+:class:`~youbot_opt.exceptions.URDFError` subclasses naming file, element and rule.
+
+>>> check_mesh(resolve_reference(ref, roots, roots, where), roots, where)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -168,6 +166,11 @@ def resolve_reference(
     ref: str, roots: Sequence[Path], search_dirs: Sequence[Path], where: Site
 ) -> Path:
     """Resolve one mesh or texture reference and check where it lands.
+
+    As Pinocchio does: ``package://pkg/rest`` and relative paths give the first
+    existing ``d/rest`` over ``search_dirs``; ``file:///abs`` and ``/abs`` the
+    path itself; other schemes are refused. With symlinks followed the file
+    must be a regular file inside ``roots`` of at most :data:`MAX_RESOURCE_BYTES`.
 
     Parameters
     ----------
@@ -331,6 +334,10 @@ def check_mesh(
     material_warning: bool = True,
 ) -> tuple[Path, ...]:
     """Check a resolved mesh's format and the files it references.
+
+    The mesh must have one of :data:`MESH_SUFFIXES`. A ``.dae`` file's textures
+    (``<init_from>``/``<ref>`` in images) and an ``.obj`` file's ``mtllib`` are
+    resolved from the mesh's folder by the rules of :func:`resolve_reference`.
 
     Parameters
     ----------

@@ -1,36 +1,13 @@
 """Structural and physical rules a parsed URDF must pass (issue 6, item 1).
 
-:func:`check_urdf_tree` checks a tree from :func:`youbot_opt.robot.strict.xml.parse_xml_strict`:
-a ``<robot name=...>`` root, at least one link, unique link and joint names,
-known joint types, parent and child links that exist, one root link and no
-loops, the elements URDF parsers require (``<mass>`` and ``<inertia>`` in an
-``<inertial>``, a ``<limit>`` on revolute and prismatic joints, one shape in a
-``<geometry>``), numbers that are finite decimals, and mimic relations that
-follow a movable joint directly (:func:`check_mimic_graph`: no chain or cycle).
-
-Physical rules (``m`` mass, ``I`` rotational inertia at the centre of mass):
-
-* ``m >= 0`` (raises).
-* Plausibility, reported by :func:`implausible_inertias` (the loader warns or
-  refuses, see :mod:`youbot_opt.robot.strict.loader`): a link with ``m = 0``
-  has ``I = 0``; for ``m > 0`` the principal moments ``I1 <= I2 <= I3`` are
-  ``>= 0`` and obey the triangle inequality ``I1 + I2 >= I3``: together these
-  say that some mass distribution has this inertia (its pseudo-inertia matrix
-  is positive semidefinite; Wensing, Kim and Slotine, IEEE RA-L 3(1), 2018).
-  Point masses and thin rods (semidefinite ``I``) are plausible: they are
-  limits of real bodies and common at sensor and tool links.
-  :func:`welded_links` names the links that cannot move in the fixed-base
-  model, where such an inertia cannot change any result. Whether the
-  dynamics are defined is checked on the loaded model
-  (:func:`youbot_opt.robot.strict.loader.check_model`).
-* Movable joints have a non-zero axis; a ``<limit>`` has ``lower <= upper``,
-  ``velocity >= 0`` and ``effort >= 0``; damping and friction are ``>= 0``;
-  box, cylinder and sphere sizes are ``> 0``; mesh scales are non-zero.
-
-The first broken rule raises; the error names file, element, line and rule.
-Mesh and texture references are checked by :mod:`youbot_opt.robot.strict.resources`.
-:func:`file_inertia` and :func:`file_limits` read what a checked file says in
-the form Pinocchio holds it, for :func:`youbot_opt.robot.strict.loader.check_model`.
+:func:`check_urdf_tree` checks a tree from :func:`youbot_opt.robot.strict.xml.parse_xml_strict`
+(the rules are listed there); the first broken rule raises, naming file, element,
+line and rule. :func:`implausible_inertias` and :func:`welded_links` report the
+inertias the loader warns about or refuses; :func:`check_mimic_graph` the mimic
+relations; :func:`file_inertia` and :func:`file_limits` read what a checked file
+says in the form Pinocchio holds it. Mesh and texture references are checked by
+:mod:`youbot_opt.robot.strict.resources`. The plausibility rule is explained in
+docs/design.md, "Module notes".
 """
 
 from __future__ import annotations
@@ -292,6 +269,22 @@ def _check_tree(links: dict[str, ET.Element], joints: dict[str, ET.Element], pat
 def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
     """Check a parsed URDF against the structural and physical rules.
 
+    Structure: a ``<robot name=...>`` root, at least one link, unique link and
+    joint names, known joint types, parent and child links that exist, one root
+    link and no loops, the elements URDF parsers require (``<mass>`` and
+    ``<inertia>`` in an ``<inertial>``, a ``<limit>`` on revolute and prismatic
+    joints, one shape in a ``<geometry>``), numbers that are finite decimals,
+    and mimic relations that follow a movable joint directly
+    (:func:`check_mimic_graph`: no chain or cycle).
+
+    Physics (``m`` mass): ``m >= 0``; movable joints have a non-zero axis; a
+    ``<limit>`` has ``lower <= upper``, ``velocity >= 0`` and ``effort >= 0``;
+    damping and friction are ``>= 0``; box, cylinder and sphere sizes are
+    ``> 0``; mesh scales are non-zero. Inertia plausibility is not checked here
+    but reported by :func:`implausible_inertias` (the loader warns or refuses),
+    and whether the dynamics are defined is checked on the loaded model
+    (:func:`youbot_opt.robot.strict.loader.check_model`).
+
     Parameters
     ----------
     tree : xml.etree.ElementTree.ElementTree
@@ -307,7 +300,7 @@ def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
         loops, missing required elements or attributes.
     InvalidModelError
         Malformed or non-finite numbers, and values that break the physical
-        rules of the module docstring.
+        rules above.
     """
     robot = root_of(tree, path)
     if robot.tag != "robot" or not robot.get("name", "").strip():
@@ -544,6 +537,13 @@ def _plausibility(mass: float, inertia: np.ndarray) -> tuple[str, str] | None:
 def implausible_inertias(tree: ET.ElementTree, path: str) -> tuple[InertiaFinding, ...]:
     """Return every link whose ``<inertial>`` breaks a plausibility rule.
 
+    With ``m`` the mass and ``I`` the rotational inertia at the centre of mass:
+    a link with ``m = 0`` must have ``I = 0``; for ``m > 0`` the principal
+    moments ``I1 <= I2 <= I3`` must be ``>= 0`` and obey the triangle
+    inequality ``I1 + I2 >= I3``. Point masses and thin rods (semidefinite
+    ``I``) are plausible. :func:`welded_links` names the links that cannot
+    move in the fixed-base model, where such an inertia cannot change any result.
+
     Parameters
     ----------
     tree : xml.etree.ElementTree.ElementTree
@@ -554,7 +554,7 @@ def implausible_inertias(tree: ET.ElementTree, path: str) -> tuple[InertiaFindin
     Returns
     -------
     tuple of InertiaFinding
-        In document order; empty when every inertia is plausible (module docstring).
+        In document order; empty when every inertia is plausible.
     """
     found = []
     for link in root_of(tree, path).findall("link"):

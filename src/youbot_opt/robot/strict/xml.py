@@ -1,20 +1,12 @@
 """Strict XML parsing and error sites of the strict URDF loader (issue 6, item 1).
 
 :func:`parse_xml_strict` parses with the standard library's expat and refuses
-any ``DOCTYPE``, entity or notation declaration the moment expat meets it, so
-nothing is ever expanded or fetched (billion laughs, external entities).
-Malformed, truncated and badly encoded input is an error, never "recovered" as
-some parsers do. Elements keep their source line (``sourceline``, as in lxml).
-Nesting deeper than :data:`MAX_XML_DEPTH` and more than :data:`MAX_XML_ELEMENTS`
-elements are refused while streaming, before any tree or recursive walk exists
-(raise them with the environment variables of :func:`limit`).
-
-:func:`parse_number` reads numbers strictly: finite decimals such as ``1.5``
-or ``-2e-3``; not ``1,5``, ``nan``, ``inf``, ``1_0`` (which Python's
-``float`` accepts), ``0x1p3`` or ``1e400`` (overflows).
-
-:class:`Site` and :func:`fail` give every error the same shape:
+any ``DOCTYPE``, entity or notation declaration, so nothing is ever expanded or
+fetched; :func:`parse_number` reads finite decimals only. :class:`Site` and
+:func:`fail` give every error the same shape:
 ``file:line: <tag name='...'> of link '...': problem [rule: ...]``.
+
+>>> tree = parse_xml_strict(Path("robot.urdf").read_bytes(), "robot.urdf")  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -343,6 +335,14 @@ class _TreeTarget:
 def parse_xml_strict(data: bytes, path: str) -> ET.ElementTree:
     """Parse XML bytes into a tree, strictly and without any DTD processing.
 
+    Any ``DOCTYPE``, entity or notation declaration is refused the moment
+    expat meets it, so nothing is ever expanded or fetched (billion laughs,
+    external entities). Malformed, truncated and badly encoded input is an
+    error, never "recovered" as some parsers do. Nesting deeper than
+    :data:`MAX_XML_DEPTH` and more than :data:`MAX_XML_ELEMENTS` elements are
+    refused while streaming, before any tree or recursive walk exists (raise
+    them with the environment variables of :func:`limit`).
+
     Parameters
     ----------
     data : bytes
@@ -394,6 +394,10 @@ def root_of(tree: ET.ElementTree, path: str) -> ET.Element:
 
 def parse_number(text: str | None, where: Site, attr: str) -> float:
     """Parse one finite decimal number strictly.
+
+    Accepted: finite decimals such as ``1.5`` or ``-2e-3``; refused: ``1,5``,
+    ``nan``, ``inf``, ``1_0`` (which Python's ``float`` accepts), ``0x1p3``
+    and ``1e400`` (overflows).
 
     Parameters
     ----------

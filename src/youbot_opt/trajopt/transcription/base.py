@@ -1,27 +1,13 @@
 """Transcription protocol: how a :class:`TrajOptProblem` becomes a CasADi NLP.
 
-A transcription is a strategy object (rockit's ``ocp.method(...)``): it turns
-the plain problem spec plus the robot's CasADi forward dynamics into a
+A transcription is a strategy object (:class:`Transcription`): it turns the
+plain problem spec plus the robot's CasADi forward dynamics into a
 :class:`TranscribedNLP` -- decision vector ``x``, parameter ``p = (beta,)``,
 objective ``f`` and constraint vector ``g`` -- together with the named layout
-of ``x`` and ``g`` so that solutions and multipliers can be read back by name
-and knot.
-
-Conventions (shared by every transcription):
-
-* Every variable block is a CasADi matrix of shape ``(nv, count)``, one column
-  per knot (or interval); ``x`` stacks the blocks' columns, so the numpy view
-  of a block is knot-major ``(count, nv)``.
-* Boundary conditions are equality rows of ``g`` (blocks ``start_position``,
-  ``start_velocity``, ``goal_position``, ``goal_velocity``) whose values enter
-  only through ``lbg = ubg``: a new start or goal needs no rebuild.
-* Joint bounds enter only through ``lbx``/``ubx`` -- and, for a scheme whose
-  interpolant can leave the bounds between knots, through the ``lbg``/``ubg``
-  of its *path* blocks (inequality rows of ``g`` held within a bound family,
-  :meth:`Transcription.path_constraints`) -- the time weight only through
-  ``p``: bound scaling and ``beta`` sweeps reuse one NLP.
-* The forward dynamics is evaluated by the per-knot Function mapped over the
-  knots (``F.map(N)``).
+of ``x`` and ``g`` (:class:`Layout`, :class:`Block`) so that solutions and
+multipliers can be read back by name and knot. The conventions every
+transcription shares (block shapes, where boundary states, bounds and
+``beta`` enter): :class:`Transcription`; why: docs/design.md, "Module notes".
 """
 
 from __future__ import annotations
@@ -243,6 +229,22 @@ class TranscribedNLP:
 
 class Transcription(ABC):
     """Strategy turning a :class:`TrajOptProblem` into a :class:`TranscribedNLP`.
+
+    Conventions (shared by every transcription):
+
+    * Every variable block is a CasADi matrix of shape ``(nv, count)``, one column
+      per knot (or interval); ``x`` stacks the blocks' columns, so the numpy view
+      of a block is knot-major ``(count, nv)``.
+    * Boundary conditions are equality rows of ``g`` (blocks ``start_position``,
+      ``start_velocity``, ``goal_position``, ``goal_velocity``) whose values enter
+      only through ``lbg = ubg``: a new start or goal needs no rebuild.
+    * Joint bounds enter only through ``lbx``/``ubx`` -- and, for a scheme whose
+      interpolant can leave the bounds between knots, through the ``lbg``/``ubg``
+      of its *path* blocks (inequality rows of ``g`` held within a bound family,
+      :meth:`path_constraints`) -- the time weight only through ``p``: bound
+      scaling and ``beta`` sweeps reuse one NLP.
+    * The forward dynamics is evaluated by the per-knot Function mapped over the
+      knots (``F.map(N)``).
 
     Parameters
     ----------

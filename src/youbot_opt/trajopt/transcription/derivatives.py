@@ -1,28 +1,15 @@
 r"""Exact NLP derivatives assembled from per-point dynamics kernels (the fast path).
 
-CasADi can differentiate the whole transcribed NLP itself (``expand`` to SX,
-then a colored sparse Hessian of the full graph); that costs O(N) symbolic work
-at build time and an interpreted sweep over every knot at each evaluation. This
-module exploits the structure every collocation scheme shares instead: the
-constraints ``g(x, A)`` are *affine* in the accelerations ``A`` (one column per
-dynamics point, ``a_k = FD(z_k)`` with ``z_k = (q_k, v_k, tau_k)``), and the
-objective does not involve ``A``. With the Lagrangian ``l = s f + lam . g`` and
-``J_A = dA/dx`` (block diagonal over the points),
-
-.. math::
-
-    \nabla g = g_x + g_A J_A, \qquad
-    \nabla^2 l = l_{xx} + J_A^\top l_{Ax} + l_{xA} J_A + J_A^\top l_{AA} J_A
-                 + \sum_k \sum_i (l_A)_{k,i} \nabla^2 \mathrm{FD}_i(z_k).
-
-Only three small per-point kernels touch the dynamics -- ``a``, ``dA/dz`` and
-``sum_i w_i nabla^2 FD_i`` -- and they are mapped over the points (``F.map``)
-and may be compiled to C (:mod:`youbot_opt.nlp.codegen`). Everything else is a
-cheap SX expression in ``x``, ``A``, the kernel outputs and the multipliers.
-
-The functions returned have the signatures ``nlpsol`` expects for its
-``grad_f``, ``jac_g`` and ``hess_lag`` options, and are tested against CasADi's
-own derivatives of the plain NLP.
+The constraints ``g(x, A)`` of every collocation scheme are affine in the
+accelerations ``A`` (one column per dynamics point, ``a_k = FD(q_k, v_k, tau_k)``)
+and the objective does not involve ``A``; so the gradient, the constraint Jacobian
+and the Lagrangian Hessian follow by the chain rule from three small per-point
+kernels -- ``a``, ``dA/dz`` and ``sum_i w_i nabla^2 FD_i`` (:func:`dynamics_kernels`)
+-- mapped over the points and optionally compiled to C (:func:`compile_kernels`).
+:func:`structured_functions` returns them with the signatures of ``nlpsol``'s
+``grad_f``, ``jac_g`` and ``hess_lag`` options; they are tested against CasADi's
+own derivatives of the plain NLP. Derivation and rationale: docs/design.md,
+"Module notes".
 """
 
 from __future__ import annotations

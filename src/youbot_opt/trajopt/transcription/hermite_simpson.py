@@ -1,64 +1,19 @@
 r"""Hermite-Simpson direct collocation, separated form (Betts sec. 4.6.5).
 
-Decision variables: knot states and torques ``q_k, v_k, tau_k`` (``N``
-knots), mid-interval states and torques ``q_m, v_m, tau_m`` (``N - 1``
-intervals) and the common step ``dt``: ``3 nv (2N - 1) + 1`` numbers. Per
-interval, with ``a = FD(q, v, tau)`` at the knots and the midpoint,
+Variables: knot and mid-interval ``q, v, tau`` and the mean step ``dt``
+(``3 nv (2N - 1) + 1``); per interval the Simpson defects and the Hermite
+midpoint conditions (``4 nv (N - 1)`` equalities). Position and velocity are
+cubic Hermite splines, the torque is quadratic; the whole position and
+velocity cubics are held within their bounds by bounding their Bernstein
+control points (path blocks ``position_control_*``, ``velocity_control_*``).
+The derivation, and why the separated form is kept, are in docs/collocation.md.
 
-.. math::
-
-    q_m = \tfrac12 (q_k + q_{k+1}) + \tfrac{dt}{8} (v_k - v_{k+1}), \qquad
-    v_m = \tfrac12 (v_k + v_{k+1}) + \tfrac{dt}{8} (a_k - a_{k+1}),
-
-    q_{k+1} - q_k = \tfrac{dt}{6} (v_k + 4 v_m + v_{k+1}), \qquad
-    v_{k+1} - v_k = \tfrac{dt}{6} (a_k + 4 a_m + a_{k+1}),
-
-``4 nv (N - 1)`` equalities plus ``4 nv`` boundary equalities. The torque is
-piecewise quadratic through ``tau_k, tau_m, tau_{k+1}``; position and velocity
-are cubic Hermite splines; the work uses Simpson's rule on ``tau . tau``.
-
-**Speed bound between knots.** The velocity interpolant on interval ``k`` is
-the cubic Hermite spline with end values ``v_k, v_{k+1}`` and end slopes
-``a_k, a_{k+1}`` (its value at the midpoint is ``v_m`` by the Hermite midpoint
-condition, and its slope there is ``a_m`` by the Simpson defect, so it is the
-velocity the collocation equations describe). Bounding ``v`` at the knots and
-``v_m`` does not bound it in between: the cubic overshoots near speed-limited
-arcs (8 % at 50 knots for the study-1 base case). In Bernstein form on
-``s = (t - t_k) / dt``,
-
-.. math::
-
-    v(s) = \sum_{i=0}^{3} b_i \binom{3}{i} s^i (1 - s)^{3 - i}, \quad
-    b_0 = v_k,\; b_1 = v_k + \tfrac{dt}{3} a_k,\;
-    b_2 = v_{k+1} - \tfrac{dt}{3} a_{k+1},\; b_3 = v_{k+1},
-
-and the Bernstein basis is non-negative and sums to one, so ``v(s)`` is a convex
-combination of the control points ``b_i`` (convex-hull property). Holding
-``b_1`` and ``b_2`` within the speed bounds (path blocks
-``velocity_control_left`` and ``velocity_control_right``, ``nv (N - 1)`` rows
-each; ``b_0``, ``b_3`` are the bounded knot velocities) therefore keeps the
-whole interpolant within them -- a sufficient condition, not a sampled one.
-It is conservative by ``O(dt^2 |dv/dt''|)`` (the control polygon's distance
-from the curve), which vanishes as knots are added. The midpoint-velocity
-bound is implied (``v_m = (b_0 + 3 b_1 + 3 b_2 + b_3) / 8``) and would make the
-active constraints linearly dependent on a speed-limited arc, so ``v_mid``
-has no bound of its own.
-
-**Position bound between knots.** The position interpolant is the cubic
-Hermite spline with end values ``q_k, q_{k+1}`` and end slopes ``v_k, v_{k+1}``
-(its midpoint value is ``q_m`` by the Hermite midpoint condition). The same
-argument applies: its Bernstein control points ``q_k + dt/3 v_k`` and
-``q_{k+1} - dt/3 v_{k+1}`` are held within the position bounds (path blocks
-``position_control_left`` / ``position_control_right``), so the whole cubic
-stays within them, and ``q_mid`` (a convex combination of the four control
-points) has no bound of its own. The mid-interval torque ``tau_mid`` keeps
-its variable bound; the quadratic torque between the three samples is
-checked by the certificate (:func:`youbot_opt.trajopt.certify.check_bounds`).
+    solver = TrajOptSolver(problem, HermiteSimpsonCollocation())
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -75,7 +30,7 @@ class HermiteSimpsonCollocation(Transcription):
     name = "hermite_simpson"
     interpolation = "hermite_simpson"
     rule = "simpson"
-    unbounded = ("q_mid", "v_mid")
+    unbounded: ClassVar[tuple[str, ...]] = ("q_mid", "v_mid")
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """Knot and midpoint ``q, v, tau`` and ``dt``: ``3 nv (2N - 1) + 1`` variables."""

@@ -1,22 +1,11 @@
 r"""Trapezoidal direct collocation: the study's transcription, done correctly.
 
-For ``N`` knots with a common step ``dt`` (Betts, *Practical Methods for
-Optimal Control*, sec. 4.5; spec ``trajopt.md``; on a non-uniform grid interval
-``k`` has the step ``r_k dt``, see ``Transcription``) the decision variables are
-``q_k, v_k, tau_k`` (``k = 0 .. N-1``) and ``dt`` -- ``3 nv N + 1`` numbers, the
-study's ``9n + 1`` for the 3-joint youBot -- and the defects are
-
-.. math::
-
-    q_{k+1} - q_k - \tfrac{dt}{2}(v_k + v_{k+1}) = 0, \qquad
-    v_{k+1} - v_k - \tfrac{dt}{2}(a_k + a_{k+1}) = 0, \qquad
-    a_k = \mathrm{FD}(q_k, v_k, \tau_k),
-
-``2 nv (N - 1)`` equalities, plus ``4 nv`` boundary equalities: the study's
-``6(n - 1) + 12`` for ``nv = 3``. Unlike the study's code, every knot's
-acceleration is evaluated at that knot's own state and torque. Torque and
-velocity are piecewise linear, position piecewise quadratic; the work uses
-the trapezoidal rule on ``tau . tau``.
+:class:`TrapezoidalCollocation`: decision variables ``q_k, v_k, tau_k`` at the
+``N`` knots and the common step ``dt`` (``3 nv N + 1``, the study's ``9n + 1``),
+trapezoidal defects on ``q' = v`` and ``v' = FD(q, v, tau)`` (Betts, *Practical
+Methods for Optimal Control*, sec. 4.5; spec ``trajopt.md``). Unlike the study's
+code, every knot's acceleration is evaluated at that knot's own state and
+torque. The equations and counts: the class docstring.
 """
 
 from __future__ import annotations
@@ -33,7 +22,26 @@ __all__ = ["TrapezoidalCollocation"]
 
 
 class TrapezoidalCollocation(Transcription):
-    """Trapezoidal collocation with a free common time step (the study's scheme)."""
+    r"""Trapezoidal collocation with a free common time step (the study's scheme).
+
+    For ``N`` knots with a common step ``dt`` (Betts, *Practical Methods for
+    Optimal Control*, sec. 4.5; spec ``trajopt.md``; on a non-uniform grid interval
+    ``k`` has the step ``r_k dt``, see :class:`Transcription`) the decision variables
+    are ``q_k, v_k, tau_k`` (``k = 0 .. N-1``) and ``dt`` -- ``3 nv N + 1`` numbers,
+    the study's ``9n + 1`` for the 3-joint youBot -- and the defects are
+
+    .. math::
+
+        q_{k+1} - q_k - \tfrac{dt}{2}(v_k + v_{k+1}) = 0, \qquad
+        v_{k+1} - v_k - \tfrac{dt}{2}(a_k + a_{k+1}) = 0, \qquad
+        a_k = \mathrm{FD}(q_k, v_k, \tau_k),
+
+    ``2 nv (N - 1)`` equalities, plus ``4 nv`` boundary equalities: the study's
+    ``6(n - 1) + 12`` for ``nv = 3``. Unlike the study's code, every knot's
+    acceleration is evaluated at that knot's own state and torque. Torque and
+    velocity are piecewise linear, position piecewise quadratic; the work uses
+    the trapezoidal rule on ``tau . tau``.
+    """
 
     name = "trapezoidal"
     interpolation = "trapezoidal"

@@ -1,0 +1,142 @@
+"""The multistart part of ``youbot-opt ikpath`` that the planar and spatial modes share.
+
+The progress of the starts on stderr (:class:`StartProgress`), the
+:class:`~youbot_opt.sweeps.options.SweepOptions` of the command line
+(:func:`start_sweep`: workers, progress, the run folder as the resumable store,
+``--shard``), the per-start fields of ``summary.json`` (:func:`start_fields`)
+and the printed lines about the starts (:func:`print_starts`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from youbot_opt.sweeps.options import SweepOptions
+
+if TYPE_CHECKING:
+    from youbot_opt.ikpath.result import IKPathResult
+    from youbot_opt.ikpath.spatial import SpatialIKResult
+
+__all__ = ["StartProgress", "print_starts", "start_fields", "start_sweep"]
+
+
+class StartProgress:
+    """Progress of the starts on stderr: a bar on a terminal, else a line per tenth."""
+
+    def __init__(self, stream: Any = None) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.tic = time.perf_counter()
+        self.shown = -1
+
+    def __call__(self, done: int, total: int, best: float) -> None:
+        """Report ``done`` of ``total`` starts and the best ``E`` so far [rad^2]."""
+        best_txt = f"{best:.10g}" if math.isfinite(best) else "-"
+        elapsed = time.perf_counter() - self.tic
+        if self.tty:
+            width = 30
+            fill = int(width * done / total)
+            self.stream.write(
+                f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} starts, "
+                f"best E {best_txt}, {elapsed:.1f} s"
+            )
+            if done == total:
+                self.stream.write("\n")
+        else:
+            tenth = 10 * done // total
+            if tenth == self.shown and done != total:
+                return
+            self.shown = tenth
+            self.stream.write(
+                f"ikpath: {done}/{total} starts done, best E {best_txt} rad^2, {elapsed:.1f} s\n"
+            )
+        self.stream.flush()
+
+
+def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepOptions:
+    """Return how the starts of the command line run, and say on stderr where they are saved.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``--starts``, ``--workers`` (default: 1 below 8 starts, else the CPUs),
+        ``--no-progress`` and ``--shard``.
+    folder : Path
+        The run folder: the sweep store, which a rerun with ``--out`` resumes.
+    executor : str
+        A Dask scheduler address, ``"process"`` (several starts: a crashing
+        start cannot end the run) or ``"serial"``.
+    """
+    workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
+    if not args.no_progress:
+        print(
+            f"ikpath: {args.starts} start(s), each saved to {folder.resolve() / 'items'} as it "
+            f"finishes (rerun with --out {folder} to resume)",
+            file=sys.stderr,
+        )
+    return SweepOptions(
+        executor=executor,
+        workers=workers,
+        progress=None if args.no_progress else StartProgress(),
+        out=folder,
+        shard=args.shard,
+    )
+
+
+def start_fields(
+    results: Sequence[IKPathResult | SpatialIKResult],
+    attempts: Sequence[int],
+    detail: Callable[[Any], dict[str, Any]] | None = None,
+) -> dict[str, Any]:
+    """Return the per-start fields of ``summary.json``: ``retried`` and ``start_outcomes``.
+
+    Parameters
+    ----------
+    results : sequence of IKPathResult or of SpatialIKResult
+        One result per start, in start order.
+    attempts : sequence of int
+        Attempts per start (empty: unknown, written as ``null``).
+    detail : callable ``(result) -> dict``, optional
+        Mode-specific fields of each start, written after ``E``.
+    """
+    return {
+        "retried": [i for i, a in enumerate(attempts) if a > 1],
+        "start_outcomes": [
+            {
+                "index": i,
+                "status": r.status.value,
+                "E": r.objective,
+                **({} if detail is None else detail(r)),
+                "attempts": attempts[i] if attempts else None,
+                "message": None if r.success else r.message,
+            }
+            for i, r in enumerate(results)
+        ],
+    }
+
+
+def print_starts(doc: dict[str, Any]) -> None:
+    """Print how the starts ran: throughput and outcomes, resumed, retried and crashed starts.
+
+    ``doc`` is the run's summary (``starts``, ``seed``, ``start_kind``,
+    ``workers``, ``wall_time`` [s], ``starts_per_second`` [1/s],
+    ``status_counts``, ``resumed`` and the fields of :func:`start_fields`).
+    """
+    print(
+        f"multistart: {doc['starts']} starts (seed {doc['seed']}, {doc['start_kind']}), "
+        f"{doc['workers']} workers, {doc['wall_time']:.2f} s "
+        f"({doc['starts_per_second']:.1f} starts/s); outcomes {doc['status_counts']}"
+    )
+    if doc["resumed"]:
+        print(f"  {doc['resumed']} starts loaded from the output folder (resumed)")
+    if doc["retried"]:
+        print(f"  retried after a failed attempt: starts {doc['retried']}")
+    for o in doc["start_outcomes"]:
+        if o["status"] == "crashed":
+            print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")

@@ -1,0 +1,388 @@
+"""Save and load spatial IK-path results: one JSON file with schema, version and checksum.
+
+Schema ``youbot_opt.spatial_ikpath_result`` (version :data:`SCHEMA_VERSION`):
+the robot's source (:class:`RobotSource`: a robot name or URDF path and the
+loading options, so that the file reloads on its own), a fingerprint of its
+kinematics, the frame, targets, limits, configurations, reported errors and
+history under ``"result"``, its SHA-256 under ``"sha256"``. Loading rebuilds
+the problem, recomputes every target's errors by ``pin.framesForwardKinematics``
+and ``E``, and refuses a file whose stored figures disagree (a moved target, a
+changed robot) or whose claimed success the check does not confirm.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt._files import array_digest
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
+from youbot_opt.ikpath.io import (
+    RECHECK_TOL,
+    encode_document,
+    history_from_json,
+    history_to_json,
+    limits_from_json,
+    limits_to_json,
+    read_document,
+    write_document,
+)
+from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
+from youbot_opt.ikpath.targets import SpatialTarget, quaternion_to_matrix
+from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.model import RobotModel, available_robots, load_model
+
+__all__ = [
+    "SCHEMA",
+    "SCHEMA_VERSION",
+    "RobotSource",
+    "encode_spatial_result",
+    "load_spatial_result",
+    "save_spatial_result",
+    "spatial_problem_spec",
+]
+
+SCHEMA = "youbot_opt.spatial_ikpath_result"
+SCHEMA_VERSION = 1
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RobotSource:
+    """How to load a robot again: :func:`~youbot_opt.robot.model.load_model` arguments.
+
+    Attributes
+    ----------
+    source : str
+        A name of :func:`~youbot_opt.robot.model.available_robots` or a URDF path.
+    package_dirs : tuple of str
+        Extra folders for ``package://`` references.
+    lock_joints : tuple of (str, float)
+        Locked joints and their positions in [rad] or [m].
+    strict : bool
+        The loader's inertia policy (``False``: ``--lenient``).
+    """
+
+    source: str
+    package_dirs: tuple[str, ...] = ()
+    lock_joints: tuple[tuple[str, float], ...] = ()
+    strict: bool = True
+
+    @classmethod
+    def of(cls, robot: RobotModel, *, strict: bool = True) -> RobotSource:
+        """Describe a loaded robot: its name if it is a known robot, else its URDF path.
+
+        Raises
+        ------
+        ParameterError
+            If the robot has neither (built from parameters in memory).
+        """
+        if robot.name in available_robots():
+            source = robot.name
+        elif robot.urdf_path is not None:
+            source = str(Path(robot.urdf_path).resolve())
+        else:
+            raise ParameterError(
+                f"robot {robot.name!r} has no URDF file and is not a known robot name; "
+                "a result file cannot name how to load it again",
+                name="robot",
+                value=robot.name,
+            )
+        return cls(
+            source=source,
+            package_dirs=tuple(str(p) for p in robot.package_dirs),
+            lock_joints=tuple((str(k), float(v)) for k, v in robot.locked_joints),
+            strict=strict,
+        )
+
+    def load(self, tip_frame: str | None = None) -> RobotModel:
+        """Load the robot (:func:`~youbot_opt.robot.model.load_model`)."""
+        return load_model(
+            self.source,
+            tip_frame=tip_frame,
+            package_dirs=self.package_dirs,
+            strict=self.strict,
+            lock_joints=dict(self.lock_joints) or None,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {
+            "source": self.source,
+            "package_dirs": list(self.package_dirs),
+            "lock_joints": [[k, v] for k, v in self.lock_joints],
+            "strict": self.strict,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> RobotSource:
+        """Inverse of :meth:`to_json`."""
+        return cls(
+            source=str(data["source"]),
+            package_dirs=tuple(str(p) for p in data.get("package_dirs", ())),
+            lock_joints=tuple((str(k), float(v)) for k, v in data.get("lock_joints", ())),
+            strict=bool(data.get("strict", True)),
+        )
+
+
+def _kinematics_digest(model: pin.Model) -> str:
+    """SHA-256 of the joint placements and position limits (what the kinematics depend on)."""
+    placements = np.array([m.homogeneous for m in model.jointPlacements], dtype=float)
+    frames = np.array([f.placement.homogeneous for f in model.frames], dtype=float)
+    limits = np.stack([model.lowerPositionLimit, model.upperPositionLimit])
+    return array_digest(np.concatenate([placements.ravel(), frames.ravel(), limits.ravel()]))
+
+
+def spatial_problem_spec(problem: SpatialIKProblem) -> dict[str, Any]:
+    """JSON-ready description of ``problem`` (result files and sweep manifests).
+
+    Returns
+    -------
+    dict
+        Model name, joint names and kinematics digest; frame, targets
+        (:meth:`SpatialTarget.to_dict`), ``use_limits``, limits in [rad] or
+        [m] (``null``: unlimited) and joint weights.
+    """
+    model = problem.model
+    return {
+        "model": {
+            "name": model.name,
+            "joints": list(model.names),
+            "kinematics_sha256": _kinematics_digest(model),
+        },
+        "frame": problem.frame,
+        "joint_names": list(problem.joint_names),
+        "targets": [t.to_dict() for t in problem.targets],
+        "use_limits": problem.use_limits,
+        "q_lower": limits_to_json(problem.q_lower),  # type: ignore[arg-type]
+        "q_upper": limits_to_json(problem.q_upper),  # type: ignore[arg-type]
+        "joint_weights": problem.weights.tolist(),
+    }
+
+
+def _body(result: SpatialIKResult, robot: RobotSource | None) -> dict[str, Any]:
+    return {
+        "robot": None if robot is None else robot.to_json(),
+        **spatial_problem_spec(result.problem),
+        "method": result.method,
+        "status": result.status.value,
+        "message": result.message,
+        "configurations": result.configurations.tolist(),
+        "objective": result.objective,
+        "position_errors": result.position_errors.tolist(),
+        "orientation_errors": result.orientation_errors.tolist(),
+        "limit_violation": result.limit_violation,
+        "multipliers": result.multipliers.tolist(),
+        "iterations": result.iterations,
+        "wall_time": result.wall_time,
+        "start": result.start.tolist(),
+        "history": history_to_json(result.history),
+    }
+
+
+def encode_spatial_result(result: SpatialIKResult, robot: RobotSource | None = None) -> bytes:
+    """Return the file content :func:`save_spatial_result` writes (UTF-8 JSON).
+
+    Parameters
+    ----------
+    result : SpatialIKResult
+        The result (failed ones too).
+    robot : RobotSource, optional
+        How to load the robot again; without it the loader needs ``robot=``.
+    """
+    return encode_document(SCHEMA, SCHEMA_VERSION, _body(result, robot))
+
+
+def save_spatial_result(
+    result: SpatialIKResult, path: str | os.PathLike[str], robot: RobotSource | None = None
+) -> Path:
+    """Write ``result`` to ``path`` as JSON (``.json`` appended if missing), atomically.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    return write_document(path, encode_spatial_result(result, robot))
+
+
+def _target(d: dict[str, Any]) -> SpatialTarget:
+    quat = d.get("quaternion_xyzw")
+    approach = d.get("approach")
+    extra: dict[str, Any] = {}
+    if approach is not None and d.get("approach_axis") is not None:
+        extra["approach_axis"] = np.array(d["approach_axis"], dtype=float)
+    return SpatialTarget(
+        position=np.array(d["position"], dtype=float),
+        rotation=None if quat is None else quaternion_to_matrix(quat),
+        approach=None if approach is None else np.array(approach, dtype=float),
+        position_tol=float(d["position_tol"]),
+        orientation_tol=float(d["orientation_tol"]),
+        orientation_weight=float(d["orientation_weight"]),
+        **extra,
+    )
+
+
+def _model_of(body: dict[str, Any], robot: RobotModel | pin.Model | None, source: str) -> pin.Model:
+    """Return the caller's model, else the file's robot source loaded; check its fingerprint."""
+    if robot is None:
+        spec = body.get("robot")
+        if spec is None:
+            raise ResultFileError(
+                f"{source}: the file names no robot source; pass robot= (the RobotModel or "
+                "pinocchio.Model it was solved on)"
+            )
+        model = RobotSource.from_json(spec).load().model
+    else:
+        model = robot.model if isinstance(robot, RobotModel) else robot
+    want = body["model"]
+    if list(model.names) != list(want["joints"]) or _kinematics_digest(model) != str(
+        want["kinematics_sha256"]
+    ):
+        raise ResultFileError(
+            f"{source}: the robot differs from the one the result was solved on (model "
+            f"{want['name']!r}, joints {want['joints']}; got {model.name!r}, joints "
+            f"{list(model.names)}, or other joint placements/limits)"
+        )
+    return model
+
+
+def _fk_errors(problem: SpatialIKProblem, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-target position [m] and orientation [rad] errors by ``pin.framesForwardKinematics``."""
+    data = problem.model.createData()
+    pos, ang = [], []
+    for j, target in enumerate(problem.targets):
+        pin.framesForwardKinematics(problem.model, data, problem.configuration(q[j]))
+        oMf = data.oMf[problem.frame_id]
+        pos.append(float(np.linalg.norm(oMf.translation - target.position)))
+        if target.rotation is not None:
+            ang.append(float(np.linalg.norm(pin.log3(target.rotation.T @ oMf.rotation))))
+        elif target.approach is not None:
+            axis = oMf.rotation @ target.approach_axis
+            sin = float(np.linalg.norm(np.cross(axis, target.approach)))
+            ang.append(math.atan2(sin, float(axis @ target.approach)))
+        else:
+            ang.append(0.0)
+    return np.array(pos), np.array(ang)
+
+
+def _parse(
+    body: dict[str, Any], robot: RobotModel | pin.Model | None, source: str
+) -> tuple[SpatialIKResult, np.ndarray, np.ndarray]:
+    model = _model_of(body, robot, source)
+    problem = SpatialIKProblem(
+        model=model,
+        frame=str(body["frame"]),
+        targets=tuple(_target(t) for t in body["targets"]),
+        use_limits=bool(body["use_limits"]),
+        q_lower=limits_from_json(body["q_lower"], -math.inf),
+        q_upper=limits_from_json(body["q_upper"], math.inf),
+        joint_weights=np.array(body["joint_weights"], dtype=float),
+    )
+    if list(problem.joint_names) != list(body["joint_names"]):
+        raise ResultFileError(
+            f"{source}: frame {problem.frame!r} is moved by joints {list(problem.joint_names)}, "
+            f"the file lists {body['joint_names']}"
+        )
+    s = problem.n_targets
+    q = problem.as_configurations(np.array(body["configurations"], dtype=float))
+    history = history_from_json(body["history"], s, problem.n_joints)
+    pos, ang = _fk_errors(problem, q)
+    result = SpatialIKResult(
+        problem=problem,
+        method=str(body["method"]),
+        status=SolveStatus(body["status"]),
+        configurations=q.copy(),
+        objective=problem.objective(q),
+        position_errors=pos,
+        orientation_errors=ang,
+        limit_violation=problem.limit_violation(q),
+        multipliers=np.array(body["multipliers"], dtype=float).reshape(s, -1),
+        iterations=int(body["iterations"]),
+        wall_time=float(body["wall_time"]),
+        message=str(body["message"]),
+        start=problem.as_configurations(np.array(body["start"], dtype=float), name="start"),
+        history=history,
+    )
+    return (
+        result,
+        np.array(body["position_errors"], dtype=float),
+        np.array(body["orientation_errors"], dtype=float),
+    )
+
+
+def load_spatial_result(
+    path: str | os.PathLike[str], *, robot: RobotModel | pin.Model | None = None
+) -> SpatialIKResult:
+    """Read a result written by :func:`save_spatial_result` and check it against the robot.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file (a run folder's ``result.json``).
+    robot : RobotModel or pinocchio.Model, optional
+        The robot; default: loaded from the file's :class:`RobotSource`.
+
+    Returns
+    -------
+    SpatialIKResult
+        The result, with ``E``, the target errors (``pin.framesForwardKinematics``)
+        and the limit violation recomputed.
+
+    Raises
+    ------
+    ResultFileError
+        If the file is missing or not JSON, of another schema or a newer
+        version, fails its checksum, is incomplete, its robot differs from the
+        one it was solved on, its stored E or target errors disagree with the
+        recomputed ones by more than 1e-9 (e.g. a moved target), or it claims a
+        success that the recomputed errors or limits do not confirm.
+    """
+    source = Path(path)
+    body = read_document(
+        source, schema=SCHEMA, version=SCHEMA_VERSION, what="a spatial IK-path result"
+    )
+    try:
+        result, stored_pos, stored_ang = _parse(body, robot, str(source))
+        stored_e = float(body["objective"])
+    except ResultFileError:
+        raise
+    except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
+        raise ResultFileError(
+            f"{source}: incomplete or invalid spatial IK-path result: {exc}"
+        ) from exc
+    bad = [
+        f"{what} {j}: stored {a!r}, recomputed {b!r}"
+        for what, stored, new in (
+            ("position error [m] of target", stored_pos, result.position_errors),
+            ("orientation error [rad] of target", stored_ang, result.orientation_errors),
+        )
+        for j, (a, b) in enumerate(zip(stored, new, strict=False))
+        if not abs(a - b) <= RECHECK_TOL
+    ]
+    if stored_pos.shape != result.position_errors.shape:
+        bad.append(
+            f"{stored_pos.size} stored position errors for {result.problem.n_targets} targets"
+        )
+    if not abs(stored_e - result.objective) <= RECHECK_TOL:
+        bad.append(f"E: stored {stored_e!r}, recomputed {result.objective!r} rad^2")
+    if bad:
+        raise ResultFileError(
+            f"{source}: the stored figures disagree with pin.framesForwardKinematics on the "
+            f"configurations (the file was edited or the robot changed): {'; '.join(bad[:4])}"
+        )
+    if result.success:
+        pt = np.array([t.position_tol for t in result.problem.targets])
+        ot = np.array([t.orientation_tol for t in result.problem.targets])
+        missed = np.flatnonzero((result.position_errors > pt) | (result.orientation_errors > ot))
+        if missed.size or result.limit_violation > 0.0:
+            raise ResultFileError(
+                f"{source}: claims {result.status.value!r} but targets {missed.tolist()} are "
+                f"missed or the limits are violated by {result.limit_violation:.3g} rad"
+            )
+    return result

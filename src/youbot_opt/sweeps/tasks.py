@@ -1,0 +1,286 @@
+"""What every executor of a sweep shares: tasks, outcomes, the retry queues, the pickler.
+
+Owns the executor-independent half of running a sweep's keyed items (spec:
+the sweep layer of ``ARCHITECTURE.md``): :class:`Task` and
+:class:`TaskOutcome`, the :class:`TaskRunner` (pending and retry queues,
+attempts per key, one :class:`TaskOutcome` per attempt, ``run_serial``), and
+the helpers both the local pool (:mod:`.pool`) and the Dask path
+(:mod:`.distributed`) use: :func:`dumps` (a pickler that also sends read-only
+mappings), :func:`invoke` (one timed call) and :func:`failure_reason`.
+Callers use :func:`youbot_opt.sweeps.pool.run_tasks`, not this module.
+
+    runner = TaskRunner([Task(key="k", fn=abs, args=(-1,))], workers=1, max_attempts=2)
+"""
+
+from __future__ import annotations
+
+import copyreg
+import io
+import logging
+import pickle
+import time
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, replace
+from multiprocessing.reduction import ForkingPickler
+from types import MappingProxyType
+from typing import Any, overload
+
+from youbot_opt.exceptions import ParameterError
+
+__all__ = [
+    "Task",
+    "TaskOutcome",
+    "TaskRunner",
+    "TaskSequence",
+    "dumps",
+    "failure_reason",
+    "invoke",
+]
+
+_log = logging.getLogger(__name__)
+
+
+# ----------------------------------------------------------------- pickling
+def _mappingproxy(d: dict[Any, Any]) -> MappingProxyType[Any, Any]:
+    return MappingProxyType(d)
+
+
+def _reduce_mappingproxy(m: MappingProxyType[Any, Any]) -> tuple[Any, ...]:
+    return _mappingproxy, (dict(m),)
+
+
+class _SweepPickler(ForkingPickler):
+    """multiprocessing's pickler that also sends read-only mappings, as a copied dict.
+
+    Read-only mappings (e.g. ``IpoptOptions.extra``) cannot be pickled by
+    default. The reducer is added to this pickler's own table only, so
+    importing the package registers nothing in :mod:`multiprocessing` or
+    :mod:`copyreg`.
+    """
+
+    def __init__(self, file: Any, protocol: int | None = None) -> None:
+        super().__init__(file, protocol)
+        table = dict(getattr(self, "dispatch_table", copyreg.dispatch_table))
+        table[MappingProxyType] = _reduce_mappingproxy
+        self.dispatch_table = table
+
+
+def dumps(obj: Any) -> bytes:
+    """Pickle ``obj`` for a worker pipe (or a process executor) with :class:`_SweepPickler`."""
+    buf = io.BytesIO()
+    _SweepPickler(buf, pickle.HIGHEST_PROTOCOL).dump(obj)
+    return buf.getvalue()
+
+
+def invoke(fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, float]:
+    """Run one task; returns its value and wall time in [s]."""
+    tic = time.perf_counter()
+    value = fn(*args)
+    return value, time.perf_counter() - tic
+
+
+def failure_reason(exc: BaseException) -> str:
+    """One line naming an exception: ``"TypeError: last line of its message"``."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
+
+
+# ------------------------------------------------------------------- tasks
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Task:
+    """One keyed unit of work: ``fn(*args)``, run in a worker.
+
+    Attributes
+    ----------
+    key : str
+        Unique key of the item.
+    fn : callable
+        A module-level (picklable) function.
+    args : tuple
+        Its positional arguments (picklable for process pools).
+    attempts : int
+        Attempts already made in earlier runs (from a store).
+    """
+
+    key: str
+    fn: Callable[..., Any]
+    args: tuple[Any, ...] = ()
+    attempts: int = 0
+
+
+class TaskSequence(Sequence[Task]):
+    """The tasks of a sweep made when asked for: task ``i`` is ``make(i)``, none is stored.
+
+    A sweep with ``keep_results=False`` given one never holds all its tasks:
+    :func:`~youbot_opt.sweeps.resume.run_resumable` takes them a chunk at a time.
+
+    Parameters
+    ----------
+    count : int
+        Number of tasks (>= 0).
+    make : callable ``(i) -> Task``
+        Task ``i``; must give the same key for the same ``i`` every time.
+
+    Examples
+    --------
+    >>> tasks = TaskSequence(3, lambda i: Task(key=f"s{i}", fn=abs, args=(-i,)))
+    >>> [t.key for t in tasks]
+    ['s0', 's1', 's2']
+    """
+
+    def __init__(self, count: int, make: Callable[[int], Task]) -> None:
+        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise ParameterError(f"count must be an int >= 0, got {count!r}", name="count")
+        self._count, self._make = count, make
+
+    def __len__(self) -> int:
+        return self._count
+
+    @overload
+    def __getitem__(self, i: int) -> Task: ...
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[Task]: ...
+    def __getitem__(self, i: int | slice) -> Task | Sequence[Task]:
+        if isinstance(i, slice):
+            return [self._make(j) for j in range(*i.indices(self._count))]
+        j = i + self._count if i < 0 else i
+        if not 0 <= j < self._count:
+            raise IndexError(f"task index {i} out of range for {self._count} tasks")
+        return self._make(j)
+
+    def __iter__(self) -> Iterator[Task]:
+        return (self._make(j) for j in range(self._count))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TaskOutcome:
+    """Outcome of one attempt of a task.
+
+    Attributes
+    ----------
+    key : str
+        Task key.
+    value : Any
+        What ``fn`` returned (``None`` for a failed attempt).
+    error : str or None
+        Why the attempt failed; ``None`` on success.
+    attempts : int
+        Attempts made so far, including this one.
+    final : bool
+        True if no further attempt will be made (success, or attempts used up).
+    wall_time : float
+        Wall time of the attempt in [s] (measured in the worker; for crashes
+        and time-outs, as seen by the parent).
+    """
+
+    key: str
+    value: Any
+    error: str | None
+    attempts: int
+    final: bool
+    wall_time: float
+
+    @property
+    def ok(self) -> bool:
+        """True if the attempt returned a value."""
+        return self.error is None
+
+
+# ------------------------------------------------------------------- runner
+class TaskRunner:
+    """State of one ``run_tasks`` call: pending and retry queues, attempts, outcomes.
+
+    Parameters
+    ----------
+    tasks : list of Task
+        The work (unique keys; ``attempts`` from earlier runs).
+    workers : int
+        Tasks (or Dask batches) kept in flight at once.
+    max_attempts : int
+        Attempts per task in total.
+    timeout : float or None
+        Wall-clock limit per attempt in [s] (worker pools only).
+    on_outcome : callable, optional
+        Called with every :class:`TaskOutcome` as it is made.
+    keep_values : bool
+        Keep every outcome in :attr:`outcomes` (default); ``False`` keeps
+        only failed ones, without values, and forgets finished tasks, so a
+        long sweep's values and tasks are not held here.
+    """
+
+    def __init__(
+        self,
+        tasks: list[Task],
+        workers: int,
+        max_attempts: int,
+        timeout: float | None,
+        on_outcome: Callable[[TaskOutcome], None] | None,
+        *,
+        keep_values: bool = True,
+    ) -> None:
+        self.keep_values = keep_values
+        self.tasks = {t.key: t for t in tasks}
+        self.attempts = {t.key: t.attempts for t in tasks}
+        self.pending = deque(t.key for t in tasks)
+        self.retry: deque[str] = deque()
+        self.workers = workers
+        self.max_attempts = max_attempts
+        self.timeout = timeout
+        self.on_outcome = on_outcome
+        self.outcomes: dict[str, TaskOutcome] = {}
+
+    def next_key(self) -> str:
+        """Key of the next task to run: a retry first, else the next pending one."""
+        return self.retry.popleft() if self.retry else self.pending.popleft()
+
+    def emit(
+        self, key: str, value: Any, error: str | None, wall: float, *, final: bool = False
+    ) -> None:
+        """Record one attempt of ``key`` (a retry is queued unless it is final)."""
+        self.attempts[key] += 1
+        n = self.attempts[key]
+        final = final or error is None or n >= self.max_attempts
+        outcome = TaskOutcome(
+            key=key, value=value, error=error, attempts=n, final=final, wall_time=wall
+        )
+        if error is not None:
+            _log.warning("task %s failed (attempt %d of %d): %s", key, n, self.max_attempts, error)
+        if not final:
+            self.retry.append(key)
+        if self.keep_values:
+            self.outcomes[key] = outcome
+        elif error is not None:  # failures only (a retry needs its reasons), without values
+            self.outcomes[key] = replace(outcome, value=None)
+        else:
+            self.outcomes.pop(key, None)
+        if final and not self.keep_values:  # a finished task is never needed again
+            del self.tasks[key], self.attempts[key]
+        if self.on_outcome is not None:
+            self.on_outcome(outcome)
+
+    def run_serial(self) -> None:
+        """Run every task in this process, in order (retries after the first pass)."""
+        while self.pending or self.retry:
+            key = self.next_key()
+            task = self.tasks[key]
+            tic = time.perf_counter()
+            try:
+                value = task.fn(*task.args)
+            except Exception as exc:  # one failing task must not end the sweep
+                self.emit(key, None, failure_reason(exc), time.perf_counter() - tic)
+            else:
+                self.emit(key, value, None, time.perf_counter() - tic)
+
+    def abandon(self, why: str) -> None:
+        """End every queued task as failed with ``why`` (the executor cannot go on)."""
+        for key in self.retry:  # already failed once here: no further attempt
+            prev = self.outcomes[key]
+            outcome = replace(prev, error=f"{prev.error}; {why}", final=True)
+            self.outcomes[key] = outcome
+            if self.on_outcome is not None:
+                self.on_outcome(outcome)
+        for key in self.pending:
+            self.emit(key, None, why, 0.0, final=True)
+        self.retry.clear()
+        self.pending.clear()

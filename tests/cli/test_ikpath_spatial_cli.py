@@ -1,0 +1,124 @@
+"""``youbot-opt ikpath`` in spatial mode (issue 14): store, shards, resume, flags, loader."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from youbot_opt.cli import main
+from youbot_opt.ikpath.spatial_io import load_spatial_result
+
+_UR5 = ["ikpath", "--robot", "ur5", "--target", "0.4", "0.2", "0.3", "--target", "0.3", "-0.3"]
+_UR5 += ["0.4", "--target", "0.5", "0", "0.2"]
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """Run every command in a temporary cwd: default run folders land there."""
+    monkeypatch.chdir(tmp_path)
+
+
+def test_shards_then_collect_then_resume_and_result_json_reloads(capsys, tmp_path):
+    out = tmp_path / "run"
+    argv = [*_UR5, "--method", "ipopt", "--starts", "3", "--start-kind", "coherent"]
+    argv += ["--out", str(out), "--no-replay"]
+    assert main([*argv, "--shard", "1/2"]) == 0  # starts 0 and 2, then stop
+    assert "shard 1/2: ran 2 item(s); 2 of 3 items are finished" in capsys.readouterr().err
+    assert main([*argv, "--json"]) == 0
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
+    assert cap.err.startswith(f"ikpath: 3 start(s), each saved to {out.resolve() / 'items'}")
+    assert "ikpath: 3/3 starts done" in cap.err  # progress (no tty: a line per tenth)
+    assert doc["resumed"] == 2 and doc["start_kind"] == "coherent" and doc["retried"] == []
+    assert [o["attempts"] for o in doc["start_outcomes"]] == [1, 1, 1]
+    assert {"manifest.json", "items", "result.json"} <= set(doc["files"])
+    # result.json reloads on its own (robot "ur5" from the file) and passes the FK re-check
+    best = load_spatial_result(out / "result.json")
+    assert best.success and best.objective == doc["E"]
+    assert best.problem.joint_names == tuple(doc["joints"])
+    assert main([*argv, "--json", "--no-progress"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["resumed"] == 3 and again["E"] == doc["E"]
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--reach-evaluations", "0"], "--reach-evaluations must be >= 1, got 0"),
+        (["--start-kind", "feasible"], "--start-kind feasible is a planar start kind"),
+        (["--max-wall-time", "-1"], "--max-wall-time must be a positive time"),
+    ],
+)
+def test_flags_spatial_mode_cannot_honour_are_refused(capsys, extra, match):
+    assert main([*_UR5, *extra]) == 2
+    assert match in capsys.readouterr().err
+
+
+def test_a_spatial_start_kind_is_refused_on_a_planar_problem(capsys):
+    assert main(["ikpath", "--example", "A", "--start-kind", "coherent"]) == 2
+    assert "--start-kind coherent is a spatial start kind" in capsys.readouterr().err
+
+
+def test_max_wall_time_stops_each_spatial_solve(capsys):
+    argv = [*_UR5, "--max-wall-time", "1e-9", "--json", "--no-progress", "--no-replay"]
+    assert main(argv) == 1  # the AL stops at its first check of the clock
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["status"] == "max_time" and doc["max_wall_time"] == 1e-9
+
+
+def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
+    from youbot_opt.ikpath import spatial_reachability
+
+    real, seen = spatial_reachability.check_spatial_reachability, []
+
+    def spy(problem, **kw):
+        seen.append(kw)
+        return real(problem, **kw)
+
+    monkeypatch.setattr(spatial_reachability, "check_spatial_reachability", spy)
+    argv = [*_UR5, "--method", "ipopt", "--reach-evaluations", "64", "--json", "--no-replay"]
+    assert main(argv) == 0
+    assert seen == [{"interval_boxes": 64}]
+    verdicts = json.loads(capsys.readouterr().out)["reachability"]
+    assert [v["verdict"] for v in verdicts] == ["reachable"] * 3
+
+
+def test_spatial_names_and_budgets_of_the_parser_match_the_library():
+    from youbot_opt.cli import ikpath
+    from youbot_opt.ikpath.spatial_reachability import (
+        DEFAULT_INTERVAL_BOXES,
+        DEFAULT_INTERVAL_SECONDS,
+    )
+    from youbot_opt.ikpath.spatial_starts import SPATIAL_START_KINDS
+
+    assert ikpath.SPATIAL_START_KIND_NAMES == SPATIAL_START_KINDS
+    assert ikpath.SPATIAL_REACH_BOXES == DEFAULT_INTERVAL_BOXES
+    assert ikpath.SPATIAL_REACH_SECONDS == DEFAULT_INTERVAL_SECONDS
+
+
+@pytest.mark.slow
+def test_scheduler_file_runs_the_spatial_starts_on_a_dask_cluster(capsys, tmp_path):
+    """Two worker processes on 127.0.0.1: same best E as the local run; a rerun resumes."""
+    distributed = pytest.importorskip("distributed")
+    argv = [*_UR5, "--method", "ipopt", "--starts", "3", "--json", "--no-replay"]
+    argv += ["--no-progress"]
+    assert main([*argv, "--out", str(tmp_path / "local")]) == 0
+    local = json.loads(capsys.readouterr().out)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        sched = tmp_path / "scheduler.json"
+        sched.write_text(json.dumps({"address": cluster.scheduler_address}))
+        argv += ["--scheduler-file", str(sched), "--out", str(tmp_path / "dask")]
+        assert main(argv) == 0
+        remote = json.loads(capsys.readouterr().out)
+        assert main(argv) == 0
+        again = json.loads(capsys.readouterr().out)
+    assert remote["resumed"] == 0 and again["resumed"] == 3
+    # The same IPOPT from the same starts in other processes: E equal to rounding.
+    assert [o["status"] for o in remote["start_outcomes"]] == [
+        o["status"] for o in local["start_outcomes"]
+    ]
+    assert remote["E"] == pytest.approx(local["E"], rel=1e-10)
+    assert again["E"] == remote["E"]

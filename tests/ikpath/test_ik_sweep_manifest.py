@@ -1,0 +1,58 @@
+"""The one manifest rule of the planar and spatial IK sweep stores (ikpath.sweep.options_json)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKProblem
+from youbot_opt.ikpath.spatial_solve import open_spatial_store
+from youbot_opt.ikpath.sweep import options_json
+from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.robot.model import load_model
+
+
+@pytest.fixture(scope="module")
+def ur5_problem() -> SpatialIKProblem:
+    """UR5 through two positions (the store only describes the problem; nothing is solved)."""
+    robot = load_model("ur5")
+    return SpatialIKProblem(
+        model=robot.model,
+        frame=robot.tip_frame,
+        targets=(
+            SpatialTarget(position=(0.4, 0.1, 0.3)),
+            SpatialTarget(position=(0.3, -0.2, 0.4)),
+        ),
+    )
+
+
+def test_options_json_omits_exactly_the_final_phase_fields_that_hold_the_default():
+    """Planar defaults stay compact (old manifests); the spatial defaults write their changes."""
+    planar = options_json("al", None)
+    assert planar == options_json("al", ALOptions())
+    for name in ("initial_multipliers", "retry_least_squares", "newton_final", "newton_violation"):
+        assert name not in planar
+    spatial = options_json("al", SPATIAL_AL_OPTIONS)
+    assert spatial["newton_final"] is True and spatial["retry_least_squares"] is True
+    assert "initial_multipliers" not in spatial and "newton_violation" not in spatial
+    assert spatial["penalty_initial"] == 1e3
+
+
+def test_spatial_store_resumes_with_the_defaults_and_refuses_other_settings(ur5_problem, tmp_path):
+    """None and the explicit spatial defaults bind the same store; a changed setting is refused.
+
+    ``newton_final=False`` is the ALOptions default, so the compact rule leaves
+    it out of the manifest: the store must still tell it from the spatial
+    default (True), which it writes out.
+    """
+    kw = {"method": "al", "n_starts": 4, "seed": 0, "kind": "mixed"}
+    first = open_spatial_store(tmp_path, ur5_problem, options=None, **kw)
+    assert not first.resumed
+    again = open_spatial_store(tmp_path, ur5_problem, options=SPATIAL_AL_OPTIONS, **kw)
+    assert again.resumed
+    changed = replace(SPATIAL_AL_OPTIONS, newton_final=False)
+    with pytest.raises(ParameterError, match="newton_final"):
+        open_spatial_store(tmp_path, ur5_problem, options=changed, **kw)
