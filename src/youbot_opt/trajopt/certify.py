@@ -288,4 +288,4 @@ def _out_of_time(deadline: float | None, limit: float | None, stage: str) -> str
     """Return the ``incomplete`` note if ``deadline`` has passed during ``stage``, else ""."""
     if deadline is None or time.perf_counter() <= deadline:
         return ""
-    return f"time limit {limit:g} s reached during {stage}"
+    return f"time limit {limit:.3g} s reached during {stage}"

@@ -219,8 +219,9 @@ def _round(
         wanted = budget.certify_every_round or error.max <= budget.tolerance
         if result.success and budget.certify and wanted:
             # the refinement's time budget bounds the certificate's simulations too
-            limit = None if deadline is None else max(deadline - time.perf_counter(), 1e-9)
-            cert = certify(result, tolerances=budget.tolerances, time_limit=limit)
+            limit = None if deadline is None else deadline - time.perf_counter()
+            if limit is None or limit > 0.0:  # none left: not certified, said by the caller
+                cert = certify(result, tolerances=budget.tolerances, time_limit=limit)
     nan = math.nan
     record = RefinementRound(
         index=index,
@@ -350,6 +351,8 @@ def refine(
             f"max error {error.max:.3g} > {budget.tolerance:g}"
             if error.max > budget.tolerance
             else f"certificate failed ({'; '.join(record.failures)})"
+            if cert is not None
+            else "no time left for the certificate"
         )
         cap = budget.max_pieces
         while True:  # a grid beyond max_knots: fewer pieces per interval first, then stop
