@@ -14,6 +14,7 @@ distinct optima (:class:`StoredItems` reads the rest back from the journal).
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
 from dataclasses import replace
 from typing import Any, Generic, NamedTuple, TypeVar
@@ -251,24 +252,8 @@ def run_resumable(
             "use keep_results=True"
         )
         raise ParameterError(f"keep_results=False {why}", name="keep_results", value=False)
-    if store is None:
-        return _run_all(
-            tasks,
-            None,
-            options,
-            load,
-            convert,
-            payload,
-            initializer,
-            initargs,
-            on_resumed,
-            on_final,
-            None,
-            None,
-            keep_all,
-        )
-    if keep_all:
-        with store.grouped():
+    if store is None or keep_all:
+        with store.grouped() if store is not None else contextlib.nullcontext():
             return _run_all(
                 tasks,
                 store,
@@ -280,8 +265,8 @@ def run_resumable(
                 initargs,
                 on_resumed,
                 on_final,
-                describe,
-                light,
+                describe if store is not None else None,
+                light if store is not None else None,
                 keep_all,
             )
     assert light is not None

@@ -512,38 +512,17 @@ def make_jobs(
     prefix: str = "",
 ) -> list[_StartJob]:
     """Make the start jobs of one multistart (straight line first, then seeded splines)."""
-    if isinstance(n_starts, bool) or not isinstance(n_starts, int) or n_starts < 0:
-        raise ParameterError(f"n_starts must be an int >= 0, got {n_starts!r}", name="n_starts")
-    if n_starts == 0 and not include_straight:
-        raise ParameterError("need n_starts >= 1 or include_straight=True", name="n_starts")
-    if not (math.isfinite(dt0) and dt0 > 0):
-        raise ParameterError(f"dt0 must be > 0 [s], got {dt0!r}", name="dt0")
-    jobs = []
-    if include_straight:
-        jobs.append(
-            _StartJob(
-                key=f"{prefix}straight",
-                index=-1,
-                seed=None,
-                guess="straight",
-                beta=beta,
-                bound_scale=bound_scale,
-                dt0=dt0,
-            )
+    return list(
+        StartJobs(
+            n_starts,
+            seed=seed,
+            beta=beta,
+            bound_scale=bound_scale,
+            include_straight=include_straight,
+            dt0=dt0,
+            prefix=prefix,
         )
-    for i, s in enumerate(start_seeds(seed, n_starts)):
-        jobs.append(
-            _StartJob(
-                key=f"{prefix}start_{i:04d}",
-                index=i,
-                seed=s,
-                guess="spline",
-                beta=beta,
-                bound_scale=bound_scale,
-                dt0=dt0,
-            )
-        )
-    return jobs
+    )
 
 
 class StartJobs(Sequence[_StartJob]):
@@ -566,12 +545,12 @@ class StartJobs(Sequence[_StartJob]):
         dt0: float,
         prefix: str = "",
     ) -> None:
-        make_jobs(0, seed=seed, beta=beta, bound_scale=bound_scale, include_straight=True,
-                  dt0=dt0)  # fmt: skip  # the same checks
         if isinstance(n_starts, bool) or not isinstance(n_starts, int) or n_starts < 0:
             raise ParameterError(f"n_starts must be an int >= 0, got {n_starts!r}", name="n_starts")
         if n_starts == 0 and not include_straight:
             raise ParameterError("need n_starts >= 1 or include_straight=True", name="n_starts")
+        if not (math.isfinite(dt0) and dt0 > 0):
+            raise ParameterError(f"dt0 must be > 0 [s], got {dt0!r}", name="dt0")
         start_seeds(seed, 0)  # checks the seed
         self._n, self._seed, self._straight = n_starts, int(seed), bool(include_straight)
         self._common = {"beta": beta, "bound_scale": bound_scale, "dt0": dt0}
