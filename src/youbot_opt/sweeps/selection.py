@@ -41,7 +41,19 @@ def _connect(path: str) -> sqlite3.Connection:
     return db
 
 
-class ClusterKeys(Sequence[str]):
+class _ListEquality:
+    """Equality of a lazy sequence with any sequence of equal items, as a list's."""
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Sequence) or isinstance(other, str):
+            return NotImplemented
+        mine: Sequence[object] = self  # type: ignore[assignment]
+        return len(mine) == len(other) and all(a == b for a, b in zip(mine, other, strict=True))
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+class ClusterKeys(_ListEquality, Sequence[str]):
     """The keys of one cluster, its representative first, read from the membership table."""
 
     def __init__(self, owner: Clusters, number: int) -> None:
@@ -68,18 +80,11 @@ class ClusterKeys(Sequence[str]):
     def __iter__(self) -> Iterator[str]:
         return self._owner._members(self._number)
 
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence) or isinstance(other, str):
-            return NotImplemented
-        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
-
     def __repr__(self) -> str:
         return f"ClusterKeys({self[0]!r}, +{len(self) - 1} member(s))"
 
 
-class Clusters(Sequence[ClusterKeys]):
+class Clusters(_ListEquality, Sequence[ClusterKeys]):
     """Distinct optima as keys: representatives and member counts in memory, members on disk.
 
     Attributes
@@ -191,13 +196,6 @@ class Clusters(Sequence[ClusterKeys]):
         if not 0 <= j < n:
             raise IndexError(f"{n} cluster(s), got index {i}")
         return ClusterKeys(self, j)
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence) or isinstance(other, str):
-            return NotImplemented
-        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
 
     def __repr__(self) -> str:
         return f"Clusters({len(self)} optima, {sum(self.counts)} member(s))"
