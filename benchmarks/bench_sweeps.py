@@ -20,6 +20,15 @@ run, so the ratios compare like with like (issue #15):
   tenth (it also counts the SQLite index and selection, whose page caches
   tracemalloc does not see: 2 MiB each), and the time to resume the store.
 
+* ``--traj-starts 1000,10000`` (``--traj-only``: this section alone): a real
+  trajectory multistart (study 1, ``--traj-knots`` knots, default 6, pool of 2)
+  with ``keep_results=False`` at each size, and ``keep_results=True`` where it
+  fits (``--traj-keep-max``, default 10^4), in the same run: starts/s, the
+  driver's peak traced memory (workers are not traced), RSS growth; and the
+  cost of ``best``, ``distinct_optima()`` and ``summary()`` on the lean
+  result, answered from its tally, against the walk over every stored start
+  that the same result without its tally does (what they cost before the tally).
+
 ``--store-only`` leaves out the Dask and solver sections (no cluster started).
 ``--quick``: 40 trajectory starts, 200 IK starts, 2000 store items. Wall times
 on a shared 2-core machine are noisy (20-100 % between runs when other
@@ -30,8 +39,10 @@ executors, interleaved, and the fastest run of each counts.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
+import os
 import tempfile
 import time
 import tracemalloc
@@ -186,6 +197,74 @@ def store_section(n_store: int, rows: dict[str, float]) -> list[float]:
     return samples
 
 
+def _timed_peak(fn):  # type: ignore[no-untyped-def]
+    """``fn()``, its wall time [s] and the peak memory traced meanwhile [MB] (this process)."""
+    tracemalloc.start()
+    tic = time.perf_counter()
+    try:
+        out = fn()
+        return out, time.perf_counter() - tic, tracemalloc.get_traced_memory()[1] / 2**20
+    finally:
+        tracemalloc.stop()
+
+
+def traj_keep_section(sizes: list[int], keep_max: int, knots: int) -> list[dict[str, Any]]:
+    """Real trajectory multistarts with keep_results=False (and True where it fits)."""
+    # forked pool workers would inherit tracing; only the driver is measured
+    os.register_at_fork(after_in_child=tracemalloc.stop)
+    solver = TrajOptSolver(study1_problem(knots))
+    run_multistart(solver, 2, seed=99, sweep=SweepOptions(executor="serial"))  # warm imports
+    out: list[dict[str, Any]] = []
+    for n in sizes:
+        for keep in (False, True) if n <= keep_max else (False,):
+            with tempfile.TemporaryDirectory(dir=Path.cwd()) as tmp:
+                sweep = SweepOptions(workers=2, out=Path(tmp) / "ms", keep_results=keep)
+                rss0 = _rss_mb()
+                ms, t, peak = _timed_peak(lambda n=n, sweep=sweep: run_multistart(
+                    solver, n, seed=0, sweep=sweep))  # fmt: skip
+                row: dict[str, Any] = {
+                    "n": n, "keep_results": keep, "run_s": t, "starts_per_s": n / t,
+                    "peak_mb": peak, "rss_growth_mb": _rss_mb() - rss0,
+                    "optima": len(ms.distinct_optima()), "converged": ms.n_converged,
+                }  # fmt: skip
+                if not keep:  # the accessors, from the tally and by walking every start
+                    walk = dataclasses.replace(ms, tally=None)
+                    for name, res in (("tally", ms), ("walk", walk)):
+                        for what, call in (
+                            ("best", lambda r=res: r.best),
+                            ("optima", lambda r=res: r.distinct_optima()),
+                            ("summary", lambda r=res: r.summary()),
+                        ):
+                            _, t_call, mb = _timed_peak(call)
+                            row[f"{what}_{name}_s"], row[f"{what}_{name}_mb"] = t_call, mb
+                    same = (walk.best.key, [o.count for o in walk.distinct_optima()]) == (
+                        ms.best.key, [o.count for o in ms.distinct_optima()])  # fmt: skip
+                    row["accessors_agree"] = same
+                out.append(row)
+                print(json.dumps(row), flush=True)
+    return out
+
+
+def traj_report(rows: list[dict[str, Any]], knots: int) -> None:
+    """Print the trajectory keep_results table."""
+    print(f"trajectory multistart, study 1 at {knots} knots, pool of 2 workers:")
+    print(f"{'starts':>8}{'keep':>7}{'run [s]':>9}{'starts/s':>10}{'peak [MB]':>11}"
+          f"{'RSS +[MB]':>11}{'optima':>8}")  # fmt: skip
+    for r in rows:
+        print(f"{r['n']:>8}{str(r['keep_results']):>7}{r['run_s']:>9.1f}{r['starts_per_s']:>10.0f}"
+              f"{r['peak_mb']:>11.1f}{r['rss_growth_mb']:>11.1f}{r['optima']:>8}")  # fmt: skip
+    for r in rows:
+        if r["keep_results"]:
+            continue
+        cells = ", ".join(
+            f"{what} {r[f'{what}_tally_s'] * 1e3:.2f} ms / {r[f'{what}_tally_mb']:.2f} MB "
+            f"(walk {r[f'{what}_walk_s'] * 1e3:.0f} ms / {r[f'{what}_walk_mb']:.1f} MB)"
+            for what in ("best", "optima", "summary")
+        )
+        print(f"accessors at {r['n']} starts, keep_results=False (tally vs walk): {cells}; "
+              f"agree: {r['accessors_agree']}")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sweeps")
@@ -203,7 +282,19 @@ def main() -> None:
     parser.add_argument(
         "--store-only", action="store_true", help="only the store sections (no Dask, no solvers)"
     )
+    parser.add_argument(
+        "--traj-starts", default=None, help="sizes of the trajectory keep_results section"
+    )
+    parser.add_argument("--traj-keep-max", type=int, default=10_000, help="largest full run")
+    parser.add_argument("--traj-knots", type=int, default=6, help="knots of that problem")
+    parser.add_argument("--traj-only", action="store_true", help="only that section")
     args = parser.parse_args()
+    if args.traj_starts or args.traj_only:
+        sizes = [int(float(x)) for x in (args.traj_starts or "1000,10000").split(",")]
+        traj = traj_keep_section(sizes, args.traj_keep_max, args.traj_knots)
+        traj_report(traj, args.traj_knots)
+        if args.traj_only:
+            return
     n_traj, n_ik = (40, 200) if args.quick else (200, 1000)
     n_store = args.items or (2000 if args.quick else 10_000)
     rows: dict[str, float] = {}

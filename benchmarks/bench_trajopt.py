@@ -37,8 +37,12 @@ Everything is measured in one run, so the ratios compare like with like:
   kernels compiled to C) and IPOPT options (barrier-parameter oracle,
   limited-memory Hessian, looser tolerance). With ``--side-by-side`` it
   prints instead the issue-13 table through ``solve()`` (:func:`solve_levers`):
-  IPOPT's KKT settings one by one, barrier oracles, the best-iterate
-  recorder's cost, Hermite-Simpson's Bernstein rows and its compressed form.
+  IPOPT's KKT settings one by one (MUMPS's AMD ordering among them), barrier
+  oracles, the best-iterate recorder's cost, Hermite-Simpson's Bernstein rows
+  and its compressed form, the stage-wise fatrop prototype
+  (:func:`fatrop_trapezoid`), and on UR5 and Panda the oracles' iterations and
+  the two MUMPS orderings' CPU time. Their measurements and verdicts:
+  docs/collocation.md, "The 0.03 s target".
 
 Targets (issue 3, item 8, on 2 cores): base solve <= 0.05 s CPU, build <= 0.5 s
 (cached), >= 300x faster than SLSQP, 1600 knots <= 2 s, 19-point Pareto <=
@@ -331,6 +335,100 @@ def _compressed_hs(solver: TrajOptSolver) -> dict[str, float]:
     }  # fmt: skip
 
 
+def fatrop_trapezoid(solver: TrajOptSolver, repeats: int = 5) -> dict[str, Any]:
+    """The base-case trapezoidal NLP in stage-wise form, solved by CasADi's fatrop plugin.
+
+    A prototype (issue 13, item 7, lever (d)): fatrop needs the NLP as an
+    optimal control problem -- stage ``k`` holds a state ``X_k`` and a control
+    ``U_k``, consecutive stages are joined by gap-closing rows
+    ``X_{k+1} = F(X_k, U_k)``, everything else is a stage's own path row.
+    The trapezoid is implicit (its defects involve both knots), so the state
+    is ``X_k = (q_k, v_k, tau_k, dt)`` (the free step carried as a state), the
+    control ``U_k`` a copy of the next knot's ``(q, v, tau)``, the gap-closing
+    row ``X_{k+1} = (U_k, dt)`` and the trapezoid defects path rows of stage
+    ``k``; boundary states are bounds on ``X_0`` and ``X_{N-1}``. Same
+    objective, bounds, straight-line start and tolerance (1e-8) as ours;
+    CasADi's own derivatives (exact Hessian, SX in CasADi's virtual machine),
+    whose evaluation time is reported separately. The same NLP solved by IPOPT
+    is the control. Returns, per solver, the median CPU [s] of ``repeats``
+    solves, the CPU inside the NLP functions, iterations, objective and
+    CasADi's success flag.
+    """
+    from youbot_opt.trajopt.objectives import quadrature_weights
+
+    problem = solver.problem
+    fd = solver.dynamics.forward_dynamics
+    fd = fd if fd.is_a("SXFunction") else fd.expand()
+    nv, n, b = problem.nv, problem.n_knots, problem.bounds(1.0)
+    w_knots, _ = quadrature_weights("trapezoidal", n)
+    guess = solver.method.knot_guess(resolve_guess(problem, None), n)
+    beta = ca.SX.sym("beta")
+    w: list[Any] = []
+    g: list[Any] = []
+    lbw: list[float] = []
+    ubw: list[float] = []
+    w0: list[float] = []
+    cost: Any = 0
+    lo_x = np.concatenate([b.q_lower, b.v_lower, b.tau_lower, [problem.dt_min]])
+    hi_x = np.concatenate([b.q_upper, b.v_upper, b.tau_upper, [problem.dt_max]])
+    state = ca.SX.sym("X_0", 3 * nv + 1)
+    for k in range(n):
+        lo, hi = lo_x.copy(), hi_x.copy()
+        for end, knot in ((problem.start, 0), (problem.goal, n - 1)):
+            if k == knot:
+                lo[:nv] = hi[:nv] = end.q
+                lo[nv : 2 * nv] = hi[nv : 2 * nv] = end.velocity
+        w.append(state)
+        lbw += lo.tolist()
+        ubw += hi.tolist()
+        w0 += [*guess["q"][k], *guess["v"][k], *guess["tau"][k], float(np.ravel(guess["dt"])[0])]
+        q, v, tau, dt = state[:nv], state[nv : 2 * nv], state[2 * nv : 3 * nv], state[3 * nv]
+        cost += (1 - beta) * dt * w_knots[k] * ca.sumsqr(tau) + (beta * dt if k < n - 1 else 0)
+        if k == n - 1:
+            break
+        control = ca.SX.sym(f"U_{k}", 3 * nv)
+        w.append(control)
+        lbw += [-np.inf] * (3 * nv)
+        ubw += [np.inf] * (3 * nv)
+        w0 += [*guess["q"][k + 1], *guess["v"][k + 1], *guess["tau"][k + 1]]
+        following = ca.SX.sym(f"X_{k + 1}", 3 * nv + 1)
+        g.append(following - ca.vertcat(control, dt))  # gap closing
+        q1, v1, tau1 = control[:nv], control[nv : 2 * nv], control[2 * nv :]
+        a0, a1 = fd(q, v, tau), fd(q1, v1, tau1)
+        g.append(ca.vertcat(q1 - q - dt / 2 * (v + v1), v1 - v - dt / 2 * (a0 + a1)))
+        state = following
+    nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g), "p": beta}
+    rows = nlp["g"].numel()
+    args = {"x0": w0, "lbx": lbw, "ubx": ubw, "lbg": [0.0] * rows, "ubg": [0.0] * rows, "p": BETA}
+    out: dict[str, Any] = {"n_variables": nlp["x"].numel(), "n_rows": rows}
+    settings = {
+        "fatrop": {
+            "structure_detection": "auto", "equality": [True] * rows,
+            "fatrop": {"tol": solver.options.tol, "print_level": 0},
+        },
+        "ipopt": {"ipopt": {"tol": solver.options.tol, "print_level": 0, "sb": "yes"}},
+    }  # fmt: skip
+    for name, opts in settings.items():
+        try:
+            nlpsol = ca.nlpsol(f"proto_{name}", name, nlp, {**opts, "print_time": False})
+        except RuntimeError as exc:  # plugin missing from this CasADi build
+            out[name] = {"error": str(exc).strip().splitlines()[-1]}
+            continue
+        sol = nlpsol(**args)
+        cpus = []
+        for _ in range(repeats):
+            sol, _, cpu = _timed(lambda nlpsol=nlpsol: nlpsol(**args))
+            cpus.append(cpu)
+        st = nlpsol.stats()
+        out[name] = {
+            "cpu": statistics.median(cpus), "iterations": int(st.get("iter_count", -1)),
+            "functions": sum(v for k, v in st.items() if k.startswith("t_proc_nlp")),
+            "objective": float(sol["f"]), "success": bool(st.get("success", False)),
+            "status": st.get("return_status", st.get("unified_return_status", "?")),
+        }  # fmt: skip
+    return out
+
+
 _FAST_STEP = {"fast_step_computation": "yes"}
 _NO_MUMPS_SCALING = {"mumps_scaling": 0, "mumps_permuting_scaling": 0}
 
@@ -344,8 +442,10 @@ def solve_levers(repeats: int = 10) -> list[str]:
     default; the IPOPT call with and without the best-iterate recorder; for
     Hermite-Simpson, the NLP without its Bernstein rows (a different, weaker
     problem: the cost of exact between-knot bounds) and the compressed form.
-    Last, the iteration counts of UR5 and Panda (trapezoidal, 40 and 10 knots)
-    under the quality-function and probing oracles: why probing is no default.
+    Then the stage-wise fatrop prototype (:func:`fatrop_trapezoid`). Last, the
+    iteration counts of UR5 and Panda (trapezoidal, 40 and 10 knots) under the
+    quality-function and probing oracles (why probing is no default), and
+    their CPU time with MUMPS's automatic and AMD orderings (both methods).
     """
     from youbot_opt.robot.model import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
@@ -362,6 +462,8 @@ def solve_levers(repeats: int = 10) -> list[str]:
         ("  + fast_step_computation=yes", {"fast_kkt": False, "extra": {**_FAST_STEP}}),
         ("  + min_refinement_steps=0", {"fast_kkt": False, "extra": {"min_refinement_steps": 0}}),
         ("  + MUMPS scaling off", {"fast_kkt": False, "extra": {**_NO_MUMPS_SCALING}}),
+        ("  + MUMPS AMD ordering", {"fast_kkt": False, "extra": {"mumps_pivot_order": 0}}),
+        ("fast_kkt=True, MUMPS's automatic ordering", {"extra": {"mumps_pivot_order": 7}}),
         ("fast_kkt=True (the default)", {}),
         ("  + mu_oracle=probing", {"extra": {"mu_oracle": "probing"}}),
         ("  + mu_oracle=loqo", {"extra": {"mu_oracle": "loqo"}}),
@@ -416,6 +518,20 @@ def solve_levers(repeats: int = 10) -> list[str]:
                 f"{comp['internal']:.4f} s in {comp['iterations']} iterations (separated "
                 f"{sep:.4f} s in {with_rec['iterations']}), f = {comp['objective']:.9f}"
             )
+    proto = fatrop_trapezoid(TrajOptSolver(problem, "trapezoidal"))
+    for name in ("fatrop", "ipopt"):
+        r = proto[name]
+        if "error" in r:
+            out.append(f"  fatrop prototype: {name} unavailable ({r['error']})")
+            continue
+        own = r["cpu"] - r["functions"]
+        out.append(
+            f"  stage-wise trapezoid ({proto['n_variables']} variables, {proto['n_rows']} rows), "
+            f"{name}: {r['cpu']:.4f} s CPU, of which NLP functions (CasADi VM) "
+            f"{r['functions']:.4f} s, solver itself {own:.4f} s in {r['iterations']} iterations "
+            f"({1e3 * own / max(r['iterations'], 1):.2f} ms each), f = {r['objective']:.9f}, "
+            f"success {r['success']} (status {r['status']})"
+        )
     ur5 = load_model("ur5")
     cases = [
         ("UR5, 40 knots", ur5, [0.0, -1.2, 1.0, -0.5, 0.3, 0.0],
@@ -444,6 +560,16 @@ def solve_levers(repeats: int = 10) -> list[str]:
             res = TrajOptSolver(prob, options=opts, compile=False).solve(beta=beta)
             line += f" {oracle} {res.iterations} iterations (f = {res.objective:.8f});"
         out.append(line)
+        for method in METHODS:
+            line = f"  MUMPS ordering, {name}, {method}:"
+            for label, extra in (("automatic", {"mumps_pivot_order": 7}), ("AMD (default)", {})):
+                amd = TrajOptSolver(prob, method, IpoptOptions(extra=extra), compile="wait")
+                amd.solve(beta=beta)  # warm-up
+                runs = range(repeats // 2 + 1)
+                timed = [_timed(lambda a=amd, b=beta: a.solve(beta=b)) for _ in runs]
+                res, cpu = timed[-1][0], statistics.median(t[2] for t in timed)
+                line += f" {label} {cpu:.4f} s, {res.iterations} it, f = {res.objective:.9f};"
+            out.append(line)
     return out
 
 

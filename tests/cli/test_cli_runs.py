@@ -169,6 +169,18 @@ def test_multistart_folder_resumes(capsys: pytest.CaptureFixture[str], tmp_path:
     assert again["best"]["objective"] == summary["best"]["objective"]
 
 
+def test_multistart_exits_1_when_the_plan_is_not_certified(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Refinement out of budget (no knots beyond 15): saved, says why, exits 1 (as `solve`)."""
+    argv = ["multistart", "--starts", "2", *QUICK, "--max-knots", "15", "--workers", "0"]
+    assert main([*argv, "--quiet", "--json", "--out", str(tmp_path / "ms")]) == 1
+    summary = json.loads(capsys.readouterr().out)
+    (record,) = summary["refinement"]
+    assert not record["certified"] and "15 knots" in record["reason"]
+    assert (tmp_path / "ms" / "result.npz").exists()  # the plan is still saved
+
+
 def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
     """`pareto` and `bounds` write their figure, one per refined plan, and a side-by-side replay."""
     base = [*QUICK, "--workers", "0", "--quiet", "--json"]
@@ -179,11 +191,16 @@ def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
     nodes, _ = _replay_nodes(folder / "replay.html")
     assert len(nodes) == 2 and all(n.startswith("beta_0.") for n in nodes)
     page = (folder / "replay.html").read_text()
-    for point in front["points"]:
-        assert f"beta = {point['beta']:g}: T = {point['duration_s']:.3f} s" in page
+    assert len(front["refinement"]) == 2
+    for record in front["refinement"]:  # labelled "beta = 0.3"; the refined plan is replayed
+        assert record["certified"]
+        assert f"{record['label']}: T = {record['rounds'][-1]['duration_s']:.3f} s" in page
     assert main(["bounds", "--scales", "1,0.9", "--starts", "0", *base]) == 0
     study = json.loads(capsys.readouterr().out)
     folder = Path(study["output_folder"])
     _check_folder(folder, study, ["bound_scaling.png", "refinement_1.png", "refinement_2.png"])
     page = (folder / "replay.html").read_text()
-    assert "100% bounds: f = " in page and "90% bounds: f = " in page
+    assert [r["label"] for r in study["refinement"]] == ["scale 1.000", "scale 0.900"]
+    for scale, record in zip(("100%", "90%"), study["refinement"], strict=True):
+        final = record["rounds"][-1]["objective"]  # the refined plan is replayed
+        assert f"{scale} bounds: f = {final:.5g}" in page

@@ -131,6 +131,46 @@ def test_recorder_ranks_in_place_and_keeps_copies() -> None:
     assert recorder.best is None and recorder.count == 0
 
 
+def test_recorder_matches_the_reference_ranking_and_keeps_earlier_runs() -> None:
+    """On random iterates the recorder keeps exactly :func:`best_of`'s choice, run after run.
+
+    The recorder skips the violation of an iterate that cannot beat a feasible
+    best and writes later bests of a run into arrays it owns; neither may change
+    which iterate is kept (the reference ranks every iterate in full), and a
+    new run must not overwrite the best of the previous one.
+    """
+    from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, best_of, violation_of
+
+    rng = np.random.default_rng(3)
+    nx, ng, tol = 4, 3, 1e-3
+    lbx, ubx = np.array([-1.0, -1.0, -np.inf, 0.0]), np.array([1.0, np.inf, 2.0, 0.0])
+    bounds = (lbx, ubx, np.array([0.0, -1.0, -np.inf]), np.array([0.0, 1.0, 0.5]))
+    recorder = BestIterateRecorder("test_reference", nx, ng, 1)
+    buffers = _Buffers(nx, ng)
+    kept = []
+    for _ in range(3):
+        recorder.reset(bounds, tol)
+        seen = []
+        for k in range(40):
+            # shrinking noise: iterates drift from infeasible to feasible, as IPOPT's do
+            scale = 2.0 * 0.8**k
+            x, g = rng.normal(scale=scale, size=nx), rng.normal(scale=scale, size=ng)
+            f = float(rng.normal(loc=5.0 - 0.1 * k))
+            buffers.feed(recorder, x, f, g, lam=float(k))
+            seen.append(
+                Iterate(x, np.full(nx, k), np.full(ng, -k), f, violation_of(x, g, bounds), k)
+            )
+        reference = best_of(seen[0], seen[1:], tol)
+        best = recorder.best
+        assert best is not None and best.iteration == reference.iteration
+        assert best.objective == reference.objective and best.violation == reference.violation
+        np.testing.assert_array_equal(best.x, reference.x)
+        np.testing.assert_array_equal(best.lam_x, reference.lam_x)
+        kept.append((best, best.x.copy()))
+    for best, x in kept:  # later runs left each earlier best as it was
+        np.testing.assert_array_equal(best.x, x)
+
+
 def test_violation_of_is_not_finite_for_a_non_finite_entry() -> None:
     """A NaN in x or g gives a NaN violation whatever its position (not a finite max)."""
     from youbot_opt.nlp.best_iterate import violation_of

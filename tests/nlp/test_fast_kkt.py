@@ -32,6 +32,9 @@ def test_fast_kkt_settings_reach_ipopt_and_records() -> None:
 def test_fast_kkt_changes_the_steps_not_the_optimum(method: str) -> None:
     """Study-1 problem at 20 knots: the same local optimum with and without fast_kkt.
 
+    fast_kkt includes MUMPS's AMD ordering: a different elimination order, so
+    the Newton steps differ by rounding only.
+
     Both runs stop at IPOPT's tol = 1e-8 on the same KKT point: measured, their
     objectives differ by 4e-16 relative and their knots by 2e-13 rad (here the
     iterates coincide). The bounds (1e-8 relative, 1e-5 rad) allow another

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -168,8 +170,11 @@ def test_bad_arguments_raise_parameter_error(solver: TrajOptSolver) -> None:
         run_multistart("youbot", 1)  # type: ignore[arg-type]
 
 
-def test_cli_multistart_json(capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_multistart_json(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """`youbot-opt multistart --json` prints a summary whose best equals the best start."""
+    monkeypatch.chdir(tmp_path)  # its default output folder lands there
     code = main(
         ["multistart", "--starts", "2", "--knots", "15", "--workers", "0", "--json", "--quiet"]
     )
@@ -180,6 +185,44 @@ def test_cli_multistart_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert summary["n_starts"] == 2 and sum(o["count"] for o in summary["distinct_optima"]) == len(
         objectives
     )
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_cli_multistart_reports_the_refined_plan(
+    refine: bool,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """trajectory.png and result.npz show the refined plan (--no-refine: the best start's grid)."""
+    import youbot_opt.viz.plots as plots
+    from youbot_opt.trajopt.io import load_result
+
+    drawn: list[Any] = []
+    real = plots.plot_trajectory
+
+    def spy(result: Any, *args: Any, **kw: Any) -> Any:  # noqa: ANN401 - a figure
+        drawn.append(result)
+        return real(result, *args, **kw)
+
+    monkeypatch.setattr(plots, "plot_trajectory", spy)
+    argv = ["multistart", "--starts", "2", "--knots", "15", "--workers", "0", "--quiet"]
+    argv += ["--json", "--out", str(tmp_path / "ms"), *([] if refine else ["--no-refine"])]
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out)
+    (plan,) = drawn
+    saved = load_result(tmp_path / "ms" / "result.npz")
+    assert "result.npz" in summary["files"] and "trajectory.png" in summary["files"]
+    np.testing.assert_array_equal(saved.trajectory.q, plan.trajectory.q)
+    assert summary["plan"]["objective"] == plan.objective == saved.objective
+    assert summary["plan"]["n_knots"] == plan.problem.n_knots
+    if refine:  # the refinement's last round, certified: not the best start on 15 knots
+        assert plan.refinement is not None and plan.certified and summary["plan"]["certified"]
+        assert summary["refinement"][0]["rounds"][-1]["n_knots"] == plan.problem.n_knots
+        assert plan.objective == summary["refinement"][0]["rounds"][-1]["objective"]
+    else:
+        assert plan.refinement is None and plan.problem.n_knots == 15
+        assert plan.objective == summary["best"]["objective"]
 
 
 @pytest.mark.parametrize(

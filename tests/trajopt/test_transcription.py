@@ -165,7 +165,13 @@ def test_dynamics_of_the_wrong_size_is_rejected(youbot):
 
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
 def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
-    """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9)."""
+    """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9).
+
+    With compiled kernels, ``nlp`` may be built on the compiled forward kernel
+    (as the solver does): CasADi must then differentiate it through the
+    kernel's compiled Jacobian, and its reverse-mode gradient of ``lam . g``
+    must equal the reference ``J^T lam``.
+    """
     from youbot_opt.nlp.codegen import find_compiler
     from youbot_opt.trajopt.transcription.derivatives import (
         compile_kernels,
@@ -181,6 +187,7 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
         compiled = compile_kernels(kernels)
         assert compiled is not kernels
         variants.append(structured_functions(method, problem, compiled, values=kernels))
+        variants.append(structured_functions(method, problem, compiled, values=compiled))
     box = {
         "q": (youbot.q_lower, youbot.q_upper),
         "v": (-youbot.velocity_limit, youbot.velocity_limit),
@@ -209,6 +216,12 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
         # of the wrist), so 1e-9 absolute is ~1e4 ulps.
         for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
             np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
+        xs, lams = ca.MX.sym("x", x.size), ca.MX.sym("lam", lam_g.size)
+        _, g_sym = fns.nlp(xs, 0.3)
+        grad = ca.Function("grad", [xs, lams], [ca.gradient(ca.dot(lams, g_sym), xs)])
+        np.testing.assert_allclose(
+            reference[2].T @ lam_g, np.asarray(grad(x, lam_g)).ravel(), atol=1e-9
+        )
 
 
 # ------------------------------------------------------------ non-uniform grids

@@ -4,7 +4,8 @@ Each prints progress on stderr and a table on stdout (``--json``: one JSON
 object), writes an output folder (:mod:`youbot_opt.cli.output`) that a rerun
 with the same ``--out`` resumes, and refines the reported plans until
 certified (``--no-refine`` keeps the grid). Exit codes: 0 done, 1 no solve
-converged, 2 bad input (folder contents: docs/design.md, "Module notes"). Usage::
+converged or a refined plan not certified (still saved), 2 bad input (folder
+contents: docs/design.md, "Module notes"). Usage::
 
     youbot-opt multistart --starts 50 --beta 0.5 --knots 50 --seed 0 --workers 2 --out DIR
     youbot-opt pareto --betas 0.05:0.95:0.05 --out DIR
@@ -229,6 +230,11 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
     )
 
 
+def _all_certified(plans: list[Any]) -> bool:
+    """Whether every refined plan is certified (vacuously true with ``--no-refine``)."""
+    return all(p.certified for p in plans)
+
+
 def _fmt(x: float, spec: str = ".6g") -> str:
     return format(x, spec) if math.isfinite(x) else "-"
 
@@ -300,16 +306,20 @@ def _run_multistart(args: argparse.Namespace) -> int:
     files: list[Path | None] = refinement_figures(folder, refined, [label for label, _ in best])
     if res.best is not None and res.best.result is not None:
         from youbot_opt.cli.solve import optima_replay
+        from youbot_opt.trajopt.io import save_result
         from youbot_opt.viz.plots import plot_convergence, plot_multistart, plot_trajectory
 
+        plan = refined[0] if refined else res.best.result  # refined (--no-refine: the grid's)
+        summary["plan"] = plan.summary()
         files += [
+            save_result(plan, folder / "result.npz"),
             draw_figure(folder, "multistart.png", plot_multistart, res),
             draw_figure(folder, "convergence.png", plot_convergence, res),
-            draw_figure(folder, "trajectory.png", plot_trajectory, res.best.result),
+            draw_figure(folder, "trajectory.png", plot_trajectory, plan),
             optima_replay(folder, res, args.obj_tol, args.traj_tol),
         ]
     _emit(args, folder, summary, table, files)
-    return 0 if res.best is not None else 1
+    return 0 if res.best is not None and _all_certified(refined) else 1
 
 
 def _run_pareto(args: argparse.Namespace) -> int:
@@ -333,7 +343,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
 
     table = pareto_table(front)  # distinct points counted, W with its unit
     best = [p for p in front.nondominated() if p.result is not None]
-    items = [(f"beta = {p.beta:g}", p.result) for p in best]
+    items = [(f"beta = {p.beta:g}", p.result) for p in best if p.result is not None]
     plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
     table += lines
     files: list[Path | None] = refinement_figures(folder, plans, [label for label, _ in items])
@@ -341,14 +351,19 @@ def _run_pareto(args: argparse.Namespace) -> int:
         from youbot_opt.viz.plots import plot_pareto
 
         picks = sorted({round(i * (len(best) - 1) / 4) for i in range(5)})  # ends + 3 between
-        shown = sorted((best[i] for i in picks), key=lambda p: p.beta)
-        labels = [f"beta = {p.beta:g}: T = {p.duration:.3f} s, W = {p.work:.4g}" for p in shown]
+        picks.sort(key=lambda i: best[i].beta)
+        grid = [x for _, x in items]  # the grid's plans (--no-refine), else the refined ones
+        shown = [(plans or grid)[i] for i in picks]
+        labels = [
+            f"beta = {best[i].beta:g}: T = {x.duration:.3f} s, W = {x.work:.4g}"
+            for i, x in zip(picks, shown, strict=True)
+        ]
         files += [
             draw_figure(folder, "pareto.png", plot_pareto, front),
-            replay_html(folder, [p.result for p in shown], labels),
+            replay_html(folder, shown, labels),
         ]
     _emit(args, folder, {**pareto_summary(front), "refinement": refined}, table, files)
-    return 0 if front.nondominated() else 1
+    return 0 if front.nondominated() and _all_certified(plans) else 1
 
 
 def _run_bounds(args: argparse.Namespace) -> int:
@@ -391,10 +406,14 @@ def _run_bounds(args: argparse.Namespace) -> int:
     if solved:
         from youbot_opt.viz.plots import plot_bound_scaling
 
-        labels = [f"{r.bound_scale:.0%} bounds: f = {x.objective:.5g}" for r, x in solved]
+        shown = plans or [x for _, x in solved]  # the refined plans (--no-refine: the grid's)
+        labels = [
+            f"{r.bound_scale:.0%} bounds: f = {x.objective:.5g}"
+            for (r, _), x in zip(solved, shown, strict=True)
+        ]
         files += [
             draw_figure(folder, "bound_scaling.png", plot_bound_scaling, res),
-            replay_html(folder, [x for _, x in solved], labels),
+            replay_html(folder, shown, labels),
         ]
     _emit(args, folder, {**res.summary(), "refinement": refined}, table, files)
-    return 0 if all(r.best is not None for r in res.rows) else 1
+    return 0 if all(r.best is not None for r in res.rows) and _all_certified(plans) else 1

@@ -193,13 +193,21 @@ class BestIterateRecorder(NlpsolIterationCallback):
     then holds the best finite iterate seen (or None) and :attr:`count` the
     number of iterates. Parameters as for :class:`NlpsolIterationCallback`.
 
-    Per iteration it reads ``x``, ``g`` and ``f`` in place (no copy), ranks
-    them, and copies ``x``, ``lam_x``, ``lam_g`` only when the iterate ranks
-    above the best so far.
+    It runs once per IPOPT iteration, between factorizations that have just
+    evicted its data from the CPU caches, so it touches as little memory as
+    it can: an iterate whose objective cannot beat a feasible best is ranked
+    from ``f`` alone; otherwise ``x`` and ``g`` are read in place (no copy),
+    their violation formed in scratch arrays of the run, and ``x``, ``lam_x``,
+    ``lam_g`` copied only when the iterate ranks above the best so far -- into
+    arrays the recorder owns for the run (a later, better iterate of the same
+    run overwrites them; :meth:`reset` starts new ones, so the best of an
+    earlier run is never changed).
     """
 
     def __init__(self, name: str, nx: int, ng: int, n_par: int) -> None:
         self._bounds: tuple[Array, Array, Array, Array] | None = None
+        self._scratch: tuple[Array, Array] = (np.empty(0), np.empty(0))
+        self._owned: tuple[Array, Array, Array] | None = None
         self._tol = 0.0
         self.best: Iterate | None = None
         self.count = 0
@@ -208,7 +216,10 @@ class BestIterateRecorder(NlpsolIterationCallback):
 
     def reset(self, bounds: tuple[Array, Array, Array, Array], feasibility_tol: float) -> None:
         """Forget the previous run; rank the next one's iterates against these bounds."""
-        self._bounds = tuple(np.asarray(b, dtype=float).ravel() for b in bounds)  # type: ignore[assignment]
+        lbx, ubx, lbg, ubg = (np.array(b, dtype=float).ravel() for b in bounds)
+        self._bounds = (lbx, ubx, lbg, ubg)
+        self._scratch = (np.empty(lbx.size), np.empty(lbg.size))
+        self._owned = None  # the next best gets new arrays: earlier results stay intact
         self._tol = float(feasibility_tol)
         self.best = None
         self.count = 0
@@ -242,25 +253,43 @@ class BestIterateRecorder(NlpsolIterationCallback):
         objective = float(f[0])
         if not math.isfinite(objective):
             return
-        with np.errstate(invalid="ignore"):  # inf - inf in a non-finite iterate
-            violation = violation_of(x, g, self._bounds)
+        best = self.best
+        if best is not None and best.violation <= self._tol and not objective < best.objective:
+            return  # only a lower objective ranks above a feasible best, whatever x and g are
+        violation = self._violation(x, g)
         if not math.isfinite(violation):  # some entry of x or g is not finite
             return
-        if self.best is not None and not _ranks_above(violation, objective, self.best, self._tol):
+        if best is not None and not _ranks_above(violation, objective, best, self._tol):
             return
+        if self._owned is None:
+            self._owned = (np.empty(x.size), np.empty(x.size), np.empty(g.size))
+        own_x, own_lam_x, own_lam_g = self._owned
+        own_x[:] = x
+        own_lam_x[:] = np.nan if lam_x is None else lam_x
+        own_lam_g[:] = np.nan if lam_g is None else lam_g
         self.best = Iterate(
-            x=x.copy(),
-            lam_x=_copy_or_nan(lam_x, x.size),
-            lam_g=_copy_or_nan(lam_g, g.size),
+            x=own_x,
+            lam_x=own_lam_x,
+            lam_g=own_lam_g,
             objective=objective,
             violation=violation,
             iteration=iteration,
         )
 
+    def _violation(self, x: Array, g: Array) -> float:
+        """:func:`violation_of` in the run's scratch arrays (NaN if an entry is not finite)."""
+        assert self._bounds is not None
+        lbx, ubx, lbg, ubg = self._bounds
+        sx, sg = self._scratch
+        with np.errstate(invalid="ignore"):  # inf - inf in a non-finite iterate
+            parts = (
+                np.subtract(lbx, x, out=sx).max(initial=0.0),
+                np.subtract(x, ubx, out=sx).max(initial=0.0),
+                np.subtract(lbg, g, out=sg).max(initial=0.0),
+                np.subtract(g, ubg, out=sg).max(initial=0.0),
+            )
+        total = float(sum(parts))
+        return total if math.isnan(total) else float(max(parts))
+
 
 _RANKED = ("x", "f", "g", "lam_x", "lam_g")  # the nlpsol outputs the recorder reads
-
-
-def _copy_or_nan(view: Array | None, size: int) -> Array:
-    """Return a copy of ``view``, or ``size`` NaNs (multipliers not provided)."""
-    return np.full(size, np.nan) if view is None else view.copy()

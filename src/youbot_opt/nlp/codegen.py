@@ -101,6 +101,7 @@ def compile_function(
     flags: tuple[str, ...] = COMPILE_FLAGS,
     wait: bool = True,
     label: str | None = None,
+    with_jacobian: bool = False,
 ) -> ca.Function:
     """Compiled, disk-cached equivalent of ``function`` (or ``function`` itself).
 
@@ -118,13 +119,18 @@ def compile_function(
         library from the cache next time.
     label : str, optional
         What the Function belongs to, for the log (e.g. ``"panda's dynamics"``).
+    with_jacobian : bool
+        Also compile ``function.jacobian()`` into the library (as
+        ``jac_<name>``, where ``external`` finds it): the compiled Function then
+        has first derivatives, so CasADi can differentiate expressions built on it.
 
     Returns
     -------
     casadi.Function
         An ``external`` Function with the same name, inputs and outputs when
         the library is (now) available, else ``function``. An external Function
-        has no derivatives of its own: compile the derivative Functions you need.
+        has no derivatives of its own unless ``with_jacobian`` (first order):
+        compile the derivative Functions you need.
 
     Warns
     -----
@@ -145,6 +151,8 @@ def compile_function(
         return function
     gen = ca.CodeGenerator(name, {"with_header": False})
     gen.add(function)
+    if with_jacobian:
+        gen.add(function.jacobian())  # named jac_<name>: external() loads it as the Jacobian
     code = gen.dump()
     key = hashlib.sha256(
         "\0".join(

@@ -57,10 +57,12 @@ FAST_KKT: Mapping[str, IpoptValue] = MappingProxyType(
         "min_refinement_steps": 0,
         "mumps_scaling": 0,
         "mumps_permuting_scaling": 0,
+        "mumps_pivot_order": 0,
     }
 )
 """IPOPT settings of :attr:`IpoptOptions.fast_kkt`: no residual check or iterative
-refinement of the KKT solves unless IPOPT asks for it, no MUMPS scaling
+refinement of the KKT solves unless IPOPT asks for it, no MUMPS scaling, MUMPS's
+AMD fill-reducing ordering instead of its automatic choice
 (``benchmarks/bench_trajopt.py --side-by-side --levers`` measures each; docs/design.md,
 "IPOPT: one options class")."""
 

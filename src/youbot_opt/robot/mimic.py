@@ -22,6 +22,7 @@ from typing import NamedTuple
 import pinocchio as pin
 
 from youbot_opt.exceptions import YoubotOptWarning
+from youbot_opt.robot.strict.limits import SizeLimits
 from youbot_opt.robot.strict.xml import parse_xml_strict, root_of
 
 __all__ = ["MimicJoint", "mimic_joints", "mimic_locks"]
@@ -36,13 +37,17 @@ class MimicJoint(NamedTuple):
     offset: float
 
 
-def mimic_joints(urdf_path: Path) -> tuple[MimicJoint, ...]:
+def mimic_joints(
+    urdf_path: Path, *, size_limits: SizeLimits | None = None
+) -> tuple[MimicJoint, ...]:
     """Read the ``<mimic>`` relations of a URDF file (already checked by the strict loader).
 
     Parameters
     ----------
     urdf_path : pathlib.Path
         The URDF file.
+    size_limits : SizeLimits, optional
+        Its XML nesting and element limits (as it was loaded with).
 
     Returns
     -------
@@ -52,7 +57,11 @@ def mimic_joints(urdf_path: Path) -> tuple[MimicJoint, ...]:
     data = urdf_path.read_bytes()
     if b"<mimic" not in data:
         return ()
-    robot = root_of(parse_xml_strict(data, str(urdf_path)), str(urdf_path))
+    sizes = (size_limits if size_limits is not None else SizeLimits()).resolved()
+    tree = parse_xml_strict(
+        data, str(urdf_path), max_depth=sizes.max_xml_depth, max_elements=sizes.max_xml_elements
+    )
+    robot = root_of(tree, str(urdf_path))
     out = []
     for joint in robot.iter("joint"):
         mimic = joint.find("mimic")
@@ -70,7 +79,12 @@ def mimic_joints(urdf_path: Path) -> tuple[MimicJoint, ...]:
 
 
 def mimic_locks(
-    model: pin.Model, urdf_path: Path | None, locked: Mapping[str, float], robot_name: str
+    model: pin.Model,
+    urdf_path: Path | None,
+    locked: Mapping[str, float],
+    robot_name: str,
+    *,
+    size_limits: SizeLimits | None = None,
 ) -> tuple[tuple[str, float], ...]:
     """Positions at which to lock the mimic joints of ``model`` not already in ``locked``.
 
@@ -84,6 +98,8 @@ def mimic_locks(
         Joints the user locks, with their positions in [rad] or [m].
     robot_name : str
         For the warning.
+    size_limits : SizeLimits, optional
+        The XML limits the file was loaded with (its defaults otherwise).
 
     Returns
     -------
@@ -101,7 +117,7 @@ def mimic_locks(
         return ()
     out = []
     notes = []
-    for mimic in mimic_joints(urdf_path):
+    for mimic in mimic_joints(urdf_path, size_limits=size_limits):
         if mimic.name in locked or not model.existJointName(mimic.name):
             continue
         joint = model.joints[model.getJointId(mimic.name)]

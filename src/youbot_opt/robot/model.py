@@ -31,10 +31,12 @@ from youbot_opt._checks import check_bound_scale
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, RobotNotFound
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
+from youbot_opt.robot.strict.limits import SizeLimits
 from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
 
 __all__ = [
     "RobotModel",
+    "SizeLimits",
     "JointBounds",
     "BoundFamily",
     "BOUND_FAMILIES",
@@ -513,6 +515,7 @@ def _build_pinocchio_models(
     *,
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
+    size_limits: SizeLimits | None = None,
 ) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
     """Build (model, visual, collision) from a URDF file; the single Pinocchio entry point."""
     if not path.is_file():
@@ -523,7 +526,9 @@ def _build_pinocchio_models(
 
     # The strict loader refuses malformed XML, DOCTYPE/entities, resources outside
     # ``package_dirs`` and physically invalid models, each with a URDFError (a ModelError).
-    loaded = load_urdf_strict(path, package_dirs, strict=strict, locked=locked)
+    loaded = load_urdf_strict(
+        path, package_dirs, strict=strict, locked=locked, size_limits=size_limits
+    )
     model, visual, collision = loaded.model, loaded.visual_model, loaded.collision_model
     return model, visual, collision
 
@@ -630,6 +635,7 @@ def load_model(
     damping: float | None = None,
     strict: bool = True,
     lock_joints: Mapping[str, float] | None = None,
+    size_limits: SizeLimits | None = None,
 ) -> RobotModel:
     """Load a robot model.
 
@@ -669,6 +675,17 @@ def load_model(
         joint's angle in [rad]); built with Pinocchio's reduced model
         (``buildReducedModel``) on the model and both geometry models. Links
         behind locked joints count as welded for the inertia policy.
+    size_limits : SizeLimits, optional
+        Size limits of the URDF file, each a count (an integer >= 1): joints
+        (``max_joints``, default 1000), degrees of freedom (``max_dof``, 100),
+        longest joint chain (``max_tree_depth``, 500), XML nesting
+        (``max_xml_depth``, 100 levels) and XML elements (``max_xml_elements``,
+        200,000). A limit left None takes its environment variable
+        (``YOUBOT_OPT_MAX_JOINTS``, ``YOUBOT_OPT_MAX_DOF``,
+        ``YOUBOT_OPT_MAX_TREE_DEPTH``, ``YOUBOT_OPT_MAX_XML_DEPTH``,
+        ``YOUBOT_OPT_MAX_XML_ELEMENTS``) when set, else the default
+        (:class:`~youbot_opt.robot.strict.limits.SizeLimits`). Example:
+        ``load_model("big.urdf", size_limits=SizeLimits(max_joints=5000))``.
 
     Returns
     -------
@@ -686,8 +703,21 @@ def load_model(
         ``tip_frame`` is not a frame of the (reduced) model.
     ParameterError
         ``damping`` is negative or not finite; ``lock_joints`` names an unknown
-        or multi-dof joint, or a position that is not finite or outside the limits.
+        or multi-dof joint, or a position that is not finite or outside the
+        limits; ``size_limits`` is not a :class:`SizeLimits`, or a limit in it
+        (or its environment variable) is not an integer >= 1.
+    UnsafeURDFError
+        The file exceeds a size limit (the message names the count, the limit
+        and how to raise it).
     """
+    if size_limits is not None and not isinstance(size_limits, SizeLimits):
+        raise ParameterError(
+            "size_limits must be a SizeLimits (e.g. SizeLimits(max_joints=5000)) or None, "
+            f"got {type(size_limits).__name__} {size_limits!r}",
+            name="size_limits",
+            value=size_limits,
+        )
+    sizes = (size_limits or SizeLimits()).resolved()  # a bad environment variable fails here
     extra = tuple(Path(p) for p in (package_dirs or ()))
     damping = _check_damping(damping)
     gravity: float | None = None
@@ -699,19 +729,25 @@ def load_model(
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / _YOUBOT_FILE
             path.write_text(text, encoding="utf-8")
-            built = _build_pinocchio_models(path, extra, strict=strict, locked=locked_names)
+            built = _build_pinocchio_models(
+                path, extra, strict=strict, locked=locked_names, size_limits=sizes
+            )
         name, urdf_path, dirs, tip = source.name, None, extra, TIP_FRAME
     elif isinstance(source, str) and source in (YOUBOT, YOUBOT_ARM_5DOF):
         five = source == YOUBOT_ARM_5DOF
         gravity = None if five else YOUBOT_PLANAR.gravity
         urdf_path = _committed_urdf(_YOUBOT_5DOF_FILE if five else _YOUBOT_FILE)
         dirs = (urdf_path.parent, *extra)
-        built = _build_pinocchio_models(urdf_path, dirs, strict=strict, locked=locked_names)
+        built = _build_pinocchio_models(
+            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+        )
         name, tip = source, (_YOUBOT_5DOF_TIP if five else TIP_FRAME)
     elif isinstance(source, str) and (found := _example_source(source)) is not None:
         urdf_path, tip = found
         dirs = (*_example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(urdf_path, dirs, strict=strict, locked=locked_names)
+        built = _build_pinocchio_models(
+            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+        )
         name = source
     elif isinstance(source, str | os.PathLike):
         urdf_path = Path(source)
@@ -724,7 +760,9 @@ def load_model(
             )
         urdf_path = urdf_path.resolve()
         dirs = (urdf_path.parent, *_example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(urdf_path, dirs, strict=strict, locked=locked_names)
+        built = _build_pinocchio_models(
+            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+        )
         name, tip = built[0].name or urdf_path.stem, None
     else:
         raise ParameterError(
@@ -737,7 +775,10 @@ def load_model(
     locked = _check_lock(model, lock_joints) if lock_joints is not None else ()
     from youbot_opt.robot.mimic import mimic_locks  # never independent: locked, with a warning
 
-    locked = (*locked, *mimic_locks(model, urdf_path, dict(locked), str(name)))
+    locked = (
+        *locked,
+        *mimic_locks(model, urdf_path, dict(locked), str(name), size_limits=sizes),
+    )
     model, visual, collision = _lock(model, visual, collision, locked)
     if damping is not None:
         model.damping = np.full(model.nv, damping)

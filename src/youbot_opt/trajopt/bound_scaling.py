@@ -20,20 +20,25 @@ from typing import Any
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.trajopt.multistart import MultistartResult, optima_rule
+from youbot_opt.trajopt.multistart import (
+    MultistartResult,
+    StoredStarts,
+    optima_rule,
+    tally_starts,
+)
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.result import ActiveBound
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import (
+    StartJobChain,
+    StartJobs,
     StartOutcome,
     check_solver,
     default_dt0,
-    make_jobs,
-    open_store,
     solve_starts,
-    sweep_params,
 )
+from youbot_opt.trajopt.sweep_store import open_store, sweep_params
 
 __all__ = ["BoundScalingRow", "BoundScalingResult", "bound_scaling_study", "DEFAULT_SCALES"]
 
@@ -179,7 +184,11 @@ def bound_scaling_study(
     sweep : SweepOptions
         How the starts of all scales run, as in
         :func:`youbot_opt.trajopt.multistart.run_multistart` (``progress`` counts
-        starts over all scales).
+        starts over all scales). ``keep_results=False`` (needs ``out``): each
+        row's multistart holds no start (they are read from ``out``), only its
+        counts, best start and distinct optima, computed once per scale, so
+        memory does not grow with ``n_starts``; the rows themselves (one per
+        scale, tens at most) are held.
 
     Returns
     -------
@@ -204,7 +213,7 @@ def bound_scaling_study(
         solver.problem.check_boundary(s)
     dt0 = default_dt0(solver.problem) if dt0 is None else float(dt0)
     jobs_by_scale = [
-        make_jobs(
+        StartJobs(
             n_starts,
             seed=seed,
             beta=beta,
@@ -227,18 +236,29 @@ def bound_scaling_study(
             "dt0": dt0,
         }
         store = open_store(sweep.directory, "bounds", params, solver, clean=sweep.shard is None)
-    outcomes, _ = solve_starts(
+    outcomes, _, clusters = solve_starts(
         solver,
-        [j for jobs in jobs_by_scale for j in jobs],
+        StartJobChain(jobs_by_scale),  # made when asked for: keep_results=False holds none
         store=store,
         sweep=sweep,
         keep=optima_rule(group=lambda start: start.key.split("_", 1)[0]),  # per scale
     )
     rows = []
     for s, jobs in zip(values, jobs_by_scale, strict=True):
-        ms = MultistartResult(
-            starts=tuple(outcomes[j.key] for j in jobs), beta=beta, bound_scale=s, seed=seed
-        )
+        if sweep.keep_results:
+            ms = MultistartResult(
+                starts=tuple(outcomes[j.key] for j in jobs), beta=beta, bound_scale=s, seed=seed
+            )
+        else:  # like run_multistart's: starts read from the folder, counted once per scale
+            assert store is not None
+            mine = [c for c in clusters if c[0].startswith(jobs.prefix)]  # grouped per scale
+            ms = MultistartResult(
+                starts=StoredStarts(jobs, outcomes),
+                beta=beta,
+                bound_scale=s,
+                seed=seed,
+                tally=tally_starts(jobs, outcomes, mine, store),
+            )
         best = ms.best
         active = (
             () if best is None or best.result is None else best.result.active_bounds(active_tol)

@@ -4,6 +4,8 @@ Owns :func:`run_multistart` (the study's 50 random starts per ``beta``: random
 feasible spline guesses, optionally plus the straight line, each seeded from
 ``SeedSequence(seed).spawn`` so results do not depend on the executor),
 :class:`MultistartResult`, :class:`LocalOptimum` and :func:`trajectory_distance`.
+With ``keep_results=False`` the result holds no start: :class:`StartTally` (counts,
+best, optima) is computed once at the end and the starts are read from the folder.
 How starts run is one :class:`~youbot_opt.sweeps.options.SweepOptions`; the job
 machinery is :mod:`youbot_opt.trajopt.sweep`.
 
@@ -14,41 +16,48 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import Any
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.stored_starts import ConvergedStarts, OptimumMembers, StoredStarts
 from youbot_opt.trajopt.sweep import (
     StartJobs,
     StartOutcome,
     check_solver,
+    count_starts,
     default_dt0,
-    open_store,
     solve_starts,
     start_seeds,
-    sweep_params,
 )
+from youbot_opt.trajopt.sweep_store import open_store, sweep_params
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
     "LocalOptimum",
     "MultistartResult",
     "StartOutcome",
+    "StartTally",
     "StoredStarts",
     "default_dt0",
     "optima_rule",
     "run_multistart",
     "start_seeds",
+    "tally_starts",
     "trajectory_distance",
 ]
+
+_DEFAULT_TOLS = (1e-5, 1e-2)  # (relative, [rad]) of distinct_optima and optima_rule
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -57,13 +66,15 @@ class LocalOptimum:
 
     Attributes
     ----------
-    members : tuple of StartOutcome
-        The member starts, lowest objective first.
+    members : sequence of StartOutcome
+        The member starts, lowest objective first: a tuple, or with
+        ``keep_results=False`` a sequence of the member count reading each
+        member from the output folder when asked for (only the first is held).
     n_starts : int
         Number of starts of the multistart (for :attr:`fraction`).
     """
 
-    members: tuple[StartOutcome, ...]
+    members: Sequence[StartOutcome]
     n_starts: int
 
     @classmethod
@@ -105,13 +116,28 @@ class LocalOptimum:
 
     @property
     def seeds(self) -> tuple[int | None, ...]:
-        """Seeds of the members (``None`` for the straight line)."""
+        """Seeds of the members (``None`` for the straight line); reads every member."""
         return tuple(s.seed for s in self.members)
 
     @property
     def objective_spread(self) -> float:
-        """Largest objective minus smallest among the members."""
+        """Largest objective minus smallest among the members (the last member's)."""
         return self.members[-1].objective - self.best.objective
+
+    def summary(self, *, seeds: bool = True) -> dict[str, Any]:
+        """JSON-ready figures; ``seeds``: also every member's seed (reads every member)."""
+        out: dict[str, Any] = {
+            "objective": self.objective,
+            "duration_s": self.duration,
+            "work": self.work,
+            "count": self.count,
+            "fraction": self.fraction,
+            "seed": self.best.seed,
+        }
+        if seeds:
+            out["seeds"] = list(self.seeds)
+        out["objective_spread"] = self.objective_spread
+        return out
 
     def __repr__(self) -> str:
         return (
@@ -177,44 +203,36 @@ def optima_rule(
     return KeepRule(
         objective=lambda s: s.objective if s.success else None,
         distance=_start_distance,
-        obj_tol=1e-5,
-        dist_tol=1e-2,
+        obj_tol=_DEFAULT_TOLS[0],
+        dist_tol=_DEFAULT_TOLS[1],
         group=group,
     )
 
 
-class StoredStarts(Sequence[StartOutcome]):
-    """The starts of a ``keep_results=False`` multistart, read from its folder when asked for.
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StartTally:
+    """What a ``keep_results=False`` multistart knows of its starts, computed once at its end.
 
-    Start ``i`` is ``outcomes[jobs[i].key]`` each time (its figures from the
-    sweep's journal; the kept optima in full), so a result of 10^5 starts
-    holds no start. Valid while the output folder is there.
+    The accessors of :class:`MultistartResult` answer from it in time and
+    memory of the number of optima, not of starts.
+
+    Attributes
+    ----------
+    status_counts : mapping of str to int
+        Number of starts per status (``"error"``: raised or crashed).
+    n_converged : int
+        Number of starts whose solve succeeded.
+    best : StartOutcome or None
+        Converged start with the lowest objective, with its result.
+    optima : tuple of LocalOptimum
+        The distinct optima at the default tolerances (1e-5, 1e-2 rad),
+        lowest first; members are read from the folder when asked for.
     """
 
-    def __init__(self, jobs: StartJobs, outcomes: Mapping[str, StartOutcome]) -> None:
-        self._jobs, self._outcomes = jobs, outcomes
-
-    def __len__(self) -> int:
-        return len(self._jobs)
-
-    @overload
-    def __getitem__(self, i: int) -> StartOutcome: ...
-    @overload
-    def __getitem__(self, i: slice) -> tuple[StartOutcome, ...]: ...
-    def __getitem__(self, i: int | slice) -> StartOutcome | tuple[StartOutcome, ...]:
-        if isinstance(i, slice):
-            return tuple(self[j] for j in range(len(self))[i])
-        return self._outcomes[self._jobs[i].key]
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence):
-            return NotImplemented
-        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
-
-    def __repr__(self) -> str:
-        return f"StoredStarts({len(self)} starts)"
+    status_counts: Mapping[str, int]
+    n_converged: int
+    best: StartOutcome | None
+    optima: tuple[LocalOptimum, ...]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -237,6 +255,12 @@ class MultistartResult:
         Wall time of the whole run in [s] (resumed starts cost nothing).
     resumed : int
         Number of starts loaded from the output directory instead of solved.
+    tally : StartTally or None
+        ``keep_results=False``: the counts, best start and default distinct
+        optima, computed once at the end of the sweep; ``best``,
+        ``converged``, ``status_counts()``, ``distinct_optima()`` (default
+        tolerances) and ``summary(starts=False)`` answer from it without
+        reading the starts. ``None`` when the starts are held (a tuple).
     """
 
     starts: Sequence[StartOutcome]
@@ -245,6 +269,7 @@ class MultistartResult:
     seed: int
     wall_time: float = 0.0
     resumed: int = 0
+    tally: StartTally | None = None
 
     @property
     def n_starts(self) -> int:
@@ -252,20 +277,41 @@ class MultistartResult:
         return len(self.starts)
 
     @property
-    def converged(self) -> tuple[StartOutcome, ...]:
-        """Starts whose solve succeeded."""
+    def n_converged(self) -> int:
+        """Number of starts whose solve succeeded."""
+        if self.tally is not None:
+            return self.tally.n_converged
+        return sum(s.success for s in self.starts)
+
+    @property
+    def converged(self) -> Sequence[StartOutcome]:
+        """Starts whose solve succeeded, in start order.
+
+        A tuple; with ``keep_results=False`` a sequence of the counted length
+        that reads the starts from the folder as it is iterated (nothing held).
+        """
+        if self.tally is not None:
+            return ConvergedStarts(self.starts, self.tally.n_converged)
         return tuple(s for s in self.starts if s.success)
 
     @property
     def success_rate(self) -> float:
         """Fraction of starts that converged (0 if there are none)."""
-        return len(self.converged) / self.n_starts if self.starts else 0.0
+        return self.n_converged / self.n_starts if self.n_starts else 0.0
 
     @property
     def best(self) -> StartOutcome | None:
-        """Converged start with the lowest objective (``None`` if none converged)."""
+        """Converged start of lowest objective, the first of ties (``None``: none converged)."""
+        if self.tally is not None:
+            return self.tally.best
         ok = self.converged
         return min(ok, key=lambda s: s.objective) if ok else None
+
+    def status_counts(self) -> dict[str, int]:
+        """Return the number of starts per status (``"error"``: raised or crashed), by status."""
+        if self.tally is not None:
+            return dict(self.tally.status_counts)
+        return dict(sorted(Counter(s.status for s in self.starts).items()))
 
     def distinct_optima(
         self, obj_tol: float = 1e-5, traj_tol: float = 1e-2
@@ -276,6 +322,11 @@ class MultistartResult:
         cluster whose lowest member is within ``obj_tol`` (relative,
         ``|f - f_c| <= obj_tol max(1, |f_c|)``) in objective and within
         ``traj_tol`` in :func:`trajectory_distance`, else starts a new cluster.
+        With ``keep_results=False`` the default tolerances return the optima
+        the sweep chose (members read from the folder when asked for); other
+        tolerances re-cluster every converged start's figures, keeping the
+        sweep's trajectory clusters (a pass over the folder, memory of the
+        converged starts).
 
         Parameters
         ----------
@@ -293,6 +344,8 @@ class MultistartResult:
             raise ParameterError(
                 f"obj_tol and traj_tol must be > 0, got {obj_tol!r}, {traj_tol!r}", name="obj_tol"
             )
+        if self.tally is not None and (obj_tol, traj_tol) == _DEFAULT_TOLS:
+            return self.tally.optima
         clusters = cluster_optima(
             self.converged,
             objective=lambda s: s.objective,
@@ -302,33 +355,82 @@ class MultistartResult:
         )
         return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
 
-    def summary(self, obj_tol: float = 1e-5, traj_tol: float = 1e-2) -> dict[str, Any]:
-        """JSON-ready summary: rates, best start, distinct optima, every start's figures."""
+    def summary(
+        self, obj_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
+    ) -> dict[str, Any]:
+        """JSON-ready summary: rates, status counts, best start, distinct optima, every start.
+
+        Parameters
+        ----------
+        obj_tol, traj_tol : float
+            Tolerances of :meth:`distinct_optima`.
+        starts : bool, optional
+            Include every start's figures (``"starts"``) and every optimum's
+            member seeds (``"seeds"``); default: when the starts are held
+            (``keep_results=True``). With ``keep_results=False`` they are read
+            from the folder (time and output size of the number of starts).
+        """
+        full = self.tally is None if starts is None else bool(starts)
         best = self.best
-        return {
+        counts = self.status_counts()
+        out: dict[str, Any] = {
             "beta": self.beta,
             "bound_scale": self.bound_scale,
             "seed": self.seed,
             "n_starts": self.n_starts,
             "success_rate": self.success_rate,
-            "n_errors": sum(s.status == "error" for s in self.starts),
+            "n_converged": self.n_converged,
+            "n_errors": counts.get("error", 0),
+            "status_counts": counts,
             "resumed": self.resumed,
             "wall_time_s": self.wall_time,
             "best": None if best is None else best.summary(),
             "distinct_optima": [
-                {
-                    "objective": o.objective,
-                    "duration_s": o.duration,
-                    "work": o.work,
-                    "count": o.count,
-                    "fraction": o.fraction,
-                    "seeds": list(o.seeds),
-                    "objective_spread": o.objective_spread,
-                }
-                for o in self.distinct_optima(obj_tol, traj_tol)
+                o.summary(seeds=full) for o in self.distinct_optima(obj_tol, traj_tol)
             ],
-            "starts": [s.summary() for s in self.starts],
         }
+        if full:
+            out["starts"] = [s.summary() for s in self.starts]
+        return out
+
+
+def tally_starts(
+    jobs: StartJobs,
+    outcomes: Mapping[str, StartOutcome],
+    clusters: Sequence[Sequence[str]],
+    store: SweepStore,
+) -> StartTally:
+    """Count the starts of a ``keep_results=False`` sweep once and name its optima.
+
+    Parameters
+    ----------
+    jobs : StartJobs
+        The starts (of one multistart).
+    outcomes : mapping
+        The sweep's outcomes by key (the kept optima in full).
+    clusters : sequence of sequence of str
+        The sweep's distinct optima of these starts, as keys, best first.
+    store : SweepStore
+        The sweep's store (one read of each start's record).
+
+    Returns
+    -------
+    StartTally
+        Counts per status, converged count, the best start (the first
+        cluster's representative: lowest objective, first in start order, as
+        :attr:`MultistartResult.best`) and the optima with lazy members.
+    """
+    counts = count_starts(jobs, store)
+    n = len(jobs)
+    optima = tuple(
+        LocalOptimum(members=OptimumMembers(keys, outcomes), n_starts=n) for keys in clusters
+    )
+    return StartTally(
+        status_counts=counts.statuses,
+        n_converged=counts.converged,
+        best=optima[0].best if optima else None,
+        optima=optima,
+    )
 
 
 def run_multistart(
@@ -376,9 +478,11 @@ def run_multistart(
         and retried like a crash; not serial), ``max_attempts`` (default 2), ``out``
         (each finished start is saved there and a rerun with the same
         parameters resumes) and ``progress`` ``(done, total, last_start)``.
-        ``keep_results=False`` (needs ``out``): every start keeps its figures
-        but only the best start and each default ``distinct_optima()``
-        representative keep their ``result`` in memory (the rest stay in ``out``).
+        ``keep_results=False`` (needs ``out``): no start is held; the starts
+        are read from ``out`` when asked for, and the counts per status, the
+        best start and the default ``distinct_optima()`` (with member counts;
+        only each representative's ``result`` is held) are computed once at
+        the end, so the accessors cost nothing per start (see :class:`StartTally`).
 
     Returns
     -------
@@ -419,14 +523,22 @@ def run_multistart(
             "dt0": dt0,
         }
         store = open_store(sweep.directory, "multistart", params, solver, clean=sweep.shard is None)
-    outcomes, resumed = solve_starts(solver, jobs, store=store, sweep=sweep, keep=optima_rule())
+    outcomes, resumed, clusters = solve_starts(
+        solver, jobs, store=store, sweep=sweep, keep=optima_rule()
+    )
+    if sweep.keep_results:
+        starts: Sequence[StartOutcome] = tuple(outcomes[j.key] for j in jobs)
+        tally = None
+    else:  # counted once here; the accessors answer from the tally
+        assert store is not None
+        starts = StoredStarts(jobs, outcomes)
+        tally = tally_starts(jobs, outcomes, clusters, store)
     return MultistartResult(
-        starts=tuple(outcomes[j.key] for j in jobs)
-        if sweep.keep_results
-        else StoredStarts(jobs, outcomes),
+        starts=starts,
         beta=beta,
         bound_scale=bound_scale,
         seed=seed,
         wall_time=time.perf_counter() - tic,
         resumed=resumed,
+        tally=tally,
     )

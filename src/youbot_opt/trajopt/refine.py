@@ -30,6 +30,7 @@ from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.refinement import Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.simulate import STIFF_RATIO, damping_rate
 from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, grid_weights
 
@@ -40,6 +41,8 @@ __all__ = [
     "RefinementRound",
     "refine",
     "observed_exponents",
+    "predicted_knots",
+    "stiffness_note",
     "split_grid",
     "switching_intervals",
     "transfer_start",
@@ -149,6 +152,51 @@ def switching_intervals(result: TrajOptResult, relative: float = 1e-6) -> NDArra
         active.append((upper - x <= margin) | (x - lower <= margin))  # never at an infinite one
     switches = np.hstack(active)
     return np.any(switches[1:] != switches[:-1], axis=1)
+
+
+def predicted_knots(errors: Array, tolerance: float, exponent: float | Array) -> int:
+    """Knots a grid would need for every interval to reach ``tolerance``, at ``e ~ h^m``.
+
+    Interval ``k`` needs ``max(1, ceil((e_k / tolerance)^(1 / m_k)))`` pieces
+    (:func:`split_grid` without its cap on pieces per round).
+    """
+    ratio = np.asarray(errors, dtype=float) / tolerance
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pieces = np.ceil(ratio ** (1.0 / np.asarray(exponent, dtype=float)))
+    pieces = np.where(ratio > 1.0, np.maximum(pieces, 2.0), 1.0)
+    return int(min(np.sum(pieces), 1e15)) + 1
+
+
+def stiffness_note(
+    result: TrajOptResult, error: CollocationError, tolerance: float, exponent: float | Array
+) -> str:
+    """Say why a grid cannot resolve the joint damping, with numbers ("" if it can).
+
+    A grid is stiff when the fastest damping rate (:func:`damping_rate`) times its
+    longest interval exceeds :data:`STIFF_RATIO`: the velocities relax faster
+    than any interval resolves. Trapezoidal and Hermite-Simpson collocation are
+    A-stable but not L-stable (their amplification tends to -1 and +1 for
+    infinitely stiff modes), so what the grid does not resolve is carried along
+    the motion instead of decaying, and the error falls more slowly than
+    ``h^m`` (docs/refinement.md, "Stiff joint damping"). The note gives the
+    rate, the joint, ``rate * h``, the exponent seen at the worst interval and
+    the knots :func:`predicted_knots` would need at it.
+    """
+    if result.trajectory is None:
+        return ""
+    stiff = damping_rate(result.problem.robot, result.trajectory.q, damping=result.problem.damping)
+    h = float(np.max(error.steps))
+    if stiff.rate * h <= STIFF_RATIO:
+        return ""
+    worst = error.worst_interval
+    m = float(np.broadcast_to(np.asarray(exponent, dtype=float), error.relative.shape)[worst])
+    needed = predicted_knots(error.relative, tolerance, exponent)
+    return (
+        f"; stiff joint damping: {stiff.joint or 'a joint'} relaxes at up to {stiff.rate:.3g} 1/s "
+        f"(time constant {1.0 / stiff.rate:.2g} s), rate x longest interval = {stiff.rate * h:.3g} "
+        f"(unresolved above {STIFF_RATIO:g}); the worst interval's error falls like h^{m:.2g}, "
+        f"so about {needed:.2g} knots would be needed"
+    )
 
 
 def _knot_weights(t: Array) -> Array:
@@ -372,7 +420,8 @@ def refine(
         elif budget.time_limit is not None and elapsed > budget.time_limit:
             reason = f"{why} after {elapsed:.3g} s"
         if reason:
-            reason = f"not certified: {reason} (budget: {budget.describe()})"
+            note = stiffness_note(result, error, budget.tolerance, exponents)
+            reason = f"not certified: {reason}{note} (budget: {budget.describe()})"
             break
         round_tic = time.perf_counter()
         solver = solver.on_grid(fractions)  # shares dynamics and compiled kernels

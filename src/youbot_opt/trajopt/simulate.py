@@ -6,7 +6,8 @@ collocation equations (spec ``trajopt.md``, "prove each trajectory by forward
 simulation"): :func:`batched_aba` (``a = ABA(q, v, tau - b v)``, damping as a
 torque), :func:`integrate_intervals` (one interval from every knot) and
 :func:`simulate` (the whole motion, open loop or with :class:`PDGains`), all
-integrated by SciPy's ``solve_ivp``. Robots with ``nq == nv`` only.
+integrated by SciPy's ``solve_ivp`` (DOP853, or Radau where the damping is
+stiff: :func:`integration_method`). Robots with ``nq == nv`` only.
 
 >>> sim = simulate(result.trajectory, robot, gains=PDGains())  # doctest: +SKIP
 """
@@ -21,6 +22,7 @@ from typing import NamedTuple, TypeAlias
 
 import numpy as np
 import pinocchio as pin
+from scipy import sparse
 from scipy.integrate import solve_ivp
 
 from youbot_opt._typing import Array
@@ -33,8 +35,12 @@ __all__ = [
     "PDGains",
     "RobotLike",
     "Simulation",
+    "STIFF_RATIO",
+    "DampingRate",
     "batched_aba",
+    "damping_rate",
     "integrate_intervals",
+    "integration_method",
     "simulate",
     "sample_times",
 ]
@@ -47,6 +53,13 @@ DEFAULT_RTOL = 1e-10
 """Default relative tolerance of the integrator (DOP853)."""
 DEFAULT_ATOL = 1e-12
 """Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
+STIFF_RATIO = 100.0
+"""Largest ``damping_rate * h`` (dimensionless, ``h`` the longest interval) that
+``method="auto"`` integrates explicitly (DOP853); above it, Radau. An explicit
+step is stable only for ``h_step * rate`` below about 3-6, so DOP853 would take
+more than ~20 steps per interval for stability alone (docs/refinement.md,
+"Stiff joint damping")."""
+_RATE_SAMPLES = 16  # configurations (spread over the knots) at which damping_rate is evaluated
 
 
 class _Deadline(Exception):
@@ -141,6 +154,85 @@ def batched_aba(robot: RobotLike, *, damping: bool = True) -> AbaFunction:
         )
 
     return rows
+
+
+class DampingRate(NamedTuple):
+    """The fastest rate of the joint damping (:func:`damping_rate`).
+
+    Attributes
+    ----------
+    rate : float
+        Largest eigenvalue of ``M(q)^-1 B`` in [1/s] (0 without damping).
+    joint : str
+        The joint that dominates that mode (largest component of its
+        eigenvector), "" without damping.
+    """
+
+    rate: float
+    joint: str
+
+
+def damping_rate(robot: RobotLike, q: Array, *, damping: bool = True) -> DampingRate:
+    """Fastest rate at which the joint damping relaxes the velocities, in [1/s].
+
+    The largest eigenvalue of ``M(q)^-1 B`` (``B`` the diagonal viscous damping
+    [N m s/rad], ``M`` the joint-space inertia with the rotor armature) over the
+    configurations ``q``: the fastest damped velocity mode decays like
+    ``exp(-rate t)``. ``1 / rate`` is the shortest time constant of the
+    dynamics; a grid step ``h`` with ``rate * h >> 1`` does not resolve it (the
+    dynamics are stiff on that grid). For one joint alone, ``rate = b / I``
+    (damping over the inertia about the axis).
+
+    Parameters
+    ----------
+    robot : RobotModel or pinocchio.Model
+        The robot (``nq == nv``).
+    q : ndarray, shape (M, nq) or (nq,)
+        Configurations in [rad] (at most 16, spread over the rows, are used).
+    damping : bool, optional
+        Whether the damping acts; False gives rate 0.
+
+    Returns
+    -------
+    DampingRate
+        The rate in [1/s] and the joint that dominates it.
+    """
+    robot = _robot(robot)
+    b = _damping(robot, damping)
+    if not np.any(b > 0.0):
+        return DampingRate(0.0, "")
+    qs = np.atleast_2d(np.asarray(q, dtype=float))
+    rows = np.unique(np.linspace(0, qs.shape[0] - 1, min(_RATE_SAMPLES, qs.shape[0])).astype(int))
+    model, data = robot.model, robot.model.createData()
+    root_b = np.sqrt(b)
+    best = DampingRate(0.0, "")
+    for qk in qs[rows]:
+        mass = pin.crba(model, data, qk)
+        mass = np.triu(mass) + np.triu(mass, 1).T  # crba fills the upper triangle only
+        # eig(M^-1 B) = eig(B^1/2 M^-1 B^1/2): symmetric, real and >= 0
+        sym = root_b[:, None] * np.linalg.inv(mass) * root_b[None, :]
+        values, vectors = np.linalg.eigh(0.5 * (sym + sym.T))
+        if values[-1] > best.rate:
+            joint = int(np.argmax(np.abs(vectors[:, -1])))
+            best = DampingRate(float(values[-1]), robot.joint_names[joint])
+    return best
+
+
+def integration_method(
+    method: str, trajectory: Trajectory, robot: RobotLike, *, damping: bool = True
+) -> str:
+    """Return the ``solve_ivp`` method to use: ``method``, or for ``"auto"`` DOP853 or Radau.
+
+    ``"auto"`` picks the implicit Radau method when the damping is stiff on the
+    plan's grid, ``damping_rate * max(h) > STIFF_RATIO`` (:data:`STIFF_RATIO`),
+    and the explicit DOP853 otherwise (every robot without stiff damping keeps
+    the explicit integrator and its figures).
+    """
+    if method != "auto":
+        return method
+    h = float(np.max(np.diff(trajectory.t)))
+    rate = damping_rate(robot, trajectory.q, damping=damping).rate
+    return "Radau" if rate * h > STIFF_RATIO else "DOP853"
 
 
 # Chebyshev–Lobatto nodes of degree 3 on [0, 1], and two check points.
@@ -332,7 +424,7 @@ def integrate_intervals(
     damping: bool = True,
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
-    method: str = "DOP853",
+    method: str = "auto",
     deadline: float | None = None,
 ) -> tuple[Array, Array]:
     """Integrate every interval from its left knot's state under the plan's torque.
@@ -355,7 +447,9 @@ def integrate_intervals(
     atol : float, optional
         Absolute tolerance of ``solve_ivp`` in [rad] and [rad/s].
     method : str, optional
-        ``solve_ivp`` method (an explicit Runge–Kutta method is expected).
+        ``solve_ivp`` method; ``"auto"`` (default) is DOP853, or Radau with the
+        block-diagonal Jacobian pattern when the damping is stiff on the grid
+        (:func:`integration_method`).
     deadline : float, optional
         A ``time.perf_counter()`` value [s] after which the integration stops
         (then the result is NaN, as for a failure).
@@ -388,8 +482,12 @@ def integrate_intervals(
         return (np.hstack([v, acc]) * h[:, None]).ravel()
 
     x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).ravel()
+    method = integration_method(method, trajectory, robot, damping=damping)
+    extra = {}
+    if method in ("Radau", "BDF"):  # intervals are independent: a block-diagonal Jacobian
+        extra["jac_sparsity"] = sparse.block_diag([np.ones((2 * nv, 2 * nv))] * n, format="csc")
     try:
-        sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol)
+        sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol, **extra)
     except _Deadline:
         _LOG.warning("local integration stopped: time limit reached")
         nan = np.full((n, nv), np.nan)
@@ -399,7 +497,7 @@ def integrate_intervals(
         nan = np.full((n, nv), np.nan)
         return nan, nan.copy()
     end = sol.y[:, -1].reshape(n, 2 * nv)
-    _LOG.debug("local integration: %d intervals, %d RHS evaluations", n, sol.nfev)
+    _LOG.debug("local integration (%s): %d intervals, %d RHS evaluations", method, n, sol.nfev)
     return end[:, :nv], end[:, nv:]
 
 
@@ -413,7 +511,7 @@ def simulate(
     stop_deviation: float | None = None,
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
-    method: str = "DOP853",
+    method: str = "auto",
     deadline: float | None = None,
 ) -> Simulation:
     """Simulate the whole motion from the first knot, open loop or with PD tracking.
@@ -441,7 +539,8 @@ def simulate(
     rtol, atol : float, optional
         Integrator tolerances (``atol`` in [rad] and [rad/s]).
     method : str, optional
-        ``solve_ivp`` method.
+        ``solve_ivp`` method; ``"auto"`` (default): DOP853, or Radau when the
+        damping is stiff on the grid (:func:`integration_method`).
     deadline : float, optional
         A ``time.perf_counter()`` value [s] after which the simulation stops
         (``stop_time`` and ``message`` say where), as for an integrator failure.
@@ -467,6 +566,7 @@ def simulate(
         )
     model, data = robot.model, robot.model.createData()
     nv = model.nv
+    method = integration_method(method, trajectory, robot, damping=damping)
     polys = _IntervalPolynomials(trajectory)
     m = int(samples_per_interval)
     times = sample_times(trajectory.t, m)

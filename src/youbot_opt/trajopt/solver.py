@@ -192,9 +192,14 @@ class TrajOptSolver:
         problem = self.problem
         self.nlp: TranscribedNLP = self.method.build(problem, self.dynamics.forward_dynamics)
         self._derivatives: dict[str, ca.Function] = {}
+        # the knot accelerations of each result, from the compiled kernel when there is one
+        forward = self.dynamics.forward_dynamics
         if self._kernels is not None:
             fast, kernels = self._kernels
-            fns = structured_functions(self.method, problem, fast, values=kernels)
+            forward = fast.forward
+            # the compiled forward kernel carries its Jacobian: IPOPT's constraint
+            # evaluations and the NLP gradient CasADi builds from ``nlp`` run compiled too
+            fns = structured_functions(self.method, problem, fast, values=fast)
             self._nlp_function = fns.nlp
             self._derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g}
             if self._exact_hessian:
@@ -203,6 +208,7 @@ class TrajOptSolver:
             self._nlp_function = ca.Function(
                 "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
             )
+        self._accelerations = forward.map(problem.n_knots)
         # keeps the best iterate, returned when a solve fails (youbot_opt.nlp.best_iterate)
         self._recorder = BestIterateRecorder(
             "trajopt_iterates", self.nlp.n_variables, self.nlp.n_constraints, self.nlp.p.numel()
@@ -488,7 +494,7 @@ class TrajOptSolver:
         if finite:
             _, g_dm = self._nlp_function(x, beta)
             g = np.asarray(g_dm, dtype=float).ravel()
-            fd = self.dynamics.forward_dynamics.map(problem.n_knots)
+            fd = self._accelerations
             a = np.asarray(fd(variables["q"].T, variables["v"].T, variables["tau"].T)).T
         total_time = (problem.n_knots - 1) * dt
         if self.method.uniform:

@@ -2,29 +2,31 @@
 
 Owns what the trajectory multistart, the Pareto sweep's first point and the
 bound-scaling study add to the robot-agnostic sweep engine (:mod:`youbot_opt.sweeps`):
-:func:`start_seeds`, :func:`make_jobs`, the worker task that solves a job's guess
-with the worker's solver, :func:`open_store` and :func:`solve_starts`, the
-resumable start loop as :class:`StartOutcome` s.
+:func:`start_seeds`, :func:`make_jobs` (:class:`StartJobs`, :class:`StartJobChain`:
+jobs made from their index), the worker task that solves a job's guess with the
+worker's solver, and :func:`solve_starts`, the resumable start loop as
+:class:`StartOutcome` s (:func:`count_starts` tallies a stored sweep). Their
+store is :mod:`youbot_opt.trajopt.sweep_store`.
 
-    outcomes, resumed = solve_starts(solver, make_jobs(8, seed=0, beta=0.5, bound_scale=1.0,
-                                     include_straight=True, dt0=0.1), store=None, sweep=opts)
+    outcomes, resumed, _ = solve_starts(solver, make_jobs(8, seed=0, beta=0.5, bound_scale=1.0,
+                                        include_straight=True, dt0=0.1), store=None, sweep=opts)
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
-import os
 import time
+from collections import Counter
 from collections.abc import Callable, MutableMapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Literal, overload
+from typing import Any, Literal, NamedTuple, overload
 
 import numpy as np
 
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context
@@ -39,15 +41,17 @@ from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
+    "SolvedStarts",
+    "StartCounts",
+    "StartJobChain",
     "StartJobs",
     "StartOutcome",
     "check_solver",
+    "count_starts",
     "default_dt0",
     "make_jobs",
-    "open_store",
     "solve_starts",
     "start_seeds",
-    "sweep_params",
     "worker_solver",
 ]
 
@@ -285,55 +289,18 @@ def check_solver(solver: Any) -> TrajOptSolver:
     )
 
 
-def open_store(
-    out: str | os.PathLike[str],
-    kind: str,
-    params: dict[str, Any],
-    solver: TrajOptSolver,
-    *,
-    clean: bool = True,
-) -> SweepStore:
-    """Open a sweep store whose payloads are trajectory results.
+class SolvedStarts(NamedTuple):
+    """What :func:`solve_starts` returns."""
 
-    Parameters
-    ----------
-    out : path-like
-        Output directory (created if missing).
-    kind : str
-        Kind of sweep (``"multistart"``, ``"pareto"``, ``"bounds"``).
-    params : dict
-        The sweep's defining parameters (a rerun with others is refused).
-    solver : TrajOptSolver
-        Its robot loads the stored results (:mod:`youbot_opt.trajopt.io` files).
-    clean : bool
-        Remove leftover temporary files (not in a shard run: other shards
-        may be writing into the same folder).
-
-    Returns
-    -------
-    SweepStore
-        The store.
-    """
-    from youbot_opt.trajopt.io import load_result, save_result
-
-    robot = solver.problem.robot
-
-    def load(path: Path) -> TrajOptResult:
-        return load_result(path, robot=robot)
-
-    return SweepStore(
-        out, kind=kind, params=params, save=save_result, load=load, suffix=".npz", clean=clean
-    )
-
-
-def sweep_params(solver: TrajOptSolver) -> dict[str, Any]:
-    """JSON-ready description of the solver a sweep runs (part of its manifest)."""
-    return {
-        "problem": solver.problem.describe(),
-        "method": solver.method.name,
-        "backend": solver.backend,
-        "options": solver.options.to_dict(),
-    }
+    outcomes: MutableMapping[str, StartOutcome]
+    """The outcome of every start, by key (``keep_results=False``: read from the store
+    when asked for, the kept optima in full)."""
+    resumed: int
+    """Starts loaded from the store instead of solved."""
+    clusters: Sequence[Sequence[str]] = ()
+    """``keep_results=False``: the distinct optima of ``keep`` as keys, each
+    representative first, best optimum first (members read from the store's
+    optima file when asked for); empty otherwise."""
 
 
 def solve_starts(
@@ -343,7 +310,7 @@ def solve_starts(
     store: SweepStore | None,
     sweep: SweepOptions,
     keep: KeepRule[StartOutcome] | None = None,
-) -> tuple[MutableMapping[str, StartOutcome], int]:
+) -> SolvedStarts:
     """Run start jobs, loading the finished ones from ``store``.
 
     Parameters
@@ -351,7 +318,8 @@ def solve_starts(
     solver : TrajOptSolver
         The built solver (inherited by forked workers, else rebuilt once per worker).
     jobs : sequence
-        From :func:`make_jobs`.
+        From :func:`make_jobs`, or a :class:`StartJobs` / :class:`StartJobChain`
+        (with ``keep_results=False`` no job is then held).
     store : SweepStore, optional
         Where every attempt is saved and finished starts are loaded from.
     sweep : SweepOptions
@@ -364,9 +332,9 @@ def solve_starts(
 
     Returns
     -------
-    tuple
+    SolvedStarts
         The outcomes by key (``keep_results=False``: read from ``store`` when
-        asked for) and the number of starts loaded from ``store``.
+        asked for), the number of starts loaded from ``store`` and the optima.
     """
     sweep = sweep.with_executor("process")
     executor = sweep.executor
@@ -379,8 +347,13 @@ def solve_starts(
     # initializer; each task then carries only the handle's token.
     send_once = own_pool or sweep.distributed
     sent = handle.by_token() if sweep.distributed else handle
-    lazy = isinstance(jobs, StartJobs) and not sweep.keep_results
-    job_of = jobs.job if isinstance(jobs, StartJobs) else {job.key: job for job in jobs}.__getitem__
+    made_lazily = isinstance(jobs, StartJobs | StartJobChain)
+    lazy = made_lazily and not sweep.keep_results
+    job_of: Callable[[str], _StartJob] = (
+        jobs.job  # type: ignore[attr-defined]
+        if made_lazily
+        else {job.key: job for job in jobs}.__getitem__
+    )
 
     def make_task(i: int) -> Task:
         job = jobs[i]
@@ -436,7 +409,42 @@ def solve_starts(
         for members in clusters:
             for key in members:
                 items[key] = dataclasses.replace(items[key], optimum=members[0])
-    return items, got.resumed
+    return SolvedStarts(items, got.resumed, clusters)
+
+
+class StartCounts(NamedTuple):
+    """Outcomes of finished starts counted (:func:`count_starts`)."""
+
+    statuses: dict[str, int]
+    """Number of starts per status (``"error"``: raised or crashed), sorted by status."""
+    converged: int
+    """Number of starts whose solve succeeded."""
+
+
+def count_starts(jobs: Sequence[_StartJob], store: SweepStore) -> StartCounts:
+    """Count the statuses of finished starts from their records in ``store``.
+
+    One pass over the jobs reading each start's summary from the store's
+    journal (as :class:`StartOutcome` s read back are made), holding nothing
+    per start: what a ``keep_results=False`` multistart computes once.
+
+    Raises
+    ------
+    ResultFileError
+        If a start has no record in ``store`` (it has not finished).
+    """
+    statuses: Counter[str] = Counter()
+    converged = 0
+    for job in jobs:
+        record = store.record(job.key)
+        if record is None:
+            raise ResultFileError(f"start {job.key!r} has no record in {store.directory}")
+        if record.state == "failed":
+            statuses["error"] += 1
+            continue
+        statuses[str(record.summary["status"])] += 1
+        converged += bool(record.summary["success"])
+    return StartCounts(dict(sorted(statuses.items())), converged)
 
 
 def _describe_start(
@@ -556,6 +564,11 @@ class StartJobs(Sequence[_StartJob]):
         self._common = {"beta": beta, "bound_scale": bound_scale, "dt0": dt0}
         self._prefix = prefix
 
+    @property
+    def prefix(self) -> str:
+        """Prefix of the jobs' keys."""
+        return self._prefix
+
     def __len__(self) -> int:
         return self._n + self._straight
 
@@ -588,4 +601,43 @@ class StartJobs(Sequence[_StartJob]):
             k = int(rest[6:])
             if k < self._n and f"start_{k:04d}" == rest:
                 return self[k + self._straight]
+        raise KeyError(key)
+
+
+class StartJobChain(Sequence[_StartJob]):
+    """Several :class:`StartJobs` in a row (e.g. one per bound scale), made when asked for.
+
+    Parameters
+    ----------
+    parts : sequence of StartJobs
+        With distinct key prefixes.
+    """
+
+    def __init__(self, parts: Sequence[StartJobs]) -> None:
+        self.parts = tuple(parts)
+        self._ends = np.cumsum([len(p) for p in self.parts], dtype=np.int64)
+
+    def __len__(self) -> int:
+        return int(self._ends[-1]) if self.parts else 0
+
+    @overload
+    def __getitem__(self, i: int) -> _StartJob: ...
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[_StartJob]: ...
+    def __getitem__(self, i: int | slice) -> _StartJob | Sequence[_StartJob]:
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        n = len(self)
+        j = i + n if i < 0 else i
+        if not 0 <= j < n:
+            raise IndexError(f"{n} start job(s), got index {i}")
+        part = int(np.searchsorted(self._ends, j, side="right"))
+        return self.parts[part][j - (int(self._ends[part - 1]) if part else 0)]
+
+    def job(self, key: str) -> _StartJob:
+        """Return the job of ``key`` (``KeyError`` if it is not one of these jobs)."""
+        for part in self.parts:
+            if key.startswith(part.prefix):
+                with contextlib.suppress(KeyError):
+                    return part.job(key)
         raise KeyError(key)

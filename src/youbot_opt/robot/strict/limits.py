@@ -3,21 +3,39 @@
 :func:`check_urdf_size` refuses a parsed file with more joints, a longer chain
 of joints or more degrees of freedom than :data:`MAX_JOINTS`,
 :data:`MAX_TREE_DEPTH` and :data:`MAX_DOF`, before the tree rules and before
-Pinocchio's parser; raise the limits per call or with the environment
-variables ``YOUBOT_OPT_MAX_JOINTS``, ``YOUBOT_OPT_MAX_TREE_DEPTH`` and
-``YOUBOT_OPT_MAX_DOF``. Why each limit is where it is: docs/design.md, "Module notes".
+Pinocchio's parser. :class:`SizeLimits` gathers these and the XML limits of
+:mod:`youbot_opt.robot.strict.xml` for one call; the environment variables
+``YOUBOT_OPT_<NAME>`` (e.g. ``YOUBOT_OPT_MAX_JOINTS``) set the defaults. Why
+each limit is where it is: docs/design.md, "Module notes".
 
-Example: ``YOUBOT_OPT_MAX_JOINTS=5000 youbot-opt robots big.urdf``.
+Example: ``load_model(path, size_limits=SizeLimits(max_joints=5000))``, or
+``YOUBOT_OPT_MAX_JOINTS=5000 youbot-opt robots big.urdf``.
 """
 
 from __future__ import annotations
 
+import operator
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass, fields
 
-from youbot_opt.exceptions import UnsafeURDFError
-from youbot_opt.robot.strict.xml import Site, fail, limit, root_of
+from youbot_opt.exceptions import ParameterError, UnsafeURDFError
+from youbot_opt.robot.strict.xml import (
+    MAX_XML_DEPTH,
+    MAX_XML_ELEMENTS,
+    Site,
+    fail,
+    limit,
+    root_of,
+)
 
-__all__ = ["MAX_DOF", "MAX_JOINTS", "MAX_TREE_DEPTH", "check_urdf_size", "tree_depth"]
+__all__ = [
+    "MAX_DOF",
+    "MAX_JOINTS",
+    "MAX_TREE_DEPTH",
+    "SizeLimits",
+    "check_urdf_size",
+    "tree_depth",
+]
 
 #: Most ``<joint>`` elements accepted (fixed ones included). Large humanoids
 #: and multi-arm cells have a few hundred; Pinocchio's model data grows with
@@ -39,6 +57,81 @@ _NV = {"revolute": 1, "continuous": 1, "prismatic": 1, "planar": 3, "floating": 
 #: 8 MiB stack near 5,000 levels); 500 keeps a margin of ten.
 #: Environment variable: ``YOUBOT_OPT_MAX_TREE_DEPTH``.
 MAX_TREE_DEPTH: int = 500
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SizeLimits:
+    """Size limits of a URDF file, for one call of the strict loader.
+
+    Every limit is a count (an integer >= 1); ``None`` (the default) takes the
+    environment variable ``YOUBOT_OPT_<NAME>`` (e.g. ``YOUBOT_OPT_MAX_JOINTS``)
+    when it is set, else the module constant.
+
+    Attributes
+    ----------
+    max_joints : int or None
+        Most ``<joint>`` elements, fixed ones included [count];
+        :data:`MAX_JOINTS` = 1000, ``YOUBOT_OPT_MAX_JOINTS``.
+    max_dof : int or None
+        Most degrees of freedom (velocity coordinates of the movable joints)
+        [count]; :data:`MAX_DOF` = 100, ``YOUBOT_OPT_MAX_DOF``.
+    max_tree_depth : int or None
+        Longest chain of joints from the root link [count of joints];
+        :data:`MAX_TREE_DEPTH` = 500, ``YOUBOT_OPT_MAX_TREE_DEPTH``.
+    max_xml_depth : int or None
+        Deepest XML element nesting [levels, ``<robot>`` is 1];
+        :data:`~youbot_opt.robot.strict.xml.MAX_XML_DEPTH` = 100,
+        ``YOUBOT_OPT_MAX_XML_DEPTH``.
+    max_xml_elements : int or None
+        Most XML elements in the file [count];
+        :data:`~youbot_opt.robot.strict.xml.MAX_XML_ELEMENTS` = 200,000,
+        ``YOUBOT_OPT_MAX_XML_ELEMENTS``.
+
+    Raises
+    ------
+    ParameterError
+        If a limit is not None or an integer >= 1 (the message names it).
+    """
+
+    max_joints: int | None = None
+    max_dof: int | None = None
+    max_tree_depth: int | None = None
+    max_xml_depth: int | None = None
+    max_xml_elements: int | None = None
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if value is None:
+                continue
+            try:
+                count = operator.index(value) if not isinstance(value, bool) else 0
+            except TypeError:
+                count = 0
+            if count < 1:
+                raise ParameterError(
+                    f"size limit {item.name} must be an integer >= 1 (a count) or None "
+                    f"(the default), got {value!r}",
+                    name=item.name,
+                    value=value,
+                )
+            object.__setattr__(self, item.name, count)
+
+    def resolved(self) -> SizeLimits:
+        """Return the limits in effect: each value given, else its environment variable or default.
+
+        Raises
+        ------
+        ParameterError
+            If an environment variable that is used is not an integer >= 1.
+        """
+        return SizeLimits(
+            max_joints=limit("MAX_JOINTS", MAX_JOINTS, self.max_joints),
+            max_dof=limit("MAX_DOF", MAX_DOF, self.max_dof),
+            max_tree_depth=limit("MAX_TREE_DEPTH", MAX_TREE_DEPTH, self.max_tree_depth),
+            max_xml_depth=limit("MAX_XML_DEPTH", MAX_XML_DEPTH, self.max_xml_depth),
+            max_xml_elements=limit("MAX_XML_ELEMENTS", MAX_XML_ELEMENTS, self.max_xml_elements),
+        )
 
 
 def tree_depth(robot: ET.Element) -> int:
@@ -118,7 +211,8 @@ def check_urdf_size(
     if len(joints) > joints_limit:
         problem = (
             f"has {len(joints):,} joints, more than the limit of {joints_limit:,} (raise it with "
-            "max_joints= or the environment variable YOUBOT_OPT_MAX_JOINTS)"
+            "size_limits=SizeLimits(max_joints=...) or the environment variable "
+            "YOUBOT_OPT_MAX_JOINTS)"
         )
         raise fail(UnsafeURDFError, where, problem, rule)
     dof = sum(_NV.get(j.get("type", ""), 0) for j in joints)
@@ -126,13 +220,15 @@ def check_urdf_size(
         problem = (
             f"has {dof:,} degrees of freedom, more than the limit of {dof_limit:,} "
             "(Pinocchio's data grows faster than dof^2: 0.6 GB at 250, 4 GB at 500; raise it "
-            "with the environment variable YOUBOT_OPT_MAX_DOF)"
+            "with size_limits=SizeLimits(max_dof=...) or the environment variable "
+            "YOUBOT_OPT_MAX_DOF)"
         )
         raise fail(UnsafeURDFError, where, problem, rule)
     depth = tree_depth(robot)
     if depth > depth_limit:
         problem = (
             f"has a chain of {depth:,} joints, deeper than the limit of {depth_limit:,} "
-            "(raise it with the environment variable YOUBOT_OPT_MAX_TREE_DEPTH)"
+            "(raise it with size_limits=SizeLimits(max_tree_depth=...) or the environment "
+            "variable YOUBOT_OPT_MAX_TREE_DEPTH)"
         )
         raise fail(UnsafeURDFError, where, problem, rule)

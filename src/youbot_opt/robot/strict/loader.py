@@ -29,13 +29,14 @@ import pinocchio as pin
 from youbot_opt.exceptions import (
     InvalidModelError,
     ModelError,
+    ParameterError,
     RobotNotFound,
     UnsafeURDFError,
     URDFError,
     YoubotOptWarning,
 )
 from youbot_opt.robot.strict.dynamics_defined import check_dynamics_defined
-from youbot_opt.robot.strict.limits import check_urdf_size
+from youbot_opt.robot.strict.limits import SizeLimits, check_urdf_size
 from youbot_opt.robot.strict.resources import (
     allowed_roots,
     check_mesh,
@@ -117,7 +118,15 @@ def _read_and_check(
     *,
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
+    size_limits: SizeLimits | None = None,
 ) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
+    sizes = size_limits if size_limits is not None else SizeLimits()
+    if not isinstance(sizes, SizeLimits):
+        raise ParameterError(
+            f"size_limits must be a SizeLimits or None, got {type(size_limits).__name__}",
+            name="size_limits",
+            value=size_limits,
+        )
     roots = allowed_roots(package_dirs)
     name = os.fspath(path)
     if not os.path.exists(name):
@@ -128,8 +137,14 @@ def _read_and_check(
         )
     except OSError as e:
         raise ModelError(f"cannot read URDF file {name!r}: {e}", path=name) from e
-    tree = parse_xml_strict(data, name)
-    check_urdf_size(tree, name)  # before the quadratic rules and Pinocchio's recursive parser
+    tree = parse_xml_strict(
+        data, name, max_depth=sizes.max_xml_depth, max_elements=sizes.max_xml_elements
+    )
+    # before the quadratic rules and Pinocchio's recursive parser
+    check_urdf_size(
+        tree, name, max_joints=sizes.max_joints, max_depth=sizes.max_tree_depth,
+        max_dof=sizes.max_dof,
+    )  # fmt: skip
     check_urdf_tree(tree, name)
     inertia_policy(tree, name, strict=strict, locked=locked)
     references: list[tuple[ET.Element, str, Path]] = []
@@ -150,7 +165,10 @@ def _read_and_check(
 
 
 def check_urdf_text(
-    path: str | os.PathLike[str], package_dirs: Sequence[str | os.PathLike[str]]
+    path: str | os.PathLike[str],
+    package_dirs: Sequence[str | os.PathLike[str]],
+    *,
+    size_limits: SizeLimits | None = None,
 ) -> ET.ElementTree:
     """Run every check that needs only the file (steps 1-4 of :func:`load_urdf_strict`).
 
@@ -161,6 +179,9 @@ def check_urdf_text(
     package_dirs : sequence of path-like
         Folders meshes and textures may come from; ``package://pkg/...``
         resolves to the first ``dir/pkg/...`` that exists.
+    size_limits : SizeLimits, optional
+        Size limits of the file (counts); by default the environment
+        variables' or the module constants.
 
     Returns
     -------
@@ -176,9 +197,10 @@ def check_urdf_text(
     URDFError
         One of its subclasses, naming the file, element, line and rule.
     ParameterError
-        If a package directory is not an existing folder.
+        If a package directory is not an existing folder, or a size limit is not
+        an integer >= 1.
     """
-    return _read_and_check(path, package_dirs)[0]
+    return _read_and_check(path, package_dirs, size_limits=size_limits)[0]
 
 
 @contextlib.contextmanager
@@ -407,6 +429,7 @@ def load_urdf_strict(
     *,
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
+    size_limits: SizeLimits | None = None,
 ) -> LoadedURDF:
     """Check a URDF file, load it into Pinocchio and check the result.
 
@@ -445,6 +468,10 @@ def load_urdf_strict(
         it with a warning (:func:`inertia_policy`).
     locked : frozenset of str
         Movable joints the caller will lock: links behind them count as welded.
+    size_limits : SizeLimits, optional
+        Size limits of the file (counts of joints, degrees of freedom, chain
+        length, XML nesting and elements); by default the environment
+        variables' or the module constants (:class:`SizeLimits`).
 
     Returns
     -------
@@ -466,10 +493,13 @@ def load_urdf_strict(
         :class:`~youbot_opt.exceptions.InvalidModelError`), naming the file,
         element, line and rule.
     ParameterError
-        If a package directory is not an existing folder.
+        If a package directory is not an existing folder, or a size limit is not
+        an integer >= 1.
     """
     name = os.fspath(path)
-    tree, references, resources = _read_and_check(path, package_dirs, strict=strict, locked=locked)
+    tree, references, resources = _read_and_check(
+        path, package_dirs, strict=strict, locked=locked, size_limits=size_limits
+    )
     for elem, attr, real in references:
         elem.set(attr, os.fspath(real))
     text = ET.tostring(root_of(tree, name), encoding="unicode")

@@ -285,8 +285,9 @@ def scan_xml_strict(
             )
             where = Site(path, f"<{shorten(tag)[1:-1]}>", parser.CurrentLineNumber)
             problem = (
-                f"the XML {name} exceeds the limit of {value:,} (raise it with the "
-                f"environment variable YOUBOT_OPT_{variable})"
+                f"the XML {name} exceeds the limit of {value:,} (raise it with "
+                f"size_limits=SizeLimits({variable.lower()}=...) or the environment variable "
+                f"YOUBOT_OPT_{variable})"
             )
             rule = f"XML nesting <= {depth_limit:,} levels and <= {element_limit:,} elements"
             raise fail(UnsafeURDFError, where, problem, rule)
@@ -332,7 +333,9 @@ class _TreeTarget:
         self.builder.data(text)
 
 
-def parse_xml_strict(data: bytes, path: str) -> ET.ElementTree:
+def parse_xml_strict(
+    data: bytes, path: str, *, max_depth: int | None = None, max_elements: int | None = None
+) -> ET.ElementTree:
     """Parse XML bytes into a tree, strictly and without any DTD processing.
 
     Any ``DOCTYPE``, entity or notation declaration is refused the moment
@@ -349,6 +352,8 @@ def parse_xml_strict(data: bytes, path: str) -> ET.ElementTree:
         The whole file content.
     path : str
         File name, for error messages.
+    max_depth, max_elements : int, optional
+        As :func:`scan_xml_strict` [levels], [count].
 
     Returns
     -------
@@ -357,11 +362,11 @@ def parse_xml_strict(data: bytes, path: str) -> ET.ElementTree:
 
     Raises
     ------
-    UnsafeURDFError, URDFSyntaxError
+    UnsafeURDFError, URDFSyntaxError, ParameterError
         As :func:`scan_xml_strict`.
     """
     target = _TreeTarget()
-    scan_xml_strict(data, path, target)
+    scan_xml_strict(data, path, target, max_depth=max_depth, max_elements=max_elements)
     return ET.ElementTree(target.builder.close())
 
 

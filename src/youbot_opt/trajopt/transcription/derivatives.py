@@ -109,12 +109,19 @@ def compile_kernels(kernels: Kernels, *, wait: bool = True, label: str | None = 
     Returns ``kernels`` itself (the same object, after the codegen warning) if
     any kernel cannot be compiled, or is not cached yet and ``wait`` is False
     (then it compiles in the background for the next build; ``label`` names it
-    in the log). The compiled Functions have no derivatives of their own, so
-    pass the SX kernels as ``values`` to :func:`structured_functions`.
+    in the log). The compiled ``forward`` kernel carries its compiled Jacobian
+    (first derivatives), so an NLP Function built on it can be handed to
+    ``nlpsol``, which differentiates it once (reverse mode) when it is created;
+    the other two compiled kernels have no derivatives.
     """
     from youbot_opt.nlp.codegen import compile_function
 
-    compiled = Kernels(*(compile_function(k, wait=wait, label=label) for k in kernels))
+    compiled = Kernels(
+        *(
+            compile_function(k, wait=wait, label=label, with_jacobian=k is kernels.forward)
+            for k in kernels
+        )
+    )
     if any(c is k for c, k in zip(compiled, kernels, strict=True)):
         return kernels
     return compiled
@@ -144,8 +151,9 @@ def structured_functions(
     kernels : Kernels
         Kernels used inside the derivative Functions (possibly compiled).
     values : Kernels, optional
-        Kernels for the plain ``nlp`` Function (default ``kernels``); pass the
-        uncompiled SX kernels so that ``nlp`` stays differentiable by CasADi.
+        Kernels for the plain ``nlp`` Function (default ``kernels``), whose
+        ``forward`` must be differentiable by CasADi (the SX kernel, or a
+        compiled one from :func:`compile_kernels`, which carries its Jacobian).
 
     Returns
     -------

@@ -56,13 +56,31 @@ _DISTANCE_IN_RADII = 1.9  # [-] camera distance from its target, in scene radii
 
 
 class RobotLike(Protocol):
-    """What replay needs of a robot (``youbot_opt.robot.model.RobotModel`` has it)."""
+    """What replay needs of a robot (``youbot_opt.robot.model.RobotModel`` has it).
 
-    name: str
-    model: pin.Model
-    visual_model: pin.GeometryModel
-    package_dirs: Sequence[str | Path]
-    tip_frame: str
+    Read-only members, so that frozen dataclasses and read-only properties
+    (``RobotModel.name``, ``RobotModel.package_dirs``) satisfy it.
+    """
+
+    @property
+    def name(self) -> str:
+        """Scene name of the robot."""
+
+    @property
+    def model(self) -> pin.Model:
+        """Kinematic model."""
+
+    @property
+    def visual_model(self) -> pin.GeometryModel:
+        """Visual geometry."""
+
+    @property
+    def package_dirs(self) -> Sequence[str | Path]:
+        """Directories that ``package://`` mesh paths resolve against."""
+
+    @property
+    def tip_frame(self) -> str:
+        """Frame whose path is drawn."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -1,0 +1,98 @@
+"""Stiff joint damping: the damping rate, the implicit integrator of certify, refine's reason."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.trajopt.refine import RefinementBudget, predicted_knots, refine
+from youbot_opt.trajopt.simulate import (
+    STIFF_RATIO,
+    damping_rate,
+    integrate_intervals,
+    integration_method,
+)
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.trajectory import Trajectory
+
+MASS = 0.17  # [kg] xarm7's last link
+OFFSET = 0.02  # [m] its centre of mass from the axis
+I_COM = 1.3e-4  # [kg m^2] about the axis through the centre of mass
+
+
+def _hinge(damping: float, armature: float = 0.0) -> pin.Model:
+    """One horizontal revolute joint (no gravity torque about z) carrying one body."""
+    model = pin.Model()
+    model.name = "hinge"
+    joint = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "hinge_joint")
+    inertia = pin.Inertia(MASS, np.array([OFFSET, 0.0, 0.0]), np.diag([1e-4, 1e-4, I_COM]))
+    model.appendBodyToJoint(joint, inertia, pin.SE3.Identity())
+    model.addFrame(pin.Frame("tip", joint, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
+    model.lowerPositionLimit[:] = -3.0
+    model.upperPositionLimit[:] = 3.0
+    model.velocityLimit[:] = 5.0
+    model.effortLimit[:] = 10.0
+    model.damping[:] = damping
+    model.armature[:] = armature
+    return model
+
+
+def test_damping_rate_of_one_joint_is_damping_over_inertia() -> None:
+    """rate = b / (I_com + m r^2 + armature), by hand (parallel-axis theorem), to 1e-12."""
+    axis_inertia = I_COM + MASS * OFFSET**2  # [kg m^2]
+    for b, armature in ((2.0, 0.0), (2.0, 0.01), (0.5, 0.0)):
+        rate = damping_rate(_hinge(b, armature), np.zeros((3, 1)))
+        np.testing.assert_allclose(rate.rate, b / (axis_inertia + armature), rtol=1e-12)
+        assert rate.joint == "hinge_joint"
+    assert damping_rate(_hinge(2.0), np.zeros(1), damping=False).rate == 0.0
+
+
+def _coasting_plan(model: pin.Model, h: float, n: int) -> Trajectory:
+    """Knots of the damped hinge coasting from 1 rad/s under zero torque (v = exp(-rate t))."""
+    rate = damping_rate(model, np.zeros(1)).rate
+    t = np.linspace(0.0, h * (n - 1), n)
+    v = np.exp(-rate * t)[:, None]
+    q = ((1.0 - np.exp(-rate * t)) / rate)[:, None]
+    return Trajectory(t=t, q=q, v=v, tau=np.zeros((n, 1)), a=-rate * v)
+
+
+def test_stiff_damping_is_integrated_implicitly_and_agrees_with_the_explicit_method() -> None:
+    """rate * h = 2.2e3 picks Radau; its one-interval ends match DOP853's and the exact decay.
+
+    Under zero torque the hinge's velocity decays as exp(-rate t) from every knot,
+    so the exact end state of an interval from knot k is known in closed form.
+    """
+    model = _hinge(2.0)
+    rate = damping_rate(model, np.zeros(1)).rate  # [1/s] about 1.04e4
+    plan = _coasting_plan(model, h=0.2, n=4)
+    assert rate * 0.2 > STIFF_RATIO
+    assert integration_method("auto", plan, model) == "Radau"
+    q_auto, v_auto = integrate_intervals(plan, model, rtol=1e-10, atol=1e-12)
+    q_exp, v_exp = integrate_intervals(plan, model, method="DOP853", rtol=1e-10, atol=1e-12)
+    decay = np.exp(-rate * 0.2)
+    q_exact = plan.q[:-1] + plan.v[:-1] * (1.0 - decay) / rate
+    v_exact = plan.v[:-1] * decay
+    np.testing.assert_allclose(q_auto, q_exact, rtol=0, atol=1e-10)  # [rad]; atol 1e-12 per step
+    np.testing.assert_allclose(v_auto, v_exact, rtol=0, atol=1e-10)  # [rad/s]
+    np.testing.assert_allclose(q_auto, q_exp, rtol=0, atol=1e-10)
+    mild = _coasting_plan(_hinge(0.002), h=0.2, n=4)  # rate * h = 2.2: explicit
+    assert integration_method("auto", mild, _hinge(0.002)) == "DOP853"
+
+
+def test_predicted_knots_count_pieces_at_each_exponent() -> None:
+    """By hand: errors 7e-3, 1e-4, 2.65e-2, tolerance 1e-3, exponents 3, 3, 1: 2 + 1 + 27 pieces."""
+    errors = np.array([7e-3, 1e-4, 2.65e-2])  # 7^(1/3) = 1.91, 26.5: no ceiling at an integer
+    assert predicted_knots(errors, 1e-3, np.array([3.0, 3.0, 1.0])) == 2 + 1 + 27 + 1
+
+
+def test_refinement_of_a_stiff_arm_says_why_with_numbers() -> None:
+    """youBot with 5 N m s/rad damping on 8 knots: the reason names the stiff joint and its rate."""
+    problem = study1_problem(8, damping=5.0)
+    result = refine(TrajOptSolver(problem), budget=RefinementBudget(max_rounds=1))
+    assert not result.certified
+    reason = result.refinement.reason  # type: ignore[union-attr]
+    rate = damping_rate(problem.robot, result.trajectory.q).rate  # type: ignore[union-attr]
+    assert rate > 1e3  # [1/s]: stiff on a 0.3 s grid
+    assert f"stiff joint damping: arm_joint_3 relaxes at up to {rate:.3g} 1/s" in reason
+    assert "knots would be needed" in reason and "(budget: " in reason
