@@ -15,6 +15,7 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.certify import certify, check_bounds
 from youbot_opt.trajopt.io import load_result, save_result
@@ -364,3 +365,42 @@ def test_identity_transfer_restarts_at_the_solution(method):
     again = solver.solve(beta=0.5, initial=(x0, lam_x0, lam_g0)).raise_for_status()
     assert again.iterations <= 2 < first.iterations
     assert again.objective == pytest.approx(first.objective, rel=1e-8)
+
+
+def test_the_time_limit_caps_a_rounds_solve_and_keeps_the_last_plan(monkeypatch):
+    """A round's IPOPT solve gets what is left of the budget as max_wall_time.
+
+    Two parts, neither depending on the machine's speed: IPOPT itself stops a
+    solve capped at 1e-6 s (it checks the wall clock every iteration, and one
+    iteration takes longer) with status MAX_TIME; and refine(), seeing a round
+    end so, returns the previous round's plan, uncertified, naming the round,
+    instead of the unfinished iterate (the solve is replaced by one that
+    reports MAX_TIME, so the branch is taken whatever the clock says).
+    """
+    solver = TrajOptSolver(study1_problem(12), "trapezoidal")
+    plan = solver.solve(beta=0.5).raise_for_status()
+    capped = solver.on_grid(np.full(11, 1 / 11), max_wall_time=1e-6)
+    assert capped.options.max_wall_time == 1e-6 and solver.options.max_wall_time is None
+    assert capped.solve(beta=0.5).status is SolveStatus.MAX_TIME
+    with pytest.raises(ParameterError, match="max_wall_time"):
+        solver.on_grid(np.full(11, 1 / 11), max_wall_time=0.0)
+
+    caps: list[float | None] = []
+    on_grid = TrajOptSolver.on_grid
+
+    def timed_out(self, fractions, *, max_wall_time=None):  # type: ignore[no-untyped-def]
+        new = on_grid(self, fractions, max_wall_time=max_wall_time)
+        caps.append(new.options.max_wall_time)
+        monkeypatch.setattr(
+            new, "solve", lambda **kw: dataclasses.replace(plan, status=SolveStatus.MAX_TIME)
+        )
+        return new
+
+    monkeypatch.setattr(TrajOptSolver, "on_grid", timed_out)
+    budget = RefinementBudget(tolerance=1e-6, time_limit=600.0)  # round 0 fails its errors
+    r = refine(solver, first=plan, budget=budget)
+    assert len(caps) == 1 and caps[0] is not None and 0.0 < caps[0] <= 600.0
+    assert r.success and not r.certified and r.problem.n_knots == 12  # round 0's plan
+    assert len(r.refinement.rounds) == 1
+    assert "the time limit ran out in round 1's solve" in r.refinement.reason
+    assert "round 0's plan is returned" in r.refinement.reason

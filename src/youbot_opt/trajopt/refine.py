@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.trajopt.certificate import Certificate
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
@@ -417,14 +418,15 @@ def refine(
             reason = f"{why} after {len(rounds)} rounds"
         elif n_new > budget.max_knots:
             reason = f"{why}; the next grid needs {n_new} knots"
-        elif budget.time_limit is not None and elapsed > budget.time_limit:
+        elif budget.time_limit is not None and elapsed >= budget.time_limit:
             reason = f"{why} after {elapsed:.3g} s"
         if reason:
             note = stiffness_note(result, error, budget.tolerance, exponents)
             reason = f"not certified: {reason}{note} (budget: {budget.describe()})"
             break
-        round_tic = time.perf_counter()
-        solver = solver.on_grid(fractions)  # shares dynamics and compiled kernels
+        round_tic = tic + elapsed
+        left = None if budget.time_limit is None else budget.time_limit - elapsed  # > 0 here
+        solver = solver.on_grid(fractions, max_wall_time=left)  # shares dynamics and kernels
         t_new = solver.method.solution_times(result.duration / (n_new - 1), n_new)
         try:
             initial = transfer_start(result, solver, parent, t_new)
@@ -432,9 +434,19 @@ def refine(
             initial = None
         previous = result
         result = solver.solve(guess=previous.trajectory, initial=initial, **kwargs)  # type: ignore[arg-type]
-        if not result.success and initial is not None:  # warm start failed: cold, same guess
+        out_of_time = result.status is SolveStatus.MAX_TIME and deadline is not None
+        if not result.success and initial is not None and not out_of_time:  # cold, same guess
             result = solver.solve(guess=previous.trajectory, warm_start=False, **kwargs)  # type: ignore[arg-type]
+            out_of_time = result.status is SolveStatus.MAX_TIME and deadline is not None
         solve_time = time.perf_counter() - round_tic
+        if out_of_time and budget.time_limit is not None:  # keep the last grid's plan, say why
+            reason = (
+                f"not certified: {why}; the time limit ran out in round {len(rounds)}'s solve "
+                f"({n_new} knots, {solve_time:.3g} s), so round {len(rounds) - 1}'s plan is "
+                f"returned (budget: {budget.describe()})"
+            )
+            result = previous
+            break
     refinement = Refinement(
         certified=reason == "certified",
         reason=reason,

@@ -37,7 +37,9 @@ class RefinementBudget:
         Largest grid; a round that would exceed it is not solved.
     time_limit : float or None
         Wall time in [s] after which no new round starts (None: no limit); it
-        also limits the certificate's simulations (``certify(time_limit=...)``
+        also caps each round's IPOPT solves (``max_wall_time``: what is left; a
+        round stopped by it returns the previous round's plan, uncertified, and
+        says so) and the certificate's simulations (``certify(time_limit=...)``
         gets what is left), whose certificate is then incomplete and fails.
     max_pieces : int
         Most pieces one interval is split into per round (halved, down to 2,

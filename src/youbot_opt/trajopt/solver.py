@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.base import Dynamics
 from youbot_opt.exceptions import ParameterError
@@ -220,7 +221,7 @@ class TrajOptSolver:
         self.build_time = time.perf_counter() - tic
         _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
 
-    def on_grid(self, fractions: ArrayLike) -> TrajOptSolver:
+    def on_grid(self, fractions: ArrayLike, *, max_wall_time: float | None = None) -> TrajOptSolver:
         """Return a solver of the same problem, method, options and dynamics on another grid.
 
         Shares this solver's dynamics and (compiled) derivative kernels, so
@@ -231,6 +232,10 @@ class TrajOptSolver:
         fractions : array_like, shape (n_intervals,)
             Interval fractions of the duration (normalised to sum 1); the new
             problem has ``n_intervals + 1`` knots.
+        max_wall_time : float, optional
+            Wall-clock cap of each of the new solver's solves in [s] (IPOPT's
+            ``max_wall_time``; the smaller of it and the options' own cap):
+            how a refinement's time budget bounds a round's solve.
 
         Returns
         -------
@@ -249,6 +254,11 @@ class TrajOptSolver:
         new.problem = dataclasses.replace(self.problem, n_knots=method.fractions.size + 1)
         new.method = method
         new.options, new.dynamics, new.backend = self.options, self.dynamics, self.backend
+        if max_wall_time is not None:
+            check_time_limit(max_wall_time, "max_wall_time")
+            own = self.options.max_wall_time
+            cap = float(max_wall_time) if own is None else min(own, float(max_wall_time))
+            new.options = dataclasses.replace(self.options, max_wall_time=cap)
         new.feasibility_tol, new.compiled = self.feasibility_tol, self.compiled
         new._exact_hessian, new._kernels = self._exact_hessian, self._kernels
         new._build(tic)
