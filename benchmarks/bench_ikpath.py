@@ -40,6 +40,17 @@ on 1 and 2 workers, and the total joint motion ``E`` of the best minimum
 against the greedy baseline (each target solved by damped least squares
 from the previous configuration, :func:`greedy_path`): the ratio must be <= 1.
 
+Memory (issue 15, ``--memory [--memory-sizes 1000,10000] [--keep-max N]``):
+a planar IK multistart of a cheap problem (2 links ``(1, 0.8)`` m, 2 targets
+``(1.2, 0.5)`` and ``(0.3, 1.1)`` m, no limits: 3 distinct minima; AL, feasible
+starts, seed 0) on a pool of 2 workers into a fresh output folder, with
+``keep_results=False`` at every size and ``keep_results=True`` up to
+``--keep-max`` starts, in the same run: the driver's peak traced memory
+(``tracemalloc``; the workers stop tracing in their initializer), the memory
+the result still holds, starts/s, the time of the accessors (best,
+status_counts, n_success, minima) and, for ``keep_results=False``, the time of
+a resume of the finished folder.
+
 The machine's load average is printed: on a shared machine wall times are
 inflated by other processes, CPU times much less so.
 """
@@ -51,7 +62,9 @@ import json
 import math
 import os
 import statistics
+import tempfile
 import time
+import tracemalloc
 from collections.abc import Callable
 from typing import Any
 
@@ -72,6 +85,7 @@ from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatia
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.pool import WorkerPool
 
 SEVEN_LINKS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)  # [m]
 SEVEN_TARGETS = 12
@@ -315,6 +329,87 @@ def print_spatial(rows: list[dict[str, Any]]) -> None:
     print("ours worse than greedy DLS:", worse or "never", "; no ratio:", undecided or "none")
 
 
+def memory_problem() -> CyclicIKProblem:
+    """The cheap planar problem of the memory section (3 distinct minima)."""
+    return CyclicIKProblem(chain=PlanarChain(lengths=[1.0, 0.8]), targets=[(1.2, 0.5), (0.3, 1.1)])
+
+
+def bench_memory_case(n_starts: int, keep: bool) -> dict[str, Any]:
+    """One multistart of :func:`memory_problem`: driver peak memory, throughput, resume."""
+    problem = memory_problem()
+    with tempfile.TemporaryDirectory() as tmp, WorkerPool(2, initializer=tracemalloc.stop) as pool:
+        sweep = SweepOptions(executor=pool, out=tmp, keep_results=keep)
+        tracemalloc.start()
+        tic = time.perf_counter()
+        ms = run_multistart(problem, n_starts=n_starts, seed=0, sweep=sweep)
+        wall = time.perf_counter() - tic
+        held, peak = tracemalloc.get_traced_memory()  # the result is still alive: held
+        tracemalloc.stop()
+        tic = time.perf_counter()
+        best, counts, n_success, minima = ms.best, ms.status_counts(), ms.n_success, ms.minima
+        accessors = time.perf_counter() - tic
+        row: dict[str, Any] = {
+            "starts": n_starts,
+            "keep_results": keep,
+            "wall_s": wall,
+            "starts_per_s": n_starts / wall,
+            "peak_mb": peak / 1e6,
+            "held_mb": held / 1e6,
+            "accessors_ms": 1e3 * accessors,
+            "best_E": best.objective,
+            "n_success": n_success,
+            "status_counts": counts,
+            "minima": [m.count for m in minima],
+            "resume_s": None,
+        }
+        del ms, best, minima
+        if not keep:
+            tic = time.perf_counter()
+            again = run_multistart(problem, n_starts=n_starts, seed=0, sweep=sweep)
+            row["resume_s"] = time.perf_counter() - tic
+            assert again.resumed == n_starts and again.best.objective == row["best_E"]
+    return row
+
+
+def bench_memory(sizes: list[int], keep_max: int) -> list[dict[str, Any]]:
+    """Both modes at each size (``keep_results=True`` only up to ``keep_max`` starts)."""
+    rows = []
+    for n in sizes:
+        for keep in (True, False):
+            if keep and n > keep_max:
+                continue
+            rows.append(bench_memory_case(n, keep))
+            print(_memory_line(rows[-1]), flush=True)
+    return rows
+
+
+def _memory_line(r: dict[str, Any]) -> str:
+    resume = "-" if r["resume_s"] is None else f"{r['resume_s']:.2f}"
+    return (
+        f"{r['starts']:>7d} {'True' if r['keep_results'] else 'False':>5s} "
+        f"{r['wall_s']:>8.1f} {r['starts_per_s']:>8.1f} {r['peak_mb']:>9.2f} "
+        f"{r['held_mb']:>9.2f} {r['accessors_ms']:>9.1f} {resume:>8s}  {r['minima']}"
+    )
+
+
+def print_memory(rows: list[dict[str, Any]]) -> None:
+    """Print the memory table, with the peak ratio of the two modes at each size."""
+    print("\nplanar IK multistart memory (2 links, 2 targets, AL, pool of 2, driver traced)")
+    print("  starts  keep   wall s  starts/s   peak MB   held MB  access ms  resume s  minima")
+    for r in rows:
+        print(_memory_line(r))
+    by = {(r["starts"], r["keep_results"]): r for r in rows}
+    for (n, keep), r in by.items():
+        lean = by.get((n, False))
+        if keep and lean is not None:
+            print(
+                f"  {n} starts: keep_results=False peak {lean['peak_mb']:.2f} MB vs "
+                f"{r['peak_mb']:.2f} MB (x{r['peak_mb'] / lean['peak_mb']:.1f} less), starts/s "
+                f"ratio {lean['starts_per_s'] / r['starts_per_s']:.2f}, same best E: "
+                f"{lean['best_E'] == r['best_E']}"
+            )
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     """Run the benchmark and print (or dump as JSON) its report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -324,7 +419,30 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--spatial-only", action="store_true", help="only the ur5/panda cases")
     parser.add_argument("--planar-only", action="store_true", help="only the planar cases")
+    parser.add_argument(
+        "--memory", action="store_true", help="only the keep_results memory section"
+    )
+    parser.add_argument(
+        "--memory-sizes", default="1000,10000", help="starts of the memory section (1000,10000)"
+    )
+    parser.add_argument(
+        "--keep-max",
+        type=int,
+        default=10000,
+        help="largest size also run with keep_results=True (10000)",
+    )
     args = parser.parse_args(argv)
+    if args.memory:
+        sizes = [int(x) for x in args.memory_sizes.split(",")]
+        mem: dict[str, Any] = {"cpu_count": os.cpu_count(), "load_average": list(os.getloadavg())}
+        mem["memory"] = bench_memory(sizes, args.keep_max)
+        mem["load_average_after"] = list(os.getloadavg())
+        if args.json:
+            print(json.dumps(mem, indent=1))
+        else:
+            print_memory(mem["memory"])
+            print(f"load average before {mem['load_average']}, after {mem['load_average_after']}")
+        return mem
     repeats = args.repeats or (3 if args.quick else 5)
     n_starts = args.starts or (8 if args.quick else 24)
     if repeats < 1 or n_starts < 2:

@@ -204,3 +204,36 @@ def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
     for scale, record in zip(("100%", "90%"), study["refinement"], strict=True):
         final = record["rounds"][-1]["objective"]  # the refined plan is replayed
         assert f"{scale} bounds: f = {final:.5g}" in page
+
+
+def _timeless(x: object) -> object:
+    """``x`` without wall/CPU times and folder names (they differ between two runs)."""
+    if isinstance(x, dict):
+        return {
+            k: _timeless(v)
+            for k, v in x.items()
+            if not (k.endswith("time_s") or k in ("elapsed_s", "output_folder"))
+        }
+    if isinstance(x, list):
+        return [_timeless(v) for v in x]
+    return x
+
+
+def test_multistart_no_keep_results_reports_what_keeping_them_does(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--no-keep-results (starts left in the folder): the same best, optima and refined plan.
+
+    The lean summary leaves out the per-start list and the optima's member
+    seeds (both would walk every start); everything else is equal to the bit.
+    """
+    argv = ["multistart", "--starts", "4", *QUICK, "--workers", "0", "--quiet", "--json"]
+    assert main([*argv, "--out", str(tmp_path / "keep")]) == 0
+    kept = json.loads(capsys.readouterr().out)
+    assert main([*argv, "--no-keep-results", "--out", str(tmp_path / "lean")]) == 0
+    lean = json.loads(capsys.readouterr().out)
+    assert "starts" in kept and "starts" not in lean
+    for optimum in kept["distinct_optima"]:
+        optimum.pop("seeds")
+    kept.pop("starts")
+    assert _timeless(lean) == _timeless(kept)

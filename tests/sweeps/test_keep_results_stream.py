@@ -185,3 +185,29 @@ def test_many_journal_files_merge_and_the_last_line_of_a_key_wins(tmp_path: Path
         assert rec.reasons == (f"run {run}",)
         assert store.load(f"k{run:02d}") == [float(run + 1), 0.0]
     assert records["k39"].state == "failed"
+
+
+def test_a_resume_makes_only_the_tasks_it_runs(tmp_path: Path) -> None:
+    """Given ``key=``, a TaskSequence is walked by keys: a finished sweep makes no task.
+
+    (IK starts are drawn when their task is made, so a resume draws none.) The
+    clusters' members also read back sorted by key, representative included.
+    """
+    made: list[int] = []
+
+    def make(i: int) -> Task:
+        made.append(i)
+        return _task(i)
+
+    def key(i: int) -> str:
+        return f"p{i:03d}"
+
+    first, _, _ = _run(tmp_path / "run", TaskSequence(N, make, key=key), keep=False)
+    assert sorted(made) == list(range(N))  # each task made once, as it ran
+    made.clear()
+    again, _, _ = _run(tmp_path / "run", TaskSequence(N, make, key=key), keep=False)
+    assert made == [] and again.resumed == N
+    assert list(again.items) == [key(i) for i in range(N)]
+    assert again.clusters == first.clusters
+    for number, members in enumerate(first.clusters):
+        assert list(first.clusters.members_in_key_order(number)) == sorted(members)

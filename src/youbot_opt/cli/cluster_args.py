@@ -19,7 +19,7 @@ from pathlib import Path
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.scheduler import is_scheduler_address
 
-__all__ = ["add_scheduler_args", "scheduler_address", "shard_arg"]
+__all__ = ["add_keep_results_arg", "add_scheduler_args", "scheduler_address", "shard_arg"]
 
 
 def shard_arg(text: str) -> tuple[int, int]:
@@ -68,6 +68,18 @@ def add_scheduler_args(p: argparse.ArgumentParser, *, shard: bool = True) -> Non
         metavar="I/K",
         help="solve only share I of K (items I, I+K, ...) into --out and stop; a job array "
         "runs the K shards into one folder, then a run without --shard collects",
+    )
+
+
+def add_keep_results_arg(p: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """Add ``--keep-results/--no-keep-results`` (``SweepOptions.keep_results``, default keep)."""
+    p.add_argument(
+        "--keep-results",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="hold every start's result in memory (default); --no-keep-results holds only "
+        "the best and the distinct optima, the other starts stay in the run folder "
+        "(for 10^4+ starts; see docs/scaling.md)",
     )
 
 

@@ -21,7 +21,11 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
+from youbot_opt.cli.cluster_args import (
+    add_keep_results_arg,
+    add_scheduler_args,
+    scheduler_address,
+)
 from youbot_opt.cli.ikpath_starts import print_starts, start_fields, start_sweep
 from youbot_opt.cli.limits import check_ikpath_size
 from youbot_opt.cli.robot_args import add_loading_options
@@ -142,6 +146,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="replay: duration of each move between targets [s] (default 1)",
     )
     out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
+    add_keep_results_arg(out)
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_run)
@@ -267,7 +272,7 @@ def _report(
         multipliers=best.multipliers.tolist(),
         iterations=best.iterations,
         solve_time=best.wall_time,
-        start_index=ms.results.index(best),
+        start_index=ms.best_index,
         starts=ms.n_starts,
         seed=ms.seed,
         start_kind=args.start_kind,
@@ -289,9 +294,15 @@ def _report(
         workers=ms.n_workers,
         starts_per_second=ms.starts_per_second(),
         resumed=ms.resumed,
-        **start_fields(ms.results, ms.attempts, lambda r: {"max_residual": r.max_residual()}),
+        **start_fields(ms.results, ms.attempts, _residual_field),
     )
     return doc
+
+
+def _residual_field(r: Any) -> dict[str, Any]:  # noqa: ANN401 - IKPathResult or StartSummary
+    """Return the planar per-start field of ``summary.json``: the largest residual in [m]."""
+    value = r.max_residual
+    return {"max_residual": value if isinstance(value, float) else value()}
 
 
 def _print_text(doc: dict[str, Any]) -> None:

@@ -66,7 +66,7 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
     ----------
     args : argparse.Namespace
         ``--starts``, ``--workers`` (default: 1 below 8 starts, else the CPUs),
-        ``--no-progress`` and ``--shard``.
+        ``--no-progress``, ``--shard`` and ``--keep-results/--no-keep-results``.
     folder : Path
         The run folder: the sweep store, which a rerun with ``--out`` resumes.
     executor : str
@@ -86,6 +86,7 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
         progress=None if args.no_progress else StartProgress(),
         out=folder,
         shard=args.shard,
+        keep_results=getattr(args, "keep_results", True),
     )
 
 
@@ -99,12 +100,29 @@ def start_fields(
     Parameters
     ----------
     results : sequence of IKPathResult or of SpatialIKResult
-        One result per start, in start order.
+        One result per start, in start order (``--no-keep-results``: a
+        :class:`~youbot_opt.ikpath.stored.StoredResults`, whose journal
+        summaries are read instead of the results).
     attempts : sequence of int
         Attempts per start (empty: unknown, written as ``null``).
-    detail : callable ``(result) -> dict``, optional
+    detail : callable ``(result or StartSummary) -> dict``, optional
         Mode-specific fields of each start, written after ``E``.
     """
+    from youbot_opt.ikpath.stored import StoredResults
+
+    if isinstance(results, StoredResults):  # one start at a time from the journal
+        rows = [
+            {
+                "index": s.index,
+                "status": s.status,
+                "E": s.objective,
+                **({} if detail is None else detail(s)),
+                "attempts": s.attempts,
+                "message": None if s.success else s.message,
+            }
+            for s in results.summaries()
+        ]
+        return {"retried": [o["index"] for o in rows if o["attempts"] > 1], "start_outcomes": rows}
     return {
         "retried": [i for i, a in enumerate(attempts) if a > 1],
         "start_outcomes": [

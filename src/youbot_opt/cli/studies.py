@@ -15,6 +15,7 @@ contents: docs/design.md, "Module notes"). Usage::
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import sys
@@ -23,7 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt.cli.cluster_args import add_scheduler_args, scheduler_address
+from youbot_opt.cli.cluster_args import (
+    add_keep_results_arg,
+    add_scheduler_args,
+    scheduler_address,
+)
 from youbot_opt.cli.limits import check_sweep_values, check_trajopt_size
 from youbot_opt.cli.output import ProgressLine, add_command
 from youbot_opt.cli.solve import (
@@ -109,6 +114,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_scheduler_args(p)
+    add_keep_results_arg(p)  # --no-keep-results: the starts stay in the folder (10^4+ starts)
     add_refine_arguments(p)  # the reported plans are refined until certified (--no-refine)
 
 
@@ -227,6 +233,7 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
         out=folder,
         progress=progress,
         shard=args.shard,
+        keep_results=args.keep_results,
     )
 
 
@@ -296,8 +303,8 @@ def _run_multistart(args: argparse.Namespace) -> int:
             f"{i:>7} {o.objective:>12.6f} {o.duration:>9.4f} {o.work:>10.4f} "
             f"{o.count:>6} {100 * o.fraction:>5.0f}%"
         )
-    failed = [s for s in res.starts if not s.success]
-    for s in failed[:10]:
+    failed = (s for s in res.starts if not s.success)  # streamed with --no-keep-results
+    for s in itertools.islice(failed, 10):
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
     summary = res.summary(args.obj_tol, args.traj_tol)
     best = [("best start", res.best.result)] if res.best is not None and res.best.result else []

@@ -54,6 +54,7 @@ from youbot_opt.ikpath.spatial_solve import (
     solve_spatial,
 )
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import SpatialTarget, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
@@ -86,6 +87,8 @@ __all__ = [
     "SpatialTarget",
     "SpatialVerdict",
     "SolveStatus",
+    "StartSummary",
+    "StoredResults",
     "TipKinematics",
     "chain_from_robot",
     "check_reachability",

@@ -20,13 +20,15 @@ from pathlib import Path
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
-from youbot_opt.ikpath.starts import START_KINDS, make_starts
+from youbot_opt.ikpath.starts import START_KINDS, PlanarStarts, make_starts
+from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StartTally, StoredResults
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
     open_store,
@@ -34,11 +36,13 @@ from youbot_opt.ikpath.sweep import (
     solve_starts,
     status_counts,
     stored_start_rng,
+    stream_starts,
 )
-from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import ExecutorLike, default_workers
 from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
+from youbot_opt.sweeps.selection import Clusters
 
 __all__ = [
     "LocalMinimum",
@@ -71,15 +75,17 @@ class LocalMinimum:
         ``E`` of the representative in [rad^2].
     count : int
         Number of starts that converged to it.
-    start_indices : tuple of int
-        Which starts (0 = the zero vector).
+    start_indices : sequence of int
+        Which starts, ascending (0 = the zero vector): a tuple, or with
+        ``keep_results=False`` a :class:`~youbot_opt.ikpath.stored.ClusterIndices`
+        read from the output folder when iterated.
     result : IKPathResult
         Representative (lowest ``E`` in the cluster).
     """
 
     objective: float
     count: int
-    start_indices: tuple[int, ...]
+    start_indices: Sequence[int]
     result: IKPathResult
 
 
@@ -95,8 +101,11 @@ class MultistartResult:
         ``"al"`` or ``"ipopt"``.
     seed : int
         Seed of the random starts.
-    results : tuple of IKPathResult
-        One per start, in start order.
+    results : sequence of IKPathResult
+        One per start, in start order: a tuple, or with ``keep_results=False``
+        a :class:`~youbot_opt.ikpath.stored.StoredResults` that holds the
+        minima's results and loads any other from :attr:`output` when indexed
+        (valid while that folder is there).
     minima : tuple of LocalMinimum
         Distinct minima of the successful starts, best (lowest E) first.
     verdicts : tuple of ReachVerdict
@@ -105,26 +114,35 @@ class MultistartResult:
         Elapsed time in [s].
     n_workers : int
         Parallel workers used.
-    attempts : tuple of int
+    attempts : sequence of int
         Attempts per start, in start order, earlier runs on the same output
-        included (2: the start failed once and was retried); empty if unknown.
+        included (2: the start failed once and was retried); empty if unknown
+        (``keep_results=False``: read from the output folder when indexed).
     resumed : int
         Starts loaded from the output directory instead of solved.
     output : Path or None
         Output directory the starts were saved to (``None``: not saved).
+    tally : StartTally or None
+        ``keep_results=False``: counts and the start closest to the targets,
+        gathered in one pass at the end of the run; ``None`` otherwise.
+    e_tol, q_tol : float
+        The clustering tolerances :attr:`minima` were chosen with.
     """
 
     problem: CyclicIKProblem
     method: str
     seed: int
-    results: tuple[IKPathResult, ...]
+    results: Sequence[IKPathResult]
     minima: tuple[LocalMinimum, ...]
     verdicts: tuple[ReachVerdict, ...]
     wall_time: float
     n_workers: int
-    attempts: tuple[int, ...] = ()
+    attempts: Sequence[int] = ()
     resumed: int = 0
     output: Path | None = None
+    tally: StartTally | None = None
+    e_tol: float = 1e-6
+    q_tol: float = 1e-3
 
     @property
     def n_starts(self) -> int:
@@ -134,14 +152,28 @@ class MultistartResult:
     @property
     def n_success(self) -> int:
         """Number of successful starts."""
+        if self.tally is not None:
+            return self.tally.n_success
         return sum(r.success for r in self.results)
 
     @property
     def best(self) -> IKPathResult:
-        """Best successful result, or the start with the smallest residual if none succeeded."""
+        """Best successful result, or the start with the smallest residual if none succeeded.
+
+        Ties of the residual go to the smaller ``E``, then to the lower start index.
+        """
         if self.minima:
             return self.minima[0].result
+        if self.tally is not None:
+            return self.results[self.tally.closest]
         return min(self.results, key=lambda r: (r.max_residual(), r.objective))
+
+    @property
+    def best_index(self) -> int:
+        """Start index of :attr:`best` (no search through the folder)."""
+        if self.tally is not None and not self.minima:
+            return self.tally.closest
+        return self.results.index(self.best)  # StoredResults: found among the held ones
 
     @property
     def best_count(self) -> int:
@@ -150,6 +182,8 @@ class MultistartResult:
 
     def status_counts(self) -> dict[str, int]:
         """Count the starts per :class:`IKStatus` value."""
+        if self.tally is not None:
+            return dict(self.tally.status_counts)
         return status_counts(self.results)
 
     def starts_per_second(self) -> float:
@@ -157,8 +191,24 @@ class MultistartResult:
         return self.n_starts / self.wall_time if self.wall_time > 0 else math.inf
 
     def distinct_optima(self, e_tol: float = 1e-6, q_tol: float = 1e-3) -> tuple[LocalMinimum, ...]:
-        """Re-cluster the successful results with other tolerances (see :func:`cluster_minima`)."""
-        return cluster_minima(self.results, e_tol=e_tol, q_tol=q_tol)
+        """Re-cluster the successful results with other tolerances (see :func:`cluster_minima`).
+
+        With ``keep_results=False`` the run's own tolerances return :attr:`minima`;
+        others re-cluster from the output folder, streamed (each successful
+        start's result loaded once, one at a time; the members go to a
+        temporary table), with the same result as ``keep_results=True``.
+        """
+        results = self.results
+        if not isinstance(results, StoredResults):
+            return cluster_minima(results, e_tol=e_tol, q_tol=q_tol)
+        if (e_tol, q_tol) == (self.e_tol, self.q_tol):
+            return self.minima
+        for name, tol in (("e_tol", e_tol), ("q_tol", q_tol)):
+            if not tol >= 0:
+                raise ParameterError(f"{name} must be >= 0, got {tol!r}", name=name, value=tol)
+        kept, clusters = results.cluster(_minima_rule(e_tol, q_tol))
+        reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
+        return _stored_minima(clusters, reps)
 
 
 def configuration_distance(qa: Array, qb: Array) -> float:
@@ -268,7 +318,11 @@ def run_multistart(
         saved there as it completes (``manifest.json``, ``items/``), and a
         rerun with the same problem, method, options, ``n_starts``, ``seed``
         and ``starts`` resumes. ``progress``: ``(done, total, best_objective)``
-        as starts finish (see :data:`Progress`).
+        as starts finish (see :data:`Progress`). ``keep_results=False`` (needs
+        ``out``): each start is drawn when its task is made, and only the
+        distinct minima's results are held; ``results`` and ``attempts`` read
+        the output folder when indexed, and the counts and the fallback best
+        come from one pass over the journal (:mod:`youbot_opt.ikpath.stored`).
 
     Returns
     -------
@@ -295,7 +349,11 @@ def run_multistart(
     elif check_reachability:
         found = check_targets(problem)
     rng = "per-index" if sweep.out is None else stored_start_rng(sweep.out)
-    x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found, rng=rng)
+    x0s: Array | PlanarStarts
+    if rng == "per-index" and not sweep.keep_results:  # each start drawn as its task is made
+        x0s = PlanarStarts(problem, n_starts, seed, kind=starts, verdicts=found)
+    else:  # a legacy store's starts share one generator: drawn together
+        x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found, rng=rng)
     executor, workers = resolve_executor(sweep)
     store = None
     if sweep.out is not None:
@@ -311,9 +369,42 @@ def run_multistart(
             clean=sweep.shard is None,
         )
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
+    if not sweep.keep_results:
+        assert store is not None  # SweepOptions requires out= with keep_results=False
+        streamed = stream_starts(
+            problem,
+            x0s,
+            method=method,
+            options=options,
+            sweep=replace(sweep, executor=executor, workers=workers),
+            solvers=PLANAR_STARTS,
+            store=store,
+            distance=_result_distance,
+            e_tol=e_tol,
+            q_tol=q_tol,
+            by_objective=True,
+            on_resumed=on_resumed,
+            on_final=on_final,
+        )
+        return MultistartResult(
+            problem=problem,
+            method=method,
+            seed=int(seed),
+            results=streamed.results,
+            minima=_stored_minima(streamed.minima, streamed.kept),
+            verdicts=found,
+            wall_time=time.perf_counter() - t0,
+            n_workers=workers,
+            attempts=streamed.attempts,
+            resumed=streamed.resumed,
+            output=store.directory,
+            tally=streamed.tally,
+            e_tol=e_tol,
+            q_tol=q_tol,
+        )
     outcome = solve_starts(
         problem,
-        x0s,
+        np.asarray(x0s),  # drawn together by make_starts when keep_results=True
         method=method,
         options=options,
         sweep=replace(sweep, executor=executor, workers=workers),
@@ -334,7 +425,49 @@ def run_multistart(
         attempts=outcome.attempts,
         resumed=outcome.resumed,
         output=None if store is None else store.directory,
+        e_tol=e_tol,
+        q_tol=q_tol,
     )
+
+
+def _result_distance(a: IKPathResult, b: IKPathResult) -> float:
+    return configuration_distance(a.configurations, b.configurations)
+
+
+def _minima_rule(e_tol: float, q_tol: float) -> KeepRule[StartSummary[IKPathResult]]:
+    """:func:`cluster_minima`'s rule over start summaries holding their results."""
+    return KeepRule(
+        objective=lambda s: s.objective if s.success else None,
+        distance=lambda a, b: _result_distance(a.result, b.result),  # type: ignore[arg-type]
+        obj_tol=e_tol,
+        dist_tol=q_tol,
+    )
+
+
+def _stored_minima(
+    minima: Sequence[ClusterIndices] | Clusters, kept: dict[int, IKPathResult]
+) -> tuple[LocalMinimum, ...]:
+    """Return the :class:`LocalMinimum` s of a ``keep_results=False`` selection (lazy indices)."""
+    if isinstance(minima, Clusters):
+        minima = tuple(
+            ClusterIndices(minima, c, _key_index, sorted_order=False) for c in range(len(minima))
+        )
+    out = []
+    for members in minima:
+        result = kept[members[0]]  # the representative: first in cluster order
+        out.append(
+            LocalMinimum(
+                objective=result.objective,
+                count=len(members),
+                start_indices=members.ascending(),
+                result=result,
+            )
+        )
+    return tuple(out)
+
+
+def _key_index(key: str) -> int:
+    return int(key.rsplit("_", 1)[1])
 
 
 def resolve_executor(sweep: SweepOptions) -> tuple[ExecutorLike, int]:

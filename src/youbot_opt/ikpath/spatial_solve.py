@@ -18,6 +18,7 @@ import functools
 import math
 import os
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -43,8 +44,13 @@ from youbot_opt.ikpath.spatial_io import (
 )
 from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver, solve_spatial_ipopt
 from youbot_opt.ikpath.spatial_reachability import require_spatial_reachable
-from youbot_opt.ikpath.spatial_starts import SPATIAL_START_KINDS, make_spatial_starts
+from youbot_opt.ikpath.spatial_starts import (
+    SPATIAL_START_KINDS,
+    SpatialStarts,
+    make_spatial_starts,
+)
 from youbot_opt.ikpath.starts import check_start_request
+from youbot_opt.ikpath.stored import StartTally
 from youbot_opt.ikpath.sweep import (
     StartSolvers,
     crashed_result,
@@ -54,6 +60,7 @@ from youbot_opt.ikpath.sweep import (
     starts_params,
     starts_store,
     status_counts,
+    stream_starts,
 )
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.sweeps.cluster import cluster_optima
@@ -120,11 +127,15 @@ class SpatialMultistart:
 
     Attributes
     ----------
-    results : tuple of SpatialIKResult
-        In start order (``crashed`` for a start that failed every attempt).
-    minima : tuple of tuple of int
+    results : sequence of SpatialIKResult
+        In start order (``crashed`` for a start that failed every attempt): a
+        tuple, or with ``keep_results=False`` a
+        :class:`~youbot_opt.ikpath.stored.StoredResults` holding the minima's
+        results and loading any other from :attr:`output` when indexed.
+    minima : tuple of sequence of int
         Start indices of each distinct minimum (successful results), best first;
-        the first index of each is its lowest-E member.
+        the first index of each is its lowest-E member (``keep_results=False``:
+        :class:`~youbot_opt.ikpath.stored.ClusterIndices`, read when iterated).
     wall_time : float
         In [s].
     workers : int
@@ -135,43 +146,52 @@ class SpatialMultistart:
         Seed of the starts.
     start_kind : str
         How the starts were drawn (:data:`~youbot_opt.ikpath.spatial_starts.SPATIAL_START_KINDS`).
-    attempts : tuple of int
+    attempts : sequence of int
         Attempts per start, earlier runs on the same output included.
     resumed : int
         Starts loaded from the output directory instead of solved.
     output : Path or None
         Output directory the starts were saved to.
+    tally : StartTally or None
+        ``keep_results=False``: counts and the start closest to the targets,
+        gathered in one pass at the end of the run; ``None`` otherwise.
     """
 
-    results: tuple[SpatialIKResult, ...]
-    minima: tuple[tuple[int, ...], ...]
+    results: Sequence[SpatialIKResult]
+    minima: tuple[Sequence[int], ...]
     wall_time: float
     workers: int
     method: str = "al"
     seed: int = 0
     start_kind: str = "mixed"
-    attempts: tuple[int, ...] = ()
+    attempts: Sequence[int] = ()
     resumed: int = 0
     output: Path | None = None
+    tally: StartTally | None = None
 
     @property
     def best(self) -> SpatialIKResult:
         """The best successful result, else the result closest to meeting the targets."""
-        if self.minima:
-            return self.results[self.minima[0][0]]
-        return min(
-            self.results,
-            key=lambda r: float(np.max(r.position_errors) + np.max(r.orientation_errors)),
-        )
+        return self.results[self.best_index]
 
     @property
     def best_index(self) -> int:
         """Start index of :attr:`best`."""
-        return self.results.index(self.best)
+        if self.minima:
+            return self.minima[0][0]
+        if self.tally is not None:
+            return self.tally.closest
+        best = min(
+            self.results,
+            key=lambda r: float(np.max(r.position_errors) + np.max(r.orientation_errors)),
+        )
+        return self.results.index(best)
 
     @property
     def n_success(self) -> int:
         """Number of successful starts."""
+        if self.tally is not None:
+            return self.tally.n_success
         return sum(r.success for r in self.results)
 
     @property
@@ -181,6 +201,8 @@ class SpatialMultistart:
 
     def status_counts(self) -> dict[str, int]:
         """Count the starts per status value."""
+        if self.tally is not None:
+            return dict(self.tally.status_counts)
         return status_counts(self.results)
 
 
@@ -298,8 +320,10 @@ def run_spatial_multistart(
         address), ``workers``, ``timeout`` [s] per attempt, ``max_attempts``
         (a start that raises or whose worker dies is retried; out of attempts
         it becomes a ``crashed`` result), ``out`` (every finished start saved
-        there; a rerun with the same parameters resumes), ``shard`` and
-        ``progress`` ``(done, total, best_objective)``.
+        there; a rerun with the same parameters resumes), ``shard``,
+        ``progress`` ``(done, total, best_objective)`` and ``keep_results``
+        (``False``: only the minima's results held, the rest read from ``out``
+        when indexed; as for the planar multistart).
 
     Returns
     -------
@@ -329,7 +353,11 @@ def run_spatial_multistart(
         sweep = replace(sweep, workers=int(workers))
     elif sweep.workers is None and sweep.executor is None:
         sweep = replace(sweep, workers=1)
-    x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
+    x0s: Array | SpatialStarts
+    if sweep.keep_results:
+        x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
+    else:  # each start drawn as its task is made
+        x0s = SpatialStarts(problem, n_starts, seed, kind=starts)
     executor, n_workers = resolve_executor(sweep)
     sweep = replace(sweep, executor=executor, workers=n_workers)
     store = None
@@ -345,9 +373,47 @@ def run_spatial_multistart(
             clean=sweep.shard is None,
         )
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
+
+    def distance_of(a: SpatialIKResult, b: SpatialIKResult) -> float:
+        diff = a.configurations - b.configurations
+        shift = np.where(
+            problem.continuous, 2 * np.pi * np.round(np.median(diff, axis=0) / (2 * np.pi)), 0.0
+        )
+        return float(np.max(np.abs(diff - shift)))
+
+    if not sweep.keep_results:
+        assert store is not None  # SweepOptions requires out= with keep_results=False
+        streamed = stream_starts(
+            problem,
+            x0s,
+            method=method,
+            options=options,
+            sweep=sweep,
+            solvers=SPATIAL_STARTS,
+            store=store,
+            distance=distance_of,
+            e_tol=e_tol,
+            q_tol=q_tol,
+            by_objective=False,
+            on_resumed=on_resumed,
+            on_final=on_final,
+        )
+        return SpatialMultistart(
+            results=streamed.results,
+            minima=streamed.minima,
+            wall_time=time.perf_counter() - t0,
+            workers=n_workers,
+            method=method,
+            seed=int(seed),
+            start_kind=starts,
+            attempts=streamed.attempts,
+            resumed=streamed.resumed,
+            output=store.directory,
+            tally=streamed.tally,
+        )
     outcome = solve_starts(
         problem,
-        x0s,
+        np.asarray(x0s),  # drawn together by make_starts when keep_results=True
         method=method,
         options=options,
         sweep=sweep,
@@ -358,17 +424,10 @@ def run_spatial_multistart(
     )
     results = outcome.results
 
-    def distance(a: int, b: int) -> float:
-        diff = results[a].configurations - results[b].configurations
-        shift = np.where(
-            problem.continuous, 2 * np.pi * np.round(np.median(diff, axis=0) / (2 * np.pi)), 0.0
-        )
-        return float(np.max(np.abs(diff - shift)))
-
     groups = cluster_optima(
         (i for i, r in enumerate(results) if r.success),
         objective=lambda i: results[i].objective,
-        distance=distance,
+        distance=lambda a, b: distance_of(results[a], results[b]),
         obj_tol=e_tol,
         dist_tol=q_tol,
     )

@@ -12,13 +12,16 @@ many starts are drawn after it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import Any, overload
+
 import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path, random_theta
 from youbot_opt.ikpath.starts import check_start_request
 
-__all__ = ["SPATIAL_START_KINDS", "make_spatial_starts"]
+__all__ = ["CHECKPOINT", "SPATIAL_START_KINDS", "SpatialStarts", "make_spatial_starts"]
 
 SPATIAL_START_KINDS: tuple[str, ...] = ("mixed", "coherent", "random")
 """Start kinds: ``mixed`` alternates coherent (odd) and random (even) after the greedy start."""
@@ -57,11 +60,81 @@ def make_spatial_starts(
     starts = np.empty((n, problem.n_variables))
     starts[0] = greedy_path(problem)[0].ravel()
     for k in range(1, n):
-        coherent = kind == "coherent" or (kind == "mixed" and k % 2 == 1)
-        if coherent:
-            starts[k] = greedy_path(problem, random_theta(problem, rng))[0].ravel()
-        else:
-            starts[k] = np.concatenate(
-                [random_theta(problem, rng) for _ in range(problem.n_targets)]
-            )
+        starts[k] = _draw(problem, kind, k, rng)
     return np.clip(starts, problem.lower, problem.upper)
+
+
+def _coherent(kind: str, k: int) -> bool:
+    return kind == "coherent" or (kind == "mixed" and k % 2 == 1)
+
+
+def _draw(problem: SpatialIKProblem, kind: str, k: int, rng: np.random.Generator) -> Array:
+    """Start ``k >= 1`` (unclipped), drawn from ``rng`` where start ``k - 1`` left it."""
+    if _coherent(kind, k):
+        return greedy_path(problem, random_theta(problem, rng))[0].ravel()
+    return np.concatenate([random_theta(problem, rng) for _ in range(problem.n_targets)])
+
+
+def _skip(problem: SpatialIKProblem, kind: str, k: int, rng: np.random.Generator) -> None:
+    """Advance ``rng`` past start ``k`` as :func:`_draw` would (no greedy path solved)."""
+    for _ in range(1 if _coherent(kind, k) else problem.n_targets):
+        random_theta(problem, rng)
+
+
+class SpatialStarts(Sequence[Array]):
+    """The starts of :func:`make_spatial_starts`, each drawn when asked for.
+
+    ``SpatialStarts(problem, n, seed, kind=kind)[k]`` equals
+    ``make_spatial_starts(problem, n, seed, kind=kind)[k]``. The draws share one
+    generator, so its state is kept every :data:`CHECKPOINT` starts and after
+    the last start drawn: asking in increasing order costs one draw per start,
+    any other start at most ``CHECKPOINT`` cheap skips (no greedy path is
+    solved for a skipped start). Memory: one generator state per ``CHECKPOINT`` starts.
+    """
+
+    def __init__(
+        self, problem: SpatialIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
+    ) -> None:
+        self._n = check_start_request(n_starts, kind, SPATIAL_START_KINDS)
+        self._problem, self._kind = problem, kind
+        rng = np.random.default_rng(seed)
+        self._states: dict[int, Mapping[str, Any]] = {1: rng.bit_generator.state}
+        self._cursor: tuple[int, Mapping[str, Any]] = (1, rng.bit_generator.state)
+
+    def __len__(self) -> int:
+        return self._n
+
+    @overload
+    def __getitem__(self, k: int) -> Array: ...
+    @overload
+    def __getitem__(self, k: slice) -> list[Array]: ...
+    def __getitem__(self, k: int | slice) -> Array | list[Array]:
+        if isinstance(k, slice):
+            return [self[j] for j in range(self._n)[k]]
+        j = k + self._n if k < 0 else k
+        if not 0 <= j < self._n:
+            raise IndexError(f"{self._n} start(s), got index {k}")
+        problem = self._problem
+        if j == 0:
+            return np.clip(greedy_path(problem)[0].ravel(), problem.lower, problem.upper)
+        at, state = self._cursor  # the generator's state before start `at`
+        if not at <= j:
+            at = (j - 1) // CHECKPOINT * CHECKPOINT + 1
+            state = self._states[at]
+        rng = np.random.default_rng()
+        rng.bit_generator.state = state
+        for i in range(at, j):
+            self._remember(i, rng)
+            _skip(problem, self._kind, i, rng)
+        self._remember(j, rng)
+        start = _draw(problem, self._kind, j, rng)
+        self._cursor = (j + 1, rng.bit_generator.state)
+        return np.clip(start, problem.lower, problem.upper)
+
+    def _remember(self, i: int, rng: np.random.Generator) -> None:
+        if (i - 1) % CHECKPOINT == 0 and i not in self._states:
+            self._states[i] = rng.bit_generator.state
+
+
+CHECKPOINT = 1024
+"""Starts between two kept generator states of :class:`SpatialStarts`."""

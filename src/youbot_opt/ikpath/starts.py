@@ -12,6 +12,7 @@ is drawn, and docs/design.md ("Module notes") why feasible is the default.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import overload
 
 import numpy as np
 
@@ -21,7 +22,7 @@ from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
 
-__all__ = ["START_KINDS", "START_RNGS", "check_start_request", "make_starts"]
+__all__ = ["START_KINDS", "START_RNGS", "PlanarStarts", "check_start_request", "make_starts"]
 
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
 """How random starts can be drawn (``kind`` of :func:`make_starts`)."""
@@ -88,15 +89,61 @@ def make_starts(
             for k in range(1, int(n_starts)):
                 starts[k] = _feasible_start(problem, gen, starts[k], verdicts)
     else:
-        starts = np.empty((int(n_starts), problem.n_variables))
-        for k in range(int(n_starts)):
-            gen = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(k,)))
-            starts[k] = gen.uniform(lo, hi)
-            if kind == "feasible" and k > 0:
-                starts[k] = _feasible_start(problem, gen, starts[k], verdicts)
+        source = PlanarStarts(problem, int(n_starts), seed, kind=kind, verdicts=verdicts)
+        return np.array([source[k] for k in range(int(n_starts))]).reshape(
+            int(n_starts), problem.n_variables
+        )
     starts = np.clip(starts, problem.lower, problem.upper)
     starts[0] = problem.default_start()
     return starts
+
+
+class PlanarStarts(Sequence[Array]):
+    """The per-index starts of :func:`make_starts`, each drawn when asked for (none is held).
+
+    ``PlanarStarts(problem, n, seed, kind=kind)[k]`` equals
+    ``make_starts(problem, n, seed, kind=kind)[k]`` (``rng="per-index"``), so a
+    sweep of 10^5 starts draws each as its task is made. Parameters as
+    :func:`make_starts`; picklable.
+    """
+
+    def __init__(
+        self,
+        problem: CyclicIKProblem,
+        n_starts: int,
+        seed: int,
+        *,
+        kind: str = "feasible",
+        verdicts: Sequence[ReachVerdict] = (),
+    ) -> None:
+        self._n = check_start_request(n_starts, kind, START_KINDS)
+        self._problem, self._seed, self._kind = problem, int(seed), kind
+        self._verdicts = tuple(verdicts)
+        lo = np.maximum(problem.lower, -np.pi)
+        hi = np.minimum(problem.upper, np.pi)
+        self._lo, self._hi = np.minimum(lo, hi), np.maximum(lo, hi)
+
+    def __len__(self) -> int:
+        return self._n
+
+    @overload
+    def __getitem__(self, k: int) -> Array: ...
+    @overload
+    def __getitem__(self, k: slice) -> list[Array]: ...
+    def __getitem__(self, k: int | slice) -> Array | list[Array]:
+        if isinstance(k, slice):
+            return [self[j] for j in range(self._n)[k]]
+        j = k + self._n if k < 0 else k
+        if not 0 <= j < self._n:
+            raise IndexError(f"{self._n} start(s), got index {k}")
+        problem = self._problem
+        if j == 0:
+            return problem.default_start()
+        gen = np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=(j,)))
+        start = gen.uniform(self._lo, self._hi)
+        if self._kind == "feasible":
+            start = _feasible_start(problem, gen, start, self._verdicts)
+        return np.clip(start, problem.lower, problem.upper)
 
 
 def check_start_request(n_starts: int, kind: str, kinds: Sequence[str]) -> int:

@@ -34,11 +34,21 @@ from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
+from youbot_opt.ikpath.stored import (
+    ClusterIndices,
+    StartSummary,
+    StartTally,
+    StoredResults,
+    tally_starts,
+)
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import run_resumable
-from youbot_opt.sweeps.store import SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.selection import Clusters
+from youbot_opt.sweeps.store import ItemRecord, SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.tasks import TaskSequence
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 
 __all__ = [
@@ -46,6 +56,7 @@ __all__ = [
     "PLANAR_STARTS",
     "SWEEP_KIND",
     "StartSolvers",
+    "StreamedOutcome",
     "SweepOutcome",
     "crashed_result",
     "encoded_saver",
@@ -56,6 +67,7 @@ __all__ = [
     "starts_params",
     "starts_store",
     "solve_starts",
+    "stream_starts",
     "stored_start_rng",
     "start_key",
 ]
@@ -69,6 +81,7 @@ PAYLOAD_SUFFIX = ".ikpath"
 
 ProblemT = TypeVar("ProblemT")
 ResultT = TypeVar("ResultT", IKPathResult, SpatialIKResult)
+_Outcome = IKPathResult | SpatialIKResult | StartSummary[Any]
 
 
 def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
@@ -456,6 +469,7 @@ def _summary(
         **figures(result),
         "iterations": result.iterations,
         "wall_time_s": result.wall_time,
+        **({} if result.success else {"message": result.message}),
     }
 
 
@@ -490,27 +504,28 @@ def status_counts(results: Iterable[IKPathResult | SpatialIKResult]) -> dict[str
 
 def progress_callbacks(
     progress: Callable[[int, int, float], None] | None, total: int
-) -> tuple[
-    Callable[[Sequence[IKPathResult | SpatialIKResult]], None],
-    Callable[[int, IKPathResult | SpatialIKResult], None],
-]:
+) -> tuple[Callable[[Iterable[_Outcome]], None], Callable[[int, _Outcome], None]]:
     """Return the ``on_resumed`` and ``on_final`` of :func:`solve_starts` that feed ``progress``.
 
     ``progress(done, total, best)`` hears of the starts loaded from the store in
     one call before the first solve, then of every final start; ``best`` is the
     lowest ``E`` in [rad^2] of the successful starts so far (``inf`` before the first).
+    The starts are results or (``keep_results=False``) :class:`StartSummary` s.
     """
     best = math.inf
     done = 0
 
-    def on_resumed(results: Sequence[IKPathResult | SpatialIKResult]) -> None:
+    def on_resumed(results: Iterable[_Outcome]) -> None:
         nonlocal best, done
-        done = len(results)
-        best = min((r.objective for r in results if r.success), default=math.inf)
-        if progress is not None and results:
+        done, best = 0, math.inf
+        for r in results:  # one pass (a stream when keep_results=False)
+            done += 1
+            if r.success:
+                best = min(best, r.objective)
+        if progress is not None and done:
             progress(done, total, best)
 
-    def on_final(index: int, result: IKPathResult | SpatialIKResult) -> None:
+    def on_final(index: int, result: _Outcome) -> None:
         nonlocal best, done
         done += 1
         if result.success:
@@ -627,3 +642,207 @@ def solve_starts(
         attempts=tuple(got.attempts[k] for k in keys),
         resumed=got.resumed,
     )
+
+
+class StreamedOutcome(NamedTuple, Generic[ResultT]):
+    """What :func:`stream_starts` returns: nothing held per start."""
+
+    results: StoredResults[ResultT]
+    """Every start's full result, loaded from the output folder when asked for."""
+    attempts: Sequence[int]
+    """Attempts per start in start order, read from the store when asked for."""
+    resumed: int
+    """Starts loaded from the store instead of solved."""
+    minima: tuple[ClusterIndices, ...]
+    """Start indices of each distinct minimum in cluster order (lowest ``E`` first)."""
+    kept: dict[int, ResultT]
+    """The representatives' full results, by start index."""
+    tally: StartTally
+    """Counts per status, successes and the start closest to the targets."""
+
+
+def stream_starts(
+    problem: ProblemT,
+    starts: Sequence[Array] | Array,
+    *,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    sweep: SweepOptions,
+    solvers: StartSolvers[ProblemT, ResultT],
+    store: SweepStore,
+    distance: Callable[[ResultT, ResultT], float],
+    e_tol: float,
+    q_tol: float,
+    by_objective: bool,
+    on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
+    on_final: Callable[[int, _Outcome], None] | None = None,
+) -> StreamedOutcome[ResultT]:
+    """Solve every start with ``keep_results=False``: summaries streamed, the minima kept.
+
+    As :func:`solve_starts`, but a start is drawn (``starts[i]``) only when its
+    task is made, each start's figures are read back from the store's journal
+    as :class:`~youbot_opt.ikpath.stored.StartSummary` when needed, and only the
+    distinct minima (``cluster_optima``'s rule with ``e_tol`` on ``E`` and
+    ``q_tol`` on ``distance``, chosen by
+    :func:`~youbot_opt.sweeps.selection.stream_optima`) are held in full.
+
+    Parameters
+    ----------
+    starts : sequence of ndarray
+        Start ``i`` in [rad], drawn when asked for (``PlanarStarts``, ``SpatialStarts``).
+    store : SweepStore
+        The output folder (required: the results not kept stay there).
+    distance : callable ``(a, b) -> float``
+        Distance in [rad] of two successful results' configurations.
+    e_tol, q_tol : float
+        Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
+    by_objective : bool
+        The start closest to the targets is ranked by ``(max_residual, E)``
+        (planar) rather than by position plus orientation error (spatial).
+    problem, method, options, sweep, solvers, on_resumed, on_final
+        As :func:`solve_starts`; ``on_resumed`` is given an iterable, read once.
+
+    Returns
+    -------
+    StreamedOutcome
+        Lazy results and attempts, resumed count, minima, kept results, tally.
+    """
+    sweep = sweep.with_executor("process")
+    n = len(starts)
+    init: tuple[Callable[..., Any] | None, tuple[Any, ...]] = (None, ())
+    if method == "al":
+
+        def make(i: int) -> Task:
+            args = (problem, options, starts[i])
+            return Task(key=start_key(i, n), fn=solvers.solve_al, args=args)
+    else:
+        build = solvers.ipopt_solver
+        prebuilt = build(problem, options) if sweep.executor == "serial" else None  # type: ignore[arg-type]
+        handle = WorkerSolver.of(build, problem, options, prebuilt=prebuilt)
+        sent = handle.by_token() if sweep.distributed else handle
+        if sweep.distributed:
+            init = (hold_solver, (handle,))
+
+        def make(i: int) -> Task:
+            return Task(key=start_key(i, n), fn=solvers.solve_ipopt, args=(sent, starts[i]))
+
+    tasks = TaskSequence(n, make, key=lambda i: start_key(i, n))
+
+    def index_of(key: str) -> int:
+        return int(key.rsplit("_", 1)[1])
+
+    def crashed(i: int, reason: str) -> ResultT:
+        return solvers.crashed(problem, method, options, starts[i], reason)
+
+    def of(i: int, result: ResultT, attempts: int) -> StartSummary[ResultT]:
+        light: StartSummary[ResultT] = StartSummary.from_record(
+            json_summary(solvers.figures, i, result), attempts
+        )
+        return light.with_result(result)
+
+    def light(key: str, record: ItemRecord) -> StartSummary[ResultT]:
+        if record.state == "done":
+            return StartSummary.from_record(record.summary, record.attempts)
+        i = index_of(key)  # failed every attempt: the figures of its CRASHED result
+        reason = record.reasons[-1] if record.reasons else "failed"
+        return dataclasses.replace(of(i, crashed(i, reason), record.attempts), result=None)
+
+    def load(key: str) -> ResultT:
+        record = store.record(key)
+        if record is None:
+            raise ResultFileError(f"start {key!r} is not finished in {store.directory}")
+        if record.state == "done":
+            result: ResultT = _load(store, key)
+            return result
+        return crashed(index_of(key), record.reasons[-1] if record.reasons else "failed")
+
+    def full(key: str) -> StartSummary[ResultT]:
+        record = store.record(key)
+        assert record is not None  # only finished items are loaded
+        return light(key, record).with_result(load(key))
+
+    def convert(o: TaskOutcome) -> StartSummary[ResultT]:
+        i = index_of(o.key)
+        result: ResultT = o.value if o.ok else crashed(i, str(o.error))
+        return of(i, result, o.attempts)
+
+    rule: KeepRule[StartSummary[ResultT]] = KeepRule(
+        objective=lambda s: s.objective if s.success else None,
+        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
+        obj_tol=e_tol,
+        dist_tol=q_tol,
+    )
+    got = run_resumable(
+        tasks,
+        store=store,
+        options=sweep,
+        load=full,
+        convert=convert,
+        payload=lambda key, s: _payload(solvers.figures, s),
+        initializer=init[0],
+        initargs=init[1],
+        on_resumed=None if on_resumed is None else lambda done: on_resumed(done.values()),
+        on_final=None if on_final is None else lambda key, s, _: on_final(s.index, s),
+        describe=functools.partial(_describe_start, solvers.figures),
+        light=light,
+        keep=rule,
+    )
+    items = got.items
+    clusters = got.clusters
+    if not isinstance(clusters, Clusters):  # pragma: no cover - IK stores never held the old form
+        raise ResultFileError(f"the optima of {store.directory} are in an unknown form")
+    kept: dict[int, ResultT] = {}
+    for rep in clusters.representatives:
+        result = items[rep].result
+        assert result is not None  # the selection holds its representatives in full
+        kept[index_of(rep)] = result
+
+    def summary(i: int) -> StartSummary[ResultT]:
+        return items[start_key(i, n)]
+
+    results = StoredResults(
+        n, load=lambda i: load(start_key(i, n)), summary=summary, kept=kept, items=items, full=full
+    )
+    return StreamedOutcome(
+        results=results,
+        attempts=_Attempts(n, lambda i: got.attempts[start_key(i, n)]),
+        resumed=got.resumed,
+        minima=tuple(
+            ClusterIndices(clusters, c, index_of, sorted_order=False) for c in range(len(clusters))
+        ),
+        kept=kept,
+        tally=tally_starts(results.summaries(), by_objective=by_objective),
+    )
+
+
+def _payload(
+    figures: Callable[[ResultT], dict[str, Any]], start: StartSummary[ResultT]
+) -> tuple[ResultT, dict[str, Any]]:
+    """Return what the store saves of a solved start: its result and its summary."""
+    assert start.result is not None  # converted from a solve, so it holds its result
+    return start.result, _summary(figures, start.index, start.result)
+
+
+def json_summary(
+    figures: Callable[[ResultT], dict[str, Any]], index: int, result: ResultT
+) -> dict[str, Any]:
+    """Return a start's journal summary as the store reads it back (JSON round trip)."""
+    return json.loads(json.dumps(_summary(figures, index, result)))
+
+
+class _Attempts(Sequence[int]):
+    """Attempts per start index, read from the store when asked for."""
+
+    def __init__(self, n: int, get: Callable[[int], int]) -> None:
+        self._n, self._get = n, get
+
+    def __len__(self) -> int:
+        return self._n
+
+    def __getitem__(self, i: int) -> int:  # type: ignore[override]
+        if isinstance(i, slice):
+            return [self[j] for j in range(self._n)[i]]  # type: ignore[return-value]
+        j = i + self._n if i < 0 else i
+        if not 0 <= j < self._n:
+            raise IndexError(f"{self._n} start(s), got index {i}")
+        return self._get(j)

@@ -27,6 +27,7 @@ from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
 from youbot_opt.sweeps.scheduler import ClusterLostError, connect, is_scheduler_address
 from youbot_opt.sweeps.selection import Clusters, stream_optima
 from youbot_opt.sweeps.store import ItemRecord, ItemWriter, SweepStore, WrittenItem
+from youbot_opt.sweeps.tasks import task_keys
 
 __all__ = [
     "Describe",
@@ -114,7 +115,7 @@ class StoredItems(MutableMapping[str, T]):
         raise TypeError("the items of a sweep cannot be deleted")
 
     def __iter__(self) -> Iterator[str]:
-        return (t.key for t in self._tasks if t.key in self._set or self._store.has(t.key))
+        return (k for k in task_keys(self._tasks) if k in self._set or self._store.has(k))
 
     def __len__(self) -> int:
         return sum(1 for _ in self)
@@ -134,7 +135,7 @@ class StoredAttempts(Mapping[str, int]):
         return 0 if record is None else record.attempts
 
     def __iter__(self) -> Iterator[str]:
-        return (t.key for t in self._tasks)
+        return task_keys(self._tasks)
 
     def __len__(self) -> int:
         return len(self._tasks)
@@ -286,7 +287,12 @@ def run_resumable(
     extra = {"obj_tol": keep.obj_tol, "dist_tol": keep.dist_tol, "best": keep.distance is None,
              "grouped": keep.group is not None}  # fmt: skip
     while True:  # the kept optima, loaded (a refused payload is recomputed, then chosen again)
-        fingerprint = store.fingerprint(got.items, extra)
+        # every task is finished (checked by _stream_all), so if the store holds no other
+        # item its records are exactly the sweep's: named without reading a line
+        if store.count() == len(tasks):
+            fingerprint = store.fingerprint_all(extra)
+        else:
+            fingerprint = store.fingerprint(got.items, extra)
         saved = store.selection(fingerprint)
         clusters: Sequence[Sequence[str]]
         try:
@@ -297,7 +303,7 @@ def run_resumable(
                 kept, clusters = stream_optima(got.items, keep, full)
                 store.save_selection(fingerprint, clusters)
         except _Refused as exc:
-            redo = [t for t in tasks if t.key == exc.key]
+            redo = [tasks[i] for i, k in enumerate(task_keys(tasks)) if k == exc.key]
             with store.grouped():  # recorded in the store, which got.items reads from
                 _stream_all(
                     redo, store, options, convert, payload, initializer, initargs, None, None,
@@ -332,8 +338,8 @@ def _stream_all(
     max_attempts = options.max_attempts
     items = StoredItems(tasks, store, light)
     finished = 0
-    for task in tasks:  # what the store holds as finished (counted, not kept)
-        finished += not store.needs_work(task.key, max_attempts)[0]
+    for key in task_keys(tasks):  # what the store holds as finished (counted, not kept)
+        finished += not store.needs_work(key, max_attempts)[0]
     resumed = finished
     if on_resumed is not None:  # a view: read during the call, before anything runs
         on_resumed(_Finished(items, store, max_attempts))
@@ -343,12 +349,13 @@ def _stream_all(
     ran = 0
 
     def todo() -> Iterator[Task]:
-        for pos, task in enumerate(tasks):
+        for pos, key in enumerate(task_keys(tasks)):
             if shard is not None and pos % shard[1] != shard[0] - 1:
                 continue  # another shard's item
-            again, made = store.needs_work(task.key, max_attempts)
+            again, made = store.needs_work(key, max_attempts)
             if not again:
                 continue
+            task = tasks[pos]  # made only if it runs
             if writer is not None:
                 args = (writer, describe, False, task.key, task.fn, task.args)
                 yield replace(task, fn=run_and_write, args=args, attempts=made)

@@ -181,6 +181,31 @@ class Clusters(_ListEquality, Sequence[ClusterKeys]):
             yield from (str(k) for _, k in rows)
             last = rows[-1][0]
 
+    def members_in_key_order(self, number: int) -> Iterator[str]:
+        """Iterate over the keys of cluster ``number`` sorted by key (the representative included).
+
+        One sorted read of the membership table (held open while iterating),
+        for callers whose keys sort as their items' order (fixed-width indices).
+        """
+        if not 0 <= number < len(self.representatives):
+            raise IndexError(f"{len(self.representatives)} cluster(s), got index {number}")
+        rep: str | None = self.representatives[number]
+        rows = self._db.execute("SELECT k FROM m WHERE c = ? ORDER BY k", (number,))
+        try:
+            while True:
+                page = rows.fetchmany(_BATCH)
+                if not page:
+                    break
+                for (key,) in page:
+                    if rep is not None and rep < key:
+                        yield rep
+                        rep = None
+                    yield str(key)
+            if rep is not None:
+                yield rep
+        finally:
+            rows.close()
+
     def __len__(self) -> int:
         return len(self.representatives)
 

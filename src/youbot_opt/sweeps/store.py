@@ -23,6 +23,7 @@ import os
 import time
 import uuid
 import warnings
+from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO, Literal
@@ -214,7 +215,9 @@ class SweepStore:
         self.binding = hashlib.sha256(
             json.dumps({"kind": self.kind, "params": self.params}, sort_keys=True).encode()
         ).hexdigest()
-        self._verified: set[str] = set()  # records checked (or written) by this store
+        # records checked (or written) by this store; fan-out stores remember only the
+        # last VERIFIED_CACHE (a selection verifies every converged item once: O(1) memory)
+        self._verified = _RecentKeys(None)
         self._refused: set[str] = set()  # flat records refused: recomputed, never loaded
         # fanout: where the last journal line of each key is, (offset << 16) | file number
         # (a compact index on disk: a record is read back from its line when asked for)
@@ -226,6 +229,9 @@ class SweepStore:
         self._lines: list[tuple[str, str, int, bytes]] = []
         self._files: list[Path] = []  # ... and the payloads they point to
         self._group = 0  # depth of grouped() contexts
+        # fanout: sum mod 2^256 of the digests of every record (index and unflushed),
+        # kept up to date as records change, so fingerprint_all() reads no line
+        self._digest_sum = 0
         self._last_flush = time.monotonic()
         self._window = GROUP_SECONDS  # [s] adapted to the cost of a flush
         self._journal: JournalWriter | None = None
@@ -250,6 +256,8 @@ class SweepStore:
             atomic_write_bytes(manifest, json.dumps(body, indent=1).encode())
             self.resumed = False
         self.layout: Literal["fanout", "flat"] = "fanout" if self.version >= 3 else "flat"
+        if self.layout == "fanout":
+            self._verified = _RecentKeys(VERIFIED_CACHE)
         if clean:  # not in shard runs: another shard may be writing one right now
             self._clean_temporaries()
         if self.layout == "fanout":
@@ -325,6 +333,7 @@ class SweepStore:
         """Index the last accepted line of every key (streamed); returns the bad lines."""
         folder = self.items_dir / JOURNAL
         self._index.clear()
+        self._digest_sum = 0
         self._foreign: list[str] = []  # the first few keys of lines of another sweep
         self._n_foreign = 0
         bad = 0
@@ -344,15 +353,19 @@ class SweepStore:
             t = _time(data)
             prev = self._index.get(key)
             if prev is not None:  # rare (a failed attempt, then another run): the later line wins
+                at, num = _where(prev)
+                line = read_line(self._journals[num], at)
                 old = times.get(key)
                 if old is None:
-                    at, num = _where(prev)
-                    line = read_line(self._journals[num], at)
                     old = _time(line) if line is not None else 0
                 if t < old:
                     continue
                 times[key] = t
+                replaced = self._parse(line, folder)
+                if replaced is not None:
+                    self._digest_sum -= _digest(replaced)
             self._index[key] = _entry(offset, number, record.state, record.attempts)
+            self._digest_sum = (self._digest_sum + _digest(record)) % _DIGEST_MOD
         return bad
 
     @staticmethod
@@ -451,6 +464,10 @@ class SweepStore:
         return record
 
     def _refuse(self, key: str, where: str, why: str) -> None:
+        if self.layout == "fanout" and self.has(key):
+            gone = self._indexed(key)
+            if gone is not None:
+                self._digest_sum = (self._digest_sum - _digest(gone)) % _DIGEST_MOD
         self._refused.add(key)
         self._index.pop(key, None)
         self._unflushed.pop(key, None)
@@ -686,6 +703,10 @@ class SweepStore:
             body = json.dumps(record.to_json(max(self.version, 2)), indent=1, allow_nan=True)
             atomic_write_bytes(self._record_path(key), body.encode())
             return
+        old = self._indexed(key) if self.has(key) else None
+        self._digest_sum = (
+            self._digest_sum - (0 if old is None else _digest(old)) + _digest(record)
+        ) % _DIGEST_MOD
         self._unflushed[key] = record
         line = encode_line({**record.to_json(), "t": time.time_ns()})
         self._lines.append((key, record.state, record.attempts, line))
@@ -767,6 +788,28 @@ class SweepStore:
             rec = self.record(key)
             line = "-" if rec is None else f"{rec.state}:{rec.attempts}:{rec.checksum}"
             digest.update(f"{key}={line}\n".encode())
+        return digest.hexdigest()
+
+    def count(self) -> int:
+        """Return the number of items with a record (fan-out stores: from the index)."""
+        if self.layout == "fanout":
+            return len(self._index) + sum(1 for k in self._unflushed if k not in self._index)
+        return sum(1 for _ in self.items_dir.glob("*.json"))
+
+    def fingerprint_all(self, extra: Mapping[str, Any]) -> str:
+        """SHA-256 naming every record of the store as it is now, and ``extra``; no line read.
+
+        Fan-out stores keep the sum (mod 2^256) of one SHA-256 digest per record
+        (key, state, attempts, checksum) up to date as records are written,
+        replaced or refused, so this costs nothing per item; any change of a
+        record changes it. Equal to :meth:`fingerprint` in meaning (not in
+        value) when ``keys`` are every key of the store: callers use it after
+        checking :meth:`count`. Flat stores fall back to :meth:`fingerprint`.
+        """
+        if self.layout != "fanout":
+            return self.fingerprint(sorted(self.keys()), extra)
+        digest = hashlib.sha256(json.dumps(extra, sort_keys=True).encode())
+        digest.update(f"all:{self.count()}:{self._digest_sum:064x}".encode())
         return digest.hexdigest()
 
     def save_selection(
@@ -851,6 +894,38 @@ class SweepStore:
 
 
 _MISSING = object()
+
+VERIFIED_CACHE = 4096
+"""Payload checks a fan-out store remembers (a forgotten one is re-hashed when loaded again)."""
+
+
+class _RecentKeys:
+    """A set of keys holding at most ``bound`` of them (the most recently added; ``None``: all)."""
+
+    def __init__(self, bound: int | None) -> None:
+        self._keys: OrderedDict[str, None] = OrderedDict()
+        self._bound = bound
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._keys
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def add(self, key: str) -> None:
+        self._keys[key] = None
+        self._keys.move_to_end(key)
+        if self._bound is not None and len(self._keys) > self._bound:
+            self._keys.popitem(last=False)
+
+
+_DIGEST_MOD = 1 << 256
+
+
+def _digest(record: ItemRecord) -> int:
+    """One record's share of :meth:`SweepStore.fingerprint_all` (its SHA-256 as an int)."""
+    text = f"{record.key}={record.state}:{record.attempts}:{record.checksum}"
+    return int.from_bytes(hashlib.sha256(text.encode()).digest(), "big")
 
 
 def _same(a: Any, b: Any) -> bool:

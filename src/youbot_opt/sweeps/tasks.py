@@ -36,6 +36,7 @@ __all__ = [
     "dumps",
     "failure_reason",
     "invoke",
+    "task_keys",
 ]
 
 _log = logging.getLogger(__name__)
@@ -121,6 +122,10 @@ class TaskSequence(Sequence[Task]):
         Number of tasks (>= 0).
     make : callable ``(i) -> Task``
         Task ``i``; must give the same key for the same ``i`` every time.
+    key : callable ``(i) -> str``, optional
+        Key of task ``i`` without making the task (equal to ``make(i).key``):
+        the sweep then walks the keys (resume counts, the items' order)
+        without building tasks it does not run (:func:`task_keys`).
 
     Examples
     --------
@@ -129,10 +134,18 @@ class TaskSequence(Sequence[Task]):
     ['s0', 's1', 's2']
     """
 
-    def __init__(self, count: int, make: Callable[[int], Task]) -> None:
+    def __init__(
+        self, count: int, make: Callable[[int], Task], key: Callable[[int], str] | None = None
+    ) -> None:
         if isinstance(count, bool) or not isinstance(count, int) or count < 0:
             raise ParameterError(f"count must be an int >= 0, got {count!r}", name="count")
-        self._count, self._make = count, make
+        self._count, self._make, self._key = count, make, key
+
+    def keys(self) -> Iterator[str]:
+        """Iterate over the task keys in order (without making tasks if ``key`` was given)."""
+        if self._key is None:
+            return (self._make(j).key for j in range(self._count))
+        return (self._key(j) for j in range(self._count))
 
     def __len__(self) -> int:
         return self._count
@@ -151,6 +164,13 @@ class TaskSequence(Sequence[Task]):
 
     def __iter__(self) -> Iterator[Task]:
         return (self._make(j) for j in range(self._count))
+
+
+def task_keys(tasks: Sequence[Task]) -> Iterator[str]:
+    """Iterate over the keys of ``tasks`` in order (a :class:`TaskSequence` makes no task)."""
+    if isinstance(tasks, TaskSequence):
+        return tasks.keys()
+    return (t.key for t in tasks)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
