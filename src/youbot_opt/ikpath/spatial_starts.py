@@ -12,14 +12,14 @@ many starts are drawn after it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any, overload
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path, random_theta
-from youbot_opt.ikpath.starts import check_start_request
+from youbot_opt.ikpath.starts import IndexedStarts, check_start_request
 
 __all__ = ["CHECKPOINT", "SPATIAL_START_KINDS", "SpatialStarts", "make_spatial_starts"]
 
@@ -81,7 +81,7 @@ def _skip(problem: SpatialIKProblem, kind: str, k: int, rng: np.random.Generator
         random_theta(problem, rng)
 
 
-class SpatialStarts(Sequence[Array]):
+class SpatialStarts(IndexedStarts):
     """The starts of :func:`make_spatial_starts`, each drawn when asked for.
 
     ``SpatialStarts(problem, n, seed, kind=kind)[k]`` equals
@@ -101,19 +101,8 @@ class SpatialStarts(Sequence[Array]):
         self._states: dict[int, Mapping[str, Any]] = {1: rng.bit_generator.state}
         self._cursor: tuple[int, Mapping[str, Any]] = (1, rng.bit_generator.state)
 
-    def __len__(self) -> int:
-        return self._n
-
-    @overload
-    def __getitem__(self, k: int) -> Array: ...
-    @overload
-    def __getitem__(self, k: slice) -> list[Array]: ...
-    def __getitem__(self, k: int | slice) -> Array | list[Array]:
-        if isinstance(k, slice):
-            return [self[j] for j in range(self._n)[k]]
-        j = k + self._n if k < 0 else k
-        if not 0 <= j < self._n:
-            raise IndexError(f"{self._n} start(s), got index {k}")
+    def draw(self, j: int) -> Array:
+        """Return start ``j``: the greedy path's first configuration for 0, else drawn [rad]."""
         problem = self._problem
         if j == 0:
             return np.clip(greedy_path(problem)[0].ravel(), problem.lower, problem.upper)

@@ -22,7 +22,14 @@ from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
 
-__all__ = ["START_KINDS", "START_RNGS", "PlanarStarts", "check_start_request", "make_starts"]
+__all__ = [
+    "START_KINDS",
+    "START_RNGS",
+    "IndexedStarts",
+    "PlanarStarts",
+    "check_start_request",
+    "make_starts",
+]
 
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
 """How random starts can be drawn (``kind`` of :func:`make_starts`)."""
@@ -98,7 +105,36 @@ def make_starts(
     return starts
 
 
-class PlanarStarts(Sequence[Array]):
+class IndexedStarts(Sequence[Array]):
+    """Starts drawn when asked for: ``starts[k]`` (negative ``k`` and slices as a list's).
+
+    A subclass sets ``self._n`` and draws start ``j`` (``0 <= j < n``) in
+    :meth:`draw`; planar (:class:`PlanarStarts`) and spatial starts share it.
+    """
+
+    _n: int
+
+    def __len__(self) -> int:
+        return self._n
+
+    @overload
+    def __getitem__(self, k: int) -> Array: ...
+    @overload
+    def __getitem__(self, k: slice) -> list[Array]: ...
+    def __getitem__(self, k: int | slice) -> Array | list[Array]:
+        if isinstance(k, slice):
+            return [self[j] for j in range(self._n)[k]]
+        j = k + self._n if k < 0 else k
+        if not 0 <= j < self._n:
+            raise IndexError(f"{self._n} start(s), got index {k}")
+        return self.draw(j)
+
+    def draw(self, j: int) -> Array:
+        """Return start ``j`` (``0 <= j < len(self)``), shape ``(s, n)`` or ``(n,)`` [rad]."""
+        raise NotImplementedError
+
+
+class PlanarStarts(IndexedStarts):
     """The per-index starts of :func:`make_starts`, each drawn when asked for (none is held).
 
     ``PlanarStarts(problem, n, seed, kind=kind)[k]`` equals
@@ -123,19 +159,8 @@ class PlanarStarts(Sequence[Array]):
         hi = np.minimum(problem.upper, np.pi)
         self._lo, self._hi = np.minimum(lo, hi), np.maximum(lo, hi)
 
-    def __len__(self) -> int:
-        return self._n
-
-    @overload
-    def __getitem__(self, k: int) -> Array: ...
-    @overload
-    def __getitem__(self, k: slice) -> list[Array]: ...
-    def __getitem__(self, k: int | slice) -> Array | list[Array]:
-        if isinstance(k, slice):
-            return [self[j] for j in range(self._n)[k]]
-        j = k + self._n if k < 0 else k
-        if not 0 <= j < self._n:
-            raise IndexError(f"{self._n} start(s), got index {k}")
+    def draw(self, j: int) -> Array:
+        """Return start ``j``: the zero/default start for 0, else from its own seed [rad]."""
         problem = self._problem
         if j == 0:
             return problem.default_start()

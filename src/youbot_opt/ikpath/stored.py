@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Generic, TypeVar, overload
 
 from youbot_opt.sweeps.cluster import KeepRule
-from youbot_opt.sweeps.selection import Clusters, stream_optima
+from youbot_opt.sweeps.selection import Clusters, ListEquality, stream_optima
 
 __all__ = ["ClusterIndices", "StartSummary", "StartTally", "StoredResults", "tally_starts"]
 
@@ -150,16 +150,6 @@ def tally_starts(summaries: Iterable[StartSummary[Any]], *, by_objective: bool) 
     return StartTally(n_starts=n, n_success=ok, status_counts=counts, closest=closest)
 
 
-class _SequenceEquality:
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence) or isinstance(other, str):
-            return NotImplemented
-        mine: Sequence[object] = self  # type: ignore[assignment]
-        return len(mine) == len(other) and all(a == b for a, b in zip(mine, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
-
-
 class StoredResults(Sequence[R]):
     """The full results of a ``keep_results=False`` multistart, loaded when asked for.
 
@@ -249,7 +239,7 @@ class StoredResults(Sequence[R]):
         return f"StoredResults({self._n} starts, {len(self._kept)} held)"
 
 
-class ClusterIndices(_SequenceEquality, Sequence[int]):
+class ClusterIndices(ListEquality, Sequence[int]):
     """Start indices of one distinct minimum, read from the optima members table.
 
     Parameters

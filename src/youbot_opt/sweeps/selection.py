@@ -27,7 +27,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.index import CACHE_KIB
 
-__all__ = ["ClusterKeys", "Clusters", "stream_optima"]
+__all__ = ["ClusterKeys", "Clusters", "ListEquality", "stream_optima"]
 
 T = TypeVar("T")
 
@@ -41,8 +41,8 @@ def _connect(path: str) -> sqlite3.Connection:
     return db
 
 
-class _ListEquality:
-    """Equality of a lazy sequence with any sequence of equal items, as a list's."""
+class ListEquality:
+    """Mixin: a lazy sequence equals any sequence of equal items, as a list does (unhashable)."""
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Sequence) or isinstance(other, str):
@@ -53,7 +53,7 @@ class _ListEquality:
     __hash__ = None  # type: ignore[assignment]
 
 
-class ClusterKeys(_ListEquality, Sequence[str]):
+class ClusterKeys(ListEquality, Sequence[str]):
     """The keys of one cluster, its representative first, read from the membership table."""
 
     def __init__(self, owner: Clusters, number: int) -> None:
@@ -84,7 +84,7 @@ class ClusterKeys(_ListEquality, Sequence[str]):
         return f"ClusterKeys({self[0]!r}, +{len(self) - 1} member(s))"
 
 
-class Clusters(_ListEquality, Sequence[ClusterKeys]):
+class Clusters(ListEquality, Sequence[ClusterKeys]):
     """Distinct optima as keys: representatives and member counts in memory, members on disk.
 
     Attributes

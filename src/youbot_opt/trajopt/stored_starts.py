@@ -15,12 +15,13 @@ import itertools
 from collections.abc import Iterator, Mapping, Sequence
 from typing import overload
 
+from youbot_opt.sweeps.selection import ListEquality
 from youbot_opt.trajopt.sweep import StartJobs, StartOutcome
 
 __all__ = ["ConvergedStarts", "OptimumMembers", "StoredStarts"]
 
 
-class StoredStarts(Sequence[StartOutcome]):
+class StoredStarts(ListEquality, Sequence[StartOutcome]):
     """The starts of a ``keep_results=False`` multistart, read from its folder when asked for.
 
     Start ``i`` is ``outcomes[jobs[i].key]`` each time (its figures from the
@@ -43,26 +44,12 @@ class StoredStarts(Sequence[StartOutcome]):
             return tuple(self[j] for j in range(len(self))[i])
         return self._outcomes[self._jobs[i].key]
 
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence):
-            return NotImplemented
-        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
-
     def __repr__(self) -> str:
         return f"StoredStarts({len(self)} starts)"
 
 
-class _LazyStarts(Sequence[StartOutcome]):
+class _LazyStarts(ListEquality, Sequence[StartOutcome]):
     """A sequence of starts read on demand, equal to a tuple of the same starts."""
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence) or isinstance(other, str):
-            return NotImplemented
-        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
 
 
 class OptimumMembers(_LazyStarts):
