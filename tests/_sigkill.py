@@ -16,11 +16,16 @@ from pathlib import Path
 import numpy as np
 
 
-def count_records(out: Path) -> int:
-    """Items with a record in the sweep folder ``out`` (journal or flat record files)."""
-    from youbot_opt.sweeps.store import stored_records
+def count_payloads(out: Path) -> int:
+    """Item payload files in the sweep folder ``out`` (``items/<hh>/<key><suffix>``).
 
-    return len({r.key for r in stored_records(out)})
+    A payload is written as its item finishes, before the group commit that
+    records it in the journal, so counting payloads (not records) lets a kill
+    land while the items finished just before it still wait for their group:
+    a sweep's last items are not all committed, and the process gone, before
+    the kill can come (which counting records allowed on a fast machine).
+    """
+    return sum(1 for f in (out / "items").glob("??/*") if not f.name.startswith("."))
 
 
 def session_pids(sid: int) -> list[int]:
@@ -45,16 +50,16 @@ def kill_repeatedly(cmd: list[str], out: Path, n_kills: int, seed: int) -> dict:
     rng = np.random.default_rng(seed)
     kills = 0
     for _ in range(n_kills):
-        before = count_records(out)
+        before = count_payloads(out)
         target = before + int(rng.integers(1, 4))  # kill after 1-3 more finished items ...
-        delay = float(rng.uniform(0.0, 0.03))  # ... plus 0-30 ms, to land anywhere in a write
+        delay = float(rng.uniform(0.0, 0.01))  # ... plus 0-10 ms, to land anywhere in a write
         proc = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
         )
         try:
             deadline = time.monotonic() + 120.0
             while (
-                count_records(out) < target and proc.poll() is None and time.monotonic() < deadline
+                count_payloads(out) < target and proc.poll() is None and time.monotonic() < deadline
             ):
                 time.sleep(0.005)
             time.sleep(delay)

@@ -204,22 +204,22 @@ def test_cli_no_keep_results_runs_end_to_end(tmp_path, capsys):
 def test_sigkilled_lean_cli_multistart_resumes_to_the_full_result(two_link, tmp_path):
     """3 SIGKILLs of ``ikpath --no-keep-results`` at seeded random points, then a final run.
 
-    Reference: the same 30 starts run in process with ``keep_results=True``.
+    Reference: the same 60 starts run in process with ``keep_results=True``.
     """
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "youbot_opt", "ikpath", "--lengths", str(LA), str(LB)]
     for x, y in TARGETS_2:
         cmd += ["--target", str(x), str(y)]
-    cmd += ["--starts", "30", "--seed", "4", "--workers", "2", "--no-keep-results"]
+    cmd += ["--starts", "60", "--seed", "4", "--workers", "2", "--no-keep-results"]
     cmd += ["--out", str(out), "--json", "--no-replay", "--no-progress"]
     doc = kill_repeatedly(cmd, out, 3, seed=20261124)
-    assert 0 < doc["resumed"] < 30
-    full = _planar(two_link, tmp_path / "full", keep=True, workers=2, n_starts=30)
+    assert 0 < doc["resumed"] < 60
+    full = _planar(two_link, tmp_path / "full", keep=True, workers=2, n_starts=60)
     assert doc["E"] == full.best.objective and doc["start_index"] == full.best_index
     assert doc["status_counts"] == full.status_counts()
     assert [m["count"] for m in doc["minima"]] == [m.count for m in full.minima]
     got = doc["start_outcomes"]
-    assert [o["index"] for o in got] == list(range(30))  # every start once, in order
+    assert [o["index"] for o in got] == list(range(60))  # every start once, in order
     for o, r in zip(got, full.results, strict=True):
         assert (o["status"], o["E"], o["attempts"]) == (r.status.value, r.objective, 1)
-    assert len({r.key for r in stored_records(out)}) == 30  # one record per start
+    assert len({r.key for r in stored_records(out)}) == 60  # one record per start

@@ -156,9 +156,9 @@ def test_test_crash_is_inert_in_serial_mode() -> None:
 
 
 # ------------------------------------------------------- SIGKILL of the CLI sweep
-_STARTS, _KNOTS, _SEED = 24, 15, 5
+_STARTS, _KNOTS, _SEED = 40, 15, 5
 _PARETO_BETAS = "0.02:0.98:0.02"  # 49 warm-started points, ~30 ms each at 15 knots
-_SCALES, _SCALE_STARTS = (1.0, 0.95, 0.9), 5  # 3 x (5 splines + straight line) = 18 starts
+_SCALES, _SCALE_STARTS = (1.0, 0.95, 0.9), 10  # 3 x (10 splines + straight line) = 33 starts
 
 
 def _cli(out: Path, command: str = "multistart") -> list[str]:
@@ -250,7 +250,7 @@ def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path)
 @pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path) -> None:
-    """4 SIGKILLs of `youbot-opt bounds`, then a final run: the same 18 starts, none lost."""
+    """4 SIGKILLs of `youbot-opt bounds`, then a final run: the same 33 starts, none lost."""
     from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 
     out = tmp_path / "bounds"
