@@ -104,6 +104,39 @@ def inject(
         monkeypatch.setattr(importlib.import_module(name), "run_tasks", run_tasks)
 
 
+class Slow:
+    """A task function that sleeps ``seconds`` [s] before its work, in any process.
+
+    Picklable by reference (this module must be importable where it runs:
+    ``tests/`` on ``PYTHONPATH``), so pool workers run it too.
+    """
+
+    def __init__(self, fn: Callable[..., Any], seconds: float) -> None:
+        self.fn, self.seconds = fn, seconds
+
+    def __call__(self, *args: Any) -> Any:
+        time.sleep(self.seconds)
+        return self.fn(*args)
+
+
+def slow_every_item(seconds: float) -> None:
+    """Make every sweep item of this process's sweeps take ``seconds`` [s] longer.
+
+    For the kill-and-resume tests (``tests/_slow_cli.py``): an item then costs
+    the same on any machine, so a kill lands while work is left.
+    """
+    import importlib
+
+    real = pool.run_tasks
+
+    def run_tasks(tasks: Iterable[pool.Task], **kwargs: Any) -> Any:
+        slowed = (dataclasses.replace(t, fn=Slow(t.fn, seconds)) for t in tasks)
+        return real(list(slowed), **kwargs)
+
+    for name in _CALLERS:
+        importlib.import_module(name).run_tasks = run_tasks
+
+
 def slow_square(x: float, seconds: float) -> float:
     """A trivial sweep task that takes ``seconds`` [s]: for kills that must land mid-sweep."""
     time.sleep(seconds)

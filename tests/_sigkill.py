@@ -15,17 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
+ITEM_SLEEP = 0.05
+"""[s] added to every item of a killed sweep: at 2 workers at most 40 items/s,
+so a group commit (at most 0.1 s) holds at most ~4 items and each kill (after
+1-3 committed items, plus 0-30 ms) takes at most ~8 items of a 33-60-item
+sweep, whatever the machine's speed."""
 
-def count_payloads(out: Path) -> int:
-    """Item payload files in the sweep folder ``out`` (``items/<hh>/<key><suffix>``).
 
-    A payload is written as its item finishes, before the group commit that
-    records it in the journal, so counting payloads (not records) lets a kill
-    land while the items finished just before it still wait for their group:
-    a sweep's last items are not all committed, and the process gone, before
-    the kill can come (which counting records allowed on a fast machine).
-    """
-    return sum(1 for f in (out / "items").glob("??/*") if not f.name.startswith("."))
+def count_records(out: Path) -> int:
+    """Items with a record in the sweep folder ``out`` (journal or flat record files)."""
+    from youbot_opt.sweeps.store import stored_records
+
+    return len({r.key for r in stored_records(out)})
 
 
 def session_pids(sid: int) -> list[int]:
@@ -41,25 +42,51 @@ def session_pids(sid: int) -> list[int]:
     return pids
 
 
-def kill_repeatedly(cmd: list[str], out: Path, n_kills: int, seed: int) -> dict:  # type: ignore[type-arg]
+def slowed(cmd: list[str], item_sleep: float) -> tuple[list[str], dict[str, str]]:
+    """``cmd`` (``python -m youbot_opt ...``) with every sweep item sleeping ``item_sleep`` [s].
+
+    The solves of a short sweep take milliseconds, and the store commits items
+    in groups (up to 0.1 s), so on a fast machine a whole sweep can finish inside
+    the window a kill needs; a fixed sleep per item makes the sweep last the
+    same on every machine. Returns the command and its environment.
+    """
+    assert cmd[1:3] == ["-m", "youbot_opt"], cmd
+    tests = Path(__file__).resolve().parent
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tests), env.get("PYTHONPATH")]))
+    return [cmd[0], str(tests / "_slow_cli.py"), repr(item_sleep), *cmd[3:]], env
+
+
+def kill_repeatedly(
+    cmd: list[str], out: Path, n_kills: int, seed: int, *, item_sleep: float | None = None
+) -> dict:  # type: ignore[type-arg]
     """Start ``cmd`` ``n_kills`` times, SIGKILL it at seeded random points, then let it finish.
 
-    Returns the final run's JSON summary, after checking that every kill landed while
-    work was left and that no pool worker outlived a killed sweep.
+    ``item_sleep`` [s]: every sweep item of ``cmd`` (``python -m youbot_opt ...``)
+    sleeps this long first (see :func:`slowed`). Returns the final run's JSON
+    summary, after checking that every kill landed while work was left and that
+    no pool worker outlived a killed sweep.
     """
+    env = None
+    if item_sleep is not None:
+        cmd, env = slowed(cmd, item_sleep)
     rng = np.random.default_rng(seed)
     kills = 0
     for _ in range(n_kills):
-        before = count_payloads(out)
+        before = count_records(out)
         target = before + int(rng.integers(1, 4))  # kill after 1-3 more finished items ...
-        delay = float(rng.uniform(0.0, 0.01))  # ... plus 0-10 ms, to land anywhere in a write
+        delay = float(rng.uniform(0.0, 0.03))  # ... plus 0-30 ms, to land anywhere in a write
         proc = subprocess.Popen(
-            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+            cmd,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            env=env,
         )
         try:
             deadline = time.monotonic() + 120.0
             while (
-                count_payloads(out) < target and proc.poll() is None and time.monotonic() < deadline
+                count_records(out) < target and proc.poll() is None and time.monotonic() < deadline
             ):
                 time.sleep(0.005)
             time.sleep(delay)
@@ -78,7 +105,7 @@ def kill_repeatedly(cmd: list[str], out: Path, n_kills: int, seed: int) -> dict:
             except ProcessLookupError:
                 pass
     assert kills == n_kills, "the sweep finished before all kills; make it longer"
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
     summary: dict = json.loads(done.stdout)  # type: ignore[type-arg]
     return summary

@@ -39,6 +39,7 @@ if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
     from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.robot.model import (
         RobotModel,
+        SizeLimits,
         TipPose,
         available_robots,
         frame_placement,
@@ -84,6 +85,7 @@ _LAZY: dict[str, str] = {
     "check_urdf_text": "youbot_opt.robot.strict.loader",
     "load_urdf_strict": "youbot_opt.robot.strict.loader",
     "RobotModel": "youbot_opt.robot.model",
+    "SizeLimits": "youbot_opt.robot.model",
     "TipPose": "youbot_opt.robot.model",
     "available_robots": "youbot_opt.robot.model",
     "frame_placement": "youbot_opt.robot.model",
@@ -168,6 +170,7 @@ __all__ = [
     "check_urdf_text",
     "load_urdf_strict",
     "RobotModel",
+    "SizeLimits",
     "TipPose",
     "available_robots",
     "frame_placement",

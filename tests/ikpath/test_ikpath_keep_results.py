@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from test_ikpath_solvers import LA, LB, TARGETS_2
 
-from _sigkill import kill_repeatedly
+from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.cli import main
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.chain import PlanarChain
@@ -212,7 +212,7 @@ def test_sigkilled_lean_cli_multistart_resumes_to_the_full_result(two_link, tmp_
         cmd += ["--target", str(x), str(y)]
     cmd += ["--starts", "60", "--seed", "4", "--workers", "2", "--no-keep-results"]
     cmd += ["--out", str(out), "--json", "--no-replay", "--no-progress"]
-    doc = kill_repeatedly(cmd, out, 3, seed=20261124)
+    doc = kill_repeatedly(cmd, out, 3, seed=20261124, item_sleep=ITEM_SLEEP)
     assert 0 < doc["resumed"] < 60
     full = _planar(two_link, tmp_path / "full", keep=True, workers=2, n_starts=60)
     assert doc["E"] == full.best.objective and doc["start_index"] == full.best_index

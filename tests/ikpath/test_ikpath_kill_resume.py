@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_ikpath_solvers import LA, LB, TARGETS_2
 
-from _sigkill import kill_repeatedly
+from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.chain import PlanarChain
@@ -253,7 +253,7 @@ def _cli(out: Path) -> list[str]:
 def test_sigkilled_cli_multistart_resumes_to_the_uninterrupted_result(tmp_path):
     """4 SIGKILLs at seeded random points, then a final run: same starts and E, none lost."""
     out = tmp_path / "run"
-    doc = kill_repeatedly(_cli(out), out, 4, seed=20240611)
+    doc = kill_repeatedly(_cli(out), out, 4, seed=20240611, item_sleep=ITEM_SLEEP)
     assert 0 < doc["resumed"] < _STARTS
 
     # Independent reference: one uninterrupted in-process run of the same multistart.

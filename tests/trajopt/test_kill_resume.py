@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from _faults import faulty
-from _sigkill import kill_repeatedly
+from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
@@ -201,7 +201,7 @@ def test_sigkilled_cli_sweep_resumes_to_the_uninterrupted_result(tmp_path: Path)
     from youbot_opt.trajopt.multistart import run_multistart
 
     out = tmp_path / "sweep"
-    resumed = kill_repeatedly(_cli(out), out, 4, seed=20240603)
+    resumed = kill_repeatedly(_cli(out), out, 4, seed=20240603, item_sleep=ITEM_SLEEP)
     assert 0 < resumed["resumed"] < _STARTS + 1  # the kills really left work to do
 
     # Independent reference: an uninterrupted in-process run with the same seeds.
@@ -231,7 +231,7 @@ def test_sigkilled_pareto_cli_resumes_to_the_uninterrupted_front(tmp_path: Path)
 
     out = tmp_path / "pareto"
     betas = parse_values(_PARETO_BETAS, "betas")
-    resumed = kill_repeatedly(_cli(out, "pareto"), out, 4, seed=20240604)
+    resumed = kill_repeatedly(_cli(out, "pareto"), out, 4, seed=20240604, item_sleep=ITEM_SLEEP)
     assert 0 < resumed["resumed"] < len(betas)  # the kills really left work to do
 
     # Independent reference: the uninterrupted sweep in this process (no worker, no store).
@@ -254,7 +254,7 @@ def test_sigkilled_bounds_cli_resumes_to_the_uninterrupted_study(tmp_path: Path)
     from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 
     out = tmp_path / "bounds"
-    resumed = kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605)
+    resumed = kill_repeatedly(_cli(out, "bounds"), out, 4, seed=20240605, item_sleep=ITEM_SLEEP)
 
     ref = bound_scaling_study(
         _cli_solver(),
