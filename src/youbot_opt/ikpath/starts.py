@@ -12,7 +12,6 @@ is drawn, and docs/design.md ("Module notes") why feasible is the default.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import overload
 
 import numpy as np
 
@@ -21,6 +20,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
+from youbot_opt.sweeps.lazy import LazySequence
 
 __all__ = [
     "START_KINDS",
@@ -105,7 +105,7 @@ def make_starts(
     return starts
 
 
-class IndexedStarts(Sequence[Array]):
+class IndexedStarts(LazySequence[Array]):
     """Starts drawn when asked for: ``starts[k]`` (negative ``k`` and slices as a list's).
 
     A subclass sets ``self._n`` and draws start ``j`` (``0 <= j < n``) in
@@ -113,20 +113,12 @@ class IndexedStarts(Sequence[Array]):
     """
 
     _n: int
+    noun = "start"
 
     def __len__(self) -> int:
         return self._n
 
-    @overload
-    def __getitem__(self, k: int) -> Array: ...
-    @overload
-    def __getitem__(self, k: slice) -> list[Array]: ...
-    def __getitem__(self, k: int | slice) -> Array | list[Array]:
-        if isinstance(k, slice):
-            return [self[j] for j in range(self._n)[k]]
-        j = k + self._n if k < 0 else k
-        if not 0 <= j < self._n:
-            raise IndexError(f"{self._n} start(s), got index {k}")
+    def _item(self, j: int) -> Array:
         return self.draw(j)
 
     def draw(self, j: int) -> Array:

@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
-from typing import Any, Generic, TypeVar, overload
+from typing import Any, Generic, TypeVar
 
 from youbot_opt.sweeps.cluster import KeepRule
-from youbot_opt.sweeps.selection import Clusters, ListEquality, stream_optima
+from youbot_opt.sweeps.lazy import LazySequence, ListEquality
+from youbot_opt.sweeps.selection import Clusters, stream_optima
 
 __all__ = ["ClusterIndices", "StartSummary", "StartTally", "StoredResults", "tally_starts"]
 
@@ -150,7 +151,7 @@ def tally_starts(summaries: Iterable[StartSummary[Any]], *, by_objective: bool) 
     return StartTally(n_starts=n, n_success=ok, status_counts=counts, closest=closest)
 
 
-class StoredResults(Sequence[R]):
+class StoredResults(LazySequence[R]):
     """The full results of a ``keep_results=False`` multistart, loaded when asked for.
 
     ``results[i]`` is the kept result of start ``i`` (best and distinct
@@ -190,16 +191,9 @@ class StoredResults(Sequence[R]):
     def __len__(self) -> int:
         return self._n
 
-    @overload
-    def __getitem__(self, i: int) -> R: ...
-    @overload
-    def __getitem__(self, i: slice) -> list[R]: ...
-    def __getitem__(self, i: int | slice) -> R | list[R]:
-        if isinstance(i, slice):
-            return [self[j] for j in range(self._n)[i]]
-        j = i + self._n if i < 0 else i
-        if not 0 <= j < self._n:
-            raise IndexError(f"{self._n} start(s), got index {i}")
+    noun = "start"
+
+    def _item(self, j: int) -> R:
         if j in self._kept:
             return self._kept[j]
         return self._load(j)
@@ -239,7 +233,7 @@ class StoredResults(Sequence[R]):
         return f"StoredResults({self._n} starts, {len(self._kept)} held)"
 
 
-class ClusterIndices(ListEquality, Sequence[int]):
+class ClusterIndices(ListEquality, LazySequence[int]):
     """Start indices of one distinct minimum, read from the optima members table.
 
     Parameters
@@ -276,17 +270,13 @@ class ClusterIndices(ListEquality, Sequence[int]):
         )
         return (self._index_of(k) for k in keys)
 
-    @overload
-    def __getitem__(self, i: int) -> int: ...
-    @overload
-    def __getitem__(self, i: slice) -> list[int]: ...
-    def __getitem__(self, i: int | slice) -> int | list[int]:
-        n = len(self)
-        if isinstance(i, slice):
-            return list(self)[i]
-        j = i + n if i < 0 else i
-        if not 0 <= j < n:
-            raise IndexError(f"minimum {self._number} has {n} start(s), got index {i}")
+    def _slice(self, s: slice) -> list[int]:
+        return list(self)[s]  # one pass over the table
+
+    def _index_error(self, i: int, n: int) -> str:
+        return f"minimum {self._number} has {n} start(s), got index {i}"
+
+    def _item(self, j: int) -> int:
         if j == 0 and not self._sorted:
             return self._index_of(self._clusters.representatives[self._number])
         return next(itertools.islice(iter(self), j, None))

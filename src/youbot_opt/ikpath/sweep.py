@@ -43,6 +43,7 @@ from youbot_opt.ikpath.stored import (
 )
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.sweeps.lazy import LazySequence
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import run_resumable
@@ -830,8 +831,10 @@ def json_summary(
     return json.loads(json.dumps(_summary(figures, index, result)))
 
 
-class _Attempts(Sequence[int]):
+class _Attempts(LazySequence[int]):
     """Attempts per start index, read from the store when asked for."""
+
+    noun = "start"
 
     def __init__(self, n: int, get: Callable[[int], int]) -> None:
         self._n, self._get = n, get
@@ -839,10 +842,5 @@ class _Attempts(Sequence[int]):
     def __len__(self) -> int:
         return self._n
 
-    def __getitem__(self, i: int) -> int:  # type: ignore[override]
-        if isinstance(i, slice):
-            return [self[j] for j in range(self._n)[i]]  # type: ignore[return-value]
-        j = i + self._n if i < 0 else i
-        if not 0 <= j < self._n:
-            raise IndexError(f"{self._n} start(s), got index {i}")
+    def _item(self, j: int) -> int:
         return self._get(j)

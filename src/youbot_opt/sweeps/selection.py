@@ -20,14 +20,15 @@ import sqlite3
 import uuid
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TypeVar, overload
+from typing import TypeVar
 
 from youbot_opt._files import fsync_dir
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.index import CACHE_KIB
+from youbot_opt.sweeps.lazy import LazySequence, ListEquality
 
-__all__ = ["ClusterKeys", "Clusters", "ListEquality", "stream_optima"]
+__all__ = ["ClusterKeys", "Clusters", "stream_optima"]
 
 T = TypeVar("T")
 
@@ -41,19 +42,7 @@ def _connect(path: str) -> sqlite3.Connection:
     return db
 
 
-class ListEquality:
-    """Mixin: a lazy sequence equals any sequence of equal items, as a list does (unhashable)."""
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Sequence) or isinstance(other, str):
-            return NotImplemented
-        mine: Sequence[object] = self  # type: ignore[assignment]
-        return len(mine) == len(other) and all(a == b for a, b in zip(mine, other, strict=True))
-
-    __hash__ = None  # type: ignore[assignment]
-
-
-class ClusterKeys(ListEquality, Sequence[str]):
+class ClusterKeys(ListEquality, LazySequence[str]):
     """The keys of one cluster, its representative first, read from the membership table."""
 
     def __init__(self, owner: Clusters, number: int) -> None:
@@ -62,17 +51,13 @@ class ClusterKeys(ListEquality, Sequence[str]):
     def __len__(self) -> int:
         return self._owner.counts[self._number]
 
-    @overload
-    def __getitem__(self, i: int) -> str: ...
-    @overload
-    def __getitem__(self, i: slice) -> Sequence[str]: ...
-    def __getitem__(self, i: int | slice) -> str | Sequence[str]:
-        if isinstance(i, slice):
-            return list(self)[i]
-        n = len(self)
-        j = i + n if i < 0 else i
-        if not 0 <= j < n:
-            raise IndexError(f"cluster {self._number} has {n} member(s), got index {i}")
+    def _slice(self, s: slice) -> Sequence[str]:
+        return list(self)[s]  # one pass over the table
+
+    def _index_error(self, i: int, n: int) -> str:
+        return f"cluster {self._number} has {n} member(s), got index {i}"
+
+    def _item(self, j: int) -> str:
         if j == 0:
             return self._owner.representatives[self._number]
         return self._owner._member(self._number, j)
@@ -84,7 +69,7 @@ class ClusterKeys(ListEquality, Sequence[str]):
         return f"ClusterKeys({self[0]!r}, +{len(self) - 1} member(s))"
 
 
-class Clusters(ListEquality, Sequence[ClusterKeys]):
+class Clusters(ListEquality, LazySequence[ClusterKeys]):
     """Distinct optima as keys: representatives and member counts in memory, members on disk.
 
     Attributes
@@ -209,17 +194,9 @@ class Clusters(ListEquality, Sequence[ClusterKeys]):
     def __len__(self) -> int:
         return len(self.representatives)
 
-    @overload
-    def __getitem__(self, i: int) -> ClusterKeys: ...
-    @overload
-    def __getitem__(self, i: slice) -> Sequence[ClusterKeys]: ...
-    def __getitem__(self, i: int | slice) -> ClusterKeys | Sequence[ClusterKeys]:
-        if isinstance(i, slice):
-            return [ClusterKeys(self, j) for j in range(len(self))[i]]
-        n = len(self)
-        j = i + n if i < 0 else i
-        if not 0 <= j < n:
-            raise IndexError(f"{n} cluster(s), got index {i}")
+    noun = "cluster"
+
+    def _item(self, j: int) -> ClusterKeys:
         return ClusterKeys(self, j)
 
     def __repr__(self) -> str:

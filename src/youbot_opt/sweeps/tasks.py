@@ -24,9 +24,10 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from multiprocessing.reduction import ForkingPickler
 from types import MappingProxyType
-from typing import Any, overload
+from typing import Any
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.lazy import LazySequence
 
 __all__ = [
     "Task",
@@ -110,7 +111,7 @@ class Task:
     attempts: int = 0
 
 
-class TaskSequence(Sequence[Task]):
+class TaskSequence(LazySequence[Task]):
     """The tasks of a sweep made when asked for: task ``i`` is ``make(i)``, none is stored.
 
     A sweep with ``keep_results=False`` given one never holds all its tasks:
@@ -150,16 +151,9 @@ class TaskSequence(Sequence[Task]):
     def __len__(self) -> int:
         return self._count
 
-    @overload
-    def __getitem__(self, i: int) -> Task: ...
-    @overload
-    def __getitem__(self, i: slice) -> Sequence[Task]: ...
-    def __getitem__(self, i: int | slice) -> Task | Sequence[Task]:
-        if isinstance(i, slice):
-            return [self._make(j) for j in range(*i.indices(self._count))]
-        j = i + self._count if i < 0 else i
-        if not 0 <= j < self._count:
-            raise IndexError(f"task index {i} out of range for {self._count} tasks")
+    noun = "task"
+
+    def _item(self, j: int) -> Task:
         return self._make(j)
 
     def __iter__(self) -> Iterator[Task]:

@@ -13,15 +13,23 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterator, Mapping, Sequence
-from typing import overload
 
-from youbot_opt.sweeps.selection import ListEquality
+from youbot_opt.sweeps.lazy import LazySequence, ListEquality
 from youbot_opt.trajopt.sweep import StartJobs, StartOutcome
 
 __all__ = ["ConvergedStarts", "OptimumMembers", "StoredStarts"]
 
 
-class StoredStarts(ListEquality, Sequence[StartOutcome]):
+class _LazyStarts(ListEquality, LazySequence[StartOutcome]):
+    """A sequence of starts read on demand, equal to a tuple of the same starts."""
+
+    noun = "start"
+
+    def _slice(self, s: slice) -> tuple[StartOutcome, ...]:
+        return tuple(self._item(j) for j in range(len(self))[s])
+
+
+class StoredStarts(_LazyStarts):
     """The starts of a ``keep_results=False`` multistart, read from its folder when asked for.
 
     Start ``i`` is ``outcomes[jobs[i].key]`` each time (its figures from the
@@ -35,21 +43,11 @@ class StoredStarts(ListEquality, Sequence[StartOutcome]):
     def __len__(self) -> int:
         return len(self._jobs)
 
-    @overload
-    def __getitem__(self, i: int) -> StartOutcome: ...
-    @overload
-    def __getitem__(self, i: slice) -> tuple[StartOutcome, ...]: ...
-    def __getitem__(self, i: int | slice) -> StartOutcome | tuple[StartOutcome, ...]:
-        if isinstance(i, slice):
-            return tuple(self[j] for j in range(len(self))[i])
-        return self._outcomes[self._jobs[i].key]
+    def _item(self, j: int) -> StartOutcome:
+        return self._outcomes[self._jobs[j].key]
 
     def __repr__(self) -> str:
         return f"StoredStarts({len(self)} starts)"
-
-
-class _LazyStarts(ListEquality, Sequence[StartOutcome]):
-    """A sequence of starts read on demand, equal to a tuple of the same starts."""
 
 
 class OptimumMembers(_LazyStarts):
@@ -66,14 +64,8 @@ class OptimumMembers(_LazyStarts):
     def __len__(self) -> int:
         return len(self._keys)
 
-    @overload
-    def __getitem__(self, i: int) -> StartOutcome: ...
-    @overload
-    def __getitem__(self, i: slice) -> tuple[StartOutcome, ...]: ...
-    def __getitem__(self, i: int | slice) -> StartOutcome | tuple[StartOutcome, ...]:
-        if isinstance(i, slice):
-            return tuple(self[j] for j in range(len(self))[i])
-        return self._starts[self._keys[i]]
+    def _item(self, j: int) -> StartOutcome:
+        return self._starts[self._keys[j]]
 
     def __iter__(self) -> Iterator[StartOutcome]:
         return (self._starts[k] for k in self._keys)
@@ -98,17 +90,9 @@ class ConvergedStarts(_LazyStarts):
     def __iter__(self) -> Iterator[StartOutcome]:
         return (s for s in self._starts if s.success)
 
-    @overload
-    def __getitem__(self, i: int) -> StartOutcome: ...
-    @overload
-    def __getitem__(self, i: slice) -> tuple[StartOutcome, ...]: ...
-    def __getitem__(self, i: int | slice) -> StartOutcome | tuple[StartOutcome, ...]:
-        if isinstance(i, slice):
-            return tuple(self[j] for j in range(len(self))[i])
-        n = len(self)
-        j = i + n if i < 0 else i
-        if not 0 <= j < n:
-            raise IndexError(f"{n} converged start(s), got index {i}")
+    noun = "converged start"
+
+    def _item(self, j: int) -> StartOutcome:
         return next(itertools.islice(iter(self), j, None))
 
     def __repr__(self) -> str:

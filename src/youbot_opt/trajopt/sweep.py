@@ -22,12 +22,13 @@ import time
 from collections import Counter
 from collections.abc import Callable, MutableMapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, NamedTuple, overload
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.sweeps.lazy import LazySequence
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context
 from youbot_opt.sweeps.resume import run_resumable
@@ -533,7 +534,7 @@ def make_jobs(
     )
 
 
-class StartJobs(Sequence[_StartJob]):
+class StartJobs(LazySequence[_StartJob]):
     """The start jobs of one multistart made when asked for; equal to :func:`make_jobs`'s.
 
     Job ``i`` is built from its index alone (start ``k``'s seed is
@@ -572,17 +573,9 @@ class StartJobs(Sequence[_StartJob]):
     def __len__(self) -> int:
         return self._n + self._straight
 
-    @overload
-    def __getitem__(self, i: int) -> _StartJob: ...
-    @overload
-    def __getitem__(self, i: slice) -> Sequence[_StartJob]: ...
-    def __getitem__(self, i: int | slice) -> _StartJob | Sequence[_StartJob]:
-        if isinstance(i, slice):
-            return [self[j] for j in range(len(self))[i]]
-        n = len(self)
-        j = i + n if i < 0 else i
-        if not 0 <= j < n:
-            raise IndexError(f"{n} start job(s), got index {i}")
+    noun = "start job"
+
+    def _item(self, j: int) -> _StartJob:
         if self._straight and j == 0:
             return _StartJob(key=f"{self._prefix}straight", index=-1, seed=None,
                              guess="straight", **self._common)  # fmt: skip
@@ -604,7 +597,7 @@ class StartJobs(Sequence[_StartJob]):
         raise KeyError(key)
 
 
-class StartJobChain(Sequence[_StartJob]):
+class StartJobChain(LazySequence[_StartJob]):
     """Several :class:`StartJobs` in a row (e.g. one per bound scale), made when asked for.
 
     Parameters
@@ -620,17 +613,9 @@ class StartJobChain(Sequence[_StartJob]):
     def __len__(self) -> int:
         return int(self._ends[-1]) if self.parts else 0
 
-    @overload
-    def __getitem__(self, i: int) -> _StartJob: ...
-    @overload
-    def __getitem__(self, i: slice) -> Sequence[_StartJob]: ...
-    def __getitem__(self, i: int | slice) -> _StartJob | Sequence[_StartJob]:
-        if isinstance(i, slice):
-            return [self[j] for j in range(len(self))[i]]
-        n = len(self)
-        j = i + n if i < 0 else i
-        if not 0 <= j < n:
-            raise IndexError(f"{n} start job(s), got index {i}")
+    noun = "start job"
+
+    def _item(self, j: int) -> _StartJob:
         part = int(np.searchsorted(self._ends, j, side="right"))
         return self.parts[part][j - (int(self._ends[part - 1]) if part else 0)]
 
