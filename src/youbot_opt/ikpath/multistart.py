@@ -369,62 +369,39 @@ def run_multistart(
             clean=sweep.shard is None,
         )
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
+    run = replace(sweep, executor=executor, workers=workers)
+    results: Sequence[IKPathResult]
+    attempts: Sequence[int]
+    tally: StartTally | None = None
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
-            problem,
-            x0s,
-            method=method,
-            options=options,
-            sweep=replace(sweep, executor=executor, workers=workers),
-            solvers=PLANAR_STARTS,
-            store=store,
-            distance=_result_distance,
-            e_tol=e_tol,
-            q_tol=q_tol,
-            by_objective=True,
-            on_resumed=on_resumed,
-            on_final=on_final,
-        )
-        return MultistartResult(
-            problem=problem,
-            method=method,
-            seed=int(seed),
-            results=streamed.results,
-            minima=_stored_minima(streamed.minima, streamed.kept),
-            verdicts=found,
-            wall_time=time.perf_counter() - t0,
-            n_workers=workers,
-            attempts=streamed.attempts,
-            resumed=streamed.resumed,
-            output=store.directory,
-            tally=streamed.tally,
-            e_tol=e_tol,
-            q_tol=q_tol,
-        )
-    outcome = solve_starts(
-        problem,
-        np.asarray(x0s),  # drawn together by make_starts when keep_results=True
-        method=method,
-        options=options,
-        sweep=replace(sweep, executor=executor, workers=workers),
-        solvers=PLANAR_STARTS,
-        store=store,
-        on_resumed=on_resumed,
-        on_final=on_final,
-    )
+            problem, x0s, method=method, options=options, sweep=run, solvers=PLANAR_STARTS,
+            store=store, distance=_result_distance, e_tol=e_tol, q_tol=q_tol,
+            by_objective=True, on_resumed=on_resumed, on_final=on_final,
+        )  # fmt: skip
+        results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
+        minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
+    else:  # the starts were drawn together by make_starts
+        outcome = solve_starts(
+            problem, np.asarray(x0s), method=method, options=options, sweep=run,
+            solvers=PLANAR_STARTS, store=store, on_resumed=on_resumed, on_final=on_final,
+        )  # fmt: skip
+        results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
+        minima = cluster_minima(outcome.results, e_tol=e_tol, q_tol=q_tol)
     return MultistartResult(
         problem=problem,
         method=method,
         seed=int(seed),
-        results=outcome.results,
-        minima=cluster_minima(outcome.results, e_tol=e_tol, q_tol=q_tol),
+        results=results,
+        minima=minima,
         verdicts=found,
         wall_time=time.perf_counter() - t0,
         n_workers=workers,
-        attempts=outcome.attempts,
-        resumed=outcome.resumed,
+        attempts=attempts,
+        resumed=resumed,
         output=None if store is None else store.directory,
+        tally=tally,
         e_tol=e_tol,
         q_tol=q_tol,
     )
