@@ -199,6 +199,21 @@ def test_cli_no_keep_results_runs_end_to_end(tmp_path, capsys):
     assert (tmp_path / "--no-keep-results" / "ikpath_minima.png").is_file()
 
 
+def test_summary_rows_of_a_lean_run_are_streamed_from_the_journal(two_link, tmp_path):
+    """``start_fields`` of stored results holds no row: it reads the journal when written."""
+    from youbot_opt._files import StreamedList
+    from youbot_opt.cli.ikpath_starts import start_fields
+
+    lean = _planar(two_link, tmp_path / "lean", keep=False)
+    full = _planar(two_link, tmp_path / "full", keep=True)
+    streamed = start_fields(lean.results, lean.attempts)
+    held = start_fields(full.results, full.attempts)
+    assert isinstance(streamed["start_outcomes"], StreamedList)
+    assert len(streamed["start_outcomes"]) == N
+    assert list(streamed["start_outcomes"]) == held["start_outcomes"]
+    assert streamed["retried"] == held["retried"]
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_sigkilled_lean_cli_multistart_resumes_to_the_full_result(two_link, tmp_path):

@@ -15,7 +15,6 @@ Starts are saved in --out DIR as they finish; a rerun resumes. Details: docs/ikp
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -423,7 +422,7 @@ def _write_outputs(
 
 
 def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.cli.output import json_ready, print_outputs, run_folder
+    from youbot_opt.cli.output import print_json, print_outputs, run_folder
     from youbot_opt.ikpath.augmented_lagrangian import ALOptions
     from youbot_opt.ikpath.ipopt import IpoptOptions
     from youbot_opt.ikpath.multistart import run_multistart
@@ -485,7 +484,7 @@ def _run(args: argparse.Namespace) -> int:
     doc = _report(args, problem, verdicts, ms)
     files = _write_outputs(args, folder, problem, verdicts, ms, doc)
     if args.json:
-        print(json.dumps(json_ready(doc), indent=2))
+        print_json(doc)
     else:
         _print_text(doc)
     print_outputs(folder, files)

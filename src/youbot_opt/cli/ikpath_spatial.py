@@ -15,7 +15,6 @@ the best start succeeded, 1 otherwise.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from dataclasses import replace
@@ -156,7 +155,7 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
 def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import scheduler_address
-    from youbot_opt.cli.output import json_ready, print_outputs, run_folder, save_figure
+    from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
     from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
     from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
@@ -263,7 +262,7 @@ def run_spatial(args: argparse.Namespace) -> int:
 
     files.append(write_summary(folder, doc))
     if args.json:
-        print(json.dumps(json_ready(doc), indent=2))
+        print_json(doc)
     else:
         _print_text(doc, robot.name, frame, len(targets), args.method)
     print_outputs(folder, files)

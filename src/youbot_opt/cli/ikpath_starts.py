@@ -13,7 +13,7 @@ import argparse
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -107,22 +107,35 @@ def start_fields(
         Attempts per start (empty: unknown, written as ``null``).
     detail : callable ``(result or StartSummary) -> dict``, optional
         Mode-specific fields of each start, written after ``E``.
+
+    Returns
+    -------
+    dict
+        ``retried`` (indices of the starts that needed more than one attempt)
+        and ``start_outcomes`` (one row per start; from a ``StoredResults`` a
+        :class:`~youbot_opt._files.StreamedList` that reads the journal again
+        each time it is iterated, so ``summary.json`` and ``--json`` write the
+        rows one at a time and a sweep of a million starts does not hold them).
     """
+    from youbot_opt._files import StreamedList
     from youbot_opt.ikpath.stored import StoredResults
 
-    if isinstance(results, StoredResults):  # one start at a time from the journal
-        rows = [
-            {
-                "index": s.index,
-                "status": s.status,
-                "E": s.objective,
-                **({} if detail is None else detail(s)),
-                "attempts": s.attempts,
-                "message": None if s.success else s.message,
-            }
-            for s in results.summaries()
-        ]
-        return {"retried": [o["index"] for o in rows if o["attempts"] > 1], "start_outcomes": rows}
+    if isinstance(results, StoredResults):  # streamed from the journal, never all in memory
+        stored = results
+
+        def rows() -> Iterator[dict[str, Any]]:
+            for s in stored.summaries():
+                yield {
+                    "index": s.index,
+                    "status": s.status,
+                    "E": s.objective,
+                    **({} if detail is None else detail(s)),
+                    "attempts": s.attempts,
+                    "message": None if s.success else s.message,
+                }
+
+        retried = [s.index for s in stored.summaries() if s.attempts > 1]
+        return {"retried": retried, "start_outcomes": StreamedList(rows, len(stored))}
     return {
         "retried": [i for i, a in enumerate(attempts) if a > 1],
         "start_outcomes": [

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 import math
 import sys
 import time
@@ -21,7 +20,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, TextIO
 
-from youbot_opt._files import atomic_write_bytes, json_ready
+from youbot_opt._files import atomic_writer, json_ready, write_json_stream
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -32,6 +31,7 @@ __all__ = [
     "run_folder",
     "json_ready",
     "write_summary",
+    "print_json",
     "save_figure",
     "print_outputs",
     "ProgressLine",
@@ -118,10 +118,21 @@ def run_folder(
 def write_summary(
     folder: str | Path, summary: Mapping[str, Any], name: str = "summary.json"
 ) -> Path:
-    """Write ``summary`` as indented JSON to ``folder/name`` atomically; return the path."""
+    """Write ``summary`` as indented JSON to ``folder/name`` atomically; return the path.
+
+    A :class:`~youbot_opt._files.StreamedList` in ``summary`` (a sweep's
+    per-start rows) is written one item at a time, so the file's size, not
+    the document's, never sits in memory.
+    """
     path = Path(folder) / name
-    atomic_write_bytes(path, (json.dumps(json_ready(summary), indent=2) + "\n").encode())
+    with atomic_writer(path) as handle:
+        write_json_stream(handle, json_ready(summary))
     return path
+
+
+def print_json(doc: Mapping[str, Any], stream: IO[str] | None = None) -> None:
+    """Print ``doc`` as indented JSON (``--json``) to stdout, streaming its long lists."""
+    write_json_stream(sys.stdout if stream is None else stream, json_ready(doc))
 
 
 def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
