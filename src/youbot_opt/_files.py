@@ -1,13 +1,11 @@
 """The files youbot_opt writes: atomic writes, JSON sanitising, the schema header.
 
 Owns what every writer of a result, record, manifest or summary needs, written
-once: :func:`atomic_write_bytes` (a kill leaves the old file or the new one,
-never a torn one), :func:`json_ready` (numpy values, paths and enums to plain
-JSON, non-finite floats to ``null``) and :func:`schema_header` /
-:func:`check_schema_header` (schema name, version, writing software, checksum),
-and :func:`write_json_stream` / :class:`StreamedList` for a document with one
-list too long to hold in memory (a sweep's per-start rows).
-Layer 0: no robotics. Example::
+once: :func:`atomic_write_bytes` (a kill leaves the old file or the new one),
+:func:`json_ready` (numpy values, paths, enums to JSON, NaN/inf to ``null``),
+:func:`write_json_stream` (lists too long for memory, :class:`StreamedList`,
+one item at a time) and :func:`schema_header` / :func:`check_schema_header`
+(schema name, version, writing software, checksum). Layer 0. Example::
 
     doc = {**schema_header("youbot_opt.x", 1, sha256=json_digest(body)), "result": body}
     atomic_write_text(path, json.dumps(json_ready(doc), allow_nan=False))
