@@ -120,33 +120,28 @@ def start_fields(
     from youbot_opt._files import StreamedList
     from youbot_opt.ikpath.stored import StoredResults
 
+    def row(index: int, status: str, r: Any, attempts: int | None) -> dict[str, Any]:  # noqa: ANN401
+        return {
+            "index": index,
+            "status": status,
+            "E": r.objective,
+            **({} if detail is None else detail(r)),
+            "attempts": attempts,
+            "message": None if r.success else r.message,
+        }
+
     if isinstance(results, StoredResults):  # streamed from the journal, never all in memory
         stored = results
 
         def rows() -> Iterator[dict[str, Any]]:
-            for s in stored.summaries():
-                yield {
-                    "index": s.index,
-                    "status": s.status,
-                    "E": s.objective,
-                    **({} if detail is None else detail(s)),
-                    "attempts": s.attempts,
-                    "message": None if s.success else s.message,
-                }
+            return (row(s.index, s.status, s, s.attempts) for s in stored.summaries())
 
         retried = [s.index for s in stored.summaries() if s.attempts > 1]
         return {"retried": retried, "start_outcomes": StreamedList(rows, len(stored))}
     return {
         "retried": [i for i, a in enumerate(attempts) if a > 1],
         "start_outcomes": [
-            {
-                "index": i,
-                "status": r.status.value,
-                "E": r.objective,
-                **({} if detail is None else detail(r)),
-                "attempts": attempts[i] if attempts else None,
-                "message": None if r.success else r.message,
-            }
+            row(i, r.status.value, r, attempts[i] if attempts else None)
             for i, r in enumerate(results)
         ],
     }
