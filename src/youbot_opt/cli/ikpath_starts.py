@@ -113,11 +113,11 @@ def start_fields(
     dict
         ``retried`` (indices of the starts that needed more than one attempt)
         and ``start_outcomes`` (one row per start; from a ``StoredResults`` a
-        :class:`~youbot_opt._files.StreamedList` that reads the journal again
+        :class:`~youbot_opt.cli.output.StreamedList` that reads the journal again
         each time it is iterated, so ``summary.json`` and ``--json`` write the
         rows one at a time and a sweep of a million starts does not hold them).
     """
-    from youbot_opt._files import StreamedList
+    from youbot_opt.cli.output import StreamedList
     from youbot_opt.ikpath.stored import StoredResults
 
     def row(index: int, status: str, r: Any, attempts: int | None) -> dict[str, Any]:  # noqa: ANN401

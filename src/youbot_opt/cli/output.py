@@ -20,7 +20,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, TextIO
 
-from youbot_opt._files import atomic_writer, json_ready, write_json_stream
+from youbot_opt._files import StreamedList, atomic_writer, json_ready, write_json_stream
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -30,6 +30,7 @@ __all__ = [
     "add_command",
     "run_folder",
     "json_ready",
+    "StreamedList",
     "write_summary",
     "print_json",
     "save_figure",
