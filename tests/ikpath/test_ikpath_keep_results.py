@@ -24,13 +24,10 @@ from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
-from youbot_opt.ikpath.spatial import SpatialIKProblem
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.spatial_starts import SpatialStarts, make_spatial_starts
 from youbot_opt.ikpath.starts import PlanarStarts, make_starts
 from youbot_opt.ikpath.stored import StoredResults
-from youbot_opt.ikpath.targets import SpatialTarget
-from youbot_opt.robot.model import load_model
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_records
 
@@ -40,24 +37,6 @@ N = 24  # planar starts: 14-ish distinct minima, several found more than once
 @pytest.fixture(scope="module")
 def two_link() -> CyclicIKProblem:
     return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
-
-
-@pytest.fixture(scope="module")
-def ur5() -> SpatialIKProblem:
-    """UR5 through 3 positions that are placements of random angles (so reachable)."""
-    robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model,
-        frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
-    )
-    rng = np.random.default_rng(0)
-    return base.with_targets(
-        tuple(
-            SpatialTarget(position=base.placement(rng.uniform(-2, 2, 6)).translation)
-            for _ in range(3)
-        )
-    )
 
 
 def _planar(problem, out, *, keep, workers=1, progress=None, **kw) -> MultistartResult:  # type: ignore[no-untyped-def]
@@ -123,10 +102,12 @@ def test_planar_nothing_succeeded_best_is_the_start_closest_to_the_targets(two_l
 
 
 @pytest.mark.parametrize("workers", [1, 2])
-def test_spatial_lean_run_equals_the_full_run(ur5, tmp_path, workers):
+def test_spatial_lean_run_equals_the_full_run(ur5_reachable, tmp_path, workers):
     def run(out, keep) -> SpatialMultistart:  # type: ignore[no-untyped-def]
         sweep = SweepOptions(out=out, keep_results=keep)
-        return run_spatial_multistart(ur5, n_starts=8, seed=1, workers=workers, sweep=sweep)
+        return run_spatial_multistart(
+            ur5_reachable, n_starts=8, seed=1, workers=workers, sweep=sweep
+        )
 
     full, lean = run(tmp_path / "full", True), run(tmp_path / "lean", False)
     assert isinstance(lean.results, StoredResults) and lean.results.held == len(lean.minima)
@@ -171,13 +152,13 @@ def test_an_interrupted_lean_sweep_resumes_to_the_full_result(two_link, tmp_path
     assert again.status_counts() == full.status_counts()
 
 
-def test_lazy_starts_equal_the_drawn_arrays(two_link, ur5, monkeypatch):
+def test_lazy_starts_equal_the_drawn_arrays(two_link, ur5_reachable, monkeypatch):
     """Per-index planar starts and checkpointed spatial starts, in any order of access."""
     planar = make_starts(two_link, 7, 3)
     np.testing.assert_array_equal(np.array(list(PlanarStarts(two_link, 7, 3))), planar)
     monkeypatch.setattr("youbot_opt.ikpath.spatial_starts.CHECKPOINT", 2)
-    drawn = make_spatial_starts(ur5, 9, 5, kind="mixed")
-    lazy = SpatialStarts(ur5, 9, 5, kind="mixed")
+    drawn = make_spatial_starts(ur5_reachable, 9, 5, kind="mixed")
+    lazy = SpatialStarts(ur5_reachable, 9, 5, kind="mixed")
     for k in (3, 8, 0, 1, 6, 2, 7, 5, 4, -1):  # backwards jumps restart from a checkpoint
         np.testing.assert_array_equal(lazy[k], drawn[k])
 

@@ -8,37 +8,17 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik
+from youbot_opt.ikpath.spatial import dls_ik
 from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.robot.model import load_model
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardFinished
 
 
-@pytest.fixture(scope="module")
-def ur5_problem() -> SpatialIKProblem:
-    """UR5 through 3 positions that are placements of random angles (so reachable)."""
-    robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model,
-        frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
-    )
-    rng = np.random.default_rng(0)
-    return base.with_targets(
-        tuple(
-            SpatialTarget(position=base.placement(rng.uniform(-2, 2, 6)).translation)
-            for _ in range(3)
-        )
-    )
-
-
-def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur5_problem):
-    p = ur5_problem
+def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur5_reachable):
+    p = ur5_reachable
     five = make_spatial_starts(p, 5, seed=4, kind="coherent")
     np.testing.assert_array_equal(make_spatial_starts(p, 3, seed=4, kind="coherent"), five[:3])
     assert not np.array_equal(make_spatial_starts(p, 5, seed=5, kind="coherent"), five)
@@ -61,17 +41,17 @@ def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur
         make_spatial_starts(p, 2, seed=0, kind="feasible")
 
 
-def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_problem, tmp_path):
+def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachable, tmp_path):
     def run(**kw):
         sweep = SweepOptions(executor="serial", out=tmp_path, **kw)
-        return run_spatial_multistart(ur5_problem, method="ipopt", n_starts=4, sweep=sweep)
+        return run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4, sweep=sweep)
 
     with pytest.raises(ShardFinished) as info:  # share 1 of 2: starts 0 and 2
         run(shard=(1, 2))
     assert (info.value.ran, info.value.finished, info.value.total) == (2, 2, 4)
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["kind"] == "spatial_ikpath_multistart"
-    assert manifest["params"]["problem"]["joint_names"] == list(ur5_problem.joint_names)
+    assert manifest["params"]["problem"]["joint_names"] == list(ur5_reachable.joint_names)
     calls = []
     collected = run(progress=lambda *a: calls.append(a))
     assert collected.resumed == 2 and collected.attempts == (1, 1, 1, 1)
@@ -81,7 +61,7 @@ def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_problem,
     assert calls[-1][2] == min(r.objective for r in collected.results if r.success)
     again = run()
     assert again.resumed == 4
-    fresh = run_spatial_multistart(ur5_problem, method="ipopt", n_starts=4)
+    fresh = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4)
     for a, b, c in zip(fresh.results, collected.results, again.results, strict=True):
         assert a.status is b.status is c.status
         # Loaded starts keep the stored angles; every start is the same IPOPT from the
@@ -90,15 +70,15 @@ def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_problem,
         np.testing.assert_array_equal(b.configurations, c.configurations)
     with pytest.raises(ParameterError):  # another sweep in the same folder
         run_spatial_multistart(
-            ur5_problem, method="ipopt", n_starts=4, seed=1, sweep=SweepOptions(out=tmp_path)
+            ur5_reachable, method="ipopt", n_starts=4, seed=1, sweep=SweepOptions(out=tmp_path)
         )
 
 
 def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
-    ur5_problem, tmp_path, monkeypatch
+    ur5_reachable, tmp_path, monkeypatch
 ):
     real = SpatialIpoptSolver.solve
-    x_first = make_spatial_starts(ur5_problem, 1, seed=0)[0]
+    x_first = make_spatial_starts(ur5_reachable, 1, seed=0)[0]
     calls = []
 
     def flaky(self, x0=None):
@@ -109,21 +89,21 @@ def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
 
     monkeypatch.setattr(SpatialIpoptSolver, "solve", flaky)
     sweep = SweepOptions(executor="serial", out=tmp_path)
-    res = run_spatial_multistart(ur5_problem, method="ipopt", n_starts=3, sweep=sweep)
+    res = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
     assert len(calls) == 2 and res.attempts == (2, 1, 1)
     assert res.results[0].status is SolveStatus.CRASHED
     assert res.results[0].message.startswith("RuntimeError: boom")
     assert res.status_counts()["crashed"] == 1 and res.best_index != 0
-    again = run_spatial_multistart(ur5_problem, method="ipopt", n_starts=3, sweep=sweep)
+    again = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
     assert len(calls) == 2 and again.resumed == 3  # out of attempts: not tried again
     assert again.results[0].status is SolveStatus.CRASHED
     assert again.results[0].message.startswith("RuntimeError: boom")
 
 
-def test_process_pool_equals_serial(ur5_problem):
-    serial = run_spatial_multistart(ur5_problem, method="ipopt", n_starts=4)
+def test_process_pool_equals_serial(ur5_reachable):
+    serial = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4)
     pooled = run_spatial_multistart(
-        ur5_problem, method="ipopt", n_starts=4, sweep=SweepOptions(executor="process", workers=2)
+        ur5_reachable, method="ipopt", n_starts=4, sweep=SweepOptions(executor="process", workers=2)
     )
     assert serial.workers == 1 and pooled.workers == 2
     # The same IPOPT from the same starts, in worker processes: equal to rounding (1e-10 rad).

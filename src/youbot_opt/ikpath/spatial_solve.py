@@ -381,6 +381,9 @@ def run_spatial_multistart(
         )
         return float(np.max(np.abs(diff - shift)))
 
+    tally: StartTally | None = None
+    results: Sequence[SpatialIKResult]
+    minima: tuple[Sequence[int], ...]
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
@@ -398,48 +401,39 @@ def run_spatial_multistart(
             on_resumed=on_resumed,
             on_final=on_final,
         )
-        return SpatialMultistart(
-            results=streamed.results,
-            minima=streamed.minima,
-            wall_time=time.perf_counter() - t0,
-            workers=n_workers,
+        results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
+        minima, tally = streamed.minima, streamed.tally
+    else:
+        outcome = solve_starts(
+            problem,
+            np.asarray(x0s),  # drawn together by make_starts when keep_results=True
             method=method,
-            seed=int(seed),
-            start_kind=starts,
-            attempts=streamed.attempts,
-            resumed=streamed.resumed,
-            output=store.directory,
-            tally=streamed.tally,
+            options=options,
+            sweep=sweep,
+            solvers=SPATIAL_STARTS,
+            store=store,
+            on_resumed=on_resumed,
+            on_final=on_final,
         )
-    outcome = solve_starts(
-        problem,
-        np.asarray(x0s),  # drawn together by make_starts when keep_results=True
-        method=method,
-        options=options,
-        sweep=sweep,
-        solvers=SPATIAL_STARTS,
-        store=store,
-        on_resumed=on_resumed,
-        on_final=on_final,
-    )
-    results = outcome.results
-
-    groups = cluster_optima(
-        (i for i, r in enumerate(results) if r.success),
-        objective=lambda i: results[i].objective,
-        distance=lambda a, b: distance_of(results[a], results[b]),
-        obj_tol=e_tol,
-        dist_tol=q_tol,
-    )
+        results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
+        groups = cluster_optima(
+            (i for i, r in enumerate(results) if r.success),
+            objective=lambda i: results[i].objective,
+            distance=lambda a, b: distance_of(results[a], results[b]),
+            obj_tol=e_tol,
+            dist_tol=q_tol,
+        )
+        minima = tuple(tuple(g) for g in groups)
     return SpatialMultistart(
         results=results,
-        minima=tuple(tuple(g) for g in groups),
+        minima=minima,
         wall_time=time.perf_counter() - t0,
         workers=n_workers,
         method=method,
         seed=int(seed),
         start_kind=starts,
-        attempts=outcome.attempts,
-        resumed=outcome.resumed,
+        attempts=attempts,
+        resumed=resumed,
         output=None if store is None else store.directory,
+        tally=tally,
     )

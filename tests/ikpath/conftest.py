@@ -1,0 +1,28 @@
+"""Fixtures shared by the IK-path tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from youbot_opt.ikpath.spatial import SpatialIKProblem
+from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.robot.model import load_model
+
+
+@pytest.fixture(scope="module")
+def ur5_reachable() -> SpatialIKProblem:
+    """UR5 through 3 positions that are placements of random angles (so reachable)."""
+    robot = load_model("ur5")
+    base = SpatialIKProblem(
+        model=robot.model,
+        frame=robot.tip_frame,
+        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+    )
+    rng = np.random.default_rng(0)
+    return base.with_targets(
+        tuple(
+            SpatialTarget(position=base.placement(rng.uniform(-2, 2, 6)).translation)
+            for _ in range(3)
+        )
+    )
