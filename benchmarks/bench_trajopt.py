@@ -761,8 +761,13 @@ class DrakeBaselines:
         return wall, cpu, float(result.get_optimal_cost()), bool(result.is_success())
 
 
-def side_by_side(drake_repeats: int, ours_total: int = 10) -> dict[str, Any]:
+def side_by_side(
+    drake_repeats: int, ours_total: int = 10, options: IpoptOptions | None = None
+) -> dict[str, Any]:
     """Ours through ``TrajOptSolver.solve()`` against Drake, in alternating runs.
+
+    ``options`` are our solvers' IPOPT options (default: the library's; e.g.
+    another linear solver); Drake keeps its own IPOPT settings and MUMPS.
 
     Each of our solvers is built as a user builds it and warmed up with one
     solve; then ``drake_repeats`` rounds each run, per method, one uncounted
@@ -773,7 +778,7 @@ def side_by_side(drake_repeats: int, ours_total: int = 10) -> dict[str, Any]:
     """
     for m in METHODS:  # fill the kernel cache first (a user's second session)
         TrajOptSolver(study1_problem(50), m, compile="wait")
-    ours = {m: TrajOptSolver(study1_problem(50), m) for m in METHODS}
+    ours = {m: TrajOptSolver(study1_problem(50), m, options) for m in METHODS}
     for solver in ours.values():
         solver.solve(beta=BETA)  # warm-up (first call)
     try:
@@ -807,7 +812,7 @@ def side_by_side(drake_repeats: int, ours_total: int = 10) -> dict[str, Any]:
                 runs[m]["drake_cpu"].append(cpu)
                 runs[m]["drake_wall"].append(wall)
                 drake_f[m] = (f, ok)
-    out: dict[str, Any] = {"note": note}
+    out: dict[str, Any] = {"note": note, "linear_solver": ours[METHODS[0]].options.linear_solver}
     for m in METHODS:
         r = {k: statistics.median(v) if v else float("nan") for k, v in runs[m].items()}
         res = last[m]
@@ -828,7 +833,8 @@ def print_side_by_side(sbs: dict[str, Any]) -> None:
     targets = {"trapezoidal": TARGET_TRAPEZOID_CPU, "hermite_simpson": TARGET_HS_CPU}
     print(
         "\nside by side: study-1 base case (50 knots, beta = 0.5, straight-line start, "
-        "IPOPT tol 1e-8), ours through TrajOptSolver.solve(), alternating runs, medians"
+        "IPOPT tol 1e-8), ours through TrajOptSolver.solve(), alternating runs, medians; "
+        f"our linear solver {sbs['linear_solver']}"
     )
     print(
         f"{'method':<16} {'ours CPU':>9} {'wall':>8} {'target':>8} {'':>4} {'f':>9} {'iter':>4}"
@@ -889,11 +895,23 @@ def main() -> None:
     parser.add_argument(
         "--drake-repeats", type=int, default=None, help="alternating rounds (default 5, quick 3)"
     )
+    parser.add_argument(
+        "--linear-solver",
+        default="mumps",
+        help="our IPOPT linear solver for the side-by-side table (default mumps; HSL's ma57, "
+        "ma27, ... need --linear-solver-library)",
+    )
+    parser.add_argument(
+        "--linear-solver-library", default=None, help="path of libhsl.so (or Pardiso's library)"
+    )
     args = parser.parse_args()
+    options = IpoptOptions(
+        linear_solver=args.linear_solver, linear_solver_library=args.linear_solver_library
+    )
     repeats = args.drake_repeats if args.drake_repeats is not None else (3 if args.quick else 5)
     if args.side_by_side:
         load = os.getloadavg()
-        sbs = side_by_side(repeats)
+        sbs = side_by_side(repeats, options=options)
         print(f"load average at start {load[0]:.2f}, at end {os.getloadavg()[0]:.2f} (2 cores)")
         print_side_by_side(sbs)
         if args.levers:
@@ -930,7 +948,7 @@ def main() -> None:
         "compiled": solver.compiled,
     }  # fmt: skip
 
-    sbs = side_by_side(repeats)
+    sbs = side_by_side(repeats, options=options)
     out["side_by_side"] = sbs
     slsqp = slsqp_baseline(solver, cap)
     ratio_cpu = slsqp["cpu"] / base_cpu

@@ -18,8 +18,8 @@ def test_fast_kkt_settings_reach_ipopt_and_records() -> None:
     assert not set(FAST_KKT) & set(IpoptOptions.for_ikpath().to_casadi(True)["ipopt"])
     over = IpoptOptions(extra={"fast_step_computation": "no"}).to_casadi(True)["ipopt"]
     assert over["fast_step_computation"] == "no" and over["min_refinement_steps"] == 0
-    ma27 = IpoptOptions(linear_solver="ma27").to_casadi(True)["ipopt"]
-    assert "fast_step_computation" in ma27 and not any(k.startswith("mumps_") for k in ma27)
+    spral = IpoptOptions(linear_solver="spral").to_casadi(True)["ipopt"]
+    assert "fast_step_computation" in spral and not any(k.startswith("mumps_") for k in spral)
     assert "fast_kkt" not in IpoptOptions().to_dict()  # the dictionary earlier versions wrote
     assert IpoptOptions(fast_kkt=False).to_dict()["fast_kkt"] is False
     for options in (IpoptOptions(), IpoptOptions(fast_kkt=False), IpoptOptions.for_ikpath()):

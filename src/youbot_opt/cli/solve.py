@@ -29,6 +29,7 @@ from youbot_opt.cli.cluster_args import add_scheduler_args
 from youbot_opt.cli.limits import check_trajopt_size
 from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.nlp.ipopt import LINEAR_SOLVERS, IpoptOptions
 
 __all__ = [
     "add_refine_arguments",
@@ -124,7 +125,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         default="symbolic",
         help="dynamics backend (default symbolic: exact Hessian)",
     )
-    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap (default 3000)")
+    add_ipopt_arguments(p)
     p.add_argument(
         "--out",
         type=Path,
@@ -135,6 +136,33 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     add_refine_arguments(p)
     p.set_defaults(func=run_solve)  # fmt: skip
+
+
+def add_ipopt_arguments(p: argparse.ArgumentParser) -> None:
+    """IPOPT's iteration cap and linear solver (read back by :func:`ipopt_options`)."""
+    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap (default 3000)")
+    p.add_argument(
+        "--linear-solver",
+        choices=LINEAR_SOLVERS,
+        default="mumps",
+        help="IPOPT's sparse linear solver (default mumps; HSL's ma27/ma57/... need "
+        "--linear-solver-library)",
+    )
+    p.add_argument(
+        "--linear-solver-library",
+        default=None,
+        metavar="PATH",
+        help="the library IPOPT loads HSL's solvers (libhsl.so) or Pardiso from",
+    )
+
+
+def ipopt_options(args: argparse.Namespace) -> IpoptOptions:
+    """Return the :class:`IpoptOptions` of :func:`add_ipopt_arguments`' flags."""
+    return IpoptOptions(
+        max_iter=args.max_iter,
+        linear_solver=args.linear_solver,
+        linear_solver_library=args.linear_solver_library,
+    )
 
 
 def add_refine_arguments(p: argparse.ArgumentParser) -> None:
@@ -513,7 +541,6 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
-    from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     if args.starts < 1:
@@ -528,8 +555,7 @@ def run_solve(args: argparse.Namespace) -> int:
         max_knots=args.max_knots if args.refine else 0,
     )  # noqa: E501
     method = args.transcription.replace("-", "_")
-    options = IpoptOptions(max_iter=args.max_iter)
-    solver = TrajOptSolver(problem, method, options, args.backend)
+    solver = TrajOptSolver(problem, method, ipopt_options(args), args.backend)
     extra: dict[str, Any] = {"build_time_s": solver.build_time}
     ms = None
     if args.starts > 1:

@@ -32,8 +32,10 @@ from youbot_opt.cli.cluster_args import (
 from youbot_opt.cli.limits import check_sweep_values, check_trajopt_size
 from youbot_opt.cli.output import ProgressLine, add_command
 from youbot_opt.cli.solve import (
+    add_ipopt_arguments,
     add_refine_arguments,
     draw_figure,
+    ipopt_options,
     open_folder,
     refine_many,
     refinement_figures,
@@ -103,7 +105,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--backend", default="symbolic", choices=("symbolic", "pinocchio"), help="dynamics backend"
     )
-    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap")
+    add_ipopt_arguments(p)
     p.add_argument(
         "--item-timeout",
         type=float,
@@ -175,7 +177,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 # ------------------------------------------------------------------ helpers
 def _solver(args: argparse.Namespace) -> Any:
-    from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
@@ -187,7 +188,7 @@ def _solver(args: argparse.Namespace) -> Any:
         max_knots=args.max_knots if getattr(args, "refine", False) else 0,
     )
     method = args.transcription.replace("-", "_")
-    return TrajOptSolver(problem, method, IpoptOptions(max_iter=args.max_iter), args.backend)
+    return TrajOptSolver(problem, method, ipopt_options(args), args.backend)
 
 
 def _check(

@@ -14,6 +14,7 @@ A time cap gives status ``MAX_TIME``.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 from collections.abc import Mapping
@@ -31,6 +32,9 @@ __all__ = [
     "IpoptValue",
     "WARM_START",
     "FAST_KKT",
+    "LINEAR_SOLVERS",
+    "RUNTIME_SOLVERS",
+    "check_linear_solver",
     "single_threaded_blas",
     "check_time_limit",
 ]
@@ -66,6 +70,27 @@ AMD fill-reducing ordering instead of its automatic choice
 (``benchmarks/bench_trajopt.py --side-by-side --levers`` measures each; docs/design.md,
 "IPOPT: one options class")."""
 
+RUNTIME_SOLVERS: Mapping[str, tuple[str, str, str]] = MappingProxyType(
+    {
+        "ma27": ("hsllib", "libhsl.so", "ma27ad"),
+        "ma57": ("hsllib", "libhsl.so", "ma57ad"),
+        "ma77": ("hsllib", "libhsl.so", "ma77_open_d"),
+        "ma86": ("hsllib", "libhsl.so", "ma86_analyse_d"),
+        "ma97": ("hsllib", "libhsl.so", "ma97_analyse_d"),
+        "pardiso": ("pardisolib", "libpardiso.so", "pardiso_ipopt_newinterface"),
+    }
+)
+"""Linear solvers that CasADi's IPOPT loads from a shared library when a solver is
+created: name -> (IPOPT's library option, its default library, a routine IPOPT
+looks up in it). HSL's solvers come in the ``libhsl.so`` built by coin-or's
+ThirdParty-HSL from the HSL sources (licensed by STFC, free for academic use);
+Pardiso from pardiso-project.org. Neither ships with CasADi or on PyPI."""
+
+LINEAR_SOLVERS: tuple[str, ...] = ("mumps", "spral", *RUNTIME_SOLVERS)
+"""Values of :attr:`IpoptOptions.linear_solver` that CasADi's IPOPT (3.14) accepts:
+MUMPS and SPRAL are built in, the others are loaded at run time
+(:data:`RUNTIME_SOLVERS`)."""
+
 HessianMode = Literal["auto", "exact", "limited-memory"]
 MuStrategy = Literal["adaptive", "monotone"]
 _HESSIANS: tuple[str, ...] = ("auto", "exact", "limited-memory")
@@ -95,7 +120,17 @@ class IpoptOptions:
     print_level : int
         IPOPT verbosity 0 (silent, default) .. 12.
     linear_solver : str
-        Sparse linear solver (``"mumps"`` ships with CasADi).
+        Sparse linear solver of IPOPT's KKT systems, one of
+        :data:`LINEAR_SOLVERS`. ``"mumps"`` (default) and ``"spral"`` ship with
+        CasADi; HSL's ``"ma27"``, ``"ma57"``, ``"ma77"``, ``"ma86"``, ``"ma97"``
+        and ``"pardiso"`` are loaded from :attr:`linear_solver_library` when a
+        solver is created (:func:`check_linear_solver` says so clearly if
+        that library is missing).
+    linear_solver_library : str or None
+        Path (or name on the loader's search path) of the library holding a
+        run-time-loaded solver: IPOPT's ``hsllib`` (HSL's ``libhsl.so``) or
+        ``pardisolib``. ``None`` (default) leaves IPOPT's default name
+        (:data:`RUNTIME_SOLVERS`). Only with such a solver.
     hessian : {"auto", "exact", "limited-memory"}
         ``"auto"`` uses the exact Hessian when the backend provides second
         derivatives and the limited-memory approximation otherwise.
@@ -118,6 +153,7 @@ class IpoptOptions:
     max_wall_time: float | None = None
     print_level: int = 0
     linear_solver: str = "mumps"
+    linear_solver_library: str | None = None
     hessian: HessianMode = "auto"
     mu_strategy: MuStrategy = "adaptive"
     fast_kkt: bool = True
@@ -151,6 +187,28 @@ class IpoptOptions:
             raise ParameterError(
                 f"print_level must be an int in 0..12, got {self.print_level!r}", name="print_level"
             )
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ParameterError(
+                f"linear_solver must be one of {LINEAR_SOLVERS} (the solvers CasADi's IPOPT "
+                f"accepts), got {self.linear_solver!r}",
+                name="linear_solver",
+                value=self.linear_solver,
+            )
+        if self.linear_solver_library is not None:
+            if self.linear_solver not in RUNTIME_SOLVERS:
+                raise ParameterError(
+                    f"linear_solver_library={self.linear_solver_library!r} is only used by the "
+                    f"solvers IPOPT loads at run time {tuple(RUNTIME_SOLVERS)}; linear_solver is "
+                    f"{self.linear_solver!r}",
+                    name="linear_solver_library",
+                    value=self.linear_solver_library,
+                )
+            if not isinstance(self.linear_solver_library, str) or not self.linear_solver_library:
+                raise ParameterError(
+                    "linear_solver_library must be a non-empty path or library name, got "
+                    f"{self.linear_solver_library!r}",
+                    name="linear_solver_library",
+                )
         if self.hessian not in _HESSIANS:
             raise ParameterError(
                 f"hessian must be one of {_HESSIANS}, got {self.hessian!r}", name="hessian"
@@ -249,7 +307,14 @@ class IpoptOptions:
         -------
         dict
             ``{"ipopt": {...}, "print_time": False}``.
+
+        Raises
+        ------
+        ParameterError
+            If :attr:`linear_solver` is loaded at run time and its library
+            cannot be loaded or lacks the solver (:func:`check_linear_solver`).
         """
+        library = check_linear_solver(self)
         ipopt: dict[str, IpoptValue] = {
             "tol": float(self.tol),
             "max_iter": int(self.max_iter),
@@ -265,6 +330,8 @@ class IpoptOptions:
                 for k, v in FAST_KKT.items()
                 if self.linear_solver == "mumps" or not k.startswith("mumps_")
             )
+        if library is not None:
+            ipopt[RUNTIME_SOLVERS[self.linear_solver][0]] = library
         if self.constr_viol_tol is not None:
             ipopt["constr_viol_tol"] = float(self.constr_viol_tol)
         if self.max_cpu_time is not None:
@@ -281,7 +348,8 @@ class IpoptOptions:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary of the fields.
 
-        ``constr_viol_tol`` and ``max_wall_time`` appear only when set, and
+        ``constr_viol_tol``, ``max_wall_time`` and ``linear_solver_library``
+        appear only when set, and
         ``fast_kkt`` only when False, so
         the dictionary (stored in result files and sweep manifests) of options
         that do not use them is the one earlier versions wrote.
@@ -300,9 +368,66 @@ class IpoptOptions:
             out["constr_viol_tol"] = self.constr_viol_tol
         if self.max_wall_time is not None:
             out["max_wall_time"] = self.max_wall_time
+        if self.linear_solver_library is not None:
+            out["linear_solver_library"] = self.linear_solver_library
         if not self.fast_kkt:
             out["fast_kkt"] = False
         return out
+
+
+def check_linear_solver(options: IpoptOptions) -> str | None:
+    """Check that IPOPT will find the library of a run-time-loaded linear solver.
+
+    IPOPT itself reports a missing library only as ``Invalid_Option`` (or a
+    CasADi error) once the solve has started; this names the library and the
+    routine instead. MUMPS and SPRAL need nothing.
+
+    Parameters
+    ----------
+    options : IpoptOptions
+        Its :attr:`~IpoptOptions.linear_solver`, its
+        :attr:`~IpoptOptions.linear_solver_library`, or the library option
+        (``hsllib`` / ``pardisolib``) in its ``extra``, which wins.
+
+    Returns
+    -------
+    str or None
+        The library IPOPT is to load (``None`` for a built-in solver, or when
+        ``extra`` already names it).
+
+    Raises
+    ------
+    ParameterError
+        If the library cannot be loaded, or exports no routine of the solver.
+    """
+    spec = RUNTIME_SOLVERS.get(options.linear_solver)
+    if spec is None:
+        return None
+    option, default, routine = spec
+    given = options.extra.get(option)
+    library = str(given if given is not None else (options.linear_solver_library or default))
+    name = options.linear_solver
+    where = "HSL" if option == "hsllib" else "Pardiso"
+    try:
+        handle = ctypes.CDLL(library)
+    except OSError as exc:
+        raise ParameterError(
+            f"linear_solver={name!r} is loaded by IPOPT at run time from the {where} library "
+            f"{library!r}, which cannot be loaded ({exc}); build it (coin-or ThirdParty-HSL "
+            "for HSL's solvers) and pass linear_solver_library='/path/to/the/library', or use "
+            "linear_solver='mumps' (built in)",
+            name="linear_solver_library",
+            value=library,
+        ) from exc
+    variants = (routine, routine + "_", routine.upper(), routine.upper() + "_")
+    if not any(hasattr(handle, symbol) for symbol in variants):
+        raise ParameterError(
+            f"the library {library!r} has no {name.upper()} (routine {routine!r} not found): "
+            f"it is not a {where} library with linear_solver={name!r}",
+            name="linear_solver_library",
+            value=library,
+        )
+    return None if given is not None else library
 
 
 def single_threaded_blas() -> None:

@@ -28,7 +28,7 @@ from youbot_opt._typing import Array
 from youbot_opt.dynamics.base import Dynamics
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
-from youbot_opt.nlp.ipopt import IpoptOptions, single_threaded_blas
+from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
 from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.guess import resolve_guess
 from youbot_opt.trajopt.objectives import check_beta
@@ -130,6 +130,12 @@ class TrajOptSolver:
         first solve should not wait for). ``"wait"``: compile now. False: never
         compile. Only used by the second-order backends.
 
+    Raises
+    ------
+    ParameterError
+        On bad options, among them a linear solver whose library IPOPT could
+        not load (:func:`youbot_opt.nlp.ipopt.check_linear_solver`).
+
     Attributes
     ----------
     nlp : TranscribedNLP
@@ -166,6 +172,7 @@ class TrajOptSolver:
         self.options = options if options is not None else IpoptOptions()
         if not isinstance(self.options, IpoptOptions):
             raise ParameterError("options must be an IpoptOptions", name="options")
+        check_linear_solver(self.options)  # a missing HSL library: say so before building
         if dynamics is None:
             from youbot_opt.dynamics import build_dynamics
 
