@@ -13,11 +13,22 @@ from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.model import load_model
 from youbot_opt.trajopt.transcription import (
     HermiteSimpsonCollocation,
+    RadauCollocation,
     TrapezoidalCollocation,
     get_transcription,
 )
 
-METHODS = [TrapezoidalCollocation(), HermiteSimpsonCollocation()]
+METHODS = [TrapezoidalCollocation(), HermiteSimpsonCollocation(), RadauCollocation()]
+SQ6 = np.sqrt(6.0)
+RADAU_C = np.array([(4 - SQ6) / 10, (4 + SQ6) / 10, 1.0])  # Hairer & Wanner, Table IV.5.6
+RADAU_A = np.array(
+    [
+        [(88 - 7 * SQ6) / 360, (296 - 169 * SQ6) / 1800, (-2 + 3 * SQ6) / 225],
+        [(296 + 169 * SQ6) / 1800, (88 + 7 * SQ6) / 360, (-2 - 3 * SQ6) / 225],
+        [(16 - SQ6) / 36, (16 + SQ6) / 36, 1 / 9],
+    ]
+)
+RADAU_BASE_F = 8.094584  # study-1 base case, Radau, 50 knots (this library's figure)
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +73,7 @@ def test_hermite_simpson_counts(youbot, dynamics, n):
 
 
 def _polynomial_motion(robot, n, coeffs, dt):
-    """Knot and midpoint values of q(t) = sum_i c_i t^i with RNEA torques (no CasADi)."""
+    """Knot, midpoint and Radau-stage values of q(t) = sum_i c_i t^i with RNEA torques."""
     model, data = robot.model, robot.model.createData()
     b = np.asarray(robot.damping)
 
@@ -78,7 +89,11 @@ def _polynomial_motion(robot, n, coeffs, dt):
     t = dt * np.arange(n)
     q, v, tau = states(t)
     qm, vm, taum = states(t[:-1] + dt / 2)
-    return {"q": q, "v": v, "tau": tau, "q_mid": qm, "v_mid": vm, "tau_mid": taum, "dt": dt}
+    out = {"q": q, "v": v, "tau": tau, "q_mid": qm, "v_mid": vm, "tau_mid": taum, "dt": dt}
+    for i, c in enumerate(RADAU_C[:2], start=1):
+        names = (f"q_stage{i}", f"v_stage{i}", f"tau_stage{i}")
+        out.update(zip(names, states(t[:-1] + c * dt), strict=True))
+    return out
 
 
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
@@ -91,10 +106,10 @@ def test_defects_vanish_for_constant_acceleration(youbot, dynamics, method):
     x = nlp.variables.pack(values)
     g = np.asarray(ca.Function("g", [nlp.x], [nlp.g])(x)).ravel()
     blocks = nlp.constraints.unpack(g)
-    # Trapezoid and Simpson are exact for this quadratic q (linear v, constant a);
+    # Trapezoid, Simpson and Radau are exact for this quadratic q (linear v, constant a);
     # the remaining error is ABA(RNEA(.)) round-off, ~1e-13 for accelerations of O(1).
     for name in blocks:
-        if name.startswith(("defect", "midpoint")):
+        if name.startswith(("defect", "midpoint", "collocation")):
             np.testing.assert_allclose(blocks[name], 0.0, atol=1e-10, err_msg=name)
     np.testing.assert_allclose(blocks["start_position"][0], values["q"][0], atol=1e-15)
     np.testing.assert_allclose(blocks["goal_velocity"][0], values["v"][-1], atol=1e-15)
@@ -109,9 +124,11 @@ def test_defects_do_not_vanish_for_a_quartic_motion(youbot, dynamics, method):
     nlp = method.build(study1_problem(n, robot=youbot), dynamics.forward_dynamics)
     g = np.asarray(ca.Function("g", [nlp.x], [nlp.g])(nlp.variables.pack(values))).ravel()
     blocks = nlp.constraints.unpack(g)
-    worst = max(np.max(np.abs(v)) for k, v in blocks.items() if k.startswith(("defect", "mid")))
+    prefixes = ("defect", "mid", "collocation")
+    worst = max(np.max(np.abs(v)) for k, v in blocks.items() if k.startswith(prefixes))
     # q = c t^4: the trapezoid errs by ~ dt^3 |q'''| ~ 1e-2 rad, the Hermite midpoint
-    # interpolation by ~ dt^4 |q''''| / 384 ~ 1e-5 rad; round-off is ~1e-15.
+    # interpolation by ~ dt^4 |q''''| / 384 ~ 1e-5 rad, Radau's stages (stage order 3)
+    # by ~ dt^4 |q''''| c^4 / 24 ~ 1e-6 rad; round-off is ~1e-15.
     assert worst > 1e-6
 
 
@@ -128,6 +145,9 @@ def test_objective_terms(youbot, dynamics, method):
     power = np.sum(values["tau"] ** 2, axis=1)
     if method.name == "trapezoidal":
         expected_w = sum(dt * (power[k] + power[k + 1]) / 2 for k in range(n - 1))
+    elif method.name == "radau":  # Radau weights on stages 1, 2 and the end knot
+        p1, p2 = (np.sum(values[f"tau_stage{i}"] ** 2, axis=1) for i in (1, 2))
+        expected_w = sum(dt * RADAU_A[2] @ [p1[k], p2[k], power[k + 1]] for k in range(n - 1))
     else:
         pm = np.sum(values["tau_mid"] ** 2, axis=1)
         expected_w = sum(dt * (power[k] + 4 * pm[k] + power[k + 1]) / 6 for k in range(n - 1))
@@ -194,7 +214,7 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
         "tau": (-youbot.effort_limit, youbot.effort_limit),
     }
     values = {
-        name: rng.uniform(*box[name.removesuffix("_mid")], (block.count, 3))
+        name: rng.uniform(*box[name.split("_")[0]], (block.count, 3))
         for name, block in nlp.variables.blocks.items()
         if name != "dt"
     }
@@ -229,6 +249,16 @@ def _hand_defects(method, values, a, am, h):
     """Defects written out with per-interval steps ``h`` (numpy, from the docstrings)."""
     q, v = values["q"], values["v"]
     h = h[:, None]
+    if method.name == "radau":  # am: the accelerations at stages 1 and 2
+        qs = [values["q_stage1"], values["q_stage2"], q[1:]]
+        vs = [values["v_stage1"], values["v_stage2"], v[1:]]
+        acc = [am[0], am[1], a[1:]]
+        rows = {}
+        for label, x, x0, dx in (("position", qs, q[:-1], vs), ("velocity", vs, v[:-1], acc)):
+            names = (f"collocation_{label}_1", f"collocation_{label}_2", f"defect_{label}")
+            for i, name in enumerate(names):
+                rows[name] = x[i] - x0 - h * sum(RADAU_A[i, j] * dx[j] for j in range(3))
+        return rows
     if method.name == "trapezoidal":
         return {
             "defect_position": q[1:] - q[:-1] - 0.5 * h * (v[:-1] + v[1:]),
@@ -245,7 +275,7 @@ def _hand_defects(method, values, a, am, h):
     }
 
 
-@pytest.mark.parametrize("kind", ["trapezoidal", "hermite_simpson"])
+@pytest.mark.parametrize("kind", ["trapezoidal", "hermite_simpson", "radau"])
 def test_non_uniform_grid_defects_and_work_use_each_intervals_step(youbot, dynamics, kind):
     """On a grid of fractions, interval k has step (N - 1) f_k dt in every row and in W (1e-12)."""
     n, dt = 7, 0.09
@@ -268,11 +298,16 @@ def test_non_uniform_grid_defects_and_work_use_each_intervals_step(youbot, dynam
 
     a = aba(values["q"], values["v"], values["tau"])
     am = aba(values["q_mid"], values["v_mid"], values["tau_mid"]) if "q_mid" in values else None
+    if kind == "radau":
+        am = [aba(*(values[f"{x}_stage{i}"] for x in ("q", "v", "tau"))) for i in (1, 2)]
     for name, expected in _hand_defects(method, values, a, am, h).items():
         np.testing.assert_allclose(blocks[name], expected, rtol=1e-12, atol=1e-12, err_msg=name)
     p = np.sum(values["tau"] ** 2, axis=1)
     if kind == "trapezoidal":
         expected_w = np.sum(h * (p[:-1] + p[1:]) / 2)
+    elif kind == "radau":
+        p1, p2 = (np.sum(values[f"tau_stage{i}"] ** 2, axis=1) for i in (1, 2))
+        expected_w = np.sum(h * (RADAU_A[2, 0] * p1 + RADAU_A[2, 1] * p2 + RADAU_A[2, 2] * p[1:]))
     else:
         pm = np.sum(values["tau_mid"] ** 2, axis=1)
         expected_w = np.sum(h * (p[:-1] + 4 * pm + p[1:]) / 6)
@@ -281,13 +316,16 @@ def test_non_uniform_grid_defects_and_work_use_each_intervals_step(youbot, dynam
 
 
 @pytest.mark.parametrize(
-    ("kind", "expected"), [("trapezoidal", 8.269796), ("hermite_simpson", 8.099726)]
+    ("kind", "expected"),
+    [("trapezoidal", 8.269796), ("hermite_simpson", 8.099726), ("radau", RADAU_BASE_F)],
 )
 def test_uniform_fractions_reproduce_the_uniform_grid(youbot, kind, expected):
     """Equal fractions give the uniform NLP's solution to round-off; both give the pinned f.
 
     The pinned values (README, docs/trajopt_reproduction.md) are the study-1 base
     case at 50 knots; equal fractions change ``h_k = dt * 1.0``, an exact product.
+    Radau's is this library's own figure (docs/refinement.md), between
+    Hermite-Simpson's and the converged optimum 8.074944 (800 knots).
     """
     from youbot_opt.trajopt.solver import TrajOptSolver
 

@@ -82,9 +82,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--knots", type=int, default=50, help="number of knots (default 50)")
     p.add_argument(
         "--transcription",
-        choices=("trapezoidal", "hermite-simpson"),
+        choices=("trapezoidal", "hermite-simpson", "radau"),
         default="trapezoidal",
-        help="collocation scheme (default trapezoidal)",
+        help="collocation scheme (default trapezoidal; radau is L-stable: stiff joint damping)",
     )
     p.add_argument(
         "--guess",

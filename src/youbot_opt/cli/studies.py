@@ -99,8 +99,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--transcription",
         default="trapezoidal",
-        choices=("trapezoidal", "hermite-simpson"),
-        help="collocation scheme",
+        choices=("trapezoidal", "hermite-simpson", "radau"),
+        help="collocation scheme (radau is L-stable: stiff joint damping)",
     )
     p.add_argument(
         "--backend", default="symbolic", choices=("symbolic", "pinocchio"), help="dynamics backend"

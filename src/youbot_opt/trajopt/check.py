@@ -20,6 +20,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.nlp.status import ResultT, SolveStatus, apply_check, status_from_ipopt
+from youbot_opt.trajopt import radau
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -181,6 +182,17 @@ def _defects(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> floa
             q[1:] - q[:-1] - 0.5 * h * (qd[:-1] + qd[1:]),
             qd[1:] - qd[:-1] - 0.5 * h * (a[:-1] + a[1:]),
         )
+    elif result.method == "radau":
+        stages = [(v[f"q_stage{i}"], v[f"v_stage{i}"], v[f"tau_stage{i}"]) for i in (1, 2)]
+        nodes_q = [s[0] for s in stages] + [q[1:]]
+        nodes_v = [s[1] for s in stages] + [qd[1:]]
+        nodes_a = [aba(*s).reshape(qd[1:].shape) for s in stages] + [a[1:]]
+        nodes_tau = [s[2] for s in stages] + [tau[1:]]
+        rows = tuple(
+            x[i] - x0 - h * sum(radau.BUTCHER[i, j] * dx[j] for j in range(3))
+            for x, x0, dx in ((nodes_q, q[:-1], nodes_v), (nodes_v, qd[:-1], nodes_a))
+            for i in range(3)
+        ) + (tau[:1] - sum(radau.AT_ZERO[j] * nodes_tau[j][:1] for j in range(3)),)
     else:  # another transcription (e.g. the study code's): no independent defect rule here
         return None
     return max(float(np.max(np.abs(r), initial=0.0)) for r in rows)
@@ -189,6 +201,11 @@ def _defects(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> floa
 def _work(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> float:
     """``W`` by the transcription's quadrature, written out here."""
     p = np.sum(v["tau"] ** 2, axis=1)
+    if result.method == "radau":  # Radau weights on stages 1, 2 and the end knot
+        h = dt * (result.step_ratios() if result.grid is not None else np.ones(p.size - 1))
+        p1, p2 = (np.sum(v[f"tau_stage{i}"] ** 2, axis=1) for i in (1, 2))
+        b = radau.WEIGHTS
+        return float(np.sum(h * (b[0] * p1 + b[1] * p2 + b[2] * p[1:])))
     if result.grid is not None:
         h = dt * result.step_ratios()
         if result.method == "hermite_simpson":
@@ -239,6 +256,8 @@ def check_result(result: CheckedSolution, *, feasibility_tol: float | None = Non
     shapes = {"q": (n, nv), "v": (n, nv), "tau": (n, nv), "dt": (1, 1)}
     if result.method == "hermite_simpson":
         shapes.update({"q_mid": (n - 1, nv), "v_mid": (n - 1, nv), "tau_mid": (n - 1, nv)})
+    elif result.method == "radau":
+        shapes.update({f"{x}_stage{i}": (n - 1, nv) for x in ("q", "v", "tau") for i in (1, 2)})
     try:
         v = {k: np.asarray(result.variables[k], dtype=float) for k in shapes}
     except (KeyError, TypeError, ValueError) as exc:

@@ -53,7 +53,7 @@ __all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result"]
 
 SCHEMA = "youbot_opt.trajopt_result"
 SCHEMA_VERSION = 1
-_TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid")
+_TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid", "v_stages", "a_stages", "tau_stages")
 
 
 def _state(state: BoundaryState) -> dict[str, list[float]]:

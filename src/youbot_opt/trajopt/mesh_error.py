@@ -20,12 +20,13 @@ import numpy as np
 from youbot_opt._checks import check_int
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt import radau
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.simulate import RobotLike, batched_aba
 
 __all__ = ["CollocationError", "ORDERS", "collocation_error", "interval_errors"]
 
-ORDERS: dict[str, int] = {"trapezoidal": 2, "hermite_simpson": 4}
+ORDERS: dict[str, int] = {"trapezoidal": 2, "hermite_simpson": 4, "radau": 5}
 """Order ``p`` of each transcription: the local error of an interval of length
 ``h`` scales as ``h^(p + 1)`` (Betts, ch. 4)."""
 
@@ -86,8 +87,11 @@ def _basis(method: str, s: Array) -> tuple[Array, Array]:
     """Return the derivative basis ``L`` and its integral ``I`` at ``s`` in [0, 1] (rows: nodes).
 
     Trapezoidal: linear through the values at ``s = 0, 1``; Hermite-Simpson:
-    quadratic through ``s = 0, 1/2, 1`` (columns: start, [mid,] end).
+    quadratic through ``s = 0, 1/2, 1`` (columns: start, [mid,] end); Radau:
+    quadratic through its three nodes (:mod:`youbot_opt.trajopt.radau`).
     """
+    if method == "radau":
+        return radau.basis(s), radau.integral(s)
     if method == "trapezoidal":
         basis = np.stack([1.0 - s, s], axis=1)
         integral = np.stack([s - 0.5 * s**2, 0.5 * s**2], axis=1)
@@ -113,6 +117,7 @@ def interval_errors(
     robot: RobotLike,
     *,
     mid: tuple[Array, Array, Array] | None = None,
+    stages: tuple[Array, Array, Array] | None = None,
     damping: bool = True,
     segments: int = 4,
     points: int = 5,
@@ -121,7 +126,7 @@ def interval_errors(
 
     Parameters
     ----------
-    method : {"trapezoidal", "hermite_simpson"}
+    method : {"trapezoidal", "hermite_simpson", "radau"}
         The transcription whose interpolant is used.
     t : ndarray, shape (N,)
         Strictly increasing knot times [s].
@@ -131,6 +136,8 @@ def interval_errors(
         The robot; its accelerations come from ``pin.aba``.
     mid : (q_mid, v_mid, tau_mid), each (N - 1, nv), optional
         Mid-interval values; required by Hermite-Simpson.
+    stages : (q, v, tau) at the two inner Radau nodes, each (N - 1, 2, nv), optional
+        Stage values; required by Radau.
     damping : bool
         Apply the robot's viscous joint damping.
     segments, points : int
@@ -184,6 +191,16 @@ def interval_errors(
         dv = np.stack([a[:-1], am, a[1:]], axis=1)
         ctrl = np.stack([tau[:-1], taum, tau[1:]], axis=1)
         ctrl_basis = basis
+    elif method == "radau":
+        if stages is None:
+            raise ParameterError("Radau needs the stage values", name="stages")
+        qs, vs, taus = (np.asarray(x, dtype=float).reshape(n - 1, 2, nv) for x in stages)
+        as_ = accel(qs.reshape(-1, nv), vs.reshape(-1, nv), taus.reshape(-1, nv))
+        end = np.s_[1:, None, :]
+        dq = np.concatenate([vs, v[end]], axis=1)
+        dv = np.concatenate([as_.reshape(n - 1, 2, nv), a[end]], axis=1)
+        ctrl = np.concatenate([taus, tau[end]], axis=1)
+        ctrl_basis = basis
     else:
         dq = np.stack([v[:-1], v[1:]], axis=1)
         dv = np.stack([a[:-1], a[1:]], axis=1)
@@ -229,11 +246,16 @@ def collocation_error(
     if result.trajectory is None:
         raise ParameterError("the result has no trajectory (non-finite iterate)", name="result")
     values = result.variables
-    mid = None
+    mid = stages = None
     if result.method == "hermite_simpson":
         mid = (values["q_mid"], values["v_mid"], values["tau_mid"])
+    elif result.method == "radau":
+        stages = tuple(
+            np.stack([values[f"{x}_stage1"], values[f"{x}_stage2"]], axis=1)
+            for x in ("q", "v", "tau")
+        )
     return interval_errors(
         result.method, result.trajectory.t, values["q"], values["v"], values["tau"],
-        result.problem.robot, mid=mid, damping=result.problem.damping,
+        result.problem.robot, mid=mid, stages=stages, damping=result.problem.damping,  # type: ignore[arg-type]
         segments=segments, points=points,
     )  # fmt: skip

@@ -29,7 +29,7 @@ __all__ = [
     "work",
 ]
 
-QuadratureRule = Literal["trapezoidal", "simpson"]
+QuadratureRule = Literal["trapezoidal", "simpson", "radau"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

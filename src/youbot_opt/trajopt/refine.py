@@ -51,11 +51,14 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-ERROR_EXPONENTS: dict[str, int] = {"trapezoidal": 3, "hermite_simpson": 4}
+ERROR_EXPONENTS: dict[str, int] = {"trapezoidal": 3, "hermite_simpson": 4, "radau": 4}
 """Exponent ``m`` of the interval error estimate, ``e ~ h^m``: ``p + 1 = 3`` for
 trapezoidal collocation (order 2); 4 for Hermite-Simpson, whose residual along
 its cubic is ``|a_k - 2 a_m + a_{k+1}| h^2 / 48 ~ h^4`` (derived in
-tests/trajopt/test_refine.py), one power below its O(h^5) state error."""
+tests/trajopt/test_refine.py), one power below its O(h^5) state error; 4 for
+Radau IIA too: its cubic satisfies the dynamics at three nodes, so the residual
+between them is ``O(h^3)`` and its integral ``O(h^4)`` (stage order 3), below
+the method's order 5 at the knots."""
 
 
 def split_grid(
@@ -181,7 +184,8 @@ def stiffness_note(
     the motion instead of decaying, and the error falls more slowly than
     ``h^m`` (docs/refinement.md, "Stiff joint damping"). The note gives the
     rate, the joint, ``rate * h``, the exponent seen at the worst interval and
-    the knots :func:`predicted_knots` would need at it.
+    the knots :func:`predicted_knots` would need at it, and for those two
+    schemes points to the L-stable Radau IIA collocation (``method="radau"``).
     """
     if result.trajectory is None:
         return ""
@@ -197,6 +201,12 @@ def stiffness_note(
         f"(time constant {1.0 / stiff.rate:.2g} s), rate x longest interval = {stiff.rate * h:.3g} "
         f"(unresolved above {STIFF_RATIO:g}); the worst interval's error falls like h^{m:.2g}, "
         f"so about {needed:.2g} knots would be needed"
+        + (
+            ""
+            if result.method == "radau"
+            else "; the L-stable Radau collocation (method='radau', --transcription radau) "
+            "carries such a joint on its slow motion"
+        )
     )
 
 

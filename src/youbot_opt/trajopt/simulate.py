@@ -272,9 +272,8 @@ class _IntervalPolynomials:
             )
 
     def _sample(self, trajectory: Trajectory, nodes: Array) -> Array:
-        times = (self.t0[:, None] + nodes[None, :] * self.h[:, None]).ravel()
-        vals = np.hstack([trajectory(times), trajectory.velocity(times), trajectory.torque(times)])
-        return vals.reshape(self.h.size, nodes.size, -1)
+        # each interval's own interpolant (at s = 1 too: Radau's torque jumps at knots)
+        return trajectory.interval_values(nodes)
 
     def at(self, s: float) -> Array:
         """``[q, v, tau]`` of every interval at local time ``s``, shape (n, nq + 2 nv)."""

@@ -216,6 +216,7 @@ class TrajOptSolver:
             self._nlp_function = ca.Function(
                 "nlp", [self.nlp.x, self.nlp.p], [self.nlp.f, self.nlp.g], ["x", "p"], ["f", "g"]
             )
+        self._forward = forward
         self._accelerations = forward.map(problem.n_knots)
         # keeps the best iterate, returned when a solve fails (youbot_opt.nlp.best_iterate)
         self._recorder = BestIterateRecorder(
@@ -281,6 +282,11 @@ class TrajOptSolver:
                 "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
             )
         return self._cold_solver
+
+    def _point_accelerations(self, q: Array, v: Array, tau: Array) -> Array:
+        """Forward dynamics [rad/s^2] at knot-major points ``(q, v, tau)`` (the NLP's kernel)."""
+        fd = self._forward.map(q.shape[0])
+        return np.asarray(fd(q.T, v.T, tau.T), dtype=float).T
 
     # ----------------------------------------------------------------- solve
     def solve(
@@ -514,14 +520,13 @@ class TrajOptSolver:
             fd = self._accelerations
             a = np.asarray(fd(variables["q"].T, variables["v"].T, variables["tau"].T)).T
         total_time = (problem.n_knots - 1) * dt
-        if self.method.uniform:
+        if self.method.uniform and nlp.rule != "radau":
             work = work_of(dt, variables["tau"], variables.get("tau_mid"), nlp.rule)
         else:
-            w_knots, w_mid = self.method.quadrature(problem.n_knots)
-            work = float(np.sum(variables["tau"] ** 2, axis=1) @ w_knots)
-            if w_mid is not None:
-                work += float(np.sum(variables["tau_mid"] ** 2, axis=1) @ w_mid)
-            work *= dt
+            work = dt * sum(
+                float(np.sum(variables[name] ** 2, axis=1) @ w)
+                for name, w in self.method.work_weights(problem.n_knots)
+            )
         objective = beta * total_time + (1.0 - beta) * work
         violation = max(
             float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0)),
@@ -545,7 +550,7 @@ class TrajOptSolver:
 
         trajectory = None
         if all_finite and dt > 0.0:
-            trajectory = self.method.trajectory(variables, a)
+            trajectory = self.method.trajectory(variables, a, self._point_accelerations)
 
         multipliers: dict[str, Array] = {}
         if np.all(np.isfinite(lam_x)):

@@ -3,8 +3,9 @@
 A :class:`Trajectory` holds knot-major arrays (``q[k]`` at ``t[k]``) and the
 interpolant of its transcription: ``"trapezoidal"`` (torque and velocity
 linear, position quadratic; Betts, *Practical Methods for Optimal Control*,
-sec. 4.6) or ``"hermite_simpson"`` (torque quadratic, position and velocity
-cubic Hermite). Details: docs/design.md, "Module notes".
+sec. 4.6), ``"hermite_simpson"`` (torque quadratic, position and velocity
+cubic Hermite) or ``"radau"`` (torque quadratic through the stages, position
+and velocity cubic). Details: docs/design.md, "Module notes".
 
 >>> q = trajectory(0.5)  # (nq,) [rad] at t = 0.5 s  # doctest: +SKIP
 """
@@ -19,11 +20,13 @@ from numpy.typing import NDArray
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt import radau
 
 __all__ = ["Trajectory", "Interpolation"]
 
-Interpolation = Literal["trapezoidal", "hermite_simpson"]
-_INTERPOLATIONS: tuple[str, ...] = ("trapezoidal", "hermite_simpson")
+Interpolation = Literal["trapezoidal", "hermite_simpson", "radau"]
+_INTERPOLATIONS: tuple[str, ...] = ("trapezoidal", "hermite_simpson", "radau")
+_STAGE_FIELDS: tuple[str, ...] = ("v_stages", "a_stages", "tau_stages")
 
 
 def _as_matrix(name: str, value: object, rows: int | None, cols: int | None) -> Array:
@@ -60,9 +63,16 @@ class Trajectory:
         Joint torques in [N m].
     tau_mid : ndarray, shape (N - 1, nv), optional
         Mid-interval torques in [N m] (Hermite–Simpson only).
-    interpolation : {"trapezoidal", "hermite_simpson"}
+    interpolation : {"trapezoidal", "hermite_simpson", "radau"}
         Which interpolant :meth:`__call__`, :meth:`velocity` and
         :meth:`torque` use between knots.
+    v_stages, a_stages, tau_stages : ndarray, shape (N - 1, 2, nv), optional
+        Velocities [rad/s], accelerations [rad/s^2] and torques [N m] at the
+        two inner Radau nodes of each interval (``"radau"`` only; the third
+        node is the interval's end knot, :mod:`youbot_opt.trajopt.radau`). The
+        torque is the quadratic through the three stages, so it may jump at a
+        knot: :meth:`torque` at a knot time gives the value of the interval
+        that starts there, ``tau[k]`` (``k >= 1``) the one that ends there.
     """
 
     t: Array
@@ -72,6 +82,9 @@ class Trajectory:
     tau: Array
     tau_mid: Array | None = None
     interpolation: Interpolation = "trapezoidal"
+    v_stages: Array | None = None
+    a_stages: Array | None = None
+    tau_stages: Array | None = None
 
     def __post_init__(self) -> None:
         t = np.array(self.t, dtype=float)
@@ -102,6 +115,25 @@ class Trajectory:
             object.__setattr__(self, "tau_mid", _as_matrix("tau_mid", self.tau_mid, n - 1, nv))
         elif self.tau_mid is not None:
             raise ParameterError("tau_mid is only used by hermite_simpson", name="tau_mid")
+        for name in _STAGE_FIELDS:
+            value = getattr(self, name)
+            if self.interpolation != "radau":
+                if value is not None:
+                    raise ParameterError(f"{name} is only used by radau", name=name)
+                continue
+            if value is None:
+                raise ParameterError(f"radau trajectories need {name}", name=name)
+            arr = np.array(value, dtype=float)
+            if arr.shape != (n - 1, 2, nv):
+                raise ParameterError(
+                    f"{name} must have shape ({n - 1}, 2, {nv}), got {arr.shape}",
+                    name=name,
+                    value=arr.shape,
+                )
+            if not np.all(np.isfinite(arr)):
+                raise ParameterError(f"{name} contains non-finite values", name=name)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -139,13 +171,41 @@ class Trajectory:
         """Joint torques in [N m] at ``time`` [s] under the transcription's interpolant."""
         return self._eval(time, "tau")
 
+    def interval_values(self, nodes: Array) -> Array:
+        """``[q, v, tau]`` of each interval's own interpolant at local times ``nodes``.
+
+        Parameters
+        ----------
+        nodes : ndarray, shape (M,)
+            Local times ``s = (t - t[k]) / h[k]`` in [0, 1] (dimensionless).
+
+        Returns
+        -------
+        ndarray, shape (N - 1, M, nq + 2 nv)
+            Unlike :meth:`__call__` at a knot time, ``s = 1`` gives the end of
+            interval ``k`` (the left limit where the torque jumps).
+        """
+        x = np.asarray(nodes, dtype=float).ravel()
+        n, m = self.n_knots - 1, x.size
+        k = np.repeat(np.arange(n), m)
+        h = np.repeat(np.diff(self.t), m)[:, None]
+        xx = np.tile(x, n)[:, None]
+        parts = [self._local(k, xx, h, what) for what in ("q", "v", "tau")]
+        return np.hstack(parts).reshape(n, m, -1)
+
     def _eval(self, time: float | Array, what: str) -> Array:
         scalar = np.ndim(time) == 0
         k, s, h = self._locate(np.atleast_1d(np.asarray(time, dtype=float)))
-        s, h = s[:, None], h[:, None]
+        out = self._local(k, (s / h)[:, None], h[:, None], what)
+        return out[0] if scalar else out
+
+    def _local(self, k: NDArray[np.intp], x: Array, h: Array, what: str) -> Array:
+        """Evaluate ``what`` of intervals ``k`` at local times ``x`` (a column), lengths ``h``."""
+        if self.interpolation == "radau":
+            return self._radau(k, x, h, what)
+        s = x * h
         q0, q1, v0, v1 = self.q[k], self.q[k + 1], self.v[k], self.v[k + 1]
         a0, a1 = self.a[k], self.a[k + 1]
-        x = s / h
         if what == "tau":
             if self.interpolation == "trapezoidal":
                 out = self.tau[k] + x * (self.tau[k + 1] - self.tau[k])
@@ -168,4 +228,19 @@ class Trajectory:
             h01 = -2 * x**3 + 3 * x**2
             h11 = x**3 - x**2
             out = h00 * p0 + h10 * h * d0 + h01 * p1 + h11 * h * d1
-        return out[0] if scalar else out
+        return np.asarray(out)
+
+    def _radau(self, k: NDArray[np.intp], x: Array, h: Array, what: str) -> Array:
+        """Radau interpolants: ``x(s) = x_k + h sum_j I_j(s) x'_j``, torque through the stages."""
+        stages, ends = {
+            "q": (self.v_stages, self.v),
+            "v": (self.a_stages, self.a),
+            "tau": (self.tau_stages, self.tau),
+        }[what]
+        assert stages is not None
+        values = np.concatenate([stages[k], ends[k + 1][:, None, :]], axis=1)  # (M, 3, nv)
+        xs = x[:, 0]
+        if what == "tau":
+            return np.einsum("mj,mjc->mc", radau.basis(xs), values)
+        start = self.q[k] if what == "q" else self.v[k]
+        return start + h * np.einsum("mj,mjc->mc", radau.integral(xs), values)

@@ -4,6 +4,7 @@
   and ``6(n - 1) + 12`` equalities for the youBot).
 * :class:`HermiteSimpsonCollocation` -- separated Hermite-Simpson with a
   mid-interval torque.
+* :class:`RadauCollocation` -- three-stage Radau IIA (L-stable: stiff damping).
 """
 
 from __future__ import annotations
@@ -11,10 +12,12 @@ from __future__ import annotations
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.transcription.base import TranscribedNLP, Transcription
 from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollocation
+from youbot_opt.trajopt.transcription.radau import RadauCollocation
 from youbot_opt.trajopt.transcription.trapezoidal import TrapezoidalCollocation
 
 __all__ = [
     "HermiteSimpsonCollocation",
+    "RadauCollocation",
     "TranscribedNLP",
     "Transcription",
     "TrapezoidalCollocation",
@@ -25,6 +28,7 @@ _METHODS: dict[str, type[Transcription]] = {
     "trapezoidal": TrapezoidalCollocation,
     "hermite_simpson": HermiteSimpsonCollocation,
     "hermite-simpson": HermiteSimpsonCollocation,
+    "radau": RadauCollocation,
 }
 
 
@@ -34,8 +38,8 @@ def get_transcription(method: str | Transcription) -> Transcription:
     Parameters
     ----------
     method : str or Transcription
-        ``"trapezoidal"``, ``"hermite_simpson"`` (or ``"hermite-simpson"``), or
-        an instance.
+        ``"trapezoidal"``, ``"hermite_simpson"`` (or ``"hermite-simpson"``),
+        ``"radau"``, or an instance.
 
     Returns
     -------

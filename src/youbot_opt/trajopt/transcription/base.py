@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
@@ -49,6 +49,12 @@ BOUND_NAMES: dict[str, str] = {
     "q_mid": "position_mid",
     "v_mid": "velocity_mid",
     "tau_mid": "torque_mid",
+    "q_stage1": "position_stage1",
+    "v_stage1": "velocity_stage1",
+    "tau_stage1": "torque_stage1",
+    "q_stage2": "position_stage2",
+    "v_stage2": "velocity_stage2",
+    "tau_stage2": "torque_stage2",
     "dt": "dt",
 }
 """Variable block -> name of its bound family in the multiplier dictionary."""
@@ -185,7 +191,7 @@ class TranscribedNLP:
             if name in self.unbounded:
                 lo[name], hi[name] = -np.inf, np.inf
             elif name != "dt":
-                base = name.removesuffix("_mid")
+                base = name.split("_")[0]  # q_mid, v_stage1, tau_stage2, ... -> q, v, tau
                 lo[name], hi[name] = lower[base], upper[base]
         return self.variables.pack(lo), self.variables.pack(hi)
 
@@ -362,11 +368,18 @@ class Transcription(ABC):
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
         """Return initial values of every variable block from a guess trajectory."""
 
-    def trajectory(self, values: dict[str, Array], a: Array) -> Trajectory:
+    def trajectory(
+        self,
+        values: dict[str, Array],
+        a: Array,
+        accel: Callable[[Array, Array, Array], Array] | None = None,
+    ) -> Trajectory:
         """Solution trajectory from unpacked variables and knot accelerations ``a``.
 
         Knots at :meth:`solution_times` of the mean step ``values["dt"]`` [s];
         ``values["tau_mid"]`` [N m] where the method has midpoint torques.
+        ``accel(q, v, tau)`` (knot-major arrays -> accelerations [rad/s^2])
+        serves methods that need accelerations at other points (Radau's stages).
         """
         dt = float(values["dt"].ravel()[0])
         n = values["q"].shape[0]
@@ -458,10 +471,10 @@ class Transcription(ABC):
         g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
         constraints = Layout([(name, nv, expr.size2()) for name, expr in g_blocks])
         dt = sym["dt"]
-        w_knots, w_mid = self.quadrature(n)
-        work = ca.mtimes(ca.sum1(sym["tau"] ** 2), ca.DM(w_knots))
-        if w_mid is not None:
-            work += ca.mtimes(ca.sum1(sym["tau_mid"] ** 2), ca.DM(w_mid))
+        terms = [ca.mtimes(ca.sum1(sym[name] ** 2), ca.DM(w)) for name, w in self.work_weights(n)]
+        work = terms[0]
+        for term in terms[1:]:
+            work += term
         work = dt * work
         total_time = duration(dt, n)
         f = problem.objective.value(total_time, work, beta)
@@ -473,6 +486,15 @@ class Transcription(ABC):
             constraints=constraints,
             path_bounds={name: family for name, family, _ in path},
         )
+
+    def work_weights(self, n_knots: int) -> list[tuple[str, Array]]:
+        """Torque blocks and their weights: ``W = dt sum_blocks w . (tau . tau)`` per column.
+
+        From :meth:`quadrature`: the knot torques and, where the method has
+        them, the mid-interval ones (Simpson).
+        """
+        w_knots, w_mid = self.quadrature(n_knots)
+        return [("tau", w_knots)] + ([] if w_mid is None else [("tau_mid", w_mid)])
 
     def quadrature(self, n_knots: int) -> tuple[Array, Array | None]:
         """Work weights ``(w_knots, w_mid)`` with ``W = dt (w_knots . p + w_mid . p_mid)``.
