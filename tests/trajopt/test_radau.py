@@ -11,6 +11,7 @@ joint damping").
 from __future__ import annotations
 
 from math import comb
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -226,3 +227,31 @@ def test_stiff_damping_radau_refines_to_a_certified_plan(stiff_plans: dict) -> N
     assert result.objective == pytest.approx(33.2369, abs=2e-3)
     assert certify(result).passed()
     assert collocation_error(result).max <= 1e-3
+
+
+def test_command_line_solve_with_radau(tmp_path: Path) -> None:
+    """``youbot-opt solve --transcription radau``: the run folder, its result and its summary.
+
+    Reloading the saved result gives the same trajectory (the stage arrays are
+    saved); the active-bound report covers the stage blocks (torque_stage*).
+    """
+    import json
+
+    from youbot_opt.cli import main
+    from youbot_opt.trajopt.io import load_result
+
+    out = tmp_path / "run"
+    assert main(["solve", "--transcription", "radau", "--knots", "12", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["method"] == "radau" and summary["certified"] is True, summary.get("certified")
+    result = load_result(out / "result.npz")
+    assert result.method == "radau" and result.certified
+    assert result.objective == pytest.approx(summary["objective"], rel=1e-12)
+    assert result.trajectory is not None and result.trajectory.tau_stages is not None
+    assert result.trajectory.tau_stages.shape == (result.problem.n_knots - 1, 2, 3)
+    families = {row.name.rsplit("_", 1)[0] for row in result.active_bounds(1e-6)}
+    assert families <= {
+        "position", "velocity", "torque", "torque_stage1", "torque_stage2", "dt",
+        "velocity_control_left", "velocity_control_right",
+        "position_control_left", "position_control_right",
+    }  # fmt: skip

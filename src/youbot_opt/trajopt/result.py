@@ -425,7 +425,7 @@ class TrajOptResult:
         if self.problem.duration is not None:
             dt_lo = dt_hi = self.problem.duration / (self.problem.n_knots - 1)
         limits["dt"] = (np.array([dt_lo]), np.array([dt_hi]))
-        from youbot_opt.trajopt.transcription.base import BOUND_NAMES
+        from youbot_opt.trajopt.transcription.base import BOUND_NAMES, variable_family
 
         structure = self.bound_structure_of()
         rows: list[ActiveBound] = []
@@ -449,7 +449,7 @@ class TrajOptResult:
             if block in structure.unbounded:
                 continue
             family = BOUND_NAMES[block]
-            lo, hi = limits[block.removesuffix("_mid")]
+            lo, hi = limits[variable_family(block)]
             for side, bound in (("lower", lo), ("upper", hi)):
                 name = f"{family}_{side}"
                 collect(name, values, bound, side, self.multipliers.get(name))

@@ -37,6 +37,7 @@ __all__ = [
     "Transcription",
     "Expressions",
     "BOUND_NAMES",
+    "variable_family",
     "check_fractions",
     "grid_times",
     "step_ratios",
@@ -58,6 +59,15 @@ BOUND_NAMES: dict[str, str] = {
     "dt": "dt",
 }
 """Variable block -> name of its bound family in the multiplier dictionary."""
+
+
+def variable_family(block: str) -> str:
+    """The joint quantity a variable block holds: ``"q"``, ``"v"``, ``"tau"`` (or ``"dt"``).
+
+    ``q_mid`` and ``q_stage1`` are positions, ``tau_stage2`` torques, and so on:
+    a block is bounded by its family's joint bounds.
+    """
+    return block.split("_")[0]
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,8 +201,8 @@ class TranscribedNLP:
             if name in self.unbounded:
                 lo[name], hi[name] = -np.inf, np.inf
             elif name != "dt":
-                base = name.split("_")[0]  # q_mid, v_stage1, tau_stage2, ... -> q, v, tau
-                lo[name], hi[name] = lower[base], upper[base]
+                family = variable_family(name)
+                lo[name], hi[name] = lower[family], upper[family]
         return self.variables.pack(lo), self.variables.pack(hi)
 
     def constraint_bounds(
