@@ -62,7 +62,7 @@ BOUND_NAMES: dict[str, str] = {
 
 
 def variable_family(block: str) -> str:
-    """The joint quantity a variable block holds: ``"q"``, ``"v"``, ``"tau"`` (or ``"dt"``).
+    """Return the joint quantity a variable block holds: ``"q"``, ``"v"``, ``"tau"``, ``"dt"``.
 
     ``q_mid`` and ``q_stage1`` are positions, ``tau_stage2`` torques, and so on:
     a block is bounded by its family's joint bounds.
