@@ -42,7 +42,7 @@ from youbot_opt.ikpath.spatial import (
     SpatialIKResult,
     greedy_path,
 )
-from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
+from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.spatial_reachability import (
     SpatialReach,
     SpatialVerdict,
@@ -58,6 +58,7 @@ from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import SpatialTarget, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.source import RobotSource
 
 __all__ = [
     "ALOptions",

@@ -1,8 +1,9 @@
 """Save and load spatial IK-path results: one JSON file with schema, version and checksum.
 
 Schema ``youbot_opt.spatial_ikpath_result`` (version :data:`SCHEMA_VERSION`):
-the robot's source (:class:`RobotSource`: a robot name or URDF path and the
-loading options, so that the file reloads on its own), a fingerprint of its
+the robot's source (:class:`~youbot_opt.robot.source.RobotSource`: a name, or a
+URDF by path, path relative to the file and SHA-256, and the loading options,
+so that the file reloads on its own, also after a move), a fingerprint of its
 kinematics, the frame, targets, limits, configurations, reported errors and
 history under ``"result"``, its SHA-256 under ``"sha256"``. Loading rebuilds
 the problem, recomputes every target's errors by ``pin.framesForwardKinematics``
@@ -14,7 +15,6 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt._files import array_digest
-from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
+from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.ikpath.io import (
     RECHECK_TOL,
     encode_document,
@@ -36,7 +36,8 @@ from youbot_opt.ikpath.io import (
 from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
 from youbot_opt.ikpath.targets import SpatialTarget, quaternion_to_matrix
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.robot.model import RobotModel, available_robots, load_model
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.source import RobotSource
 
 __all__ = [
     "SCHEMA",
@@ -50,84 +51,6 @@ __all__ = [
 
 SCHEMA = "youbot_opt.spatial_ikpath_result"
 SCHEMA_VERSION = 1
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class RobotSource:
-    """How to load a robot again: :func:`~youbot_opt.robot.model.load_model` arguments.
-
-    Attributes
-    ----------
-    source : str
-        A name of :func:`~youbot_opt.robot.model.available_robots` or a URDF path.
-    package_dirs : tuple of str
-        Extra folders for ``package://`` references.
-    lock_joints : tuple of (str, float)
-        Locked joints and their positions in [rad] or [m].
-    strict : bool
-        The loader's inertia policy (``False``: ``--lenient``).
-    """
-
-    source: str
-    package_dirs: tuple[str, ...] = ()
-    lock_joints: tuple[tuple[str, float], ...] = ()
-    strict: bool = True
-
-    @classmethod
-    def of(cls, robot: RobotModel, *, strict: bool = True) -> RobotSource:
-        """Describe a loaded robot: its name if it is a known robot, else its URDF path.
-
-        Raises
-        ------
-        ParameterError
-            If the robot has neither (built from parameters in memory).
-        """
-        if robot.name in available_robots():
-            source = robot.name
-        elif robot.urdf_path is not None:
-            source = str(Path(robot.urdf_path).resolve())
-        else:
-            raise ParameterError(
-                f"robot {robot.name!r} has no URDF file and is not a known robot name; "
-                "a result file cannot name how to load it again",
-                name="robot",
-                value=robot.name,
-            )
-        return cls(
-            source=source,
-            package_dirs=tuple(str(p) for p in robot.package_dirs),
-            lock_joints=tuple((str(k), float(v)) for k, v in robot.locked_joints),
-            strict=strict,
-        )
-
-    def load(self, tip_frame: str | None = None) -> RobotModel:
-        """Load the robot (:func:`~youbot_opt.robot.model.load_model`)."""
-        return load_model(
-            self.source,
-            tip_frame=tip_frame,
-            package_dirs=self.package_dirs,
-            strict=self.strict,
-            lock_joints=dict(self.lock_joints) or None,
-        )
-
-    def to_json(self) -> dict[str, Any]:
-        """JSON-ready form."""
-        return {
-            "source": self.source,
-            "package_dirs": list(self.package_dirs),
-            "lock_joints": [[k, v] for k, v in self.lock_joints],
-            "strict": self.strict,
-        }
-
-    @classmethod
-    def from_json(cls, data: dict[str, Any]) -> RobotSource:
-        """Inverse of :meth:`to_json`."""
-        return cls(
-            source=str(data["source"]),
-            package_dirs=tuple(str(p) for p in data.get("package_dirs", ())),
-            lock_joints=tuple((str(k), float(v)) for k, v in data.get("lock_joints", ())),
-            strict=bool(data.get("strict", True)),
-        )
 
 
 def _kinematics_digest(model: pin.Model) -> str:
@@ -165,9 +88,11 @@ def spatial_problem_spec(problem: SpatialIKProblem) -> dict[str, Any]:
     }
 
 
-def _body(result: SpatialIKResult, robot: RobotSource | None) -> dict[str, Any]:
+def _body(
+    result: SpatialIKResult, robot: RobotSource | None, folder: Path | None
+) -> dict[str, Any]:
     return {
-        "robot": None if robot is None else robot.to_json(),
+        "robot": None if robot is None else robot.to_json(folder=folder),
         **spatial_problem_spec(result.problem),
         "method": result.method,
         "status": result.status.value,
@@ -185,7 +110,12 @@ def _body(result: SpatialIKResult, robot: RobotSource | None) -> dict[str, Any]:
     }
 
 
-def encode_spatial_result(result: SpatialIKResult, robot: RobotSource | None = None) -> bytes:
+def encode_spatial_result(
+    result: SpatialIKResult,
+    robot: RobotSource | None = None,
+    *,
+    folder: str | os.PathLike[str] | None = None,
+) -> bytes:
     """Return the file content :func:`save_spatial_result` writes (UTF-8 JSON).
 
     Parameters
@@ -194,8 +124,12 @@ def encode_spatial_result(result: SpatialIKResult, robot: RobotSource | None = N
         The result (failed ones too).
     robot : RobotSource, optional
         How to load the robot again; without it the loader needs ``robot=``.
+    folder : str or path-like, optional
+        The folder the file goes to: the robot's URDF and package folders are
+        recorded relative to it too (:meth:`RobotSource.to_json`).
     """
-    return encode_document(SCHEMA, SCHEMA_VERSION, _body(result, robot))
+    where = None if folder is None else Path(folder)
+    return encode_document(SCHEMA, SCHEMA_VERSION, _body(result, robot, where))
 
 
 def save_spatial_result(
@@ -203,12 +137,18 @@ def save_spatial_result(
 ) -> Path:
     """Write ``result`` to ``path`` as JSON (``.json`` appended if missing), atomically.
 
+    ``robot`` (:meth:`RobotSource.of`; None: the loader will need ``robot=``)
+    is written with its URDF's SHA-256 and its paths relative to the file's
+    folder, so that the file still loads after the folder and the URDF moved
+    together.
+
     Returns
     -------
     Path
         The file written.
     """
-    return write_document(path, encode_spatial_result(result, robot))
+    folder = Path(path).parent
+    return write_document(path, encode_spatial_result(result, robot, folder=folder))
 
 
 def _target(d: dict[str, Any]) -> SpatialTarget:
@@ -228,7 +168,9 @@ def _target(d: dict[str, Any]) -> SpatialTarget:
     )
 
 
-def _model_of(body: dict[str, Any], robot: RobotModel | pin.Model | None, source: str) -> pin.Model:
+def _model_of(
+    body: dict[str, Any], robot: RobotModel | pin.Model | None, source: Path
+) -> pin.Model:
     """Return the caller's model, else the file's robot source loaded; check its fingerprint."""
     if robot is None:
         spec = body.get("robot")
@@ -237,7 +179,14 @@ def _model_of(body: dict[str, Any], robot: RobotModel | pin.Model | None, source
                 f"{source}: the file names no robot source; pass robot= (the RobotModel or "
                 "pinocchio.Model it was solved on)"
             )
-        model = RobotSource.from_json(spec).load().model
+        try:
+            model = RobotSource.from_json(spec).load(folder=source.parent).model
+        except YoubotOptError as exc:
+            raise ResultFileError(
+                f"{source}: cannot load the robot it was solved on: {exc}; pass robot= (the "
+                "RobotModel to check it against, e.g. load_model(...) of an edited URDF if "
+                "the change is intended)"
+            ) from exc
     else:
         model = robot.model if isinstance(robot, RobotModel) else robot
     want = body["model"]
@@ -272,7 +221,7 @@ def _fk_errors(problem: SpatialIKProblem, q: np.ndarray) -> tuple[np.ndarray, np
 
 
 def _parse(
-    body: dict[str, Any], robot: RobotModel | pin.Model | None, source: str
+    body: dict[str, Any], robot: RobotModel | pin.Model | None, source: Path
 ) -> tuple[SpatialIKResult, np.ndarray, np.ndarray]:
     model = _model_of(body, robot, source)
     problem = SpatialIKProblem(
@@ -326,7 +275,10 @@ def load_spatial_result(
     path : str or path-like
         The JSON file (a run folder's ``result.json``).
     robot : RobotModel or pinocchio.Model, optional
-        The robot; default: loaded from the file's :class:`RobotSource`.
+        The robot; default: loaded from the file's :class:`RobotSource`, its
+        URDF taken from the recorded path or else from the recorded path
+        relative to the file's folder, only with the recorded content
+        (:meth:`RobotSource.load`).
 
     Returns
     -------
@@ -338,9 +290,11 @@ def load_spatial_result(
     ------
     ResultFileError
         If the file is missing or not JSON, of another schema or a newer
-        version, fails its checksum, is incomplete, its robot differs from the
-        one it was solved on, its stored E or target errors disagree with the
-        recomputed ones by more than 1e-9 (e.g. a moved target), or it claims a
+        version, fails its checksum, is incomplete, its robot cannot be loaded
+        (the URDF not found: the message names the paths tried; or edited: it
+        names the file and both SHA-256) or differs from the one it was solved
+        on, its stored E or target errors disagree with the recomputed ones by
+        more than 1e-9 (e.g. a moved target), or it claims a
         success that the recomputed errors or limits do not confirm.
     """
     source = Path(path)
@@ -348,7 +302,7 @@ def load_spatial_result(
         source, schema=SCHEMA, version=SCHEMA_VERSION, what="a spatial IK-path result"
     )
     try:
-        result, stored_pos, stored_ang = _parse(body, robot, str(source))
+        result, stored_pos, stored_ang = _parse(body, robot, source)
         stored_e = float(body["objective"])
     except ResultFileError:
         raise

@@ -172,6 +172,10 @@ class RobotModel:
     locked_joints : tuple of (str, float)
         Joints of the file locked at a position in [rad] or [m] (removed from
         the model by Pinocchio's reduced model); empty when none.
+    strict : bool
+        The inertia policy the file was loaded under (``load_model(strict=)``;
+        False: ``--lenient``), so that it can be loaded again the same way;
+        True for models built in memory.
     """
 
     name: str
@@ -182,6 +186,7 @@ class RobotModel:
     package_dirs: tuple[Path, ...]
     tip_frame: str
     locked_joints: tuple[tuple[str, float], ...] = ()
+    strict: bool = True
 
     def __post_init__(self) -> None:
         self.frame_id(self.tip_frame)  # raises FrameNotFound listing the frames
@@ -796,6 +801,7 @@ def load_model(
         package_dirs=dirs,
         tip_frame=tip if tip_frame is None else tip_frame,
         locked_joints=locked,
+        strict=bool(strict),
     )
 
 

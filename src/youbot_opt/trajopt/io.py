@@ -2,10 +2,11 @@
 
 Schema ``youbot_opt.trajopt_result`` (version :data:`SCHEMA_VERSION`): arrays
 under ``"<group>__<name>"`` keys and a JSON ``"metadata"`` entry (versions,
-problem, transcription, status, options, refinement record, SHA-256 of every
-array). Nothing is pickled, writes are atomic, and the loader re-checks the
-result (:func:`youbot_opt.trajopt.check.checked`) and re-runs the certificate of
-a plan saved as certified. Files without a refinement record (commit 74bfa23) load.
+problem, the robot's :class:`~youbot_opt.robot.source.RobotSource` so that it
+reloads after a move, transcription, status, options, refinement record, SHA-256
+of every array). Nothing is pickled, writes are atomic, and the loader re-checks
+the result (:func:`youbot_opt.trajopt.check.checked`) and re-runs the certificate
+of a plan saved as certified. Files without a refinement record (commit 74bfa23) load.
 
 >>> result = load_result(save_result(result, "result.npz"))  # doctest: +SKIP
 """
@@ -32,9 +33,10 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ResultFileError, YoubotOptError
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.robot.model import RobotModel, available_robots, load_model
+from youbot_opt.robot.model import RobotModel, available_robots
+from youbot_opt.robot.source import RobotSource
 from youbot_opt.trajopt.certificate import Tolerances
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.check import checked
@@ -171,6 +173,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
         **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "problem": result.problem.describe(),
+        "robot_source": _robot_source(result.problem.robot, target.parent),
         "method": result.method,
         "backend": result.backend,
         "status": result.status.value,
@@ -252,17 +255,32 @@ def _trajectory(values: dict[str, Array], interpolation: str | None) -> Trajecto
     )
 
 
-def _robot(desc: dict[str, Any]) -> RobotModel:
-
-    name, urdf = desc["robot"], desc.get("urdf_path")
-    source = name if name in available_robots() else urdf
-    if source is None:
-        raise ResultFileError(f"cannot reload robot {name!r}: no URDF path saved; pass robot=")
+def _robot_source(robot: RobotModel, folder: Path) -> dict[str, Any] | None:
+    """How to load ``robot`` again from a file in ``folder``; None if built in memory."""
     try:
-        robot = load_model(source)
+        return RobotSource.of(robot).to_json(folder=folder)
+    except ParameterError:  # no file and no known name, or the URDF is unreadable now
+        return None
+
+
+def _robot(desc: dict[str, Any], source: dict[str, Any] | None, path: Path) -> RobotModel:
+    """Load the robot a result was solved on again, with the saved joint damping."""
+    name = desc["robot"]
+    if source is not None:
+        spec = RobotSource.from_json(source)
+    else:  # written before the robot source was saved: by name or URDF path, no options
+        old = name if name in available_robots() else desc.get("urdf_path")
+        if old is None:
+            raise ResultFileError(f"cannot reload robot {name!r}: no URDF path saved; pass robot=")
+        spec = RobotSource(source=str(old))
+    where = spec.source
+    try:
+        robot = spec.load(folder=path.parent)
     except YoubotOptError as exc:
         raise ResultFileError(
-            f"cannot reload robot {name!r} from {source}: {exc}; pass robot="
+            f"{path}: cannot reload robot {name!r} from {where}: {exc}; pass robot= (the "
+            "RobotModel to attach, e.g. load_model(...) of an edited URDF if the change "
+            "is intended)"
         ) from exc
     damping = np.asarray(desc.get("model_damping", []), dtype=float)
     if damping.shape == (robot.nv,):
@@ -278,8 +296,14 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
     path : str or path-like
         The ``.npz`` file.
     robot : RobotModel, optional
-        The robot to attach; reloaded from the saved name or URDF path (with
-        the saved joint damping) when omitted.
+        The robot to attach (it overrides everything the file says of its
+        robot). When omitted, reloaded from the saved
+        :class:`~youbot_opt.robot.source.RobotSource` ``"robot_source"``: the
+        robot name, or the URDF at its saved absolute path, else at its saved
+        path relative to this file's folder, only with the saved SHA-256 of
+        its content; with the saved package folders, locked joints and
+        strictness, and the saved joint damping. Files without it (written
+        before) reload from the name or URDF path of ``"problem"``, as then.
 
     Returns
     -------
@@ -297,14 +321,16 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
     ------
     ResultFileError
         If the file is missing, corrupted (bad zip, bad JSON, checksum
-        mismatch), of another schema or of a newer schema version.
+        mismatch), of another schema or of a newer schema version, or its
+        robot cannot be reloaded (the URDF not found: the message names the
+        paths tried; or edited: it names the file and both SHA-256).
     """
     path = Path(path)
     meta, arrays = _read(path)
     try:
         desc = meta["problem"]
         if robot is None:
-            robot = _robot(desc)
+            robot = _robot(desc, meta.get("robot_source"), path)
         problem = TrajOptProblem(
             robot=robot,
             start=BoundaryState(q=desc["start_q"], v=desc["start_v"]),

@@ -12,7 +12,6 @@ written when the robot was named by its absolute URDF path still resume.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import warnings
@@ -21,6 +20,7 @@ from typing import Any
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.source import urdf_digest
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
@@ -79,6 +79,8 @@ def open_store(
 def robot_identity(robot: RobotModel) -> str | None:
     """Return the SHA-256 (hex) of the URDF file ``robot`` was loaded from (``None``: in memory).
 
+    The digest is :func:`~youbot_opt.robot.source.urdf_digest`, as result files record it.
+
     This is what a sweep's manifest records of the robot: it does not depend
     on where the URDF, the installed package or the output folder lie, so a
     store resumes after a move or on another machine, and only with a file of
@@ -92,18 +94,7 @@ def robot_identity(robot: RobotModel) -> str | None:
     path = robot.urdf_path
     if path is None:
         return None
-    return _file_sha256(Path(path), robot.name)
-
-
-def _file_sha256(path: Path, name: str) -> str:
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError as exc:
-        raise ParameterError(
-            f"cannot read the URDF {path} of robot {name!r} to identify it: {exc}",
-            name="robot",
-            value=str(path),
-        ) from exc
+    return urdf_digest(path, robot.name)
 
 
 def _as_stored(out: Path, params: dict[str, Any], robot: RobotModel) -> dict[str, Any]:
@@ -128,7 +119,7 @@ def _as_stored(out: Path, params: dict[str, Any], robot: RobotModel) -> dict[str
         same = True
     elif Path(path).exists():  # moved, the old file still there: the same content?
         try:
-            same = _file_sha256(Path(path), robot.name) == problem.get("urdf_sha256")
+            same = urdf_digest(path, robot.name) == problem.get("urdf_sha256")
         except ParameterError:
             same = False
     else:
