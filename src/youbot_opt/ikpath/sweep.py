@@ -220,7 +220,7 @@ def start_key(index: int, n_starts: int) -> str:
 
 _IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
 """The IK IPOPT settings a sweep manifest held before the unified IpoptOptions."""
-_IPOPT_FIELDS_SINCE_02CDF49 = ("fast_kkt",)
+_IPOPT_FIELDS_SINCE_02CDF49 = ("fast_kkt", "linear_solver_library")
 """IPOPT settings added after commit 02cdf49 (which wrote every field): left out of
 both manifest forms when they hold the IK default, so stores of either form resume."""
 _AL_FIELDS_FINAL_PHASE = (
