@@ -2,9 +2,10 @@
 
 ``f = beta T + (1 - beta) W`` with the true duration ``T = (N - 1) dt`` in [s]
 and the effort ``W`` (integral of ``tau . tau``) in [N^2 m^2 s] by the
-quadrature of the transcription: trapezoidal (the study's) or Simpson's rule
-(Hermite-Simpson). The helpers work on numbers and CasADi expressions alike,
-so the NLP and the re-evaluation of a result share one definition.
+quadrature of the transcription: trapezoidal (the study's), Simpson's rule
+(Hermite-Simpson) or Radau's weights (``Transcription.work_weights``). The
+helpers work on numbers and CasADi expressions alike, so the NLP and the
+re-evaluation of a result share one definition.
 
 >>> duration(dt, n_knots=50)  # T = 49 dt [s]  # doctest: +SKIP
 """
