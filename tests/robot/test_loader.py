@@ -307,6 +307,18 @@ def test_urdf_path_must_be_a_small_regular_file(tmp_path: Path, monkeypatch) -> 
         load_urdf_strict(CORPUS / "valid" / "minimal.urdf", [])
 
 
+def test_a_name_too_long_for_a_path_is_not_found() -> None:
+    """A source longer than the file system allows (OSError ENAMETOOLONG) is not found, by name.
+
+    Found by the command-line fuzzer (``report --robot aaaa...``): ``Path.is_file``
+    raised instead of answering False.
+    """
+    from youbot_opt.robot.model import load_model
+
+    with pytest.raises(RobotNotFound, match="nor an existing URDF file"):
+        load_model("a" * 5000)
+
+
 def test_package_dirs_must_be_existing_folders(tmp_path: Path) -> None:
     """A missing package folder or a bare string instead of a sequence is a ParameterError."""
     urdf = CORPUS / "valid" / "single_link.urdf"

@@ -756,7 +756,11 @@ def load_model(
         name = source
     elif isinstance(source, str | os.PathLike):
         urdf_path = Path(source)
-        if not urdf_path.is_file():
+        try:
+            is_file = urdf_path.is_file()
+        except OSError:  # e.g. a name longer than the file system allows
+            is_file = False
+        if not is_file:
             raise RobotNotFound(
                 f"{str(source)!r} is neither a robot name (`youbot-opt robots` lists them: "
                 f"{', '.join(available_robots()[:10])}, ...) nor an existing URDF file",
