@@ -255,3 +255,18 @@ def test_command_line_solve_with_radau(tmp_path: Path) -> None:
         "velocity_control_left", "velocity_control_right",
         "position_control_left", "position_control_right",
     }  # fmt: skip
+
+
+def test_work_weights_are_the_radau_weights_per_interval() -> None:
+    """Per interval ``h_k (b_1, b_2, b_3)`` on stage 1, stage 2, end knot; no knot-midpoint rule."""
+    from youbot_opt.exceptions import TranscriptionError
+    from youbot_opt.trajopt.transcription import RadauCollocation
+
+    method = RadauCollocation([1.0, 3.0])  # steps 0.5 and 1.5 times the mean step
+    weights = dict(method.work_weights(3))
+    b = BUTCHER[2]
+    np.testing.assert_allclose(weights["tau"], [0.0, 0.5 * b[2], 1.5 * b[2]], atol=1e-15)
+    np.testing.assert_allclose(weights["tau_stage1"], [0.5 * b[0], 1.5 * b[0]], atol=1e-15)
+    np.testing.assert_allclose(weights["tau_stage2"], [0.5 * b[1], 1.5 * b[1]], atol=1e-15)
+    with pytest.raises(TranscriptionError, match="work_weights"):
+        method.quadrature(3)

@@ -18,6 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.exceptions import TranscriptionError
 from youbot_opt.trajopt import radau
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription.base import Transcription
@@ -119,8 +120,17 @@ class RadauCollocation(Transcription):
         ]
 
     def quadrature(self, n_knots: int) -> tuple[Array, Array | None]:
-        """Knot weights only (the stage weights: :meth:`work_weights`)."""
-        return self.work_weights(n_knots)[0][1], None
+        """Not a knot-and-midpoint rule: the work weights are :meth:`work_weights`.
+
+        Raises
+        ------
+        TranscriptionError
+            Always: ``(w_knots, w_mid)`` cannot express Radau's stage weights.
+        """
+        raise TranscriptionError(
+            "Radau's work quadrature weights the stage torques: use work_weights(n_knots), "
+            "not quadrature()"
+        )
 
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
         """Knot and stage values of ``guess`` on the grid's ``n_knots`` times."""
