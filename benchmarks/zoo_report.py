@@ -5,9 +5,10 @@ Run ``python benchmarks/zoo_report.py [--quick] [--only NAME ...] [--out docs/ro
 For each robot of the installed example-robot-data whose package is an arm or
 a manipulator (:data:`ARM_PACKAGES`, plus talos' single arm): load it (default,
 then ``strict=False``), plan a rest-to-rest motion between 35 % and 65 % of each
-joint's range (±1 rad for a continuous joint) as a user gets it: Hermite-Simpson
-on 40 knots (20 with ``--quick``; ``--transcription radau`` for Radau IIA), beta =
-0.5, then adaptive refinement
+joint's range (±1 rad for a continuous joint) as a user gets it: the transcription
+``method="auto"`` picks (Radau IIA where the joint damping is stiff on the grid,
+else Hermite-Simpson; ``--transcription`` to force one) on 40 knots (20 with
+``--quick``), beta = 0.5, then adaptive refinement
 (:func:`~youbot_opt.trajopt.refine.refine`, budget :func:`budget`) until the
 plan is certified by forward simulation or the budget runs out; the dynamics
 run in CasADi's virtual machine. The table (``docs/robots.md``) shows the fixed
@@ -89,6 +90,7 @@ class Row:
     objective: str = "-"
     duration: str = "-"
     html_kb: str = "-"
+    scheme: str = "-"
     why: str = ""
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
@@ -148,6 +150,10 @@ METHOD_NAMES: dict[str, str] = {
     "hermite_simpson": "Hermite-Simpson",
     "trapezoidal": "trapezoidal collocation",
     "radau": "Radau IIA collocation",
+    "auto": (
+        'the transcription `method="auto"` picks (Radau IIA where the joint damping '
+        "is stiff on the grid, else Hermite-Simpson; column `scheme`)"
+    ),
 }
 """Transcriptions the report can use (``--transcription``) and their names in the table."""
 
@@ -190,7 +196,7 @@ def run_robot(
     n_knots: int,
     out_dir: Path,
     time_limit: float = TIME_LIMIT,
-    method: str = "hermite_simpson",
+    method: str = "auto",
 ) -> Row:
     """Load, solve (with transcription ``method``), refine and replay one robot; never raises."""
     row = Row(name=name)
@@ -223,6 +229,7 @@ def run_robot(
             robot=twin, start=BoundaryState(q=q0), goal=BoundaryState(q=q1), n_knots=n_knots
         )
         solver = TrajOptSolver(problem, method, compile=False)
+        row.scheme = solver.method.name
         result = refine(solver, beta=0.5, budget=budget(time_limit), progress=_progress(row))
     except YoubotOptError as exc:
         row.solves = "no" if row.solves == "-" else row.solves
@@ -322,7 +329,8 @@ def _table(rows: list[Row], n_knots: int, time_limit: float, wall: float, method
         "that fixed grid's forward-simulation certificate alone (what this report showed",
         "before refinement); `certified` is the outcome after refinement, which also",
         f"requires the error tolerance; `f / T, {n_knots} knots` is that solve's objective and",
-        "duration [s]; `knots`, `rounds` (refinement rounds after the first solve), `f`",
+        "duration [s]; `scheme` is the transcription; `knots`, `rounds` (refinement",
+        "rounds after the first solve), `f`",
         "and `T [s]` are the final grid's; `time [s]` is the robot's wall time (load,",
         "solves, certificates, replay); `why not` is the refinement's reason and its last",
         "certificate's failures.",
@@ -332,16 +340,16 @@ def _table(rows: list[Row], n_knots: int, time_limit: float, wall: float, method
         f"Total run time {wall:.0f} s.",
         "",
         f"| robot | nq/nv | joints | loads | solves | f / T, {n_knots} knots "
-        f"| certified, {n_knots} knots | certified "
+        f"| certified, {n_knots} knots | certified | scheme "
         "| knots | rounds | f | T [s] | time [s] | replay [kB] | why not | notes |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         notes = "; ".join(r.notes) or ""
         lines.append(
             f"| {r.name} | {r.dof} | {r.joints} | {r.loads} | {r.solves} | {r.fixed_plan} "
             f"| {r.fixed_certified} "
-            f"| {r.certified} | {r.knots} | {r.rounds} | {r.objective} | {r.duration} "
+            f"| {r.certified} | {r.scheme} | {r.knots} | {r.rounds} | {r.objective} | {r.duration} "
             f"| {r.seconds:.1f} | {r.html_kb} | {r.why} | {notes} |"
         )
     return "\n".join(lines) + "\n"
@@ -360,8 +368,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--transcription",
         choices=sorted(METHOD_NAMES),
-        default="hermite_simpson",
-        help="collocation scheme (default hermite_simpson; radau for the stiffly damped arms)",
+        default="auto",
+        help="collocation scheme (default auto: radau where the damping is stiff, else "
+        "hermite_simpson)",
     )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)

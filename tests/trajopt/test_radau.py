@@ -270,3 +270,22 @@ def test_work_weights_are_the_radau_weights_per_interval() -> None:
     np.testing.assert_allclose(weights["tau_stage2"], [0.5 * b[1], 1.5 * b[1]], atol=1e-15)
     with pytest.raises(TranscriptionError, match="work_weights"):
         method.quadrature(3)
+
+
+def test_auto_picks_radau_where_the_damping_is_stiff_on_the_grid() -> None:
+    """``method="auto"``: Radau for the 5 N m s/rad youBot on 20 knots, else Hermite-Simpson.
+
+    With the default 4.9 s guess, 20 knots give a 0.26 s step and ``rate * h``
+    about 970 (the rate is 3.8e3 1/s at the start and goal): stiff. 2000 knots
+    give 2.5e-3 s and about 9; without damping the rate is 0.
+    """
+    from youbot_opt.trajopt.simulate import STIFF_RATIO
+    from youbot_opt.trajopt.solver import auto_transcription
+
+    stiff = study1_problem(20, damping=STIFF)
+    rate = damping_rate(stiff.robot, np.stack([stiff.start.q, stiff.goal.q])).rate
+    assert rate * 4.9 / 19 > 5 * STIFF_RATIO and rate * 4.9 / 1999 < STIFF_RATIO / 5
+    assert auto_transcription(stiff) == "radau"
+    assert TrajOptSolver(stiff, "auto").method.name == "radau"
+    assert auto_transcription(study1_problem(2000, damping=STIFF)) == "hermite_simpson"
+    assert auto_transcription(study1_problem(20)) == "hermite_simpson"

@@ -82,9 +82,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--knots", type=int, default=50, help="number of knots (default 50)")
     p.add_argument(
         "--transcription",
-        choices=("trapezoidal", "hermite-simpson", "radau"),
+        choices=("trapezoidal", "hermite-simpson", "radau", "auto"),
         default="trapezoidal",
-        help="collocation scheme (default trapezoidal; radau is L-stable: stiff joint damping)",
+        help="collocation scheme (default trapezoidal; radau is L-stable, for stiff joint "
+        "damping; auto picks radau when the damping is stiff on the grid, else hermite-simpson)",
     )
     p.add_argument(
         "--guess",

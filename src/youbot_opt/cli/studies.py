@@ -99,8 +99,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--transcription",
         default="trapezoidal",
-        choices=("trapezoidal", "hermite-simpson", "radau"),
-        help="collocation scheme (radau is L-stable: stiff joint damping)",
+        choices=("trapezoidal", "hermite-simpson", "radau", "auto"),
+        help="collocation scheme (radau is L-stable, for stiff joint damping; auto picks "
+        "radau when the damping is stiff on the grid, else hermite-simpson)",
     )
     p.add_argument(
         "--backend", default="symbolic", choices=("symbolic", "pinocchio"), help="dynamics backend"

@@ -30,7 +30,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
 from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
 from youbot_opt.trajopt.check import checked
-from youbot_opt.trajopt.guess import resolve_guess
+from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, resolve_guess
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.objectives import work as work_of
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, check_bound_scale
@@ -43,6 +43,7 @@ from youbot_opt.trajopt.result import (
     TrajOptResult,
     status_from_ipopt,
 )
+from youbot_opt.trajopt.simulate import STIFF_RATIO, damping_rate
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription import Transcription, get_transcription
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
@@ -53,7 +54,7 @@ from youbot_opt.trajopt.transcription.derivatives import (
     structured_functions,
 )
 
-__all__ = ["TrajOptSolver", "solve", "DEFAULT_FEASIBILITY_TOL"]
+__all__ = ["TrajOptSolver", "solve", "auto_transcription", "DEFAULT_FEASIBILITY_TOL"]
 
 _log = logging.getLogger(__name__)
 
@@ -107,7 +108,10 @@ class TrajOptSolver:
     problem : TrajOptProblem
         The problem spec.
     method : str or Transcription
-        ``"trapezoidal"`` (default, the study's), ``"hermite_simpson"`` or an instance.
+        ``"trapezoidal"`` (default, the study's), ``"hermite_simpson"``,
+        ``"radau"``, ``"auto"`` (:func:`auto_transcription`: Radau IIA when the
+        joint damping is stiff on the problem's grid, else Hermite-Simpson) or
+        an instance.
     options : IpoptOptions, optional
         IPOPT settings; silent defaults when omitted.
     backend : str
@@ -168,7 +172,7 @@ class TrajOptSolver:
             )
         tic = time.perf_counter()
         self.problem = problem
-        self.method = get_transcription(method)
+        self.method = get_transcription(auto_transcription(problem) if method == "auto" else method)
         self.options = options if options is not None else IpoptOptions()
         if not isinstance(self.options, IpoptOptions):
             raise ParameterError("options must be an IpoptOptions", name="options")
@@ -608,6 +612,39 @@ class TrajOptSolver:
             grid=self.method.fractions,
         )
         return checked(result)  # the independent check (pin.aba, no NLP) sets the status
+
+
+def auto_transcription(problem: TrajOptProblem) -> str:
+    """Choose the transcription of ``problem``: ``"radau"`` if its damping is stiff, else HS.
+
+    The joint damping is stiff on a grid when its fastest relaxation rate
+    (:func:`~youbot_opt.trajopt.simulate.damping_rate`, at the start and goal
+    configurations) times the grid step exceeds
+    :data:`~youbot_opt.trajopt.simulate.STIFF_RATIO`; the step is the
+    problem's fixed duration, else the default guess's
+    (:data:`~youbot_opt.trajopt.guess.DEFAULT_GUESS_DURATION`), over its
+    intervals. The L-stable Radau IIA collocation then carries such a joint on
+    its slow motion, where trapezoidal and Hermite-Simpson collocation keep an
+    undamped spurious mode (docs/refinement.md, "Stiff joint damping");
+    otherwise Hermite-Simpson (fewer variables; certified on coarser grids
+    than the trapezoid).
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        The problem (robot, damping flag, boundary states, knots, duration).
+
+    Returns
+    -------
+    str
+        ``"radau"`` or ``"hermite_simpson"``.
+    """
+    if not problem.damping:
+        return "hermite_simpson"
+    q = np.stack([problem.start.q, problem.goal.q])
+    rate = damping_rate(problem.robot, q).rate  # [1/s]
+    step = (problem.duration or DEFAULT_GUESS_DURATION) / (problem.n_knots - 1)  # [s]
+    return "radau" if rate * step > STIFF_RATIO else "hermite_simpson"
 
 
 def solve(
