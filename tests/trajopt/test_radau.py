@@ -35,7 +35,7 @@ BUTCHER = np.array(  # Hairer & Wanner, Table IV.5.6 (Radau IIA, order 5)
         [(16 - S6) / 36, (16 + S6) / 36, 1 / 9],
     ]
 )
-MASS = 2.0  # [kg] of the slider
+MASS = 2.0  # [kg] of the slider (tests/trajopt/conftest.py)
 STIFF = 5.0  # [N m s/rad] youBot joint damping that makes the damping stiff on 20 knots
 
 
@@ -79,16 +79,6 @@ def test_bernstein_rows_recover_a_cubics_control_points() -> None:
     np.testing.assert_allclose(radau.bernstein_inner().sum(axis=1), 1.0, atol=1e-14)
 
 
-def _slider() -> pin.Model:
-    model = pin.Model()
-    joint = model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
-    model.appendBodyToJoint(joint, pin.Inertia(MASS, np.zeros(3), np.eye(3)), pin.SE3.Identity())
-    for limit in ("upperPositionLimit", "velocityLimit", "effortLimit"):
-        getattr(model, limit)[:] = 10.0
-    model.lowerPositionLimit[:] = -10.0
-    return model
-
-
 def _radau_slider(rng: np.random.Generator, n: int) -> tuple:
     """Knots and stages solving the Radau equations exactly (a = tau / m) on random steps."""
     t = np.concatenate(([0.0], np.cumsum(rng.uniform(0.1, 0.5, n - 1))))
@@ -113,7 +103,7 @@ def _abs_node_polynomial() -> float:
     return float(sum(abs(poly(b) - poly(a)) for a, b in zip(edges[:-1], edges[1:], strict=True)))
 
 
-def test_radau_error_on_a_double_integrator() -> None:
+def test_radau_error_on_a_double_integrator(slider: pin.Model) -> None:
     """Radau on a double integrator: velocity error 0, position error h^2 |L| / 3 int |w|.
 
     The velocity is the cubic ``v_k + h sum_j I_j(s) a_j`` (exact: a is the
@@ -127,8 +117,8 @@ def test_radau_error_on_a_double_integrator() -> None:
     2e-7 relative).
     """
     rng = np.random.default_rng(4)
+    assert slider.inertias[1].mass == MASS
     t, q, v, tau, stages = _radau_slider(rng, 6)
-    slider = _slider()
     h = np.diff(t)
     acc = np.concatenate([stages[2][:, :, 0], tau[1:]], axis=1) / MASS  # (n - 1, 3)
     lead = np.array([1.0 / np.prod([c - d for d in radau.NODES if d != c]) for c in radau.NODES])

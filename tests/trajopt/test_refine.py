@@ -11,7 +11,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
@@ -30,20 +29,8 @@ from youbot_opt.trajopt.refine import (
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.transcription import HermiteSimpsonCollocation
 
-MASS = 2.0  # [kg] of the slider
+MASS = 2.0  # [kg] of the slider (tests/trajopt/conftest.py)
 F_CONVERGED, T_CONVERGED = 8.074944, 2.313  # study-1 base case, HS 800 knots (README)
-
-
-@pytest.fixture(scope="module")
-def slider() -> pin.Model:
-    """A double integrator: one prismatic joint along x, gravity along -z (no effect)."""
-    model = pin.Model()
-    joint = model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
-    model.appendBodyToJoint(joint, pin.Inertia(MASS, np.zeros(3), np.eye(3)), pin.SE3.Identity())
-    for limit in ("upperPositionLimit", "velocityLimit", "effortLimit"):
-        getattr(model, limit)[:] = 10.0
-    model.lowerPositionLimit[:] = -10.0
-    return model
 
 
 def _slider_knots(rng, n, hs):
