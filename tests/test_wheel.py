@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import site
 import subprocess
 import sys
 import venv
@@ -39,11 +40,7 @@ def wheel_env(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     assert out.returncode == 0, out.stdout + out.stderr
     (wheel,) = tmp.glob("youbot_opt-*.whl")
     env_dir = tmp / "venv"
-    # The dependencies (pin, casadi, ...) come from this interpreter's site-packages;
-    # the package itself only from the wheel, installed into the environment's own
-    # site-packages, which come first on its sys.path.
-    venv.EnvBuilder(system_site_packages=True, with_pip=False).create(env_dir)
-    python = env_dir / "bin" / "python"
+    python = _environment_sharing_dependencies(env_dir)
     out = subprocess.run(
         [sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", str(wheel)],
         capture_output=True,
@@ -52,6 +49,32 @@ def wheel_env(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     )
     assert out.returncode == 0, out.stdout + out.stderr
     return wheel, python
+
+
+def _environment_sharing_dependencies(env_dir: Path) -> Path:
+    """A fresh virtual environment that sees this interpreter's dependencies, not its package.
+
+    `system_site_packages=True` would share the *base* interpreter's site-packages: when
+    the tests run in a virtual environment (what the README tells users to use), the
+    base interpreter has neither pinocchio nor casadi. Instead the new environment gets a
+    `.pth` file that adds this interpreter's own site-packages with `site.addsitedir`, so
+    their `.pth` files run too (the `pin` wheel is found through `cmeel.pth`). Those
+    folders are appended after the environment's own site-packages, so the package comes
+    from the wheel installed there, never from this interpreter's (editable) copy.
+    """
+    venv.EnvBuilder(system_site_packages=False, with_pip=False).create(env_dir)
+    python = env_dir / "bin" / "python"
+    purelib = subprocess.run(
+        [str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    ).stdout.strip()
+    parents = [p for p in site.getsitepackages() if Path(p).is_dir()]
+    lines = [f"import site; site.addsitedir({p!r})" for p in parents]
+    (Path(purelib) / "_parent_site_packages.pth").write_text("\n".join(lines) + "\n")
+    return python
 
 
 def _clean_env() -> dict[str, str]:
