@@ -30,7 +30,7 @@ from youbot_opt._files import (
     write_json_stream,
 )
 from youbot_opt._version import __version__
-from youbot_opt.exceptions import ResultFileError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 
 
 # ------------------------------------------------------------------ atomic writes
@@ -76,6 +76,63 @@ def test_atomic_write_missing_directory_raises(tmp_path: Path) -> None:
     """The target's folder must exist."""
     with pytest.raises(OSError):
         atomic_write_bytes(tmp_path / "no" / "f", b"x")
+
+
+def test_atomic_write_gives_the_mode_of_a_plain_open(tmp_path: Path) -> None:
+    """A new file gets 0o666 less the umask (figures and results alike), not mkstemp's 0o600."""
+    old = os.umask(0o022)
+    try:
+        atomic_write_text(tmp_path / "new.json", "{}")
+        with open(tmp_path / "plain.txt", "w") as handle:
+            handle.write("x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "new.json").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "plain.txt").stat().st_mode & 0o777 == 0o644
+
+
+def test_atomic_write_keeps_the_mode_of_the_file_it_replaces(tmp_path: Path) -> None:
+    """Replacing a regular file keeps its permission bits."""
+    target = tmp_path / "keep.txt"
+    target.write_text("old")
+    target.chmod(0o640)
+    atomic_write_text(target, "new")
+    assert target.read_text() == "new"
+    assert target.stat().st_mode & 0o777 == 0o640
+
+
+def test_atomic_write_refuses_a_symbolic_link(tmp_path: Path) -> None:
+    """A link planted where a file will be written is refused; its target is untouched."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    link = tmp_path / "summary.json"
+    link.symlink_to(victim)
+    with pytest.raises(ParameterError, match="symbolic link"):
+        atomic_write_text(link, "{}")
+    assert victim.read_text() == "precious"
+    assert link.is_symlink()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(TMP_PREFIX)] == []
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder", "device"])
+def test_atomic_write_refuses_what_is_not_a_regular_file(tmp_path: Path, kind: str) -> None:
+    """A FIFO, a folder or a device node is never replaced by a file."""
+    if kind == "fifo":
+        target = tmp_path / "pipe"
+        os.mkfifo(target)
+    elif kind == "folder":
+        target = tmp_path / "folder"
+        target.mkdir()
+    else:
+        target = Path("/dev/null")
+        if not target.exists():
+            pytest.skip("no /dev/null here")
+    with pytest.raises(ParameterError, match="refusing to write"):
+        atomic_write_bytes(target, b"x")
+    if kind == "device":
+        assert target.is_char_device()
+    else:
+        assert not target.is_file()
 
 
 # ------------------------------------------------------------------ JSON

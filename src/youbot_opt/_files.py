@@ -19,6 +19,7 @@ import io
 import json
 import math
 import os
+import stat
 import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
@@ -27,7 +28,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from youbot_opt.exceptions import ResultFileError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 
 __all__ = [
     "TMP_PREFIX",
@@ -72,6 +73,37 @@ def fsync_dir(directory: str | os.PathLike[str]) -> None:
         os.close(fd)
 
 
+def _process_umask() -> int:
+    """Return the process umask, read without changing it where the system allows."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)  # no /proc: read it by setting it, and put it back at once
+    os.umask(mask)
+    return mask
+
+
+def _mode_for(target: Path) -> int:
+    """Return the permission bits for a new ``target``; refuse a link or a non-regular file."""
+    try:
+        info = os.lstat(target)
+    except FileNotFoundError:
+        return 0o666 & ~_process_umask()
+    if stat.S_ISLNK(info.st_mode):
+        raise ParameterError(
+            f"refusing to write {str(target)!r}: it is a symbolic link (to "
+            f"{os.readlink(target)!r}); remove it or choose another output path"
+        )
+    if not stat.S_ISREG(info.st_mode):
+        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file"
+        raise ParameterError(
+            f"refusing to write {str(target)!r}: it is {kind} (a device, FIFO, socket "
+            "or folder is never replaced); choose a regular file's path"
+        )
+    return stat.S_IMODE(info.st_mode)
+
+
 @contextlib.contextmanager
 def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
     """Open a binary handle whose content replaces ``path`` atomically on success.
@@ -82,10 +114,21 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
     (including ``KeyboardInterrupt``) the temporary file is removed and the
     exception propagates; ``path`` is left untouched.
 
+    The new file gets the mode a plain ``open(path, "w")`` would give it (``0o666``
+    less the process umask), or the mode of the regular file it replaces. A
+    destination that is a symbolic link or not a regular file (a device, a FIFO, a
+    folder) is refused before anything is written: a replace would put a file where
+    the link or the device node was.
+
     Parameters
     ----------
     path : path-like
         Destination file; its folder must exist.
+
+    Raises
+    ------
+    ParameterError
+        ``path`` is a symbolic link or exists and is not a regular file.
 
     Yields
     ------
@@ -93,8 +136,10 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
         The handle to write the full new content to.
     """
     target = Path(path)
+    mode = _mode_for(target)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f"{TMP_PREFIX}{target.name}.")
     try:
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as handle:
             yield handle
             handle.flush()
