@@ -28,7 +28,7 @@ from test_dynamics_symbolic import (
 
 from youbot_opt.dynamics import build_dynamics
 from youbot_opt.robot import analytic
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.params import YOUBOT_PLANAR
 
 

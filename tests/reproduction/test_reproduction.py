@@ -18,7 +18,7 @@ from youbot_opt.reproduction.study1 import (
     StudyTranscription,
     study1_problem,
 )
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 
 

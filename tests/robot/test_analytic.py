@@ -11,7 +11,8 @@ from scipy.integrate import solve_ivp
 from youbot_opt.dynamics import SymbolicModel, build_dynamics, build_symbolic_model
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot import analytic as an
-from youbot_opt.robot.model import RobotModel, load_model, tip_pose
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel, tip_pose
 from youbot_opt.robot.params import YOUBOT_PLANAR as P
 
 N_STATES = 20

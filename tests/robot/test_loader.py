@@ -313,7 +313,7 @@ def test_a_name_too_long_for_a_path_is_not_found() -> None:
     Found by the command-line fuzzer (``report --robot aaaa...``): ``Path.is_file``
     raised instead of answering False.
     """
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     with pytest.raises(RobotNotFound, match="nor an existing URDF file"):
         load_model("a" * 5000)
@@ -621,7 +621,7 @@ def test_massless_body_with_inertia_says_what_it_adds_to_its_parent(tmp_path: Pa
 
 def test_locked_joints_weld_the_links_behind_them(tmp_path: Path) -> None:
     """Behind a locked joint, an implausible inertia can change nothing: a warning only."""
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     path = _policy_file(tmp_path, arm_izz=0.03)
     with pytest.raises(InvalidModelError, match="link 'arm'"):

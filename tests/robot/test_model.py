@@ -13,14 +13,9 @@ import pytest
 
 from youbot_opt.cli import main as cli_main
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, RobotNotFound
-from youbot_opt.robot.model import (
-    RobotModel,
-    available_robots,
-    example_robot_data_dir,
-    frame_placement,
-    load_model,
-    tip_pose,
-)
+from youbot_opt.robot.catalogue import available_robots, example_robot_data_dir
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel, frame_placement, tip_pose
 from youbot_opt.robot.params import STUDY_Q_START, YOUBOT_PLANAR
 
 A, H = 0.184, 0.147

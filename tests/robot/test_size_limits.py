@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.exceptions import ParameterError, UnsafeURDFError, YoubotOptWarning
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.strict.limits import MAX_DOF, MAX_JOINTS, MAX_TREE_DEPTH, SizeLimits
 from youbot_opt.robot.strict.xml import MAX_XML_DEPTH, MAX_XML_ELEMENTS
 
