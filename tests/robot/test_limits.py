@@ -25,10 +25,10 @@ from youbot_opt.exceptions import (
     UnsafeURDFError,
     URDFStructureError,
 )
-from youbot_opt.robot.strict.dynamics_defined import check_dynamics_defined
-from youbot_opt.robot.strict.limits import MAX_TREE_DEPTH, check_urdf_size, tree_depth
-from youbot_opt.robot.strict.rules import check_mimic_graph
-from youbot_opt.robot.strict.xml import parse_number, parse_xml_strict, shorten, site
+from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
+from youbot_opt.robot.urdf_check.rules import check_mimic_graph
+from youbot_opt.robot.urdf_check.size import MAX_TREE_DEPTH, check_urdf_size, tree_depth
+from youbot_opt.robot.urdf_check.xml import parse_number, parse_xml_strict, shorten, site
 
 HERE = Path(__file__).resolve().parent
 HELPER = HERE / "_load_in_subprocess.py"

@@ -65,7 +65,7 @@ class RobotSurvey:
 
 def _joint_types(path: Path) -> str:
     from youbot_opt.exceptions import URDFError
-    from youbot_opt.robot.strict.xml import parse_xml_strict, root_of
+    from youbot_opt.robot.urdf_check.xml import parse_xml_strict, root_of
 
     try:
         root = root_of(parse_xml_strict(path.read_bytes(), str(path)), str(path))

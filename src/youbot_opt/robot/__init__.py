@@ -3,7 +3,7 @@
 Modules: :mod:`.params`, :mod:`.urdf`, :mod:`.model` (:class:`RobotModel`,
 its bounds and kinematics), :mod:`.catalogue` (the robots known by name),
 :mod:`.load` (``load_model``), :mod:`.source` (:class:`RobotSource`, how result
-files name their robot), :mod:`.mimic` and the strict loader :mod:`.strict`.
+files name their robot), :mod:`.mimic` and the hostile-URDF policy :mod:`.urdf_check`.
 The names here are imported on first use, so importing
 ``youbot_opt.robot.params`` does not import Pinocchio.
 

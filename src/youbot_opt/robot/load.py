@@ -1,6 +1,6 @@
 """Loading a robot: :func:`load_model` from a name, a URDF file or arm parameters.
 
-The file goes through the hostile-URDF policy (:mod:`youbot_opt.robot.strict`),
+The file goes through the hostile-URDF policy (:mod:`youbot_opt.robot.urdf_check`),
 then joints are locked (asked for, or mimic joints) with Pinocchio's reduced
 model, and damping and gravity overrides are applied. Package folders for
 ``package://`` references are the file's own, example-robot-data's and the
@@ -33,9 +33,9 @@ from youbot_opt.robot.catalogue import (
 from youbot_opt.robot.mimic import mimic_locks
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
-from youbot_opt.robot.strict.limits import SizeLimits
-from youbot_opt.robot.strict.loader import load_urdf_strict
 from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
+from youbot_opt.robot.urdf_check.loader import load_urdf_strict
+from youbot_opt.robot.urdf_check.size import SizeLimits
 
 __all__ = ["load_model"]
 
@@ -203,7 +203,7 @@ def load_model(
         True (default) refuses a physically implausible inertia on a moving
         link; False loads it with a :class:`~youbot_opt.exceptions.YoubotOptWarning`.
         Implausible inertias on links welded to the world always load with a
-        warning (:func:`youbot_opt.robot.strict.loader.inertia_policy`).
+        warning (:func:`youbot_opt.robot.urdf_check.loader.inertia_policy`).
     lock_joints : mapping of str to float, optional
         Joints to lock, with their positions in [rad] or [m] (a continuous
         joint's angle in [rad]); built with Pinocchio's reduced model
@@ -218,7 +218,7 @@ def load_model(
         (``YOUBOT_OPT_MAX_JOINTS``, ``YOUBOT_OPT_MAX_DOF``,
         ``YOUBOT_OPT_MAX_TREE_DEPTH``, ``YOUBOT_OPT_MAX_XML_DEPTH``,
         ``YOUBOT_OPT_MAX_XML_ELEMENTS``) when set, else the default
-        (:class:`~youbot_opt.robot.strict.limits.SizeLimits`). Example:
+        (:class:`~youbot_opt.robot.urdf_check.size.SizeLimits`). Example:
         ``load_model("big.urdf", size_limits=SizeLimits(max_joints=5000))``.
 
     Returns

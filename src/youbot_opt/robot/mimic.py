@@ -22,8 +22,8 @@ from typing import NamedTuple
 import pinocchio as pin
 
 from youbot_opt.exceptions import YoubotOptWarning
-from youbot_opt.robot.strict.limits import SizeLimits
-from youbot_opt.robot.strict.xml import parse_xml_strict, root_of
+from youbot_opt.robot.urdf_check.size import SizeLimits
+from youbot_opt.robot.urdf_check.xml import parse_xml_strict, root_of
 
 __all__ = ["MimicJoint", "mimic_joints", "mimic_locks"]
 

@@ -27,7 +27,7 @@ from youbot_opt.exceptions import (
     URDFError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict.xml import Site, fail, local_name, scan_xml_strict
+from youbot_opt.robot.urdf_check.xml import Site, fail, local_name, scan_xml_strict
 
 __all__ = [
     "MESH_SUFFIXES",

@@ -1,12 +1,12 @@
 """Structural and physical rules a parsed URDF must pass (issue 6, item 1).
 
-:func:`check_urdf_tree` checks a tree from :func:`youbot_opt.robot.strict.xml.parse_xml_strict`
+:func:`check_urdf_tree` checks a tree from :func:`youbot_opt.robot.urdf_check.xml.parse_xml_strict`
 (the rules are listed there); the first broken rule raises, naming file, element,
 line and rule. :func:`implausible_inertias` and :func:`welded_links` report the
 inertias the loader warns about or refuses; :func:`check_mimic_graph` the mimic
 relations; :func:`file_inertia` and :func:`file_limits` read what a checked file
 says in the form Pinocchio holds it. Mesh and texture references are checked by
-:mod:`youbot_opt.robot.strict.resources`. The plausibility rule is explained in
+:mod:`youbot_opt.robot.urdf_check.resources`. The plausibility rule is explained in
 docs/design.md, "Module notes".
 """
 
@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from youbot_opt.exceptions import InvalidModelError, URDFStructureError
-from youbot_opt.robot.strict.xml import (
+from youbot_opt.robot.urdf_check.xml import (
     NUMBER_RULE,
     Site,
     fail,
@@ -283,12 +283,12 @@ def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
     ``> 0``; mesh scales are non-zero. Inertia plausibility is not checked here
     but reported by :func:`implausible_inertias` (the loader warns or refuses),
     and whether the dynamics are defined is checked on the loaded model
-    (:func:`youbot_opt.robot.strict.loader.check_model`).
+    (:func:`youbot_opt.robot.urdf_check.loader.check_model`).
 
     Parameters
     ----------
     tree : xml.etree.ElementTree.ElementTree
-        A tree from :func:`youbot_opt.robot.strict.xml.parse_xml_strict`.
+        A tree from :func:`youbot_opt.robot.urdf_check.xml.parse_xml_strict`.
     path : str
         Its file, for error messages.
 

@@ -1,6 +1,6 @@
 """Strict, safe loading of a URDF file into Pinocchio: :func:`load_urdf_strict` (issue 6, item 1).
 
-The pipeline raises at the first broken rule: size (:mod:`.limits`), strict XML
+The pipeline raises at the first broken rule: size (:mod:`.size`), strict XML
 (:mod:`.xml`), tree and physics rules (:mod:`.rules`; implausible inertias under
 :func:`inertia_policy`), mesh and texture paths inside ``package_dirs``
 (:mod:`.resources`), Pinocchio built from the checked tree, and
@@ -35,16 +35,15 @@ from youbot_opt.exceptions import (
     URDFError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict.dynamics_defined import check_dynamics_defined
-from youbot_opt.robot.strict.limits import SizeLimits, check_urdf_size
-from youbot_opt.robot.strict.resources import (
+from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
+from youbot_opt.robot.urdf_check.resources import (
     allowed_roots,
     check_mesh,
     in_mesh,
     read_regular_file,
     resolve_reference,
 )
-from youbot_opt.robot.strict.rules import (
+from youbot_opt.robot.urdf_check.rules import (
     InertiaFinding,
     check_urdf_tree,
     file_inertia,
@@ -53,7 +52,8 @@ from youbot_opt.robot.strict.rules import (
     resource_references,
     welded_links,
 )
-from youbot_opt.robot.strict.xml import Site, fail, parse_xml_strict, root_of, site
+from youbot_opt.robot.urdf_check.size import SizeLimits, check_urdf_size
+from youbot_opt.robot.urdf_check.xml import Site, fail, parse_xml_strict, root_of, site
 
 __all__ = [
     "LoadedURDF",
@@ -79,7 +79,7 @@ _MASS_MATRIX_RCOND = 1e-12
 _INERTIA_MATCH_RTOL = 1e-10
 #: Relative tolerance between the file's joint limits and the model's: both are
 #: the same decimal text read by correctly rounded parsers (urdfdom and
-#: :func:`~youbot_opt.robot.strict.xml.parse_number`), so they agree exactly; 1e-12
+#: :func:`~youbot_opt.robot.urdf_check.xml.parse_number`), so they agree exactly; 1e-12
 #: only allows a last-bit difference, far below any intended change of a limit.
 _LIMIT_MATCH_RTOL = 1e-12
 #: Rule of the finiteness checks (item 3 of the audit: a huge ``<origin>``).
@@ -439,14 +439,14 @@ def load_urdf_strict(
        (:class:`~youbot_opt.exceptions.UnsafeURDFError`; a missing file raises
        :class:`~youbot_opt.exceptions.RobotNotFound`).
     2. Strict XML parsing with every ``DOCTYPE`` and entity refused
-       (:mod:`youbot_opt.robot.strict.xml`).
-    3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.strict.rules`).
-       Physically implausible inertias (:func:`~youbot_opt.robot.strict.rules.implausible_inertias`)
+       (:mod:`youbot_opt.robot.urdf_check.xml`).
+    3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.urdf_check.rules`).
+       Physically implausible inertias (:func:`~.rules.implausible_inertias`)
        follow :func:`inertia_policy`: on a link welded to the world a warning; on
        a moving link a refusal, or a warning under ``strict=False``.
     4. Mesh and texture references, including the textures inside ``.dae`` files,
        must resolve to regular files inside ``package_dirs``
-       (:mod:`youbot_opt.robot.strict.resources`).
+       (:mod:`youbot_opt.robot.urdf_check.resources`).
     5. Pinocchio builds the model from the *checked tree*, re-serialised with each
        mesh and texture reference replaced by its checked absolute path: it reads
        exactly what was checked, never resolves a path itself and never consults
@@ -594,7 +594,7 @@ def inertia_policy(
     Parameters
     ----------
     tree : xml.etree.ElementTree.ElementTree
-        A file that passed :func:`~youbot_opt.robot.strict.rules.check_urdf_tree`.
+        A file that passed :func:`~youbot_opt.robot.urdf_check.rules.check_urdf_tree`.
     path : path-like
         The file, for messages.
     strict : bool

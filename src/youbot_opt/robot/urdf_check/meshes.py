@@ -1,6 +1,6 @@
 """What the meshcat replay embeds of a mesh file: its bytes, its textures, a PLY as STL.
 
-Every path decision is :mod:`youbot_opt.robot.strict.resources`'s, so the replay
+Every path decision is :mod:`youbot_opt.robot.urdf_check.resources`'s, so the replay
 accepts exactly the meshes the strict loader accepts. :func:`load_mesh_file`
 adds what embedding needs: the bytes, each COLLADA texture as a ``data:`` URI
 and ``.ply`` meshes (which meshcat cannot parse) as binary STL. Errors are the
@@ -26,7 +26,7 @@ import coal
 import numpy as np
 
 from youbot_opt.exceptions import InvalidModelError, UnsafePathError, URDFError
-from youbot_opt.robot.strict.resources import (
+from youbot_opt.robot.urdf_check.resources import (
     MAX_RESOURCE_BYTES,
     MESH_SUFFIXES,
     PATH_RULE,
@@ -38,7 +38,7 @@ from youbot_opt.robot.strict.resources import (
     resolve_in_folder,
     resolve_reference,
 )
-from youbot_opt.robot.strict.xml import Site, fail, local_name, scan_xml_strict
+from youbot_opt.robot.urdf_check.xml import Site, fail, local_name, scan_xml_strict
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -254,7 +254,7 @@ def load_mesh_file(
 
     The mesh resolves like a URDF reference to a regular file inside the
     package directories, with a format of
-    :data:`~youbot_opt.robot.strict.resources.MESH_SUFFIXES`, and a COLLADA
+    :data:`~youbot_opt.robot.urdf_check.resources.MESH_SUFFIXES`, and a COLLADA
     file's textures resolve from its folder by the same rules. Each texture
     becomes a ``data:`` URI keyed by the ``<init_from>`` text the browser reads
     (inline ``data:image/`` URIs are kept; textures in :data:`TEXTURE_SUFFIXES`),
