@@ -18,13 +18,13 @@ import logging
 import os
 import tempfile
 import warnings
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from lxml import etree
 
 from youbot_opt.exceptions import (
     InvalidModelError,
@@ -119,7 +119,7 @@ def _read_and_check(
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
     size_limits: SizeLimits | None = None,
-) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
+) -> tuple[etree._ElementTree, list[tuple[etree._Element, str, Path]], tuple[Path, ...]]:
     sizes = size_limits if size_limits is not None else SizeLimits()
     if not isinstance(sizes, SizeLimits):
         raise ParameterError(
@@ -147,7 +147,7 @@ def _read_and_check(
     )  # fmt: skip
     check_urdf_tree(tree, name)
     inertia_policy(tree, name, strict=strict, locked=locked)
-    references: list[tuple[ET.Element, str, Path]] = []
+    references: list[tuple[etree._Element, str, Path]] = []
     resources: list[Path] = []
     for elem, kind, where in resource_references(tree, name):
         real = resolve_reference(elem.get("filename", ""), roots, roots, where)
@@ -169,7 +169,7 @@ def check_urdf_text(
     package_dirs: Sequence[str | os.PathLike[str]],
     *,
     size_limits: SizeLimits | None = None,
-) -> ET.ElementTree:
+) -> etree._ElementTree:
     """Run every check that needs only the file (steps 1-4 of :func:`load_urdf_strict`).
 
     Parameters
@@ -185,7 +185,7 @@ def check_urdf_text(
 
     Returns
     -------
-    xml.etree.ElementTree.ElementTree
+    lxml.etree._ElementTree
         The parsed file; each element has a ``sourceline`` (1-based line).
 
     Raises
@@ -223,7 +223,7 @@ def _c_stderr_captured() -> Iterator[list[str]]:
             captured.append(sink.read().decode("utf-8", errors="replace").strip())
 
 
-def _check_joints(model: pin.Model, robot: ET.Element, path: str) -> None:
+def _check_joints(model: pin.Model, robot: etree._Element, path: str) -> None:
     movable = [j.get("name", "") for j in robot.findall("joint") if j.get("type") != "fixed"]
     in_model = list(model.names)[1:]
     if sorted(movable) != sorted(in_model):
@@ -251,7 +251,7 @@ def _check_placements(model: pin.Model, path: str) -> None:
             raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
 
 
-def _check_limits(model: pin.Model, robot: ET.Element, path: str) -> None:
+def _check_limits(model: pin.Model, robot: etree._Element, path: str) -> None:
     """Compare each movable joint's position, velocity and effort limits with the file."""
     rule = "the model's joint limits are the file's <limit> (lower, upper, velocity, effort)"
     for joint in robot.findall("joint"):
@@ -290,7 +290,7 @@ def _check_limits(model: pin.Model, robot: ET.Element, path: str) -> None:
             raise fail(InvalidModelError, where, problem, rule)
 
 
-def _check_inertias(model: pin.Model, robot: ET.Element, path: str) -> None:
+def _check_inertias(model: pin.Model, robot: etree._Element, path: str) -> None:
     expected = [np.zeros((6, 6)) for _ in range(model.njoints)]
     for link in robot.findall("link"):
         where = site(path, link)
@@ -378,14 +378,14 @@ def _check_mass_matrix(model: pin.Model, path: str) -> None:
         raise fail(InvalidModelError, Site(path, "<robot>", None), problem, rule)
 
 
-def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[str]) -> None:
+def check_model(model: pin.Model, tree: etree._ElementTree, path: str | os.PathLike[str]) -> None:
     """Check a loaded model against its file and require defined dynamics.
 
     Parameters
     ----------
     model : pinocchio.Model
         The model Pinocchio built from the file.
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         The parsed file, from :func:`check_urdf_text`.
     path : path-like
         The file, for error messages.
@@ -502,7 +502,7 @@ def load_urdf_strict(
     )
     for elem, attr, real in references:
         elem.set(attr, os.fspath(real))
-    text = ET.tostring(root_of(tree, name), encoding="unicode")
+    text = etree.tostring(root_of(tree, name), encoding="unicode")
     dirs = [os.fspath(d) for d in allowed_roots(package_dirs)]
     error: Exception | None = None
     with _c_stderr_captured() as report:
@@ -537,7 +537,7 @@ def load_urdf_strict(
     )
 
 
-def _merged_into(robot: ET.Element, link: str) -> tuple[str, str]:
+def _merged_into(robot: etree._Element, link: str) -> tuple[str, str]:
     """Return (link, joint) of the body ``link`` belongs to in the model ('' for the world)."""
     parent_joint = {
         j.find("child").get("link", ""): j  # type: ignore[union-attr]
@@ -557,7 +557,7 @@ def _finding_text(finding: InertiaFinding) -> str:
     )
 
 
-def _what_it_adds(robot: ET.Element, finding: InertiaFinding, welded: bool) -> str:
+def _what_it_adds(robot: etree._Element, finding: InertiaFinding, welded: bool) -> str:
     body, joint = _merged_into(robot, finding.link)
     inertia = np.array2string(finding.inertia, precision=6, separator=", ").replace("\n", "")
     adds = f"{finding.mass:g} kg and rotational inertia {inertia} kg m^2 (about its centre of mass)"
@@ -575,7 +575,7 @@ def _what_it_adds(robot: ET.Element, finding: InertiaFinding, welded: bool) -> s
 
 
 def inertia_policy(
-    tree: ET.ElementTree,
+    tree: etree._ElementTree,
     path: str | os.PathLike[str],
     *,
     strict: bool = True,
@@ -593,7 +593,7 @@ def inertia_policy(
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         A file that passed :func:`~youbot_opt.robot.urdf_check.rules.check_urdf_tree`.
     path : path-like
         The file, for messages.

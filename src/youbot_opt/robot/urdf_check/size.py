@@ -15,8 +15,9 @@ Example: ``load_model(path, size_limits=SizeLimits(max_joints=5000))``, or
 from __future__ import annotations
 
 import operator
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, fields
+
+from lxml import etree
 
 from youbot_opt.exceptions import ParameterError, UnsafeURDFError
 from youbot_opt.robot.urdf_check.xml import (
@@ -134,7 +135,7 @@ class SizeLimits:
         )
 
 
-def tree_depth(robot: ET.Element) -> int:
+def tree_depth(robot: etree._Element) -> int:
     """Return the longest chain of joints from a root link, without recursion.
 
     Parameters
@@ -168,7 +169,7 @@ def tree_depth(robot: ET.Element) -> int:
 
 
 def check_urdf_size(
-    tree: ET.ElementTree,
+    tree: etree._ElementTree,
     path: str,
     *,
     max_joints: int | None = None,
@@ -179,7 +180,7 @@ def check_urdf_size(
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         The parsed file (:func:`~youbot_opt.robot.urdf_check.xml.parse_xml_strict`).
     path : str
         Its file, for error messages.

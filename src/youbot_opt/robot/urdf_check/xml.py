@@ -1,9 +1,10 @@
-"""Strict XML parsing and error sites of the strict URDF loader (issue 6, item 1).
+"""Strict XML reading and error sites of the hostile-URDF policy (issue 6, item 1).
 
-:func:`parse_xml_strict` parses with the standard library's expat and refuses
-any ``DOCTYPE``, entity or notation declaration, so nothing is ever expanded or
-fetched; :func:`parse_number` reads finite decimals only. :class:`Site` and
-:func:`fail` give every error the same shape:
+:func:`parse_xml_strict` parses with lxml (``resolve_entities=False``,
+``no_network=True``, ``load_dtd=False``, ``huge_tree=False``) and refuses any
+``DOCTYPE`` before its declarations are read, so nothing is ever expanded or
+fetched; elements keep their ``sourceline``. :func:`parse_number` reads finite
+decimals only. :class:`Site` and :func:`fail` give every error the same shape:
 ``file:line: <tag name='...'> of link '...': problem [rule: ...]``.
 
 >>> tree = parse_xml_strict(Path("robot.urdf").read_bytes(), "robot.urdf")  # doctest: +SKIP
@@ -14,9 +15,9 @@ from __future__ import annotations
 import math
 import os
 import re
-import xml.etree.ElementTree as ET
-from typing import NamedTuple, NoReturn, Protocol
-from xml.parsers import expat
+from typing import NamedTuple, NoReturn
+
+from lxml import etree
 
 from youbot_opt.exceptions import (
     InvalidModelError,
@@ -32,14 +33,12 @@ __all__ = [
     "MAX_XML_ELEMENTS",
     "NUMBER_RULE",
     "Site",
-    "XMLTarget",
     "fail",
     "limit",
     "local_name",
     "parse_number",
     "parse_xml_strict",
     "root_of",
-    "scan_xml_strict",
     "shorten",
     "site",
 ]
@@ -51,7 +50,8 @@ NUMBER_RULE = "numbers are finite decimals such as 1.5 or -2e-3"
 #: Deepest element nesting accepted (``<robot>`` is level 1; a URDF needs about
 #: 6, Gazebo plugin blocks a few more). Recursive tree walks (re-serialisation,
 #: Pinocchio's parser) stay far from any stack limit below it.
-#: Environment variable: ``YOUBOT_OPT_MAX_XML_DEPTH``.
+#: Environment variable: ``YOUBOT_OPT_MAX_XML_DEPTH``. libxml2 itself stops at
+#: 256 levels (``huge_tree=False``): a larger limit is refused as malformed XML there.
 MAX_XML_DEPTH: int = 100
 #: Most elements accepted in one file (a 1,000-joint robot with visuals and
 #: collisions has about 15,000). Each parsed element costs ~0.5 kB of memory.
@@ -128,10 +128,6 @@ def _elide(text: str, limit: int) -> str:
     return f"{text[:keep]}...<{len(text) - 2 * keep:,} characters>...{text[-keep:]}"
 
 
-class _Element(ET.Element):
-    """An element that remembers its line in the source file (``sourceline``, as lxml)."""
-
-
 class Site(NamedTuple):
     """Where a rule was broken: file, element description and 1-based line."""
 
@@ -140,7 +136,7 @@ class Site(NamedTuple):
     line: int | None
 
 
-def site(path: str, elem: ET.Element, owner: str = "") -> Site:
+def site(path: str, elem: etree._Element, owner: str = "") -> Site:
     """Describe ``elem`` for an error message.
 
     Parameters
@@ -211,140 +207,124 @@ def local_name(tag: object) -> str:
     return str(tag).rsplit("}", 1)[-1].rsplit(":", 1)[-1]
 
 
-class XMLTarget(Protocol):
-    """Receives the events of :func:`scan_xml_strict` (like ElementTree's parser targets)."""
-
-    def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
-        """Open element ``tag`` with ``attrs`` at 1-based ``line``."""
-
-    def end(self, tag: str) -> None:
-        """Close element ``tag``."""
-
-    def data(self, text: str) -> None:
-        """Character data inside the current element."""
+#: Bytes fed to the parser at a time: the size limits are checked between chunks,
+#: so the tree never grows much past a limit before it is refused.
+_CHUNK = 1 << 16
+_DOCTYPE_RULE = "no DOCTYPE or entity declarations (nothing may be expanded or fetched)"
+_SYNTAX_RULE = "the file is one complete, well-formed XML document"
 
 
-def scan_xml_strict(
-    data: bytes,
-    path: str,
-    target: XMLTarget,
-    *,
-    max_depth: int | None = None,
-    max_elements: int | None = None,
-) -> None:
-    """Stream XML bytes through ``target``, strictly and without any DTD processing.
+def _parser_options(long_text: bool = False) -> dict[str, bool]:
+    """Return the safe options of every parser here (no entity, DTD, network, huge input)."""
+    return {
+        "resolve_entities": False,
+        "no_network": True,
+        "load_dtd": False,
+        "huge_tree": long_text,
+        "remove_comments": True,
+        "remove_pis": True,
+    }
 
-    Parameters
-    ----------
-    data : bytes
-        The whole file content.
-    path : str
-        File name, for error messages.
-    target : XMLTarget
-        Receives start, end and character-data events.
-    max_depth : int, optional
-        Deepest nesting accepted; default :data:`MAX_XML_DEPTH` (or the
-        environment variable ``YOUBOT_OPT_MAX_XML_DEPTH``).
-    max_elements : int, optional
-        Most elements accepted; default :data:`MAX_XML_ELEMENTS` (or
-        ``YOUBOT_OPT_MAX_XML_ELEMENTS``).
 
-    Raises
-    ------
-    UnsafeURDFError
-        On a ``DOCTYPE``, entity or notation declaration or an external entity
-        reference, raised before anything is expanded or fetched.
-    URDFSyntaxError
-        If the bytes are not one well-formed XML document.
-    UnsafeURDFError
-        If the nesting or the element count exceeds its limit, raised when the
-        first element past it is met.
-    ParameterError
-        If a limit (argument or environment variable) is not an integer >= 1.
+class _DoctypeFound(Exception):
+    """Raised by :class:`_PrologGuard` when the prolog declares a document type."""
+
+
+class _RootReached(Exception):
+    """Raised by :class:`_PrologGuard` at the root element: the prolog is over."""
+
+
+class _PrologGuard:
+    """An lxml parser target that reads the prolog only, stopping at a DOCTYPE or the root.
+
+    lxml calls ``doctype`` as the declaration starts, before any entity of its
+    internal subset is declared, expanded or fetched.
     """
-    depth_limit = limit("MAX_XML_DEPTH", MAX_XML_DEPTH, max_depth)
-    element_limit = limit("MAX_XML_ELEMENTS", MAX_XML_ELEMENTS, max_elements)
-    parser = expat.ParserCreate()
-    parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
-    rule = "no DOCTYPE or entity declarations (nothing may be expanded or fetched)"
 
-    def refuse(what: str) -> NoReturn:
-        where = Site(path, what, parser.CurrentLineNumber)
-        raise fail(UnsafeURDFError, where, f"{what} is refused", rule)
+    def doctype(self, name: str, pubid: str | None, system: str | None) -> None:
+        raise _DoctypeFound
 
-    depth, count = 0, 0
+    def start(self, tag: str, attrib: dict[str, str]) -> None:
+        raise _RootReached
 
-    def start(tag: str, attrs: dict[str, str]) -> None:
-        nonlocal depth, count
-        depth, count = depth + 1, count + 1
-        if depth > depth_limit or count > element_limit:
-            name, value, variable = (
-                ("nesting", depth_limit, "MAX_XML_DEPTH")
-                if depth > depth_limit
-                else ("element count", element_limit, "MAX_XML_ELEMENTS")
-            )
-            where = Site(path, f"<{shorten(tag)[1:-1]}>", parser.CurrentLineNumber)
-            problem = (
-                f"the XML {name} exceeds the limit of {value:,} (raise it with "
-                f"size_limits=SizeLimits({variable.lower()}=...) or the environment variable "
-                f"YOUBOT_OPT_{variable})"
-            )
-            rule = f"XML nesting <= {depth_limit:,} levels and <= {element_limit:,} elements"
-            raise fail(UnsafeURDFError, where, problem, rule)
-        target.start(tag, attrs, parser.CurrentLineNumber)
+    def close(self) -> None:
+        return None
 
-    def end(tag: str) -> None:
-        nonlocal depth
-        depth -= 1
-        target.end(tag)
 
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    parser.CharacterDataHandler = target.data
-    parser.StartDoctypeDeclHandler = lambda *_: refuse("<!DOCTYPE>")
-    parser.EntityDeclHandler = lambda *_: refuse("<!ENTITY>")
-    parser.UnparsedEntityDeclHandler = lambda *_: refuse("<!ENTITY>")
-    parser.NotationDeclHandler = lambda *_: refuse("<!NOTATION>")
-    parser.ExternalEntityRefHandler = lambda *_: refuse("external entity reference")
-    parser.buffer_text = True
+def _syntax_error(path: str, error: etree.XMLSyntaxError) -> URDFError:
+    line, column = error.position if error.position else (error.lineno, error.offset)
+    reason = re.sub(r", line \d+, column \d+$", "", str(error.msg or error))
+    logged = [e for e in error.error_log if e.level >= etree.ErrorLevels.ERROR]
+    if not line and logged:  # the parser gave up ("no element found"): its last error says why
+        line, column, reason = logged[-1].line, logged[-1].column, logged[-1].message
+    where = Site(path, "document", line or None)
+    problem = f"not well-formed XML: {reason.strip()} (column {column})"
+    return fail(URDFSyntaxError, where, problem, _SYNTAX_RULE)
+
+
+def _refuse_doctype(data: bytes, path: str) -> None:
+    """Raise UnsafeURDFError if the prolog of ``data`` declares a document type."""
+    parser = etree.XMLParser(target=_PrologGuard(), **_parser_options())
     try:
-        parser.Parse(data, True)
-    except expat.ExpatError as e:
-        where = Site(path, "document", e.lineno)
-        raise fail(
-            URDFSyntaxError,
-            where,
-            f"not well-formed XML: {expat.ErrorString(e.code)} (column {e.offset})",
-            "the file is one complete, well-formed XML document",
-        ) from None
+        parser.feed(data)
+        parser.close()
+    except _DoctypeFound:
+        start = data.find(b"<!DOCTYPE")
+        line = data.count(b"\n", 0, start) + 1 if start >= 0 else None
+        where = Site(path, "<!DOCTYPE>", line)
+        raise fail(UnsafeURDFError, where, "<!DOCTYPE> is refused", _DOCTYPE_RULE) from None
+    except _RootReached:
+        return
+    except etree.XMLSyntaxError as e:
+        raise _syntax_error(path, e) from None
 
 
-class _TreeTarget:
-    def __init__(self) -> None:
-        self.builder = ET.TreeBuilder(element_factory=_Element)
+#: Deepest nesting libxml2 parses without ``huge_tree`` [levels].
+_LIBXML2_MAX_DEPTH = 256
 
-    def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
-        self.builder.start(tag, attrs).sourceline = line  # type: ignore[attr-defined]
 
-    def end(self, tag: str) -> None:
-        self.builder.end(tag)
-
-    def data(self, text: str) -> None:
-        self.builder.data(text)
+def _too_large(
+    path: str, element: str, line: int | None, depth: int, limits: tuple[int, int]
+) -> NoReturn:
+    depth_limit, element_limit = limits
+    name, value, variable = (
+        ("nesting", min(depth_limit, _LIBXML2_MAX_DEPTH), "MAX_XML_DEPTH")
+        if depth > depth_limit
+        else ("element count", element_limit, "MAX_XML_ELEMENTS")
+    )
+    where = Site(path, element, line)
+    problem = (
+        f"the XML {name} exceeds the limit of {value:,} (raise it with "
+        f"size_limits=SizeLimits({variable.lower()}=...) or the environment variable "
+        f"YOUBOT_OPT_{variable})"
+    )
+    if depth_limit >= _LIBXML2_MAX_DEPTH and depth > depth_limit:
+        problem = (
+            f"the XML nesting exceeds libxml2's limit of {_LIBXML2_MAX_DEPTH} levels "
+            f"(the limit asked for is {depth_limit:,})"
+        )
+    rule = f"XML nesting <= {depth_limit:,} levels and <= {element_limit:,} elements"
+    raise fail(UnsafeURDFError, where, problem, rule)
 
 
 def parse_xml_strict(
-    data: bytes, path: str, *, max_depth: int | None = None, max_elements: int | None = None
-) -> ET.ElementTree:
+    data: bytes,
+    path: str,
+    *,
+    max_depth: int | None = None,
+    max_elements: int | None = None,
+    long_text: bool = False,
+) -> etree._ElementTree:
     """Parse XML bytes into a tree, strictly and without any DTD processing.
 
-    Any ``DOCTYPE``, entity or notation declaration is refused the moment
-    expat meets it, so nothing is ever expanded or fetched (billion laughs,
-    external entities). Malformed, truncated and badly encoded input is an
-    error, never "recovered" as some parsers do. Nesting deeper than
-    :data:`MAX_XML_DEPTH` and more than :data:`MAX_XML_ELEMENTS` elements are
-    refused while streaming, before any tree or recursive walk exists (raise
-    them with the environment variables of :func:`limit`).
+    Any ``DOCTYPE`` is refused as soon as its declaration starts, before any
+    entity is declared, expanded or fetched (billion laughs, external
+    entities); an entity reference without a declaration is malformed.
+    Malformed, truncated and badly encoded input is an error, never
+    "recovered". Nesting deeper than :data:`MAX_XML_DEPTH` and more than
+    :data:`MAX_XML_ELEMENTS` elements are refused while the file is fed to the
+    parser, before a walk of the tree (raise them with the environment
+    variables of :func:`limit`). Comments and processing instructions are dropped.
 
     Parameters
     ----------
@@ -352,37 +332,79 @@ def parse_xml_strict(
         The whole file content.
     path : str
         File name, for error messages.
-    max_depth, max_elements : int, optional
-        As :func:`scan_xml_strict` [levels], [count].
+    max_depth : int, optional
+        Deepest nesting accepted [levels]; default :data:`MAX_XML_DEPTH` (or
+        the environment variable ``YOUBOT_OPT_MAX_XML_DEPTH``).
+    max_elements : int, optional
+        Most elements accepted [count]; default :data:`MAX_XML_ELEMENTS` (or
+        ``YOUBOT_OPT_MAX_XML_ELEMENTS``).
+    long_text : bool
+        Accept text nodes longer than libxml2's 10 MB (lxml's ``huge_tree``):
+        for COLLADA meshes, whose vertex arrays are text and whose size the
+        caller has bounded. False (default) for URDF files.
 
     Returns
     -------
-    xml.etree.ElementTree.ElementTree
-        The tree; each element has a ``sourceline`` attribute (1-based).
+    lxml.etree._ElementTree
+        The tree; each element has its 1-based ``sourceline``.
 
     Raises
     ------
-    UnsafeURDFError, URDFSyntaxError, ParameterError
-        As :func:`scan_xml_strict`.
+    UnsafeURDFError
+        On a ``DOCTYPE`` (raised before anything is expanded or fetched), or
+        if the nesting or the element count exceeds its limit.
+    URDFSyntaxError
+        If the bytes are not one well-formed XML document.
+    ParameterError
+        If a limit (argument or environment variable) is not an integer >= 1.
     """
-    target = _TreeTarget()
-    scan_xml_strict(data, path, target, max_depth=max_depth, max_elements=max_elements)
-    return ET.ElementTree(target.builder.close())
+    limits = (
+        limit("MAX_XML_DEPTH", MAX_XML_DEPTH, max_depth),
+        limit("MAX_XML_ELEMENTS", MAX_XML_ELEMENTS, max_elements),
+    )
+    _refuse_doctype(data, path)
+    parser = etree.XMLPullParser(events=("start", "end"), **_parser_options(long_text))
+    depth = count = 0
+    root = None
+    try:
+        for begin in range(0, len(data), _CHUNK):
+            parser.feed(data[begin : begin + _CHUNK])
+            for event, elem in parser.read_events():
+                if event == "end":
+                    depth -= 1
+                    continue
+                depth, count = depth + 1, count + 1
+                root = elem if root is None else root
+                if depth > limits[0] or count > limits[1]:
+                    element = f"<{shorten(elem.tag)[1:-1]}>"
+                    _too_large(path, element, elem.sourceline, depth, limits)
+        parser.close()
+    except etree.XMLSyntaxError as e:
+        if "Excessive depth in document" in str(e.msg):  # libxml2's own depth limit
+            line = e.position[0] if e.position else e.lineno
+            _too_large(
+                path, "document", line or None, max(limits[0], _LIBXML2_MAX_DEPTH) + 1, limits
+            )
+        raise _syntax_error(path, e) from None
+    if root is None:  # no element at all: close() did not complain (it always should)
+        where = Site(path, "document", None)
+        raise fail(URDFSyntaxError, where, "not well-formed XML: no element found", _SYNTAX_RULE)
+    return root.getroottree()
 
 
-def root_of(tree: ET.ElementTree, path: str) -> ET.Element:
+def root_of(tree: etree._ElementTree, path: str) -> etree._Element:
     """Return the root element of a parsed file.
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         The parsed file.
     path : str
         Its name, for error messages.
 
     Returns
     -------
-    xml.etree.ElementTree.Element
+    lxml.etree._Element
         The root element.
 
     Raises
