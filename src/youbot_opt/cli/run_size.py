@@ -1,4 +1,4 @@
-"""Size limits of command-line runs, checked before anything is built (issue 16, item 1).
+"""The size of a command-line run (memory, IK chain, sweep values), checked before it is built.
 
 ``solve --knots 10000000`` used to die in ``std::bad_alloc`` after 8.7 s and
 ``ikpath --starts 1000000000`` to try to allocate 112 GiB. The commands now
