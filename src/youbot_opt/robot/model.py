@@ -344,7 +344,25 @@ def as_robot_model(robot: RobotModel | pin.Model) -> RobotModel:
 
 
 def as_configuration(robot: RobotModel, q: ArrayLike) -> Array:
-    """Return ``q`` as a finite float array of shape (nq,), else raise ParameterError."""
+    """Return ``q`` as a finite float array of the robot's configuration size.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot.
+    q : array_like
+        Configuration, shape (nq,), in [rad] (or [m]).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``q`` as floats, shape (nq,).
+
+    Raises
+    ------
+    ParameterError
+        If ``q`` is not numeric, has another shape or is not finite.
+    """
     try:
         arr = np.asarray(q, dtype=float)
     except (TypeError, ValueError) as exc:
