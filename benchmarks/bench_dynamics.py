@@ -1,7 +1,7 @@
 """Time forward dynamics and its Jacobian for each dynamics backend vs Pinocchio.
 
 Run ``python benchmarks/bench_dynamics.py [--quick]``. For the youBot arm (from
-``youbot_opt.robot.model.load_model``) and the UR5 it measures, per call:
+``youbot_opt.robot.load.load_model``) and the UR5 it measures, per call:
 
 * ``pin.aba`` and ``pin.computeABADerivatives`` called from Python (reference);
 * the symbolic backend's ``forward_dynamics`` (ABA transcription) and the CRBA
@@ -148,7 +148,7 @@ def bench_robot(
 
 
 def _models() -> list[tuple[str, pin.Model]]:
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     out = []
     for name in ("youbot", "ur5"):

@@ -48,7 +48,7 @@ def _child(robot_name: str, compile_mode: str) -> dict[str, Any]:
     import numpy as np
 
     from youbot_opt.dynamics.coordinates import angle_robot
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
     from youbot_opt.trajopt.solver import TrajOptSolver
 

@@ -252,7 +252,7 @@ def print_report(report: dict[str, Any]) -> None:
 
 def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> SpatialIKProblem:
     """Targets at the frame placements of random in-limit configurations (poses on even ones)."""
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     robot = load_model(robot_name)
     model, data = robot.model, robot.model.createData()

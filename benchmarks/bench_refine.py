@@ -37,7 +37,7 @@ import numpy as np
 
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import RefinementBudget, refine

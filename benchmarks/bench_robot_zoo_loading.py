@@ -1,6 +1,6 @@
 """How many URDFs of the installed example-robot-data load: before/after the inertia policy.
 
-Every robot of :func:`youbot_opt.robot.model.example_robots` (one per URDF file,
+Every robot of :func:`youbot_opt.robot.catalogue.example_robots` (one per URDF file,
 69 in example-robot-data 6.0.0) is loaded with a fixed base by default and, if
 refused, with ``strict=False`` (:func:`youbot_opt.cli.robots.survey`). "Before" is
 the policy of issue 6 (any physically implausible inertia refused), counted as
@@ -22,7 +22,7 @@ from dataclasses import asdict
 import pinocchio as pin
 
 from youbot_opt.cli.robots import survey
-from youbot_opt.robot.model import example_robot_data_dir, example_robots
+from youbot_opt.robot.catalogue import example_robot_data_dir, example_robots
 
 
 def _pinocchio_loads(path: str) -> bool:

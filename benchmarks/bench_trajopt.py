@@ -447,7 +447,7 @@ def solve_levers(repeats: int = 10) -> list[str]:
     quality-function and probing oracles (why probing is no default), and
     their CPU time with MUMPS's automatic and AMD orderings (both methods).
     """
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
     from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollocation
 

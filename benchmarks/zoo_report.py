@@ -38,12 +38,9 @@ import numpy as np
 from youbot_opt.dynamics.coordinates import angle_robot, continuous_joints
 from youbot_opt.exceptions import YoubotOptError
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.robot.model import (
-    RobotModel,
-    example_robot_data_dir,
-    example_robots,
-    load_model,
-)
+from youbot_opt.robot.catalogue import example_robot_data_dir, example_robots
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import RefinementBudget, RefinementRound, refine
 from youbot_opt.trajopt.solver import TrajOptSolver

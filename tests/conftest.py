@@ -25,7 +25,7 @@ STUDY1_SOLVER_KNOTS = 20
 @pytest.fixture(scope="session")
 def youbot() -> RobotModel:
     """The committed youBot model, loaded once per session; tests must not modify it."""
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     return load_model("youbot")
 

@@ -100,7 +100,7 @@ def test_installed_wheel_imports_and_runs_the_main_job(wheel_env, tmp_path):
     """`import youbot_opt` and the main job run from the installed wheel, not from src/."""
     _, python = wheel_env
     probe = (
-        "import json, youbot_opt, youbot_opt.robot.model as m;"
+        "import json, youbot_opt, youbot_opt.robot.catalogue as m;"
         "print(json.dumps([youbot_opt.__file__, str(m.youbot_urdf_path())]))"
     )
     out = subprocess.run(

@@ -37,15 +37,9 @@ if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
     from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.nlp.status import SolveStatus
     from youbot_opt.reproduction.study1 import study1_problem
-    from youbot_opt.robot.model import (
-        RobotModel,
-        SizeLimits,
-        TipPose,
-        available_robots,
-        frame_placement,
-        load_model,
-        tip_pose,
-    )
+    from youbot_opt.robot.catalogue import available_robots
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.robot.model import RobotModel, TipPose, frame_placement, tip_pose
     from youbot_opt.robot.params import (
         STUDY_Q_GOAL,
         STUDY_Q_START,
@@ -55,13 +49,14 @@ if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
         LinkParameters,
         PlatformMounting,
     )
-    from youbot_opt.robot.strict.loader import (
+    from youbot_opt.robot.urdf import build_urdf, urdf_string, write_urdf
+    from youbot_opt.robot.urdf_check.loader import (
         LoadedURDF,
         check_model,
         check_urdf_text,
         load_urdf_strict,
     )
-    from youbot_opt.robot.urdf import build_urdf, urdf_string, write_urdf
+    from youbot_opt.robot.urdf_check.size import SizeLimits
     from youbot_opt.sweeps.options import SweepOptions
     from youbot_opt.trajopt.bound_scaling import BoundScalingResult, bound_scaling_study
     from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
@@ -80,16 +75,16 @@ _LAZY: dict[str, str] = {
     "Dynamics": "youbot_opt.dynamics",
     "available_backends": "youbot_opt.dynamics",
     "build_dynamics": "youbot_opt.dynamics",
-    "LoadedURDF": "youbot_opt.robot.strict.loader",
-    "check_model": "youbot_opt.robot.strict.loader",
-    "check_urdf_text": "youbot_opt.robot.strict.loader",
-    "load_urdf_strict": "youbot_opt.robot.strict.loader",
+    "LoadedURDF": "youbot_opt.robot.urdf_check.loader",
+    "check_model": "youbot_opt.robot.urdf_check.loader",
+    "check_urdf_text": "youbot_opt.robot.urdf_check.loader",
+    "load_urdf_strict": "youbot_opt.robot.urdf_check.loader",
     "RobotModel": "youbot_opt.robot.model",
-    "SizeLimits": "youbot_opt.robot.model",
+    "SizeLimits": "youbot_opt.robot.urdf_check.size",
     "TipPose": "youbot_opt.robot.model",
-    "available_robots": "youbot_opt.robot.model",
+    "available_robots": "youbot_opt.robot.catalogue",
     "frame_placement": "youbot_opt.robot.model",
-    "load_model": "youbot_opt.robot.model",
+    "load_model": "youbot_opt.robot.load",
     "tip_pose": "youbot_opt.robot.model",
     "STUDY_Q_GOAL": "youbot_opt.robot.params",
     "STUDY_Q_START": "youbot_opt.robot.params",

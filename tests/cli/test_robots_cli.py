@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.cli import main
-from youbot_opt.robot.model import available_robots, example_robots
+from youbot_opt.robot.catalogue import available_robots, example_robots
 
 FIVE_DOF = Path(__file__).resolve().parents[2] / "urdf" / "youbot_arm_5dof.urdf"
 FINGERS = ["--lock", "gripper_finger_joint_l=0", "--lock", "gripper_finger_joint_r=0"]
@@ -53,7 +53,7 @@ def test_report_with_lock_tip_frame_and_package_dir(
     assert "(nq=5, nv=5)" in out and "tip frame: arm_link_5" in out
     copy = tmp_path / "ur5.urdf"
     copy.write_bytes(example_robots()["ur5_robot"].read_bytes())
-    from youbot_opt.robot.model import example_robot_data_dir
+    from youbot_opt.robot.catalogue import example_robot_data_dir
 
     assert main(["report", "--robot", str(copy)]) == 2  # meshes not found
     assert (

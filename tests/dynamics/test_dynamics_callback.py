@@ -1,7 +1,7 @@
 """The "pinocchio" backend: Pinocchio through CasADi Callbacks.
 
 Values are compared with the independent symbolic backend on every test robot
-and with the study's hand-derived Lagrangian (``youbot_opt.robot.analytic``) on the
+and with the study's hand-derived Lagrangian (``tests/_analytic.py``) on the
 youBot with damping; Jacobians with Pinocchio's analytic derivatives, the
 symbolic backend's exact CasADi Jacobians and central finite differences.
 Tolerances (``RTOL`` 1e-12 for direct recursions, ``RTOL_SOLVE`` 1e-10 through
@@ -26,9 +26,9 @@ from test_dynamics_symbolic import (
     _with_damping,
 )
 
+import _analytic as analytic
 from youbot_opt.dynamics import build_dynamics
-from youbot_opt.robot import analytic
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.params import YOUBOT_PLANAR
 
 

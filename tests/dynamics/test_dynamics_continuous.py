@@ -22,7 +22,7 @@ from youbot_opt.dynamics.coordinates import (
     from_pin_configuration,
     to_pin_configuration,
 )
-from youbot_opt.robot.model import example_robot_data_dir
+from youbot_opt.robot.catalogue import example_robot_data_dir
 
 RTOL = 1e-12  # direct recursions, see the module docstring
 RTOL_SOLVE = 1e-10  # through M^-1, see the module docstring

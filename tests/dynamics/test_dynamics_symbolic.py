@@ -36,7 +36,7 @@ from youbot_opt.dynamics import (
     build_symbolic_model,
 )
 from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError
-from youbot_opt.robot.model import example_robot_data_dir
+from youbot_opt.robot.catalogue import example_robot_data_dir
 
 RTOL = 1e-12  # direct recursions: O(100) roundings of the largest term, see module docstring
 RTOL_SOLVE = 1e-10  # through M^-1: rounding times cond(M) ~ 1e4, see module docstring
@@ -88,7 +88,7 @@ def _load(name: str) -> pin.Model:
     if name == "youbot":
         # The committed youBot URDF via the model loader, with the study's
         # 0.1 N m s/rad damping so that the damping paths are exercised.
-        model_module = pytest.importorskip("youbot_opt.robot.model")
+        model_module = pytest.importorskip("youbot_opt.robot.load")
         return model_module.load_model("youbot", damping=0.1).model
     if name == "planar_3r":
         return pin.buildModelFromXML(PLANAR_3R_URDF)

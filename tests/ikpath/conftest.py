@@ -7,7 +7,7 @@ import pytest
 
 from youbot_opt.ikpath.spatial import SpatialIKProblem
 from youbot_opt.ikpath.targets import SpatialTarget
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKProblem
 from youbot_opt.ikpath.spatial_solve import open_spatial_store
 from youbot_opt.ikpath.sweep import options_json
 from youbot_opt.ikpath.targets import SpatialTarget
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_r
 from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 
 _INERTIAL = (  # the loader checks that M(q) is positive definite
     '<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '

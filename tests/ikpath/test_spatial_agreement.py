@@ -9,7 +9,7 @@ from youbot_opt.ikpath.spatial import SpatialIKProblem
 from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 
 # Hit rates of the best basin measured with 64 starts per method (seeds 1 and 0, not
 # the ones below): IPOPT 16/64, AL 22/64; the 95 % Clopper-Pearson lower bounds are

@@ -14,7 +14,7 @@ from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 
 
 def _exact_panda_result():

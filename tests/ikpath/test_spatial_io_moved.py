@@ -20,7 +20,9 @@ from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_resul
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot import RobotSource as RobotLayerSource
-from youbot_opt.robot.model import RobotModel, load_model, youbot_urdf_path
+from youbot_opt.robot.catalogue import youbot_urdf_path
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
 
 

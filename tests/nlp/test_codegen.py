@@ -129,7 +129,7 @@ def test_native_and_portable_kernels_agree(tmp_path: Path, monkeypatch: pytest.M
     relative of the Hessian's largest entry.
     """
     from youbot_opt.dynamics import build_dynamics
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
     from youbot_opt.trajopt.transcription.derivatives import dynamics_kernels
 
     monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))

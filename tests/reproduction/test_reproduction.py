@@ -18,7 +18,7 @@ from youbot_opt.reproduction.study1 import (
     StudyTranscription,
     study1_problem,
 )
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 
 
@@ -290,8 +290,8 @@ def test_config_validation():
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_vertex_guess_meets_the_study_constraints(youbot, seed):
     """Vertex-LP starts: boundary states, knot limits, degree <= 6, tau by the hand dynamics."""
+    import _analytic as analytic
     from youbot_opt.reproduction.study_guess import vertex_spline_guess
-    from youbot_opt.robot import analytic
     from youbot_opt.robot.params import YOUBOT_PLANAR
 
     problem = study1_problem(50, robot=youbot)

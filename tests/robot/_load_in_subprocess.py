@@ -39,14 +39,14 @@ DEFAULT_MEMORY = 2 * 2**30  # [bytes] address space per child
 
 
 def _import_loader() -> types.ModuleType:
-    """Import youbot_opt.robot.strict.loader without running the package's __init__."""
+    """Import youbot_opt.robot.urdf_check.loader without running the package's __init__."""
     spec = importlib.util.find_spec("youbot_opt")
     assert spec is not None and spec.submodule_search_locations is not None
     package = types.ModuleType("youbot_opt")
     package.__path__ = list(spec.submodule_search_locations)
     package.__spec__ = spec
     sys.modules["youbot_opt"] = package
-    import youbot_opt.robot.strict.loader as loader
+    import youbot_opt.robot.urdf_check.loader as loader
 
     return loader
 

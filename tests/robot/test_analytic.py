@@ -1,4 +1,4 @@
-"""Tests of youbot_opt.robot.analytic (the study's hand derivation) against Pinocchio, the CasADi
+"""Tests of tests/_analytic.py (the study's hand derivation) against Pinocchio, the CasADi
 symbolic dynamics and calculus."""
 
 from __future__ import annotations
@@ -8,10 +8,11 @@ import pinocchio as pin
 import pytest
 from scipy.integrate import solve_ivp
 
+import _analytic as an
 from youbot_opt.dynamics import SymbolicModel, build_dynamics, build_symbolic_model
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.robot import analytic as an
-from youbot_opt.robot.model import RobotModel, load_model, tip_pose
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel, tip_pose
 from youbot_opt.robot.params import YOUBOT_PLANAR as P
 
 N_STATES = 20

@@ -24,11 +24,12 @@ from youbot_opt.exceptions import (
     ParameterError,
     UnsafeURDFError,
     URDFStructureError,
+    URDFSyntaxError,
 )
-from youbot_opt.robot.strict.dynamics_defined import check_dynamics_defined
-from youbot_opt.robot.strict.limits import MAX_TREE_DEPTH, check_urdf_size, tree_depth
-from youbot_opt.robot.strict.rules import check_mimic_graph
-from youbot_opt.robot.strict.xml import parse_number, parse_xml_strict, shorten, site
+from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
+from youbot_opt.robot.urdf_check.rules import check_mimic_graph
+from youbot_opt.robot.urdf_check.size import MAX_TREE_DEPTH, check_urdf_size, tree_depth
+from youbot_opt.robot.urdf_check.xml import parse_number, parse_xml_strict, shorten, site
 
 HERE = Path(__file__).resolve().parent
 HELPER = HERE / "_load_in_subprocess.py"
@@ -173,6 +174,23 @@ def test_limits_can_be_raised_by_keyword_and_environment(monkeypatch: pytest.Mon
         parse_xml_strict(deep, "deep.urdf")
     monkeypatch.setenv("YOUBOT_OPT_MAX_XML_DEPTH", "200")
     assert len(list(parse_xml_strict(deep, "deep.urdf").iter("g"))) == 150
+
+
+def test_nesting_past_libxml2s_own_stop_is_refused_as_the_nesting_limit() -> None:
+    """A limit raised past libxml2's 256 levels still refuses deeper files, naming libxml2's."""
+    deep = b"<robot name='r'>" + b"<g>" * 300 + b"</g>" * 300 + b"</robot>"
+    with pytest.raises(UnsafeURDFError, match="libxml2's limit of 256 levels") as info:
+        parse_xml_strict(deep, "deep.urdf", max_depth=1000)
+    assert info.value.rule == "XML nesting <= 1,000 levels and <= 200,000 elements"
+
+
+def test_text_nodes_past_10_mb_are_read_for_meshes_only() -> None:
+    """A 12 MB text node (a COLLADA vertex array) is malformed in a URDF, read in a mesh."""
+    data = b"<float_array>" + b"0 " * (6 * 2**20) + b"</float_array>"
+    with pytest.raises(URDFSyntaxError, match="not well-formed XML"):
+        parse_xml_strict(data, "big.urdf")
+    root = parse_xml_strict(data, "big.dae", long_text=True).getroot()
+    assert len(root.text) == 12 * 2**20
 
 
 def test_tree_depth_counts_the_longest_joint_chain() -> None:

@@ -38,10 +38,10 @@ from youbot_opt.exceptions import (
     URDFSyntaxError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict import loader
-from youbot_opt.robot.strict.loader import check_model, check_urdf_text, load_urdf_strict
-from youbot_opt.robot.strict.resources import check_mesh
-from youbot_opt.robot.strict.xml import Site, parse_number, parse_xml_strict
+from youbot_opt.robot.urdf_check import loader
+from youbot_opt.robot.urdf_check.loader import check_model, check_urdf_text, load_urdf_strict
+from youbot_opt.robot.urdf_check.resources import check_mesh
+from youbot_opt.robot.urdf_check.xml import Site, parse_number, parse_xml_strict
 
 HERE = Path(__file__).resolve().parent
 CORPUS = HERE / "urdf_corpus"
@@ -313,7 +313,7 @@ def test_a_name_too_long_for_a_path_is_not_found() -> None:
     Found by the command-line fuzzer (``report --robot aaaa...``): ``Path.is_file``
     raised instead of answering False.
     """
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     with pytest.raises(RobotNotFound, match="nor an existing URDF file"):
         load_model("a" * 5000)
@@ -408,7 +408,7 @@ def test_meshcat_policy_names_the_referencing_object_mesh_texture_and_rule(
     corpus_packages: Path, dae: str, detail: str
 ) -> None:
     """The HTML export's mesh policy refuses the corpus's bad .dae files as informatively."""
-    from youbot_opt.robot.strict.meshes import load_mesh_file
+    from youbot_opt.robot.urdf_check.meshes import load_mesh_file
 
     mesh = corpus_packages / "corpus_pkg" / "meshes" / f"{dae}.dae"
     who = "robot 'corpus', visual geometry 'arm_0'"
@@ -430,7 +430,7 @@ def test_replay_and_loader_refuse_each_hostile_mesh_by_the_same_rule(
     corpus_packages: Path, subprocess_reports: dict[str, dict], entry: dict
 ) -> None:
     """Each hostile mesh reference of the corpus is refused by the replay as by the loader."""
-    from youbot_opt.robot.strict.meshes import load_mesh_file
+    from youbot_opt.robot.urdf_check.meshes import load_mesh_file
 
     ref = re.search(r"filename='([^']*)'", entry["element"]).group(1)  # as in the file
     report = subprocess_reports[entry["file"]]
@@ -443,7 +443,7 @@ def test_replay_and_loader_refuse_each_hostile_mesh_by_the_same_rule(
 
 def test_replay_accepts_every_mesh_the_loader_accepts(corpus_packages: Path) -> None:
     """The valid corpus files' meshes (stl, dae with texture, obj, symlink inside) embed."""
-    from youbot_opt.robot.strict.meshes import load_mesh_file
+    from youbot_opt.robot.urdf_check.meshes import load_mesh_file
 
     valid = [CORPUS / e["file"] for e in MANIFEST if e["expect"] == "ok"]
     for urdf in valid:
@@ -621,7 +621,7 @@ def test_massless_body_with_inertia_says_what_it_adds_to_its_parent(tmp_path: Pa
 
 def test_locked_joints_weld_the_links_behind_them(tmp_path: Path) -> None:
     """Behind a locked joint, an implausible inertia can change nothing: a warning only."""
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     path = _policy_file(tmp_path, arm_izz=0.03)
     with pytest.raises(InvalidModelError, match="link 'arm'"):

@@ -9,8 +9,8 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import YoubotOptWarning
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.mimic import mimic_joints
-from youbot_opt.robot.model import load_model
 
 TWO_LINK = """<?xml version="1.0"?>
 <robot name="mimic_pair">

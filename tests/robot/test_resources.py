@@ -1,4 +1,4 @@
-"""Tests of the one resource policy (robot/strict/resources.py): the loader's and the replay's."""
+"""Tests of the one resource policy (robot/urdf_check/resources.py): loader and replay."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.exceptions import ParameterError, ResourceNotFoundError, UnsafePathError
-from youbot_opt.robot.strict.resources import (
+from youbot_opt.robot.urdf_check.resources import (
     PATH_RULE,
     allowed_roots,
     check_mesh,
@@ -15,7 +15,7 @@ from youbot_opt.robot.strict.resources import (
     is_inline_image,
     resolve_in_folder,
 )
-from youbot_opt.robot.strict.xml import Site
+from youbot_opt.robot.urdf_check.xml import Site
 
 WHERE = Site("robot.urdf", "<mesh>", 3)
 

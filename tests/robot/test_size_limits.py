@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.exceptions import ParameterError, UnsafeURDFError, YoubotOptWarning
-from youbot_opt.robot.model import load_model
-from youbot_opt.robot.strict.limits import MAX_DOF, MAX_JOINTS, MAX_TREE_DEPTH, SizeLimits
-from youbot_opt.robot.strict.xml import MAX_XML_DEPTH, MAX_XML_ELEMENTS
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.urdf_check.size import MAX_DOF, MAX_JOINTS, MAX_TREE_DEPTH, SizeLimits
+from youbot_opt.robot.urdf_check.xml import MAX_XML_DEPTH, MAX_XML_ELEMENTS
 
 INERTIAL = (
     '<inertial><mass value="1"/>'

@@ -18,7 +18,9 @@ from youbot_opt.exceptions import (
     RobotNotFound,
     YoubotOptWarning,
 )
-from youbot_opt.robot.model import RobotModel, load_model, youbot_urdf_path
+from youbot_opt.robot.catalogue import youbot_urdf_path
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource, urdf_digest
 
 CORPUS = Path(__file__).resolve().parent / "urdf_corpus"

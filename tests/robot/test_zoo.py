@@ -10,12 +10,8 @@ import pytest
 
 from youbot_opt.cli.robots import RobotSurvey, survey
 from youbot_opt.exceptions import InvalidModelError, ResourceNotFoundError, YoubotOptWarning
-from youbot_opt.robot.model import (
-    available_robots,
-    example_robot_data_dir,
-    example_robots,
-    load_model,
-)
+from youbot_opt.robot.catalogue import available_robots, example_robot_data_dir, example_robots
+from youbot_opt.robot.load import load_model
 
 ROBOTS = example_robot_data_dir() / "example-robot-data" / "robots"
 

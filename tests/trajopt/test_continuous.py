@@ -15,7 +15,8 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.robot.model import RobotModel, example_robot_data_dir
+from youbot_opt.robot.catalogue import example_robot_data_dir
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.solver import TrajOptSolver

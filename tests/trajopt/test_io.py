@@ -10,7 +10,7 @@ import pytest
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.io import SCHEMA_VERSION, load_result, save_result
 from youbot_opt.trajopt.result import SolveStatus
 from youbot_opt.trajopt.solver import solve

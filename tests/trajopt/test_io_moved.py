@@ -19,7 +19,8 @@ from youbot_opt.exceptions import (
 )
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model, youbot_urdf_path
+from youbot_opt.robot.catalogue import youbot_urdf_path
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.source import RobotSource, urdf_digest
 from youbot_opt.trajopt.io import load_result, save_result
 from youbot_opt.trajopt.objectives import Objective

@@ -21,7 +21,8 @@ import pytest
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import RobotModel, load_model
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.trajopt.multistart import MultistartResult, StoredStarts, run_multistart

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.certify import check_bounds
 from youbot_opt.trajopt.check import check_result, checked
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem

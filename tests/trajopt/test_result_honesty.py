@@ -19,7 +19,7 @@ import pytest
 from youbot_opt.exceptions import InvalidModelError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.check import check_result, checked
 from youbot_opt.trajopt.result import SolveStatus, TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver

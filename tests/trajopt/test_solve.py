@@ -14,7 +14,7 @@ import pytest
 from youbot_opt.exceptions import ParameterError, SolveFailed, YoubotOptWarning
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.certify import check_bounds as certify_bounds
 from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem

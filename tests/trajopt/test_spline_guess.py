@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.problem import BoundaryState
 from youbot_opt.trajopt.spline_guess import bernstein_matrix, random_spline_guess
 

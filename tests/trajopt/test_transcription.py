@@ -10,7 +10,7 @@ import pytest
 from youbot_opt.dynamics import build_dynamics
 from youbot_opt.exceptions import ParameterError, TranscriptionError
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.transcription import (
     HermiteSimpsonCollocation,
     RadauCollocation,

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
+from _analytic import tip_pose_analytic
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.analytic import tip_pose_analytic
 from youbot_opt.robot.params import YOUBOT_PLANAR
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import run_multistart

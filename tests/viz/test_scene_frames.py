@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pinocchio as pin
 
-from youbot_opt.robot.model import load_model
+from youbot_opt.robot.load import load_model
 from youbot_opt.viz.meshcat.scene import ee_points
 
 

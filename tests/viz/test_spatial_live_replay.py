@@ -15,7 +15,7 @@ import umsgpack  # noqa: E402
 from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result  # noqa: E402
 from youbot_opt.ikpath.targets import SpatialTarget  # noqa: E402
 from youbot_opt.nlp.status import SolveStatus  # noqa: E402
-from youbot_opt.robot.model import load_model  # noqa: E402
+from youbot_opt.robot.load import load_model  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402
 from youbot_opt.viz.meshcat.ikpath import (  # noqa: E402
     replay_spatial_ikpath,

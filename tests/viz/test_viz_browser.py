@@ -28,7 +28,7 @@ import matplotlib.image  # noqa: E402
 import pinocchio as pin  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from youbot_opt.robot.model import load_model  # noqa: E402
+from youbot_opt.robot.load import load_model  # noqa: E402
 from youbot_opt.viz import export_html  # noqa: E402
 
 pytestmark = pytest.mark.browser

@@ -26,8 +26,8 @@ from youbot_opt.cli.cluster_args import (
     scheduler_address,
 )
 from youbot_opt.cli.ikpath_starts import print_starts, start_fields, start_sweep
-from youbot_opt.cli.limits import check_ikpath_size
 from youbot_opt.cli.robot_args import add_loading_options
+from youbot_opt.cli.run_size import check_ikpath_size
 from youbot_opt.exceptions import ParameterError
 
 if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast

@@ -159,7 +159,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
     from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     kind = _check_spatial_flags(args)
     robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]

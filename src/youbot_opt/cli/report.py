@@ -79,7 +79,8 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
     import numpy as np
     import pinocchio as pin
 
-    from youbot_opt.robot.model import as_configuration, frame_placement, tip_pose, youbot_urdf_path
+    from youbot_opt.robot.catalogue import youbot_urdf_path
+    from youbot_opt.robot.model import as_configuration, frame_placement, tip_pose
 
     qa = as_configuration(robot, q)
     model = robot.model

@@ -3,7 +3,7 @@
 :func:`add_robot_arguments` adds ``--robot NAME|PATH``, ``--package-dir DIR``
 (repeatable), ``--lenient``, ``--lock NAME=VALUE`` (repeatable) and
 ``--tip-frame F``; :func:`load_robot` turns them into
-:func:`youbot_opt.robot.model.load_model` arguments. Building the parser
+:func:`youbot_opt.robot.load.load_model` arguments. Building the parser
 imports no Pinocchio (``--help`` stays fast); ``youbot-opt robots`` lists the
 names.
 """
@@ -155,10 +155,10 @@ def load_robot(args: argparse.Namespace, *, damping: float | None = None) -> Rob
     Raises
     ------
     RobotNotFound, ModelError, FrameNotFound, ParameterError
-        As :func:`youbot_opt.robot.model.load_model`; a joint locked twice
+        As :func:`youbot_opt.robot.load.load_model`; a joint locked twice
         raises ParameterError.
     """
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     return load_model(
         args.robot,

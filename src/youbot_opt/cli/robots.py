@@ -1,7 +1,7 @@
 """``youbot-opt robots``: list the robots that load by name, with dof, joint types and status.
 
 Each robot (``youbot``, ``youbot_arm_5dof`` and every URDF of
-example-robot-data, :func:`youbot_opt.robot.model.available_robots`) is
+example-robot-data, :func:`youbot_opt.robot.catalogue.available_robots`) is
 loaded by default, then with ``--lenient``; the table gives ``nq``/``nv``,
 joint types and whether and how it loads (with the rule it breaks).
 
@@ -65,7 +65,7 @@ class RobotSurvey:
 
 def _joint_types(path: Path) -> str:
     from youbot_opt.exceptions import URDFError
-    from youbot_opt.robot.strict.xml import parse_xml_strict, root_of
+    from youbot_opt.robot.urdf_check.xml import parse_xml_strict, root_of
 
     try:
         root = root_of(parse_xml_strict(path.read_bytes(), str(path)), str(path))
@@ -83,7 +83,7 @@ def survey(name: str) -> RobotSurvey:
     Parameters
     ----------
     name : str
-        A name of :func:`youbot_opt.robot.model.available_robots` or a URDF path.
+        A name of :func:`youbot_opt.robot.catalogue.available_robots` or a URDF path.
 
     Returns
     -------
@@ -91,7 +91,8 @@ def survey(name: str) -> RobotSurvey:
         Status, sizes, joint types and the reason of a refusal.
     """
     from youbot_opt.exceptions import ModelError, URDFError, YoubotOptWarning
-    from youbot_opt.robot.model import example_robots, load_model, youbot_urdf_path
+    from youbot_opt.robot.catalogue import example_robots, youbot_urdf_path
+    from youbot_opt.robot.load import load_model
 
     reason = message = ""
     robot = None
@@ -154,7 +155,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def _run(args: argparse.Namespace) -> int:
     from youbot_opt.exceptions import RobotNotFound
-    from youbot_opt.robot.model import available_robots
+    from youbot_opt.robot.catalogue import available_robots
 
     known = available_robots()
     names = list(args.names) or list(known)

@@ -26,8 +26,8 @@ import numpy as np
 
 from youbot_opt._files import json_ready
 from youbot_opt.cli.cluster_args import add_scheduler_args
-from youbot_opt.cli.limits import check_trajopt_size
 from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
+from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import LINEAR_SOLVERS, IpoptOptions
 

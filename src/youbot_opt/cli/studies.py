@@ -29,8 +29,8 @@ from youbot_opt.cli.cluster_args import (
     add_scheduler_args,
     scheduler_address,
 )
-from youbot_opt.cli.limits import check_sweep_values, check_trajopt_size
 from youbot_opt.cli.output import ProgressLine, add_command
+from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
 from youbot_opt.cli.solve import (
     add_ipopt_arguments,
     add_refine_arguments,

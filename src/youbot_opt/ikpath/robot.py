@@ -115,6 +115,6 @@ def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarCha
 
 def youbot_chain() -> PlanarChain:
     """Return the youBot arm (``load_model("youbot")``) as a planar chain."""
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     return chain_from_robot(load_model("youbot"))

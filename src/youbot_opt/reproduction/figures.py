@@ -34,7 +34,7 @@ _W_UNIT = r"N$^2$ m$^2$ s"  # unit of the work W = int tau . tau dt
 
 def _limits() -> dict[str, np.ndarray]:
     """Data-sheet bounds of the planar youBot: position [rad], speed [rad/s], torque [N m]."""
-    from youbot_opt.robot.model import load_model
+    from youbot_opt.robot.load import load_model
 
     robot = load_model("youbot")
     return {

@@ -21,7 +21,8 @@ from youbot_opt.reproduction.study1 import (
     StudyTranscription,
     study1_problem,
 )
-from youbot_opt.robot.model import RobotModel, load_model
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.multistart import MultistartResult
 from youbot_opt.trajopt.result import TrajOptResult

@@ -21,7 +21,8 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.robot.model import RobotModel, load_model
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import STUDY_Q_GOAL, STUDY_Q_START
 from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
@@ -250,7 +251,7 @@ def study1_problem(
     n_knots : int
         Number of knots (the study: 50).
     robot : RobotModel, optional
-        The planar youBot; loaded with :func:`youbot_opt.robot.model.load_model` when omitted.
+        The planar youBot; loaded with :func:`youbot_opt.robot.load.load_model` when omitted.
     beta : float
         Default time weight in [0, 1] (the base case: 0.5).
     damping : float, optional

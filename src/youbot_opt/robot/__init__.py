@@ -1,9 +1,10 @@
 """What a robot is (layer L1): parameters, URDF, the loaded model and how to load it again.
 
 Modules: :mod:`.params`, :mod:`.urdf`, :mod:`.model` (:class:`RobotModel`,
-``load_model``), :mod:`.source` (:class:`RobotSource`, how result files name
-their robot), :mod:`.analytic`, :mod:`.mimic` and the strict loader
-:mod:`.strict`. The names here are imported on first use, so importing
+its bounds and kinematics), :mod:`.catalogue` (the robots known by name),
+:mod:`.load` (``load_model``), :mod:`.source` (:class:`RobotSource`, how result
+files name their robot), :mod:`.mimic` and the hostile-URDF policy :mod:`.urdf_check`.
+The names here are imported on first use, so importing
 ``youbot_opt.robot.params`` does not import Pinocchio.
 
     from youbot_opt.robot import RobotSource

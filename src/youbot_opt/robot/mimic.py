@@ -4,7 +4,7 @@ A URDF ``<mimic joint="j" multiplier="m" offset="o"/>`` couples a joint to
 ``q = m q_j + o``. Pinocchio builds such a file either as independent joints
 (``mimic=False``, its default) or as ``JointModelMimic`` (``mimic=True``), which
 the CasADi dynamics backends cannot transcribe. :func:`mimic_locks` therefore
-gives the positions at which :func:`youbot_opt.robot.model.load_model` locks
+gives the positions at which :func:`youbot_opt.robot.load.load_model` locks
 them: the relation evaluated at the reference configuration (the neutral
 configuration, or the user's ``lock_joints`` value of the mimicked joint),
 with a :class:`~youbot_opt.exceptions.YoubotOptWarning` naming the joints.
@@ -22,8 +22,8 @@ from typing import NamedTuple
 import pinocchio as pin
 
 from youbot_opt.exceptions import YoubotOptWarning
-from youbot_opt.robot.strict.limits import SizeLimits
-from youbot_opt.robot.strict.xml import parse_xml_strict, root_of
+from youbot_opt.robot.urdf_check.size import SizeLimits
+from youbot_opt.robot.urdf_check.xml import parse_xml_strict, root_of
 
 __all__ = ["MimicJoint", "mimic_joints", "mimic_locks"]
 

@@ -1,24 +1,18 @@
-"""Robot models: load a URDF (the youBot arm, an example-robot-data robot, a file).
+"""What a loaded robot is: :class:`RobotModel`, its joint bounds and its kinematics.
 
-:func:`load_model` returns a :class:`RobotModel`, an immutable bundle of the
-Pinocchio model, its visual and collision geometry, the end-effector frame and
-the SI joint limits, passed explicitly to everything that needs dynamics (data
-objects from :meth:`RobotModel.create_data`; bounds from :meth:`RobotModel.bounds`).
-:func:`tip_pose` owns the study's planar convention (spec ``trajopt.md``).
+A :class:`RobotModel` is an immutable bundle of the Pinocchio model, its visual
+and collision geometry, the end-effector frame and the SI joint limits, passed
+explicitly to everything that needs dynamics (data objects from
+:meth:`RobotModel.create_data`; bounds from :meth:`RobotModel.bounds`).
+:func:`frame_placement` gives any frame's placement; :func:`tip_pose` owns the
+study's planar convention (spec ``trajopt.md``). Loading is
+:func:`youbot_opt.robot.load.load_model`.
 
->>> robot = load_model("youbot")  # doctest: +SKIP
->>> ur5 = load_model("ur5", lock_joints={"wrist_3_joint": 0.0})  # doctest: +SKIP
+>>> pose = tip_pose(load_model("youbot"), [0.0, 0.0, 0.0])  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-import functools
-import importlib.metadata
-import logging
-import math
-import os
-import tempfile
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, NamedTuple
@@ -29,51 +23,19 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._checks import check_bound_scale
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import FrameNotFound, ModelError, ParameterError, RobotNotFound
-from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
-from youbot_opt.robot.strict.limits import SizeLimits
-from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
+from youbot_opt.exceptions import FrameNotFound, ParameterError
 
 __all__ = [
     "RobotModel",
-    "SizeLimits",
     "JointBounds",
     "BoundFamily",
     "BOUND_FAMILIES",
-    "check_bound_scale",
     "TipPose",
+    "as_configuration",
     "as_robot_model",
-    "available_robots",
-    "example_robots",
-    "load_model",
     "tip_pose",
     "frame_placement",
-    "youbot_urdf_path",
-    "example_robot_data_dir",
 ]
-
-_log = logging.getLogger(__name__)
-
-YOUBOT = "youbot"
-_YOUBOT_FILE = "youbot_arm_planar.urdf"
-YOUBOT_ARM_5DOF = "youbot_arm_5dof"
-_YOUBOT_5DOF_FILE = "youbot_arm_5dof.urdf"
-_YOUBOT_5DOF_TIP = "gripper_palm_link"
-
-# Short names kept from before the whole zoo loaded by name, and their tip frames:
-# name -> (URDF path relative to example-robot-data's ``robots`` folder, default tip frame).
-# Every other robot of example-robot-data is found in its folder (example_robots()).
-_EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
-    "double_pendulum": ("double_pendulum_description/urdf/double_pendulum.urdf", "link2"),
-    "ur3": ("ur_description/urdf/ur3_robot.urdf", "tool0"),
-    "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
-    "ur10": ("ur_description/urdf/ur10_robot.urdf", "tool0"),
-    "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp"),
-    "so101": ("so_arm_description/urdf/so101.urdf", "gripper_frame_link"),
-    "z1": ("z1_description/urdf/z1.urdf", "gripperStator"),
-    "xarm7": ("xarm_description/urdf/xarm7.urdf", "link_eef"),
-}
-
 
 BoundFamily = Literal["position", "velocity", "torque"]
 BOUND_FAMILIES: tuple[BoundFamily, ...] = ("position", "velocity", "torque")
@@ -381,436 +343,26 @@ def as_robot_model(robot: RobotModel | pin.Model) -> RobotModel:
     )
 
 
-def youbot_urdf_path() -> Path:
-    """Return the committed youBot URDF (source checkout, else the packaged copy).
-
-    Returns
-    -------
-    pathlib.Path
-        ``<repo>/urdf/youbot_arm_planar.urdf`` if it exists, else
-        ``youbot_opt/_urdf/youbot_arm_planar.urdf``.
-    """
-    return _committed_urdf(_YOUBOT_FILE)
-
-
-def _committed_urdf(filename: str) -> Path:
-    """Return ``urdf/<filename>`` of the source checkout, else the packaged copy."""
-    repo = Path(__file__).resolve().parents[3] / "urdf" / filename
-    if repo.is_file():
-        return repo
-    return Path(__file__).resolve().parents[1] / "_urdf" / filename
-
-
-def example_robot_data_dir() -> Path:
-    """Return example-robot-data's ``share`` folder (holds ``example-robot-data/robots``).
-
-    Returns
-    -------
-    pathlib.Path
-        The folder that ``package://example-robot-data/...`` references resolve against.
-
-    Raises
-    ------
-    ModelError
-        If example-robot-data is not installed (``pip install example-robot-data``).
-    """
-    try:
-        dist = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError as exc:
-        raise ModelError(
-            "example-robot-data is not installed; run `pip install example-robot-data`"
-        ) from exc
-    for f in dist.files or ():
-        parts = f.parts
-        for k in range(len(parts) - 1):
-            if parts[k] == "example-robot-data" and parts[k + 1] == "robots":
-                return Path(str(dist.locate_file(Path(*parts[:k]))))
-    raise ModelError("example-robot-data is installed but ships no robots/ folder")
-
-
-def _robots_folder() -> Path:
-    return example_robot_data_dir() / "example-robot-data" / "robots"
-
-
-@functools.cache
-def _example_robots_cached(robots: Path) -> tuple[tuple[str, str], ...]:
-    files = sorted(p.relative_to(robots).as_posix() for p in robots.rglob("*.urdf"))
-    stems: dict[str, list[str]] = {}
-    for rel in files:
-        stems.setdefault(Path(rel).stem, []).append(rel)
-    names = []
-    for rel in files:
-        stem = Path(rel).stem
-        alias = _EXAMPLE_ROBOTS.get(stem)
-        unique = len(stems[stem]) == 1 and (alias is None or alias[0] == rel)
-        names.append((stem if unique else f"{Path(rel).parts[0]}/{stem}", rel))
-    return tuple(names)
-
-
-def example_robots() -> dict[str, Path]:
-    """Return every robot of the installed example-robot-data: name -> URDF file.
-
-    Found from the installed data (each ``*.urdf`` under its ``robots``
-    folder), not from a list kept here. A robot is named by its file name
-    without ``.urdf`` (``panda``, ``ur5_robot``, ``talos_left_arm``); a name
-    shared by several files, or taken by a short name below, is qualified by
-    its package folder (``anymal_b_simple_description/anymal``,
-    ``ur_description/ur3``). The short names ``ur3``, ``ur5`` and ``ur10``
-    (``ur*_robot``) are accepted by :func:`load_model` besides these.
-
-    Returns
-    -------
-    dict of str to pathlib.Path
-        One entry per URDF file, sorted by path.
-
-    Raises
-    ------
-    ModelError
-        If example-robot-data is not installed.
-    """
-    robots = _robots_folder()
-    return {name: robots / rel for name, rel in _example_robots_cached(robots)}
-
-
-def available_robots() -> tuple[str, ...]:
-    """Return the robot names :func:`load_model` accepts.
-
-    Returns
-    -------
-    tuple of str
-        ``"youbot"``, ``"youbot_arm_5dof"``, the short example-robot-data names
-        (``ur5``, ``panda``, ...), then every other robot of the installed
-        example-robot-data (:func:`example_robots`; none when it is not installed).
-    """
-    try:
-        zoo = tuple(example_robots())
-    except ModelError:
-        zoo = ()
-    return tuple(dict.fromkeys((YOUBOT, YOUBOT_ARM_5DOF, *_EXAMPLE_ROBOTS, *zoo)))
-
-
-def _example_source(name: str) -> tuple[Path, str | None] | None:
-    """Return (URDF file, default tip frame) of an example-robot-data name, else None."""
-    if name in _EXAMPLE_ROBOTS:
-        rel, tip = _EXAMPLE_ROBOTS[name]
-        return _robots_folder() / rel, tip
-    try:
-        zoo = example_robots()
-    except ModelError:
-        return None
-    return (zoo[name], None) if name in zoo else None
-
-
-def _example_package_dirs(path: Path) -> tuple[Path, ...]:
-    """Package folders of example-robot-data if ``path`` lies in it, else ()."""
-    try:
-        share = example_robot_data_dir()
-    except ModelError:
-        return ()
-    robots = share / "example-robot-data" / "robots"
-    real = path.resolve()
-    if real.is_relative_to(robots.resolve()):
-        return (robots, share)
-    return ()
-
-
-def _build_pinocchio_models(
-    path: Path,
-    package_dirs: tuple[Path, ...],
-    *,
-    strict: bool = True,
-    locked: frozenset[str] = frozenset(),
-    size_limits: SizeLimits | None = None,
-) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
-    """Build (model, visual, collision) from a URDF file; the single Pinocchio entry point."""
-    if not path.is_file():
-        raise RobotNotFound(
-            f"URDF file {str(path)!r} does not exist", path=str(path), available=available_robots()
-        )
-    from youbot_opt.robot.strict.loader import load_urdf_strict
-
-    # The strict loader refuses malformed XML, DOCTYPE/entities, resources outside
-    # ``package_dirs`` and physically invalid models, each with a URDFError (a ModelError).
-    loaded = load_urdf_strict(
-        path, package_dirs, strict=strict, locked=locked, size_limits=size_limits
-    )
-    model, visual, collision = loaded.model, loaded.visual_model, loaded.collision_model
-    return model, visual, collision
-
-
-def _check_damping(damping: float | None) -> float | None:
-    """Return ``damping`` as a float (None passes), else raise ParameterError."""
-    if damping is None:
-        return None
-    if isinstance(damping, bool) or not isinstance(damping, int | float):
-        raise ParameterError(
-            f"damping must be a number in [N m s/rad], got {damping!r}",
-            name="damping",
-            value=damping,
-        )
-    if not math.isfinite(damping) or damping < 0:
-        raise ParameterError(
-            f"damping must be finite and >= 0 in [N m s/rad], got {damping!r}",
-            name="damping",
-            value=damping,
-        )
-    return float(damping)
-
-
-def _check_lock(
-    model: pin.Model, lock_joints: Mapping[str, float]
-) -> tuple[tuple[str, float], ...]:
-    """Validate ``lock_joints`` against the model: known 1-dof joints, finite in-limit values."""
-    if not isinstance(lock_joints, Mapping):
-        raise ParameterError(
-            f"lock_joints must be a mapping {{joint name: position}}, got {lock_joints!r}",
-            name="lock_joints",
-            value=lock_joints,
-        )
-    movable = tuple(model.names[1:])
-    checked = []
-    for name, value in lock_joints.items():
-        if name not in movable:
-            raise ParameterError(
-                f"lock_joints: {name!r} is not a movable joint of the robot; "
-                f"its joints are {list(movable)}",
-                name="lock_joints",
-                value=name,
-            )
-        joint = model.joints[model.getJointId(name)]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
-            raise ParameterError(
-                f"lock_joints: the position of {name!r} must be a finite number "
-                f"in [rad] or [m], got {value!r}",
-                name="lock_joints",
-                value=value,
-            )
-        if joint.nv != 1:
-            raise ParameterError(
-                f"lock_joints: joint {name!r} ({joint.shortname()}) has {joint.nv} velocity "
-                "coordinates; only 1-dof joints (revolute, prismatic, continuous) can be locked",
-                name="lock_joints",
-                value=name,
-            )
-        if joint.nq == 1:
-            lo, hi = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
-            if not lo <= value <= hi:
-                raise ParameterError(
-                    f"lock_joints: {name!r} = {value} is outside its limits [{lo}, {hi}]",
-                    name="lock_joints",
-                    value=value,
-                )
-        checked.append((str(name), float(value)))
-    return tuple(checked)
-
-
-def _lock(
-    model: pin.Model,
-    visual: pin.GeometryModel,
-    collision: pin.GeometryModel,
-    locked: tuple[tuple[str, float], ...],
-) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
-    """Build Pinocchio's reduced model with the ``locked`` joints held at their positions."""
-    if not locked:
-        return model, visual, collision
-    q_ref = pin.neutral(model)
-    ids = []
-    for name, value in locked:
-        jid = model.getJointId(name)
-        joint = model.joints[jid]
-        if joint.nq == 1:
-            q_ref[joint.idx_q] = value
-        else:  # continuous: (cos, sin) of the angle
-            q_ref[joint.idx_q : joint.idx_q + 2] = (math.cos(value), math.sin(value))
-        ids.append(jid)
-    reduced, (vis, col) = pin.buildReducedModel(model, [visual, collision], ids, q_ref)
-    reduced.name = model.name
-    return reduced, vis, col
-
-
-def load_model(
-    source: str | os.PathLike[str] | ArmParameters = YOUBOT,
-    *,
-    tip_frame: str | None = None,
-    package_dirs: Sequence[str | os.PathLike[str]] | None = None,
-    damping: float | None = None,
-    strict: bool = True,
-    lock_joints: Mapping[str, float] | None = None,
-    size_limits: SizeLimits | None = None,
-) -> RobotModel:
-    """Load a robot model.
+def as_configuration(robot: RobotModel, q: ArrayLike) -> Array:
+    """Return ``q`` as a finite float array of the robot's configuration size.
 
     Parameters
     ----------
-    source : str, os.PathLike or ArmParameters
-        ``"youbot"`` (default): the committed ``urdf/youbot_arm_planar.urdf``
-        (generated by :mod:`youbot_opt.robot.urdf`; in a non-editable install
-        the copy packaged as ``youbot_opt/_urdf/``); ``"youbot_arm_5dof"``: the
-        real 5-DOF arm with its gripper (``urdf/youbot_arm_5dof.urdf``); a name
-        from :func:`available_robots`: every URDF of the installed
-        example-robot-data, found in its ``robots`` folder
-        (:func:`example_robots`), loaded with a fixed base; a path to a URDF
-        file (its package folders are found when it lies in
-        example-robot-data); or :class:`~youbot_opt.robot.params.ArmParameters`
-        to build the youBot URDF from (e.g. with other damping or scaled limits).
-    tip_frame : str, optional
-        End-effector frame; defaults to ``"gripper_tip"`` for the youBot,
-        ``"gripper_palm_link"`` for ``"youbot_arm_5dof"``, the table's frame
-        for the short example-robot-data names and the last frame of the
-        model otherwise.
-    package_dirs : sequence of path-like, optional
-        Extra folders for ``package://`` mesh references (the example-robot-data
-        folders are added for its robots and for files inside it; a file's own
-        folder is added for files).
-    damping : float, optional
-        Viscous damping of every joint in [N m s/rad], overriding the URDF's
-        ``<dynamics damping>`` (for ``ArmParameters`` it is written into the
-        generated URDF).
-    strict : bool
-        True (default) refuses a physically implausible inertia on a moving
-        link; False loads it with a :class:`~youbot_opt.exceptions.YoubotOptWarning`.
-        Implausible inertias on links welded to the world always load with a
-        warning (:func:`youbot_opt.robot.strict.loader.inertia_policy`).
-    lock_joints : mapping of str to float, optional
-        Joints to lock, with their positions in [rad] or [m] (a continuous
-        joint's angle in [rad]); built with Pinocchio's reduced model
-        (``buildReducedModel``) on the model and both geometry models. Links
-        behind locked joints count as welded for the inertia policy.
-    size_limits : SizeLimits, optional
-        Size limits of the URDF file, each a count (an integer >= 1): joints
-        (``max_joints``, default 1000), degrees of freedom (``max_dof``, 100),
-        longest joint chain (``max_tree_depth``, 500), XML nesting
-        (``max_xml_depth``, 100 levels) and XML elements (``max_xml_elements``,
-        200,000). A limit left None takes its environment variable
-        (``YOUBOT_OPT_MAX_JOINTS``, ``YOUBOT_OPT_MAX_DOF``,
-        ``YOUBOT_OPT_MAX_TREE_DEPTH``, ``YOUBOT_OPT_MAX_XML_DEPTH``,
-        ``YOUBOT_OPT_MAX_XML_ELEMENTS``) when set, else the default
-        (:class:`~youbot_opt.robot.strict.limits.SizeLimits`). Example:
-        ``load_model("big.urdf", size_limits=SizeLimits(max_joints=5000))``.
+    robot : RobotModel
+        The robot.
+    q : array_like
+        Configuration, shape (nq,), in [rad] (or [m]).
 
     Returns
     -------
-    RobotModel
-        The loaded robot.
+    numpy.ndarray
+        ``q`` as floats, shape (nq,).
 
     Raises
     ------
-    RobotNotFound
-        Unknown name (the message lists :func:`available_robots`) or missing file.
-    ModelError
-        The file is not a loadable URDF (an implausible inertia on a moving
-        link under ``strict``: the message says how to load it anyway).
-    FrameNotFound
-        ``tip_frame`` is not a frame of the (reduced) model.
     ParameterError
-        ``damping`` is negative or not finite; ``lock_joints`` names an unknown
-        or multi-dof joint, or a position that is not finite or outside the
-        limits; ``size_limits`` is not a :class:`SizeLimits`, or a limit in it
-        (or its environment variable) is not an integer >= 1.
-    UnsafeURDFError
-        The file exceeds a size limit (the message names the count, the limit
-        and how to raise it).
+        If ``q`` is not numeric, has another shape or is not finite.
     """
-    if size_limits is not None and not isinstance(size_limits, SizeLimits):
-        raise ParameterError(
-            "size_limits must be a SizeLimits (e.g. SizeLimits(max_joints=5000)) or None, "
-            f"got {type(size_limits).__name__} {size_limits!r}",
-            name="size_limits",
-            value=size_limits,
-        )
-    sizes = (size_limits or SizeLimits()).resolved()  # a bad environment variable fails here
-    extra = tuple(Path(p) for p in (package_dirs or ()))
-    damping = _check_damping(damping)
-    gravity: float | None = None
-    locked_names = frozenset(str(k) for k in (lock_joints or {}))
-    tip: str | None
-    if isinstance(source, ArmParameters):
-        gravity = source.gravity
-        text = urdf_string(source, damping=damping)
-        with tempfile.TemporaryDirectory() as tmp:
-            path = Path(tmp) / _YOUBOT_FILE
-            path.write_text(text, encoding="utf-8")
-            built = _build_pinocchio_models(
-                path, extra, strict=strict, locked=locked_names, size_limits=sizes
-            )
-        name, urdf_path, dirs, tip = source.name, None, extra, TIP_FRAME
-    elif isinstance(source, str) and source in (YOUBOT, YOUBOT_ARM_5DOF):
-        five = source == YOUBOT_ARM_5DOF
-        gravity = None if five else YOUBOT_PLANAR.gravity
-        urdf_path = _committed_urdf(_YOUBOT_5DOF_FILE if five else _YOUBOT_FILE)
-        dirs = (urdf_path.parent, *extra)
-        built = _build_pinocchio_models(
-            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
-        )
-        name, tip = source, (_YOUBOT_5DOF_TIP if five else TIP_FRAME)
-    elif isinstance(source, str) and (found := _example_source(source)) is not None:
-        urdf_path, tip = found
-        dirs = (*_example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(
-            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
-        )
-        name = source
-    elif isinstance(source, str | os.PathLike):
-        urdf_path = Path(source)
-        try:
-            is_file = urdf_path.is_file()
-        except OSError:  # e.g. a name longer than the file system allows
-            is_file = False
-        if not is_file:
-            raise RobotNotFound(
-                f"{str(source)!r} is neither a robot name (`youbot-opt robots` lists them: "
-                f"{', '.join(available_robots()[:10])}, ...) nor an existing URDF file",
-                available=available_robots(),
-                path=str(source),
-            )
-        urdf_path = urdf_path.resolve()
-        dirs = (urdf_path.parent, *_example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(
-            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
-        )
-        name, tip = built[0].name or urdf_path.stem, None
-    else:
-        raise ParameterError(
-            "source must be a robot name, a URDF path or ArmParameters, "
-            f"got {type(source).__name__}",
-            name="source",
-            value=source,
-        )
-    model, visual, collision = built
-    locked = _check_lock(model, lock_joints) if lock_joints is not None else ()
-    from youbot_opt.robot.mimic import mimic_locks  # never independent: locked, with a warning
-
-    locked = (
-        *locked,
-        *mimic_locks(model, urdf_path, dict(locked), str(name), size_limits=sizes),
-    )
-    model, visual, collision = _lock(model, visual, collision, locked)
-    if damping is not None:
-        model.damping = np.full(model.nv, damping)
-    if gravity is not None:
-        model.gravity.linear = np.array([0.0, 0.0, -gravity])
-    if tip is None:
-        tip = model.frames[len(model.frames) - 1].name
-    _log.debug("loaded %s from %s (nq=%d, locked %s)", name, urdf_path, model.nq, locked)
-    return RobotModel(
-        name=name,
-        model=model,
-        visual_model=visual,
-        collision_model=collision,
-        urdf_path=urdf_path,
-        package_dirs=dirs,
-        tip_frame=tip if tip_frame is None else tip_frame,
-        locked_joints=locked,
-        strict=bool(strict),
-    )
-
-
-def as_configuration(robot: RobotModel, q: ArrayLike) -> Array:
-    """Return ``q`` as a finite float array of shape (nq,), else raise ParameterError."""
     try:
         arr = np.asarray(q, dtype=float)
     except (TypeError, ValueError) as exc:

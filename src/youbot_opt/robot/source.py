@@ -22,7 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt.exceptions import ModelError, ParameterError, RobotNotFound
-from youbot_opt.robot.model import RobotModel, available_robots, load_model
+from youbot_opt.robot.catalogue import available_robots
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 
 __all__ = ["RobotSource", "urdf_digest"]
 
@@ -75,12 +77,12 @@ def _relative(path: str, folder: Path) -> str:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class RobotSource:
-    """How to load a robot again: :func:`~youbot_opt.robot.model.load_model` arguments.
+    """How to load a robot again: :func:`~youbot_opt.robot.load.load_model` arguments.
 
     Attributes
     ----------
     source : str
-        A name of :func:`~youbot_opt.robot.model.available_robots`, or the
+        A name of :func:`~youbot_opt.robot.catalogue.available_robots`, or the
         absolute path of a URDF file.
     package_dirs : tuple of str
         Folders for ``package://`` references, absolute.
@@ -142,7 +144,7 @@ class RobotSource:
         Parameters
         ----------
         robot : RobotModel
-            The robot, as :func:`~youbot_opt.robot.model.load_model` returned it.
+            The robot, as :func:`~youbot_opt.robot.load.load_model` returned it.
         strict : bool, optional
             The loader's inertia policy; default: the robot's own (``robot.strict``).
 
@@ -271,7 +273,7 @@ class RobotSource:
     def load(
         self, tip_frame: str | None = None, *, folder: str | os.PathLike[str] | None = None
     ) -> RobotModel:
-        """Load the robot (:func:`~youbot_opt.robot.model.load_model`).
+        """Load the robot (:func:`~youbot_opt.robot.load.load_model`).
 
         Parameters
         ----------

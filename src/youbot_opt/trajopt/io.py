@@ -35,7 +35,8 @@ from youbot_opt._files import (
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.robot.model import RobotModel, available_robots
+from youbot_opt.robot.catalogue import available_robots
+from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
 from youbot_opt.trajopt.certificate import Tolerances
 from youbot_opt.trajopt.certify import certify

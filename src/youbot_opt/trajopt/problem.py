@@ -17,16 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from youbot_opt._checks import check_bound_scale
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.robot.model import (
-    BOUND_FAMILIES,
-    BoundFamily,
-    JointBounds,
-    RobotModel,
-    check_bound_scale,
-)
+from youbot_opt.robot.model import BOUND_FAMILIES, BoundFamily, JointBounds, RobotModel
 from youbot_opt.trajopt.objectives import Objective
 
 __all__ = [

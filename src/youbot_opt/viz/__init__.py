@@ -16,7 +16,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from youbot_opt.robot.strict.meshes import check_mesh_file, load_mesh_file
+    from youbot_opt.robot.urdf_check.meshes import check_mesh_file, load_mesh_file
     from youbot_opt.viz.meshcat.ikpath import export_ikpath_html, replay_ikpath, replay_track
     from youbot_opt.viz.meshcat.replay import export_html, replay, scene_html
     from youbot_opt.viz.meshcat.results import export_results_html, replay_results
@@ -45,8 +45,8 @@ _SOURCES = {
     "export_results_html": "youbot_opt.viz.meshcat.results",
     "MeshcatServer": "youbot_opt.viz.meshcat.server",
     "connect": "youbot_opt.viz.meshcat.server",
-    "check_mesh_file": "youbot_opt.robot.strict.meshes",
-    "load_mesh_file": "youbot_opt.robot.strict.meshes",
+    "check_mesh_file": "youbot_opt.robot.urdf_check.meshes",
+    "load_mesh_file": "youbot_opt.robot.urdf_check.meshes",
     "replay_ikpath": "youbot_opt.viz.meshcat.ikpath",
     "export_ikpath_html": "youbot_opt.viz.meshcat.ikpath",
     "replay_track": "youbot_opt.viz.meshcat.ikpath",

@@ -207,18 +207,18 @@ def write_corpus() -> list[dict]:
         data=base[: base.index('iyy="0.01"')].encode())
     add("syntax", "truncated_before_root_end", SYNTAX, "not well-formed", "file cut before </robot>",
         data=base[: base.index(END)].encode())
-    add("syntax", "mismatched_tag", SYNTAX, "mismatched tag", "a closing tag that does not match",
+    add("syntax", "mismatched_tag", SYNTAX, "Opening and ending tag mismatch", "a closing tag that does not match",
         subs=[("  </link>\n  <joint", "  </lnk>\n  <joint")])
     add("syntax", "not_xml", SYNTAX, "not well-formed", "plain text, not XML",
         data=b"this is not a robot description\n")
-    add("syntax", "empty", SYNTAX, "no element found", "an empty file", data=b"")
+    add("syntax", "empty", SYNTAX, "Document is empty", "an empty file", data=b"")
     add("syntax", "invalid_utf8", SYNTAX, "not well-formed", "bytes that are not UTF-8 in a name",
         data=BASE.replace("{why}", "invalid UTF-8").encode().replace(b'name="arm"', b'name="arm\xff\xfe"', 1))
-    add("syntax", "two_roots", SYNTAX, "junk after document element", "a second root element after </robot>",
+    add("syntax", "two_roots", SYNTAX, "Extra content at the end of the document", "a second root element after </robot>",
         text=BASE + '<robot name="second"/>\n')
-    add("syntax", "duplicate_attribute", SYNTAX, "duplicate attribute", "an attribute given twice",
+    add("syntax", "duplicate_attribute", SYNTAX, "Attribute value redefined", "an attribute given twice",
         subs=[(MASS, '<mass value="1.0" value="200.0"/>')])
-    add("syntax", "undefined_entity", SYNTAX, "undefined entity", "an entity reference without a DTD",
+    add("syntax", "undefined_entity", SYNTAX, "Entity 'arm' not defined", "an entity reference without a DTD",
         subs=[('name="arm">', 'name="&arm;">')])
     add("syntax", "unquoted_attribute", SYNTAX, "not well-formed", "an unquoted attribute value",
         subs=[(MASS, "<mass value=1.0/>")])

@@ -1,7 +1,7 @@
 """Pinocchio geometry objects as meshcat objects.
 
 Primitive coal shapes become meshcat primitives (a capsule becomes a triangle
-mesh). Mesh files are embedded only after :mod:`youbot_opt.robot.strict.meshes`
+mesh). Mesh files are embedded only after :mod:`youbot_opt.robot.urdf_check.meshes`
 accepts them (by the loader's own resource policy): STL, OBJ and PLY (sent as
 STL) files as ``_meshfile_geometry`` coloured with the URDF colour, COLLADA
 files as ``_meshfile_object`` with their own materials and their textures as
@@ -25,8 +25,8 @@ import umsgpack
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ModelError
-from youbot_opt.robot.strict.meshes import load_mesh_file
-from youbot_opt.robot.strict.resources import MESH_SUFFIXES
+from youbot_opt.robot.urdf_check.meshes import load_mesh_file
+from youbot_opt.robot.urdf_check.resources import MESH_SUFFIXES
 
 __all__ = ["set_object_command"]
 

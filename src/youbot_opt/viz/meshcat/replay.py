@@ -5,7 +5,7 @@ Inputs are plain arrays: a time grid ``t`` (N,) in [s] and configurations
 overlaid as ghosts or shown side by side. :func:`export_html` needs no server:
 the recorded scene commands and meshcat's viewer script go into one HTML file
 that plays offline (``#t=<seconds>`` shows that pose, paused). Meshes follow
-:mod:`youbot_opt.robot.strict.meshes`; see docs/design.md, "Module notes".
+:mod:`youbot_opt.robot.urdf_check.meshes`; see docs/design.md, "Module notes".
 
 >>> export_html(robot, t, q, "replay.html")  # doctest: +SKIP
 """

@@ -1,7 +1,7 @@
 """Size limits of command lines (issue 16, item 1): refused before anything is built, exit 2.
 
 The memory estimates are products of the sizes and the per-unit constants of
-:mod:`youbot_opt.cli.limits`; the expected verdicts below are those products
+:mod:`youbot_opt.cli.run_size`; the expected verdicts below are those products
 worked by hand against a memory limit set through ``YOUBOT_OPT_MEMORY_LIMIT_GB``.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import pytest
 
 from youbot_opt.cli import main
-from youbot_opt.cli.limits import BYTES_PER_KNOT_JOINT, check_ikpath_size, check_trajopt_size
+from youbot_opt.cli.run_size import BYTES_PER_KNOT_JOINT, check_ikpath_size, check_trajopt_size
 from youbot_opt.exceptions import ParameterError
 
 

@@ -1,6 +1,6 @@
 """What the meshcat replay embeds of a mesh file: its bytes, its textures, a PLY as STL.
 
-Every path decision is :mod:`youbot_opt.robot.strict.resources`'s, so the replay
+Every path decision is :mod:`youbot_opt.robot.urdf_check.resources`'s, so the replay
 accepts exactly the meshes the strict loader accepts. :func:`load_mesh_file`
 adds what embedding needs: the bytes, each COLLADA texture as a ``data:`` URI
 and ``.ply`` meshes (which meshcat cannot parse) as binary STL. Errors are the
@@ -24,9 +24,10 @@ from urllib.parse import unquote
 
 import coal
 import numpy as np
+from lxml import etree
 
 from youbot_opt.exceptions import InvalidModelError, UnsafePathError, URDFError
-from youbot_opt.robot.strict.resources import (
+from youbot_opt.robot.urdf_check.resources import (
     MAX_RESOURCE_BYTES,
     MESH_SUFFIXES,
     PATH_RULE,
@@ -38,7 +39,7 @@ from youbot_opt.robot.strict.resources import (
     resolve_in_folder,
     resolve_reference,
 )
-from youbot_opt.robot.strict.xml import Site, fail, local_name, scan_xml_strict
+from youbot_opt.robot.urdf_check.xml import Site, fail, local_name, parse_xml_strict
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -102,32 +103,6 @@ class MeshFile:
     resources: Mapping[str, str]
 
 
-class _InitFromText:
-    """Collects the full text of each ``<init_from>`` inside ``<library_images>``."""
-
-    def __init__(self) -> None:
-        self.open: list[str] = []
-        self.current: tuple[list[str], int, int] | None = None  # (text, depth, line)
-        self.found: list[TextureReference] = []
-
-    def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
-        local = local_name(tag)
-        if self.current is None and local == "init_from" and "library_images" in self.open:
-            self.current = ([], len(self.open), line)
-        self.open.append(local)
-
-    def data(self, text: str) -> None:
-        if self.current is not None:
-            self.current[0].append(text)
-
-    def end(self, tag: str) -> None:
-        self.open.pop()
-        if self.current is not None and len(self.open) == self.current[1]:
-            key = "".join(self.current[0])
-            self.found.append(TextureReference(key, unquote(key.strip()), self.current[2]))
-            self.current = None
-
-
 def dae_texture_references(
     dae_bytes: bytes, *, path: str | Path = "<dae>"
 ) -> list[TextureReference]:
@@ -151,9 +126,20 @@ def dae_texture_references(
     URDFSyntaxError, UnsafeURDFError
         If the document is not well-formed XML, or declares a DOCTYPE or entities.
     """
-    target = _InitFromText()
-    scan_xml_strict(dae_bytes, os.fspath(path), target)
-    return target.found
+    tree = parse_xml_strict(dae_bytes, os.fspath(path), long_text=True)
+    found: list[TextureReference] = []
+    collected: set[etree._Element] = set()
+    for elem in tree.getroot().iter():  # document order
+        if local_name(elem.tag) != "init_from":
+            continue
+        ancestors = list(elem.iterancestors())
+        if any(a in collected for a in ancestors):
+            continue  # its text is part of the enclosing <init_from>'s
+        if any(local_name(a.tag) == "library_images" for a in ancestors):
+            collected.add(elem)
+            key = "".join(elem.itertext())
+            found.append(TextureReference(key, unquote(key.strip()), elem.sourceline))
+    return found
 
 
 def _checked(
@@ -254,7 +240,7 @@ def load_mesh_file(
 
     The mesh resolves like a URDF reference to a regular file inside the
     package directories, with a format of
-    :data:`~youbot_opt.robot.strict.resources.MESH_SUFFIXES`, and a COLLADA
+    :data:`~youbot_opt.robot.urdf_check.resources.MESH_SUFFIXES`, and a COLLADA
     file's textures resolve from its folder by the same rules. Each texture
     becomes a ``data:`` URI keyed by the ``<init_from>`` text the browser reads
     (inline ``data:image/`` URIs are kept; textures in :data:`TEXTURE_SUFFIXES`),

@@ -20,6 +20,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from urllib.parse import unquote
 
+from lxml import etree
+
 from youbot_opt.exceptions import (
     ParameterError,
     ResourceNotFoundError,
@@ -27,7 +29,7 @@ from youbot_opt.exceptions import (
     URDFError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict.xml import Site, fail, local_name, scan_xml_strict
+from youbot_opt.robot.urdf_check.xml import Site, fail, local_name, parse_xml_strict
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -290,29 +292,24 @@ def resolve_in_folder(
     return tuple(resolved)
 
 
-class _ColladaTextures:
-    """Collects the text of ``<init_from>`` (and 1.5's ``<init_from><ref>``) in images."""
+def _collada_textures(tree: etree._ElementTree, path: str) -> list[tuple[str, Site]]:
+    """List the text of ``<init_from>`` (and 1.5's ``<init_from><ref>``) in images.
 
-    def __init__(self, path: str) -> None:
-        self.path = path
-        self.open: list[tuple[str, int, list[str] | None]] = []  # (local tag, line, text)
-        self.found: list[tuple[str, Site]] = []
-
-    def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
-        local = local_name(tag)
-        in_image = any(t in ("image", "library_images") for t, _, _ in self.open)
-        # meshcat's viewer reads every tag containing "init_from" in <library_images>
-        collect = in_image and ("init_from" in local or local == "ref")
-        self.open.append((local, line, [] if collect else None))
-
-    def data(self, text: str) -> None:
-        if self.open and (parts := self.open[-1][2]) is not None:
-            parts.append(text)
-
-    def end(self, tag: str) -> None:
-        local, line, parts = self.open.pop()
-        if parts is not None and "".join(parts).strip():
-            self.found.append(("".join(parts).strip(), Site(self.path, f"<{local}>", line)))
+    meshcat's viewer reads every tag containing "init_from" in ``<library_images>``;
+    each such element's own text (without its children's) is one reference, listed
+    in the order the elements close.
+    """
+    found = []
+    for _, elem in etree.iterwalk(tree.getroot(), events=("end",)):
+        local = local_name(elem.tag)
+        if not ("init_from" in local or local == "ref"):
+            continue
+        if not any(local_name(a.tag) in ("image", "library_images") for a in elem.iterancestors()):
+            continue
+        text = "".join([elem.text or "", *(child.tail or "" for child in elem)]).strip()
+        if text:
+            found.append((text, Site(path, f"<{local}>", elem.sourceline)))
+    return found
 
 
 def _obj_material_refs(data: bytes, path: Path) -> Iterator[tuple[str, Site]]:
@@ -384,9 +381,10 @@ def check_mesh(
         return ()
     data = read_regular_file(real, MAX_RESOURCE_BYTES, where, "mesh")
     if suffix == ".dae":
-        textures = _ColladaTextures(os.fspath(real))
-        scan_xml_strict(data, os.fspath(real), textures)
-        refs = [(r, s) for r, s in textures.found if not (inline_images and is_inline_image(r))]
+        textures = _collada_textures(
+            parse_xml_strict(data, os.fspath(real), long_text=True), os.fspath(real)
+        )
+        refs = [(r, s) for r, s in textures if not (inline_images and is_inline_image(r))]
     else:
         refs = list(_obj_material_refs(data, real))
     found: list[Path] = []

@@ -1,6 +1,6 @@
 """Strict, safe loading of a URDF file into Pinocchio: :func:`load_urdf_strict` (issue 6, item 1).
 
-The pipeline raises at the first broken rule: size (:mod:`.limits`), strict XML
+The pipeline raises at the first broken rule: size (:mod:`.size`), strict XML
 (:mod:`.xml`), tree and physics rules (:mod:`.rules`; implausible inertias under
 :func:`inertia_policy`), mesh and texture paths inside ``package_dirs``
 (:mod:`.resources`), Pinocchio built from the checked tree, and
@@ -18,13 +18,13 @@ import logging
 import os
 import tempfile
 import warnings
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from lxml import etree
 
 from youbot_opt.exceptions import (
     InvalidModelError,
@@ -35,16 +35,15 @@ from youbot_opt.exceptions import (
     URDFError,
     YoubotOptWarning,
 )
-from youbot_opt.robot.strict.dynamics_defined import check_dynamics_defined
-from youbot_opt.robot.strict.limits import SizeLimits, check_urdf_size
-from youbot_opt.robot.strict.resources import (
+from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
+from youbot_opt.robot.urdf_check.resources import (
     allowed_roots,
     check_mesh,
     in_mesh,
     read_regular_file,
     resolve_reference,
 )
-from youbot_opt.robot.strict.rules import (
+from youbot_opt.robot.urdf_check.rules import (
     InertiaFinding,
     check_urdf_tree,
     file_inertia,
@@ -53,7 +52,8 @@ from youbot_opt.robot.strict.rules import (
     resource_references,
     welded_links,
 )
-from youbot_opt.robot.strict.xml import Site, fail, parse_xml_strict, root_of, site
+from youbot_opt.robot.urdf_check.size import SizeLimits, check_urdf_size
+from youbot_opt.robot.urdf_check.xml import Site, fail, parse_xml_strict, root_of, site
 
 __all__ = [
     "LoadedURDF",
@@ -79,7 +79,7 @@ _MASS_MATRIX_RCOND = 1e-12
 _INERTIA_MATCH_RTOL = 1e-10
 #: Relative tolerance between the file's joint limits and the model's: both are
 #: the same decimal text read by correctly rounded parsers (urdfdom and
-#: :func:`~youbot_opt.robot.strict.xml.parse_number`), so they agree exactly; 1e-12
+#: :func:`~youbot_opt.robot.urdf_check.xml.parse_number`), so they agree exactly; 1e-12
 #: only allows a last-bit difference, far below any intended change of a limit.
 _LIMIT_MATCH_RTOL = 1e-12
 #: Rule of the finiteness checks (item 3 of the audit: a huge ``<origin>``).
@@ -119,7 +119,7 @@ def _read_and_check(
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
     size_limits: SizeLimits | None = None,
-) -> tuple[ET.ElementTree, list[tuple[ET.Element, str, Path]], tuple[Path, ...]]:
+) -> tuple[etree._ElementTree, list[tuple[etree._Element, str, Path]], tuple[Path, ...]]:
     sizes = size_limits if size_limits is not None else SizeLimits()
     if not isinstance(sizes, SizeLimits):
         raise ParameterError(
@@ -147,7 +147,7 @@ def _read_and_check(
     )  # fmt: skip
     check_urdf_tree(tree, name)
     inertia_policy(tree, name, strict=strict, locked=locked)
-    references: list[tuple[ET.Element, str, Path]] = []
+    references: list[tuple[etree._Element, str, Path]] = []
     resources: list[Path] = []
     for elem, kind, where in resource_references(tree, name):
         real = resolve_reference(elem.get("filename", ""), roots, roots, where)
@@ -169,7 +169,7 @@ def check_urdf_text(
     package_dirs: Sequence[str | os.PathLike[str]],
     *,
     size_limits: SizeLimits | None = None,
-) -> ET.ElementTree:
+) -> etree._ElementTree:
     """Run every check that needs only the file (steps 1-4 of :func:`load_urdf_strict`).
 
     Parameters
@@ -185,7 +185,7 @@ def check_urdf_text(
 
     Returns
     -------
-    xml.etree.ElementTree.ElementTree
+    lxml.etree._ElementTree
         The parsed file; each element has a ``sourceline`` (1-based line).
 
     Raises
@@ -223,7 +223,7 @@ def _c_stderr_captured() -> Iterator[list[str]]:
             captured.append(sink.read().decode("utf-8", errors="replace").strip())
 
 
-def _check_joints(model: pin.Model, robot: ET.Element, path: str) -> None:
+def _check_joints(model: pin.Model, robot: etree._Element, path: str) -> None:
     movable = [j.get("name", "") for j in robot.findall("joint") if j.get("type") != "fixed"]
     in_model = list(model.names)[1:]
     if sorted(movable) != sorted(in_model):
@@ -251,7 +251,7 @@ def _check_placements(model: pin.Model, path: str) -> None:
             raise fail(InvalidModelError, Site(path, "<robot>", None), problem, _FINITE_RULE)
 
 
-def _check_limits(model: pin.Model, robot: ET.Element, path: str) -> None:
+def _check_limits(model: pin.Model, robot: etree._Element, path: str) -> None:
     """Compare each movable joint's position, velocity and effort limits with the file."""
     rule = "the model's joint limits are the file's <limit> (lower, upper, velocity, effort)"
     for joint in robot.findall("joint"):
@@ -290,7 +290,7 @@ def _check_limits(model: pin.Model, robot: ET.Element, path: str) -> None:
             raise fail(InvalidModelError, where, problem, rule)
 
 
-def _check_inertias(model: pin.Model, robot: ET.Element, path: str) -> None:
+def _check_inertias(model: pin.Model, robot: etree._Element, path: str) -> None:
     expected = [np.zeros((6, 6)) for _ in range(model.njoints)]
     for link in robot.findall("link"):
         where = site(path, link)
@@ -378,14 +378,14 @@ def _check_mass_matrix(model: pin.Model, path: str) -> None:
         raise fail(InvalidModelError, Site(path, "<robot>", None), problem, rule)
 
 
-def check_model(model: pin.Model, tree: ET.ElementTree, path: str | os.PathLike[str]) -> None:
+def check_model(model: pin.Model, tree: etree._ElementTree, path: str | os.PathLike[str]) -> None:
     """Check a loaded model against its file and require defined dynamics.
 
     Parameters
     ----------
     model : pinocchio.Model
         The model Pinocchio built from the file.
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         The parsed file, from :func:`check_urdf_text`.
     path : path-like
         The file, for error messages.
@@ -439,14 +439,14 @@ def load_urdf_strict(
        (:class:`~youbot_opt.exceptions.UnsafeURDFError`; a missing file raises
        :class:`~youbot_opt.exceptions.RobotNotFound`).
     2. Strict XML parsing with every ``DOCTYPE`` and entity refused
-       (:mod:`youbot_opt.robot.strict.xml`).
-    3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.strict.rules`).
-       Physically implausible inertias (:func:`~youbot_opt.robot.strict.rules.implausible_inertias`)
+       (:mod:`youbot_opt.robot.urdf_check.xml`).
+    3. Tree and physics rules on the file's text (:mod:`youbot_opt.robot.urdf_check.rules`).
+       Physically implausible inertias (:func:`~.rules.implausible_inertias`)
        follow :func:`inertia_policy`: on a link welded to the world a warning; on
        a moving link a refusal, or a warning under ``strict=False``.
     4. Mesh and texture references, including the textures inside ``.dae`` files,
        must resolve to regular files inside ``package_dirs``
-       (:mod:`youbot_opt.robot.strict.resources`).
+       (:mod:`youbot_opt.robot.urdf_check.resources`).
     5. Pinocchio builds the model from the *checked tree*, re-serialised with each
        mesh and texture reference replaced by its checked absolute path: it reads
        exactly what was checked, never resolves a path itself and never consults
@@ -502,7 +502,7 @@ def load_urdf_strict(
     )
     for elem, attr, real in references:
         elem.set(attr, os.fspath(real))
-    text = ET.tostring(root_of(tree, name), encoding="unicode")
+    text = etree.tostring(root_of(tree, name), encoding="unicode")
     dirs = [os.fspath(d) for d in allowed_roots(package_dirs)]
     error: Exception | None = None
     with _c_stderr_captured() as report:
@@ -537,7 +537,7 @@ def load_urdf_strict(
     )
 
 
-def _merged_into(robot: ET.Element, link: str) -> tuple[str, str]:
+def _merged_into(robot: etree._Element, link: str) -> tuple[str, str]:
     """Return (link, joint) of the body ``link`` belongs to in the model ('' for the world)."""
     parent_joint = {
         j.find("child").get("link", ""): j  # type: ignore[union-attr]
@@ -557,7 +557,7 @@ def _finding_text(finding: InertiaFinding) -> str:
     )
 
 
-def _what_it_adds(robot: ET.Element, finding: InertiaFinding, welded: bool) -> str:
+def _what_it_adds(robot: etree._Element, finding: InertiaFinding, welded: bool) -> str:
     body, joint = _merged_into(robot, finding.link)
     inertia = np.array2string(finding.inertia, precision=6, separator=", ").replace("\n", "")
     adds = f"{finding.mass:g} kg and rotational inertia {inertia} kg m^2 (about its centre of mass)"
@@ -575,7 +575,7 @@ def _what_it_adds(robot: ET.Element, finding: InertiaFinding, welded: bool) -> s
 
 
 def inertia_policy(
-    tree: ET.ElementTree,
+    tree: etree._ElementTree,
     path: str | os.PathLike[str],
     *,
     strict: bool = True,
@@ -593,8 +593,8 @@ def inertia_policy(
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
-        A file that passed :func:`~youbot_opt.robot.strict.rules.check_urdf_tree`.
+    tree : lxml.etree._ElementTree
+        A file that passed :func:`~youbot_opt.robot.urdf_check.rules.check_urdf_tree`.
     path : path-like
         The file, for messages.
     strict : bool

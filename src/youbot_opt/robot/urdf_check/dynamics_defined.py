@@ -3,7 +3,7 @@
 :func:`check_dynamics_defined` runs the algorithms users call -- RNEA, CRBA, ABA
 and ``M(q)^-1`` -- at the neutral configuration and at :data:`N_SAMPLES` seeded
 random states, and requires every result finite and ``M(q)`` well conditioned.
-Called by :func:`youbot_opt.robot.strict.loader.check_model`; why the rules on
+Called by :func:`youbot_opt.robot.urdf_check.loader.check_model`; why the rules on
 the file's text do not suffice is in docs/design.md, "Module notes".
 
 Example: ``check_dynamics_defined(model, "arm.urdf")`` returns None or raises.
@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt.exceptions import InvalidModelError
-from youbot_opt.robot.strict.xml import Site, fail
+from youbot_opt.robot.urdf_check.xml import Site, fail
 
 __all__ = ["MAX_CONDITION", "N_SAMPLES", "check_dynamics_defined"]
 

@@ -4,7 +4,7 @@
 of joints or more degrees of freedom than :data:`MAX_JOINTS`,
 :data:`MAX_TREE_DEPTH` and :data:`MAX_DOF`, before the tree rules and before
 Pinocchio's parser. :class:`SizeLimits` gathers these and the XML limits of
-:mod:`youbot_opt.robot.strict.xml` for one call; the environment variables
+:mod:`youbot_opt.robot.urdf_check.xml` for one call; the environment variables
 ``YOUBOT_OPT_<NAME>`` (e.g. ``YOUBOT_OPT_MAX_JOINTS``) set the defaults. Why
 each limit is where it is: docs/design.md, "Module notes".
 
@@ -15,11 +15,12 @@ Example: ``load_model(path, size_limits=SizeLimits(max_joints=5000))``, or
 from __future__ import annotations
 
 import operator
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, fields
 
+from lxml import etree
+
 from youbot_opt.exceptions import ParameterError, UnsafeURDFError
-from youbot_opt.robot.strict.xml import (
+from youbot_opt.robot.urdf_check.xml import (
     MAX_XML_DEPTH,
     MAX_XML_ELEMENTS,
     Site,
@@ -80,11 +81,11 @@ class SizeLimits:
         :data:`MAX_TREE_DEPTH` = 500, ``YOUBOT_OPT_MAX_TREE_DEPTH``.
     max_xml_depth : int or None
         Deepest XML element nesting [levels, ``<robot>`` is 1];
-        :data:`~youbot_opt.robot.strict.xml.MAX_XML_DEPTH` = 100,
+        :data:`~youbot_opt.robot.urdf_check.xml.MAX_XML_DEPTH` = 100,
         ``YOUBOT_OPT_MAX_XML_DEPTH``.
     max_xml_elements : int or None
         Most XML elements in the file [count];
-        :data:`~youbot_opt.robot.strict.xml.MAX_XML_ELEMENTS` = 200,000,
+        :data:`~youbot_opt.robot.urdf_check.xml.MAX_XML_ELEMENTS` = 200,000,
         ``YOUBOT_OPT_MAX_XML_ELEMENTS``.
 
     Raises
@@ -134,7 +135,7 @@ class SizeLimits:
         )
 
 
-def tree_depth(robot: ET.Element) -> int:
+def tree_depth(robot: etree._Element) -> int:
     """Return the longest chain of joints from a root link, without recursion.
 
     Parameters
@@ -168,7 +169,7 @@ def tree_depth(robot: ET.Element) -> int:
 
 
 def check_urdf_size(
-    tree: ET.ElementTree,
+    tree: etree._ElementTree,
     path: str,
     *,
     max_joints: int | None = None,
@@ -179,8 +180,8 @@ def check_urdf_size(
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
-        The parsed file (:func:`~youbot_opt.robot.strict.xml.parse_xml_strict`).
+    tree : lxml.etree._ElementTree
+        The parsed file (:func:`~youbot_opt.robot.urdf_check.xml.parse_xml_strict`).
     path : str
         Its file, for error messages.
     max_joints : int, optional

@@ -1,25 +1,25 @@
 """Structural and physical rules a parsed URDF must pass (issue 6, item 1).
 
-:func:`check_urdf_tree` checks a tree from :func:`youbot_opt.robot.strict.xml.parse_xml_strict`
+:func:`check_urdf_tree` checks a tree from :func:`youbot_opt.robot.urdf_check.xml.parse_xml_strict`
 (the rules are listed there); the first broken rule raises, naming file, element,
 line and rule. :func:`implausible_inertias` and :func:`welded_links` report the
 inertias the loader warns about or refuses; :func:`check_mimic_graph` the mimic
 relations; :func:`file_inertia` and :func:`file_limits` read what a checked file
 says in the form Pinocchio holds it. Mesh and texture references are checked by
-:mod:`youbot_opt.robot.strict.resources`. The plausibility rule is explained in
+:mod:`youbot_opt.robot.urdf_check.resources`. The plausibility rule is explained in
 docs/design.md, "Module notes".
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from typing import NamedTuple
 
 import numpy as np
+from lxml import etree
 
 from youbot_opt.exceptions import InvalidModelError, URDFStructureError
-from youbot_opt.robot.strict.xml import (
+from youbot_opt.robot.urdf_check.xml import (
     NUMBER_RULE,
     Site,
     fail,
@@ -94,7 +94,7 @@ def _broken(where: Site, problem: str, rule: str) -> URDFStructureError:
 
 
 def _numbers(
-    elem: ET.Element, attr: str, count: int, where: Site, default: str | None = None
+    elem: etree._Element, attr: str, count: int, where: Site, default: str | None = None
 ) -> tuple[float, ...]:
     text = elem.get(attr, default)
     if text is None:
@@ -106,7 +106,7 @@ def _numbers(
     return tuple(parse_number(p, where, attr) for p in parts)
 
 
-def _one(parent: ET.Element, tag: str, where: Site, *, required: bool) -> ET.Element | None:
+def _one(parent: etree._Element, tag: str, where: Site, *, required: bool) -> etree._Element | None:
     found = parent.findall(tag)
     if len(found) > 1 or (required and not found):
         rule = f"{'exactly' if required else 'at most'} one <{tag}>"
@@ -114,14 +114,14 @@ def _one(parent: ET.Element, tag: str, where: Site, *, required: bool) -> ET.Ele
     return found[0] if found else None
 
 
-def _check_origin(parent: ET.Element, path: str, owner: str) -> None:
+def _check_origin(parent: etree._Element, path: str, owner: str) -> None:
     origin = _one(parent, "origin", site(path, parent, owner), required=False)
     if origin is not None:
         for attr in ("xyz", "rpy"):
             _numbers(origin, attr, 3, site(path, origin, owner), default="0 0 0")
 
 
-def _check_inertial(inertial: ET.Element, path: str, owner: str) -> None:
+def _check_inertial(inertial: etree._Element, path: str, owner: str) -> None:
     where = site(path, inertial, owner)
     _check_origin(inertial, path, owner)
     mass_elem = _one(inertial, "mass", where, required=True)
@@ -135,7 +135,7 @@ def _check_inertial(inertial: ET.Element, path: str, owner: str) -> None:
     del ixx, ixy, ixz, iyy, iyz, izz  # read to check the numbers; plausibility: below
 
 
-def _check_geometry(parent: ET.Element, path: str, owner: str) -> None:
+def _check_geometry(parent: etree._Element, path: str, owner: str) -> None:
     _check_origin(parent, path, owner)
     geometry = _one(parent, "geometry", site(path, parent, owner), required=True)
     assert geometry is not None
@@ -158,13 +158,13 @@ def _check_geometry(parent: ET.Element, path: str, owner: str) -> None:
         _check_material(material, path, owner)
 
 
-def _check_material(material: ET.Element, path: str, owner: str) -> None:
+def _check_material(material: etree._Element, path: str, owner: str) -> None:
     color = material.find("color")
     if color is not None:
         _numbers(color, "rgba", 4, site(path, color, owner))
 
 
-def _check_link(link: ET.Element, path: str) -> None:
+def _check_link(link: etree._Element, path: str) -> None:
     owner = f"link {link.get('name')!r}"
     inertial = _one(link, "inertial", site(path, link), required=False)
     if inertial is not None:
@@ -173,7 +173,7 @@ def _check_link(link: ET.Element, path: str) -> None:
         _check_geometry(part, path, owner)
 
 
-def _check_limit(limit: ET.Element, jtype: str, where: Site) -> None:
+def _check_limit(limit: etree._Element, jtype: str, where: Site) -> None:
     lower, upper = (_numbers(limit, k, 1, where, default="0")[0] for k in ("lower", "upper"))
     effort, velocity = (_numbers(limit, k, 1, where)[0] for k in ("effort", "velocity"))
     if jtype != "continuous" and lower > upper:
@@ -183,7 +183,7 @@ def _check_limit(limit: ET.Element, jtype: str, where: Site) -> None:
         raise _invalid(where, problem, "effort >= 0 and velocity >= 0")
 
 
-def _check_joint(joint: ET.Element, path: str, links: set[str], joints: set[str]) -> None:
+def _check_joint(joint: etree._Element, path: str, links: set[str], joints: set[str]) -> None:
     jtype, owner, where = joint.get("type", ""), f"joint {joint.get('name')!r}", site(path, joint)
     if jtype not in JOINT_TYPES:
         raise _broken(
@@ -220,8 +220,8 @@ def _check_joint(joint: ET.Element, path: str, links: set[str], joints: set[str]
         raise _broken(site(path, mimic, owner), problem, "a joint mimics another defined joint")
 
 
-def _named(robot: ET.Element, tag: str, path: str) -> dict[str, ET.Element]:
-    named: dict[str, ET.Element] = {}
+def _named(robot: etree._Element, tag: str, path: str) -> dict[str, etree._Element]:
+    named: dict[str, etree._Element] = {}
     for elem in robot.findall(tag):
         name = elem.get("name", "")
         if not name.strip():
@@ -235,8 +235,10 @@ def _named(robot: ET.Element, tag: str, path: str) -> dict[str, ET.Element]:
     return named
 
 
-def _check_tree(links: dict[str, ET.Element], joints: dict[str, ET.Element], path: str) -> None:
-    parent_joint: dict[str, ET.Element] = {}
+def _check_tree(
+    links: dict[str, etree._Element], joints: dict[str, etree._Element], path: str
+) -> None:
+    parent_joint: dict[str, etree._Element] = {}
     children: dict[str, list[str]] = {name: [] for name in links}
     for joint in joints.values():
         parent = joint.find("parent").get("link", "")  # type: ignore[union-attr]
@@ -266,7 +268,7 @@ def _check_tree(links: dict[str, ET.Element], joints: dict[str, ET.Element], pat
         raise _broken(robot_site, f"links {loop} form a loop apart from {roots[0]!r}", _TREE_RULE)
 
 
-def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
+def check_urdf_tree(tree: etree._ElementTree, path: str) -> None:
     """Check a parsed URDF against the structural and physical rules.
 
     Structure: a ``<robot name=...>`` root, at least one link, unique link and
@@ -283,12 +285,12 @@ def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
     ``> 0``; mesh scales are non-zero. Inertia plausibility is not checked here
     but reported by :func:`implausible_inertias` (the loader warns or refuses),
     and whether the dynamics are defined is checked on the loaded model
-    (:func:`youbot_opt.robot.strict.loader.check_model`).
+    (:func:`youbot_opt.robot.urdf_check.loader.check_model`).
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
-        A tree from :func:`youbot_opt.robot.strict.xml.parse_xml_strict`.
+    tree : lxml.etree._ElementTree
+        A tree from :func:`youbot_opt.robot.urdf_check.xml.parse_xml_strict`.
     path : str
         Its file, for error messages.
 
@@ -319,7 +321,7 @@ def check_urdf_tree(tree: ET.ElementTree, path: str) -> None:
     check_mimic_graph(joints, path)
 
 
-def _owner(elem: ET.Element) -> str:
+def _owner(elem: etree._Element) -> str:
     """Describe a direct child of ``<robot>``: ``link 'arm'``, ``<gazebo reference='arm'>``."""
     if elem.tag in ("link", "joint"):
         return f"{elem.tag} {elem.get('name')!r}"
@@ -327,7 +329,7 @@ def _owner(elem: ET.Element) -> str:
     return "<" + " ".join([elem.tag, *(f"{k}={elem.get(k)!r}" for k in keys)]) + ">"
 
 
-def _reference_site(path: str, chain: list[ET.Element]) -> Site:
+def _reference_site(path: str, chain: list[etree._Element]) -> Site:
     """Site of the last element of ``chain`` (from a child of ``<robot>`` down to it)."""
     *outer, elem = chain
     owner = _owner(outer[0]) if outer else "robot"
@@ -338,12 +340,14 @@ def _reference_site(path: str, chain: list[ET.Element]) -> Site:
     return Site(path, text, getattr(elem, "sourceline", None))
 
 
-def resource_references(tree: ET.ElementTree, path: str) -> Iterator[tuple[ET.Element, str, Site]]:
+def resource_references(
+    tree: etree._ElementTree, path: str
+) -> Iterator[tuple[etree._Element, str, Site]]:
     """Yield every file reference of a URDF: ``<mesh filename>`` and ``<texture filename>``.
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         A parsed URDF.
     path : str
         Its file, for error messages.
@@ -358,7 +362,7 @@ def resource_references(tree: ET.ElementTree, path: str) -> Iterator[tuple[ET.El
         The reference is its ``filename`` attribute. References anywhere in
         the file count, also in elements the URDF parsers ignore (e.g. ``<gazebo>``).
     """
-    stack: list[tuple[ET.Element, list[ET.Element]]] = [
+    stack: list[tuple[etree._Element, list[etree._Element]]] = [
         (child, [child]) for child in reversed(root_of(tree, path))
     ]
     while stack:  # depth first, in document order
@@ -392,7 +396,7 @@ class FileLimits(NamedTuple):
     units: tuple[str, str, str]
 
 
-def file_limits(joint: ET.Element, nv: int, where: Site) -> FileLimits:
+def file_limits(joint: etree._Element, nv: int, where: Site) -> FileLimits:
     """Read a checked joint's ``<limit>``.
 
     Parameters
@@ -432,7 +436,7 @@ def _rotation_rpy(rpy: np.ndarray) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def _vector(elem: ET.Element | None, attr: str, where: Site) -> np.ndarray:
+def _vector(elem: etree._Element | None, attr: str, where: Site) -> np.ndarray:
     text = elem.get(attr, "0 0 0") if elem is not None else "0 0 0"
     return np.array([parse_number(x, where, attr) for x in text.split()])
 
@@ -442,7 +446,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 
 def file_inertia(
-    inertial: ET.Element, rotation: np.ndarray, translation: np.ndarray, where: Site
+    inertial: etree._Element, rotation: np.ndarray, translation: np.ndarray, where: Site
 ) -> np.ndarray:
     """Return the 6x6 spatial inertia of a checked ``<inertial>`` block in a joint frame.
 
@@ -534,7 +538,7 @@ def _plausibility(mass: float, inertia: np.ndarray) -> tuple[str, str] | None:
     return None
 
 
-def implausible_inertias(tree: ET.ElementTree, path: str) -> tuple[InertiaFinding, ...]:
+def implausible_inertias(tree: etree._ElementTree, path: str) -> tuple[InertiaFinding, ...]:
     """Return every link whose ``<inertial>`` breaks a plausibility rule.
 
     With ``m`` the mass and ``I`` the rotational inertia at the centre of mass:
@@ -546,7 +550,7 @@ def implausible_inertias(tree: ET.ElementTree, path: str) -> tuple[InertiaFindin
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         A tree that passed :func:`check_urdf_tree`.
     path : str
         Its file, for messages.
@@ -577,7 +581,7 @@ def implausible_inertias(tree: ET.ElementTree, path: str) -> tuple[InertiaFindin
 
 
 def welded_links(
-    tree: ET.ElementTree, path: str, locked: frozenset[str] = frozenset()
+    tree: etree._ElementTree, path: str, locked: frozenset[str] = frozenset()
 ) -> frozenset[str]:
     """Return the links that cannot move in the fixed-base model.
 
@@ -586,7 +590,7 @@ def welded_links(
 
     Parameters
     ----------
-    tree : xml.etree.ElementTree.ElementTree
+    tree : lxml.etree._ElementTree
         A tree that passed :func:`check_urdf_tree` (one root, no loops).
     path : str
         Its file, for messages.
@@ -617,7 +621,7 @@ def welded_links(
     return frozenset(welded)
 
 
-def check_mimic_graph(joints: dict[str, ET.Element], path: str) -> None:
+def check_mimic_graph(joints: dict[str, etree._Element], path: str) -> None:
     """Refuse mimic relations that do not define each mimic joint by a free joint.
 
     A ``<mimic joint="j">`` must name a defined, movable joint that does not

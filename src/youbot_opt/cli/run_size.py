@@ -1,4 +1,4 @@
-"""Size limits of command-line runs, checked before anything is built (issue 16, item 1).
+"""The size of a command-line run (memory, IK chain, sweep values), checked before it is built.
 
 ``solve --knots 10000000`` used to die in ``std::bad_alloc`` after 8.7 s and
 ``ikpath --starts 1000000000`` to try to allocate 112 GiB. The commands now
@@ -150,7 +150,7 @@ def check_ikpath_size(*, n_starts: int, n_links: int, n_targets: int) -> None:
     ParameterError
         Naming the limit and how to raise it, or the memory the run would take.
     """
-    from youbot_opt.robot.strict.xml import limit
+    from youbot_opt.robot.urdf_check.xml import limit
 
     links_limit = limit("MAX_IK_LINKS", MAX_IK_LINKS)
     if n_links > links_limit:
@@ -184,7 +184,7 @@ def check_sweep_values(count: float, option: str) -> None:
     ParameterError
         Naming the count, the limit and how to raise it.
     """
-    from youbot_opt.robot.strict.xml import limit
+    from youbot_opt.robot.urdf_check.xml import limit
 
     values_limit = limit("MAX_SWEEP_VALUES", MAX_SWEEP_VALUES)
     if count > values_limit:

@@ -1,4 +1,8 @@
-"""Hand-derived Lagrangian dynamics of the planar arm: the test oracle.
+"""Hand-derived Lagrangian dynamics of the planar arm: the tests' reference oracle.
+
+Test-only code, so it lives in the tests (ARCHITECTURE rule 7, as crocoddyl keeps
+its reference models in ``unittest/bindings/factory.py``); tests import it as
+``import _analytic as analytic``.
 
 Codes the study's derivation (spec ``trajopt.md``, "Dynamics (Lagrangian,
 derived by hand in the study)") in plain numpy, independently of Pinocchio:

@@ -1,0 +1,332 @@
+"""Loading a robot: :func:`load_model` from a name, a URDF file or arm parameters.
+
+The file goes through the hostile-URDF policy (:mod:`youbot_opt.robot.urdf_check`),
+then joints are locked (asked for, or mimic joints) with Pinocchio's reduced
+model, and damping and gravity overrides are applied. Package folders for
+``package://`` references are the file's own, example-robot-data's and the
+caller's.
+
+>>> robot = load_model("youbot")  # doctest: +SKIP
+>>> ur5 = load_model("ur5", lock_joints={"wrist_3_joint": 0.0})  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt.exceptions import ParameterError, RobotNotFound
+from youbot_opt.robot.catalogue import (
+    YOUBOT,
+    YOUBOT_ARM_5DOF,
+    available_robots,
+    example_package_dirs,
+    find_robot,
+)
+from youbot_opt.robot.mimic import mimic_locks
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
+from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
+from youbot_opt.robot.urdf_check.loader import load_urdf_strict
+from youbot_opt.robot.urdf_check.size import SizeLimits
+
+__all__ = ["load_model"]
+
+_log = logging.getLogger(__name__)
+
+#: File name of a youBot URDF built from ArmParameters (in a temporary folder).
+_BUILT_FILE = "youbot_arm_planar.urdf"
+
+
+def _build_pinocchio_models(
+    path: Path,
+    package_dirs: tuple[Path, ...],
+    *,
+    strict: bool = True,
+    locked: frozenset[str] = frozenset(),
+    size_limits: SizeLimits | None = None,
+) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
+    """Build (model, visual, collision) from a URDF file; the single Pinocchio entry point."""
+    if not path.is_file():
+        raise RobotNotFound(
+            f"URDF file {str(path)!r} does not exist", path=str(path), available=available_robots()
+        )
+    # The strict loader refuses malformed XML, DOCTYPE/entities, resources outside
+    # ``package_dirs`` and physically invalid models, each with a URDFError (a ModelError).
+    loaded = load_urdf_strict(
+        path, package_dirs, strict=strict, locked=locked, size_limits=size_limits
+    )
+    model, visual, collision = loaded.model, loaded.visual_model, loaded.collision_model
+    return model, visual, collision
+
+
+def _check_damping(damping: float | None) -> float | None:
+    """Return ``damping`` as a float (None passes), else raise ParameterError."""
+    if damping is None:
+        return None
+    if isinstance(damping, bool) or not isinstance(damping, int | float):
+        raise ParameterError(
+            f"damping must be a number in [N m s/rad], got {damping!r}",
+            name="damping",
+            value=damping,
+        )
+    if not math.isfinite(damping) or damping < 0:
+        raise ParameterError(
+            f"damping must be finite and >= 0 in [N m s/rad], got {damping!r}",
+            name="damping",
+            value=damping,
+        )
+    return float(damping)
+
+
+def _check_lock(
+    model: pin.Model, lock_joints: Mapping[str, float]
+) -> tuple[tuple[str, float], ...]:
+    """Validate ``lock_joints`` against the model: known 1-dof joints, finite in-limit values."""
+    if not isinstance(lock_joints, Mapping):
+        raise ParameterError(
+            f"lock_joints must be a mapping {{joint name: position}}, got {lock_joints!r}",
+            name="lock_joints",
+            value=lock_joints,
+        )
+    movable = tuple(model.names[1:])
+    checked = []
+    for name, value in lock_joints.items():
+        if name not in movable:
+            raise ParameterError(
+                f"lock_joints: {name!r} is not a movable joint of the robot; "
+                f"its joints are {list(movable)}",
+                name="lock_joints",
+                value=name,
+            )
+        joint = model.joints[model.getJointId(name)]
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+        ):
+            raise ParameterError(
+                f"lock_joints: the position of {name!r} must be a finite number "
+                f"in [rad] or [m], got {value!r}",
+                name="lock_joints",
+                value=value,
+            )
+        if joint.nv != 1:
+            raise ParameterError(
+                f"lock_joints: joint {name!r} ({joint.shortname()}) has {joint.nv} velocity "
+                "coordinates; only 1-dof joints (revolute, prismatic, continuous) can be locked",
+                name="lock_joints",
+                value=name,
+            )
+        if joint.nq == 1:
+            lo, hi = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
+            if not lo <= value <= hi:
+                raise ParameterError(
+                    f"lock_joints: {name!r} = {value} is outside its limits [{lo}, {hi}]",
+                    name="lock_joints",
+                    value=value,
+                )
+        checked.append((str(name), float(value)))
+    return tuple(checked)
+
+
+def _lock(
+    model: pin.Model,
+    visual: pin.GeometryModel,
+    collision: pin.GeometryModel,
+    locked: tuple[tuple[str, float], ...],
+) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
+    """Build Pinocchio's reduced model with the ``locked`` joints held at their positions."""
+    if not locked:
+        return model, visual, collision
+    q_ref = pin.neutral(model)
+    ids = []
+    for name, value in locked:
+        jid = model.getJointId(name)
+        joint = model.joints[jid]
+        if joint.nq == 1:
+            q_ref[joint.idx_q] = value
+        else:  # continuous: (cos, sin) of the angle
+            q_ref[joint.idx_q : joint.idx_q + 2] = (math.cos(value), math.sin(value))
+        ids.append(jid)
+    reduced, (vis, col) = pin.buildReducedModel(model, [visual, collision], ids, q_ref)
+    reduced.name = model.name
+    return reduced, vis, col
+
+
+def load_model(
+    source: str | os.PathLike[str] | ArmParameters = YOUBOT,
+    *,
+    tip_frame: str | None = None,
+    package_dirs: Sequence[str | os.PathLike[str]] | None = None,
+    damping: float | None = None,
+    strict: bool = True,
+    lock_joints: Mapping[str, float] | None = None,
+    size_limits: SizeLimits | None = None,
+) -> RobotModel:
+    """Load a robot model.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or ArmParameters
+        ``"youbot"`` (default): the committed ``urdf/youbot_arm_planar.urdf``
+        (generated by :mod:`youbot_opt.robot.urdf`; in a non-editable install
+        the copy packaged as ``youbot_opt/_urdf/``); ``"youbot_arm_5dof"``: the
+        real 5-DOF arm with its gripper (``urdf/youbot_arm_5dof.urdf``); a name
+        from :func:`available_robots`: every URDF of the installed
+        example-robot-data, found in its ``robots`` folder
+        (:func:`example_robots`), loaded with a fixed base; a path to a URDF
+        file (its package folders are found when it lies in
+        example-robot-data); or :class:`~youbot_opt.robot.params.ArmParameters`
+        to build the youBot URDF from (e.g. with other damping or scaled limits).
+    tip_frame : str, optional
+        End-effector frame; defaults to ``"gripper_tip"`` for the youBot,
+        ``"gripper_palm_link"`` for ``"youbot_arm_5dof"``, the table's frame
+        for the short example-robot-data names and the last frame of the
+        model otherwise.
+    package_dirs : sequence of path-like, optional
+        Extra folders for ``package://`` mesh references (the example-robot-data
+        folders are added for its robots and for files inside it; a file's own
+        folder is added for files).
+    damping : float, optional
+        Viscous damping of every joint in [N m s/rad], overriding the URDF's
+        ``<dynamics damping>`` (for ``ArmParameters`` it is written into the
+        generated URDF).
+    strict : bool
+        True (default) refuses a physically implausible inertia on a moving
+        link; False loads it with a :class:`~youbot_opt.exceptions.YoubotOptWarning`.
+        Implausible inertias on links welded to the world always load with a
+        warning (:func:`youbot_opt.robot.urdf_check.loader.inertia_policy`).
+    lock_joints : mapping of str to float, optional
+        Joints to lock, with their positions in [rad] or [m] (a continuous
+        joint's angle in [rad]); built with Pinocchio's reduced model
+        (``buildReducedModel``) on the model and both geometry models. Links
+        behind locked joints count as welded for the inertia policy.
+    size_limits : SizeLimits, optional
+        Size limits of the URDF file, each a count (an integer >= 1): joints
+        (``max_joints``, default 1000), degrees of freedom (``max_dof``, 100),
+        longest joint chain (``max_tree_depth``, 500), XML nesting
+        (``max_xml_depth``, 100 levels) and XML elements (``max_xml_elements``,
+        200,000). A limit left None takes its environment variable
+        (``YOUBOT_OPT_MAX_JOINTS``, ``YOUBOT_OPT_MAX_DOF``,
+        ``YOUBOT_OPT_MAX_TREE_DEPTH``, ``YOUBOT_OPT_MAX_XML_DEPTH``,
+        ``YOUBOT_OPT_MAX_XML_ELEMENTS``) when set, else the default
+        (:class:`~youbot_opt.robot.urdf_check.size.SizeLimits`). Example:
+        ``load_model("big.urdf", size_limits=SizeLimits(max_joints=5000))``.
+
+    Returns
+    -------
+    RobotModel
+        The loaded robot.
+
+    Raises
+    ------
+    RobotNotFound
+        Unknown name (the message lists :func:`available_robots`) or missing file.
+    ModelError
+        The file is not a loadable URDF (an implausible inertia on a moving
+        link under ``strict``: the message says how to load it anyway).
+    FrameNotFound
+        ``tip_frame`` is not a frame of the (reduced) model.
+    ParameterError
+        ``damping`` is negative or not finite; ``lock_joints`` names an unknown
+        or multi-dof joint, or a position that is not finite or outside the
+        limits; ``size_limits`` is not a :class:`SizeLimits`, or a limit in it
+        (or its environment variable) is not an integer >= 1.
+    UnsafeURDFError
+        The file exceeds a size limit (the message names the count, the limit
+        and how to raise it).
+    """
+    if size_limits is not None and not isinstance(size_limits, SizeLimits):
+        raise ParameterError(
+            "size_limits must be a SizeLimits (e.g. SizeLimits(max_joints=5000)) or None, "
+            f"got {type(size_limits).__name__} {size_limits!r}",
+            name="size_limits",
+            value=size_limits,
+        )
+    sizes = (size_limits or SizeLimits()).resolved()  # a bad environment variable fails here
+    extra = tuple(Path(p) for p in (package_dirs or ()))
+    damping = _check_damping(damping)
+    gravity: float | None = None
+    locked_names = frozenset(str(k) for k in (lock_joints or {}))
+    tip: str | None
+    if isinstance(source, ArmParameters):
+        gravity = source.gravity
+        text = urdf_string(source, damping=damping)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / _BUILT_FILE
+            path.write_text(text, encoding="utf-8")
+            built = _build_pinocchio_models(
+                path, extra, strict=strict, locked=locked_names, size_limits=sizes
+            )
+        name, urdf_path, dirs, tip = source.name, None, extra, TIP_FRAME
+    elif isinstance(source, str) and (found := find_robot(source)) is not None:
+        urdf_path, tip = found
+        if source in (YOUBOT, YOUBOT_ARM_5DOF):
+            gravity = YOUBOT_PLANAR.gravity if source == YOUBOT else None
+            dirs = (urdf_path.parent, *extra)
+        else:
+            dirs = (*example_package_dirs(urdf_path), *extra)
+        built = _build_pinocchio_models(
+            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+        )
+        name = source
+    elif isinstance(source, str | os.PathLike):
+        urdf_path = Path(source)
+        try:
+            is_file = urdf_path.is_file()
+        except OSError:  # e.g. a name longer than the file system allows
+            is_file = False
+        if not is_file:
+            raise RobotNotFound(
+                f"{str(source)!r} is neither a robot name (`youbot-opt robots` lists them: "
+                f"{', '.join(available_robots()[:10])}, ...) nor an existing URDF file",
+                available=available_robots(),
+                path=str(source),
+            )
+        urdf_path = urdf_path.resolve()
+        dirs = (urdf_path.parent, *example_package_dirs(urdf_path), *extra)
+        built = _build_pinocchio_models(
+            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+        )
+        name, tip = built[0].name or urdf_path.stem, None
+    else:
+        raise ParameterError(
+            "source must be a robot name, a URDF path or ArmParameters, "
+            f"got {type(source).__name__}",
+            name="source",
+            value=source,
+        )
+    model, visual, collision = built
+    locked = _check_lock(model, lock_joints) if lock_joints is not None else ()
+    # mimic joints are never independent: locked, with a warning
+    locked = (
+        *locked,
+        *mimic_locks(model, urdf_path, dict(locked), str(name), size_limits=sizes),
+    )
+    model, visual, collision = _lock(model, visual, collision, locked)
+    if damping is not None:
+        model.damping = np.full(model.nv, damping)
+    if gravity is not None:
+        model.gravity.linear = np.array([0.0, 0.0, -gravity])
+    if tip is None:
+        tip = model.frames[len(model.frames) - 1].name
+    _log.debug("loaded %s from %s (nq=%d, locked %s)", name, urdf_path, model.nq, locked)
+    return RobotModel(
+        name=name,
+        model=model,
+        visual_model=visual,
+        collision_model=collision,
+        urdf_path=urdf_path,
+        package_dirs=dirs,
+        tip_frame=tip if tip_frame is None else tip_frame,
+        locked_joints=locked,
+        strict=bool(strict),
+    )
