@@ -63,7 +63,7 @@ from typing import Any
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.multistart import run_multistart as ik_multistart
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task
 from youbot_opt.sweeps.resume import run_resumable

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
-from youbot_opt.sweeps.cluster import KeepRule, cluster_optima, select_optima
+from youbot_opt.sweeps.optima import KeepRule, cluster_optima, select_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task
 from youbot_opt.sweeps.resume import run_resumable

@@ -38,7 +38,7 @@ from youbot_opt.ikpath.sweep import (
     stored_start_rng,
     stream_starts,
 )
-from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
+from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import ExecutorLike, default_workers
 from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client

@@ -63,7 +63,7 @@ from youbot_opt.ikpath.sweep import (
     stream_starts,
 )
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.optima import cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.sweeps.worker_solver import WorkerSolver

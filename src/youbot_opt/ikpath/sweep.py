@@ -42,8 +42,8 @@ from youbot_opt.ikpath.stored import (
     tally_starts,
 )
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.lazy import LazySequence
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import run_resumable

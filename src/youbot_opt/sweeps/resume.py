@@ -21,7 +21,7 @@ from typing import Any, Generic, NamedTuple, TypeVar
 
 from youbot_opt._files import json_roundtrip
 from youbot_opt.exceptions import ParameterError, YoubotOptError
-from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
 from youbot_opt.sweeps.scheduler import ClusterLostError, connect, is_scheduler_address
@@ -217,7 +217,7 @@ def run_resumable(
         needed for ``options.keep_results=False``.
     keep : KeepRule, optional
         Which full items ``options.keep_results=False`` keeps (the distinct
-        optima, :func:`~youbot_opt.sweeps.cluster.select_optima`); needed then.
+        optima, :func:`~youbot_opt.sweeps.optima.select_optima`); needed then.
 
     Returns
     -------

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
+from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.trajopt.objectives import check_beta
@@ -449,7 +449,7 @@ def run_multistart(
     How the starts run (crash-isolated workers, retries, time limits, a
     resumable ``out`` directory) is ``sweep``; the jobs are those of
     :func:`youbot_opt.trajopt.sweep.make_jobs`, and the distinct optima are
-    clustered by :func:`youbot_opt.sweeps.cluster.cluster_optima`
+    clustered by :func:`youbot_opt.sweeps.optima.cluster_optima`
     (:meth:`MultistartResult.distinct_optima`).
 
     Parameters

@@ -27,8 +27,8 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError, ResultFileError
-from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.lazy import LazySequence
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context
 from youbot_opt.sweeps.resume import run_resumable
