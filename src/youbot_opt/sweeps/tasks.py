@@ -1,4 +1,4 @@
-"""What every executor of a sweep shares: tasks, outcomes, the retry queues, the pickler.
+"""What every executor of a sweep shares: tasks, outcomes, the retry queues.
 
 Owns the executor-independent half of running a sweep's keyed items (spec:
 the sweep layer of ``ARCHITECTURE.md``): :class:`Task` and
