@@ -29,6 +29,15 @@ run, so the ratios compare like with like (issue #15):
   result, answered from its tally, against the walk over every stored start
   that the same result without its tally does (what they cost before the tally).
 
+* ``--pools`` (``--pools-only``: this section alone): the crash-isolating pool
+  (:func:`~youbot_opt.sweeps.pool.run_tasks` on ``executor="process"``) against
+  the maintained candidates, pebble's ``ProcessPool`` and loky's reusable
+  executor, each used directly with 2 workers, in the same run: throughput of
+  trivial items and of 20 ms items (items/s, ratio to the pool), crash
+  isolation (of 24 items, one SIGKILLs and one segfaults its worker: which
+  items fail, whether the rest finish), and the per-item time-out (one item of
+  24 hangs, limit 0.5 s: is it cut, is only it charged, the wall time).
+
 ``--store-only`` leaves out the Dask and solver sections (no cluster started).
 ``--quick``: 40 trajectory starts, 200 IK starts, 2000 store items. Wall times
 on a shared 2-core machine are noisy (20-100 % between runs when other
@@ -39,10 +48,12 @@ executors, interleaved, and the fastest run of each counts.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import dataclasses
 import json
 import math
 import os
+import signal
 import tempfile
 import time
 import tracemalloc
@@ -52,7 +63,7 @@ from typing import Any
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.multistart import run_multistart as ik_multistart
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task
 from youbot_opt.sweeps.resume import run_resumable
@@ -265,6 +276,201 @@ def traj_report(rows: list[dict[str, Any]], knots: int) -> None:
               f"agree: {r['accessors_agree']}")  # fmt: skip
 
 
+# ------------------------------------------------------------ pool candidates
+_POOL_N_CRASH = 24  # items of the crash and time-out scenarios
+_POOL_SLOW = 0.02  # [s] one "20 ms" item
+_POOL_TIMEOUT = 0.5  # [s] the per-item limit of the time-out scenario
+
+
+def _slow_item(i: int) -> int:
+    time.sleep(_POOL_SLOW)
+    return i
+
+
+def _crash_item(i: int) -> int:
+    """Item 5 SIGKILLs its worker, item 11 segfaults it; the rest sleep 20 ms."""
+    if i == 5:
+        os.kill(os.getpid(), signal.SIGKILL)
+    if i == 11:
+        ctypes.string_at(0)  # SIGSEGV
+    return _slow_item(i)
+
+
+def _hang_item(i: int) -> int:
+    """Item 7 hangs for an hour; the rest sleep 20 ms."""
+    if i == 7:
+        time.sleep(3600)
+    return _slow_item(i)
+
+
+def _run_ours(fn, n: int, timeout: float | None):  # type: ignore[no-untyped-def]
+    """Today's pool: returns {i: "ok" | reason} of the first attempt (max_attempts=1)."""
+    from youbot_opt.sweeps.pool import run_tasks
+
+    tasks = [Task(key=str(i), fn=fn, args=(i,)) for i in range(n)]
+    out = run_tasks(tasks, executor="process", workers=2, max_attempts=1, timeout=timeout)
+    return {int(k): "ok" if o.ok else str(o.error) for k, o in out.items()}
+
+
+def _run_pebble(fn, n: int, timeout: float | None):  # type: ignore[no-untyped-def]
+    """pebble's ProcessPool (fork), every item scheduled with its own time-out."""
+    from pebble import ProcessPool
+
+    from youbot_opt.sweeps.pool import process_context
+
+    got: dict[int, str] = {}
+    with ProcessPool(max_workers=2, context=process_context()) as pool:
+        futures = {i: pool.schedule(fn, args=(i,), timeout=timeout) for i in range(n)}
+        for i, fut in futures.items():
+            try:
+                fut.result()
+                got[i] = "ok"
+            except Exception as exc:  # noqa: BLE001 - the reason is what is measured
+                got[i] = f"{type(exc).__name__}: {exc}"
+    return got
+
+
+def _run_loky(fn, n: int, timeout: float | None):  # type: ignore[no-untyped-def]
+    """loky's reusable executor (it has no per-item time-out: ``timeout`` caps the wait)."""
+    from loky import get_reusable_executor
+
+    got: dict[int, str] = {}
+    ex = get_reusable_executor(max_workers=2)
+    futures = {i: ex.submit(fn, i) for i in range(n)}
+    for i, fut in futures.items():
+        try:
+            fut.result(timeout=None if timeout is None else timeout * n)
+            got[i] = "ok"
+        except Exception as exc:  # noqa: BLE001 - the reason is what is measured
+            got[i] = f"{type(exc).__name__}: {str(exc)[:60]}"
+    if any(v != "ok" for v in got.values()) and timeout is not None:
+        ex.shutdown(wait=False, kill_workers=True)  # a hung worker is only ended here
+    return got
+
+
+_POOLS = {"ours": _run_ours, "pebble": _run_pebble, "loky": _run_loky}
+
+
+def _bad_init() -> None:
+    raise ValueError("no solver")
+
+
+def _idle_death(name: str) -> bool:
+    """A kept pool whose only worker is SIGKILLed while idle: does the next item still run?"""
+    from youbot_opt.sweeps.pool import WorkerPool, process_context, run_tasks
+
+    def again(submit) -> bool:  # type: ignore[no-untyped-def]
+        pid = submit()
+        os.kill(pid, signal.SIGKILL)
+        time.sleep(0.3)
+        try:
+            return submit() != pid
+        except Exception:  # noqa: BLE001 - a broken pool is the answer
+            return False
+
+    if name == "ours":
+        with WorkerPool(1) as pool:
+            return again(lambda: run_tasks([Task(key="p", fn=os.getpid)], executor=pool)["p"].value)
+    if name == "pebble":
+        from pebble import ProcessPool
+
+        with ProcessPool(max_workers=1, context=process_context()) as pp:
+            return again(lambda: pp.schedule(os.getpid).result(timeout=10))
+    from loky import get_reusable_executor
+
+    return again(lambda: get_reusable_executor(max_workers=1).submit(os.getpid).result(timeout=10))
+
+
+def _init_failure(name: str) -> str:
+    """The workers' initializer raises: how is the item told (within 10 s)?"""
+    from youbot_opt.sweeps.pool import process_context, run_tasks
+
+    try:
+        if name == "ours":
+            out = run_tasks([Task(key="p", fn=os.getpid)], initializer=_bad_init, max_attempts=1)
+            return str(out["p"].error)
+        if name == "pebble":
+            from pebble import ProcessPool
+
+            with ProcessPool(max_workers=1, context=process_context(), initializer=_bad_init) as pp:
+                pp.schedule(os.getpid).result(timeout=10)
+        else:
+            from loky import get_reusable_executor
+
+            ex = get_reusable_executor(max_workers=1, initializer=_bad_init)
+            ex.submit(os.getpid).result(timeout=10)
+            ex.shutdown(wait=False, kill_workers=True)
+        return "ran without its initializer"
+    except TimeoutError:
+        return "no answer within 10 s (workers restarted in a loop)"
+    except Exception as exc:  # noqa: BLE001 - the reason is what is measured
+        return f"{type(exc).__name__}: {str(exc)[:60]}"
+
+
+def pool_section(repeat: int, n_trivial: int) -> dict[str, dict[str, Any]]:
+    """Every candidate on the same scenarios, interleaved; the fastest run of each counts."""
+    res: dict[str, dict[str, Any]] = {name: {} for name in _POOLS}
+    n_slow = 100
+    for run in _POOLS.values():  # warm: imports and the first workers
+        run(math.sqrt, 4, None)
+    for _ in range(repeat):
+        for name, run in _POOLS.items():
+            _, t = _timed(lambda run=run: run(math.sqrt, n_trivial, None))
+            res[name]["trivial_items_per_s"] = max(
+                res[name].get("trivial_items_per_s", 0), n_trivial / t
+            )
+            _, t = _timed(lambda run=run: run(_slow_item, n_slow, None))
+            res[name]["slow_items_per_s"] = max(res[name].get("slow_items_per_s", 0), n_slow / t)
+    ideal = 2 / _POOL_SLOW
+    for name, run in _POOLS.items():
+        res[name]["idle_death_survived"] = _idle_death(name)
+        res[name]["init_failure"] = _init_failure(name)
+        res[name]["slow_efficiency"] = res[name]["slow_items_per_s"] / ideal
+        got, t = _timed(lambda run=run: run(_crash_item, _POOL_N_CRASH, None))
+        failed = sorted(i for i, v in got.items() if v != "ok")
+        res[name]["crash_failed"] = failed
+        res[name]["crash_isolated"] = failed == [5, 11]
+        res[name]["crash_reasons"] = sorted({got[i][:70] for i in failed})
+        res[name]["crash_s"] = t
+        if name == "loky":
+            res[name]["timeout_isolated"] = False
+            res[name]["timeout_note"] = "no per-item time-out in loky"
+            continue
+        got, t = _timed(lambda run=run: run(_hang_item, _POOL_N_CRASH, _POOL_TIMEOUT))
+        failed = sorted(i for i, v in got.items() if v != "ok")
+        res[name]["timeout_failed"] = failed
+        res[name]["timeout_isolated"] = failed == [7]
+        res[name]["timeout_reasons"] = sorted({got[i][:70] for i in failed})
+        res[name]["timeout_s"] = t
+    return res
+
+
+def pool_report(res: dict[str, dict[str, Any]], n_trivial: int) -> None:
+    """Print the candidates' table with their ratios to today's pool (same run)."""
+    base = res["ours"]
+    print("worker pools, 2 workers, measured in this run (ratio to today's pool):")
+    print(f"{'pool':<8}{f'{n_trivial} trivial [1/s]':>22}{'100 x 20 ms [1/s]':>24}"
+          f"{'crash isolated':>16}{'time-out isolated':>19}")  # fmt: skip
+    for name, r in res.items():
+        fast = r["trivial_items_per_s"]
+        t1 = f"{fast:.0f} (x{fast / base['trivial_items_per_s']:.2f})"
+        t2 = (
+            f"{r['slow_items_per_s']:.0f} (x{r['slow_items_per_s'] / base['slow_items_per_s']:.2f})"
+        )
+        print(f"{name:<8}{t1:>22}{t2:>24}{str(r['crash_isolated']):>16}"
+              f"{str(r['timeout_isolated']):>19}")  # fmt: skip
+    for name, r in res.items():
+        print(f"{name}: a kept pool survives an idle worker's death: {r['idle_death_survived']}; "
+              f"a failing initializer: {r['init_failure']}")  # fmt: skip
+        print(f"{name}: crash scenario {r['crash_s']:.2f} s, failed {r['crash_failed']} "
+              f"{r['crash_reasons']}")  # fmt: skip
+        if "timeout_s" in r:
+            print(f"{name}: time-out scenario {r['timeout_s']:.2f} s, failed "
+                  f"{r['timeout_failed']} {r['timeout_reasons']}")  # fmt: skip
+        else:
+            print(f"{name}: {r['timeout_note']}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sweeps")
@@ -288,7 +494,17 @@ def main() -> None:
     parser.add_argument("--traj-keep-max", type=int, default=10_000, help="largest full run")
     parser.add_argument("--traj-knots", type=int, default=6, help="knots of that problem")
     parser.add_argument("--traj-only", action="store_true", help="only that section")
+    parser.add_argument("--pools", action="store_true", help="the pool candidates too")
+    parser.add_argument("--pools-only", action="store_true", help="only the pool candidates")
     args = parser.parse_args()
+    if args.pools or args.pools_only:
+        n_trivial = 500 if args.quick else 2000
+        pools = pool_section(args.repeat, n_trivial)
+        pool_report(pools, n_trivial)
+        if args.json:
+            print(json.dumps(pools, indent=1))
+        if args.pools_only:
+            return
     if args.traj_starts or args.traj_only:
         sizes = [int(float(x)) for x in (args.traj_starts or "1000,10000").split(",")]
         traj = traj_keep_section(sizes, args.traj_keep_max, args.traj_knots)

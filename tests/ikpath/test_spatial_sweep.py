@@ -14,7 +14,7 @@ from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.sweeps.resume import ShardFinished
+from youbot_opt.sweeps.resume import ShardReport
 
 
 def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur5_reachable):
@@ -46,9 +46,11 @@ def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachabl
         sweep = SweepOptions(executor="serial", out=tmp_path, **kw)
         return run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4, sweep=sweep)
 
-    with pytest.raises(ShardFinished) as info:  # share 1 of 2: starts 0 and 2
-        run(shard=(1, 2))
-    assert (info.value.ran, info.value.finished, info.value.total) == (2, 2, 4)
+    report = run(shard=(1, 2))  # share 1 of 2: starts 0 and 2, then a report (not a raise)
+    assert isinstance(report, ShardReport) and report.shard == (1, 2)
+    assert (report.ran, report.finished, report.total, report.left) == (2, 2, 4, 2)
+    assert report.directory == tmp_path
+    assert str(report).startswith("shard 1/2: ran 2 item(s); 2 of 4 items are finished in ")
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["kind"] == "spatial_ikpath_multistart"
     assert manifest["params"]["problem"]["joint_names"] == list(ur5_reachable.joint_names)

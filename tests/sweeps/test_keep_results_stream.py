@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.sweeps import resume
-from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task
 from youbot_opt.sweeps.resume import StoredItems, run_resumable

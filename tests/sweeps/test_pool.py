@@ -1,26 +1,25 @@
-"""Tests of youbot_opt.sweeps.pool beyond crashes: pickling scoped to the pool, no global state.
+"""Tests of youbot_opt.sweeps.pool beyond crashes: plain pickling, no global state.
 
 The crash, hang and retry tests of the pool are in tests/trajopt/test_kill_resume.py.
 """
 
 from __future__ import annotations
 
-import copyreg
+import pickle
 import subprocess
 import sys
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
-from types import MappingProxyType
 
 import pytest
 
 from youbot_opt.sweeps.pool import Task, WorkerPool, process_context, run_tasks
 
 
-def _read_only(d: dict[str, int]) -> MappingProxyType[str, int]:
-    return MappingProxyType(dict(d))
+def _copy(d: dict[str, int]) -> dict[str, int]:
+    return dict(d)
 
 
-def _total(m: MappingProxyType[str, int]) -> int:
+def _total(m: dict[str, int]) -> int:
     return sum(m.values())
 
 
@@ -43,12 +42,11 @@ def test_importing_the_package_registers_no_pickler() -> None:
 
 
 @pytest.mark.parametrize("executor", ["process", "pool", "process-executor", "threads"])
-def test_read_only_mappings_cross_the_process_boundary(executor: str) -> None:
-    """MappingProxyType arguments and return values travel to and from workers as before."""
-    arg = MappingProxyType({"a": 1, "b": 2})
+def test_mappings_cross_the_process_boundary(executor: str) -> None:
+    """Dict arguments and return values travel to and from workers on every executor."""
     tasks = [
-        Task(key="sum", fn=_total, args=(arg,)),
-        Task(key="make", fn=_read_only, args=({"c": 3},)),
+        Task(key="sum", fn=_total, args=({"a": 1, "b": 2},)),
+        Task(key="make", fn=_copy, args=({"c": 3},)),
     ]
     if executor == "pool":
         with WorkerPool(1) as pool:
@@ -62,9 +60,18 @@ def test_read_only_mappings_cross_the_process_boundary(executor: str) -> None:
     else:
         out = run_tasks(tasks, executor="process", workers=2)
     assert out["sum"].ok and out["sum"].value == 3
-    made = out["make"].value
-    assert out["make"].ok and isinstance(made, MappingProxyType) and dict(made) == {"c": 3}
-    assert MappingProxyType not in copyreg.dispatch_table  # still nothing global
+    assert out["make"].ok and out["make"].value == {"c": 3}
+
+
+def test_frozen_data_pickles_with_the_standard_pickler() -> None:
+    """Options and bound structures hold plain dicts: pickle.dumps sends them, no reducer."""
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.trajopt.result import BoundStructure
+
+    opts = IpoptOptions(extra={"print_level": 0})
+    assert pickle.loads(pickle.dumps(opts)) == opts
+    structure = BoundStructure(unbounded=("dt",), path={})
+    assert pickle.loads(pickle.dumps(structure)) == structure
 
 
 def test_a_value_that_does_not_pickle_fails_only_its_task() -> None:

@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
-from youbot_opt.sweeps.cluster import KeepRule, cluster_optima, select_optima
+from youbot_opt.sweeps.optima import KeepRule, cluster_optima, select_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task
-from youbot_opt.sweeps.resume import run_resumable
+from youbot_opt.sweeps.resume import ShardReport, run_resumable
 from youbot_opt.sweeps.store import ItemRecord, SweepStore, stored_records
 
 N = 60
@@ -69,7 +69,14 @@ def _light(key: str, record: ItemRecord) -> list[float]:
     return [math.nan if f is None else float(f), math.nan]  # no position: not kept
 
 
-def _sweep(out: Path, *, keep: bool, executor: str = "serial", loads: list[str] | None = None):  # type: ignore[no-untyped-def]
+def _sweep(  # type: ignore[no-untyped-def]
+    out: Path,
+    *,
+    keep: bool,
+    executor: str = "serial",
+    loads: list[str] | None = None,
+    shard: tuple[int, int] | None = None,
+):
     store = SweepStore(
         out, kind="points", params={"n": N}, save=save, load=load_file, suffix=".pt", encode=encode
     )
@@ -83,7 +90,7 @@ def _sweep(out: Path, *, keep: bool, executor: str = "serial", loads: list[str] 
     return run_resumable(
         tasks,
         store=store,
-        options=SweepOptions(executor=executor, out=out, keep_results=keep, workers=2),
+        options=SweepOptions(executor=executor, out=out, keep_results=keep, workers=2, shard=shard),
         load=load,
         convert=lambda o: o.value,
         payload=lambda key, v: describe(key, (), v),
@@ -91,6 +98,34 @@ def _sweep(out: Path, *, keep: bool, executor: str = "serial", loads: list[str] 
         light=_light,
         keep=RULE,
     )
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_a_shard_run_returns_its_report_and_a_plain_run_collects(
+    tmp_path: Path, keep: bool
+) -> None:
+    """A shard returns a ShardReport (it raises nothing); a run without the shard loads all."""
+    out = tmp_path / "run"
+    first = _sweep(out, keep=keep, shard=(1, 2))
+    assert isinstance(first, ShardReport)
+    assert (first.shard, first.ran, first.finished, first.total, first.left) == (
+        (1, 2),
+        30,
+        30,
+        N,
+        30,
+    )
+    assert first.directory == out
+    assert str(first) == (
+        f"shard 1/2: ran 30 item(s); 30 of {N} items are finished in {out}; when every shard "
+        "is done, run the same sweep without the shard to collect them"
+    )
+    second = _sweep(out, keep=keep, shard=(2, 2))
+    assert isinstance(second, ShardReport) and (second.ran, second.left) == (30, 0)
+    collected = _sweep(out, keep=keep)
+    reference = _sweep(tmp_path / "reference", keep=keep)
+    assert collected.resumed == N and len(collected.items) == N
+    assert [list(c) for c in collected.clusters] == [list(c) for c in reference.clusters]
 
 
 def test_keep_results_false_keeps_the_optima_of_the_full_run(tmp_path: Path) -> None:

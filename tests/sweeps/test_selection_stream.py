@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 from test_scaling_store import RULE, _sweep
 
-from youbot_opt.sweeps.cluster import KeepRule, select_optima
 from youbot_opt.sweeps.index import DiskIndex
+from youbot_opt.sweeps.optima import KeepRule, select_optima
 from youbot_opt.sweeps.selection import Clusters, stream_optima
 from youbot_opt.sweeps.store import SweepStore
 

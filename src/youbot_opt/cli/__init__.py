@@ -97,11 +97,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except YoubotOptError as exc:
-        from youbot_opt.sweeps.resume import ShardFinished
-
-        if isinstance(exc, ShardFinished):  # --shard I/K solved its share: a success
-            print(f"youbot-opt: {exc}", file=sys.stderr)
-            return 0
         print(f"youbot-opt: error: {exc}", file=sys.stderr)
         return 2
     except (MemoryError, RecursionError) as exc:  # last resort: limits are checked before

@@ -5,7 +5,8 @@ local process pool (``pip install youbot_opt[dask]``; guide:
 ``docs/scaling.md``). :func:`add_scheduler_args` adds the two exclusive
 flags and ``--shard I/K`` (a share of the items, for plain job arrays) to a
 parser; :func:`scheduler_address` turns them into the address a sweep
-connects to (``None`` when neither flag is given).
+connects to (``None`` when neither flag is given); :func:`report_shard`
+prints what a shard run did.
 
     sweep = SweepOptions(executor=scheduler_address(args) or "process", out=folder)
 """
@@ -14,12 +15,33 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.scheduler import is_scheduler_address
 
-__all__ = ["add_keep_results_arg", "add_scheduler_args", "scheduler_address", "shard_arg"]
+if TYPE_CHECKING:  # the sweep modules are imported by the commands that run one
+    from youbot_opt.sweeps.resume import ShardReport
+
+__all__ = [
+    "add_keep_results_arg",
+    "add_scheduler_args",
+    "report_shard",
+    "scheduler_address",
+    "shard_arg",
+]
+
+
+def report_shard(report: ShardReport) -> int:
+    """Print what a ``--shard I/K`` run did (on stderr) and return its exit status, 0.
+
+    A shard that solved its share is a success; the message says how many of
+    the sweep's items are finished and how to collect them.
+    """
+    print(f"youbot-opt: {report}", file=sys.stderr)
+    return 0
 
 
 def shard_arg(text: str) -> tuple[int, int]:

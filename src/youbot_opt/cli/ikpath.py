@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 from youbot_opt.cli.cluster_args import (
     add_keep_results_arg,
     add_scheduler_args,
+    report_shard,
     scheduler_address,
 )
 from youbot_opt.cli.ikpath_starts import print_starts, start_fields, start_sweep
@@ -427,6 +428,7 @@ def _run(args: argparse.Namespace) -> int:
     from youbot_opt.ikpath.ipopt import IpoptOptions
     from youbot_opt.ikpath.multistart import run_multistart
     from youbot_opt.ikpath.reachability import Reachability, check_reachability
+    from youbot_opt.sweeps.resume import ShardReport
 
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):
         raise ParameterError(
@@ -471,7 +473,7 @@ def _run(args: argparse.Namespace) -> int:
             options = kind(max_wall_time=args.max_wall_time)
         # With --scheduler / --scheduler-file the starts run on that Dask cluster.
         executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
-        ms = run_multistart(
+        got = run_multistart(
             problem,
             method=args.method,
             options=options,
@@ -481,6 +483,9 @@ def _run(args: argparse.Namespace) -> int:
             verdicts=verdicts,
             sweep=start_sweep(args, folder, executor),
         )
+        if isinstance(got, ShardReport):  # --shard I/K solved its share
+            return report_shard(got)
+        ms = got
     doc = _report(args, problem, verdicts, ms)
     files = _write_outputs(args, folder, problem, verdicts, ms, doc)
     if args.json:

@@ -154,12 +154,13 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
 
 def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
-    from youbot_opt.cli.cluster_args import scheduler_address
+    from youbot_opt.cli.cluster_args import report_shard, scheduler_address
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
     from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
     from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
+    from youbot_opt.sweeps.resume import ShardReport
 
     kind = _check_spatial_flags(args)
     robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
@@ -216,6 +217,8 @@ def run_spatial(args: argparse.Namespace) -> int:
             options=options,
             sweep=start_sweep(args, folder, executor),
         )
+        if isinstance(ms, ShardReport):  # --shard I/K solved its share
+            return report_shard(ms)
         best = ms.best
         doc.update(
             status=best.status.value,

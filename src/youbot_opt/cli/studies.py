@@ -27,6 +27,7 @@ import numpy as np
 from youbot_opt.cli.cluster_args import (
     add_keep_results_arg,
     add_scheduler_args,
+    report_shard,
     scheduler_address,
 )
 from youbot_opt.cli.output import ProgressLine, add_command
@@ -277,6 +278,7 @@ def _emit(
 
 # ----------------------------------------------------------------- commands
 def _run_multistart(args: argparse.Namespace) -> int:
+    from youbot_opt.sweeps.resume import ShardReport
     from youbot_opt.trajopt.multistart import run_multistart
 
     _check(args)
@@ -293,6 +295,8 @@ def _run_multistart(args: argparse.Namespace) -> int:
         sweep=_sweep(args, prog, folder),
     )
     prog.close()
+    if isinstance(res, ShardReport):  # --shard I/K solved its share
+        return report_shard(res)
     optima = res.distinct_optima(args.obj_tol, args.traj_tol)
     table = [
         f"multistart: beta = {res.beta:g}, {res.n_starts} starts (seed {res.seed}), "
@@ -332,6 +336,7 @@ def _run_multistart(args: argparse.Namespace) -> int:
 
 
 def _run_pareto(args: argparse.Namespace) -> int:
+    from youbot_opt.sweeps.resume import ShardReport
     from youbot_opt.trajopt.pareto import pareto_sweep
 
     betas = parse_values(args.betas, "betas")
@@ -348,6 +353,8 @@ def _run_pareto(args: argparse.Namespace) -> int:
         sweep=_sweep(args, prog, folder),
     )
     prog.close()
+    if isinstance(front, ShardReport):  # --shard I/K solved its share of the first point
+        return report_shard(front)
     from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
 
     table = pareto_table(front)  # distinct points counted, W with its unit
@@ -376,6 +383,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
 
 
 def _run_bounds(args: argparse.Namespace) -> int:
+    from youbot_opt.sweeps.resume import ShardReport
     from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 
     scales = parse_values(args.scales, "scales")
@@ -392,6 +400,8 @@ def _run_bounds(args: argparse.Namespace) -> int:
         sweep=_sweep(args, prog, folder),
     )
     prog.close()
+    if isinstance(res, ShardReport):  # --shard I/K solved its share
+        return report_shard(res)
     table = [
         f"bound scaling: beta = {res.beta:g}, {args.starts} starts + straight line per scale, "
         f"{res.wall_time:.2f} s",

@@ -38,9 +38,10 @@ from youbot_opt.ikpath.sweep import (
     stored_start_rng,
     stream_starts,
 )
-from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
+from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import ExecutorLike, default_workers
+from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 from youbot_opt.sweeps.selection import Clusters
 
@@ -279,7 +280,7 @@ def run_multistart(
     q_tol: float = 1e-3,
     verdicts: Sequence[ReachVerdict] | None = None,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
-) -> MultistartResult:
+) -> MultistartResult | ShardReport:
     """Solve from ``n_starts`` seeded starts in parallel and report the distinct minima.
 
     Parameters
@@ -326,8 +327,10 @@ def run_multistart(
 
     Returns
     -------
-    MultistartResult
-        All results in start order and the distinct minima, best first.
+    MultistartResult or ShardReport
+        All results in start order and the distinct minima, best first; a
+        shard run (``sweep.shard``) returns its
+        :class:`~youbot_opt.sweeps.resume.ShardReport` instead.
 
     Raises
     ------
@@ -380,6 +383,8 @@ def run_multistart(
             store=store, distance=_result_distance, e_tol=e_tol, q_tol=q_tol,
             by_objective=True, on_resumed=on_resumed, on_final=on_final,
         )  # fmt: skip
+        if isinstance(streamed, ShardReport):
+            return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
         minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
     else:  # the starts were drawn together by make_starts
@@ -387,6 +392,8 @@ def run_multistart(
             problem, np.asarray(x0s), method=method, options=options, sweep=run,
             solvers=PLANAR_STARTS, store=store, on_resumed=on_resumed, on_final=on_final,
         )  # fmt: skip
+        if isinstance(outcome, ShardReport):
+            return outcome
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
         minima = cluster_minima(outcome.results, e_tol=e_tol, q_tol=q_tol)
     return MultistartResult(

@@ -63,8 +63,9 @@ from youbot_opt.ikpath.sweep import (
     stream_starts,
 )
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.optima import cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.sweeps.worker_solver import WorkerSolver
 
@@ -293,7 +294,7 @@ def run_spatial_multistart(
     e_tol: float = 1e-6,
     q_tol: float = 1e-3,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
-) -> SpatialMultistart:
+) -> SpatialMultistart | ShardReport:
     """Solve from :func:`make_spatial_starts` and cluster the distinct minima.
 
     Parameters
@@ -327,8 +328,10 @@ def run_spatial_multistart(
 
     Returns
     -------
-    SpatialMultistart
-        Results in start order and the distinct minima.
+    SpatialMultistart or ShardReport
+        Results in start order and the distinct minima; a shard run
+        (``sweep.shard``) returns its :class:`~youbot_opt.sweeps.resume.ShardReport`
+        instead (its share is saved in ``sweep.out``).
 
     Raises
     ------
@@ -337,8 +340,6 @@ def run_spatial_multistart(
         contradicting ``sweep.workers``, or an ``out`` holding another sweep.
     ResultFileError
         If a stored start is corrupted, or disagrees with the problem.
-    ShardFinished
-        After a shard run (``sweep.shard``) solved its share.
     """
     t0 = time.perf_counter()
     check_method(method, options)
@@ -401,6 +402,8 @@ def run_spatial_multistart(
             on_resumed=on_resumed,
             on_final=on_final,
         )
+        if isinstance(streamed, ShardReport):
+            return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
         minima, tally = streamed.minima, streamed.tally
     else:
@@ -415,6 +418,8 @@ def run_spatial_multistart(
             on_resumed=on_resumed,
             on_final=on_final,
         )
+        if isinstance(outcome, ShardReport):
+            return outcome
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
         groups = cluster_optima(
             (i for i, r in enumerate(results) if r.success),

@@ -19,8 +19,8 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Generic, TypeVar
 
-from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.lazy import LazySequence, ListEquality
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.selection import Clusters, stream_optima
 
 __all__ = ["ClusterIndices", "StartSummary", "StartTally", "StoredResults", "tally_starts"]

@@ -42,11 +42,11 @@ from youbot_opt.ikpath.stored import (
     tally_starts,
 )
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.lazy import LazySequence
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
-from youbot_opt.sweeps.resume import run_resumable
+from youbot_opt.sweeps.resume import ShardReport, run_resumable
 from youbot_opt.sweeps.selection import Clusters
 from youbot_opt.sweeps.store import ItemRecord, SweepStore, atomic_write_bytes
 from youbot_opt.sweeps.tasks import TaskSequence
@@ -548,7 +548,7 @@ def solve_starts(
     store: SweepStore | None = None,
     on_resumed: Callable[[list[ResultT]], None] | None = None,
     on_final: Callable[[int, ResultT], None] | None = None,
-) -> SweepOutcome[ResultT]:
+) -> SweepOutcome[ResultT] | ShardReport:
     """Solve every start of ``x0s`` (loading those ``store`` holds), one task per start.
 
     Parameters
@@ -577,8 +577,9 @@ def solve_starts(
 
     Returns
     -------
-    SweepOutcome
-        Results and attempts in start order, and the number of resumed starts.
+    SweepOutcome or ShardReport
+        Results and attempts in start order, and the number of resumed starts;
+        a shard run (``sweep.shard``) returns its :class:`ShardReport`.
 
     Raises
     ------
@@ -638,6 +639,8 @@ def solve_starts(
         # workers write their own result files
         describe=functools.partial(_describe_start, solvers.figures),
     )
+    if isinstance(got, ShardReport):  # a shard run: its share is saved, nothing to collect
+        return got
     return SweepOutcome(
         results=tuple(got.items[k] for k in keys),
         attempts=tuple(got.attempts[k] for k in keys),
@@ -677,7 +680,7 @@ def stream_starts(
     by_objective: bool,
     on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
     on_final: Callable[[int, _Outcome], None] | None = None,
-) -> StreamedOutcome[ResultT]:
+) -> StreamedOutcome[ResultT] | ShardReport:
     """Solve every start with ``keep_results=False``: summaries streamed, the minima kept.
 
     As :func:`solve_starts`, but a start is drawn (``starts[i]``) only when its
@@ -705,8 +708,9 @@ def stream_starts(
 
     Returns
     -------
-    StreamedOutcome
-        Lazy results and attempts, resumed count, minima, kept results, tally.
+    StreamedOutcome or ShardReport
+        Lazy results and attempts, resumed count, minima, kept results, tally;
+        a shard run (``sweep.shard``) returns its :class:`ShardReport`.
     """
     sweep = sweep.with_executor("process")
     n = len(starts)
@@ -788,6 +792,8 @@ def stream_starts(
         light=light,
         keep=rule,
     )
+    if isinstance(got, ShardReport):
+        return got
     items = got.items
     clusters = got.clusters
     if not isinstance(clusters, Clusters):  # pragma: no cover - IK stores never held the old form

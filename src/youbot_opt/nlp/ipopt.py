@@ -222,7 +222,7 @@ class IpoptOptions:
             raise ParameterError(
                 f"fast_kkt must be True or False, got {self.fast_kkt!r}", name="fast_kkt"
             )
-        object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
+        object.__setattr__(self, "extra", dict(self.extra))
 
     @classmethod
     def for_ikpath(

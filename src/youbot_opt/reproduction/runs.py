@@ -37,7 +37,7 @@ from youbot_opt.reproduction.search import (
 from youbot_opt.reproduction.study1 import DEVIATION_NAMES, StudyDeviations
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
-from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
+from youbot_opt.trajopt.pareto import DEFAULT_BETAS, ParetoFront, pareto_sweep
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
@@ -170,10 +170,12 @@ class ReproductionConfig:
 def _multistart(
     solver: TrajOptSolver, config: ReproductionConfig, n_starts: int, beta: float
 ) -> MultistartResult:
-    return run_multistart(
+    ms = run_multistart(
         solver, n_starts, beta=beta, seed=config.seed,
         sweep=SweepOptions(executor=config.executor, workers=config.workers),  # type: ignore[arg-type]
     )  # fmt: skip
+    assert isinstance(ms, MultistartResult)  # no shard: the whole sweep ran
+    return ms
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -328,6 +330,7 @@ def reproduce_study1(
             seed=config.seed,
             sweep=SweepOptions(executor=config.executor, workers=config.workers),  # type: ignore[arg-type]
         )  # fmt: skip
+        assert isinstance(front, ParetoFront)  # no shard: the whole sweep ran
         out.pareto[v.key] = []
         for p in front.points:
             if p.result is None:

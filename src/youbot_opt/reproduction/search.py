@@ -6,7 +6,7 @@ starts (the literal reading of the study's random starts) with a built solver,
 run as one :class:`~youbot_opt.sweeps.options.SweepOptions` says (a start that
 raises is a failed start, the run goes on); :func:`cluster_optima` groups the
 converged solves into distinct local optima by objective and trajectory
-distance (:func:`youbot_opt.sweeps.cluster.cluster_optima`, this search's
+distance (:func:`youbot_opt.sweeps.optima.cluster_optima`, this search's
 tolerances); :func:`search_record` summarises a run for the reproduction's JSON.
 
     starts = vertex_multistart(solver, 20, beta=0.5, sweep=SweepOptions(max_attempts=1))
@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.records import ArmSolvers, Variant, record
-from youbot_opt.sweeps.cluster import cluster_optima as cluster_items
+from youbot_opt.sweeps.optima import cluster_optima as cluster_items
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context, run_tasks
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from youbot_opt.sweeps.scheduler import ClusterLostError
-from youbot_opt.sweeps.tasks import TaskRunner, dumps, failure_reason, invoke
+from youbot_opt.sweeps.tasks import TaskRunner, failure_reason, invoke
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; dask is optional
     from distributed import Client
@@ -80,7 +80,7 @@ def run_batch(init: bytes | None, batch: bytes) -> bytes:
         the batch's items one by one, so a crash is charged to one item.
     """
     if _reruns_after_death() > 0:
-        return dumps(_DIED)
+        return pickle.dumps(_DIED)
     init_error = None
     if init is not None:
         digest = hashlib.blake2b(init, digest_size=16).hexdigest()
@@ -104,16 +104,16 @@ def run_batch(init: bytes | None, batch: bytes) -> bytes:
         except Exception as exc:  # one failing item must not end the batch
             replies.append((key, failure_reason(exc), None, time.perf_counter() - tic))
     try:
-        return dumps(replies)
+        return pickle.dumps(replies)
     except Exception:  # some value does not pickle: charge that item alone
         safe: list[tuple[Any, str | None, Any, float]] = []
         for key, error, value, wall in replies:
             try:
-                dumps(value)
+                pickle.dumps(value)
                 safe.append((key, error, value, wall))
             except Exception as exc:
                 safe.append((key, f"cannot send the result: {failure_reason(exc)}", None, wall))
-        return dumps(safe)
+        return pickle.dumps(safe)
 
 
 # ------------------------------------------------------------------- driver
@@ -140,7 +140,7 @@ def run_dask(
     solo: set[str] = set()  # items to run alone: after a crash of their batch, or a retry
     init = None
     if initializer is not None:
-        blob = dumps((initializer, initargs))
+        blob = pickle.dumps((initializer, initargs))
         init = _dask_call(lambda: client.scatter(blob, broadcast=True, hash=False))
     inflight: dict[DaskFuture, list[str]] = {}
     done = as_completed(loop=client.loop)
@@ -150,7 +150,7 @@ def run_dask(
                 keys = _next_batch(runner, size, solo)
                 items = [(k, runner.tasks[k].fn, runner.tasks[k].args) for k in keys]
                 try:
-                    payload = dumps(items)
+                    payload = pickle.dumps(items)
                 except Exception as exc:  # a task does not pickle: charge it alone
                     if len(keys) > 1:
                         solo.update(keys)

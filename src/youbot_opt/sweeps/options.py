@@ -60,8 +60,8 @@ class SweepOptions:
         reports per item (see each sweep).
     shard : tuple of (int, int), optional
         ``(i, k)`` with ``1 <= i <= k``: run only this share of the items
-        (positions ``i - 1, i - 1 + k, ...``) into ``out`` and stop with
-        :class:`~youbot_opt.sweeps.resume.ShardFinished`; a job array runs
+        (positions ``i - 1, i - 1 + k, ...``) into ``out`` and return a
+        :class:`~youbot_opt.sweeps.resume.ShardReport`; a job array runs
         the ``k`` shards into one shared folder and a run without ``shard``
         collects (it loads what the shards saved and runs what is missing).
     batch_size : int, optional

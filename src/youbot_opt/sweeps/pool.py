@@ -23,7 +23,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable
-from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from concurrent.futures.process import BrokenProcessPool
 from concurrent.futures.thread import BrokenThreadPool
 from multiprocessing.connection import Connection
@@ -39,7 +39,7 @@ from youbot_opt.sweeps.scheduler import (
     is_dask_client,
     is_scheduler_address,
 )
-from youbot_opt.sweeps.tasks import Task, TaskOutcome, TaskRunner, dumps, failure_reason, invoke
+from youbot_opt.sweeps.tasks import Task, TaskOutcome, TaskRunner, failure_reason, invoke
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; dask is optional
     from distributed import Client
@@ -77,7 +77,7 @@ def process_context() -> BaseContext:
 
 
 def _send(conn: Connection, obj: Any) -> None:
-    conn.send_bytes(dumps(obj))  # pickles first: a message that does not pickle sends nothing
+    conn.send_bytes(pickle.dumps(obj))  # pickled first: one that does not pickle sends nothing
 
 
 def _recv(conn: Connection) -> Any:
@@ -92,12 +92,6 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
-def _invoke_pickled(blob: bytes) -> bytes:
-    """Run a pickled ``(fn, args)`` in a process executor; return the pickled ``(value, wall)``."""
-    fn, args = pickle.loads(blob)
-    return dumps(invoke(fn, args))
-
-
 def _worker_main(
     conn: Connection,
     parent: int,
@@ -109,7 +103,7 @@ def _worker_main(
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
     init_error = None
     try:
-        if init_blob is not None:  # spawned: the initializer came pickled by tasks.dumps
+        if init_blob is not None:  # spawned: the initializer came pickled
             initializer, initargs = pickle.loads(init_blob)
         if initializer is not None:
             initializer(*initargs)
@@ -156,7 +150,7 @@ class _Worker:
         if ctx.get_start_method() == "fork":  # inherited, not pickled (e.g. a built solver)
             args = (child, os.getpid(), initializer, initargs, None)
         else:
-            args = (child, os.getpid(), None, (), dumps((initializer, initargs)))
+            args = (child, os.getpid(), None, (), pickle.dumps((initializer, initargs)))
         self.process = ctx.Process(  # type: ignore[attr-defined]
             target=_worker_main,
             args=args,
@@ -334,12 +328,7 @@ class _LocalRunner(TaskRunner):
             while len(inflight) < self.workers and (self.pending or self.retry):
                 key = self.next_key()
                 task = self.tasks[key]
-                fut: Future[Any]
-                if isinstance(pool, ProcessPoolExecutor):  # pickled here: read-only mappings too
-                    fut = pool.submit(_invoke_pickled, dumps((task.fn, task.args)))
-                else:
-                    fut = pool.submit(invoke, task.fn, task.args)
-                inflight[fut] = key
+                inflight[pool.submit(invoke, task.fn, task.args)] = key
             done, _ = wait(inflight, return_when=FIRST_COMPLETED)
             broken: list[str] = []
             for fut in done:
@@ -350,8 +339,7 @@ class _LocalRunner(TaskRunner):
                 elif exc is not None:
                     self.emit(key, None, failure_reason(exc), 0.0)
                 else:
-                    got = fut.result()
-                    value, wall = pickle.loads(got) if isinstance(got, bytes) else got
+                    value, wall = fut.result()
                     self.emit(key, value, None, wall)
             if broken:
                 why = "the executor broke (a worker crashed) and cannot be rebuilt by youbot_opt"

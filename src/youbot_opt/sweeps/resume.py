@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Generic, NamedTuple, TypeVar
 
 from youbot_opt._files import json_roundtrip
-from youbot_opt.exceptions import ParameterError, YoubotOptError
-from youbot_opt.sweeps.cluster import KeepRule
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
 from youbot_opt.sweeps.scheduler import ClusterLostError, connect, is_scheduler_address
@@ -32,7 +33,7 @@ from youbot_opt.sweeps.tasks import task_keys
 __all__ = [
     "Describe",
     "Resumed",
-    "ShardFinished",
+    "ShardReport",
     "StoredAttempts",
     "StoredItems",
     "run_and_write",
@@ -48,16 +49,45 @@ CHUNK = 4096
 """Tasks handed to the executor at once when ``keep_results=False`` (bounded driver memory)."""
 
 
-class ShardFinished(YoubotOptError):
-    """A shard run (``SweepOptions(shard=(i, k))``) solved its share; not a failure.
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ShardReport:
+    """What a shard run (``SweepOptions(shard=(i, k))``) returns once it solved its share.
 
-    The message says how many items this shard ran, how many of the sweep's
-    items are finished in the shared folder, and how to collect them.
+    ``str(report)`` says how many items this shard ran, how many of the
+    sweep's items are finished in the shared folder, and how to collect them.
+
+    Attributes
+    ----------
+    shard : tuple of (int, int)
+        ``(i, k)``: this run solved items ``i - 1, i - 1 + k, ...`` (0-based).
+    ran : int
+        Items run by this shard (finished ones found in the folder not counted).
+    finished : int
+        Items of the whole sweep finished in ``directory`` (every shard's).
+    total : int
+        Items of the whole sweep.
+    directory : Path
+        The folder the shards share.
     """
 
-    def __init__(self, message: str, *, ran: int, finished: int, total: int) -> None:
-        super().__init__(message)
-        self.ran, self.finished, self.total = ran, finished, total
+    shard: tuple[int, int]
+    ran: int
+    finished: int
+    total: int
+    directory: Path
+
+    @property
+    def left(self) -> int:
+        """Items of the sweep not yet finished (another shard's, or to be run again)."""
+        return self.total - self.finished
+
+    def __str__(self) -> str:
+        i, k = self.shard
+        return (
+            f"shard {i}/{k}: ran {self.ran} item(s); {self.finished} of {self.total} items "
+            f"are finished in {self.directory}; when every shard is done, run the same sweep "
+            "without the shard to collect them"
+        )
 
 
 class Resumed(NamedTuple, Generic[T]):
@@ -178,7 +208,7 @@ def run_resumable(
     describe: Describe | None = None,
     light: Callable[[str, ItemRecord], T] | None = None,
     keep: KeepRule[T] | None = None,
-) -> Resumed[T]:
+) -> Resumed[T] | ShardReport:
     """Run the tasks a store does not hold as finished, saving every attempt as it ends.
 
     Parameters
@@ -217,13 +247,15 @@ def run_resumable(
         needed for ``options.keep_results=False``.
     keep : KeepRule, optional
         Which full items ``options.keep_results=False`` keeps (the distinct
-        optima, :func:`~youbot_opt.sweeps.cluster.select_optima`); needed then.
+        optima, :func:`~youbot_opt.sweeps.optima.select_optima`); needed then.
 
     Returns
     -------
-    Resumed
+    Resumed or ShardReport
         The items (``keep_results=False``: light ones, full for the kept
-        optima), attempts, number of resumed items and the optima's clusters.
+        optima), attempts, number of resumed items and the optima's clusters;
+        a shard run (``options.shard``) returns what it did instead, a
+        :class:`ShardReport` (not a failure).
 
     Notes
     -----
@@ -241,8 +273,6 @@ def run_resumable(
         If a stored record or payload is corrupted or from a newer schema.
     ClusterLostError
         If the Dask scheduler is lost: the message says what was saved and how to resume.
-    ShardFinished
-        After a shard run (``options.shard``) solved its share.
     """
     keep_all = options.keep_results
     if not keep_all and (store is None or light is None or keep is None):
@@ -277,6 +307,8 @@ def run_resumable(
             on_resumed,  # type: ignore[arg-type]  # given a read-only view, not a dict
             on_final, describe, light,
         )  # fmt: skip
+    if isinstance(got, ShardReport):
+        return got
     assert keep is not None and light is not None
 
     def full(key: str) -> T:
@@ -328,7 +360,7 @@ def _stream_all(
     on_final: Callable[[str, T, int], None] | None,
     describe: Describe | None,
     light: Callable[[str, ItemRecord], T],
-) -> Resumed[T]:
+) -> Resumed[T] | ShardReport:
     """``keep_results=False``: run the unfinished tasks in chunks, keeping nothing per item.
 
     Tasks are taken from ``tasks`` as they are needed, :data:`CHUNK` at a time;
@@ -430,13 +462,8 @@ def _stream_all(
         if client is not None:
             client.close()
     if shard is not None:
-        raise ShardFinished(
-            f"shard {shard[0]}/{shard[1]}: ran {ran} item(s); {finished} of "
-            f"{len(tasks)} items are finished in {store.directory}; when every shard is done, "
-            "run the same sweep without the shard to collect them",
-            ran=ran,
-            finished=finished,
-            total=len(tasks),
+        return ShardReport(
+            shard=shard, ran=ran, finished=finished, total=len(tasks), directory=store.directory
         )
     if finished != len(tasks):  # a repeated key was skipped as finished by its first task
         raise ParameterError(
@@ -495,7 +522,7 @@ def _run_all(
     describe: Describe | None,
     light: Callable[[str, ItemRecord], T] | None,
     keep_all: bool,
-) -> Resumed[T]:
+) -> Resumed[T] | ShardReport:
     max_attempts = options.max_attempts
     items: dict[str, T] = {}
     attempts: dict[str, int] = {}
@@ -607,14 +634,10 @@ def _run_all(
             )
         raise ClusterLostError(f"sweep stopped: {exc}. {saved}") from exc
     if shard is not None:
-        where = store.directory if store is not None else "?"
-        raise ShardFinished(
-            f"shard {shard[0]}/{shard[1]}: ran {ran} item(s); {len(items)} of "
-            f"{len(tasks)} items are finished in {where}; when every shard is done, run the "
-            "same sweep without the shard to collect them",
-            ran=ran,
-            finished=len(items),
-            total=len(tasks),
+        where = store.directory if store is not None else options.directory
+        assert where is not None  # SweepOptions refuses a shard without out=
+        return ShardReport(
+            shard=shard, ran=ran, finished=len(items), total=len(tasks), directory=where
         )
     missing = [t.key for t in tasks if t.key not in items]
     assert not missing, f"run_tasks returned no final outcome for {missing}"

@@ -1,7 +1,7 @@
 """The distinct optima of a ``keep_results=False`` sweep, chosen in bounded memory.
 
 :func:`stream_optima` applies the greedy rule of
-:func:`~youbot_opt.sweeps.cluster.select_optima` (items by increasing
+:func:`~youbot_opt.sweeps.optima.select_optima` (items by increasing
 objective, ties in item order, each joining the first cluster whose
 representative is near) without a list of the items: the ranking is an
 external sort in a private SQLite database, members go to a table of it.
@@ -24,9 +24,9 @@ from typing import TypeVar
 
 from youbot_opt._files import fsync_dir
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.index import CACHE_KIB
 from youbot_opt.sweeps.lazy import LazySequence, ListEquality
+from youbot_opt.sweeps.optima import KeepRule
 
 __all__ = ["ClusterKeys", "Clusters", "stream_optima"]
 
@@ -76,7 +76,7 @@ class Clusters(ListEquality, LazySequence[ClusterKeys]):
     ----------
     representatives : list of str
         Key of each cluster's representative (its lowest-objective item),
-        clusters in the order of :func:`~youbot_opt.sweeps.cluster.select_optima`.
+        clusters in the order of :func:`~youbot_opt.sweeps.optima.select_optima`.
     counts : list of int
         Number of members of each cluster (the representative included).
     """

@@ -1,12 +1,12 @@
-"""What every executor of a sweep shares: tasks, outcomes, the retry queues, the pickler.
+"""What every executor of a sweep shares: tasks, outcomes, the retry queues.
 
 Owns the executor-independent half of running a sweep's keyed items (spec:
 the sweep layer of ``ARCHITECTURE.md``): :class:`Task` and
 :class:`TaskOutcome`, the :class:`TaskRunner` (pending and retry queues,
 attempts per key, one :class:`TaskOutcome` per attempt, ``run_serial``), and
 the helpers both the local pool (:mod:`.pool`) and the Dask path
-(:mod:`.distributed`) use: :func:`dumps` (a pickler that also sends read-only
-mappings), :func:`invoke` (one timed call) and :func:`failure_reason`.
+(:mod:`.distributed`) use: :func:`invoke` (one timed call) and
+:func:`failure_reason`. What travels is pickled by :mod:`pickle` as it is.
 Callers use :func:`youbot_opt.sweeps.pool.run_tasks`, not this module.
 
     runner = TaskRunner([Task(key="k", fn=abs, args=(-1,))], workers=1, max_attempts=2)
@@ -14,16 +14,11 @@ Callers use :func:`youbot_opt.sweeps.pool.run_tasks`, not this module.
 
 from __future__ import annotations
 
-import copyreg
-import io
 import logging
-import pickle
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
-from multiprocessing.reduction import ForkingPickler
-from types import MappingProxyType
 from typing import Any
 
 from youbot_opt.exceptions import ParameterError
@@ -34,45 +29,12 @@ __all__ = [
     "TaskOutcome",
     "TaskRunner",
     "TaskSequence",
-    "dumps",
     "failure_reason",
     "invoke",
     "task_keys",
 ]
 
 _log = logging.getLogger(__name__)
-
-
-# ----------------------------------------------------------------- pickling
-def _mappingproxy(d: dict[Any, Any]) -> MappingProxyType[Any, Any]:
-    return MappingProxyType(d)
-
-
-def _reduce_mappingproxy(m: MappingProxyType[Any, Any]) -> tuple[Any, ...]:
-    return _mappingproxy, (dict(m),)
-
-
-class _SweepPickler(ForkingPickler):
-    """multiprocessing's pickler that also sends read-only mappings, as a copied dict.
-
-    Read-only mappings (e.g. ``IpoptOptions.extra``) cannot be pickled by
-    default. The reducer is added to this pickler's own table only, so
-    importing the package registers nothing in :mod:`multiprocessing` or
-    :mod:`copyreg`.
-    """
-
-    def __init__(self, file: Any, protocol: int | None = None) -> None:
-        super().__init__(file, protocol)
-        table = dict(getattr(self, "dispatch_table", copyreg.dispatch_table))
-        table[MappingProxyType] = _reduce_mappingproxy
-        self.dispatch_table = table
-
-
-def dumps(obj: Any) -> bytes:
-    """Pickle ``obj`` for a worker pipe (or a process executor) with :class:`_SweepPickler`."""
-    buf = io.BytesIO()
-    _SweepPickler(buf, pickle.HIGHEST_PROTOCOL).dump(obj)
-    return buf.getvalue()
 
 
 def invoke(fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, float]:

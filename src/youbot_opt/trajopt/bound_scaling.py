@@ -20,6 +20,7 @@ from typing import Any
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.trajopt.multistart import (
     MultistartResult,
     StoredStarts,
@@ -152,7 +153,7 @@ def bound_scaling_study(
     dt0: float | None = None,
     active_tol: float = 1e-5,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
-) -> BoundScalingResult:
+) -> BoundScalingResult | ShardReport:
     """Solve the problem with every bound scaled by each factor in ``scales``.
 
     Every scale gets the same start seeds, plus the straight line; all scales'
@@ -192,8 +193,9 @@ def bound_scaling_study(
 
     Returns
     -------
-    BoundScalingResult
-        One row per scale.
+    BoundScalingResult or ShardReport
+        One row per scale; a shard run (``sweep.shard``) returns its
+        :class:`~youbot_opt.sweeps.resume.ShardReport` instead.
 
     Raises
     ------
@@ -236,13 +238,16 @@ def bound_scaling_study(
             "dt0": dt0,
         }
         store = open_store(sweep.directory, "bounds", params, solver, clean=sweep.shard is None)
-    outcomes, _, clusters = solve_starts(
+    solved = solve_starts(
         solver,
         StartJobChain(jobs_by_scale),  # made when asked for: keep_results=False holds none
         store=store,
         sweep=sweep,
         keep=optima_rule(group=lambda start: start.key.split("_", 1)[0]),  # per scale
     )
+    if isinstance(solved, ShardReport):
+        return solved
+    outcomes, _, clusters = solved
     rows = []
     for s, jobs in zip(values, jobs_by_scale, strict=True):
         if sweep.keep_results:

@@ -24,8 +24,9 @@ from typing import Any
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.cluster import KeepRule, cluster_optima
+from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.problem import check_bound_scale
@@ -443,13 +444,13 @@ def run_multistart(
     include_straight: bool = False,
     dt0: float | None = None,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
-) -> MultistartResult:
+) -> MultistartResult | ShardReport:
     """Solve from ``n_starts`` seeded random spline guesses (and the straight line).
 
     How the starts run (crash-isolated workers, retries, time limits, a
     resumable ``out`` directory) is ``sweep``; the jobs are those of
     :func:`youbot_opt.trajopt.sweep.make_jobs`, and the distinct optima are
-    clustered by :func:`youbot_opt.sweeps.cluster.cluster_optima`
+    clustered by :func:`youbot_opt.sweeps.optima.cluster_optima`
     (:meth:`MultistartResult.distinct_optima`).
 
     Parameters
@@ -486,8 +487,9 @@ def run_multistart(
 
     Returns
     -------
-    MultistartResult
-        Every start, ``best``, ``success_rate`` and ``distinct_optima()``.
+    MultistartResult or ShardReport
+        Every start, ``best``, ``success_rate`` and ``distinct_optima()``; a
+        shard run (``sweep.shard``) returns its :class:`ShardReport` instead.
 
     Raises
     ------
@@ -523,9 +525,10 @@ def run_multistart(
             "dt0": dt0,
         }
         store = open_store(sweep.directory, "multistart", params, solver, clean=sweep.shard is None)
-    outcomes, resumed, clusters = solve_starts(
-        solver, jobs, store=store, sweep=sweep, keep=optima_rule()
-    )
+    solved = solve_starts(solver, jobs, store=store, sweep=sweep, keep=optima_rule())
+    if isinstance(solved, ShardReport):
+        return solved
+    outcomes, resumed, clusters = solved
     if sweep.keep_results:
         starts: Sequence[StartOutcome] = tuple(outcomes[j.key] for j in jobs)
         tally = None

@@ -26,6 +26,7 @@ import numpy as np
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, process_context, run_tasks
+from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
@@ -289,7 +290,7 @@ def pareto_sweep(
     cold_fallback: bool = True,
     dominance_rtol: float = 1e-6,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
-) -> ParetoFront:
+) -> ParetoFront | ShardReport:
     """Solve every weight in ``betas`` in order, each warm-started from the previous one.
 
     One NLP is re-solved with ``beta`` as a parameter, each weight from the
@@ -351,8 +352,10 @@ def pareto_sweep(
 
     Returns
     -------
-    ParetoFront
-        The points with ``dominated`` marked.
+    ParetoFront or ShardReport
+        The points with ``dominated`` marked; a shard run (``sweep.shard``,
+        which shards the first point's multistart) returns its
+        :class:`~youbot_opt.sweeps.resume.ShardReport` instead.
 
     Raises
     ------
@@ -396,7 +399,7 @@ def pareto_sweep(
             again, attempts = (True, 0) if store is None else store.needs_work(key, max_attempts)
             if k == 0 and first_starts > 0:
                 # Rerun on resume too: its own store in DIR/first_point loads every start.
-                first = run_multistart(
+                got = run_multistart(
                     solver,
                     first_starts,
                     beta=beta,
@@ -409,6 +412,9 @@ def pareto_sweep(
                         progress=None,
                     ),
                 )
+                if isinstance(got, ShardReport):
+                    return got
+                first = got
             if not again:
                 assert store is not None
                 point = _load_point(store, key, beta)

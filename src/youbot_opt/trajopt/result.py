@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -521,10 +520,10 @@ def _derive_structure(result: TrajOptResult) -> BoundStructure:
     if method is not None and result.grid is not None:
         method = method.with_fractions(result.grid)
     if method is None:
-        return BoundStructure(unbounded=(), path=MappingProxyType({}))
+        return BoundStructure(unbounded=(), path={})
     unbounded = tuple(method.unbounded)
     if type(method).path_constraints is Transcription.path_constraints:  # none
-        return BoundStructure(unbounded=unbounded, path=MappingProxyType({}))
+        return BoundStructure(unbounded=unbounded, path={})
     aba = batched_aba(result.problem.robot, damping=result.problem.damping)
     sym = {k: ca.DM(np.asarray(x, dtype=float).T) for k, x in result.variables.items()}
     accel: dict[str, Any] = {}
@@ -535,4 +534,4 @@ def _derive_structure(result: TrajOptResult) -> BoundStructure:
         name: PathBlock(family=family, values=np.asarray(expr, dtype=float).T)
         for name, family, expr in method.path_constraints(sym, accel)
     }
-    return BoundStructure(unbounded=unbounded, path=MappingProxyType(path))
+    return BoundStructure(unbounded=unbounded, path=path)

@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from types import MappingProxyType
 from typing import Any, cast
 
 import casadi as ca
@@ -567,12 +566,10 @@ class TrajOptSolver:
             multipliers.update(nlp.constraints.unpack(lam_g))
         structure = BoundStructure(
             unbounded=tuple(nlp.unbounded),
-            path=MappingProxyType(
-                {
-                    name: PathBlock(family=family, values=nlp.constraints[name].take(g))
-                    for name, family in nlp.path_bounds.items()
-                }
-            ),
+            path={
+                name: PathBlock(family=family, values=nlp.constraints[name].take(g))
+                for name, family in nlp.path_bounds.items()
+            },
         )
         paths = [block.values for block in structure.path.values()]
         for arr in (*multipliers.values(), *variables.values(), *paths):

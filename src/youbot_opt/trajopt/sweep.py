@@ -27,11 +27,11 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError, ResultFileError
-from youbot_opt.sweeps.cluster import KeepRule
 from youbot_opt.sweeps.lazy import LazySequence
+from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, process_context
-from youbot_opt.sweeps.resume import run_resumable
+from youbot_opt.sweeps.resume import ShardReport, run_resumable
 from youbot_opt.sweeps.selection import Clusters
 from youbot_opt.sweeps.store import ItemRecord, SweepStore
 from youbot_opt.sweeps.tasks import TaskSequence
@@ -311,7 +311,7 @@ def solve_starts(
     store: SweepStore | None,
     sweep: SweepOptions,
     keep: KeepRule[StartOutcome] | None = None,
-) -> SolvedStarts:
+) -> SolvedStarts | ShardReport:
     """Run start jobs, loading the finished ones from ``store``.
 
     Parameters
@@ -333,9 +333,10 @@ def solve_starts(
 
     Returns
     -------
-    SolvedStarts
+    SolvedStarts or ShardReport
         The outcomes by key (``keep_results=False``: read from ``store`` when
-        asked for), the number of starts loaded from ``store`` and the optima.
+        asked for), the number of starts loaded from ``store`` and the optima;
+        a shard run (``sweep.shard``) returns its :class:`ShardReport`.
     """
     sweep = sweep.with_executor("process")
     executor = sweep.executor
@@ -400,6 +401,8 @@ def solve_starts(
         light=light,
         keep=keep,
     )
+    if isinstance(got, ShardReport):  # a shard run: its share is saved, nothing to collect
+        return got
     items = got.items
     clusters = got.clusters
     if isinstance(clusters, Clusters):  # keep_results=False: each start's optimum, read lazily

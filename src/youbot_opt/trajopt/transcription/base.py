@@ -455,7 +455,7 @@ class Transcription(ABC):
             work=parts.work,
             variables=Layout(blocks),
             constraints=parts.constraints,
-            path_bounds=MappingProxyType(dict(parts.path_bounds)),
+            path_bounds=dict(parts.path_bounds),
             unbounded=tuple(self.unbounded),
         )
 

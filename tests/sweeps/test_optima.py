@@ -1,11 +1,11 @@
-"""Tests of youbot_opt.sweeps.cluster: the one greedy clustering of local optima."""
+"""Tests of youbot_opt.sweeps.optima: the one greedy clustering of local optima."""
 
 from __future__ import annotations
 
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.cluster import cluster_optima
+from youbot_opt.sweeps.optima import cluster_optima
 
 
 def _cluster(items, obj_tol=1e-6, dist_tol=1e-3):  # type: ignore[no-untyped-def]

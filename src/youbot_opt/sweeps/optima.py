@@ -1,4 +1,4 @@
-"""Greedy clustering of local optima by objective and a distance, knowing nothing of robots.
+"""The distinct local optima of a sweep: greedy grouping by objective and a distance.
 
 The one rule by which every multistart groups its converged solves into
 distinct local optima: items in order of increasing objective, each joining the
