@@ -5,14 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.refine import RefinementBudget, predicted_knots, refine
-from youbot_opt.trajopt.simulate import (
-    STIFF_RATIO,
-    damping_rate,
-    integrate_intervals,
-    integration_method,
-)
+from youbot_opt.trajopt.simulate import integrate_intervals, integration_method
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 

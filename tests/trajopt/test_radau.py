@@ -17,13 +17,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from youbot_opt.dynamics.numeric import damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt import radau
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.mesh_error import collocation_error, interval_errors
 from youbot_opt.trajopt.refine import RefinementBudget, refine
-from youbot_opt.trajopt.simulate import damping_rate
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 
@@ -269,7 +269,7 @@ def test_auto_picks_radau_where_the_damping_is_stiff_on_the_grid() -> None:
     about 970 (the rate is 3.8e3 1/s at the start and goal): stiff. 2000 knots
     give 2.5e-3 s and about 9; without damping the rate is 0.
     """
-    from youbot_opt.trajopt.simulate import STIFF_RATIO
+    from youbot_opt.dynamics.numeric import STIFF_RATIO
     from youbot_opt.trajopt.solver import auto_transcription
 
     stiff = study1_problem(20, damping=STIFF)

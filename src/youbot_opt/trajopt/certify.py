@@ -22,6 +22,7 @@ import numpy as np
 from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.coordinates import angle_robot
+from youbot_opt.dynamics.numeric import RobotLike
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import JointBounds, RobotModel, as_robot_model
 from youbot_opt.trajopt.certificate import BoundCheck, Certificate, Tolerances
@@ -30,7 +31,6 @@ from youbot_opt.trajopt.simulate import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
     PDGains,
-    RobotLike,
     integrate_intervals,
     sample_times,
     simulate,

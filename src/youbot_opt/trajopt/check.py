@@ -19,10 +19,10 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.nlp.status import ResultT, SolveStatus, apply_check, status_from_ipopt
 from youbot_opt.trajopt import radau
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["ResultCheck", "CheckedSolution", "check_result", "checked"]
@@ -228,7 +228,7 @@ def check_result(result: CheckedSolution, *, feasibility_tol: float | None = Non
     variable bound, a boundary state or a collocation defect by more than
     ``feasibility_tol`` (:attr:`SolveStatus.CONSTRAINT_VIOLATION`). The
     defects are recomputed from the decision variables with Pinocchio's
-    ``pin.aba`` (:func:`~youbot_opt.trajopt.simulate.batched_aba`), not with
+    ``pin.aba`` (:func:`~youbot_opt.dynamics.numeric.batched_aba`), not with
     the CasADi dynamics inside the NLP. The result itself is not changed.
 
     Parameters

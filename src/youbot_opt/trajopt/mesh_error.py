@@ -19,10 +19,10 @@ import numpy as np
 
 from youbot_opt._checks import check_int
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import RobotLike, batched_aba
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt import radau
 from youbot_opt.trajopt.result import TrajOptResult
-from youbot_opt.trajopt.simulate import RobotLike, batched_aba
 
 __all__ = ["CollocationError", "ORDERS", "collocation_error", "interval_errors"]
 

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.trajopt.certificate import Certificate
@@ -31,7 +32,6 @@ from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.refinement import Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import TrajOptResult
-from youbot_opt.trajopt.simulate import STIFF_RATIO, damping_rate
 from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, grid_weights
 

@@ -21,13 +21,13 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
 from youbot_opt.robot.model import JointBounds
 from youbot_opt.trajopt.check import ResultCheck, check_result
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
 
 if TYPE_CHECKING:

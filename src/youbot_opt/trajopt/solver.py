@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike
 from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.base import Dynamics
+from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
 from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
@@ -43,7 +44,6 @@ from youbot_opt.trajopt.result import (
     TrajOptResult,
     status_from_ipopt,
 )
-from youbot_opt.trajopt.simulate import STIFF_RATIO, damping_rate
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription import Transcription, get_transcription
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
@@ -618,9 +618,9 @@ def auto_transcription(problem: TrajOptProblem) -> str:
     """Choose the transcription of ``problem``: ``"radau"`` if its damping is stiff, else HS.
 
     The joint damping is stiff on a grid when its fastest relaxation rate
-    (:func:`~youbot_opt.trajopt.simulate.damping_rate`, at the start and goal
+    (:func:`~youbot_opt.dynamics.numeric.damping_rate`, at the start and goal
     configurations) times the grid step exceeds
-    :data:`~youbot_opt.trajopt.simulate.STIFF_RATIO`; the step is the
+    :data:`~youbot_opt.dynamics.numeric.STIFF_RATIO`; the step is the
     problem's fixed duration, else the default guess's
     (:data:`~youbot_opt.trajopt.guess.DEFAULT_GUESS_DURATION`), over its
     intervals. The L-stable Radau IIA collocation then carries such a joint on
