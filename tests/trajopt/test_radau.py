@@ -211,8 +211,10 @@ def test_stiff_damping_radau_refines_to_a_certified_plan(stiff_plans: dict) -> N
     here by ``certify``.
     """
     problem = study1_problem(20, damping=STIFF)
-    result = refine(TrajOptSolver(problem, "radau"), beta=0.5, budget=RefinementBudget())
-    assert result.certified, result.refinement.reason  # type: ignore[union-attr]
+    result, refinement = refine(
+        TrajOptSolver(problem, "radau"), beta=0.5, budget=RefinementBudget()
+    )
+    assert refinement.certified, refinement.reason
     assert result.problem.n_knots <= 100
     assert result.objective == pytest.approx(33.2369, abs=2e-3)
     assert certify(result).passed()
@@ -228,14 +230,14 @@ def test_command_line_solve_with_radau(tmp_path: Path) -> None:
     import json
 
     from youbot_opt.cli import main
-    from youbot_opt.trajopt.io import load_result
+    from youbot_opt.trajopt.io import load_refined
 
     out = tmp_path / "run"
     assert main(["solve", "--transcription", "radau", "--knots", "12", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["method"] == "radau" and summary["certified"] is True, summary.get("certified")
-    result = load_result(out / "result.npz")
-    assert result.method == "radau" and result.certified
+    result, refinement = load_refined(out / "result.npz")
+    assert result.method == "radau" and refinement.certified
     assert result.objective == pytest.approx(summary["objective"], rel=1e-12)
     assert result.trajectory is not None and result.trajectory.tau_stages is not None
     assert result.trajectory.tau_stages.shape == (result.problem.n_knots - 1, 2, 3)
