@@ -9,8 +9,9 @@ import pytest
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.trajopt.objectives import Objective, quadrature_weights, work
+from youbot_opt.trajopt.objectives import Objective, work
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.quadrature import quadrature_weights
 
 # The study's data sheet (spec trajopt.md, "Joint limits"), typed in here
 # independently of youbot_opt.robot.params.

@@ -3,8 +3,8 @@
 ``f = beta T + (1 - beta) W`` with the true duration ``T = (N - 1) dt`` in [s]
 and the effort ``W`` (integral of ``tau . tau``) in [N^2 m^2 s] by the
 quadrature of the transcription: trapezoidal (the study's), Simpson's rule
-(Hermite-Simpson) or Radau's weights (``Transcription.work_weights``). The
-helpers work on numbers and CasADi expressions alike, so the NLP and the
+(Hermite-Simpson) or Radau's weights (:mod:`youbot_opt.trajopt.quadrature`).
+The helpers work on numbers and CasADi expressions alike, so the NLP and the
 re-evaluation of a result share one definition.
 
 >>> duration(dt, n_knots=50)  # T = 49 dt [s]  # doctest: +SKIP
@@ -13,24 +13,21 @@ re-evaluation of a result share one definition.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from youbot_opt._checks import check_beta
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.quadrature import QuadratureRule, quadrature_weights
 
 __all__ = [
     "Objective",
-    "QuadratureRule",
     "check_beta",
     "duration",
-    "quadrature_weights",
     "work",
 ]
-
-QuadratureRule = Literal["trapezoidal", "simpson", "radau"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -83,42 +80,6 @@ class Objective:
 def duration(dt: Any, n_knots: int) -> Any:
     """Return the true duration ``T = (N - 1) dt`` in [s] of ``N`` knots, common step ``dt`` [s]."""
     return (n_knots - 1) * dt
-
-
-def quadrature_weights(rule: QuadratureRule, n_knots: int) -> tuple[Array, Array | None]:
-    """Weights ``(w_knots, w_mid)`` with ``W = dt * (w_knots . p + w_mid . p_mid)``.
-
-    Parameters
-    ----------
-    rule : {"trapezoidal", "simpson"}
-        Quadrature rule of the transcription.
-    n_knots : int
-        Number of knots ``N`` (>= 2).
-
-    Returns
-    -------
-    w_knots : ndarray, shape (N,)
-        Weights of the knot powers ``p_k = tau_k . tau_k`` (dimensionless,
-        multiplied by ``dt`` in [s]).
-    w_mid : ndarray, shape (N - 1,) or None
-        Weights of the mid-interval powers (Simpson only).
-
-    Raises
-    ------
-    ParameterError
-        On an unknown rule or fewer than 2 knots.
-    """
-    if n_knots < 2:
-        raise ParameterError(f"n_knots must be >= 2, got {n_knots}", name="n_knots", value=n_knots)
-    w = np.ones(n_knots)
-    w[0] = w[-1] = 0.5
-    if rule == "trapezoidal":
-        return w, None
-    if rule == "simpson":
-        return w / 3.0, np.full(n_knots - 1, 4.0 / 6.0)
-    raise ParameterError(
-        f"rule must be 'trapezoidal' or 'simpson', got {rule!r}", name="rule", value=rule
-    )
 
 
 def work(

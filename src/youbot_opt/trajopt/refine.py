@@ -31,9 +31,10 @@ from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
+from youbot_opt.trajopt.quadrature import grid_weights
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
-from youbot_opt.trajopt.transcription.base import BOUND_NAMES, grid_weights
+from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
     "ERROR_EXPONENTS",
