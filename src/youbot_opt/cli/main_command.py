@@ -53,7 +53,7 @@ def _run(args: argparse.Namespace) -> int:
     grid = "refined from 50 knots" if args.refine else "50 fixed knots"
     print(f"youbot_opt {__version__}: study-1 base case (beta = 0.5, {grid}, trapezoidal, "
           "straight-line start)\n")  # fmt: skip
-    solver = TrajOptSolver(study1_problem(50, beta=0.5), "trapezoidal")
+    solver = TrajOptSolver(study1_problem(50), "trapezoidal")
     result = solver.solve(beta=0.5)
     nlp = solver.nlp
     print(f"NLP build     {solver.build_time:.3f} s "

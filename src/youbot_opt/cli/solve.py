@@ -332,7 +332,7 @@ def _problem(args: argparse.Namespace) -> Any:
         raise ParameterError("--damping applies to the youBot only", name="damping")
     robot = load_robot(args, damping=args.damping)
     if is_youbot and args.start is None and args.goal is None:
-        return study1_problem(args.knots, robot=robot, beta=args.beta)
+        return study1_problem(args.knots, robot=robot)
     if args.start is None or args.goal is None:
         raise ParameterError(
             f"--start and --goal (each {robot.nq} joint positions in rad) are required for "
@@ -341,14 +341,11 @@ def _problem(args: argparse.Namespace) -> Any:
             f"must respect",
             name="start",
         )
-    from youbot_opt.trajopt.objectives import Objective
-
     return TrajOptProblem(
         robot=robot,
         start=BoundaryState(q=np.array(args.start)),
         goal=BoundaryState(q=np.array(args.goal)),
         n_knots=args.knots,
-        objective=Objective(beta=args.beta),
     )
 
 

@@ -40,7 +40,6 @@ from youbot_opt.robot.model import RobotModel, available_robots
 from youbot_opt.robot.source import RobotSource
 from youbot_opt.trajopt.certify import Tolerances, certify
 from youbot_opt.trajopt.check import checked
-from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
@@ -180,7 +179,7 @@ def save_result(
     meta: dict[str, Any] = {
         **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "problem": result.problem.describe(),
+        "problem": {**result.problem.describe(), "beta": result.beta},  # as 0.1.0 wrote it
         "robot_source": _robot_source(result.problem.robot, target.parent),
         "method": result.method,
         "backend": result.backend,
@@ -378,7 +377,6 @@ def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refineme
             start=BoundaryState(q=desc["start_q"], v=desc["start_v"]),
             goal=BoundaryState(q=desc["goal_q"], v=desc["goal_v"]),
             n_knots=int(desc["n_knots"]),
-            objective=Objective(beta=desc["beta"]),
             duration=desc["duration"],
             scaled_bounds=tuple(desc["scaled_bounds"]),
             dt_min=desc["dt_min"],
@@ -407,7 +405,7 @@ def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refineme
             dt=scalars["dt"],
             work=scalars["work"],
             objective=scalars["objective"],
-            beta=float(meta["beta"]),
+            beta=float(meta.get("beta", desc.get("beta"))),  # the problem's beta of 0.1.0
             bound_scale=float(meta["bound_scale"]),
             start=BoundaryState(q=meta["start"]["q"], v=meta["start"]["v"]),
             goal=BoundaryState(q=meta["goal"]["q"], v=meta["goal"]["v"]),

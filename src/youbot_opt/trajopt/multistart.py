@@ -437,7 +437,7 @@ def run_multistart(
     solver: TrajOptSolver,
     n_starts: int = 50,
     *,
-    beta: float | None = None,
+    beta: float = 0.5,
     bound_scale: float = 1.0,
     seed: int = 0,
     include_straight: bool = False,
@@ -459,8 +459,8 @@ def run_multistart(
         other workers build their own once).
     n_starts : int
         Number of random spline starts (the study: 50).
-    beta : float, optional
-        Time weight in [0, 1]; the problem's default when omitted.
+    beta : float
+        Time weight in [0, 1] of every start's solve (0.5 by default).
     bound_scale : float
         Bound scale factor (> 0, 1.0 = data sheet), for the guesses and the solves.
     seed : int
@@ -498,7 +498,7 @@ def run_multistart(
     """
     tic = time.perf_counter()
     solver = check_solver(solver)
-    beta = solver.problem.objective.beta if beta is None else check_beta(beta)
+    beta = check_beta(beta)  # before any start runs (each solve checks it again)
     bound_scale = check_bound_scale(bound_scale)
     solver.problem.check_boundary(bound_scale)
     dt0 = default_dt0(solver.problem) if dt0 is None else float(dt0)

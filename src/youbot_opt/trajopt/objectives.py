@@ -1,6 +1,7 @@
 """Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
 
-``f = beta T + (1 - beta) W`` with the true duration ``T = (N - 1) dt`` in [s]
+``f = beta T + (1 - beta) W`` (:func:`objective_value`; ``beta`` is a solve-time
+parameter, never part of the problem) with the true duration ``T = (N - 1) dt`` in [s]
 and the effort ``W`` (integral of ``tau . tau``) in [N^2 m^2 s] by the
 quadrature of the transcription: trapezoidal (the study's), Simpson's rule
 (Hermite-Simpson) or Radau's weights (:mod:`youbot_opt.trajopt.quadrature`).
@@ -12,7 +13,6 @@ re-evaluation of a result share one definition.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -23,58 +23,32 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.quadrature import QuadratureRule, quadrature_weights
 
 __all__ = [
-    "Objective",
     "check_beta",
     "duration",
+    "objective_value",
     "work",
 ]
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Objective:
-    """Weighted sum of duration and work, ``f = beta * T + (1 - beta) * W``.
+def objective_value(duration: Any, work: Any, beta: Any) -> Any:
+    """Return ``f = beta T + (1 - beta) W`` for a duration [s] and a work [N^2 m^2 s].
 
-    Attributes
+    Parameters
     ----------
-    beta : float
-        Weight of the duration ``T`` in [s]; ``1 - beta`` weighs the work ``W``
-        in [N^2 m^2 s]. In [0, 1]; the study's base case is 0.5.
+    duration : float or casadi expression
+        ``T`` in [s].
+    work : float or casadi expression
+        ``W`` in [N^2 m^2 s].
+    beta : float or casadi expression
+        Time weight in [0, 1] (the NLP's parameter; validated where it enters,
+        :meth:`youbot_opt.trajopt.solver.TrajOptSolver.solve`).
+
+    Returns
+    -------
+    float or casadi expression
+        ``beta * T + (1 - beta) * W``.
     """
-
-    beta: float = 0.5
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "beta", check_beta(self.beta))
-
-    @classmethod
-    def time(cls) -> Objective:
-        """Pure minimum time (``beta = 1``)."""
-        return cls(beta=1.0)
-
-    @classmethod
-    def work(cls) -> Objective:
-        """Pure minimum work ``integral of tau . tau`` (``beta = 0``)."""
-        return cls(beta=0.0)
-
-    def value(self, duration: Any, work: Any, beta: Any = None) -> Any:
-        """Objective value for a duration [s] and a work [N^2 m^2 s].
-
-        Parameters
-        ----------
-        duration : float or casadi expression
-            ``T`` in [s].
-        work : float or casadi expression
-            ``W`` in [N^2 m^2 s].
-        beta : float or casadi expression, optional
-            Overrides :attr:`beta` (e.g. with an NLP parameter).
-
-        Returns
-        -------
-        float or casadi expression
-            ``beta * T + (1 - beta) * W``.
-        """
-        b = self.beta if beta is None else beta
-        return b * duration + (1 - b) * work
+    return beta * duration + (1 - beta) * work
 
 
 def duration(dt: Any, n_knots: int) -> Any:

@@ -539,7 +539,7 @@ def _round(
 def refine(
     solver: TrajOptSolver,
     *,
-    beta: float | None = None,
+    beta: float = 0.5,
     bound_scale: float = 1.0,
     guess: GuessLike = None,
     start: BoundaryLike | None = None,

@@ -295,7 +295,7 @@ class TrajOptSolver:
     # ----------------------------------------------------------------- solve
     def solve(
         self,
-        beta: float | None = None,
+        beta: float = 0.5,
         bound_scale: float = 1.0,
         guess: GuessLike = None,
         start: BoundaryLike | None = None,
@@ -309,8 +309,10 @@ class TrajOptSolver:
 
         Parameters
         ----------
-        beta : float, optional
-            Time weight in [0, 1]; the problem's objective default when omitted.
+        beta : float
+            Time weight in [0, 1] of ``f = beta T + (1 - beta) W`` (the NLP's
+            parameter; 0.5, the study's base case, by default). Validated here,
+            where it enters, and recorded once, in :attr:`TrajOptResult.beta`.
         bound_scale : float
             Factor > 0 on the bound families of ``problem.scaled_bounds`` (1.0 = data sheet).
         guess : None, Trajectory or TrajOptResult
@@ -340,7 +342,7 @@ class TrajOptSolver:
             On a bad ``beta``, ``bound_scale``, boundary state or guess.
         """
         problem = self.problem
-        beta = problem.objective.beta if beta is None else check_beta(beta)
+        beta = check_beta(beta)
         bound_scale = check_bound_scale(bound_scale)
         start_state = _boundary("start", start, problem.start)
         goal_state = _boundary("goal", goal, problem.goal)
@@ -653,7 +655,7 @@ def solve(
     method: str | Transcription = "trapezoidal",
     options: IpoptOptions | None = None,
     backend: str = "symbolic",
-    beta: float | None = None,
+    beta: float = 0.5,
     bound_scale: float = 1.0,
     guess: GuessLike = None,
     start: BoundaryLike | None = None,

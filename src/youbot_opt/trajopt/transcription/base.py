@@ -24,7 +24,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.trajopt.objectives import duration
+from youbot_opt.trajopt.objectives import duration, objective_value
 from youbot_opt.trajopt.quadrature import QuadratureRule, grid_weights, quadrature_weights
 from youbot_opt.trajopt.trajectory import Interpolation, Trajectory
 
@@ -488,7 +488,7 @@ class Transcription(ABC):
             work += term
         work = dt * work
         total_time = duration(dt, n)
-        f = problem.objective.value(total_time, work, beta)
+        f = objective_value(total_time, work, beta)
         return Expressions(
             f=f,
             g=g,
