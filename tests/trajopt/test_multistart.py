@@ -95,7 +95,7 @@ def test_distinct_optima_cluster_by_objective_and_trajectory() -> None:
         _start("s4", 11.0, a),
     )
     ms = MultistartResult(starts=starts, beta=0.5, bound_scale=1.0, seed=0)
-    optima = ms.distinct_optima(obj_tol=1e-6, traj_tol=1e-2)
+    optima = ms.distinct_optima(objective_tol=1e-6, traj_tol=1e-2)
     assert [(o.objective, o.count) for o in optima] == [(9.0, 2), (9.0, 1), (11.0, 1)]
     assert optima[0].seeds == (1, 2)
     assert ms.best is not None and ms.best.key == "s1"

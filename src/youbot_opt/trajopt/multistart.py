@@ -314,13 +314,13 @@ class MultistartResult:
         return dict(sorted(Counter(s.status for s in self.starts).items()))
 
     def distinct_optima(
-        self, obj_tol: float = 1e-5, traj_tol: float = 1e-2
+        self, objective_tol: float = 1e-5, traj_tol: float = 1e-2
     ) -> tuple[LocalOptimum, ...]:
         """Cluster converged starts into distinct local optima.
 
         Starts are taken in order of increasing objective; each joins the first
-        cluster whose lowest member is within ``obj_tol`` (relative,
-        ``|f - f_c| <= obj_tol max(1, |f_c|)``) in objective and within
+        cluster whose lowest member is within ``objective_tol`` (relative,
+        ``|f - f_c| <= objective_tol max(1, |f_c|)``) in objective and within
         ``traj_tol`` in :func:`trajectory_distance`, else starts a new cluster.
         With ``keep_results=False`` the default tolerances return the optima
         the sweep chose (members read from the folder when asked for); other
@@ -330,7 +330,7 @@ class MultistartResult:
 
         Parameters
         ----------
-        obj_tol : float
+        objective_tol : float
             Relative objective tolerance (> 0).
         traj_tol : float
             Trajectory distance tolerance in [rad] (> 0).
@@ -340,29 +340,30 @@ class MultistartResult:
         tuple of LocalOptimum
             Sorted by objective, lowest first.
         """
-        if not (obj_tol > 0 and traj_tol > 0):
+        if not (objective_tol > 0 and traj_tol > 0):
             raise ParameterError(
-                f"obj_tol and traj_tol must be > 0, got {obj_tol!r}, {traj_tol!r}", name="obj_tol"
+                f"objective_tol and traj_tol must be > 0, got {objective_tol!r}, {traj_tol!r}",
+                name="objective_tol",
             )
-        if self.tally is not None and (obj_tol, traj_tol) == _DEFAULT_TOLS:
+        if self.tally is not None and (objective_tol, traj_tol) == _DEFAULT_TOLS:
             return self.tally.optima
         clusters = cluster_optima(
             self.converged,
             objective=lambda s: s.objective,
             distance=_start_distance,
-            obj_tol=obj_tol,
+            obj_tol=objective_tol,
             dist_tol=traj_tol,
         )
         return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
 
     def summary(
-        self, obj_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
+        self, objective_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
     ) -> dict[str, Any]:
         """JSON-ready summary: rates, status counts, best start, distinct optima, every start.
 
         Parameters
         ----------
-        obj_tol, traj_tol : float
+        objective_tol, traj_tol : float
             Tolerances of :meth:`distinct_optima`.
         starts : bool, optional
             Include every start's figures (``"starts"``) and every optimum's
@@ -386,7 +387,7 @@ class MultistartResult:
             "wall_time_s": self.wall_time,
             "best": None if best is None else best.summary(),
             "distinct_optima": [
-                o.summary(seeds=full) for o in self.distinct_optima(obj_tol, traj_tol)
+                o.summary(seeds=full) for o in self.distinct_optima(objective_tol, traj_tol)
             ],
         }
         if full:
