@@ -568,12 +568,14 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
+    from youbot_opt.trajopt.objectives import check_beta
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     if args.starts < 1:
         raise ParameterError(f"--starts must be >= 1, got {args.starts}", name="starts")
     if args.knots < 2:
         raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
+    check_beta(args.beta)  # before the NLP is built (the solve checks it with the same rule)
     problem = _problem(args)
     check_trajopt_size(
         n_knots=args.knots,
