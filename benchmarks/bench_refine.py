@@ -129,9 +129,9 @@ def refined_vs_uniform(grids: list[int], tolerance: float, repeats: int) -> dict
     assert result is not None
     med = statistics.median
     refined = {
-        "knots": result.problem.n_knots,
-        "f": result.objective,
-        "error": abs(result.objective - F_STAR),
+        "knots": result.result.problem.n_knots,
+        "f": result.result.objective,
+        "error": abs(result.result.objective - F_STAR),
         "cpu_s": med(refined_cpu),
         "wall_s": med(refined_wall),
         "certified": result.certified,

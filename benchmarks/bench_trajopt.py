@@ -282,7 +282,7 @@ def _compressed_hs(solver: TrajOptSolver) -> dict[str, float]:
     and the sizes. The derivatives are CasADi's (exact Hessian), which does
     not change the iterates, only the function time that is subtracted.
     """
-    from youbot_opt.trajopt.objectives import quadrature_weights
+    from youbot_opt.trajopt.quadrature import quadrature_weights
 
     problem = solver.problem
     fd = solver.dynamics.forward_dynamics
@@ -354,7 +354,7 @@ def fatrop_trapezoid(solver: TrajOptSolver, repeats: int = 5) -> dict[str, Any]:
     solves, the CPU inside the NLP functions, iterations, objective and
     CasADi's success flag.
     """
-    from youbot_opt.trajopt.objectives import quadrature_weights
+    from youbot_opt.trajopt.quadrature import quadrature_weights
 
     problem = solver.problem
     fd = solver.dynamics.forward_dynamics

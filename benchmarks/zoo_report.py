@@ -227,13 +227,14 @@ def run_robot(
         )
         solver = TrajOptSolver(problem, method, compile=False)
         row.scheme = solver.method.name
-        result = refine(solver, beta=0.5, budget=budget(time_limit), progress=_progress(row))
+        result, refinement = refine(
+            solver, beta=0.5, budget=budget(time_limit), progress=_progress(row)
+        )
     except YoubotOptError as exc:
         row.solves = "no" if row.solves == "-" else row.solves
         row.why = f"build/solve error: {_short(exc)}"
         row.seconds = time.perf_counter() - tic
         return row
-    refinement = result.refinement
     if refinement is not None:
         row.certified = "yes" if refinement.certified else "no"
         if not refinement.certified:

@@ -10,6 +10,8 @@ layers only; two packages of one layer do not import each other.
 from __future__ import annotations
 
 import ast
+import itertools
+import os
 from pathlib import Path
 
 import pytest
@@ -228,3 +230,67 @@ def test_the_rules_catch_violations(tmp_path, source, expected):
             check()
     finally:
         del MODULES[planted], GRAPH[planted]
+
+
+def _twins(a: str, b: str) -> bool:
+    """Whether module names ``a`` and ``b`` are one stem and its derivative (certificate, certify).
+
+    Leading words they share are dropped (``sweep`` / ``sweep_store`` is a compound,
+    not a twin); the first remaining words are twins when they share a prefix of at
+    least four letters and three quarters of the shorter (refine / refinement), a
+    plural or a number aside (robot_args / robots, study1 / study_guess).
+    """
+    wa, wb = a.strip("_").split("_"), b.strip("_").split("_")
+    while wa and wb and wa[0] == wb[0]:
+        wa, wb = wa[1:], wb[1:]
+    if not wa or not wb:
+        return False
+    x, y = wa[0], wb[0]
+    n = len(os.path.commonprefix([x, y]))
+    if {x[n:], y[n:]} <= {"", "s"} or x[n:].isdigit() or y[n:].isdigit():
+        return False  # a plural or a number (robots, study1) is not a derivative
+    return n >= 4 and n >= 0.75 * min(len(x), len(y))
+
+
+def test_no_twin_modules():
+    """No concept split into twin modules (ARCHITECTURE.md rule 1: move ownership instead).
+
+    No two modules of one package are one stem and its derivative (``certificate`` +
+    ``certify``, ``refine`` + ``refinement``), and no module name appears both in a
+    package and in its subpackage (``trajopt/radau.py`` + ``trajopt/transcription/radau.py``).
+    """
+    stems: dict[Path, set[str]] = {}
+    for path in MODULES.values():
+        if path.name != "__init__.py":
+            stems.setdefault(path.parent, set()).add(path.stem)
+    bad = [
+        f"{folder.relative_to(PACKAGE)}: {a}.py and {b}.py"
+        for folder, names in stems.items()
+        for a, b in itertools.combinations(sorted(names), 2)
+        if _twins(a, b)
+    ]
+    bad += [
+        f"{sub.relative_to(PACKAGE)}/{name}.py and {folder.relative_to(PACKAGE)}/{name}.py"
+        for folder, names in stems.items()
+        for sub, inner in stems.items()
+        if sub.parent == folder
+        for name in sorted(names & inner)
+    ]
+    assert not bad, "twin modules (one concept in two modules):\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "twins"),
+    [
+        ("certificate", "certify", True),
+        ("refine", "refinement", True),
+        ("sweep", "sweep_store", False),
+        ("spatial_io", "spatial_ipopt", False),
+        ("guess", "spline_guess", False),
+        ("robot_args", "robots", False),
+        ("study1", "study_guess", False),
+    ],
+)
+def test_twin_rule_tells_stems_from_compounds(a: str, b: str, twins: bool) -> None:
+    """The twin rule flags a stem and its derivative, never a compound name."""
+    assert _twins(a, b) is twins

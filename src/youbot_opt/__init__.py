@@ -60,11 +60,17 @@ if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
     from youbot_opt.sweeps.options import SweepOptions
     from youbot_opt.trajopt.bound_scaling import BoundScalingResult, bound_scaling_study
     from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
-    from youbot_opt.trajopt.io import load_result, save_result
+    from youbot_opt.trajopt.io import load_refined, load_result, save_result
     from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
     from youbot_opt.trajopt.pareto import ParetoFront, pareto_sweep
     from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
-    from youbot_opt.trajopt.refine import Refinement, RefinementBudget, RefinementRound, refine
+    from youbot_opt.trajopt.refine import (
+        Refined,
+        Refinement,
+        RefinementBudget,
+        RefinementRound,
+        refine,
+    )
     from youbot_opt.trajopt.result import TrajOptResult
     from youbot_opt.trajopt.solver import TrajOptSolver
     from youbot_opt.trajopt.spline_guess import random_spline_guess
@@ -108,11 +114,13 @@ _LAZY: dict[str, str] = {
     "TrajOptResult": "youbot_opt.trajopt.result",
     "save_result": "youbot_opt.trajopt.io",
     "load_result": "youbot_opt.trajopt.io",
+    "load_refined": "youbot_opt.trajopt.io",
     # independent checks
     "Certificate": "youbot_opt.trajopt.certify",
     "Tolerances": "youbot_opt.trajopt.certify",
     "certify": "youbot_opt.trajopt.certify",
     # adaptive mesh refinement until certified
+    "Refined": "youbot_opt.trajopt.refine",
     "Refinement": "youbot_opt.trajopt.refine",
     "RefinementBudget": "youbot_opt.trajopt.refine",
     "RefinementRound": "youbot_opt.trajopt.refine",
@@ -187,9 +195,11 @@ __all__ = [
     "TrajOptResult",
     "save_result",
     "load_result",
+    "load_refined",
     "Certificate",
     "Tolerances",
     "certify",
+    "Refined",
     "Refinement",
     "RefinementBudget",
     "RefinementRound",

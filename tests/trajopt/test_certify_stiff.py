@@ -5,14 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.refine import RefinementBudget, predicted_knots, refine
-from youbot_opt.trajopt.simulate import (
-    STIFF_RATIO,
-    damping_rate,
-    integrate_intervals,
-    integration_method,
-)
+from youbot_opt.trajopt.simulate import integrate_intervals, integration_method
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 
@@ -89,9 +85,9 @@ def test_predicted_knots_count_pieces_at_each_exponent() -> None:
 def test_refinement_of_a_stiff_arm_says_why_with_numbers() -> None:
     """youBot with 5 N m s/rad damping on 8 knots: the reason names the stiff joint and its rate."""
     problem = study1_problem(8, damping=5.0)
-    result = refine(TrajOptSolver(problem), budget=RefinementBudget(max_rounds=1))
-    assert not result.certified
-    reason = result.refinement.reason  # type: ignore[union-attr]
+    result, refinement = refine(TrajOptSolver(problem), budget=RefinementBudget(max_rounds=1))
+    assert not refinement.certified
+    reason = refinement.reason
     rate = damping_rate(problem.robot, result.trajectory.q).rate  # type: ignore[union-attr]
     assert rate > 1e3  # [1/s]: stiff on a 0.3 s grid
     assert f"stiff joint damping: arm_joint_3 relaxes at up to {rate:.3g} 1/s" in reason

@@ -23,7 +23,6 @@ from youbot_opt.robot.catalogue import youbot_urdf_path
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.source import RobotSource, urdf_digest
 from youbot_opt.trajopt.io import load_result, save_result
-from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import solve
@@ -149,7 +148,6 @@ def test_a_lenient_robot_with_a_locked_joint_round_trips(tmp_path: Path) -> None
             start=BoundaryState(q=np.array([-0.5, -0.5])),
             goal=BoundaryState(q=np.array([0.5, 0.5])),
             n_knots=6,
-            objective=Objective(beta=0.5),
         )
         result = solve(problem, options=_CHEAP, seed=2)
         save_result(result, folder / "result.npz")

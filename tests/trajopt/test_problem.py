@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,8 +10,10 @@ import pytest
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.trajopt.objectives import Objective, quadrature_weights, work
+from youbot_opt.trajopt.objectives import objective_value, work
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.quadrature import quadrature_weights
+from youbot_opt.trajopt.solver import TrajOptSolver
 
 # The study's data sheet (spec trajopt.md, "Joint limits"), typed in here
 # independently of youbot_opt.robot.params.
@@ -26,13 +29,13 @@ def problem(youbot):
 
 
 def test_study1_boundary_and_size(problem):
-    """study1_problem has the spec's start, goal, rest velocities, 50 knots and beta 0.5."""
+    """study1_problem has the spec's start, goal, rest velocities and 50 knots (no beta)."""
     np.testing.assert_allclose(problem.start.q, [-math.pi / 6, -math.pi / 6, -math.pi / 3], atol=0)
     np.testing.assert_allclose(problem.goal.q, [math.pi / 6, math.pi / 6, math.pi / 3], atol=0)
     np.testing.assert_array_equal(problem.start.v, np.zeros(3))
     np.testing.assert_array_equal(problem.goal.v, np.zeros(3))
     assert problem.n_knots == 50
-    assert problem.objective.beta == 0.5
+    assert not hasattr(problem, "objective")  # beta is a solve-time parameter
     assert problem.duration is None
 
 
@@ -137,17 +140,18 @@ def test_bad_bound_scale(problem, scale):
 
 
 @pytest.mark.parametrize("beta", [-0.1, 1.5, math.nan, "x"])
-def test_bad_beta(beta):
-    """beta outside [0, 1] or not a number raises ParameterError."""
+def test_bad_beta(beta, problem):
+    """beta outside [0, 1] or not a number raises ParameterError where it enters: solve()."""
+    solver = TrajOptSolver(dataclasses.replace(problem, n_knots=4))
     with pytest.raises(ParameterError, match="beta"):
-        Objective(beta=beta)
+        solver.solve(beta=beta)
 
 
-def test_objective_presets():
-    """Objective.time() is beta = 1, Objective.work() beta = 0, and value() weighs the terms."""
-    assert Objective.time().beta == 1.0
-    assert Objective.work().beta == 0.0
-    assert Objective(beta=0.25).value(2.0, 10.0) == pytest.approx(0.25 * 2.0 + 0.75 * 10.0)
+def test_objective_value_weighs_the_terms():
+    """objective_value(T, W, beta) is beta T + (1 - beta) W; beta = 1 is T, beta = 0 is W."""
+    assert objective_value(2.0, 10.0, 1.0) == 2.0
+    assert objective_value(2.0, 10.0, 0.0) == 10.0
+    assert objective_value(2.0, 10.0, 0.25) == pytest.approx(0.25 * 2.0 + 0.75 * 10.0)
 
 
 def test_trapezoidal_work_is_the_study_formula(rng):

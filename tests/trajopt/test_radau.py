@@ -17,13 +17,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from youbot_opt.dynamics.numeric import damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.trajopt import radau
+from youbot_opt.trajopt import quadrature
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.mesh_error import collocation_error, interval_errors
 from youbot_opt.trajopt.refine import RefinementBudget, refine
-from youbot_opt.trajopt.simulate import damping_rate
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 
@@ -41,13 +41,15 @@ STIFF = 5.0  # [N m s/rad] youBot joint damping that makes the damping stiff on 
 
 def test_butcher_table_and_order_conditions() -> None:
     """A is the published table (1e-15); b . c^(k-1) = 1/k to k = 5; A c^(k-1) = c^k / k to 3."""
-    np.testing.assert_allclose(radau.BUTCHER, BUTCHER, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(radau.NODES, [(4 - S6) / 10, (4 + S6) / 10, 1.0], atol=1e-16)
-    c, b = radau.NODES, radau.WEIGHTS
+    np.testing.assert_allclose(quadrature.RADAU_BUTCHER, BUTCHER, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        quadrature.RADAU_NODES, [(4 - S6) / 10, (4 + S6) / 10, 1.0], atol=1e-16
+    )
+    c, b = quadrature.RADAU_NODES, quadrature.RADAU_WEIGHTS
     for k in range(1, 6):  # quadrature order 2s - 1 = 5
         assert b @ c ** (k - 1) == pytest.approx(1.0 / k, abs=1e-15)
     for k in range(1, 4):  # stage order s = 3
-        np.testing.assert_allclose(radau.BUTCHER @ c ** (k - 1), c**k / k, atol=1e-15)
+        np.testing.assert_allclose(quadrature.RADAU_BUTCHER @ c ** (k - 1), c**k / k, atol=1e-15)
     assert b @ c**5 != pytest.approx(1.0 / 6, abs=1e-6)  # and not beyond: the check can fail
 
 
@@ -59,8 +61,8 @@ def test_l_stability() -> None:
     """
 
     def r(z: complex) -> complex:
-        stages = np.linalg.solve(np.eye(3) - z * radau.BUTCHER, np.ones(3))
-        return complex(1 + z * radau.WEIGHTS @ stages)
+        stages = np.linalg.solve(np.eye(3) - z * quadrature.RADAU_BUTCHER, np.ones(3))
+        return complex(1 + z * quadrature.RADAU_WEIGHTS @ stages)
 
     assert abs(r(-1e6)) < 1e-5
     hs = (1 - 1e6 / 2 + 1e12 / 12) / (1 + 1e6 / 2 + 1e12 / 12)  # HS: (1 + z/2 + z^2/12) / (...)
@@ -73,10 +75,10 @@ def test_l_stability() -> None:
 def test_bernstein_rows_recover_a_cubics_control_points() -> None:
     """A cubic built from Bernstein points b: its values at (0, c1, c2, 1) map back to b1, b2."""
     b = np.array([0.3, -1.2, 2.5, 0.7])
-    s = np.concatenate(([0.0], radau.NODES))
+    s = np.concatenate(([0.0], quadrature.RADAU_NODES))
     values = [sum(b[i] * comb(3, i) * x**i * (1 - x) ** (3 - i) for i in range(4)) for x in s]
-    np.testing.assert_allclose(radau.bernstein_inner() @ values, b[1:3], atol=1e-14)
-    np.testing.assert_allclose(radau.bernstein_inner().sum(axis=1), 1.0, atol=1e-14)
+    np.testing.assert_allclose(quadrature.radau_bernstein_inner() @ values, b[1:3], atol=1e-14)
+    np.testing.assert_allclose(quadrature.radau_bernstein_inner().sum(axis=1), 1.0, atol=1e-14)
 
 
 def _radau_slider(rng: np.random.Generator, n: int) -> tuple:
@@ -98,8 +100,8 @@ def _radau_slider(rng: np.random.Generator, n: int) -> tuple:
 
 def _abs_node_polynomial() -> float:
     """Exact integral over [0, 1] of |(s - c1)(s - c2)(s - 1)| (split at its roots)."""
-    poly = np.polynomial.Polynomial.fromroots(radau.NODES).integ()
-    edges = np.concatenate(([0.0], radau.NODES))
+    poly = np.polynomial.Polynomial.fromroots(quadrature.RADAU_NODES).integ()
+    edges = np.concatenate(([0.0], quadrature.RADAU_NODES))
     return float(sum(abs(poly(b) - poly(a)) for a, b in zip(edges[:-1], edges[1:], strict=True)))
 
 
@@ -121,7 +123,12 @@ def test_radau_error_on_a_double_integrator(slider: pin.Model) -> None:
     t, q, v, tau, stages = _radau_slider(rng, 6)
     h = np.diff(t)
     acc = np.concatenate([stages[2][:, :, 0], tau[1:]], axis=1) / MASS  # (n - 1, 3)
-    lead = np.array([1.0 / np.prod([c - d for d in radau.NODES if d != c]) for c in radau.NODES])
+    lead = np.array(
+        [
+            1.0 / np.prod([c - d for d in quadrature.RADAU_NODES if d != c])
+            for c in quadrature.RADAU_NODES
+        ]
+    )
     scale = h**2 * np.abs(acc @ lead) / 3.0
     fine = interval_errors(
         "radau", t, q, v, tau, slider, stages=stages, damping=False, segments=256
@@ -133,7 +140,7 @@ def test_radau_error_on_a_double_integrator(slider: pin.Model) -> None:
     nodes = np.concatenate([(j + 0.5 * (x + 1.0)) / 4 for j in range(4)])
     weights = np.concatenate([0.5 * w / 4] * 4)
     rule = float(weights @ np.abs(np.polynomial.polynomial.polyval(
-        nodes, np.polynomial.polynomial.polyfromroots(radau.NODES))))  # fmt: skip
+        nodes, np.polynomial.polynomial.polyfromroots(quadrature.RADAU_NODES))))  # fmt: skip
     np.testing.assert_allclose(err.absolute[:, 0], scale * rule, rtol=1e-12)
     with pytest.raises(ParameterError, match="stage values"):
         interval_errors("radau", t, q, v, tau, slider, damping=False)
@@ -155,7 +162,7 @@ def test_trajectory_interpolates_knots_and_stages() -> None:
         v_stages=v_st, a_stages=tau_st / MASS, tau_stages=tau_st,
     )  # fmt: skip
     h = np.diff(t)
-    for i, c in enumerate(radau.NODES[:2]):
+    for i, c in enumerate(quadrature.RADAU_NODES[:2]):
         ts = t[:-1] + c * h
         np.testing.assert_allclose(traj(ts), q_st[:, i], atol=1e-12)
         np.testing.assert_allclose(traj.velocity(ts), v_st[:, i], atol=1e-12)
@@ -165,9 +172,11 @@ def test_trajectory_interpolates_knots_and_stages() -> None:
     ends = traj.interval_values(np.array([0.0, 1.0]))
     np.testing.assert_allclose(ends[:, 1, 2], tau[1:, 0], atol=1e-12)  # left limits
     nodes_tau = np.concatenate([tau_st[:, :, 0], tau[1:]], axis=1)
-    extrapolated = nodes_tau @ radau.AT_ZERO
+    extrapolated = nodes_tau @ quadrature.RADAU_AT_ZERO
     np.testing.assert_allclose(traj.torque(t[1:-1])[:, 0], extrapolated[1:], atol=1e-12)
-    ts = t[:-1] + radau.NODES[0] * h  # collocation: q' of the interpolant is v at the nodes
+    ts = (
+        t[:-1] + quadrature.RADAU_NODES[0] * h
+    )  # collocation: q' of the interpolant is v at the nodes
     dq = (traj(ts + 1e-6) - traj(ts - 1e-6)) / 2e-6
     np.testing.assert_allclose(dq, traj.velocity(ts), atol=1e-6)
     mid = 0.5 * (t[:-1] + t[1:])  # ... and only there (the collocation residual)
@@ -211,8 +220,10 @@ def test_stiff_damping_radau_refines_to_a_certified_plan(stiff_plans: dict) -> N
     here by ``certify``.
     """
     problem = study1_problem(20, damping=STIFF)
-    result = refine(TrajOptSolver(problem, "radau"), beta=0.5, budget=RefinementBudget())
-    assert result.certified, result.refinement.reason  # type: ignore[union-attr]
+    result, refinement = refine(
+        TrajOptSolver(problem, "radau"), beta=0.5, budget=RefinementBudget()
+    )
+    assert refinement.certified, refinement.reason
     assert result.problem.n_knots <= 100
     assert result.objective == pytest.approx(33.2369, abs=2e-3)
     assert certify(result).passed()
@@ -228,14 +239,14 @@ def test_command_line_solve_with_radau(tmp_path: Path) -> None:
     import json
 
     from youbot_opt.cli import main
-    from youbot_opt.trajopt.io import load_result
+    from youbot_opt.trajopt.io import load_refined
 
     out = tmp_path / "run"
     assert main(["solve", "--transcription", "radau", "--knots", "12", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["method"] == "radau" and summary["certified"] is True, summary.get("certified")
-    result = load_result(out / "result.npz")
-    assert result.method == "radau" and result.certified
+    result, refinement = load_refined(out / "result.npz")
+    assert result.method == "radau" and refinement.certified
     assert result.objective == pytest.approx(summary["objective"], rel=1e-12)
     assert result.trajectory is not None and result.trajectory.tau_stages is not None
     assert result.trajectory.tau_stages.shape == (result.problem.n_knots - 1, 2, 3)
@@ -269,7 +280,7 @@ def test_auto_picks_radau_where_the_damping_is_stiff_on_the_grid() -> None:
     about 970 (the rate is 3.8e3 1/s at the start and goal): stiff. 2000 knots
     give 2.5e-3 s and about 9; without damping the rate is 0.
     """
-    from youbot_opt.trajopt.simulate import STIFF_RATIO
+    from youbot_opt.dynamics.numeric import STIFF_RATIO
     from youbot_opt.trajopt.solver import auto_transcription
 
     stiff = study1_problem(20, damping=STIFF)

@@ -13,11 +13,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from youbot_opt.exceptions import ParameterError, SolveFailed
+from youbot_opt.exceptions import ParameterError, ResultFileError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.certify import certify, check_bounds
-from youbot_opt.trajopt.io import load_result, save_result
+from youbot_opt.trajopt.io import load_refined, load_result, save_result
 from youbot_opt.trajopt.mesh_error import collocation_error, interval_errors
 from youbot_opt.trajopt.refine import (
     RefinementBudget,
@@ -174,9 +174,8 @@ def test_refinement_certifies_the_base_case(base_refined):
     tolerance. f is within 0.5 % of the converged optimum (the 50-knot grid is
     2.4 % above it), T within 1 %.
     """
-    r = base_refined
-    record = r.refinement
-    assert r.certified and record.reason == "certified" and r.success
+    r, record = base_refined
+    assert base_refined.certified and record.reason == "certified" and r.success
     assert record.rounds[0].n_knots == 50 and record.rounds[0].certificate_passed is False
     assert certify(r).ok
     assert collocation_error(r).max <= record.budget.tolerance
@@ -191,14 +190,17 @@ def test_refined_result_round_trips_through_a_file(base_refined, tmp_path):
 
     Every round's scalars and arrays come back exactly (JSON floats and npz
     arrays are lossless), and the certificate re-run on load passes. The
-    same plan saved without its record (a fixed-grid result) is never
-    certified, and ``require_certified`` says so.
+    same plan saved without its record (a fixed-grid result) loads as a bare
+    result, and has no record to load as refined.
     """
-    loaded = load_result(save_result(base_refined, tmp_path / "r.npz"))
-    np.testing.assert_array_equal(loaded.grid, base_refined.grid)
-    np.testing.assert_array_equal(loaded.trajectory.t, base_refined.trajectory.t)
-    assert loaded.success and loaded.check().passed
+    path = save_result(base_refined.result, tmp_path / "r.npz", refinement=base_refined.refinement)
+    loaded = load_refined(path)
+    result = base_refined.result
+    np.testing.assert_array_equal(loaded.result.grid, result.grid)
+    np.testing.assert_array_equal(loaded.result.trajectory.t, result.trajectory.t)
+    assert loaded.result.success and loaded.result.check().passed
     assert loaded.certified and loaded.refinement.certificate.ok
+    assert load_result(path).summary() == loaded.result.summary() | {"certified": False}
     saved, back = base_refined.refinement, loaded.refinement
     assert back.reason == saved.reason and back.budget == saved.budget
     assert len(back.rounds) == len(saved.rounds)
@@ -206,12 +208,11 @@ def test_refined_result_round_trips_through_a_file(base_refined, tmp_path):
         assert a.summary() == b.summary()
         np.testing.assert_array_equal(a.t, b.t)
         np.testing.assert_array_equal(a.errors, b.errors)
-    assert loaded.require_certified() is loaded
-    unrefined = dataclasses.replace(base_refined, refinement=None)
-    fixed = load_result(save_result(unrefined, tmp_path / "f"))
-    assert fixed.refinement is None and not fixed.certified
-    with pytest.raises(SolveFailed, match="NOT certified: a fixed-grid result"):
-        fixed.require_certified()
+    assert loaded.require_certified() is loaded.result
+    fixed_path = save_result(result, tmp_path / "f")
+    assert not load_result(fixed_path).summary()["certified"]
+    with pytest.raises(ResultFileError, match="no refinement record"):
+        load_refined(fixed_path)
 
 
 def test_refinement_plot_shows_every_round(base_refined):
@@ -222,7 +223,7 @@ def test_refinement_plot_shows_every_round(base_refined):
     labels = [line.get_label() for line in fig.axes[1].get_legend().get_texts()]
     assert len(labels) == len(base_refined.refinement.rounds) + 1  # + the tolerance line
     with pytest.raises(ParameterError, match="not refined"):
-        plot_refinement(dataclasses.replace(base_refined, refinement=None))
+        plot_refinement(base_refined.result)  # type: ignore[arg-type]
 
 
 def test_refinement_drives_the_coarse_grid_exploit_to_the_true_family():
@@ -232,11 +233,12 @@ def test_refinement_drives_the_coarse_grid_exploit_to_the_true_family():
     errors of ~15 rad; refinement must land in the true family (f within 1 %
     of the converged optimum, T within 2 %) and pass the certificate.
     """
-    r = refine(TrajOptSolver(study1_problem(8), "trapezoidal"), beta=0.5)
-    first = r.refinement.rounds[0]
+    refined = refine(TrajOptSolver(study1_problem(8), "trapezoidal"), beta=0.5)
+    r = refined.result
+    first = refined.refinement.rounds[0]
     assert first.status == "solved" and first.objective < 0.8 * F_CONVERGED
     assert first.certificate_passed is False and first.local_position > 1.0
-    assert r.certified and certify(r).ok
+    assert refined.certified and certify(r).ok
     assert r.objective == pytest.approx(F_CONVERGED, rel=1e-2)
     assert r.duration == pytest.approx(T_CONVERGED, rel=2e-2)
 
@@ -244,14 +246,15 @@ def test_refinement_drives_the_coarse_grid_exploit_to_the_true_family():
 def test_exhausted_budget_says_which_check_failed():
     """One round allowed on the 50-knot grid: not certified, and the reason names the budget."""
     budget = RefinementBudget(tolerance=1e-3, max_rounds=1)
-    r = refine(TrajOptSolver(study1_problem(50), "trapezoidal"), beta=0.5, budget=budget)
-    assert r.success and not r.certified
-    reason = r.refinement.reason
+    refined = refine(TrajOptSolver(study1_problem(50), "trapezoidal"), beta=0.5, budget=budget)
+    r = refined.result
+    assert r.success and not refined.certified
+    reason = refined.refinement.reason
     assert reason.startswith("not certified: max error") and "at most 1 rounds" in reason
     assert reason in r.message
     assert r.raise_for_status() is r  # the solve itself succeeded
     with pytest.raises(SolveFailed, match="solved, NOT certified: max error .* rounds"):
-        r.require_certified()
+        refined.require_certified()
     with pytest.raises(ParameterError, match="max_rounds"):
         RefinementBudget(max_rounds=0)
     with pytest.raises(ParameterError, match="safety"):
@@ -387,7 +390,7 @@ def test_the_time_limit_caps_a_rounds_solve_and_keeps_the_last_plan(monkeypatch)
     budget = RefinementBudget(tolerance=1e-6, time_limit=600.0)  # round 0 fails its errors
     r = refine(solver, first=plan, budget=budget)
     assert len(caps) == 1 and caps[0] is not None and 0.0 < caps[0] <= 600.0
-    assert r.success and not r.certified and r.problem.n_knots == 12  # round 0's plan
+    assert r.result.success and not r.certified and r.result.problem.n_knots == 12  # round 0's
     assert len(r.refinement.rounds) == 1
     assert "the time limit ran out in round 1's solve" in r.refinement.reason
     assert "round 0's plan is returned" in r.refinement.reason

@@ -74,8 +74,8 @@ def test_iteration_cap_is_a_failure_with_the_last_iterate(youbot, max_iter) -> N
 
 def test_cpu_time_cap_is_a_failure(youbot) -> None:
     """max_cpu_time = 1 ms (below one iteration's cost): status max_time."""
-    problem = study1_problem(30, robot=youbot, beta=0.2)
-    result = TrajOptSolver(problem, options=IpoptOptions(max_cpu_time=1e-3)).solve()
+    problem = study1_problem(30, robot=youbot)
+    result = TrajOptSolver(problem, options=IpoptOptions(max_cpu_time=1e-3)).solve(beta=0.2)
     _assert_failed(result, SolveStatus.MAX_TIME)
 
 

@@ -16,7 +16,6 @@ from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.certify import check_bounds as certify_bounds
-from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import SolveStatus
 from youbot_opt.trajopt.solver import TrajOptSolver, solve
@@ -57,13 +56,12 @@ def slider(tmp_path_factory):
     return load_model(path)
 
 
-def _slider_problem(slider, n, objective):
+def _slider_problem(slider, n):
     return TrajOptProblem(
         robot=slider,
         start=BoundaryState(q=[0.0]),
         goal=BoundaryState(q=[SLIDER_DISTANCE]),
         n_knots=n,
-        objective=objective,
     )
 
 
@@ -319,8 +317,8 @@ def test_double_integrator_minimum_time(slider, n):
     1/M^2 for M intervals (measured ~0.98/M^2).
     """
     t_star = 2 * np.sqrt(SLIDER_DISTANCE / (SLIDER_FORCE / SLIDER_MASS))
-    hs = solve(_slider_problem(slider, n, Objective.time()), method="hermite_simpson")
-    tr = solve(_slider_problem(slider, n, Objective.time()), method="trapezoidal")
+    hs = solve(_slider_problem(slider, n), method="hermite_simpson", beta=1.0)
+    tr = solve(_slider_problem(slider, n), method="trapezoidal", beta=1.0)
     assert hs.success and tr.success
     assert hs.duration == pytest.approx(t_star, rel=1e-7)
     assert 0 < tr.duration / t_star - 1 <= 1.05 / (n - 1) ** 2
@@ -337,8 +335,8 @@ def test_double_integrator_time_and_work_and_method_agreement(slider):
     f_star = beta * t_star + (1 - beta) * 12 * m**2 * d**2 / t_star**3
     gaps = []
     for n in (6, 11, 21):
-        hs = solve(_slider_problem(slider, n, Objective(beta=beta)), method="hermite_simpson")
-        tr = solve(_slider_problem(slider, n, Objective(beta=beta)))
+        hs = solve(_slider_problem(slider, n), method="hermite_simpson", beta=beta)
+        tr = solve(_slider_problem(slider, n), beta=beta)
         assert hs.success and tr.success
         assert hs.duration == pytest.approx(t_star, rel=1e-8)
         assert hs.objective == pytest.approx(f_star, rel=1e-8)

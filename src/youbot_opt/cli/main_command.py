@@ -53,28 +53,34 @@ def _run(args: argparse.Namespace) -> int:
     grid = "refined from 50 knots" if args.refine else "50 fixed knots"
     print(f"youbot_opt {__version__}: study-1 base case (beta = 0.5, {grid}, trapezoidal, "
           "straight-line start)\n")  # fmt: skip
-    solver = TrajOptSolver(study1_problem(50, beta=0.5), "trapezoidal")
+    solver = TrajOptSolver(study1_problem(50), "trapezoidal")
     result = solver.solve(beta=0.5)
     nlp = solver.nlp
     print(f"NLP build     {solver.build_time:.3f} s "
           f"({nlp.n_variables} variables, {nlp.n_equalities} equalities, 50 knots)")  # fmt: skip
-    result = refine_result(solver, result, args)
-    certificate = certificate_of(result)
-    print(format_result(result, certificate))
+    refined = refine_result(solver, result, args)
+    record = None
+    if refined is not None:
+        result, record = refined
+    certificate = certificate_of(result, record)
+    print(format_result(result, certificate, refinement=record))
     if result.success and certificate is not None and not certificate.passed():
         print("\nnote: IPOPT solved the NLP, but the arm cannot follow this plan within the "
               "certificate's tolerances:\n      the fixed 50-knot trapezoidal grid is too "
               "coarse here. Without --no-refine the grid\n      is refined until the plan "
               "passes.")  # fmt: skip
-    summary = {**result.summary(), "build_time_s": solver.build_time}
+    summary = {
+        **(result.summary() if refined is None else refined.summary()),
+        "build_time_s": solver.build_time,
+    }
     if certificate is not None:
         summary["certificate"] = certificate.summary()
     summary["active_bounds"] = (
         len(result.active_bounds(1e-6)) if result.trajectory is not None else 0
     )
     folder = open_folder("main", args.out)
-    files = write_solve_outputs(folder, result, summary)
+    files = write_solve_outputs(folder, result, summary, refinement=record)
     print()
     report_outputs(folder, files, as_json=False)
     print(f"main job done in {time.perf_counter() - tic:.2f} s")
-    return 0 if result.success and (result.refinement is None or result.certified) else 1
+    return 0 if result.success and (record is None or record.certified) else 1

@@ -209,9 +209,16 @@ def refinement_budget(args: argparse.Namespace) -> Any:
 
 
 def refine_result(solver: Any, result: Any, args: argparse.Namespace, quiet: bool = False) -> Any:
-    """Refine ``result`` (solved on ``solver``'s grid) unless ``--no-refine``; progress: stderr."""
+    """Refine ``result`` (solved on ``solver``'s grid) unless ``--no-refine``; progress: stderr.
+
+    Returns
+    -------
+    Refined or None
+        :func:`~youbot_opt.trajopt.refine.refine`'s result and record; None with
+        ``--no-refine`` or when there is no trajectory to refine.
+    """
     if not getattr(args, "refine", False) or result is None or result.trajectory is None:
-        return result
+        return None
     from youbot_opt.trajopt.refine import refine
 
     def progress(r: Any) -> None:
@@ -234,8 +241,9 @@ def refine_many(
 
     Returns
     -------
-    refined : list of TrajOptResult
-        The refined results, in order.
+    refined : list of (TrajOptResult, Refinement or None)
+        The refined results and their records, in order (the record is None
+        for a result without a trajectory, left as it was).
     lines : list of str
         One table line per result: label, knots, ``f``, ``T``, certified or why not.
     summaries : list of dict
@@ -251,10 +259,16 @@ def refine_many(
     for label, result in items:
         if not quiet:
             print(f"refine: {label}", file=sys.stderr, flush=True)
-        r = refine_result(solver, result, args, quiet=True)
-        refined.append(r)
-        record = r.refinement
-        verdict = "yes" if r.certified else ("no: " + record.reason if record else "no trajectory")
+        done = refine_result(solver, result, args, quiet=True)
+        r, record = (result, None) if done is None else done
+        refined.append((r, record))
+        verdict = (
+            "no trajectory"
+            if record is None
+            else "yes"
+            if record.certified
+            else "no: " + record.reason
+        )
         lines.append(
             f"  {label:<14} {r.problem.n_knots:>6} {r.objective:>12.6f} {r.duration:>9.4f}  "
             f"{verdict}"
@@ -274,22 +288,21 @@ def refinement_figures(folder: Path, refined: list[Any], labels: list[str]) -> l
 
     if not refined:
         return []
-    done = [(r, label) for r, label in zip(refined, labels, strict=True) if r.refinement]
+    done = [(record, label) for (_, record), label in zip(refined, labels, strict=True) if record]
     return [
         draw_figure(
             folder,
             "refinement.png" if len(done) == 1 else f"refinement_{k}.png",
             plot_refinement,
-            r,
-            title=f"{label}: {r.refinement.reason}",
+            record,
+            title=f"{label}: {record.reason}",
         )
-        for k, (r, label) in enumerate(done, start=1)
+        for k, (record, label) in enumerate(done, start=1)
     ]
 
 
-def refinement_table(result: Any) -> list[str]:
-    """Lines describing a result's grid and certification (its refinement history)."""
-    record = result.refinement
+def refinement_table(result: Any, record: Any = None) -> list[str]:
+    """Lines describing a result's grid and certification (its refinement ``record``)."""
     if record is None:
         return [
             f"grid          fixed uniform, {result.problem.n_knots} knots "
@@ -319,7 +332,7 @@ def _problem(args: argparse.Namespace) -> Any:
         raise ParameterError("--damping applies to the youBot only", name="damping")
     robot = load_robot(args, damping=args.damping)
     if is_youbot and args.start is None and args.goal is None:
-        return study1_problem(args.knots, robot=robot, beta=args.beta)
+        return study1_problem(args.knots, robot=robot)
     if args.start is None or args.goal is None:
         raise ParameterError(
             f"--start and --goal (each {robot.nq} joint positions in rad) are required for "
@@ -328,23 +341,23 @@ def _problem(args: argparse.Namespace) -> Any:
             f"must respect",
             name="start",
         )
-    from youbot_opt.trajopt.objectives import Objective
-
     return TrajOptProblem(
         robot=robot,
         start=BoundaryState(q=np.array(args.start)),
         goal=BoundaryState(q=np.array(args.goal)),
         n_knots=args.knots,
-        objective=Objective(beta=args.beta),
     )
 
 
-def certificate_of(result: Any) -> Any:
-    """Return the :func:`youbot_opt.trajopt.certify.certify` certificate of ``result``, or None."""
+def certificate_of(result: Any, record: Any = None) -> Any:
+    """Return the :func:`youbot_opt.trajopt.certify.certify` certificate of ``result``, or None.
+
+    The last round's certificate of its refinement ``record``, when it has one.
+    """
     if result.trajectory is None:
         return None
-    if result.refinement is not None and result.refinement.certificate is not None:
-        return result.refinement.certificate  # the last round's, already computed
+    if record is not None and record.certificate is not None:
+        return record.certificate  # the last round's, already computed
     try:
         from youbot_opt.trajopt.certify import certify
     except ImportError:  # pragma: no cover - verify is part of the package
@@ -352,21 +365,22 @@ def certificate_of(result: Any) -> Any:
     return certify(result)
 
 
-def _status_line(result: Any) -> str:
+def _status_line(result: Any, record: Any) -> str:
     """Return the status line: for a refined plan, whether it is certified (and why not)."""
-    record = result.refinement
     if record is None or record.certified or not result.success:
         return f"{result.status.value} ({result.message})"
     return f"{result.status.value}, NOT certified: {record.reason.removeprefix('not certified: ')}"
 
 
-def format_result(result: Any, certificate: Any = None, *, max_active: int = 12) -> str:
-    """Readable multi-line summary of a result (and its certificate)."""
+def format_result(
+    result: Any, certificate: Any = None, *, refinement: Any = None, max_active: int = 12
+) -> str:
+    """Readable multi-line summary of a result (its certificate, its refinement record)."""
     s = result.summary()
     lines = [
         f"{s['robot']}: {s['n_knots']} knots, {s['method']}, backend {s['backend']}, "
         f"beta = {s['beta']:g}, bound scale = {s['bound_scale']:g}",
-        f"status        {_status_line(result)}",
+        f"status        {_status_line(result, refinement)}",
         f"objective f   {result.objective:.6f}   (beta T + (1 - beta) W)",
         f"duration T    {result.duration:.5f} s   (dt = {result.dt:.6f} s)",
         f"work W        {result.work:.5f} N^2 m^2 s",
@@ -374,7 +388,7 @@ def format_result(result: Any, certificate: Any = None, *, max_active: int = 12)
         f"solve time    {result.wall_time:.4f} s wall, {result.cpu_time:.4f} s CPU",
         f"max violation {result.max_violation:.2e}",
     ]
-    lines += refinement_table(result)
+    lines += refinement_table(result, refinement)
     if certificate is not None:
         lines += ["", str(certificate)]
     active = result.active_bounds(1e-6) if result.trajectory is not None else []
@@ -423,7 +437,12 @@ def draw_figure(folder: Path, name: str, make: Any, *args: Any, **kwargs: Any) -
 
 
 def write_solve_outputs(
-    folder: Path, result: Any, summary: dict[str, Any], multistart: Any = None
+    folder: Path,
+    result: Any,
+    summary: dict[str, Any],
+    multistart: Any = None,
+    *,
+    refinement: Any = None,
 ) -> list[Path]:
     """Write a solve's result, figures, replay and summary into ``folder``.
 
@@ -438,6 +457,9 @@ def write_solve_outputs(
     multistart : MultistartResult, optional
         The multistart the result comes from: adds its histogram, and the
         replay shows its distinct optima side by side.
+    refinement : Refinement, optional
+        The record of the refinement that made ``result``: saved with it, drawn
+        (``refinement.png``) and summarised (``"refinement"``).
 
     Returns
     -------
@@ -449,13 +471,13 @@ def write_solve_outputs(
     from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_multistart, plot_trajectory
     from youbot_opt.viz.plots.trajopt import plot_refinement
 
-    files: list[Path | None] = [save_result(result, folder / "result.npz")]
+    files: list[Path | None] = [save_result(result, folder / "result.npz", refinement=refinement)]
     if result.trajectory is not None:
         files.append(draw_figure(folder, "trajectory.png", plot_trajectory, result))
         files.append(draw_figure(folder, "arm.png", plot_arm_2d, None, result))
-    if result.refinement is not None:
-        files.append(draw_figure(folder, "refinement.png", plot_refinement, result))
-        summary["refinement"] = result.refinement.summary()
+    if refinement is not None:
+        files.append(draw_figure(folder, "refinement.png", plot_refinement, refinement))
+        summary["refinement"] = refinement.summary()
     runs = multistart if multistart is not None else [result]
     files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
     if multistart is not None:
@@ -471,10 +493,14 @@ def write_solve_outputs(
 
 
 def optima_replay(
-    folder: Path, multistart: Any, obj_tol: float = 1e-5, traj_tol: float = 1e-2, limit: int = 6
+    folder: Path,
+    multistart: Any,
+    objective_tol: float = 1e-5,
+    traj_tol: float = 1e-2,
+    limit: int = 6,
 ) -> Path | None:
     """Write ``replay.html`` with up to ``limit`` distinct optima of a multistart, side by side."""
-    optima = multistart.distinct_optima(obj_tol, traj_tol)[:limit]
+    optima = multistart.distinct_optima(objective_tol, traj_tol)[:limit]
     labels = [
         f"optimum {i + 1}: f = {o.objective:.5g}, {o.count} of {o.n_starts} starts"
         for i, o in enumerate(optima)
@@ -542,12 +568,14 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
+    from youbot_opt.trajopt.objectives import check_beta
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     if args.starts < 1:
         raise ParameterError(f"--starts must be >= 1, got {args.starts}", name="starts")
     if args.knots < 2:
         raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
+    check_beta(args.beta)  # before the NLP is built (the solve checks it with the same rule)
     problem = _problem(args)
     check_trajopt_size(
         n_knots=args.knots,
@@ -582,7 +610,10 @@ def run_solve(args: argparse.Namespace) -> int:
             beta=args.beta, bound_scale=args.bound_scale, guess=guess,
             seed=args.seed if args.guess == "spline" else None,
         )  # fmt: skip
-    result = refine_result(solver, result, args, quiet=args.quiet or args.json)
+    refined = refine_result(solver, result, args, quiet=args.quiet or args.json)
+    record = None
+    if refined is not None:
+        result, record = refined
     folder = open_folder("solve", args.out)
     if result is None:  # every start raised: no iterate to report
         summary: dict[str, Any] = {
@@ -599,18 +630,20 @@ def run_solve(args: argparse.Namespace) -> int:
         print(json.dumps(json_ready(summary)) if args.json else "youbot-opt: every start failed")
         report_outputs(folder, files, args.json)
         return 1
-    certificate = certificate_of(result)
-    summary = {**result.summary(), **extra}
+    certificate = certificate_of(result, record)
+    summary = {**(result.summary() if refined is None else refined.summary()), **extra}
     if certificate is not None:
         summary["certificate"] = certificate.summary()
     has_optimum = ms is not None and ms.best is not None and ms.best.result is not None
-    files = write_solve_outputs(folder, result, summary, ms if has_optimum else None)
+    files = write_solve_outputs(
+        folder, result, summary, ms if has_optimum else None, refinement=record
+    )
     if args.json:
         print(json.dumps(json_ready(summary)))
     else:
         if ms is not None and not has_optimum:
             print("youbot-opt: no start converged; the least violated failed start follows")
-        print(format_result(result, certificate))
+        print(format_result(result, certificate, refinement=record))
         print()
     report_outputs(folder, files, args.json)
-    return 0 if result.success and (result.refinement is None or result.certified) else 1
+    return 0 if result.success and (record is None or record.certified) else 1

@@ -240,9 +240,9 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
     )
 
 
-def _all_certified(plans: list[Any]) -> bool:
+def _all_certified(plans: list[tuple[Any, Any]]) -> bool:
     """Whether every refined plan is certified (vacuously true with ``--no-refine``)."""
-    return all(p.certified for p in plans)
+    return all(record is not None and record.certified for _, record in plans)
 
 
 def _fmt(x: float, spec: str = ".6g") -> str:
@@ -322,10 +322,10 @@ def _run_multistart(args: argparse.Namespace) -> int:
         from youbot_opt.trajopt.io import save_result
         from youbot_opt.viz.plots import plot_convergence, plot_multistart, plot_trajectory
 
-        plan = refined[0] if refined else res.best.result  # refined (--no-refine: the grid's)
-        summary["plan"] = plan.summary()
+        plan, record = refined[0] if refined else (res.best.result, None)  # --no-refine: grid's
+        summary["plan"] = {**plan.summary(), "certified": record is not None and record.certified}
         files += [
-            save_result(plan, folder / "result.npz"),
+            save_result(plan, folder / "result.npz", refinement=record),
             draw_figure(folder, "multistart.png", plot_multistart, res),
             draw_figure(folder, "convergence.png", plot_convergence, res),
             draw_figure(folder, "trajectory.png", plot_trajectory, plan),
@@ -369,7 +369,7 @@ def _run_pareto(args: argparse.Namespace) -> int:
         picks = sorted({round(i * (len(best) - 1) / 4) for i in range(5)})  # ends + 3 between
         picks.sort(key=lambda i: best[i].beta)
         grid = [x for _, x in items]  # the grid's plans (--no-refine), else the refined ones
-        shown = [(plans or grid)[i] for i in picks]
+        shown = [([p for p, _ in plans] or grid)[i] for i in picks]
         labels = [
             f"beta = {best[i].beta:g}: T = {x.duration:.3f} s, W = {x.work:.4g}"
             for i, x in zip(picks, shown, strict=True)
@@ -425,7 +425,7 @@ def _run_bounds(args: argparse.Namespace) -> int:
     if solved:
         from youbot_opt.viz.plots import plot_bound_scaling
 
-        shown = plans or [x for _, x in solved]  # the refined plans (--no-refine: the grid's)
+        shown = [p for p, _ in plans] or [x for _, x in solved]  # --no-refine: the grid's
         labels = [
             f"{r.bound_scale:.0%} bounds: f = {x.objective:.5g}"
             for (r, _), x in zip(solved, shown, strict=True)

@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.dynamics import spatial
+from youbot_opt.dynamics import spatial_algebra
 from youbot_opt.dynamics.tree import JointSpec, TreeSpec, as_pin_model, read_tree
 from youbot_opt.exceptions import FrameNotFound
 
@@ -64,7 +64,7 @@ def _joint_placements(tree: TreeSpec, q: Expr) -> list[_Placement]:
         qi = q[joint.index_v]
         rot0, pos0 = ca.DM(joint.rotation), ca.DM(joint.translation)
         if joint.kind == "revolute":
-            out.append((ca.mtimes(rot0, spatial.rotation_about_axis(joint.axis, qi)), pos0))
+            out.append((ca.mtimes(rot0, spatial_algebra.rotation_about_axis(joint.axis, qi)), pos0))
         else:
             out.append((rot0, pos0 + ca.mtimes(rot0, ca.DM(joint.axis)) * qi))
     return out
@@ -77,7 +77,7 @@ def _world_placements(tree: TreeSpec, local: list[_Placement]) -> list[_Placemen
         if joint.parent == 0:
             world.append(local[i])
         else:
-            world.append(spatial.compose(*world[joint.parent - 1], *local[i]))
+            world.append(spatial_algebra.compose(*world[joint.parent - 1], *local[i]))
     return world
 
 
@@ -99,13 +99,13 @@ def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
         vj = s * v[joint.index_v]
         if joint.parent == 0:
             vi = vj
-            ai = spatial.act_inv_motion(*local[i], root_acc)
+            ai = spatial_algebra.act_inv_motion(*local[i], root_acc)
         else:
-            vi = spatial.act_inv_motion(*local[i], vel[joint.parent - 1]) + vj
-            ai = spatial.act_inv_motion(*local[i], acc[joint.parent - 1])
-        ai = ai + s * a[joint.index_v] + spatial.cross_motion(vi, vj)
+            vi = spatial_algebra.act_inv_motion(*local[i], vel[joint.parent - 1]) + vj
+            ai = spatial_algebra.act_inv_motion(*local[i], acc[joint.parent - 1])
+        ai = ai + s * a[joint.index_v] + spatial_algebra.cross_motion(vi, vj)
         inertia = ca.DM(joint.inertia)
-        fi = ca.mtimes(inertia, ai) + spatial.cross_force(vi, ca.mtimes(inertia, vi))
+        fi = ca.mtimes(inertia, ai) + spatial_algebra.cross_force(vi, ca.mtimes(inertia, vi))
         vel.append(vi)
         acc.append(ai)
         forces.append(fi)
@@ -114,7 +114,7 @@ def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
         joint = tree.joints[i]
         tau[joint.index_v] = _dot(_subspace(joint), forces[i]) + joint.armature * a[joint.index_v]
         if joint.parent > 0:
-            forces[joint.parent - 1] = forces[joint.parent - 1] + spatial.act_force(
+            forces[joint.parent - 1] = forces[joint.parent - 1] + spatial_algebra.act_force(
                 *local[i], forces[i]
             )
     return ca.vertcat(*tau)
@@ -127,7 +127,7 @@ def _crba(tree: TreeSpec, q: Expr) -> Expr:
     for i in range(len(tree.joints) - 1, -1, -1):
         parent = tree.joints[i].parent
         if parent > 0:
-            composite[parent - 1] = composite[parent - 1] + spatial.act_inertia(
+            composite[parent - 1] = composite[parent - 1] + spatial_algebra.act_inertia(
                 *local[i], composite[i]
             )
     mass = ca.SX.zeros(tree.nv, tree.nv)
@@ -138,7 +138,7 @@ def _crba(tree: TreeSpec, q: Expr) -> Expr:
         mass[col, col] = _dot(s_i, force) + joint.armature
         j = i
         while tree.joints[j].parent > 0:
-            force = spatial.act_force(*local[j], force)
+            force = spatial_algebra.act_force(*local[j], force)
             j = tree.joints[j].parent - 1
             row = tree.joints[j].index_v
             mass[row, col] = _dot(_subspace(tree.joints[j]), force)
@@ -159,12 +159,12 @@ def _aba(tree: TreeSpec, q: Expr, v: Expr, tau: Expr) -> Expr:
         if joint.parent == 0:
             vi = vj
         else:
-            vi = spatial.act_inv_motion(*local[i], vel[joint.parent - 1]) + vj
+            vi = spatial_algebra.act_inv_motion(*local[i], vel[joint.parent - 1]) + vj
         inertia = ca.DM(joint.inertia)
         vel.append(vi)
-        bias_acc.append(spatial.cross_motion(vi, vj))
+        bias_acc.append(spatial_algebra.cross_motion(vi, vj))
         art_inertia.append(inertia)
-        bias_force.append(spatial.cross_force(vi, ca.mtimes(inertia, vi)))
+        bias_force.append(spatial_algebra.cross_force(vi, ca.mtimes(inertia, vi)))
     u_vec: list[Expr] = [None] * n
     d_inv: list[Expr] = [None] * n
     u_tau: list[Expr] = [None] * n
@@ -180,14 +180,14 @@ def _aba(tree: TreeSpec, q: Expr, v: Expr, tau: Expr) -> Expr:
                 bias_force[i] + ca.mtimes(reduced, bias_acc[i]) + u_vec[i] * (d_inv[i] * u_tau[i])
             )
             p = joint.parent - 1
-            art_inertia[p] = art_inertia[p] + spatial.act_inertia(*local[i], reduced)
-            bias_force[p] = bias_force[p] + spatial.act_force(*local[i], force)
+            art_inertia[p] = art_inertia[p] + spatial_algebra.act_inertia(*local[i], reduced)
+            bias_force[p] = bias_force[p] + spatial_algebra.act_force(*local[i], force)
     root_acc = ca.DM(-tree.gravity)
     acc: list[Expr] = [None] * n
     qdd: list[Expr] = [0] * tree.nv
     for i, joint in enumerate(tree.joints):
         parent_acc = root_acc if joint.parent == 0 else acc[joint.parent - 1]
-        ai = spatial.act_inv_motion(*local[i], parent_acc) + bias_acc[i]
+        ai = spatial_algebra.act_inv_motion(*local[i], parent_acc) + bias_acc[i]
         qdd_i = d_inv[i] * (u_tau[i] - ca.dot(u_vec[i], ai))
         qdd[joint.index_v] = qdd_i
         acc[i] = ai + ca.DM(_subspace(joint)) * qdd_i
@@ -282,7 +282,7 @@ class SymbolicModel:
         else:
             rotations, translations = self.forward_kinematics(q)
             k = frame.parent_joint - 1
-            rot, pos = spatial.compose(
+            rot, pos = spatial_algebra.compose(
                 rotations[:, 3 * k : 3 * k + 3], translations[:, k], rot0, pos0
             )
         suffix = re.sub(r"[^0-9A-Za-z]+", "_", frame_name).strip("_")

@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt._typing import Array
-from youbot_opt.dynamics.spatial import inertia_matrix
+from youbot_opt.dynamics.spatial_algebra import inertia_matrix
 from youbot_opt.exceptions import ModelError, ParameterError
 
 __all__ = ["JointSpec", "FrameSpec", "TreeSpec", "SUPPORTED_JOINTS", "as_pin_model", "read_tree"]

@@ -213,7 +213,7 @@ def optima_record(
     solvers: ArmSolvers,
     *,
     with_trajectory: bool = False,
-    obj_tol: float = 1e-6,
+    objective_tol: float = 1e-6,
 ) -> dict[str, Any]:
     """Best record plus every distinct optimum (objective, T, W, count) of a multistart.
 
@@ -227,7 +227,7 @@ def optima_record(
         Source of the arm models for the certificates.
     with_trajectory : bool
         Add the best solve's knot arrays (``trajectory``: t, q, v, tau) to its record.
-    obj_tol : float
+    objective_tol : float
         Relative objective tolerance of the clustering into optima.
 
     Returns
@@ -237,7 +237,7 @@ def optima_record(
         ``wall_time_s``, ``best`` (:func:`record`) and ``optima``.
     """
     optima = []
-    for opt in ms.distinct_optima(obj_tol=obj_tol, traj_tol=1e-2):
+    for opt in ms.distinct_optima(objective_tol=objective_tol, traj_tol=1e-2):
         res = opt.best.result
         assert res is not None
         optima.append({

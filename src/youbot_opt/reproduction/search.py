@@ -145,7 +145,7 @@ def vertex_multistart(
 def cluster_optima(
     results: Sequence[TrajOptResult],
     objective: Callable[[TrajOptResult], float],
-    obj_tol: float = 1e-6,
+    objective_tol: float = 1e-6,
     traj_tol: float = 1e-2,
 ) -> list[list[TrajOptResult]]:
     """Group converged results into distinct local optima, lowest objective first.
@@ -156,8 +156,8 @@ def cluster_optima(
         Solves (failed ones are ignored).
     objective : callable
         The objective to compare (e.g. the study's, with ``T = n dt``).
-    obj_tol : float
-        Relative objective tolerance: ``|f - f_c| <= obj_tol max(1, |f_c|)``.
+    objective_tol : float
+        Relative objective tolerance: ``|f - f_c| <= objective_tol max(1, |f_c|)``.
     traj_tol : float
         Largest :func:`youbot_opt.trajopt.multistart.trajectory_distance` in [rad] within a cluster.
 
@@ -170,7 +170,7 @@ def cluster_optima(
         (r for r in results if r.success),
         objective=objective,
         distance=_result_distance,
-        obj_tol=obj_tol,
+        obj_tol=objective_tol,
         dist_tol=traj_tol,
     )
 

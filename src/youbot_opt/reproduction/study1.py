@@ -24,7 +24,7 @@ from youbot_opt.exceptions import ParameterError, TranscriptionError
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import STUDY_Q_GOAL, STUDY_Q_START
-from youbot_opt.trajopt.objectives import Objective
+from youbot_opt.trajopt.objectives import objective_value
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 from youbot_opt.trajopt.transcription.base import Expressions
@@ -232,7 +232,7 @@ class StudyTranscription(TrapezoidalCollocation):
         if not self.deviations.time_n_dt:
             return parts
         total = self.deviations.duration(sym["dt"], problem.n_knots)
-        f = problem.objective.value(total, parts.work, beta)
+        f = objective_value(total, parts.work, beta)
         return parts._replace(f=f, duration=total)
 
 
@@ -240,7 +240,6 @@ def study1_problem(
     n_knots: int = 50,
     *,
     robot: RobotModel | None = None,
-    beta: float = 0.5,
     damping: float | None = None,
     **kwargs: Any,
 ) -> TrajOptProblem:
@@ -252,8 +251,6 @@ def study1_problem(
         Number of knots (the study: 50).
     robot : RobotModel, optional
         The planar youBot; loaded with :func:`youbot_opt.robot.load.load_model` when omitted.
-    beta : float
-        Default time weight in [0, 1] (the base case: 0.5).
     damping : float, optional
         Joint damping in [N m s/rad] for the loaded youBot (the study's code
         used 0.1; the paper and the default model have none). Ignored when
@@ -273,6 +270,5 @@ def study1_problem(
         start=BoundaryState(q=np.array(STUDY_Q_START)),
         goal=BoundaryState(q=np.array(STUDY_Q_GOAL)),
         n_knots=n_knots,
-        objective=Objective(beta=beta),
         **kwargs,
     )

@@ -19,10 +19,10 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.nlp.status import ResultT, SolveStatus, apply_check, status_from_ipopt
-from youbot_opt.trajopt import radau
+from youbot_opt.trajopt import quadrature
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["ResultCheck", "CheckedSolution", "check_result", "checked"]
@@ -189,10 +189,10 @@ def _defects(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> floa
         nodes_a = [aba(*s).reshape(qd[1:].shape) for s in stages] + [a[1:]]
         nodes_tau = [s[2] for s in stages] + [tau[1:]]
         rows = tuple(
-            x[i] - x0 - h * sum(radau.BUTCHER[i, j] * dx[j] for j in range(3))
+            x[i] - x0 - h * sum(quadrature.RADAU_BUTCHER[i, j] * dx[j] for j in range(3))
             for x, x0, dx in ((nodes_q, q[:-1], nodes_v), (nodes_v, qd[:-1], nodes_a))
             for i in range(3)
-        ) + (tau[:1] - sum(radau.AT_ZERO[j] * nodes_tau[j][:1] for j in range(3)),)
+        ) + (tau[:1] - sum(quadrature.RADAU_AT_ZERO[j] * nodes_tau[j][:1] for j in range(3)),)
     else:  # another transcription (e.g. the study code's): no independent defect rule here
         return None
     return max(float(np.max(np.abs(r), initial=0.0)) for r in rows)
@@ -204,7 +204,7 @@ def _work(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> float:
     if result.method == "radau":  # Radau weights on stages 1, 2 and the end knot
         h = dt * (result.step_ratios() if result.grid is not None else np.ones(p.size - 1))
         p1, p2 = (np.sum(v[f"tau_stage{i}"] ** 2, axis=1) for i in (1, 2))
-        b = radau.WEIGHTS
+        b = quadrature.RADAU_WEIGHTS
         return float(np.sum(h * (b[0] * p1 + b[1] * p2 + b[2] * p[1:])))
     if result.grid is not None:
         h = dt * result.step_ratios()
@@ -228,7 +228,7 @@ def check_result(result: CheckedSolution, *, feasibility_tol: float | None = Non
     variable bound, a boundary state or a collocation defect by more than
     ``feasibility_tol`` (:attr:`SolveStatus.CONSTRAINT_VIOLATION`). The
     defects are recomputed from the decision variables with Pinocchio's
-    ``pin.aba`` (:func:`~youbot_opt.trajopt.simulate.batched_aba`), not with
+    ``pin.aba`` (:func:`~youbot_opt.dynamics.numeric.batched_aba`), not with
     the CasADi dynamics inside the NLP. The result itself is not changed.
 
     Parameters

@@ -5,10 +5,11 @@ under ``"<group>__<name>"`` keys and a JSON ``"metadata"`` entry (versions,
 problem, the robot's :class:`~youbot_opt.robot.source.RobotSource` so that it
 reloads after a move, transcription, status, options, refinement record, SHA-256
 of every array). Nothing is pickled, writes are atomic, and the loader re-checks
-the result (:func:`youbot_opt.trajopt.check.checked`) and re-runs the certificate
-of a plan saved as certified. Files without a refinement record (commit 74bfa23) load.
+the result (:func:`youbot_opt.trajopt.check.checked`); :func:`load_refined`
+re-runs the certificate of a plan saved as certified.
 
 >>> result = load_result(save_result(result, "result.npz"))  # doctest: +SKIP
+>>> result, refinement = load_refined(save_result(*refine(solver), "r.npz"))  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -38,12 +39,10 @@ from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.catalogue import available_robots
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
-from youbot_opt.trajopt.certificate import Tolerances
-from youbot_opt.trajopt.certify import certify
+from youbot_opt.trajopt.certify import Tolerances, certify
 from youbot_opt.trajopt.check import checked
-from youbot_opt.trajopt.objectives import Objective
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.refinement import Refinement, RefinementBudget, RefinementRound
+from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
     DEFAULT_FEASIBILITY_TOL,
     SolveStats,
@@ -52,7 +51,7 @@ from youbot_opt.trajopt.result import (
 )
 from youbot_opt.trajopt.trajectory import Trajectory
 
-__all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result"]
+__all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result", "load_refined"]
 
 SCHEMA = "youbot_opt.trajopt_result"
 SCHEMA_VERSION = 1
@@ -109,11 +108,10 @@ def _refinement(meta: dict[str, Any] | None, arrays: dict[str, Array]) -> Refine
     )
 
 
-def _recertify(result: TrajOptResult) -> TrajOptResult:
+def _recertify(result: TrajOptResult, record: Refinement) -> Refined:
     """Re-run the certificate of a result saved as certified; downgrade it if refuted."""
-    record = result.refinement
-    if record is None or not record.certified:
-        return result
+    if not record.certified:
+        return Refined(result, record)
     reason = ""
     cert = None
     if not result.success or result.trajectory is None:
@@ -129,10 +127,15 @@ def _recertify(result: TrajOptResult) -> TrajOptResult:
     else:
         record = dataclasses.replace(record, certificate=cert)
         message = result.message
-    return dataclasses.replace(result, refinement=record, message=message)
+    return Refined(dataclasses.replace(result, message=message), record)
 
 
-def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
+def save_result(
+    result: TrajOptResult,
+    path: str | os.PathLike[str],
+    *,
+    refinement: Refinement | None = None,
+) -> Path:
     """Write ``result`` to ``path`` (``.npz`` appended if missing), atomically.
 
     Parameters
@@ -141,6 +144,10 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
         The result to save (failed results too).
     path : str or path-like
         Target file; its directory must exist.
+    refinement : Refinement, optional
+        The record of the refinement that made ``result`` (:func:`refine
+        <youbot_opt.trajopt.refine.refine>`), saved in the same file and read
+        back by :func:`load_refined`.
 
     Returns
     -------
@@ -169,11 +176,11 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
                 value = getattr(traj, name)
                 if value is not None:
                     arrays[f"{group}__{name}"] = np.asarray(value, dtype=float)
-    refinement = None if result.refinement is None else _refinement_meta(result.refinement, arrays)
+    record = None if refinement is None else _refinement_meta(refinement, arrays)
     meta: dict[str, Any] = {
         **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "problem": result.problem.describe(),
+        "problem": {**result.problem.describe(), "beta": result.beta},  # as 0.1.0 wrote it
         "robot_source": _robot_source(result.problem.robot, target.parent),
         "method": result.method,
         "backend": result.backend,
@@ -204,7 +211,7 @@ def save_result(result: TrajOptResult, path: str | os.PathLike[str]) -> Path:
             "trajectory": None if result.trajectory is None else result.trajectory.interpolation,
             "guess": None if result.guess is None else result.guess.interpolation,
         },
-        "refinement": refinement,
+        "refinement": record,
         "checksums": {key: array_digest(arr) for key, arr in arrays.items()},
     }
     payload = json.dumps(meta, allow_nan=True, sort_keys=True).encode("utf-8")
@@ -290,7 +297,7 @@ def _robot(desc: dict[str, Any], source: dict[str, Any] | None, path: Path) -> R
 
 
 def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None) -> TrajOptResult:
-    """Read a result written by :func:`save_result`.
+    """Read the result written by :func:`save_result` (:func:`load_refined`: with its record).
 
     Parameters
     ----------
@@ -311,12 +318,7 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
     TrajOptResult
         The result, with its problem rebuilt; a saved success claim that the
         independent check (:func:`youbot_opt.trajopt.check.checked`) refutes
-        is downgraded. The refinement record (rounds, budget, verdict) is
-        restored; a result saved as certified is certified again only if it
-        passes that check and :func:`~youbot_opt.trajopt.certify.certify`,
-        re-run here with the saved tolerances (a forward simulation; the
-        certificate is attached as ``refinement.certificate``), otherwise
-        ``certified`` is False and ``refinement.reason`` says why.
+        is downgraded.
 
     Raises
     ------
@@ -326,7 +328,46 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
         robot cannot be reloaded (the URDF not found: the message names the
         paths tried; or edited: it names the file and both SHA-256).
     """
+    return _load(Path(path), robot)[0]
+
+
+def load_refined(path: str | os.PathLike[str], *, robot: RobotModel | None = None) -> Refined:
+    """Read a refined result and its refinement record written by :func:`save_result`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.npz`` file, saved with ``refinement=``.
+    robot : RobotModel, optional
+        The robot to attach (as :func:`load_result`).
+
+    Returns
+    -------
+    Refined
+        The result (as :func:`load_result` returns it) and its refinement record
+        (rounds, budget, verdict). A plan saved as certified is certified again
+        only if it passes the independent check and
+        :func:`~youbot_opt.trajopt.certify.certify`, re-run here with the saved
+        tolerances (a forward simulation; the certificate is attached as
+        ``refinement.certificate``); otherwise ``refinement.certified`` is
+        False and ``refinement.reason`` (also appended to the message) says why.
+
+    Raises
+    ------
+    ResultFileError
+        As :func:`load_result`, and if the file holds no refinement record.
+    """
     path = Path(path)
+    result, record = _load(path, robot)
+    if record is None:
+        raise ResultFileError(
+            f"{path} holds no refinement record (a fixed-grid result): use load_result"
+        )
+    return _recertify(result, record)
+
+
+def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refinement | None]:
+    """Return the checked result of a file and its refinement record (not re-certified)."""
     meta, arrays = _read(path)
     try:
         desc = meta["problem"]
@@ -337,7 +378,6 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
             start=BoundaryState(q=desc["start_q"], v=desc["start_v"]),
             goal=BoundaryState(q=desc["goal_q"], v=desc["goal_v"]),
             n_knots=int(desc["n_knots"]),
-            objective=Objective(beta=desc["beta"]),
             duration=desc["duration"],
             scaled_bounds=tuple(desc["scaled_bounds"]),
             dt_min=desc["dt_min"],
@@ -366,7 +406,7 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
             dt=scalars["dt"],
             work=scalars["work"],
             objective=scalars["objective"],
-            beta=float(meta["beta"]),
+            beta=float(meta.get("beta", desc.get("beta"))),  # the problem's beta of 0.1.0
             bound_scale=float(meta["bound_scale"]),
             start=BoundaryState(q=meta["start"]["q"], v=meta["start"]["v"]),
             goal=BoundaryState(q=meta["goal"]["q"], v=meta["goal"]["v"]),
@@ -384,12 +424,12 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
             seed=meta["seed"],
             feasibility_tol=float(meta.get("feasibility_tol", DEFAULT_FEASIBILITY_TOL)),
             grid=arrays.get("grid"),
-            refinement=_refinement(meta.get("refinement"), arrays),
         )
+        record = _refinement(meta.get("refinement"), arrays)
     except ResultFileError:
         raise
     except (KeyError, TypeError, ValueError) as exc:
         raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc
-    # A file is data from outside: the independent check sets the status it deserves,
-    # and a certified plan must pass its certificate again.
-    return _recertify(checked(result))
+    # A file is data from outside: the independent check sets the status it deserves
+    # (and load_refined certifies a plan saved as certified again).
+    return checked(result), record

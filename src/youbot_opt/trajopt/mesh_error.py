@@ -19,10 +19,10 @@ import numpy as np
 
 from youbot_opt._checks import check_int
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import RobotLike, batched_aba
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt import radau
+from youbot_opt.trajopt import quadrature
 from youbot_opt.trajopt.result import TrajOptResult
-from youbot_opt.trajopt.simulate import RobotLike, batched_aba
 
 __all__ = ["CollocationError", "ORDERS", "collocation_error", "interval_errors"]
 
@@ -73,39 +73,6 @@ class CollocationError:
     def steps(self) -> Array:
         """Interval lengths [s]."""
         return np.diff(self.t)
-
-
-def _gauss(segments: int, points: int) -> tuple[Array, Array]:
-    """Nodes in [0, 1] and weights (summing to 1) of composite Gauss-Legendre."""
-    x, w = np.polynomial.legendre.leggauss(points)
-    nodes = [(j + 0.5 * (x + 1.0)) / segments for j in range(segments)]
-    weights = [0.5 * w / segments for _ in range(segments)]
-    return np.concatenate(nodes), np.concatenate(weights)
-
-
-def _basis(method: str, s: Array) -> tuple[Array, Array]:
-    """Return the derivative basis ``L`` and its integral ``I`` at ``s`` in [0, 1] (rows: nodes).
-
-    Trapezoidal: linear through the values at ``s = 0, 1``; Hermite-Simpson:
-    quadratic through ``s = 0, 1/2, 1`` (columns: start, [mid,] end); Radau:
-    quadratic through its three nodes (:mod:`youbot_opt.trajopt.radau`).
-    """
-    if method == "radau":
-        return radau.basis(s), radau.integral(s)
-    if method == "trapezoidal":
-        basis = np.stack([1.0 - s, s], axis=1)
-        integral = np.stack([s - 0.5 * s**2, 0.5 * s**2], axis=1)
-        return basis, integral
-    basis = np.stack([2 * (s - 0.5) * (s - 1.0), -4 * s * (s - 1.0), 2 * s * (s - 0.5)], axis=1)
-    integral = np.stack(
-        [
-            2 * (s**3 / 3 - 0.75 * s**2 + 0.5 * s),
-            -4 * (s**3 / 3 - 0.5 * s**2),
-            2 * (s**3 / 3 - 0.25 * s**2),
-        ],
-        axis=1,
-    )
-    return basis, integral
 
 
 def interval_errors(
@@ -179,8 +146,8 @@ def interval_errors(
         return np.asarray(aba(qq, vv, tt), dtype=float).reshape(qq.shape)
 
     a = accel(q, v, tau)
-    s, w = _gauss(segments, points)
-    basis, integral = _basis(method, s)  # (S, 2 or 3)
+    s, w = quadrature.gauss_legendre(segments, points)
+    basis, integral = quadrature.collocation_basis(method, s)  # (S, 2 or 3)
     if method == "hermite_simpson":
         if mid is None:
             raise ParameterError("Hermite-Simpson needs the midpoint values", name="mid")

@@ -315,13 +315,13 @@ class MultistartResult:
         return dict(sorted(Counter(s.status for s in self.starts).items()))
 
     def distinct_optima(
-        self, obj_tol: float = 1e-5, traj_tol: float = 1e-2
+        self, objective_tol: float = 1e-5, traj_tol: float = 1e-2
     ) -> tuple[LocalOptimum, ...]:
         """Cluster converged starts into distinct local optima.
 
         Starts are taken in order of increasing objective; each joins the first
-        cluster whose lowest member is within ``obj_tol`` (relative,
-        ``|f - f_c| <= obj_tol max(1, |f_c|)``) in objective and within
+        cluster whose lowest member is within ``objective_tol`` (relative,
+        ``|f - f_c| <= objective_tol max(1, |f_c|)``) in objective and within
         ``traj_tol`` in :func:`trajectory_distance`, else starts a new cluster.
         With ``keep_results=False`` the default tolerances return the optima
         the sweep chose (members read from the folder when asked for); other
@@ -331,7 +331,7 @@ class MultistartResult:
 
         Parameters
         ----------
-        obj_tol : float
+        objective_tol : float
             Relative objective tolerance (> 0).
         traj_tol : float
             Trajectory distance tolerance in [rad] (> 0).
@@ -341,29 +341,30 @@ class MultistartResult:
         tuple of LocalOptimum
             Sorted by objective, lowest first.
         """
-        if not (obj_tol > 0 and traj_tol > 0):
+        if not (objective_tol > 0 and traj_tol > 0):
             raise ParameterError(
-                f"obj_tol and traj_tol must be > 0, got {obj_tol!r}, {traj_tol!r}", name="obj_tol"
+                f"objective_tol and traj_tol must be > 0, got {objective_tol!r}, {traj_tol!r}",
+                name="objective_tol",
             )
-        if self.tally is not None and (obj_tol, traj_tol) == _DEFAULT_TOLS:
+        if self.tally is not None and (objective_tol, traj_tol) == _DEFAULT_TOLS:
             return self.tally.optima
         clusters = cluster_optima(
             self.converged,
             objective=lambda s: s.objective,
             distance=_start_distance,
-            obj_tol=obj_tol,
+            obj_tol=objective_tol,
             dist_tol=traj_tol,
         )
         return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
 
     def summary(
-        self, obj_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
+        self, objective_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
     ) -> dict[str, Any]:
         """JSON-ready summary: rates, status counts, best start, distinct optima, every start.
 
         Parameters
         ----------
-        obj_tol, traj_tol : float
+        objective_tol, traj_tol : float
             Tolerances of :meth:`distinct_optima`.
         starts : bool, optional
             Include every start's figures (``"starts"``) and every optimum's
@@ -387,7 +388,7 @@ class MultistartResult:
             "wall_time_s": self.wall_time,
             "best": None if best is None else best.summary(),
             "distinct_optima": [
-                o.summary(seeds=full) for o in self.distinct_optima(obj_tol, traj_tol)
+                o.summary(seeds=full) for o in self.distinct_optima(objective_tol, traj_tol)
             ],
         }
         if full:
@@ -438,7 +439,7 @@ def run_multistart(
     solver: TrajOptSolver,
     n_starts: int = 50,
     *,
-    beta: float | None = None,
+    beta: float = 0.5,
     bound_scale: float = 1.0,
     seed: int = 0,
     include_straight: bool = False,
@@ -460,8 +461,8 @@ def run_multistart(
         other workers build their own once).
     n_starts : int
         Number of random spline starts (the study: 50).
-    beta : float, optional
-        Time weight in [0, 1]; the problem's default when omitted.
+    beta : float
+        Time weight in [0, 1] of every start's solve (0.5 by default).
     bound_scale : float
         Bound scale factor (> 0, 1.0 = data sheet), for the guesses and the solves.
     seed : int
@@ -500,7 +501,7 @@ def run_multistart(
     """
     tic = time.perf_counter()
     solver = check_solver(solver)
-    beta = solver.problem.objective.beta if beta is None else check_beta(beta)
+    beta = check_beta(beta)  # before any start runs (each solve checks it again)
     bound_scale = check_bound_scale(bound_scale)
     solver.problem.check_boundary(bound_scale)
     dt0 = default_dt0(solver.problem) if dt0 is None else float(dt0)

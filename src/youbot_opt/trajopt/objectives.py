@@ -1,10 +1,11 @@
 """Objective terms of the time/energy trajectory problem (study 1, spec ``trajopt.md``).
 
-``f = beta T + (1 - beta) W`` with the true duration ``T = (N - 1) dt`` in [s]
+``f = beta T + (1 - beta) W`` (:func:`objective_value`; ``beta`` is a solve-time
+parameter, never part of the problem) with the true duration ``T = (N - 1) dt`` in [s]
 and the effort ``W`` (integral of ``tau . tau``) in [N^2 m^2 s] by the
 quadrature of the transcription: trapezoidal (the study's), Simpson's rule
-(Hermite-Simpson) or Radau's weights (``Transcription.work_weights``). The
-helpers work on numbers and CasADi expressions alike, so the NLP and the
+(Hermite-Simpson) or Radau's weights (:mod:`youbot_opt.trajopt.quadrature`).
+The helpers work on numbers and CasADi expressions alike, so the NLP and the
 re-evaluation of a result share one definition.
 
 >>> duration(dt, n_knots=50)  # T = 49 dt [s]  # doctest: +SKIP
@@ -12,113 +13,47 @@ re-evaluation of a result share one definition.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from youbot_opt._checks import check_beta
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.quadrature import QuadratureRule, quadrature_weights
 
 __all__ = [
-    "Objective",
-    "QuadratureRule",
     "check_beta",
     "duration",
-    "quadrature_weights",
+    "objective_value",
     "work",
 ]
 
-QuadratureRule = Literal["trapezoidal", "simpson", "radau"]
 
+def objective_value(duration: Any, work: Any, beta: Any) -> Any:
+    """Return ``f = beta T + (1 - beta) W`` for a duration [s] and a work [N^2 m^2 s].
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Objective:
-    """Weighted sum of duration and work, ``f = beta * T + (1 - beta) * W``.
-
-    Attributes
+    Parameters
     ----------
-    beta : float
-        Weight of the duration ``T`` in [s]; ``1 - beta`` weighs the work ``W``
-        in [N^2 m^2 s]. In [0, 1]; the study's base case is 0.5.
+    duration : float or casadi expression
+        ``T`` in [s].
+    work : float or casadi expression
+        ``W`` in [N^2 m^2 s].
+    beta : float or casadi expression
+        Time weight in [0, 1] (the NLP's parameter; validated where it enters,
+        :meth:`youbot_opt.trajopt.solver.TrajOptSolver.solve`).
+
+    Returns
+    -------
+    float or casadi expression
+        ``beta * T + (1 - beta) * W``.
     """
-
-    beta: float = 0.5
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "beta", check_beta(self.beta))
-
-    @classmethod
-    def time(cls) -> Objective:
-        """Pure minimum time (``beta = 1``)."""
-        return cls(beta=1.0)
-
-    @classmethod
-    def work(cls) -> Objective:
-        """Pure minimum work ``integral of tau . tau`` (``beta = 0``)."""
-        return cls(beta=0.0)
-
-    def value(self, duration: Any, work: Any, beta: Any = None) -> Any:
-        """Objective value for a duration [s] and a work [N^2 m^2 s].
-
-        Parameters
-        ----------
-        duration : float or casadi expression
-            ``T`` in [s].
-        work : float or casadi expression
-            ``W`` in [N^2 m^2 s].
-        beta : float or casadi expression, optional
-            Overrides :attr:`beta` (e.g. with an NLP parameter).
-
-        Returns
-        -------
-        float or casadi expression
-            ``beta * T + (1 - beta) * W``.
-        """
-        b = self.beta if beta is None else beta
-        return b * duration + (1 - b) * work
+    return beta * duration + (1 - beta) * work
 
 
 def duration(dt: Any, n_knots: int) -> Any:
     """Return the true duration ``T = (N - 1) dt`` in [s] of ``N`` knots, common step ``dt`` [s]."""
     return (n_knots - 1) * dt
-
-
-def quadrature_weights(rule: QuadratureRule, n_knots: int) -> tuple[Array, Array | None]:
-    """Weights ``(w_knots, w_mid)`` with ``W = dt * (w_knots . p + w_mid . p_mid)``.
-
-    Parameters
-    ----------
-    rule : {"trapezoidal", "simpson"}
-        Quadrature rule of the transcription.
-    n_knots : int
-        Number of knots ``N`` (>= 2).
-
-    Returns
-    -------
-    w_knots : ndarray, shape (N,)
-        Weights of the knot powers ``p_k = tau_k . tau_k`` (dimensionless,
-        multiplied by ``dt`` in [s]).
-    w_mid : ndarray, shape (N - 1,) or None
-        Weights of the mid-interval powers (Simpson only).
-
-    Raises
-    ------
-    ParameterError
-        On an unknown rule or fewer than 2 knots.
-    """
-    if n_knots < 2:
-        raise ParameterError(f"n_knots must be >= 2, got {n_knots}", name="n_knots", value=n_knots)
-    w = np.ones(n_knots)
-    w[0] = w[-1] = 0.5
-    if rule == "trapezoidal":
-        return w, None
-    if rule == "simpson":
-        return w / 3.0, np.full(n_knots - 1, 4.0 / 6.0)
-    raise ParameterError(
-        f"rule must be 'trapezoidal' or 'simpson', got {rule!r}", name="rule", value=rule
-    )
 
 
 def work(

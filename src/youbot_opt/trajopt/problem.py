@@ -3,16 +3,18 @@
 A :class:`TrajOptProblem` says *what* to optimise (spec ``trajopt.md``, "The
 optimisation problem"): a robot, rest-or-moving start and goal states
 (:class:`BoundaryState`), the number of knots, the joint bounds taken from the
-model (scaled by ``bound_scale``; :attr:`TrajOptProblem.scaled_bounds`), the
-objective ``beta T + (1 - beta) W`` and whether the common time step is free
-(the study) or the duration fixed. *How* it is transcribed and solved lives in
-:mod:`youbot_opt.trajopt.transcription` and :mod:`youbot_opt.trajopt.solver`.
+model (scaled by ``bound_scale``; :attr:`TrajOptProblem.scaled_bounds`) and
+whether the common time step is free
+(the study) or the duration fixed. The objective's form is fixed, ``beta T +
+(1 - beta) W``; its weight ``beta`` is a solve-time parameter
+(:meth:`TrajOptSolver.solve(beta=...) <youbot_opt.trajopt.solver.TrajOptSolver.solve>`).
+*How* it is transcribed and solved: :mod:`youbot_opt.trajopt.solver`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,14 +24,12 @@ from youbot_opt._typing import Array
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import BOUND_FAMILIES, BoundFamily, JointBounds, RobotModel
-from youbot_opt.trajopt.objectives import Objective
 
 __all__ = [
     "BoundaryState",
     "BoundFamily",
     "JointBounds",
     "TrajOptProblem",
-    "check_bound_scale",
 ]
 
 _FAMILIES: tuple[str, ...] = BOUND_FAMILIES
@@ -97,8 +97,6 @@ class TrajOptProblem:
         Joint states at ``t = 0`` and at ``t = T`` (angle coordinates).
     n_knots : int
         Number of collocation knots ``N`` (>= 2); the study used 50.
-    objective : Objective
-        Default time weight ``beta`` (overridable per solve).
     duration : float or None
         Fixed total duration in [s]; ``None`` (default) leaves the common time
         step ``dt`` free, as in the study.
@@ -118,7 +116,6 @@ class TrajOptProblem:
     start: BoundaryState
     goal: BoundaryState
     n_knots: int = 50
-    objective: Objective = field(default_factory=Objective)
     duration: float | None = None
     scaled_bounds: tuple[BoundFamily, ...] = ("position", "velocity", "torque")
     dt_min: float = 1e-6  # [s]
@@ -155,8 +152,6 @@ class TrajOptProblem:
                 f"n_knots must be >= 2, got {self.n_knots}", name="n_knots", value=self.n_knots
             )
         object.__setattr__(self, "n_knots", int(self.n_knots))
-        if not isinstance(self.objective, Objective):
-            raise ParameterError("objective must be an Objective", name="objective")
         if self.duration is not None:
             if not math.isfinite(self.duration) or self.duration <= 0.0:
                 raise ParameterError(
@@ -248,7 +243,6 @@ class TrajOptProblem:
             "goal_q": self.goal.q.tolist(),
             "goal_v": self.goal.velocity.tolist(),
             "n_knots": self.n_knots,
-            "beta": self.objective.beta,
             "duration": self.duration,
             "scaled_bounds": list(self.scaled_bounds),
             "dt_min": self.dt_min,

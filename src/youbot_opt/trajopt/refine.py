@@ -1,15 +1,14 @@
-r"""Adaptive mesh refinement until the plan is certified: :func:`refine`.
+r"""Adaptive mesh refinement until the plan is certified: :func:`refine`, its record.
 
 Each round solves on the current grid, measures every interval's collocation
-error (:mod:`youbot_opt.trajopt.mesh_error`) and certifies the plan by forward
-simulation (:func:`youbot_opt.trajopt.certify.certify`). Intervals over the
-tolerance are split (:func:`split_grid`; exponents: :data:`ERROR_EXPONENTS`,
-:func:`switching_intervals`, :func:`observed_exponents`); the next round starts
-from the previous solution (:func:`transfer_start`). It stops certified or when
-the :class:`RefinementBudget` runs out. Rationale, measurements: docs/refinement.md.
+error (:mod:`youbot_opt.trajopt.mesh_error`) and certifies the plan
+(:func:`youbot_opt.trajopt.certify.certify`). Intervals over the tolerance are
+split (:func:`split_grid`, :data:`ERROR_EXPONENTS`, :func:`observed_exponents`);
+the next round starts from the previous solution (:func:`transfer_start`) until
+certified or the :class:`RefinementBudget` runs out. :func:`refine` returns the
+result and the :class:`Refinement` (its rounds) as :class:`Refined`. See docs/refinement.md.
 
->>> result = refine(TrajOptSolver(problem))  # doctest: +SKIP
->>> result.certified, result.refinement.reason  # doctest: +SKIP
+>>> result, refinement = refine(TrajOptSolver(problem))  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -19,24 +18,27 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
+from youbot_opt._checks import check_int, check_positive, check_time_limit, check_unit_interval
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
+from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.trajopt.certificate import Certificate
-from youbot_opt.trajopt.certify import certify
+from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
-from youbot_opt.trajopt.refinement import Refinement, RefinementBudget, RefinementRound
+from youbot_opt.trajopt.quadrature import grid_weights
 from youbot_opt.trajopt.result import TrajOptResult
-from youbot_opt.trajopt.simulate import STIFF_RATIO, damping_rate
 from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
-from youbot_opt.trajopt.transcription.base import BOUND_NAMES, grid_weights
+from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
     "ERROR_EXPONENTS",
+    "Refined",
     "Refinement",
     "RefinementBudget",
     "RefinementRound",
@@ -50,6 +52,237 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class RefinementBudget:
+    """Tolerance and limits of :func:`refine`.
+
+    Attributes
+    ----------
+    tolerance : float
+        Largest relative collocation error of any interval (dimensionless,
+        :attr:`CollocationError.relative`); 1e-3 by default.
+    max_rounds : int
+        Largest number of solves (the first grid counts as round 0).
+    max_knots : int
+        Largest grid; a round that would exceed it is not solved.
+    time_limit : float or None
+        Wall time in [s] after which no new round starts (None: no limit); it
+        also caps each round's IPOPT solves (``max_wall_time``: what is left; a
+        round stopped by it returns the previous round's plan, uncertified, and
+        says so) and the certificate's simulations (``certify(time_limit=...)``
+        gets what is left), whose certificate is then incomplete and fails.
+    max_pieces : int
+        Most pieces one interval is split into per round (halved, down to 2,
+        while the next grid would exceed ``max_knots``).
+    certify : bool
+        Also require the forward-simulation certificate to pass.
+    certify_every_round : bool
+        Certify every round, for the history (default); ``False`` certifies
+        only the rounds whose errors are within the tolerance (faster; the
+        other rounds then have no certificate figures).
+    tolerances : Tolerances or None
+        The certificate's thresholds (its defaults when None).
+    safety : float
+        Intervals are split so that their predicted error is ``safety *
+        tolerance`` (in (0, 1]; a margin for what the prediction misses): 1 by default.
+    """
+
+    tolerance: float = 1e-3
+    max_rounds: int = 8
+    max_knots: int = 1000
+    time_limit: float | None = None
+    max_pieces: int = 16
+    certify: bool = True
+    certify_every_round: bool = True
+    tolerances: Tolerances | None = None
+    safety: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tolerance", check_positive(self.tolerance, "tolerance"))
+        object.__setattr__(self, "max_rounds", check_int(self.max_rounds, "max_rounds", minimum=1))
+        object.__setattr__(self, "max_knots", check_int(self.max_knots, "max_knots", minimum=2))
+        object.__setattr__(self, "max_pieces", check_int(self.max_pieces, "max_pieces", minimum=2))
+        object.__setattr__(self, "time_limit", check_time_limit(self.time_limit, "time_limit"))
+        safety = check_unit_interval(
+            self.safety, "safety", note=" and > 0 (1 = split to the tolerance)"
+        )
+        if safety == 0.0:
+            raise ParameterError(
+                "safety must be > 0 (1 = split to the tolerance), got 0.0",
+                name="safety",
+                value=self.safety,
+            )
+        object.__setattr__(self, "safety", safety)
+
+    def describe(self) -> str:
+        """One line: the tolerance and the limits."""
+        limit = "none" if self.time_limit is None else f"{self.time_limit:g} s"
+        return (
+            f"error tolerance {self.tolerance:g}, at most {self.max_rounds} rounds, "
+            f"{self.max_knots} knots, time limit {limit}"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class RefinementRound:
+    """One solve of a refinement.
+
+    Attributes
+    ----------
+    index : int
+        Round number (0 = the starting grid).
+    n_knots : int
+        Knots of this round's grid.
+    status : str
+        The solve's status value.
+    objective, duration : float
+        ``f`` and ``T`` [s] of the solve.
+    max_error : float
+        Largest relative interval error.
+    t : ndarray, shape (n_knots,)
+        The grid [s].
+    errors : ndarray, shape (n_knots - 1,)
+        Relative error of each interval.
+    certificate_passed : bool or None
+        The certificate's verdict (None: not certified, e.g. a failed solve).
+    failures : tuple of str
+        The certificate's failed checks.
+    feedback_rms, feedback_peak, local_position : float
+        Certificate figures: worst RMS and peak feedback/plan torque ratios,
+        worst one-interval position error [rad] (NaN when not certified).
+    iterations : int
+        IPOPT iterations.
+    solve_time, check_time : float
+        Wall time [s] of the build and solve, and of the error estimate and certificate.
+    """
+
+    index: int
+    n_knots: int
+    status: str
+    objective: float
+    duration: float
+    max_error: float
+    t: Array
+    errors: Array
+    certificate_passed: bool | None
+    failures: tuple[str, ...]
+    feedback_rms: float
+    feedback_peak: float
+    local_position: float
+    iterations: int
+    solve_time: float
+    check_time: float
+
+    def summary(self) -> dict[str, object]:
+        """JSON-ready figures of the round (arrays left out)."""
+
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "round": self.index,
+            "n_knots": self.n_knots,
+            "status": self.status,
+            "objective": num(self.objective),
+            "duration_s": num(self.duration),
+            "max_error": num(self.max_error),
+            "certificate_passed": self.certificate_passed,
+            "failures": list(self.failures),
+            "feedback_rms": num(self.feedback_rms),
+            "feedback_peak": num(self.feedback_peak),
+            "local_position_rad": num(self.local_position),
+            "iterations": self.iterations,
+            "solve_time_s": self.solve_time,
+            "check_time_s": self.check_time,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class Refinement:
+    """The record of a refinement: its verdict, budget and rounds (:attr:`Refined.refinement`).
+
+    Attributes
+    ----------
+    certified : bool
+        Every interval within the tolerance, the solve successful and (if the
+        budget asks for it) the certificate passed.
+    reason : str
+        Why it stopped: ``"certified"`` or which check failed and the budget.
+    budget : RefinementBudget
+        The tolerance and limits used.
+    rounds : tuple of RefinementRound
+        Every round, first to last.
+    elapsed : float
+        Total wall time [s].
+    certificate : Certificate or None
+        The last round's certificate.
+    """
+
+    certified: bool
+    reason: str
+    budget: RefinementBudget
+    rounds: tuple[RefinementRound, ...]
+    elapsed: float
+    certificate: Certificate | None = field(default=None, compare=False)
+
+    def summary(self) -> dict[str, object]:
+        """JSON-ready record (per-round figures, no arrays)."""
+        return {
+            "certified": self.certified,
+            "reason": self.reason,
+            "budget": self.budget.describe(),
+            "elapsed_s": self.elapsed,
+            "rounds": [r.summary() for r in self.rounds],
+        }
+
+
+class Refined(NamedTuple):
+    """What :func:`refine` returns: the refined result and the record of its rounds.
+
+    Attributes
+    ----------
+    result : TrajOptResult
+        The last round's result (the status stays the solve's own; the
+        message names why the plan is not certified, when it is not).
+    refinement : Refinement
+        The record: verdict, reason, budget and every round.
+    """
+
+    result: TrajOptResult
+    refinement: Refinement
+
+    @property
+    def certified(self) -> bool:
+        """True only if the collocation error and (if asked) the certificate both passed."""
+        return self.refinement.certified
+
+    def summary(self) -> dict[str, object]:
+        """Return the result's :meth:`~TrajOptResult.summary` with the refinement's verdict."""
+        return {**self.result.summary(), "certified": self.certified}
+
+    def require_certified(self) -> TrajOptResult:
+        """Return :attr:`result` if the plan is :attr:`certified`, else raise :class:`SolveFailed`.
+
+        The result's status and ``success`` stay the solver's verdict (a plan
+        IPOPT solved but refinement could not certify is still "solved"), so
+        ``result.raise_for_status()`` accepts it; this is the stricter check.
+
+        Raises
+        ------
+        SolveFailed
+            If the solve failed, or if refinement stopped uncertified (the
+            message names the failed check and the budget).
+        """
+        self.result.raise_for_status()
+        if not self.certified:
+            why = self.refinement.reason.removeprefix("not certified: ")
+            raise SolveFailed(
+                f"trajectory {self.result.status.value}, NOT certified: {why}", result=self.result
+            )
+        return self.result
+
 
 ERROR_EXPONENTS: dict[str, int] = {"trapezoidal": 3, "hermite_simpson": 4, "radau": 4}
 """Exponent ``m`` of the interval error estimate, ``e ~ h^m``: ``p + 1 = 3`` for
@@ -306,7 +539,7 @@ def _round(
 def refine(
     solver: TrajOptSolver,
     *,
-    beta: float | None = None,
+    beta: float = 0.5,
     bound_scale: float = 1.0,
     guess: GuessLike = None,
     start: BoundaryLike | None = None,
@@ -315,7 +548,7 @@ def refine(
     budget: RefinementBudget | None = None,
     progress: Callable[[RefinementRound], None] | None = None,
     first: TrajOptResult | None = None,
-) -> TrajOptResult:
+) -> Refined:
     """Solve, then refine the grid until the plan is certified or the budget runs out.
 
     Parameters
@@ -335,11 +568,11 @@ def refine(
 
     Returns
     -------
-    TrajOptResult
-        The last round's result with :attr:`~TrajOptResult.refinement` set:
-        :attr:`~TrajOptResult.certified` is True for a certified plan; otherwise
-        ``refinement.reason`` (also appended to the message) names the failed
-        check and the budget. The status stays the solve's own.
+    Refined
+        The last round's result and the :class:`Refinement` record:
+        ``refinement.certified`` is True for a certified plan; otherwise
+        ``refinement.reason`` (also appended to the result's message) names the
+        failed check and the budget. The result's status stays the solve's own.
 
     Raises
     ------
@@ -466,4 +699,4 @@ def refine(
         certificate=cert,
     )
     message = result.message if refinement.certified else f"{result.message}; {reason}"
-    return dataclasses.replace(result, refinement=refinement, message=message)
+    return Refined(dataclasses.replace(result, message=message), refinement)

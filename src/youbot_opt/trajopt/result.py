@@ -15,22 +15,19 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
 from youbot_opt.robot.model import JointBounds
 from youbot_opt.trajopt.check import ResultCheck, check_result
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.simulate import batched_aba
 from youbot_opt.trajopt.trajectory import Trajectory
-
-if TYPE_CHECKING:
-    from youbot_opt.trajopt.refinement import Refinement
 
 __all__ = [
     "SolveStatus",
@@ -193,11 +190,8 @@ class TrajOptResult:
     grid : ndarray, shape (N - 1,), or None
         Each interval's fraction of ``T`` on a non-uniform grid (they sum to 1;
         interval ``k`` lasts ``(N - 1) grid[k] dt``); ``None`` for the uniform grid.
-    refinement : Refinement or None
-        The mesh-refinement record (:mod:`youbot_opt.trajopt.refine`): per round
-        knots, objective, duration, collocation error, certificate figures and
-        time, and whether the plan is certified (:attr:`certified`). ``None``
-        for a fixed-grid solve, which is never called certified.
+        A refined grid's record of rounds is returned beside the result by
+        :func:`youbot_opt.trajopt.refine.refine` (:class:`~youbot_opt.trajopt.refine.Refined`).
 
     Notes
     -----
@@ -276,12 +270,6 @@ class TrajOptResult:
     feasibility_tol: float = DEFAULT_FEASIBILITY_TOL
     bound_structure: BoundStructure | None = field(default=None, compare=False)
     grid: Array | None = None
-    refinement: Refinement | None = field(default=None, compare=False)
-
-    @property
-    def certified(self) -> bool:
-        """True only for a refined plan whose collocation error and certificate both passed."""
-        return self.refinement is not None and self.refinement.certified
 
     def step_ratios(self) -> Array:
         """Step ratios ``r_k = h_k / dt`` of the grid, shape ``(N - 1,)`` (ones if uniform)."""
@@ -353,30 +341,6 @@ class TrajOptResult:
                 f"trajectory solve failed with status {self.status.value}: {self.message}",
                 result=self,
             )
-        return self
-
-    def require_certified(self) -> TrajOptResult:
-        """Return ``self`` if the plan is :attr:`certified`, else raise :class:`SolveFailed`.
-
-        :attr:`status` and :attr:`success` stay the solver's verdict (a plan
-        IPOPT solved but refinement could not certify is still "solved"), so
-        :meth:`raise_for_status` accepts it; this is the stricter check.
-
-        Raises
-        ------
-        SolveFailed
-            If the solve failed, if the result is not refined (a fixed grid is
-            never certified), or if refinement stopped uncertified (the message
-            names the failed check and the budget).
-        """
-        self.raise_for_status()
-        if not self.certified:
-            why = (
-                "a fixed-grid result is never certified (solve with refine())"
-                if self.refinement is None
-                else self.refinement.reason.removeprefix("not certified: ")
-            )
-            raise SolveFailed(f"trajectory {self.status.value}, NOT certified: {why}", result=self)
         return self
 
     def bounds(self) -> JointBounds:
@@ -460,7 +424,12 @@ class TrajOptResult:
         return sorted(rows, key=lambda r: (r.name, r.knot, r.joint))
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready figures of the solve."""
+        """JSON-ready figures of the solve.
+
+        ``"certified"`` is False: a result alone is never certified;
+        :meth:`youbot_opt.trajopt.refine.Refined.summary` reports the verdict of
+        a refinement.
+        """
 
         def num(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
@@ -484,7 +453,7 @@ class TrajOptResult:
             "cpu_time_s": self.cpu_time,
             "max_violation": num(self.max_violation),
             "uniform_grid": self.grid is None,
-            "certified": self.certified,
+            "certified": False,  # a bare result is never certified: Refined.summary() says
         }
 
 

@@ -3,11 +3,11 @@
 Owns the code path :mod:`youbot_opt.trajopt.certify` and
 :mod:`youbot_opt.trajopt.check` verify plans with, independent of the
 collocation equations (spec ``trajopt.md``, "prove each trajectory by forward
-simulation"): :func:`batched_aba` (``a = ABA(q, v, tau - b v)``, damping as a
-torque), :func:`integrate_intervals` (one interval from every knot) and
+simulation"): :func:`integrate_intervals` (one interval from every knot) and
 :func:`simulate` (the whole motion, open loop or with :class:`PDGains`), all
 integrated by SciPy's ``solve_ivp`` (DOP853, or Radau where the damping is
-stiff: :func:`integration_method`). Robots with ``nq == nv`` only.
+stiff: :func:`integration_method`), with the accelerations of
+:func:`youbot_opt.dynamics.numeric.batched_aba`. Robots with ``nq == nv`` only.
 
 >>> sim = simulate(result.trajectory, robot, gains=PDGains())  # doctest: +SKIP
 """
@@ -16,9 +16,8 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple, TypeAlias
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -26,26 +25,26 @@ from scipy import sparse
 from scipy.integrate import solve_ivp
 
 from youbot_opt._typing import Array
-from youbot_opt.dynamics.coordinates import angle_robot
+from youbot_opt.dynamics.numeric import (
+    STIFF_RATIO,
+    RobotLike,
+    acting_damping,
+    as_numeric_robot,
+    batched_aba,
+    damping_rate,
+)
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel, as_robot_model
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
     "PDGains",
-    "RobotLike",
     "Simulation",
-    "STIFF_RATIO",
-    "DampingRate",
-    "batched_aba",
-    "damping_rate",
     "integrate_intervals",
     "integration_method",
     "simulate",
     "sample_times",
 ]
-
-AbaFunction = Callable[[Array, Array, Array], Array]
 
 _LOG = logging.getLogger(__name__)
 
@@ -53,13 +52,6 @@ DEFAULT_RTOL = 1e-10
 """Default relative tolerance of the integrator (DOP853)."""
 DEFAULT_ATOL = 1e-12
 """Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
-STIFF_RATIO = 100.0
-"""Largest ``damping_rate * h`` (dimensionless, ``h`` the longest interval) that
-``method="auto"`` integrates explicitly (DOP853); above it, Radau. An explicit
-step is stable only for ``h_step * rate`` below about 3-6, so DOP853 would take
-more than ~20 steps per interval for stability alone (docs/refinement.md,
-"Stiff joint damping")."""
-_RATE_SAMPLES = 16  # configurations (spread over the knots) at which damping_rate is evaluated
 
 
 class _Deadline(Exception):
@@ -71,29 +63,6 @@ def _check_deadline(deadline: float | None) -> None:
         raise _Deadline
 
 
-RobotLike: TypeAlias = RobotModel | pin.Model
-"""A :class:`~youbot_opt.robot.model.RobotModel` or a bare ``pinocchio.Model`` (wrapped)."""
-
-
-def _robot(robot: RobotLike) -> RobotModel:
-    """``robot`` as a RobotModel with nq == nv (continuous joints in angle coordinates)."""
-    model = angle_robot(as_robot_model(robot))
-    if model.nq != model.nv:
-        raise ParameterError(
-            f"robot {model.name!r} has nq = {model.nq} != nv = {model.nv}; forward "
-            "simulation supports revolute, continuous and prismatic joints only",
-            name="robot",
-            value=(model.nq, model.nv),
-        )
-    return model
-
-
-def _damping(robot: RobotModel, damping: bool) -> Array:
-    """Joint damping [N m s/rad] that acts: the model's, or zeros."""
-    b = np.array(robot.damping, dtype=float)
-    return b if damping else np.zeros_like(b)
-
-
 def _check_dimensions(trajectory: Trajectory, robot: RobotModel) -> None:
     nq, nv = robot.nq, robot.nv
     if trajectory.q.shape[1] != nq or trajectory.v.shape[1] != nv:
@@ -103,119 +72,6 @@ def _check_dimensions(trajectory: Trajectory, robot: RobotModel) -> None:
             name="trajectory",
             value=trajectory.q.shape,
         )
-
-
-def batched_aba(robot: RobotLike, *, damping: bool = True) -> AbaFunction:
-    """Forward dynamics ``(q, v, tau) -> ABA(q, v, tau - b v)`` of knot-major stacks.
-
-    Pinocchio's numeric ABA (``abaInParallel`` when available, else one
-    ``pin.aba`` call per row); the viscous damping ``b`` is applied as a torque
-    because ``pin.aba`` ignores ``model.damping``.
-
-    Parameters
-    ----------
-    robot : RobotModel or pinocchio.Model
-        The robot (``nq == nv``).
-    damping : bool, optional
-        Apply the model's joint damping ``b`` [N m s/rad]; False uses ``b = 0``.
-
-    Returns
-    -------
-    callable
-        ``f(q, v, tau)`` taking arrays of shape (n, nv) -- positions [rad],
-        velocities [rad/s], torques [N m] -- and returning accelerations
-        [rad/s^2] of shape (n, nv) (shape (n,) when ``nv == 1`` and
-        ``abaInParallel`` is used).
-
-    Raises
-    ------
-    ParameterError
-        If ``robot`` is not a robot or has ``nq != nv``.
-    """
-    robot = _robot(robot)
-    model, b = robot.model, _damping(robot, damping)
-    if hasattr(pin, "abaInParallel"):
-        pool = pin.ModelPool(model, 1)
-
-        def batch(q: Array, v: Array, tau: Array) -> Array:
-            # Pinocchio's batched ABA takes column-major (nv, n) stacks.
-            out = pin.abaInParallel(1, pool, q.T, v.T, (tau - b * v).T)
-            return np.asarray(out).reshape(q.shape[1], q.shape[0]).T  # 1-D when nv == 1
-
-        return batch
-    data = model.createData()
-
-    def rows(q: Array, v: Array, tau: Array) -> Array:
-        return np.array(
-            [
-                pin.aba(model, data, qk, vk, tk - b * vk)
-                for qk, vk, tk in zip(q, v, tau, strict=True)
-            ]
-        )
-
-    return rows
-
-
-class DampingRate(NamedTuple):
-    """The fastest rate of the joint damping (:func:`damping_rate`).
-
-    Attributes
-    ----------
-    rate : float
-        Largest eigenvalue of ``M(q)^-1 B`` in [1/s] (0 without damping).
-    joint : str
-        The joint that dominates that mode (largest component of its
-        eigenvector), "" without damping.
-    """
-
-    rate: float
-    joint: str
-
-
-def damping_rate(robot: RobotLike, q: Array, *, damping: bool = True) -> DampingRate:
-    """Fastest rate at which the joint damping relaxes the velocities, in [1/s].
-
-    The largest eigenvalue of ``M(q)^-1 B`` (``B`` the diagonal viscous damping
-    [N m s/rad], ``M`` the joint-space inertia with the rotor armature) over the
-    configurations ``q``: the fastest damped velocity mode decays like
-    ``exp(-rate t)``. ``1 / rate`` is the shortest time constant of the
-    dynamics; a grid step ``h`` with ``rate * h >> 1`` does not resolve it (the
-    dynamics are stiff on that grid). For one joint alone, ``rate = b / I``
-    (damping over the inertia about the axis).
-
-    Parameters
-    ----------
-    robot : RobotModel or pinocchio.Model
-        The robot (``nq == nv``).
-    q : ndarray, shape (M, nq) or (nq,)
-        Configurations in [rad] (at most 16, spread over the rows, are used).
-    damping : bool, optional
-        Whether the damping acts; False gives rate 0.
-
-    Returns
-    -------
-    DampingRate
-        The rate in [1/s] and the joint that dominates it.
-    """
-    robot = _robot(robot)
-    b = _damping(robot, damping)
-    if not np.any(b > 0.0):
-        return DampingRate(0.0, "")
-    qs = np.atleast_2d(np.asarray(q, dtype=float))
-    rows = np.unique(np.linspace(0, qs.shape[0] - 1, min(_RATE_SAMPLES, qs.shape[0])).astype(int))
-    model, data = robot.model, robot.model.createData()
-    root_b = np.sqrt(b)
-    best = DampingRate(0.0, "")
-    for qk in qs[rows]:
-        mass = pin.crba(model, data, qk)
-        mass = np.triu(mass) + np.triu(mass, 1).T  # crba fills the upper triangle only
-        # eig(M^-1 B) = eig(B^1/2 M^-1 B^1/2): symmetric, real and >= 0
-        sym = root_b[:, None] * np.linalg.inv(mass) * root_b[None, :]
-        values, vectors = np.linalg.eigh(0.5 * (sym + sym.T))
-        if values[-1] > best.rate:
-            joint = int(np.argmax(np.abs(vectors[:, -1])))
-            best = DampingRate(float(values[-1]), robot.joint_names[joint])
-    return best
 
 
 def integration_method(
@@ -465,7 +321,7 @@ def integrate_intervals(
     ParameterError
         If the trajectory and the robot disagree in size or the robot is unsupported.
     """
-    robot = _robot(robot)
+    robot = as_numeric_robot(robot)
     _check_dimensions(trajectory, robot)
     batch = batched_aba(robot, damping=damping)
     polys = _IntervalPolynomials(trajectory)
@@ -555,7 +411,7 @@ def simulate(
         If sizes disagree, the robot or interpolant is unsupported, or
         ``stop_deviation`` is not positive.
     """
-    robot = _robot(robot)
+    robot = as_numeric_robot(robot)
     _check_dimensions(trajectory, robot)
     if stop_deviation is not None and not stop_deviation > 0.0:
         raise ParameterError(
@@ -580,7 +436,7 @@ def simulate(
         "kij,ksj->ksi", gain, polys.coef[:, :, : 2 * nv]
     )
     gain_state = gain.copy()
-    gain_state[:, :, nv:] += np.diag(_damping(robot, damping))
+    gain_state[:, :, nv:] += np.diag(acting_damping(robot, damping))
     q_coef = polys.coef[:, :, :nv]
     states = np.full((times.size, 2 * nv), np.nan)
     states[0] = np.concatenate([trajectory.q[0], trajectory.v[0]])

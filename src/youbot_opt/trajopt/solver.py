@@ -22,9 +22,10 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from youbot_opt._checks import check_time_limit
+from youbot_opt._checks import check_bound_scale, check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.base import Dynamics
+from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
 from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
@@ -32,7 +33,7 @@ from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, resolve_guess
 from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.objectives import work as work_of
-from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem, check_bound_scale
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import (
     DEFAULT_FEASIBILITY_TOL,
     BoundStructure,
@@ -42,7 +43,6 @@ from youbot_opt.trajopt.result import (
     TrajOptResult,
     status_from_ipopt,
 )
-from youbot_opt.trajopt.simulate import STIFF_RATIO, damping_rate
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription import Transcription, get_transcription
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
@@ -294,7 +294,7 @@ class TrajOptSolver:
     # ----------------------------------------------------------------- solve
     def solve(
         self,
-        beta: float | None = None,
+        beta: float = 0.5,
         bound_scale: float = 1.0,
         guess: GuessLike = None,
         start: BoundaryLike | None = None,
@@ -308,8 +308,10 @@ class TrajOptSolver:
 
         Parameters
         ----------
-        beta : float, optional
-            Time weight in [0, 1]; the problem's objective default when omitted.
+        beta : float
+            Time weight in [0, 1] of ``f = beta T + (1 - beta) W`` (the NLP's
+            parameter; 0.5, the study's base case, by default). Validated here,
+            where it enters, and recorded once, in :attr:`TrajOptResult.beta`.
         bound_scale : float
             Factor > 0 on the bound families of ``problem.scaled_bounds`` (1.0 = data sheet).
         guess : None, Trajectory or TrajOptResult
@@ -339,7 +341,7 @@ class TrajOptSolver:
             On a bad ``beta``, ``bound_scale``, boundary state or guess.
         """
         problem = self.problem
-        beta = problem.objective.beta if beta is None else check_beta(beta)
+        beta = check_beta(beta)
         bound_scale = check_bound_scale(bound_scale)
         start_state = _boundary("start", start, problem.start)
         goal_state = _boundary("goal", goal, problem.goal)
@@ -615,9 +617,9 @@ def auto_transcription(problem: TrajOptProblem) -> str:
     """Choose the transcription of ``problem``: ``"radau"`` if its damping is stiff, else HS.
 
     The joint damping is stiff on a grid when its fastest relaxation rate
-    (:func:`~youbot_opt.trajopt.simulate.damping_rate`, at the start and goal
+    (:func:`~youbot_opt.dynamics.numeric.damping_rate`, at the start and goal
     configurations) times the grid step exceeds
-    :data:`~youbot_opt.trajopt.simulate.STIFF_RATIO`; the step is the
+    :data:`~youbot_opt.dynamics.numeric.STIFF_RATIO`; the step is the
     problem's fixed duration, else the default guess's
     (:data:`~youbot_opt.trajopt.guess.DEFAULT_GUESS_DURATION`), over its
     intervals. The L-stable Radau IIA collocation then carries such a joint on
@@ -650,7 +652,7 @@ def solve(
     method: str | Transcription = "trapezoidal",
     options: IpoptOptions | None = None,
     backend: str = "symbolic",
-    beta: float | None = None,
+    beta: float = 0.5,
     bound_scale: float = 1.0,
     guess: GuessLike = None,
     start: BoundaryLike | None = None,

@@ -70,7 +70,7 @@ def open_store(
     def load(path: Path) -> TrajOptResult:
         return load_result(path, robot=robot)
 
-    params = _as_stored(Path(out), params, robot)
+    params = _as_stored(Path(out), _with_stored_beta(Path(out), params), robot)
     return SweepStore(
         out, kind=kind, params=params, save=save_result, load=load, suffix=".npz", clean=clean
     )
@@ -95,6 +95,21 @@ def robot_identity(robot: RobotModel) -> str | None:
     if path is None:
         return None
     return urdf_digest(path, robot.name)
+
+
+def _with_stored_beta(out: Path, params: dict[str, Any]) -> dict[str, Any]:
+    """``params`` with the problem ``"beta"`` of a 0.1.0 store in ``out``, if it has one.
+
+    0.1.0 problems carried a default time weight; no sweep solved with it (each
+    records the weight it solved at: ``"beta"``, ``"betas"``), so it does not
+    tell two sweeps apart.
+    """
+    try:
+        stored = json.loads((out / "manifest.json").read_text(encoding="utf-8"))["params"]
+        beta = stored["problem"]["beta"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return params
+    return {**params, "problem": {**params["problem"], "beta": beta}}
 
 
 def _as_stored(out: Path, params: dict[str, Any], robot: RobotModel) -> dict[str, Any]:

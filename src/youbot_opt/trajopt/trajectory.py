@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.trajopt import radau
+from youbot_opt.trajopt import quadrature
 
 __all__ = ["Trajectory", "Interpolation"]
 
@@ -69,7 +69,7 @@ class Trajectory:
     v_stages, a_stages, tau_stages : ndarray, shape (N - 1, 2, nv), optional
         Velocities [rad/s], accelerations [rad/s^2] and torques [N m] at the
         two inner Radau nodes of each interval (``"radau"`` only; the third
-        node is the interval's end knot, :mod:`youbot_opt.trajopt.radau`). The
+        node is the interval's end knot, :mod:`youbot_opt.trajopt.quadrature`). The
         torque is the quadratic through the three stages, so it may jump at a
         knot: :meth:`torque` at a knot time gives the value of the interval
         that starts there, ``tau[k]`` (``k >= 1``) the one that ends there.
@@ -241,6 +241,6 @@ class Trajectory:
         values = np.concatenate([stages[k], ends[k + 1][:, None, :]], axis=1)  # (M, 3, nv)
         xs = x[:, 0]
         if what == "tau":
-            return np.einsum("mj,mjc->mc", radau.basis(xs), values)
+            return np.einsum("mj,mjc->mc", quadrature.radau_basis(xs), values)
         start = self.q[k] if what == "q" else self.v[k]
-        return start + h * np.einsum("mj,mjc->mc", radau.integral(xs), values)
+        return start + h * np.einsum("mj,mjc->mc", quadrature.radau_integral(xs), values)

@@ -24,7 +24,8 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, TranscriptionError
-from youbot_opt.trajopt.objectives import QuadratureRule, duration, quadrature_weights
+from youbot_opt.trajopt.objectives import duration, objective_value
+from youbot_opt.trajopt.quadrature import QuadratureRule, grid_weights, quadrature_weights
 from youbot_opt.trajopt.trajectory import Interpolation, Trajectory
 
 if TYPE_CHECKING:
@@ -487,7 +488,7 @@ class Transcription(ABC):
             work += term
         work = dt * work
         total_time = duration(dt, n)
-        f = problem.objective.value(total_time, work, beta)
+        f = objective_value(total_time, work, beta)
         return Expressions(
             f=f,
             g=g,
@@ -509,27 +510,12 @@ class Transcription(ABC):
     def quadrature(self, n_knots: int) -> tuple[Array, Array | None]:
         """Work weights ``(w_knots, w_mid)`` with ``W = dt (w_knots . p + w_mid . p_mid)``.
 
-        The uniform grid uses :func:`~youbot_opt.trajopt.objectives.quadrature_weights`;
+        The uniform grid uses :func:`~youbot_opt.trajopt.quadrature.quadrature_weights`;
         another grid weights each interval by its step ratio ``r_k``.
         """
         if self.fractions is None:
             return quadrature_weights(self.rule, n_knots)
         return grid_weights(self.rule, self.ratios(n_knots))
-
-
-def grid_weights(rule: QuadratureRule, ratios: Array) -> tuple[Array, Array | None]:
-    """Quadrature weights (in units of the mean step) on intervals of step ratios ``ratios``."""
-    r = np.asarray(ratios, dtype=float)
-    w = np.zeros(r.size + 1)
-    w[:-1] += 0.5 * r
-    w[1:] += 0.5 * r
-    if rule == "trapezoidal":
-        return w, None
-    if rule == "simpson":
-        return w / 3.0, 4.0 / 6.0 * r
-    raise ParameterError(
-        f"rule must be 'trapezoidal' or 'simpson', got {rule!r}", name="rule", value=rule
-    )
 
 
 def check_fractions(fractions: Any) -> Array:

@@ -19,7 +19,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import TranscriptionError
-from youbot_opt.trajopt import radau
+from youbot_opt.trajopt import quadrature
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription.base import Transcription
 
@@ -32,7 +32,7 @@ class RadauCollocation(Transcription):
     r"""Radau IIA collocation (3 stages, order 5, stage order 3) with a free duration.
 
     With ``h_k = r_k dt`` and the Butcher matrix ``A`` of
-    :mod:`youbot_opt.trajopt.radau`, per interval ``k`` and node ``i = 1, 2, 3``
+    :mod:`youbot_opt.trajopt.quadrature`, per interval ``k`` and node ``i = 1, 2, 3``
 
     .. math::
 
@@ -83,10 +83,12 @@ class RadauCollocation(Transcription):
             rates = self._nodes(sym, accel, rate)
             names = (f"collocation_{label}_1", f"collocation_{label}_2", f"defect_{label}")
             for i, name in enumerate(names):  # row 3 of the Butcher matrix: the weights
-                blocks.append((name, values[i] - start - self._step(rates, radau.BUTCHER[i], dt)))
+                blocks.append(
+                    (name, values[i] - start - self._step(rates, quadrature.RADAU_BUTCHER[i], dt))
+                )
         tau = self._nodes(sym, accel, "tau")
         start_torque = sym["tau"][:, 0] - sum(
-            float(w) * t[:, 0] for w, t in zip(radau.AT_ZERO, tau, strict=True)
+            float(w) * t[:, 0] for w, t in zip(quadrature.RADAU_AT_ZERO, tau, strict=True)
         )
         blocks.append(("start_torque", start_torque))
         return blocks
@@ -100,7 +102,7 @@ class RadauCollocation(Transcription):
         self, sym: dict[str, Any], accel: dict[str, Any]
     ) -> list[tuple[str, str, Any]]:
         """Bound the inner Bernstein control points of each interval's ``q`` and ``v`` cubics."""
-        rows = radau.bernstein_inner()
+        rows = quadrature.radau_bernstein_inner()
         out: list[tuple[str, str, Any]] = []
         for what, label in (("v", "velocity"), ("q", "position")):
             values = [sym[what][:, :-1], *self._nodes(sym, accel, what)]
@@ -112,11 +114,11 @@ class RadauCollocation(Transcription):
     def work_weights(self, n_knots: int) -> list[tuple[str, Array]]:
         """Radau weights ``r_k b_j``: stages 1, 2 and the end knot of each interval."""
         r = self.ratios(n_knots)
-        knots = np.concatenate(([0.0], radau.WEIGHTS[2] * r))
+        knots = np.concatenate(([0.0], quadrature.RADAU_WEIGHTS[2] * r))
         return [
             ("tau", knots),
-            ("tau_stage1", radau.WEIGHTS[0] * r),
-            ("tau_stage2", radau.WEIGHTS[1] * r),
+            ("tau_stage1", quadrature.RADAU_WEIGHTS[0] * r),
+            ("tau_stage2", quadrature.RADAU_WEIGHTS[1] * r),
         ]
 
     def quadrature(self, n_knots: int) -> tuple[Array, Array | None]:
@@ -142,7 +144,7 @@ class RadauCollocation(Transcription):
             "tau": guess.torque(t),
             "dt": np.array(dt),
         }
-        for s, c in zip(_STAGES, radau.NODES[:2], strict=True):
+        for s, c in zip(_STAGES, quadrature.RADAU_NODES[:2], strict=True):
             ts = t[:-1] + c * h
             values.update(
                 {f"q_{s}": guess(ts), f"v_{s}": guess.velocity(ts), f"tau_{s}": guess.torque(ts)}

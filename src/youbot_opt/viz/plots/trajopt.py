@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
     from youbot_opt.robot.model import RobotModel
     from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
-    from youbot_opt.trajopt.refinement import Refinement
+    from youbot_opt.trajopt.refine import Refined, Refinement
 
 __all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "plot_refinement", "QUANTITIES"]
 
@@ -495,7 +495,7 @@ def plot_arm_2d(
     return fig
 
 
-def plot_refinement(result: TrajOptResult | Refinement, *, title: str | None = None) -> Figure:
+def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) -> Figure:
     """Where the knots went in each refinement round, and why.
 
     Top: the knots of every round (one row per round, a tick per knot, the
@@ -506,8 +506,8 @@ def plot_refinement(result: TrajOptResult | Refinement, *, title: str | None = N
 
     Parameters
     ----------
-    result : TrajOptResult or Refinement
-        A refined result (:func:`youbot_opt.trajopt.refine.refine`) or its record.
+    refined : Refined or Refinement
+        What :func:`youbot_opt.trajopt.refine.refine` returns, or its record.
     title : str, optional
         Figure title (default: the refinement's outcome).
 
@@ -518,14 +518,21 @@ def plot_refinement(result: TrajOptResult | Refinement, *, title: str | None = N
     Raises
     ------
     ParameterError
-        If the result was not refined or no round has an error estimate.
+        If ``refined`` is not a refinement (a bare result: refine it first) or
+        no round has an error estimate.
     """
-    record = result.refinement if isinstance(result, TrajOptResult) else result
-    if record is None:
-        raise ParameterError("the result was not refined (solve with refinement)", name="result")
+    from youbot_opt.trajopt.refine import Refined, Refinement  # imports the solver
+
+    record = refined.refinement if isinstance(refined, Refined) else refined
+    if not isinstance(record, Refinement):
+        raise ParameterError(
+            f"cannot plot the refinement of a {type(refined).__name__}: pass what refine() "
+            "returns (a bare result was not refined)",
+            name="refined",
+        )
     rounds = [r for r in record.rounds if r.t.size > 1]
     if not rounds:
-        raise ParameterError("no refinement round has an error estimate", name="result")
+        raise ParameterError("no refinement round has an error estimate", name="refined")
     fig, axes = new_figure(2, 1, figsize=(8.0, 6.0), sharex=True)
     ax_grid, ax_err = axes[0, 0], axes[1, 0]
     cmap = colormaps["viridis"]
