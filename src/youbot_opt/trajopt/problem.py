@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._checks import check_bound_scale
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
