@@ -568,7 +568,7 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
-    from youbot_opt.trajopt.objectives import check_beta
+    from youbot_opt._checks import check_beta
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     if args.starts < 1:

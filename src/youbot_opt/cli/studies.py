@@ -211,8 +211,7 @@ def _check(
                 "--item-timeout needs worker processes (--workers >= 1), got --workers 0",
                 name="item_timeout",
             )
-    from youbot_opt.trajopt.objectives import check_beta
-    from youbot_opt.trajopt.problem import check_bound_scale
+    from youbot_opt._checks import check_beta, check_bound_scale
 
     for name in ("starts", "first_starts"):
         value = getattr(args, name, None)

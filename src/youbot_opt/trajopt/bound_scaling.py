@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from youbot_opt._checks import check_bound_scale
+from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
@@ -28,7 +28,6 @@ from youbot_opt.trajopt.multistart import (
     optima_rule,
     tally_starts,
 )
-from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.result import ActiveBound
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import (

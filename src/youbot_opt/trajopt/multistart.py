@@ -23,13 +23,12 @@ from typing import Any
 
 import numpy as np
 
+from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore
-from youbot_opt.trajopt.objectives import check_beta
-from youbot_opt.trajopt.problem import check_bound_scale
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.stored_starts import ConvergedStarts, OptimumMembers, StoredStarts
 from youbot_opt.trajopt.sweep import (

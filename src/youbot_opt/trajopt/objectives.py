@@ -23,7 +23,6 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.quadrature import QuadratureRule, quadrature_weights
 
 __all__ = [
-    "check_beta",
     "duration",
     "objective_value",
     "work",

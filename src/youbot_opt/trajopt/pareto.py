@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._checks import check_bound_scale
+from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, process_context, run_tasks
@@ -31,7 +31,6 @@ from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
-from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import check_solver, worker_solver

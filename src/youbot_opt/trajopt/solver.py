@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from youbot_opt._checks import check_bound_scale, check_time_limit
+from youbot_opt._checks import check_beta, check_bound_scale, check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.base import Dynamics
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
@@ -31,7 +31,6 @@ from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, vi
 from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
 from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, resolve_guess
-from youbot_opt.trajopt.objectives import check_beta
 from youbot_opt.trajopt.objectives import work as work_of
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import (
