@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._checks import check_beta
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.quadrature import QuadratureRule, quadrature_weights
