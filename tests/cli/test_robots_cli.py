@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,51 @@ def test_robots_table_gives_dof_types_and_status(capsys: pytest.CaptureFixture[s
         "refused" in rows["ur_description/ur3"] and "<robot name=...>" in rows["ur_description/ur3"]
     )
     assert main(["robots", "no_such_robot"]) == 2
+
+
+def _arm_files(folder: Path) -> dict[str, Path]:
+    """Three edits of the committed youBot URDF: loads as it is, only leniently, refused."""
+    text = (FIVE_DOF.parent / "youbot_arm_planar.urdf").read_text()
+    edits = {
+        "strict": text,
+        # arm_link_1's izz breaks I1 + I2 >= I3: an inertia only --lenient accepts
+        "lenient": text.replace('izz="0.0005931"', 'izz="0.007"', 1),
+        "refused": text.replace('<mass value="0.821"/>', '<mass value="-1"/>', 1),
+    }
+    assert len(set(edits.values())) == 3
+    paths = {}
+    for kind, body in edits.items():
+        paths[kind] = folder / f"{kind}.urdf"
+        paths[kind].write_text(body)
+    return paths
+
+
+def test_robots_takes_urdf_paths_and_names_mixed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Own files get the names' verdict: default / lenient (rule, line) / refused (rule, line)."""
+    files = _arm_files(tmp_path)
+    args = ["robots", str(files["strict"]), "ur5", str(files["lenient"]), str(files["refused"])]
+    assert main(args) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    assert "3/3" in rows[str(files["strict"])] and "default" in rows[str(files["strict"])]
+    assert "default" in rows["ur5"]
+    lenient = rows[str(files["lenient"])]
+    assert "lenient" in lenient and "triangle inequality" in lenient
+    assert "arm_link_1" in lenient and "line " in lenient
+    refused = rows[str(files["refused"])]
+    assert "refused, also with --lenient: mass >= 0" in refused and "line 55" in refused
+    assert main([*args, "--json"]) == 0
+    by_name = {row["name"]: row for row in json.loads(capsys.readouterr().out)}
+    assert {len(row) for row in by_name.values()} == {9}  # one shape for names and paths
+    assert by_name[str(files["refused"])]["path"] == str(files["refused"].resolve())
+    assert [by_name[str(files[k])]["status"] for k in ("strict", "lenient", "refused")] == [
+        "default",
+        "lenient",
+        "refused",
+    ]
+    assert main(["robots", "ur5", str(tmp_path / "gone.urdf")]) == 2
+    assert "neither a robot name nor an existing file" in capsys.readouterr().err
 
 
 def test_report_of_a_file_whose_robot_is_named_youbot(

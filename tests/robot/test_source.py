@@ -241,3 +241,102 @@ def test_invalid_fields_are_refused(fields: dict[str, object], match: str) -> No
     """Each inconsistent field raises ParameterError naming it."""
     with pytest.raises(ParameterError, match=match):
         RobotSource(**fields)  # type: ignore[arg-type]
+
+
+def _file_named_youbot(folder: Path) -> Path:
+    """The youBot URDF as a file whose ``<robot name>`` is "youbot" but arm_link_1 is heavier.
+
+    A catalogue name, another robot: loaded by path it must never be recorded
+    (and reloaded) as the catalogue's youBot.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    text = youbot_urdf_path().read_text()
+    edited = text.replace('name="youbot_arm_planar"', 'name="youbot"', 1)
+    edited = edited.replace('<mass value="1.318"/>', '<mass value="2.5"/>', 1)
+    assert edited.count('name="youbot"') == 1 and '<mass value="2.5"/>' in edited
+    path = folder / "mine.urdf"
+    path.write_text(edited)
+    return path
+
+
+def _masses(robot: RobotModel) -> list[float]:
+    return [float(inertia.mass) for inertia in robot.model.inertias[1:]]
+
+
+def test_a_file_named_like_a_catalogue_robot_is_recorded_by_path_and_digest(
+    tmp_path: Path,
+) -> None:
+    """<robot name="youbot"> loaded by path: recorded by path and SHA-256, never by the name."""
+    urdf = _file_named_youbot(tmp_path)
+    robot = load_model(urdf)
+    assert robot.name == "youbot" and robot.catalogue_name is None
+    source = RobotSource.of(robot)
+    assert source.source == str(urdf.resolve())
+    assert source.urdf_sha256 == hashlib.sha256(urdf.read_bytes()).hexdigest()
+    assert _masses(source.load())[0] == 2.5 != _masses(load_model("youbot"))[0]
+    assert load_model("youbot").catalogue_name == "youbot"
+
+
+def test_a_trajectory_result_of_such_a_file_reloads_that_file_or_refuses(tmp_path: Path) -> None:
+    """save_result/load_result: the file itself comes back; edited or gone, a clear refusal."""
+    from youbot_opt.exceptions import ResultFileError
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.reproduction.study1 import study1_problem
+    from youbot_opt.trajopt.io import load_result, save_result
+    from youbot_opt.trajopt.solver import solve
+
+    urdf = _file_named_youbot(tmp_path / "robots")
+    robot = load_model(urdf)
+    result = solve(study1_problem(6, robot=robot), options=IpoptOptions(max_iter=3), seed=1)
+    (tmp_path / "run").mkdir()
+    save_result(result, tmp_path / "run" / "result.npz")
+    back = load_result(tmp_path / "run" / "result.npz").problem.robot
+    assert back.urdf_path == urdf.resolve() and _masses(back) == _masses(robot)
+    urdf.write_text(urdf.read_text().replace('<mass value="2.5"/>', '<mass value="2.6"/>'))
+    with pytest.raises(ResultFileError, match=r"cannot reload robot 'youbot'.*has changed"):
+        load_result(tmp_path / "run" / "result.npz")
+    urdf.unlink()
+    with pytest.raises(ResultFileError, match=r"cannot reload robot 'youbot'.*not found"):
+        load_result(tmp_path / "run" / "result.npz")
+
+
+def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) -> None:
+    """save_spatial_result/load_spatial_result with RobotSource.of: the file, not the catalogue."""
+    import numpy as np
+
+    from youbot_opt.exceptions import ResultFileError
+    from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result
+    from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
+    from youbot_opt.ikpath.targets import SpatialTarget
+    from youbot_opt.nlp.status import SolveStatus
+
+    urdf = _file_named_youbot(tmp_path / "robots")
+    robot = load_model(urdf)
+    base = SpatialIKProblem(
+        model=robot.model,
+        frame=robot.tip_frame,
+        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+    )
+    q = np.random.default_rng(5).uniform(base.q_lower, base.q_upper, (2, base.n_joints)) * 0.5
+    problem = base.with_targets(
+        tuple(SpatialTarget(position=base.placement(theta).translation) for theta in q)
+    )
+    result = build_spatial_result(
+        problem,
+        method="al",
+        status=SolveStatus.SOLVED,
+        x=q.ravel(),
+        multipliers=np.zeros(problem.n_constraints),
+        iterations=2,
+        wall_time=0.1,
+        message="converged",
+        start=q.ravel(),
+    )
+    path = tmp_path / "run" / "result.json"
+    path.parent.mkdir()
+    save_spatial_result(result, path, RobotSource.of(robot))
+    back = load_spatial_result(path).problem.model
+    assert [float(i.mass) for i in back.inertias[1:]] == _masses(robot)
+    urdf.unlink()
+    with pytest.raises(ResultFileError, match="not found"):
+        load_spatial_result(path)

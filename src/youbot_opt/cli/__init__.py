@@ -94,8 +94,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv = [DEFAULT_COMMAND, *argv]
     args = parser.parse_args(argv)
     _show_compile_progress()
+    from youbot_opt.cli.warning_lines import warnings_as_lines
+
     try:
-        return int(args.func(args))
+        with warnings_as_lines():  # one line per warning, grouped, no source lines
+            return int(args.func(args))
     except YoubotOptError as exc:
         print(f"youbot-opt: error: {exc}", file=sys.stderr)
         return 2

@@ -158,11 +158,14 @@ def load_robot(args: argparse.Namespace, *, damping: float | None = None) -> Rob
         As :func:`youbot_opt.robot.load.load_model`; a joint locked twice
         raises ParameterError.
     """
+    from youbot_opt.cli.warning_lines import flush_warnings
     from youbot_opt.robot.load import load_model
 
-    return load_model(
+    robot = load_model(
         args.robot,
         tip_frame=args.tip_frame,
         damping=damping,
         **loading_options(args),  # type: ignore[arg-type]
     )
+    flush_warnings()  # the loader's warnings, grouped, before the run
+    return robot

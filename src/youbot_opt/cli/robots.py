@@ -1,13 +1,14 @@
-"""``youbot-opt robots``: list the robots that load by name, with dof, joint types and status.
+"""``youbot-opt robots``: whether robots, by name or URDF path, load; dof, joint types, status.
 
-Each robot (``youbot``, ``youbot_arm_5dof`` and every URDF of
-example-robot-data, :func:`youbot_opt.robot.catalogue.available_robots`) is
-loaded by default, then with ``--lenient``; the table gives ``nq``/``nv``,
-joint types and whether and how it loads (with the rule it breaks).
+Each robot (``youbot``, ``youbot_arm_5dof``, every URDF of example-robot-data,
+:func:`youbot_opt.robot.catalogue.available_robots`, or a URDF file of the
+user's own) is loaded by default, then with ``--lenient``; the table gives
+``nq``/``nv``, joint types and whether and how it loads (with the rule it
+breaks and the line).
 
 Usage::
 
-    youbot-opt robots [NAME ...] [--names] [--json] [--out FILE]
+    youbot-opt robots [NAME|PATH ...] [--names] [--json] [--out FILE]
 """
 
 from __future__ import annotations
@@ -47,9 +48,11 @@ class RobotSurvey:
         Implausible-inertia warnings of the load that succeeded (other warnings,
         e.g. about meshes, are not counted).
     reason : str
-        Why the default load failed (the rule and the element), else ``""``.
+        Why the default load failed (the rule, the element and its line); for
+        ``"refused"`` why the lenient load failed too; else ``""``.
     message : str
-        The full error message of the default load, else ``""``.
+        The full error message of the default load (of the lenient load for
+        ``"refused"``), else ``""``.
     """
 
     name: str
@@ -77,6 +80,19 @@ def _joint_types(path: Path) -> str:
     return ", ".join(f"{t} {n}" for t, n in sorted(counts.items())) or "none"
 
 
+def _reason(exc: Exception, urdf: Path) -> str:
+    """Return the rule, the element and where it is (``line N``, or a mesh's file and line)."""
+    from youbot_opt.exceptions import URDFError
+
+    if not isinstance(exc, URDFError) or not exc.rule:
+        return str(exc).splitlines()[0]
+    where = [] if exc.element is None else [str(exc.element)]
+    if exc.line is not None:
+        other = exc.path is not None and Path(exc.path).resolve() != urdf.resolve()
+        where.append(f"{exc.path}:{exc.line}" if other else f"line {exc.line}")
+    return f"{exc.rule} (at {', '.join(where)})" if where else exc.rule
+
+
 def survey(name: str) -> RobotSurvey:
     """Load ``name`` by default, then leniently, and say what happened.
 
@@ -90,10 +106,12 @@ def survey(name: str) -> RobotSurvey:
     RobotSurvey
         Status, sizes, joint types and the reason of a refusal.
     """
-    from youbot_opt.exceptions import ModelError, URDFError, YoubotOptWarning
-    from youbot_opt.robot.catalogue import example_robots, youbot_urdf_path
+    from youbot_opt.exceptions import ModelError, YoubotOptWarning
+    from youbot_opt.robot.catalogue import find_robot
     from youbot_opt.robot.load import load_model
 
+    entry = find_robot(name)
+    path = entry.urdf_path if entry is not None else Path(name).resolve()
     reason = message = ""
     robot = None
     status = "refused"
@@ -103,11 +121,8 @@ def survey(name: str) -> RobotSurvey:
             warnings.simplefilter("always", YoubotOptWarning)
             try:
                 robot = load_model(name, strict=strict)
-            except ModelError as exc:
-                if strict:
-                    message = str(exc)
-                    short = f"{exc.rule} (at {exc.element})" if isinstance(exc, URDFError) else ""
-                    reason = short or message.splitlines()[0]
+            except ModelError as exc:  # refused leniently too: say what refuses it then
+                message, reason = str(exc), _reason(exc, path)
                 continue
         status, caught = ("default" if strict else "lenient"), list(record)
         break
@@ -118,8 +133,6 @@ def survey(name: str) -> RobotSurvey:
     count = count if robot is not None else 0
     if robot is not None and robot.urdf_path is not None:
         path = robot.urdf_path
-    else:
-        path = example_robots().get(name, Path(name) if name != "youbot" else youbot_urdf_path())
     return RobotSurvey(
         name=name,
         path=str(path),
@@ -133,24 +146,56 @@ def survey(name: str) -> RobotSurvey:
     )
 
 
+_EPILOG = """\
+verdicts:
+    default   loads as it is (what --robot NAME|PATH does)
+    lenient   loads only with --lenient; the rule that needs it and its line follow
+    refused   does not load even with --lenient; the rule and its line follow
+
+exit status:
+    0  every robot was surveyed, whatever its verdict (read the verdicts from
+       the table, or "status" in --json)
+    2  an argument is neither a robot name nor an existing file
+
+examples:
+    youbot-opt robots --names
+    youbot-opt robots ur5 panda
+    youbot-opt robots path/to/my_arm.urdf ur5 [--json]
+"""
+
+
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``robots`` sub-command."""
     p = add_command(
         sub,
         "robots",
-        help="list the robots that load by name: dof, joint types, loads by default or --lenient",
-        description="List the robots --robot accepts by name (youbot, youbot_arm_5dof and every "
-        "URDF of the installed example-robot-data), each loaded with a fixed base: nq/nv, the "
-        "joint types of its file, and whether it loads by default, only with --lenient, or is "
-        "refused (with the rule).",
-        epilog="examples:\n    youbot-opt robots --names\n    youbot-opt robots ur5 panda\n",
+        help="whether robots load, by name or URDF path: dof, joint types, default or --lenient",
+        description="Say whether robots load, each with a fixed base: the robots --robot "
+        "accepts by name (youbot, youbot_arm_5dof and every URDF of the installed "
+        "example-robot-data; all of them by default) and URDF files of your own, given by "
+        "path. For each: nq/nv, the joint types of its file, and whether it loads by "
+        "default, only with --lenient, or is refused (with the rule and its line).",
+        epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("names", nargs="*", metavar="NAME", help="robots to survey (default: all)")
+    p.add_argument(
+        "names",
+        nargs="*",
+        metavar="NAME|PATH",
+        help="robot names or URDF files to survey, mixed freely (default: every name); a "
+        "known name is taken as the name",
+    )
     p.add_argument("--names", dest="names_only", action="store_true", help="print names only")
     p.add_argument("--json", action="store_true", help="print one JSON list on stdout")
     p.add_argument("--out", default=None, metavar="FILE", help="also write the rows as JSON")
     p.set_defaults(func=_run)
+
+
+def _is_file(text: str) -> bool:
+    try:
+        return Path(text).is_file()
+    except OSError:  # e.g. a name longer than the file system allows
+        return False
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -159,10 +204,11 @@ def _run(args: argparse.Namespace) -> int:
 
     known = available_robots()
     names = list(args.names) or list(known)
-    unknown = [n for n in names if n not in known]
+    unknown = [n for n in names if n not in known and not _is_file(n)]
     if unknown:
         raise RobotNotFound(
-            f"unknown robot name(s) {unknown}; `youbot-opt robots --names` lists them",
+            f"neither a robot name nor an existing file: {unknown}; `youbot-opt robots "
+            "--names` lists the names",
             available=known,
         )
     if args.names_only:
@@ -185,8 +231,10 @@ def _run(args: argparse.Namespace) -> int:
     for r in rows:
         dof = f"{r.nq}/{r.nv}" if r.nq is not None else "-"
         note = r.joint_types
-        if r.status != "default":
+        if r.status == "lenient":
             note += f"; refused by default: {r.reason}"
+        elif r.status == "refused":
+            note += f"; refused, also with --lenient: {r.reason}"
         if r.warnings:
             note += f"; {r.warnings} inertia warning(s)"
         print(f"{r.name:<{width}}  {dof:>7}  {r.status:<8}  {note}")

@@ -257,6 +257,7 @@ def load_model(
     gravity: float | None = None
     locked_names = frozenset(str(k) for k in (lock_joints or {}))
     tip: str | None
+    catalogue_name: str | None = None  # set only when loaded by name from the catalogue
     if isinstance(source, ArmParameters):
         gravity = source.gravity
         text = urdf_string(source, damping=damping)
@@ -277,7 +278,7 @@ def load_model(
         built = _build_pinocchio_models(
             urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
         )
-        name = source
+        name = catalogue_name = source
     elif isinstance(source, str | os.PathLike):
         urdf_path = Path(source)
         try:
@@ -329,4 +330,5 @@ def load_model(
         tip_frame=tip if tip_frame is None else tip_frame,
         locked_joints=locked,
         strict=bool(strict),
+        catalogue_name=catalogue_name,
     )

@@ -138,6 +138,11 @@ class RobotModel:
         The inertia policy the file was loaded under (``load_model(strict=)``;
         False: ``--lenient``), so that it can be loaded again the same way;
         True for models built in memory.
+    catalogue_name : str or None
+        The name it was loaded by from the robots known by name
+        (:func:`~youbot_opt.robot.catalogue.available_robots`), so that it can
+        be loaded again by that name; None for a file loaded by path (whatever
+        its ``<robot name>``) and for a model built in memory.
     """
 
     name: str
@@ -149,6 +154,7 @@ class RobotModel:
     tip_frame: str
     locked_joints: tuple[tuple[str, float], ...] = ()
     strict: bool = True
+    catalogue_name: str | None = None
 
     def __post_init__(self) -> None:
         self.frame_id(self.tip_frame)  # raises FrameNotFound listing the frames

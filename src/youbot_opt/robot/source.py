@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt.exceptions import ModelError, ParameterError, RobotNotFound
-from youbot_opt.robot.catalogue import available_robots
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
 
@@ -139,7 +138,11 @@ class RobotSource:
 
     @classmethod
     def of(cls, robot: RobotModel, *, strict: bool | None = None) -> RobotSource:
-        """Describe a loaded robot: its name if it is a known robot, else its URDF file.
+        """Describe a loaded robot: its name if it was loaded by name, else its URDF file.
+
+        A robot loaded from a file is recorded by the file's path and SHA-256
+        whatever its ``<robot name>`` is: a file named ``panda`` is not the
+        catalogue's panda (:attr:`RobotModel.catalogue_name`).
 
         Parameters
         ----------
@@ -159,14 +162,14 @@ class RobotSource:
             If the robot has neither (built from parameters in memory), or its
             URDF file can no longer be read.
         """
-        if robot.name in available_robots():
-            source, digest = robot.name, None
+        if robot.catalogue_name is not None:
+            source, digest = robot.catalogue_name, None
         elif robot.urdf_path is not None:
             path = Path(robot.urdf_path).resolve()
             source, digest = str(path), urdf_digest(path, robot.name)
         else:
             raise ParameterError(
-                f"robot {robot.name!r} has no URDF file and is not a known robot name; "
+                f"robot {robot.name!r} has no URDF file and was not loaded by name; "
                 "a result file cannot name how to load it again",
                 name="robot",
                 value=robot.name,
