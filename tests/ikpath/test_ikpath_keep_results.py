@@ -20,7 +20,6 @@ from test_ikpath_solvers import LA, LB, TARGETS_2
 from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.cli import main
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
@@ -28,6 +27,7 @@ from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multi
 from youbot_opt.ikpath.spatial_starts import SpatialStarts, make_spatial_starts
 from youbot_opt.ikpath.starts import PlanarStarts, make_starts
 from youbot_opt.ikpath.stored import StoredResults
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_records
 

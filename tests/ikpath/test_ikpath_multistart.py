@@ -10,7 +10,6 @@ from test_ikpath_solvers import LA, LB, TARGETS_2, _two_link_optimum
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath import sweep as sweep_mod
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.multistart import (
     cluster_minima,
@@ -20,6 +19,7 @@ from youbot_opt.ikpath.multistart import (
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.robot.planar import PlanarChain
 
 TARGETS = [(5.0, 0.0), (4.0, 2.0), (6.0, 0.5), (4.0, -2.0)]
 

@@ -11,7 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.geometry import two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -21,6 +20,7 @@ from youbot_opt.ikpath.reachability import (
     decide_reachability,
     require_reachable,
 )
+from youbot_opt.robot.planar import PlanarChain
 
 HALF_PI = math.pi / 2
 

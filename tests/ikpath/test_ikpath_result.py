@@ -12,13 +12,13 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import build_result, checked
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import pytest
 
 from youbot_opt.exceptions import ModelError
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.robot import chain_from_robot
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.robot.model import load_model, tip_pose
+from youbot_opt.robot.planar import chain_from_robot
 
 
 @pytest.fixture(scope="module")

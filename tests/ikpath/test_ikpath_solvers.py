@@ -16,13 +16,13 @@ from youbot_opt.ikpath.augmented_lagrangian import (
     first_order_multipliers,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.multistart import configuration_distance
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 
 LA, LB = 1.0, 0.8
@@ -267,7 +267,7 @@ def test_methods_agree_on_more_problems(case, rng):
     IPOPT starts from a perturbed AL optimum (0.02 rad), so both must find the same
     local minimum. Tolerances as for the study examples: E 1e-9, q 1e-6 rad.
     """
-    from youbot_opt.ikpath.robot import youbot_chain
+    from youbot_opt.robot.planar import youbot_chain
 
     if case == "youbot":
         prob = _tips_problem(youbot_chain(), 4, seed=1)

@@ -11,7 +11,6 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.interval import IntervalChain, sin_cos
 from youbot_opt.ikpath.reachability import Reachability, decide_reachability
 from youbot_opt.ikpath.spatial import SpatialIKProblem, random_theta
@@ -24,6 +23,7 @@ from youbot_opt.ikpath.spatial_reachability import (
 from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
+from youbot_opt.robot.planar import PlanarChain
 
 _INERTIAL = (  # the loader checks that M(q) is positive definite
     '<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '

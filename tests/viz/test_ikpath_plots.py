@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgba
 
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.viz.plots.ikpath import plot_arm_path, plot_convergence, plot_workspace
 
 

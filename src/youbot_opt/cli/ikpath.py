@@ -164,9 +164,9 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
     """Build the problem from the command line."""
     import numpy as np
 
-    from youbot_opt.ikpath.chain import PlanarChain
     from youbot_opt.ikpath.examples import example_problem
     from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.robot.planar import PlanarChain
 
     if args.example:
         if args.lengths or args.target or args.robot:
@@ -188,7 +188,7 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
                 raise ParameterError(
                     "--robot fixes the lengths", name="lengths", value=args.lengths
                 )
-            from youbot_opt.ikpath.robot import youbot_chain
+            from youbot_opt.robot.planar import youbot_chain
 
             chain = youbot_chain()
         elif args.lengths:

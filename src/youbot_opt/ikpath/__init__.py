@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
-from youbot_opt.ikpath.chain import PlanarChain, TipKinematics
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, solve_ipopt
@@ -35,7 +34,6 @@ from youbot_opt.ikpath.reachability import (
     require_reachable,
 )
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
-from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
 from youbot_opt.ikpath.solve import METHODS, Method, solve
 from youbot_opt.ikpath.spatial import (
     SpatialIKProblem,
@@ -58,6 +56,7 @@ from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import SpatialTarget, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain, TipKinematics, chain_from_robot, youbot_chain
 from youbot_opt.robot.source import RobotSource
 
 __all__ = [

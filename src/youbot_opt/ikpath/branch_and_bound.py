@@ -20,8 +20,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from youbot_opt._typing import Array
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.geometry import two_link_nearest
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = ["BranchAndBound", "SearchOutcome", "bisect_boxes"]
 

@@ -15,8 +15,8 @@ from typing import NamedTuple
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = ["EXAMPLES", "ExampleData", "STUDY_E_A", "example_problem"]
 

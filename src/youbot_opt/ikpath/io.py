@@ -31,11 +31,11 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = [
     "RECHECK_TOL",

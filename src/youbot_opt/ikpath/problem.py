@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike
 from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = [
     "ALProblem",

@@ -22,9 +22,9 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.branch_and_bound import BranchAndBound
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.geometry import TWO_PI, nearest_on_arc, two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = [
     "Reachability",

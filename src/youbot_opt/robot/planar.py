@@ -1,10 +1,11 @@
-"""Planar n-link chains as Pinocchio models (study 2, spec ``ikpath.md``, "The arm").
+"""A planar chain as a robot: study 2's arms (spec ``ikpath.md``, "The arm").
 
-A :class:`PlanarChain` is the arm of study 2: ``n`` revolute joints about the
-plane normal (z), segment ``i`` of length ``l_i``, the last segment ending at
-the tip frame; its angle convention (the study's, up to a constant offset) is
-in the class docstring. Forward kinematics and the tip Jacobian
-(:class:`TipKinematics`) come from Pinocchio.
+A :class:`PlanarChain` is ``n`` revolute joints about the plane normal (z),
+segment ``i`` of length ``l_i`` ending at the tip frame, in the study's angle
+convention up to a constant offset (see the class). :meth:`PlanarChain.robot`
+is the chain as a :class:`~youbot_opt.robot.model.RobotModel`;
+:func:`chain_from_robot` reads the chain back from a robot that moves in a
+plane (the youBot arm: :func:`youbot_chain`).
 
 >>> PlanarChain(lengths=[3, 2, 2]).tip_position([0.0, 0.0, 0.0])  # doctest: +SKIP
 array([7., 0.])
@@ -23,9 +24,10 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ModelError, ParameterError
+from youbot_opt.robot.model import RobotModel, load_model, tip_pose
 
-__all__ = ["PlanarChain", "TipKinematics", "as_configuration"]
+__all__ = ["PlanarChain", "TipKinematics", "as_configuration", "chain_from_robot", "youbot_chain"]
 
 _PIN_INF = float(np.finfo(float).max)  # Pinocchio's "no limit" value
 _LINK_RGBA = np.array([0.95, 0.55, 0.1, 1.0])
@@ -109,7 +111,7 @@ class PlanarChain:
     (``base = 0``, ``angle_offset = 0``) ``q`` *is* the study's ``theta``; the
     offsets let a real arm (the youBot, angles from the vertical, mounted off
     the platform origin) be the same kind of object
-    (:func:`youbot_opt.ikpath.robot.chain_from_robot`). Forward kinematics and
+    (:func:`chain_from_robot`). Forward kinematics and
     the tip Jacobian come from Pinocchio (``computeFrameJacobian`` in
     ``LOCAL_WORLD_ALIGNED``, rows x and y).
 
@@ -264,6 +266,23 @@ class PlanarChain:
         """Return a fresh ``pinocchio.Data`` for :attr:`model`."""
         return self.model.createData()
 
+    def robot(self) -> RobotModel:
+        """Return the chain as a :class:`~youbot_opt.robot.model.RobotModel`.
+
+        Its Pinocchio model and visual model are :attr:`model` and
+        :attr:`visual_model` (not copied), the tip frame :attr:`tip_frame`;
+        no collision geometry, no file.
+        """
+        return RobotModel(
+            name=self.name,
+            model=self.model,
+            visual_model=self.visual_model,
+            collision_model=pin.GeometryModel(),
+            urdf_path=None,
+            package_dirs=(),
+            tip_frame=self.tip_frame,
+        )
+
     def kinematics(self, q: ArrayLike, data: pin.Data | None = None) -> TipKinematics:
         """Tip position and Jacobian from Pinocchio.
 
@@ -347,3 +366,93 @@ def _build_models(chain: PlanarChain) -> tuple[pin.Model, pin.GeometryModel, int
     model.lowerPositionLimit = np.where(np.isfinite(chain.q_lower), chain.q_lower, -_PIN_INF)
     model.upperPositionLimit = np.where(np.isfinite(chain.q_upper), chain.q_upper, _PIN_INF)
     return model, visual, int(tip_id)
+
+
+_CHECK_TOL = 1e-10  # [m] largest accepted tip mismatch between chain and robot
+
+
+def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarChain:
+    """Build the planar chain equivalent to a robot that moves in its platform's x-z plane.
+
+    The youBot arm moves in the x-z plane of its platform; its joint angles are
+    measured from the vertical, positive towards platform -x, and joint 1 sits
+    at ``(a, h) = (0.184, 0.147)`` m. In the IK-path convention (x right, angles
+    counter-clockwise from the x axis, plane coordinates ``(x, y) := (x, z)`` of
+    the platform) the same arm is a chain with ``base = (a, h)``,
+    ``angle_offset = (pi/2, 0, 0)`` (the study angle ``theta_1 = q_1 + pi/2``:
+    q = 0 points up, along +z = the planar +y axis, and a positive angle turns
+    towards -x, counter-clockwise in the (x, z) plane; ``theta_2 = q_2``,
+    ``theta_3 = q_3``), and the link lengths and joint limits of the robot
+    model. These numbers are read from the joint origins and the tip at
+    ``q = 0``; the chain is then verified against
+    :func:`youbot_opt.robot.model.tip_pose` at 20 seeded configurations.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        A loaded robot (``load_model("youbot")``): revolute joints about the
+        platform y axis, tip frame ``robot.tip_frame``.
+    name : str, optional
+        Chain name (default: the robot's).
+
+    Returns
+    -------
+    PlanarChain
+        Coordinates ``q`` equal the robot's joint angles; positions are the
+        platform's (x, z) in [m]; limits are the robot's.
+
+    Raises
+    ------
+    ModelError
+        If the robot is not a planar revolute chain in the x-z plane (the
+        chain's tip differs from ``tip_pose`` by more than 1e-10 m somewhere).
+    """
+    model: pin.Model = robot.model
+    nq = int(model.nq)
+    if nq < 1 or model.nv != nq or model.njoints != nq + 1:
+        raise ModelError(
+            f"robot {robot.name!r} is not a chain of 1-DoF joints (nq={nq}, nv={model.nv}, "
+            f"joints={model.njoints - 1})"
+        )
+    data = model.createData()
+    q0 = np.zeros(nq)
+    pin.forwardKinematics(model, data, q0)
+    points = [data.oMi[j].translation[[0, 2]].copy() for j in range(1, nq + 1)]
+    points.append(np.asarray(tip_pose(robot, q0).position, dtype=np.float64))
+    segments = np.diff(np.array(points), axis=0)
+    lengths = np.linalg.norm(segments, axis=1)
+    if np.any(lengths <= 1e-9):
+        raise ModelError(
+            f"robot {robot.name!r} is not a planar revolute chain in its platform's x-z plane: "
+            f"segment lengths in that plane are {lengths.tolist()} m (a zero one)"
+        )
+    phi = np.arctan2(segments[:, 1], segments[:, 0])
+    offset = np.diff(np.r_[0.0, phi])
+    offset = np.arctan2(np.sin(offset), np.cos(offset))
+    chain = PlanarChain(
+        lengths=lengths,
+        q_lower=np.asarray(robot.q_lower, dtype=np.float64),
+        q_upper=np.asarray(robot.q_upper, dtype=np.float64),
+        base=points[0],
+        angle_offset=offset,
+        name=name or str(robot.name),
+        tip_frame=str(robot.tip_frame),
+    )
+    rng = np.random.default_rng(0)
+    lo = np.maximum(chain.q_lower, -math.pi)
+    hi = np.minimum(chain.q_upper, math.pi)
+    worst = 0.0
+    for q in rng.uniform(lo, hi, (20, nq)):
+        ref = np.asarray(tip_pose(robot, q).position, dtype=np.float64)
+        worst = max(worst, float(np.linalg.norm(chain.tip_position(q) - ref)))
+    if worst > _CHECK_TOL:
+        raise ModelError(
+            f"robot {robot.name!r} is not a planar revolute chain in its platform's x-z plane: "
+            f"the equivalent chain misses tip_pose by {worst:.3g} m (tolerance {_CHECK_TOL:g} m)"
+        )
+    return chain
+
+
+def youbot_chain() -> PlanarChain:
+    """Return the youBot arm (``load_model("youbot")``) as a planar chain."""
+    return chain_from_robot(load_model("youbot"))
