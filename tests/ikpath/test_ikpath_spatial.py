@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from youbot_opt.exceptions import UnreachableTarget
+from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik, greedy_path
@@ -302,3 +302,77 @@ def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
     assert not met and np.all(np.isfinite(theta))
     path_angles, all_met = greedy_path(problem)
     assert not all_met and np.all(np.isfinite(path_angles))
+
+
+def test_a_planar_robot_has_two_rows_per_position_target_and_ipopt_solves_it(tmp_path):
+    """#25 item 4: a 2-link URDF chain (6 targets) has 12 rows for 12 unknowns, IPOPT solves it.
+
+    With 3 rows per target IPOPT met 18 equations for 12 unknowns and failed every start;
+    the plane rows give the planar solver's KKT point (same start, 1e-8 in E and angles).
+    """
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.solve import solve
+    from youbot_opt.robot.planar import PlanarChain
+
+    lengths = (1.0, 0.8)
+    path = tmp_path / "planar2.urdf"
+    path.write_text(_planar_urdf(lengths, None))
+    robot = load_model(path, tip_frame="tip")
+    angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
+    points = [(1.5 * np.cos(a), 1.2 * np.sin(a)) for a in angles]
+    inf = np.full(2, np.inf)
+    spatial = SpatialIKProblem(
+        model=robot.model,
+        frame="tip",
+        targets=tuple(SpatialTarget(position=(x, y, 0.0)) for x, y in points),
+        q_lower=-inf,
+        q_upper=inf,
+    )
+    assert spatial.plane is not None
+    np.testing.assert_array_equal(spatial.plane.basis, np.eye(3)[:, :2])
+    assert spatial.block_rows == 2 and spatial.n_constraints == spatial.n_variables == 12
+    planar = CyclicIKProblem(chain=PlanarChain(lengths=lengths), targets=points)
+    start = np.tile([0.3, 0.5], 6)
+    ref = solve(planar, method="ipopt", x0=start, check_reachability=False)
+    got = solve_spatial(spatial, method="ipopt", x0=start)
+    assert ref.success and got.success, got.message
+    assert abs(got.objective - ref.objective) <= 1e-8
+    np.testing.assert_allclose(got.configurations, ref.configurations, atol=1e-8, rtol=0)
+    ref_al = solve(planar, method="al", x0=start, check_reachability=False)
+    al = solve_spatial(spatial, method="al", x0=start, options=ALOptions())
+    assert ref_al.success and al.success
+    assert abs(al.objective - ref_al.objective) <= 1e-8
+
+
+def test_a_target_off_the_planar_robot_plane_is_refused(tmp_path):
+    """A planar robot's position target must lie in its plane (ParameterError names it)."""
+    path = tmp_path / "planar2.urdf"
+    path.write_text(_planar_urdf((1.0, 0.8), None))
+    robot = load_model(path, tip_frame="tip")
+    targets = (SpatialTarget(position=(1.0, 0.5, 0.0)), SpatialTarget(position=(1.0, 0.5, 0.2)))
+    with pytest.raises(ParameterError, match="target 1 lies 0.2 m off it"):
+        SpatialIKProblem(model=robot.model, frame="tip", targets=targets)
+
+
+def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
+    """Joints about the platform y axis: plane coordinates (x, z), 2 rows per position."""
+    data = youbot.create_data()
+    pin.framesForwardKinematics(youbot.model, data, np.zeros(youbot.nq))
+    tip = data.oMf[youbot.frame_id(youbot.tip_frame)].translation
+    problem = SpatialIKProblem(
+        model=youbot.model,
+        frame=youbot.tip_frame,
+        targets=(SpatialTarget(position=tip), SpatialTarget(position=tip + (0.05, 0.0, -0.1))),
+    )
+    assert problem.plane is not None
+    np.testing.assert_array_equal(problem.plane.basis, np.eye(3)[:, [0, 2]])
+    assert problem.block_rows == 2
+    ur5 = load_model("ur5")
+    assert (
+        SpatialIKProblem(
+            model=ur5.model,
+            frame=ur5.tip_frame,
+            targets=(SpatialTarget(position=(0.3, 0, 0.3)), SpatialTarget(position=(0, 0.3, 0.3))),
+        ).plane
+        is None
+    )

@@ -28,6 +28,7 @@ from youbot_opt.ikpath.problem import Evaluation, path_configurations, require_w
 from youbot_opt.ikpath.result import OuterIterate
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import Plane, motion_plane
 
 __all__ = [
     "SPATIAL_AL_OPTIONS",
@@ -69,6 +70,13 @@ class SpatialIKProblem:
         model's (continuous joints: unlimited).
     joint_weights : ndarray, shape (n,), optional
         Diagonal ``W`` of the cost (default ones).
+    plane : Plane or None
+        The plane the frame moves in when the robot is planar for it
+        (:func:`~youbot_opt.robot.planar.motion_plane`), else None. A planar
+        robot's position rows are the 2 plane coordinates of the error
+        (``plane.basis.T (p - p_j)``), not 3: the third is identically zero and
+        would leave IPOPT more equations than unknowns. Its position targets
+        must lie in the plane (within their ``position_tol``).
     """
 
     model: pin.Model
@@ -82,6 +90,7 @@ class SpatialIKProblem:
     active: Array = field(init=False)
     neutral: Array = field(init=False)
     continuous: Array = field(init=False)
+    plane: Plane | None = field(init=False)
 
     def __post_init__(self) -> None:
         model = self.model
@@ -162,6 +171,19 @@ class SpatialIKProblem:
                 lo_i, hi_i = model.lowerPositionLimit[i], model.upperPositionLimit[i]
                 if lo_i <= hi_i:
                     neutral[i] = min(max(neutral[i], lo_i), hi_i)
+        plane = motion_plane(model, fid, neutral)
+        if plane is not None:
+            for j, target in enumerate(targets):
+                off = plane.distance(target.position)
+                if off > target.position_tol:
+                    raise ParameterError(
+                        f"frame {self.frame!r} moves in the plane {plane.normal.tolist()} . p = "
+                        f"{plane.offset:.6g} m (its joints turn about parallel axes); target "
+                        f"{j} lies {off:.3g} m off it (position_tol {target.position_tol:.3g} m) "
+                        "and cannot be reached",
+                        name="targets",
+                        value=j,
+                    )
         for key, value in (
             ("targets", targets),
             ("use_limits", bool(self.use_limits)),
@@ -170,6 +192,7 @@ class SpatialIKProblem:
             ("active", np.array(support)),
             ("neutral", neutral),
             ("continuous", cont_arr),
+            ("plane", plane),
         ):
             object.__setattr__(self, key, value)
 
@@ -190,9 +213,18 @@ class SpatialIKProblem:
         return self.n_targets * self.n_joints
 
     @property
+    def position_rows(self) -> int:
+        """Rows of a position error: 2 on a planar robot (its plane coordinates), else 3."""
+        return 3 if self.plane is None else 2
+
+    def rows_of(self, target: SpatialTarget) -> int:
+        """Constraint rows of ``target`` on this robot (position rows + orientation rows)."""
+        return target.n_rows - 3 + self.position_rows
+
+    @property
     def block_rows(self) -> int:
         """Rows per constraint block ``m`` (largest target; others padded with zeros)."""
-        return max(t.n_rows for t in self.targets)
+        return max(self.rows_of(t) for t in self.targets)
 
     @property
     def n_constraints(self) -> int:
@@ -275,7 +307,8 @@ class SpatialIKProblem:
         """Constraint rows ``c_j`` (m,) and Jacobian (m, n) of target ``j`` at ``theta``.
 
         Position rows are ``p - p_j`` (Jacobian ``R J_v`` from the LOCAL frame
-        Jacobian); pose rows ``w log3(R_j^T R)`` with Jacobian ``w Jlog3 J_w``;
+        Jacobian), on a planar robot ``B^T (p - p_j)`` with ``B = plane.basis``;
+        pose rows ``w log3(R_j^T R)`` with Jacobian ``w Jlog3 J_w``;
         approach rows ``w b_k^T R a`` with Jacobian ``-w b_k^T R [a]_x J_w``.
         """
         target = self.targets[j]
@@ -289,18 +322,24 @@ class SpatialIKProblem:
         rot = oMf.rotation
         c = np.zeros(m)
         block = np.zeros((m, n))
-        c[:3] = oMf.translation - target.position
-        block[:3] = rot @ jac[:3]
+        if self.plane is None:
+            c[:3] = oMf.translation - target.position
+            block[:3] = rot @ jac[:3]
+        else:
+            axes = self.plane.basis.T
+            c[:2] = axes @ (oMf.translation - target.position)
+            block[:2] = axes @ (rot @ jac[:3])
+        k = self.position_rows
         w = target.orientation_weight
         if target.rotation is not None:
             r_err = target.rotation.T @ rot
-            c[3:6] = w * pin.log3(r_err)
-            block[3:6] = w * (pin.Jlog3(r_err) @ jac[3:])
+            c[k : k + 3] = w * pin.log3(r_err)
+            block[k : k + 3] = w * (pin.Jlog3(r_err) @ jac[3:])
         elif target.approach is not None:
             basis = target.approach_basis()
             a = target.approach_axis
-            c[3:5] = w * (basis @ (rot @ a))
-            block[3:5] = -w * (basis @ rot @ pin.skew(a) @ jac[3:])
+            c[k : k + 2] = w * (basis @ (rot @ a))
+            block[k : k + 2] = -w * (basis @ rot @ pin.skew(a) @ jac[3:])
         return c, block
 
     @property
@@ -318,7 +357,7 @@ class SpatialIKProblem:
         """Which of the ``m`` rows of each block are constraints (False: padding), (s, m)."""
         mask = np.zeros((self.n_targets, self.block_rows), dtype=bool)
         for j, target in enumerate(self.targets):
-            mask[j, : target.n_rows] = True
+            mask[j, : self.rows_of(target)] = True
         return mask
 
     def lagrangian_hessian(

@@ -92,8 +92,12 @@ class SpatialIpoptSolver:
         eqs, ineqs, self._rows = [], [], []
         for j, target in enumerate(problem.targets):
             pos, rot = frame_expression(problem, configs[j])
-            eqs.append(pos - ca.DM(target.position))
-            rows = [0, 1, 2]
+            if problem.plane is None:
+                eqs.append(pos - ca.DM(target.position))
+            else:  # a planar robot: the 2 plane coordinates (the third row is identically 0)
+                eqs.append(ca.DM(problem.plane.basis.T) @ (pos - ca.DM(target.position)))
+            k = problem.position_rows
+            rows = list(range(k))
             wt = target.orientation_weight
             if target.rotation is not None:
                 r_e = ca.DM(target.rotation).T @ rot
@@ -102,12 +106,12 @@ class SpatialIpoptSolver:
                 )
                 eqs.append(wt * 0.5 * vex)
                 ineqs.append(ca.trace(r_e) + 0.5)
-                rows += [3, 4, 5]
+                rows += [k, k + 1, k + 2]
             elif target.approach is not None:
                 axis = rot @ ca.DM(target.approach_axis)
                 eqs.append(wt * (ca.DM(target.approach_basis()) @ axis))
                 ineqs.append(ca.dot(ca.DM(target.approach), axis))
-                rows += [3, 4]
+                rows += [k, k + 1]
             self._rows.append(rows)
         self._n_eq = int(sum(e.shape[0] for e in eqs))
         g = ca.vertcat(*eqs, *ineqs)

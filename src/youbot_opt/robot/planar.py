@@ -27,9 +27,18 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ModelError, ParameterError
 from youbot_opt.robot.model import RobotModel, load_model, tip_pose
 
-__all__ = ["PlanarChain", "TipKinematics", "as_configuration", "chain_from_robot", "youbot_chain"]
+__all__ = [
+    "Plane",
+    "PlanarChain",
+    "TipKinematics",
+    "as_configuration",
+    "chain_from_robot",
+    "motion_plane",
+    "youbot_chain",
+]
 
 _PIN_INF = float(np.finfo(float).max)  # Pinocchio's "no limit" value
+_PARALLEL_TOL = 1e-12  # [-] largest |a x n| of a unit joint axis a parallel to the normal n
 _LINK_RGBA = np.array([0.95, 0.55, 0.1, 1.0])
 _JOINT_RGBA = np.array([0.2, 0.2, 0.2, 1.0])
 
@@ -47,6 +56,92 @@ class TipKinematics(NamedTuple):
 
     position: Array
     jacobian: Array
+
+
+class Plane(NamedTuple):
+    """The plane a frame moves in: the robot is planar for that frame.
+
+    Attributes
+    ----------
+    normal : ndarray, shape (3,)
+        Unit normal in the world: the common axis of the joints.
+    offset : float
+        ``normal . p`` in [m] for every point ``p`` of the plane.
+    basis : ndarray, shape (3, 2)
+        The plane's coordinate axes in the world (orthonormal); a point's
+        plane coordinates are ``basis.T @ p`` in [m].
+    """
+
+    normal: Array
+    offset: float
+    basis: Array
+
+    def distance(self, point: ArrayLike) -> float:
+        """Distance in [m] of a world point from the plane."""
+        return abs(float(self.normal @ np.asarray(point, dtype=float)) - self.offset)
+
+
+def motion_plane(model: pin.Model, frame_id: int, q: ArrayLike) -> Plane | None:
+    """Return the plane a frame moves in, or None if its robot is not planar.
+
+    A robot is planar for a frame when every joint that moves the frame is
+    revolute (or continuous) and their axes are parallel (within 1e-12) to one
+    world direction ``n``: turning about axes parallel to ``n`` keeps ``n . p``
+    of every point, so the frame's origin stays in the plane normal to ``n``
+    through its position at ``q``, at any configuration. The plane coordinates
+    are the two world axes other than ``n`` in the order x, y, z when ``n`` is
+    a world axis (a chain about z moves in (x, y), the youBot arm about y in
+    (x, z)); otherwise the projection of world x (or y) and ``n`` times it.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The robot.
+    frame_id : int
+        The frame that visits the targets.
+    q : array_like, shape (nq,)
+        Any configuration of the model.
+
+    Returns
+    -------
+    Plane or None
+        The plane, or None (a prismatic joint, or axes not parallel).
+    """
+    data = model.createData()
+    qv = np.asarray(q, dtype=float)
+    pin.computeJointJacobians(model, data, qv)
+    pin.updateFramePlacements(model, data)
+    support = [j for j in model.supports[model.frames[frame_id].parentJoint] if j > 0]
+    if not support:
+        return None
+    axes = []
+    for j in support:
+        joint = model.joints[j]
+        if joint.nv != 1:
+            return None
+        jac = np.reshape(pin.getJointJacobian(model, data, j, pin.WORLD), (6, model.nv))
+        column = jac[:, joint.idx_v]  # (a 1-DoF model returns shape (6,))
+        axis = np.asarray(column[3:], dtype=float)
+        if abs(float(np.linalg.norm(axis)) - 1.0) > _PARALLEL_TOL:  # prismatic (no turn)
+            return None
+        axes.append(axis)
+    normal = axes[0]
+    if any(float(np.linalg.norm(np.cross(a, normal))) > _PARALLEL_TOL for a in axes[1:]):
+        return None
+    k = int(np.argmax(np.abs(normal)))
+    if abs(abs(float(normal[k])) - 1.0) <= _PARALLEL_TOL:  # a world axis: the other two
+        normal = np.eye(3)[k] * np.sign(normal[k])
+        basis = np.eye(3)[:, [i for i in range(3) if i != k]]
+    else:
+        helper = np.eye(3)[0] if abs(float(normal[0])) < 0.9 else np.eye(3)[1]
+        e1 = helper - (helper @ normal) * normal
+        e1 /= np.linalg.norm(e1)
+        basis = np.column_stack([e1, np.cross(normal, e1)])
+    normal = normal.copy()
+    offset = float(normal @ data.oMf[frame_id].translation)
+    for arr in (normal, basis):
+        arr.setflags(write=False)
+    return Plane(normal=normal, offset=offset, basis=basis)
 
 
 def as_configuration(q: ArrayLike, n: int, name: str = "q") -> Array:
