@@ -79,7 +79,7 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path
+from youbot_opt.ikpath.spatial import greedy_path
 from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatial
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
@@ -104,7 +104,7 @@ def seven_link_problem(limited: bool) -> CyclicIKProblem:
     )
     rng = np.random.default_rng(SEVEN_SEED)
     q = rng.uniform(-limit, limit, (SEVEN_TARGETS, chain.n))
-    return CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+    return CyclicIKProblem(robot=chain, targets=[chain.tip_position(qj) for qj in q])
 
 
 def problems() -> dict[str, CyclicIKProblem]:
@@ -250,14 +250,14 @@ def print_report(report: dict[str, Any]) -> None:
     print(f"\ntotal benchmark time {report['elapsed']:.1f} s")
 
 
-def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> SpatialIKProblem:
+def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> CyclicIKProblem:
     """Targets at the frame placements of random in-limit configurations (poses on even ones)."""
     from youbot_opt.robot.model import load_model
 
     robot = load_model(robot_name)
     model, data = robot.model, robot.model.createData()
-    base = SpatialIKProblem(
-        model=model,
+    base = CyclicIKProblem(
+        robot=model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )
@@ -331,7 +331,7 @@ def print_spatial(rows: list[dict[str, Any]]) -> None:
 
 def memory_problem() -> CyclicIKProblem:
     """The cheap planar problem of the memory section (3 distinct minima)."""
-    return CyclicIKProblem(chain=PlanarChain(lengths=[1.0, 0.8]), targets=[(1.2, 0.5), (0.3, 1.1)])
+    return CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 0.8]), targets=[(1.2, 0.5), (0.3, 1.1)])
 
 
 def bench_memory_case(n_starts: int, keep: bool) -> dict[str, Any]:

@@ -5,17 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from youbot_opt.ikpath.spatial import SpatialIKProblem
+from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
 
 
 @pytest.fixture(scope="module")
-def ur5_reachable() -> SpatialIKProblem:
+def ur5_reachable() -> CyclicIKProblem:
     """UR5 through 3 positions that are placements of random angles (so reachable)."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )

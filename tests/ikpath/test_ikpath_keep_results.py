@@ -36,7 +36,7 @@ N = 24  # planar starts: 14-ish distinct minima, several found more than once
 
 @pytest.fixture(scope="module")
 def two_link() -> CyclicIKProblem:
-    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
 
 
 def _planar(problem, out, *, keep, workers=1, progress=None, **kw) -> MultistartResult:  # type: ignore[no-untyped-def]

@@ -31,7 +31,7 @@ N = 6  # starts of the in-process tests
 
 @pytest.fixture(scope="module")
 def two_link():
-    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
 
 
 @pytest.fixture(scope="module")

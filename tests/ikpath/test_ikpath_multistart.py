@@ -25,7 +25,7 @@ from youbot_opt.sweeps.options import SweepOptions
 
 @pytest.fixture(scope="module")
 def two_link():
-    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
 
 
 def test_starts_are_seeded_and_feasible():

@@ -182,7 +182,7 @@ def test_long_chain_budget_gives_undecided_interval():
 def test_require_reachable_names_target_reach_and_nearest():
     """UnreachableTarget names the target, the reach limits and the nearest point."""
     prob = CyclicIKProblem(
-        chain=PlanarChain(lengths=[3, 2, 2], q_lower=-HALF_PI, q_upper=HALF_PI),
+        robot=PlanarChain(lengths=[3, 2, 2], q_lower=-HALF_PI, q_upper=HALF_PI),
         targets=[(3.0, 2.0), (0.0, 7.1), (0.0, 7.0)],
     )
     with pytest.raises(UnreachableTarget) as info:

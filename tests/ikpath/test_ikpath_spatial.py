@@ -9,7 +9,8 @@ import pytest
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
-from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik, greedy_path
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import dls_ik, greedy_path
 from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
 from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
@@ -43,7 +44,7 @@ def _planar_urdf(lengths: tuple[float, ...], limit: float | None, continuous: bo
     return "".join(parts)
 
 
-def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> SpatialIKProblem:
+def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> CyclicIKProblem:
     data = EXAMPLES[name]
     path = tmp_path / f"planar_{name}.urdf"
     path.write_text(_planar_urdf(data.lengths, data.limit))
@@ -52,10 +53,10 @@ def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> SpatialIKProble
     inf = np.full(n, np.inf)
     targets = tuple(SpatialTarget(position=(x, y, 0.0)) for x, y in data.targets)
     if data.limit is None:
-        return SpatialIKProblem(
-            model=robot.model, frame="tip", targets=targets, q_lower=-inf, q_upper=inf
+        return CyclicIKProblem(
+            robot=robot.model, frame="tip", targets=targets, q_lower=-inf, q_upper=inf
         )
-    return SpatialIKProblem(model=robot.model, frame="tip", targets=targets, use_limits=use_limits)
+    return CyclicIKProblem(robot=robot.model, frame="tip", targets=targets, use_limits=use_limits)
 
 
 @pytest.mark.parametrize(("name", "use_limits"), [("A", False), ("B", True), ("B", False)])
@@ -66,7 +67,7 @@ def test_planar_chain_through_the_spatial_path_matches_the_planar_solver(
     # converge to the same KKT point; 1e-8 in E and angles (both solved to |c| <= 1e-10).
     planar = example_problem(name)
     if not use_limits:
-        planar = type(planar)(chain=planar.chain, targets=planar.targets, use_limits=False)
+        planar = type(planar)(robot=planar.chain, targets=planar.target_points, use_limits=False)
     spatial = _planar_as_spatial(name, tmp_path, use_limits)
     ref = solve_augmented_lagrangian(planar, None, ALOptions())
     got = solve_spatial(spatial, method="al", options=ALOptions())
@@ -75,7 +76,7 @@ def test_planar_chain_through_the_spatial_path_matches_the_planar_solver(
     np.testing.assert_allclose(got.configurations, ref.configurations, atol=1e-8, rtol=0)
 
 
-def _ur5_problem(seed: int) -> SpatialIKProblem:
+def _ur5_problem(seed: int) -> CyclicIKProblem:
     robot = load_model("ur5")
     model, data = robot.model, robot.model.createData()
     pin.seed(seed)
@@ -87,7 +88,7 @@ def _ur5_problem(seed: int) -> SpatialIKProblem:
         placement = data.oMf[model.getFrameId(robot.tip_frame)]
         rot = placement.rotation if k % 2 == 0 else None
         targets.append(SpatialTarget(position=placement.translation, rotation=rot))
-    return SpatialIKProblem(model=model, frame=robot.tip_frame, targets=tuple(targets))
+    return CyclicIKProblem(robot=model, frame=robot.tip_frame, targets=tuple(targets))
 
 
 def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk_check():
@@ -150,7 +151,7 @@ def test_continuous_joints_are_never_wrapped(tmp_path):
     model = load_model(path, tip_frame="tip").model
     angles = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
     targets = tuple(SpatialTarget(position=(np.cos(a), np.sin(a), 0.0)) for a in angles)
-    problem = SpatialIKProblem(model=model, frame="tip", targets=targets)
+    problem = CyclicIKProblem(robot=model, frame="tip", targets=targets)
     assert problem.continuous.tolist() == [True] and not problem.bounded
     result = solve_spatial(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
@@ -159,10 +160,10 @@ def test_continuous_joints_are_never_wrapped(tmp_path):
     assert result.objective == pytest.approx(4 * np.pi**2 / 3, rel=1e-8)
 
 
-def _mixed_panda_problem() -> SpatialIKProblem:
+def _mixed_panda_problem() -> CyclicIKProblem:
     robot = load_model("panda")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )
@@ -263,7 +264,7 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
         SpatialTarget(position=(np.cos(angles[1]), np.sin(angles[1]), 0.0)),
         SpatialTarget(position=(np.cos(angles[2]), np.sin(angles[2]), 0.0)),
     )
-    problem = SpatialIKProblem(model=robot.model, frame="tip", targets=targets)
+    problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
     result = solve_spatial(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
     names = [g.name for g in spatial_replay_robot(result, robot).visual_model.geometryObjects]
@@ -290,7 +291,7 @@ def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
     half = np.sin(0.25), np.cos(0.25)  # 0.5 rad about z / about x
     in_plane = SpatialTarget.pose((1.5, 1.0, 0.0), (0.0, 0.0, half[0], half[1]))
     tilted = SpatialTarget.pose((1.5, 1.0, 0.0), (half[0], 0.0, 0.0, half[1]))
-    problem = SpatialIKProblem(model=robot.model, frame="tip", targets=(in_plane, tilted))
+    problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=(in_plane, tilted))
     theta, met = dls_ik(problem, 0, np.zeros(3))
     assert met
     data = robot.model.createData()
@@ -321,8 +322,8 @@ def test_a_planar_robot_has_two_rows_per_position_target_and_ipopt_solves_it(tmp
     angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
     points = [(1.5 * np.cos(a), 1.2 * np.sin(a)) for a in angles]
     inf = np.full(2, np.inf)
-    spatial = SpatialIKProblem(
-        model=robot.model,
+    spatial = CyclicIKProblem(
+        robot=robot.model,
         frame="tip",
         targets=tuple(SpatialTarget(position=(x, y, 0.0)) for x, y in points),
         q_lower=-inf,
@@ -331,7 +332,7 @@ def test_a_planar_robot_has_two_rows_per_position_target_and_ipopt_solves_it(tmp
     assert spatial.plane is not None
     np.testing.assert_array_equal(spatial.plane.basis, np.eye(3)[:, :2])
     assert spatial.block_rows == 2 and spatial.n_constraints == spatial.n_variables == 12
-    planar = CyclicIKProblem(chain=PlanarChain(lengths=lengths), targets=points)
+    planar = CyclicIKProblem(robot=PlanarChain(lengths=lengths), targets=points)
     start = np.tile([0.3, 0.5], 6)
     ref = solve(planar, method="ipopt", x0=start, check_reachability=False)
     got = solve_spatial(spatial, method="ipopt", x0=start)
@@ -351,7 +352,7 @@ def test_a_target_off_the_planar_robot_plane_is_refused(tmp_path):
     robot = load_model(path, tip_frame="tip")
     targets = (SpatialTarget(position=(1.0, 0.5, 0.0)), SpatialTarget(position=(1.0, 0.5, 0.2)))
     with pytest.raises(ParameterError, match="target 1 lies 0.2 m off it"):
-        SpatialIKProblem(model=robot.model, frame="tip", targets=targets)
+        CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
 
 
 def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
@@ -359,8 +360,8 @@ def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
     data = youbot.create_data()
     pin.framesForwardKinematics(youbot.model, data, np.zeros(youbot.nq))
     tip = data.oMf[youbot.frame_id(youbot.tip_frame)].translation
-    problem = SpatialIKProblem(
-        model=youbot.model,
+    problem = CyclicIKProblem(
+        robot=youbot.model,
         frame=youbot.tip_frame,
         targets=(SpatialTarget(position=tip), SpatialTarget(position=tip + (0.05, 0.0, -0.1))),
     )
@@ -369,10 +370,39 @@ def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
     assert problem.block_rows == 2
     ur5 = load_model("ur5")
     assert (
-        SpatialIKProblem(
-            model=ur5.model,
+        CyclicIKProblem(
+            robot=ur5.model,
             frame=ur5.tip_frame,
             targets=(SpatialTarget(position=(0.3, 0, 0.3)), SpatialTarget(position=(0, 0.3, 0.3))),
         ).plane
         is None
     )
+
+
+def test_a_planar_urdf_chain_is_solved_by_the_planar_methods_like_the_chain(tmp_path):
+    """#25 item 4: a URDF chain's problem has its PlanarChain, hence the exact verdicts and
+    feasible starts of the chain (same draws to 1e-9 rad) and the same optimum (1e-8)."""
+    from youbot_opt.ikpath.reachability import check_reachability
+    from youbot_opt.ikpath.solve import solve
+    from youbot_opt.ikpath.starts import make_starts
+
+    planar = example_problem("B")
+    path = tmp_path / "planar_B.urdf"
+    path.write_text(_planar_urdf(EXAMPLES["B"].lengths, EXAMPLES["B"].limit))
+    robot = load_model(path, tip_frame="tip")
+    urdf = CyclicIKProblem(robot=robot, targets=planar.target_points)
+    assert urdf.chain is not None and urdf.block_rows == 2
+    np.testing.assert_allclose(urdf.chain.lengths, planar.chain.lengths, atol=1e-15)
+    np.testing.assert_array_equal(urdf.target_points, planar.target_points)
+    got = [v.status for v in check_reachability(urdf)]
+    assert got == [v.status for v in check_reachability(planar)]
+    np.testing.assert_allclose(
+        make_starts(urdf, 20, 0, verdicts=check_reachability(urdf)),
+        make_starts(planar, 20, 0, verdicts=check_reachability(planar)),
+        atol=1e-9,
+    )
+    for method in ("al", "ipopt"):
+        ref = solve(planar, method=method)
+        res = solve(urdf, method=method)
+        assert ref.success and res.success, res.message
+        assert abs(res.objective - ref.objective) <= 1e-8

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from youbot_opt.ikpath.spatial import SpatialIKProblem
+from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.spatial_starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
@@ -18,12 +18,12 @@ from youbot_opt.robot.model import load_model
 _STARTS = {"ipopt": (88, 11), "al": (56, 12)}  # method: (starts, seed)
 
 
-def _panda_tour() -> SpatialIKProblem:
+def _panda_tour() -> CyclicIKProblem:
     """Panda visits the corners of a tilted 0.4 m x 0.29 m rectangle in front of it (positions)."""
     robot = load_model("panda")
     corners = ((0.5, -0.2, 0.3), (0.5, 0.2, 0.3), (0.35, 0.2, 0.55), (0.35, -0.2, 0.55))
-    return SpatialIKProblem(
-        model=robot.model,
+    return CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=tuple(SpatialTarget(position=p) for p in corners),
     )
@@ -59,11 +59,11 @@ def test_both_methods_find_the_same_best_minimum_from_their_own_independent_star
     np.testing.assert_allclose(diff, 0.0, atol=1e-5)
 
 
-def _ur5_tour(n_targets: int, seed: int = 2026) -> SpatialIKProblem:
+def _ur5_tour(n_targets: int, seed: int = 2026) -> CyclicIKProblem:
     """The benchmark's ur5 tour: frame placements of random in-limit angles, poses on even k."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )
@@ -127,8 +127,8 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
 
     robot = load_model("panda")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )

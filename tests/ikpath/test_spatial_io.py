@@ -9,8 +9,9 @@ import pytest
 
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ResultFileError
+from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import OuterIterate
-from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result
+from youbot_opt.ikpath.spatial import build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.nlp.status import SolveStatus
@@ -24,8 +25,8 @@ def _exact_panda_result():
     so those configurations solve them (errors at rounding level, ~1e-16).
     """
     robot = load_model("panda")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )

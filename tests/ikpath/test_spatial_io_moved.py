@@ -14,7 +14,8 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import InvalidModelError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import RobotSource as IkpathRobotSource
-from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource as SpatialIoRobotSource
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import SpatialTarget
@@ -26,8 +27,8 @@ from youbot_opt.robot.source import RobotSource
 
 def _exact_result(robot: RobotModel) -> SpatialIKResult:
     """Two position targets at the tip placements of two in-limit configurations (met exactly)."""
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )

@@ -12,8 +12,9 @@ import pytest
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.interval import IntervalChain, sin_cos
+from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability import Reachability, decide_reachability
-from youbot_opt.ikpath.spatial import SpatialIKProblem, random_theta
+from youbot_opt.ikpath.spatial import random_theta
 from youbot_opt.ikpath.spatial_reachability import (
     SpatialReach,
     check_spatial_reachability,
@@ -95,7 +96,7 @@ def _mixed(tmp_path):
 
 
 def _problem(model, targets, **kw):
-    return SpatialIKProblem(model=model, frame="tip", targets=tuple(targets), **kw)
+    return CyclicIKProblem(robot=model, frame="tip", targets=tuple(targets), **kw)
 
 
 def _point_targets(*points):
@@ -130,8 +131,8 @@ def test_interval_fk_contains_pinocchio_fk_at_random_points_of_random_boxes(robo
     else:
         loaded = load_model(robot)
         model, frame = loaded.model, loaded.tip_frame
-    problem = SpatialIKProblem(
-        model=model, frame=frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    problem = CyclicIKProblem(
+        robot=model, frame=frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     chain = IntervalChain.from_model(model, problem.frame_id)
     lo0, hi0 = joint_box(problem)
@@ -244,8 +245,8 @@ def test_interval_search_never_refutes_a_reachable_target():
     """Targets made by FK at random in-limit angles of ur5 (position, pose, approach) are never
     called unreachable; every witness is within the limits and meets its target under FK."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    base = CyclicIKProblem(
+        robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     rng = np.random.default_rng(3)
     for k in range(9):
@@ -265,8 +266,8 @@ def test_ur5_target_between_true_reach_and_reach_sphere_is_certified():
     """A 6-DOF case: ur5's sphere has radius 1.24 m but its tool reaches about 0.95 m; a target
     1.1 m from the shoulder is certified by the interval search (and FK sampling agrees)."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    base = CyclicIKProblem(
+        robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     centre, reach = base.reach_radius()
     target = SpatialTarget(position=centre + np.array([0.6, 0.0, 0.0]) * 1.1 / 0.6)
@@ -354,8 +355,8 @@ def test_budget_exhausted_is_undecided_and_bad_arguments_are_refused():
     """A ur5 target just beyond its true reach (1.0 m; sphere 1.24 m) with a 2 000-box budget
     stays undecided, and the verdict says how far the search got; bad budgets are refused."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    base = CyclicIKProblem(
+        robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     centre, _ = base.reach_radius()
     target = SpatialTarget(position=centre + np.array([1.0, 0.0, 0.0]))

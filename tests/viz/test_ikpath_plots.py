@@ -39,7 +39,7 @@ def test_convergence_panels_follow_the_history(result):
 def test_workspace_marks_verdicts():
     """Targets are green when reachable, red when not, with a line to the nearest point."""
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-np.pi / 2, q_upper=np.pi / 2)
-    prob = CyclicIKProblem(chain=chain, targets=[(0.0, 7.0), (0.0, 7.1)])
+    prob = CyclicIKProblem(robot=chain, targets=[(0.0, 7.0), (0.0, 7.1)])
     ax = plot_workspace(prob).axes[0]
     markers = [ln for ln in ax.lines if ln.get_marker() == "x"]
     assert [to_rgba(m.get_color()) for m in markers] == [to_rgba("tab:green"), to_rgba("tab:red")]

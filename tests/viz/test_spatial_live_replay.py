@@ -12,7 +12,8 @@ meshcat = pytest.importorskip("meshcat")
 import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
-from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result  # noqa: E402
+from youbot_opt.ikpath.problem import CyclicIKProblem  # noqa: E402
+from youbot_opt.ikpath.spatial import build_spatial_result  # noqa: E402
 from youbot_opt.ikpath.targets import SpatialTarget  # noqa: E402
 from youbot_opt.nlp.status import SolveStatus  # noqa: E402
 from youbot_opt.robot.model import load_model  # noqa: E402
@@ -55,8 +56,8 @@ def test_live_spatial_replay_draws_the_targets_and_ends_at_the_first_configurati
     path = tmp_path / "arm3.urdf"
     path.write_text(_URDF)
     robot = load_model(path, tip_frame="tip")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame="tip",
         targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
     )

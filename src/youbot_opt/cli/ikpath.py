@@ -166,6 +166,7 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
 
     from youbot_opt.ikpath.examples import example_problem
     from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.targets import position_targets
     from youbot_opt.robot.planar import PlanarChain
 
     if args.example:
@@ -176,7 +177,7 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
                 value=args.example,
             )
         base = example_problem(args.example)
-        chain, targets = base.chain, base.targets
+        chain, targets = base.planar_chain, base.target_points
     else:
         if not args.target:
             raise ParameterError(
@@ -211,7 +212,9 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
             else (args.limit if args.limit is not None else chain.q_upper)
         )
         chain = chain.with_limits(lower, upper)
-    return CyclicIKProblem(chain=chain, targets=targets, use_limits=not args.no_limits)
+    return CyclicIKProblem(
+        robot=chain, targets=position_targets(targets), use_limits=not args.no_limits
+    )
 
 
 def _num(x: float) -> float | None:
@@ -244,13 +247,13 @@ def _report(
     from youbot_opt.ikpath.examples import STUDY_E_A
     from youbot_opt.ikpath.reachability import Reachability
 
-    chain = problem.chain
+    chain = problem.planar_chain
     doc: dict[str, Any] = {
         "chain": chain.name,
         "lengths": chain.lengths.tolist(),
         "q_lower": [_num(v) for v in chain.q_lower] if problem.bounded else None,
         "q_upper": [_num(v) for v in chain.q_upper] if problem.bounded else None,
-        "targets": problem.targets.tolist(),
+        "targets": problem.target_points.tolist(),
         "method": args.method,
         "reachability": [_verdict_json(v) for v in verdicts],
         "reachability_undecided": [v.index for v in verdicts if v.status is Reachability.UNDECIDED],

@@ -1,7 +1,7 @@
 """The spatial mode of ``youbot-opt ikpath`` (any robot, 3-D targets, poses).
 
 Called by :mod:`youbot_opt.cli.ikpath` when the command line asks for it:
-builds a :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem` from
+builds a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` from
 ``--robot``/``--frame``/``--target``/``--targets``, decides every target's
 reachability (exit 2 with the certificate of an unreachable one), runs the
 resumable multistart (``--starts``, ``--start-kind``, ``--method``,
@@ -28,7 +28,7 @@ from youbot_opt.exceptions import ParameterError
 
 if TYPE_CHECKING:
     from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-    from youbot_opt.ikpath.spatial import SpatialIKProblem
+    from youbot_opt.ikpath.problem import CyclicIKProblem
     from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.robot.model import RobotModel
     from youbot_opt.viz.meshcat.scene import RobotLike
@@ -109,9 +109,9 @@ def _check_spatial_flags(args: argparse.Namespace) -> str:
     return str(kind)
 
 
-def _problem(args: argparse.Namespace, robot: RobotModel) -> SpatialIKProblem:
+def _problem(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
     """Build the spatial problem of the command line on the loaded ``robot``."""
-    from youbot_opt.ikpath.spatial import SpatialIKProblem
+    from youbot_opt.ikpath.problem import CyclicIKProblem
 
     frame = args.frame or robot.tip_frame
     targets = spatial_targets(args)
@@ -128,9 +128,9 @@ def _problem(args: argparse.Namespace, robot: RobotModel) -> SpatialIKProblem:
         lower, upper = -args.limit, args.limit
     lower = args.lower if args.lower is not None else lower
     upper = args.upper if args.upper is not None else upper
-    n = SpatialIKProblem(model=robot.model, frame=frame, targets=targets).n_joints
-    return SpatialIKProblem(
-        model=robot.model,
+    n = CyclicIKProblem(robot=robot, frame=frame, targets=targets).n_joints
+    return CyclicIKProblem(
+        robot=robot,
         frame=frame,
         targets=targets,
         use_limits=not args.no_limits,

@@ -1,10 +1,10 @@
 """Minimum-motion cyclic IK paths: planar arms (study 2, spec ``ikpath.md``) and any robot.
 
-Build, check, solve, inspect (the spatial problem of issue 14 is used the same
-way, with :class:`SpatialIKProblem` and :func:`run_spatial_multistart`)::
+One problem, :class:`CyclicIKProblem`, on a RobotModel or a PlanarChain; build,
+check, solve, inspect (a 3-D robot: :func:`solve_spatial`, :func:`run_spatial_multistart`)::
 
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
-    problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
+    problem = CyclicIKProblem(robot=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
     verdicts = check_reachability(problem)          # exact, no sampling
     result = solve(problem, method="al")            # or "ipopt"
     best = run_multistart(problem, n_starts=200, seed=0).best
@@ -35,11 +35,7 @@ from youbot_opt.ikpath.reachability import (
 )
 from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
 from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial import (
-    SpatialIKProblem,
-    SpatialIKResult,
-    greedy_path,
-)
+from youbot_opt.ikpath.spatial import SpatialIKResult, greedy_path
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.spatial_reachability import (
     SpatialReach,
@@ -80,7 +76,6 @@ __all__ = [
     "Reachability",
     "RobotSource",
     "STUDY_E_A",
-    "SpatialIKProblem",
     "SpatialIKResult",
     "SpatialMultistart",
     "SpatialReach",

@@ -287,7 +287,7 @@ def _run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions)
     if opts.newton_final and not hasattr(problem, "lagrangian_hessian"):
         raise ParameterError(
             f"ALOptions.newton_final needs a problem with lagrangian_hessian "
-            f"(e.g. SpatialIKProblem), got {type(problem).__name__}",
+            f"(e.g. CyclicIKProblem), got {type(problem).__name__}",
             name="newton_final",
             value=True,
         )

@@ -206,7 +206,7 @@ def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
         ``{"chain": {...}, "targets": [[x, y], ...], "use_limits": bool}``,
         lengths and targets in [m], limits in [rad].
     """
-    chain = problem.chain
+    chain = problem.planar_chain
     return {
         "chain": {
             "lengths": chain.lengths.tolist(),
@@ -217,7 +217,7 @@ def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
             "name": chain.name,
             "tip_frame": chain.tip_frame,
         },
-        "targets": problem.targets.tolist(),
+        "targets": problem.target_points.tolist(),
         "use_limits": problem.use_limits,
     }
 
@@ -292,7 +292,7 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
         tip_frame=str(spec["tip_frame"]),
     )
     problem = CyclicIKProblem(
-        chain=chain, targets=body["targets"], use_limits=bool(body["use_limits"])
+        robot=chain, targets=body["targets"], use_limits=bool(body["use_limits"])
     )
     history = history_from_json(body["history"], problem.n_targets, problem.n_joints)
     return build_result(

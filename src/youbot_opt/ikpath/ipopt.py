@@ -122,7 +122,7 @@ def check_degrees_of_freedom(problem: CyclicIKProblem) -> None:
         If fewer than 2 joints are free.
     """
     if problem.bounded:
-        free = int(np.count_nonzero(problem.chain.q_lower < problem.chain.q_upper))
+        free = int(np.count_nonzero(problem.planar_chain.q_lower < problem.planar_chain.q_upper))
     else:
         free = problem.n_joints
     if free < 2:
@@ -155,7 +155,7 @@ def _project_onto_box(x: Array, lower: Array, upper: Array) -> tuple[Array, floa
 
 def _tip_expression(problem: CyclicIKProblem, q: ca.SX) -> ca.SX:
     """CasADi tip position of the chain at one configuration ``q`` (n,)."""
-    chain = problem.chain
+    chain = problem.planar_chain
     phi = ca.SX(0)
     x, y = ca.SX(float(chain.base[0])), ca.SX(float(chain.base[1]))
     for i in range(chain.n):
@@ -233,7 +233,7 @@ class IpoptIKSolver:
         """
         prob = self.problem if problem is None else problem
         if (
-            prob.chain is not self.problem.chain
+            prob.planar_chain is not self.problem.planar_chain
             or prob.n_targets != self.problem.n_targets
             or prob.bounded != self.problem.bounded
         ):
@@ -247,7 +247,7 @@ class IpoptIKSolver:
         self._recorder.records.clear()
         t0 = time.perf_counter()
         sol = self._solver(
-            x0=start, p=prob.targets.ravel(), lbx=prob.lower, ubx=prob.upper, lbg=0.0, ubg=0.0
+            x0=start, p=prob.target_points.ravel(), lbx=prob.lower, ubx=prob.upper, lbg=0.0, ubg=0.0
         )
         wall = time.perf_counter() - t0
         stats = self._solver.stats()

@@ -361,13 +361,13 @@ def check_reachability(problem: CyclicIKProblem, **kwargs: float) -> tuple[Reach
     """
     return tuple(
         decide_reachability(
-            problem.chain,
+            problem.planar_chain,
             p,
             use_limits=problem.use_limits,
             index=j,
             **kwargs,  # type: ignore[arg-type]
         )
-        for j, p in enumerate(problem.targets)
+        for j, p in enumerate(problem.target_points)
     )
 
 

@@ -21,7 +21,8 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.ipopt import BOUND_SETTINGS
-from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import SpatialIKResult, build_spatial_result
 from youbot_opt.nlp.ipopt import IpoptOptions, single_threaded_blas
 from youbot_opt.nlp.status import IPOPT_STATUS, SolveStatus, status_from_ipopt
 
@@ -30,7 +31,7 @@ __all__ = ["SpatialIpoptSolver", "frame_expression", "solve_spatial_ipopt"]
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
 
-def _joint_axis(problem: SpatialIKProblem, j: int) -> tuple[str, Array]:
+def _joint_axis(problem: CyclicIKProblem, j: int) -> tuple[str, Array]:
     """``("R" | "P", unit axis)`` of active joint ``j`` from its Pinocchio type."""
     joint = problem.model.joints[j]
     name = joint.shortname().removeprefix("JointModel")
@@ -47,7 +48,7 @@ def _joint_axis(problem: SpatialIKProblem, j: int) -> tuple[str, Array]:
     )
 
 
-def frame_expression(problem: SpatialIKProblem, theta: ca.SX) -> tuple[ca.SX, ca.SX]:
+def frame_expression(problem: CyclicIKProblem, theta: ca.SX) -> tuple[ca.SX, ca.SX]:
     """Symbolic world position (3,) and rotation (3, 3) of the frame at angles ``theta``."""
     rot = ca.SX.eye(3)
     pos = ca.SX.zeros(3)
@@ -72,13 +73,13 @@ class SpatialIpoptSolver:
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem.
     options : IpoptOptions, optional
         Default :meth:`IpoptOptions.for_ikpath` (tol 1e-12, constr_viol_tol 1e-11).
     """
 
-    def __init__(self, problem: SpatialIKProblem, options: IpoptOptions | None = None) -> None:
+    def __init__(self, problem: CyclicIKProblem, options: IpoptOptions | None = None) -> None:
         self.problem = problem
         self.options = IpoptOptions.for_ikpath() if options is None else options
         s, n = problem.n_targets, problem.n_joints
@@ -156,10 +157,10 @@ class SpatialIpoptSolver:
         )
 
 
-_CACHE: dict[int, tuple[SpatialIKProblem, SpatialIpoptSolver]] = {}
+_CACHE: dict[int, tuple[CyclicIKProblem, SpatialIpoptSolver]] = {}
 
 
-def solve_spatial_ipopt(problem: SpatialIKProblem, x0: ArrayLike | None = None) -> SpatialIKResult:
+def solve_spatial_ipopt(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> SpatialIKResult:
     """Solve once by IPOPT (the solver is built once per problem object and reused)."""
     hit = _CACHE.get(id(problem))
     if hit is None or hit[0] is not problem:

@@ -1,6 +1,6 @@
 """Reachability of spatial targets: witness, certificate, or undecided (issue 14, item 3).
 
-Each target of a :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem` gets a
+Each target of a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` gets a
 :class:`SpatialVerdict`: reachable (joint values within the limits that meet it,
 checked by Pinocchio), unreachable with a certificate (beyond the reach sphere,
 or every box of a bisected joint box excluded by interval forward kinematics,
@@ -34,7 +34,8 @@ from youbot_opt.ikpath.interval import (
     IntervalChain,
     IntervalPlacement,
 )
-from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik, random_theta
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import dls_ik, random_theta
 from youbot_opt.ikpath.targets import SpatialTarget
 
 __all__ = [
@@ -142,7 +143,7 @@ class IntervalOutcome(NamedTuple):
     seconds: float
 
 
-def joint_box(problem: SpatialIKProblem) -> tuple[Array, Array]:
+def joint_box(problem: CyclicIKProblem) -> tuple[Array, Array]:
     """Return the joint box searched: the limits, revolute ranges cut to one turn.
 
     A revolute joint's placement repeats every 2 pi, so an unlimited or
@@ -229,7 +230,7 @@ def _score(target: SpatialTarget, rot: Interval, pos: Interval) -> Array:
 
 
 def _dls(
-    problem: SpatialIKProblem, j: int, theta0: Array, data: pin.Data, **options: int
+    problem: CyclicIKProblem, j: int, theta0: Array, data: pin.Data, **options: int
 ) -> tuple[Array, bool]:
     """:func:`dls_ik`, with a singular step system (a rank-deficient pose block) as "not met"."""
     try:
@@ -258,7 +259,7 @@ def _pop_batch(stack: list[tuple[Array, Array, Array]]) -> tuple[Array, Array, A
 
 
 def interval_search(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     j: int,
     *,
     max_boxes: int = DEFAULT_INTERVAL_BOXES,
@@ -277,7 +278,7 @@ def interval_search(
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem; its limits (``use_limits``) bound the box.
     j : int
         Target index.
@@ -370,7 +371,7 @@ def _interval_message(j: int, target: SpatialTarget, found: IntervalOutcome) -> 
 
 
 def check_spatial_reachability(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     tries: int = 20,
     seed: int = 0,
@@ -379,7 +380,7 @@ def check_spatial_reachability(
 ) -> tuple[SpatialVerdict, ...]:
     """Decide each target: reachable (witness), unreachable (certificate), or undecided.
 
-    In order: the reach sphere (:meth:`~SpatialIKProblem.reach_radius`; a
+    In order: the reach sphere (:meth:`~CyclicIKProblem.reach_radius`; a
     target farther than ``reach + position_tol`` from its centre is
     unreachable); one DLS solve from zero angles (a witness); the interval
     search (:func:`interval_search`, a certificate or a witness); then the
@@ -387,7 +388,7 @@ def check_spatial_reachability(
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem.
     tries : int
         DLS solves per target (>= 1).
@@ -482,7 +483,7 @@ def check_spatial_reachability(
 
 
 def require_spatial_reachable(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     interval_boxes: int = DEFAULT_INTERVAL_BOXES,
     interval_seconds: float = DEFAULT_INTERVAL_SECONDS,

@@ -2,7 +2,7 @@
 
 :func:`solve_spatial` runs the augmented Lagrangian (projected BFGS inner
 solver) or CasADi + IPOPT (:mod:`.spatial_ipopt`) on a
-:class:`~youbot_opt.ikpath.spatial.SpatialIKProblem`; a failed solve keeps the
+:class:`~youbot_opt.ikpath.spatial.CyclicIKProblem`; a failed solve keeps the
 best iterate and names the blocking target. :func:`run_spatial_multistart`
 solves from :func:`~youbot_opt.ikpath.spatial_starts.make_spatial_starts` on the
 sweep engine the planar multistart uses (:class:`~youbot_opt.sweeps.options.SweepOptions`:
@@ -30,13 +30,9 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.augmented_lagrangian import ALOptions, run_augmented_lagrangian
 from youbot_opt.ikpath.multistart import resolve_executor
+from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import check_method
-from youbot_opt.ikpath.spatial import (
-    SPATIAL_AL_OPTIONS,
-    SpatialIKProblem,
-    SpatialIKResult,
-    build_spatial_result,
-)
+from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import (
     encode_spatial_result,
     load_spatial_result,
@@ -84,7 +80,7 @@ _PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_spatial_result (".json" names the
 
 # -- solving ----------------------------------------------------------------------------------
 def solve_spatial(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     method: str = "al",
     x0: ArrayLike | None = None,
@@ -208,7 +204,7 @@ class SpatialMultistart:
 
 def open_spatial_store(
     out: str | os.PathLike[str],
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     method: str,
     options: ALOptions | IpoptOptions | None,
@@ -240,7 +236,7 @@ def open_spatial_store(
     return starts_store(out, SPATIAL_STARTS, params, load, clean)
 
 
-def _solve_al(problem: SpatialIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
+def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
     """Worker task: one start with the AL (exceptions propagate: they are retried)."""
     return solve_spatial(problem, method="al", x0=x0, options=options)
 
@@ -251,7 +247,7 @@ def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> Spatial
 
 
 def _crashed(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     method: str,
     options: ALOptions | IpoptOptions | None,
     x0: Array,
@@ -268,7 +264,7 @@ def _figures(result: SpatialIKResult) -> dict[str, Any]:
     }
 
 
-SPATIAL_STARTS: StartSolvers[SpatialIKProblem, SpatialIKResult] = StartSolvers(
+SPATIAL_STARTS: StartSolvers[CyclicIKProblem, SpatialIKResult] = StartSolvers(
     solve_al=_solve_al,
     ipopt_solver=SpatialIpoptSolver,
     solve_ipopt=_solve_ipopt,
@@ -282,7 +278,7 @@ SPATIAL_STARTS: StartSolvers[SpatialIKProblem, SpatialIKResult] = StartSolvers(
 
 
 def run_spatial_multistart(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     method: str = "al",
     n_starts: int = 16,
@@ -298,7 +294,7 @@ def run_spatial_multistart(
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem.
     method : {"al", "ipopt"}
         Solver.

@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from youbot_opt._typing import Array
-from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path, random_theta
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import greedy_path, random_theta
 from youbot_opt.ikpath.starts import IndexedStarts, check_start_request
 
 __all__ = ["CHECKPOINT", "SPATIAL_START_KINDS", "SpatialStarts", "make_spatial_starts"]
@@ -28,13 +29,13 @@ SPATIAL_START_KINDS: tuple[str, ...] = ("mixed", "coherent", "random")
 
 
 def make_spatial_starts(
-    problem: SpatialIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
+    problem: CyclicIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
 ) -> Array:
     """Draw starts (n_starts, n s): the greedy DLS path, then coherent and/or random ones.
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem (limits, targets).
     n_starts : int
         Number of starts (>= 1); start 0 is always the greedy path.
@@ -68,14 +69,14 @@ def _coherent(kind: str, k: int) -> bool:
     return kind == "coherent" or (kind == "mixed" and k % 2 == 1)
 
 
-def _draw(problem: SpatialIKProblem, kind: str, k: int, rng: np.random.Generator) -> Array:
+def _draw(problem: CyclicIKProblem, kind: str, k: int, rng: np.random.Generator) -> Array:
     """Start ``k >= 1`` (unclipped), drawn from ``rng`` where start ``k - 1`` left it."""
     if _coherent(kind, k):
         return greedy_path(problem, random_theta(problem, rng))[0].ravel()
     return np.concatenate([random_theta(problem, rng) for _ in range(problem.n_targets)])
 
 
-def _skip(problem: SpatialIKProblem, kind: str, k: int, rng: np.random.Generator) -> None:
+def _skip(problem: CyclicIKProblem, kind: str, k: int, rng: np.random.Generator) -> None:
     """Advance ``rng`` past start ``k`` as :func:`_draw` would (no greedy path solved)."""
     for _ in range(1 if _coherent(kind, k) else problem.n_targets):
         random_theta(problem, rng)
@@ -93,7 +94,7 @@ class SpatialStarts(IndexedStarts):
     """
 
     def __init__(
-        self, problem: SpatialIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
+        self, problem: CyclicIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
     ) -> None:
         self._n = check_start_request(n_starts, kind, SPATIAL_START_KINDS)
         self._problem, self._kind = problem, kind

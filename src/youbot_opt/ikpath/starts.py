@@ -210,14 +210,14 @@ def _feasible_start(
     verdicts: Sequence[ReachVerdict],
 ) -> Array:
     """One start made of random exact IK solutions, unwrapped across configurations."""
-    chain = problem.chain
+    chain = problem.planar_chain
     n = chain.n
     ranges = theta_ranges(chain, problem.use_limits) or [
         (-np.pi + o, 2 * np.pi) for o in chain.angle_offset
     ]
     q = fallback.reshape(problem.n_targets, n).copy()
     lengths = chain.lengths
-    for j, p in enumerate(problem.targets):
+    for j, p in enumerate(problem.target_points):
         for _ in range(50):
             theta = np.array([r[0] + rng.uniform(0.0, r[1]) for r in ranges])
             if n == 1:  # unique solution; the witness below holds it

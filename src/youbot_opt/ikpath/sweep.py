@@ -33,7 +33,7 @@ from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, probl
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
-from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
+from youbot_opt.ikpath.spatial import SpatialIKResult
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -105,7 +105,7 @@ def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> fl
 
 def crashed_result(
     build: Callable[..., ResultT],
-    problem: CyclicIKProblem | SpatialIKProblem,
+    problem: CyclicIKProblem | CyclicIKProblem,
     method: str,
     x0: Array,
     message: str,
@@ -118,7 +118,7 @@ def crashed_result(
     build : callable
         The problem's result constructor (:func:`~youbot_opt.ikpath.result.build_result`
         or :func:`~youbot_opt.ikpath.spatial.build_spatial_result`).
-    problem : CyclicIKProblem or SpatialIKProblem
+    problem : CyclicIKProblem or CyclicIKProblem
         The problem.
     method : str
         The method that was to solve the start.
@@ -553,7 +553,7 @@ def solve_starts(
 
     Parameters
     ----------
-    problem : CyclicIKProblem or SpatialIKProblem
+    problem : CyclicIKProblem or CyclicIKProblem
         The problem.
     x0s : ndarray, shape (n_starts, n s)
         Starts in [rad].

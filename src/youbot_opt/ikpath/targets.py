@@ -25,7 +25,13 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["SpatialTarget", "TARGET_KINDS", "load_targets", "quaternion_to_matrix"]
+__all__ = [
+    "SpatialTarget",
+    "TARGET_KINDS",
+    "load_targets",
+    "position_targets",
+    "quaternion_to_matrix",
+]
 
 TARGET_KINDS: tuple[str, ...] = ("position", "pose", "approach")
 """Kinds of targets: constraint rows 3, 6 and 5."""
@@ -68,8 +74,10 @@ class SpatialTarget:
 
     Attributes
     ----------
-    position : ndarray, shape (3,)
-        Position of the frame's origin in the world, in [m].
+    position : ndarray, shape (3,) or (2,)
+        Position of the frame's origin in the world, in [m]; 2 numbers are the
+        plane coordinates of a planar robot (a position target only; the
+        problem turns them into a world position on its plane).
     rotation : ndarray, shape (3, 3), optional
         Orientation of the frame in the world (a pose target).
     approach : ndarray, shape (3,), optional
@@ -97,7 +105,12 @@ class SpatialTarget:
     orientation_weight: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _vector3(self.position, "position"))
+        pos = np.array(self.position, dtype=float).reshape(-1)
+        planar = pos.shape == (2,) and self.rotation is None and self.approach is None
+        if planar and np.all(np.isfinite(pos)):  # plane coordinates of a planar robot
+            object.__setattr__(self, "position", pos)
+        else:
+            object.__setattr__(self, "position", _vector3(self.position, "position"))
         if self.rotation is not None and self.approach is not None:
             raise ParameterError(
                 "a target has either a rotation (pose) or an approach axis, not both",
@@ -218,6 +231,24 @@ class SpatialTarget:
             orientation_weight=self.orientation_weight,
         )
         return out
+
+
+def position_targets(points: ArrayLike) -> tuple[SpatialTarget, ...]:
+    """Position targets at ``points`` [m], shape (s, 3) (world) or (s, 2) (a planar robot's plane).
+
+    Raises
+    ------
+    ParameterError
+        If ``points`` is not (s, 2) or (s, 3) finite numbers.
+    """
+    arr = np.array(points, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+        raise ParameterError(
+            f"target points must have shape (s, 2) or (s, 3) [m], got {arr.shape}",
+            name="targets",
+            value=arr.shape,
+        )
+    return tuple(SpatialTarget(position=p) for p in arr)
 
 
 _CSV_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw", "ax", "ay", "az")

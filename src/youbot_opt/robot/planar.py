@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ModelError, ParameterError
-from youbot_opt.robot.model import RobotModel, load_model, tip_pose
+from youbot_opt.robot.model import RobotModel, load_model
 
 __all__ = [
     "Plane",
@@ -88,10 +88,11 @@ def motion_plane(model: pin.Model, frame_id: int, q: ArrayLike) -> Plane | None:
     revolute (or continuous) and their axes are parallel (within 1e-12) to one
     world direction ``n``: turning about axes parallel to ``n`` keeps ``n . p``
     of every point, so the frame's origin stays in the plane normal to ``n``
-    through its position at ``q``, at any configuration. The plane coordinates
-    are the two world axes other than ``n`` in the order x, y, z when ``n`` is
-    a world axis (a chain about z moves in (x, y), the youBot arm about y in
-    (x, z)); otherwise the projection of world x (or y) and ``n`` times it.
+    through its position at ``q``, at any configuration. ``n`` is the first
+    joint's axis; the plane coordinates ``(e1, e2)`` have ``e1 x e2 = n`` (a
+    positive angle turns counter-clockwise): the two world axes other than
+    ``n`` when ``n`` is one (a chain about +z moves in (x, y), the youBot arm
+    about -y in (x, z)), else the projection of world x (or y) and ``n x e1``.
 
     Parameters
     ----------
@@ -132,6 +133,8 @@ def motion_plane(model: pin.Model, frame_id: int, q: ArrayLike) -> Plane | None:
     if abs(abs(float(normal[k])) - 1.0) <= _PARALLEL_TOL:  # a world axis: the other two
         normal = np.eye(3)[k] * np.sign(normal[k])
         basis = np.eye(3)[:, [i for i in range(3) if i != k]]
+        if float(np.cross(basis[:, 0], basis[:, 1]) @ normal) < 0.0:  # turn counter-clockwise
+            basis = basis[:, ::-1].copy()
     else:
         helper = np.eye(3)[0] if abs(float(normal[0])) < 0.9 else np.eye(3)[1]
         e1 = helper - (helper @ normal) * normal
@@ -466,84 +469,106 @@ def _build_models(chain: PlanarChain) -> tuple[pin.Model, pin.GeometryModel, int
 _CHECK_TOL = 1e-10  # [m] largest accepted tip mismatch between chain and robot
 
 
-def chain_from_robot(robot: RobotModel, *, name: str | None = None) -> PlanarChain:
-    """Build the planar chain equivalent to a robot that moves in its platform's x-z plane.
+def chain_from_robot(
+    robot: RobotModel, frame: str | None = None, *, name: str | None = None
+) -> PlanarChain:
+    """Build the planar chain equivalent to a robot that is planar for ``frame``.
 
-    The youBot arm moves in the x-z plane of its platform; its joint angles are
-    measured from the vertical, positive towards platform -x, and joint 1 sits
-    at ``(a, h) = (0.184, 0.147)`` m. In the IK-path convention (x right, angles
-    counter-clockwise from the x axis, plane coordinates ``(x, y) := (x, z)`` of
-    the platform) the same arm is a chain with ``base = (a, h)``,
-    ``angle_offset = (pi/2, 0, 0)`` (the study angle ``theta_1 = q_1 + pi/2``:
-    q = 0 points up, along +z = the planar +y axis, and a positive angle turns
-    towards -x, counter-clockwise in the (x, z) plane; ``theta_2 = q_2``,
-    ``theta_3 = q_3``), and the link lengths and joint limits of the robot
-    model. These numbers are read from the joint origins and the tip at
-    ``q = 0``; the chain is then verified against
-    :func:`youbot_opt.robot.model.tip_pose` at 20 seeded configurations.
+    The robot must be planar for the frame (:func:`motion_plane`: revolute
+    joints about parallel axes) and every joint that moves it must turn the
+    same way about the plane normal ``n``. The chain's coordinates are the
+    robot's joint angles and its positions the plane coordinates; its base,
+    lengths and ``angle_offset`` are read from the joint origins and the frame
+    at ``q = 0``, its limits are the robot's (continuous joints and limits
+    beyond 1e10: none), and it is then checked against Pinocchio's placement of
+    the frame at 20 seeded configurations (1e-10 m). The youBot arm (joints
+    about the platform's -y, plane (x, z)) is a chain with ``base = (a, h) =
+    (0.184, 0.147)`` m and ``angle_offset = (pi/2, 0, 0)``: q = 0 points up
+    and a positive angle turns towards -x (spec ``trajopt.md``).
 
     Parameters
     ----------
     robot : RobotModel
-        A loaded robot (``load_model("youbot")``): revolute joints about the
-        platform y axis, tip frame ``robot.tip_frame``.
+        A loaded robot (``load_model("youbot")``).
+    frame : str, optional
+        The frame (default ``robot.tip_frame``).
     name : str, optional
         Chain name (default: the robot's).
 
     Returns
     -------
     PlanarChain
-        Coordinates ``q`` equal the robot's joint angles; positions are the
-        platform's (x, z) in [m]; limits are the robot's.
+        Coordinates ``q`` equal the robot's angles of the joints that move the
+        frame; positions are plane coordinates in [m].
 
     Raises
     ------
     ModelError
-        If the robot is not a planar revolute chain in the x-z plane (the
-        chain's tip differs from ``tip_pose`` by more than 1e-10 m somewhere).
+        If the robot is not a planar revolute chain for the frame (the message
+        says why).
     """
     model: pin.Model = robot.model
-    nq = int(model.nq)
-    if nq < 1 or model.nv != nq or model.njoints != nq + 1:
+    frame = robot.tip_frame if frame is None else frame
+    fid = robot.frame_id(frame)
+    support = [j for j in model.supports[model.frames[fid].parentJoint] if j > 0]
+    q0 = pin.neutral(model)
+    plane = motion_plane(model, fid, q0)
+    if plane is None or any(model.joints[j].nq != 1 for j in support):
         raise ModelError(
-            f"robot {robot.name!r} is not a chain of 1-DoF joints (nq={nq}, nv={model.nv}, "
-            f"joints={model.njoints - 1})"
+            f"robot {robot.name!r} is not a planar revolute chain for frame {frame!r}: its "
+            "joints are not all revolute about parallel axes"
         )
     data = model.createData()
-    q0 = np.zeros(nq)
-    pin.forwardKinematics(model, data, q0)
-    points = [data.oMi[j].translation[[0, 2]].copy() for j in range(1, nq + 1)]
-    points.append(np.asarray(tip_pose(robot, q0).position, dtype=np.float64))
+    pin.computeJointJacobians(model, data, q0)
+    pin.updateFramePlacements(model, data)
+    for j in support:
+        jac = np.reshape(pin.getJointJacobian(model, data, j, pin.WORLD), (6, model.nv))
+        if float(jac[3:, model.joints[j].idx_v] @ plane.normal) < 0.0:
+            raise ModelError(
+                f"robot {robot.name!r} is not a planar chain for frame {frame!r}: joint "
+                f"{model.names[j]!r} turns against the first joint's axis"
+            )
+    basis = plane.basis
+    points = [data.oMi[j].translation @ basis for j in support]
+    points.append(data.oMf[fid].translation @ basis)
     segments = np.diff(np.array(points), axis=0)
     lengths = np.linalg.norm(segments, axis=1)
     if np.any(lengths <= 1e-9):
         raise ModelError(
-            f"robot {robot.name!r} is not a planar revolute chain in its platform's x-z plane: "
-            f"segment lengths in that plane are {lengths.tolist()} m (a zero one)"
+            f"robot {robot.name!r} is not a planar revolute chain for frame {frame!r}: "
+            f"segment lengths in its plane are {lengths.tolist()} m (a zero one)"
         )
     phi = np.arctan2(segments[:, 1], segments[:, 0])
     offset = np.diff(np.r_[0.0, phi])
     offset = np.arctan2(np.sin(offset), np.cos(offset))
+    idx = [model.joints[j].idx_q for j in support]
+    lo = np.array([model.lowerPositionLimit[i] for i in idx], dtype=np.float64)
+    hi = np.array([model.upperPositionLimit[i] for i in idx], dtype=np.float64)
+    lo = np.where(lo <= -1e10, -np.inf, lo)
+    hi = np.where(hi >= 1e10, np.inf, hi)
     chain = PlanarChain(
         lengths=lengths,
-        q_lower=np.asarray(robot.q_lower, dtype=np.float64),
-        q_upper=np.asarray(robot.q_upper, dtype=np.float64),
+        q_lower=lo,
+        q_upper=hi,
         base=points[0],
         angle_offset=offset,
         name=name or str(robot.name),
-        tip_frame=str(robot.tip_frame),
+        tip_frame=str(frame),
     )
     rng = np.random.default_rng(0)
-    lo = np.maximum(chain.q_lower, -math.pi)
-    hi = np.minimum(chain.q_upper, math.pi)
+    lo_s = np.maximum(chain.q_lower, -math.pi)
+    hi_s = np.minimum(chain.q_upper, math.pi)
     worst = 0.0
-    for q in rng.uniform(lo, hi, (20, nq)):
-        ref = np.asarray(tip_pose(robot, q).position, dtype=np.float64)
-        worst = max(worst, float(np.linalg.norm(chain.tip_position(q) - ref)))
+    q = q0.copy()
+    for theta in rng.uniform(lo_s, hi_s, (20, len(support))):
+        q[idx] = theta
+        pin.framesForwardKinematics(model, data, q)
+        ref = data.oMf[fid].translation @ basis
+        worst = max(worst, float(np.linalg.norm(chain.tip_position(theta) - ref)))
     if worst > _CHECK_TOL:
         raise ModelError(
-            f"robot {robot.name!r} is not a planar revolute chain in its platform's x-z plane: "
-            f"the equivalent chain misses tip_pose by {worst:.3g} m (tolerance {_CHECK_TOL:g} m)"
+            f"robot {robot.name!r} is not a planar revolute chain for frame {frame!r}: the "
+            f"equivalent chain misses the frame by {worst:.3g} m (tolerance {_CHECK_TOL:g} m)"
         )
     return chain
 
