@@ -83,11 +83,11 @@ def test_planar_lean_run_equals_the_full_run(two_link, tmp_path, workers, faults
         assert crashed.status is IKStatus.CRASHED and "worker process crashed" in crashed.message
     # Other tolerances: re-clustered from the folder, equal to the full run's re-clustering.
     # Coarser ones merge distinct minima (14 -> 11 here); finer ones may split one.
-    coarse = _minima(full.distinct_optima(e_tol=0.1, q_tol=3.0))
+    coarse = _minima(full.distinct_optima(objective_tol=0.1, q_tol=3.0))
     assert len(coarse) < len(full.minima)
-    assert _minima(lean.distinct_optima(e_tol=0.1, q_tol=3.0)) == coarse
-    fine = _minima(full.distinct_optima(e_tol=1e-12, q_tol=1e-9))
-    assert _minima(lean.distinct_optima(e_tol=1e-12, q_tol=1e-9)) == fine
+    assert _minima(lean.distinct_optima(objective_tol=0.1, q_tol=3.0)) == coarse
+    fine = _minima(full.distinct_optima(objective_tol=1e-12, q_tol=1e-9))
+    assert _minima(lean.distinct_optima(objective_tol=1e-12, q_tol=1e-9)) == fine
     assert lean.distinct_optima() is lean.minima  # the run's own tolerances
 
 

@@ -152,7 +152,7 @@ def test_configuration_distance_ignores_common_2pi_shifts(rng):
 def test_clustering_merges_equal_minima(two_link):
     """Results within the tolerances form one minimum whose count is the number of members."""
     res = run_multistart(two_link, n_starts=10, seed=2, sweep=SweepOptions(workers=1))
-    merged = cluster_minima(res.results, e_tol=1e6, q_tol=1e6)
+    merged = cluster_minima(res.results, objective_tol=1e6, q_tol=1e6)
     assert len(merged) == 1 and merged[0].count == res.n_success
     again = res.distinct_optima()  # default tolerances: the same clustering as res.minima
     assert [(m.objective, m.count, m.start_indices) for m in again] == [

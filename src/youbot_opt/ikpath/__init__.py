@@ -18,7 +18,7 @@ from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.ipopt import IpoptIKSolver, solve_ipopt
 from youbot_opt.ikpath.multistart import (
-    LocalMinimum,
+    LocalOptimum,
     MultistartResult,
     cluster_minima,
     configuration_distance,
@@ -66,7 +66,7 @@ __all__ = [
     "IpoptIKSolver",
     "IpoptOptions",
     "JointPath",
-    "LocalMinimum",
+    "LocalOptimum",
     "METHODS",
     "Method",
     "MultistartResult",

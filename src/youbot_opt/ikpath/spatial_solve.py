@@ -286,7 +286,7 @@ def run_spatial_multistart(
     starts: str = "mixed",
     options: ALOptions | IpoptOptions | None = None,
     workers: int | None = None,
-    e_tol: float = 1e-6,
+    objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> SpatialMultistart:
@@ -306,8 +306,8 @@ def run_spatial_multistart(
         Settings of the method (``max_wall_time`` [s] bounds each start's solve).
     workers : int, optional
         Shortcut for ``sweep.workers`` (default: 1, serial, unless ``sweep`` says otherwise).
-    e_tol, q_tol : float
-        Two successes are one minimum when ``E`` agrees to ``e_tol`` (relative)
+    objective_tol, q_tol : float
+        Two successes are one minimum when ``E`` agrees to ``objective_tol`` (relative)
         and the angles to ``q_tol`` [rad] (continuous joints modulo a common 2 pi shift).
     sweep : SweepOptions
         How the starts run, as for the planar
@@ -391,7 +391,7 @@ def run_spatial_multistart(
             solvers=SPATIAL_STARTS,
             store=store,
             distance=distance_of,
-            e_tol=e_tol,
+            objective_tol=objective_tol,
             q_tol=q_tol,
             by_objective=False,
             on_resumed=on_resumed,
@@ -416,7 +416,7 @@ def run_spatial_multistart(
             (i for i, r in enumerate(results) if r.success),
             objective=lambda i: results[i].objective,
             distance=lambda a, b: distance_of(results[a], results[b]),
-            obj_tol=e_tol,
+            obj_tol=objective_tol,
             dist_tol=q_tol,
         )
         minima = tuple(tuple(g) for g in groups)

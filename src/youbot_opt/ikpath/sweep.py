@@ -672,7 +672,7 @@ def stream_starts(
     solvers: StartSolvers[ProblemT, ResultT],
     store: SweepStore,
     distance: Callable[[ResultT, ResultT], float],
-    e_tol: float,
+    objective_tol: float,
     q_tol: float,
     by_objective: bool,
     on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
@@ -683,7 +683,7 @@ def stream_starts(
     As :func:`solve_starts`, but a start is drawn (``starts[i]``) only when its
     task is made, each start's figures are read back from the store's journal
     as :class:`~youbot_opt.ikpath.stored.StartSummary` when needed, and only the
-    distinct minima (``cluster_optima``'s rule with ``e_tol`` on ``E`` and
+    distinct minima (``cluster_optima``'s rule with ``objective_tol`` on ``E`` and
     ``q_tol`` on ``distance``, chosen by
     :func:`~youbot_opt.sweeps.selection.stream_optima`) are held in full.
 
@@ -695,7 +695,7 @@ def stream_starts(
         The output folder (required: the results not kept stay there).
     distance : callable ``(a, b) -> float``
         Distance in [rad] of two successful results' configurations.
-    e_tol, q_tol : float
+    objective_tol, q_tol : float
         Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
     by_objective : bool
         The start closest to the targets is ranked by ``(max_residual, E)``
@@ -770,7 +770,7 @@ def stream_starts(
     rule: KeepRule[StartSummary[ResultT]] = KeepRule(
         objective=lambda s: s.objective if s.success else None,
         distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=e_tol,
+        obj_tol=objective_tol,
         dist_tol=q_tol,
     )
     got = run_resumable(
