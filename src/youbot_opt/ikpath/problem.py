@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, NamedTuple, Protocol, cast
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -30,7 +30,6 @@ from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain, Plane, chain_from_robot, motion_plane
 
 __all__ = [
-    "ALProblem",
     "CyclicIKProblem",
     "Evaluation",
     "path_configurations",
@@ -58,55 +57,6 @@ class Evaluation(NamedTuple):
     gradient: Array
     constraints: Array
     jacobian_blocks: Array
-
-
-class ALProblem(Protocol):
-    """What the augmented Lagrangian needs of a problem (planar and spatial alike).
-
-    ``s`` targets, ``n`` joints, ``m`` constraint rows per target; ``x`` is the
-    row-major flattening of the (s, n) configurations in [rad].
-    """
-
-    @property
-    def n_targets(self) -> int:
-        """Number of targets ``s``."""
-        ...
-
-    @property
-    def n_constraints(self) -> int:
-        """Number of constraint rows ``m s``."""
-        ...
-
-    @property
-    def lower(self) -> Array:
-        """Lower bounds of ``x`` in [rad]."""
-        ...
-
-    @property
-    def upper(self) -> Array:
-        """Upper bounds of ``x`` in [rad]."""
-        ...
-
-    @property
-    def bounded(self) -> bool:
-        """Whether finite bounds are constraints."""
-        ...
-
-    def create_data(self) -> pin.Data:
-        """Return a fresh ``pinocchio.Data``."""
-        ...
-
-    def evaluate(self, x: ArrayLike, data: pin.Data | None = None) -> Evaluation:
-        """Objective, constraints and their derivatives at ``x``."""
-        ...
-
-    def objective(self, x: ArrayLike) -> float:
-        """``E`` at ``x`` in [rad^2]."""
-        ...
-
-    def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
-        """Constraint rows ``c(x)``."""
-        ...
 
 
 def require_within_limits(
