@@ -79,10 +79,10 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial import greedy_path
-from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatial
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import WorkerPool

@@ -68,7 +68,7 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 
 
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
-    from youbot_opt.ikpath import spatial_reachability
+    from youbot_opt.ikpath.reachability import spatial as spatial_reachability
 
     real, seen = spatial_reachability.check_spatial_reachability, []
 
@@ -86,11 +86,11 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
 
 def test_spatial_names_and_budgets_of_the_parser_match_the_library():
     from youbot_opt.cli import ikpath
-    from youbot_opt.ikpath.spatial_reachability import (
+    from youbot_opt.ikpath.reachability.spatial import (
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
     )
-    from youbot_opt.ikpath.spatial_starts import SPATIAL_START_KINDS
+    from youbot_opt.ikpath.starts import SPATIAL_START_KINDS
 
     assert ikpath.SPATIAL_START_KIND_NAMES == SPATIAL_START_KINDS
     assert ikpath.SPATIAL_REACH_BOXES == DEFAULT_INTERVAL_BOXES

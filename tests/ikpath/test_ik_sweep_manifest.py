@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
 from youbot_opt.ikpath.spatial_solve import open_spatial_store

@@ -19,13 +19,12 @@ from test_ikpath_solvers import LA, LB, TARGETS_2
 
 from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.cli import main
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
-from youbot_opt.ikpath.spatial_starts import SpatialStarts, make_spatial_starts
-from youbot_opt.ikpath.starts import PlanarStarts, make_starts
+from youbot_opt.ikpath.starts import PlanarStarts, SpatialStarts, make_spatial_starts, make_starts
 from youbot_opt.ikpath.stored import StoredResults
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
@@ -156,7 +155,7 @@ def test_lazy_starts_equal_the_drawn_arrays(two_link, ur5_reachable, monkeypatch
     """Per-index planar starts and checkpointed spatial starts, in any order of access."""
     planar = make_starts(two_link, 7, 3)
     np.testing.assert_array_equal(np.array(list(PlanarStarts(two_link, 7, 3))), planar)
-    monkeypatch.setattr("youbot_opt.ikpath.spatial_starts.CHECKPOINT", 2)
+    monkeypatch.setattr("youbot_opt.ikpath.starts.CHECKPOINT", 2)
     drawn = make_spatial_starts(ur5_reachable, 9, 5, kind="mixed")
     lazy = SpatialStarts(ur5_reachable, 9, 5, kind="mixed")
     for k in (3, 8, 0, 1, 6, 2, 7, 5, 4, -1):  # backwards jumps restart from a checkpoint

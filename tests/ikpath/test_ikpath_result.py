@@ -11,9 +11,9 @@ import pytest
 
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ParameterError, SolveFailed
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import build_result, checked
 from youbot_opt.ikpath.solve import solve
@@ -54,7 +54,7 @@ def test_raise_for_status(result):
     assert result.raise_for_status() is result
     failed = solve(example_problem("A"), method="ipopt", options=None, x0=None)
     assert failed.status is SolveStatus.SOLVED  # zero start converges (to a poor minimum) for IPOPT
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
 
     capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
     assert capped.status is SolveStatus.MAX_ITERATIONS

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed, UnreachableTarget
-from youbot_opt.ikpath.augmented_lagrangian import (
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.methods.al import (
     ALOptions,
     first_order_multipliers,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.multistart import configuration_distance
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
@@ -187,7 +187,7 @@ def test_first_order_multipliers_match_the_kkt_point():
 
 
 _LBFGSB_RUN = """
-from youbot_opt.ikpath.augmented_lagrangian import (
+from youbot_opt.ikpath.methods.al import (
     ALOptions,
     first_order_multipliers,
     solve_augmented_lagrangian,
@@ -338,7 +338,7 @@ def test_al_generous_wall_time_cap_changes_nothing():
 
 def test_ipopt_time_limits_map_to_the_time_limit_status():
     """IPOPT's wall-time and CPU-time exits are TIME_LIMIT, not NUMERICAL_ERROR."""
-    from youbot_opt.ikpath.ipopt import _STATUS
+    from youbot_opt.ikpath.methods.ipopt import _STATUS
 
     assert _STATUS["Maximum_WallTime_Exceeded"] is SolveStatus.MAX_TIME
     assert _STATUS["Maximum_CpuTime_Exceeded"] is SolveStatus.MAX_TIME

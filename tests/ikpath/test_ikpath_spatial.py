@@ -7,13 +7,13 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
 from youbot_opt.ikpath.spatial import dls_ik, greedy_path
-from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
 from youbot_opt.ikpath.spatial_solve import solve_spatial
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
 
@@ -202,7 +202,7 @@ def test_constraint_jacobian_blocks_match_central_differences():
 def test_symbolic_kinematics_of_ipopt_equal_pinocchio():
     import casadi as ca
 
-    from youbot_opt.ikpath.spatial_ipopt import frame_expression
+    from youbot_opt.ikpath.methods.ipopt import frame_expression
 
     for problem in (_mixed_panda_problem(), _ur5_problem(0)):
         sym = ca.SX.sym("q", problem.n_joints)
@@ -382,7 +382,7 @@ def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
 def test_a_planar_urdf_chain_is_solved_by_the_planar_methods_like_the_chain(tmp_path):
     """#25 item 4: a URDF chain's problem has its PlanarChain, hence the exact verdicts and
     feasible starts of the chain (same draws to 1e-9 rad) and the same optimum (1e-8)."""
-    from youbot_opt.ikpath.reachability import check_reachability
+    from youbot_opt.ikpath.reachability.planar import check_reachability
     from youbot_opt.ikpath.solve import solve
     from youbot_opt.ikpath.starts import make_starts
 

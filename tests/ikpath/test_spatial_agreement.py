@@ -7,7 +7,7 @@ import pytest
 
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial_solve import solve_spatial
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
 

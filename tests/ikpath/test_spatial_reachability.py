@@ -11,16 +11,16 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.interval import IntervalChain, sin_cos
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import Reachability, decide_reachability
-from youbot_opt.ikpath.spatial import random_theta
-from youbot_opt.ikpath.spatial_reachability import (
+from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
+from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
+from youbot_opt.ikpath.reachability.spatial import (
     SpatialReach,
     check_spatial_reachability,
     interval_search,
     joint_box,
 )
+from youbot_opt.ikpath.spatial import random_theta
 from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial import dls_ik
-from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardFinished

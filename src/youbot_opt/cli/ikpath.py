@@ -33,7 +33,7 @@ from youbot_opt.exceptions import ParameterError
 if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast
     from youbot_opt.ikpath.multistart import MultistartResult
     from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.reachability import ReachVerdict
+    from youbot_opt.ikpath.reachability.planar import ReachVerdict
 
 # The choices of the parser, spelled out here so that building it imports no solver;
 # tests/cli/test_cli_help.py checks them against the library's EXAMPLES, METHODS, START_KINDS.
@@ -245,7 +245,7 @@ def _report(
     import numpy as np
 
     from youbot_opt.ikpath.examples import STUDY_E_A
-    from youbot_opt.ikpath.reachability import Reachability
+    from youbot_opt.ikpath.reachability.planar import Reachability
 
     chain = problem.planar_chain
     doc: dict[str, Any] = {
@@ -370,7 +370,7 @@ def _print_multistart(doc: dict[str, Any]) -> None:
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
     """Warn on stderr about every target whose reachability was not decided."""
-    from youbot_opt.ikpath.reachability import Reachability
+    from youbot_opt.ikpath.reachability.planar import Reachability
 
     for v in verdicts:
         if v.status is Reachability.UNDECIDED:
@@ -426,10 +426,10 @@ def _write_outputs(
 
 def _run(args: argparse.Namespace) -> int:
     from youbot_opt.cli.output import print_json, print_outputs, run_folder
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-    from youbot_opt.ikpath.ipopt import IpoptOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
+    from youbot_opt.ikpath.methods.ipopt import IpoptOptions
     from youbot_opt.ikpath.multistart import run_multistart
-    from youbot_opt.ikpath.reachability import Reachability, check_reachability
+    from youbot_opt.ikpath.reachability.planar import Reachability, check_reachability
 
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):
         raise ParameterError(

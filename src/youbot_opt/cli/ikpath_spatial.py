@@ -27,7 +27,7 @@ from youbot_opt.cli.robot_args import loading_options
 from youbot_opt.exceptions import ParameterError
 
 if TYPE_CHECKING:
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
     from youbot_opt.ikpath.problem import CyclicIKProblem
     from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.robot.model import RobotModel
@@ -156,8 +156,8 @@ def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import scheduler_address
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
+    from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
-    from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.model import load_model
 

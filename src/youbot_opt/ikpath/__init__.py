@@ -12,11 +12,11 @@ check, solve, inspect (a 3-D robot: :func:`solve_spatial`, :func:`run_spatial_mu
 
 from __future__ import annotations
 
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, solve_ipopt
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, solve_ipopt
 from youbot_opt.ikpath.multistart import (
     LocalOptimum,
     MultistartResult,
@@ -26,28 +26,28 @@ from youbot_opt.ikpath.multistart import (
     run_multistart,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
-from youbot_opt.ikpath.reachability import (
+from youbot_opt.ikpath.reachability.planar import (
     Reachability,
     ReachVerdict,
     check_reachability,
     decide_reachability,
     require_reachable,
 )
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
-from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial import SpatialIKResult, greedy_path
-from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
-from youbot_opt.ikpath.spatial_reachability import (
+from youbot_opt.ikpath.reachability.spatial import (
     SpatialReach,
     SpatialVerdict,
     check_spatial_reachability,
 )
+from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
+from youbot_opt.ikpath.solve import METHODS, Method, solve
+from youbot_opt.ikpath.spatial import SpatialIKResult, greedy_path
+from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.spatial_solve import (
     SpatialMultistart,
     run_spatial_multistart,
     solve_spatial,
 )
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import SpatialTarget, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions

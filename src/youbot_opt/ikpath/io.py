@@ -313,7 +313,7 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
 
 def _default_tol(method: str) -> float:
     """Default ``|c_i|`` tolerance in [m] of ``method`` (files without ``constraint_tol``)."""
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
 
     if method == "ipopt":
         return float(IpoptOptions.for_ikpath().constr_viol_tol)  # type: ignore[arg-type]

@@ -21,10 +21,10 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.ipopt import IpoptOptions, check_degrees_of_freedom
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import START_KINDS, PlanarStarts, make_starts

@@ -15,10 +15,10 @@ from typing import Literal
 from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.ipopt import solve_ipopt
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.ipopt import solve_ipopt
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import Reachability, ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.nlp.ipopt import IpoptOptions
 

@@ -18,7 +18,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import OuterIterate
 from youbot_opt.nlp.status import SolveStatus

@@ -4,7 +4,7 @@
 solver) or CasADi + IPOPT (:mod:`.spatial_ipopt`) on a
 :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem`; a failed solve keeps the
 best iterate and names the blocking target. :func:`run_spatial_multistart`
-solves from :func:`~youbot_opt.ikpath.spatial_starts.make_spatial_starts` on the
+solves from :func:`~youbot_opt.ikpath.starts.make_spatial_starts` on the
 sweep engine the planar multistart uses (:class:`~youbot_opt.sweeps.options.SweepOptions`:
 process pool or Dask, crash retry, progress, shards), saving every start in a
 :class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
@@ -28,9 +28,11 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, run_augmented_lagrangian
+from youbot_opt.ikpath.methods.al import ALOptions, run_augmented_lagrangian
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_spatial_ipopt
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.spatial import require_spatial_reachable
 from youbot_opt.ikpath.solve import check_method
 from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import (
@@ -38,14 +40,12 @@ from youbot_opt.ikpath.spatial_io import (
     load_spatial_result,
     spatial_problem_spec,
 )
-from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver, solve_spatial_ipopt
-from youbot_opt.ikpath.spatial_reachability import require_spatial_reachable
-from youbot_opt.ikpath.spatial_starts import (
+from youbot_opt.ikpath.starts import (
     SPATIAL_START_KINDS,
     SpatialStarts,
+    check_start_request,
     make_spatial_starts,
 )
-from youbot_opt.ikpath.starts import check_start_request
 from youbot_opt.ikpath.stored import StartTally
 from youbot_opt.ikpath.sweep import (
     StartSolvers,
@@ -141,7 +141,7 @@ class SpatialMultistart:
     seed : int
         Seed of the starts.
     start_kind : str
-        How the starts were drawn (:data:`~youbot_opt.ikpath.spatial_starts.SPATIAL_START_KINDS`).
+        How the starts were drawn (:data:`~youbot_opt.ikpath.starts.SPATIAL_START_KINDS`).
     attempts : sequence of int
         Attempts per start, earlier runs on the same output included.
     resumed : int
@@ -301,7 +301,7 @@ def run_spatial_multistart(
     n_starts, seed : int
         Number of starts (start 0 is the greedy DLS path) and their seed.
     starts : {"mixed", "coherent", "random"}
-        Start kind (:mod:`youbot_opt.ikpath.spatial_starts`).
+        Start kind (:mod:`youbot_opt.ikpath.starts`).
     options : ALOptions or IpoptOptions, optional
         Settings of the method (``max_wall_time`` [s] bounds each start's solve).
     workers : int, optional

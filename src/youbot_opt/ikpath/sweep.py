@@ -28,9 +28,9 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, problem_spec
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.spatial import SpatialIKResult

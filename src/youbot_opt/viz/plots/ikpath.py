@@ -25,7 +25,7 @@ from matplotlib.patches import Patch
 
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, check_reachability
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, check_reachability
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.spatial import SpatialIKResult
 
@@ -173,7 +173,7 @@ def plot_workspace(
 
     The shaded hexagons are the cells hit by the tips of a regular joint grid
     over the limits (about 120 000 configurations; for display only); the
-    target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability`
+    target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability.planar`
     (green: reachable, red: unreachable with a line to the nearest reachable point,
     orange: undecided; all three are in the legend). The dashed circles bound the
     workspace without limits.

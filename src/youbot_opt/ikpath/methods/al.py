@@ -3,7 +3,7 @@
 Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
 (bound-constrained Lagrangian method) on ``E(x)`` with the ``2 s`` target
 constraints ``c(x) = 0`` and the joint box; the inner solver is
-:func:`~youbot_opt.ikpath.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
+:func:`~youbot_opt.ikpath.methods.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
 ``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
 in docs/design.md, "Module notes". Spatial problems switch on a safeguarded
 final phase of SQP steps (``ALOptions.newton_final``, docs/ikpath.md).
@@ -29,8 +29,8 @@ from scipy.optimize import Bounds, minimize
 from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.best_iterate import pick_best
-from youbot_opt.ikpath.bfgs import minimize_bfgs
+from youbot_opt.ikpath.methods.best_iterate import pick_best
+from youbot_opt.ikpath.methods.bfgs import minimize_bfgs
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.status import SolveStatus
@@ -72,7 +72,7 @@ class ALOptions:
         violation after which the start is declared locally infeasible.
     inner : {"bfgs", "lbfgsb"}
         Inner solver for the bound-constrained case (unlimited problems always
-        use BFGS): the projected BFGS of :mod:`youbot_opt.ikpath.bfgs` or SciPy's
+        use BFGS): the projected BFGS of :mod:`youbot_opt.ikpath.methods.bfgs` or SciPy's
         L-BFGS-B.
     max_wall_time : float or None
         Wall-clock limit of the whole solve in [s] (``None``: no limit). Checked

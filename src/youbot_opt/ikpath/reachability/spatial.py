@@ -4,7 +4,7 @@ Each target of a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` gets a
 :class:`SpatialVerdict`: reachable (joint values within the limits that meet it,
 checked by Pinocchio), unreachable with a certificate (beyond the reach sphere,
 or every box of a bisected joint box excluded by interval forward kinematics,
-:mod:`youbot_opt.ikpath.interval`), or undecided when the budget runs out.
+:mod:`youbot_opt.ikpath.reachability.interval`), or undecided when the budget runs out.
 Position, pose and approach targets are all decided (docs/ikpath.md, "Interval
 reachability").
 
@@ -27,14 +27,14 @@ import pinocchio as pin
 from youbot_opt._checks import check_int, check_nonnegative
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.branch_and_bound import bisect_boxes
-from youbot_opt.ikpath.interval import (
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.branch_and_bound import bisect_boxes
+from youbot_opt.ikpath.reachability.interval import (
     ROUNDING_RELATIVE,
     Interval,
     IntervalChain,
     IntervalPlacement,
 )
-from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial import dls_ik, random_theta
 from youbot_opt.ikpath.targets import SpatialTarget
 
@@ -268,9 +268,9 @@ def interval_search(
     """Branch and bound over the joint box with interval forward kinematics.
 
     Boxes (:func:`joint_box`, bisected by
-    :func:`~youbot_opt.ikpath.branch_and_bound.bisect_boxes` on the side of
+    :func:`~youbot_opt.ikpath.reachability.branch_and_bound.bisect_boxes` on the side of
     largest lever-weighted width) are excluded when their interval placement
-    cannot meet target ``j`` (:mod:`youbot_opt.ikpath.interval`: sound, rounding
+    cannot meet target ``j`` (:mod:`youbot_opt.ikpath.reachability.interval`: sound, rounding
     included). No box left proves the target unreachable. For each batch the
     surviving box whose centre misses least has its midpoint checked by
     Pinocchio (a witness if it meets the target) and, when the miss has halved,
