@@ -80,8 +80,9 @@ from youbot_opt.ikpath import (
     solve_augmented_lagrangian,
 )
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
+from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial import greedy_path
-from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatial
+from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.sweeps.options import SweepOptions
@@ -281,7 +282,7 @@ def bench_spatial(robot: str, n_targets: int, repeats: int, n_starts: int) -> di
     x0 = make_spatial_starts(problem, 1, 0)[0]
     row: dict[str, Any] = {"robot": robot, "targets": n_targets, "greedy_E": e_greedy}
     row["greedy_ok"] = greedy_ok
-    al, wall_al, _ = _repeat(lambda: solve_spatial(problem, method="al", x0=x0), repeats)
+    al, wall_al, _ = _repeat(lambda: solve(problem, method="al", x0=x0), repeats)
     ipopt_solver = SpatialIpoptSolver(problem)
     ip, wall_ip, _ = _repeat(lambda: ipopt_solver.solve(x0), repeats)
     row.update(

@@ -11,8 +11,8 @@ from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
+from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial import dls_ik, greedy_path
-from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
@@ -63,14 +63,15 @@ def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> CyclicIKProblem
 def test_planar_chain_through_the_spatial_path_matches_the_planar_solver(
     name, use_limits, tmp_path
 ):
-    # Same start (zero), same AL options: the z rows are identically zero, so both
-    # converge to the same KKT point; 1e-8 in E and angles (both solved to |c| <= 1e-10).
+    # Same start (zero), same AL options: the general methods (planar=False: the 2 plane
+    # rows per target from the LOCAL frame Jacobian) converge to the planar solver's KKT
+    # point; 1e-8 in E and angles (both solved to |c| <= 1e-10).
     planar = example_problem(name)
     if not use_limits:
         planar = type(planar)(robot=planar.chain, targets=planar.target_points, use_limits=False)
     spatial = _planar_as_spatial(name, tmp_path, use_limits)
     ref = solve_augmented_lagrangian(planar, None, ALOptions())
-    got = solve_spatial(spatial, method="al", options=ALOptions())
+    got = solve(spatial, method="al", options=ALOptions(), planar=False)
     assert ref.success and got.success
     assert abs(got.objective - ref.objective) <= 1e-8
     np.testing.assert_allclose(got.configurations, ref.configurations, atol=1e-8, rtol=0)
@@ -100,7 +101,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
     problem = _mixed_panda_problem()
     results = {
         method: [
-            solve_spatial(problem, method=method, x0=x0)
+            solve(problem, method=method, x0=x0)
             for x0 in make_spatial_starts(problem, 3, seed=seed)
         ]
         for method, seed in (("al", 0), ("ipopt", 1))
@@ -109,7 +110,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
     assert {r.method for r in found} == {"al", "ipopt"}
     best = min(found, key=lambda r: r.objective)
     other = "ipopt" if best.method == "al" else "al"
-    again = solve_spatial(problem, method=other, x0=best.configurations)
+    again = solve(problem, method=other, x0=best.configurations)
     assert again.success
     assert abs(again.objective - best.objective) <= 1e-8 * best.objective
     np.testing.assert_allclose(again.configurations, best.configurations, atol=1e-6, rtol=0)
@@ -137,7 +138,7 @@ def test_unreachable_target_refused_with_its_reach_sphere_certificate():
     # UR5's reach is about 1 m: the sphere must be sound (>= the true reach) yet below 3 m.
     assert 0.9 < verdicts[2].reach < 3.0
     with pytest.raises(UnreachableTarget) as err:
-        solve_spatial(bad, check_reachability=True)
+        solve(bad, check_reachability=True)
     assert err.value.index == 2 and "reach sphere" in str(err.value)
 
 
@@ -153,7 +154,7 @@ def test_continuous_joints_are_never_wrapped(tmp_path):
     targets = tuple(SpatialTarget(position=(np.cos(a), np.sin(a), 0.0)) for a in angles)
     problem = CyclicIKProblem(robot=model, frame="tip", targets=targets)
     assert problem.continuous.tolist() == [True] and not problem.bounded
-    result = solve_spatial(problem, x0=[0.0, 2.0, 4.0])
+    result = solve(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
     steps = result.leg_motion()[:, 0]
     assert abs(steps.sum()) <= 1e-12  # back at the starting angle
@@ -219,8 +220,8 @@ def test_symbolic_kinematics_of_ipopt_equal_pinocchio():
 def test_approach_and_pose_targets_are_met_by_both_methods():
     problem = _mixed_panda_problem()
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
-    al = solve_spatial(problem, method="al", x0=x0)
-    ip = solve_spatial(problem, method="ipopt", x0=x0)
+    al = solve(problem, method="al", x0=x0)
+    ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success
     assert max(al.orientation_errors) <= 1e-6 and max(ip.orientation_errors) <= 1e-6
 
@@ -265,7 +266,7 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
         SpatialTarget(position=(np.cos(angles[2]), np.sin(angles[2]), 0.0)),
     )
     problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
-    result = solve_spatial(problem, x0=[0.0, 2.0, 4.0])
+    result = solve(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
     names = [g.name for g in spatial_replay_robot(result, robot).visual_model.geometryObjects]
     assert {"target_1", "target_1_axis_0", "target_1_axis_2", "target_3"} <= set(names)
@@ -335,12 +336,12 @@ def test_a_planar_robot_has_two_rows_per_position_target_and_ipopt_solves_it(tmp
     planar = CyclicIKProblem(robot=PlanarChain(lengths=lengths), targets=points)
     start = np.tile([0.3, 0.5], 6)
     ref = solve(planar, method="ipopt", x0=start, check_reachability=False)
-    got = solve_spatial(spatial, method="ipopt", x0=start)
+    got = solve(spatial, method="ipopt", x0=start, planar=False)
     assert ref.success and got.success, got.message
     assert abs(got.objective - ref.objective) <= 1e-8
     np.testing.assert_allclose(got.configurations, ref.configurations, atol=1e-8, rtol=0)
     ref_al = solve(planar, method="al", x0=start, check_reachability=False)
-    al = solve_spatial(spatial, method="al", x0=start, options=ALOptions())
+    al = solve(spatial, method="al", x0=start, options=ALOptions(), planar=False)
     assert ref_al.success and al.success
     assert abs(al.objective - ref_al.objective) <= 1e-8
 
@@ -406,3 +407,24 @@ def test_a_planar_urdf_chain_is_solved_by_the_planar_methods_like_the_chain(tmp_
         res = solve(urdf, method=method)
         assert ref.success and res.success, res.message
         assert abs(res.objective - ref.objective) <= 1e-8
+
+
+def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
+    """One solve: a planar robot gets the planar methods (reachability checked, IKPathResult),
+    planar=False the general ones (SpatialIKResult, same optimum to 1e-8); a chain-less
+    problem refuses planar=True."""
+    from youbot_opt.ikpath.result import IKPathResult
+    from youbot_opt.ikpath.spatial import SpatialIKResult
+
+    problem = _planar_as_spatial("A", tmp_path, use_limits=False)
+    planar = solve(problem)
+    general = solve(problem, planar=False, options=ALOptions())
+    assert isinstance(planar, IKPathResult) and isinstance(general, SpatialIKResult)
+    assert planar.success and general.success
+    assert abs(planar.objective - general.objective) <= 1e-8
+    far = problem.with_targets((*problem.targets[:4], SpatialTarget(position=(9.0, 0.0, 0.0))))
+    with pytest.raises(UnreachableTarget):
+        solve(far)
+    assert isinstance(solve(far, check_reachability=False, method="al"), IKPathResult)
+    with pytest.raises(ParameterError, match="planar robot"):
+        solve(_ur5_problem(0), planar=True)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial_solve import solve_spatial
+from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
@@ -35,7 +35,7 @@ def test_both_methods_find_the_same_best_minimum_from_their_own_independent_star
     best = {}
     for method, (n_starts, seed) in _STARTS.items():
         results = [
-            solve_spatial(problem, method=method, x0=x0)
+            solve(problem, method=method, x0=x0)
             for x0 in make_spatial_starts(problem, n_starts, seed=seed)
         ]
         found = [r for r in results if r.success]
@@ -85,10 +85,10 @@ def test_al_reaches_the_nearly_singular_ur5_minimum_that_ipopt_confirms():
     # solve |c| <= 1e-10 m, so E moves by O(|lambda| |c|) <= 1e-6 absolute at most).
     problem = _ur5_tour(6)
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
-    al = solve_spatial(problem, method="al", x0=x0)
+    al = solve(problem, method="al", x0=x0)
     assert al.success, al.message
     assert "final phase" in al.message
-    ip = solve_spatial(problem, method="ipopt", x0=al.configurations)
+    ip = solve(problem, method="ipopt", x0=al.configurations)
     assert ip.success
     assert abs(ip.objective - al.objective) <= 1e-8 * al.objective
     np.testing.assert_allclose(ip.configurations, al.configurations, atol=1e-6, rtol=0)
@@ -142,7 +142,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     problem = base.with_targets(targets)
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
     opts = replace(SPATIAL_AL_OPTIONS, initial_multipliers="least_squares")
-    al = solve_spatial(problem, method="al", x0=x0, options=opts)
-    ip = solve_spatial(problem, method="ipopt", x0=x0)
+    al = solve(problem, method="al", x0=x0, options=opts)
+    ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success, (al.message, ip.message)
     assert abs(al.objective - ip.objective) <= 1e-8 * ip.objective

@@ -20,8 +20,8 @@ from youbot_opt.ikpath.reachability.spatial import (
     interval_search,
     joint_box,
 )
+from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial import random_theta
-from youbot_opt.ikpath.spatial_solve import solve_spatial
 from youbot_opt.ikpath.targets import SpatialTarget
 from youbot_opt.robot.model import load_model
 from youbot_opt.robot.planar import PlanarChain
@@ -304,7 +304,7 @@ def test_joint_box_and_unsupported_joints(tmp_path):
 
 
 def test_solver_failure_names_the_blocking_target_with_the_certificate(tmp_path):
-    """solve_spatial(check_reachability=True) refuses the out-of-plane pose: its index, the
+    """solve(check_reachability=True) refuses the out-of-plane pose: its index, the
     interval certificate (boxes, depth) and the verdict are in the error."""
     planar = _planar(tmp_path, (3.0, 2.0, 2.0), math.pi / 2)
     targets = [
@@ -312,7 +312,7 @@ def test_solver_failure_names_the_blocking_target_with_the_certificate(tmp_path)
         SpatialTarget(position=(4.0, 2.0, 0.0), rotation=pin.rpy.rpyToMatrix(0.0, 0.4, 0.0)),
     ]
     with pytest.raises(UnreachableTarget) as err:
-        solve_spatial(_problem(planar, targets), check_reachability=True)
+        solve(_problem(planar, targets), check_reachability=True)
     v = err.value.verdict
     assert err.value.index == 1 and v.method == "interval" and v.boxes > 0
     msg = str(err.value)

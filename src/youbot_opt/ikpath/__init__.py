@@ -1,7 +1,7 @@
 """Minimum-motion cyclic IK paths: planar arms (study 2, spec ``ikpath.md``) and any robot.
 
 One problem, :class:`CyclicIKProblem`, on a RobotModel or a PlanarChain; build,
-check, solve, inspect (a 3-D robot: :func:`solve_spatial`, :func:`run_spatial_multistart`)::
+check, solve, inspect (a 3-D robot: :func:`solve`, :func:`run_spatial_multistart`)::
 
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
     problem = CyclicIKProblem(robot=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
@@ -42,11 +42,7 @@ from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIte
 from youbot_opt.ikpath.solve import METHODS, Method, solve
 from youbot_opt.ikpath.spatial import SpatialIKResult, greedy_path
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
-from youbot_opt.ikpath.spatial_solve import (
-    SpatialMultistart,
-    run_spatial_multistart,
-    solve_spatial,
-)
+from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import SpatialTarget, load_targets
@@ -107,7 +103,6 @@ __all__ = [
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",
-    "solve_spatial",
     "strong_wolfe_line_search",
     "youbot_chain",
 ]

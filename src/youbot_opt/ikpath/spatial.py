@@ -1,6 +1,6 @@
 r"""The 3-D solve's result and the damped-least-squares baseline (issue 14).
 
-:class:`SpatialIKResult` is what :func:`~youbot_opt.ikpath.spatial_solve.solve_spatial`
+:class:`SpatialIKResult` is what :func:`~youbot_opt.ikpath.spatial_solve.solve`
 returns for a :class:`~youbot_opt.ikpath.problem.CyclicIKProblem` (per-target
 position and orientation errors, checked by ``framesForwardKinematics``);
 :func:`dls_ik` and :func:`greedy_path` are the common practice (each target by

@@ -1,12 +1,10 @@
-"""Solving the spatial cyclic IK path: one solve (AL or IPOPT) and the resumable multistart.
+"""The 3-D cyclic IK multistart: resumable, on the sweep engine the planar one uses.
 
-:func:`solve_spatial` runs the augmented Lagrangian (projected BFGS inner
-solver) or CasADi + IPOPT (:mod:`.spatial_ipopt`) on a
-:class:`~youbot_opt.ikpath.spatial.CyclicIKProblem`; a failed solve keeps the
-best iterate and names the blocking target. :func:`run_spatial_multistart`
-solves from :func:`~youbot_opt.ikpath.starts.make_spatial_starts` on the
-sweep engine the planar multistart uses (:class:`~youbot_opt.sweeps.options.SweepOptions`:
-process pool or Dask, crash retry, progress, shards), saving every start in a
+:func:`run_spatial_multistart` solves (:func:`~youbot_opt.ikpath.solve.solve`
+with the general methods) from
+:func:`~youbot_opt.ikpath.starts.make_spatial_starts` under one
+:class:`~youbot_opt.sweeps.options.SweepOptions` (process pool or Dask, crash
+retry, progress, shards), saving every start in a
 :class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
 payloads in the format of :mod:`.spatial_io`) that a rerun resumes, and
 clusters the distinct minima.
@@ -24,16 +22,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.methods.al import ALOptions, run_augmented_lagrangian
-from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_spatial_ipopt
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.spatial import require_spatial_reachable
-from youbot_opt.ikpath.solve import check_method
+from youbot_opt.ikpath.solve import check_method, solve
 from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import (
     encode_spatial_result,
@@ -69,51 +65,12 @@ __all__ = [
     "SpatialMultistart",
     "open_spatial_store",
     "run_spatial_multistart",
-    "solve_spatial",
 ]
 
 SPATIAL_SWEEP_KIND = "spatial_ikpath_multistart"
 """``kind`` of the sweep store of spatial multistarts (in its ``manifest.json``)."""
 
 _PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_spatial_result (".json" names the records)
-
-
-# -- solving ----------------------------------------------------------------------------------
-def solve_spatial(
-    problem: CyclicIKProblem,
-    *,
-    method: str = "al",
-    x0: ArrayLike | None = None,
-    options: ALOptions | IpoptOptions | None = None,
-    check_reachability: bool = False,
-) -> SpatialIKResult:
-    """Solve once from ``x0`` (default zero, clipped) by ``"al"`` or ``"ipopt"``.
-
-    Parameters
-    ----------
-    options : ALOptions or IpoptOptions, optional
-        Settings of the method (default :data:`SPATIAL_AL_OPTIONS` or
-        ``IpoptOptions.for_ikpath()``); ``max_wall_time`` [s] bounds the solve
-        (status ``max_time``).
-
-    Raises
-    ------
-    UnreachableTarget
-        If ``check_reachability`` and a target is certified unreachable.
-    ParameterError
-        Unknown method, options of the other method, or bad start.
-    """
-    check_method(method, options)
-    if check_reachability:
-        require_spatial_reachable(problem)
-    if method == "ipopt":
-        if options is None:
-            return solve_spatial_ipopt(problem, x0)
-        return SpatialIpoptSolver(problem, options).solve(x0)  # type: ignore[arg-type]
-    opts = SPATIAL_AL_OPTIONS if options is None else options
-    start = problem.check_start(x0)
-    run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
-    return build_spatial_result(problem, **run.result_fields(start))
 
 
 # -- multistart -------------------------------------------------------------------------------
@@ -229,7 +186,7 @@ def open_spatial_store(
         If its manifest is corrupted or from a newer schema.
     """
     if options is None and method == "al":
-        options = SPATIAL_AL_OPTIONS  # the defaults of solve_spatial, written out
+        options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
     spec = spatial_problem_spec(problem)
     params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
     load = functools.partial(load_spatial_result, robot=problem.model)
@@ -238,7 +195,9 @@ def open_spatial_store(
 
 def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
     """Worker task: one start with the AL (exceptions propagate: they are retried)."""
-    return solve_spatial(problem, method="al", x0=x0, options=options)
+    result = solve(problem, method="al", x0=x0, options=options, planar=False)
+    assert isinstance(result, SpatialIKResult)
+    return result
 
 
 def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> SpatialIKResult:
