@@ -114,8 +114,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--start-kind",
         choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
         default=None,
-        help="random starts: feasible (default) or uniform (planar); mixed (default), coherent "
-        "or random (spatial)",
+        help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
+        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
     )
     run.add_argument(
         "--workers",

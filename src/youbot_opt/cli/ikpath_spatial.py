@@ -76,8 +76,8 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     return tuple(out)
 
 
-def _check_spatial_flags(args: argparse.Namespace) -> str:
-    """Refuse the planar-only flags; return the start kind."""
+def _check_spatial_flags(args: argparse.Namespace) -> str | None:
+    """Refuse the planar-only flags; return the start kind (None: the robot kind's)."""
     if args.example or args.lengths:
         raise ParameterError(
             "--example/--lengths describe planar chains; spatial targets need --robot",
@@ -90,8 +90,8 @@ def _check_spatial_flags(args: argparse.Namespace) -> str:
             name="reach_evaluations",
             value=args.reach_evaluations,
         )
-    kind = args.start_kind or SPATIAL_DEFAULT_START_KIND
-    if kind not in ("mixed", "coherent", "random"):
+    kind = args.start_kind
+    if kind not in (None, "mixed", "coherent", "random", "feasible"):
         raise ParameterError(
             f"--start-kind {kind} is a planar start kind; spatial targets take mixed "
             "(default), coherent or random",
@@ -106,7 +106,7 @@ def _check_spatial_flags(args: argparse.Namespace) -> str:
             name="max_wall_time",
             value=args.max_wall_time,
         )
-    return str(kind)
+    return kind
 
 
 def _problem(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
@@ -152,6 +152,21 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
 
 
+def _start_kind(kind: str | None, problem: CyclicIKProblem) -> str:
+    """Return the start kind: ``feasible`` (planar starts) for a planar robot, else ``mixed``."""
+    if kind is None:
+        return "feasible" if problem.chain is not None else SPATIAL_DEFAULT_START_KIND
+    if kind == "feasible" and problem.chain is None:
+        raise ParameterError(
+            f"--start-kind feasible is a planar start kind; robot {problem.robot_model.name!r} "
+            f"is not planar for frame {problem.frame!r}: spatial targets take mixed (default), "
+            "coherent or random",
+            name="start_kind",
+            value=kind,
+        )
+    return kind
+
+
 def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import scheduler_address
@@ -164,6 +179,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     kind = _check_spatial_flags(args)
     robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
     problem = _problem(args, robot)
+    kind = _start_kind(kind, problem)
     frame = problem.frame
     targets = problem.targets
     options = _options(args)

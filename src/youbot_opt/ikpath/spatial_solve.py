@@ -29,6 +29,7 @@ from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.planar import check_reachability
 from youbot_opt.ikpath.solve import check_method, solve
 from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import (
@@ -38,6 +39,7 @@ from youbot_opt.ikpath.spatial_io import (
 )
 from youbot_opt.ikpath.starts import (
     SPATIAL_START_KINDS,
+    PlanarStarts,
     SpatialStarts,
     check_start_request,
     make_spatial_starts,
@@ -242,7 +244,7 @@ def run_spatial_multistart(
     method: str = "al",
     n_starts: int = 16,
     seed: int = 0,
-    starts: str = "mixed",
+    starts: str | None = None,
     options: ALOptions | IpoptOptions | None = None,
     workers: int | None = None,
     objective_tol: float = 1e-6,
@@ -259,8 +261,12 @@ def run_spatial_multistart(
         Solver.
     n_starts, seed : int
         Number of starts (start 0 is the greedy DLS path) and their seed.
-    starts : {"mixed", "coherent", "random"}
-        Start kind (:mod:`youbot_opt.ikpath.starts`).
+    starts : {"mixed", "coherent", "random", "feasible"}, optional
+        Start kind (:mod:`youbot_opt.ikpath.starts`); ``"feasible"``, a planar
+        robot's only (:attr:`CyclicIKProblem.chain`), draws the planar
+        multistart's starts (random exact IK solutions, the reachability
+        witnesses as fallback), so both find the same optima (issue 25, item 4).
+        Default: ``"feasible"`` for a planar robot, else ``"mixed"``.
     options : ALOptions or IpoptOptions, optional
         Settings of the method (``max_wall_time`` [s] bounds each start's solve).
     workers : int, optional
@@ -297,7 +303,16 @@ def run_spatial_multistart(
     """
     t0 = time.perf_counter()
     check_method(method, options)
-    check_start_request(n_starts, starts, SPATIAL_START_KINDS)
+    if starts is None:
+        starts = "feasible" if problem.chain is not None else "mixed"
+    check_start_request(n_starts, starts, (*SPATIAL_START_KINDS, "feasible"))
+    if starts == "feasible" and problem.chain is None:
+        raise ParameterError(
+            f"start kind 'feasible' needs a planar robot; {problem.robot_model.name!r} is not "
+            f"planar for frame {problem.frame!r}: use mixed, coherent or random",
+            name="starts",
+            value=starts,
+        )
     if workers is not None:
         if sweep.workers is not None and sweep.workers != workers:
             raise ParameterError(
@@ -308,8 +323,13 @@ def run_spatial_multistart(
         sweep = replace(sweep, workers=int(workers))
     elif sweep.workers is None and sweep.executor is None:
         sweep = replace(sweep, workers=1)
-    x0s: Array | SpatialStarts
-    if sweep.keep_results:
+    x0s: Array | SpatialStarts | PlanarStarts
+    if starts == "feasible":
+        verdicts = check_reachability(problem)
+        x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=verdicts)
+        if sweep.keep_results:
+            x0s = np.array([x0s[k] for k in range(len(x0s))])
+    elif sweep.keep_results:
         x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
     else:  # each start drawn as its task is made
         x0s = SpatialStarts(problem, n_starts, seed, kind=starts)
