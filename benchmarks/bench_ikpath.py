@@ -84,7 +84,7 @@ from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial import greedy_path
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import WorkerPool
 
@@ -260,7 +260,7 @@ def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> Cyclic
     base = CyclicIKProblem(
         robot=model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(seed)
     lo = np.maximum(base.q_lower, -np.pi)
@@ -270,7 +270,7 @@ def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> Cyclic
         theta = rng.uniform(lo, hi)
         placement = base.placement(theta, data)
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     return base.with_targets(targets)
 
 

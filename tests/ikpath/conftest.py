@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import load_model
 
 
@@ -17,12 +17,9 @@ def ur5_reachable() -> CyclicIKProblem:
     base = CyclicIKProblem(
         robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(0)
     return base.with_targets(
-        tuple(
-            SpatialTarget(position=base.placement(rng.uniform(-2, 2, 6)).translation)
-            for _ in range(3)
-        )
+        tuple(Target(position=base.placement(rng.uniform(-2, 2, 6)).translation) for _ in range(3))
     )

@@ -12,7 +12,7 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
 from youbot_opt.ikpath.spatial_solve import open_spatial_store
 from youbot_opt.ikpath.sweep import options_json
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import load_model
 
 
@@ -24,8 +24,8 @@ def ur5_problem() -> CyclicIKProblem:
         robot=robot.model,
         frame=robot.tip_frame,
         targets=(
-            SpatialTarget(position=(0.4, 0.1, 0.3)),
-            SpatialTarget(position=(0.3, -0.2, 0.4)),
+            Target(position=(0.4, 0.1, 0.3)),
+            Target(position=(0.3, -0.2, 0.4)),
         ),
     )
 

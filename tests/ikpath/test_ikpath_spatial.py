@@ -14,7 +14,7 @@ from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_r
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial import dls_ik, greedy_path
 from youbot_opt.ikpath.starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import load_model
 
 _INERTIAL = (  # the loader checks that M(q) is positive definite
@@ -51,7 +51,7 @@ def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> CyclicIKProblem
     robot = load_model(path, tip_frame="tip")
     n = len(data.lengths)
     inf = np.full(n, np.inf)
-    targets = tuple(SpatialTarget(position=(x, y, 0.0)) for x, y in data.targets)
+    targets = tuple(Target(position=(x, y, 0.0)) for x, y in data.targets)
     if data.limit is None:
         return CyclicIKProblem(
             robot=robot.model, frame="tip", targets=targets, q_lower=-inf, q_upper=inf
@@ -88,7 +88,7 @@ def _ur5_problem(seed: int) -> CyclicIKProblem:
         pin.framesForwardKinematics(model, data, q)
         placement = data.oMf[model.getFrameId(robot.tip_frame)]
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     return CyclicIKProblem(robot=model, frame=robot.tip_frame, targets=tuple(targets))
 
 
@@ -130,7 +130,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
 
 def test_unreachable_target_refused_with_its_reach_sphere_certificate():
     problem = _ur5_problem(1)
-    far = SpatialTarget(position=(3.0, 0.0, 0.5))
+    far = Target(position=(3.0, 0.0, 0.5))
     bad = problem.with_targets((*problem.targets[:2], far))
     verdicts = check_spatial_reachability(bad)
     assert verdicts[2].status is SpatialReach.UNREACHABLE
@@ -151,7 +151,7 @@ def test_continuous_joints_are_never_wrapped(tmp_path):
     path.write_text(_planar_urdf((1.0,), None, continuous=True))
     model = load_model(path, tip_frame="tip").model
     angles = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
-    targets = tuple(SpatialTarget(position=(np.cos(a), np.sin(a), 0.0)) for a in angles)
+    targets = tuple(Target(position=(np.cos(a), np.sin(a), 0.0)) for a in angles)
     problem = CyclicIKProblem(robot=model, frame="tip", targets=targets)
     assert problem.continuous.tolist() == [True] and not problem.bounded
     result = solve(problem, x0=[0.0, 2.0, 4.0])
@@ -166,14 +166,14 @@ def _mixed_panda_problem() -> CyclicIKProblem:
     base = CyclicIKProblem(
         robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(7)
     placements = [base.placement(rng.uniform(base.q_lower, base.q_upper)) for _ in range(3)]
     targets = (
-        SpatialTarget(position=placements[0].translation),
-        SpatialTarget(position=placements[1].translation, rotation=placements[1].rotation),
-        SpatialTarget(position=placements[2].translation, approach=placements[2].rotation[:, 2]),
+        Target(position=placements[0].translation),
+        Target(position=placements[1].translation, rotation=placements[1].rotation),
+        Target(position=placements[2].translation, approach=placements[2].rotation[:, 2]),
     )
     return base.with_targets(targets)
 
@@ -261,9 +261,9 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     robot = load_model(path, tip_frame="tip")
     angles = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
     targets = (
-        SpatialTarget(position=(1.0, 0.0, 0.0), rotation=np.eye(3)),
-        SpatialTarget(position=(np.cos(angles[1]), np.sin(angles[1]), 0.0)),
-        SpatialTarget(position=(np.cos(angles[2]), np.sin(angles[2]), 0.0)),
+        Target(position=(1.0, 0.0, 0.0), rotation=np.eye(3)),
+        Target(position=(np.cos(angles[1]), np.sin(angles[1]), 0.0)),
+        Target(position=(np.cos(angles[2]), np.sin(angles[2]), 0.0)),
     )
     problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
     result = solve(problem, x0=[0.0, 2.0, 4.0])
@@ -290,8 +290,8 @@ def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
     path.write_text(_planar_urdf((1.0, 1.0, 1.0), 3.0))
     robot = load_model(path, tip_frame="tip")
     half = np.sin(0.25), np.cos(0.25)  # 0.5 rad about z / about x
-    in_plane = SpatialTarget.pose((1.5, 1.0, 0.0), (0.0, 0.0, half[0], half[1]))
-    tilted = SpatialTarget.pose((1.5, 1.0, 0.0), (half[0], 0.0, 0.0, half[1]))
+    in_plane = Target.pose((1.5, 1.0, 0.0), (0.0, 0.0, half[0], half[1]))
+    tilted = Target.pose((1.5, 1.0, 0.0), (half[0], 0.0, 0.0, half[1]))
     problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=(in_plane, tilted))
     theta, met = dls_ik(problem, 0, np.zeros(3))
     assert met
@@ -326,7 +326,7 @@ def test_a_planar_robot_has_two_rows_per_position_target_and_ipopt_solves_it(tmp
     spatial = CyclicIKProblem(
         robot=robot.model,
         frame="tip",
-        targets=tuple(SpatialTarget(position=(x, y, 0.0)) for x, y in points),
+        targets=tuple(Target(position=(x, y, 0.0)) for x, y in points),
         q_lower=-inf,
         q_upper=inf,
     )
@@ -351,7 +351,7 @@ def test_a_target_off_the_planar_robot_plane_is_refused(tmp_path):
     path = tmp_path / "planar2.urdf"
     path.write_text(_planar_urdf((1.0, 0.8), None))
     robot = load_model(path, tip_frame="tip")
-    targets = (SpatialTarget(position=(1.0, 0.5, 0.0)), SpatialTarget(position=(1.0, 0.5, 0.2)))
+    targets = (Target(position=(1.0, 0.5, 0.0)), Target(position=(1.0, 0.5, 0.2)))
     with pytest.raises(ParameterError, match="target 1 lies 0.2 m off it"):
         CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
 
@@ -364,7 +364,7 @@ def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
     problem = CyclicIKProblem(
         robot=youbot.model,
         frame=youbot.tip_frame,
-        targets=(SpatialTarget(position=tip), SpatialTarget(position=tip + (0.05, 0.0, -0.1))),
+        targets=(Target(position=tip), Target(position=tip + (0.05, 0.0, -0.1))),
     )
     assert problem.plane is not None
     np.testing.assert_array_equal(problem.plane.basis, np.eye(3)[:, [0, 2]])
@@ -374,7 +374,7 @@ def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
         CyclicIKProblem(
             robot=ur5.model,
             frame=ur5.tip_frame,
-            targets=(SpatialTarget(position=(0.3, 0, 0.3)), SpatialTarget(position=(0, 0.3, 0.3))),
+            targets=(Target(position=(0.3, 0, 0.3)), Target(position=(0, 0.3, 0.3))),
         ).plane
         is None
     )
@@ -422,7 +422,7 @@ def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
     assert isinstance(planar, IKPathResult) and isinstance(general, SpatialIKResult)
     assert planar.success and general.success
     assert abs(planar.objective - general.objective) <= 1e-8
-    far = problem.with_targets((*problem.targets[:4], SpatialTarget(position=(9.0, 0.0, 0.0))))
+    far = problem.with_targets((*problem.targets[:4], Target(position=(9.0, 0.0, 0.0))))
     with pytest.raises(UnreachableTarget):
         solve(far)
     assert isinstance(solve(far, check_reachability=False, method="al"), IKPathResult)

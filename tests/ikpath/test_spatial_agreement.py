@@ -8,7 +8,7 @@ import pytest
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import load_model
 
 # Hit rates of the best basin measured with 64 starts per method (seeds 1 and 0, not
@@ -25,7 +25,7 @@ def _panda_tour() -> CyclicIKProblem:
     return CyclicIKProblem(
         robot=robot.model,
         frame=robot.tip_frame,
-        targets=tuple(SpatialTarget(position=p) for p in corners),
+        targets=tuple(Target(position=p) for p in corners),
     )
 
 
@@ -65,7 +65,7 @@ def _ur5_tour(n_targets: int, seed: int = 2026) -> CyclicIKProblem:
     base = CyclicIKProblem(
         robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(seed)
     lo, hi = np.maximum(base.q_lower, -np.pi), np.minimum(base.q_upper, np.pi)
@@ -73,7 +73,7 @@ def _ur5_tour(n_targets: int, seed: int = 2026) -> CyclicIKProblem:
     for k in range(n_targets):
         placement = base.placement(rng.uniform(lo, hi))
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     return base.with_targets(targets)
 
 
@@ -130,7 +130,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     base = CyclicIKProblem(
         robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(2026)
     lo, hi = np.maximum(base.q_lower, -np.pi), np.minimum(base.q_upper, np.pi)
@@ -138,7 +138,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     for k in range(12):
         placement = base.placement(rng.uniform(lo, hi))
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     problem = base.with_targets(targets)
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
     opts = replace(SPATIAL_AL_OPTIONS, initial_multipliers="least_squares")

@@ -22,7 +22,7 @@ from youbot_opt.ikpath.reachability.spatial import (
 )
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial import random_theta
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import load_model
 from youbot_opt.robot.planar import PlanarChain
 
@@ -100,7 +100,7 @@ def _problem(model, targets, **kw):
 
 
 def _point_targets(*points):
-    return [SpatialTarget(position=(*p, 0.0)[:3]) for p in points]
+    return [Target(position=(*p, 0.0)[:3]) for p in points]
 
 
 def test_sin_cos_intervals_contain_numpy_on_dense_samples():
@@ -218,9 +218,9 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
     planar = _planar(tmp_path, (3.0, 2.0, 2.0), math.pi / 2)
     tilted = pin.rpy.rpyToMatrix(0.5, 0.0, 0.0)
     targets = [
-        SpatialTarget(position=(5.0, 1.0, 0.0), rotation=tilted),
-        SpatialTarget(position=(5.0, 1.0, 0.0), approach=(0.0, 0.5, 1.0)),
-        SpatialTarget(position=(5.0, 1.0, 0.0)),  # the same point: reachable
+        Target(position=(5.0, 1.0, 0.0), rotation=tilted),
+        Target(position=(5.0, 1.0, 0.0), approach=(0.0, 0.5, 1.0)),
+        Target(position=(5.0, 1.0, 0.0)),  # the same point: reachable
     ]
     verdicts = check_spatial_reachability(_problem(planar, targets))
     assert [v.status for v in verdicts] == [SpatialReach.UNREACHABLE] * 2 + [SpatialReach.REACHABLE]
@@ -230,8 +230,8 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
     base = _problem(arm, _point_targets((0.3, 0.0, 0.3)) * 2)
     reached = base.placement([0.4, 0.7, -0.9])
     rolled = reached.rotation @ pin.rpy.rpyToMatrix(0.3, 0.0, 0.0)
-    pose = SpatialTarget(position=reached.translation, rotation=reached.rotation)
-    roll = SpatialTarget(position=reached.translation, rotation=rolled)
+    pose = Target(position=reached.translation, rotation=reached.rotation)
+    roll = Target(position=reached.translation, rotation=rolled)
     problem = base.with_targets((pose, roll))
     assert np.linalg.norm(reached.translation - base.reach_radius()[0]) < base.reach_radius()[1]
     found = interval_search(problem, 1, **_BUDGET)
@@ -252,7 +252,7 @@ def test_interval_search_never_refutes_a_reachable_target():
     for k in range(9):
         placement = base.placement(random_theta(base, rng))
         kind = [{}, {"rotation": placement.rotation}, {"approach": placement.rotation[:, 2]}][k % 3]
-        target = SpatialTarget(position=placement.translation, **kind)
+        target = Target(position=placement.translation, **kind)
         problem = base.with_targets((target, target))
         found = interval_search(problem, 0, max_boxes=20_000, max_seconds=600.0)
         assert found.status is not SpatialReach.UNREACHABLE
@@ -270,7 +270,7 @@ def test_ur5_target_between_true_reach_and_reach_sphere_is_certified():
         robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     centre, reach = base.reach_radius()
-    target = SpatialTarget(position=centre + np.array([0.6, 0.0, 0.0]) * 1.1 / 0.6)
+    target = Target(position=centre + np.array([0.6, 0.0, 0.0]) * 1.1 / 0.6)
     rng = np.random.default_rng(0)
     sampled = max(
         np.linalg.norm(base.placement(random_theta(base, rng)).translation - centre)
@@ -308,8 +308,8 @@ def test_solver_failure_names_the_blocking_target_with_the_certificate(tmp_path)
     interval certificate (boxes, depth) and the verdict are in the error."""
     planar = _planar(tmp_path, (3.0, 2.0, 2.0), math.pi / 2)
     targets = [
-        SpatialTarget(position=(5.0, 1.0, 0.0)),
-        SpatialTarget(position=(4.0, 2.0, 0.0), rotation=pin.rpy.rpyToMatrix(0.0, 0.4, 0.0)),
+        Target(position=(5.0, 1.0, 0.0)),
+        Target(position=(4.0, 2.0, 0.0), rotation=pin.rpy.rpyToMatrix(0.0, 0.4, 0.0)),
     ]
     with pytest.raises(UnreachableTarget) as err:
         solve(_problem(planar, targets), check_reachability=True)
@@ -359,7 +359,7 @@ def test_budget_exhausted_is_undecided_and_bad_arguments_are_refused():
         robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     centre, _ = base.reach_radius()
-    target = SpatialTarget(position=centre + np.array([1.0, 0.0, 0.0]))
+    target = Target(position=centre + np.array([1.0, 0.0, 0.0]))
     problem = base.with_targets((target, target))
     found = interval_search(problem, 0, max_boxes=2000, max_seconds=600.0)
     assert found.status is SpatialReach.UNDECIDED and found.witness is None

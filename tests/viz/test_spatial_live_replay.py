@@ -14,7 +14,7 @@ import umsgpack  # noqa: E402
 
 from youbot_opt.ikpath.problem import CyclicIKProblem  # noqa: E402
 from youbot_opt.ikpath.spatial import build_spatial_result  # noqa: E402
-from youbot_opt.ikpath.targets import SpatialTarget  # noqa: E402
+from youbot_opt.ikpath.targets import Target  # noqa: E402
 from youbot_opt.nlp.status import SolveStatus  # noqa: E402
 from youbot_opt.robot.model import load_model  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402
@@ -59,15 +59,15 @@ def test_live_spatial_replay_draws_the_targets_and_ends_at_the_first_configurati
     base = CyclicIKProblem(
         robot=robot.model,
         frame="tip",
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     q = np.array([[0.0, 0.4, 0.8], [1.2, -0.3, 0.9], [-1.0, 0.6, -0.5]])
     p = [base.placement(theta) for theta in q]
     problem = base.with_targets(  # met exactly by q: a pose, an approach and a position
         (
-            SpatialTarget(position=p[0].translation, rotation=p[0].rotation),
-            SpatialTarget(position=p[1].translation, approach=p[1].rotation[:, 2]),
-            SpatialTarget(position=p[2].translation),
+            Target(position=p[0].translation, rotation=p[0].rotation),
+            Target(position=p[1].translation, approach=p[1].rotation[:, 2]),
+            Target(position=p[2].translation),
         )
     )
     result = build_spatial_result(

@@ -47,7 +47,7 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     ParameterError
         For a ``--target`` of another length, or both sources at once.
     """
-    from youbot_opt.ikpath.targets import SpatialTarget, load_targets, quaternion_to_matrix
+    from youbot_opt.ikpath.targets import Target, load_targets, quaternion_to_matrix
 
     tol = {"position_tol": args.tol, "orientation_tol": args.orientation_tol}
     if args.targets_file and args.target:
@@ -61,11 +61,11 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     out = []
     for k, t in enumerate(args.target or ()):
         if len(t) == 3:
-            out.append(SpatialTarget(position=t, **tol))
+            out.append(Target(position=t, **tol))
         elif len(t) == 6:
-            out.append(SpatialTarget(position=t[:3], approach=t[3:], **tol))
+            out.append(Target(position=t[:3], approach=t[3:], **tol))
         elif len(t) == 7:
-            out.append(SpatialTarget(position=t[:3], rotation=quaternion_to_matrix(t[3:]), **tol))
+            out.append(Target(position=t[:3], rotation=quaternion_to_matrix(t[3:]), **tol))
         else:
             raise ParameterError(
                 f"--target {k + 1} has {len(t)} numbers; spatial targets take X Y Z, "

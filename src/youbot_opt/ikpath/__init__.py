@@ -45,7 +45,7 @@ from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_resul
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
-from youbot_opt.ikpath.targets import SpatialTarget, load_targets
+from youbot_opt.ikpath.targets import Target, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.planar import PlanarChain, TipKinematics, chain_from_robot, youbot_chain
@@ -75,7 +75,7 @@ __all__ = [
     "SpatialIKResult",
     "SpatialMultistart",
     "SpatialReach",
-    "SpatialTarget",
+    "Target",
     "SpatialVerdict",
     "SolveStatus",
     "StartSummary",

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ModelError, ParameterError
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain, Plane, chain_from_robot, motion_plane
 
@@ -149,7 +149,7 @@ class CyclicIKProblem:
         be 1-DoF (revolute, continuous, prismatic).
     robot_model : RobotModel
         The robot as a RobotModel (a chain's :meth:`PlanarChain.robot`).
-    targets : tuple of SpatialTarget
+    targets : tuple of Target
         Targets in visiting order (``s >= 2``). A position of 2 numbers is a
         planar robot's plane coordinates [m] (:attr:`plane`); it is stored as
         the world position. Bare points (2 or 3 numbers) are accepted as
@@ -183,7 +183,7 @@ class CyclicIKProblem:
     """
 
     robot: RobotModel | PlanarChain
-    targets: tuple[SpatialTarget, ...]
+    targets: tuple[Target, ...]
     frame: str = ""
     use_limits: bool = True
     q_lower: Array | None = None
@@ -378,7 +378,7 @@ class CyclicIKProblem:
         """Rows of a position error: 2 on a planar robot (its plane coordinates), else 3."""
         return 3 if self.plane is None else 2
 
-    def rows_of(self, target: SpatialTarget) -> int:
+    def rows_of(self, target: Target) -> int:
         """Constraint rows of ``target`` on this robot (position rows + orientation rows)."""
         return target.n_rows - 3 + self.position_rows
 
@@ -425,7 +425,7 @@ class CyclicIKProblem:
         """Return a fresh ``pinocchio.Data``."""
         return self.model.createData()
 
-    def with_targets(self, targets: Sequence[SpatialTarget]) -> CyclicIKProblem:
+    def with_targets(self, targets: Sequence[Target]) -> CyclicIKProblem:
         """Return the same robot, frame, limits and weights with other targets."""
         return CyclicIKProblem(
             robot=self.robot,
@@ -697,8 +697,8 @@ class CyclicIKProblem:
 
 
 def _check_targets(
-    raw: Sequence[SpatialTarget | ArrayLike] | ArrayLike, plane: Plane | None, frame: str
-) -> tuple[tuple[SpatialTarget, ...], Array]:
+    raw: Sequence[Target | ArrayLike] | ArrayLike, plane: Plane | None, frame: str
+) -> tuple[tuple[Target, ...], Array]:
     """Targets (points become position targets) and their positions, validated.
 
     Raises
@@ -710,16 +710,16 @@ def _check_targets(
     items = list(raw) if isinstance(raw, (Sequence, np.ndarray)) else [raw]
     if isinstance(raw, np.ndarray) and raw.ndim == 1:
         items = [raw]
-    targets: list[SpatialTarget] = []
+    targets: list[Target] = []
     points: list[Array] = []
     want = "(s, 3) (world)" if plane is None else "(s, 2) (plane coordinates) or (s, 3) (world)"
     for item in items:
-        if isinstance(item, SpatialTarget) and item.position.size == 3:
+        if isinstance(item, Target) and item.position.size == 3:
             targets.append(item)
             points.append(item.position if plane is None else item.position @ plane.basis)
             continue
-        tol = item.position_tol if isinstance(item, SpatialTarget) else None
-        point = np.array(item.position if isinstance(item, SpatialTarget) else item, dtype=float)
+        tol = item.position_tol if isinstance(item, Target) else None
+        point = np.array(item.position if isinstance(item, Target) else item, dtype=float)
         if point.ndim != 1 or point.size not in (2, 3) or (point.size == 2 and plane is None):
             raise ParameterError(
                 f"targets must be SpatialTargets or points of shape {want} in [m], got "
@@ -735,13 +735,11 @@ def _check_targets(
             assert plane is not None
             world = plane.basis @ point + plane.normal * plane.offset
             targets.append(
-                SpatialTarget(position=world)
-                if tol is None
-                else SpatialTarget(position=world, position_tol=tol)
+                Target(position=world) if tol is None else Target(position=world, position_tol=tol)
             )
             points.append(point)
         else:
-            targets.append(SpatialTarget(position=point))
+            targets.append(Target(position=point))
             points.append(point if plane is None else point @ plane.basis)
     if len(targets) < 2:
         raise ParameterError(

@@ -35,7 +35,7 @@ from youbot_opt.ikpath.io import (
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial import SpatialIKResult
-from youbot_opt.ikpath.targets import SpatialTarget, quaternion_to_matrix
+from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
@@ -69,7 +69,7 @@ def spatial_problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
     -------
     dict
         Model name, joint names and kinematics digest; frame, targets
-        (:meth:`SpatialTarget.to_dict`), ``use_limits``, limits in [rad] or
+        (:meth:`Target.to_dict`), ``use_limits``, limits in [rad] or
         [m] (``null``: unlimited) and joint weights.
     """
     model = problem.model
@@ -152,13 +152,13 @@ def save_spatial_result(
     return write_document(path, encode_spatial_result(result, robot, folder=folder))
 
 
-def _target(d: dict[str, Any]) -> SpatialTarget:
+def _target(d: dict[str, Any]) -> Target:
     quat = d.get("quaternion_xyzw")
     approach = d.get("approach")
     extra: dict[str, Any] = {}
     if approach is not None and d.get("approach_axis") is not None:
         extra["approach_axis"] = np.array(d["approach_axis"], dtype=float)
-    return SpatialTarget(
+    return Target(
         position=np.array(d["position"], dtype=float),
         rotation=None if quat is None else quaternion_to_matrix(quat),
         approach=None if approach is None else np.array(approach, dtype=float),

@@ -1,6 +1,6 @@
-"""Spatial IK-path targets: a position, a full pose, or a position with an approach axis.
+"""IK-path targets: a position (in 3-D or in a planar robot's plane), a pose, or an approach axis.
 
-A :class:`SpatialTarget` says what the chosen frame must reach: its origin at
+A :class:`Target` says what the chosen frame must reach: its origin at
 ``position`` [m] and, optionally, its orientation equal to ``rotation`` (a
 pose) or its local ``approach_axis`` pointing along the world direction
 ``approach`` (an approach axis, e.g. a drill or a suction cup: rotation about
@@ -26,7 +26,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
 __all__ = [
-    "SpatialTarget",
+    "Target",
     "TARGET_KINDS",
     "load_targets",
     "position_targets",
@@ -69,8 +69,8 @@ def quaternion_to_matrix(quat_xyzw: ArrayLike) -> Array:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class SpatialTarget:
-    """One target of a spatial cyclic IK path.
+class Target:
+    """One target of a cyclic IK path (any robot; a planar one: positions in its plane).
 
     Attributes
     ----------
@@ -167,7 +167,7 @@ class SpatialTarget:
         position_tol: float = 1e-6,
         orientation_tol: float = 1e-6,
         orientation_weight: float = 1.0,
-    ) -> SpatialTarget:
+    ) -> Target:
         """Build a pose target from a position [m] and a quaternion ``(x, y, z, w)``."""
         return cls(
             position=np.asarray(position, dtype=float),
@@ -233,7 +233,7 @@ class SpatialTarget:
         return out
 
 
-def position_targets(points: ArrayLike) -> tuple[SpatialTarget, ...]:
+def position_targets(points: ArrayLike) -> tuple[Target, ...]:
     """Position targets at ``points`` [m], shape (s, 3) (world) or (s, 2) (a planar robot's plane).
 
     Raises
@@ -248,15 +248,13 @@ def position_targets(points: ArrayLike) -> tuple[SpatialTarget, ...]:
             name="targets",
             value=arr.shape,
         )
-    return tuple(SpatialTarget(position=p) for p in arr)
+    return tuple(Target(position=p) for p in arr)
 
 
 _CSV_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw", "ax", "ay", "az")
 
 
-def _target_from_record(
-    rec: dict[str, object], where: str, defaults: dict[str, float]
-) -> SpatialTarget:
+def _target_from_record(rec: dict[str, object], where: str, defaults: dict[str, float]) -> Target:
     """One target from a JSON object or CSV row (see :func:`load_targets`)."""
     kw: dict[str, object] = dict(defaults)
     for key in ("position_tol", "orientation_tol", "orientation_weight"):
@@ -285,10 +283,10 @@ def _target_from_record(
         kw["approach"] = approach
         if rec.get("approach_axis") is not None:
             kw["approach_axis"] = rec["approach_axis"]
-    return SpatialTarget(position=position, **kw)  # type: ignore[arg-type]
+    return Target(position=position, **kw)  # type: ignore[arg-type]
 
 
-def load_targets(path: str | Path, **defaults: float) -> tuple[SpatialTarget, ...]:
+def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:
     """Read targets from a CSV or JSON file (by suffix).
 
     CSV: a header with named columns ``x, y, z`` [m], optionally ``qx, qy, qz, qw``

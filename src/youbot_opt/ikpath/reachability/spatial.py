@@ -36,7 +36,7 @@ from youbot_opt.ikpath.reachability.interval import (
     IntervalPlacement,
 )
 from youbot_opt.ikpath.spatial import dls_ik, random_theta
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 
 __all__ = [
     "DEFAULT_INTERVAL_BOXES",
@@ -186,7 +186,7 @@ def _upper_sum(coefficient: Array, x: Interval) -> Array:
     return terms.sum(axis=(-2, -1)) + ROUNDING_RELATIVE * magnitude.sum(axis=(-2, -1))
 
 
-def _excluded(target: SpatialTarget, bounds: IntervalPlacement) -> tuple[Mask, Mask]:
+def _excluded(target: Target, bounds: IntervalPlacement) -> tuple[Mask, Mask]:
     """Per box: whether its position, resp. orientation, interval cannot meet the target.
 
     Position: the distance from the target to the position box exceeds
@@ -216,7 +216,7 @@ def _excluded(target: SpatialTarget, bounds: IntervalPlacement) -> tuple[Mask, M
     return by_position, by_orientation
 
 
-def _score(target: SpatialTarget, rot: Interval, pos: Interval) -> Array:
+def _score(target: Target, rot: Interval, pos: Interval) -> Array:
     """Miss [m] of each box's centre placement (orientation weighted): picks midpoints to try."""
     centre = 0.5 * (pos.lo + pos.hi)
     miss = np.linalg.norm(centre - target.position, axis=1)
@@ -357,7 +357,7 @@ def interval_search(
     return outcome(SpatialReach.UNREACHABLE)
 
 
-def _interval_message(j: int, target: SpatialTarget, found: IntervalOutcome) -> str:
+def _interval_message(j: int, target: Target, found: IntervalOutcome) -> str:
     tols = f"{target.position_tol:.3g} m"
     if target.kind != "position":
         tols += f" and {target.orientation_tol:.3g} rad"
