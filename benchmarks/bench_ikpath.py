@@ -79,11 +79,12 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.spatial import SpatialIKProblem, greedy_path
-from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
-from youbot_opt.ikpath.spatial_solve import run_spatial_multistart, solve_spatial
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.ikpath.spatial import greedy_path
+from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
+from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import WorkerPool
 
@@ -104,7 +105,7 @@ def seven_link_problem(limited: bool) -> CyclicIKProblem:
     )
     rng = np.random.default_rng(SEVEN_SEED)
     q = rng.uniform(-limit, limit, (SEVEN_TARGETS, chain.n))
-    return CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+    return CyclicIKProblem(robot=chain, targets=[chain.tip_position(qj) for qj in q])
 
 
 def problems() -> dict[str, CyclicIKProblem]:
@@ -250,16 +251,16 @@ def print_report(report: dict[str, Any]) -> None:
     print(f"\ntotal benchmark time {report['elapsed']:.1f} s")
 
 
-def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> SpatialIKProblem:
+def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> CyclicIKProblem:
     """Targets at the frame placements of random in-limit configurations (poses on even ones)."""
     from youbot_opt.robot.load import load_model
 
     robot = load_model(robot_name)
     model, data = robot.model, robot.model.createData()
-    base = SpatialIKProblem(
-        model=model,
+    base = CyclicIKProblem(
+        robot=model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(seed)
     lo = np.maximum(base.q_lower, -np.pi)
@@ -269,7 +270,7 @@ def spatial_problem(robot_name: str, n_targets: int, seed: int = 2026) -> Spatia
         theta = rng.uniform(lo, hi)
         placement = base.placement(theta, data)
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     return base.with_targets(targets)
 
 
@@ -281,7 +282,7 @@ def bench_spatial(robot: str, n_targets: int, repeats: int, n_starts: int) -> di
     x0 = make_spatial_starts(problem, 1, 0)[0]
     row: dict[str, Any] = {"robot": robot, "targets": n_targets, "greedy_E": e_greedy}
     row["greedy_ok"] = greedy_ok
-    al, wall_al, _ = _repeat(lambda: solve_spatial(problem, method="al", x0=x0), repeats)
+    al, wall_al, _ = _repeat(lambda: solve(problem, method="al", x0=x0), repeats)
     ipopt_solver = SpatialIpoptSolver(problem)
     ip, wall_ip, _ = _repeat(lambda: ipopt_solver.solve(x0), repeats)
     row.update(
@@ -331,7 +332,7 @@ def print_spatial(rows: list[dict[str, Any]]) -> None:
 
 def memory_problem() -> CyclicIKProblem:
     """The cheap planar problem of the memory section (3 distinct minima)."""
-    return CyclicIKProblem(chain=PlanarChain(lengths=[1.0, 0.8]), targets=[(1.2, 0.5), (0.3, 1.1)])
+    return CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 0.8]), targets=[(1.2, 0.5), (0.3, 1.1)])
 
 
 def bench_memory_case(n_starts: int, keep: bool) -> dict[str, Any]:

@@ -206,6 +206,18 @@ def test_module_docstrings_are_about_ten_lines():
     )
 
 
+def test_one_ik_problem_type():
+    """ikpath/ defines exactly one problem class (CyclicIKProblem): no planar/3-D twins."""
+    problems = sorted(
+        f"{module}.{node.name}"
+        for module, path in MODULES.items()
+        if module.startswith("youbot_opt.ikpath")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ClassDef) and node.name.endswith("Problem")
+    )
+    assert problems == ["youbot_opt.ikpath.problem.CyclicIKProblem"], problems
+
+
 @pytest.mark.parametrize(
     ("source", "expected"),
     [

@@ -68,7 +68,7 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 
 
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
-    from youbot_opt.ikpath import spatial_reachability
+    from youbot_opt.ikpath.reachability import spatial as spatial_reachability
 
     real, seen = spatial_reachability.check_spatial_reachability, []
 
@@ -86,11 +86,11 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
 
 def test_spatial_names_and_budgets_of_the_parser_match_the_library():
     from youbot_opt.cli import ikpath
-    from youbot_opt.ikpath.spatial_reachability import (
+    from youbot_opt.ikpath.reachability.spatial import (
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
     )
-    from youbot_opt.ikpath.spatial_starts import SPATIAL_START_KINDS
+    from youbot_opt.ikpath.starts import SPATIAL_START_KINDS
 
     assert ikpath.SPATIAL_START_KIND_NAMES == SPATIAL_START_KINDS
     assert ikpath.SPATIAL_REACH_BOXES == DEFAULT_INTERVAL_BOXES
@@ -122,3 +122,31 @@ def test_scheduler_file_runs_the_spatial_starts_on_a_dask_cluster(capsys, tmp_pa
     ]
     assert remote["E"] == pytest.approx(local["E"], rel=1e-10)
     assert again["E"] == remote["E"]
+
+
+def test_a_planar_urdf_gets_the_planar_feasible_starts_by_default(capsys, tmp_path):
+    """#25 item 4: a planar 2-link URDF through the spatial command starts where the planar
+    multistart does (start kind feasible) and IPOPT solves it (2 rows per target)."""
+    inertial = (
+        '<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '
+        'izz="0.1"/></inertial>'
+    )
+    joints = "".join(
+        f'<joint name="j{i}" type="revolute"><parent link="{p}"/><child link="l{i}"/>'
+        f'<origin xyz="{x} 0 0"/><axis xyz="0 0 1"/>'
+        '<limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>'
+        f'<link name="l{i}">{inertial}</link>'
+        for i, (p, x) in enumerate([("base", 0.0), ("l0", 1.0)])
+    )
+    path = tmp_path / "planar2.urdf"
+    path.write_text(
+        f'<robot name="planar2"><link name="base"/>{joints}<joint name="tip_joint" '
+        'type="fixed"><parent link="l1"/><child link="tip"/><origin xyz="0.8 0 0"/></joint>'
+        '<link name="tip"/></robot>'
+    )
+    argv = ["ikpath", "--robot", str(path), "--frame", "tip", "--method", "ipopt"]
+    argv += ["--target", "1.5", "0.2", "0", "--target", "0.3", "1.4", "0", "--starts", "4"]
+    argv += ["--out", str(tmp_path / "run"), "--json", "--no-progress", "--no-replay"]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["start_kind"] == "feasible" and doc["status"] == "solved"

@@ -7,24 +7,25 @@ from dataclasses import replace
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKProblem
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
 from youbot_opt.ikpath.spatial_solve import open_spatial_store
 from youbot_opt.ikpath.sweep import options_json
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
 
 @pytest.fixture(scope="module")
-def ur5_problem() -> SpatialIKProblem:
+def ur5_problem() -> CyclicIKProblem:
     """UR5 through two positions (the store only describes the problem; nothing is solved)."""
     robot = load_model("ur5")
-    return SpatialIKProblem(
-        model=robot.model,
+    return CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
         targets=(
-            SpatialTarget(position=(0.4, 0.1, 0.3)),
-            SpatialTarget(position=(0.3, -0.2, 0.4)),
+            Target(position=(0.4, 0.1, 0.3)),
+            Target(position=(0.3, -0.2, 0.4)),
         ),
     )
 

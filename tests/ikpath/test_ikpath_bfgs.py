@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize, rosen, rosen_der
 
-from youbot_opt.ikpath.bfgs import minimize_bfgs, strong_wolfe_line_search
+from youbot_opt.ikpath.methods.bfgs import minimize_bfgs, strong_wolfe_line_search
 
 
 def _rosen(x):

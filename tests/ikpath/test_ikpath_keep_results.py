@@ -19,15 +19,14 @@ from test_ikpath_solvers import LA, LB, TARGETS_2
 
 from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.cli import main
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
-from youbot_opt.ikpath.spatial_starts import SpatialStarts, make_spatial_starts
-from youbot_opt.ikpath.starts import PlanarStarts, make_starts
+from youbot_opt.ikpath.starts import PlanarStarts, SpatialStarts, make_spatial_starts, make_starts
 from youbot_opt.ikpath.stored import StoredResults
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_records
 
@@ -36,7 +35,7 @@ N = 24  # planar starts: 14-ish distinct minima, several found more than once
 
 @pytest.fixture(scope="module")
 def two_link() -> CyclicIKProblem:
-    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
 
 
 def _planar(problem, out, *, keep, workers=1, progress=None, **kw) -> MultistartResult:  # type: ignore[no-untyped-def]
@@ -83,11 +82,11 @@ def test_planar_lean_run_equals_the_full_run(two_link, tmp_path, workers, faults
         assert crashed.status is IKStatus.CRASHED and "worker process crashed" in crashed.message
     # Other tolerances: re-clustered from the folder, equal to the full run's re-clustering.
     # Coarser ones merge distinct minima (14 -> 11 here); finer ones may split one.
-    coarse = _minima(full.distinct_optima(e_tol=0.1, q_tol=3.0))
+    coarse = _minima(full.distinct_optima(objective_tol=0.1, q_tol=3.0))
     assert len(coarse) < len(full.minima)
-    assert _minima(lean.distinct_optima(e_tol=0.1, q_tol=3.0)) == coarse
-    fine = _minima(full.distinct_optima(e_tol=1e-12, q_tol=1e-9))
-    assert _minima(lean.distinct_optima(e_tol=1e-12, q_tol=1e-9)) == fine
+    assert _minima(lean.distinct_optima(objective_tol=0.1, q_tol=3.0)) == coarse
+    fine = _minima(full.distinct_optima(objective_tol=1e-12, q_tol=1e-9))
+    assert _minima(lean.distinct_optima(objective_tol=1e-12, q_tol=1e-9)) == fine
     assert lean.distinct_optima() is lean.minima  # the run's own tolerances
 
 
@@ -156,7 +155,7 @@ def test_lazy_starts_equal_the_drawn_arrays(two_link, ur5_reachable, monkeypatch
     """Per-index planar starts and checkpointed spatial starts, in any order of access."""
     planar = make_starts(two_link, 7, 3)
     np.testing.assert_array_equal(np.array(list(PlanarStarts(two_link, 7, 3))), planar)
-    monkeypatch.setattr("youbot_opt.ikpath.spatial_starts.CHECKPOINT", 2)
+    monkeypatch.setattr("youbot_opt.ikpath.starts.CHECKPOINT", 2)
     drawn = make_spatial_starts(ur5_reachable, 9, 5, kind="mixed")
     lazy = SpatialStarts(ur5_reachable, 9, 5, kind="mixed")
     for k in (3, 8, 0, 1, 6, 2, 7, 5, 4, -1):  # backwards jumps restart from a checkpoint

@@ -17,12 +17,12 @@ from test_ikpath_solvers import LA, LB, TARGETS_2
 from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import sweep as sweep_mod
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_ikpath_result
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_record, stored_records
 
@@ -31,7 +31,7 @@ N = 6  # starts of the in-process tests
 
 @pytest.fixture(scope="module")
 def two_link():
-    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,6 @@ from test_ikpath_solvers import LA, LB, TARGETS_2, _two_link_optimum
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath import sweep as sweep_mod
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.multistart import (
     cluster_minima,
@@ -20,12 +19,13 @@ from youbot_opt.ikpath.multistart import (
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 
 
 @pytest.fixture(scope="module")
 def two_link():
-    return CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    return CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
 
 
 def test_starts_are_seeded_and_feasible():
@@ -152,7 +152,7 @@ def test_configuration_distance_ignores_common_2pi_shifts(rng):
 def test_clustering_merges_equal_minima(two_link):
     """Results within the tolerances form one minimum whose count is the number of members."""
     res = run_multistart(two_link, n_starts=10, seed=2, sweep=SweepOptions(workers=1))
-    merged = cluster_minima(res.results, e_tol=1e6, q_tol=1e6)
+    merged = cluster_minima(res.results, objective_tol=1e6, q_tol=1e6)
     assert len(merged) == 1 and merged[0].count == res.n_success
     again = res.distinct_optima()  # default tolerances: the same clustering as res.minima
     assert [(m.objective, m.count, m.start_indices) for m in again] == [

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.robot.planar import PlanarChain
 
 TARGETS = [(5.0, 0.0), (4.0, 2.0), (6.0, 0.5), (4.0, -2.0)]
 
@@ -15,7 +15,7 @@ TARGETS = [(5.0, 0.0), (4.0, 2.0), (6.0, 0.5), (4.0, -2.0)]
 @pytest.fixture()
 def problem() -> CyclicIKProblem:
     return CyclicIKProblem(
-        chain=PlanarChain(lengths=[3.0, 2.0, 2.0], q_lower=-2.0, q_upper=2.0), targets=TARGETS
+        robot=PlanarChain(lengths=[3.0, 2.0, 2.0], q_lower=-2.0, q_upper=2.0), targets=TARGETS
     )
 
 
@@ -64,7 +64,7 @@ def test_limits_and_start_checks(problem):
     assert problem.limit_violation(np.full(12, 2.5)) == pytest.approx(0.5)
     with pytest.raises(ParameterError, match=r"configuration 1, joint 2 is 2\.5 rad"):
         problem.check_start(np.r_[np.zeros(5), 2.5, np.zeros(6)])
-    free = CyclicIKProblem(chain=problem.chain, targets=TARGETS, use_limits=False)
+    free = CyclicIKProblem(robot=problem.chain, targets=TARGETS, use_limits=False)
     assert not free.bounded
     np.testing.assert_array_equal(free.check_start(np.full(12, 2.5)), np.full(12, 2.5))
 
@@ -72,7 +72,7 @@ def test_limits_and_start_checks(problem):
 def test_default_start_is_clipped_zero():
     """The zero start is clipped into limits that exclude zero."""
     chain = PlanarChain(lengths=[1.0, 1.0], q_lower=[0.5, -1.0], q_upper=[1.0, 1.0])
-    prob = CyclicIKProblem(chain=chain, targets=[(1.0, 1.0), (0.5, 1.2)])
+    prob = CyclicIKProblem(robot=chain, targets=[(1.0, 1.0), (0.5, 1.2)])
     np.testing.assert_array_equal(prob.default_start(), [0.5, 0.0, 0.5, 0.0])
 
 
@@ -80,7 +80,7 @@ def test_default_start_is_clipped_zero():
     ("targets", "match"),
     [
         ([(1.0, 0.0)], "at least 2 targets"),
-        ([(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)], r"shape \(s, 2\)"),
+        ([(1.0, 0.0, 0.5), (0.0, 1.0, 0.0)], "lies 0.5 m off it"),
         ([1.0, 2.0], r"shape \(s, 2\)"),
         ([(1.0, np.nan), (0.0, 1.0)], "finite"),
     ],
@@ -88,7 +88,7 @@ def test_default_start_is_clipped_zero():
 def test_bad_targets_raise(targets, match):
     """Fewer than 2 targets, wrong shapes and NaN are ParameterErrors."""
     with pytest.raises(ParameterError, match=match):
-        CyclicIKProblem(chain=PlanarChain(lengths=[1.0, 1.0]), targets=targets)
+        CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 1.0]), targets=targets)
 
 
 def test_wrong_x_size_raises(problem):
@@ -100,5 +100,5 @@ def test_wrong_x_size_raises(problem):
 def test_default_start_is_finite_with_one_sided_limits():
     """Limits with -inf/+inf sides give a finite clipped zero start (no 'x must be finite')."""
     chain = PlanarChain(lengths=[1.0, 1.0], q_lower=[0.2, -np.inf], q_upper=[np.inf, -0.1])
-    prob = CyclicIKProblem(chain=chain, targets=[(1.0, 1.0), (0.5, 1.2)])
+    prob = CyclicIKProblem(robot=chain, targets=[(1.0, 1.0), (0.5, 1.2)])
     np.testing.assert_array_equal(prob.default_start(), [0.2, -0.1, 0.2, -0.1])

@@ -11,16 +11,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.geometry import two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import (
+from youbot_opt.ikpath.reachability.planar import (
     Reachability,
     check_reachability,
     decide_reachability,
     require_reachable,
 )
+from youbot_opt.robot.planar import PlanarChain
 
 HALF_PI = math.pi / 2
 
@@ -182,7 +182,7 @@ def test_long_chain_budget_gives_undecided_interval():
 def test_require_reachable_names_target_reach_and_nearest():
     """UnreachableTarget names the target, the reach limits and the nearest point."""
     prob = CyclicIKProblem(
-        chain=PlanarChain(lengths=[3, 2, 2], q_lower=-HALF_PI, q_upper=HALF_PI),
+        robot=PlanarChain(lengths=[3, 2, 2], q_lower=-HALF_PI, q_upper=HALF_PI),
         targets=[(3.0, 2.0), (0.0, 7.1), (0.0, 7.0)],
     )
     with pytest.raises(UnreachableTarget) as info:

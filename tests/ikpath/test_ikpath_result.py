@@ -11,14 +11,14 @@ import pytest
 
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ParameterError, SolveFailed
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import build_result, checked
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def test_result_is_read_only_and_verified(result):
     """Arrays are read-only; residuals are recomputed by Pinocchio; E alias and model exist."""
     with pytest.raises(ValueError):
         result.configurations[0, 0] = 1.0
-    np.testing.assert_allclose(result.tip_positions(), result.problem.targets, atol=1e-9)
+    np.testing.assert_allclose(result.tip_positions(), result.problem.target_points, atol=1e-9)
     assert result.E == result.objective
     assert result.model.nq == 3 and result.visual_model.ngeoms >= 3
     assert "E = 15.60589" in result.summary()
@@ -54,7 +54,7 @@ def test_raise_for_status(result):
     assert result.raise_for_status() is result
     failed = solve(example_problem("A"), method="ipopt", options=None, x0=None)
     assert failed.status is SolveStatus.SOLVED  # zero start converges (to a poor minimum) for IPOPT
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
 
     capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
     assert capped.status is SolveStatus.MAX_ITERATIONS
@@ -122,7 +122,7 @@ def test_recheck_uses_the_solver_constraint_tolerance():
     chain = PlanarChain(lengths=[1.0, 1.0])
     q = np.array([[0.3, 0.9], [1.2, -0.4]])
     targets = [chain.tip_position(qj) for qj in q]
-    problem = CyclicIKProblem(chain=chain, targets=targets)
+    problem = CyclicIKProblem(robot=chain, targets=targets)
     radius = float(np.linalg.norm(targets[0]))
     delta = 2.0 * math.asin(1e-9 / (2.0 * radius))
     x = q.copy()
@@ -141,11 +141,11 @@ def test_claimed_success_outside_the_limits_fails_the_recheck():
     """Targets met exactly but a joint 0.2 rad past its limit: CHECK_FAILED, not success."""
     chain = PlanarChain(lengths=[1.0, 1.0], q_lower=-0.5, q_upper=0.5)
     q = np.array([[0.7, 0.1], [0.2, 0.3]])
-    problem = CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+    problem = CyclicIKProblem(robot=chain, targets=[chain.tip_position(qj) for qj in q])
     res = _claim(problem, q)
     assert res.status is SolveStatus.CONSTRAINT_VIOLATION
     assert "joint limits violated by 0.2 rad" in res.message
-    free = CyclicIKProblem(chain=chain, targets=problem.targets, use_limits=False)
+    free = CyclicIKProblem(robot=chain, targets=problem.target_points, use_limits=False)
     assert _claim(free, q).success  # the same configurations without the limits
 
 

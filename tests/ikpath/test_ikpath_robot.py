@@ -7,10 +7,10 @@ import pytest
 
 from youbot_opt.exceptions import ModelError
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.robot import chain_from_robot
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import tip_pose
+from youbot_opt.robot.planar import chain_from_robot
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_chain_matches_robot_tip_pose(chain, robot, rng):
 def test_youbot_ik_path_through_tool_tip_targets(chain, robot):
     """A joint path of the real arm reaches the targets (robot FK, 1.5e-10 m) within its limits."""
     targets = [(0.30, 0.30), (0.10, 0.50), (0.35, 0.10), (0.25, 0.45)]
-    res = solve(CyclicIKProblem(chain=chain, targets=targets), method="al").raise_for_status()
+    res = solve(CyclicIKProblem(robot=chain, targets=targets), method="al").raise_for_status()
     # AL accepts |c|_inf <= 1e-10 m, so |c_j|_2 <= sqrt(2) 1e-10 m; the robot's FK
     # differs from the chain's by <= 1e-12 m (test above): 1.5e-10 m covers both
     for q, p in zip(res.configurations, targets, strict=True):
@@ -57,7 +57,7 @@ def test_youbot_ik_path_through_tool_tip_targets(chain, robot):
         res.configurations <= robot.q_upper
     )
     ipopt = solve(
-        CyclicIKProblem(chain=chain, targets=targets), method="ipopt", x0=res.configurations
+        CyclicIKProblem(robot=chain, targets=targets), method="ipopt", x0=res.configurations
     )
     assert ipopt.success, ipopt.message
     # Not double-precision FK but two optimisers' E, so not tightened: both stop at

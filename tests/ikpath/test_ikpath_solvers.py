@@ -11,18 +11,18 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError, SolveFailed, UnreachableTarget
-from youbot_opt.ikpath.augmented_lagrangian import (
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.methods.al import (
     ALOptions,
     first_order_multipliers,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.chain import PlanarChain
-from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.multistart import configuration_distance
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 
 LA, LB = 1.0, 0.8
@@ -65,7 +65,7 @@ def _two_link_optimum(targets):
 
 @pytest.fixture(scope="module")
 def two_link():
-    prob = CyclicIKProblem(chain=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
+    prob = CyclicIKProblem(robot=PlanarChain(lengths=[LA, LB]), targets=TARGETS_2)
     return prob, _two_link_optimum(TARGETS_2)
 
 
@@ -187,7 +187,7 @@ def test_first_order_multipliers_match_the_kkt_point():
 
 
 _LBFGSB_RUN = """
-from youbot_opt.ikpath.augmented_lagrangian import (
+from youbot_opt.ikpath.methods.al import (
     ALOptions,
     first_order_multipliers,
     solve_augmented_lagrangian,
@@ -231,17 +231,17 @@ def test_ipopt_solver_is_reused_for_other_targets():
     """One IPOPT build solves problems that differ only in their targets."""
     prob = example_problem("A")
     solver = IpoptIKSolver(prob, IpoptOptions.for_ikpath())
-    moved = CyclicIKProblem(chain=prob.chain, targets=prob.targets + 0.1)
+    moved = CyclicIKProblem(robot=prob.chain, targets=prob.target_points + 0.1)
     res = solver.solve(moved, x0=solve(moved, method="al").configurations)
     assert res.success and res.max_residual() < 1e-9
-    other = CyclicIKProblem(chain=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=prob.targets)
+    other = CyclicIKProblem(robot=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=prob.target_points)
     with pytest.raises(ParameterError, match="built for"):
         solver.solve(other)
 
 
 def test_solve_rejects_unreachable_and_bad_method():
     """solve() stops before optimising on an unreachable target and names bad methods."""
-    prob = CyclicIKProblem(chain=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=[(0, 7.1), (5, 0)])
+    prob = CyclicIKProblem(robot=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=[(0, 7.1), (5, 0)])
     with pytest.raises(UnreachableTarget, match=r"target p1 = \(0, 7.1\): unreachable"):
         solve(prob)
     with pytest.raises(ParameterError, match="choose one of al, ipopt"):
@@ -257,7 +257,7 @@ def _tips_problem(chain, n_targets, seed):
     hi = np.minimum(chain.q_upper, np.pi)
     mid, half = 0.5 * (lo + hi), 0.25 * (hi - lo)
     q = rng.uniform(mid - half, mid + half, (n_targets, chain.n))
-    return CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+    return CyclicIKProblem(robot=chain, targets=[chain.tip_position(qj) for qj in q])
 
 
 @pytest.mark.parametrize("case", ["youbot", "four_link_limited", "five_link_free"])
@@ -267,7 +267,7 @@ def test_methods_agree_on_more_problems(case, rng):
     IPOPT starts from a perturbed AL optimum (0.02 rad), so both must find the same
     local minimum. Tolerances as for the study examples: E 1e-9, q 1e-6 rad.
     """
-    from youbot_opt.ikpath.robot import youbot_chain
+    from youbot_opt.robot.planar import youbot_chain
 
     if case == "youbot":
         prob = _tips_problem(youbot_chain(), 4, seed=1)
@@ -293,7 +293,7 @@ def test_methods_agree_on_more_problems(case, rng):
 
 def test_one_link_chain_has_the_closed_form_optimum():
     """1 link, targets (1, 0) and (0, 1): q = 0 and pi/2, E = (pi/2)^2 (Jacobian shape (2, 1))."""
-    prob = CyclicIKProblem(chain=PlanarChain(lengths=[1.0]), targets=[(1.0, 0.0), (0.0, 1.0)])
+    prob = CyclicIKProblem(robot=PlanarChain(lengths=[1.0]), targets=[(1.0, 0.0), (0.0, 1.0)])
     assert prob.chain.tip_jacobian([0.3]).shape == (2, 1)
     res = solve(prob, method="al")
     assert res.success, res.message
@@ -338,7 +338,7 @@ def test_al_generous_wall_time_cap_changes_nothing():
 
 def test_ipopt_time_limits_map_to_the_time_limit_status():
     """IPOPT's wall-time and CPU-time exits are TIME_LIMIT, not NUMERICAL_ERROR."""
-    from youbot_opt.ikpath.ipopt import _STATUS
+    from youbot_opt.ikpath.methods.ipopt import _STATUS
 
     assert _STATUS["Maximum_WallTime_Exceeded"] is SolveStatus.MAX_TIME
     assert _STATUS["Maximum_CpuTime_Exceeded"] is SolveStatus.MAX_TIME
@@ -362,21 +362,21 @@ def test_ipopt_refuses_chains_with_fewer_than_two_free_joints():
     """1 link (or 2 with one fixed joint): IPOPT lacks degrees of freedom; AL solves it."""
     from youbot_opt.ikpath.multistart import run_multistart
 
-    one = CyclicIKProblem(chain=PlanarChain(lengths=[1.0]), targets=[(1.0, 0.0), (0.0, 1.0)])
+    one = CyclicIKProblem(robot=PlanarChain(lengths=[1.0]), targets=[(1.0, 0.0), (0.0, 1.0)])
     with pytest.raises(ParameterError, match=r"at least 2 free joints, got 1 .*method='al'"):
         solve(one, method="ipopt")
     with pytest.raises(ParameterError, match="at least 2 free joints"):
         run_multistart(one, method="ipopt", n_starts=2, sweep=SweepOptions(workers=1))
     fixed = PlanarChain(lengths=[1.0, 1.0], q_lower=[-3.0, 0.5], q_upper=[3.0, 0.5])
     q = np.array([[0.2, 0.5], [1.1, 0.5]])
-    prob = CyclicIKProblem(chain=fixed, targets=[fixed.tip_position(qj) for qj in q])
+    prob = CyclicIKProblem(robot=fixed, targets=[fixed.tip_position(qj) for qj in q])
     with pytest.raises(ParameterError, match=r"got 1 \(of 2\)"):
         solve(prob, method="ipopt")
     res = solve(prob, method="al")
     # joint 2 is fixed at 0.5 rad, so joint 1 is fixed by each target: the drawn q
     assert res.success, res.message
     np.testing.assert_allclose(res.configurations, q, atol=1e-9)
-    free = CyclicIKProblem(chain=fixed, targets=prob.targets, use_limits=False)
+    free = CyclicIKProblem(robot=fixed, targets=prob.target_points, use_limits=False)
     assert solve(free, method="ipopt").success  # without the limits both joints are free
 
 
@@ -395,7 +395,7 @@ def _exact_ik_starts(prob, n_starts, seed):
     starts = [prob.default_start()]
     for _ in range(n_starts - 1):
         x = []
-        for p in prob.targets:
+        for p in prob.target_points:
             sol = least_squares(
                 lambda q, p=p: chain.tip_position(q) - p,
                 rng.uniform(lo, hi),
@@ -417,7 +417,7 @@ def _four_link_problem():
     """4 links, |q| <= 2, four targets: tips of seeded configurations in [-1, 1]^4."""
     chain = PlanarChain(lengths=[1.0, 0.8, 0.6, 0.4], q_lower=-2.0, q_upper=2.0)
     q = np.random.default_rng(4).uniform(-1.0, 1.0, (4, 4))
-    return CyclicIKProblem(chain=chain, targets=[chain.tip_position(qj) for qj in q])
+    return CyclicIKProblem(robot=chain, targets=[chain.tip_position(qj) for qj in q])
 
 
 @pytest.mark.slow
@@ -459,7 +459,7 @@ def test_ipopt_ends_within_the_limits_at_an_active_straight_arm(rng):
     """
     half_pi = np.pi / 2
     chain = PlanarChain(lengths=[3.0, 2.0, 2.0], q_lower=-half_pi, q_upper=half_pi)
-    prob = CyclicIKProblem(chain=chain, targets=[(0.0, 7.0), (5.0, 0.0)])
+    prob = CyclicIKProblem(robot=chain, targets=[(0.0, 7.0), (5.0, 0.0)])
     solver = IpoptIKSolver(prob)
     converged = 0
     for x0 in rng.uniform(prob.lower, prob.upper, (20, prob.n_variables)):
@@ -477,7 +477,7 @@ def test_ipopt_iterate_outside_the_limits_is_projected(rng):
     """With IPOPT's default slack_move (1.8e-12) x leaves the box; the result is projected back."""
     half_pi = np.pi / 2
     chain = PlanarChain(lengths=[3.0, 2.0, 2.0], q_lower=-half_pi, q_upper=half_pi)
-    prob = CyclicIKProblem(chain=chain, targets=[(0.0, 7.0), (5.0, 0.0)])
+    prob = CyclicIKProblem(robot=chain, targets=[(0.0, 7.0), (5.0, 0.0)])
     solver = IpoptIKSolver(
         prob, IpoptOptions.for_ikpath(extra={"slack_move": 1.8189894035458565e-12})
     )

@@ -6,14 +6,15 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from youbot_opt.exceptions import UnreachableTarget
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
+from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
-from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik, greedy_path
-from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
-from youbot_opt.ikpath.spatial_solve import solve_spatial
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.ikpath.spatial import dls_ik, greedy_path
+from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
 _INERTIAL = (  # the loader checks that M(q) is positive definite
@@ -43,39 +44,40 @@ def _planar_urdf(lengths: tuple[float, ...], limit: float | None, continuous: bo
     return "".join(parts)
 
 
-def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> SpatialIKProblem:
+def _planar_as_spatial(name: str, tmp_path, use_limits: bool) -> CyclicIKProblem:
     data = EXAMPLES[name]
     path = tmp_path / f"planar_{name}.urdf"
     path.write_text(_planar_urdf(data.lengths, data.limit))
     robot = load_model(path, tip_frame="tip")
     n = len(data.lengths)
     inf = np.full(n, np.inf)
-    targets = tuple(SpatialTarget(position=(x, y, 0.0)) for x, y in data.targets)
+    targets = tuple(Target(position=(x, y, 0.0)) for x, y in data.targets)
     if data.limit is None:
-        return SpatialIKProblem(
-            model=robot.model, frame="tip", targets=targets, q_lower=-inf, q_upper=inf
+        return CyclicIKProblem(
+            robot=robot.model, frame="tip", targets=targets, q_lower=-inf, q_upper=inf
         )
-    return SpatialIKProblem(model=robot.model, frame="tip", targets=targets, use_limits=use_limits)
+    return CyclicIKProblem(robot=robot.model, frame="tip", targets=targets, use_limits=use_limits)
 
 
 @pytest.mark.parametrize(("name", "use_limits"), [("A", False), ("B", True), ("B", False)])
 def test_planar_chain_through_the_spatial_path_matches_the_planar_solver(
     name, use_limits, tmp_path
 ):
-    # Same start (zero), same AL options: the z rows are identically zero, so both
-    # converge to the same KKT point; 1e-8 in E and angles (both solved to |c| <= 1e-10).
+    # Same start (zero), same AL options: the general methods (planar=False: the 2 plane
+    # rows per target from the LOCAL frame Jacobian) converge to the planar solver's KKT
+    # point; 1e-8 in E and angles (both solved to |c| <= 1e-10).
     planar = example_problem(name)
     if not use_limits:
-        planar = type(planar)(chain=planar.chain, targets=planar.targets, use_limits=False)
+        planar = type(planar)(robot=planar.chain, targets=planar.target_points, use_limits=False)
     spatial = _planar_as_spatial(name, tmp_path, use_limits)
     ref = solve_augmented_lagrangian(planar, None, ALOptions())
-    got = solve_spatial(spatial, method="al", options=ALOptions())
+    got = solve(spatial, method="al", options=ALOptions(), planar=False)
     assert ref.success and got.success
     assert abs(got.objective - ref.objective) <= 1e-8
     np.testing.assert_allclose(got.configurations, ref.configurations, atol=1e-8, rtol=0)
 
 
-def _ur5_problem(seed: int) -> SpatialIKProblem:
+def _ur5_problem(seed: int) -> CyclicIKProblem:
     robot = load_model("ur5")
     model, data = robot.model, robot.model.createData()
     pin.seed(seed)
@@ -86,8 +88,8 @@ def _ur5_problem(seed: int) -> SpatialIKProblem:
         pin.framesForwardKinematics(model, data, q)
         placement = data.oMf[model.getFrameId(robot.tip_frame)]
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
-    return SpatialIKProblem(model=model, frame=robot.tip_frame, targets=tuple(targets))
+        targets.append(Target(position=placement.translation, rotation=rot))
+    return CyclicIKProblem(robot=model, frame=robot.tip_frame, targets=tuple(targets))
 
 
 def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk_check():
@@ -99,7 +101,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
     problem = _mixed_panda_problem()
     results = {
         method: [
-            solve_spatial(problem, method=method, x0=x0)
+            solve(problem, method=method, x0=x0)
             for x0 in make_spatial_starts(problem, 3, seed=seed)
         ]
         for method, seed in (("al", 0), ("ipopt", 1))
@@ -108,7 +110,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
     assert {r.method for r in found} == {"al", "ipopt"}
     best = min(found, key=lambda r: r.objective)
     other = "ipopt" if best.method == "al" else "al"
-    again = solve_spatial(problem, method=other, x0=best.configurations)
+    again = solve(problem, method=other, x0=best.configurations)
     assert again.success
     assert abs(again.objective - best.objective) <= 1e-8 * best.objective
     np.testing.assert_allclose(again.configurations, best.configurations, atol=1e-6, rtol=0)
@@ -128,7 +130,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
 
 def test_unreachable_target_refused_with_its_reach_sphere_certificate():
     problem = _ur5_problem(1)
-    far = SpatialTarget(position=(3.0, 0.0, 0.5))
+    far = Target(position=(3.0, 0.0, 0.5))
     bad = problem.with_targets((*problem.targets[:2], far))
     verdicts = check_spatial_reachability(bad)
     assert verdicts[2].status is SpatialReach.UNREACHABLE
@@ -136,7 +138,7 @@ def test_unreachable_target_refused_with_its_reach_sphere_certificate():
     # UR5's reach is about 1 m: the sphere must be sound (>= the true reach) yet below 3 m.
     assert 0.9 < verdicts[2].reach < 3.0
     with pytest.raises(UnreachableTarget) as err:
-        solve_spatial(bad, check_reachability=True)
+        solve(bad, check_reachability=True)
     assert err.value.index == 2 and "reach sphere" in str(err.value)
 
 
@@ -149,29 +151,29 @@ def test_continuous_joints_are_never_wrapped(tmp_path):
     path.write_text(_planar_urdf((1.0,), None, continuous=True))
     model = load_model(path, tip_frame="tip").model
     angles = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
-    targets = tuple(SpatialTarget(position=(np.cos(a), np.sin(a), 0.0)) for a in angles)
-    problem = SpatialIKProblem(model=model, frame="tip", targets=targets)
+    targets = tuple(Target(position=(np.cos(a), np.sin(a), 0.0)) for a in angles)
+    problem = CyclicIKProblem(robot=model, frame="tip", targets=targets)
     assert problem.continuous.tolist() == [True] and not problem.bounded
-    result = solve_spatial(problem, x0=[0.0, 2.0, 4.0])
+    result = solve(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
     steps = result.leg_motion()[:, 0]
     assert abs(steps.sum()) <= 1e-12  # back at the starting angle
     assert result.objective == pytest.approx(4 * np.pi**2 / 3, rel=1e-8)
 
 
-def _mixed_panda_problem() -> SpatialIKProblem:
+def _mixed_panda_problem() -> CyclicIKProblem:
     robot = load_model("panda")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(7)
     placements = [base.placement(rng.uniform(base.q_lower, base.q_upper)) for _ in range(3)]
     targets = (
-        SpatialTarget(position=placements[0].translation),
-        SpatialTarget(position=placements[1].translation, rotation=placements[1].rotation),
-        SpatialTarget(position=placements[2].translation, approach=placements[2].rotation[:, 2]),
+        Target(position=placements[0].translation),
+        Target(position=placements[1].translation, rotation=placements[1].rotation),
+        Target(position=placements[2].translation, approach=placements[2].rotation[:, 2]),
     )
     return base.with_targets(targets)
 
@@ -201,7 +203,7 @@ def test_constraint_jacobian_blocks_match_central_differences():
 def test_symbolic_kinematics_of_ipopt_equal_pinocchio():
     import casadi as ca
 
-    from youbot_opt.ikpath.spatial_ipopt import frame_expression
+    from youbot_opt.ikpath.methods.ipopt import frame_expression
 
     for problem in (_mixed_panda_problem(), _ur5_problem(0)):
         sym = ca.SX.sym("q", problem.n_joints)
@@ -218,8 +220,8 @@ def test_symbolic_kinematics_of_ipopt_equal_pinocchio():
 def test_approach_and_pose_targets_are_met_by_both_methods():
     problem = _mixed_panda_problem()
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
-    al = solve_spatial(problem, method="al", x0=x0)
-    ip = solve_spatial(problem, method="ipopt", x0=x0)
+    al = solve(problem, method="al", x0=x0)
+    ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success
     assert max(al.orientation_errors) <= 1e-6 and max(ip.orientation_errors) <= 1e-6
 
@@ -259,12 +261,12 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     robot = load_model(path, tip_frame="tip")
     angles = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
     targets = (
-        SpatialTarget(position=(1.0, 0.0, 0.0), rotation=np.eye(3)),
-        SpatialTarget(position=(np.cos(angles[1]), np.sin(angles[1]), 0.0)),
-        SpatialTarget(position=(np.cos(angles[2]), np.sin(angles[2]), 0.0)),
+        Target(position=(1.0, 0.0, 0.0), rotation=np.eye(3)),
+        Target(position=(np.cos(angles[1]), np.sin(angles[1]), 0.0)),
+        Target(position=(np.cos(angles[2]), np.sin(angles[2]), 0.0)),
     )
-    problem = SpatialIKProblem(model=robot.model, frame="tip", targets=targets)
-    result = solve_spatial(problem, x0=[0.0, 2.0, 4.0])
+    problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
+    result = solve(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
     names = [g.name for g in spatial_replay_robot(result, robot).visual_model.geometryObjects]
     assert {"target_1", "target_1_axis_0", "target_1_axis_2", "target_3"} <= set(names)
@@ -288,9 +290,9 @@ def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
     path.write_text(_planar_urdf((1.0, 1.0, 1.0), 3.0))
     robot = load_model(path, tip_frame="tip")
     half = np.sin(0.25), np.cos(0.25)  # 0.5 rad about z / about x
-    in_plane = SpatialTarget.pose((1.5, 1.0, 0.0), (0.0, 0.0, half[0], half[1]))
-    tilted = SpatialTarget.pose((1.5, 1.0, 0.0), (half[0], 0.0, 0.0, half[1]))
-    problem = SpatialIKProblem(model=robot.model, frame="tip", targets=(in_plane, tilted))
+    in_plane = Target.pose((1.5, 1.0, 0.0), (0.0, 0.0, half[0], half[1]))
+    tilted = Target.pose((1.5, 1.0, 0.0), (half[0], 0.0, 0.0, half[1]))
+    problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=(in_plane, tilted))
     theta, met = dls_ik(problem, 0, np.zeros(3))
     assert met
     data = robot.model.createData()
@@ -302,3 +304,127 @@ def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
     assert not met and np.all(np.isfinite(theta))
     path_angles, all_met = greedy_path(problem)
     assert not all_met and np.all(np.isfinite(path_angles))
+
+
+def test_a_planar_robot_has_two_rows_per_position_target_and_ipopt_solves_it(tmp_path):
+    """#25 item 4: a 2-link URDF chain (6 targets) has 12 rows for 12 unknowns, IPOPT solves it.
+
+    With 3 rows per target IPOPT met 18 equations for 12 unknowns and failed every start;
+    the plane rows give the planar solver's KKT point (same start, 1e-8 in E and angles).
+    """
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.solve import solve
+    from youbot_opt.robot.planar import PlanarChain
+
+    lengths = (1.0, 0.8)
+    path = tmp_path / "planar2.urdf"
+    path.write_text(_planar_urdf(lengths, None))
+    robot = load_model(path, tip_frame="tip")
+    angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
+    points = [(1.5 * np.cos(a), 1.2 * np.sin(a)) for a in angles]
+    inf = np.full(2, np.inf)
+    spatial = CyclicIKProblem(
+        robot=robot.model,
+        frame="tip",
+        targets=tuple(Target(position=(x, y, 0.0)) for x, y in points),
+        q_lower=-inf,
+        q_upper=inf,
+    )
+    assert spatial.plane is not None
+    np.testing.assert_array_equal(spatial.plane.basis, np.eye(3)[:, :2])
+    assert spatial.block_rows == 2 and spatial.n_constraints == spatial.n_variables == 12
+    planar = CyclicIKProblem(robot=PlanarChain(lengths=lengths), targets=points)
+    start = np.tile([0.3, 0.5], 6)
+    ref = solve(planar, method="ipopt", x0=start, check_reachability=False)
+    got = solve(spatial, method="ipopt", x0=start, planar=False)
+    assert ref.success and got.success, got.message
+    assert abs(got.objective - ref.objective) <= 1e-8
+    np.testing.assert_allclose(got.configurations, ref.configurations, atol=1e-8, rtol=0)
+    ref_al = solve(planar, method="al", x0=start, check_reachability=False)
+    al = solve(spatial, method="al", x0=start, options=ALOptions(), planar=False)
+    assert ref_al.success and al.success
+    assert abs(al.objective - ref_al.objective) <= 1e-8
+
+
+def test_a_target_off_the_planar_robot_plane_is_refused(tmp_path):
+    """A planar robot's position target must lie in its plane (ParameterError names it)."""
+    path = tmp_path / "planar2.urdf"
+    path.write_text(_planar_urdf((1.0, 0.8), None))
+    robot = load_model(path, tip_frame="tip")
+    targets = (Target(position=(1.0, 0.5, 0.0)), Target(position=(1.0, 0.5, 0.2)))
+    with pytest.raises(ParameterError, match="target 1 lies 0.2 m off it"):
+        CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
+
+
+def test_the_youbot_arm_is_planar_in_its_platform_x_z_plane(youbot):
+    """Joints about the platform y axis: plane coordinates (x, z), 2 rows per position."""
+    data = youbot.create_data()
+    pin.framesForwardKinematics(youbot.model, data, np.zeros(youbot.nq))
+    tip = data.oMf[youbot.frame_id(youbot.tip_frame)].translation
+    problem = CyclicIKProblem(
+        robot=youbot.model,
+        frame=youbot.tip_frame,
+        targets=(Target(position=tip), Target(position=tip + (0.05, 0.0, -0.1))),
+    )
+    assert problem.plane is not None
+    np.testing.assert_array_equal(problem.plane.basis, np.eye(3)[:, [0, 2]])
+    assert problem.block_rows == 2
+    ur5 = load_model("ur5")
+    assert (
+        CyclicIKProblem(
+            robot=ur5.model,
+            frame=ur5.tip_frame,
+            targets=(Target(position=(0.3, 0, 0.3)), Target(position=(0, 0.3, 0.3))),
+        ).plane
+        is None
+    )
+
+
+def test_a_planar_urdf_chain_is_solved_by_the_planar_methods_like_the_chain(tmp_path):
+    """#25 item 4: a URDF chain's problem has its PlanarChain, hence the exact verdicts and
+    feasible starts of the chain (same draws to 1e-9 rad) and the same optimum (1e-8)."""
+    from youbot_opt.ikpath.reachability.planar import check_reachability
+    from youbot_opt.ikpath.solve import solve
+    from youbot_opt.ikpath.starts import make_starts
+
+    planar = example_problem("B")
+    path = tmp_path / "planar_B.urdf"
+    path.write_text(_planar_urdf(EXAMPLES["B"].lengths, EXAMPLES["B"].limit))
+    robot = load_model(path, tip_frame="tip")
+    urdf = CyclicIKProblem(robot=robot, targets=planar.target_points)
+    assert urdf.chain is not None and urdf.block_rows == 2
+    np.testing.assert_allclose(urdf.chain.lengths, planar.chain.lengths, atol=1e-15)
+    np.testing.assert_array_equal(urdf.target_points, planar.target_points)
+    got = [v.status for v in check_reachability(urdf)]
+    assert got == [v.status for v in check_reachability(planar)]
+    np.testing.assert_allclose(
+        make_starts(urdf, 20, 0, verdicts=check_reachability(urdf)),
+        make_starts(planar, 20, 0, verdicts=check_reachability(planar)),
+        atol=1e-9,
+    )
+    for method in ("al", "ipopt"):
+        ref = solve(planar, method=method)
+        res = solve(urdf, method=method)
+        assert ref.success and res.success, res.message
+        assert abs(res.objective - ref.objective) <= 1e-8
+
+
+def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
+    """One solve: a planar robot gets the planar methods (reachability checked, IKPathResult),
+    planar=False the general ones (SpatialIKResult, same optimum to 1e-8); a chain-less
+    problem refuses planar=True."""
+    from youbot_opt.ikpath.result import IKPathResult
+    from youbot_opt.ikpath.spatial import SpatialIKResult
+
+    problem = _planar_as_spatial("A", tmp_path, use_limits=False)
+    planar = solve(problem)
+    general = solve(problem, planar=False, options=ALOptions())
+    assert isinstance(planar, IKPathResult) and isinstance(general, SpatialIKResult)
+    assert planar.success and general.success
+    assert abs(planar.objective - general.objective) <= 1e-8
+    far = problem.with_targets((*problem.targets[:4], Target(position=(9.0, 0.0, 0.0))))
+    with pytest.raises(UnreachableTarget):
+        solve(far)
+    assert isinstance(solve(far, check_reachability=False, method="al"), IKPathResult)
+    with pytest.raises(ParameterError, match="planar robot"):
+        solve(_ur5_problem(0), planar=True)

@@ -72,7 +72,7 @@ def _problems(draw: st.DrawFn) -> tuple[CyclicIKProblem, bool]:
         reach = float(np.sum(lengths))
         coords = st.floats(-1.5 * reach, 1.5 * reach)
         targets = draw(st.lists(st.tuples(coords, coords), min_size=s, max_size=s))
-    return CyclicIKProblem(chain=chain, targets=targets), reachable
+    return CyclicIKProblem(robot=chain, targets=targets), reachable
 
 
 _AL = st.builds(
@@ -130,7 +130,7 @@ _BAD_CHAIN: dict[str, st.SearchStrategy[Any]] = {
 _BAD_PROBLEM: dict[str, st.SearchStrategy[Any]] = {
     "targets": st.one_of(
         st.just([(1.0, 0.5)]),
-        st.just([(1.0, 0.5, 0.0), (0.5, 1.0, 0.0)]),
+        st.just([(1.0, 0.5, 0.3), (0.5, 1.0, 0.0)]),  # off the plane (3-D in it is valid)
         st.tuples(st.tuples(_SPECIAL, st.just(0.5)), st.just((0.5, 1.0))).map(list),
     ),
     "method": st.sampled_from(["bfgs", "", "IPOPT"]),
@@ -161,7 +161,7 @@ def test_one_invalid_ik_input_raises_parameter_error(field, data) -> None:
     else:
         call[field] = value
     with pytest.raises(ParameterError) as info:
-        solve(CyclicIKProblem(chain=PlanarChain(**chain_args), targets=targets), **call)
+        solve(CyclicIKProblem(robot=PlanarChain(**chain_args), targets=targets), **call)
     assert str(info.value)
 
 
@@ -169,7 +169,7 @@ def test_one_invalid_ik_input_raises_parameter_error(field, data) -> None:
 def solved_ik():
     """The study's example solved by both methods."""
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
-    problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
+    problem = CyclicIKProblem(robot=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
     return {m: solve(problem, method=m).raise_for_status() for m in ("al", "ipopt")}
 
 
@@ -205,7 +205,7 @@ def test_ipopt_acceptable_level_with_large_residual_is_not_a_success(solved_ik) 
 def test_one_link_chain_is_solved_or_fails_with_a_status() -> None:
     """A 1-link chain with reachable targets: the AL method returns a result, no ValueError."""
     chain = PlanarChain(lengths=[1.0])
-    problem = CyclicIKProblem(chain=chain, targets=[(1.0, 0.0), (0.0, 1.0)])
+    problem = CyclicIKProblem(robot=chain, targets=[(1.0, 0.0), (0.0, 1.0)])
     result = solve(problem, method="al")
     # Each target fixes the single angle: q = 0 and q = pi/2, E = (pi/2)^2.
     assert result.success

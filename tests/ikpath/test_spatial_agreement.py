@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from youbot_opt.ikpath.spatial import SpatialIKProblem
-from youbot_opt.ikpath.spatial_solve import solve_spatial
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
 # Hit rates of the best basin measured with 64 starts per method (seeds 1 and 0, not
@@ -18,14 +18,14 @@ from youbot_opt.robot.load import load_model
 _STARTS = {"ipopt": (88, 11), "al": (56, 12)}  # method: (starts, seed)
 
 
-def _panda_tour() -> SpatialIKProblem:
+def _panda_tour() -> CyclicIKProblem:
     """Panda visits the corners of a tilted 0.4 m x 0.29 m rectangle in front of it (positions)."""
     robot = load_model("panda")
     corners = ((0.5, -0.2, 0.3), (0.5, 0.2, 0.3), (0.35, 0.2, 0.55), (0.35, -0.2, 0.55))
-    return SpatialIKProblem(
-        model=robot.model,
+    return CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=tuple(SpatialTarget(position=p) for p in corners),
+        targets=tuple(Target(position=p) for p in corners),
     )
 
 
@@ -35,7 +35,7 @@ def test_both_methods_find_the_same_best_minimum_from_their_own_independent_star
     best = {}
     for method, (n_starts, seed) in _STARTS.items():
         results = [
-            solve_spatial(problem, method=method, x0=x0)
+            solve(problem, method=method, x0=x0)
             for x0 in make_spatial_starts(problem, n_starts, seed=seed)
         ]
         found = [r for r in results if r.success]
@@ -59,13 +59,13 @@ def test_both_methods_find_the_same_best_minimum_from_their_own_independent_star
     np.testing.assert_allclose(diff, 0.0, atol=1e-5)
 
 
-def _ur5_tour(n_targets: int, seed: int = 2026) -> SpatialIKProblem:
+def _ur5_tour(n_targets: int, seed: int = 2026) -> CyclicIKProblem:
     """The benchmark's ur5 tour: frame placements of random in-limit angles, poses on even k."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(seed)
     lo, hi = np.maximum(base.q_lower, -np.pi), np.minimum(base.q_upper, np.pi)
@@ -73,7 +73,7 @@ def _ur5_tour(n_targets: int, seed: int = 2026) -> SpatialIKProblem:
     for k in range(n_targets):
         placement = base.placement(rng.uniform(lo, hi))
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     return base.with_targets(targets)
 
 
@@ -85,10 +85,10 @@ def test_al_reaches_the_nearly_singular_ur5_minimum_that_ipopt_confirms():
     # solve |c| <= 1e-10 m, so E moves by O(|lambda| |c|) <= 1e-6 absolute at most).
     problem = _ur5_tour(6)
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
-    al = solve_spatial(problem, method="al", x0=x0)
+    al = solve(problem, method="al", x0=x0)
     assert al.success, al.message
     assert "final phase" in al.message
-    ip = solve_spatial(problem, method="ipopt", x0=al.configurations)
+    ip = solve(problem, method="ipopt", x0=al.configurations)
     assert ip.success
     assert abs(ip.objective - al.objective) <= 1e-8 * al.objective
     np.testing.assert_allclose(ip.configurations, al.configurations, atol=1e-6, rtol=0)
@@ -127,10 +127,10 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
 
     robot = load_model("panda")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     rng = np.random.default_rng(2026)
     lo, hi = np.maximum(base.q_lower, -np.pi), np.minimum(base.q_upper, np.pi)
@@ -138,11 +138,11 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     for k in range(12):
         placement = base.placement(rng.uniform(lo, hi))
         rot = placement.rotation if k % 2 == 0 else None
-        targets.append(SpatialTarget(position=placement.translation, rotation=rot))
+        targets.append(Target(position=placement.translation, rotation=rot))
     problem = base.with_targets(targets)
     x0 = make_spatial_starts(problem, 1, seed=0)[0]
     opts = replace(SPATIAL_AL_OPTIONS, initial_multipliers="least_squares")
-    al = solve_spatial(problem, method="al", x0=x0, options=opts)
-    ip = solve_spatial(problem, method="ipopt", x0=x0)
+    al = solve(problem, method="al", x0=x0, options=opts)
+    ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success, (al.message, ip.message)
     assert abs(al.objective - ip.objective) <= 1e-8 * ip.objective

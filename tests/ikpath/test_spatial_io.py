@@ -9,10 +9,11 @@ import pytest
 
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ResultFileError
+from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import OuterIterate
-from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result
+from youbot_opt.ikpath.spatial import build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.load import load_model
 
@@ -24,18 +25,18 @@ def _exact_panda_result():
     so those configurations solve them (errors at rounding level, ~1e-16).
     """
     robot = load_model("panda")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     q = np.random.default_rng(3).uniform(base.q_lower, base.q_upper, (3, base.n_joints))
     p = [base.placement(theta) for theta in q]
     problem = base.with_targets(
         (
-            SpatialTarget(position=p[0].translation),
-            SpatialTarget(position=p[1].translation, rotation=p[1].rotation),
-            SpatialTarget(position=p[2].translation, approach=p[2].rotation[:, 2]),
+            Target(position=p[0].translation),
+            Target(position=p[1].translation, rotation=p[1].rotation),
+            Target(position=p[2].translation, approach=p[2].rotation[:, 2]),
         )
     )
     history = (OuterIterate(0, q + 0.01, 1.5, 1e-3, 2e-3, 1e3, 7),)

@@ -14,10 +14,11 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import InvalidModelError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import RobotSource as IkpathRobotSource
-from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource as SpatialIoRobotSource
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot import RobotSource as RobotLayerSource
 from youbot_opt.robot.catalogue import youbot_urdf_path
@@ -28,14 +29,14 @@ from youbot_opt.robot.source import RobotSource
 
 def _exact_result(robot: RobotModel) -> SpatialIKResult:
     """Two position targets at the tip placements of two in-limit configurations (met exactly)."""
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     q = np.random.default_rng(5).uniform(base.q_lower, base.q_upper, (2, base.n_joints)) * 0.5
     problem = base.with_targets(
-        tuple(SpatialTarget(position=base.placement(theta).translation) for theta in q)
+        tuple(Target(position=base.placement(theta).translation) for theta in q)
     )
     result = build_spatial_result(
         problem,

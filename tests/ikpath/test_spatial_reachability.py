@@ -11,19 +11,20 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.chain import PlanarChain
-from youbot_opt.ikpath.interval import IntervalChain, sin_cos
-from youbot_opt.ikpath.reachability import Reachability, decide_reachability
-from youbot_opt.ikpath.spatial import SpatialIKProblem, random_theta
-from youbot_opt.ikpath.spatial_reachability import (
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
+from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
+from youbot_opt.ikpath.reachability.spatial import (
     SpatialReach,
     check_spatial_reachability,
     interval_search,
     joint_box,
 )
-from youbot_opt.ikpath.spatial_solve import solve_spatial
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.ikpath.spatial import random_theta
+from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
+from youbot_opt.robot.planar import PlanarChain
 
 _INERTIAL = (  # the loader checks that M(q) is positive definite
     '<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '
@@ -95,11 +96,11 @@ def _mixed(tmp_path):
 
 
 def _problem(model, targets, **kw):
-    return SpatialIKProblem(model=model, frame="tip", targets=tuple(targets), **kw)
+    return CyclicIKProblem(robot=model, frame="tip", targets=tuple(targets), **kw)
 
 
 def _point_targets(*points):
-    return [SpatialTarget(position=(*p, 0.0)[:3]) for p in points]
+    return [Target(position=(*p, 0.0)[:3]) for p in points]
 
 
 def test_sin_cos_intervals_contain_numpy_on_dense_samples():
@@ -130,8 +131,8 @@ def test_interval_fk_contains_pinocchio_fk_at_random_points_of_random_boxes(robo
     else:
         loaded = load_model(robot)
         model, frame = loaded.model, loaded.tip_frame
-    problem = SpatialIKProblem(
-        model=model, frame=frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    problem = CyclicIKProblem(
+        robot=model, frame=frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     chain = IntervalChain.from_model(model, problem.frame_id)
     lo0, hi0 = joint_box(problem)
@@ -217,9 +218,9 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
     planar = _planar(tmp_path, (3.0, 2.0, 2.0), math.pi / 2)
     tilted = pin.rpy.rpyToMatrix(0.5, 0.0, 0.0)
     targets = [
-        SpatialTarget(position=(5.0, 1.0, 0.0), rotation=tilted),
-        SpatialTarget(position=(5.0, 1.0, 0.0), approach=(0.0, 0.5, 1.0)),
-        SpatialTarget(position=(5.0, 1.0, 0.0)),  # the same point: reachable
+        Target(position=(5.0, 1.0, 0.0), rotation=tilted),
+        Target(position=(5.0, 1.0, 0.0), approach=(0.0, 0.5, 1.0)),
+        Target(position=(5.0, 1.0, 0.0)),  # the same point: reachable
     ]
     verdicts = check_spatial_reachability(_problem(planar, targets))
     assert [v.status for v in verdicts] == [SpatialReach.UNREACHABLE] * 2 + [SpatialReach.REACHABLE]
@@ -229,8 +230,8 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
     base = _problem(arm, _point_targets((0.3, 0.0, 0.3)) * 2)
     reached = base.placement([0.4, 0.7, -0.9])
     rolled = reached.rotation @ pin.rpy.rpyToMatrix(0.3, 0.0, 0.0)
-    pose = SpatialTarget(position=reached.translation, rotation=reached.rotation)
-    roll = SpatialTarget(position=reached.translation, rotation=rolled)
+    pose = Target(position=reached.translation, rotation=reached.rotation)
+    roll = Target(position=reached.translation, rotation=rolled)
     problem = base.with_targets((pose, roll))
     assert np.linalg.norm(reached.translation - base.reach_radius()[0]) < base.reach_radius()[1]
     found = interval_search(problem, 1, **_BUDGET)
@@ -244,14 +245,14 @@ def test_interval_search_never_refutes_a_reachable_target():
     """Targets made by FK at random in-limit angles of ur5 (position, pose, approach) are never
     called unreachable; every witness is within the limits and meets its target under FK."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    base = CyclicIKProblem(
+        robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     rng = np.random.default_rng(3)
     for k in range(9):
         placement = base.placement(random_theta(base, rng))
         kind = [{}, {"rotation": placement.rotation}, {"approach": placement.rotation[:, 2]}][k % 3]
-        target = SpatialTarget(position=placement.translation, **kind)
+        target = Target(position=placement.translation, **kind)
         problem = base.with_targets((target, target))
         found = interval_search(problem, 0, max_boxes=20_000, max_seconds=600.0)
         assert found.status is not SpatialReach.UNREACHABLE
@@ -265,11 +266,11 @@ def test_ur5_target_between_true_reach_and_reach_sphere_is_certified():
     """A 6-DOF case: ur5's sphere has radius 1.24 m but its tool reaches about 0.95 m; a target
     1.1 m from the shoulder is certified by the interval search (and FK sampling agrees)."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    base = CyclicIKProblem(
+        robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     centre, reach = base.reach_radius()
-    target = SpatialTarget(position=centre + np.array([0.6, 0.0, 0.0]) * 1.1 / 0.6)
+    target = Target(position=centre + np.array([0.6, 0.0, 0.0]) * 1.1 / 0.6)
     rng = np.random.default_rng(0)
     sampled = max(
         np.linalg.norm(base.placement(random_theta(base, rng)).translation - centre)
@@ -303,15 +304,15 @@ def test_joint_box_and_unsupported_joints(tmp_path):
 
 
 def test_solver_failure_names_the_blocking_target_with_the_certificate(tmp_path):
-    """solve_spatial(check_reachability=True) refuses the out-of-plane pose: its index, the
+    """solve(check_reachability=True) refuses the out-of-plane pose: its index, the
     interval certificate (boxes, depth) and the verdict are in the error."""
     planar = _planar(tmp_path, (3.0, 2.0, 2.0), math.pi / 2)
     targets = [
-        SpatialTarget(position=(5.0, 1.0, 0.0)),
-        SpatialTarget(position=(4.0, 2.0, 0.0), rotation=pin.rpy.rpyToMatrix(0.0, 0.4, 0.0)),
+        Target(position=(5.0, 1.0, 0.0)),
+        Target(position=(4.0, 2.0, 0.0), rotation=pin.rpy.rpyToMatrix(0.0, 0.4, 0.0)),
     ]
     with pytest.raises(UnreachableTarget) as err:
-        solve_spatial(_problem(planar, targets), check_reachability=True)
+        solve(_problem(planar, targets), check_reachability=True)
     v = err.value.verdict
     assert err.value.index == 1 and v.method == "interval" and v.boxes > 0
     msg = str(err.value)
@@ -354,11 +355,11 @@ def test_budget_exhausted_is_undecided_and_bad_arguments_are_refused():
     """A ur5 target just beyond its true reach (1.0 m; sphere 1.24 m) with a 2 000-box budget
     stays undecided, and the verdict says how far the search got; bad budgets are refused."""
     robot = load_model("ur5")
-    base = SpatialIKProblem(
-        model=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
+    base = CyclicIKProblem(
+        robot=robot.model, frame=robot.tip_frame, targets=tuple(_point_targets((0.3, 0.0, 0.3)) * 2)
     )
     centre, _ = base.reach_radius()
-    target = SpatialTarget(position=centre + np.array([1.0, 0.0, 0.0]))
+    target = Target(position=centre + np.array([1.0, 0.0, 0.0]))
     problem = base.with_targets((target, target))
     found = interval_search(problem, 0, max_boxes=2000, max_seconds=600.0)
     assert found.status is SpatialReach.UNDECIDED and found.witness is None

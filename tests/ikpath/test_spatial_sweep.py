@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial import dls_ik
-from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
@@ -112,3 +112,30 @@ def test_process_pool_equals_serial(ur5_reachable):
     for a, b in zip(serial.results, pooled.results, strict=True):
         assert a.status is b.status
         np.testing.assert_allclose(a.configurations, b.configurations, atol=1e-10, rtol=0)
+
+
+def test_a_planar_robot_multistart_starts_where_the_planar_one_does_and_finds_its_optimum(
+    ur5_reachable,
+):
+    """#25 item 4: the documented planar example (lengths 3 2 2, limits, targets (4, 1),
+    (3, -2)) as a RobotModel: the 3-D multistart's default starts are the planar
+    feasible ones (same draws, 1e-9 rad) and its best E is the planar multistart's (1e-8)."""
+    from youbot_opt.ikpath.multistart import run_multistart
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.robot.planar import PlanarChain
+
+    chain = PlanarChain(lengths=[3, 2, 2], q_lower=[-1, -2, -2], q_upper=[1, 2, 2])
+    targets = [(4.0, 1.0), (3.0, -2.0)]
+    planar = CyclicIKProblem(robot=chain, targets=targets)
+    robot = CyclicIKProblem(robot=chain.robot(), targets=targets)
+    assert robot.chain is not None and not isinstance(robot.robot, PlanarChain)
+    ref = run_multistart(planar, n_starts=20, seed=0)
+    got = run_spatial_multistart(robot, n_starts=20, seed=0)
+    assert got.start_kind == "feasible"
+    np.testing.assert_allclose(
+        [r.start.ravel() for r in got.results], [r.start.ravel() for r in ref.results], atol=1e-9
+    )
+    assert ref.best.success and got.best.success
+    assert abs(got.best.objective - ref.best.objective) <= 1e-8
+    with pytest.raises(ParameterError, match="needs a planar robot"):
+        run_spatial_multistart(ur5_reachable, n_starts=2, starts="feasible")

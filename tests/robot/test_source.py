@@ -305,21 +305,22 @@ def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) ->
     import numpy as np
 
     from youbot_opt.exceptions import ResultFileError
-    from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.spatial import build_spatial_result
     from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
-    from youbot_opt.ikpath.targets import SpatialTarget
+    from youbot_opt.ikpath.targets import Target
     from youbot_opt.nlp.status import SolveStatus
 
     urdf = _file_named_youbot(tmp_path / "robots")
     robot = load_model(urdf)
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame=robot.tip_frame,
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     q = np.random.default_rng(5).uniform(base.q_lower, base.q_upper, (2, base.n_joints)) * 0.5
     problem = base.with_targets(
-        tuple(SpatialTarget(position=base.placement(theta).translation) for theta in q)
+        tuple(Target(position=base.placement(theta).translation) for theta in q)
     )
     result = build_spatial_result(
         problem,

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgba
 
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
+from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.viz.plots.ikpath import plot_arm_path, plot_convergence, plot_workspace
 
 
@@ -39,7 +39,7 @@ def test_convergence_panels_follow_the_history(result):
 def test_workspace_marks_verdicts():
     """Targets are green when reachable, red when not, with a line to the nearest point."""
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-np.pi / 2, q_upper=np.pi / 2)
-    prob = CyclicIKProblem(chain=chain, targets=[(0.0, 7.0), (0.0, 7.1)])
+    prob = CyclicIKProblem(robot=chain, targets=[(0.0, 7.0), (0.0, 7.1)])
     ax = plot_workspace(prob).axes[0]
     markers = [ln for ln in ax.lines if ln.get_marker() == "x"]
     assert [to_rgba(m.get_color()) for m in markers] == [to_rgba("tab:green"), to_rgba("tab:red")]

@@ -73,7 +73,7 @@ def _three_targets():
     from youbot_opt.ikpath.problem import CyclicIKProblem
 
     prob = example_problem("A")
-    return CyclicIKProblem(chain=prob.chain, targets=prob.targets[:3])
+    return CyclicIKProblem(robot=prob.chain, targets=prob.target_points[:3])
 
 
 def test_html_export_of_example_a_holds_the_animation_and_the_targets(result_a, tmp_path):
@@ -94,7 +94,7 @@ def test_html_export_of_example_a_holds_the_animation_and_the_targets(result_a, 
         for c in commands
         if c["type"] == "set_transform"
     }
-    targets3 = np.column_stack([result_a.problem.targets, np.zeros(5)])
+    targets3 = np.column_stack([result_a.problem.target_points, np.zeros(5)])
     for k, p in enumerate(targets3):  # the viewer's markers and the robot's own spheres
         assert f"{root}/targets/{k}" in objects
         np.testing.assert_allclose(transforms[f"{root}/targets/{k}"][:3, 3], p, atol=1e-12)
@@ -147,7 +147,7 @@ def test_live_replay_of_example_a_on_a_loopback_server(result_a):
             _pose(chain, result_a.configurations[0], go),
             atol=1e-12,
         )
-    for k, p in enumerate(result_a.problem.targets):
+    for k, p in enumerate(result_a.problem.target_points):
         np.testing.assert_allclose(transforms[f"{root}/targets/{k}"][:3, 3], [*p, 0.0], atol=1e-12)
 
 
@@ -161,7 +161,7 @@ def test_save_and_load_round_trip(result_a, tmp_path):
         np.testing.assert_array_equal(getattr(back, key), getattr(result_a, key))
     assert back.objective == result_a.objective
     assert back.problem.chain.n == 3 and not back.problem.chain.bounded
-    np.testing.assert_array_equal(back.problem.targets, result_a.problem.targets)
+    np.testing.assert_array_equal(back.problem.target_points, result_a.problem.target_points)
     assert len(back.history) == len(result_a.history)
     np.testing.assert_array_equal(back.history[-1].x, result_a.history[-1].x)
     bounded = solve(example_problem("B"))

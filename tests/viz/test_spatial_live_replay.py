@@ -12,8 +12,9 @@ meshcat = pytest.importorskip("meshcat")
 import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
-from youbot_opt.ikpath.spatial import SpatialIKProblem, build_spatial_result  # noqa: E402
-from youbot_opt.ikpath.targets import SpatialTarget  # noqa: E402
+from youbot_opt.ikpath.problem import CyclicIKProblem  # noqa: E402
+from youbot_opt.ikpath.spatial import build_spatial_result  # noqa: E402
+from youbot_opt.ikpath.targets import Target  # noqa: E402
 from youbot_opt.nlp.status import SolveStatus  # noqa: E402
 from youbot_opt.robot.load import load_model  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402
@@ -55,18 +56,18 @@ def test_live_spatial_replay_draws_the_targets_and_ends_at_the_first_configurati
     path = tmp_path / "arm3.urdf"
     path.write_text(_URDF)
     robot = load_model(path, tip_frame="tip")
-    base = SpatialIKProblem(
-        model=robot.model,
+    base = CyclicIKProblem(
+        robot=robot.model,
         frame="tip",
-        targets=(SpatialTarget(position=(0, 0, 0)), SpatialTarget(position=(0, 0, 0))),
+        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
     )
     q = np.array([[0.0, 0.4, 0.8], [1.2, -0.3, 0.9], [-1.0, 0.6, -0.5]])
     p = [base.placement(theta) for theta in q]
     problem = base.with_targets(  # met exactly by q: a pose, an approach and a position
         (
-            SpatialTarget(position=p[0].translation, rotation=p[0].rotation),
-            SpatialTarget(position=p[1].translation, approach=p[1].rotation[:, 2]),
-            SpatialTarget(position=p[2].translation),
+            Target(position=p[0].translation, rotation=p[0].rotation),
+            Target(position=p[1].translation, approach=p[1].rotation[:, 2]),
+            Target(position=p[2].translation),
         )
     )
     result = build_spatial_result(

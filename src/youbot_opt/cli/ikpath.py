@@ -34,7 +34,7 @@ from youbot_opt.exceptions import ParameterError
 if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast
     from youbot_opt.ikpath.multistart import MultistartResult
     from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.reachability import ReachVerdict
+    from youbot_opt.ikpath.reachability.planar import ReachVerdict
 
 # The choices of the parser, spelled out here so that building it imports no solver;
 # tests/cli/test_cli_help.py checks them against the library's EXAMPLES, METHODS, START_KINDS.
@@ -115,8 +115,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "--start-kind",
         choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
         default=None,
-        help="random starts: feasible (default) or uniform (planar); mixed (default), coherent "
-        "or random (spatial)",
+        help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
+        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
     )
     run.add_argument(
         "--workers",
@@ -165,9 +165,10 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
     """Build the problem from the command line."""
     import numpy as np
 
-    from youbot_opt.ikpath.chain import PlanarChain
     from youbot_opt.ikpath.examples import example_problem
     from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.targets import position_targets
+    from youbot_opt.robot.planar import PlanarChain
 
     if args.example:
         if args.lengths or args.target or args.robot:
@@ -177,7 +178,7 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
                 value=args.example,
             )
         base = example_problem(args.example)
-        chain, targets = base.chain, base.targets
+        chain, targets = base.planar_chain, base.target_points
     else:
         if not args.target:
             raise ParameterError(
@@ -189,7 +190,7 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
                 raise ParameterError(
                     "--robot fixes the lengths", name="lengths", value=args.lengths
                 )
-            from youbot_opt.ikpath.robot import youbot_chain
+            from youbot_opt.robot.planar import youbot_chain
 
             chain = youbot_chain()
         elif args.lengths:
@@ -212,7 +213,9 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
             else (args.limit if args.limit is not None else chain.q_upper)
         )
         chain = chain.with_limits(lower, upper)
-    return CyclicIKProblem(chain=chain, targets=targets, use_limits=not args.no_limits)
+    return CyclicIKProblem(
+        robot=chain, targets=position_targets(targets), use_limits=not args.no_limits
+    )
 
 
 def _num(x: float) -> float | None:
@@ -243,15 +246,15 @@ def _report(
     import numpy as np
 
     from youbot_opt.ikpath.examples import STUDY_E_A
-    from youbot_opt.ikpath.reachability import Reachability
+    from youbot_opt.ikpath.reachability.planar import Reachability
 
-    chain = problem.chain
+    chain = problem.planar_chain
     doc: dict[str, Any] = {
         "chain": chain.name,
         "lengths": chain.lengths.tolist(),
         "q_lower": [_num(v) for v in chain.q_lower] if problem.bounded else None,
         "q_upper": [_num(v) for v in chain.q_upper] if problem.bounded else None,
-        "targets": problem.targets.tolist(),
+        "targets": problem.target_points.tolist(),
         "method": args.method,
         "reachability": [_verdict_json(v) for v in verdicts],
         "reachability_undecided": [v.index for v in verdicts if v.status is Reachability.UNDECIDED],
@@ -368,7 +371,7 @@ def _print_multistart(doc: dict[str, Any]) -> None:
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
     """Warn on stderr about every target whose reachability was not decided."""
-    from youbot_opt.ikpath.reachability import Reachability
+    from youbot_opt.ikpath.reachability.planar import Reachability
 
     for v in verdicts:
         if v.status is Reachability.UNDECIDED:
@@ -424,10 +427,10 @@ def _write_outputs(
 
 def _run(args: argparse.Namespace) -> int:
     from youbot_opt.cli.output import print_json, print_outputs, run_folder
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-    from youbot_opt.ikpath.ipopt import IpoptOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
+    from youbot_opt.ikpath.methods.ipopt import IpoptOptions
     from youbot_opt.ikpath.multistart import run_multistart
-    from youbot_opt.ikpath.reachability import Reachability, check_reachability
+    from youbot_opt.ikpath.reachability.planar import Reachability, check_reachability
     from youbot_opt.sweeps.resume import ShardReport
 
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):

@@ -1,7 +1,7 @@
 """The spatial mode of ``youbot-opt ikpath`` (any robot, 3-D targets, poses).
 
 Called by :mod:`youbot_opt.cli.ikpath` when the command line asks for it:
-builds a :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem` from
+builds a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` from
 ``--robot``/``--frame``/``--target``/``--targets``, decides every target's
 reachability (exit 2 with the certificate of an unreachable one), runs the
 resumable multistart (``--starts``, ``--start-kind``, ``--method``,
@@ -27,8 +27,8 @@ from youbot_opt.cli.robot_args import loading_options
 from youbot_opt.exceptions import ParameterError
 
 if TYPE_CHECKING:
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-    from youbot_opt.ikpath.spatial import SpatialIKProblem
+    from youbot_opt.ikpath.methods.al import ALOptions
+    from youbot_opt.ikpath.problem import CyclicIKProblem
     from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.robot.model import RobotModel
     from youbot_opt.viz.meshcat.scene import RobotLike
@@ -47,7 +47,7 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     ParameterError
         For a ``--target`` of another length, or both sources at once.
     """
-    from youbot_opt.ikpath.targets import SpatialTarget, load_targets, quaternion_to_matrix
+    from youbot_opt.ikpath.targets import Target, load_targets, quaternion_to_matrix
 
     tol = {"position_tol": args.tol, "orientation_tol": args.orientation_tol}
     if args.targets_file and args.target:
@@ -61,11 +61,11 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     out = []
     for k, t in enumerate(args.target or ()):
         if len(t) == 3:
-            out.append(SpatialTarget(position=t, **tol))
+            out.append(Target(position=t, **tol))
         elif len(t) == 6:
-            out.append(SpatialTarget(position=t[:3], approach=t[3:], **tol))
+            out.append(Target(position=t[:3], approach=t[3:], **tol))
         elif len(t) == 7:
-            out.append(SpatialTarget(position=t[:3], rotation=quaternion_to_matrix(t[3:]), **tol))
+            out.append(Target(position=t[:3], rotation=quaternion_to_matrix(t[3:]), **tol))
         else:
             raise ParameterError(
                 f"--target {k + 1} has {len(t)} numbers; spatial targets take X Y Z, "
@@ -76,8 +76,8 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     return tuple(out)
 
 
-def _check_spatial_flags(args: argparse.Namespace) -> str:
-    """Refuse the planar-only flags; return the start kind."""
+def _check_spatial_flags(args: argparse.Namespace) -> str | None:
+    """Refuse the planar-only flags; return the start kind (None: the robot kind's)."""
     if args.example or args.lengths:
         raise ParameterError(
             "--example/--lengths describe planar chains; spatial targets need --robot",
@@ -90,8 +90,8 @@ def _check_spatial_flags(args: argparse.Namespace) -> str:
             name="reach_evaluations",
             value=args.reach_evaluations,
         )
-    kind = args.start_kind or SPATIAL_DEFAULT_START_KIND
-    if kind not in ("mixed", "coherent", "random"):
+    kind = args.start_kind
+    if kind not in (None, "mixed", "coherent", "random", "feasible"):
         raise ParameterError(
             f"--start-kind {kind} is a planar start kind; spatial targets take mixed "
             "(default), coherent or random",
@@ -106,12 +106,12 @@ def _check_spatial_flags(args: argparse.Namespace) -> str:
             name="max_wall_time",
             value=args.max_wall_time,
         )
-    return str(kind)
+    return kind
 
 
-def _problem(args: argparse.Namespace, robot: RobotModel) -> SpatialIKProblem:
+def _problem(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
     """Build the spatial problem of the command line on the loaded ``robot``."""
-    from youbot_opt.ikpath.spatial import SpatialIKProblem
+    from youbot_opt.ikpath.problem import CyclicIKProblem
 
     frame = args.frame or robot.tip_frame
     targets = spatial_targets(args)
@@ -128,9 +128,9 @@ def _problem(args: argparse.Namespace, robot: RobotModel) -> SpatialIKProblem:
         lower, upper = -args.limit, args.limit
     lower = args.lower if args.lower is not None else lower
     upper = args.upper if args.upper is not None else upper
-    n = SpatialIKProblem(model=robot.model, frame=frame, targets=targets).n_joints
-    return SpatialIKProblem(
-        model=robot.model,
+    n = CyclicIKProblem(robot=robot, frame=frame, targets=targets).n_joints
+    return CyclicIKProblem(
+        robot=robot,
         frame=frame,
         targets=targets,
         use_limits=not args.no_limits,
@@ -152,12 +152,27 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
 
 
+def _start_kind(kind: str | None, problem: CyclicIKProblem) -> str:
+    """Return the start kind: ``feasible`` (planar starts) for a planar robot, else ``mixed``."""
+    if kind is None:
+        return "feasible" if problem.chain is not None else SPATIAL_DEFAULT_START_KIND
+    if kind == "feasible" and problem.chain is None:
+        raise ParameterError(
+            f"--start-kind feasible is a planar start kind; robot {problem.robot_model.name!r} "
+            f"is not planar for frame {problem.frame!r}: spatial targets take mixed (default), "
+            "coherent or random",
+            name="start_kind",
+            value=kind,
+        )
+    return kind
+
+
 def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import report_shard, scheduler_address
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
+    from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
-    from youbot_opt.ikpath.spatial_reachability import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
     from youbot_opt.sweeps.resume import ShardReport
@@ -165,6 +180,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     kind = _check_spatial_flags(args)
     robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
     problem = _problem(args, robot)
+    kind = _start_kind(kind, problem)
     frame = problem.frame
     targets = problem.targets
     options = _options(args)

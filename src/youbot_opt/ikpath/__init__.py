@@ -1,10 +1,10 @@
 """Minimum-motion cyclic IK paths: planar arms (study 2, spec ``ikpath.md``) and any robot.
 
-Build, check, solve, inspect (the spatial problem of issue 14 is used the same
-way, with :class:`SpatialIKProblem` and :func:`run_spatial_multistart`)::
+One problem, :class:`CyclicIKProblem`, on a RobotModel or a PlanarChain; build,
+check, solve, inspect (a 3-D robot: :func:`solve`, :func:`run_spatial_multistart`)::
 
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
-    problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
+    problem = CyclicIKProblem(robot=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
     verdicts = check_reachability(problem)          # exact, no sampling
     result = solve(problem, method="al")            # or "ipopt"
     best = run_multistart(problem, n_starts=200, seed=0).best
@@ -12,14 +12,13 @@ way, with :class:`SpatialIKProblem` and :func:`run_spatial_multistart`)::
 
 from __future__ import annotations
 
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
-from youbot_opt.ikpath.chain import PlanarChain, TipKinematics
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, solve_ipopt
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, solve_ipopt
 from youbot_opt.ikpath.multistart import (
-    LocalMinimum,
+    LocalOptimum,
     MultistartResult,
     cluster_minima,
     configuration_distance,
@@ -27,37 +26,29 @@ from youbot_opt.ikpath.multistart import (
     run_multistart,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
-from youbot_opt.ikpath.reachability import (
+from youbot_opt.ikpath.reachability.planar import (
     Reachability,
     ReachVerdict,
     check_reachability,
     decide_reachability,
     require_reachable,
 )
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
-from youbot_opt.ikpath.robot import chain_from_robot, youbot_chain
-from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial import (
-    SpatialIKProblem,
-    SpatialIKResult,
-    greedy_path,
-)
-from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
-from youbot_opt.ikpath.spatial_reachability import (
+from youbot_opt.ikpath.reachability.spatial import (
     SpatialReach,
     SpatialVerdict,
     check_spatial_reachability,
 )
-from youbot_opt.ikpath.spatial_solve import (
-    SpatialMultistart,
-    run_spatial_multistart,
-    solve_spatial,
-)
-from youbot_opt.ikpath.spatial_starts import make_spatial_starts
+from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
+from youbot_opt.ikpath.solve import METHODS, Method, solve
+from youbot_opt.ikpath.spatial import SpatialIKResult, greedy_path
+from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
+from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
+from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
-from youbot_opt.ikpath.targets import SpatialTarget, load_targets
+from youbot_opt.ikpath.targets import Target, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain, TipKinematics, chain_from_robot, youbot_chain
 from youbot_opt.robot.source import RobotSource
 
 __all__ = [
@@ -71,7 +62,7 @@ __all__ = [
     "IpoptIKSolver",
     "IpoptOptions",
     "JointPath",
-    "LocalMinimum",
+    "LocalOptimum",
     "METHODS",
     "Method",
     "MultistartResult",
@@ -81,11 +72,10 @@ __all__ = [
     "Reachability",
     "RobotSource",
     "STUDY_E_A",
-    "SpatialIKProblem",
     "SpatialIKResult",
     "SpatialMultistart",
     "SpatialReach",
-    "SpatialTarget",
+    "Target",
     "SpatialVerdict",
     "SolveStatus",
     "StartSummary",
@@ -113,7 +103,6 @@ __all__ = [
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",
-    "solve_spatial",
     "strong_wolfe_line_search",
     "youbot_chain",
 ]

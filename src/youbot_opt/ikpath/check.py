@@ -72,7 +72,7 @@ def check_ik_result(
         The verdict and the recomputed figures.
     """
     problem = result.problem
-    chain = problem.chain
+    chain = problem.planar_chain
     q = np.asarray(result.configurations, dtype=float)
     inf = math.inf
     if q.shape != (problem.n_targets, chain.n):
@@ -90,7 +90,7 @@ def check_ik_result(
         return IKCheck(False, f"non-finite values in {', '.join(nonfinite)}", inf, inf)
     phi = np.cumsum(q + chain.angle_offset, axis=1)
     tips = chain.base + np.stack([np.cos(phi) @ chain.lengths, np.sin(phi) @ chain.lengths], axis=1)
-    residuals = np.linalg.norm(tips - problem.targets, axis=1)
+    residuals = np.linalg.norm(tips - problem.target_points, axis=1)
     residual = float(np.max(residuals))
     limits = 0.0
     if problem.use_limits:

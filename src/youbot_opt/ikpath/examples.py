@@ -15,8 +15,9 @@ from typing import NamedTuple
 import numpy as np
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.targets import position_targets
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = ["EXAMPLES", "ExampleData", "STUDY_E_A", "example_problem"]
 
@@ -80,4 +81,4 @@ def example_problem(name: str) -> CyclicIKProblem:
         q_upper=np.full(len(data.lengths), limit),
         name=f"study2_example_{key}",
     )
-    return CyclicIKProblem(chain=chain, targets=np.array(data.targets))
+    return CyclicIKProblem(robot=chain, targets=position_targets(data.targets))

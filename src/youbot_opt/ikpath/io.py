@@ -31,11 +31,11 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = [
     "RECHECK_TOL",
@@ -206,7 +206,7 @@ def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
         ``{"chain": {...}, "targets": [[x, y], ...], "use_limits": bool}``,
         lengths and targets in [m], limits in [rad].
     """
-    chain = problem.chain
+    chain = problem.planar_chain
     return {
         "chain": {
             "lengths": chain.lengths.tolist(),
@@ -217,7 +217,7 @@ def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
             "name": chain.name,
             "tip_frame": chain.tip_frame,
         },
-        "targets": problem.targets.tolist(),
+        "targets": problem.target_points.tolist(),
         "use_limits": problem.use_limits,
     }
 
@@ -292,7 +292,7 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
         tip_frame=str(spec["tip_frame"]),
     )
     problem = CyclicIKProblem(
-        chain=chain, targets=body["targets"], use_limits=bool(body["use_limits"])
+        robot=chain, targets=body["targets"], use_limits=bool(body["use_limits"])
     )
     history = history_from_json(body["history"], problem.n_targets, problem.n_joints)
     return build_result(
@@ -313,7 +313,7 @@ def _parse(body: dict[str, Any]) -> IKPathResult:
 
 def _default_tol(method: str) -> float:
     """Default ``|c_i|`` tolerance in [m] of ``method`` (files without ``constraint_tol``)."""
-    from youbot_opt.ikpath.augmented_lagrangian import ALOptions
+    from youbot_opt.ikpath.methods.al import ALOptions
 
     if method == "ipopt":
         return float(IpoptOptions.for_ikpath().constr_viol_tol)  # type: ignore[arg-type]

@@ -1,6 +1,6 @@
 """Seeded multistart of IK-path solves, with the distinct local minima (spec ``ikpath.md``).
 
-Owns :func:`run_multistart`, :class:`MultistartResult`, :class:`LocalMinimum`,
+Owns :func:`run_multistart`, :class:`MultistartResult`, :class:`LocalOptimum`,
 :func:`configuration_distance` and :func:`cluster_minima`. The starts are drawn in
 the parent process, so they do not depend on the executor; how they run
 (crash-isolated workers, one retry, resumable ``out`` directory) is one
@@ -21,10 +21,10 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions
-from youbot_opt.ikpath.ipopt import IpoptOptions, check_degrees_of_freedom
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import START_KINDS, PlanarStarts, make_starts
@@ -46,7 +46,7 @@ from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 from youbot_opt.sweeps.selection import Clusters
 
 __all__ = [
-    "LocalMinimum",
+    "LocalOptimum",
     "MultistartResult",
     "Progress",
     "START_KINDS",
@@ -67,7 +67,7 @@ in one call before the first solve.
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class LocalMinimum:
+class LocalOptimum:
     """One distinct local minimum found by multistart.
 
     Attributes
@@ -107,7 +107,7 @@ class MultistartResult:
         a :class:`~youbot_opt.ikpath.stored.StoredResults` that holds the
         minima's results and loads any other from :attr:`output` when indexed
         (valid while that folder is there).
-    minima : tuple of LocalMinimum
+    minima : tuple of LocalOptimum
         Distinct minima of the successful starts, best (lowest E) first.
     verdicts : tuple of ReachVerdict
         Reachability verdicts of the targets (empty if not checked).
@@ -126,7 +126,7 @@ class MultistartResult:
     tally : StartTally or None
         ``keep_results=False``: counts and the start closest to the targets,
         gathered in one pass at the end of the run; ``None`` otherwise.
-    e_tol, q_tol : float
+    objective_tol, q_tol : float
         The clustering tolerances :attr:`minima` were chosen with.
     """
 
@@ -134,7 +134,7 @@ class MultistartResult:
     method: str
     seed: int
     results: Sequence[IKPathResult]
-    minima: tuple[LocalMinimum, ...]
+    minima: tuple[LocalOptimum, ...]
     verdicts: tuple[ReachVerdict, ...]
     wall_time: float
     n_workers: int
@@ -142,7 +142,7 @@ class MultistartResult:
     resumed: int = 0
     output: Path | None = None
     tally: StartTally | None = None
-    e_tol: float = 1e-6
+    objective_tol: float = 1e-6
     q_tol: float = 1e-3
 
     @property
@@ -191,7 +191,9 @@ class MultistartResult:
         """Throughput in [1/s]."""
         return self.n_starts / self.wall_time if self.wall_time > 0 else math.inf
 
-    def distinct_optima(self, e_tol: float = 1e-6, q_tol: float = 1e-3) -> tuple[LocalMinimum, ...]:
+    def distinct_optima(
+        self, objective_tol: float = 1e-6, q_tol: float = 1e-3
+    ) -> tuple[LocalOptimum, ...]:
         """Re-cluster the successful results with other tolerances (see :func:`cluster_minima`).
 
         With ``keep_results=False`` the run's own tolerances return :attr:`minima`;
@@ -201,13 +203,13 @@ class MultistartResult:
         """
         results = self.results
         if not isinstance(results, StoredResults):
-            return cluster_minima(results, e_tol=e_tol, q_tol=q_tol)
-        if (e_tol, q_tol) == (self.e_tol, self.q_tol):
+            return cluster_minima(results, objective_tol=objective_tol, q_tol=q_tol)
+        if (objective_tol, q_tol) == (self.objective_tol, self.q_tol):
             return self.minima
-        for name, tol in (("e_tol", e_tol), ("q_tol", q_tol)):
+        for name, tol in (("objective_tol", objective_tol), ("q_tol", q_tol)):
             if not tol >= 0:
                 raise ParameterError(f"{name} must be >= 0, got {tol!r}", name=name, value=tol)
-        kept, clusters = results.cluster(_minima_rule(e_tol, q_tol))
+        kept, clusters = results.cluster(_minima_rule(objective_tol, q_tol))
         reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
         return _stored_minima(clusters, reps)
 
@@ -225,26 +227,26 @@ def configuration_distance(qa: Array, qb: Array) -> float:
 
 
 def cluster_minima(
-    results: Sequence[IKPathResult], *, e_tol: float = 1e-6, q_tol: float = 1e-3
-) -> tuple[LocalMinimum, ...]:
+    results: Sequence[IKPathResult], *, objective_tol: float = 1e-6, q_tol: float = 1e-3
+) -> tuple[LocalOptimum, ...]:
     """Group successful results into distinct local minima, best first.
 
     Two successful results are the same minimum when their ``E`` agree to
-    ``e_tol`` (relative) and their configurations to ``q_tol`` [rad] modulo
+    ``objective_tol`` (relative) and their configurations to ``q_tol`` [rad] modulo
     common 2 pi shifts (:func:`configuration_distance`).
 
     Parameters
     ----------
     results : sequence of IKPathResult
         Results in start order (index = start index).
-    e_tol : float
-        Relative tolerance on ``E`` (``|dE| <= e_tol * max(1, E)``).
+    objective_tol : float
+        Relative tolerance on ``E`` (``|dE| <= objective_tol * max(1, E)``).
     q_tol : float
         Tolerance in [rad] on :func:`configuration_distance`.
 
     Returns
     -------
-    tuple of LocalMinimum
+    tuple of LocalOptimum
         Sorted by objective.
     """
     groups = cluster_optima(
@@ -253,11 +255,11 @@ def cluster_minima(
         distance=lambda i, j: configuration_distance(
             results[i].configurations, results[j].configurations
         ),
-        obj_tol=e_tol,
+        obj_tol=objective_tol,
         dist_tol=q_tol,
     )
     return tuple(
-        LocalMinimum(
+        LocalOptimum(
             objective=results[g[0]].objective,
             count=len(g),
             start_indices=tuple(sorted(g)),
@@ -276,7 +278,7 @@ def run_multistart(
     starts: str = "feasible",
     options: ALOptions | IpoptOptions | None = None,
     check_reachability: bool = True,
-    e_tol: float = 1e-6,
+    objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
     verdicts: Sequence[ReachVerdict] | None = None,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
@@ -302,7 +304,7 @@ def run_multistart(
     check_reachability : bool
         Decide every target's reachability first (raises ``UnreachableTarget``,
         warns about undecided ones); ignored when ``verdicts`` are given.
-    e_tol, q_tol : float
+    objective_tol, q_tol : float
         Clustering tolerances (see :func:`cluster_minima`).
     verdicts : sequence of ReachVerdict, optional
         Verdicts of the targets already decided by the caller (e.g. with
@@ -380,7 +382,7 @@ def run_multistart(
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
             problem, x0s, method=method, options=options, sweep=run, solvers=PLANAR_STARTS,
-            store=store, distance=_result_distance, e_tol=e_tol, q_tol=q_tol,
+            store=store, distance=_result_distance, objective_tol=objective_tol, q_tol=q_tol,
             by_objective=True, on_resumed=on_resumed, on_final=on_final,
         )  # fmt: skip
         if isinstance(streamed, ShardReport):
@@ -395,7 +397,7 @@ def run_multistart(
         if isinstance(outcome, ShardReport):
             return outcome
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
-        minima = cluster_minima(outcome.results, e_tol=e_tol, q_tol=q_tol)
+        minima = cluster_minima(outcome.results, objective_tol=objective_tol, q_tol=q_tol)
     return MultistartResult(
         problem=problem,
         method=method,
@@ -409,7 +411,7 @@ def run_multistart(
         resumed=resumed,
         output=None if store is None else store.directory,
         tally=tally,
-        e_tol=e_tol,
+        objective_tol=objective_tol,
         q_tol=q_tol,
     )
 
@@ -418,20 +420,20 @@ def _result_distance(a: IKPathResult, b: IKPathResult) -> float:
     return configuration_distance(a.configurations, b.configurations)
 
 
-def _minima_rule(e_tol: float, q_tol: float) -> KeepRule[StartSummary[IKPathResult]]:
+def _minima_rule(objective_tol: float, q_tol: float) -> KeepRule[StartSummary[IKPathResult]]:
     """:func:`cluster_minima`'s rule over start summaries holding their results."""
     return KeepRule(
         objective=lambda s: s.objective if s.success else None,
         distance=lambda a, b: _result_distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=e_tol,
+        obj_tol=objective_tol,
         dist_tol=q_tol,
     )
 
 
 def _stored_minima(
     minima: Sequence[ClusterIndices] | Clusters, kept: dict[int, IKPathResult]
-) -> tuple[LocalMinimum, ...]:
-    """Return the :class:`LocalMinimum` s of a ``keep_results=False`` selection (lazy indices)."""
+) -> tuple[LocalOptimum, ...]:
+    """Return the :class:`LocalOptimum` s of a ``keep_results=False`` selection (lazy indices)."""
     if isinstance(minima, Clusters):
         minima = tuple(
             ClusterIndices(minima, c, _key_index, sorted_order=False) for c in range(len(minima))
@@ -440,7 +442,7 @@ def _stored_minima(
     for members in minima:
         result = kept[members[0]]  # the representative: first in cluster order
         out.append(
-            LocalMinimum(
+            LocalOptimum(
                 objective=result.objective,
                 count=len(members),
                 start_indices=members.ascending(),

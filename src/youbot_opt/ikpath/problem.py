@@ -1,31 +1,35 @@
-r"""The cyclic IK-path problem of study 2 (spec ``ikpath.md``, "The problem").
+r"""The cyclic IK-path problem (study 2, spec ``ikpath.md``; any robot, issue 14).
 
-Visit targets ``p_1 .. p_s`` in order and return to ``p_1`` with the least
-total joint motion, :math:`E(Q) = \tfrac12 \sum_j \lVert q_{j+1} - q_j \rVert^2`
-with :math:`q_{s+1} \equiv q_1`, subject to :math:`F(q_j) = p_j` and the joint
-limits. :class:`CyclicIKProblem` is a pure specification: it evaluates E, the
-constraints and their derivatives (from Pinocchio) but holds no solver state.
+A frame of a robot visits targets in order and returns to the first with the
+least joint motion :math:`E = \tfrac12 \sum_j \Delta q_j^T W \Delta q_j`
+(cyclic), meeting every target and the joint limits. :class:`CyclicIKProblem`
+is a pure specification on a :class:`~youbot_opt.robot.model.RobotModel` or a
+:class:`~youbot_opt.robot.planar.PlanarChain`: it evaluates E, the constraints
+and their derivatives (from Pinocchio) but holds no solver state.
 
 >>> chain = PlanarChain(lengths=[3, 2, 2])  # doctest: +SKIP
->>> problem = CyclicIKProblem(chain=chain, targets=[(-1, 5), (-3, 3), (3, 2)])  # doctest: +SKIP
+>>> problem = CyclicIKProblem(robot=chain, targets=[(-1, 5), (-3, 3), (3, 2)])  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, NamedTuple, cast
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.exceptions import ModelError, ParameterError
+from youbot_opt.ikpath.targets import Target
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.planar import PlanarChain, Plane, chain_from_robot, motion_plane
 
 __all__ = [
-    "ALProblem",
     "CyclicIKProblem",
     "Evaluation",
     "path_configurations",
@@ -53,55 +57,6 @@ class Evaluation(NamedTuple):
     gradient: Array
     constraints: Array
     jacobian_blocks: Array
-
-
-class ALProblem(Protocol):
-    """What the augmented Lagrangian needs of a problem (planar and spatial alike).
-
-    ``s`` targets, ``n`` joints, ``m`` constraint rows per target; ``x`` is the
-    row-major flattening of the (s, n) configurations in [rad].
-    """
-
-    @property
-    def n_targets(self) -> int:
-        """Number of targets ``s``."""
-        ...
-
-    @property
-    def n_constraints(self) -> int:
-        """Number of constraint rows ``m s``."""
-        ...
-
-    @property
-    def lower(self) -> Array:
-        """Lower bounds of ``x`` in [rad]."""
-        ...
-
-    @property
-    def upper(self) -> Array:
-        """Upper bounds of ``x`` in [rad]."""
-        ...
-
-    @property
-    def bounded(self) -> bool:
-        """Whether finite bounds are constraints."""
-        ...
-
-    def create_data(self) -> pin.Data:
-        """Return a fresh ``pinocchio.Data``."""
-        ...
-
-    def evaluate(self, x: ArrayLike, data: pin.Data | None = None) -> Evaluation:
-        """Objective, constraints and their derivatives at ``x``."""
-        ...
-
-    def objective(self, x: ArrayLike) -> float:
-        """``E`` at ``x`` in [rad^2]."""
-        ...
-
-    def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
-        """Constraint rows ``c(x)``."""
-        ...
 
 
 def require_within_limits(
@@ -165,62 +120,253 @@ def path_configurations(x: ArrayLike, n_targets: int, n_joints: int, name: str =
     return arr.reshape(n_targets, n_joints)
 
 
+_PIN_BIG = 1e10  # a URDF/Pinocchio limit beyond this is "no limit"
+
+
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class CyclicIKProblem:
-    r"""Minimum-motion cyclic joint path through tip targets.
+    r"""Minimum-motion cyclic joint path of a robot frame through targets.
 
     .. math::
 
-        \min_{Q} \; E(Q) = \tfrac12 \sum_{j=1}^{s} \lVert q_{j+1} - q_j \rVert^2,
+        \min_{Q} \; E(Q) = \tfrac12 \sum_{j=1}^{s} (q_{j+1} - q_j)^T W (q_{j+1} - q_j),
         \quad q_{s+1} \equiv q_1, \qquad
-        \text{s.t.}\; F(q_j) = p_j,\; \ell \le q_j \le u \;(j = 1..s).
+        \text{s.t. target } j \text{ met at } q_j,\; \ell \le q_j \le u.
 
-    ``Q`` is the ``(s, n)`` array of configurations; solvers work on its
-    row-major flattening ``x = Q.ravel()`` (``n s`` unknowns) and the ``2 s``
-    equality constraints ``c(x) = (F(q_1) - p_1, ..., F(q_s) - p_s)``
-    (``F`` and ``dF/dq`` from Pinocchio).
+    ``Q`` is the ``(s, n)`` array of the active joints' angles; solvers work on
+    its row-major flattening ``x = Q.ravel()`` (``n s`` unknowns) and ``m``
+    constraint rows per target (position 3, pose 6, approach 5; on a planar
+    robot a position has 2 rows, its plane coordinates). Continuous joints are
+    never wrapped.
 
     Attributes
     ----------
-    chain : PlanarChain
-        The arm (its ``q_lower``/``q_upper`` are the joint limits).
-    targets : ndarray, shape (s, 2)
-        Tip targets in [m], visited in order and cyclically; ``s >= 2``.
+    robot : RobotModel or PlanarChain
+        The robot (``load_model("ur5")``), or a planar chain of study 2 (its
+        exact reachability verdicts, closed-form IPOPT kinematics and feasible
+        starts are then used). A bare ``pinocchio.Model`` is wrapped
+        (:meth:`RobotModel.from_pin_model`). Its joints that move ``frame`` must
+        be 1-DoF (revolute, continuous, prismatic).
+    robot_model : RobotModel
+        The robot as a RobotModel (a chain's :meth:`PlanarChain.robot`).
+    targets : tuple of Target
+        Targets in visiting order (``s >= 2``). A position of 2 numbers is a
+        planar robot's plane coordinates [m] (:attr:`plane`); it is stored as
+        the world position. Bare points (2 or 3 numbers) are accepted as
+        position targets.
+    frame : str
+        Frame that visits the targets (default: the robot's tip frame).
     use_limits : bool
-        Whether the chain's joint limits are constraints of the problem.
+        Whether joint limits are constraints.
+    q_lower, q_upper : ndarray, shape (n,), optional
+        Joint limits of the active joints in [rad] (or [m]); default the
+        robot's (continuous joints: unlimited).
+    joint_weights : ndarray, shape (n,), optional
+        Diagonal ``W`` of the cost (default ones).
+    chain : PlanarChain or None
+        The planar chain the problem was built on or, for a RobotModel that is
+        planar for ``frame`` with position targets only, its chain
+        (:func:`~youbot_opt.robot.planar.chain_from_robot`, with the problem's
+        limits); None otherwise. The planar methods (exact reachability,
+        closed-form IPOPT, feasible starts) need it.
+    model : pinocchio.Model
+        The robot's kinematic model.
+    plane : Plane or None
+        The plane the frame moves in when the robot is planar for it
+        (:func:`~youbot_opt.robot.planar.motion_plane`), else None. A planar
+        robot's position rows are the 2 plane coordinates of the error
+        (``plane.basis.T (p - p_j)``), not 3: the third is identically zero and
+        would leave IPOPT more equations than unknowns. Its position targets
+        must lie in the plane (within their ``position_tol``).
+    target_points : ndarray, shape (s, 2) or (s, 3)
+        Target positions in [m]: plane coordinates on a planar robot, else world.
     """
 
-    chain: PlanarChain
-    targets: Array
+    robot: RobotModel | PlanarChain
+    targets: tuple[Target, ...]
+    frame: str = ""
     use_limits: bool = True
+    q_lower: Array | None = None
+    q_upper: Array | None = None
+    joint_weights: Array | None = None
+    robot_model: RobotModel = field(init=False)
+    chain: PlanarChain | None = field(init=False)
+    model: pin.Model = field(init=False)
+    frame_id: int = field(init=False)
+    active: Array = field(init=False)
+    neutral: Array = field(init=False)
+    continuous: Array = field(init=False)
+    plane: Plane | None = field(init=False)
+    target_points: Array = field(init=False)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.chain, PlanarChain):
+        robot: object = self.robot
+        chain = None
+        if isinstance(robot, PlanarChain):
+            chain, robot = robot, robot.robot()
+        elif isinstance(robot, pin.Model):
+            robot = RobotModel.from_pin_model(robot)
+            object.__setattr__(self, "robot", robot)
+        if not isinstance(robot, RobotModel):
             raise ParameterError(
-                f"chain must be a PlanarChain, got {type(self.chain).__name__}",
-                name="chain",
-                value=self.chain,
+                "robot must be a RobotModel (load_model(...)), a PlanarChain or a "
+                f"pinocchio.Model, got {type(robot).__name__}",
+                name="robot",
+                value=type(robot).__name__,
             )
-        targets = check_shape(self.targets, ("s", 2), "targets")
-        if targets.shape[0] < 2:
+        model = robot.model
+        frame = str(self.frame) if self.frame else robot.tip_frame
+        if not model.existFrame(frame):
+            names = ", ".join(f.name for f in model.frames)
             raise ParameterError(
-                f"a cyclic path needs at least 2 targets, got {targets.shape[0]}",
+                f"the model has no frame {frame!r}; frames: {names}",
+                name="frame",
+                value=frame,
+            )
+        fid = int(model.getFrameId(frame))
+        support = [j for j in model.supports[model.frames[fid].parentJoint] if j > 0]
+        idx_v, cont = [], []
+        for j in support:
+            joint = model.joints[j]
+            if joint.nv != 1 or joint.nq not in (1, 2):
+                raise ParameterError(
+                    f"joint {model.names[j]!r} ({joint.shortname()}) has nq = {joint.nq}, "
+                    f"nv = {joint.nv}; the cyclic IK path supports 1-DoF joints only "
+                    "(revolute, continuous, prismatic)",
+                    name="robot",
+                    value=model.names[j],
+                )
+            idx_v.append(joint.idx_v)
+            cont.append(joint.nq == 2)
+        if not idx_v:
+            raise ParameterError(f"no joint moves frame {frame!r}", name="frame", value=frame)
+        active = np.array([model.joints[j].idx_q for j in support])
+        n = len(support)
+        cont_arr = np.array(cont)
+        if chain is not None:
+            lo, hi = np.array(chain.q_lower), np.array(chain.q_upper)
+        else:
+            lo = np.array([model.lowerPositionLimit[i] for i in active])
+            hi = np.array([model.upperPositionLimit[i] for i in active])
+            unlimited = cont_arr | (lo <= -_PIN_BIG) | (hi >= _PIN_BIG) | (lo >= hi)
+            lo = np.where(unlimited, -np.inf, lo)
+            hi = np.where(unlimited, np.inf, hi)
+        for key, default in (("q_lower", lo), ("q_upper", hi)):
+            value = getattr(self, key)
+            arr = default if value is None else np.broadcast_to(np.array(value, float), (n,)).copy()
+            if np.any(np.isnan(arr)):
+                raise ParameterError(f"{key} must not be NaN", name=key, value=value)
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+        assert self.q_lower is not None and self.q_upper is not None
+        if np.any(self.q_lower > self.q_upper):
+            raise ParameterError(
+                f"q_lower must be <= q_upper, got {self.q_lower} > {self.q_upper}",
+                name="q_lower",
+                value=self.q_lower,
+            )
+        weights = np.ones(n) if self.joint_weights is None else np.array(self.joint_weights, float)
+        if weights.shape != (n,) or not np.all(np.isfinite(weights)) or np.any(weights <= 0):
+            raise ParameterError(
+                f"joint_weights must be {n} finite positive numbers, got {self.joint_weights!r}",
+                name="joint_weights",
+                value=self.joint_weights,
+            )
+        weights.setflags(write=False)
+        neutral = pin.neutral(model)
+        for j in range(1, model.njoints):  # joints off the frame's chain: clipped neutral
+            joint = model.joints[j]
+            if joint.nq == 1 and j not in support:
+                i = joint.idx_q
+                lo_i, hi_i = model.lowerPositionLimit[i], model.upperPositionLimit[i]
+                if lo_i <= hi_i:
+                    neutral[i] = min(max(neutral[i], lo_i), hi_i)
+        plane = motion_plane(model, fid, neutral)
+        targets, points = _check_targets(self.targets, plane, frame)
+        if chain is not None and any(t.kind != "position" for t in targets):
+            raise ParameterError(
+                "a PlanarChain's targets are positions; load the chain as a RobotModel "
+                "for pose or approach targets",
                 name="targets",
-                value=targets.shape[0],
+                value=[t.kind for t in targets],
             )
-        targets.setflags(write=False)
-        object.__setattr__(self, "targets", targets)
-        object.__setattr__(self, "use_limits", bool(self.use_limits))
+        if chain is None and plane is not None and all(t.kind == "position" for t in targets):
+            try:  # a planar RobotModel: its chain, for the exact planar methods
+                chain = chain_from_robot(robot, frame).with_limits(self.q_lower, self.q_upper)
+            except ModelError:
+                chain = None
+        for key, value in (
+            ("robot_model", robot),
+            ("frame", frame),
+            ("targets", targets),
+            ("use_limits", bool(self.use_limits)),
+            ("joint_weights", weights),
+            ("chain", chain),
+            ("model", model),
+            ("frame_id", fid),
+            ("active", np.array(support)),
+            ("neutral", neutral),
+            ("continuous", cont_arr),
+            ("plane", plane),
+            ("target_points", points),
+        ):
+            object.__setattr__(self, key, value)
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickle by the defining fields, without the robot's geometry (meshes)."""
+        robot: RobotModel | PlanarChain
+        if isinstance(self.robot, PlanarChain):
+            robot = self.robot
+        else:
+            robot = replace(
+                self.robot_model,
+                visual_model=pin.GeometryModel(),
+                collision_model=pin.GeometryModel(),
+            )
+        spec = {
+            "robot": robot,
+            "targets": self.targets,
+            "frame": self.frame,
+            "use_limits": self.use_limits,
+            "q_lower": self.q_lower,
+            "q_upper": self.q_upper,
+            "joint_weights": self.joint_weights,
+        }
+        return (_rebuild_problem, (spec,))
+
+    @property
+    def planar_chain(self) -> PlanarChain:
+        """The :attr:`chain` the planar methods need (exact reachability, closed-form IPOPT).
+
+        Raises
+        ------
+        ParameterError
+            If the robot is not a planar chain for the frame (or has pose targets).
+        """
+        if self.chain is None:
+            raise ParameterError(
+                f"this needs a planar robot with position targets; robot "
+                f"{self.robot_model.name!r} is not planar for frame {self.frame!r}",
+                name="robot",
+                value=self.robot_model.name,
+            )
+        return self.chain
+
+    @property
+    def visual_model(self) -> pin.GeometryModel:
+        """The robot's visual geometry (for replay)."""
+        return self.robot_model.visual_model
+
+    # -- sizes and bounds ------------------------------------------------------------
     @property
     def n_targets(self) -> int:
         """Number of targets ``s``."""
-        return int(self.targets.shape[0])
+        return len(self.targets)
 
     @property
     def n_joints(self) -> int:
-        """Number of joints ``n``."""
-        return self.chain.n
+        """Number of active joints ``n``."""
+        return int(self.active.size)
 
     @property
     def n_variables(self) -> int:
@@ -228,101 +374,395 @@ class CyclicIKProblem:
         return self.n_targets * self.n_joints
 
     @property
-    def n_constraints(self) -> int:
-        """Number of equality constraints ``2 s``."""
-        return 2 * self.n_targets
+    def position_rows(self) -> int:
+        """Rows of a position error: 2 on a planar robot (its plane coordinates), else 3."""
+        return 3 if self.plane is None else 2
 
-    def create_data(self) -> pin.Data:
-        """Return a fresh ``pinocchio.Data`` of the chain."""
-        return self.chain.create_data()
+    def rows_of(self, target: Target) -> int:
+        """Constraint rows of ``target`` on this robot (position rows + orientation rows)."""
+        return target.n_rows - 3 + self.position_rows
+
+    @property
+    def block_rows(self) -> int:
+        """Rows per constraint block ``m`` (largest target; others padded with zeros)."""
+        return max(self.rows_of(t) for t in self.targets)
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of constraint rows ``m s`` (padding included)."""
+        return self.block_rows * self.n_targets
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the active joints."""
+        return tuple(self.model.names[int(j)] for j in self.active)
 
     @property
     def bounded(self) -> bool:
         """Whether finite joint limits are constraints of this problem."""
-        return self.use_limits and self.chain.bounded
+        assert self.q_lower is not None and self.q_upper is not None
+        return self.use_limits and bool(
+            np.any(np.isfinite(self.q_lower)) or np.any(np.isfinite(self.q_upper))
+        )
 
     @property
     def lower(self) -> Array:
-        """Lower bound on ``x`` in [rad], shape (n s,); -inf where unlimited."""
+        """Lower bound on ``x`` [rad], shape (n s,); -inf where unlimited."""
+        assert self.q_lower is not None
         if not self.use_limits:
             return np.full(self.n_variables, -np.inf)
-        return np.tile(self.chain.q_lower, self.n_targets)
+        return np.tile(self.q_lower, self.n_targets)
 
     @property
     def upper(self) -> Array:
-        """Upper bound on ``x`` in [rad], shape (n s,); +inf where unlimited."""
+        """Upper bound on ``x`` [rad], shape (n s,); +inf where unlimited."""
+        assert self.q_upper is not None
         if not self.use_limits:
             return np.full(self.n_variables, np.inf)
-        return np.tile(self.chain.q_upper, self.n_targets)
+        return np.tile(self.q_upper, self.n_targets)
+
+    def create_data(self) -> pin.Data:
+        """Return a fresh ``pinocchio.Data``."""
+        return self.model.createData()
+
+    def with_targets(self, targets: Sequence[Target]) -> CyclicIKProblem:
+        """Return the same robot, frame, limits and weights with other targets."""
+        return CyclicIKProblem(
+            robot=self.robot,
+            frame=self.frame,
+            targets=tuple(targets),
+            use_limits=self.use_limits,
+            q_lower=self.q_lower,
+            q_upper=self.q_upper,
+            joint_weights=self.joint_weights,
+        )
+
+    # -- kinematics -------------------------------------------------------------------
+    def configuration(self, theta: ArrayLike) -> Array:
+        """Pinocchio configuration (nq,) of active joint angles ``theta`` (n,) in [rad].
+
+        A continuous joint's angle ``a`` becomes ``(cos a, sin a)``; other joints
+        keep their (clipped) neutral value.
+        """
+        theta = np.asarray(theta, dtype=float)
+        q = self.neutral.copy()
+        for k, j in enumerate(self.active):
+            i = self.model.joints[int(j)].idx_q
+            if self.continuous[k]:
+                q[i], q[i + 1] = math.cos(theta[k]), math.sin(theta[k])
+            else:
+                q[i] = theta[k]
+        return q
+
+    def placement(self, theta: ArrayLike, data: pin.Data | None = None) -> pin.SE3:
+        """World placement of the frame at active angles ``theta``."""
+        data = self.create_data() if data is None else data
+        pin.framesForwardKinematics(self.model, data, self.configuration(theta))
+        return data.oMf[self.frame_id].copy()
 
     def as_configurations(self, x: ArrayLike, name: str = "x") -> Array:
         """Return ``x`` as a finite (s, n) array in [rad] (:func:`path_configurations`)."""
         return path_configurations(x, self.n_targets, self.n_joints, name)
 
-    def objective(self, x: ArrayLike) -> float:
-        """``E = 1/2 sum_j |q_{j+1} - q_j|^2`` (cyclic) in [rad^2]."""
+    def block(self, j: int, theta: Array, data: pin.Data) -> tuple[Array, Array]:
+        """Constraint rows ``c_j`` (m,) and Jacobian (m, n) of target ``j`` at ``theta``.
+
+        Position rows are ``p - p_j`` (Jacobian ``R J_v`` from the LOCAL frame
+        Jacobian), on a planar robot ``B^T (p - p_j)`` with ``B = plane.basis``;
+        pose rows ``w log3(R_j^T R)`` with Jacobian ``w Jlog3 J_w``;
+        approach rows ``w b_k^T R a`` with Jacobian ``-w b_k^T R [a]_x J_w``.
+        """
+        target = self.targets[j]
+        m, n = self.block_rows, self.n_joints
+        q = self.configuration(theta)
+        pin.computeJointJacobians(self.model, data, q)  # also the joint placements
+        pin.updateFramePlacement(self.model, data, self.frame_id)
+        jac = pin.getFrameJacobian(self.model, data, self.frame_id, pin.LOCAL)
+        jac = np.reshape(jac, (6, -1))[:, self.active_v]
+        oMf = data.oMf[self.frame_id]
+        rot = oMf.rotation
+        c = np.zeros(m)
+        block = np.zeros((m, n))
+        if self.plane is None:
+            c[:3] = oMf.translation - target.position
+            block[:3] = rot @ jac[:3]
+        else:
+            axes = self.plane.basis.T
+            c[:2] = axes @ (oMf.translation - target.position)
+            block[:2] = axes @ (rot @ jac[:3])
+        k = self.position_rows
+        w = target.orientation_weight
+        if target.rotation is not None:
+            r_err = target.rotation.T @ rot
+            c[k : k + 3] = w * pin.log3(r_err)
+            block[k : k + 3] = w * (pin.Jlog3(r_err) @ jac[3:])
+        elif target.approach is not None:
+            basis = target.approach_basis()
+            a = target.approach_axis
+            c[k : k + 2] = w * (basis @ (rot @ a))
+            block[k : k + 2] = -w * (basis @ rot @ pin.skew(a) @ jac[3:])
+        return c, block
+
+    @property
+    def weights(self) -> Array:
+        """Diagonal of ``W``, shape (n,)."""
+        return cast(Array, self.joint_weights)
+
+    @property
+    def active_v(self) -> Array:
+        """Velocity indices of the active joints."""
+        return np.array([self.model.joints[int(j)].idx_v for j in self.active])
+
+    @property
+    def row_mask(self) -> npt.NDArray[np.bool_]:
+        """Which of the ``m`` rows of each block are constraints (False: padding), (s, m)."""
+        mask = np.zeros((self.n_targets, self.block_rows), dtype=bool)
+        for j, target in enumerate(self.targets):
+            mask[j, : self.rows_of(target)] = True
+        return mask
+
+    def lagrangian_hessian(
+        self, x: ArrayLike, multipliers: ArrayLike, data: pin.Data | None = None
+    ) -> Array:
+        """Hessian of ``E - lambda^T c`` at ``x``, shape (n s, n s), in [rad^2/rad^2].
+
+        ``d2E`` is exact (the cyclic difference matrix times ``W``); each target's
+        ``sum_k lambda_jk d2c_jk`` is a central difference of the analytic Jacobian
+        block (step 1e-5 rad: truncation ~1e-10 |c'''|, rounding ~1e-11 |J|; used
+        only for Newton steps, whose convergence is checked on exact residuals).
+        """
         q = self.as_configurations(x)
-        return 0.5 * float(np.sum((np.roll(q, -1, axis=0) - q) ** 2))
+        lam = np.asarray(multipliers, dtype=float).reshape(self.n_targets, self.block_rows)
+        data = self.create_data() if data is None else data
+        s, n = q.shape
+        w = np.diag(self.weights)
+        hess = np.zeros((s * n, s * n))
+        for j in range(s):  # leg j -> j + 1 (cyclic); s = 2 adds both legs to one pair
+            a, b = slice(j * n, (j + 1) * n), slice(((j + 1) % s) * n, ((j + 1) % s + 1) * n)
+            hess[a, a] += w
+            hess[b, b] += w
+            hess[a, b] -= w
+            hess[b, a] -= w
+        h = 1e-5
+        for j in range(s):
+            if not np.any(lam[j]):
+                continue
+            curv = np.empty((n, n))
+            for i in range(n):
+                step = np.zeros(n)
+                step[i] = h
+                plus = self.block(j, q[j] + step, data)[1]
+                minus = self.block(j, q[j] - step, data)[1]
+                curv[:, i] = lam[j] @ (plus - minus) / (2.0 * h)
+            hess[j * n : (j + 1) * n, j * n : (j + 1) * n] -= 0.5 * (curv + curv.T)
+        return hess
+
+    def objective(self, x: ArrayLike) -> float:
+        """``E = 1/2 sum_j dq_j^T W dq_j`` (cyclic), never wrapped, in [rad^2]."""
+        q = self.as_configurations(x)
+        d = np.roll(q, -1, axis=0) - q
+        return 0.5 * float(np.sum(d * d * self.weights))
 
     def objective_gradient(self, x: ArrayLike) -> Array:
-        """``dE/dx`` in [rad], shape (n s,): ``2 q_j - q_{j-1} - q_{j+1}`` per block."""
+        """``dE/dx`` in [rad], shape (n s,): ``W (2 q_j - q_{j-1} - q_{j+1})`` per block."""
         q = self.as_configurations(x)
-        return (2.0 * q - np.roll(q, 1, axis=0) - np.roll(q, -1, axis=0)).ravel()
+        return ((2.0 * q - np.roll(q, 1, axis=0) - np.roll(q, -1, axis=0)) * self.weights).ravel()
 
     def tip_positions(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
-        """Tip positions ``F(q_j)`` in [m], shape (s, 2), by Pinocchio."""
-        q = self.as_configurations(x)
-        data = self.chain.create_data() if data is None else data
-        return np.array([self.chain.tip_position(qj, data) for qj in q])
+        """Frame positions in [m] as the targets give them, shape (s, 2) or (s, 3).
 
-    def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
-        """``c(x) = F(q_j) - p_j`` stacked, shape (2 s,), in [m]."""
-        return (self.tip_positions(x, data) - self.targets).ravel()
+        Plane coordinates on a planar robot (a chain's ``tip_position``), world
+        coordinates otherwise; by Pinocchio forward kinematics.
+        """
+        q = self.as_configurations(x)
+        data = self.create_data() if data is None else data
+        if isinstance(self.robot, PlanarChain):
+            return np.array([self.robot.tip_position(qj, data) for qj in q])
+        pts = np.array([self.placement(qj, data).translation for qj in q])
+        return pts if self.plane is None else pts @ self.plane.basis
 
     def residuals(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
-        """Per-target residual ``|F(q_j) - p_j|`` in [m], shape (s,)."""
-        return np.linalg.norm(self.tip_positions(x, data) - self.targets, axis=1)
-
-    def limit_violation(self, x: ArrayLike) -> float:
-        """Largest joint-limit violation in [rad] (0 when within limits or unlimited)."""
-        xv = self.as_configurations(x).ravel()
-        over = np.maximum(self.lower - xv, xv - self.upper)
-        return float(max(0.0, np.max(over)))
+        """Per-target position miss ``|F(q_j) - p_j|`` in [m], shape (s,)."""
+        return np.linalg.norm(self.tip_positions(x, data) - self.target_points, axis=1)
 
     def evaluate(self, x: ArrayLike, data: pin.Data | None = None) -> Evaluation:
-        """Objective, gradient, constraints and constraint Jacobian blocks at ``x``."""
+        """Objective, gradient, constraints and Jacobian blocks (s, m, n) at ``x``."""
         q = self.as_configurations(x)
-        data = self.chain.create_data() if data is None else data
+        data = self.create_data() if data is None else data
+        if isinstance(self.robot, PlanarChain):
+            return self._evaluate_chain(q, data)
+        s = q.shape[0]
+        c = np.empty((s, self.block_rows))
+        blocks = np.empty((s, self.block_rows, self.n_joints))
+        for j in range(s):
+            c[j], blocks[j] = self.block(j, q[j], data)
+        nxt = q[np.r_[1:s, 0]]
+        prv = q[np.r_[s - 1, 0 : s - 1]]
+        diff = nxt - q
+        w = self.weights
+        grad = ((2.0 * q - prv - nxt) * w).ravel()
+        return Evaluation(0.5 * float(np.sum(diff * diff * w)), grad, c.ravel(), blocks)
+
+    def _evaluate_chain(self, q: Array, data: pin.Data) -> Evaluation:
+        """:meth:`evaluate` on a PlanarChain: 2 rows per target, world-aligned Jacobian."""
+        chain = cast(PlanarChain, self.robot)
         s, n = q.shape
         c = np.empty((s, 2))
         blocks = np.empty((s, 2, n))
-        model, fid = self.chain.model, self.chain.tip_frame_id
+        model, fid = chain.model, chain.tip_frame_id
         frame = pin.LOCAL_WORLD_ALIGNED
         for j in range(s):  # hot loop: Pinocchio directly (q[j] is validated above)
             jac = pin.computeFrameJacobian(model, data, q[j], fid, frame)
             blocks[j] = np.reshape(jac, (6, n))[:2]  # a 1-joint model returns shape (6,)
-            c[j] = data.oMf[fid].translation[:2] - self.targets[j]
+            c[j] = data.oMf[fid].translation[:2] - self.target_points[j]
         nxt = q[np.r_[1:s, 0]]
         prv = q[np.r_[s - 1, 0 : s - 1]]
         diff = nxt - q
         grad = (2.0 * q - prv - nxt).ravel()
         return Evaluation(0.5 * float(np.sum(diff * diff)), grad, c.ravel(), blocks)
 
+    def constraints(self, x: ArrayLike, data: pin.Data | None = None) -> Array:
+        """Constraint rows ``c(x)`` (m s,), padding included."""
+        q = self.as_configurations(x)
+        data = self.create_data() if data is None else data
+        if isinstance(self.robot, PlanarChain):
+            return (self.tip_positions(q, data) - self.target_points).ravel()
+        return np.concatenate([self.block(j, q[j], data)[0] for j in range(q.shape[0])])
+
+    def errors(self, x: ArrayLike) -> tuple[Array, Array]:
+        """Per-target position [m] and orientation [rad] errors by ``framesForwardKinematics``."""
+        q = self.as_configurations(x)
+        data = self.create_data()
+        out = np.array([t.errors(self.placement(q[j], data)) for j, t in enumerate(self.targets)])
+        return out[:, 0], out[:, 1]
+
+    def targets_met(self, x: ArrayLike) -> npt.NDArray[np.bool_]:
+        """Per-target bool: within its position and orientation tolerances."""
+        pos, ang = self.errors(x)
+        pt = np.array([t.position_tol for t in self.targets])
+        ot = np.array([t.orientation_tol for t in self.targets])
+        return (pos <= pt) & (ang <= ot)
+
+    def limit_violation(self, x: ArrayLike) -> float:
+        """Largest joint-limit violation in [rad] (0 within limits or unlimited)."""
+        xv = self.as_configurations(x).ravel()
+        return float(max(0.0, np.max(np.maximum(self.lower - xv, xv - self.upper))))
+
     def default_start(self) -> Array:
-        """Return the study's start: the zero vector clipped into the limits, shape (n s,)."""
+        """Return the zero vector clipped into the limits, shape (n s,)."""
         return np.clip(np.zeros(self.n_variables), self.lower, self.upper)
 
     def check_start(self, x0: ArrayLike | None) -> Array:
-        """Validate an initial guess (``None`` = :meth:`default_start`), shape (n s,).
+        """Validate a start (``None``: :meth:`default_start`), shape (n s,).
 
         Raises
         ------
         ParameterError
-            If ``x0`` has the wrong size, is not finite, or lies outside the limits.
+            Wrong size, not finite, or outside the limits (names the entry).
         """
         if x0 is None:
             return self.default_start()
         x = self.as_configurations(x0, name="x0").ravel().copy()
-        labels = [str(i) for i in range(self.n_joints)]
-        require_within_limits(x, self.lower, self.upper, labels, unit=" rad")
+        if isinstance(self.robot, PlanarChain):
+            labels, unit = [str(i) for i in range(self.n_joints)], " rad"
+        else:
+            labels, unit = [repr(name) for name in self.joint_names], ""
+        require_within_limits(x, self.lower, self.upper, labels, unit=unit)
         return x
+
+    def reach_radius(self) -> tuple[Array, float]:
+        """Centre [m] and radius [m] of a sphere that contains every frame position.
+
+        The centre is the first active joint's origin (fixed: nothing moves
+        it); the radius sums, along the chain, the distances between
+        consecutive joint origins, the frame's offset and the largest travel
+        of prismatic joints (triangle inequality; any joint angles).
+        """
+        data = self.create_data()
+        pin.framesForwardKinematics(self.model, data, self.configuration(np.zeros(self.n_joints)))
+        first = int(self.active[0])
+        centre = data.oMi[first].translation.copy()
+        radius = 0.0
+        for j in self.active[1:]:
+            radius += float(np.linalg.norm(self.model.jointPlacements[int(j)].translation))
+        for k, j in enumerate(self.active):
+            joint = self.model.joints[int(j)]
+            if joint.shortname().startswith("JointModelP"):
+                lo, hi = self.q_lower[k], self.q_upper[k]  # type: ignore[index]
+                radius += float(max(abs(lo), abs(hi)))
+        # Fixed joints between active ones are folded into jointPlacements; the frame's
+        # offset from its parent joint closes the chain.
+        radius += float(np.linalg.norm(self.model.frames[self.frame_id].placement.translation))
+        return centre, radius
+
+
+def _check_targets(
+    raw: Sequence[Target | ArrayLike] | ArrayLike, plane: Plane | None, frame: str
+) -> tuple[tuple[Target, ...], Array]:
+    """Targets (points become position targets) and their positions, validated.
+
+    Raises
+    ------
+    ParameterError
+        Fewer than 2 targets, a point of the wrong size or not finite, a
+        2-number point on a robot that is not planar, a target off the plane.
+    """
+    items = list(raw) if isinstance(raw, (Sequence, np.ndarray)) else [raw]
+    if isinstance(raw, np.ndarray) and raw.ndim == 1:
+        items = [raw]
+    targets: list[Target] = []
+    points: list[Array] = []
+    want = "(s, 3) (world)" if plane is None else "(s, 2) (plane coordinates) or (s, 3) (world)"
+    for item in items:
+        if isinstance(item, Target) and item.position.size == 3:
+            targets.append(item)
+            points.append(item.position if plane is None else item.position @ plane.basis)
+            continue
+        tol = item.position_tol if isinstance(item, Target) else None
+        point = np.array(item.position if isinstance(item, Target) else item, dtype=float)
+        if point.ndim != 1 or point.size not in (2, 3) or (point.size == 2 and plane is None):
+            raise ParameterError(
+                f"targets must be SpatialTargets or points of shape {want} in [m], got "
+                f"{np.asarray(raw, dtype=object).tolist()!r}",
+                name="targets",
+                value=raw,
+            )
+        if not np.all(np.isfinite(point)):
+            raise ParameterError(
+                f"target points must be finite, got {point.tolist()}", name="targets", value=point
+            )
+        if point.size == 2:
+            assert plane is not None
+            world = plane.basis @ point + plane.normal * plane.offset
+            targets.append(
+                Target(position=world) if tol is None else Target(position=world, position_tol=tol)
+            )
+            points.append(point)
+        else:
+            targets.append(Target(position=point))
+            points.append(point if plane is None else point @ plane.basis)
+    if len(targets) < 2:
+        raise ParameterError(
+            f"a cyclic path needs at least 2 targets, got {len(targets)}",
+            name="targets",
+            value=len(targets),
+        )
+    if plane is not None:
+        for j, target in enumerate(targets):
+            off = plane.distance(target.position)
+            if off > target.position_tol:
+                raise ParameterError(
+                    f"frame {frame!r} moves in the plane {plane.normal.tolist()} . p = "
+                    f"{plane.offset:.6g} m (its joints turn about parallel axes); target "
+                    f"{j} lies {off:.3g} m off it (position_tol {target.position_tol:.3g} m) "
+                    "and cannot be reached",
+                    name="targets",
+                    value=j,
+                )
+    out = np.array(points, dtype=float)
+    out.setflags(write=False)
+    return tuple(targets), out
+
+
+def _rebuild_problem(spec: dict[str, Any]) -> CyclicIKProblem:
+    return CyclicIKProblem(**spec)

@@ -223,12 +223,12 @@ class IKPathResult:
     @property
     def model(self) -> pin.Model:
         """Pinocchio model of the chain (for replay)."""
-        return self.problem.chain.model
+        return self.problem.planar_chain.model
 
     @property
     def visual_model(self) -> pin.GeometryModel:
         """Primitive-shape visual model of the chain (for replay)."""
-        return self.problem.chain.visual_model
+        return self.problem.planar_chain.visual_model
 
     def max_residual(self) -> float:
         """Largest target residual in [m]."""
@@ -325,7 +325,7 @@ def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
     residuals = problem.residuals(q)
     energy = problem.objective(q)
     excess = problem.limit_violation(q)
-    chain = problem.chain
+    chain = problem.planar_chain
     # Rounding of the tip position [m]: Pinocchio vs the solver's own kinematics
     # (the same Pinocchio calls for AL, CasADi's closed form for IPOPT) differ by
     # a few ulps of the largest coordinate; 1e-12 per metre of reach covers it.

@@ -1,9 +1,12 @@
-"""One IK-path solve: reachability first, then the chosen method.
+"""One IK-path solve: ``solve(problem, method="al" | "ipopt")``, defaults per robot kind.
 
-``solve(problem, method="al" | "ipopt")`` decides every target's reachability
-(:mod:`.reachability`), stops with :class:`~youbot_opt.exceptions.UnreachableTarget`
-if one is unreachable, and otherwise runs the method from ``x0`` (default:
-the zero vector, clipped into the limits).
+A planar robot's problem has its reachability decided first (exact verdicts,
+:mod:`.reachability.planar`; :class:`~youbot_opt.exceptions.UnreachableTarget`
+if a target is unreachable) and is solved by the planar methods; any other
+robot's by the general ones (:func:`solve` says which defaults). The start is
+``x0`` (default: the zero vector, clipped into the limits).
+
+>>> result = solve(problem, method="ipopt")  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -15,11 +18,17 @@ from typing import Literal
 from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.ipopt import solve_ipopt
+from youbot_opt.ikpath.methods.al import (
+    ALOptions,
+    run_augmented_lagrangian,
+    solve_augmented_lagrangian,
+)
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_ipopt, solve_spatial_ipopt
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import Reachability, ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.spatial import require_spatial_reachable
 from youbot_opt.ikpath.result import IKPathResult
+from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 
 __all__ = ["Method", "METHODS", "solve", "check_targets"]
@@ -79,9 +88,20 @@ def solve(
     method: Method = "al",
     x0: ArrayLike | None = None,
     options: ALOptions | IpoptOptions | None = None,
-    check_reachability: bool = True,
-) -> IKPathResult:
-    """Solve the cyclic IK-path problem once.
+    check_reachability: bool | None = None,
+    planar: bool | None = None,
+) -> IKPathResult | SpatialIKResult:
+    """Solve the cyclic IK-path problem once, with the defaults of its robot's kind.
+
+    A problem with a planar chain (:attr:`CyclicIKProblem.chain`: a PlanarChain,
+    or a RobotModel that is planar for the frame with position targets) is
+    solved by the planar methods: the exact reachability verdicts first, the
+    study's AL settings (``ALOptions()``) or IPOPT on the chain's closed form, a
+    result with per-target residuals (:class:`IKPathResult`). Any other problem
+    (or ``planar=False``) by the general ones: the AL with
+    :data:`~youbot_opt.ikpath.spatial.SPATIAL_AL_OPTIONS` or IPOPT on the
+    frame's symbolic kinematics, reachability not decided unless asked, a
+    result with position and orientation errors (:class:`SpatialIKResult`).
 
     Parameters
     ----------
@@ -92,26 +112,48 @@ def solve(
     x0 : array_like, shape (n s,) or (s, n), optional
         Start in [rad]; the zero vector (clipped into the limits) by default.
     options : ALOptions or IpoptOptions, optional
-        Settings of the chosen method (for ``"ipopt"``: default
-        :meth:`IpoptOptions.for_ikpath`, and ``constr_viol_tol`` must be set).
-    check_reachability : bool
-        Decide every target's reachability first (recommended).
+        Settings of the chosen method (default: the robot kind's, see above;
+        IPOPT: :meth:`IpoptOptions.for_ikpath`); ``max_wall_time`` [s] bounds
+        the solve (status ``max_time``).
+    check_reachability : bool, optional
+        Decide every target's reachability first (default: True for the planar
+        methods, False for the general ones).
+    planar : bool, optional
+        Use the planar methods (default: when the problem has a chain); False
+        solves a planar robot by the general methods (to compare them).
 
     Returns
     -------
-    IKPathResult
-        A failed solve is a status; call ``raise_for_status()`` to raise.
+    IKPathResult or SpatialIKResult
+        A failed solve is a status; call ``raise_for_status()`` to raise
+        (planar), or read ``status`` and ``message`` (which names the blocking
+        target).
 
     Raises
     ------
     UnreachableTarget
-        If a target is unreachable (message: verdict, reach, nearest point).
+        If the reachability is checked and a target is unreachable (message:
+        verdict, reach, nearest point or certificate).
     ParameterError
-        For an unknown method, foreign options or an invalid start.
+        For an unknown method, foreign options, an invalid start, or
+        ``planar=True`` on a problem without a chain.
     """
     check_method(method, options)
+    use_planar = problem.chain is not None if planar is None else bool(planar)
+    if use_planar:
+        problem.planar_chain  # noqa: B018 - raises ParameterError without a chain
+        if check_reachability is None or check_reachability:
+            check_targets(problem)
+        if method == "al":
+            return solve_augmented_lagrangian(problem, x0, options)  # type: ignore[arg-type]
+        return solve_ipopt(problem, x0, options)  # type: ignore[arg-type]
     if check_reachability:
-        check_targets(problem)
-    if method == "al":
-        return solve_augmented_lagrangian(problem, x0, options)  # type: ignore[arg-type]
-    return solve_ipopt(problem, x0, options)  # type: ignore[arg-type]
+        require_spatial_reachable(problem)
+    if method == "ipopt":
+        if options is None:
+            return solve_spatial_ipopt(problem, x0)
+        return SpatialIpoptSolver(problem, options).solve(x0)  # type: ignore[arg-type]
+    opts = SPATIAL_AL_OPTIONS if options is None else options
+    start = problem.check_start(x0)
+    run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
+    return build_spatial_result(problem, **run.result_fields(start))

@@ -33,8 +33,9 @@ from youbot_opt.ikpath.io import (
     read_document,
     write_document,
 )
-from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
-from youbot_opt.ikpath.targets import SpatialTarget, quaternion_to_matrix
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.spatial import SpatialIKResult
+from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
@@ -61,14 +62,14 @@ def _kinematics_digest(model: pin.Model) -> str:
     return array_digest(np.concatenate([placements.ravel(), frames.ravel(), limits.ravel()]))
 
 
-def spatial_problem_spec(problem: SpatialIKProblem) -> dict[str, Any]:
+def spatial_problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
     """JSON-ready description of ``problem`` (result files and sweep manifests).
 
     Returns
     -------
     dict
         Model name, joint names and kinematics digest; frame, targets
-        (:meth:`SpatialTarget.to_dict`), ``use_limits``, limits in [rad] or
+        (:meth:`Target.to_dict`), ``use_limits``, limits in [rad] or
         [m] (``null``: unlimited) and joint weights.
     """
     model = problem.model
@@ -151,13 +152,13 @@ def save_spatial_result(
     return write_document(path, encode_spatial_result(result, robot, folder=folder))
 
 
-def _target(d: dict[str, Any]) -> SpatialTarget:
+def _target(d: dict[str, Any]) -> Target:
     quat = d.get("quaternion_xyzw")
     approach = d.get("approach")
     extra: dict[str, Any] = {}
     if approach is not None and d.get("approach_axis") is not None:
         extra["approach_axis"] = np.array(d["approach_axis"], dtype=float)
-    return SpatialTarget(
+    return Target(
         position=np.array(d["position"], dtype=float),
         rotation=None if quat is None else quaternion_to_matrix(quat),
         approach=None if approach is None else np.array(approach, dtype=float),
@@ -201,7 +202,7 @@ def _model_of(
     return model
 
 
-def _fk_errors(problem: SpatialIKProblem, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fk_errors(problem: CyclicIKProblem, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per-target position [m] and orientation [rad] errors by ``pin.framesForwardKinematics``."""
     data = problem.model.createData()
     pos, ang = [], []
@@ -224,8 +225,8 @@ def _parse(
     body: dict[str, Any], robot: RobotModel | pin.Model | None, source: Path
 ) -> tuple[SpatialIKResult, np.ndarray, np.ndarray]:
     model = _model_of(body, robot, source)
-    problem = SpatialIKProblem(
-        model=model,
+    problem = CyclicIKProblem(
+        robot=model,
         frame=str(body["frame"]),
         targets=tuple(_target(t) for t in body["targets"]),
         use_limits=bool(body["use_limits"]),

@@ -1,12 +1,10 @@
-"""Solving the spatial cyclic IK path: one solve (AL or IPOPT) and the resumable multistart.
+"""The 3-D cyclic IK multistart: resumable, on the sweep engine the planar one uses.
 
-:func:`solve_spatial` runs the augmented Lagrangian (projected BFGS inner
-solver) or CasADi + IPOPT (:mod:`.spatial_ipopt`) on a
-:class:`~youbot_opt.ikpath.spatial.SpatialIKProblem`; a failed solve keeps the
-best iterate and names the blocking target. :func:`run_spatial_multistart`
-solves from :func:`~youbot_opt.ikpath.spatial_starts.make_spatial_starts` on the
-sweep engine the planar multistart uses (:class:`~youbot_opt.sweeps.options.SweepOptions`:
-process pool or Dask, crash retry, progress, shards), saving every start in a
+:func:`run_spatial_multistart` solves (:func:`~youbot_opt.ikpath.solve.solve`
+with the general methods) from
+:func:`~youbot_opt.ikpath.starts.make_spatial_starts` under one
+:class:`~youbot_opt.sweeps.options.SweepOptions` (process pool or Dask, crash
+retry, progress, shards), saving every start in a
 :class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
 payloads in the format of :mod:`.spatial_io`) that a rerun resumes, and
 clusters the distinct minima.
@@ -24,32 +22,28 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, run_augmented_lagrangian
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
-from youbot_opt.ikpath.solve import check_method
-from youbot_opt.ikpath.spatial import (
-    SPATIAL_AL_OPTIONS,
-    SpatialIKProblem,
-    SpatialIKResult,
-    build_spatial_result,
-)
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.planar import check_reachability
+from youbot_opt.ikpath.solve import check_method, solve
+from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import (
     encode_spatial_result,
     load_spatial_result,
     spatial_problem_spec,
 )
-from youbot_opt.ikpath.spatial_ipopt import SpatialIpoptSolver, solve_spatial_ipopt
-from youbot_opt.ikpath.spatial_reachability import require_spatial_reachable
-from youbot_opt.ikpath.spatial_starts import (
+from youbot_opt.ikpath.starts import (
     SPATIAL_START_KINDS,
+    PlanarStarts,
     SpatialStarts,
+    check_start_request,
     make_spatial_starts,
 )
-from youbot_opt.ikpath.starts import check_start_request
 from youbot_opt.ikpath.stored import StartTally
 from youbot_opt.ikpath.sweep import (
     StartSolvers,
@@ -74,51 +68,12 @@ __all__ = [
     "SpatialMultistart",
     "open_spatial_store",
     "run_spatial_multistart",
-    "solve_spatial",
 ]
 
 SPATIAL_SWEEP_KIND = "spatial_ikpath_multistart"
 """``kind`` of the sweep store of spatial multistarts (in its ``manifest.json``)."""
 
 _PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_spatial_result (".json" names the records)
-
-
-# -- solving ----------------------------------------------------------------------------------
-def solve_spatial(
-    problem: SpatialIKProblem,
-    *,
-    method: str = "al",
-    x0: ArrayLike | None = None,
-    options: ALOptions | IpoptOptions | None = None,
-    check_reachability: bool = False,
-) -> SpatialIKResult:
-    """Solve once from ``x0`` (default zero, clipped) by ``"al"`` or ``"ipopt"``.
-
-    Parameters
-    ----------
-    options : ALOptions or IpoptOptions, optional
-        Settings of the method (default :data:`SPATIAL_AL_OPTIONS` or
-        ``IpoptOptions.for_ikpath()``); ``max_wall_time`` [s] bounds the solve
-        (status ``max_time``).
-
-    Raises
-    ------
-    UnreachableTarget
-        If ``check_reachability`` and a target is certified unreachable.
-    ParameterError
-        Unknown method, options of the other method, or bad start.
-    """
-    check_method(method, options)
-    if check_reachability:
-        require_spatial_reachable(problem)
-    if method == "ipopt":
-        if options is None:
-            return solve_spatial_ipopt(problem, x0)
-        return SpatialIpoptSolver(problem, options).solve(x0)  # type: ignore[arg-type]
-    opts = SPATIAL_AL_OPTIONS if options is None else options
-    start = problem.check_start(x0)
-    run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
-    return build_spatial_result(problem, **run.result_fields(start))
 
 
 # -- multistart -------------------------------------------------------------------------------
@@ -146,7 +101,7 @@ class SpatialMultistart:
     seed : int
         Seed of the starts.
     start_kind : str
-        How the starts were drawn (:data:`~youbot_opt.ikpath.spatial_starts.SPATIAL_START_KINDS`).
+        How the starts were drawn (:data:`~youbot_opt.ikpath.starts.SPATIAL_START_KINDS`).
     attempts : sequence of int
         Attempts per start, earlier runs on the same output included.
     resumed : int
@@ -209,7 +164,7 @@ class SpatialMultistart:
 
 def open_spatial_store(
     out: str | os.PathLike[str],
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     method: str,
     options: ALOptions | IpoptOptions | None,
@@ -234,16 +189,18 @@ def open_spatial_store(
         If its manifest is corrupted or from a newer schema.
     """
     if options is None and method == "al":
-        options = SPATIAL_AL_OPTIONS  # the defaults of solve_spatial, written out
+        options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
     spec = spatial_problem_spec(problem)
     params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
     load = functools.partial(load_spatial_result, robot=problem.model)
     return starts_store(out, SPATIAL_STARTS, params, load, clean)
 
 
-def _solve_al(problem: SpatialIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
+def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
     """Worker task: one start with the AL (exceptions propagate: they are retried)."""
-    return solve_spatial(problem, method="al", x0=x0, options=options)
+    result = solve(problem, method="al", x0=x0, options=options, planar=False)
+    assert isinstance(result, SpatialIKResult)
+    return result
 
 
 def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> SpatialIKResult:
@@ -252,7 +209,7 @@ def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> Spatial
 
 
 def _crashed(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     method: str,
     options: ALOptions | IpoptOptions | None,
     x0: Array,
@@ -269,7 +226,7 @@ def _figures(result: SpatialIKResult) -> dict[str, Any]:
     }
 
 
-SPATIAL_STARTS: StartSolvers[SpatialIKProblem, SpatialIKResult] = StartSolvers(
+SPATIAL_STARTS: StartSolvers[CyclicIKProblem, SpatialIKResult] = StartSolvers(
     solve_al=_solve_al,
     ipopt_solver=SpatialIpoptSolver,
     solve_ipopt=_solve_ipopt,
@@ -283,15 +240,15 @@ SPATIAL_STARTS: StartSolvers[SpatialIKProblem, SpatialIKResult] = StartSolvers(
 
 
 def run_spatial_multistart(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     method: str = "al",
     n_starts: int = 16,
     seed: int = 0,
-    starts: str = "mixed",
+    starts: str | None = None,
     options: ALOptions | IpoptOptions | None = None,
     workers: int | None = None,
-    e_tol: float = 1e-6,
+    objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> SpatialMultistart | ShardReport:
@@ -299,20 +256,24 @@ def run_spatial_multistart(
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem.
     method : {"al", "ipopt"}
         Solver.
     n_starts, seed : int
         Number of starts (start 0 is the greedy DLS path) and their seed.
-    starts : {"mixed", "coherent", "random"}
-        Start kind (:mod:`youbot_opt.ikpath.spatial_starts`).
+    starts : {"mixed", "coherent", "random", "feasible"}, optional
+        Start kind (:mod:`youbot_opt.ikpath.starts`); ``"feasible"``, a planar
+        robot's only (:attr:`CyclicIKProblem.chain`), draws the planar
+        multistart's starts (random exact IK solutions, the reachability
+        witnesses as fallback), so both find the same optima (issue 25, item 4).
+        Default: ``"feasible"`` for a planar robot, else ``"mixed"``.
     options : ALOptions or IpoptOptions, optional
         Settings of the method (``max_wall_time`` [s] bounds each start's solve).
     workers : int, optional
         Shortcut for ``sweep.workers`` (default: 1, serial, unless ``sweep`` says otherwise).
-    e_tol, q_tol : float
-        Two successes are one minimum when ``E`` agrees to ``e_tol`` (relative)
+    objective_tol, q_tol : float
+        Two successes are one minimum when ``E`` agrees to ``objective_tol`` (relative)
         and the angles to ``q_tol`` [rad] (continuous joints modulo a common 2 pi shift).
     sweep : SweepOptions
         How the starts run, as for the planar
@@ -343,7 +304,16 @@ def run_spatial_multistart(
     """
     t0 = time.perf_counter()
     check_method(method, options)
-    check_start_request(n_starts, starts, SPATIAL_START_KINDS)
+    if starts is None:
+        starts = "feasible" if problem.chain is not None else "mixed"
+    check_start_request(n_starts, starts, (*SPATIAL_START_KINDS, "feasible"))
+    if starts == "feasible" and problem.chain is None:
+        raise ParameterError(
+            f"start kind 'feasible' needs a planar robot; {problem.robot_model.name!r} is not "
+            f"planar for frame {problem.frame!r}: use mixed, coherent or random",
+            name="starts",
+            value=starts,
+        )
     if workers is not None:
         if sweep.workers is not None and sweep.workers != workers:
             raise ParameterError(
@@ -354,8 +324,13 @@ def run_spatial_multistart(
         sweep = replace(sweep, workers=int(workers))
     elif sweep.workers is None and sweep.executor is None:
         sweep = replace(sweep, workers=1)
-    x0s: Array | SpatialStarts
-    if sweep.keep_results:
+    x0s: Array | SpatialStarts | PlanarStarts
+    if starts == "feasible":
+        verdicts = check_reachability(problem)
+        x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=verdicts)
+        if sweep.keep_results:
+            x0s = np.array([x0s[k] for k in range(len(x0s))])
+    elif sweep.keep_results:
         x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
     else:  # each start drawn as its task is made
         x0s = SpatialStarts(problem, n_starts, seed, kind=starts)
@@ -396,7 +371,7 @@ def run_spatial_multistart(
             solvers=SPATIAL_STARTS,
             store=store,
             distance=distance_of,
-            e_tol=e_tol,
+            objective_tol=objective_tol,
             q_tol=q_tol,
             by_objective=False,
             on_resumed=on_resumed,
@@ -425,7 +400,7 @@ def run_spatial_multistart(
             (i for i, r in enumerate(results) if r.success),
             objective=lambda i: results[i].objective,
             distance=lambda a, b: distance_of(results[a], results[b]),
-            obj_tol=e_tol,
+            obj_tol=objective_tol,
             dist_tol=q_tol,
         )
         minima = tuple(tuple(g) for g in groups)

@@ -1,17 +1,20 @@
-"""Starts of an IK-path multistart: the zero vector, then seeded random ones.
+"""Starts of a cyclic IK multistart, deterministic in the seed and the start's index.
 
-Start 0 is the study's zero vector (clipped into the limits); start ``k`` is
-drawn from its own child seed, so it depends on neither the executor nor
-``n_starts``. Random starts are ``"feasible"`` (random exact IK solutions within
-the limits, the default) or ``"uniform"``; :func:`make_starts` says how each
-is drawn, and docs/design.md ("Module notes") why feasible is the default.
+A planar chain's start 0 is the study's zero vector (clipped into the limits),
+then ``"feasible"`` (random exact IK solutions within the limits, the default)
+or ``"uniform"`` starts (:func:`make_starts`; docs/design.md says why feasible
+is the default). Another robot's start 0 is the greedy DLS path, then
+``"coherent"`` (greedy from a random in-limit configuration) and/or
+``"random"`` starts (:func:`make_spatial_starts`). Start ``k`` does not depend
+on how many starts are drawn.
 
 >>> x0 = make_starts(problem, n_starts=20, seed=0)  # (20, n s)  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -19,16 +22,21 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, theta_ranges
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, theta_ranges
+from youbot_opt.ikpath.spatial import greedy_path, random_theta
 from youbot_opt.sweeps.lazy import LazySequence
 
 __all__ = [
+    "check_start_request",
+    "CHECKPOINT",
+    "IndexedStarts",
+    "make_spatial_starts",
+    "make_starts",
+    "PlanarStarts",
+    "SPATIAL_START_KINDS",
+    "SpatialStarts",
     "START_KINDS",
     "START_RNGS",
-    "IndexedStarts",
-    "PlanarStarts",
-    "check_start_request",
-    "make_starts",
 ]
 
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
@@ -210,14 +218,14 @@ def _feasible_start(
     verdicts: Sequence[ReachVerdict],
 ) -> Array:
     """One start made of random exact IK solutions, unwrapped across configurations."""
-    chain = problem.chain
+    chain = problem.planar_chain
     n = chain.n
     ranges = theta_ranges(chain, problem.use_limits) or [
         (-np.pi + o, 2 * np.pi) for o in chain.angle_offset
     ]
     q = fallback.reshape(problem.n_targets, n).copy()
     lengths = chain.lengths
-    for j, p in enumerate(problem.targets):
+    for j, p in enumerate(problem.target_points):
         for _ in range(50):
             theta = np.array([r[0] + rng.uniform(0.0, r[1]) for r in ranges])
             if n == 1:  # unique solution; the witness below holds it
@@ -272,3 +280,109 @@ def _best_windings(col: Array) -> Array:
     elif turns < 0:
         steps[order[:-turns]] += 2 * np.pi
     return col[0] + np.r_[0.0, np.cumsum(steps[:-1])]
+
+
+SPATIAL_START_KINDS: tuple[str, ...] = ("mixed", "coherent", "random")
+"""Start kinds: ``mixed`` alternates coherent (odd) and random (even) after the greedy start."""
+
+
+def make_spatial_starts(
+    problem: CyclicIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
+) -> Array:
+    """Draw starts (n_starts, n s): the greedy DLS path, then coherent and/or random ones.
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem (limits, targets).
+    n_starts : int
+        Number of starts (>= 1); start 0 is always the greedy path.
+    seed : int
+        Seed of the draws (deterministic).
+    kind : {"mixed", "coherent", "random"}
+        ``mixed``: odd starts coherent, even starts random (the default);
+        ``coherent``: all coherent; ``random``: all random (after start 0).
+
+    Returns
+    -------
+    ndarray, shape (n_starts, n s)
+        Stacked joint angles [rad] within the limits.
+
+    Raises
+    ------
+    ParameterError
+        If ``n_starts < 1`` or ``kind`` is unknown
+        (:func:`~youbot_opt.ikpath.starts.check_start_request`).
+    """
+    n = check_start_request(n_starts, kind, SPATIAL_START_KINDS)
+    rng = np.random.default_rng(seed)
+    starts = np.empty((n, problem.n_variables))
+    starts[0] = greedy_path(problem)[0].ravel()
+    for k in range(1, n):
+        starts[k] = _draw(problem, kind, k, rng)
+    return np.clip(starts, problem.lower, problem.upper)
+
+
+def _coherent(kind: str, k: int) -> bool:
+    return kind == "coherent" or (kind == "mixed" and k % 2 == 1)
+
+
+def _draw(problem: CyclicIKProblem, kind: str, k: int, rng: np.random.Generator) -> Array:
+    """Start ``k >= 1`` (unclipped), drawn from ``rng`` where start ``k - 1`` left it."""
+    if _coherent(kind, k):
+        return greedy_path(problem, random_theta(problem, rng))[0].ravel()
+    return np.concatenate([random_theta(problem, rng) for _ in range(problem.n_targets)])
+
+
+def _skip(problem: CyclicIKProblem, kind: str, k: int, rng: np.random.Generator) -> None:
+    """Advance ``rng`` past start ``k`` as :func:`_draw` would (no greedy path solved)."""
+    for _ in range(1 if _coherent(kind, k) else problem.n_targets):
+        random_theta(problem, rng)
+
+
+class SpatialStarts(IndexedStarts):
+    """The starts of :func:`make_spatial_starts`, each drawn when asked for.
+
+    ``SpatialStarts(problem, n, seed, kind=kind)[k]`` equals
+    ``make_spatial_starts(problem, n, seed, kind=kind)[k]``. The draws share one
+    generator, so its state is kept every :data:`CHECKPOINT` starts and after
+    the last start drawn: asking in increasing order costs one draw per start,
+    any other start at most ``CHECKPOINT`` cheap skips (no greedy path is
+    solved for a skipped start). Memory: one generator state per ``CHECKPOINT`` starts.
+    """
+
+    def __init__(
+        self, problem: CyclicIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
+    ) -> None:
+        self._n = check_start_request(n_starts, kind, SPATIAL_START_KINDS)
+        self._problem, self._kind = problem, kind
+        rng = np.random.default_rng(seed)
+        self._states: dict[int, Mapping[str, Any]] = {1: rng.bit_generator.state}
+        self._cursor: tuple[int, Mapping[str, Any]] = (1, rng.bit_generator.state)
+
+    def draw(self, j: int) -> Array:
+        """Return start ``j``: the greedy path's first configuration for 0, else drawn [rad]."""
+        problem = self._problem
+        if j == 0:
+            return np.clip(greedy_path(problem)[0].ravel(), problem.lower, problem.upper)
+        at, state = self._cursor  # the generator's state before start `at`
+        if not at <= j:
+            at = (j - 1) // CHECKPOINT * CHECKPOINT + 1
+            state = self._states[at]
+        rng = np.random.default_rng()
+        rng.bit_generator.state = state
+        for i in range(at, j):
+            self._remember(i, rng)
+            _skip(problem, self._kind, i, rng)
+        self._remember(j, rng)
+        start = _draw(problem, self._kind, j, rng)
+        self._cursor = (j + 1, rng.bit_generator.state)
+        return np.clip(start, problem.lower, problem.upper)
+
+    def _remember(self, i: int, rng: np.random.Generator) -> None:
+        if (i - 1) % CHECKPOINT == 0 and i not in self._states:
+            self._states[i] = rng.bit_generator.state
+
+
+CHECKPOINT = 1024
+"""Starts between two kept generator states of :class:`SpatialStarts`."""

@@ -28,12 +28,12 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.ikpath.augmented_lagrangian import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, problem_spec
-from youbot_opt.ikpath.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
-from youbot_opt.ikpath.spatial import SpatialIKProblem, SpatialIKResult
+from youbot_opt.ikpath.spatial import SpatialIKResult
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -105,7 +105,7 @@ def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> fl
 
 def crashed_result(
     build: Callable[..., ResultT],
-    problem: CyclicIKProblem | SpatialIKProblem,
+    problem: CyclicIKProblem | CyclicIKProblem,
     method: str,
     x0: Array,
     message: str,
@@ -118,7 +118,7 @@ def crashed_result(
     build : callable
         The problem's result constructor (:func:`~youbot_opt.ikpath.result.build_result`
         or :func:`~youbot_opt.ikpath.spatial.build_spatial_result`).
-    problem : CyclicIKProblem or SpatialIKProblem
+    problem : CyclicIKProblem or CyclicIKProblem
         The problem.
     method : str
         The method that was to solve the start.
@@ -553,7 +553,7 @@ def solve_starts(
 
     Parameters
     ----------
-    problem : CyclicIKProblem or SpatialIKProblem
+    problem : CyclicIKProblem or CyclicIKProblem
         The problem.
     x0s : ndarray, shape (n_starts, n s)
         Starts in [rad].
@@ -675,7 +675,7 @@ def stream_starts(
     solvers: StartSolvers[ProblemT, ResultT],
     store: SweepStore,
     distance: Callable[[ResultT, ResultT], float],
-    e_tol: float,
+    objective_tol: float,
     q_tol: float,
     by_objective: bool,
     on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
@@ -686,7 +686,7 @@ def stream_starts(
     As :func:`solve_starts`, but a start is drawn (``starts[i]``) only when its
     task is made, each start's figures are read back from the store's journal
     as :class:`~youbot_opt.ikpath.stored.StartSummary` when needed, and only the
-    distinct minima (``cluster_optima``'s rule with ``e_tol`` on ``E`` and
+    distinct minima (``cluster_optima``'s rule with ``objective_tol`` on ``E`` and
     ``q_tol`` on ``distance``, chosen by
     :func:`~youbot_opt.sweeps.selection.stream_optima`) are held in full.
 
@@ -698,7 +698,7 @@ def stream_starts(
         The output folder (required: the results not kept stay there).
     distance : callable ``(a, b) -> float``
         Distance in [rad] of two successful results' configurations.
-    e_tol, q_tol : float
+    objective_tol, q_tol : float
         Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
     by_objective : bool
         The start closest to the targets is ranked by ``(max_residual, E)``
@@ -774,7 +774,7 @@ def stream_starts(
     rule: KeepRule[StartSummary[ResultT]] = KeepRule(
         objective=lambda s: s.objective if s.success else None,
         distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=e_tol,
+        obj_tol=objective_tol,
         dist_tol=q_tol,
     )
     got = run_resumable(

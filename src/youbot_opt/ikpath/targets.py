@@ -1,6 +1,6 @@
-"""Spatial IK-path targets: a position, a full pose, or a position with an approach axis.
+"""IK-path targets: a position (in 3-D or in a planar robot's plane), a pose, or an approach axis.
 
-A :class:`SpatialTarget` says what the chosen frame must reach: its origin at
+A :class:`Target` says what the chosen frame must reach: its origin at
 ``position`` [m] and, optionally, its orientation equal to ``rotation`` (a
 pose) or its local ``approach_axis`` pointing along the world direction
 ``approach`` (an approach axis, e.g. a drill or a suction cup: rotation about
@@ -25,7 +25,13 @@ from numpy.typing import ArrayLike
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["SpatialTarget", "TARGET_KINDS", "load_targets", "quaternion_to_matrix"]
+__all__ = [
+    "Target",
+    "TARGET_KINDS",
+    "load_targets",
+    "position_targets",
+    "quaternion_to_matrix",
+]
 
 TARGET_KINDS: tuple[str, ...] = ("position", "pose", "approach")
 """Kinds of targets: constraint rows 3, 6 and 5."""
@@ -63,13 +69,15 @@ def quaternion_to_matrix(quat_xyzw: ArrayLike) -> Array:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class SpatialTarget:
-    """One target of a spatial cyclic IK path.
+class Target:
+    """One target of a cyclic IK path (any robot; a planar one: positions in its plane).
 
     Attributes
     ----------
-    position : ndarray, shape (3,)
-        Position of the frame's origin in the world, in [m].
+    position : ndarray, shape (3,) or (2,)
+        Position of the frame's origin in the world, in [m]; 2 numbers are the
+        plane coordinates of a planar robot (a position target only; the
+        problem turns them into a world position on its plane).
     rotation : ndarray, shape (3, 3), optional
         Orientation of the frame in the world (a pose target).
     approach : ndarray, shape (3,), optional
@@ -97,7 +105,12 @@ class SpatialTarget:
     orientation_weight: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _vector3(self.position, "position"))
+        pos = np.array(self.position, dtype=float).reshape(-1)
+        planar = pos.shape == (2,) and self.rotation is None and self.approach is None
+        if planar and np.all(np.isfinite(pos)):  # plane coordinates of a planar robot
+            object.__setattr__(self, "position", pos)
+        else:
+            object.__setattr__(self, "position", _vector3(self.position, "position"))
         if self.rotation is not None and self.approach is not None:
             raise ParameterError(
                 "a target has either a rotation (pose) or an approach axis, not both",
@@ -154,7 +167,7 @@ class SpatialTarget:
         position_tol: float = 1e-6,
         orientation_tol: float = 1e-6,
         orientation_weight: float = 1.0,
-    ) -> SpatialTarget:
+    ) -> Target:
         """Build a pose target from a position [m] and a quaternion ``(x, y, z, w)``."""
         return cls(
             position=np.asarray(position, dtype=float),
@@ -220,12 +233,28 @@ class SpatialTarget:
         return out
 
 
+def position_targets(points: ArrayLike) -> tuple[Target, ...]:
+    """Position targets at ``points`` [m], shape (s, 3) (world) or (s, 2) (a planar robot's plane).
+
+    Raises
+    ------
+    ParameterError
+        If ``points`` is not (s, 2) or (s, 3) finite numbers.
+    """
+    arr = np.array(points, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+        raise ParameterError(
+            f"target points must have shape (s, 2) or (s, 3) [m], got {arr.shape}",
+            name="targets",
+            value=arr.shape,
+        )
+    return tuple(Target(position=p) for p in arr)
+
+
 _CSV_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw", "ax", "ay", "az")
 
 
-def _target_from_record(
-    rec: dict[str, object], where: str, defaults: dict[str, float]
-) -> SpatialTarget:
+def _target_from_record(rec: dict[str, object], where: str, defaults: dict[str, float]) -> Target:
     """One target from a JSON object or CSV row (see :func:`load_targets`)."""
     kw: dict[str, object] = dict(defaults)
     for key in ("position_tol", "orientation_tol", "orientation_weight"):
@@ -254,10 +283,10 @@ def _target_from_record(
         kw["approach"] = approach
         if rec.get("approach_axis") is not None:
             kw["approach_axis"] = rec["approach_axis"]
-    return SpatialTarget(position=position, **kw)  # type: ignore[arg-type]
+    return Target(position=position, **kw)  # type: ignore[arg-type]
 
 
-def load_targets(path: str | Path, **defaults: float) -> tuple[SpatialTarget, ...]:
+def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:
     """Read targets from a CSV or JSON file (by suffix).
 
     CSV: a header with named columns ``x, y, z`` [m], optionally ``qx, qy, qz, qw``

@@ -88,7 +88,7 @@ def _check_segment_time(segment_time: float) -> float:
 
 def replay_targets(result: IKPathResult) -> Array:
     """Targets of ``result`` as points of the viewer, shape (s, 3) in [m] (z = 0)."""
-    targets = result.problem.targets
+    targets = result.problem.target_points
     return np.column_stack([targets, np.zeros(len(targets))])
 
 
@@ -105,7 +105,7 @@ def replay_robot(result: IKPathResult) -> ReplayRobot:
         Name, model, visual model (chain visuals + ``target_<j>`` spheres),
         no package directories, tip frame.
     """
-    chain = result.problem.chain
+    chain = result.problem.planar_chain
     visual = chain.visual_model.copy()
     link_radius = 0.04 * float(np.mean(chain.lengths))  # [m] as in PlanarChain's visuals
     radius = _TARGET_RADIUS_IN_LINK_RADII * link_radius
@@ -158,7 +158,7 @@ def _ghosts(
 ) -> list[tuple[Array, Array]]:
     ghosts = []
     for k, other in enumerate(others):
-        if other.problem.chain.model.nq != result.problem.chain.model.nq or (
+        if other.problem.planar_chain.model.nq != result.problem.planar_chain.model.nq or (
             other.problem.n_targets != result.problem.n_targets
         ):
             raise ParameterError(

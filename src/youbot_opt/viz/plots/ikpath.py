@@ -25,7 +25,7 @@ from matplotlib.patches import Patch
 
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability import ReachVerdict, check_reachability
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, check_reachability
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.spatial import SpatialIKResult
 
@@ -73,7 +73,7 @@ def plot_arm_path(result: IKPathResult, ax: Axes | None = None) -> Figure:
         The figure.
     """
     fig, ax = _new_axes(ax)
-    chain = result.problem.chain
+    chain = result.problem.planar_chain
     data = chain.create_data()
     cmap = mpl.colormaps["viridis"]
     s = result.problem.n_targets
@@ -84,7 +84,7 @@ def plot_arm_path(result: IKPathResult, ax: Axes | None = None) -> Figure:
     tips = result.tip_positions()
     closed = np.vstack([tips, tips[:1]])
     ax.plot(closed[:, 0], closed[:, 1], ":", color="0.5", lw=1)
-    _mark_targets(ax, result.problem.targets)
+    _mark_targets(ax, result.problem.target_points)
     ax.plot(*chain.base, "ks", ms=8)
     ax.set_aspect("equal")
     ax.grid(True, alpha=0.3)
@@ -151,7 +151,7 @@ def plot_convergence(result: IKPathResult) -> Figure:
 
 def _workspace_points(problem: CyclicIKProblem) -> np.ndarray:
     """Tips of a regular joint grid over the limits (display only; verdicts are exact)."""
-    chain = problem.chain
+    chain = problem.planar_chain
     n = chain.n
     per = max(2, int(round(_GRID_POINTS ** (1.0 / n))))
     axes = []
@@ -173,7 +173,7 @@ def plot_workspace(
 
     The shaded hexagons are the cells hit by the tips of a regular joint grid
     over the limits (about 120 000 configurations; for display only); the
-    target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability`
+    target markers carry the exact verdicts of :mod:`youbot_opt.ikpath.reachability.planar`
     (green: reachable, red: unreachable with a line to the nearest reachable point,
     orange: undecided; all three are in the legend). The dashed circles bound the
     workspace without limits.
@@ -205,24 +205,24 @@ def plot_workspace(
         linewidths=0.2,
         edgecolors="#b9d3ee",
     )
-    r_min, r_max = problem.chain.reach
+    r_min, r_max = problem.planar_chain.reach
     t = np.linspace(0, 2 * np.pi, 400)
     for r in (r_min, r_max):
         if r > 0:
             ax.plot(
-                problem.chain.base[0] + r * np.cos(t),
-                problem.chain.base[1] + r * np.sin(t),
+                problem.planar_chain.base[0] + r * np.cos(t),
+                problem.planar_chain.base[1] + r * np.sin(t),
                 "--",
                 color="0.4",
                 lw=1,
             )
     colors = [_VERDICT_COLORS[v.status.value] for v in verdicts]
-    _mark_targets(ax, problem.targets, colors)
+    _mark_targets(ax, problem.target_points, colors)
     for v in verdicts:
         if not v.reachable:
             ax.plot([v.target[0], v.nearest[0]], [v.target[1], v.nearest[1]], "-", color="tab:red")
             ax.plot(*v.nearest, "o", color="tab:red", mfc="none")
-    ax.plot(*problem.chain.base, "ks", ms=8)
+    ax.plot(*problem.planar_chain.base, "ks", ms=8)
     ax.set_aspect("equal")
     ax.grid(True, alpha=0.3)
     ax.set_xlabel("x [m]")

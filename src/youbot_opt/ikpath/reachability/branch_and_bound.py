@@ -1,6 +1,6 @@
 """Branch and bound reachability search for limited chains of 3+ links (internal).
 
-Used by :func:`youbot_opt.ikpath.reachability.decide_reachability`, which
+Used by :func:`youbot_opt.ikpath.reachability.planar.decide_reachability`, which
 turns the :class:`SearchOutcome` into a verdict. Boxes of the first ``n - 2``
 angles are bounded below by the exact distance to the last two links'
 workspace minus a rigorous Lipschitz term, and bisected until decided (spec
@@ -20,8 +20,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from youbot_opt._typing import Array
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.geometry import two_link_nearest
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = ["BranchAndBound", "SearchOutcome", "bisect_boxes"]
 
@@ -58,7 +58,7 @@ class SearchOutcome(NamedTuple):
     ----------
     status : str
         ``"reachable"``, ``"unreachable"`` or ``"undecided"`` (the values of
-        :class:`~youbot_opt.ikpath.reachability.Reachability`).
+        :class:`~youbot_opt.ikpath.reachability.planar.Reachability`).
     q : ndarray, shape (n,)
         Best configuration found in [rad], within the limits (the witness if reachable).
     distance_lower : float

@@ -5,10 +5,11 @@ from __future__ import annotations
 import pickle
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.chain import PlanarChain
+from youbot_opt.robot.planar import PlanarChain
 
 
 def _fk_formula(lengths, base, offset, q):
@@ -148,3 +149,18 @@ def test_infinite_limits_on_their_own_side_mean_no_limit():
     assert not free.bounded
     assert free.model.upperPositionLimit[0] == np.finfo(float).max
     np.testing.assert_array_equal(chain.model.lowerPositionLimit, [-np.finfo(float).max, -1.0])
+
+
+def test_chain_as_robot_model_has_the_chain_kinematics():
+    """PlanarChain.robot() is a RobotModel on the chain's own model: same tip (exactly)."""
+    chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5, q_upper=1.5, base=(0.5, -1.0))
+    robot = chain.robot()
+    assert robot.model is chain.model and robot.tip_frame == chain.tip_frame
+    np.testing.assert_array_equal(robot.q_lower, chain.q_lower)
+    q = np.array([0.3, -0.7, 1.1])
+    data = robot.create_data()
+
+    pin.framesForwardKinematics(robot.model, data, q)
+    np.testing.assert_array_equal(
+        data.oMf[robot.frame_id(robot.tip_frame)].translation[:2], chain.tip_position(q)
+    )

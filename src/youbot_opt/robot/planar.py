@@ -1,10 +1,11 @@
-"""Planar n-link chains as Pinocchio models (study 2, spec ``ikpath.md``, "The arm").
+"""A planar chain as a robot: study 2's arms (spec ``ikpath.md``, "The arm").
 
-A :class:`PlanarChain` is the arm of study 2: ``n`` revolute joints about the
-plane normal (z), segment ``i`` of length ``l_i``, the last segment ending at
-the tip frame; its angle convention (the study's, up to a constant offset) is
-in the class docstring. Forward kinematics and the tip Jacobian
-(:class:`TipKinematics`) come from Pinocchio.
+A :class:`PlanarChain` is ``n`` revolute joints about the plane normal (z),
+segment ``i`` of length ``l_i`` ending at the tip frame, in the study's angle
+convention up to a constant offset (see the class). :meth:`PlanarChain.robot`
+is the chain as a :class:`~youbot_opt.robot.model.RobotModel`;
+:func:`chain_from_robot` reads the chain back from a robot that moves in a
+plane (the youBot arm: :func:`youbot_chain`).
 
 >>> PlanarChain(lengths=[3, 2, 2]).tip_position([0.0, 0.0, 0.0])  # doctest: +SKIP
 array([7., 0.])
@@ -23,11 +24,22 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._checks import check_shape
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ModelError, ParameterError
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
 
-__all__ = ["PlanarChain", "TipKinematics", "as_configuration"]
+__all__ = [
+    "Plane",
+    "PlanarChain",
+    "TipKinematics",
+    "as_configuration",
+    "chain_from_robot",
+    "motion_plane",
+    "youbot_chain",
+]
 
 _PIN_INF = float(np.finfo(float).max)  # Pinocchio's "no limit" value
+_PARALLEL_TOL = 1e-12  # [-] largest |a x n| of a unit joint axis a parallel to the normal n
 _LINK_RGBA = np.array([0.95, 0.55, 0.1, 1.0])
 _JOINT_RGBA = np.array([0.2, 0.2, 0.2, 1.0])
 
@@ -45,6 +57,95 @@ class TipKinematics(NamedTuple):
 
     position: Array
     jacobian: Array
+
+
+class Plane(NamedTuple):
+    """The plane a frame moves in: the robot is planar for that frame.
+
+    Attributes
+    ----------
+    normal : ndarray, shape (3,)
+        Unit normal in the world: the common axis of the joints.
+    offset : float
+        ``normal . p`` in [m] for every point ``p`` of the plane.
+    basis : ndarray, shape (3, 2)
+        The plane's coordinate axes in the world (orthonormal); a point's
+        plane coordinates are ``basis.T @ p`` in [m].
+    """
+
+    normal: Array
+    offset: float
+    basis: Array
+
+    def distance(self, point: ArrayLike) -> float:
+        """Distance in [m] of a world point from the plane."""
+        return abs(float(self.normal @ np.asarray(point, dtype=float)) - self.offset)
+
+
+def motion_plane(model: pin.Model, frame_id: int, q: ArrayLike) -> Plane | None:
+    """Return the plane a frame moves in, or None if its robot is not planar.
+
+    A robot is planar for a frame when every joint that moves the frame is
+    revolute (or continuous) and their axes are parallel (within 1e-12) to one
+    world direction ``n``: turning about axes parallel to ``n`` keeps ``n . p``
+    of every point, so the frame's origin stays in the plane normal to ``n``
+    through its position at ``q``, at any configuration. ``n`` is the first
+    joint's axis; the plane coordinates ``(e1, e2)`` have ``e1 x e2 = n`` (a
+    positive angle turns counter-clockwise): the two world axes other than
+    ``n`` when ``n`` is one (a chain about +z moves in (x, y), the youBot arm
+    about -y in (x, z)), else the projection of world x (or y) and ``n x e1``.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The robot.
+    frame_id : int
+        The frame that visits the targets.
+    q : array_like, shape (nq,)
+        Any configuration of the model.
+
+    Returns
+    -------
+    Plane or None
+        The plane, or None (a prismatic joint, or axes not parallel).
+    """
+    data = model.createData()
+    qv = np.asarray(q, dtype=float)
+    pin.computeJointJacobians(model, data, qv)
+    pin.updateFramePlacements(model, data)
+    support = [j for j in model.supports[model.frames[frame_id].parentJoint] if j > 0]
+    if not support:
+        return None
+    axes = []
+    for j in support:
+        joint = model.joints[j]
+        if joint.nv != 1:
+            return None
+        jac = np.reshape(pin.getJointJacobian(model, data, j, pin.WORLD), (6, model.nv))
+        column = jac[:, joint.idx_v]  # (a 1-DoF model returns shape (6,))
+        axis = np.asarray(column[3:], dtype=float)
+        if abs(float(np.linalg.norm(axis)) - 1.0) > _PARALLEL_TOL:  # prismatic (no turn)
+            return None
+        axes.append(axis)
+    normal = axes[0]
+    if any(float(np.linalg.norm(np.cross(a, normal))) > _PARALLEL_TOL for a in axes[1:]):
+        return None
+    k = int(np.argmax(np.abs(normal)))
+    if abs(abs(float(normal[k])) - 1.0) <= _PARALLEL_TOL:  # a world axis: the other two
+        normal = np.eye(3)[k] * np.sign(normal[k])
+        basis = np.eye(3)[:, [i for i in range(3) if i != k]]
+        if float(np.cross(basis[:, 0], basis[:, 1]) @ normal) < 0.0:  # turn counter-clockwise
+            basis = basis[:, ::-1].copy()
+    else:
+        helper = np.eye(3)[0] if abs(float(normal[0])) < 0.9 else np.eye(3)[1]
+        e1 = helper - (helper @ normal) * normal
+        e1 /= np.linalg.norm(e1)
+        basis = np.column_stack([e1, np.cross(normal, e1)])
+    normal = normal.copy()
+    offset = float(normal @ data.oMf[frame_id].translation)
+    for arr in (normal, basis):
+        arr.setflags(write=False)
+    return Plane(normal=normal, offset=offset, basis=basis)
 
 
 def as_configuration(q: ArrayLike, n: int, name: str = "q") -> Array:
@@ -109,7 +210,7 @@ class PlanarChain:
     (``base = 0``, ``angle_offset = 0``) ``q`` *is* the study's ``theta``; the
     offsets let a real arm (the youBot, angles from the vertical, mounted off
     the platform origin) be the same kind of object
-    (:func:`youbot_opt.ikpath.robot.chain_from_robot`). Forward kinematics and
+    (:func:`chain_from_robot`). Forward kinematics and
     the tip Jacobian come from Pinocchio (``computeFrameJacobian`` in
     ``LOCAL_WORLD_ALIGNED``, rows x and y).
 
@@ -264,6 +365,23 @@ class PlanarChain:
         """Return a fresh ``pinocchio.Data`` for :attr:`model`."""
         return self.model.createData()
 
+    def robot(self) -> RobotModel:
+        """Return the chain as a :class:`~youbot_opt.robot.model.RobotModel`.
+
+        Its Pinocchio model and visual model are :attr:`model` and
+        :attr:`visual_model` (not copied), the tip frame :attr:`tip_frame`;
+        no collision geometry, no file.
+        """
+        return RobotModel(
+            name=self.name,
+            model=self.model,
+            visual_model=self.visual_model,
+            collision_model=pin.GeometryModel(),
+            urdf_path=None,
+            package_dirs=(),
+            tip_frame=self.tip_frame,
+        )
+
     def kinematics(self, q: ArrayLike, data: pin.Data | None = None) -> TipKinematics:
         """Tip position and Jacobian from Pinocchio.
 
@@ -347,3 +465,115 @@ def _build_models(chain: PlanarChain) -> tuple[pin.Model, pin.GeometryModel, int
     model.lowerPositionLimit = np.where(np.isfinite(chain.q_lower), chain.q_lower, -_PIN_INF)
     model.upperPositionLimit = np.where(np.isfinite(chain.q_upper), chain.q_upper, _PIN_INF)
     return model, visual, int(tip_id)
+
+
+_CHECK_TOL = 1e-10  # [m] largest accepted tip mismatch between chain and robot
+
+
+def chain_from_robot(
+    robot: RobotModel, frame: str | None = None, *, name: str | None = None
+) -> PlanarChain:
+    """Build the planar chain equivalent to a robot that is planar for ``frame``.
+
+    The robot must be planar for the frame (:func:`motion_plane`: revolute
+    joints about parallel axes) and every joint that moves it must turn the
+    same way about the plane normal ``n``. The chain's coordinates are the
+    robot's joint angles and its positions the plane coordinates; its base,
+    lengths and ``angle_offset`` are read from the joint origins and the frame
+    at ``q = 0``, its limits are the robot's (continuous joints and limits
+    beyond 1e10: none), and it is then checked against Pinocchio's placement of
+    the frame at 20 seeded configurations (1e-10 m). The youBot arm (joints
+    about the platform's -y, plane (x, z)) is a chain with ``base = (a, h) =
+    (0.184, 0.147)`` m and ``angle_offset = (pi/2, 0, 0)``: q = 0 points up
+    and a positive angle turns towards -x (spec ``trajopt.md``).
+
+    Parameters
+    ----------
+    robot : RobotModel
+        A loaded robot (``load_model("youbot")``).
+    frame : str, optional
+        The frame (default ``robot.tip_frame``).
+    name : str, optional
+        Chain name (default: the robot's).
+
+    Returns
+    -------
+    PlanarChain
+        Coordinates ``q`` equal the robot's angles of the joints that move the
+        frame; positions are plane coordinates in [m].
+
+    Raises
+    ------
+    ModelError
+        If the robot is not a planar revolute chain for the frame (the message
+        says why).
+    """
+    model: pin.Model = robot.model
+    frame = robot.tip_frame if frame is None else frame
+    fid = robot.frame_id(frame)
+    support = [j for j in model.supports[model.frames[fid].parentJoint] if j > 0]
+    q0 = pin.neutral(model)
+    plane = motion_plane(model, fid, q0)
+    if plane is None or any(model.joints[j].nq != 1 for j in support):
+        raise ModelError(
+            f"robot {robot.name!r} is not a planar revolute chain for frame {frame!r}: its "
+            "joints are not all revolute about parallel axes"
+        )
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q0)
+    pin.updateFramePlacements(model, data)
+    for j in support:
+        jac = np.reshape(pin.getJointJacobian(model, data, j, pin.WORLD), (6, model.nv))
+        if float(jac[3:, model.joints[j].idx_v] @ plane.normal) < 0.0:
+            raise ModelError(
+                f"robot {robot.name!r} is not a planar chain for frame {frame!r}: joint "
+                f"{model.names[j]!r} turns against the first joint's axis"
+            )
+    basis = plane.basis
+    points = [data.oMi[j].translation @ basis for j in support]
+    points.append(data.oMf[fid].translation @ basis)
+    segments = np.diff(np.array(points), axis=0)
+    lengths = np.linalg.norm(segments, axis=1)
+    if np.any(lengths <= 1e-9):
+        raise ModelError(
+            f"robot {robot.name!r} is not a planar revolute chain for frame {frame!r}: "
+            f"segment lengths in its plane are {lengths.tolist()} m (a zero one)"
+        )
+    phi = np.arctan2(segments[:, 1], segments[:, 0])
+    offset = np.diff(np.r_[0.0, phi])
+    offset = np.arctan2(np.sin(offset), np.cos(offset))
+    idx = [model.joints[j].idx_q for j in support]
+    lo = np.array([model.lowerPositionLimit[i] for i in idx], dtype=np.float64)
+    hi = np.array([model.upperPositionLimit[i] for i in idx], dtype=np.float64)
+    lo = np.where(lo <= -1e10, -np.inf, lo)
+    hi = np.where(hi >= 1e10, np.inf, hi)
+    chain = PlanarChain(
+        lengths=lengths,
+        q_lower=lo,
+        q_upper=hi,
+        base=points[0],
+        angle_offset=offset,
+        name=name or str(robot.name),
+        tip_frame=str(frame),
+    )
+    rng = np.random.default_rng(0)
+    lo_s = np.maximum(chain.q_lower, -math.pi)
+    hi_s = np.minimum(chain.q_upper, math.pi)
+    worst = 0.0
+    q = q0.copy()
+    for theta in rng.uniform(lo_s, hi_s, (20, len(support))):
+        q[idx] = theta
+        pin.framesForwardKinematics(model, data, q)
+        ref = data.oMf[fid].translation @ basis
+        worst = max(worst, float(np.linalg.norm(chain.tip_position(theta) - ref)))
+    if worst > _CHECK_TOL:
+        raise ModelError(
+            f"robot {robot.name!r} is not a planar revolute chain for frame {frame!r}: the "
+            f"equivalent chain misses the frame by {worst:.3g} m (tolerance {_CHECK_TOL:g} m)"
+        )
+    return chain
+
+
+def youbot_chain() -> PlanarChain:
+    """Return the youBot arm (``load_model("youbot")``) as a planar chain."""
+    return chain_from_robot(load_model("youbot"))

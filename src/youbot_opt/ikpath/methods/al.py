@@ -3,7 +3,7 @@
 Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
 (bound-constrained Lagrangian method) on ``E(x)`` with the ``2 s`` target
 constraints ``c(x) = 0`` and the joint box; the inner solver is
-:func:`~youbot_opt.ikpath.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
+:func:`~youbot_opt.ikpath.methods.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
 ``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
 in docs/design.md, "Module notes". Spatial problems switch on a safeguarded
 final phase of SQP steps (``ALOptions.newton_final``, docs/ikpath.md).
@@ -18,7 +18,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol, TypedDict
+from typing import NamedTuple, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -29,9 +29,9 @@ from scipy.optimize import Bounds, minimize
 from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.best_iterate import pick_best
-from youbot_opt.ikpath.bfgs import minimize_bfgs
-from youbot_opt.ikpath.problem import ALProblem, CyclicIKProblem, Evaluation
+from youbot_opt.ikpath.methods.best_iterate import pick_best
+from youbot_opt.ikpath.methods.bfgs import minimize_bfgs
+from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.status import SolveStatus
 
@@ -39,7 +39,6 @@ __all__ = [
     "ALOptions",
     "ALResultFields",
     "ALRun",
-    "NewtonProblem",
     "first_order_multipliers",
     "run_augmented_lagrangian",
     "solve_augmented_lagrangian",
@@ -73,7 +72,7 @@ class ALOptions:
         violation after which the start is declared locally infeasible.
     inner : {"bfgs", "lbfgsb"}
         Inner solver for the bound-constrained case (unlimited problems always
-        use BFGS): the projected BFGS of :mod:`youbot_opt.ikpath.bfgs` or SciPy's
+        use BFGS): the projected BFGS of :mod:`youbot_opt.ikpath.methods.bfgs` or SciPy's
         L-BFGS-B.
     max_wall_time : float or None
         Wall-clock limit of the whole solve in [s] (``None``: no limit). Checked
@@ -93,7 +92,7 @@ class ALOptions:
         the Lagrangian and the augmented Lagrangian as merit function
         (:func:`_final_phase`); if they meet the stopping test the solve ends there,
         otherwise the AL continues from its own iterate as if nothing happened. Needs
-        a problem with ``lagrangian_hessian`` (:class:`NewtonProblem`). Off by
+        the problem's ``lagrangian_hessian``. Off by
         default (the planar solver is the study's method as published); on for
         spatial problems, whose nearly singular pose Jacobians make the first-order
         multiplier updates crawl (docs/ikpath.md).
@@ -250,8 +249,8 @@ class ALResultFields(TypedDict):
     history: tuple[OuterIterate, ...]
 
 
-def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) -> ALRun:
-    """Run the augmented Lagrangian loop on any :class:`ALProblem` from a checked start.
+def run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOptions) -> ALRun:
+    """Run the augmented Lagrangian loop on a problem from a checked start.
 
     The planar :class:`CyclicIKProblem` and the spatial problem of
     :mod:`youbot_opt.ikpath.spatial` both plug in: the constraints are ``s``
@@ -282,15 +281,8 @@ def run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) 
     )
 
 
-def _run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions) -> ALRun:
+def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOptions) -> ALRun:
     """One run of the loop of :func:`run_augmented_lagrangian` (no retry)."""
-    if opts.newton_final and not hasattr(problem, "lagrangian_hessian"):
-        raise ParameterError(
-            f"ALOptions.newton_final needs a problem with lagrangian_hessian "
-            f"(e.g. SpatialIKProblem), got {type(problem).__name__}",
-            name="newton_final",
-            value=True,
-        )
     t0 = time.perf_counter()
     deadline = None if opts.max_wall_time is None else t0 + float(opts.max_wall_time)
     data = problem.create_data()
@@ -422,16 +414,6 @@ def _run_augmented_lagrangian(problem: ALProblem, start: Array, opts: ALOptions)
     return ALRun(status, message, x, lam, tuple(history), inner_total, time.perf_counter() - t0)
 
 
-class NewtonProblem(ALProblem, Protocol):
-    """An :class:`ALProblem` that also gives the Hessian the final (SQP) phase needs."""
-
-    def lagrangian_hessian(
-        self, x: ArrayLike, multipliers: ArrayLike, data: pin.Data | None = None
-    ) -> Array:
-        """Hessian of ``E - lambda^T c`` at ``x``, shape (n s, n s)."""
-        ...
-
-
 class _FinalPhase(NamedTuple):
     """Outcome of :func:`_final_phase` (``sqp_steps``: Newton-KKT steps taken)."""
 
@@ -444,7 +426,7 @@ class _FinalPhase(NamedTuple):
 
 
 def _final_phase(
-    problem: NewtonProblem,
+    problem: CyclicIKProblem,
     x: Array,
     lam: Array,
     mu: float,
@@ -459,7 +441,7 @@ def _final_phase(
 
     From the AL iterate and its multipliers, Newton steps ``(p, p_lam)`` on the KKT
     system ``grad E = J^T lam``, ``c = 0`` (Nocedal and Wright, eq. 18.9) with the
-    Hessian of :meth:`NewtonProblem.lagrangian_hessian`, shifted by ``delta I`` where
+    Hessian of :meth:`CyclicIKProblem.lagrangian_hessian`, shifted by ``delta I`` where
     needed to be positive definite on the null space of ``J`` (a minimiser, not a
     saddle). Joints at a limit whose Lagrangian gradient, or whose step, points out
     of the box are held there (the projected BFGS's binding set). The multipliers

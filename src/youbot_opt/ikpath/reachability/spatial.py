@@ -1,10 +1,10 @@
 """Reachability of spatial targets: witness, certificate, or undecided (issue 14, item 3).
 
-Each target of a :class:`~youbot_opt.ikpath.spatial.SpatialIKProblem` gets a
+Each target of a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` gets a
 :class:`SpatialVerdict`: reachable (joint values within the limits that meet it,
 checked by Pinocchio), unreachable with a certificate (beyond the reach sphere,
 or every box of a bisected joint box excluded by interval forward kinematics,
-:mod:`youbot_opt.ikpath.interval`), or undecided when the budget runs out.
+:mod:`youbot_opt.ikpath.reachability.interval`), or undecided when the budget runs out.
 Position, pose and approach targets are all decided (docs/ikpath.md, "Interval
 reachability").
 
@@ -27,15 +27,16 @@ import pinocchio as pin
 from youbot_opt._checks import check_int, check_nonnegative
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.branch_and_bound import bisect_boxes
-from youbot_opt.ikpath.interval import (
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.branch_and_bound import bisect_boxes
+from youbot_opt.ikpath.reachability.interval import (
     ROUNDING_RELATIVE,
     Interval,
     IntervalChain,
     IntervalPlacement,
 )
-from youbot_opt.ikpath.spatial import SpatialIKProblem, dls_ik, random_theta
-from youbot_opt.ikpath.targets import SpatialTarget
+from youbot_opt.ikpath.spatial import dls_ik, random_theta
+from youbot_opt.ikpath.targets import Target
 
 __all__ = [
     "DEFAULT_INTERVAL_BOXES",
@@ -142,7 +143,7 @@ class IntervalOutcome(NamedTuple):
     seconds: float
 
 
-def joint_box(problem: SpatialIKProblem) -> tuple[Array, Array]:
+def joint_box(problem: CyclicIKProblem) -> tuple[Array, Array]:
     """Return the joint box searched: the limits, revolute ranges cut to one turn.
 
     A revolute joint's placement repeats every 2 pi, so an unlimited or
@@ -185,7 +186,7 @@ def _upper_sum(coefficient: Array, x: Interval) -> Array:
     return terms.sum(axis=(-2, -1)) + ROUNDING_RELATIVE * magnitude.sum(axis=(-2, -1))
 
 
-def _excluded(target: SpatialTarget, bounds: IntervalPlacement) -> tuple[Mask, Mask]:
+def _excluded(target: Target, bounds: IntervalPlacement) -> tuple[Mask, Mask]:
     """Per box: whether its position, resp. orientation, interval cannot meet the target.
 
     Position: the distance from the target to the position box exceeds
@@ -215,7 +216,7 @@ def _excluded(target: SpatialTarget, bounds: IntervalPlacement) -> tuple[Mask, M
     return by_position, by_orientation
 
 
-def _score(target: SpatialTarget, rot: Interval, pos: Interval) -> Array:
+def _score(target: Target, rot: Interval, pos: Interval) -> Array:
     """Miss [m] of each box's centre placement (orientation weighted): picks midpoints to try."""
     centre = 0.5 * (pos.lo + pos.hi)
     miss = np.linalg.norm(centre - target.position, axis=1)
@@ -229,7 +230,7 @@ def _score(target: SpatialTarget, rot: Interval, pos: Interval) -> Array:
 
 
 def _dls(
-    problem: SpatialIKProblem, j: int, theta0: Array, data: pin.Data, **options: int
+    problem: CyclicIKProblem, j: int, theta0: Array, data: pin.Data, **options: int
 ) -> tuple[Array, bool]:
     """:func:`dls_ik`, with a singular step system (a rank-deficient pose block) as "not met"."""
     try:
@@ -258,7 +259,7 @@ def _pop_batch(stack: list[tuple[Array, Array, Array]]) -> tuple[Array, Array, A
 
 
 def interval_search(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     j: int,
     *,
     max_boxes: int = DEFAULT_INTERVAL_BOXES,
@@ -267,9 +268,9 @@ def interval_search(
     """Branch and bound over the joint box with interval forward kinematics.
 
     Boxes (:func:`joint_box`, bisected by
-    :func:`~youbot_opt.ikpath.branch_and_bound.bisect_boxes` on the side of
+    :func:`~youbot_opt.ikpath.reachability.branch_and_bound.bisect_boxes` on the side of
     largest lever-weighted width) are excluded when their interval placement
-    cannot meet target ``j`` (:mod:`youbot_opt.ikpath.interval`: sound, rounding
+    cannot meet target ``j`` (:mod:`youbot_opt.ikpath.reachability.interval`: sound, rounding
     included). No box left proves the target unreachable. For each batch the
     surviving box whose centre misses least has its midpoint checked by
     Pinocchio (a witness if it meets the target) and, when the miss has halved,
@@ -277,7 +278,7 @@ def interval_search(
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem; its limits (``use_limits``) bound the box.
     j : int
         Target index.
@@ -356,7 +357,7 @@ def interval_search(
     return outcome(SpatialReach.UNREACHABLE)
 
 
-def _interval_message(j: int, target: SpatialTarget, found: IntervalOutcome) -> str:
+def _interval_message(j: int, target: Target, found: IntervalOutcome) -> str:
     tols = f"{target.position_tol:.3g} m"
     if target.kind != "position":
         tols += f" and {target.orientation_tol:.3g} rad"
@@ -370,7 +371,7 @@ def _interval_message(j: int, target: SpatialTarget, found: IntervalOutcome) -> 
 
 
 def check_spatial_reachability(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     tries: int = 20,
     seed: int = 0,
@@ -379,7 +380,7 @@ def check_spatial_reachability(
 ) -> tuple[SpatialVerdict, ...]:
     """Decide each target: reachable (witness), unreachable (certificate), or undecided.
 
-    In order: the reach sphere (:meth:`~SpatialIKProblem.reach_radius`; a
+    In order: the reach sphere (:meth:`~CyclicIKProblem.reach_radius`; a
     target farther than ``reach + position_tol`` from its centre is
     unreachable); one DLS solve from zero angles (a witness); the interval
     search (:func:`interval_search`, a certificate or a witness); then the
@@ -387,7 +388,7 @@ def check_spatial_reachability(
 
     Parameters
     ----------
-    problem : SpatialIKProblem
+    problem : CyclicIKProblem
         The problem.
     tries : int
         DLS solves per target (>= 1).
@@ -482,7 +483,7 @@ def check_spatial_reachability(
 
 
 def require_spatial_reachable(
-    problem: SpatialIKProblem,
+    problem: CyclicIKProblem,
     *,
     interval_boxes: int = DEFAULT_INTERVAL_BOXES,
     interval_seconds: float = DEFAULT_INTERVAL_SECONDS,

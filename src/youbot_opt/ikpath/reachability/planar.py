@@ -7,7 +7,7 @@ is within ``tol`` = 1e-9 m), ``UNREACHABLE`` (a certified lower bound
 reachable point found) or ``UNDECIDED`` (limited chains of 4+ links when
 ``max_evaluations`` runs out: the certified distance interval). Decided by the
 annulus test without limits, in closed form for 1-2 links, else by
-:mod:`~youbot_opt.ikpath.branch_and_bound` (docs/ikpath.md, "Reachability").
+:mod:`~youbot_opt.ikpath.reachability.branch_and_bound` (docs/ikpath.md, "Reachability").
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
-from youbot_opt.ikpath.branch_and_bound import BranchAndBound
-from youbot_opt.ikpath.chain import PlanarChain
 from youbot_opt.ikpath.geometry import TWO_PI, nearest_on_arc, two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.branch_and_bound import BranchAndBound
+from youbot_opt.robot.planar import PlanarChain
 
 __all__ = [
     "Reachability",
@@ -361,13 +361,13 @@ def check_reachability(problem: CyclicIKProblem, **kwargs: float) -> tuple[Reach
     """
     return tuple(
         decide_reachability(
-            problem.chain,
+            problem.planar_chain,
             p,
             use_limits=problem.use_limits,
             index=j,
             **kwargs,  # type: ignore[arg-type]
         )
-        for j, p in enumerate(problem.targets)
+        for j, p in enumerate(problem.target_points)
     )
 
 
