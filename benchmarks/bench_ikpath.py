@@ -79,9 +79,9 @@ from youbot_opt.ikpath import (
     run_multistart,
     solve_augmented_lagrangian,
 )
+from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.spatial import greedy_path
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import Target

@@ -7,9 +7,8 @@ from dataclasses import replace
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
 from youbot_opt.ikpath.spatial_solve import open_spatial_store
 from youbot_opt.ikpath.sweep import options_json
 from youbot_opt.ikpath.targets import Target

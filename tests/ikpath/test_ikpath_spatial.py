@@ -7,12 +7,12 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
+from youbot_opt.ikpath.dls import dls_ik, greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.spatial import dls_ik, greedy_path
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
@@ -413,8 +413,7 @@ def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
     """One solve: a planar robot gets the planar methods (reachability checked, IKPathResult),
     planar=False the general ones (SpatialIKResult, same optimum to 1e-8); a chain-less
     problem refuses planar=True."""
-    from youbot_opt.ikpath.result import IKPathResult
-    from youbot_opt.ikpath.spatial import SpatialIKResult
+    from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
 
     problem = _planar_as_spatial("A", tmp_path, use_limits=False)
     planar = solve(problem)

@@ -1,7 +1,7 @@
 """The spatial mode of ``youbot-opt ikpath`` (any robot, 3-D targets, poses).
 
 Called by :mod:`youbot_opt.cli.ikpath` when the command line asks for it:
-builds a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` from
+builds a :class:`~youbot_opt.ikpath.problem.CyclicIKProblem` from
 ``--robot``/``--frame``/``--target``/``--targets``, decides every target's
 reachability (exit 2 with the certificate of an unreachable one), runs the
 resumable multistart (``--starts``, ``--start-kind``, ``--method``,
@@ -144,7 +144,7 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     if args.max_wall_time is None:
         return None
     if args.method == "al":
-        from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
+        from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS
 
         return replace(SPATIAL_AL_OPTIONS, max_wall_time=args.max_wall_time)
     from youbot_opt.nlp.ipopt import IpoptOptions

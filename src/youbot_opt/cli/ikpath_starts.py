@@ -20,8 +20,7 @@ from typing import TYPE_CHECKING, Any
 from youbot_opt.sweeps.options import SweepOptions
 
 if TYPE_CHECKING:
-    from youbot_opt.ikpath.result import IKPathResult
-    from youbot_opt.ikpath.spatial import SpatialIKResult
+    from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
 
 __all__ = ["StartProgress", "print_starts", "start_fields", "start_sweep"]
 

@@ -12,6 +12,7 @@ check, solve, inspect (a 3-D robot: :func:`solve`, :func:`run_spatial_multistart
 
 from __future__ import annotations
 
+from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
@@ -38,9 +39,14 @@ from youbot_opt.ikpath.reachability.spatial import (
     SpatialVerdict,
     check_spatial_reachability,
 )
-from youbot_opt.ikpath.result import IKPathResult, IKStatus, JointPath, OuterIterate
+from youbot_opt.ikpath.result import (
+    IKPathResult,
+    IKStatus,
+    JointPath,
+    OuterIterate,
+    SpatialIKResult,
+)
 from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial import SpatialIKResult, greedy_path
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts

@@ -48,7 +48,7 @@ class Evaluation(NamedTuple):
         ``dE/dx`` in [rad].
     constraints : ndarray, shape (m * s,)
         ``c(x)`` stacked per target, in [m] (planar: ``F(q_j) - p_j``, ``m = 2``;
-        spatial problems: ``m`` rows per target, see :mod:`youbot_opt.ikpath.spatial`).
+        spatial problems: ``m`` rows per target, see docs/ikpath.md).
     jacobian_blocks : ndarray, shape (s, m, n)
         ``dc_j/dq_j`` in [m/rad]; ``dc/dx`` is block diagonal with these blocks.
     """

@@ -24,6 +24,8 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.nlp.status import SolveStatus, apply_check
 
 __all__ = [
+    "SpatialIKResult",
+    "build_spatial_result",
     "SolveStatus",
     "IKStatus",
     "OuterIterate",
@@ -414,3 +416,161 @@ def build_result(
         history=history,
     )
     return checked(result)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class SpatialIKResult:
+    """Result of one spatial IK-path solve.
+
+    Attributes
+    ----------
+    problem : CyclicIKProblem
+        The problem.
+    method : str
+        ``"al"`` or ``"ipopt"``.
+    status : SolveStatus
+        Outcome; a success means every target is met within its tolerances
+        (checked with ``framesForwardKinematics``) and the limits hold.
+    configurations : ndarray, shape (s, n)
+        Active joint angles in [rad].
+    objective : float
+        ``E`` in [rad^2].
+    position_errors, orientation_errors : ndarray, shape (s,)
+        Per target, in [m] and [rad].
+    limit_violation : float
+        In [rad].
+    multipliers : ndarray, shape (s, m)
+        Constraint multipliers (``grad E = J^T lambda``).
+    iterations : int
+        Outer (AL) or IPOPT iterations.
+    wall_time : float
+        In [s].
+    message : str
+        Solver message (names the blocking target on failure).
+    start : ndarray, shape (s, n)
+        Start in [rad].
+    history : tuple of OuterIterate
+        Per-iteration records.
+    """
+
+    problem: CyclicIKProblem
+    method: str
+    status: SolveStatus
+    configurations: Array
+    objective: float
+    position_errors: Array
+    orientation_errors: Array
+    limit_violation: float
+    multipliers: Array
+    iterations: int
+    wall_time: float
+    message: str
+    start: Array
+    history: tuple[OuterIterate, ...] = ()
+
+    @property
+    def success(self) -> bool:
+        """Whether the status is a success."""
+        return self.status.success
+
+    def leg_motion(self) -> Array:
+        """Joint motion per leg ``q_{j+1} - q_j`` (closing leg last), shape (s, n), [rad]."""
+        q = self.configurations
+        return np.roll(q, -1, axis=0) - q
+
+    def frame_path(self, samples_per_leg: int = 20) -> Array:
+        """Frame positions [m] along straight joint-space legs, shape (s * k + 1, 3)."""
+        q = self.configurations
+        closed = np.vstack([q, q[:1]])
+        data = self.problem.create_data()
+        pts = []
+        for j in range(q.shape[0]):
+            for t in np.linspace(0.0, 1.0, samples_per_leg, endpoint=False):
+                theta = (1 - t) * closed[j] + t * closed[j + 1]
+                pts.append(self.problem.placement(theta, data).translation)
+        pts.append(self.problem.placement(closed[-1], data).translation)
+        return np.array(pts)
+
+    def summary(self) -> str:
+        """Return a few human-readable lines."""
+        return "\n".join(
+            [
+                f"method {self.method}: {self.status.value} ({self.message})",
+                f"E = {self.objective:.10g} rad^2; largest position error "
+                f"{np.max(self.position_errors):.3g} m, orientation error "
+                f"{np.max(self.orientation_errors):.3g} rad; limit violation "
+                f"{self.limit_violation:.3g} rad",
+                f"{self.iterations} iterations, {self.wall_time * 1e3:.1f} ms",
+            ]
+        )
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready summary of the result."""
+        return {
+            "method": self.method,
+            "status": self.status.value,
+            "success": self.success,
+            "message": self.message,
+            "objective_rad2": self.objective,
+            "configurations_rad": self.configurations.tolist(),
+            "joint_names": list(self.problem.joint_names),
+            "position_errors_m": self.position_errors.tolist(),
+            "orientation_errors_rad": self.orientation_errors.tolist(),
+            "limit_violation_rad": self.limit_violation,
+            "iterations": self.iterations,
+            "wall_time_s": self.wall_time,
+            "frame": self.problem.frame,
+            "targets": [t.to_dict() for t in self.problem.targets],
+        }
+
+
+def build_spatial_result(
+    problem: CyclicIKProblem,
+    *,
+    method: str,
+    status: SolveStatus,
+    x: Array,
+    multipliers: Array,
+    iterations: int,
+    wall_time: float,
+    message: str,
+    start: Array,
+    history: tuple[OuterIterate, ...] = (),
+) -> SpatialIKResult:
+    """Assemble a result; a claimed success is re-checked by ``framesForwardKinematics``.
+
+    Success needs every target within its tolerances and the limits to hold
+    exactly (else the status becomes ``CONSTRAINT_VIOLATION``). On failure the
+    message names the target that blocks the path (the largest relative miss).
+    """
+    q = problem.as_configurations(x)
+    pos, ang = problem.errors(q)
+    excess = problem.limit_violation(q)
+    pt = np.array([t.position_tol for t in problem.targets])
+    ot = np.array([t.orientation_tol for t in problem.targets])
+    miss = np.maximum(pos / pt, ang / ot)
+    worst = int(np.argmax(miss))
+    if status.success and (miss[worst] > 1.0 or excess > 0.0):
+        status = SolveStatus.CONSTRAINT_VIOLATION
+        message = f"{message}; re-check failed"
+    if not status.success:
+        message = (
+            f"{message}; blocking target {worst}: position error {pos[worst]:.3g} m "
+            f"(tol {pt[worst]:.3g}), orientation error {ang[worst]:.3g} rad (tol {ot[worst]:.3g})"
+        )
+    return SpatialIKResult(
+        problem=problem,
+        method=method,
+        status=status,
+        configurations=q.copy(),
+        objective=problem.objective(q),
+        position_errors=pos,
+        orientation_errors=ang,
+        limit_violation=excess,
+        multipliers=np.asarray(multipliers, float).reshape(problem.n_targets, -1),
+        iterations=int(iterations),
+        wall_time=float(wall_time),
+        message=message,
+        start=problem.as_configurations(start, name="start").copy(),
+        history=history,
+    )

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.ikpath.methods.al import (
+    SPATIAL_AL_OPTIONS,
     ALOptions,
     run_augmented_lagrangian,
     solve_augmented_lagrangian,
@@ -27,8 +28,7 @@ from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_ipopt, sol
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
 from youbot_opt.ikpath.reachability.spatial import require_spatial_reachable
-from youbot_opt.ikpath.result import IKPathResult
-from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult, build_spatial_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 
 __all__ = ["Method", "METHODS", "solve", "check_targets"]
@@ -99,7 +99,7 @@ def solve(
     study's AL settings (``ALOptions()``) or IPOPT on the chain's closed form, a
     result with per-target residuals (:class:`IKPathResult`). Any other problem
     (or ``planar=False``) by the general ones: the AL with
-    :data:`~youbot_opt.ikpath.spatial.SPATIAL_AL_OPTIONS` or IPOPT on the
+    :data:`~youbot_opt.ikpath.methods.al.SPATIAL_AL_OPTIONS` or IPOPT on the
     frame's symbolic kinematics, reachability not decided unless asked, a
     result with position and orientation errors (:class:`SpatialIKResult`).
 

@@ -34,7 +34,7 @@ from youbot_opt.ikpath.io import (
     write_document,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial import SpatialIKResult
+from youbot_opt.ikpath.result import SpatialIKResult
 from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel

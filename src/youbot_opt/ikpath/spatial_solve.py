@@ -25,13 +25,13 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import check_reachability
+from youbot_opt.ikpath.result import SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.solve import check_method, solve
-from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS, SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import (
     encode_spatial_result,
     load_spatial_result,

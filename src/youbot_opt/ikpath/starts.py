@@ -20,10 +20,10 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.dls import greedy_path, random_theta
 from youbot_opt.ikpath.geometry import two_link_ik
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, theta_ranges
-from youbot_opt.ikpath.spatial import greedy_path, random_theta
 from youbot_opt.sweeps.lazy import LazySequence
 
 __all__ = [

@@ -32,8 +32,7 @@ from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, probl
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, build_result
-from youbot_opt.ikpath.spatial import SpatialIKResult
+from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult, build_result
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,

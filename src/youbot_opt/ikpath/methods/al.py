@@ -36,6 +36,7 @@ from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.status import SolveStatus
 
 __all__ = [
+    "SPATIAL_AL_OPTIONS",
     "ALOptions",
     "ALResultFields",
     "ALRun",
@@ -252,8 +253,7 @@ class ALResultFields(TypedDict):
 def run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOptions) -> ALRun:
     """Run the augmented Lagrangian loop on a problem from a checked start.
 
-    The planar :class:`CyclicIKProblem` and the spatial problem of
-    :mod:`youbot_opt.ikpath.spatial` both plug in: the constraints are ``s``
+    Every :class:`CyclicIKProblem`, planar chain or 3-D robot, plugs in: the constraints are ``s``
     blocks of ``m`` rows (``m = jacobian_blocks.shape[1]``), each with its own
     Jacobian block, which is all the loop and :func:`first_order_multipliers` use.
     With ``opts.retry_least_squares`` a failed run with ``lambda_0 = 0`` is followed
@@ -733,3 +733,12 @@ def _inner_solve(
         callback=None if deadline is None else stop_at_deadline,
     )
     return np.clip(out.x, lower, upper), int(out.nit), str(out.message)
+
+
+SPATIAL_AL_OPTIONS = ALOptions(penalty_initial=1e3, newton_final=True, retry_least_squares=True)
+"""Default AL settings of the spatial problem: ``mu_0 = 1e3`` (with ``mu_0 = 10`` the
+motion term of a 6-joint arm with 2 pi limits outweighs the penalty and the first
+inner solves leave the targets for good; measured on ur5, docs/ikpath.md) and the
+safeguarded final SQP phase (``newton_final``: nearly singular pose Jacobians make
+the first-order multiplier updates crawl) and, after a failed run, one retry with
+least-squares initial multipliers (``retry_least_squares``)."""

@@ -25,8 +25,13 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.methods.best_iterate import pick_best
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
-from youbot_opt.ikpath.spatial import SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.result import (
+    IKPathResult,
+    OuterIterate,
+    SpatialIKResult,
+    build_result,
+    build_spatial_result,
+)
 from youbot_opt.nlp.best_iterate import NlpsolIterationCallback
 from youbot_opt.nlp.ipopt import IpoptOptions, IpoptValue, single_threaded_blas
 from youbot_opt.nlp.status import IPOPT_STATUS, SolveStatus, status_from_ipopt

@@ -1,6 +1,6 @@
 """Reachability of spatial targets: witness, certificate, or undecided (issue 14, item 3).
 
-Each target of a :class:`~youbot_opt.ikpath.spatial.CyclicIKProblem` gets a
+Each target of a :class:`~youbot_opt.ikpath.problem.CyclicIKProblem` gets a
 :class:`SpatialVerdict`: reachable (joint values within the limits that meet it,
 checked by Pinocchio), unreachable with a certificate (beyond the reach sphere,
 or every box of a bisected joint box excluded by interval forward kinematics,
@@ -27,6 +27,7 @@ import pinocchio as pin
 from youbot_opt._checks import check_int, check_nonnegative
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
+from youbot_opt.ikpath.dls import dls_ik, random_theta
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.branch_and_bound import bisect_boxes
 from youbot_opt.ikpath.reachability.interval import (
@@ -35,7 +36,6 @@ from youbot_opt.ikpath.reachability.interval import (
     IntervalChain,
     IntervalPlacement,
 )
-from youbot_opt.ikpath.spatial import dls_ik, random_theta
 from youbot_opt.ikpath.targets import Target
 
 __all__ = [

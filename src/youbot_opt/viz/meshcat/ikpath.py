@@ -24,8 +24,7 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.result import IKPathResult
-from youbot_opt.ikpath.spatial import SpatialIKResult
+from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
 
 if TYPE_CHECKING:
     import meshcat

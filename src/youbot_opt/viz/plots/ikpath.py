@@ -26,8 +26,7 @@ from matplotlib.patches import Patch
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, check_reachability
-from youbot_opt.ikpath.result import IKPathResult
-from youbot_opt.ikpath.spatial import SpatialIKResult
+from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
 
 __all__ = [
     "plot_arm_path",
