@@ -10,8 +10,7 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import OuterIterate
-from youbot_opt.ikpath.spatial import build_spatial_result
+from youbot_opt.ikpath.result import OuterIterate, build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.nlp.status import SolveStatus

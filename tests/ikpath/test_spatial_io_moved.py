@@ -15,7 +15,7 @@ from youbot_opt._files import json_digest
 from youbot_opt.exceptions import InvalidModelError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import RobotSource as IkpathRobotSource
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial import SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.result import SpatialIKResult, build_spatial_result
 from youbot_opt.ikpath.spatial_io import RobotSource as SpatialIoRobotSource
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import Target
