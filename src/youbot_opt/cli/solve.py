@@ -166,18 +166,26 @@ def ipopt_options(args: argparse.Namespace) -> IpoptOptions:
     )
 
 
-def add_refine_arguments(p: argparse.ArgumentParser) -> None:
-    """Add the mesh-refinement options (on by default; ``--no-refine`` keeps the grid)."""
+def add_refine_arguments(
+    p: argparse.ArgumentParser,
+    grid: str = "the grid of --knots",
+    unrefined: str = "the plan is certified once on it, not refined",
+) -> None:
+    """Add the mesh-refinement options (on by default; ``--no-refine`` keeps the grid).
+
+    ``grid`` names the starting grid in the help (``main`` has no ``--knots``),
+    ``unrefined`` says what ``--no-refine`` does with the plan.
+    """
     g = p.add_argument_group(
         "mesh refinement",
-        "by default the grid of --knots is refined until every interval's collocation error "
+        f"by default {grid} is refined until every interval's collocation error "
         "is within --error-tol and the plan passes its certificate (or the budget runs out)",
     )
     g.add_argument(
         "--no-refine",
         dest="refine",
         action="store_false",
-        help="keep the fixed uniform grid of --knots (the result is then never certified)",
+        help=f"keep {grid}: {unrefined}",
     )
     g.add_argument(
         "--error-tol",
