@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
     from youbot_opt.robot.model import RobotModel
     from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
-    from youbot_opt.trajopt.refine import Refined, Refinement
+    from youbot_opt.trajopt.refine import Refined, Refinement, RefinementRound
 
 __all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "plot_refinement", "QUANTITIES"]
 
@@ -495,14 +495,36 @@ def plot_arm_2d(
     return fig
 
 
+_SPLIT_COLOUR = "tab:red"  # the intervals a refinement round splits
+
+
+def _round_verdict(r: RefinementRound, tolerance: float, *, certify: bool = True) -> str:
+    """Return the verdict of one refinement round on its own, as :func:`refine` judges the last.
+
+    ``"certified"`` when the solve succeeded, every interval is within
+    ``tolerance`` and (with ``certify``) the certificate passed; otherwise what
+    failed: ``"solve <status>"``, ``"error 1.7e-03 > 0.001, cert. passes"``,
+    ``"cert. fails"`` or ``"no cert."``.
+    """
+    if r.status not in ("solved", "solved_acceptable"):
+        return f"solve {r.status}"
+    cert = {True: "cert. passes", False: "cert. fails", None: "no cert."}[r.certificate_passed]
+    if not r.max_error <= tolerance:  # NaN: no estimate
+        return f"error {r.max_error:.2g} > {tolerance:g}, {cert}"
+    if r.certificate_passed or not certify:
+        return "certified"
+    return cert
+
+
 def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) -> Figure:
     """Where the knots went in each refinement round, and why.
 
     Top: the knots of every round (one row per round, a tick per knot, the
-    intervals split in the next round in red). Bottom: each interval's relative
-    collocation error against time, one step curve per round, with the
-    tolerance dashed. Rounds are labelled with their knots, ``f`` and
-    certificate verdict.
+    intervals whose error exceeds the tolerance, split in the next round, in
+    red, named in a legend). Bottom: each interval's relative collocation error
+    against time, one step curve per round, with the tolerance dashed. Rounds
+    are labelled with their knots, ``f`` and their own verdict
+    ("certified" only for a round that is, on its own).
 
     Parameters
     ----------
@@ -537,18 +559,27 @@ def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) 
     ax_grid, ax_err = axes[0, 0], axes[1, 0]
     cmap = colormaps["viridis"]
     tol = record.budget.tolerance
+    n_split = 0
     for i, r in enumerate(rounds):
         colour = cmap(i / max(1, len(rounds) - 1))
         split = r.errors > tol
+        n_split += int(np.count_nonzero(split))
         ax_grid.vlines(r.t, i - 0.35, i + 0.35, colors=[colour], linewidth=0.8)
         starts, ends = r.t[:-1][split], r.t[1:][split]
-        ax_grid.hlines(np.full(starts.size, i), starts, ends, colors="tab:red", linewidth=2.5)
-        verdict = {True: "certified", False: "cert. fails", None: "no cert."}[r.certificate_passed]
-        label = f"round {r.index}: {r.n_knots} knots, f = {r.objective:.5g}, {verdict}"
+        ax_grid.hlines(np.full(starts.size, i), starts, ends, colors=_SPLIT_COLOUR, linewidth=2.5)
+        label = (
+            f"round {r.index}: {r.n_knots} knots, f = {r.objective:.5g}, "
+            f"{_round_verdict(r, tol, certify=record.budget.certify)}"
+        )
         ax_err.stairs(np.maximum(r.errors, 1e-16), r.t, color=colour, label=label)
     ax_grid.set_yticks(range(len(rounds)), [f"{r.index} ({r.n_knots})" for r in rounds])
     ax_grid.set_ylabel("round (knots)")
     ax_grid.invert_yaxis()
+    if n_split:
+        split_line = Line2D([], [], color=_SPLIT_COLOUR, linewidth=2.5)
+        ax_grid.legend([split_line], [f"interval error > {tol:g}: split in the next round"],
+                       loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize="small",
+                       framealpha=0.9)  # fmt: skip
     ax_err.axhline(tol, color="k", linestyle="--", linewidth=1.0, label=f"tolerance {tol:g}")
     ax_err.set_yscale("log")
     ax_err.set_xlabel("t [s]")
