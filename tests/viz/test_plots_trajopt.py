@@ -166,10 +166,10 @@ def test_plot_arm_2d_draws_the_study_tip_positions(result):
 
 
 def test_plot_convergence_title_of_one_run(result):
-    """One run is "1 run" in the default title, not "1 runs"."""
+    """One run is "the solve" in the default title, not "1 run" (nor "1 runs")."""
     fig = plot_convergence([result])
     title = fig.axes[0].get_title()
-    assert title.startswith("Convergence of 1 run (") and "runs" not in title
+    assert title == "Convergence of the solve (converged)"
 
 
 def _round(index: int, errors: list[float], passed: bool | None, status: str = "solved"):
@@ -182,6 +182,7 @@ def _round(index: int, errors: list[float], passed: bool | None, status: str = "
         max_error=max(errors), t=np.linspace(0.0, 2.0, n), errors=np.array(errors),
         certificate_passed=passed, failures=(), feedback_rms=0.01, feedback_peak=0.02,
         local_position=1e-3, iterations=5 + index, solve_time=0.1, check_time=0.1,
+        objective_history=np.linspace(9.0, 8.0 + 0.1 * index, 6 + index),
     )  # fmt: skip
 
 
@@ -229,3 +230,31 @@ def test_plot_refinement_names_every_colour_in_a_legend(refinement):
     (text,) = [t.get_text() for t in legend.get_texts()]
     assert text == "interval error > 0.001: split in the next round"
     assert to_rgba(legend.get_lines()[0].get_color()) == red
+
+
+def test_plot_convergence_of_a_refinement_shows_every_rounds_solve(refinement):
+    """One line per round through its IPOPT objectives, integer iterations, titled by the rounds."""
+    from youbot_opt.trajopt.refine import Refined
+
+    for runs in (refinement, Refined(None, refinement)):  # type: ignore[arg-type]
+        fig = plot_convergence(runs)
+        _render(fig)
+        (ax,) = fig.axes
+        lines = ax.get_lines()
+        assert len(lines) == len(refinement.rounds)
+        for line, r in zip(lines, refinement.rounds, strict=True):
+            np.testing.assert_array_equal(line.get_ydata(), r.objective_history)
+            np.testing.assert_array_equal(line.get_xdata(), np.arange(r.objective_history.size))
+        assert ax.get_title() == "Convergence of the solves of 3 refinement rounds (3 converged)"
+        texts = [t.get_text() for t in fig.legends[0].get_texts()]
+        assert texts[1] == "round 1 (6 knots): f = 8.1000"
+        ticks = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+        assert ticks and all(float(t).is_integer() for t in ticks)
+
+
+def test_plot_convergence_of_a_multistart_is_titled_by_its_starts(solver):
+    """A multistart's figure counts starts, not runs."""
+    ms = run_multistart(solver, 2, beta=0.5, seed=0, sweep=SweepOptions(executor="serial"))
+    fig = plot_convergence(ms)
+    n_ok = sum(s.result is not None and s.result.success for s in ms.starts)
+    assert fig.axes[0].get_title() == f"Convergence of 2 starts ({n_ok} converged)"

@@ -486,7 +486,8 @@ def write_solve_outputs(
     if refinement is not None:
         files.append(draw_figure(folder, "refinement.png", plot_refinement, refinement))
         summary["refinement"] = refinement.summary()
-    runs = multistart if multistart is not None else [result]
+    runs = multistart if multistart is not None else refinement  # its every round's solve
+    runs = [result] if runs is None else runs
     files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
     if multistart is not None:
         files.append(draw_figure(folder, "multistart.png", plot_multistart, multistart))

@@ -218,10 +218,32 @@ def plot_trajectory(
     return fig
 
 
-def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
-    """(label, objective history, success) of each result, start or multistart."""
-    from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
+def _refinement_items(record: Refinement) -> list[tuple[str, Array, bool]]:
+    """(label, objective history, success) of each round's solve of a refinement."""
+    items = []
+    for r in record.rounds:
+        history = np.asarray(r.objective_history, dtype=float)
+        if history.size:
+            ok = r.status in ("solved", "solved_acceptable")
+            status = "" if ok else f", {r.status}"
+            label = f"round {r.index} ({r.n_knots} knots): f = {r.objective:.4f}{status}"
+            items.append((label, history, ok))
+    return items
 
+
+def _convergence_items(results: Any) -> tuple[list[tuple[str, Array, bool]], str]:
+    """(label, objective history, success) of each run, and what the runs are.
+
+    The runs are a refinement's rounds, a multistart's starts or plain results.
+    """
+    from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
+    from youbot_opt.trajopt.refine import Refined, Refinement
+
+    if isinstance(results, Refined):
+        results = results.refinement
+    if isinstance(results, Refinement):
+        return _refinement_items(results), "rounds"
+    kind = "starts" if isinstance(results, MultistartResult) else "runs"
     if isinstance(results, MultistartResult):
         results = results.starts
     if isinstance(results, TrajOptResult):
@@ -229,6 +251,7 @@ def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
     items: list[tuple[str, Array, bool]] = []
     for i, item in enumerate(results):
         if isinstance(item, StartOutcome):
+            kind = "starts"
             if item.result is None:
                 continue  # the start raised: no history
             label = "straight line" if item.index < 0 else f"start {item.index}"
@@ -238,31 +261,50 @@ def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
             label = f"seed {res.seed}" if res.seed is not None else f"run {i}"
         else:
             raise ParameterError(
-                "results must be TrajOptResults, StartOutcomes or a MultistartResult, got "
-                f"{type(item).__name__}",
+                "results must be TrajOptResults, StartOutcomes, a MultistartResult or a "
+                f"refinement, got {type(item).__name__}",
                 name="results",
             )
         history = np.asarray(res.objective_history, dtype=float)
         if history.size:
             status = "" if res.success else f", {res.status.value}"
             items.append((f"{label}: f = {res.objective:.4f}{status}", history, res.success))
-    if not items:
-        raise ParameterError("no result with an objective history to plot", name="results")
-    return items
+    return items, kind
+
+
+def _convergence_title(kind: str, items: list[tuple[str, Array, bool]]) -> str:
+    """Say what the figure shows: the solve, the starts or the refinement rounds."""
+    n, n_ok = len(items), sum(ok for _, _, ok in items)
+    if kind == "rounds":
+        what = (
+            "the solve of the refinement's round"
+            if n == 1
+            else f"the solves of {n} refinement rounds"
+        )
+        return f"Convergence of {what} ({n_ok} converged)"
+    if kind == "runs" and n == 1:
+        return f"Convergence of the solve ({'converged' if n_ok else 'not converged'})"
+    noun = kind if n != 1 else kind[:-1]
+    return f"Convergence of {n} {noun} ({n_ok} converged)"
 
 
 def plot_convergence(
-    results: MultistartResult | Sequence[StartOutcome] | Sequence[TrajOptResult],
+    results: MultistartResult
+    | Refined
+    | Refinement
+    | Sequence[StartOutcome]
+    | Sequence[TrajOptResult],
     *,
     log: bool = True,
     max_legend: int = 12,
     title: str | None = None,
     figsize: tuple[float, float] = (9.0, 4.5),
 ) -> Figure:
-    """Objective against IPOPT iteration for several starts.
+    """Objective against IPOPT iteration for several starts, or each round of a refinement.
 
-    One line per start: IPOPT's objective at iterations ``0 .. iterations``
-    (``TrajOptResult.objective_history``; iteration 0 is the initial guess).
+    One line per start (or per refinement round's solve): IPOPT's objective at
+    iterations ``0 .. iterations`` (``TrajOptResult.objective_history``;
+    iteration 0 is the initial guess, a refinement round's warm start).
     Converged starts are solid and end in a dot, failed ones dotted and end in
     a cross. Up to ``max_legend`` runs are named in the legend with their
     final objective; beyond that, a colour bar gives the run number and the
@@ -270,14 +312,17 @@ def plot_convergence(
 
     Parameters
     ----------
-    results : MultistartResult, sequence of StartOutcome or of TrajOptResult
-        The runs (starts that raised, having no history, are skipped).
+    results : MultistartResult, Refined, Refinement, sequence of StartOutcome or of TrajOptResult
+        The runs (starts that raised, having no history, are skipped); for a
+        refinement (what :func:`~youbot_opt.trajopt.refine.refine` returns, or
+        its record), the solve of every round.
     log : bool
         Logarithmic objective axis (symmetric-log if an objective is <= 0).
     max_legend : int
         Largest number of runs listed one by one in the legend.
     title : str, optional
-        Axes title; default: the number of runs and how many converged.
+        Axes title; default: what the runs are (the solve, the starts, the
+        refinement rounds), how many and how many converged.
     figsize : tuple of float
         Figure size in [inch].
 
@@ -291,7 +336,9 @@ def plot_convergence(
     ParameterError
         If no run has an objective history.
     """
-    items = _convergence_items(results)
+    items, kind = _convergence_items(results)
+    if not items:
+        raise ParameterError("no result with an objective history to plot", name="results")
     fig, axes = new_figure(1, 1, figsize)
     ax: Axes = axes[0, 0]
     cmap = colormaps["viridis"]
@@ -311,8 +358,7 @@ def plot_convergence(
     ax.set_ylabel(r"objective $f = \beta T + (1-\beta) W$")
     ax.grid(True, which="both", alpha=0.3)
     n_ok = sum(ok for _, _, ok in items)
-    runs = "1 run" if len(items) == 1 else f"{len(items)} runs"
-    ax.set_title(title or f"Convergence of {runs} ({n_ok} converged)")
+    ax.set_title(title or _convergence_title(kind, items))
     if len(items) <= max_legend:
         fig.legend(loc="outside right upper", fontsize="small")
         return fig
