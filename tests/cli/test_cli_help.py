@@ -225,3 +225,18 @@ def test_no_refine_help_says_the_plan_is_certified_once():
         text = " ".join(_help_texts()[command].split())
         assert "never certified" not in text
         assert "certified once on" in text, command
+
+
+def test_single_start_solve_on_another_robot_suggests_a_multistart(capsys, tmp_path):
+    """One start on a robot other than the youBot: one line says it is a local optimum, and how."""
+    from youbot_opt.cli import main
+
+    argv = ["solve", "--knots", "20", "--no-refine", "--out"]
+    ur5 = ["--robot", "ur5", "--start", "0", "0", "0", "0", "0", "0"]
+    ur5 += ["--goal", "1", "-0.5", "0.5", "0", "0", "0"]
+    main([*argv, str(tmp_path / "ur5"), *ur5])
+    out = capsys.readouterr().out
+    hints = [line for line in out.splitlines() if "--starts" in line]
+    assert len(hints) == 1 and "local optimum" in hints[0], out
+    main([*argv, str(tmp_path / "youbot")])  # the study's base case: its optimum is known
+    assert "--starts" not in capsys.readouterr().out

@@ -166,6 +166,11 @@ def ipopt_options(args: argparse.Namespace) -> IpoptOptions:
     )
 
 
+MULTISTART_HINT = (
+    "note: one start finds a local optimum; a multistart may find a better one: --starts 8"
+)
+
+
 def add_refine_arguments(
     p: argparse.ArgumentParser,
     grid: str = "the grid of --knots",
@@ -314,7 +319,7 @@ def refinement_table(result: Any, record: Any = None) -> list[str]:
     if record is None:
         return [
             f"grid          fixed uniform, {result.problem.n_knots} knots "
-            "(--no-refine: not certified)"
+            "(--no-refine: not refined, certified once on this grid)"
         ]
     lines = [
         f"certified     {'yes' if record.certified else 'NO'}: {record.reason}",
@@ -653,6 +658,8 @@ def run_solve(args: argparse.Namespace) -> int:
         if ms is not None and not has_optimum:
             print("youbot-opt: no start converged; the least violated failed start follows")
         print(format_result(result, certificate, refinement=record))
+        if ms is None and result.success and not problem.robot.name.startswith("youbot"):
+            print(MULTISTART_HINT)
         print()
     report_outputs(folder, files, args.json)
     return 0 if result.success and (record is None or record.certified) else 1
