@@ -136,7 +136,7 @@ def test_plot_convergence_of_a_multistart_uses_a_colour_bar_beyond_max_legend(so
     for line, start in zip(ax.get_lines(), ms.starts, strict=True):
         np.testing.assert_array_equal(line.get_ydata(), start.result.objective_history)
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [f"converged ({ms.n_starts})"]
-    assert bar.get_ylabel() == "run number"
+    assert bar.get_ylabel() == "start number"  # a multistart's runs are its starts
     with pytest.raises(ParameterError, match="no result with an objective history"):
         plot_convergence([])
 

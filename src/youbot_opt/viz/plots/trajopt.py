@@ -307,8 +307,8 @@ def plot_convergence(
     iteration 0 is the initial guess, a refinement round's warm start).
     Converged starts are solid and end in a dot, failed ones dotted and end in
     a cross. Up to ``max_legend`` runs are named in the legend with their
-    final objective; beyond that, a colour bar gives the run number and the
-    legend only the line styles.
+    final objective; beyond that, a colour bar gives the run's (start's,
+    round's) number and the legend only the line styles.
 
     Parameters
     ----------
@@ -369,7 +369,8 @@ def plot_convergence(
         styles.append(Line2D([], [], color="0.3", linestyle=":", marker="x", label=failed))
     ax.legend(handles=styles, loc="upper right", fontsize="small")
     norm = Normalize(0, max(len(items) - 1, 1))
-    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="run number")
+    number = {"starts": "start number", "rounds": "round"}.get(kind, "run number")
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=number)
     bar.locator = MaxNLocator(integer=True)
     bar.update_ticks()
     return fig
