@@ -201,3 +201,42 @@ def test_solve_other_robot_without_start_goal_says_why(capsys, tmp_path):
     err = capsys.readouterr().err
     assert code == 2
     assert "--start and --goal" in err and "only the youbot has a default motion" in err
+
+
+OTHERS_FLAGS = {"robots"}  # its help names the flags of the commands that take a robot
+
+
+@pytest.mark.parametrize("command", sorted(set(_help_texts()) - {""} - OTHERS_FLAGS))
+def test_every_flag_a_help_names_is_an_option_of_that_command(command):
+    """A --help names only flags its command accepts (main --help once named --knots)."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[
+        command
+    ]
+    accepted = {flag for action in sub._actions for flag in action.option_strings}
+    text = re.sub(r"(--[\w-]*-)\n\s*", r"\1", _help_texts()[command])  # a flag wrapped at "-"
+    named = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", text))
+    assert named <= accepted, sorted(named - accepted)
+
+
+def test_no_refine_help_says_the_plan_is_certified_once():
+    """--no-refine's help says what the run does: one certificate on the fixed grid."""
+    for command in ("main", "solve"):
+        text = " ".join(_help_texts()[command].split())
+        assert "never certified" not in text
+        assert "certified once on" in text, command
+
+
+def test_single_start_solve_on_another_robot_suggests_a_multistart(capsys, tmp_path):
+    """One start on a robot other than the youBot: one line says it is a local optimum, and how."""
+    from youbot_opt.cli import main
+
+    argv = ["solve", "--knots", "20", "--no-refine", "--out"]
+    ur5 = ["--robot", "ur5", "--start", "0", "0", "0", "0", "0", "0"]
+    ur5 += ["--goal", "1", "-0.5", "0.5", "0", "0", "0"]
+    main([*argv, str(tmp_path / "ur5"), *ur5])
+    out = capsys.readouterr().out
+    hints = [line for line in out.splitlines() if "--starts" in line]
+    assert len(hints) == 1 and "local optimum" in hints[0], out
+    main([*argv, str(tmp_path / "youbot")])  # the study's base case: its optimum is known
+    assert "--starts" not in capsys.readouterr().out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pinocchio as pin
@@ -341,6 +342,18 @@ def test_summary_is_json_and_table_readable(youbot, exact) -> None:
         assert word in table
     strict = Tolerances(local_position=0.0)
     assert not cert.passed(strict) and cert.passed()
+
+
+def test_table_prints_a_margin_as_a_margin_and_an_excess_as_an_excess(youbot, exact) -> None:
+    """A bound kept prints its margin (positive), a bound crossed its excess, never a "-" excess."""
+    traj = exact(50)
+    kept = str(certify(traj, youbot))
+    assert "excess -" not in kept
+    margin = re.search(r"bound position, at knots.*margin (\S+) rad to the bound", kept)
+    assert margin is not None and float(margin.group(1)) > 0.0, kept
+    crossed = str(certify(traj, youbot, bounds=youbot.bounds(0.3)))
+    excess = re.search(r"bound torque, at knots.*excess (\S+) N m over the bound", crossed)
+    assert excess is not None and float(excess.group(1)) > 0.0, crossed
 
 
 def test_bad_inputs_raise(youbot) -> None:

@@ -208,6 +208,7 @@ def test_refined_result_round_trips_through_a_file(base_refined, tmp_path):
         assert a.summary() == b.summary()
         np.testing.assert_array_equal(a.t, b.t)
         np.testing.assert_array_equal(a.errors, b.errors)
+        np.testing.assert_array_equal(a.objective_history, b.objective_history)
     assert loaded.require_certified() is loaded.result
     fixed_path = save_result(result, tmp_path / "f")
     assert not load_result(fixed_path).summary()["certified"]

@@ -136,7 +136,7 @@ def test_plot_convergence_of_a_multistart_uses_a_colour_bar_beyond_max_legend(so
     for line, start in zip(ax.get_lines(), ms.starts, strict=True):
         np.testing.assert_array_equal(line.get_ydata(), start.result.objective_history)
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [f"converged ({ms.n_starts})"]
-    assert bar.get_ylabel() == "run number"
+    assert bar.get_ylabel() == "start number"  # a multistart's runs are its starts
     with pytest.raises(ParameterError, match="no result with an objective history"):
         plot_convergence([])
 
@@ -166,7 +166,95 @@ def test_plot_arm_2d_draws_the_study_tip_positions(result):
 
 
 def test_plot_convergence_title_of_one_run(result):
-    """One run is "1 run" in the default title, not "1 runs"."""
+    """One run is "the solve" in the default title, not "1 run" (nor "1 runs")."""
     fig = plot_convergence([result])
     title = fig.axes[0].get_title()
-    assert title.startswith("Convergence of 1 run (") and "runs" not in title
+    assert title == "Convergence of the solve (converged)"
+
+
+def _round(index: int, errors: list[float], passed: bool | None, status: str = "solved"):
+    """A refinement round on a uniform grid over 2 s with the given interval errors."""
+    from youbot_opt.trajopt.refine import RefinementRound
+
+    n = len(errors) + 1
+    return RefinementRound(
+        index=index, n_knots=n, status=status, objective=8.0 + 0.1 * index, duration=2.0,
+        max_error=max(errors), t=np.linspace(0.0, 2.0, n), errors=np.array(errors),
+        certificate_passed=passed, failures=(), feedback_rms=0.01, feedback_peak=0.02,
+        local_position=1e-3, iterations=5 + index, solve_time=0.1, check_time=0.1,
+        objective_history=np.linspace(9.0, 8.0 + 0.1 * index, 6 + index),
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def refinement():
+    """Three rounds as the main job's: cert. fails; error > tol but cert. passes; certified."""
+    from youbot_opt.trajopt.refine import Refinement, RefinementBudget
+
+    rounds = (
+        _round(0, [5e-3, 1e-4, 1e-4, 4e-3], False),
+        _round(1, [1e-4, 2e-3, 1e-4, 1e-4, 1e-4], True),
+        _round(2, [1e-4, 9e-4, 5e-4, 1e-4, 1e-4, 1e-4], True),
+    )
+    budget = RefinementBudget(tolerance=1e-3)
+    return Refinement(certified=True, reason="certified", budget=budget, rounds=rounds, elapsed=1)
+
+
+def test_plot_refinement_labels_each_round_by_its_own_verdict(refinement):
+    """Only a round within the tolerance with a passed certificate is called "certified"."""
+    from youbot_opt.viz.plots.trajopt import plot_refinement
+
+    fig = plot_refinement(refinement)
+    _render(fig)
+    labels = [t.get_text() for t in fig.axes[1].get_legend().get_texts()]
+    assert labels[0].endswith("cert. fails")
+    assert labels[1].endswith("error 0.002 > 0.001, cert. passes")
+    assert labels[2].endswith("certified") and "certified" not in labels[0] + labels[1]
+    assert labels[3] == "tolerance 0.001"
+
+
+def test_plot_refinement_names_every_colour_in_a_legend(refinement):
+    """The red split intervals have a legend entry, as the rounds and the tolerance do."""
+    from matplotlib.colors import to_rgba
+
+    from youbot_opt.viz.plots.trajopt import plot_refinement
+
+    fig = plot_refinement(refinement)
+    _render(fig)
+    ax_grid = fig.axes[0]
+    red = to_rgba("tab:red")
+    split = [c for c in ax_grid.collections if tuple(c.get_colors()[0]) == red]
+    assert sum(len(c.get_segments()) for c in split) == 3  # 2 in round 0, 1 in round 1
+    legend = ax_grid.get_legend()
+    assert legend is not None
+    (text,) = [t.get_text() for t in legend.get_texts()]
+    assert text == "interval error > 0.001: split in the next round"
+    assert to_rgba(legend.get_lines()[0].get_color()) == red
+
+
+def test_plot_convergence_of_a_refinement_shows_every_rounds_solve(refinement):
+    """One line per round through its IPOPT objectives, integer iterations, titled by the rounds."""
+    from youbot_opt.trajopt.refine import Refined
+
+    for runs in (refinement, Refined(None, refinement)):  # type: ignore[arg-type]
+        fig = plot_convergence(runs)
+        _render(fig)
+        (ax,) = fig.axes
+        lines = ax.get_lines()
+        assert len(lines) == len(refinement.rounds)
+        for line, r in zip(lines, refinement.rounds, strict=True):
+            np.testing.assert_array_equal(line.get_ydata(), r.objective_history)
+            np.testing.assert_array_equal(line.get_xdata(), np.arange(r.objective_history.size))
+        assert ax.get_title() == "Convergence of the solves of 3 refinement rounds (3 converged)"
+        texts = [t.get_text() for t in fig.legends[0].get_texts()]
+        assert texts[1] == "round 1 (6 knots): f = 8.1000"
+        ticks = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+        assert ticks and all(float(t).is_integer() for t in ticks)
+
+
+def test_plot_convergence_of_a_multistart_is_titled_by_its_starts(solver):
+    """A multistart's figure counts starts, not runs."""
+    ms = run_multistart(solver, 2, beta=0.5, seed=0, sweep=SweepOptions(executor="serial"))
+    fig = plot_convergence(ms)
+    n_ok = sum(s.result is not None and s.result.success for s in ms.starts)
+    assert fig.axes[0].get_title() == f"Convergence of 2 starts ({n_ok} converged)"

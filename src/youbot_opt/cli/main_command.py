@@ -23,7 +23,13 @@ from youbot_opt._version import __version__
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``main`` sub-command."""
-    p = sub.add_parser("main", help="run the main job (the study-1 base case)")
+    p = sub.add_parser(
+        "main",
+        help="run the main job (the study-1 base case)",
+        description="Solve the study-1 base case (beta = 0.5, trapezoidal, straight-line "
+        "start) on the study's 50 knots, refine the grid until the plan is certified, and "
+        "write the run folder. Other grids, robots and transcriptions: youbot-opt solve.",
+    )
     p.add_argument(
         "--out",
         type=Path,
@@ -33,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     from youbot_opt.cli.solve import add_refine_arguments
 
-    add_refine_arguments(p)
+    add_refine_arguments(p, grid="the study's 50-knot grid")
     p.set_defaults(func=_run)
 
 

@@ -166,18 +166,31 @@ def ipopt_options(args: argparse.Namespace) -> IpoptOptions:
     )
 
 
-def add_refine_arguments(p: argparse.ArgumentParser) -> None:
-    """Add the mesh-refinement options (on by default; ``--no-refine`` keeps the grid)."""
+MULTISTART_HINT = (
+    "note: one start finds a local optimum; a multistart may find a better one: --starts 8"
+)
+
+
+def add_refine_arguments(
+    p: argparse.ArgumentParser,
+    grid: str = "the grid of --knots",
+    unrefined: str = "the plan is certified once on it, not refined",
+) -> None:
+    """Add the mesh-refinement options (on by default; ``--no-refine`` keeps the grid).
+
+    ``grid`` names the starting grid in the help (``main`` has no ``--knots``),
+    ``unrefined`` says what ``--no-refine`` does with the plan.
+    """
     g = p.add_argument_group(
         "mesh refinement",
-        "by default the grid of --knots is refined until every interval's collocation error "
+        f"by default {grid} is refined until every interval's collocation error "
         "is within --error-tol and the plan passes its certificate (or the budget runs out)",
     )
     g.add_argument(
         "--no-refine",
         dest="refine",
         action="store_false",
-        help="keep the fixed uniform grid of --knots (the result is then never certified)",
+        help=f"keep {grid}: {unrefined}",
     )
     g.add_argument(
         "--error-tol",
@@ -306,7 +319,7 @@ def refinement_table(result: Any, record: Any = None) -> list[str]:
     if record is None:
         return [
             f"grid          fixed uniform, {result.problem.n_knots} knots "
-            "(--no-refine: not certified)"
+            "(--no-refine: not refined, certified once on this grid)"
         ]
     lines = [
         f"certified     {'yes' if record.certified else 'NO'}: {record.reason}",
@@ -478,7 +491,8 @@ def write_solve_outputs(
     if refinement is not None:
         files.append(draw_figure(folder, "refinement.png", plot_refinement, refinement))
         summary["refinement"] = refinement.summary()
-    runs = multistart if multistart is not None else [result]
+    runs = multistart if multistart is not None else refinement  # its every round's solve
+    runs = [result] if runs is None else runs
     files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
     if multistart is not None:
         files.append(draw_figure(folder, "multistart.png", plot_multistart, multistart))
@@ -644,6 +658,8 @@ def run_solve(args: argparse.Namespace) -> int:
         if ms is not None and not has_optimum:
             print("youbot-opt: no start converged; the least violated failed start follows")
         print(format_result(result, certificate, refinement=record))
+        if ms is None and result.success and not problem.robot.name.startswith("youbot"):
+            print(MULTISTART_HINT)
         print()
     report_outputs(folder, files, args.json)
     return 0 if result.success and (record is None or record.certified) else 1

@@ -119,7 +119,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_scheduler_args(p)
     add_keep_results_arg(p)  # --no-keep-results: the starts stay in the folder (10^4+ starts)
-    add_refine_arguments(p)  # the reported plans are refined until certified (--no-refine)
+    add_refine_arguments(p, unrefined="the reported plans are neither refined nor certified")
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

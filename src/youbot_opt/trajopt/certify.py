@@ -264,7 +264,9 @@ class Certificate:
             limit = tol.knot_bound if c.where == "knots" else tol.between_bound
             unit = dict(_QUANTITIES)[c.quantity]
             label = f"bound {c.quantity}, {_WHERE[c.where]} (relative)"
-            note = f"excess {c.excess:.2e} {unit} at t = {c.time:.4g} s, joint {c.joint}"
+            side = "excess" if c.excess > 0.0 else "margin"  # how far over, or short of, it
+            note = f"{side} {abs(c.excess):.2e} {unit} {'over' if c.excess > 0.0 else 'to'} the "
+            note += f"bound at t = {c.time:.4g} s, joint {c.joint}"
             rows.append((label, c.relative, nan, limit, note))
         return rows
 

@@ -62,7 +62,7 @@ def _state(state: BoundaryState) -> dict[str, list[float]]:
     return {"q": state.q.tolist(), "v": state.velocity.tolist()}
 
 
-_ROUND_ARRAYS = ("t", "errors")
+_ROUND_ARRAYS = ("t", "errors", "objective_history")
 
 
 def _refinement_meta(record: Refinement, arrays: dict[str, Array]) -> dict[str, Any]:

@@ -156,6 +156,8 @@ class RefinementRound:
         IPOPT iterations.
     solve_time, check_time : float
         Wall time [s] of the build and solve, and of the error estimate and certificate.
+    objective_history : ndarray, shape (iterations + 1,)
+        IPOPT's objective per iteration of the round's solve (iteration 0: its start).
     """
 
     index: int
@@ -174,6 +176,7 @@ class RefinementRound:
     iterations: int
     solve_time: float
     check_time: float
+    objective_history: Array = field(default_factory=lambda: np.zeros(0), compare=False)
 
     def summary(self) -> dict[str, object]:
         """JSON-ready figures of the round (arrays left out)."""
@@ -532,6 +535,7 @@ def _round(
         iterations=result.iterations,
         solve_time=solve_time,
         check_time=time.perf_counter() - tic,
+        objective_history=np.asarray(result.objective_history, dtype=float),
     )
     return record, error, cert
 

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
     from youbot_opt.robot.model import RobotModel
     from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
-    from youbot_opt.trajopt.refine import Refined, Refinement
+    from youbot_opt.trajopt.refine import Refined, Refinement, RefinementRound
 
 __all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "plot_refinement", "QUANTITIES"]
 
@@ -218,10 +218,32 @@ def plot_trajectory(
     return fig
 
 
-def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
-    """(label, objective history, success) of each result, start or multistart."""
-    from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
+def _refinement_items(record: Refinement) -> list[tuple[str, Array, bool]]:
+    """(label, objective history, success) of each round's solve of a refinement."""
+    items = []
+    for r in record.rounds:
+        history = np.asarray(r.objective_history, dtype=float)
+        if history.size:
+            ok = r.status in ("solved", "solved_acceptable")
+            status = "" if ok else f", {r.status}"
+            label = f"round {r.index} ({r.n_knots} knots): f = {r.objective:.4f}{status}"
+            items.append((label, history, ok))
+    return items
 
+
+def _convergence_items(results: Any) -> tuple[list[tuple[str, Array, bool]], str]:
+    """(label, objective history, success) of each run, and what the runs are.
+
+    The runs are a refinement's rounds, a multistart's starts or plain results.
+    """
+    from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
+    from youbot_opt.trajopt.refine import Refined, Refinement
+
+    if isinstance(results, Refined):
+        results = results.refinement
+    if isinstance(results, Refinement):
+        return _refinement_items(results), "rounds"
+    kind = "starts" if isinstance(results, MultistartResult) else "runs"
     if isinstance(results, MultistartResult):
         results = results.starts
     if isinstance(results, TrajOptResult):
@@ -229,6 +251,7 @@ def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
     items: list[tuple[str, Array, bool]] = []
     for i, item in enumerate(results):
         if isinstance(item, StartOutcome):
+            kind = "starts"
             if item.result is None:
                 continue  # the start raised: no history
             label = "straight line" if item.index < 0 else f"start {item.index}"
@@ -238,46 +261,68 @@ def _convergence_items(results: Any) -> list[tuple[str, Array, bool]]:
             label = f"seed {res.seed}" if res.seed is not None else f"run {i}"
         else:
             raise ParameterError(
-                "results must be TrajOptResults, StartOutcomes or a MultistartResult, got "
-                f"{type(item).__name__}",
+                "results must be TrajOptResults, StartOutcomes, a MultistartResult or a "
+                f"refinement, got {type(item).__name__}",
                 name="results",
             )
         history = np.asarray(res.objective_history, dtype=float)
         if history.size:
             status = "" if res.success else f", {res.status.value}"
             items.append((f"{label}: f = {res.objective:.4f}{status}", history, res.success))
-    if not items:
-        raise ParameterError("no result with an objective history to plot", name="results")
-    return items
+    return items, kind
+
+
+def _convergence_title(kind: str, items: list[tuple[str, Array, bool]]) -> str:
+    """Say what the figure shows: the solve, the starts or the refinement rounds."""
+    n, n_ok = len(items), sum(ok for _, _, ok in items)
+    if kind == "rounds":
+        what = (
+            "the solve of the refinement's round"
+            if n == 1
+            else f"the solves of {n} refinement rounds"
+        )
+        return f"Convergence of {what} ({n_ok} converged)"
+    if kind == "runs" and n == 1:
+        return f"Convergence of the solve ({'converged' if n_ok else 'not converged'})"
+    noun = kind if n != 1 else kind[:-1]
+    return f"Convergence of {n} {noun} ({n_ok} converged)"
 
 
 def plot_convergence(
-    results: MultistartResult | Sequence[StartOutcome] | Sequence[TrajOptResult],
+    results: MultistartResult
+    | Refined
+    | Refinement
+    | Sequence[StartOutcome]
+    | Sequence[TrajOptResult],
     *,
     log: bool = True,
     max_legend: int = 12,
     title: str | None = None,
     figsize: tuple[float, float] = (9.0, 4.5),
 ) -> Figure:
-    """Objective against IPOPT iteration for several starts.
+    """Objective against IPOPT iteration for several starts, or each round of a refinement.
 
-    One line per start: IPOPT's objective at iterations ``0 .. iterations``
-    (``TrajOptResult.objective_history``; iteration 0 is the initial guess).
+    One line per start (or per refinement round's solve): IPOPT's objective at
+    iterations ``0 .. iterations`` (``TrajOptResult.objective_history``;
+    iteration 0 is the initial guess, a refinement round's warm start).
     Converged starts are solid and end in a dot, failed ones dotted and end in
     a cross. Up to ``max_legend`` runs are named in the legend with their
-    final objective; beyond that, a colour bar gives the run number and the
-    legend only the line styles.
+    final objective; beyond that, a colour bar gives the run's (start's,
+    round's) number and the legend only the line styles.
 
     Parameters
     ----------
-    results : MultistartResult, sequence of StartOutcome or of TrajOptResult
-        The runs (starts that raised, having no history, are skipped).
+    results : MultistartResult, Refined, Refinement, sequence of StartOutcome or of TrajOptResult
+        The runs (starts that raised, having no history, are skipped); for a
+        refinement (what :func:`~youbot_opt.trajopt.refine.refine` returns, or
+        its record), the solve of every round.
     log : bool
         Logarithmic objective axis (symmetric-log if an objective is <= 0).
     max_legend : int
         Largest number of runs listed one by one in the legend.
     title : str, optional
-        Axes title; default: the number of runs and how many converged.
+        Axes title; default: what the runs are (the solve, the starts, the
+        refinement rounds), how many and how many converged.
     figsize : tuple of float
         Figure size in [inch].
 
@@ -291,7 +336,9 @@ def plot_convergence(
     ParameterError
         If no run has an objective history.
     """
-    items = _convergence_items(results)
+    items, kind = _convergence_items(results)
+    if not items:
+        raise ParameterError("no result with an objective history to plot", name="results")
     fig, axes = new_figure(1, 1, figsize)
     ax: Axes = axes[0, 0]
     cmap = colormaps["viridis"]
@@ -311,8 +358,7 @@ def plot_convergence(
     ax.set_ylabel(r"objective $f = \beta T + (1-\beta) W$")
     ax.grid(True, which="both", alpha=0.3)
     n_ok = sum(ok for _, _, ok in items)
-    runs = "1 run" if len(items) == 1 else f"{len(items)} runs"
-    ax.set_title(title or f"Convergence of {runs} ({n_ok} converged)")
+    ax.set_title(title or _convergence_title(kind, items))
     if len(items) <= max_legend:
         fig.legend(loc="outside right upper", fontsize="small")
         return fig
@@ -323,7 +369,8 @@ def plot_convergence(
         styles.append(Line2D([], [], color="0.3", linestyle=":", marker="x", label=failed))
     ax.legend(handles=styles, loc="upper right", fontsize="small")
     norm = Normalize(0, max(len(items) - 1, 1))
-    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="run number")
+    number = {"starts": "start number", "rounds": "round"}.get(kind, "run number")
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=number)
     bar.locator = MaxNLocator(integer=True)
     bar.update_ticks()
     return fig
@@ -495,14 +542,36 @@ def plot_arm_2d(
     return fig
 
 
+_SPLIT_COLOUR = "tab:red"  # the intervals a refinement round splits
+
+
+def _round_verdict(r: RefinementRound, tolerance: float, *, certify: bool = True) -> str:
+    """Return the verdict of one refinement round on its own, as :func:`refine` judges the last.
+
+    ``"certified"`` when the solve succeeded, every interval is within
+    ``tolerance`` and (with ``certify``) the certificate passed; otherwise what
+    failed: ``"solve <status>"``, ``"error 1.7e-03 > 0.001, cert. passes"``,
+    ``"cert. fails"`` or ``"no cert."``.
+    """
+    if r.status not in ("solved", "solved_acceptable"):
+        return f"solve {r.status}"
+    cert = {True: "cert. passes", False: "cert. fails", None: "no cert."}[r.certificate_passed]
+    if not r.max_error <= tolerance:  # NaN: no estimate
+        return f"error {r.max_error:.2g} > {tolerance:g}, {cert}"
+    if r.certificate_passed or not certify:
+        return "certified"
+    return cert
+
+
 def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) -> Figure:
     """Where the knots went in each refinement round, and why.
 
     Top: the knots of every round (one row per round, a tick per knot, the
-    intervals split in the next round in red). Bottom: each interval's relative
-    collocation error against time, one step curve per round, with the
-    tolerance dashed. Rounds are labelled with their knots, ``f`` and
-    certificate verdict.
+    intervals whose error exceeds the tolerance, split in the next round, in
+    red, named in a legend). Bottom: each interval's relative collocation error
+    against time, one step curve per round, with the tolerance dashed. Rounds
+    are labelled with their knots, ``f`` and their own verdict
+    ("certified" only for a round that is, on its own).
 
     Parameters
     ----------
@@ -537,18 +606,27 @@ def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) 
     ax_grid, ax_err = axes[0, 0], axes[1, 0]
     cmap = colormaps["viridis"]
     tol = record.budget.tolerance
+    n_split = 0
     for i, r in enumerate(rounds):
         colour = cmap(i / max(1, len(rounds) - 1))
         split = r.errors > tol
+        n_split += int(np.count_nonzero(split))
         ax_grid.vlines(r.t, i - 0.35, i + 0.35, colors=[colour], linewidth=0.8)
         starts, ends = r.t[:-1][split], r.t[1:][split]
-        ax_grid.hlines(np.full(starts.size, i), starts, ends, colors="tab:red", linewidth=2.5)
-        verdict = {True: "certified", False: "cert. fails", None: "no cert."}[r.certificate_passed]
-        label = f"round {r.index}: {r.n_knots} knots, f = {r.objective:.5g}, {verdict}"
+        ax_grid.hlines(np.full(starts.size, i), starts, ends, colors=_SPLIT_COLOUR, linewidth=2.5)
+        label = (
+            f"round {r.index}: {r.n_knots} knots, f = {r.objective:.5g}, "
+            f"{_round_verdict(r, tol, certify=record.budget.certify)}"
+        )
         ax_err.stairs(np.maximum(r.errors, 1e-16), r.t, color=colour, label=label)
     ax_grid.set_yticks(range(len(rounds)), [f"{r.index} ({r.n_knots})" for r in rounds])
     ax_grid.set_ylabel("round (knots)")
     ax_grid.invert_yaxis()
+    if n_split:
+        split_line = Line2D([], [], color=_SPLIT_COLOUR, linewidth=2.5)
+        ax_grid.legend([split_line], [f"interval error > {tol:g}: split in the next round"],
+                       loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize="small",
+                       framealpha=0.9)  # fmt: skip
     ax_err.axhline(tol, color="k", linestyle="--", linewidth=1.0, label=f"tolerance {tol:g}")
     ax_err.set_yscale("log")
     ax_err.set_xlabel("t [s]")
