@@ -38,8 +38,10 @@ __all__ = [
     "refine_result",
     "refinement_budget",
     "refinement_table",
+    "next_step",
     "register",
     "run_solve",
+    "transcription",
     "format_result",
     "certificate_of",
     "open_folder",
@@ -51,6 +53,9 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
+
+DEFAULT_TRANSCRIPTION = "radau"
+"""``solve``'s transcription on any robot but the study's youBot (docs/refinement.md)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -83,9 +88,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument(
         "--transcription",
         choices=("trapezoidal", "hermite-simpson", "radau", "auto"),
-        default="trapezoidal",
-        help="collocation scheme (default trapezoidal; radau is L-stable, for stiff joint "
-        "damping; auto picks radau when the damping is stiff on the grid, else hermite-simpson)",
+        default=None,
+        help="collocation scheme (default: trapezoidal for the study's youBot, as the study "
+        f"did; {DEFAULT_TRANSCRIPTION} for any other robot: L-stable, so stiff joint damping "
+        "and light links do not keep the refinement from certifying; auto picks radau when "
+        "the damping is stiff on the grid, else hermite-simpson)",
     )
     p.add_argument(
         "--guess",
@@ -320,7 +327,52 @@ def refinement_table(result: Any, record: Any = None) -> list[str]:
             f"{r.max_error:>10.3g} {r.feedback_rms:>7.3f} {r.feedback_peak:>7.3f} "
             f"{verdict:>6} {r.solve_time + r.check_time:>8.3f}"
         )
+    if not record.certified:
+        lines.append(f"next          {next_step(result, record)}")
     return lines
+
+
+UNRESOLVED_DAMPING = 2.0
+"""``damping_rate * h`` above which a grid does not resolve a joint's damping:
+the trapezoid's amplification ``(1 - z/2) / (1 + z/2)`` turns negative there,
+so the damped mode alternates from knot to knot instead of decaying."""
+
+
+def next_step(result: Any, record: Any) -> str:
+    """Name the next thing to try for a plan the refinement did not certify.
+
+    Chosen from what failed: a failed solve -> a multistart; a grid that does
+    not resolve the joint damping (``damping_rate * h`` above
+    :data:`UNRESOLVED_DAMPING`) or errors that did not fall, under a scheme
+    that is not L-stable -> ``--transcription radau``; a budget that ran out
+    while the errors fell -> more rounds, knots or time; else a multistart.
+    """
+    from youbot_opt.dynamics.numeric import damping_rate
+
+    budget, rounds = record.budget, record.rounds
+    last = rounds[-1] if rounds else None
+    if last is None or not result.success or result.trajectory is None:
+        return "a multistart: --starts 8 (the solve failed; other starts may converge)"
+    traj = result.trajectory
+    stiff = damping_rate(result.problem.robot, traj.q, damping=result.problem.damping)
+    z = stiff.rate * float(np.max(np.diff(traj.t)))
+    errors = [r.max_error for r in rounds if math.isfinite(r.max_error)]
+    falling = len(errors) < 2 or errors[-1] < 0.5 * errors[-2]
+    if result.method != "radau" and (z > UNRESOLVED_DAMPING or not falling):
+        why = (
+            f"{stiff.joint or 'a joint'}'s damping relaxes at {stiff.rate:.3g} 1/s, "
+            f"{z:.3g} times faster than the grid's longest interval"
+            if z > UNRESOLVED_DAMPING
+            else "the error did not fall over the last rounds"
+        )
+        return f"--transcription radau (L-stable; {why})"
+    if "the next grid needs" in record.reason:
+        return f"--max-knots {2 * budget.max_knots} (the next grid exceeds {budget.max_knots})"
+    if " after " in record.reason and "rounds" in record.reason and falling:
+        return f"--max-rounds {2 * budget.max_rounds} (the error was still falling)"
+    if budget.time_limit is not None and "time" in record.reason:
+        return f"--refine-time {2 * budget.time_limit:g} (the time limit ran out)"
+    return "a multistart: --starts 8 (the plan may sit on a poor local optimum)"
 
 
 def _problem(args: argparse.Namespace) -> Any:
@@ -566,6 +618,17 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
     return ms
 
 
+def transcription(args: argparse.Namespace) -> str:
+    """Return the transcription of the options: ``--transcription``, else the default.
+
+    The study's youBot keeps the study's trapezoid (its reproduction depends on
+    it); any other robot gets :data:`DEFAULT_TRANSCRIPTION`.
+    """
+    if args.transcription is not None:
+        return str(args.transcription).replace("-", "_")
+    return "trapezoidal" if is_study_youbot(args) else DEFAULT_TRANSCRIPTION
+
+
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
     from youbot_opt._checks import check_beta
@@ -583,8 +646,7 @@ def run_solve(args: argparse.Namespace) -> int:
         n_starts=args.starts,
         max_knots=args.max_knots if args.refine else 0,
     )  # noqa: E501
-    method = args.transcription.replace("-", "_")
-    solver = TrajOptSolver(problem, method, ipopt_options(args), args.backend)
+    solver = TrajOptSolver(problem, transcription(args), ipopt_options(args), args.backend)
     extra: dict[str, Any] = {"build_time_s": solver.build_time}
     ms = None
     if args.starts > 1:
