@@ -43,6 +43,7 @@ __all__ = [
     "run_solve",
     "transcription",
     "format_result",
+    "gripper_note",
     "certificate_of",
     "open_folder",
     "write_solve_outputs",
@@ -424,6 +425,54 @@ def _status_line(result: Any, record: Any) -> str:
     return f"{result.status.value}, NOT certified: {record.reason.removeprefix('not certified: ')}"
 
 
+def _bound_unit(bound: str, unit: Any) -> str:
+    """Return the unit of an active bound's value (``position_lower``: the joint's position's)."""
+    family = bound.split("_")[0]
+    return {"position": unit.position, "velocity": unit.velocity}.get(family, unit.effort)
+
+
+GRIPPER_WORDS = ("finger", "gripper", "hand", "jaw")
+"""Words in a prismatic joint's name that make it a finger or gripper (:func:`gripper_note`)."""
+
+
+def gripper_note(result: Any) -> str:
+    """Say so when a prismatic finger or gripper joint moves in the plan ("" when none does).
+
+    Such a joint is planned like any other: its force enters the work ``W``
+    (in N^2 s, beside the arm's N^2 m^2 s) and the optimiser drives it wherever
+    that is cheapest, often onto a bound. The note names the joint, its motion
+    and the ``--lock`` that plans the arm alone.
+    """
+    robot, traj = result.problem.robot, result.trajectory
+    if traj is None:
+        return ""
+    bounds = result.bounds()
+    notes = []
+    units = robot.joint_units()
+    for name, joint in zip(robot.joint_names, robot.model.joints[1:], strict=True):
+        j = joint.idx_v
+        if joint.nv != 1 or not units[j].prismatic:
+            continue
+        if not any(w in name.lower() for w in GRIPPER_WORDS):
+            continue
+        q = traj.q[:, j]
+        span = float(bounds.q_upper[j] - bounds.q_lower[j])
+        if not float(np.ptp(q)) > 1e-3 * span:
+            continue
+        on_bound = [
+            side for side, b in (("lower", bounds.q_lower[j]), ("upper", bounds.q_upper[j]))
+            if np.any(np.abs(q - b) <= 1e-6 * span)
+        ]  # fmt: skip
+        reached = f", onto its {' and '.join(on_bound)} bound" if on_bound else ""
+        lock = float(q[-1])
+        notes.append(
+            f"note: the {name} (prismatic: a finger or gripper) moves in this plan, "
+            f"{q[0]:.4g} -> {q[-1]:.4g} m{reached}: its force "
+            f"adds N^2 s to the work W. To plan the arm alone, lock it: --lock {name}={lock:.4g}"
+        )
+    return "\n".join(notes)
+
+
 def format_result(
     result: Any, certificate: Any = None, *, refinement: Any = None, max_active: int = 12
 ) -> str:
@@ -441,16 +490,22 @@ def format_result(
         f"max violation {result.max_violation:.2e}",
     ]
     lines += refinement_table(result, refinement)
+    note = gripper_note(result)
+    if note:
+        lines.append(note)
     if certificate is not None:
         lines += ["", str(certificate)]
     active = result.active_bounds(1e-6) if result.trajectory is not None else []
     lines += ["", f"active bounds (within 1e-6): {len(active)}"]
     if active:
         width = max(16, *(len(row.name) + 1 for row in active[:max_active]))
-        lines.append(f"  {'bound':<{width}}{'knot':>5}{'joint':>6}{'value':>13}{'multiplier':>13}")
+        units = result.problem.robot.joint_units()
+        header = f"{'knot':>5}{'joint':>6}{'value':>13} {'unit':<6}{'multiplier':>13}"
+        lines.append(f"  {'bound':<{width}}{header}")
         for row in active[:max_active]:
+            unit = _bound_unit(row.name, units[row.joint])
             lines.append(
-                f"  {row.name:<{width}}{row.knot:>5}{row.joint:>6}{row.value:>13.6f}"
+                f"  {row.name:<{width}}{row.knot:>5}{row.joint:>6}{row.value:>13.6f} {unit:<6}"
                 f"{row.multiplier:>13.4e}"
             )
         if len(active) > max_active:
