@@ -82,3 +82,15 @@ def test_an_uncertified_run_prints_the_next_step(
     assert main(["solve", "--knots", "15", "--max-rounds", "1", "--quiet"]) == 1
     out = capsys.readouterr().out
     assert "next          --max-rounds 2 (the error was still falling)" in out
+
+
+def test_unresolved_damping_suggests_radau(one_round, monkeypatch: pytest.MonkeyPatch):
+    """A damping rate of 561 1/s (the iiwa's joint 7) on this grid: rate x h > 2 -> radau."""
+    import youbot_opt.dynamics.numeric as numeric
+
+    monkeypatch.setattr(
+        numeric, "damping_rate", lambda *a, **k: numeric.DampingRate(rate=561.0, joint="j7")
+    )
+    text = next_step(*one_round)
+    assert text.startswith("--transcription radau (L-stable; j7's damping relaxes at 561 1/s")
+    assert "> 2, unresolved" in text

@@ -361,8 +361,8 @@ def next_step(result: Any, record: Any) -> str:
     falling = len(errors) < 2 or errors[-1] < 0.5 * errors[-2]
     if result.method != "radau" and (z > UNRESOLVED_DAMPING or not falling):
         why = (
-            f"{stiff.joint or 'a joint'}'s damping relaxes at {stiff.rate:.3g} 1/s, "
-            f"{z:.3g} times faster than the grid's longest interval"
+            f"{stiff.joint or 'a joint'}'s damping relaxes at {stiff.rate:.3g} 1/s: "
+            f"rate x longest interval = {z:.3g} > {UNRESOLVED_DAMPING:g}, unresolved"
             if z > UNRESOLVED_DAMPING
             else "the error did not fall over the last rounds"
         )
