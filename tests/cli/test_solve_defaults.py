@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.cli import build_parser, main
-from youbot_opt.cli.solve import DEFAULT_TRANSCRIPTION, next_step, transcription
+from youbot_opt.cli.advice import next_step
+from youbot_opt.cli.solve import DEFAULT_TRANSCRIPTION, transcription
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.refine import RefinementBudget, refine
