@@ -78,3 +78,30 @@ def test_cli_report(capsys: pytest.CaptureFixture[str]) -> None:
     np.testing.assert_allclose(printed, expected, rtol=0, atol=5e-7)
     assert "-65.00" in out and "9.500 N m" in out
     assert cli_main(["report", "--q", "1", "2"]) == 2
+
+
+def test_joint_units_are_per_joint_kind(youbot: RobotModel) -> None:
+    """joint_units: rad, rad/s, N m per revolute coordinate; m, m/s, N for panda's finger."""
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.robot.model import PRISMATIC_UNITS, REVOLUTE_UNITS
+
+    assert youbot.joint_units() == (REVOLUTE_UNITS,) * 3
+    panda = load_model("panda")
+    units = panda.joint_units()
+    assert len(units) == panda.nv == 8
+    assert units[:7] == (REVOLUTE_UNITS,) * 7 and units[7] == PRISMATIC_UNITS
+    assert panda.joint_names[7] == "panda_finger_joint1"
+    assert PRISMATIC_UNITS == ("m", "m/s", "N", True)
+
+
+def test_cli_report_prints_a_prismatic_joint_in_metres(capsys: pytest.CaptureFixture[str]) -> None:
+    """`youbot-opt report --robot panda`: the finger's limits in m, m/s, N and mm, not degrees."""
+    assert cli_main(["report", "--robot", "panda"]) == 0
+    out = capsys.readouterr().out
+    rows = [x for x in out.splitlines() if x.split()[:1] and "] " in x]
+    finger = next(x for x in rows if x.split()[0] == "panda_finger_joint1")
+    assert "] m " in finger and " m/s " in finger and " N " in finger and " mm" in finger
+    assert "deg" not in finger and "rad" not in finger
+    joint1 = next(x for x in rows if x.split()[0] == "panda_joint1")
+    assert "rad" in joint1 and "N m" in joint1 and "deg" in joint1
+    assert " N s/m]" in out and "N m s/rad, " in out  # damping per joint kind

@@ -23,6 +23,7 @@ from youbot_opt.trajopt.refine import (
     RefinementBudget,
     observed_exponents,
     refine,
+    solution_moved,
     split_grid,
     switching_intervals,
 )
@@ -129,6 +130,27 @@ def test_observed_exponents_measure_the_fall_of_the_error():
     errors = np.array([1.0, 2.0, 0.3, 5.0, 0.0, 0.5, 0.5])
     m = observed_exponents(np.array([8.0, 0.5, 4.0]), errors, parent, np.array([3.0, 2.5, 3.0]))
     np.testing.assert_allclose(m, [3.0, 2.0, 2.5, 1.0, 3.0, 1.5, 1.5], rtol=1e-12)
+
+
+def test_observed_exponents_carry_the_parent_error_to_the_new_duration():
+    """T grew by 1.25: the pieces are 1.25 times longer, so 8 * 1.25^3 -> 1.953 over 2 is m = 3.
+
+    Without the stretch the same fall reads as m = 2.03 (the order reduction
+    the iiwa's refinement saw in every round whose T moved).
+    """
+    parent = np.array([0, 0])
+    errors = np.full(2, 8.0 * 1.25**3 / 8.0)
+    m = observed_exponents(np.array([8.0]), errors, parent, 3.0, stretch=1.25)
+    np.testing.assert_allclose(m, [3.0, 3.0], rtol=1e-12)
+    m_plain = observed_exponents(np.array([8.0]), errors, parent, 3.0)
+    np.testing.assert_allclose(m_plain, np.log2(8.0 / errors), rtol=1e-12)
+
+
+def test_a_solution_whose_duration_changed_by_more_than_one_percent_moved():
+    """solution_moved: |T_new / T_old - 1| > 1 % (MOVED); a bad old T counts as moved."""
+    assert not solution_moved(2.0, 2.0 * 1.009)
+    assert solution_moved(2.0, 2.0 * 1.011) and solution_moved(2.0, 2.0 / 1.02)
+    assert solution_moved(0.0, 1.0) and solution_moved(1.0, float("nan"))
 
 
 def test_switching_intervals_are_where_the_active_bounds_change():

@@ -22,7 +22,7 @@ from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load
 if TYPE_CHECKING:  # Pinocchio is imported in the functions, so --help stays fast
     import numpy as np
 
-    from youbot_opt.robot.model import RobotModel
+    from youbot_opt.robot.model import JointUnits, RobotModel
 
 __all__ = ["register", "format_report"]
 
@@ -55,10 +55,26 @@ def _fmt(x: np.ndarray, digits: int = 6) -> str:
     return np.array2string(np.asarray(x), precision=digits, suppress_small=True, max_line_width=100)
 
 
-def _limit_row(name: str, lo: float, hi: float, vel: float, eff: float) -> str:
+def _limit_row(name: str, lo: float, hi: float, vel: float, eff: float, unit: JointUnits) -> str:
+    si = (
+        f"[{lo:8.4f}, {hi:8.4f}] {unit.position:<3}  {vel:7.4f} {unit.velocity:<5}  "
+        f"{eff:7.3f} {unit.effort:<3}"
+    )
+    if unit.prismatic:  # a length has no data-sheet degrees
+        return f"  {name:<24} {si}   | prismatic: [{lo * 1e3:7.1f}, {hi * 1e3:7.1f}] mm"
     deg = f"[{math.degrees(lo):9.2f}, {math.degrees(hi):9.2f}] deg  {math.degrees(vel):7.2f} deg/s"
-    si = f"[{lo:8.4f}, {hi:8.4f}] rad  {vel:7.4f} rad/s  {eff:7.3f} N m"
     return f"  {name:<24} {si}   | {deg}"
+
+
+def _per_joint(values: np.ndarray, units: list[str]) -> str:
+    """``value unit`` pairs when the units differ, else the array and its one unit."""
+    import numpy as np
+
+    if len(set(units)) == 1:
+        return f"{_fmt(values)} {units[0]}"
+    small = np.abs(values) < 1e-12  # round-off zeros, as _fmt's suppress_small prints them
+    shown = np.where(small, 0.0, values)
+    return "[" + ", ".join(f"{x:.6g} {u}" for x, u in zip(shown, units, strict=True)) + "]"
 
 
 def format_report(robot: RobotModel, q: np.ndarray) -> str:
@@ -95,7 +111,8 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
     for jid in range(1, model.njoints):
         mass = model.inertias[jid].mass
         lines.append(f"  {model.names[jid]:<24} {model.joints[jid].shortname():<28} {mass:.6g}")
-    lines.append("limits (SI | data-sheet units; revolute joints read in degrees):")
+    lines.append("limits (SI per joint kind | data-sheet units; revolute joints read in degrees):")
+    units = robot.joint_units()
     lo, hi, vel, eff = robot.q_lower, robot.q_upper, robot.velocity_limit, robot.effort_limit
     for jid in range(1, model.njoints):
         j = model.joints[jid]
@@ -103,15 +120,19 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
             lines.append(f"  {model.names[jid]:<24} (multi-dof joint, see the URDF)")
             continue
         iq, iv = j.idx_q, j.idx_v
-        lines.append(_limit_row(model.names[jid], lo[iq], hi[iq], vel[iv], eff[iv]))
-    lines.append(f"damping: {_fmt(robot.damping)} N m s/rad")
+        lines.append(_limit_row(model.names[jid], lo[iq], hi[iq], vel[iv], eff[iv], units[iv]))
+    damping_units = [f"{u.effort} s/{u.position}" for u in units]
+    lines.append(f"damping: {_per_joint(robot.damping, damping_units)}")
     mass_matrix = pin.crba(model, data, qa)
     mass_matrix = np.triu(mass_matrix) + np.triu(mass_matrix, 1).T
     lines += [
-        f"q: {_fmt(qa)} rad",
-        "M(q) [kg m^2]:",
+        f"q: {_per_joint(qa, [u.position for u in units]) if qa.size == len(units) else _fmt(qa)}",
+        "M(q) [kg m^2; kg m and kg in the rows and columns of prismatic joints]:"
+        if any(u.prismatic for u in units)
+        else "M(q) [kg m^2]:",
         _fmt(mass_matrix),
-        f"gravity torque N(q): {_fmt(pin.computeGeneralizedGravity(model, data, qa))} N m",
+        "gravity torque N(q): "
+        + _per_joint(pin.computeGeneralizedGravity(model, data, qa), [u.effort for u in units]),
     ]
     planar = robot.tip_frame == _PLANAR_TIP and robot.urdf_path in (None, youbot_urdf_path())
     if planar and not robot.locked_joints:  # the study's arm: its (x, z) plane convention

@@ -40,6 +40,7 @@ __all__ = [
     "refinement_table",
     "register",
     "run_solve",
+    "transcription",
     "format_result",
     "certificate_of",
     "open_folder",
@@ -51,6 +52,9 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
+
+DEFAULT_TRANSCRIPTION = "radau"
+"""``solve``'s transcription on any robot but the study's youBot (docs/refinement.md)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -83,9 +87,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument(
         "--transcription",
         choices=("trapezoidal", "hermite-simpson", "radau", "auto"),
-        default="trapezoidal",
-        help="collocation scheme (default trapezoidal; radau is L-stable, for stiff joint "
-        "damping; auto picks radau when the damping is stiff on the grid, else hermite-simpson)",
+        default=None,
+        help="collocation scheme (default: trapezoidal for the study's youBot, as the study "
+        f"did; {DEFAULT_TRANSCRIPTION} for any other robot: L-stable, so stiff joint damping "
+        "and light links do not keep the refinement from certifying; auto picks radau when "
+        "the damping is stiff on the grid, else hermite-simpson)",
     )
     p.add_argument(
         "--guess",
@@ -316,6 +322,8 @@ def refinement_figures(folder: Path, refined: list[Any], labels: list[str]) -> l
 
 def refinement_table(result: Any, record: Any = None) -> list[str]:
     """Lines describing a result's grid and certification (its refinement ``record``)."""
+    from youbot_opt.cli.advice import next_step
+
     if record is None:
         return [
             f"grid          fixed uniform, {result.problem.n_knots} knots "
@@ -333,6 +341,8 @@ def refinement_table(result: Any, record: Any = None) -> list[str]:
             f"{r.max_error:>10.3g} {r.feedback_rms:>7.3f} {r.feedback_peak:>7.3f} "
             f"{verdict:>6} {r.solve_time + r.check_time:>8.3f}"
         )
+    if not record.certified:
+        lines.append(f"next          {next_step(result, record)}")
     return lines
 
 
@@ -385,6 +395,12 @@ def _status_line(result: Any, record: Any) -> str:
     return f"{result.status.value}, NOT certified: {record.reason.removeprefix('not certified: ')}"
 
 
+def _bound_unit(bound: str, unit: Any) -> str:
+    """Return the unit of an active bound's value (``position_lower``: the joint's position's)."""
+    family = bound.split("_")[0]
+    return {"position": unit.position, "velocity": unit.velocity}.get(family, unit.effort)
+
+
 def format_result(
     result: Any, certificate: Any = None, *, refinement: Any = None, max_active: int = 12
 ) -> str:
@@ -402,16 +418,24 @@ def format_result(
         f"max violation {result.max_violation:.2e}",
     ]
     lines += refinement_table(result, refinement)
+    from youbot_opt.cli.advice import gripper_note
+
+    note = gripper_note(result)
+    if note:
+        lines.append(note)
     if certificate is not None:
         lines += ["", str(certificate)]
     active = result.active_bounds(1e-6) if result.trajectory is not None else []
     lines += ["", f"active bounds (within 1e-6): {len(active)}"]
     if active:
         width = max(16, *(len(row.name) + 1 for row in active[:max_active]))
-        lines.append(f"  {'bound':<{width}}{'knot':>5}{'joint':>6}{'value':>13}{'multiplier':>13}")
+        units = result.problem.robot.joint_units()
+        header = f"{'knot':>5}{'joint':>6}{'value':>13} {'unit':<6}{'multiplier':>13}"
+        lines.append(f"  {'bound':<{width}}{header}")
         for row in active[:max_active]:
+            unit = _bound_unit(row.name, units[row.joint])
             lines.append(
-                f"  {row.name:<{width}}{row.knot:>5}{row.joint:>6}{row.value:>13.6f}"
+                f"  {row.name:<{width}}{row.knot:>5}{row.joint:>6}{row.value:>13.6f} {unit:<6}"
                 f"{row.multiplier:>13.4e}"
             )
         if len(active) > max_active:
@@ -580,6 +604,17 @@ def _multistart(args: argparse.Namespace, solver: Any) -> Any:
     return ms
 
 
+def transcription(args: argparse.Namespace) -> str:
+    """Return the transcription of the options: ``--transcription``, else the default.
+
+    The study's youBot keeps the study's trapezoid (its reproduction depends on
+    it); any other robot gets :data:`DEFAULT_TRANSCRIPTION`.
+    """
+    if args.transcription is not None:
+        return str(args.transcription).replace("-", "_")
+    return "trapezoidal" if is_study_youbot(args) else DEFAULT_TRANSCRIPTION
+
+
 def run_solve(args: argparse.Namespace) -> int:
     """Run ``youbot-opt solve``; returns the exit code (0 ok, 1 failed solve, 2 bad input)."""
     from youbot_opt._checks import check_beta
@@ -597,8 +632,7 @@ def run_solve(args: argparse.Namespace) -> int:
         n_starts=args.starts,
         max_knots=args.max_knots if args.refine else 0,
     )  # noqa: E501
-    method = args.transcription.replace("-", "_")
-    solver = TrajOptSolver(problem, method, ipopt_options(args), args.backend)
+    solver = TrajOptSolver(problem, transcription(args), ipopt_options(args), args.backend)
     extra: dict[str, Any] = {"build_time_s": solver.build_time}
     ms = None
     if args.starts > 1:

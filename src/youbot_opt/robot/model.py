@@ -28,6 +28,9 @@ from youbot_opt.exceptions import FrameNotFound, ParameterError
 __all__ = [
     "RobotModel",
     "JointBounds",
+    "JointUnits",
+    "REVOLUTE_UNITS",
+    "PRISMATIC_UNITS",
     "BoundFamily",
     "BOUND_FAMILIES",
     "TipPose",
@@ -87,6 +90,41 @@ class JointBounds:
                 worst, float(np.max(lo - x, initial=0.0)), float(np.max(x - hi, initial=0.0))
             )
         return worst
+
+
+class JointUnits(NamedTuple):
+    """The units of one joint coordinate's position, velocity and effort.
+
+    Attributes
+    ----------
+    position, velocity, effort : str
+        ``"rad"``, ``"rad/s"``, ``"N m"`` for a revolute joint; ``"m"``,
+        ``"m/s"``, ``"N"`` for a prismatic one.
+    prismatic : bool
+        True for a prismatic (translating) joint.
+    """
+
+    position: str
+    velocity: str
+    effort: str
+    prismatic: bool
+
+
+REVOLUTE_UNITS = JointUnits("rad", "rad/s", "N m", False)
+"""Units of a revolute (or continuous) joint coordinate."""
+PRISMATIC_UNITS = JointUnits("m", "m/s", "N", True)
+"""Units of a prismatic joint coordinate."""
+
+
+_P, _R = PRISMATIC_UNITS, REVOLUTE_UNITS
+_JOINT_UNITS: dict[str, list[JointUnits]] = {
+    "JointModelPX": [_P],
+    "JointModelPY": [_P],
+    "JointModelPZ": [_P],
+    "JointModelPrismaticUnaligned": [_P],
+    "JointModelPlanar": [_P, _P, _R],
+    "JointModelTranslation": [_P, _P, _P],
+}  # Pinocchio's joint models with a translating coordinate; all others turn
 
 
 class TipPose(NamedTuple):
@@ -198,6 +236,18 @@ class RobotModel:
     def damping(self) -> Array:
         """Viscous joint damping in [N m s/rad], shape (nv,), read-only."""
         return _read_only(self.model.damping)
+
+    def joint_units(self) -> tuple[JointUnits, ...]:
+        """Return the units of each velocity coordinate, shape (nv,): m, m/s, N if prismatic.
+
+        Every printer and plotter of joint values reads its units here. A
+        joint is prismatic when Pinocchio models it as one (``JointModelP*``);
+        every other moving joint (revolute, continuous) is in rad, rad/s, N m.
+        """
+        units: list[JointUnits] = []
+        for joint in self.model.joints[1:]:
+            units += _JOINT_UNITS.get(joint.shortname(), [REVOLUTE_UNITS] * joint.nv)
+        return tuple(units)
 
     def frame_id(self, name: str) -> int:
         """Return the index of frame ``name``.

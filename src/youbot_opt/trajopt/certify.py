@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -25,7 +26,13 @@ from youbot_opt._typing import Array
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.dynamics.numeric import RobotLike
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.robot.model import JointBounds, RobotModel, as_robot_model
+from youbot_opt.robot.model import (
+    REVOLUTE_UNITS,
+    JointBounds,
+    JointUnits,
+    RobotModel,
+    as_robot_model,
+)
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.simulate import (
     DEFAULT_ATOL,
@@ -46,11 +53,11 @@ __all__ = [
     "integrate_intervals",
 ]
 
-_QUANTITIES: tuple[tuple[str, str], ...] = (
-    ("position", "rad"),
-    ("velocity", "rad/s"),
-    ("torque", "N m"),
-)
+_BOUND_UNIT: dict[str, Callable[[JointUnits], str]] = {
+    "position": lambda u: u.position,
+    "velocity": lambda u: u.velocity,
+    "torque": lambda u: u.effort,
+}
 
 
 _WHERE = {"knots": "at knots", "between": "between knots"}
@@ -179,6 +186,9 @@ class Certificate:
     incomplete : str
         Why some figures were not measured (``certify``'s time limit ran out;
         they are NaN), or ``""``. An incomplete certificate never passes.
+    joint_units : tuple of JointUnits
+        Units of each joint coordinate (:meth:`RobotModel.joint_units`), for
+        the report; empty: every joint revolute.
     """
 
     robot: str
@@ -199,6 +209,7 @@ class Certificate:
     elapsed: float
     tolerances: Tolerances = field(default_factory=Tolerances)
     incomplete: str = ""
+    joint_units: tuple[JointUnits, ...] = ()
 
     # ------------------------------------------------------------ aggregates
     @property
@@ -245,24 +256,34 @@ class Certificate:
             )
         return max(checks, key=lambda c: c.relative)
 
+    def _position_units(self) -> tuple[str, str]:
+        """Units of the figures that are maxima over all joints: position and velocity."""
+        kinds = {u.prismatic for u in self.joint_units} or {False}
+        if kinds == {True}:
+            return "m", "m/s"
+        return ("rad or m", "rad/s or m/s") if True in kinds else ("rad", "rad/s")
+
     # ------------------------------------------------------------- verdicts
     def _rows(self, tol: Tolerances) -> list[tuple[str, float, float, float, str]]:
         """(label, value, median or NaN, limit, note) of every tested figure."""
         nan = math.nan
+        pos, vel = self._position_units()
         rows = [
-            ("local error, position [rad]", self.local_position_max, self.local_position_median,
-             tol.local_position, f"worst interval {self.worst_interval}"),
-            ("local error, velocity [rad/s]", self.local_velocity_max,
+            (f"local error, position [{pos}]", self.local_position_max,
+             self.local_position_median, tol.local_position,
+             f"worst interval {self.worst_interval}"),
+            (f"local error, velocity [{vel}]", self.local_velocity_max,
              self.local_velocity_median, tol.local_velocity, ""),
             ("tracking: feedback/plan torque, RMS", self.feedback_rms, nan, tol.feedback_rms, ""),
             ("tracking: feedback/plan torque, peak", self.feedback_peak, nan, tol.feedback_peak,
              ""),
-            ("tracking: position error [rad]", self.tracking_position_error, nan,
+            (f"tracking: position error [{pos}]", self.tracking_position_error, nan,
              tol.tracking_position, ""),
         ]  # fmt: skip
         for c in self.bounds:
             limit = tol.knot_bound if c.where == "knots" else tol.between_bound
-            unit = dict(_QUANTITIES)[c.quantity]
+            units = self.joint_units[c.joint] if 0 <= c.joint < len(self.joint_units) else None
+            unit = _BOUND_UNIT[c.quantity](units or REVOLUTE_UNITS)
             label = f"bound {c.quantity}, {_WHERE[c.where]} (relative)"
             side = "excess" if c.excess > 0.0 else "margin"  # how far over, or short of, it
             note = f"{side} {abs(c.excess):.2e} {unit} {'over' if c.excess > 0.0 else 'to'} the "
@@ -354,13 +375,14 @@ class Certificate:
             med = f"{median:>10.2e}" if math.isfinite(median) else " " * 10
             mark = "ok  " if value <= limit else "FAIL"
             lines.append(f"  {label:<40}{value:>10.2e}{med}{limit:>9.1e}  {mark}  {note}".rstrip())
+        pos = self._position_units()[0]
         if math.isfinite(self.open_loop_divergence_time):
             drift = (
-                f"drifted {self.open_loop_stop:g} rad from the plan at "
+                f"drifted {self.open_loop_stop:g} {pos} from the plan at "
                 f"t = {self.open_loop_divergence_time:.3g} s"
             )
         else:
-            drift = f"final position error {self.open_loop_final_error:.2e} rad"
+            drift = f"final position error {self.open_loop_final_error:.2e} {pos}"
         lines.append(f"  open loop (reported, not tested): {drift}")
         lines.append(
             f"  (PD tracking at {self.gains.bandwidth:g} rad/s, damping ratio "
@@ -604,6 +626,7 @@ def certify(
         elapsed=time.perf_counter() - tic,
         tolerances=Tolerances() if tolerances is None else tolerances,
         incomplete=incomplete,
+        joint_units=model.joint_units(),
     )
 
 

@@ -38,6 +38,7 @@ from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
     "ERROR_EXPONENTS",
+    "MOVED",
     "Refined",
     "Refinement",
     "RefinementBudget",
@@ -45,6 +46,7 @@ __all__ = [
     "refine",
     "observed_exponents",
     "predicted_knots",
+    "solution_moved",
     "stiffness_note",
     "split_grid",
     "switching_intervals",
@@ -326,7 +328,11 @@ def split_grid(
 
 
 def observed_exponents(
-    parent_errors: Array, errors: Array, parent: NDArray[np.intp], exponent: float | Array
+    parent_errors: Array,
+    errors: Array,
+    parent: NDArray[np.intp],
+    exponent: float | Array,
+    stretch: float = 1.0,
 ) -> Array:
     """Per-interval error exponents seen in the last split (Betts' order reduction).
 
@@ -336,7 +342,10 @@ def observed_exponents(
     ``log(e_parent / e_piece) / log(p)``, clipped to ``[1, m]``, predicts its
     next split (Betts, *Practical Methods for Optimal Control*, sec. 4.7.4,
     estimates the order reduction the same way). Unsplit intervals keep their
-    parent's exponent.
+    parent's exponent. The grid is kept as fractions of the duration, so when
+    the new solve's duration is ``stretch`` times the old one every interval
+    is ``stretch`` times longer: the parent's error is first carried to the
+    new duration, ``e_parent stretch^m``.
 
     Parameters
     ----------
@@ -348,6 +357,8 @@ def observed_exponents(
         Each new interval's interval on the previous grid (:func:`split_grid`).
     exponent : float or ndarray, shape (n_old,)
         The exponents the previous split assumed (the method's at most).
+    stretch : float
+        New duration over old duration (1: the same ``T``).
 
     Returns
     -------
@@ -358,9 +369,30 @@ def observed_exponents(
     pieces = np.bincount(parent, minlength=parent_errors.size)[parent]
     m_max = float(np.max(m_old, initial=1.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        seen = np.log(parent_errors[parent] / errors) / np.log(pieces)
+        seen = np.log(parent_errors[parent] * stretch**m_old / errors) / np.log(pieces)
     seen = np.clip(np.nan_to_num(seen, nan=m_max, posinf=m_max), 1.0, m_max)
     return np.where(pieces > 1, seen, m_old)
+
+
+MOVED = 0.01
+"""Relative change of the duration ``T`` between two rounds above which the
+solution has moved: its features (bound switches, the fast transients of a
+light or damped joint) are no longer where the previous grid's fractions of
+``T`` put them, so the fall of the error from the old grid to the new one
+measures the move, not the error's order, and :func:`refine` does not trust
+:func:`observed_exponents` across it (docs/refinement.md, "A solution that moves")."""
+
+
+def solution_moved(old_duration: float, new_duration: float) -> bool:
+    """Return True when the duration changed by more than :data:`MOVED` (relative).
+
+    Parameters
+    ----------
+    old_duration, new_duration : float
+        ``T`` [s] of the previous and the new round.
+    """
+    stretch = new_duration / old_duration if old_duration > 0.0 else math.inf
+    return not (math.isfinite(stretch) and abs(stretch - 1.0) <= MOVED)
 
 
 def switching_intervals(result: TrajOptResult, relative: float = 1e-6) -> NDArray[np.bool_]:
@@ -617,12 +649,17 @@ def refine(
     tolerance = budget.tolerance
     cert: Certificate | None = None
     exponents: float | Array = float(exponent)
-    split: tuple[Array, NDArray[np.intp]] | None = None  # previous errors, parents
+    split: tuple[Array, NDArray[np.intp], float] | None = None  # previous errors, parents, T
     while True:
         record, error, cert = _round(len(rounds), result, budget, solve_time, deadline)
-        if error is not None and split is not None:
-            exponents = observed_exponents(split[0], error.relative, split[1], exponents)
-        elif error is not None:  # first grid: a bound switching inside an interval lowers m
+        if (
+            error is not None
+            and split is not None
+            and not solution_moved(split[2], result.duration)
+        ):
+            stretch = result.duration / split[2]  # every interval's h changed by this factor
+            exponents = observed_exponents(split[0], error.relative, split[1], exponents, stretch)
+        elif error is not None:  # first or moved solution: a bound switch inside lowers m
             exponents = np.where(switching_intervals(result), 1.0, float(exponent))
         rounds.append(record)
         _log.info(
@@ -658,7 +695,7 @@ def refine(
             if fractions.size + 1 <= budget.max_knots or cap == 2:
                 break
             cap = max(2, cap // 2)
-        split = (error.relative, parent)
+        split = (error.relative, parent, result.duration)
         n_new = fractions.size + 1
         elapsed = time.perf_counter() - tic
         if len(rounds) >= budget.max_rounds:

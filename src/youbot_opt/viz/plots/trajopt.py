@@ -135,6 +135,37 @@ def result_title(result: TrajOptResult) -> str:
     )
 
 
+_PRISMATIC_QUANTITIES: tuple[tuple[str, str, str], ...] = (
+    ("q", "position", "q [m]"),
+    ("v", "speed", "v [m/s]"),
+    ("tau", "force", r"$f$ [N]"),
+)
+
+
+def _unit_labels(
+    prismatic: Sequence[bool], names: Sequence[str]
+) -> tuple[tuple[str, str, str], ...]:
+    """Axis labels with each joint kind's unit (empty: every joint revolute, :data:`QUANTITIES`).
+
+    All prismatic: m, m/s, N. Mixed: rad, rad/s, N m, and the prismatic joints
+    named with theirs (one axis per quantity, one unit per joint kind).
+    """
+    if not any(prismatic):
+        return ()
+    if all(prismatic):
+        return _PRISMATIC_QUANTITIES
+    which = ", ".join(n for n, p in zip(names, prismatic, strict=True) if p)
+    return tuple(
+        (key, kind, f"{label[: label.index('[')]}[{unit}]\n({which} in [{p_unit}])")
+        for (key, kind, label), unit, p_unit in zip(
+            (("q", "position", "q ["), ("v", "speed", "v ["), ("tau", "effort", r"$\tau$ [")),
+            ("rad", "rad/s", "N m"),
+            ("m", "m/s", "N"),
+            strict=True,
+        )
+    )
+
+
 def plot_trajectory(
     result_or_trajectory: TrajOptResult | Trajectory,
     bounds: JointBounds | None = None,
@@ -172,7 +203,8 @@ def plot_trajectory(
     Returns
     -------
     matplotlib.figure.Figure
-        The figure; ``fig.axes[0..2]`` hold q [rad], v [rad/s] and tau [N m].
+        The figure; ``fig.axes[0..2]`` hold q [rad], v [rad/s] and tau [N m]
+        (prismatic joints in [m], [m/s] and [N], named on the axis label).
 
     Raises
     ------
@@ -194,7 +226,9 @@ def plot_trajectory(
                 name="bounds",
             )
     fig, axes = new_figure(len(QUANTITIES), 1, figsize, sharex=True)
-    for ax, (key, quantity, label) in zip(axes[:, 0], QUANTITIES, strict=True):
+    units = result.problem.robot.joint_units() if result is not None else ()
+    labels_by_kind = _unit_labels([u.prismatic for u in units], names)
+    for ax, (key, quantity, label) in zip(axes[:, 0], labels_by_kind or QUANTITIES, strict=True):
         values = getattr(traj, key)
         for j in range(nv):
             ax.plot(traj.t, values[:, j], color=joint_colour(j), marker=".", markersize=3,

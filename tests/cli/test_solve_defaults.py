@@ -1,0 +1,97 @@
+"""`youbot-opt solve`'s defaults: the transcription per robot, what to try when uncertified."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+from youbot_opt.cli import build_parser, main
+from youbot_opt.cli.advice import next_step
+from youbot_opt.cli.solve import DEFAULT_TRANSCRIPTION, transcription
+from youbot_opt.nlp.status import SolveStatus
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.trajopt.refine import RefinementBudget, refine
+from youbot_opt.trajopt.solver import TrajOptSolver
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["solve"], "trapezoidal"),
+        (["solve", "--robot", "youbot", "--transcription", "hermite-simpson"], "hermite_simpson"),
+        (["solve", "--robot", "ur5"], DEFAULT_TRANSCRIPTION),
+        (["solve", "--robot", "youbot", "--lock", "arm_joint_1=0"], DEFAULT_TRANSCRIPTION),
+        (["solve", "--robot", "ur5", "--transcription", "trapezoidal"], "trapezoidal"),
+    ],
+)
+def test_the_study_youbot_keeps_its_trapezoid_and_other_robots_get_radau(argv, expected):
+    """No --transcription: the study's youBot is solved as the study was, other robots L-stable."""
+    assert DEFAULT_TRANSCRIPTION == "radau"
+    assert transcription(build_parser().parse_args(argv)) == expected
+
+
+def test_the_help_names_each_default():
+    """--help says which robot gets which scheme."""
+    (action,) = [
+        a
+        for a in build_parser()._subparsers._group_actions[0].choices["solve"]._actions  # type: ignore[union-attr]
+        if a.dest == "transcription"
+    ]
+    assert "trapezoidal for the study's youBot" in action.help
+    assert "radau for any other robot" in action.help
+
+
+@pytest.fixture(scope="module")
+def one_round():
+    """The study's 15-knot trapezoid with a one-round budget: uncertified, error still high."""
+    solver = TrajOptSolver(study1_problem(15), "trapezoidal")
+    return refine(solver, beta=0.5, budget=RefinementBudget(max_rounds=1))
+
+
+def test_an_exhausted_round_budget_suggests_more_rounds(one_round):
+    """One round, not certified: the error had no chance to fall, so --max-rounds 2."""
+    assert not one_round.certified
+    assert next_step(*one_round).startswith("--max-rounds 2")
+
+
+def test_errors_that_do_not_fall_suggest_radau_then_a_multistart(one_round):
+    """A trapezoid whose error rose over the last round -> radau; under radau -> --starts."""
+    result, record = one_round
+    first = record.rounds[0]
+    rounds = (first, dataclasses.replace(first, index=1, max_error=2.0 * first.max_error))
+    rising = dataclasses.replace(record, rounds=rounds)
+    assert next_step(result, rising).startswith("--transcription radau (L-stable; the error")
+    as_radau = dataclasses.replace(result, method="radau")
+    assert next_step(as_radau, rising).startswith("a multistart: --starts 8")
+
+
+def test_a_failed_solve_suggests_a_multistart(one_round):
+    """No successful solve to refine: other starts."""
+    result, record = one_round
+    failed = dataclasses.replace(result, status=SolveStatus.INFEASIBLE)
+    assert not failed.success
+    assert next_step(failed, record).startswith("a multistart: --starts 8")
+
+
+def test_an_uncertified_run_prints_the_next_step(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The table of an uncertified run ends its refinement lines with 'next ...'."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["solve", "--knots", "15", "--max-rounds", "1", "--quiet"]) == 1
+    out = capsys.readouterr().out
+    assert "next          --max-rounds 2 (the error was still falling)" in out
+
+
+def test_unresolved_damping_suggests_radau(one_round, monkeypatch: pytest.MonkeyPatch):
+    """A damping rate of 561 1/s (the iiwa's joint 7) on this grid: rate x h > 2 -> radau."""
+    import youbot_opt.dynamics.numeric as numeric
+
+    monkeypatch.setattr(
+        numeric, "damping_rate", lambda *a, **k: numeric.DampingRate(rate=561.0, joint="j7")
+    )
+    text = next_step(*one_round)
+    assert text.startswith("--transcription radau (L-stable; j7's damping relaxes at 561 1/s")
+    assert "> 2, unresolved" in text
