@@ -7,7 +7,8 @@ this script holds the reading of the older ones. It carries:
   schema 2: the robot's source recorded, ``beta`` a solve-time figure only;
 - a sweep store (a folder with ``manifest.json``, schema ``youbot_opt.sweep``):
   the flat layout of schemas 1 and 2 (one record file per item) to the fan-out
-  layout and summary journal of schema 3, every payload and summary kept; the
+  layout and summary journal of schema 3, every payload and summary kept (a
+  Pareto point's summary gains the start and solve time it lacked); the
   manifest of a trajectory sweep names its robot by the SHA-256 of its URDF
   (not its path) and its problem carries no ``beta``; its payloads are carried
   as result files are. Other payloads (IK paths) are copied unchanged. Cached
@@ -207,12 +208,13 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
     )
     try:
         for key, record in records.items():
+            summary = dict(record.summary)
+            if trajectory and manifest["kind"] == "pareto":  # 0.1.0 points: warm-started
+                summary.setdefault("start", "previous")
+                summary.setdefault("solve_time_s", 0.0)
             if record.state == "done" and record.payload is not None:
                 store.write_done(
-                    key,
-                    source / "items" / record.payload,
-                    record.summary,
-                    attempts=record.attempts,
+                    key, source / "items" / record.payload, summary, attempts=record.attempts
                 )
             else:
                 for reason in record.reasons or ("failed",):
