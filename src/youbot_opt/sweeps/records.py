@@ -2,8 +2,8 @@
 
 Owns the formats a :class:`~youbot_opt.sweeps.store.SweepStore` writes per
 item, separately from the store itself so that workers and monitors need no
-store: :func:`check_key`, :class:`ItemRecord` (one journal line, or a flat
-store's record file), :func:`fanout_name` (``items/<hh>/<key><suffix>``),
+store: :func:`check_key`, :class:`ItemRecord` (one journal line),
+:func:`fanout_name` (``items/<hh>/<key><suffix>``),
 :func:`write_unsynced` (atomic, no per-item fsync), :class:`ItemWriter` and
 :class:`WrittenItem` (a worker writing its own payload and reporting its
 SHA-256), and :func:`stored_records` (every record of a folder, no parameter
@@ -91,12 +91,12 @@ class ItemRecord:
     summary : mapping
         JSON-ready figures of the item (empty for failures).
     payload : str or None
-        Path of the payload relative to ``items/`` (``"3f/start_0007.npz"``;
-        flat stores: the file name), ``None`` for failures.
+        Path of the payload relative to ``items/`` (``"3f/start_0007.npz"``),
+        ``None`` for failures.
     sweep : str or None
-        Binding of the sweep that wrote the record (``None``: schema 1).
+        Binding of the sweep that wrote the record (a record without one is refused).
     checksum : str or None
-        SHA-256 (hex) of the payload file (``None`` for failures and schema 1).
+        SHA-256 (hex) of the payload file (``None`` for failures).
     """
 
     key: str
