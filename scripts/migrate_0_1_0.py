@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 import uuid
@@ -244,15 +245,13 @@ def _copy(source: Path, target: Path) -> None:
 # ------------------------------------------------------------------ the command
 def migrate(path: Path, out: Path | None, urdf: Path | None) -> str:
     """Carry one path forward; return the line to print (raise MigrationError on failure)."""
-    if path.is_dir():
-        if not (path / "manifest.json").is_file():
-            raise MigrationError("a folder without manifest.json: not a sweep store")
-        current, carry, what = store_is_current(path), carry_store, "sweep store"
-    elif path.is_file():
-        current, carry, what = result_is_current(path), carry_result, "trajectory result"
-    else:
+    store = path.is_dir()
+    if store and not (path / "manifest.json").is_file():
+        raise MigrationError("a folder without manifest.json: not a sweep store")
+    if not store and not path.is_file():
         raise MigrationError("no such file or folder")
-    if current:
+    what = "sweep store" if store else "trajectory result"
+    if store_is_current(path) if store else result_is_current(path):
         return f"{path}: already current ({what}), left alone"
     target = out if out is not None else path
     backup = Path(str(path) + BACKUP)
@@ -262,19 +261,21 @@ def migrate(path: Path, out: Path | None, urdf: Path | None) -> str:
         raise MigrationError(f"the backup {backup} exists; move it away first")
     tmp = target.with_name(f".migrating-{target.name}.{uuid.uuid4().hex[:8]}")
     try:
-        if path.is_dir():
+        if store:
             carry_store(path, tmp, urdf)
         else:
-            carry(path, tmp)  # type: ignore[operator]
-    except BaseException:
+            carry_result(path, tmp)
+        if out is None:
+            path.rename(backup)  # the original first: it is never lost
+        if store:
+            tmp.rename(target)  # refused by the system if a non-empty folder appeared there
+        else:
+            os.link(tmp, target)  # never replaces a file that appeared meanwhile
+    finally:
         if tmp.is_dir():
             shutil.rmtree(tmp, ignore_errors=True)
         else:
             tmp.unlink(missing_ok=True)
-        raise
-    if out is None:
-        path.rename(backup)
-    tmp.rename(target)
     kept = f" (the 0.1.0 original kept as {backup})" if out is None else ""
     return f"{path}: {what} of 0.1.0 carried forward to {target}{kept}"
 
