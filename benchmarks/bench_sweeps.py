@@ -170,15 +170,6 @@ def _peak_mb(fn) -> float:  # type: ignore[no-untyped-def]
 def store_section(n_store: int, rows: dict[str, float]) -> list[float]:
     """The big keep_results=False sweep through the real store; returns the RSS samples."""
     with tempfile.TemporaryDirectory(dir=Path.cwd()) as tmp:
-        # Baseline in this run: a flat schema-2 store (one record file per item, 4 fsyncs).
-        n_flat = 500
-        flat = Path(tmp) / "flat"
-        flat.mkdir()
-        body = {"schema": "youbot_opt.sweep", "schema_version": 2, "kind": "bench",
-                "params": {"n": n_flat}}  # fmt: skip
-        (flat / "manifest.json").write_text(json.dumps(body))
-        _, t = _timed(lambda: _trivial(n_flat, flat, "serial"))
-        rows["flat_items_per_s_store"] = n_flat / t
         n = 20_000
         _, t = _timed(lambda: _trivial(n, Path(tmp) / "serial", "serial"))
         rows["driver_items_per_s_store"] = n / t
@@ -593,15 +584,12 @@ def report(  # type: ignore[no-untyped-def]
             f"driver cost without a store: {rows['driver_items_per_s_nostore']:.0f} items/s "
             f"in-process, {rows['dask_items_per_s_nostore']:.0f} items/s on Dask"
         )
-    flat = rows["flat_items_per_s_store"]
-    ratio = rows["driver_items_per_s_store"] / flat
     print(
         f"driver cost through the on-disk store: {rows['driver_items_per_s_store']:.0f} items/s "
         f"serial (the driver writes), {rows['pool_items_per_s_store']:.0f} items/s on the "
         f"local pool (workers write; goal >= {GOAL_ITEMS_PER_S:.0f}), "
         f"{rows['pool_items_per_s_store_lazy']:.0f} items/s on the pool with "
-        f"keep_results=False (chunks of lazily made tasks); baseline, a flat "
-        f"schema-2 store in this run: {flat:.0f} items/s (x{ratio:.1f})"
+        f"keep_results=False (chunks of lazily made tasks)"
     )
     print(
         f"store sweep of {n_store} trivial items, keep_results=False: {rows['store_run_s']:.1f} s "

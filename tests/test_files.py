@@ -242,6 +242,22 @@ def test_check_schema_header_without_name_and_with_remedy() -> None:
         )
 
 
+def test_check_schema_header_refuses_a_version_older_than_oldest_naming_the_script() -> None:
+    """Below ``oldest`` (a 0.1.0 file): the message names scripts/migrate_0_1_0.py and the path."""
+    doc = {"schema": "demo", "schema_version": 1}
+    assert check_schema_header(doc, schema="demo", supported=2, source="f.json") == 1
+    want = (
+        r"^f\.json: written by youbot_opt 0\.1\.0 \(schema 1\); "
+        r"run `python scripts/migrate_0_1_0\.py f\.json` to carry it forward$"
+    )
+    with pytest.raises(ResultFileError, match=want):
+        check_schema_header(doc, schema="demo", supported=2, oldest=2, source="f.json")
+    with pytest.raises(ResultFileError, match=r"migrate_0_1_0\.py run/a`"):
+        check_schema_header(
+            doc, schema="demo", supported=2, oldest=2, source="f.json", migrate="run/a"
+        )
+
+
 _ROWS = [
     {
         "index": i,

@@ -31,6 +31,7 @@ import numpy as np
 from youbot_opt.exceptions import ParameterError, ResultFileError
 
 __all__ = [
+    "MIGRATION_SCRIPT",
     "TMP_PREFIX",
     "StreamedList",
     "array_digest",
@@ -47,6 +48,9 @@ __all__ = [
     "software_versions",
     "write_json_stream",
 ]
+
+MIGRATION_SCRIPT = "scripts/migrate_0_1_0.py"
+"""The script that carries files and stores written by youbot_opt 0.1.0 forward."""
 
 TMP_PREFIX = ".tmp-"
 """Name prefix of the temporary files of :func:`atomic_writer` (``.tmp-<name>.<random>``)."""
@@ -431,6 +435,8 @@ def check_schema_header(
     supported: int,
     source: str,
     remedy: str = "upgrade youbot_opt to read it",
+    oldest: int = 1,
+    migrate: str | None = None,
 ) -> int:
     """Check the schema name and version of a file read back; return the version.
 
@@ -446,6 +452,12 @@ def check_schema_header(
         What was read, for the messages (e.g. the path).
     remedy : str
         What the user can do about a file of a newer version (end of that message).
+    oldest : int
+        Oldest schema version this code reads. An older file was written by
+        youbot_opt 0.1.0: the message names the script that carries it forward
+        (:data:`MIGRATION_SCRIPT`; until 1.0 the package reads one format).
+    migrate : str, optional
+        The path to give that script (default ``source``; a store's folder).
 
     Returns
     -------
@@ -456,7 +468,8 @@ def check_schema_header(
     ------
     ResultFileError
         If the schema is another one, or the version is not an integer, < 1 or
-        newer than ``supported`` (the message names the youbot_opt that wrote it).
+        newer than ``supported`` (the message names the youbot_opt that wrote it),
+        or older than ``oldest`` (the message names the migration script).
     """
     if schema is not None and (not isinstance(doc, dict) or doc.get("schema") != schema):
         found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
@@ -468,6 +481,12 @@ def check_schema_header(
         raise ResultFileError(
             f"{source} is corrupted: no valid 'schema_version' field (expected an integer "
             f"in 1..{supported}, got {version!r})"
+        )
+    if version < oldest:
+        raise ResultFileError(
+            f"{source}: written by youbot_opt 0.1.0 (schema {version}); run "
+            f"`python {MIGRATION_SCRIPT} {source if migrate is None else migrate}` to carry "
+            "it forward"
         )
     if version > supported:
         versions = doc.get("versions")

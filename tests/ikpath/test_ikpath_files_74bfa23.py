@@ -1,7 +1,9 @@
 """Files written by youbot_opt at commit 74bfa23 load and resume with today's code.
 
 The fixtures in ``tests/fixtures/files_74bfa23`` were written by that commit
-(see the README there); they must never be regenerated.
+(see the README there); they must never be regenerated. The sweep store is
+carried to today's layout by ``scripts/migrate_0_1_0.py`` first (its IK payloads
+are still read by ikpath as 0.1.0 wrote them).
 """
 
 from __future__ import annotations
@@ -9,11 +11,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from youbot_opt.exceptions import ParameterError
+from _migrate import REFUSAL, migrate
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_ikpath_result
 from youbot_opt.ikpath.multistart import run_multistart
@@ -24,10 +28,23 @@ from youbot_opt.sweeps.options import SweepOptions
 OLD = Path(__file__).resolve().parents[1] / "fixtures" / "files_74bfa23"
 
 
-def _old_store(tmp_path: Path) -> Path:
+def _old_store(tmp_path: Path, edit: Callable[[Path], None] | None = None) -> Path:
+    """A copy of the 0.1.0 store (``edit``-ed), carried to today's layout by the script."""
     out = tmp_path / "ik_sweep"
     shutil.copytree(OLD / "ik_sweep", out)
+    if edit is not None:
+        edit(out / "manifest.json")
+    done = migrate(out)  # the flat layout of 0.1.0 to the journal (payloads copied unchanged)
+    assert done.returncode == 0, done.stderr
     return out
+
+
+def test_old_store_is_refused_naming_the_migration(tmp_path):
+    """The flat 0.1.0 store itself is refused by the sweep store, naming the script."""
+    out = tmp_path / "ik_sweep"
+    shutil.copytree(OLD / "ik_sweep", out)
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        _resume(out)
 
 
 def _resume(out: Path, options: IpoptOptions | None = None):
@@ -74,18 +91,20 @@ def test_old_ik_result_file_loads_and_passes_the_check():
 
 def test_store_with_every_ipopt_field_resumes_too(tmp_path):
     """A manifest holding every IpoptOptions field (as commit 02cdf49 wrote it) also resumes."""
-    out = _old_store(tmp_path)
-    path = out / "manifest.json"
-    manifest = json.loads(path.read_text())
-    defaults = IpoptOptions.for_ikpath()
-    later = {"fast_kkt", "linear_solver_library"}  # added after 02cdf49, absent from its files
-    full = {
-        f.name: getattr(defaults, f.name)
-        for f in dataclasses.fields(defaults)
-        if f.name not in later
-    }
-    full = {"type": "IpoptOptions", **full, "extra": {}}
-    assert len(full) == 11  # every field, as 02cdf49 wrote them
-    manifest["params"]["options"] = full
-    path.write_text(json.dumps(manifest, indent=1))
+
+    def every_field(path: Path) -> None:
+        manifest = json.loads(path.read_text())
+        defaults = IpoptOptions.for_ikpath()
+        later = {"fast_kkt", "linear_solver_library"}  # added after 02cdf49, absent from its files
+        full = {
+            f.name: getattr(defaults, f.name)
+            for f in dataclasses.fields(defaults)
+            if f.name not in later
+        }
+        full = {"type": "IpoptOptions", **full, "extra": {}}
+        assert len(full) == 11  # every field, as 02cdf49 wrote them
+        manifest["params"]["options"] = full
+        path.write_text(json.dumps(manifest, indent=1))
+
+    out = _old_store(tmp_path, every_field)
     assert _resume(out).resumed == 3

@@ -1,4 +1,4 @@
-"""One SolveStatus for both optimisers; old values and names still load."""
+"""One SolveStatus for both optimisers; the old values of IK-path files still load."""
 
 from __future__ import annotations
 
@@ -35,12 +35,11 @@ def test_values_of_saved_files_load(old: str, new: SolveStatus) -> None:
     assert SolveStatus(old) is new
 
 
-def test_old_names_are_aliases_and_success() -> None:
-    """IKStatus.SUCCESS etc. are the same members; success only for the two solved ones."""
-    assert IKStatus.SUCCESS is SolveStatus.SOLVED and IKStatus.TIME_LIMIT is SolveStatus.MAX_TIME
-    assert IKStatus.NUMERICAL_ERROR is SolveStatus.NON_FINITE
-    assert IKStatus.CHECK_FAILED is SolveStatus.CONSTRAINT_VIOLATION
-    assert len(list(SolveStatus)) == 10  # aliases are not members of their own
+def test_old_names_are_gone_and_success() -> None:
+    """The IKStatus names of 0.1.0 (SUCCESS, ...) are gone; success only for the two solved ones."""
+    for old in ("SUCCESS", "TIME_LIMIT", "NUMERICAL_ERROR", "CHECK_FAILED"):
+        assert not hasattr(SolveStatus, old)
+    assert len(list(SolveStatus)) == 10
     assert {s for s in SolveStatus if s.success} == {
         SolveStatus.SOLVED,
         SolveStatus.SOLVED_ACCEPTABLE,

@@ -1,8 +1,8 @@
 """Tests of youbot_opt.sweeps.store: atomic writes, resume, manifest checks, schema errors.
 
 Also the schema-3 layout: payloads fanned out into ``items/<hh>/``, the summary
-journal (torn and foreign lines refused), group commits, flat schema-2 stores
-that still resume as they are.
+journal (torn and foreign lines refused), group commits, and the flat stores of 0.1.0
+refused (``scripts/migrate_0_1_0.py`` carries them forward).
 """
 
 from __future__ import annotations
@@ -72,19 +72,6 @@ def test_atomic_write_interrupted_keeps_old_file(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.bin"]
 
 
-def _flat_store(tmp_path: Path, version: int = 2) -> SweepStore:
-    """A store whose manifest says schema ``version`` (1 or 2: the flat layout)."""
-    folder = tmp_path / "sweep"
-    folder.mkdir()
-    params = {"seed": 0, "betas": [0.1, 0.2]}
-    body = {"schema": "youbot_opt.sweep", "schema_version": version, "kind": "demo",
-            "params": params}  # fmt: skip
-    (folder / "manifest.json").write_text(json.dumps(body))
-    store = _store(tmp_path)
-    assert store.layout == "flat" and store.resumed
-    return store
-
-
 def test_done_items_are_loaded_on_reopen(tmp_path: Path) -> None:
     """A reopened store reports done items as finished and returns their payload bit for bit."""
     store = _store(tmp_path)
@@ -138,28 +125,6 @@ def test_resume_with_other_parameters_is_an_error(tmp_path: Path) -> None:
         SweepStore(tmp_path / "sweep", kind="pareto", params={}, save=_save, load=_load)
 
 
-@pytest.mark.parametrize(
-    "content, match",
-    [
-        (b"{not json", "not valid JSON"),
-        (json.dumps({"key": "a"}).encode(), "schema_version"),
-        (json.dumps({"schema_version": SCHEMA_VERSION + 1, "key": "a"}).encode(), "newer"),
-        (
-            json.dumps({"schema_version": 2, "key": "a", "state": "?"}).encode(),
-            "corrupted",
-        ),
-    ],
-)
-def test_bad_records_raise_result_file_error(tmp_path: Path, content: bytes, match: str) -> None:
-    """Corrupted, schema-less, newer-schema or malformed records of a flat store raise."""
-    store = _flat_store(tmp_path)
-    (store.items_dir / "a.json").write_bytes(content)
-    with pytest.raises(ResultFileError, match=match):
-        store.record("a")
-    with pytest.raises(ResultFileError):
-        store.needs_work("a", 2)
-
-
 def test_bad_manifest_raises_result_file_error(tmp_path: Path) -> None:
     """A newer-schema or corrupted manifest stops the resume with ResultFileError."""
     _store(tmp_path)
@@ -195,7 +160,6 @@ def test_payloads_fan_out_and_the_journal_holds_the_records(tmp_path: Path) -> N
     import hashlib
 
     store = _store(tmp_path)
-    assert store.layout == "fanout"
     with store.grouped():
         for i in range(40):
             store.write_done(f"item_{i:03d}", np.full(2, float(i)), {"i": i})
@@ -267,13 +231,18 @@ def test_a_payload_not_matching_its_journal_checksum_is_refused(tmp_path: Path) 
 
 
 @pytest.mark.parametrize("version", [1, 2])
-def test_flat_stores_of_schema_1_and_2_resume_in_their_layout(tmp_path: Path, version: int) -> None:
-    """An old flat store resumes: its record files are read and new items stay flat."""
-    store = _flat_store(tmp_path, version)
-    store.write_done("a", np.ones(2), {"x": 1})
-    assert (store.items_dir / "a.json").is_file() and (store.items_dir / "a.npy").is_file()
-    again = _store(tmp_path)
-    assert again.layout == "flat" and again.needs_work("a", 2) == (False, 1)
-    assert json.loads((store.items_dir / "a.json").read_text())["schema_version"] == 2
-    np.testing.assert_array_equal(again.load("a"), np.ones(2))
-    assert [r.key for r in stored_records(tmp_path / "sweep")] == ["a"]
+def test_flat_stores_of_0_1_0_are_refused_naming_the_migration(
+    tmp_path: Path, version: int
+) -> None:
+    """A flat store (schema 1 or 2, 0.1.0) is refused; the message names the script and folder."""
+    folder = tmp_path / "sweep"
+    folder.mkdir()
+    body = {"schema": "youbot_opt.sweep", "schema_version": version, "kind": "demo",
+            "params": {"seed": 0, "betas": [0.1, 0.2]}}  # fmt: skip
+    (folder / "manifest.json").write_text(json.dumps(body))
+    want = (
+        rf"written by youbot_opt 0\.1\.0 \(schema {version}\); "
+        rf"run `python scripts/migrate_0_1_0\.py {folder}` to carry it forward"
+    )
+    with pytest.raises(ResultFileError, match=want):
+        _store(tmp_path)

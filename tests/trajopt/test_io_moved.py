@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _migrate import REFUSAL, migrate
 from youbot_opt.exceptions import (
     InvalidModelError,
     ParameterError,
@@ -116,16 +117,34 @@ def test_a_deleted_urdf_names_every_path_tried(tmp_path: Path) -> None:
     assert "pass robot=" in message
 
 
-def test_a_file_written_before_robot_sources_loads_as_then(tmp_path: Path) -> None:
-    """Without "robot_source": reloaded from problem.urdf_path, in place; after a move, refused."""
+def _as_0_1_0(meta: dict) -> None:
+    """Metadata as 0.1.0 wrote it before robot sources: schema 1, beta in the problem."""
+    meta.pop("robot_source")
+    meta["problem"]["beta"] = meta["beta"]
+    meta["schema_version"] = 1
+
+
+def test_a_file_of_0_1_0_without_robot_source_is_migrated_then_loads_as_then(
+    tmp_path: Path,
+) -> None:
+    """Without "robot_source" (0.1.0): refused; migrated, reloaded from problem.urdf_path in place.
+
+    After a move it is refused (the URDF path was all 0.1.0 recorded).
+    """
     folder = tmp_path / "A"
     folder.mkdir()
     urdf = Path(shutil.copy(youbot_urdf_path(), folder / "arm.urdf"))
     result = solve(study1_problem(6, robot=load_model(urdf, damping=0.1)), options=_CHEAP)
     path = save_result(result, folder / "old.npz")
-    _rewrite_metadata(path, lambda meta: meta.pop("robot_source"))
+    _rewrite_metadata(path, _as_0_1_0)
     assert "robot_source" not in _metadata(path)
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        load_result(path)
+    done = migrate(path)
+    assert done.returncode == 0, done.stderr
+    assert _metadata(path)["robot_source"]["source"] == str(urdf)
     _assert_same_numbers(result, load_result(path))
+    (folder / "old.npz.0.1.0.bak").unlink()
     shutil.move(folder, tmp_path / "B")
     with pytest.raises(ResultFileError, match=r"cannot reload robot .*pass robot="):
         load_result(tmp_path / "B" / "old.npz")

@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from youbot_opt.exceptions import ParameterError, YoubotOptWarning
+from _migrate import REFUSAL, migrate
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
@@ -200,16 +201,21 @@ def test_store_resumes_after_the_folder_and_the_urdf_move(
 
 
 def _old_params(solver: TrajOptSolver) -> dict[str, Any]:
-    """What sweep_params wrote before the robot was identified by content."""
+    """What sweep_params wrote before the robot was identified by content (0.1.0)."""
     new = sweep_params(solver)
     problem = {k: v for k, v in new["problem"].items() if k != "urdf_sha256"}
     return {**new, "problem": {**problem, "urdf_path": str(solver.problem.robot.urdf_path)}}
 
 
-def test_old_stores_with_a_urdf_path_still_resume(
+def test_old_stores_with_a_urdf_path_are_refused_then_migrated(
     youbot: RobotModel, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A store naming its URDF by path resumes: same path, moved file, gone file (warned)."""
+    """A store naming its URDF by path (0.1.0) is refused; migrated, it resumes.
+
+    Migrated with the recorded file there: the same robot at the same path or a
+    moved copy resumes; another file at that path is another robot. With the
+    recorded file gone, the migration asks for ``--urdf``.
+    """
     import youbot_opt.trajopt.multistart as ms_module
 
     robot = _copied_robot(tmp_path / "a", youbot)
@@ -218,29 +224,38 @@ def test_old_stores_with_a_urdf_path_still_resume(
         first = _small(robot, tmp_path / "old")
     stored = json.loads((tmp_path / "old" / "manifest.json").read_text())["params"]["problem"]
     assert stored["urdf_path"] == str(tmp_path / "a" / youbot.urdf_path.name)
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        _small(robot, tmp_path / "old")
+    for copy in ("other", "gone"):
+        shutil.copytree(tmp_path / "old", tmp_path / copy)
+    assert migrate(tmp_path / "old").returncode == 0
     assert _small(robot, tmp_path / "old").resumed == 2  # the same path
     moved = _copied_robot(tmp_path / "b", youbot)  # the old file still there, same content
     assert _small(moved, tmp_path / "old").resumed == 2
-    (tmp_path / "b" / youbot.urdf_path.name).write_text("<robot name='other'/>")
     (tmp_path / "a" / youbot.urdf_path.name).write_text("<robot name='other'/>")
-    with pytest.raises(ParameterError, match="urdf"):  # the old path now holds another file
-        _small(_copied_robot(tmp_path / "c", youbot), tmp_path / "old")
-    shutil.rmtree(tmp_path / "a")  # gone: taken by its file name, with a warning
-    with pytest.warns(YoubotOptWarning, match="identified by content"):
-        again = _small(_copied_robot(tmp_path / "c", youbot), tmp_path / "old")
+    assert migrate(tmp_path / "other").returncode == 0  # the old path now holds another file
+    with pytest.raises(ParameterError, match="urdf"):
+        _small(moved, tmp_path / "other")
+    shutil.rmtree(tmp_path / "a")  # gone: the migration is told the robot's URDF
+    gone = migrate(tmp_path / "gone")
+    assert gone.returncode == 1 and "pass --urdf" in gone.stderr
+    assert migrate("--urdf", moved.urdf_path, tmp_path / "gone").returncode == 0
+    again = _small(moved, tmp_path / "gone")
     assert again.resumed == 2 and again.best.objective == first.best.objective
 
 
 def test_the_74bfa23_store_resumes_where_its_checkout_is_gone(tmp_path: Path) -> None:
-    """The real old store (URDF path of a checkout that no longer exists) resumes, warned."""
+    """The real old store (URDF path of a checkout that no longer exists), migrated, resumes."""
     old = Path(__file__).resolve().parents[1] / "fixtures" / "files_74bfa23" / "traj_multistart"
     shutil.copytree(old, tmp_path / "ms")
     assert (
         "/tmp/old74/urdf/youbot_arm_planar.urdf" in (tmp_path / "ms" / "manifest.json").read_text()
     )
     solver = TrajOptSolver(study1_problem(12))
+    assert solver.problem.robot.urdf_path is not None
+    done = migrate("--urdf", solver.problem.robot.urdf_path, tmp_path / "ms")
+    assert done.returncode == 0, done.stderr
     sweep = SweepOptions(executor="serial", out=tmp_path / "ms")
-    with pytest.warns(YoubotOptWarning, match="is gone"):
-        result = run_multistart(solver, n_starts=2, beta=0.5, seed=3, sweep=sweep)
+    result = run_multistart(solver, n_starts=2, beta=0.5, seed=3, sweep=sweep)
     assert result.resumed == 2
     assert result.best is not None and result.best.objective == 8.144733342334671  # as stored

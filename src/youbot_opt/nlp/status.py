@@ -32,12 +32,9 @@ __all__ = [
 class SolveStatus(enum.Enum):
     """How a solve ended (:attr:`success` only for the first two).
 
-    The names ``SUCCESS``, ``TIME_LIMIT``, ``NUMERICAL_ERROR`` and
-    ``CHECK_FAILED`` of the former ``IKStatus`` are aliases of
-    :attr:`SOLVED`, :attr:`MAX_TIME`, :attr:`NON_FINITE` and
-    :attr:`CONSTRAINT_VIOLATION` (deprecated: kept so that code written
-    against ``IKStatus`` runs), and their old values load
-    (``SolveStatus("success") is SolveStatus.SOLVED``).
+    The values the IK-path files of 0.1.0 hold (``"success"``, ...) still load
+    (``SolveStatus("success") is SolveStatus.SOLVED``) until the IK-path files
+    of 0.1.0 are carried by ``scripts/migrate_0_1_0.py`` too.
     """
 
     SOLVED = "solved"
@@ -64,12 +61,6 @@ class SolveStatus(enum.Enum):
     """The solve raised an exception or its worker died (sweeps keep going)."""
     FAILED = "failed"
     """Any other solver failure (restoration failed, error in evaluation, ...)."""
-
-    # Deprecated names of the former ``IKStatus`` (enum aliases: the same members).
-    SUCCESS = "solved"
-    TIME_LIMIT = "max_time"
-    NUMERICAL_ERROR = "non_finite"
-    CHECK_FAILED = "constraint_violation"
 
     @property
     def success(self) -> bool:

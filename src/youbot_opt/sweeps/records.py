@@ -2,8 +2,8 @@
 
 Owns the formats a :class:`~youbot_opt.sweeps.store.SweepStore` writes per
 item, separately from the store itself so that workers and monitors need no
-store: :func:`check_key`, :class:`ItemRecord` (one journal line, or a flat
-store's record file), :func:`fanout_name` (``items/<hh>/<key><suffix>``),
+store: :func:`check_key`, :class:`ItemRecord` (one journal line),
+:func:`fanout_name` (``items/<hh>/<key><suffix>``),
 :func:`write_unsynced` (atomic, no per-item fsync), :class:`ItemWriter` and
 :class:`WrittenItem` (a worker writing its own payload and reporting its
 SHA-256), and :func:`stored_records` (every record of a folder, no parameter
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
 import os
 import re
 import tempfile
@@ -92,12 +91,12 @@ class ItemRecord:
     summary : mapping
         JSON-ready figures of the item (empty for failures).
     payload : str or None
-        Path of the payload relative to ``items/`` (``"3f/start_0007.npz"``;
-        flat stores: the file name), ``None`` for failures.
+        Path of the payload relative to ``items/`` (``"3f/start_0007.npz"``),
+        ``None`` for failures.
     sweep : str or None
-        Binding of the sweep that wrote the record (``None``: schema 1).
+        Binding of the sweep that wrote the record (a record without one is refused).
     checksum : str or None
-        SHA-256 (hex) of the payload file (``None`` for failures and schema 1).
+        SHA-256 (hex) of the payload file (``None`` for failures).
     """
 
     key: str
@@ -110,7 +109,7 @@ class ItemRecord:
     checksum: str | None = None
 
     def to_json(self, version: int = RECORD_VERSION) -> dict[str, Any]:
-        """Return the record as written to disk (a journal line, or a flat store's record file)."""
+        """Return the record as written to disk (a journal line)."""
         return {
             "schema": "youbot_opt.sweep_item",
             "schema_version": version,
@@ -247,8 +246,8 @@ def stored_records(directory: str | os.PathLike[str]) -> list[ItemRecord]:
     """Every item record in a sweep folder, oldest first, read without opening the store.
 
     For monitors and tests (e.g. counting finished items while a sweep runs):
-    schema 3 reads the intact journal lines in commit order (an item retried
-    has one line per attempt), schema 1-2 the record files. Nothing is checked against a
+    the intact journal lines in commit order (an item retried has one line
+    per attempt). Nothing is checked against a
     sweep's parameters; :class:`SweepStore` does that.
 
     Parameters
@@ -261,29 +260,21 @@ def stored_records(directory: str | os.PathLike[str]) -> list[ItemRecord]:
     list of ItemRecord
         The records (empty if the folder holds none yet).
     """
-    items = Path(directory) / ITEMS
-    journal = items / JOURNAL
-    if journal.is_dir():
-        out = []
-        lines = read_journal(journal)[0]
-        lines.sort(key=lambda d: d.get("t", 0) if isinstance(d.get("t", 0), int) else 0)
-        for data in lines:
-            with contextlib.suppress(ResultFileError):
-                out.append(ItemRecord.from_json(data, journal))
-        return out
-    flat = []
-    for path in sorted(items.glob("[A-Za-z0-9]*.json")) if items.is_dir() else ():
-        with contextlib.suppress(ResultFileError, OSError, ValueError):
-            flat.append(ItemRecord.from_json(json.loads(path.read_text(encoding="utf-8")), path))
-    return flat
+    journal = Path(directory) / ITEMS / JOURNAL
+    out = []
+    lines = read_journal(journal)[0]
+    lines.sort(key=lambda d: d.get("t", 0) if isinstance(d.get("t", 0), int) else 0)
+    for data in lines:
+        with contextlib.suppress(ResultFileError):
+            out.append(ItemRecord.from_json(data, journal))
+    return out
 
 
 def stored_record(directory: str | os.PathLike[str], key: str) -> dict[str, Any] | None:
     """Return the latest record of ``key`` in a sweep folder as JSON (``None``: none).
 
     For monitors and tests: the fields of :meth:`ItemRecord.to_json`
-    (``state``, ``attempts``, ``reasons``, ``summary``, ``payload``, ...),
-    whichever the layout.
+    (``state``, ``attempts``, ``reasons``, ``summary``, ``payload``, ...).
     """
     found = [r for r in stored_records(directory) if r.key == key]
     return found[-1].to_json() if found else None

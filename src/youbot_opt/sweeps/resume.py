@@ -326,7 +326,7 @@ def run_resumable(
         else:
             fingerprint = store.fingerprint(got.items, extra)
         saved = store.selection(fingerprint)
-        clusters: Sequence[Sequence[str]]
+        clusters: Clusters
         try:
             if saved is not None:  # chosen before over exactly these items: load only those
                 clusters = saved
@@ -343,8 +343,6 @@ def run_resumable(
                 )  # fmt: skip
             continue
         got.items.update(kept)
-        if not isinstance(clusters, Clusters):  # an optima.json written before the members file
-            clusters = tuple(tuple(c) for c in clusters)
         return got._replace(clusters=clusters)
 
 

@@ -7,7 +7,7 @@ folders by the first two hex digits of SHA-256 of the key) and the journal
 with summary, binding and payload checksum), indexed by one int per key (records
 are read back from their lines). Payloads are written atomically, by the driver
 or the worker (:class:`ItemWriter`), durable in groups before their journal
-lines (``docs/scaling.md``). Schema 1 and 2 stores (flat) resume as they are.
+lines (``docs/scaling.md``). Older stores: ``scripts/migrate_0_1_0.py``.
 
 >>> store = SweepStore(out, kind="pareto", params=params, save=save, load=load)  # doctest: +SKIP
 """
@@ -24,9 +24,9 @@ import time
 import uuid
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
 from pathlib import Path
-from typing import Any, BinaryIO, Literal
+from typing import Any, BinaryIO
 
 from youbot_opt._files import (
     TMP_PREFIX,
@@ -77,8 +77,8 @@ __all__ = [  # the item formats are re-exported: they were defined here before
 _log = logging.getLogger(__name__)
 
 SCHEMA_VERSION = RECORD_VERSION
-"""Version of the manifest written by this module (3: fanned-out payloads and a
-summary journal; 2: bound flat items; 1: flat items without a binding)."""
+"""Version of the manifest written and read by this module (3: fanned-out payloads
+and a summary journal; the flat 1 and 2 of 0.1.0 go through ``scripts/migrate_0_1_0.py``)."""
 
 GROUP_ITEMS = 1024
 """Journal lines a grouped store collects before it makes them durable."""
@@ -133,6 +133,8 @@ def _read_json(path: Path, what: str) -> dict[str, Any]:
         supported=SCHEMA_VERSION,
         source=f"{what} {path}",
         remedy="upgrade youbot_opt or use another output directory",
+        oldest=SCHEMA_VERSION,
+        migrate=str(path.parent),
     )
     return data
 
@@ -168,16 +170,14 @@ class SweepStore:
     ----------
     resumed : bool
         True if the directory already held this sweep.
-    layout : {"fanout", "flat"}
-        ``"fanout"`` (schema 3) for new stores; ``"flat"`` for a schema 1 or 2
-        store being resumed (one record file per item, as it was written).
 
     Raises
     ------
     ParameterError
         If the directory holds a sweep with other parameters (the message lists them).
     ResultFileError
-        If its manifest is corrupted or from a newer schema.
+        If its manifest is corrupted or of another schema version (one written
+        by 0.1.0: the message names ``scripts/migrate_0_1_0.py``).
 
     Notes
     -----
@@ -218,7 +218,7 @@ class SweepStore:
         # records checked (or written) by this store; fan-out stores remember only the
         # last VERIFIED_CACHE (a selection verifies every converged item once: O(1) memory)
         self._verified = _RecentKeys(None)
-        self._refused: set[str] = set()  # flat records refused: recomputed, never loaded
+        self._refused: set[str] = set()  # records refused: recomputed, never loaded
         # fanout: where the last journal line of each key is, (offset << 16) | file number
         # (a compact index on disk: a record is read back from its line when asked for)
         self._index: MutableMapping[str, int] = DiskIndex()
@@ -239,13 +239,8 @@ class SweepStore:
         if manifest.exists():
             data = _read_json(manifest, "sweep manifest")
             self._check_manifest(data)
-            self.version = int(data.get("schema_version", 1))
-            # A schema-1 store has no binding: its items resume unverified, as they always did.
-            self.verifies = self.version >= 2
             self.resumed = True
         else:
-            self.version = SCHEMA_VERSION
-            self.verifies = True
             body = {
                 "schema": "youbot_opt.sweep",
                 "schema_version": SCHEMA_VERSION,
@@ -255,27 +250,22 @@ class SweepStore:
             }
             atomic_write_bytes(manifest, json.dumps(body, indent=1).encode())
             self.resumed = False
-        self.layout: Literal["fanout", "flat"] = "fanout" if self.version >= 3 else "flat"
-        if self.layout == "fanout":
-            self._verified = _RecentKeys(VERIFIED_CACHE)
+        self._verified = _RecentKeys(VERIFIED_CACHE)
         if clean:  # not in shard runs: another shard may be writing one right now
             self._clean_temporaries()
-        if self.layout == "fanout":
-            self._read_journal(compact=clean)
-            made = {p.name for p in self.items_dir.iterdir()}
-            for i in range(256):  # every fan-out folder, once, so writers never need to
-                if f"{i:02x}" not in made:
-                    (self.items_dir / f"{i:02x}").mkdir(exist_ok=True)
+        self._read_journal(compact=clean)
+        made = {p.name for p in self.items_dir.iterdir()}
+        for i in range(256):  # every fan-out folder, once, so writers never need to
+            if f"{i:02x}" not in made:
+                (self.items_dir / f"{i:02x}").mkdir(exist_ok=True)
 
     # ---------------------------------------------------------------- manifest
     def _clean_temporaries(self) -> None:
-        # Ours (".tmp-<name>.<random>", youbot_opt._files) and the older
-        # ".<name>.<random>.tmp" ones that youbot_opt.trajopt.io used to leave.
+        # ".tmp-<name>.<random>" (youbot_opt._files) of killed writes
         folders = [self.directory, self.items_dir]
-        if self.layout == "fanout":
-            folders += [p for p in self.items_dir.iterdir() if p.is_dir() and len(p.name) == 2]
+        folders += [p for p in self.items_dir.iterdir() if p.is_dir() and len(p.name) == 2]
         for folder in folders:
-            for tmp in (*folder.glob(f"{TMP_PREFIX}*"), *folder.glob(".*.tmp")):
+            for tmp in folder.glob(f"{TMP_PREFIX}*"):
                 with contextlib.suppress(OSError):
                     tmp.unlink()
                     _log.debug("removed leftover temporary file %s", tmp)
@@ -416,55 +406,24 @@ class SweepStore:
         self._scan()
 
     # ------------------------------------------------------------------ items
-    def _record_path(self, key: str) -> Path:
-        return self.items_dir / f"{check_key(key)}.json"
-
     def payload_path(self, key: str) -> Path:
         """Where the payload of ``key`` is (or will be) stored."""
-        if self.layout == "fanout":
-            return self.items_dir / fanout_name(key, self.suffix)
-        return self.items_dir / f"{check_key(key)}{self.suffix}"
+        return self.items_dir / fanout_name(key, self.suffix)
 
     def writer(self) -> ItemWriter | None:
-        """Return the recipe by which workers write their own payloads (``None``: flat store)."""
-        if self.layout != "fanout":
-            return None
+        """Return the recipe by which workers write their own payloads."""
         return ItemWriter(str(self.items_dir), self.suffix, self._save, self._encode)
 
     def record(self, key: str) -> ItemRecord | None:
         """Return the record of ``key``, or ``None`` if the item has not finished yet.
 
-        Fan-out stores answer from the journal (payloads are checked by
-        :meth:`verify` and :meth:`load`); flat stores read and check the record file.
-
-        Raises
-        ------
-        ResultFileError
-            If a flat store's record is corrupted or from a newer schema.
+        The store answers from the journal (payloads are checked by
+        :meth:`verify` and :meth:`load`).
         """
-        if self.layout == "fanout":
-            return self._indexed(check_key(key))
-        path = self._record_path(key)
-        if not path.exists():
-            return None
-        record = ItemRecord.from_json(_read_json(path, "item record"), path)
-        if not self.verifies:
-            if record.key != key:
-                raise ResultFileError(f"item record {path} is for key {record.key!r}, not {key!r}")
-            return record
-        if key in self._verified:
-            return record
-        if key in self._refused:
-            return None
-        why = self._refusal(record, key)
-        if why is not None:
-            self._refuse(key, path.name, why)
-            return None
-        self._verified.add(key)
-        return record
+        return self._indexed(check_key(key))
 
     def _refuse(self, key: str, where: str, why: str) -> None:
-        if self.layout == "fanout" and self.has(key):
+        if self.has(key):
             gone = self._indexed(key)
             if gone is not None:
                 self._digest_sum = (self._digest_sum - _digest(gone)) % _DIGEST_MOD
@@ -513,7 +472,7 @@ class SweepStore:
         record = self.record(key)
         if record is None:
             return False
-        if self.layout == "flat" or key in self._verified or record.state != "done":
+        if key in self._verified or record.state != "done":
             return True
         why = self._refusal(record, key)
         if why is not None:
@@ -523,18 +482,13 @@ class SweepStore:
         return True
 
     def keys(self) -> Iterator[str]:
-        """Iterate over the keys of every recorded item (fan-out stores: index order)."""
-        if self.layout == "fanout":
-            yield from self._index
-            yield from (k for k in self._unflushed if k not in self._index)
-            return
-        yield from (p.stem for p in self.items_dir.glob("*.json"))
+        """Iterate over the keys of every recorded item (index order)."""
+        yield from self._index
+        yield from (k for k in self._unflushed if k not in self._index)
 
     def has(self, key: str) -> bool:
-        """Whether ``key`` has a record (fan-out stores: from the index, no line read)."""
-        if self.layout == "fanout":
-            return key in self._unflushed or key in self._index
-        return self.record(key) is not None
+        """Whether ``key`` has a record (from the index, no line read)."""
+        return key in self._unflushed or key in self._index
 
     def _indexed(self, key: str) -> ItemRecord | None:
         """Return the record of ``key``: unflushed, or read back from its journal line."""
@@ -562,15 +516,8 @@ class SweepStore:
 
     def records(self) -> dict[str, ItemRecord]:
         """Every item record of the store, by key (sorted)."""
-        if self.layout == "fanout":
-            found = {k: self._indexed(k) for k in sorted(self.keys())}
-            return {k: r for k, r in found.items() if r is not None}
-        out: dict[str, ItemRecord] = {}
-        for path in sorted(self.items_dir.glob("*.json")):
-            rec = self.record(path.stem)
-            if rec is not None:
-                out[rec.key] = rec
-        return out
+        found = {k: self._indexed(k) for k in sorted(self.keys())}
+        return {k: r for k, r in found.items() if r is not None}
 
     def needs_work(self, key: str, max_attempts: int) -> tuple[bool, int]:
         """Whether ``key`` must be (re)computed, and how many attempts were made.
@@ -589,7 +536,7 @@ class SweepStore:
             ``n < max_attempts`` times, ``(False, n)`` for a done item or one
             that has used up its attempts.
         """
-        if self.layout == "fanout" and key not in self._unflushed:
+        if key not in self._unflushed:
             entry = self._index.get(check_key(key))
             if entry is None:
                 return True, 0
@@ -615,7 +562,7 @@ class SweepStore:
         """
         prev = self.record(key)
         target = self.payload_path(key)
-        if self._encode is not None and self.layout == "fanout":
+        if self._encode is not None:
             data = self._encode(payload)
             write_unsynced(target, data)
             checksum = hashlib.sha256(data).hexdigest()
@@ -698,11 +645,6 @@ class SweepStore:
     def _commit(self, record: ItemRecord, payload: Path | None) -> None:
         key = record.key
         self._refused.discard(key)
-        if self.layout == "flat":
-            self._verified.add(key)
-            body = json.dumps(record.to_json(max(self.version, 2)), indent=1, allow_nan=True)
-            atomic_write_bytes(self._record_path(key), body.encode())
-            return
         old = self._indexed(key) if self.has(key) else None
         self._digest_sum = (
             self._digest_sum - (0 if old is None else _digest(old)) + _digest(record)
@@ -791,35 +733,29 @@ class SweepStore:
         return digest.hexdigest()
 
     def count(self) -> int:
-        """Return the number of items with a record (fan-out stores: from the index)."""
-        if self.layout == "fanout":
-            return len(self._index) + sum(1 for k in self._unflushed if k not in self._index)
-        return sum(1 for _ in self.items_dir.glob("*.json"))
+        """Return the number of items with a record (from the index)."""
+        return len(self._index) + sum(1 for k in self._unflushed if k not in self._index)
 
     def fingerprint_all(self, extra: Mapping[str, Any]) -> str:
         """SHA-256 naming every record of the store as it is now, and ``extra``; no line read.
 
-        Fan-out stores keep the sum (mod 2^256) of one SHA-256 digest per record
+        The store keeps the sum (mod 2^256) of one SHA-256 digest per record
         (key, state, attempts, checksum) up to date as records are written,
         replaced or refused, so this costs nothing per item; any change of a
         record changes it. Equal to :meth:`fingerprint` in meaning (not in
         value) when ``keys`` are every key of the store: callers use it after
-        checking :meth:`count`. Flat stores fall back to :meth:`fingerprint`.
+        checking :meth:`count`.
         """
-        if self.layout != "fanout":
-            return self.fingerprint(sorted(self.keys()), extra)
         digest = hashlib.sha256(json.dumps(extra, sort_keys=True).encode())
         digest.update(f"all:{self.count()}:{self._digest_sum:064x}".encode())
         return digest.hexdigest()
 
-    def save_selection(
-        self, fingerprint: str, clusters: Clusters | Sequence[Sequence[str]]
-    ) -> None:
+    def save_selection(self, fingerprint: str, clusters: Clusters) -> None:
         """Save the optima chosen over the items named by ``fingerprint`` (``DIR/optima.json``).
 
-        A :class:`~youbot_opt.sweeps.selection.Clusters` is saved as its
+        The :class:`~youbot_opt.sweeps.selection.Clusters` is saved as its
         representatives and member counts, its members in
-        ``DIR/optima-<fingerprint[:16]>.sqlite`` (written first); lists as lists.
+        ``DIR/optima-<fingerprint[:16]>.sqlite`` (written first).
         """
         body: dict[str, Any] = {
             "schema": "youbot_opt.sweep_optima",
@@ -828,20 +764,17 @@ class SweepStore:
             "fingerprint": fingerprint,
         }
         members = self.directory / f"optima-{fingerprint[:16]}.sqlite"
-        if isinstance(clusters, Clusters):
-            clusters.save(members)
-            body["representatives"] = list(clusters.representatives)
-            body["counts"] = list(clusters.counts)
-            body["members"] = members.name
-        else:
-            body["clusters"] = [list(c) for c in clusters]
+        clusters.save(members)
+        body["representatives"] = list(clusters.representatives)
+        body["counts"] = list(clusters.counts)
+        body["members"] = members.name
         atomic_write_bytes(self.directory / _OPTIMA, json.dumps(body).encode())
         for old in self.directory.glob("optima-*.sqlite"):  # earlier selections' members
             if old.name != members.name:
                 with contextlib.suppress(OSError):
                     old.unlink()
 
-    def selection(self, fingerprint: str) -> Clusters | list[list[str]] | None:
+    def selection(self, fingerprint: str) -> Clusters | None:
         """Return the optima saved for exactly these items (``None``: none, or items changed)."""
         try:
             data = json.loads((self.directory / _OPTIMA).read_text(encoding="utf-8"))
@@ -852,21 +785,17 @@ class SweepStore:
         if data.get("fingerprint") != fingerprint:
             return None
         reps, counts, name = data.get("representatives"), data.get("counts"), data.get("members")
-        if isinstance(reps, list) and isinstance(counts, list) and isinstance(name, str):
-            if not (
-                len(reps) == len(counts)
-                and all(isinstance(k, str) for k in reps)
-                and all(isinstance(n, int) and n >= 1 for n in counts)
-                and name == f"optima-{fingerprint[:16]}.sqlite"
-            ):
-                return None
-            return Clusters.open(self.directory / name, reps, counts)
-        clusters = data.get("clusters")  # written before the members moved to their own file
-        if not isinstance(clusters, list) or not all(
-            isinstance(c, list) and c and all(isinstance(k, str) for k in c) for c in clusters
+        if not (
+            isinstance(reps, list)
+            and isinstance(counts, list)
+            and isinstance(name, str)
+            and len(reps) == len(counts)
+            and all(isinstance(k, str) for k in reps)
+            and all(isinstance(n, int) and n >= 1 for n in counts)
+            and name == f"optima-{fingerprint[:16]}.sqlite"
         ):
-            return None
-        return clusters
+            return None  # another selection, or one of 0.1.0 (lists of keys): chosen again
+        return Clusters.open(self.directory / name, reps, counts)
 
     def load(self, key: str) -> Any:
         """Load the payload of a done item (checked against its checksum first).
@@ -885,7 +814,7 @@ class SweepStore:
                 f"item {key!r} is recorded as done but its payload {path} is missing; "
                 "delete its record to recompute it"
             )
-        if self.layout == "fanout" and not self.verify(key):
+        if not self.verify(key):
             raise ResultFileError(
                 f"item {key!r} of {self.directory} was refused (its payload {path} does not "
                 "match its checksum); rerun the sweep to recompute it"

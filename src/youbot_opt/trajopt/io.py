@@ -44,7 +44,6 @@ from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
-    DEFAULT_FEASIBILITY_TOL,
     SolveStats,
     SolveStatus,
     TrajOptResult,
@@ -54,7 +53,7 @@ from youbot_opt.trajopt.trajectory import Trajectory
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result", "load_refined"]
 
 SCHEMA = "youbot_opt.trajopt_result"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 _TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid", "v_stages", "a_stages", "tau_stages")
 
 
@@ -180,7 +179,7 @@ def save_result(
     meta: dict[str, Any] = {
         **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "problem": {**result.problem.describe(), "beta": result.beta},  # as 0.1.0 wrote it
+        "problem": result.problem.describe(),
         "robot_source": _robot_source(result.problem.robot, target.parent),
         "method": result.method,
         "backend": result.backend,
@@ -239,7 +238,9 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, Array]]:
         meta = json.loads(arrays.pop("metadata").tobytes().decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ResultFileError(f"{path}: metadata is not valid JSON (corrupted file)") from exc
-    check_schema_header(meta, schema=SCHEMA, supported=SCHEMA_VERSION, source=str(path))
+    check_schema_header(
+        meta, schema=SCHEMA, supported=SCHEMA_VERSION, oldest=SCHEMA_VERSION, source=str(path)
+    )
     checksums = meta.get("checksums", {})
     if set(checksums) != set(arrays):
         raise ResultFileError(f"{path}: arrays do not match the metadata's list (corrupted file)")
@@ -276,7 +277,7 @@ def _robot(desc: dict[str, Any], source: dict[str, Any] | None, path: Path) -> R
     name = desc["robot"]
     if source is not None:
         spec = RobotSource.from_json(source)
-    else:  # written before the robot source was saved: by name or URDF path, no options
+    else:  # a robot built in memory: by its name or URDF path, no options
         old = name if name in available_robots() else desc.get("urdf_path")
         if old is None:
             raise ResultFileError(f"cannot reload robot {name!r}: no URDF path saved; pass robot=")
@@ -310,8 +311,8 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
         robot name, or the URDF at its saved absolute path, else at its saved
         path relative to this file's folder, only with the saved SHA-256 of
         its content; with the saved package folders, locked joints and
-        strictness, and the saved joint damping. Files without it (written
-        before) reload from the name or URDF path of ``"problem"``, as then.
+        strictness, and the saved joint damping. A robot built in memory (no
+        source saved) reloads from the name or URDF path of ``"problem"``.
 
     Returns
     -------
@@ -324,7 +325,8 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
     ------
     ResultFileError
         If the file is missing, corrupted (bad zip, bad JSON, checksum
-        mismatch), of another schema or of a newer schema version, or its
+        mismatch), of another schema or of another schema version (one written
+        by 0.1.0: the message names ``scripts/migrate_0_1_0.py``), or its
         robot cannot be reloaded (the URDF not found: the message names the
         paths tried; or edited: it names the file and both SHA-256).
     """
@@ -372,7 +374,7 @@ def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refineme
     try:
         desc = meta["problem"]
         if robot is None:
-            robot = _robot(desc, meta.get("robot_source"), path)
+            robot = _robot(desc, meta["robot_source"], path)
         problem = TrajOptProblem(
             robot=robot,
             start=BoundaryState(q=desc["start_q"], v=desc["start_v"]),
@@ -406,7 +408,7 @@ def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refineme
             dt=scalars["dt"],
             work=scalars["work"],
             objective=scalars["objective"],
-            beta=float(meta.get("beta", desc.get("beta"))),  # the problem's beta of 0.1.0
+            beta=float(meta["beta"]),
             bound_scale=float(meta["bound_scale"]),
             start=BoundaryState(q=meta["start"]["q"], v=meta["start"]["v"]),
             goal=BoundaryState(q=meta["goal"]["q"], v=meta["goal"]["v"]),
@@ -422,7 +424,7 @@ def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refineme
             guess=_trajectory(_group(arrays, "guess"), meta["interpolation"]["guess"]),
             options=IpoptOptions(**opts),
             seed=meta["seed"],
-            feasibility_tol=float(meta.get("feasibility_tol", DEFAULT_FEASIBILITY_TOL)),
+            feasibility_tol=float(meta["feasibility_tol"]),
             grid=arrays.get("grid"),
         )
         record = _refinement(meta.get("refinement"), arrays)

@@ -489,4 +489,4 @@ def _load_point(store: SweepStore, key: str, beta: float) -> ParetoPoint:
         return _error_point(beta, record.reasons[-1] if record.reasons else "failed")
     result: TrajOptResult = store.load(key)
     s = record.summary
-    return _point(beta, result, str(s.get("start", "previous")), float(s.get("solve_time_s", 0.0)))
+    return _point(beta, result, str(s["start"]), float(s["solve_time_s"]))

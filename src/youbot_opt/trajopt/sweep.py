@@ -409,10 +409,6 @@ def solve_starts(
         optimum_of.append(clusters.optimum_of)
         for rep in clusters.representatives:  # the kept optima, held in full
             items[rep] = dataclasses.replace(items[rep], optimum=rep)
-    else:  # an optima.json of a store written before the members file: held per start
-        for members in clusters:
-            for key in members:
-                items[key] = dataclasses.replace(items[key], optimum=members[0])
     return SolvedStarts(items, got.resumed, clusters)
 
 
