@@ -114,12 +114,3 @@ def test_check_beta_and_bound_scale() -> None:
     with pytest.raises(ParameterError, match="bound_scale must be a number > 0, got 'x'") as info:
         check_bound_scale("x")
     assert info.value.name == "bound_scale"
-
-
-def test_the_old_homes_re_export_the_validators() -> None:
-    """Modules that defined these validators before still provide the same functions."""
-    from youbot_opt.nlp import ipopt
-    from youbot_opt.trajopt import objectives
-
-    assert objectives.check_beta is check_beta
-    assert ipopt.check_time_limit is check_time_limit
