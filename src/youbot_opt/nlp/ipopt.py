@@ -36,7 +36,6 @@ __all__ = [
     "RUNTIME_SOLVERS",
     "check_linear_solver",
     "single_threaded_blas",
-    "check_time_limit",
 ]
 
 IpoptValue = str | int | float
