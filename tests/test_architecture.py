@@ -170,6 +170,22 @@ def test_no_upward_imports():
     assert not bad, "imports against the layer order:\n" + "\n".join(bad)
 
 
+def test_no_module_imports_a_cli_module():
+    """Only the command line itself (and ``python -m youbot_opt``) imports ``youbot_opt.cli``.
+
+    The library never reaches up into parsing and printing: a helper that two
+    commands and the library share belongs below the CLI (ARCHITECTURE.md, L5).
+    """
+    bad = [
+        f"{m}:{line}: imports {_resolve(target, name)}"
+        for m, imports in GRAPH.items()
+        if _top(m) not in {"cli", "__main__"}
+        for target, name, line in imports
+        if _top(_resolve(target, name)) == "cli"
+    ]
+    assert not bad, "modules outside the CLI import it:\n" + "\n".join(bad)
+
+
 def test_layer_0_imports_only_layer_0():
     """The plain helpers (exceptions, _typing, _checks, _files, _version) import only each other."""
     bad = [
@@ -224,6 +240,7 @@ def test_one_ik_problem_type():
         ("from youbot_opt.cli import main\n", "layer"),
         ("from youbot_opt.trajopt.solver import _private\n", "private"),
         ('"""A module docstring of thirteen lines.\n' + "\n" * 12 + '"""\n', "docstring"),
+        ("def f():\n    from youbot_opt.cli.solve import run_solve\n", "cli"),
     ],
 )
 def test_the_rules_catch_violations(tmp_path, source, expected):
@@ -237,6 +254,7 @@ def test_the_rules_catch_violations(tmp_path, source, expected):
             "layer": test_no_upward_imports,
             "private": test_no_private_names_across_modules,
             "docstring": test_module_docstrings_are_about_ten_lines,
+            "cli": test_no_module_imports_a_cli_module,
         }[expected]
         with pytest.raises(AssertionError):
             check()
