@@ -139,7 +139,7 @@ def _row(result: Any, wall: float, cpu: float) -> dict[str, Any]:
     return {
         "status": result.status.value,
         "E": result.objective,
-        "max_residual": result.max_residual(),
+        "max_residual": result.max_position_error(),
         "limit_violation": result.limit_violation,
         "iterations": result.iterations,
         "inner_iterations": result.inner_iterations,

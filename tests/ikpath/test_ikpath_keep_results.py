@@ -97,7 +97,7 @@ def test_planar_nothing_succeeded_best_is_the_start_closest_to_the_targets(two_l
     lean = _planar(two_link, tmp_path / "lean", keep=False, options=opts, n_starts=10)
     assert full.n_success == 0 and full.minima == ()  # the case under test
     _assert_same(lean, full)
-    assert lean.best.max_residual() == full.best.max_residual()
+    assert lean.best.max_position_error() == full.best.max_position_error()
 
 
 @pytest.mark.parametrize("workers", [1, 2])

@@ -129,7 +129,7 @@ def test_recheck_uses_the_solver_constraint_tolerance():
     x[0, 0] += delta
     ok = _claim(problem, x, tol=1e-9)  # allowed sqrt(2) * 1e-9 + 3e-12 m > 1e-9 m
     assert ok.success, ok.message
-    assert ok.max_residual() == pytest.approx(1e-9, rel=1e-5)  # rounding of 1e-16 m in 1e-9 m
+    assert ok.max_position_error() == pytest.approx(1e-9, rel=1e-5)  # rounding of 1e-16 m in 1e-9 m
     tight = _claim(problem, x, tol=5e-10)  # allowed 7.1e-10 m < 1e-9 m
     assert (
         tight.status is SolveStatus.CONSTRAINT_VIOLATION
@@ -178,7 +178,7 @@ def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(re
 def test_loader_rechecks_a_claimed_success(tmp_path):
     """A file claiming SOLVED for a path that misses its targets loads as CONSTRAINT_VIOLATION."""
     capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
-    assert capped.status is SolveStatus.MAX_ITERATIONS and capped.max_residual() > 1e-3
+    assert capped.status is SolveStatus.MAX_ITERATIONS and capped.max_position_error() > 1e-3
     path = save_ikpath_result(capped, tmp_path / "claimed.json")
     doc = json.loads(path.read_text())
     doc["result"]["status"] = "solved"

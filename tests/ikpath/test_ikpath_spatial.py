@@ -411,14 +411,14 @@ def test_a_planar_urdf_chain_is_solved_by_the_planar_methods_like_the_chain(tmp_
 
 def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
     """One solve: a planar robot gets the planar methods (reachability checked, IKPathResult),
-    planar=False the general ones (SpatialIKResult, same optimum to 1e-8); a chain-less
+    planar=False the general ones (IKPathResult, same optimum to 1e-8); a chain-less
     problem refuses planar=True."""
-    from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
+    from youbot_opt.ikpath.result import IKPathResult
 
     problem = _planar_as_spatial("A", tmp_path, use_limits=False)
     planar = solve(problem)
     general = solve(problem, planar=False, options=ALOptions())
-    assert isinstance(planar, IKPathResult) and isinstance(general, SpatialIKResult)
+    assert isinstance(planar, IKPathResult) and isinstance(general, IKPathResult)
     assert planar.success and general.success
     assert abs(planar.objective - general.objective) <= 1e-8
     far = problem.with_targets((*problem.targets[:4], Target(position=(9.0, 0.0, 0.0))))

@@ -124,7 +124,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     # targets; IPOPT from the same start reaches the same minimum (E to 1e-8 relative).
     from dataclasses import replace
 
-    from youbot_opt.ikpath.spatial import SPATIAL_AL_OPTIONS
+    from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS
 
     robot = load_model("panda")
     base = CyclicIKProblem(

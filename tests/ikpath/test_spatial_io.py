@@ -10,8 +10,7 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import OuterIterate
-from youbot_opt.ikpath.spatial import build_spatial_result
+from youbot_opt.ikpath.result import OuterIterate, build_result
 from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.nlp.status import SolveStatus
@@ -40,7 +39,7 @@ def _exact_panda_result():
         )
     )
     history = (OuterIterate(0, q + 0.01, 1.5, 1e-3, 2e-3, 1e3, 7),)
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="al",
         status=SolveStatus.SOLVED,
@@ -112,7 +111,7 @@ def test_another_robot_or_a_false_success_is_refused(tmp_path):
     # A failed result (a configuration 0.2 rad off its target) edited to claim success.
     off = result.configurations.copy()
     off[0, 0] += 0.2
-    failed = build_spatial_result(
+    failed = build_result(
         result.problem,
         method="ipopt",
         status=SolveStatus.MAX_ITERATIONS,

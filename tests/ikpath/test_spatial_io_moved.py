@@ -15,7 +15,7 @@ from youbot_opt._files import json_digest
 from youbot_opt.exceptions import InvalidModelError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import RobotSource as IkpathRobotSource
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial import SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.spatial_io import RobotSource as SpatialIoRobotSource
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.targets import Target
@@ -27,7 +27,7 @@ from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
 
 
-def _exact_result(robot: RobotModel) -> SpatialIKResult:
+def _exact_result(robot: RobotModel) -> IKPathResult:
     """Two position targets at the tip placements of two in-limit configurations (met exactly)."""
     base = CyclicIKProblem(
         robot=robot.model,
@@ -38,7 +38,7 @@ def _exact_result(robot: RobotModel) -> SpatialIKResult:
     problem = base.with_targets(
         tuple(Target(position=base.placement(theta).translation) for theta in q)
     )
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="al",
         status=SolveStatus.SOLVED,
@@ -76,7 +76,7 @@ def arm_in_a(tmp_path: Path) -> Path:
     return Path(shutil.copy(youbot_urdf_path(), tmp_path / "A" / "arm.urdf"))
 
 
-def _assert_same(a: SpatialIKResult, b: SpatialIKResult) -> None:
+def _assert_same(a: IKPathResult, b: IKPathResult) -> None:
     """Joints, configurations, start, E and the per-target errors equal exactly."""
     assert a.problem.model.nq == b.problem.model.nq
     assert list(a.problem.model.names) == list(b.problem.model.names)

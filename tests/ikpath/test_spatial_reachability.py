@@ -11,6 +11,7 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
+from youbot_opt.ikpath.dls import random_theta
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
 from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
@@ -21,7 +22,6 @@ from youbot_opt.ikpath.reachability.spatial import (
     joint_box,
 )
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.spatial import random_theta
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.planar import PlanarChain

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.dls import dls_ik
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
-from youbot_opt.ikpath.spatial import dls_ik
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.nlp.status import SolveStatus

@@ -306,7 +306,7 @@ def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) ->
 
     from youbot_opt.exceptions import ResultFileError
     from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.result import build_spatial_result
+    from youbot_opt.ikpath.result import build_result
     from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
     from youbot_opt.ikpath.targets import Target
     from youbot_opt.nlp.status import SolveStatus
@@ -322,7 +322,7 @@ def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) ->
     problem = base.with_targets(
         tuple(Target(position=base.placement(theta).translation) for theta in q)
     )
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="al",
         status=SolveStatus.SOLVED,

@@ -157,7 +157,7 @@ def test_save_and_load_round_trip(result_a, tmp_path):
     assert path.name == "res.json"
     back = load_ikpath_result(path)
     assert back.status is result_a.status and back.method == result_a.method
-    for key in ("configurations", "residuals", "multipliers", "start"):
+    for key in ("configurations", "position_errors", "orientation_errors", "multipliers", "start"):
         np.testing.assert_array_equal(getattr(back, key), getattr(result_a, key))
     assert back.objective == result_a.objective
     assert back.problem.chain.n == 3 and not back.problem.chain.bounded

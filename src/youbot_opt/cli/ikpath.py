@@ -269,8 +269,8 @@ def _report(
         status=best.status.value,
         E=best.objective,
         configurations=best.configurations.tolist(),
-        residuals=best.residuals.tolist(),
-        max_residual=best.max_residual(),
+        residuals=best.position_errors.tolist(),
+        max_residual=best.max_position_error(),
         limit_violation=best.limit_violation,
         multipliers=best.multipliers.tolist(),
         iterations=best.iterations,
@@ -287,7 +287,7 @@ def _report(
                 "E": m.objective,
                 "count": m.count,
                 "first_start": m.start_indices[0],
-                "max_residual": m.result.max_residual(),
+                "max_residual": m.result.max_position_error(),
                 "multiplier_norm": float(np.linalg.norm(m.result.multipliers)),
             }
             for m in ms.minima
@@ -304,8 +304,9 @@ def _report(
 
 def _residual_field(r: Any) -> dict[str, Any]:  # noqa: ANN401 - IKPathResult or StartSummary
     """Return the planar per-start field of ``summary.json``: the largest residual in [m]."""
-    value = r.max_residual
-    return {"max_residual": value if isinstance(value, float) else value()}
+    if hasattr(r, "max_position_error"):  # a result, not its stored summary
+        return {"max_residual": r.max_position_error()}
+    return {"max_residual": r.max_residual}
 
 
 def _print_text(doc: dict[str, Any]) -> None:

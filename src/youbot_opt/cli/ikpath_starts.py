@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from youbot_opt.sweeps.options import SweepOptions
 
 if TYPE_CHECKING:
-    from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
+    from youbot_opt.ikpath.result import IKPathResult
 
 __all__ = ["StartProgress", "print_starts", "start_fields", "start_sweep"]
 
@@ -90,7 +90,7 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
 
 
 def start_fields(
-    results: Sequence[IKPathResult | SpatialIKResult],
+    results: Sequence[IKPathResult],
     attempts: Sequence[int],
     detail: Callable[[Any], dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
@@ -98,7 +98,7 @@ def start_fields(
 
     Parameters
     ----------
-    results : sequence of IKPathResult or of SpatialIKResult
+    results : sequence of IKPathResult
         One result per start, in start order (``--no-keep-results``: a
         :class:`~youbot_opt.ikpath.stored.StoredResults`, whose journal
         summaries are read instead of the results).

@@ -44,7 +44,6 @@ from youbot_opt.ikpath.result import (
     IKStatus,
     JointPath,
     OuterIterate,
-    SpatialIKResult,
 )
 from youbot_opt.ikpath.solve import METHODS, Method, solve
 from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
@@ -78,7 +77,6 @@ __all__ = [
     "Reachability",
     "RobotSource",
     "STUDY_E_A",
-    "SpatialIKResult",
     "SpatialMultistart",
     "SpatialReach",
     "Target",

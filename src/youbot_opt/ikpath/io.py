@@ -229,7 +229,7 @@ def _body(result: IKPathResult) -> dict[str, Any]:
         "status": result.status.value,
         "configurations": result.configurations.tolist(),
         "objective": result.objective,
-        "residuals": result.residuals.tolist(),
+        "residuals": result.position_errors.tolist(),
         "limit_violation": result.limit_violation,
         "multipliers": result.multipliers.tolist(),
         "iterations": result.iterations,
@@ -350,9 +350,9 @@ def load_ikpath_result(path: str | os.PathLike[str]) -> IKPathResult:
         stored_res = np.array(body["residuals"], dtype=float)
     except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
         raise ResultFileError(f"{source}: incomplete or invalid IK-path result: {exc}") from exc
-    if stored_res.shape != result.residuals.shape or not (
+    if stored_res.shape != result.position_errors.shape or not (
         abs(stored_e - result.objective) <= RECHECK_TOL
-        and np.all(np.abs(stored_res - result.residuals) <= RECHECK_TOL)
+        and np.all(np.abs(stored_res - result.position_errors) <= RECHECK_TOL)
     ):
         raise ResultFileError(
             f"{source}: stored E = {stored_e!r} or residuals disagree with the ones recomputed "

@@ -34,7 +34,7 @@ from youbot_opt.ikpath.io import (
     write_document,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import SpatialIKResult
+from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel
@@ -89,9 +89,7 @@ def spatial_problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
     }
 
 
-def _body(
-    result: SpatialIKResult, robot: RobotSource | None, folder: Path | None
-) -> dict[str, Any]:
+def _body(result: IKPathResult, robot: RobotSource | None, folder: Path | None) -> dict[str, Any]:
     return {
         "robot": None if robot is None else robot.to_json(folder=folder),
         **spatial_problem_spec(result.problem),
@@ -112,7 +110,7 @@ def _body(
 
 
 def encode_spatial_result(
-    result: SpatialIKResult,
+    result: IKPathResult,
     robot: RobotSource | None = None,
     *,
     folder: str | os.PathLike[str] | None = None,
@@ -121,7 +119,7 @@ def encode_spatial_result(
 
     Parameters
     ----------
-    result : SpatialIKResult
+    result : IKPathResult
         The result (failed ones too).
     robot : RobotSource, optional
         How to load the robot again; without it the loader needs ``robot=``.
@@ -134,7 +132,7 @@ def encode_spatial_result(
 
 
 def save_spatial_result(
-    result: SpatialIKResult, path: str | os.PathLike[str], robot: RobotSource | None = None
+    result: IKPathResult, path: str | os.PathLike[str], robot: RobotSource | None = None
 ) -> Path:
     """Write ``result`` to ``path`` as JSON (``.json`` appended if missing), atomically.
 
@@ -223,7 +221,7 @@ def _fk_errors(problem: CyclicIKProblem, q: np.ndarray) -> tuple[np.ndarray, np.
 
 def _parse(
     body: dict[str, Any], robot: RobotModel | pin.Model | None, source: Path
-) -> tuple[SpatialIKResult, np.ndarray, np.ndarray]:
+) -> tuple[IKPathResult, np.ndarray, np.ndarray]:
     model = _model_of(body, robot, source)
     problem = CyclicIKProblem(
         robot=model,
@@ -243,7 +241,7 @@ def _parse(
     q = problem.as_configurations(np.array(body["configurations"], dtype=float))
     history = history_from_json(body["history"], s, problem.n_joints)
     pos, ang = _fk_errors(problem, q)
-    result = SpatialIKResult(
+    result = IKPathResult(
         problem=problem,
         method=str(body["method"]),
         status=SolveStatus(body["status"]),
@@ -268,7 +266,7 @@ def _parse(
 
 def load_spatial_result(
     path: str | os.PathLike[str], *, robot: RobotModel | pin.Model | None = None
-) -> SpatialIKResult:
+) -> IKPathResult:
     """Read a result written by :func:`save_spatial_result` and check it against the robot.
 
     Parameters
@@ -283,7 +281,7 @@ def load_spatial_result(
 
     Returns
     -------
-    SpatialIKResult
+    IKPathResult
         The result, with ``E``, the target errors (``pin.framesForwardKinematics``)
         and the limit violation recomputed.
 

@@ -30,7 +30,7 @@ from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import check_reachability
-from youbot_opt.ikpath.result import SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.solve import check_method, solve
 from youbot_opt.ikpath.spatial_io import (
     encode_spatial_result,
@@ -83,7 +83,7 @@ class SpatialMultistart:
 
     Attributes
     ----------
-    results : sequence of SpatialIKResult
+    results : sequence of IKPathResult
         In start order (``crashed`` for a start that failed every attempt): a
         tuple, or with ``keep_results=False`` a
         :class:`~youbot_opt.ikpath.stored.StoredResults` holding the minima's
@@ -113,7 +113,7 @@ class SpatialMultistart:
         gathered in one pass at the end of the run; ``None`` otherwise.
     """
 
-    results: Sequence[SpatialIKResult]
+    results: Sequence[IKPathResult]
     minima: tuple[Sequence[int], ...]
     wall_time: float
     workers: int
@@ -126,7 +126,7 @@ class SpatialMultistart:
     tally: StartTally | None = None
 
     @property
-    def best(self) -> SpatialIKResult:
+    def best(self) -> IKPathResult:
         """The best successful result, else the result closest to meeting the targets."""
         return self.results[self.best_index]
 
@@ -196,14 +196,14 @@ def open_spatial_store(
     return starts_store(out, SPATIAL_STARTS, params, load, clean)
 
 
-def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
+def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
     """Worker task: one start with the AL (exceptions propagate: they are retried)."""
     result = solve(problem, method="al", x0=x0, options=options, planar=False)
-    assert isinstance(result, SpatialIKResult)
+    assert isinstance(result, IKPathResult)
     return result
 
 
-def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> SpatialIKResult:
+def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> IKPathResult:
     """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
     return handle.get().solve(x0)
 
@@ -214,11 +214,11 @@ def _crashed(
     options: ALOptions | IpoptOptions | None,
     x0: Array,
     message: str,
-) -> SpatialIKResult:
-    return crashed_result(build_spatial_result, problem, method, x0, message)
+) -> IKPathResult:
+    return crashed_result(build_result, problem, method, x0, message)
 
 
-def _figures(result: SpatialIKResult) -> dict[str, Any]:
+def _figures(result: IKPathResult) -> dict[str, Any]:
     """Figures of a start's record summary: its largest target errors in [m] and [rad]."""
     return {
         "max_position_error": float(np.max(result.position_errors)),
@@ -226,7 +226,7 @@ def _figures(result: SpatialIKResult) -> dict[str, Any]:
     }
 
 
-SPATIAL_STARTS: StartSolvers[CyclicIKProblem, SpatialIKResult] = StartSolvers(
+SPATIAL_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     solve_al=_solve_al,
     ipopt_solver=SpatialIpoptSolver,
     solve_ipopt=_solve_ipopt,
@@ -350,7 +350,7 @@ def run_spatial_multistart(
         )
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
 
-    def distance_of(a: SpatialIKResult, b: SpatialIKResult) -> float:
+    def distance_of(a: IKPathResult, b: IKPathResult) -> float:
         diff = a.configurations - b.configurations
         shift = np.where(
             problem.continuous, 2 * np.pi * np.round(np.median(diff, axis=0) / (2 * np.pi)), 0.0
@@ -358,7 +358,7 @@ def run_spatial_multistart(
         return float(np.max(np.abs(diff - shift)))
 
     tally: StartTally | None = None
-    results: Sequence[SpatialIKResult]
+    results: Sequence[IKPathResult]
     minima: tuple[Sequence[int], ...]
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False

@@ -32,7 +32,7 @@ from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, probl
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult, build_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -80,8 +80,8 @@ PAYLOAD_SUFFIX = ".ikpath"
 
 
 ProblemT = TypeVar("ProblemT")
-ResultT = TypeVar("ResultT", IKPathResult, SpatialIKResult)
-_Outcome = IKPathResult | SpatialIKResult | StartSummary[Any]
+ResultT = TypeVar("ResultT", bound=IKPathResult)
+_Outcome = IKPathResult | StartSummary[Any]
 
 
 def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
@@ -115,8 +115,7 @@ def crashed_result(
     Parameters
     ----------
     build : callable
-        The problem's result constructor (:func:`~youbot_opt.ikpath.result.build_result`
-        or :func:`~youbot_opt.ikpath.spatial.build_spatial_result`).
+        The result constructor (:func:`~youbot_opt.ikpath.result.build_result`).
     problem : CyclicIKProblem or CyclicIKProblem
         The problem.
     method : str
@@ -157,7 +156,7 @@ def _crashed_result(
 
 def _figures(result: IKPathResult) -> dict[str, Any]:
     """Figures of a start's record summary: its largest residual in [m]."""
-    value = result.max_residual()
+    value = result.max_position_error()
     return {"max_residual": float(value) if math.isfinite(value) else None}
 
 
@@ -494,7 +493,7 @@ def _load(store: SweepStore, key: str) -> Any:
     return result
 
 
-def status_counts(results: Iterable[IKPathResult | SpatialIKResult]) -> dict[str, int]:
+def status_counts(results: Iterable[IKPathResult]) -> dict[str, int]:
     """Count the results per status value (``{"solved": 12, "crashed": 1, ...}``)."""
     counts: dict[str, int] = {}
     for r in results:
