@@ -7,7 +7,7 @@ import json
 import pytest
 
 from youbot_opt.cli import main
-from youbot_opt.ikpath.spatial_io import load_spatial_result
+from youbot_opt.ikpath.io import load_result
 
 _UR5 = ["ikpath", "--robot", "ur5", "--target", "0.4", "0.2", "0.3", "--target", "0.3", "-0.3"]
 _UR5 += ["0.4", "--target", "0.5", "0", "0.2"]
@@ -34,7 +34,7 @@ def test_shards_then_collect_then_resume_and_result_json_reloads(capsys, tmp_pat
     assert [o["attempts"] for o in doc["start_outcomes"]] == [1, 1, 1]
     assert {"manifest.json", "items", "result.json"} <= set(doc["files"])
     # result.json reloads on its own (robot "ur5" from the file) and passes the FK re-check
-    best = load_spatial_result(out / "result.json")
+    best = load_result(out / "result.json")
     assert best.success and best.objective == doc["E"]
     assert best.problem.joint_names == tuple(doc["joints"])
     assert main([*argv, "--json", "--no-progress"]) == 0

@@ -12,7 +12,7 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.io import load_result, save_result
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import build_result, checked
@@ -165,13 +165,13 @@ def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(re
     """The tolerance is saved; a file without it (older writer) loads with ALOptions' default."""
     custom = solve(example_problem("B"), options=ALOptions(constraint_tol=1e-9))
     assert custom.success and custom.constraint_tol == 1e-9
-    assert load_ikpath_result(save_ikpath_result(custom, tmp_path / "c")).constraint_tol == 1e-9
-    path = save_ikpath_result(result, tmp_path / "old.json")
+    assert load_result(save_result(custom, tmp_path / "c")).constraint_tol == 1e-9
+    path = save_result(result, tmp_path / "old.json")
     doc = json.loads(path.read_text())
     del doc["result"]["constraint_tol"]
     doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
-    old = load_ikpath_result(path)
+    old = load_result(path)
     assert old.constraint_tol == ALOptions().constraint_tol and old.success
 
 
@@ -179,11 +179,11 @@ def test_loader_rechecks_a_claimed_success(tmp_path):
     """A file claiming SOLVED for a path that misses its targets loads as CONSTRAINT_VIOLATION."""
     capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
     assert capped.status is SolveStatus.MAX_ITERATIONS and capped.max_position_error() > 1e-3
-    path = save_ikpath_result(capped, tmp_path / "claimed.json")
+    path = save_result(capped, tmp_path / "claimed.json")
     doc = json.loads(path.read_text())
     doc["result"]["status"] = "solved"
     doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
-    loaded = load_ikpath_result(path)
+    loaded = load_result(path)
     assert loaded.status is SolveStatus.CONSTRAINT_VIOLATION
     assert "re-check failed: target" in loaded.message

@@ -397,7 +397,7 @@ def _write_outputs(
 ) -> list[Path]:
     """Write the run folder: figures, replay, saved result, then ``summary.json``."""
     from youbot_opt.cli.output import save_figure, write_summary
-    from youbot_opt.ikpath.io import save_ikpath_result
+    from youbot_opt.ikpath.io import save_result
     from youbot_opt.viz.plots.ikpath import (
         plot_arm_path,
         plot_convergence,
@@ -412,7 +412,7 @@ def _write_outputs(
         if best.history:
             files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
-        files.append(save_ikpath_result(best, folder / "result.json"))
+        files.append(save_result(best, folder / "result.json"))
         if not args.no_replay:
             from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
 

@@ -7,7 +7,7 @@ reachability (exit 2 with the certificate of an unreachable one), runs the
 resumable multistart (``--starts``, ``--start-kind``, ``--method``,
 ``--max-wall-time``, ``--workers``, ``--scheduler``/``--shard``; progress on
 stderr) into the run folder's sweep store, and writes ``result.json``
-(:func:`~youbot_opt.ikpath.spatial_io.load_spatial_result`), ``summary.json``,
+(:func:`~youbot_opt.ikpath.io.load_result`), ``summary.json``,
 ``ikpath_legs.png``, ``ikpath_path3d.png`` and ``replay.html``. Exit 0 when
 the best start succeeded, 1 otherwise.
 """
@@ -171,8 +171,8 @@ def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import report_shard, scheduler_address
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
+    from youbot_opt.ikpath.io import RobotSource, save_result
     from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
-    from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
     from youbot_opt.sweeps.resume import ShardReport
@@ -255,7 +255,7 @@ def run_spatial(args: argparse.Namespace) -> int:
             **start_fields(ms.results, ms.attempts),
         )
         source = RobotSource.of(robot, strict=not args.lenient)
-        files.append(save_spatial_result(best, folder / "result.json", source))
+        files.append(save_result(best, folder / "result.json", source))
         from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
 
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
-from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.io import load_result, save_result
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, solve_ipopt
@@ -46,7 +46,6 @@ from youbot_opt.ikpath.result import (
     OuterIterate,
 )
 from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import make_spatial_starts
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
@@ -94,16 +93,14 @@ __all__ = [
     "example_problem",
     "greedy_path",
     "load_targets",
-    "load_ikpath_result",
-    "load_spatial_result",
+    "load_result",
     "make_starts",
     "make_spatial_starts",
     "minimize_bfgs",
     "require_reachable",
     "run_multistart",
     "run_spatial_multistart",
-    "save_ikpath_result",
-    "save_spatial_result",
+    "save_result",
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",

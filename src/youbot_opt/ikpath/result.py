@@ -159,7 +159,7 @@ class IKPathResult:
     -----
     Construction only converts the arrays (read-only) and validates
     ``constraint_tol``; it runs no check, also not after
-    ``dataclasses.replace``. The solvers and :func:`~youbot_opt.ikpath.io.load_ikpath_result`
+    ``dataclasses.replace``. The solvers and :func:`~youbot_opt.ikpath.io.load_result`
     build results with :func:`build_result`, which re-checks a claimed success
     (:meth:`check`) and downgrades it (:func:`checked`); a downgraded result
     says why in :attr:`message`. Pass a hand-made or replaced result through

@@ -25,6 +25,11 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.io import (
+    encode_result,
+    load_result,
+    problem_spec_3d,
+)
 from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
@@ -32,11 +37,6 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import check_reachability
 from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.solve import check_method, solve
-from youbot_opt.ikpath.spatial_io import (
-    encode_spatial_result,
-    load_spatial_result,
-    spatial_problem_spec,
-)
 from youbot_opt.ikpath.starts import (
     SPATIAL_START_KINDS,
     PlanarStarts,
@@ -73,7 +73,7 @@ __all__ = [
 SPATIAL_SWEEP_KIND = "spatial_ikpath_multistart"
 """``kind`` of the sweep store of spatial multistarts (in its ``manifest.json``)."""
 
-_PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_spatial_result (".json" names the records)
+_PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_result (".json" names the records)
 
 
 # -- multistart -------------------------------------------------------------------------------
@@ -175,11 +175,11 @@ def open_spatial_store(
 ) -> SweepStore:
     """Open (or create) the output directory of one spatial multistart.
 
-    The manifest holds the problem (:func:`~youbot_opt.ikpath.spatial_io.spatial_problem_spec`:
+    The manifest holds the problem (:func:`~youbot_opt.ikpath.io.problem_spec_3d`:
     robot fingerprint, frame, targets, limits, weights), method, options,
     ``n_starts``, ``seed`` and start kind; reopening with any of them changed
     raises. Stored starts are reloaded with the same forward-kinematics
-    re-check as :func:`~youbot_opt.ikpath.spatial_io.load_spatial_result`.
+    re-check as :func:`~youbot_opt.ikpath.io.load_result`.
 
     Raises
     ------
@@ -190,9 +190,9 @@ def open_spatial_store(
     """
     if options is None and method == "al":
         options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
-    spec = spatial_problem_spec(problem)
+    spec = problem_spec_3d(problem)
     params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
-    load = functools.partial(load_spatial_result, robot=problem.model)
+    load = functools.partial(load_result, robot=problem.model)
     return starts_store(out, SPATIAL_STARTS, params, load, clean)
 
 
@@ -234,7 +234,7 @@ SPATIAL_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     figures=_figures,
     store_kind=SPATIAL_SWEEP_KIND,
     suffix=_PAYLOAD_SUFFIX,
-    encode=encode_spatial_result,
+    encode=encode_result,
 )
 """How :func:`~youbot_opt.ikpath.sweep.solve_starts` solves the starts of a spatial problem."""
 

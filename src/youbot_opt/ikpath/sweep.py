@@ -28,7 +28,7 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, problem_spec
+from youbot_opt.ikpath.io import encode_result, load_result, problem_spec
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -205,7 +205,7 @@ PLANAR_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     figures=_figures,
     store_kind=SWEEP_KIND,
     suffix=PAYLOAD_SUFFIX,
-    encode=encode_ikpath_result,
+    encode=encode_result,
 )
 """How :func:`solve_starts` solves the starts of a planar :class:`CyclicIKProblem`."""
 
@@ -352,7 +352,7 @@ def open_store(
 
     The store's kind is ``"ikpath_multistart"``; each start's payload is
     ``items/<hh>/<key>.ikpath``, the JSON of
-    :func:`youbot_opt.ikpath.io.encode_ikpath_result`.
+    :func:`youbot_opt.ikpath.io.encode_result`.
 
     Parameters
     ----------
@@ -393,7 +393,7 @@ def open_store(
     )
     if rng != "legacy":
         params["start_rng"] = rng
-    return starts_store(out, PLANAR_STARTS, params, load_ikpath_result, clean)
+    return starts_store(out, PLANAR_STARTS, params, load_result, clean)
 
 
 def starts_params(
