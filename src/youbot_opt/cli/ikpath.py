@@ -1,4 +1,4 @@
-"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2, issue 14).
+"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2).
 
     youbot-opt ikpath --example A --starts 200
     youbot-opt ikpath --example B --method ipopt --starts 200 --json
@@ -267,6 +267,7 @@ def _report(
     best = ms.best
     doc.update(
         status=best.status.value,
+        message=best.message,
         E=best.objective,
         configurations=best.configurations.tolist(),
         residuals=best.position_errors.tolist(),
@@ -351,6 +352,13 @@ def _print_single_start(doc: dict[str, Any]) -> None:
         f"result: E = {doc['E']:.10f} rad^2 ({doc['status']}); max residual "
         f"{doc['max_residual']:.2e} m, limit violation {doc['limit_violation']:.2e} rad"
     )
+    _print_failure(doc)
+
+
+def _print_failure(doc: dict[str, Any]) -> None:
+    """Print why the best start failed (nothing for a success)."""
+    if doc["status"] not in ("solved", "solved_acceptable"):
+        print(f"failed: {doc['message']}")
 
 
 def _print_multistart(doc: dict[str, Any]) -> None:
@@ -368,6 +376,7 @@ def _print_multistart(doc: dict[str, Any]) -> None:
         f"{doc['starts']} starts; max residual {doc['max_residual']:.2e} m, "
         f"limit violation {doc['limit_violation']:.2e} rad"
     )
+    _print_failure(doc)
 
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:

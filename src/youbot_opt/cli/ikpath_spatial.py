@@ -171,6 +171,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import report_shard, scheduler_address
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
+    from youbot_opt.cli.warning_lines import flush_warnings
     from youbot_opt.ikpath.io import RobotSource, save_result
     from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
@@ -179,6 +180,7 @@ def run_spatial(args: argparse.Namespace) -> int:
 
     kind = _check_spatial_flags(args)
     robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
+    flush_warnings()  # the loader's warnings, grouped, before the run
     problem = _problem(args, robot)
     kind = _start_kind(kind, problem)
     frame = problem.frame
@@ -304,3 +306,5 @@ def _print_text(doc: dict[str, Any], robot: str, frame: str, n_targets: int, met
     )
     for j, q in enumerate(doc["result"]["configurations_rad"]):
         print(f"  q{j + 1} = [{', '.join(f'{x:+.6f}' for x in q)}] rad")
+    if not doc["result"]["success"]:
+        print(f"failed: {doc['result']['message']}")

@@ -36,7 +36,7 @@ class StartProgress:
 
     def __call__(self, done: int, total: int, best: float) -> None:
         """Report ``done`` of ``total`` starts and the best ``E`` so far [rad^2]."""
-        best_txt = f"{best:.10g}" if math.isfinite(best) else "-"
+        best_txt = f"{best:.10g} rad^2" if math.isfinite(best) else "none converged yet"
         elapsed = time.perf_counter() - self.tic
         if self.tty:
             width = 30
@@ -53,7 +53,7 @@ class StartProgress:
                 return
             self.shown = tenth
             self.stream.write(
-                f"ikpath: {done}/{total} starts done, best E {best_txt} rad^2, {elapsed:.1f} s\n"
+                f"ikpath: {done}/{total} starts done, best E {best_txt}, {elapsed:.1f} s\n"
             )
         self.stream.flush()
 
