@@ -6,7 +6,7 @@ with the general methods) from
 :class:`~youbot_opt.sweeps.options.SweepOptions` (process pool or Dask, crash
 retry, progress, shards), saving every start in a
 :class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
-payloads in the format of :mod:`.spatial_io`) that a rerun resumes, and
+payloads in the format of :mod:`.io`) that a rerun resumes, and
 clusters the distinct minima.
 """
 
