@@ -70,13 +70,13 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
     from youbot_opt.ikpath.reachability import spatial as spatial_reachability
 
-    real, seen = spatial_reachability.check_spatial_reachability, []
+    real, seen = spatial_reachability.check_reachability_3d, []
 
     def spy(problem, **kw):
         seen.append(kw)
         return real(problem, **kw)
 
-    monkeypatch.setattr(spatial_reachability, "check_spatial_reachability", spy)
+    monkeypatch.setattr(spatial_reachability, "check_reachability_3d", spy)
     argv = [*_UR5, "--method", "ipopt", "--reach-evaluations", "64", "--json", "--no-replay"]
     assert main(argv) == 0
     assert seen == [{"interval_boxes": 64}]

@@ -173,7 +173,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
     from youbot_opt.cli.warning_lines import flush_warnings
     from youbot_opt.ikpath.io import RobotSource, save_result
-    from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
+    from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
     from youbot_opt.sweeps.resume import ShardReport
@@ -188,7 +188,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     options = _options(args)
     executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
     budget = {} if args.reach_evaluations is None else {"interval_boxes": args.reach_evaluations}
-    verdicts = check_spatial_reachability(problem, **budget)
+    verdicts = check_reachability_3d(problem, **budget)
     folder = run_folder("ikpath", args.out)
     doc: dict[str, Any] = {
         "robot": robot.name,
@@ -214,12 +214,12 @@ def run_spatial(args: argparse.Namespace) -> int:
             for v in verdicts
         ],
     }
-    unreachable = [v for v in verdicts if v.status is SpatialReach.UNREACHABLE]
+    unreachable = [v for v in verdicts if v.status is Reachability3D.UNREACHABLE]
     files = []
     code = 2
     if not unreachable:
         for v in verdicts:
-            if v.status is SpatialReach.UNDECIDED:
+            if v.status is Reachability3D.UNDECIDED:
                 print(
                     f"youbot-opt: warning: reachability of target {v.index} is undecided "
                     f"({v.message}); solving anyway (a failed solve may mean it is unreachable; "

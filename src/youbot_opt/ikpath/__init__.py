@@ -35,9 +35,9 @@ from youbot_opt.ikpath.reachability.planar import (
     require_reachable,
 )
 from youbot_opt.ikpath.reachability.spatial import (
-    SpatialReach,
-    SpatialVerdict,
-    check_spatial_reachability,
+    Reachability3D,
+    ReachVerdict3D,
+    check_reachability_3d,
 )
 from youbot_opt.ikpath.result import (
     IKPathResult,
@@ -77,16 +77,16 @@ __all__ = [
     "RobotSource",
     "STUDY_E_A",
     "SpatialMultistart",
-    "SpatialReach",
+    "Reachability3D",
     "Target",
-    "SpatialVerdict",
+    "ReachVerdict3D",
     "SolveStatus",
     "StartSummary",
     "StoredResults",
     "TipKinematics",
     "chain_from_robot",
     "check_reachability",
-    "check_spatial_reachability",
+    "check_reachability_3d",
     "cluster_minima",
     "configuration_distance",
     "decide_reachability",

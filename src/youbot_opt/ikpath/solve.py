@@ -27,7 +27,7 @@ from youbot_opt.ikpath.methods.al import (
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_ipopt, solve_spatial_ipopt
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
-from youbot_opt.ikpath.reachability.spatial import require_spatial_reachable
+from youbot_opt.ikpath.reachability.spatial import require_reachable_3d
 from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 
@@ -148,7 +148,7 @@ def solve(
             return solve_augmented_lagrangian(problem, x0, options)  # type: ignore[arg-type]
         return solve_ipopt(problem, x0, options)  # type: ignore[arg-type]
     if check_reachability:
-        require_spatial_reachable(problem)
+        require_reachable_3d(problem)
     if method == "ipopt":
         if options is None:
             return solve_spatial_ipopt(problem, x0)
