@@ -90,9 +90,9 @@ def test_spatial_names_and_budgets_of_the_parser_match_the_library():
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
     )
-    from youbot_opt.ikpath.starts import SPATIAL_START_KINDS
+    from youbot_opt.ikpath.starts import START_KINDS_3D
 
-    assert ikpath.SPATIAL_START_KIND_NAMES == SPATIAL_START_KINDS
+    assert ikpath.SPATIAL_START_KIND_NAMES == START_KINDS_3D
     assert ikpath.SPATIAL_REACH_BOXES == DEFAULT_INTERVAL_BOXES
     assert ikpath.SPATIAL_REACH_SECONDS == DEFAULT_INTERVAL_SECONDS
 

@@ -13,7 +13,7 @@ from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
@@ -101,8 +101,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
     problem = _mixed_panda_problem()
     results = {
         method: [
-            solve(problem, method=method, x0=x0)
-            for x0 in make_spatial_starts(problem, 3, seed=seed)
+            solve(problem, method=method, x0=x0) for x0 in make_starts_3d(problem, 3, seed=seed)
         ]
         for method, seed in (("al", 0), ("ipopt", 1))
     }
@@ -219,7 +218,7 @@ def test_symbolic_kinematics_of_ipopt_equal_pinocchio():
 
 def test_approach_and_pose_targets_are_met_by_both_methods():
     problem = _mixed_panda_problem()
-    x0 = make_spatial_starts(problem, 1, seed=0)[0]
+    x0 = make_starts_3d(problem, 1, seed=0)[0]
     al = solve(problem, method="al", x0=x0)
     ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success

@@ -47,7 +47,7 @@ from youbot_opt.ikpath.result import (
 )
 from youbot_opt.ikpath.solve import METHODS, Method, solve
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import Target, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -95,7 +95,7 @@ __all__ = [
     "load_targets",
     "load_result",
     "make_starts",
-    "make_spatial_starts",
+    "make_starts_3d",
     "minimize_bfgs",
     "require_reachable",
     "run_multistart",

@@ -2,7 +2,7 @@
 
 :func:`run_spatial_multistart` solves (:func:`~youbot_opt.ikpath.solve.solve`
 with the general methods) from
-:func:`~youbot_opt.ikpath.starts.make_spatial_starts` under one
+:func:`~youbot_opt.ikpath.starts.make_starts_3d` under one
 :class:`~youbot_opt.sweeps.options.SweepOptions` (process pool or Dask, crash
 retry, progress, shards), saving every start in a
 :class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
@@ -38,11 +38,11 @@ from youbot_opt.ikpath.reachability.planar import check_reachability
 from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.solve import check_method, solve
 from youbot_opt.ikpath.starts import (
-    SPATIAL_START_KINDS,
+    START_KINDS_3D,
     PlanarStarts,
-    SpatialStarts,
+    Starts3D,
     check_start_request,
-    make_spatial_starts,
+    make_starts_3d,
 )
 from youbot_opt.ikpath.stored import StartTally
 from youbot_opt.ikpath.sweep import (
@@ -101,7 +101,7 @@ class SpatialMultistart:
     seed : int
         Seed of the starts.
     start_kind : str
-        How the starts were drawn (:data:`~youbot_opt.ikpath.starts.SPATIAL_START_KINDS`).
+        How the starts were drawn (:data:`~youbot_opt.ikpath.starts.START_KINDS_3D`).
     attempts : sequence of int
         Attempts per start, earlier runs on the same output included.
     resumed : int
@@ -252,7 +252,7 @@ def run_spatial_multistart(
     q_tol: float = 1e-3,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> SpatialMultistart | ShardReport:
-    """Solve from :func:`make_spatial_starts` and cluster the distinct minima.
+    """Solve from :func:`make_starts_3d` and cluster the distinct minima.
 
     Parameters
     ----------
@@ -306,7 +306,7 @@ def run_spatial_multistart(
     check_method(method, options)
     if starts is None:
         starts = "feasible" if problem.chain is not None else "mixed"
-    check_start_request(n_starts, starts, (*SPATIAL_START_KINDS, "feasible"))
+    check_start_request(n_starts, starts, (*START_KINDS_3D, "feasible"))
     if starts == "feasible" and problem.chain is None:
         raise ParameterError(
             f"start kind 'feasible' needs a planar robot; {problem.robot_model.name!r} is not "
@@ -324,16 +324,16 @@ def run_spatial_multistart(
         sweep = replace(sweep, workers=int(workers))
     elif sweep.workers is None and sweep.executor is None:
         sweep = replace(sweep, workers=1)
-    x0s: Array | SpatialStarts | PlanarStarts
+    x0s: Array | Starts3D | PlanarStarts
     if starts == "feasible":
         verdicts = check_reachability(problem)
         x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=verdicts)
         if sweep.keep_results:
             x0s = np.array([x0s[k] for k in range(len(x0s))])
     elif sweep.keep_results:
-        x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
+        x0s = make_starts_3d(problem, n_starts, seed, kind=starts)
     else:  # each start drawn as its task is made
-        x0s = SpatialStarts(problem, n_starts, seed, kind=starts)
+        x0s = Starts3D(problem, n_starts, seed, kind=starts)
     executor, n_workers = resolve_executor(sweep)
     sweep = replace(sweep, executor=executor, workers=n_workers)
     store = None

@@ -691,7 +691,7 @@ def stream_starts(
     Parameters
     ----------
     starts : sequence of ndarray
-        Start ``i`` in [rad], drawn when asked for (``PlanarStarts``, ``SpatialStarts``).
+        Start ``i`` in [rad], drawn when asked for (``PlanarStarts``, ``Starts3D``).
     store : SweepStore
         The output folder (required: the results not kept stay there).
     distance : callable ``(a, b) -> float``
