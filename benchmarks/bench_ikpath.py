@@ -83,7 +83,7 @@ from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import WorkerPool
@@ -139,7 +139,7 @@ def _row(result: Any, wall: float, cpu: float) -> dict[str, Any]:
     return {
         "status": result.status.value,
         "E": result.objective,
-        "max_residual": result.max_residual(),
+        "max_residual": result.max_position_error(),
         "limit_violation": result.limit_violation,
         "iterations": result.iterations,
         "inner_iterations": result.inner_iterations,
@@ -279,7 +279,7 @@ def bench_spatial(robot: str, n_targets: int, repeats: int, n_starts: int) -> di
     problem = spatial_problem(robot, n_targets)
     greedy, greedy_ok = greedy_path(problem)
     e_greedy = problem.objective(greedy)
-    x0 = make_spatial_starts(problem, 1, 0)[0]
+    x0 = make_starts_3d(problem, 1, 0)[0]
     row: dict[str, Any] = {"robot": robot, "targets": n_targets, "greedy_E": e_greedy}
     row["greedy_ok"] = greedy_ok
     al, wall_al, _ = _repeat(lambda: solve(problem, method="al", x0=x0), repeats)

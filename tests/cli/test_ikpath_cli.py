@@ -12,7 +12,7 @@ import pytest
 import umsgpack
 
 from youbot_opt.cli import main
-from youbot_opt.ikpath.io import load_ikpath_result
+from youbot_opt.ikpath.io import load_result
 
 
 @pytest.fixture(autouse=True)
@@ -121,7 +121,7 @@ def test_text_summary_and_run_folder(capsys, tmp_path):
     ]
     assert all((out / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
     summary = json.loads((out / "summary.json").read_text())
-    saved = load_ikpath_result(out / "result.json")
+    saved = load_result(out / "result.json")
     assert saved.objective == summary["E"]
     np.testing.assert_array_equal(saved.configurations, summary["configurations"])
     page = (out / "replay.html").read_text(encoding="utf-8")

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from youbot_opt.cli import main
-from youbot_opt.ikpath.spatial_io import load_spatial_result
+from youbot_opt.ikpath.io import load_result
 
 _UR5 = ["ikpath", "--robot", "ur5", "--target", "0.4", "0.2", "0.3", "--target", "0.3", "-0.3"]
 _UR5 += ["0.4", "--target", "0.5", "0", "0.2"]
@@ -34,7 +34,7 @@ def test_shards_then_collect_then_resume_and_result_json_reloads(capsys, tmp_pat
     assert [o["attempts"] for o in doc["start_outcomes"]] == [1, 1, 1]
     assert {"manifest.json", "items", "result.json"} <= set(doc["files"])
     # result.json reloads on its own (robot "ur5" from the file) and passes the FK re-check
-    best = load_spatial_result(out / "result.json")
+    best = load_result(out / "result.json")
     assert best.success and best.objective == doc["E"]
     assert best.problem.joint_names == tuple(doc["joints"])
     assert main([*argv, "--json", "--no-progress"]) == 0
@@ -70,13 +70,13 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
     from youbot_opt.ikpath.reachability import spatial as spatial_reachability
 
-    real, seen = spatial_reachability.check_spatial_reachability, []
+    real, seen = spatial_reachability.check_reachability_3d, []
 
     def spy(problem, **kw):
         seen.append(kw)
         return real(problem, **kw)
 
-    monkeypatch.setattr(spatial_reachability, "check_spatial_reachability", spy)
+    monkeypatch.setattr(spatial_reachability, "check_reachability_3d", spy)
     argv = [*_UR5, "--method", "ipopt", "--reach-evaluations", "64", "--json", "--no-replay"]
     assert main(argv) == 0
     assert seen == [{"interval_boxes": 64}]
@@ -90,9 +90,9 @@ def test_spatial_names_and_budgets_of_the_parser_match_the_library():
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
     )
-    from youbot_opt.ikpath.starts import SPATIAL_START_KINDS
+    from youbot_opt.ikpath.starts import START_KINDS_3D
 
-    assert ikpath.SPATIAL_START_KIND_NAMES == SPATIAL_START_KINDS
+    assert ikpath.SPATIAL_START_KIND_NAMES == START_KINDS_3D
     assert ikpath.SPATIAL_REACH_BOXES == DEFAULT_INTERVAL_BOXES
     assert ikpath.SPATIAL_REACH_SECONDS == DEFAULT_INTERVAL_SECONDS
 

@@ -19,7 +19,7 @@ import pytest
 from _migrate import REFUSAL, migrate
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.io import load_ikpath_result
+from youbot_opt.ikpath.io import load_result
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
@@ -83,7 +83,7 @@ def test_old_ik_result_file_loads_and_passes_the_check():
     """An AL result file of 74bfa23 loads with its stored E, status SOLVED, and re-checks clean."""
     stored = json.loads((OLD / "ik_al.json").read_text())["result"]
     assert stored["status"] == "success"  # the old IKStatus value
-    result = load_ikpath_result(OLD / "ik_al.json")
+    result = load_result(OLD / "ik_al.json")
     assert result.status is SolveStatus.SOLVED and result.method == "al"
     assert abs(result.objective - stored["objective"]) <= 1e-12  # recomputed by Pinocchio
     assert result.check().passed

@@ -24,7 +24,7 @@ from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
-from youbot_opt.ikpath.starts import PlanarStarts, SpatialStarts, make_spatial_starts, make_starts
+from youbot_opt.ikpath.starts import PlanarStarts, Starts3D, make_starts, make_starts_3d
 from youbot_opt.ikpath.stored import StoredResults
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
@@ -97,7 +97,7 @@ def test_planar_nothing_succeeded_best_is_the_start_closest_to_the_targets(two_l
     lean = _planar(two_link, tmp_path / "lean", keep=False, options=opts, n_starts=10)
     assert full.n_success == 0 and full.minima == ()  # the case under test
     _assert_same(lean, full)
-    assert lean.best.max_residual() == full.best.max_residual()
+    assert lean.best.max_position_error() == full.best.max_position_error()
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -156,8 +156,8 @@ def test_lazy_starts_equal_the_drawn_arrays(two_link, ur5_reachable, monkeypatch
     planar = make_starts(two_link, 7, 3)
     np.testing.assert_array_equal(np.array(list(PlanarStarts(two_link, 7, 3))), planar)
     monkeypatch.setattr("youbot_opt.ikpath.starts.CHECKPOINT", 2)
-    drawn = make_spatial_starts(ur5_reachable, 9, 5, kind="mixed")
-    lazy = SpatialStarts(ur5_reachable, 9, 5, kind="mixed")
+    drawn = make_starts_3d(ur5_reachable, 9, 5, kind="mixed")
+    lazy = Starts3D(ur5_reachable, 9, 5, kind="mixed")
     for k in (3, 8, 0, 1, 6, 2, 7, 5, 4, -1):  # backwards jumps restart from a checkpoint
         np.testing.assert_array_equal(lazy[k], drawn[k])
 

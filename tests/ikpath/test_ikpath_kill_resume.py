@@ -18,7 +18,7 @@ from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.io import load_ikpath_result
+from youbot_opt.ikpath.io import load_result
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKStatus
@@ -275,5 +275,5 @@ def test_sigkilled_cli_multistart_resumes_to_the_uninterrupted_result(tmp_path):
     assert sorted(p.stem for p in items.glob("*/*.ikpath")) == keys
     assert [p.name for p in items.rglob(".*")] == []
     for key, r in zip(keys, ref.results, strict=True):
-        saved = load_ikpath_result(next(items.glob(f"*/{key}.ikpath")))
+        saved = load_result(next(items.glob(f"*/{key}.ikpath")))
         assert saved.objective == pytest.approx(r.objective, rel=0, abs=1e-12)

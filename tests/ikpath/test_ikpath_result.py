@@ -12,7 +12,7 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.ikpath.examples import example_problem
-from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.io import load_result, save_result
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import build_result, checked
@@ -129,7 +129,7 @@ def test_recheck_uses_the_solver_constraint_tolerance():
     x[0, 0] += delta
     ok = _claim(problem, x, tol=1e-9)  # allowed sqrt(2) * 1e-9 + 3e-12 m > 1e-9 m
     assert ok.success, ok.message
-    assert ok.max_residual() == pytest.approx(1e-9, rel=1e-5)  # rounding of 1e-16 m in 1e-9 m
+    assert ok.max_position_error() == pytest.approx(1e-9, rel=1e-5)  # rounding of 1e-16 m in 1e-9 m
     tight = _claim(problem, x, tol=5e-10)  # allowed 7.1e-10 m < 1e-9 m
     assert (
         tight.status is SolveStatus.CONSTRAINT_VIOLATION
@@ -165,25 +165,25 @@ def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(re
     """The tolerance is saved; a file without it (older writer) loads with ALOptions' default."""
     custom = solve(example_problem("B"), options=ALOptions(constraint_tol=1e-9))
     assert custom.success and custom.constraint_tol == 1e-9
-    assert load_ikpath_result(save_ikpath_result(custom, tmp_path / "c")).constraint_tol == 1e-9
-    path = save_ikpath_result(result, tmp_path / "old.json")
+    assert load_result(save_result(custom, tmp_path / "c")).constraint_tol == 1e-9
+    path = save_result(result, tmp_path / "old.json")
     doc = json.loads(path.read_text())
     del doc["result"]["constraint_tol"]
     doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
-    old = load_ikpath_result(path)
+    old = load_result(path)
     assert old.constraint_tol == ALOptions().constraint_tol and old.success
 
 
 def test_loader_rechecks_a_claimed_success(tmp_path):
     """A file claiming SOLVED for a path that misses its targets loads as CONSTRAINT_VIOLATION."""
     capped = solve(example_problem("A"), options=ALOptions(max_outer_iterations=1))
-    assert capped.status is SolveStatus.MAX_ITERATIONS and capped.max_residual() > 1e-3
-    path = save_ikpath_result(capped, tmp_path / "claimed.json")
+    assert capped.status is SolveStatus.MAX_ITERATIONS and capped.max_position_error() > 1e-3
+    path = save_result(capped, tmp_path / "claimed.json")
     doc = json.loads(path.read_text())
     doc["result"]["status"] = "solved"
     doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
-    loaded = load_ikpath_result(path)
+    loaded = load_result(path)
     assert loaded.status is SolveStatus.CONSTRAINT_VIOLATION
     assert "re-check failed: target" in loaded.message

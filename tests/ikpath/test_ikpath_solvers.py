@@ -82,7 +82,7 @@ def test_methods_reach_enumerated_optimum(two_link, method, rng):
     assert res.status is SolveStatus.SOLVED, res.message
     assert res.objective == pytest.approx(e_star, abs=1e-9)
     assert configuration_distance(res.configurations, q_star) < 1e-6
-    assert res.max_residual() < 1e-9
+    assert res.max_position_error() < 1e-9
 
 
 def test_al_kkt_with_independent_jacobian():
@@ -130,7 +130,7 @@ def test_example_b_optimum_satisfies_limits():
     prob = example_problem("B")
     res = solve(prob, method="al")
     assert res.success
-    assert res.max_residual() < 1e-9
+    assert res.max_position_error() < 1e-9
     assert res.limit_violation == 0.0
     assert np.all(np.abs(res.configurations) <= np.pi / 2)
     assert np.isclose(np.abs(res.configurations), np.pi / 2, atol=1e-12).any()  # a limit is active
@@ -160,7 +160,7 @@ def test_lbfgsb_inner_solver_reaches_the_default_optimum():
     assert res.limit_violation == 0.0
     assert np.all(np.abs(res.configurations) <= np.pi / 2)
     # |c|_inf <= 1e-10 m per coordinate, so |c_j|_2 <= sqrt(2) 1e-10 m
-    assert res.max_residual() <= np.sqrt(2) * 1e-10
+    assert res.max_position_error() <= np.sqrt(2) * 1e-10
     # Both points meet |c| <= 1e-10 m with multipliers |lambda| <= 1.3 (E error
     # |lambda . c| ~ 1e-10, first order) and are stationary to 1e-6 resp. 1e-8 (E
     # error second order, ~1e-12); measured 8e-12.
@@ -196,7 +196,7 @@ from youbot_opt.ikpath.examples import example_problem
 res = solve_augmented_lagrangian(
     example_problem("B"), options=ALOptions(inner="lbfgsb", stationarity_tol=1e-6)
 )
-print(res.status.value, repr(res.objective), res.max_residual())
+print(res.status.value, repr(res.objective), res.max_position_error())
 """
 
 
@@ -233,7 +233,7 @@ def test_ipopt_solver_is_reused_for_other_targets():
     solver = IpoptIKSolver(prob, IpoptOptions.for_ikpath())
     moved = CyclicIKProblem(robot=prob.chain, targets=prob.target_points + 0.1)
     res = solver.solve(moved, x0=solve(moved, method="al").configurations)
-    assert res.success and res.max_residual() < 1e-9
+    assert res.success and res.max_position_error() < 1e-9
     other = CyclicIKProblem(robot=PlanarChain(lengths=[3.0, 2.0, 2.0]), targets=prob.target_points)
     with pytest.raises(ParameterError, match="built for"):
         solver.solve(other)
@@ -285,7 +285,7 @@ def test_methods_agree_on_more_problems(case, rng):
     )
     ip = solve(prob, method="ipopt", x0=x0)
     assert ip.success, ip.message
-    assert al.max_residual() < 1e-9 and ip.max_residual() < 1e-9
+    assert al.max_position_error() < 1e-9 and ip.max_position_error() < 1e-9
     assert al.limit_violation == 0.0 and ip.limit_violation == 0.0
     assert al.objective == pytest.approx(ip.objective, abs=1e-9)
     assert configuration_distance(al.configurations, ip.configurations) < 1e-6
@@ -309,7 +309,7 @@ def test_ipopt_acceptable_level_is_rechecked():
     loose |= {"acceptable_dual_inf_tol": 1e20, "acceptable_compl_inf_tol": 1e20}
     res = solve(prob, method="ipopt", options=IpoptOptions.for_ikpath(extra=loose))
     assert res.message == "Solved_To_Acceptable_Level"
-    assert res.max_residual() > 1e-3  # stopped early, targets missed
+    assert res.max_position_error() > 1e-3  # stopped early, targets missed
     assert res.status is SolveStatus.STALLED
 
 

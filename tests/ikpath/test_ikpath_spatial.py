@@ -11,9 +11,9 @@ from youbot_opt.ikpath.dls import dls_ik, greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
+from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
@@ -101,8 +101,7 @@ def test_al_and_ipopt_agree_on_the_best_minimum_and_poses_pass_an_independent_fk
     problem = _mixed_panda_problem()
     results = {
         method: [
-            solve(problem, method=method, x0=x0)
-            for x0 in make_spatial_starts(problem, 3, seed=seed)
+            solve(problem, method=method, x0=x0) for x0 in make_starts_3d(problem, 3, seed=seed)
         ]
         for method, seed in (("al", 0), ("ipopt", 1))
     }
@@ -132,8 +131,8 @@ def test_unreachable_target_refused_with_its_reach_sphere_certificate():
     problem = _ur5_problem(1)
     far = Target(position=(3.0, 0.0, 0.5))
     bad = problem.with_targets((*problem.targets[:2], far))
-    verdicts = check_spatial_reachability(bad)
-    assert verdicts[2].status is SpatialReach.UNREACHABLE
+    verdicts = check_reachability_3d(bad)
+    assert verdicts[2].status is Reachability3D.UNREACHABLE
     assert verdicts[2].distance > verdicts[2].reach  # the certificate
     # UR5's reach is about 1 m: the sphere must be sound (>= the true reach) yet below 3 m.
     assert 0.9 < verdicts[2].reach < 3.0
@@ -219,7 +218,7 @@ def test_symbolic_kinematics_of_ipopt_equal_pinocchio():
 
 def test_approach_and_pose_targets_are_met_by_both_methods():
     problem = _mixed_panda_problem()
-    x0 = make_spatial_starts(problem, 1, seed=0)[0]
+    x0 = make_starts_3d(problem, 1, seed=0)[0]
     al = solve(problem, method="al", x0=x0)
     ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success
@@ -411,14 +410,14 @@ def test_a_planar_urdf_chain_is_solved_by_the_planar_methods_like_the_chain(tmp_
 
 def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
     """One solve: a planar robot gets the planar methods (reachability checked, IKPathResult),
-    planar=False the general ones (SpatialIKResult, same optimum to 1e-8); a chain-less
+    planar=False the general ones (IKPathResult, same optimum to 1e-8); a chain-less
     problem refuses planar=True."""
-    from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
+    from youbot_opt.ikpath.result import IKPathResult
 
     problem = _planar_as_spatial("A", tmp_path, use_limits=False)
     planar = solve(problem)
     general = solve(problem, planar=False, options=ALOptions())
-    assert isinstance(planar, IKPathResult) and isinstance(general, SpatialIKResult)
+    assert isinstance(planar, IKPathResult) and isinstance(general, IKPathResult)
     assert planar.success and general.success
     assert abs(planar.objective - general.objective) <= 1e-8
     far = problem.with_targets((*problem.targets[:4], Target(position=(9.0, 0.0, 0.0))))

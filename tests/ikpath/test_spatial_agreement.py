@@ -7,7 +7,7 @@ import pytest
 
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
@@ -36,7 +36,7 @@ def test_both_methods_find_the_same_best_minimum_from_their_own_independent_star
     for method, (n_starts, seed) in _STARTS.items():
         results = [
             solve(problem, method=method, x0=x0)
-            for x0 in make_spatial_starts(problem, n_starts, seed=seed)
+            for x0 in make_starts_3d(problem, n_starts, seed=seed)
         ]
         found = [r for r in results if r.success]
         assert found, method
@@ -84,7 +84,7 @@ def test_al_reaches_the_nearly_singular_ur5_minimum_that_ipopt_confirms():
     # test; IPOPT started at its answer must stay there (E to 1e-8 relative: both
     # solve |c| <= 1e-10 m, so E moves by O(|lambda| |c|) <= 1e-6 absolute at most).
     problem = _ur5_tour(6)
-    x0 = make_spatial_starts(problem, 1, seed=0)[0]
+    x0 = make_starts_3d(problem, 1, seed=0)[0]
     al = solve(problem, method="al", x0=x0)
     assert al.success, al.message
     assert "final phase" in al.message
@@ -140,7 +140,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
         rot = placement.rotation if k % 2 == 0 else None
         targets.append(Target(position=placement.translation, rotation=rot))
     problem = base.with_targets(targets)
-    x0 = make_spatial_starts(problem, 1, seed=0)[0]
+    x0 = make_starts_3d(problem, 1, seed=0)[0]
     opts = replace(SPATIAL_AL_OPTIONS, initial_multipliers="least_squares")
     al = solve(problem, method="al", x0=x0, options=opts)
     ip = solve(problem, method="ipopt", x0=x0)

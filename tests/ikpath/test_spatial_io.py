@@ -9,9 +9,9 @@ import pytest
 
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import ResultFileError
+from youbot_opt.ikpath.io import RobotSource, load_result, save_result
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import OuterIterate, build_spatial_result
-from youbot_opt.ikpath.spatial_io import RobotSource, load_spatial_result, save_spatial_result
+from youbot_opt.ikpath.result import OuterIterate, build_result
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.load import load_model
@@ -39,7 +39,7 @@ def _exact_panda_result():
         )
     )
     history = (OuterIterate(0, q + 0.01, 1.5, 1e-3, 2e-3, 1e3, 7),)
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="al",
         status=SolveStatus.SOLVED,
@@ -65,9 +65,9 @@ def _rewrite(path, edit, *, redigest):
 
 def test_round_trip_reloads_the_robot_and_rechecks_by_forward_kinematics(tmp_path):
     robot, result = _exact_panda_result()
-    path = save_spatial_result(result, tmp_path / "result", RobotSource.of(robot))
+    path = save_result(result, tmp_path / "result", RobotSource.of(robot))
     assert path.name == "result.json"
-    back = load_spatial_result(path)  # the robot comes from the file's source ("panda")
+    back = load_result(path)  # the robot comes from the file's source ("panda")
     assert back.status is SolveStatus.SOLVED and back.success
     assert (back.method, back.message, back.iterations) == ("al", "converged", 4)
     np.testing.assert_array_equal(back.configurations, result.configurations)
@@ -91,27 +91,27 @@ def test_round_trip_reloads_the_robot_and_rechecks_by_forward_kinematics(tmp_pat
 )
 def test_a_moved_target_is_detected(tmp_path, redigest, match):
     robot, result = _exact_panda_result()
-    path = save_spatial_result(result, tmp_path / "result.json", RobotSource.of(robot))
+    path = save_result(result, tmp_path / "result.json", RobotSource.of(robot))
 
     def move(body):
         body["targets"][1]["position"][2] += 1e-6  # 1 um: far above the 1e-9 re-check
 
     _rewrite(path, move, redigest=redigest)
     with pytest.raises(ResultFileError, match=match):
-        load_spatial_result(path, robot=robot)
+        load_result(path, robot=robot)
 
 
 def test_another_robot_or_a_false_success_is_refused(tmp_path):
     robot, result = _exact_panda_result()
-    path = save_spatial_result(result, tmp_path / "result.json")  # no robot source
+    path = save_result(result, tmp_path / "result.json")  # no robot source
     with pytest.raises(ResultFileError, match="names no robot source"):
-        load_spatial_result(path)
+        load_result(path)
     with pytest.raises(ResultFileError, match="robot differs"):
-        load_spatial_result(path, robot=load_model("ur5"))
+        load_result(path, robot=load_model("ur5"))
     # A failed result (a configuration 0.2 rad off its target) edited to claim success.
     off = result.configurations.copy()
     off[0, 0] += 0.2
-    failed = build_spatial_result(
+    failed = build_result(
         result.problem,
         method="ipopt",
         status=SolveStatus.MAX_ITERATIONS,
@@ -123,8 +123,8 @@ def test_another_robot_or_a_false_success_is_refused(tmp_path):
         start=off.ravel(),
     )
     assert not failed.success
-    path = save_spatial_result(failed, tmp_path / "failed.json")
-    assert load_spatial_result(path, robot=robot.model).status is SolveStatus.MAX_ITERATIONS
+    path = save_result(failed, tmp_path / "failed.json")
+    assert load_result(path, robot=robot.model).status is SolveStatus.MAX_ITERATIONS
     _rewrite(path, lambda body: body.update(status="solved"), redigest=True)
     with pytest.raises(ResultFileError, match=r"claims 'solved' but targets \[0\]"):
-        load_spatial_result(path, robot=robot)
+        load_result(path, robot=robot)

@@ -14,10 +14,10 @@ import pytest
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import InvalidModelError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import RobotSource as IkpathRobotSource
+from youbot_opt.ikpath.io import RobotSource as SpatialIoRobotSource
+from youbot_opt.ikpath.io import load_result, save_result
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import SpatialIKResult, build_spatial_result
-from youbot_opt.ikpath.spatial_io import RobotSource as SpatialIoRobotSource
-from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot import RobotSource as RobotLayerSource
@@ -27,7 +27,7 @@ from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import RobotSource
 
 
-def _exact_result(robot: RobotModel) -> SpatialIKResult:
+def _exact_result(robot: RobotModel) -> IKPathResult:
     """Two position targets at the tip placements of two in-limit configurations (met exactly)."""
     base = CyclicIKProblem(
         robot=robot.model,
@@ -38,7 +38,7 @@ def _exact_result(robot: RobotModel) -> SpatialIKResult:
     problem = base.with_targets(
         tuple(Target(position=base.placement(theta).translation) for theta in q)
     )
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="al",
         status=SolveStatus.SOLVED,
@@ -64,7 +64,7 @@ def _saved_in_moved_folder(tmp_path: Path, name: str = "arm.urdf", **load: objec
         warnings.simplefilter("ignore", YoubotOptWarning)  # the lenient loader's
         robot = load_model(urdf, **load)  # type: ignore[arg-type]
     result = _exact_result(robot)
-    save_spatial_result(result, folder / "result.json", RobotSource.of(robot))
+    save_result(result, folder / "result.json", RobotSource.of(robot))
     shutil.move(folder, tmp_path / "B")
     return result, tmp_path / "B" / "result.json", urdf.resolve(), tmp_path / "B" / name
 
@@ -76,7 +76,7 @@ def arm_in_a(tmp_path: Path) -> Path:
     return Path(shutil.copy(youbot_urdf_path(), tmp_path / "A" / "arm.urdf"))
 
 
-def _assert_same(a: SpatialIKResult, b: SpatialIKResult) -> None:
+def _assert_same(a: IKPathResult, b: IKPathResult) -> None:
     """Joints, configurations, start, E and the per-target errors equal exactly."""
     assert a.problem.model.nq == b.problem.model.nq
     assert list(a.problem.model.names) == list(b.problem.model.names)
@@ -88,16 +88,16 @@ def _assert_same(a: SpatialIKResult, b: SpatialIKResult) -> None:
 
 
 def test_robot_source_is_one_class_under_three_names() -> None:
-    """youbot_opt.robot, youbot_opt.ikpath and ikpath.spatial_io give the same RobotSource."""
+    """youbot_opt.robot, youbot_opt.ikpath and ikpath.io give the same RobotSource."""
     assert RobotLayerSource is IkpathRobotSource is SpatialIoRobotSource is RobotSource
 
 
 def test_a_result_moved_with_its_urdf_reloads_without_robot(tmp_path: Path, arm_in_a) -> None:
-    """A moved to B: load_spatial_result(path) loads B/arm.urdf and gives the same numbers."""
+    """A moved to B: load_result(path) loads B/arm.urdf and gives the same numbers."""
     result, path, recorded, moved = _saved_in_moved_folder(tmp_path)
     doc = json.loads(path.read_text())["result"]["robot"]
     assert doc["source"] == str(recorded) and doc["relative_source"] == "arm.urdf"
-    _assert_same(result, load_spatial_result(path))
+    _assert_same(result, load_result(path))
 
 
 def test_an_edited_urdf_is_refused_naming_it_and_both_digests(tmp_path: Path, arm_in_a) -> None:
@@ -108,11 +108,11 @@ def test_an_edited_urdf_is_refused_naming_it_and_both_digests(tmp_path: Path, ar
     new = hashlib.sha256(moved.read_bytes()).hexdigest()
     recorded = json.loads(path.read_text())["result"]["robot"]["urdf_sha256"]
     with pytest.raises(ResultFileError, match="has changed") as info:
-        load_spatial_result(path)
+        load_result(path)
     message = str(info.value)
     assert str(moved.resolve()) in message and "pass robot=" in message
     assert new[:12] in message and recorded[:12] in message
-    _assert_same(result, load_spatial_result(path, robot=load_model(moved)))  # robot= overrides
+    _assert_same(result, load_result(path, robot=load_model(moved)))  # robot= overrides
 
 
 def test_a_deleted_urdf_names_every_path_tried(tmp_path: Path, arm_in_a) -> None:
@@ -120,7 +120,7 @@ def test_a_deleted_urdf_names_every_path_tried(tmp_path: Path, arm_in_a) -> None
     _, path, recorded, moved = _saved_in_moved_folder(tmp_path)
     moved.unlink()
     with pytest.raises(ResultFileError, match="not found") as info:
-        load_spatial_result(path)
+        load_result(path)
     message = str(info.value)
     assert str(recorded) in message and str(moved.resolve()) in message
     assert "pass robot=" in message
@@ -130,16 +130,16 @@ def test_a_file_written_before_digests_loads_as_then(tmp_path: Path, arm_in_a) -
     """An older robot source (no digest, no relative path): loads in place, refused once moved."""
     robot = load_model(arm_in_a)
     result = _exact_result(robot)
-    path = save_spatial_result(result, tmp_path / "A" / "old.json", RobotSource.of(robot))
+    path = save_result(result, tmp_path / "A" / "old.json", RobotSource.of(robot))
     doc = json.loads(path.read_text())
     for key in ("urdf_sha256", "relative_source", "relative_package_dirs"):
         del doc["result"]["robot"][key]
     doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
-    _assert_same(result, load_spatial_result(path))
+    _assert_same(result, load_result(path))
     shutil.move(tmp_path / "A", tmp_path / "B")
     with pytest.raises(ResultFileError, match=r"cannot load the robot.*pass robot="):
-        load_spatial_result(tmp_path / "B" / "old.json")
+        load_result(tmp_path / "B" / "old.json")
 
 
 def test_a_lenient_robot_with_a_locked_joint_round_trips(tmp_path: Path) -> None:
@@ -157,6 +157,6 @@ def test_a_lenient_robot_with_a_locked_joint_round_trips(tmp_path: Path) -> None
     assert robot["strict"] is False and robot["lock_joints"] == [["arm_joint_3", 0.2]]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", YoubotOptWarning)
-        loaded = load_spatial_result(path)
+        loaded = load_result(path)
     assert loaded.problem.model.nq == 2
     _assert_same(result, loaded)

@@ -16,8 +16,8 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
 from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
 from youbot_opt.ikpath.reachability.spatial import (
-    SpatialReach,
-    check_spatial_reachability,
+    Reachability3D,
+    check_reachability_3d,
     interval_search,
     joint_box,
 )
@@ -178,16 +178,16 @@ def test_planar_example_unreachable_targets_agree_with_the_planar_decision(tmp_p
     chain = PlanarChain(lengths=[3.0, 2.0, 2.0], q_lower=-limit, q_upper=limit)
     points = [(0.0, 7.1), (-6.0, 0.0), (-5.0, -3.0), (-3.0, -4.0), (0.0, 7.0)]
     problem = _problem(model, _point_targets(*points))
-    verdicts = check_spatial_reachability(problem, interval_boxes=100_000, interval_seconds=600.0)
+    verdicts = check_reachability_3d(problem, interval_boxes=100_000, interval_seconds=600.0)
     expected = [decide_reachability(chain, p).status for p in points]  # the independent oracle
     assert expected == [Reachability.UNREACHABLE] * 3 + [Reachability.REACHABLE] * 2
     assert [v.method for v in verdicts[:3]] == ["reach_sphere", "interval", "interval"]
-    assert all(v.status is SpatialReach.UNREACHABLE for v in verdicts[:3])
+    assert all(v.status is Reachability3D.UNREACHABLE for v in verdicts[:3])
     assert verdicts[1].distance < verdicts[1].reach  # inside the sphere: only the interval proof
     assert verdicts[1].boxes > 0 and "excludes every box" in verdicts[1].message
     data = model.createData()
     for v, p in zip(verdicts[3:], points[3:], strict=True):  # witnesses checked by Pinocchio
-        assert v.status is SpatialReach.REACHABLE
+        assert v.status is Reachability3D.REACHABLE
         assert np.all(np.abs(v.witness) <= limit)
         pin.framesForwardKinematics(model, data, problem.configuration(v.witness))
         assert np.linalg.norm(data.oMf[problem.frame_id].translation - (*p, 0.0)) <= 1e-6
@@ -199,11 +199,11 @@ def test_annulus_hole_is_certified_without_limits(tmp_path):
     model = _planar(tmp_path, (5.0, 1.5, 1.5), 3.0)
     inf = np.full(3, np.inf)
     for p, status in (
-        ((1.9, 0.0), SpatialReach.UNREACHABLE),
-        ((2.05, 0.0), SpatialReach.REACHABLE),
+        ((1.9, 0.0), Reachability3D.UNREACHABLE),
+        ((2.05, 0.0), Reachability3D.REACHABLE),
     ):
         assert decide_reachability(PlanarChain(lengths=[5.0, 1.5, 1.5]), p).reachable is (
-            status is SpatialReach.REACHABLE
+            status is Reachability3D.REACHABLE
         )
         problem = _problem(model, _point_targets(p, p), q_lower=-inf, q_upper=inf)
         found = interval_search(problem, 0, **_BUDGET)
@@ -222,8 +222,10 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
         Target(position=(5.0, 1.0, 0.0), approach=(0.0, 0.5, 1.0)),
         Target(position=(5.0, 1.0, 0.0)),  # the same point: reachable
     ]
-    verdicts = check_spatial_reachability(_problem(planar, targets))
-    assert [v.status for v in verdicts] == [SpatialReach.UNREACHABLE] * 2 + [SpatialReach.REACHABLE]
+    verdicts = check_reachability_3d(_problem(planar, targets))
+    assert [v.status for v in verdicts] == [Reachability3D.UNREACHABLE] * 2 + [
+        Reachability3D.REACHABLE
+    ]
     assert all(v.method == "interval" for v in verdicts[:2])
 
     arm = _yaw_pitch_pitch(tmp_path)
@@ -235,9 +237,9 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
     problem = base.with_targets((pose, roll))
     assert np.linalg.norm(reached.translation - base.reach_radius()[0]) < base.reach_radius()[1]
     found = interval_search(problem, 1, **_BUDGET)
-    assert found.status is SpatialReach.UNREACHABLE and found.by_orientation > 0
+    assert found.status is Reachability3D.UNREACHABLE and found.by_orientation > 0
     found = interval_search(problem, 0, **_BUDGET)  # the unrolled pose: a witness
-    assert found.status is SpatialReach.REACHABLE
+    assert found.status is Reachability3D.REACHABLE
     assert pose.met(problem.placement(found.witness))
 
 
@@ -255,7 +257,7 @@ def test_interval_search_never_refutes_a_reachable_target():
         target = Target(position=placement.translation, **kind)
         problem = base.with_targets((target, target))
         found = interval_search(problem, 0, max_boxes=20_000, max_seconds=600.0)
-        assert found.status is not SpatialReach.UNREACHABLE
+        assert found.status is not Reachability3D.UNREACHABLE
         if found.witness is not None:
             assert target.met(problem.placement(found.witness))
             assert np.all(found.witness >= problem.lower[:6])
@@ -278,7 +280,7 @@ def test_ur5_target_between_true_reach_and_reach_sphere_is_certified():
     )
     assert sampled < 1.0 < 1.1 < reach
     found = interval_search(base.with_targets((target, target)), 0, **_BUDGET)
-    assert found.status is SpatialReach.UNREACHABLE and found.pending == 0
+    assert found.status is Reachability3D.UNREACHABLE and found.pending == 0
 
 
 def test_joint_box_and_unsupported_joints(tmp_path):
@@ -362,12 +364,12 @@ def test_budget_exhausted_is_undecided_and_bad_arguments_are_refused():
     target = Target(position=centre + np.array([1.0, 0.0, 0.0]))
     problem = base.with_targets((target, target))
     found = interval_search(problem, 0, max_boxes=2000, max_seconds=600.0)
-    assert found.status is SpatialReach.UNDECIDED and found.witness is None
+    assert found.status is Reachability3D.UNDECIDED and found.witness is None
     assert found.boxes >= 2000 and found.pending > 0
-    v = check_spatial_reachability(problem, tries=1, interval_boxes=2000, interval_seconds=600.0)[0]
-    assert v.status is SpatialReach.UNDECIDED and v.method == "none" and v.boxes >= 2000
+    v = check_reachability_3d(problem, tries=1, interval_boxes=2000, interval_seconds=600.0)[0]
+    assert v.status is Reachability3D.UNDECIDED and v.method == "none" and v.boxes >= 2000
     assert "interval search undecided after" in v.message
     with pytest.raises(ParameterError, match=r"j must be a target index in \[0, 1\], got 2"):
         interval_search(problem, 2)
     with pytest.raises(ParameterError, match="interval_seconds must be finite and >= 0"):
-        check_spatial_reachability(problem, interval_seconds=-1.0)
+        check_reachability_3d(problem, interval_seconds=-1.0)

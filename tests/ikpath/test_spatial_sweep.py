@@ -11,7 +11,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.dls import dls_ik
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
@@ -19,16 +19,16 @@ from youbot_opt.sweeps.resume import ShardReport
 
 def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur5_reachable):
     p = ur5_reachable
-    five = make_spatial_starts(p, 5, seed=4, kind="coherent")
-    np.testing.assert_array_equal(make_spatial_starts(p, 3, seed=4, kind="coherent"), five[:3])
-    assert not np.array_equal(make_spatial_starts(p, 5, seed=5, kind="coherent"), five)
+    five = make_starts_3d(p, 5, seed=4, kind="coherent")
+    np.testing.assert_array_equal(make_starts_3d(p, 3, seed=4, kind="coherent"), five[:3])
+    assert not np.array_equal(make_starts_3d(p, 5, seed=5, kind="coherent"), five)
     # Coherent: every configuration is a DLS solution of its target from the previous one
     # (position errors at the DLS tolerance 1e-12 m; 1e-9 leaves room for rounding).
     for x in five:
         pos, _ = p.errors(x)
         assert np.max(pos) < 1e-9
     # Random: every angle uniform in [max(l, -pi), min(u, pi)], nothing solved.
-    rand = make_spatial_starts(p, 4, seed=4, kind="random")
+    rand = make_starts_3d(p, 4, seed=4, kind="random")
     assert np.all(np.abs(rand[1:]) <= np.pi) and np.all(rand >= p.lower) and np.all(rand <= p.upper)
     assert min(np.max(p.errors(x)[0]) for x in rand[1:]) > 1e-3
     np.testing.assert_array_equal(rand[0], five[0])  # start 0 is the greedy path for every kind
@@ -38,7 +38,7 @@ def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur
     with pytest.raises(
         ParameterError, match="unknown start kind 'feasible'; choose one of mixed, coherent, random"
     ):
-        make_spatial_starts(p, 2, seed=0, kind="feasible")
+        make_starts_3d(p, 2, seed=0, kind="feasible")
 
 
 def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachable, tmp_path):
@@ -80,7 +80,7 @@ def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
     ur5_reachable, tmp_path, monkeypatch
 ):
     real = SpatialIpoptSolver.solve
-    x_first = make_spatial_starts(ur5_reachable, 1, seed=0)[0]
+    x_first = make_starts_3d(ur5_reachable, 1, seed=0)[0]
     calls = []
 
     def flaky(self, x0=None):

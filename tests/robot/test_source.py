@@ -301,13 +301,13 @@ def test_a_trajectory_result_of_such_a_file_reloads_that_file_or_refuses(tmp_pat
 
 
 def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) -> None:
-    """save_spatial_result/load_spatial_result with RobotSource.of: the file, not the catalogue."""
+    """save_result/load_result with RobotSource.of: the file, not the catalogue."""
     import numpy as np
 
     from youbot_opt.exceptions import ResultFileError
+    from youbot_opt.ikpath.io import load_result, save_result
     from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.result import build_spatial_result
-    from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
+    from youbot_opt.ikpath.result import build_result
     from youbot_opt.ikpath.targets import Target
     from youbot_opt.nlp.status import SolveStatus
 
@@ -322,7 +322,7 @@ def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) ->
     problem = base.with_targets(
         tuple(Target(position=base.placement(theta).translation) for theta in q)
     )
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="al",
         status=SolveStatus.SOLVED,
@@ -335,9 +335,9 @@ def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) ->
     )
     path = tmp_path / "run" / "result.json"
     path.parent.mkdir()
-    save_spatial_result(result, path, RobotSource.of(robot))
-    back = load_spatial_result(path).problem.model
+    save_result(result, path, RobotSource.of(robot))
+    back = load_result(path).problem.model
     assert [float(i.mass) for i in back.inertias[1:]] == _masses(robot)
     urdf.unlink()
     with pytest.raises(ResultFileError, match="not found"):
-        load_spatial_result(path)
+        load_result(path)

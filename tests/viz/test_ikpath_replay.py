@@ -17,7 +17,7 @@ import umsgpack  # noqa: E402
 from youbot_opt._files import json_digest  # noqa: E402
 from youbot_opt.exceptions import ParameterError, ResultFileError  # noqa: E402
 from youbot_opt.ikpath.examples import example_problem  # noqa: E402
-from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result  # noqa: E402
+from youbot_opt.ikpath.io import load_result, save_result  # noqa: E402
 from youbot_opt.ikpath.solve import solve  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402
 from youbot_opt.viz.meshcat.ikpath import (  # noqa: E402
@@ -153,11 +153,11 @@ def test_live_replay_of_example_a_on_a_loopback_server(result_a):
 
 def test_save_and_load_round_trip(result_a, tmp_path):
     """Every field survives the JSON file exactly (repr floats round-trip)."""
-    path = save_ikpath_result(result_a, tmp_path / "res")
+    path = save_result(result_a, tmp_path / "res")
     assert path.name == "res.json"
-    back = load_ikpath_result(path)
+    back = load_result(path)
     assert back.status is result_a.status and back.method == result_a.method
-    for key in ("configurations", "residuals", "multipliers", "start"):
+    for key in ("configurations", "position_errors", "orientation_errors", "multipliers", "start"):
         np.testing.assert_array_equal(getattr(back, key), getattr(result_a, key))
     assert back.objective == result_a.objective
     assert back.problem.chain.n == 3 and not back.problem.chain.bounded
@@ -165,7 +165,7 @@ def test_save_and_load_round_trip(result_a, tmp_path):
     assert len(back.history) == len(result_a.history)
     np.testing.assert_array_equal(back.history[-1].x, result_a.history[-1].x)
     bounded = solve(example_problem("B"))
-    back_b = load_ikpath_result(save_ikpath_result(bounded, tmp_path / "b.json"))
+    back_b = load_result(save_result(bounded, tmp_path / "b.json"))
     np.testing.assert_array_equal(back_b.problem.chain.q_upper, np.full(3, np.pi / 2))
 
 
@@ -177,15 +177,15 @@ def _rewrite(path: Path, edit) -> None:
 
 def test_load_refuses_newer_corrupt_or_foreign_files(result_a, tmp_path):
     """A newer schema, a changed number, another schema or non-JSON: ResultFileError."""
-    path = save_ikpath_result(result_a, tmp_path / "r.json")
+    path = save_result(result_a, tmp_path / "r.json")
     _rewrite(path, lambda d: d.update(schema_version=2))
     with pytest.raises(ResultFileError, match="schema version 2 is newer"):
-        load_ikpath_result(path)
-    path = save_ikpath_result(result_a, tmp_path / "r.json")
+        load_result(path)
+    path = save_result(result_a, tmp_path / "r.json")
     _rewrite(path, lambda d: d["result"]["configurations"][0].__setitem__(0, 0.5))
     with pytest.raises(ResultFileError, match="checksum mismatch"):
-        load_ikpath_result(path)
-    path = save_ikpath_result(result_a, tmp_path / "r.json")
+        load_result(path)
+    path = save_result(result_a, tmp_path / "r.json")
 
     def consistent_lie(doc):  # a changed E with a matching checksum: caught by the recheck
         doc["result"]["objective"] += 1e-6
@@ -193,11 +193,11 @@ def test_load_refuses_newer_corrupt_or_foreign_files(result_a, tmp_path):
 
     _rewrite(path, consistent_lie)
     with pytest.raises(ResultFileError, match="disagree with the ones recomputed"):
-        load_ikpath_result(path)
-    path = save_ikpath_result(result_a, tmp_path / "r.json")
+        load_result(path)
+    path = save_result(result_a, tmp_path / "r.json")
     _rewrite(path, lambda d: d.update(schema="youbot_opt.trajopt_result"))
     with pytest.raises(ResultFileError, match="unknown schema"):
-        load_ikpath_result(path)
+        load_result(path)
     path.write_text("{not json")
     with pytest.raises(ResultFileError, match="cannot read"):
-        load_ikpath_result(path)
+        load_result(path)

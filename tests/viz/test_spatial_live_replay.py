@@ -13,7 +13,7 @@ import pinocchio as pin  # noqa: E402
 import umsgpack  # noqa: E402
 
 from youbot_opt.ikpath.problem import CyclicIKProblem  # noqa: E402
-from youbot_opt.ikpath.result import build_spatial_result  # noqa: E402
+from youbot_opt.ikpath.result import build_result  # noqa: E402
 from youbot_opt.ikpath.targets import Target  # noqa: E402
 from youbot_opt.nlp.status import SolveStatus  # noqa: E402
 from youbot_opt.robot.load import load_model  # noqa: E402
@@ -70,7 +70,7 @@ def test_live_spatial_replay_draws_the_targets_and_ends_at_the_first_configurati
             Target(position=p[2].translation),
         )
     )
-    result = build_spatial_result(
+    result = build_result(
         problem,
         method="ipopt",
         status=SolveStatus.SOLVED,

@@ -1,4 +1,4 @@
-"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2, issue 14).
+"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2).
 
     youbot-opt ikpath --example A --starts 200
     youbot-opt ikpath --example B --method ipopt --starts 200 --json
@@ -267,10 +267,11 @@ def _report(
     best = ms.best
     doc.update(
         status=best.status.value,
+        message=best.message,
         E=best.objective,
         configurations=best.configurations.tolist(),
-        residuals=best.residuals.tolist(),
-        max_residual=best.max_residual(),
+        residuals=best.position_errors.tolist(),
+        max_residual=best.max_position_error(),
         limit_violation=best.limit_violation,
         multipliers=best.multipliers.tolist(),
         iterations=best.iterations,
@@ -287,7 +288,7 @@ def _report(
                 "E": m.objective,
                 "count": m.count,
                 "first_start": m.start_indices[0],
-                "max_residual": m.result.max_residual(),
+                "max_residual": m.result.max_position_error(),
                 "multiplier_norm": float(np.linalg.norm(m.result.multipliers)),
             }
             for m in ms.minima
@@ -304,8 +305,9 @@ def _report(
 
 def _residual_field(r: Any) -> dict[str, Any]:  # noqa: ANN401 - IKPathResult or StartSummary
     """Return the planar per-start field of ``summary.json``: the largest residual in [m]."""
-    value = r.max_residual
-    return {"max_residual": value if isinstance(value, float) else value()}
+    if hasattr(r, "max_position_error"):  # a result, not its stored summary
+        return {"max_residual": r.max_position_error()}
+    return {"max_residual": r.max_residual}
 
 
 def _print_text(doc: dict[str, Any]) -> None:
@@ -350,6 +352,13 @@ def _print_single_start(doc: dict[str, Any]) -> None:
         f"result: E = {doc['E']:.10f} rad^2 ({doc['status']}); max residual "
         f"{doc['max_residual']:.2e} m, limit violation {doc['limit_violation']:.2e} rad"
     )
+    _print_failure(doc)
+
+
+def _print_failure(doc: dict[str, Any]) -> None:
+    """Print why the best start failed (nothing for a success)."""
+    if doc["status"] not in ("solved", "solved_acceptable"):
+        print(f"failed: {doc['message']}")
 
 
 def _print_multistart(doc: dict[str, Any]) -> None:
@@ -367,6 +376,7 @@ def _print_multistart(doc: dict[str, Any]) -> None:
         f"{doc['starts']} starts; max residual {doc['max_residual']:.2e} m, "
         f"limit violation {doc['limit_violation']:.2e} rad"
     )
+    _print_failure(doc)
 
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
@@ -396,7 +406,7 @@ def _write_outputs(
 ) -> list[Path]:
     """Write the run folder: figures, replay, saved result, then ``summary.json``."""
     from youbot_opt.cli.output import save_figure, write_summary
-    from youbot_opt.ikpath.io import save_ikpath_result
+    from youbot_opt.ikpath.io import save_result
     from youbot_opt.viz.plots.ikpath import (
         plot_arm_path,
         plot_convergence,
@@ -411,7 +421,7 @@ def _write_outputs(
         if best.history:
             files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
-        files.append(save_ikpath_result(best, folder / "result.json"))
+        files.append(save_result(best, folder / "result.json"))
         if not args.no_replay:
             from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
 

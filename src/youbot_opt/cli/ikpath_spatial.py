@@ -7,7 +7,7 @@ reachability (exit 2 with the certificate of an unreachable one), runs the
 resumable multistart (``--starts``, ``--start-kind``, ``--method``,
 ``--max-wall-time``, ``--workers``, ``--scheduler``/``--shard``; progress on
 stderr) into the run folder's sweep store, and writes ``result.json``
-(:func:`~youbot_opt.ikpath.spatial_io.load_spatial_result`), ``summary.json``,
+(:func:`~youbot_opt.ikpath.io.load_result`), ``summary.json``,
 ``ikpath_legs.png``, ``ikpath_path3d.png`` and ``replay.html``. Exit 0 when
 the best start succeeded, 1 otherwise.
 """
@@ -171,14 +171,16 @@ def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
     from youbot_opt.cli.cluster_args import report_shard, scheduler_address
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
-    from youbot_opt.ikpath.reachability.spatial import SpatialReach, check_spatial_reachability
-    from youbot_opt.ikpath.spatial_io import RobotSource, save_spatial_result
+    from youbot_opt.cli.warning_lines import flush_warnings
+    from youbot_opt.ikpath.io import RobotSource, save_result
+    from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
     from youbot_opt.sweeps.resume import ShardReport
 
     kind = _check_spatial_flags(args)
     robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
+    flush_warnings()  # the loader's warnings, grouped, before the run
     problem = _problem(args, robot)
     kind = _start_kind(kind, problem)
     frame = problem.frame
@@ -186,7 +188,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     options = _options(args)
     executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
     budget = {} if args.reach_evaluations is None else {"interval_boxes": args.reach_evaluations}
-    verdicts = check_spatial_reachability(problem, **budget)
+    verdicts = check_reachability_3d(problem, **budget)
     folder = run_folder("ikpath", args.out)
     doc: dict[str, Any] = {
         "robot": robot.name,
@@ -212,12 +214,12 @@ def run_spatial(args: argparse.Namespace) -> int:
             for v in verdicts
         ],
     }
-    unreachable = [v for v in verdicts if v.status is SpatialReach.UNREACHABLE]
+    unreachable = [v for v in verdicts if v.status is Reachability3D.UNREACHABLE]
     files = []
     code = 2
     if not unreachable:
         for v in verdicts:
-            if v.status is SpatialReach.UNDECIDED:
+            if v.status is Reachability3D.UNDECIDED:
                 print(
                     f"youbot-opt: warning: reachability of target {v.index} is undecided "
                     f"({v.message}); solving anyway (a failed solve may mean it is unreachable; "
@@ -255,7 +257,7 @@ def run_spatial(args: argparse.Namespace) -> int:
             **start_fields(ms.results, ms.attempts),
         )
         source = RobotSource.of(robot, strict=not args.lenient)
-        files.append(save_spatial_result(best, folder / "result.json", source))
+        files.append(save_result(best, folder / "result.json", source))
         from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
 
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
@@ -304,3 +306,5 @@ def _print_text(doc: dict[str, Any], robot: str, frame: str, n_targets: int, met
     )
     for j, q in enumerate(doc["result"]["configurations_rad"]):
         print(f"  q{j + 1} = [{', '.join(f'{x:+.6f}' for x in q)}] rad")
+    if not doc["result"]["success"]:
+        print(f"failed: {doc['result']['message']}")

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from youbot_opt.sweeps.options import SweepOptions
 
 if TYPE_CHECKING:
-    from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
+    from youbot_opt.ikpath.result import IKPathResult
 
 __all__ = ["StartProgress", "print_starts", "start_fields", "start_sweep"]
 
@@ -36,7 +36,7 @@ class StartProgress:
 
     def __call__(self, done: int, total: int, best: float) -> None:
         """Report ``done`` of ``total`` starts and the best ``E`` so far [rad^2]."""
-        best_txt = f"{best:.10g}" if math.isfinite(best) else "-"
+        best_txt = f"{best:.10g} rad^2" if math.isfinite(best) else "none converged yet"
         elapsed = time.perf_counter() - self.tic
         if self.tty:
             width = 30
@@ -53,7 +53,7 @@ class StartProgress:
                 return
             self.shown = tenth
             self.stream.write(
-                f"ikpath: {done}/{total} starts done, best E {best_txt} rad^2, {elapsed:.1f} s\n"
+                f"ikpath: {done}/{total} starts done, best E {best_txt}, {elapsed:.1f} s\n"
             )
         self.stream.flush()
 
@@ -90,7 +90,7 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
 
 
 def start_fields(
-    results: Sequence[IKPathResult | SpatialIKResult],
+    results: Sequence[IKPathResult],
     attempts: Sequence[int],
     detail: Callable[[Any], dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
@@ -98,7 +98,7 @@ def start_fields(
 
     Parameters
     ----------
-    results : sequence of IKPathResult or of SpatialIKResult
+    results : sequence of IKPathResult
         One result per start, in start order (``--no-keep-results``: a
         :class:`~youbot_opt.ikpath.stored.StoredResults`, whose journal
         summaries are read instead of the results).

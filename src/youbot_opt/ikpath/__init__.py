@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
-from youbot_opt.ikpath.io import load_ikpath_result, save_ikpath_result
+from youbot_opt.ikpath.io import load_result, save_result
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, solve_ipopt
@@ -35,21 +35,19 @@ from youbot_opt.ikpath.reachability.planar import (
     require_reachable,
 )
 from youbot_opt.ikpath.reachability.spatial import (
-    SpatialReach,
-    SpatialVerdict,
-    check_spatial_reachability,
+    Reachability3D,
+    ReachVerdict3D,
+    check_reachability_3d,
 )
 from youbot_opt.ikpath.result import (
     IKPathResult,
     IKStatus,
     JointPath,
     OuterIterate,
-    SpatialIKResult,
 )
 from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial_io import load_spatial_result, save_spatial_result
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
-from youbot_opt.ikpath.starts import make_spatial_starts
+from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import Target, load_targets
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -78,34 +76,31 @@ __all__ = [
     "Reachability",
     "RobotSource",
     "STUDY_E_A",
-    "SpatialIKResult",
     "SpatialMultistart",
-    "SpatialReach",
+    "Reachability3D",
     "Target",
-    "SpatialVerdict",
+    "ReachVerdict3D",
     "SolveStatus",
     "StartSummary",
     "StoredResults",
     "TipKinematics",
     "chain_from_robot",
     "check_reachability",
-    "check_spatial_reachability",
+    "check_reachability_3d",
     "cluster_minima",
     "configuration_distance",
     "decide_reachability",
     "example_problem",
     "greedy_path",
     "load_targets",
-    "load_ikpath_result",
-    "load_spatial_result",
+    "load_result",
     "make_starts",
-    "make_spatial_starts",
+    "make_starts_3d",
     "minimize_bfgs",
     "require_reachable",
     "run_multistart",
     "run_spatial_multistart",
-    "save_ikpath_result",
-    "save_spatial_result",
+    "save_result",
     "solve",
     "solve_augmented_lagrangian",
     "solve_ipopt",

@@ -80,7 +80,7 @@ def check_ik_result(
         return IKCheck(False, f"configurations have shape {q.shape}, want {want}", inf, inf)
     figures: dict[str, Array | float] = {
         "objective": float(result.objective),
-        "residuals": np.asarray(result.residuals, dtype=float),
+        "residuals": np.asarray(result.position_errors, dtype=float),
         "limit_violation": float(result.limit_violation),
     }
     nonfinite = [k for k, x in figures.items() if not np.all(np.isfinite(x))]

@@ -167,7 +167,7 @@ class MultistartResult:
             return self.minima[0].result
         if self.tally is not None:
             return self.results[self.tally.closest]
-        return min(self.results, key=lambda r: (r.max_residual(), r.objective))
+        return min(self.results, key=lambda r: (r.max_position_error(), r.objective))
 
     @property
     def best_index(self) -> int:

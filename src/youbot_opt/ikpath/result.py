@@ -1,4 +1,4 @@
-"""Results of an IK-path solve: status, optimum, residuals, history, replay hooks.
+"""The result of an IK-path solve: status, optimum, target errors, history, replay hooks.
 
 A failed solve is a status, not an exception (Drake style): the result keeps
 the best iterate the solver reached. Constructing a result does no work: the
@@ -12,7 +12,7 @@ re-check (:meth:`IKPathResult.check`) and sets the status (:func:`checked`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -24,8 +24,6 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.nlp.status import SolveStatus, apply_check
 
 __all__ = [
-    "SpatialIKResult",
-    "build_spatial_result",
     "SolveStatus",
     "IKStatus",
     "OuterIterate",
@@ -113,7 +111,7 @@ class JointPath(NamedTuple):
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class IKPathResult:
-    """Result of one IK-path solve.
+    """Result of one IK-path solve, on any robot (planar or 3-D).
 
     Attributes
     ----------
@@ -127,14 +125,17 @@ class IKPathResult:
         Final (or best) configurations in [rad].
     objective : float
         ``E`` at :attr:`configurations` in [rad^2], recomputed by the problem.
-    residuals : ndarray, shape (s,)
-        ``|F(q_j) - p_j|`` in [m], recomputed with Pinocchio.
+    position_errors : ndarray, shape (s,)
+        Per target ``|F(q_j) - p_j|`` in [m], recomputed with Pinocchio.
+    orientation_errors : ndarray, shape (s,)
+        Per target orientation (or approach-axis) error in [rad] (zero for a
+        position target, so always zero on a planar chain's targets).
     limit_violation : float
         Largest joint-limit violation in [rad] (0 if none or no limits).
-    multipliers : ndarray, shape (s, 2)
-        Multipliers ``lambda`` of ``F(q_j) - p_j = 0`` with the sign convention
+    multipliers : ndarray, shape (s, m)
+        Multipliers ``lambda`` of the target constraints with the sign convention
         ``grad E = sum_j J_j^T lambda_j`` at a KKT point without active bounds
-        (i.e. the Lagrangian is ``E - lambda . c``).
+        (i.e. the Lagrangian is ``E - lambda . c``); ``m = 2`` on a planar chain.
     iterations : int
         Outer iterations (augmented Lagrangian) or IPOPT iterations.
     inner_iterations : int
@@ -142,12 +143,15 @@ class IKPathResult:
     wall_time : float
         Solve time in [s].
     message : str
-        Solver message.
+        Solver message (on a failure of a 3-D solve it names the blocking target).
     start : ndarray, shape (s, n)
         Initial guess in [rad].
-    constraint_tol : float
-        Largest ``|c_i|`` in [m] the solver accepts at a solution
-        (``ALOptions.constraint_tol`` or ``IpoptOptions.constr_viol_tol``).
+    constraint_tol : float or None
+        Largest ``|c_i|`` in [m] the planar methods accept at a solution
+        (``ALOptions.constraint_tol`` or ``IpoptOptions.constr_viol_tol``): the
+        check then allows ``sqrt(2) * constraint_tol`` per position error. None
+        (the general methods): every target must be met within its own
+        ``position_tol`` and ``orientation_tol``.
     history : tuple of OuterIterate
         Per outer iteration record (may be empty).
 
@@ -155,7 +159,7 @@ class IKPathResult:
     -----
     Construction only converts the arrays (read-only) and validates
     ``constraint_tol``; it runs no check, also not after
-    ``dataclasses.replace``. The solvers and :func:`~youbot_opt.ikpath.io.load_ikpath_result`
+    ``dataclasses.replace``. The solvers and :func:`~youbot_opt.ikpath.io.load_result`
     build results with :func:`build_result`, which re-checks a claimed success
     (:meth:`check`) and downgrades it (:func:`checked`); a downgraded result
     says why in :attr:`message`. Pass a hand-made or replaced result through
@@ -167,36 +171,45 @@ class IKPathResult:
     status: SolveStatus
     configurations: Array
     objective: float
-    residuals: Array
+    position_errors: Array
+    orientation_errors: Array
     limit_violation: float
     multipliers: Array
     iterations: int
-    inner_iterations: int
+    inner_iterations: int = 0
     wall_time: float
     message: str
     start: Array
-    constraint_tol: float
+    constraint_tol: float | None = None
     history: tuple[OuterIterate, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        for key in ("configurations", "residuals", "multipliers", "start"):
+        for key in (
+            "configurations",
+            "position_errors",
+            "orientation_errors",
+            "multipliers",
+            "start",
+        ):
             arr = np.array(getattr(self, key), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
-        if not (self.constraint_tol > 0.0 and math.isfinite(self.constraint_tol)):
+        tol = self.constraint_tol
+        if tol is not None and not (tol > 0.0 and math.isfinite(tol)):
             raise ParameterError(
-                f"constraint_tol must be finite and > 0 [m], got {self.constraint_tol!r}",
+                f"constraint_tol must be None or finite and > 0 [m], got {tol!r}",
                 name="constraint_tol",
-                value=self.constraint_tol,
+                value=tol,
             )
 
     def check(self) -> IKResultCheck:
         """Re-check the result independently of the solver's flag.
 
         Every number must be finite (else :attr:`SolveStatus.NON_FINITE`),
-        every residual recomputed by Pinocchio from :attr:`configurations` must
-        be within ``sqrt(2) * constraint_tol`` plus rounding, the joint limits
-        must hold exactly, and the reported ``objective``, ``residuals`` and
+        every target error recomputed by Pinocchio from :attr:`configurations`
+        must be within ``sqrt(2) * constraint_tol`` plus rounding (or, with no
+        ``constraint_tol``, within the target's tolerances), the joint limits
+        must hold exactly, and the reported ``objective``, target errors and
         ``limit_violation`` must be those of the configurations (else
         :attr:`SolveStatus.CONSTRAINT_VIOLATION`). A failure keeps its status
         (the check only downgrades a success). The result itself is not changed.
@@ -224,25 +237,30 @@ class IKPathResult:
 
     @property
     def model(self) -> pin.Model:
-        """Pinocchio model of the chain (for replay)."""
-        return self.problem.planar_chain.model
+        """Pinocchio model of the robot (for replay)."""
+        return self.problem.model
 
     @property
     def visual_model(self) -> pin.GeometryModel:
-        """Primitive-shape visual model of the chain (for replay)."""
-        return self.problem.planar_chain.visual_model
+        """Visual model of the robot (for replay)."""
+        return self.problem.visual_model
 
-    def max_residual(self) -> float:
-        """Largest target residual in [m]."""
-        return float(np.max(self.residuals))
+    def max_position_error(self) -> float:
+        """Largest target position error in [m]."""
+        return float(np.max(self.position_errors))
+
+    def max_orientation_error(self) -> float:
+        """Largest target orientation error in [rad]."""
+        return float(np.max(self.orientation_errors))
 
     def raise_for_status(self) -> IKPathResult:
         """Return ``self`` if successful, else raise :class:`SolveFailed` carrying it."""
         if not self.success:
             raise SolveFailed(
                 f"IK-path solve ({self.method}) ended with status {self.status.value}: "
-                f"{self.message}; E = {self.objective:.6g}, largest residual "
-                f"{self.max_residual():.3g} m, limit violation {self.limit_violation:.3g} rad",
+                f"{self.message}; E = {self.objective:.6g}, largest position error "
+                f"{self.max_position_error():.3g} m, limit violation "
+                f"{self.limit_violation:.3g} rad",
                 result=self,
             )
         return self
@@ -288,22 +306,77 @@ class IKPathResult:
         path = np.column_stack([np.interp(s, s_knots, closed[:, i]) for i in range(q.shape[1])])
         return JointPath(s, path)
 
+    def leg_motion(self) -> Array:
+        """Joint motion per leg ``q_{j+1} - q_j`` (closing leg last), shape (s, n), [rad]."""
+        q = self.configurations
+        return np.roll(q, -1, axis=0) - q
+
+    def frame_path(self, samples_per_leg: int = 20) -> Array:
+        """Frame positions [m] along straight joint-space legs, shape (s * k + 1, 3)."""
+        q = self.configurations
+        closed = np.vstack([q, q[:1]])
+        data = self.problem.create_data()
+        pts = []
+        for j in range(q.shape[0]):
+            for t in np.linspace(0.0, 1.0, samples_per_leg, endpoint=False):
+                theta = (1 - t) * closed[j] + t * closed[j + 1]
+                pts.append(self.problem.placement(theta, data).translation)
+        pts.append(self.problem.placement(closed[-1], data).translation)
+        return np.array(pts)
+
     def summary(self) -> str:
         """Return a few human-readable lines describing the result."""
+        if self.constraint_tol is not None:
+            errors = f"largest position error {self.max_position_error():.3g} m"
+        else:
+            errors = (
+                f"largest position error {self.max_position_error():.3g} m, orientation "
+                f"error {self.max_orientation_error():.3g} rad"
+            )
         lines = [
             f"method {self.method}: {self.status.value} ({self.message})",
-            f"E = {self.objective:.10g} rad^2, largest residual {self.max_residual():.3g} m, "
+            f"E = {self.objective:.10g} rad^2, {errors}, "
             f"limit violation {self.limit_violation:.3g} rad",
             f"{self.iterations} iterations ({self.inner_iterations} inner), "
             f"{self.wall_time * 1e3:.1f} ms",
         ]
         return "\n".join(lines)
 
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready summary of the result."""
+        return {
+            "method": self.method,
+            "status": self.status.value,
+            "success": self.success,
+            "message": self.message,
+            "objective_rad2": self.objective,
+            "configurations_rad": self.configurations.tolist(),
+            "joint_names": list(self.problem.joint_names),
+            "position_errors_m": self.position_errors.tolist(),
+            "orientation_errors_rad": self.orientation_errors.tolist(),
+            "limit_violation_rad": self.limit_violation,
+            "iterations": self.iterations,
+            "wall_time_s": self.wall_time,
+            "frame": self.problem.frame,
+            "targets": [t.to_dict() for t in self.problem.targets],
+        }
+
+
+def _target_errors(problem: CyclicIKProblem, q: Array, planar: bool) -> tuple[Array, Array]:
+    """Position [m] and orientation [rad] errors per target, by Pinocchio.
+
+    ``planar``: the chain's tip against the targets' points (orientation zero);
+    otherwise every target's own errors (``framesForwardKinematics``).
+    """
+    if planar:
+        return problem.residuals(q), np.zeros(problem.n_targets)
+    return problem.errors(q)
+
 
 def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
     """Status a claimed success deserves, with the reason, or None if it holds.
 
-    Recomputes the residuals (Pinocchio), E and the limit violation from the
+    Recomputes the target errors (Pinocchio), E and the limit violation from the
     configurations; see the Notes of :class:`IKPathResult`.
     """
     problem = result.problem
@@ -311,7 +384,8 @@ def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
     figures: dict[str, Array | float] = {
         "configurations": q,
         "objective": result.objective,
-        "residuals": result.residuals,
+        "position_errors": result.position_errors,
+        "orientation_errors": result.orientation_errors,
         "limit_violation": result.limit_violation,
         "multipliers": result.multipliers,
     }
@@ -319,36 +393,52 @@ def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
     if nonfinite:
         return SolveStatus.NON_FINITE, f"non-finite values in {', '.join(nonfinite)}"
     want = (problem.n_targets, problem.n_joints)
-    if q.shape != want or result.residuals.shape != (want[0],):
+    shapes = (result.position_errors.shape, result.orientation_errors.shape)
+    if q.shape != want or shapes != ((want[0],), (want[0],)):
         return SolveStatus.CONSTRAINT_VIOLATION, (
-            f"configurations of shape {q.shape} and residuals of shape "
-            f"{result.residuals.shape}, expected {want} and ({want[0]},)"
+            f"configurations of shape {q.shape} and target errors of shapes "
+            f"{shapes[0]}, {shapes[1]}, expected {want} and ({want[0]},)"
         )
-    residuals = problem.residuals(q)
+    tol = result.constraint_tol
+    pos, ang = _target_errors(problem, q, tol is not None)
     energy = problem.objective(q)
     excess = problem.limit_violation(q)
-    chain = problem.planar_chain
-    # Rounding of the tip position [m]: Pinocchio vs the solver's own kinematics
-    # (the same Pinocchio calls for AL, CasADi's closed form for IPOPT) differ by
-    # a few ulps of the largest coordinate; 1e-12 per metre of reach covers it.
-    rounding = 1e-12 * (1.0 + float(np.sum(chain.lengths)) + float(np.max(np.abs(chain.base))))
-    allowed = math.sqrt(2.0) * result.constraint_tol + rounding  # |c_j|_2 <= sqrt(2) |c|_inf
-    worst = int(np.argmax(residuals))
     wrong = []
-    if residuals[worst] > allowed:
-        wrong.append(
-            f"target {worst} missed by {residuals[worst]:.3g} m > {allowed:.3g} m "
-            f"(sqrt(2) * constraint_tol {result.constraint_tol:.3g} m + rounding)"
-        )
+    if tol is not None:
+        chain = problem.planar_chain
+        # Rounding of the tip position [m]: Pinocchio vs the solver's own kinematics
+        # (the same Pinocchio calls for AL, CasADi's closed form for IPOPT) differ by
+        # a few ulps of the largest coordinate; 1e-12 per metre of reach covers it.
+        scale = 1.0 + float(np.sum(chain.lengths)) + float(np.max(np.abs(chain.base)))
+        allowed = math.sqrt(2.0) * tol + 1e-12 * scale  # |c_j|_2 <= sqrt(2) |c|_inf
+        worst = int(np.argmax(pos))
+        if pos[worst] > allowed:
+            wrong.append(
+                f"target {worst} missed by {pos[worst]:.3g} m > {allowed:.3g} m "
+                f"(sqrt(2) * constraint_tol {tol:.3g} m + rounding)"
+            )
+    else:
+        pt = np.array([t.position_tol for t in problem.targets])
+        ot = np.array([t.orientation_tol for t in problem.targets])
+        miss = np.maximum(pos / pt, ang / ot)
+        worst = int(np.argmax(miss))
+        if miss[worst] > 1.0:
+            wrong.append(
+                f"target {worst} missed: position error {pos[worst]:.3g} m (tol "
+                f"{pt[worst]:.3g}), orientation error {ang[worst]:.3g} rad (tol {ot[worst]:.3g})"
+            )
     if excess > 0.0:
         wrong.append(f"joint limits violated by {excess:.3g} rad")
     # Reported figures against the recomputed ones: build_result computes them
     # with these very calls, so only a changed field makes them differ; 1e-9
-    # (in [rad^2] relative, in [m]) is the tolerance of the result files.
+    # (in [rad^2] relative, in [m] and [rad]) is the tolerance of the result files.
     if not abs(result.objective - energy) <= 1e-9 * max(1.0, abs(energy)):
         wrong.append(f"reported E = {result.objective:.12g} rad^2, recomputed {energy:.12g}")
-    if not np.all(np.abs(result.residuals - residuals) <= 1e-9):
-        wrong.append("reported residuals differ from the recomputed ones by more than 1e-9 m")
+    if not (
+        np.all(np.abs(result.position_errors - pos) <= 1e-9)
+        and np.all(np.abs(result.orientation_errors - ang) <= 1e-9)
+    ):
+        wrong.append("reported target errors differ from the recomputed ones by more than 1e-9")
     if not abs(result.limit_violation - excess) <= 1e-9:
         wrong.append(
             f"reported limit violation {result.limit_violation:.3g} rad, recomputed {excess:.3g}"
@@ -383,194 +473,52 @@ def build_result(
     x: Array,
     multipliers: Array,
     iterations: int,
-    inner_iterations: int,
     wall_time: float,
     message: str,
     start: Array,
-    constraint_tol: float,
+    inner_iterations: int = 0,
+    constraint_tol: float | None = None,
     history: tuple[OuterIterate, ...] = (),
 ) -> IKPathResult:
-    """Assemble an :class:`IKPathResult`, recomputing E, residuals and limit violation.
+    """Assemble an :class:`IKPathResult`, recomputing E, target errors and limit violation.
 
-    The residuals come from Pinocchio through the problem, independently of the
-    solver's own constraint evaluation (CasADi for IPOPT). ``constraint_tol``
-    [m] is the solver's largest accepted ``|c_i|``; a claimed success is
-    re-checked against it and downgraded if it fails (:func:`checked`).
+    The target errors come from Pinocchio through the problem, independently of
+    the solver's own constraint evaluation (CasADi for IPOPT). ``constraint_tol``
+    [m] is the planar methods' largest accepted ``|c_i|`` (None: the targets'
+    own tolerances decide); a claimed success is re-checked against it and
+    downgraded if it fails (:func:`checked`). A failed solve without
+    ``constraint_tol`` names its blocking target (the largest relative miss)
+    in the message.
     """
     q = problem.as_configurations(x)
-    result = IKPathResult(
-        problem=problem,
-        method=method,
-        status=status,
-        configurations=q,
-        objective=problem.objective(q),
-        residuals=problem.residuals(q),
-        limit_violation=problem.limit_violation(q),
-        multipliers=np.asarray(multipliers, dtype=float).reshape(problem.n_targets, 2),
-        iterations=int(iterations),
-        inner_iterations=int(inner_iterations),
-        wall_time=float(wall_time),
-        message=message,
-        start=problem.as_configurations(start, name="start"),
-        constraint_tol=float(constraint_tol),
-        history=history,
-    )
-    return checked(result)
-
-
-@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class SpatialIKResult:
-    """Result of one spatial IK-path solve.
-
-    Attributes
-    ----------
-    problem : CyclicIKProblem
-        The problem.
-    method : str
-        ``"al"`` or ``"ipopt"``.
-    status : SolveStatus
-        Outcome; a success means every target is met within its tolerances
-        (checked with ``framesForwardKinematics``) and the limits hold.
-    configurations : ndarray, shape (s, n)
-        Active joint angles in [rad].
-    objective : float
-        ``E`` in [rad^2].
-    position_errors, orientation_errors : ndarray, shape (s,)
-        Per target, in [m] and [rad].
-    limit_violation : float
-        In [rad].
-    multipliers : ndarray, shape (s, m)
-        Constraint multipliers (``grad E = J^T lambda``).
-    iterations : int
-        Outer (AL) or IPOPT iterations.
-    wall_time : float
-        In [s].
-    message : str
-        Solver message (names the blocking target on failure).
-    start : ndarray, shape (s, n)
-        Start in [rad].
-    history : tuple of OuterIterate
-        Per-iteration records.
-    """
-
-    problem: CyclicIKProblem
-    method: str
-    status: SolveStatus
-    configurations: Array
-    objective: float
-    position_errors: Array
-    orientation_errors: Array
-    limit_violation: float
-    multipliers: Array
-    iterations: int
-    wall_time: float
-    message: str
-    start: Array
-    history: tuple[OuterIterate, ...] = ()
-
-    @property
-    def success(self) -> bool:
-        """Whether the status is a success."""
-        return self.status.success
-
-    def leg_motion(self) -> Array:
-        """Joint motion per leg ``q_{j+1} - q_j`` (closing leg last), shape (s, n), [rad]."""
-        q = self.configurations
-        return np.roll(q, -1, axis=0) - q
-
-    def frame_path(self, samples_per_leg: int = 20) -> Array:
-        """Frame positions [m] along straight joint-space legs, shape (s * k + 1, 3)."""
-        q = self.configurations
-        closed = np.vstack([q, q[:1]])
-        data = self.problem.create_data()
-        pts = []
-        for j in range(q.shape[0]):
-            for t in np.linspace(0.0, 1.0, samples_per_leg, endpoint=False):
-                theta = (1 - t) * closed[j] + t * closed[j + 1]
-                pts.append(self.problem.placement(theta, data).translation)
-        pts.append(self.problem.placement(closed[-1], data).translation)
-        return np.array(pts)
-
-    def summary(self) -> str:
-        """Return a few human-readable lines."""
-        return "\n".join(
-            [
-                f"method {self.method}: {self.status.value} ({self.message})",
-                f"E = {self.objective:.10g} rad^2; largest position error "
-                f"{np.max(self.position_errors):.3g} m, orientation error "
-                f"{np.max(self.orientation_errors):.3g} rad; limit violation "
-                f"{self.limit_violation:.3g} rad",
-                f"{self.iterations} iterations, {self.wall_time * 1e3:.1f} ms",
-            ]
+    pos, ang = _target_errors(problem, q, constraint_tol is not None)
+    result = checked(
+        IKPathResult(
+            problem=problem,
+            method=method,
+            status=status,
+            configurations=q,
+            objective=problem.objective(q),
+            position_errors=pos,
+            orientation_errors=ang,
+            limit_violation=problem.limit_violation(q),
+            multipliers=np.asarray(multipliers, dtype=float).reshape(problem.n_targets, -1),
+            iterations=int(iterations),
+            inner_iterations=int(inner_iterations),
+            wall_time=float(wall_time),
+            message=message,
+            start=problem.as_configurations(start, name="start"),
+            constraint_tol=None if constraint_tol is None else float(constraint_tol),
+            history=history,
         )
-
-    def to_dict(self) -> dict[str, object]:
-        """JSON-ready summary of the result."""
-        return {
-            "method": self.method,
-            "status": self.status.value,
-            "success": self.success,
-            "message": self.message,
-            "objective_rad2": self.objective,
-            "configurations_rad": self.configurations.tolist(),
-            "joint_names": list(self.problem.joint_names),
-            "position_errors_m": self.position_errors.tolist(),
-            "orientation_errors_rad": self.orientation_errors.tolist(),
-            "limit_violation_rad": self.limit_violation,
-            "iterations": self.iterations,
-            "wall_time_s": self.wall_time,
-            "frame": self.problem.frame,
-            "targets": [t.to_dict() for t in self.problem.targets],
-        }
-
-
-def build_spatial_result(
-    problem: CyclicIKProblem,
-    *,
-    method: str,
-    status: SolveStatus,
-    x: Array,
-    multipliers: Array,
-    iterations: int,
-    wall_time: float,
-    message: str,
-    start: Array,
-    history: tuple[OuterIterate, ...] = (),
-) -> SpatialIKResult:
-    """Assemble a result; a claimed success is re-checked by ``framesForwardKinematics``.
-
-    Success needs every target within its tolerances and the limits to hold
-    exactly (else the status becomes ``CONSTRAINT_VIOLATION``). On failure the
-    message names the target that blocks the path (the largest relative miss).
-    """
-    q = problem.as_configurations(x)
-    pos, ang = problem.errors(q)
-    excess = problem.limit_violation(q)
-    pt = np.array([t.position_tol for t in problem.targets])
-    ot = np.array([t.orientation_tol for t in problem.targets])
-    miss = np.maximum(pos / pt, ang / ot)
-    worst = int(np.argmax(miss))
-    if status.success and (miss[worst] > 1.0 or excess > 0.0):
-        status = SolveStatus.CONSTRAINT_VIOLATION
-        message = f"{message}; re-check failed"
-    if not status.success:
-        message = (
-            f"{message}; blocking target {worst}: position error {pos[worst]:.3g} m "
+    )
+    if constraint_tol is None and not result.success:
+        pt = np.array([t.position_tol for t in problem.targets])
+        ot = np.array([t.orientation_tol for t in problem.targets])
+        worst = int(np.argmax(np.maximum(pos / pt, ang / ot)))
+        blocking = (
+            f"; blocking target {worst}: position error {pos[worst]:.3g} m "
             f"(tol {pt[worst]:.3g}), orientation error {ang[worst]:.3g} rad (tol {ot[worst]:.3g})"
         )
-    return SpatialIKResult(
-        problem=problem,
-        method=method,
-        status=status,
-        configurations=q.copy(),
-        objective=problem.objective(q),
-        position_errors=pos,
-        orientation_errors=ang,
-        limit_violation=excess,
-        multipliers=np.asarray(multipliers, float).reshape(problem.n_targets, -1),
-        iterations=int(iterations),
-        wall_time=float(wall_time),
-        message=message,
-        start=problem.as_configurations(start, name="start").copy(),
-        history=history,
-    )
+        result = replace(result, message=result.message + blocking)
+    return result

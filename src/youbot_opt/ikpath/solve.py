@@ -27,8 +27,8 @@ from youbot_opt.ikpath.methods.al import (
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_ipopt, solve_spatial_ipopt
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
-from youbot_opt.ikpath.reachability.spatial import require_spatial_reachable
-from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.reachability.spatial import require_reachable_3d
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 
 __all__ = ["Method", "METHODS", "solve", "check_targets"]
@@ -90,7 +90,7 @@ def solve(
     options: ALOptions | IpoptOptions | None = None,
     check_reachability: bool | None = None,
     planar: bool | None = None,
-) -> IKPathResult | SpatialIKResult:
+) -> IKPathResult:
     """Solve the cyclic IK-path problem once, with the defaults of its robot's kind.
 
     A problem with a planar chain (:attr:`CyclicIKProblem.chain`: a PlanarChain,
@@ -101,7 +101,7 @@ def solve(
     (or ``planar=False``) by the general ones: the AL with
     :data:`~youbot_opt.ikpath.methods.al.SPATIAL_AL_OPTIONS` or IPOPT on the
     frame's symbolic kinematics, reachability not decided unless asked, a
-    result with position and orientation errors (:class:`SpatialIKResult`).
+    result with position and orientation errors (:class:`IKPathResult`).
 
     Parameters
     ----------
@@ -124,7 +124,7 @@ def solve(
 
     Returns
     -------
-    IKPathResult or SpatialIKResult
+    IKPathResult
         A failed solve is a status; call ``raise_for_status()`` to raise
         (planar), or read ``status`` and ``message`` (which names the blocking
         target).
@@ -148,7 +148,7 @@ def solve(
             return solve_augmented_lagrangian(problem, x0, options)  # type: ignore[arg-type]
         return solve_ipopt(problem, x0, options)  # type: ignore[arg-type]
     if check_reachability:
-        require_spatial_reachable(problem)
+        require_reachable_3d(problem)
     if method == "ipopt":
         if options is None:
             return solve_spatial_ipopt(problem, x0)
@@ -156,4 +156,4 @@ def solve(
     opts = SPATIAL_AL_OPTIONS if options is None else options
     start = problem.check_start(x0)
     run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
-    return build_spatial_result(problem, **run.result_fields(start))
+    return build_result(problem, **run.result_fields(start), inner_iterations=run.inner_iterations)

@@ -2,11 +2,11 @@
 
 :func:`run_spatial_multistart` solves (:func:`~youbot_opt.ikpath.solve.solve`
 with the general methods) from
-:func:`~youbot_opt.ikpath.starts.make_spatial_starts` under one
+:func:`~youbot_opt.ikpath.starts.make_starts_3d` under one
 :class:`~youbot_opt.sweeps.options.SweepOptions` (process pool or Dask, crash
 retry, progress, shards), saving every start in a
 :class:`~youbot_opt.sweeps.store.SweepStore` (kind ``"spatial_ikpath_multistart"``,
-payloads in the format of :mod:`.spatial_io`) that a rerun resumes, and
+payloads in the format of :mod:`.io`) that a rerun resumes, and
 clusters the distinct minima.
 """
 
@@ -25,24 +25,24 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.io import (
+    encode_result,
+    load_result,
+    problem_spec_3d,
+)
 from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
 from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import check_reachability
-from youbot_opt.ikpath.result import SpatialIKResult, build_spatial_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.solve import check_method, solve
-from youbot_opt.ikpath.spatial_io import (
-    encode_spatial_result,
-    load_spatial_result,
-    spatial_problem_spec,
-)
 from youbot_opt.ikpath.starts import (
-    SPATIAL_START_KINDS,
+    START_KINDS_3D,
     PlanarStarts,
-    SpatialStarts,
+    Starts3D,
     check_start_request,
-    make_spatial_starts,
+    make_starts_3d,
 )
 from youbot_opt.ikpath.stored import StartTally
 from youbot_opt.ikpath.sweep import (
@@ -73,7 +73,7 @@ __all__ = [
 SPATIAL_SWEEP_KIND = "spatial_ikpath_multistart"
 """``kind`` of the sweep store of spatial multistarts (in its ``manifest.json``)."""
 
-_PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_spatial_result (".json" names the records)
+_PAYLOAD_SUFFIX = ".spatial"  # JSON of encode_result (".json" names the records)
 
 
 # -- multistart -------------------------------------------------------------------------------
@@ -83,7 +83,7 @@ class SpatialMultistart:
 
     Attributes
     ----------
-    results : sequence of SpatialIKResult
+    results : sequence of IKPathResult
         In start order (``crashed`` for a start that failed every attempt): a
         tuple, or with ``keep_results=False`` a
         :class:`~youbot_opt.ikpath.stored.StoredResults` holding the minima's
@@ -101,7 +101,7 @@ class SpatialMultistart:
     seed : int
         Seed of the starts.
     start_kind : str
-        How the starts were drawn (:data:`~youbot_opt.ikpath.starts.SPATIAL_START_KINDS`).
+        How the starts were drawn (:data:`~youbot_opt.ikpath.starts.START_KINDS_3D`).
     attempts : sequence of int
         Attempts per start, earlier runs on the same output included.
     resumed : int
@@ -113,7 +113,7 @@ class SpatialMultistart:
         gathered in one pass at the end of the run; ``None`` otherwise.
     """
 
-    results: Sequence[SpatialIKResult]
+    results: Sequence[IKPathResult]
     minima: tuple[Sequence[int], ...]
     wall_time: float
     workers: int
@@ -126,7 +126,7 @@ class SpatialMultistart:
     tally: StartTally | None = None
 
     @property
-    def best(self) -> SpatialIKResult:
+    def best(self) -> IKPathResult:
         """The best successful result, else the result closest to meeting the targets."""
         return self.results[self.best_index]
 
@@ -175,11 +175,11 @@ def open_spatial_store(
 ) -> SweepStore:
     """Open (or create) the output directory of one spatial multistart.
 
-    The manifest holds the problem (:func:`~youbot_opt.ikpath.spatial_io.spatial_problem_spec`:
+    The manifest holds the problem (:func:`~youbot_opt.ikpath.io.problem_spec_3d`:
     robot fingerprint, frame, targets, limits, weights), method, options,
     ``n_starts``, ``seed`` and start kind; reopening with any of them changed
     raises. Stored starts are reloaded with the same forward-kinematics
-    re-check as :func:`~youbot_opt.ikpath.spatial_io.load_spatial_result`.
+    re-check as :func:`~youbot_opt.ikpath.io.load_result`.
 
     Raises
     ------
@@ -190,20 +190,20 @@ def open_spatial_store(
     """
     if options is None and method == "al":
         options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
-    spec = spatial_problem_spec(problem)
+    spec = problem_spec_3d(problem)
     params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
-    load = functools.partial(load_spatial_result, robot=problem.model)
+    load = functools.partial(load_result, robot=problem.model)
     return starts_store(out, SPATIAL_STARTS, params, load, clean)
 
 
-def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> SpatialIKResult:
+def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
     """Worker task: one start with the AL (exceptions propagate: they are retried)."""
     result = solve(problem, method="al", x0=x0, options=options, planar=False)
-    assert isinstance(result, SpatialIKResult)
+    assert isinstance(result, IKPathResult)
     return result
 
 
-def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> SpatialIKResult:
+def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> IKPathResult:
     """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
     return handle.get().solve(x0)
 
@@ -214,11 +214,11 @@ def _crashed(
     options: ALOptions | IpoptOptions | None,
     x0: Array,
     message: str,
-) -> SpatialIKResult:
-    return crashed_result(build_spatial_result, problem, method, x0, message)
+) -> IKPathResult:
+    return crashed_result(build_result, problem, method, x0, message)
 
 
-def _figures(result: SpatialIKResult) -> dict[str, Any]:
+def _figures(result: IKPathResult) -> dict[str, Any]:
     """Figures of a start's record summary: its largest target errors in [m] and [rad]."""
     return {
         "max_position_error": float(np.max(result.position_errors)),
@@ -226,7 +226,7 @@ def _figures(result: SpatialIKResult) -> dict[str, Any]:
     }
 
 
-SPATIAL_STARTS: StartSolvers[CyclicIKProblem, SpatialIKResult] = StartSolvers(
+SPATIAL_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     solve_al=_solve_al,
     ipopt_solver=SpatialIpoptSolver,
     solve_ipopt=_solve_ipopt,
@@ -234,7 +234,7 @@ SPATIAL_STARTS: StartSolvers[CyclicIKProblem, SpatialIKResult] = StartSolvers(
     figures=_figures,
     store_kind=SPATIAL_SWEEP_KIND,
     suffix=_PAYLOAD_SUFFIX,
-    encode=encode_spatial_result,
+    encode=encode_result,
 )
 """How :func:`~youbot_opt.ikpath.sweep.solve_starts` solves the starts of a spatial problem."""
 
@@ -252,7 +252,7 @@ def run_spatial_multistart(
     q_tol: float = 1e-3,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> SpatialMultistart | ShardReport:
-    """Solve from :func:`make_spatial_starts` and cluster the distinct minima.
+    """Solve from :func:`make_starts_3d` and cluster the distinct minima.
 
     Parameters
     ----------
@@ -306,7 +306,7 @@ def run_spatial_multistart(
     check_method(method, options)
     if starts is None:
         starts = "feasible" if problem.chain is not None else "mixed"
-    check_start_request(n_starts, starts, (*SPATIAL_START_KINDS, "feasible"))
+    check_start_request(n_starts, starts, (*START_KINDS_3D, "feasible"))
     if starts == "feasible" and problem.chain is None:
         raise ParameterError(
             f"start kind 'feasible' needs a planar robot; {problem.robot_model.name!r} is not "
@@ -324,16 +324,16 @@ def run_spatial_multistart(
         sweep = replace(sweep, workers=int(workers))
     elif sweep.workers is None and sweep.executor is None:
         sweep = replace(sweep, workers=1)
-    x0s: Array | SpatialStarts | PlanarStarts
+    x0s: Array | Starts3D | PlanarStarts
     if starts == "feasible":
         verdicts = check_reachability(problem)
         x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=verdicts)
         if sweep.keep_results:
             x0s = np.array([x0s[k] for k in range(len(x0s))])
     elif sweep.keep_results:
-        x0s = make_spatial_starts(problem, n_starts, seed, kind=starts)
+        x0s = make_starts_3d(problem, n_starts, seed, kind=starts)
     else:  # each start drawn as its task is made
-        x0s = SpatialStarts(problem, n_starts, seed, kind=starts)
+        x0s = Starts3D(problem, n_starts, seed, kind=starts)
     executor, n_workers = resolve_executor(sweep)
     sweep = replace(sweep, executor=executor, workers=n_workers)
     store = None
@@ -350,7 +350,7 @@ def run_spatial_multistart(
         )
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
 
-    def distance_of(a: SpatialIKResult, b: SpatialIKResult) -> float:
+    def distance_of(a: IKPathResult, b: IKPathResult) -> float:
         diff = a.configurations - b.configurations
         shift = np.where(
             problem.continuous, 2 * np.pi * np.round(np.median(diff, axis=0) / (2 * np.pi)), 0.0
@@ -358,7 +358,7 @@ def run_spatial_multistart(
         return float(np.max(np.abs(diff - shift)))
 
     tally: StartTally | None = None
-    results: Sequence[SpatialIKResult]
+    results: Sequence[IKPathResult]
     minima: tuple[Sequence[int], ...]
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False

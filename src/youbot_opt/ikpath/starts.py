@@ -5,7 +5,7 @@ then ``"feasible"`` (random exact IK solutions within the limits, the default)
 or ``"uniform"`` starts (:func:`make_starts`; docs/design.md says why feasible
 is the default). Another robot's start 0 is the greedy DLS path, then
 ``"coherent"`` (greedy from a random in-limit configuration) and/or
-``"random"`` starts (:func:`make_spatial_starts`). Start ``k`` does not depend
+``"random"`` starts (:func:`make_starts_3d`). Start ``k`` does not depend
 on how many starts are drawn.
 
 >>> x0 = make_starts(problem, n_starts=20, seed=0)  # (20, n s)  # doctest: +SKIP
@@ -30,11 +30,11 @@ __all__ = [
     "check_start_request",
     "CHECKPOINT",
     "IndexedStarts",
-    "make_spatial_starts",
+    "make_starts_3d",
     "make_starts",
     "PlanarStarts",
-    "SPATIAL_START_KINDS",
-    "SpatialStarts",
+    "START_KINDS_3D",
+    "Starts3D",
     "START_KINDS",
     "START_RNGS",
 ]
@@ -117,7 +117,7 @@ class IndexedStarts(LazySequence[Array]):
     """Starts drawn when asked for: ``starts[k]`` (negative ``k`` and slices as a list's).
 
     A subclass sets ``self._n`` and draws start ``j`` (``0 <= j < n``) in
-    :meth:`draw`; planar (:class:`PlanarStarts`) and spatial starts share it.
+    :meth:`draw`; planar (:class:`PlanarStarts`) and 3-D (:class:`Starts3D`) starts share it.
     """
 
     _n: int
@@ -282,11 +282,11 @@ def _best_windings(col: Array) -> Array:
     return col[0] + np.r_[0.0, np.cumsum(steps[:-1])]
 
 
-SPATIAL_START_KINDS: tuple[str, ...] = ("mixed", "coherent", "random")
+START_KINDS_3D: tuple[str, ...] = ("mixed", "coherent", "random")
 """Start kinds: ``mixed`` alternates coherent (odd) and random (even) after the greedy start."""
 
 
-def make_spatial_starts(
+def make_starts_3d(
     problem: CyclicIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
 ) -> Array:
     """Draw starts (n_starts, n s): the greedy DLS path, then coherent and/or random ones.
@@ -314,7 +314,7 @@ def make_spatial_starts(
         If ``n_starts < 1`` or ``kind`` is unknown
         (:func:`~youbot_opt.ikpath.starts.check_start_request`).
     """
-    n = check_start_request(n_starts, kind, SPATIAL_START_KINDS)
+    n = check_start_request(n_starts, kind, START_KINDS_3D)
     rng = np.random.default_rng(seed)
     starts = np.empty((n, problem.n_variables))
     starts[0] = greedy_path(problem)[0].ravel()
@@ -340,11 +340,11 @@ def _skip(problem: CyclicIKProblem, kind: str, k: int, rng: np.random.Generator)
         random_theta(problem, rng)
 
 
-class SpatialStarts(IndexedStarts):
-    """The starts of :func:`make_spatial_starts`, each drawn when asked for.
+class Starts3D(IndexedStarts):
+    """The starts of :func:`make_starts_3d`, each drawn when asked for.
 
-    ``SpatialStarts(problem, n, seed, kind=kind)[k]`` equals
-    ``make_spatial_starts(problem, n, seed, kind=kind)[k]``. The draws share one
+    ``Starts3D(problem, n, seed, kind=kind)[k]`` equals
+    ``make_starts_3d(problem, n, seed, kind=kind)[k]``. The draws share one
     generator, so its state is kept every :data:`CHECKPOINT` starts and after
     the last start drawn: asking in increasing order costs one draw per start,
     any other start at most ``CHECKPOINT`` cheap skips (no greedy path is
@@ -354,7 +354,7 @@ class SpatialStarts(IndexedStarts):
     def __init__(
         self, problem: CyclicIKProblem, n_starts: int, seed: int, *, kind: str = "mixed"
     ) -> None:
-        self._n = check_start_request(n_starts, kind, SPATIAL_START_KINDS)
+        self._n = check_start_request(n_starts, kind, START_KINDS_3D)
         self._problem, self._kind = problem, kind
         rng = np.random.default_rng(seed)
         self._states: dict[int, Mapping[str, Any]] = {1: rng.bit_generator.state}
@@ -385,4 +385,4 @@ class SpatialStarts(IndexedStarts):
 
 
 CHECKPOINT = 1024
-"""Starts between two kept generator states of :class:`SpatialStarts`."""
+"""Starts between two kept generator states of :class:`Starts3D`."""

@@ -56,7 +56,7 @@ class StartSummary(Generic[R]):
     message : str or None
         Why a start that did not succeed failed (``None`` if the journal line
         predates the field, or on success).
-    result : IKPathResult or SpatialIKResult or None
+    result : IKPathResult or None
         The full result, for the kept starts only (best and distinct minima).
     """
 

@@ -28,11 +28,11 @@ import numpy as np
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.ikpath.io import encode_ikpath_result, load_ikpath_result, problem_spec
+from youbot_opt.ikpath.io import encode_result, load_result, problem_spec
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult, build_result
+from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -80,8 +80,8 @@ PAYLOAD_SUFFIX = ".ikpath"
 
 
 ProblemT = TypeVar("ProblemT")
-ResultT = TypeVar("ResultT", IKPathResult, SpatialIKResult)
-_Outcome = IKPathResult | SpatialIKResult | StartSummary[Any]
+ResultT = TypeVar("ResultT", bound=IKPathResult)
+_Outcome = IKPathResult | StartSummary[Any]
 
 
 def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
@@ -115,8 +115,7 @@ def crashed_result(
     Parameters
     ----------
     build : callable
-        The problem's result constructor (:func:`~youbot_opt.ikpath.result.build_result`
-        or :func:`~youbot_opt.ikpath.spatial.build_spatial_result`).
+        The result constructor (:func:`~youbot_opt.ikpath.result.build_result`).
     problem : CyclicIKProblem or CyclicIKProblem
         The problem.
     method : str
@@ -157,7 +156,7 @@ def _crashed_result(
 
 def _figures(result: IKPathResult) -> dict[str, Any]:
     """Figures of a start's record summary: its largest residual in [m]."""
-    value = result.max_residual()
+    value = result.max_position_error()
     return {"max_residual": float(value) if math.isfinite(value) else None}
 
 
@@ -206,7 +205,7 @@ PLANAR_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     figures=_figures,
     store_kind=SWEEP_KIND,
     suffix=PAYLOAD_SUFFIX,
-    encode=encode_ikpath_result,
+    encode=encode_result,
 )
 """How :func:`solve_starts` solves the starts of a planar :class:`CyclicIKProblem`."""
 
@@ -353,7 +352,7 @@ def open_store(
 
     The store's kind is ``"ikpath_multistart"``; each start's payload is
     ``items/<hh>/<key>.ikpath``, the JSON of
-    :func:`youbot_opt.ikpath.io.encode_ikpath_result`.
+    :func:`youbot_opt.ikpath.io.encode_result`.
 
     Parameters
     ----------
@@ -394,7 +393,7 @@ def open_store(
     )
     if rng != "legacy":
         params["start_rng"] = rng
-    return starts_store(out, PLANAR_STARTS, params, load_ikpath_result, clean)
+    return starts_store(out, PLANAR_STARTS, params, load_result, clean)
 
 
 def starts_params(
@@ -494,7 +493,7 @@ def _load(store: SweepStore, key: str) -> Any:
     return result
 
 
-def status_counts(results: Iterable[IKPathResult | SpatialIKResult]) -> dict[str, int]:
+def status_counts(results: Iterable[IKPathResult]) -> dict[str, int]:
     """Count the results per status value (``{"solved": 12, "crashed": 1, ...}``)."""
     counts: dict[str, int] = {}
     for r in results:
@@ -692,7 +691,7 @@ def stream_starts(
     Parameters
     ----------
     starts : sequence of ndarray
-        Start ``i`` in [rad], drawn when asked for (``PlanarStarts``, ``SpatialStarts``).
+        Start ``i`` in [rad], drawn when asked for (``PlanarStarts``, ``Starts3D``).
     store : SweepStore
         The output folder (required: the results not kept stay there).
     distance : callable ``(a, b) -> float``

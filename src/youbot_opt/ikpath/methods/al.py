@@ -221,7 +221,7 @@ class ALRun(NamedTuple):
         """Return the keywords the result builders share for this run from ``start`` [rad].
 
         Both :func:`~youbot_opt.ikpath.result.build_result` and the spatial
-        ``build_spatial_result`` take them (``method = "al"``).
+        ``build_result`` take them (``method = "al"``).
         """
         return ALResultFields(
             method="al",

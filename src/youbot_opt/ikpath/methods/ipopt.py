@@ -28,9 +28,7 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import (
     IKPathResult,
     OuterIterate,
-    SpatialIKResult,
     build_result,
-    build_spatial_result,
 )
 from youbot_opt.nlp.best_iterate import NlpsolIterationCallback
 from youbot_opt.nlp.ipopt import IpoptOptions, IpoptValue, single_threaded_blas
@@ -435,7 +433,7 @@ class SpatialIpoptSolver:
         single_threaded_blas()
         self._solver = ca.nlpsol("spatial_ikpath", "ipopt", {"x": x, "f": energy, "g": g}, opts)
 
-    def solve(self, x0: ArrayLike | None = None) -> SpatialIKResult:
+    def solve(self, x0: ArrayLike | None = None) -> IKPathResult:
         """Solve from ``x0`` (default: zero clipped into the limits)."""
         prob = self.problem
         start = prob.check_start(x0)
@@ -457,7 +455,7 @@ class SpatialIpoptSolver:
         for j, rows in enumerate(self._rows):
             multipliers[j, rows] = lam_g[at : at + len(rows)]
             at += len(rows)
-        return build_spatial_result(
+        return build_result(
             prob,
             method="ipopt",
             status=status,
@@ -473,7 +471,7 @@ class SpatialIpoptSolver:
 _CACHE: dict[int, tuple[CyclicIKProblem, SpatialIpoptSolver]] = {}
 
 
-def solve_spatial_ipopt(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> SpatialIKResult:
+def solve_spatial_ipopt(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> IKPathResult:
     """Solve once by IPOPT (the solver is built once per problem object and reused)."""
     hit = _CACHE.get(id(problem))
     if hit is None or hit[0] is not problem:

@@ -1,14 +1,14 @@
 """Reachability of spatial targets: witness, certificate, or undecided (issue 14, item 3).
 
 Each target of a :class:`~youbot_opt.ikpath.problem.CyclicIKProblem` gets a
-:class:`SpatialVerdict`: reachable (joint values within the limits that meet it,
+:class:`ReachVerdict3D`: reachable (joint values within the limits that meet it,
 checked by Pinocchio), unreachable with a certificate (beyond the reach sphere,
 or every box of a bisected joint box excluded by interval forward kinematics,
 :mod:`youbot_opt.ikpath.reachability.interval`), or undecided when the budget runs out.
 Position, pose and approach targets are all decided (docs/ikpath.md, "Interval
 reachability").
 
->>> verdicts = check_spatial_reachability(problem, interval_seconds=1.0)
+>>> verdicts = check_reachability_3d(problem, interval_seconds=1.0)
 """
 
 from __future__ import annotations
@@ -42,12 +42,12 @@ __all__ = [
     "DEFAULT_INTERVAL_BOXES",
     "DEFAULT_INTERVAL_SECONDS",
     "IntervalOutcome",
-    "SpatialReach",
-    "SpatialVerdict",
-    "check_spatial_reachability",
+    "Reachability3D",
+    "ReachVerdict3D",
+    "check_reachability_3d",
     "interval_search",
     "joint_box",
-    "require_spatial_reachable",
+    "require_reachable_3d",
 ]
 
 DEFAULT_INTERVAL_SECONDS = 1.0
@@ -63,8 +63,8 @@ _MAX_POLISH = 8  # DLS polishes from promising midpoints per target
 _DECISION_MARGIN = 1e-12  # [1] below the rounding of the trace/cosine thresholds
 
 
-class SpatialReach(Enum):
-    """Verdict on one spatial target."""
+class Reachability3D(Enum):
+    """Verdict on one 3-D target (interval search; planar chains: reachability.planar)."""
 
     REACHABLE = "reachable"
     UNREACHABLE = "unreachable"
@@ -72,14 +72,14 @@ class SpatialReach(Enum):
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class SpatialVerdict:
+class ReachVerdict3D:
     """Reachability of one target, with its witness or certificate.
 
     Attributes
     ----------
     index : int
         Target index (0-based).
-    status : SpatialReach
+    status : Reachability3D
         The verdict.
     witness : ndarray or None
         Joint values [rad] (or [m]) within the limits meeting the target,
@@ -101,7 +101,7 @@ class SpatialVerdict:
     """
 
     index: int
-    status: SpatialReach
+    status: Reachability3D
     witness: Array | None
     distance: float
     reach: float
@@ -116,7 +116,7 @@ class IntervalOutcome(NamedTuple):
 
     Attributes
     ----------
-    status : SpatialReach
+    status : Reachability3D
         UNREACHABLE (every box excluded), REACHABLE (witness) or UNDECIDED (budget).
     witness : ndarray or None
         Joint values within the limits meeting the target (REACHABLE only).
@@ -133,7 +133,7 @@ class IntervalOutcome(NamedTuple):
         Wall time [s].
     """
 
-    status: SpatialReach
+    status: Reachability3D
     witness: Array | None
     boxes: int
     depth: int
@@ -310,7 +310,7 @@ def interval_search(
     last_polish = math.inf
     data = problem.create_data()
 
-    def outcome(status: SpatialReach, witness: Array | None = None) -> IntervalOutcome:
+    def outcome(status: Reachability3D, witness: Array | None = None) -> IntervalOutcome:
         pending = sum(chunk[0].shape[0] for chunk in stack)
         seconds = time.perf_counter() - start
         _log.debug(
@@ -326,7 +326,7 @@ def interval_search(
 
     while stack:
         if boxes >= max_boxes or time.perf_counter() - start >= max_seconds:
-            return outcome(SpatialReach.UNDECIDED)
+            return outcome(Reachability3D.UNDECIDED)
         b_lo, b_hi, b_depth = _pop_batch(stack)
         bounds = chain.placement(b_lo, b_hi)
         rot, pos = bounds.rotation, bounds.translation
@@ -345,16 +345,16 @@ def interval_search(
         best = int(np.argmin(miss))
         mid = 0.5 * (b_lo[best] + b_hi[best])
         if target.met(problem.placement(mid, data)):
-            return outcome(SpatialReach.REACHABLE, mid)
+            return outcome(Reachability3D.REACHABLE, mid)
         if polishes < _MAX_POLISH and miss[best] < 0.5 * last_polish:
             polishes += 1
             last_polish = float(miss[best])
             theta, met = _dls(problem, j, mid, data, restarts=0, max_iterations=100)
             if met:
-                return outcome(SpatialReach.REACHABLE, theta)
+                return outcome(Reachability3D.REACHABLE, theta)
         c_lo, c_hi = bisect_boxes(b_lo, b_hi, scale)
         stack.append((c_lo, c_hi, np.concatenate([b_depth, b_depth]) + 1))
-    return outcome(SpatialReach.UNREACHABLE)
+    return outcome(Reachability3D.UNREACHABLE)
 
 
 def _interval_message(j: int, target: Target, found: IntervalOutcome) -> str:
@@ -370,14 +370,14 @@ def _interval_message(j: int, target: Target, found: IntervalOutcome) -> str:
     )
 
 
-def check_spatial_reachability(
+def check_reachability_3d(
     problem: CyclicIKProblem,
     *,
     tries: int = 20,
     seed: int = 0,
     interval_boxes: int = DEFAULT_INTERVAL_BOXES,
     interval_seconds: float = DEFAULT_INTERVAL_SECONDS,
-) -> tuple[SpatialVerdict, ...]:
+) -> tuple[ReachVerdict3D, ...]:
     """Decide each target: reachable (witness), unreachable (certificate), or undecided.
 
     In order: the reach sphere (:meth:`~CyclicIKProblem.reach_radius`; a
@@ -401,7 +401,7 @@ def check_spatial_reachability(
 
     Returns
     -------
-    tuple of SpatialVerdict
+    tuple of ReachVerdict3D
         One per target, in order.
     """
     tries = check_int(tries, "tries", minimum=1)
@@ -415,15 +415,15 @@ def check_spatial_reachability(
         dist = float(np.linalg.norm(target.position - centre))
 
         def verdict(
-            status: SpatialReach,
+            status: Reachability3D,
             message: str,
             method: str,
             witness: Array | None = None,
             found: IntervalOutcome | None = None,
             j: int = j,
             dist: float = dist,
-        ) -> SpatialVerdict:
-            return SpatialVerdict(
+        ) -> ReachVerdict3D:
+            return ReachVerdict3D(
                 index=j,
                 status=status,
                 witness=None if witness is None else np.array(witness, dtype=float),
@@ -441,11 +441,11 @@ def check_spatial_reachability(
                 f"joint at {centre.tolist()}, beyond the reach sphere of radius {reach:.4g} m "
                 "(sum of link lengths)"
             )
-            out.append(verdict(SpatialReach.UNREACHABLE, message, "reach_sphere"))
+            out.append(verdict(Reachability3D.UNREACHABLE, message, "reach_sphere"))
             continue
         theta, met = _dls(problem, j, np.zeros(problem.n_joints), data)
         if met:
-            out.append(verdict(SpatialReach.REACHABLE, "DLS witness", "dls", theta))
+            out.append(verdict(Reachability3D.REACHABLE, "DLS witness", "dls", theta))
             continue
         found, note = None, ""
         if interval_seconds > 0.0 and interval_boxes > 0:
@@ -455,13 +455,13 @@ def check_spatial_reachability(
                 )
             except ParameterError as err:  # a joint type or travel the search cannot box
                 note = f"; no interval bound: {err}"
-        if found is not None and found.status is SpatialReach.UNREACHABLE:
+        if found is not None and found.status is Reachability3D.UNREACHABLE:
             message = _interval_message(j, target, found)
-            out.append(verdict(SpatialReach.UNREACHABLE, message, "interval", None, found))
+            out.append(verdict(Reachability3D.UNREACHABLE, message, "interval", None, found))
             continue
         if found is not None and found.witness is not None:
             message = "interval-search witness"
-            out.append(verdict(SpatialReach.REACHABLE, message, "interval", found.witness, found))
+            out.append(verdict(Reachability3D.REACHABLE, message, "interval", found.witness, found))
             continue
         if found is not None:
             note = (
@@ -475,19 +475,19 @@ def check_spatial_reachability(
                 witness = theta
                 break
         if witness is not None:
-            out.append(verdict(SpatialReach.REACHABLE, "DLS witness", "dls", witness, found))
+            out.append(verdict(Reachability3D.REACHABLE, "DLS witness", "dls", witness, found))
             continue
         message = f"target {j}: inside the reach sphere but no witness in {tries} DLS tries{note}"
-        out.append(verdict(SpatialReach.UNDECIDED, message, "none", None, found))
+        out.append(verdict(Reachability3D.UNDECIDED, message, "none", None, found))
     return tuple(out)
 
 
-def require_spatial_reachable(
+def require_reachable_3d(
     problem: CyclicIKProblem,
     *,
     interval_boxes: int = DEFAULT_INTERVAL_BOXES,
     interval_seconds: float = DEFAULT_INTERVAL_SECONDS,
-) -> tuple[SpatialVerdict, ...]:
+) -> tuple[ReachVerdict3D, ...]:
     """Verdicts of every target; raise :class:`UnreachableTarget` for a certified one.
 
     Raises
@@ -496,11 +496,11 @@ def require_spatial_reachable(
         Naming the first unreachable target, with its certificate (the verdict
         is attached as ``verdict``).
     """
-    verdicts = check_spatial_reachability(
+    verdicts = check_reachability_3d(
         problem, interval_boxes=interval_boxes, interval_seconds=interval_seconds
     )
     for v in verdicts:
-        if v.status is SpatialReach.UNREACHABLE:
+        if v.status is Reachability3D.UNREACHABLE:
             raise UnreachableTarget(
                 f"unreachable: {v.message}",
                 index=v.index,

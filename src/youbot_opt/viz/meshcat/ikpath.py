@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
+from youbot_opt.ikpath.result import IKPathResult
 
 if TYPE_CHECKING:
     import meshcat
@@ -268,14 +268,12 @@ def _marker(name: str, placement: pin.SE3, shape: Any, rgba: ArrayLike) -> pin.G
     return obj
 
 
-def spatial_replay_robot(
-    result: SpatialIKResult, robot: RobotLike, size: float = 0.05
-) -> ReplayRobot:
+def spatial_replay_robot(result: IKPathResult, robot: RobotLike, size: float = 0.05) -> ReplayRobot:
     """Return the loaded ``robot`` (its visuals) with the targets of ``result`` as markers.
 
     Parameters
     ----------
-    result : SpatialIKResult
+    result : IKPathResult
         The path; its problem's model must be ``robot.model`` (same joints).
     robot : RobotLike
         E.g. ``load_model("ur5")``.
@@ -331,7 +329,7 @@ _TRIAD_RGBA = ((0.9, 0.1, 0.1, 1.0), (0.1, 0.8, 0.1, 1.0), (0.1, 0.2, 0.9, 1.0))
 
 
 def spatial_replay_track(
-    result: SpatialIKResult, segment_time: float = 1.0, samples_per_leg: int = 12
+    result: IKPathResult, segment_time: float = 1.0, samples_per_leg: int = 12
 ) -> tuple[Array, Array]:
     """Return times [s] and Pinocchio configurations (nq) of the replayed cycle.
 
@@ -351,7 +349,7 @@ def spatial_replay_track(
 
 
 def replay_spatial_ikpath(
-    result: SpatialIKResult,
+    result: IKPathResult,
     robot: RobotLike,
     *,
     viewer: meshcat.Visualizer | MeshcatServer | str | None = None,
@@ -374,7 +372,7 @@ def replay_spatial_ikpath(
 
 
 def export_spatial_ikpath_html(
-    result: SpatialIKResult,
+    result: IKPathResult,
     robot: RobotLike,
     path: str | Path,
     *,

@@ -26,7 +26,7 @@ from matplotlib.patches import Patch
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, check_reachability
-from youbot_opt.ikpath.result import IKPathResult, SpatialIKResult
+from youbot_opt.ikpath.result import IKPathResult
 
 __all__ = [
     "plot_arm_path",
@@ -92,7 +92,7 @@ def plot_arm_path(result: IKPathResult, ax: Axes | None = None) -> Figure:
     ax.legend(loc="best", fontsize=8)
     ax.set_title(
         f"{result.method}: E = {result.objective:.6g} rad², max residual "
-        f"{result.max_residual():.1e} m ({result.status.value})"
+        f"{result.max_position_error():.1e} m ({result.status.value})"
     )
     return fig
 
@@ -322,12 +322,12 @@ def save_figures(
     return paths
 
 
-def plot_leg_motion(result: SpatialIKResult, baseline: np.ndarray | None = None) -> Figure:
+def plot_leg_motion(result: IKPathResult, baseline: np.ndarray | None = None) -> Figure:
     """Joint motion per leg of a spatial path: ``|q_{j+1,i} - q_{j,i}|`` stacked by joint.
 
     Parameters
     ----------
-    result : SpatialIKResult
+    result : IKPathResult
         The path (leg ``j`` goes from target ``j`` to ``j + 1``; the last closes the cycle).
     baseline : ndarray, shape (s, n), optional
         Configurations of another path (e.g. the greedy DLS baseline) whose
@@ -353,7 +353,7 @@ def plot_leg_motion(result: SpatialIKResult, baseline: np.ndarray | None = None)
     return fig
 
 
-def plot_spatial_path(result: SpatialIKResult, samples_per_leg: int = 20) -> Figure:
+def plot_spatial_path(result: IKPathResult, samples_per_leg: int = 20) -> Figure:
     """Draw the frame's path (straight joint-space legs) through the targets, in 3-D [m]."""
     fig = Figure(figsize=(6.0, 6.0), layout="constrained")
     ax = fig.add_subplot(projection="3d")
