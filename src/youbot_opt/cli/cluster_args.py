@@ -14,13 +14,15 @@ prints what a shard run did.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.scheduler import is_scheduler_address
+from youbot_opt.sweeps.scheduler import (
+    check_scheduler_address,
+    is_scheduler_address,
+    read_scheduler_file,
+)
 
 if TYPE_CHECKING:  # the sweep modules are imported by the commands that run one
     from youbot_opt.sweeps.resume import ShardReport
@@ -115,8 +117,10 @@ def scheduler_address(args: argparse.Namespace) -> str | None:
     Raises
     ------
     ParameterError
-        If the file is missing or names no address, the address has no known
-        scheme, or ``--workers 0`` / ``--item-timeout`` is combined with a scheduler.
+        If the file is missing, not a regular file, too large or names no
+        address, the address is not sane (see
+        :func:`~youbot_opt.sweeps.scheduler.check_scheduler_address`), or
+        ``--workers 0`` / ``--item-timeout`` is combined with a scheduler.
     """
     address = getattr(args, "scheduler", None)
     path = getattr(args, "scheduler_file", None)
@@ -134,24 +138,10 @@ def scheduler_address(args: argparse.Namespace) -> str | None:
             name="item_timeout",
         )
     if path is not None:
-        file = Path(path).expanduser()
-        try:
-            address = json.loads(file.read_text(encoding="utf-8"))["address"]
-        except FileNotFoundError as exc:
-            raise ParameterError(
-                f"--scheduler-file {str(file)!r} does not exist (start a scheduler with "
-                "'dask scheduler --scheduler-file FILE')",
-                name="scheduler_file",
-            ) from exc
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise ParameterError(
-                f"--scheduler-file {str(file)!r} is not a Dask scheduler file "
-                f"(JSON with an 'address'): {exc}",
-                name="scheduler_file",
-            ) from exc
+        return read_scheduler_file(path, name="scheduler_file")
     if not is_scheduler_address(address):
         raise ParameterError(
             f"--scheduler must be an address such as tcp://10.0.0.5:8786, got {address!r}",
             name="scheduler",
         )
-    return str(address)
+    return check_scheduler_address(address, name="scheduler")
