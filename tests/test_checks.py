@@ -123,3 +123,19 @@ def test_the_old_homes_re_export_the_validators() -> None:
 
     assert objectives.check_beta is check_beta
     assert ipopt.check_time_limit is check_time_limit
+
+
+def test_messages_cut_long_values():
+    from youbot_opt._checks import MAX_SHOWN_CHARS
+
+    for check in (check_finite, check_positive, check_nonnegative, check_unit_interval):
+        with pytest.raises(ParameterError) as info:
+            check("z" * 100_000, "x")
+        assert len(str(info.value)) < MAX_SHOWN_CHARS + 100
+        assert "(100000 characters)" in str(info.value)
+    with pytest.raises(ParameterError) as info:
+        check_int("z" * 100_000, "n")
+    assert len(str(info.value)) < MAX_SHOWN_CHARS + 100
+    with pytest.raises(ParameterError) as info:
+        check_shape(["a"] * 10_000, (2,), "a")
+    assert len(str(info.value)) < MAX_SHOWN_CHARS + 100
