@@ -30,6 +30,7 @@ if TYPE_CHECKING:  # the sweep modules are imported by the commands that run one
 __all__ = [
     "add_keep_results_arg",
     "add_scheduler_args",
+    "out_arg",
     "report_shard",
     "scheduler_address",
     "shard_arg",
@@ -61,6 +62,21 @@ def shard_arg(text: str) -> tuple[int, int]:
     if not 1 <= i <= k:
         raise argparse.ArgumentTypeError(f"expected I/K with 1 <= I <= K, e.g. 2/8; got {text!r}")
     return i, k
+
+
+def out_arg(text: str) -> str:
+    """Parse ``--out DIR``: any path but the empty one (which would mean the current folder).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If ``text`` is empty or only spaces.
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "must name a folder, got an empty path (use --out . for the current folder)"
+        )
+    return text
 
 
 def add_scheduler_args(p: argparse.ArgumentParser, *, shard: bool = True) -> None:

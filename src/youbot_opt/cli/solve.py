@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from youbot_opt._files import json_ready
-from youbot_opt.cli.cluster_args import add_scheduler_args
+from youbot_opt.cli.cluster_args import add_scheduler_args, out_arg
 from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError
@@ -135,7 +135,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     add_ipopt_arguments(p)
     p.add_argument(
         "--out",
-        type=Path,
+        type=lambda text: Path(out_arg(text)),
         default=None,
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
