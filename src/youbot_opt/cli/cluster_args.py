@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from youbot_opt.exceptions import ParameterError
@@ -30,6 +31,7 @@ if TYPE_CHECKING:  # the sweep modules are imported by the commands that run one
 __all__ = [
     "add_keep_results_arg",
     "add_scheduler_args",
+    "int_in_range",
     "out_arg",
     "report_shard",
     "scheduler_address",
@@ -62,6 +64,29 @@ def shard_arg(text: str) -> tuple[int, int]:
     if not 1 <= i <= k:
         raise argparse.ArgumentTypeError(f"expected I/K with 1 <= I <= K, e.g. 2/8; got {text!r}")
     return i, k
+
+
+#: Largest ``--max-iter``: IPOPT stores its iteration cap in a 32-bit int.
+MAX_ITER_LIMIT = 2**31 - 1
+#: Largest ``--seed``: NumPy's legacy seeds (the spline guesses) are 32-bit.
+SEED_LIMIT = 2**32 - 1
+
+
+def int_in_range(flag: str, lo: int, hi: int) -> Callable[[str], int]:
+    """Return an argparse ``type`` for an int in ``lo..hi`` (errors name flag, value, range)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be an integer in {lo}..{hi}, got {text!r}"
+            ) from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{flag} must be in {lo}..{hi}, got {value}")
+        return value
+
+    return parse
 
 
 def out_arg(text: str) -> str:

@@ -25,8 +25,10 @@ from typing import Any
 import numpy as np
 
 from youbot_opt.cli.cluster_args import (
+    SEED_LIMIT,
     add_keep_results_arg,
     add_scheduler_args,
+    int_in_range,
     out_arg,
     report_shard,
     scheduler_address,
@@ -88,7 +90,12 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--knots", type=int, default=50, help="collocation knots (default 50)")
-    p.add_argument("--seed", type=int, default=0, help="base seed of the random starts (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int_in_range("--seed", 0, SEED_LIMIT),
+        default=0,
+        help="base seed of the random starts (default 0)",
+    )
     p.add_argument(
         "--workers",
         type=int,
