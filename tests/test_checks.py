@@ -114,3 +114,20 @@ def test_check_beta_and_bound_scale() -> None:
     with pytest.raises(ParameterError, match="bound_scale must be a number > 0, got 'x'") as info:
         check_bound_scale("x")
     assert info.value.name == "bound_scale"
+
+
+def test_messages_cut_long_values():
+    """A 100,000-character value is echoed cut to MAX_SHOWN_CHARS, with its length."""
+    from youbot_opt._checks import MAX_SHOWN_CHARS
+
+    for check in (check_finite, check_positive, check_nonnegative, check_unit_interval):
+        with pytest.raises(ParameterError) as info:
+            check("z" * 100_000, "x")
+        assert len(str(info.value)) < MAX_SHOWN_CHARS + 100
+        assert "(100000 characters)" in str(info.value)
+    with pytest.raises(ParameterError) as info:
+        check_int("z" * 100_000, "n")
+    assert len(str(info.value)) < MAX_SHOWN_CHARS + 100
+    with pytest.raises(ParameterError) as info:
+        check_shape(["a"] * 10_000, (2,), "a")
+    assert len(str(info.value)) < MAX_SHOWN_CHARS + 100

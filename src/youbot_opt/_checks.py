@@ -21,6 +21,7 @@ import numpy as np
 from youbot_opt.exceptions import ParameterError
 
 __all__ = [
+    "MAX_SHOWN_CHARS",
     "check_beta",
     "check_bound_scale",
     "check_finite",
@@ -30,7 +31,25 @@ __all__ = [
     "check_shape",
     "check_time_limit",
     "check_unit_interval",
+    "shown",
 ]
+
+#: Most characters of a user's value an error message echoes; a longer value
+#: is cut there and followed by its length, e.g. ``'xxx…' … (100000 characters)``.
+MAX_SHOWN_CHARS = 200
+
+
+def shown(value: Any) -> str:
+    """``repr(value)`` for an error message, cut after :data:`MAX_SHOWN_CHARS` characters.
+
+    A cut text ends in ``… (N characters)``, N being the length of the value
+    (of a string) or of its repr (of anything else).
+    """
+    text = repr(value)
+    if len(text) <= MAX_SHOWN_CHARS:
+        return text
+    n = len(value) if isinstance(value, str) else len(text)
+    return f"{text[:MAX_SHOWN_CHARS]}… ({n} characters)"
 
 
 def _real(value: Any, name: str, expected: str) -> float:
@@ -39,7 +58,7 @@ def _real(value: Any, name: str, expected: str) -> float:
         return float(value)
     except (TypeError, ValueError) as exc:
         raise ParameterError(
-            f"{name} must be {expected}, got {value!r}", name=name, value=value
+            f"{name} must be {expected}, got {shown(value)}", name=name, value=value
         ) from exc
 
 
@@ -72,7 +91,7 @@ def check_finite(value: Any, name: str, *, unit: str | None = None) -> float:
     x = _real(value, name, "a real number")
     if not math.isfinite(x):
         raise ParameterError(
-            f"{name} must be finite{_unit(unit)}, got {value!r}", name=name, value=value
+            f"{name} must be finite{_unit(unit)}, got {shown(value)}", name=name, value=value
         )
     return x
 
@@ -104,7 +123,7 @@ def check_positive(value: Any, name: str, *, unit: str | None = None, note: str 
     x = _real(value, name, "a number > 0")
     if not (math.isfinite(x) and x > 0.0):
         raise ParameterError(
-            f"{name} must be finite and > 0{_unit(unit)}{note}, got {value!r}",
+            f"{name} must be finite and > 0{_unit(unit)}{note}, got {shown(value)}",
             name=name,
             value=value,
         )
@@ -138,7 +157,7 @@ def check_nonnegative(value: Any, name: str, *, unit: str | None = None, note: s
     x = _real(value, name, "a number >= 0")
     if not (math.isfinite(x) and x >= 0.0):
         raise ParameterError(
-            f"{name} must be finite and >= 0{_unit(unit)}{note}, got {value!r}",
+            f"{name} must be finite and >= 0{_unit(unit)}{note}, got {shown(value)}",
             name=name,
             value=value,
         )
@@ -170,7 +189,7 @@ def check_unit_interval(value: Any, name: str, *, note: str = "") -> float:
     x = _real(value, name, "a number in [0, 1]")
     if not (math.isfinite(x) and 0.0 <= x <= 1.0):
         raise ParameterError(
-            f"{name} must be in [0, 1]{note}, got {value!r}", name=name, value=value
+            f"{name} must be in [0, 1]{note}, got {shown(value)}", name=name, value=value
         )
     return x
 
@@ -202,7 +221,7 @@ def check_int(value: Any, name: str, *, minimum: int = 0) -> int:
     """
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise ParameterError(
-            f"{name} must be an int >= {minimum}, got {value!r}", name=name, value=value
+            f"{name} must be an int >= {minimum}, got {shown(value)}", name=name, value=value
         )
     return int(value)
 
@@ -240,7 +259,9 @@ def check_shape(
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ParameterError(
-            f"{name} must be a numeric array of shape {want}, got {value!r}", name=name, value=value
+            f"{name} must be a numeric array of shape {want}, got {shown(value)}",
+            name=name,
+            value=value,
         ) from exc
     if arr.ndim != len(shape) or any(
         isinstance(s, int) and n != s for s, n in zip(shape, arr.shape, strict=True)
@@ -249,7 +270,9 @@ def check_shape(
             f"{name} must have shape {want}, got {arr.shape}", name=name, value=arr.shape
         )
     if finite and not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{name} must be finite, got {arr.tolist()}", name=name, value=arr)
+        raise ParameterError(
+            f"{name} must be finite, got {shown(arr.tolist())}", name=name, value=arr
+        )
     return arr
 
 
@@ -286,7 +309,7 @@ def check_time_limit(value: object, name: str) -> float | None:
     ):
         return float(value)
     raise ParameterError(
-        f"{name} must be None or a finite time > 0 [s], got {value!r}",
+        f"{name} must be None or a finite time > 0 [s], got {shown(value)}",
         name=name.rsplit(".", 1)[-1],
         value=value,
     )

@@ -647,3 +647,46 @@ def test_export_refuses_a_robot_with_an_escaping_mesh(ur5, package, tmp_path):
         export_html(robot, t, q, target)
     assert "geometry object 'bad'" in str(err.value)  # names what referenced the mesh
     assert not target.exists()
+
+
+# ------------------------------------------------------------------ Host header (DNS rebinding)
+
+
+def _raw_request(port: int, host: str, path: str, *, upgrade: bool) -> str:
+    """Send one raw HTTP/1.1 request to 127.0.0.1:port and return the status line."""
+    lines = [f"GET {path} HTTP/1.1", f"Host: {host}"]
+    if upgrade:
+        lines += [
+            "Upgrade: websocket",
+            "Connection: Upgrade",
+            "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==",
+            "Sec-WebSocket-Version: 13",
+        ]
+    else:
+        lines.append("Connection: close")
+    with socket.create_connection(("127.0.0.1", port), timeout=10.0) as sock:
+        sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
+        reply = b""
+        while b"\r\n" not in reply:
+            chunk = sock.recv(4096)
+            if not chunk:
+                break
+            reply += chunk
+    return reply.split(b"\r\n", 1)[0].decode()
+
+
+@pytest.mark.parametrize(
+    "host", ["evil.example", "evil.example:{port}", "127.0.0.1:1", "10.0.0.1:{port}"]
+)
+def test_server_refuses_a_foreign_host_header(server, host):
+    port = _port(server.web_url)
+    host = host.format(port=port)
+    assert " 403 " in _raw_request(port, host, "/", upgrade=True) + " "
+    assert " 403 " in _raw_request(port, host, "/static/", upgrade=False) + " "
+
+
+@pytest.mark.parametrize("name", ["127.0.0.1", "localhost", "[::1]", "LOCALHOST"])
+def test_server_accepts_the_loopback_host_header(server, name):
+    port = _port(server.web_url)
+    assert " 101 " in _raw_request(port, f"{name}:{port}", "/", upgrade=True) + " "
+    assert " 200 " in _raw_request(port, f"{name}:{port}", "/static/", upgrade=False) + " "

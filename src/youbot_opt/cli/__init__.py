@@ -11,9 +11,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
+from youbot_opt._checks import MAX_SHOWN_CHARS
 from youbot_opt._version import __version__
 from youbot_opt.exceptions import YoubotOptError
 
@@ -33,6 +36,35 @@ _COMMAND_MODULES: tuple[str, ...] = (
 DEFAULT_COMMAND = "main"
 
 
+_LONG_RUN = re.compile(rf"\S{{{MAX_SHOWN_CHARS + 1},}}")
+_ARGV: list[str] = []  # the command line being parsed, for the parser's error messages
+
+
+def _cut(text: str) -> str:
+    return f"{text[:MAX_SHOWN_CHARS]}… ({len(text)} characters)"
+
+
+def cut_long_values(message: str, argv: Sequence[str] = ()) -> str:
+    """Cut, in an error message, every echoed value longer than ``MAX_SHOWN_CHARS``.
+
+    The values of ``argv`` (also the ``VALUE`` of ``--flag=VALUE``) are cut
+    where they appear, spaces and all; any other run of more than
+    ``MAX_SHOWN_CHARS`` non-space characters is cut too. Each cut ends in
+    ``… (N characters)``.
+    """
+    values = {a.split("=", 1)[1] if a.startswith("--") and "=" in a else a for a in argv}
+    for value in sorted((v for v in values if len(v) > MAX_SHOWN_CHARS), key=len, reverse=True):
+        message = message.replace(value, _cut(value))
+    return _LONG_RUN.sub(lambda m: _cut(m.group()), message)
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose error messages cut long values (sub-parsers are one too)."""
+
+    def error(self, message: str) -> NoReturn:
+        super().error(cut_long_values(message, _ARGV or sys.argv[1:]))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the top-level argument parser with every sub-command registered.
 
@@ -41,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     argparse.ArgumentParser
         The parser; each sub-parser sets ``func``.
     """
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="youbot-opt",
         description="Trajectory and IK-path optimisation of rigid-body arms (Pinocchio + CasADi).",
     )
@@ -92,6 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     if not argv or argv[0].startswith("-") and argv[0] not in ("-h", "--help", "--version"):
         argv = [DEFAULT_COMMAND, *argv]
+    _ARGV[:] = argv
     args = parser.parse_args(argv)
     _show_compile_progress()
     from youbot_opt.cli.warning_lines import warnings_as_lines
@@ -100,7 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings_as_lines():  # one line per warning, grouped, no source lines
             return int(args.func(args))
     except YoubotOptError as exc:
-        print(f"youbot-opt: error: {exc}", file=sys.stderr)
+        print(f"youbot-opt: error: {cut_long_values(str(exc), argv)}", file=sys.stderr)
         return 2
     except (MemoryError, RecursionError) as exc:  # last resort: limits are checked before
         what = "memory" if isinstance(exc, MemoryError) else "stack"

@@ -14,13 +14,16 @@ prints what a shard run did.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.scheduler import is_scheduler_address
+from youbot_opt.sweeps.scheduler import (
+    check_scheduler_address,
+    is_scheduler_address,
+    read_scheduler_file,
+)
 
 if TYPE_CHECKING:  # the sweep modules are imported by the commands that run one
     from youbot_opt.sweeps.resume import ShardReport
@@ -28,6 +31,8 @@ if TYPE_CHECKING:  # the sweep modules are imported by the commands that run one
 __all__ = [
     "add_keep_results_arg",
     "add_scheduler_args",
+    "int_in_range",
+    "out_arg",
     "report_shard",
     "scheduler_address",
     "shard_arg",
@@ -59,6 +64,44 @@ def shard_arg(text: str) -> tuple[int, int]:
     if not 1 <= i <= k:
         raise argparse.ArgumentTypeError(f"expected I/K with 1 <= I <= K, e.g. 2/8; got {text!r}")
     return i, k
+
+
+#: Largest ``--max-iter``: IPOPT stores its iteration cap in a 32-bit int.
+MAX_ITER_LIMIT = 2**31 - 1
+#: Largest ``--seed``: NumPy's legacy seeds (the spline guesses) are 32-bit.
+SEED_LIMIT = 2**32 - 1
+
+
+def int_in_range(flag: str, lo: int, hi: int) -> Callable[[str], int]:
+    """Return an argparse ``type`` for an int in ``lo..hi`` (errors name flag, value, range)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be an integer in {lo}..{hi}, got {text!r}"
+            ) from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{flag} must be in {lo}..{hi}, got {value}")
+        return value
+
+    return parse
+
+
+def out_arg(text: str) -> str:
+    """Parse ``--out DIR``: any path but the empty one (which would mean the current folder).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If ``text`` is empty or only spaces.
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "must name a folder, got an empty path (use --out . for the current folder)"
+        )
+    return text
 
 
 def add_scheduler_args(p: argparse.ArgumentParser, *, shard: bool = True) -> None:
@@ -115,8 +158,10 @@ def scheduler_address(args: argparse.Namespace) -> str | None:
     Raises
     ------
     ParameterError
-        If the file is missing or names no address, the address has no known
-        scheme, or ``--workers 0`` / ``--item-timeout`` is combined with a scheduler.
+        If the file is missing, not a regular file, too large or names no
+        address, the address is not sane (see
+        :func:`~youbot_opt.sweeps.scheduler.check_scheduler_address`), or
+        ``--workers 0`` / ``--item-timeout`` is combined with a scheduler.
     """
     address = getattr(args, "scheduler", None)
     path = getattr(args, "scheduler_file", None)
@@ -134,24 +179,10 @@ def scheduler_address(args: argparse.Namespace) -> str | None:
             name="item_timeout",
         )
     if path is not None:
-        file = Path(path).expanduser()
-        try:
-            address = json.loads(file.read_text(encoding="utf-8"))["address"]
-        except FileNotFoundError as exc:
-            raise ParameterError(
-                f"--scheduler-file {str(file)!r} does not exist (start a scheduler with "
-                "'dask scheduler --scheduler-file FILE')",
-                name="scheduler_file",
-            ) from exc
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise ParameterError(
-                f"--scheduler-file {str(file)!r} is not a Dask scheduler file "
-                f"(JSON with an 'address'): {exc}",
-                name="scheduler_file",
-            ) from exc
+        return read_scheduler_file(path, name="scheduler_file")
     if not is_scheduler_address(address):
         raise ParameterError(
             f"--scheduler must be an address such as tcp://10.0.0.5:8786, got {address!r}",
             name="scheduler",
         )
-    return str(address)
+    return check_scheduler_address(address, name="scheduler")

@@ -25,7 +25,13 @@ from typing import Any
 import numpy as np
 
 from youbot_opt._files import json_ready
-from youbot_opt.cli.cluster_args import add_scheduler_args
+from youbot_opt.cli.cluster_args import (
+    MAX_ITER_LIMIT,
+    SEED_LIMIT,
+    add_scheduler_args,
+    int_in_range,
+    out_arg,
+)
 from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError
@@ -99,7 +105,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         default="straight",
         help="initial guess: straight line or the study's random feasible spline",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the spline guess(es) (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int_in_range("--seed", 0, SEED_LIMIT),
+        default=0,
+        help="seed of the spline guess(es) (default 0)",
+    )
     p.add_argument(
         "--starts",
         type=int,
@@ -135,7 +146,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     add_ipopt_arguments(p)
     p.add_argument(
         "--out",
-        type=Path,
+        type=lambda text: Path(out_arg(text)),
         default=None,
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
@@ -147,7 +158,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def add_ipopt_arguments(p: argparse.ArgumentParser) -> None:
     """IPOPT's iteration cap and linear solver (read back by :func:`ipopt_options`)."""
-    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration cap (default 3000)")
+    p.add_argument(
+        "--max-iter",
+        type=int_in_range("--max-iter", 0, MAX_ITER_LIMIT),
+        default=3000,
+        help="IPOPT iteration cap (default 3000)",
+    )
     p.add_argument(
         "--linear-solver",
         choices=LINEAR_SOLVERS,

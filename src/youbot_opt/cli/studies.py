@@ -25,8 +25,11 @@ from typing import Any
 import numpy as np
 
 from youbot_opt.cli.cluster_args import (
+    SEED_LIMIT,
     add_keep_results_arg,
     add_scheduler_args,
+    int_in_range,
+    out_arg,
     report_shard,
     scheduler_address,
 )
@@ -55,7 +58,8 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
     Raises
     ------
     ParameterError
-        If the text is neither form, a number is not finite, or ``step <= 0``.
+        If the text is neither form, a list item is empty (its position is
+        named), a number is not finite, or ``step <= 0``.
     """
     try:
         if ":" in text:
@@ -68,7 +72,11 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
             check_sweep_values((stop - start) / step + 1, name)  # before the array is made
             values = np.round(np.arange(start, stop + 0.5 * step, step), 10)
         else:
-            values = np.array([float(p) for p in text.split(",") if p.strip()])
+            items = text.split(",")
+            for position, item in enumerate(items, start=1):
+                if not item.strip():
+                    raise ValueError(f"item {position} of {len(items)} is empty")
+            values = np.array([float(p) for p in items])
     except ValueError as exc:
         raise ParameterError(
             f"--{name} must be 'start:stop:step' or a comma-separated list, got {text!r} ({exc})",
@@ -82,7 +90,12 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--knots", type=int, default=50, help="collocation knots (default 50)")
-    p.add_argument("--seed", type=int, default=0, help="base seed of the random starts (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int_in_range("--seed", 0, SEED_LIMIT),
+        default=0,
+        help="base seed of the random starts (default 0)",
+    )
     p.add_argument(
         "--workers",
         type=int,
@@ -91,6 +104,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--out",
+        type=out_arg,
         default=None,
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/<command>-<date>-<time>); "
@@ -211,6 +225,12 @@ def _check(
                 "--item-timeout needs worker processes (--workers >= 1), got --workers 0",
                 name="item_timeout",
             )
+    if getattr(args, "shard", None) is not None and args.out is None:
+        raise ParameterError(
+            "--shard I/K needs --out DIR: every shard and the collecting run must use the "
+            "same folder",
+            name="shard",
+        )
     from youbot_opt._checks import check_beta, check_bound_scale
 
     for name in ("starts", "first_starts"):

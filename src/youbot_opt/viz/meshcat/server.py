@@ -1,8 +1,10 @@
 """A meshcat server that listens on the loopback interface only, and clients that time out.
 
 :class:`MeshcatServer` runs meshcat's ZeroMQ bridge in a subprocess whose web
-server is bound to 127.0.0.1 (the stock one listens on every interface) and
-stops it on close, at exit, on SIGTERM or when this process dies.
+server is bound to 127.0.0.1 (the stock one listens on every interface),
+answers only requests whose Host header is a loopback name with its port (403
+otherwise, against DNS rebinding), and stops it on close, at exit, on SIGTERM
+or when this process dies.
 :func:`connect` returns a ``meshcat.Visualizer`` whose calls time out, so a
 dead server raises :class:`~youbot_opt.exceptions.ViewerError`; see
 docs/design.md, "Module notes".
@@ -56,8 +58,23 @@ from meshcat.servers import zmqserver as z
 HOST = sys.argv[1]
 
 class LoopbackApplication(tornado.web.Application):
+    # Requests (and WebSocket upgrades) must name this server by a loopback
+    # name and its port: a page of another site whose name a DNS-rebinding
+    # attack points at 127.0.0.1 sends its own name as Host, and gets 403.
+    allowed_hosts = frozenset()
+
     def listen(self, port, address=None, **kwargs):
+        self.allowed_hosts = frozenset(
+            f"{name}:{port}" for name in ("127.0.0.1", "localhost", "[::1]")
+        )
         return super().listen(port, HOST, **kwargs)
+
+    def find_handler(self, request, **kwargs):
+        if request.headers.get("Host", "").strip().lower() not in self.allowed_hosts:
+            return self.get_handler_delegate(
+                request, tornado.web.ErrorHandler, {"status_code": 403}
+            )
+        return super().find_handler(request, **kwargs)
 
 class LoopbackBridge(z.ZMQWebSocketBridge):
     def make_app(self):
