@@ -11,14 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _ik_results import exact_result
 from youbot_opt._files import json_digest
 from youbot_opt.exceptions import InvalidModelError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath import RobotSource as IkpathRobotSource
 from youbot_opt.ikpath.io import RobotSource as SpatialIoRobotSource
 from youbot_opt.ikpath.io import load_result, save_result
-from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKPathResult, build_result
-from youbot_opt.ikpath.targets import Target
+from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot import RobotSource as RobotLayerSource
 from youbot_opt.robot.catalogue import youbot_urdf_path
@@ -28,27 +27,8 @@ from youbot_opt.robot.source import RobotSource
 
 
 def _exact_result(robot: RobotModel) -> IKPathResult:
-    """Two position targets at the tip placements of two in-limit configurations (met exactly)."""
-    base = CyclicIKProblem(
-        robot=robot.model,
-        frame=robot.tip_frame,
-        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
-    )
-    q = np.random.default_rng(5).uniform(base.q_lower, base.q_upper, (2, base.n_joints)) * 0.5
-    problem = base.with_targets(
-        tuple(Target(position=base.placement(theta).translation) for theta in q)
-    )
-    result = build_result(
-        problem,
-        method="al",
-        status=SolveStatus.SOLVED,
-        x=q.ravel(),
-        multipliers=np.zeros(problem.n_constraints),
-        iterations=2,
-        wall_time=0.1,
-        message="converged",
-        start=q.ravel(),
-    )
+    """An exactly met two-target result on ``robot`` (checked to be a success)."""
+    result = exact_result(robot)
     assert result.success
     return result
 

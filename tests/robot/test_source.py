@@ -302,37 +302,13 @@ def test_a_trajectory_result_of_such_a_file_reloads_that_file_or_refuses(tmp_pat
 
 def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) -> None:
     """save_result/load_result with RobotSource.of: the file, not the catalogue."""
-    import numpy as np
-
+    from _ik_results import exact_result
     from youbot_opt.exceptions import ResultFileError
     from youbot_opt.ikpath.io import load_result, save_result
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.result import build_result
-    from youbot_opt.ikpath.targets import Target
-    from youbot_opt.nlp.status import SolveStatus
 
     urdf = _file_named_youbot(tmp_path / "robots")
     robot = load_model(urdf)
-    base = CyclicIKProblem(
-        robot=robot.model,
-        frame=robot.tip_frame,
-        targets=(Target(position=(0, 0, 0)), Target(position=(0, 0, 0))),
-    )
-    q = np.random.default_rng(5).uniform(base.q_lower, base.q_upper, (2, base.n_joints)) * 0.5
-    problem = base.with_targets(
-        tuple(Target(position=base.placement(theta).translation) for theta in q)
-    )
-    result = build_result(
-        problem,
-        method="al",
-        status=SolveStatus.SOLVED,
-        x=q.ravel(),
-        multipliers=np.zeros(problem.n_constraints),
-        iterations=2,
-        wall_time=0.1,
-        message="converged",
-        start=q.ravel(),
-    )
+    result = exact_result(robot)
     path = tmp_path / "run" / "result.json"
     path.parent.mkdir()
     save_result(result, path, RobotSource.of(robot))
