@@ -86,7 +86,8 @@ def test_report_of_a_file_whose_robot_is_named_youbot(
     path.write_text(FIVE_DOF.read_text().replace('name="youbot_arm_5dof"', 'name="youbot"'))
     assert main(["report", "--robot", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "robot: youbot  (nq=7, nv=7)" in out and "q: [0. 0. 0. 0. 0. 0. 0.] rad" in out
+    assert "robot: youbot  (nq=7, nv=7)" in out
+    assert "q: [0 rad, 0 rad, 0 rad, 0 rad, 0 rad, 0 m, 0 m]" in out  # units per joint kind
 
 
 def test_report_with_lock_tip_frame_and_package_dir(
