@@ -132,16 +132,25 @@ def test_write_is_atomic(result, tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.npz"]
 
 
-def test_feasibility_tolerance_round_trips(tmp_path) -> None:
-    """A result judged at a looser tolerance is re-judged at that tolerance when loaded."""
+def test_feasibility_tolerance_is_the_callers_not_the_files(tmp_path) -> None:
+    """A loaded result is judged at the caller's tolerance (the library's default unless
+    passed); the file's own tolerance is named in the message, never used (#29)."""
     import dataclasses
 
     from youbot_opt.reproduction.study1 import study1_problem
     from youbot_opt.trajopt.io import load_result, save_result
+    from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     result = TrajOptSolver(study1_problem(10), "trapezoidal").solve(beta=0.5)
     loose = dataclasses.replace(result, feasibility_tol=1e-4)
-    back = load_result(save_result(loose, tmp_path / "r.npz"), robot=result.problem.robot)
-    assert back.feasibility_tol == 1e-4
+    path = save_result(loose, tmp_path / "r.npz")
+    back = load_result(path, robot=result.problem.robot)
+    assert back.feasibility_tol == DEFAULT_FEASIBILITY_TOL
+    assert "not the file's 0.0001" in back.message
     assert back.status == loose.status
+    asked = load_result(path, robot=result.problem.robot, feasibility_tol=1e-4)
+    assert asked.feasibility_tol == 1e-4
+    assert asked.status == loose.status
+
+

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import json
+import math
 import os
 import zipfile
 from pathlib import Path
@@ -34,6 +35,7 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.catalogue import available_robots
@@ -44,17 +46,29 @@ from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
+    DEFAULT_FEASIBILITY_TOL,
     SolveStats,
     SolveStatus,
     TrajOptResult,
 )
 from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.trajopt.transcription import get_transcription
 
-__all__ = ["SCHEMA", "SCHEMA_VERSION", "save_result", "load_result", "load_refined"]
+__all__ = [
+    "CHECKED_METHODS",
+    "SCHEMA",
+    "SCHEMA_VERSION",
+    "load_refined",
+    "load_result",
+    "save_result",
+]
 
 SCHEMA = "youbot_opt.trajopt_result"
 SCHEMA_VERSION = 2
 _TRAJ_FIELDS = ("t", "q", "v", "a", "tau", "tau_mid", "v_stages", "a_stages", "tau_stages")
+#: Transcriptions whose collocation rule the loader re-checks with ``pin.aba``
+#: (:func:`youbot_opt.trajopt.check.check_result`); a file naming another is refused.
+CHECKED_METHODS = ("trapezoidal", "hermite_simpson", "radau")
 
 
 def _state(state: BoundaryState) -> dict[str, list[float]]:
@@ -107,8 +121,13 @@ def _refinement(meta: dict[str, Any] | None, arrays: dict[str, Array]) -> Refine
     )
 
 
-def _recertify(result: TrajOptResult, record: Refinement) -> Refined:
-    """Re-run the certificate of a result saved as certified; downgrade it if refuted."""
+def _recertify(result: TrajOptResult, record: Refinement, tolerances: Tolerances) -> Refined:
+    """Certify again at the caller's ``tolerances``; downgrade a plan the certificate refutes.
+
+    The file's own verdict and tolerances are reported (``record.budget`` keeps
+    them), never used: a plan is certified on load only if it passes the
+    independent check and :func:`certify` at ``tolerances``.
+    """
     if not record.certified:
         return Refined(result, record)
     reason = ""
@@ -116,17 +135,31 @@ def _recertify(result: TrajOptResult, record: Refinement) -> Refined:
     if not result.success or result.trajectory is None:
         reason = f"not certified: the loaded result fails its check ({result.status.value})"
     else:
-        cert = certify(result, tolerances=record.budget.tolerances)
+        cert = certify(result, tolerances=tolerances)
         if not cert.ok:
             failed = "; ".join(cert.failures())
             reason = f"not certified: the certificate re-run on load fails ({failed})"
+    saved = record.budget.tolerances
+    note = ""
+    if saved is not None and saved != tolerances:
+        note = (
+            "certified again at the caller's tolerances, not the file's "
+            f"({_differences(saved, tolerances)})"
+        )
     if reason:
+        reason = f"{reason}; {note}" if note else reason
         record = dataclasses.replace(record, certified=False, reason=reason, certificate=cert)
         message = f"{result.message}; {reason}"
     else:
         record = dataclasses.replace(record, certificate=cert)
-        message = result.message
+        message = f"{result.message}; {note}" if note else result.message
     return Refined(dataclasses.replace(result, message=message), record)
+
+
+def _differences(saved: Tolerances, used: Tolerances) -> str:
+    """``name file X, used Y`` for each tolerance the file states differently."""
+    a, b = dataclasses.asdict(saved), dataclasses.asdict(used)
+    return ", ".join(f"{k}: file {a[k]:.3g}, used {b[k]:.3g}" for k in a if a[k] != b[k])
 
 
 def save_result(
@@ -297,7 +330,12 @@ def _robot(desc: dict[str, Any], source: dict[str, Any] | None, path: Path) -> R
     return robot
 
 
-def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None) -> TrajOptResult:
+def load_result(
+    path: str | os.PathLike[str],
+    *,
+    robot: RobotModel | None = None,
+    feasibility_tol: float = DEFAULT_FEASIBILITY_TOL,
+) -> TrajOptResult:
     """Read the result written by :func:`save_result` (:func:`load_refined`: with its record).
 
     Parameters
@@ -313,27 +351,44 @@ def load_result(path: str | os.PathLike[str], *, robot: RobotModel | None = None
         its content; with the saved package folders, locked joints and
         strictness, and the saved joint damping. A robot built in memory (no
         source saved) reloads from the name or URDF path of ``"problem"``.
+    feasibility_tol : float, optional
+        Largest violation [rad, rad/s, N m, s] accepted by the check on load
+        (the library's default unless you pass another). The file's own
+        tolerance is never used: the loaded result carries this one, and the
+        message names the file's when it differs.
 
     Returns
     -------
     TrajOptResult
-        The result, with its problem rebuilt; a saved success claim that the
-        independent check (:func:`youbot_opt.trajopt.check.checked`) refutes
-        is downgraded.
+        The result, with its problem rebuilt from the reloaded model; a saved
+        success claim that the independent check
+        (:func:`youbot_opt.trajopt.check.checked`: bounds from the model, the
+        collocation rule with ``pin.aba``, the reported figures from the
+        variables) refutes at ``feasibility_tol`` is downgraded.
 
     Raises
     ------
     ResultFileError
         If the file is missing, corrupted (bad zip, bad JSON, checksum
         mismatch), of another schema or of another schema version (one written
-        by 0.1.0: the message names ``scripts/migrate_0_1_0.py``), or its
-        robot cannot be reloaded (the URDF not found: the message names the
-        paths tried; or edited: it names the file and both SHA-256).
+        by 0.1.0: the message names ``scripts/migrate_0_1_0.py``), names a
+        transcription the loader cannot check (not one of
+        :data:`CHECKED_METHODS`), or its robot cannot be reloaded (the URDF
+        not found: the message names the paths tried; or edited: it names the
+        file and both SHA-256).
+    ParameterError
+        If ``feasibility_tol`` is not a positive finite number.
     """
-    return _load(Path(path), robot)[0]
+    return _load(Path(path), robot, feasibility_tol)[0]
 
 
-def load_refined(path: str | os.PathLike[str], *, robot: RobotModel | None = None) -> Refined:
+def load_refined(
+    path: str | os.PathLike[str],
+    *,
+    robot: RobotModel | None = None,
+    feasibility_tol: float = DEFAULT_FEASIBILITY_TOL,
+    tolerances: Tolerances | None = None,
+) -> Refined:
     """Read a refined result and its refinement record written by :func:`save_result`.
 
     Parameters
@@ -342,6 +397,12 @@ def load_refined(path: str | os.PathLike[str], *, robot: RobotModel | None = Non
         The ``.npz`` file, saved with ``refinement=``.
     robot : RobotModel, optional
         The robot to attach (as :func:`load_result`).
+    feasibility_tol : float, optional
+        As :func:`load_result`.
+    tolerances : Tolerances, optional
+        The certificate's thresholds on load; ``Tolerances()`` (the library's
+        defaults) unless you pass others. The file's own tolerances are kept
+        in ``refinement.budget`` and reported, never used.
 
     Returns
     -------
@@ -349,8 +410,8 @@ def load_refined(path: str | os.PathLike[str], *, robot: RobotModel | None = Non
         The result (as :func:`load_result` returns it) and its refinement record
         (rounds, budget, verdict). A plan saved as certified is certified again
         only if it passes the independent check and
-        :func:`~youbot_opt.trajopt.certify.certify`, re-run here with the saved
-        tolerances (a forward simulation; the certificate is attached as
+        :func:`~youbot_opt.trajopt.certify.certify`, re-run here at
+        ``tolerances`` (a forward simulation; the certificate is attached as
         ``refinement.certificate``); otherwise ``refinement.certified`` is
         False and ``refinement.reason`` (also appended to the message) says why.
 
@@ -360,17 +421,38 @@ def load_refined(path: str | os.PathLike[str], *, robot: RobotModel | None = Non
         As :func:`load_result`, and if the file holds no refinement record.
     """
     path = Path(path)
-    result, record = _load(path, robot)
+    if tolerances is not None and not isinstance(tolerances, Tolerances):
+        raise ParameterError(
+            f"tolerances must be a Tolerances, got {type(tolerances).__name__}",
+            name="tolerances",
+        )
+    result, record = _load(path, robot, feasibility_tol)
     if record is None:
         raise ResultFileError(
             f"{path} holds no refinement record (a fixed-grid result): use load_result"
         )
-    return _recertify(result, record)
+    return _recertify(result, record, Tolerances() if tolerances is None else tolerances)
 
 
-def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refinement | None]:
+def _load(
+    path: Path, robot: RobotModel | None, feasibility_tol: float
+) -> tuple[TrajOptResult, Refinement | None]:
     """Return the checked result of a file and its refinement record (not re-certified)."""
+    tol = float(feasibility_tol) if isinstance(feasibility_tol, (int, float)) else math.nan
+    if isinstance(feasibility_tol, bool) or not (0.0 < tol < math.inf):
+        raise ParameterError(
+            f"feasibility_tol must be a positive finite number, got {feasibility_tol!r}",
+            name="feasibility_tol",
+            value=feasibility_tol,
+        )
     meta, arrays = _read(path)
+    method = meta.get("method")
+    if method not in CHECKED_METHODS:
+        raise ResultFileError(
+            f"{path}: transcription {method!r} cannot be checked on load (the loader re-checks "
+            f"the collocation rules of {', '.join(CHECKED_METHODS)} only); a result it cannot "
+            "check is not read"
+        )
     try:
         desc = meta["problem"]
         if robot is None:
@@ -424,14 +506,69 @@ def _load(path: Path, robot: RobotModel | None) -> tuple[TrajOptResult, Refineme
             guess=_trajectory(_group(arrays, "guess"), meta["interpolation"]["guess"]),
             options=IpoptOptions(**opts),
             seed=meta["seed"],
-            feasibility_tol=float(meta["feasibility_tol"]),
+            feasibility_tol=tol,
             grid=arrays.get("grid"),
         )
+        saved_tol = float(meta["feasibility_tol"])
+        result, rebuilt = _with_rebuilt_trajectory(result)
         record = _refinement(meta.get("refinement"), arrays)
     except ResultFileError:
         raise
     except (KeyError, TypeError, ValueError) as exc:
         raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc
-    # A file is data from outside: the independent check sets the status it deserves
-    # (and load_refined certifies a plan saved as certified again).
-    return checked(result), record
+    # A file is data from outside: the independent check, at the caller's tolerance and
+    # the model's bounds, sets the status it deserves (load_refined certifies again).
+    result = checked(result)
+    notes = [rebuilt] if rebuilt else []
+    if saved_tol != tol:
+        notes.append(f"checked at feasibility_tol = {tol:.3g}, not the file's {saved_tol:.3g}")
+    if notes:
+        result = dataclasses.replace(result, message="; ".join([result.message, *notes]))
+    return result, record
+
+
+def _with_rebuilt_trajectory(result: TrajOptResult) -> tuple[TrajOptResult, str]:
+    """Rebuild the trajectory from the variables; note it when the file's differed.
+
+    The trajectory (what the certificate simulates and the replay shows) is
+    derived data: rebuilt here with the transcription's own interpolation and
+    ``pin.aba`` accelerations, so that a file cannot certify a motion its
+    variables do not describe. A saved trajectory that agrees with the rebuilt
+    one to 1e-9 (absolute and relative: the solver's CasADi accelerations and
+    ``pin.aba`` differ by rounding only, about 1e-13 relative) is kept as saved,
+    so that a round trip is exact.
+    """
+    problem, v = result.problem, result.variables
+    try:
+        dt = float(np.asarray(v["dt"]).ravel()[0])
+        arrays = [np.asarray(x, dtype=float) for x in v.values()]
+    except (KeyError, IndexError, TypeError, ValueError):
+        return result, ""  # malformed: the check reports it
+    if not (dt > 0.0 and all(np.all(np.isfinite(x)) for x in arrays)):
+        return result, ""
+    method = get_transcription(result.method)
+    if result.grid is not None:
+        method = method.with_fractions(result.grid)
+    aba = batched_aba(problem.robot, damping=problem.damping)
+
+    def accel(q: Array, qd: Array, tau: Array) -> Array:
+        return np.asarray(aba(q, qd, tau), dtype=float).reshape(np.shape(qd))
+
+    try:
+        values = {k: np.asarray(x, dtype=float) for k, x in v.items()}
+        traj = method.trajectory(values, accel(values["q"], values["v"], values["tau"]), accel)
+    except (KeyError, TypeError, ValueError):
+        return result, ""  # malformed: the check reports it
+    old = result.trajectory
+    same = old is not None and all(
+        getattr(old, name) is None
+        if getattr(traj, name) is None
+        else getattr(old, name) is not None
+        and np.shape(getattr(old, name)) == np.shape(getattr(traj, name))
+        and np.allclose(getattr(old, name), getattr(traj, name), rtol=1e-9, atol=1e-9)
+        for name in _TRAJ_FIELDS
+    )
+    if same:  # the saved one (the solver's CasADi accelerations) agrees to rounding: keep it
+        return result, ""
+    note = "the file's trajectory differs from its variables: rebuilt from them"
+    return dataclasses.replace(result, trajectory=traj), note
