@@ -31,6 +31,7 @@ import numpy as np
 from youbot_opt.exceptions import ParameterError, ResultFileError
 
 __all__ = [
+    "MAX_RESULT_BYTES",
     "MIGRATION_SCRIPT",
     "TMP_PREFIX",
     "StreamedList",
@@ -44,6 +45,7 @@ __all__ = [
     "json_digest",
     "json_ready",
     "json_roundtrip",
+    "read_npz",
     "schema_header",
     "software_versions",
     "write_json_stream",
@@ -497,3 +499,73 @@ def check_schema_header(
             f"(versions 1..{supported}){written_by}; {remedy}"
         )
     return version
+
+
+MAX_RESULT_BYTES = 256 * 2**20
+"""Largest uncompressed content [bytes] of a result file we read (256 MiB).
+
+A 1000-knot, 7-joint Radau plan with every saved array is about 2 MB; the
+limit only stops a file that declares more (a zip bomb, an ``.npy`` header
+declaring 10^11 floats) before its memory is asked for.
+"""
+
+
+def read_npz(path: Path, *, max_bytes: int = MAX_RESULT_BYTES) -> dict[str, np.ndarray]:
+    """Read every array of an ``.npz`` file, refusing what declares more than it may hold.
+
+    Each member's ``.npy`` header is read first: a member whose declared shape
+    needs more bytes than the member holds, or a file whose uncompressed
+    members add up to more than ``max_bytes``, is refused before any array is
+    allocated. Nothing is unpickled.
+
+    Parameters
+    ----------
+    path : Path
+        The ``.npz`` file.
+    max_bytes : int, optional
+        Largest total uncompressed size [bytes] (:data:`MAX_RESULT_BYTES`).
+
+    Returns
+    -------
+    dict of str to ndarray
+        The arrays by member name (without ``.npy``).
+
+    Raises
+    ------
+    ResultFileError
+        If the file is not a readable ``.npz`` (the message says why), holds
+        more than ``max_bytes`` or declares arrays larger than its content.
+    """
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            infos = archive.infolist()
+            total = sum(info.file_size for info in infos)
+            if total > max_bytes:
+                raise ResultFileError(
+                    f"{path} holds {total} bytes uncompressed, more than the limit "
+                    f"MAX_RESULT_BYTES = {max_bytes} of a result file; not read"
+                )
+            for info in infos:
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    read_header = (
+                        np.lib.format.read_array_header_1_0
+                        if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0
+                    )
+                    shape, _, dtype = read_header(member)
+                    declared = math.prod(shape) * dtype.itemsize
+                    if dtype.hasobject or declared > info.file_size:
+                        raise ResultFileError(
+                            f"{path}: member {info.filename!r} declares an array of shape "
+                            f"{shape} ({declared} bytes of {dtype}) but holds "
+                            f"{info.file_size} bytes; corrupted or forged, not read"
+                        )
+        with np.load(path, allow_pickle=False) as npz:
+            return {key: np.array(npz[key]) for key in npz.files}
+    except ResultFileError:
+        raise
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
+        raise ResultFileError(f"{path} is not a readable result file (corrupted?): {exc}") from exc

@@ -142,3 +142,53 @@ def test_the_callers_tolerance_is_checked(certified_file, bad):
 
     with pytest.raises(ParameterError, match="feasibility_tol must be a positive finite"):
         load_result(certified_file, feasibility_tol=bad)
+
+
+def _npy_header(shape: tuple[int, ...]) -> bytes:
+    import io
+
+    buffer = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        buffer, {"descr": "<f8", "fortran_order": False, "shape": shape}
+    )
+    return buffer.getvalue()  # magic string, version and header
+
+
+def test_a_member_declaring_1e11_floats_is_refused_before_allocating(certified_file, tmp_path):
+    """A 1 kB member whose .npy header declares 10^11 floats (800 GB): refused by name."""
+    import zipfile
+
+    path = tmp_path / "huge.npz"
+    with zipfile.ZipFile(certified_file) as src, zipfile.ZipFile(path, "w") as dst:
+        for info in src.infolist():
+            if info.filename != "objective_history.npy":
+                dst.writestr(info, src.read(info))
+        dst.writestr("objective_history.npy", _npy_header((10**11,)) + b"\0" * 800)
+    with pytest.raises(ResultFileError, match=r"declares an array of shape \(100000000000,\)"):
+        load_result(path)
+
+
+def test_a_file_larger_than_the_limit_is_refused_unread(certified_file, tmp_path):
+    """The total uncompressed size is checked against the limit before any member is read
+    (a zip bomb); tested with a small limit, and the library's limit is named."""
+    from youbot_opt._files import MAX_RESULT_BYTES, read_npz
+
+    size = certified_file.stat().st_size
+    with pytest.raises(ResultFileError, match="more than the limit MAX_RESULT_BYTES = 1000 "):
+        read_npz(certified_file, max_bytes=1000)
+    assert size < MAX_RESULT_BYTES
+    assert read_npz(certified_file).keys() >= {"metadata", "variables__q"}
+
+
+def test_metadata_nested_1e5_deep_is_a_file_error(certified_file, tmp_path):
+    """JSON nested 10^5 deep: a ResultFileError, not a RecursionError."""
+    import zipfile
+
+    path = tmp_path / "nested.npz"
+    with np.load(certified_file) as npz:
+        arrays = {k: np.array(npz[k]) for k in npz.files}
+    arrays["metadata"] = np.frombuffer(b"[" * 100_000 + b"]" * 100_000, dtype=np.uint8)
+    np.savez_compressed(path, **arrays)
+    assert zipfile.is_zipfile(path)
+    with pytest.raises(ResultFileError, match="metadata is not valid JSON"):
+        load_result(path)

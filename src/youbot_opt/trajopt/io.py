@@ -19,7 +19,6 @@ import datetime as _dt
 import json
 import math
 import os
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ from youbot_opt._files import (
     array_digest,
     atomic_writer,
     check_schema_header,
+    read_npz,
     schema_header,
     software_versions,
 )
@@ -260,16 +260,12 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, Array]]:
     """Metadata and checksum-verified arrays of a result file."""
     if not path.is_file():
         raise ResultFileError(f"result file {path} does not exist")
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            arrays = {key: np.array(npz[key]) for key in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise ResultFileError(f"{path} is not a readable result file (corrupted?): {exc}") from exc
+    arrays = read_npz(path)
     if "metadata" not in arrays:
         raise ResultFileError(f"{path} has no metadata entry; not a youbot_opt result file")
     try:
         meta = json.loads(arrays.pop("metadata").tobytes().decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ResultFileError(f"{path}: metadata is not valid JSON (corrupted file)") from exc
     check_schema_header(
         meta, schema=SCHEMA, supported=SCHEMA_VERSION, oldest=SCHEMA_VERSION, source=str(path)
