@@ -152,5 +152,3 @@ def test_feasibility_tolerance_is_the_callers_not_the_files(tmp_path) -> None:
     asked = load_result(path, robot=result.problem.robot, feasibility_tol=1e-4)
     assert asked.feasibility_tol == 1e-4
     assert asked.status == loose.status
-
-
