@@ -21,6 +21,7 @@ import numpy as np
 from youbot_opt.exceptions import ParameterError
 
 __all__ = [
+    "MAX_BOUND_SCALE",
     "MAX_SHOWN_CHARS",
     "check_beta",
     "check_bound_scale",
@@ -336,8 +337,16 @@ def check_beta(beta: Any) -> float:
     return check_unit_interval(beta, "beta", note=" (1 = time only, 0 = work only)")
 
 
+MAX_BOUND_SCALE = 1e3
+"""Largest factor on a robot's speed and torque limits (dimensionless).
+
+The bound study scales the data sheet by 0.85-1; a thousandfold motor is no
+longer the robot, and far larger factors overflow the NLP's bounds.
+"""
+
+
 def check_bound_scale(bound_scale: Any) -> float:
-    """Validate a bound scale factor (1.0 = data sheet, must be > 0).
+    """Validate a bound scale factor (1.0 = data sheet, in ``(0, MAX_BOUND_SCALE]``).
 
     Parameters
     ----------
@@ -352,6 +361,14 @@ def check_bound_scale(bound_scale: Any) -> float:
     Raises
     ------
     ParameterError
-        If ``bound_scale`` is not a finite number > 0.
+        If ``bound_scale`` is not a finite number in ``(0, MAX_BOUND_SCALE]``.
     """
-    return check_positive(bound_scale, "bound_scale", note=" (1.0 = data sheet)")
+    value = check_positive(bound_scale, "bound_scale", note=" (1.0 = data sheet)")
+    if value > MAX_BOUND_SCALE:
+        raise ParameterError(
+            f"bound_scale must be at most MAX_BOUND_SCALE = {MAX_BOUND_SCALE:g} "
+            f"(1.0 = data sheet), got {shown(bound_scale)}",
+            name="bound_scale",
+            value=bound_scale,
+        )
+    return value

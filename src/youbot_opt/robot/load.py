@@ -37,7 +37,15 @@ from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
 from youbot_opt.robot.urdf_check.loader import load_urdf_strict
 from youbot_opt.robot.urdf_check.size import SizeLimits
 
-__all__ = ["load_model"]
+__all__ = ["MAX_JOINT_DAMPING", "load_model"]
+
+MAX_JOINT_DAMPING = 1e4
+"""Largest viscous joint damping [N m s/rad] a model may carry (override or URDF).
+
+10^4 N m of torque to turn a joint at 1 rad/s is beyond any arm's motor and
+gearbox (the youBot study uses 0.1); larger values describe no arm and only
+overflow the stiffness analysis that chooses the transcription.
+"""
 
 _log = logging.getLogger(__name__)
 
@@ -77,13 +85,30 @@ def _check_damping(damping: float | None) -> float | None:
             name="damping",
             value=damping,
         )
-    if not math.isfinite(damping) or damping < 0:
+    if not math.isfinite(damping) or damping < 0 or damping > MAX_JOINT_DAMPING:
         raise ParameterError(
-            f"damping must be finite and >= 0 in [N m s/rad], got {damping!r}",
+            f"damping must be in [0, MAX_JOINT_DAMPING = {MAX_JOINT_DAMPING:g}] N m s/rad, "
+            f"got {damping!r}",
             name="damping",
             value=damping,
         )
     return float(damping)
+
+
+def _check_model_damping(model: pin.Model, name: str) -> None:
+    """Refuse a model whose file gives a joint more than :data:`MAX_JOINT_DAMPING`."""
+    over = [
+        (model.names[j], float(model.damping[model.joints[j].idx_v]))
+        for j in range(1, model.njoints)
+        if model.joints[j].nv == 1 and model.damping[model.joints[j].idx_v] > MAX_JOINT_DAMPING
+    ]
+    if over:
+        joints = ", ".join(f"{joint} ({b:.3g})" for joint, b in over)
+        raise ParameterError(
+            f"{name}: joint damping over MAX_JOINT_DAMPING = {MAX_JOINT_DAMPING:g} N m s/rad: "
+            f"{joints}; pass damping= to override it",
+            name="damping",
+        )
 
 
 def _check_lock(
@@ -236,10 +261,12 @@ def load_model(
     FrameNotFound
         ``tip_frame`` is not a frame of the (reduced) model.
     ParameterError
-        ``damping`` is negative or not finite; ``lock_joints`` names an unknown
-        or multi-dof joint, or a position that is not finite or outside the
-        limits; ``size_limits`` is not a :class:`SizeLimits`, or a limit in it
-        (or its environment variable) is not an integer >= 1.
+        ``damping`` is negative, not finite or over :data:`MAX_JOINT_DAMPING`
+        (also a joint's ``<dynamics damping>`` when not overridden);
+        ``lock_joints`` names an unknown or multi-dof joint, or a position that
+        is not finite or outside the limits; ``size_limits`` is not a
+        :class:`SizeLimits`, or a limit in it (or its environment variable) is
+        not an integer >= 1.
     UnsafeURDFError
         The file exceeds a size limit (the message names the count, the limit
         and how to raise it).
@@ -315,6 +342,7 @@ def load_model(
     model, visual, collision = _lock(model, visual, collision, locked)
     if damping is not None:
         model.damping = np.full(model.nv, damping)
+    _check_model_damping(model, str(urdf_path))
     if gravity is not None:
         model.gravity.linear = np.array([0.0, 0.0, -gravity])
     if tip is None:
