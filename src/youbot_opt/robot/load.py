@@ -33,6 +33,7 @@ from youbot_opt.robot.catalogue import (
 from youbot_opt.robot.mimic import mimic_locks
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
+from youbot_opt.robot.payload import Payload
 from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
 from youbot_opt.robot.urdf_check.loader import load_urdf_strict
 from youbot_opt.robot.urdf_check.size import SizeLimits
@@ -170,6 +171,7 @@ def load_model(
     strict: bool = True,
     lock_joints: Mapping[str, float] | None = None,
     size_limits: SizeLimits | None = None,
+    payload: Payload | None = None,
 ) -> RobotModel:
     """Load a robot model.
 
@@ -220,6 +222,9 @@ def load_model(
         ``YOUBOT_OPT_MAX_XML_ELEMENTS``) when set, else the default
         (:class:`~youbot_opt.robot.urdf_check.size.SizeLimits`). Example:
         ``load_model("big.urdf", size_limits=SizeLimits(max_joints=5000))``.
+    payload : Payload, optional
+        A payload the robot carries (:meth:`RobotModel.with_payload`), in its
+        frame (the tip frame when the payload names none).
 
     Returns
     -------
@@ -234,7 +239,7 @@ def load_model(
         The file is not a loadable URDF (an implausible inertia on a moving
         link under ``strict``: the message says how to load it anyway).
     FrameNotFound
-        ``tip_frame`` is not a frame of the (reduced) model.
+        ``tip_frame`` (or the payload's frame) is not a frame of the (reduced) model.
     ParameterError
         ``damping`` is negative or not finite; ``lock_joints`` names an unknown
         or multi-dof joint, or a position that is not finite or outside the
@@ -320,7 +325,7 @@ def load_model(
     if tip is None:
         tip = model.frames[len(model.frames) - 1].name
     _log.debug("loaded %s from %s (nq=%d, locked %s)", name, urdf_path, model.nq, locked)
-    return RobotModel(
+    robot = RobotModel(
         name=name,
         model=model,
         visual_model=visual,
@@ -332,3 +337,4 @@ def load_model(
         strict=bool(strict),
         catalogue_name=catalogue_name,
     )
+    return robot if payload is None else robot.with_payload(payload)
