@@ -31,6 +31,7 @@ from youbot_opt.robot.catalogue import (
     find_robot,
 )
 from youbot_opt.robot.mimic import mimic_locks
+from youbot_opt.robot.mjcf import is_mjcf, load_mjcf_strict
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
 from youbot_opt.robot.payload import Payload
@@ -263,6 +264,7 @@ def load_model(
     locked_names = frozenset(str(k) for k in (lock_joints or {}))
     tip: str | None
     catalogue_name: str | None = None  # set only when loaded by name from the catalogue
+    mimic_source: Path | None = None  # the URDF whose <mimic> joints are locked
     if isinstance(source, ArmParameters):
         gravity = source.gravity
         text = urdf_string(source, damping=damping)
@@ -284,6 +286,7 @@ def load_model(
             urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
         )
         name = catalogue_name = source
+        mimic_source = urdf_path
     elif isinstance(source, str | os.PathLike):
         urdf_path = Path(source)
         try:
@@ -299,9 +302,15 @@ def load_model(
             )
         urdf_path = urdf_path.resolve()
         dirs = (urdf_path.parent, *example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(
-            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
-        )
+        if is_mjcf(urdf_path):
+            mjcf = load_mjcf_strict(urdf_path, size_limits=sizes)
+            built = (mjcf.model, mjcf.visual_model, mjcf.collision_model)
+            mimic_source = None  # MJCF has no <mimic>; equality couplings are refused
+        else:
+            built = _build_pinocchio_models(
+                urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+            )
+            mimic_source = urdf_path
         name, tip = built[0].name or urdf_path.stem, None
     else:
         raise ParameterError(
@@ -315,7 +324,7 @@ def load_model(
     # mimic joints are never independent: locked, with a warning
     locked = (
         *locked,
-        *mimic_locks(model, urdf_path, dict(locked), str(name), size_limits=sizes),
+        *mimic_locks(model, mimic_source, dict(locked), str(name), size_limits=sizes),
     )
     model, visual, collision = _lock(model, visual, collision, locked)
     if damping is not None:
