@@ -196,3 +196,17 @@ def test_a_result_records_its_payload_and_is_checked_with_it(youbot, tmp_path):
     assert loaded.success and loaded.problem.robot.payload == carrying.payload
     stripped = load_result(path, robot=youbot)  # the same plan, the arm without its payload
     assert not stripped.success
+
+
+def test_a_robot_without_a_source_reloads_with_its_payload(youbot, tmp_path):
+    """A robot with no file and no catalogue name reloads by its name with its payload."""
+    import dataclasses
+
+    bare = dataclasses.replace(youbot, urdf_path=None, catalogue_name=None)  # named "youbot"
+    with pytest.raises(ParameterError):
+        RobotSource.of(bare)
+    carrying = bare.with_payload(Payload(mass=0.3))
+    result = solve(study1_problem(10, robot=carrying), method="hermite_simpson", seed=0)
+    assert result.success
+    loaded = load_result(save_result(result, tmp_path / "mem.npz"))
+    assert loaded.success and loaded.problem.robot.payload == carrying.payload
