@@ -190,3 +190,26 @@ def test_mjcf_robot_reloads_from_its_source_with_a_payload(tmp_path):
     again = RobotSource.from_json(RobotSource.of(robot).to_json(folder=tmp_path)).load()
     assert again.payload == robot.payload
     np.testing.assert_array_equal(again.model.effortLimit, robot.model.effortLimit)
+
+
+def test_implausible_inertias_follow_the_urdf_policy(tmp_path, rng, urdf_arm):
+    """An implausible inertia of a moving body is refused (strict) or loaded with a warning."""
+    path = _mjcf(tmp_path)
+    path.write_text(path.read_text().replace("0.005 0.01 0.01", "0.005 0.01 0.03"))
+    with pytest.raises(InvalidModelError, match=r"arm.xml:\d+: .*I1 \+ I2 >= I3.*--lenient"):
+        load_model(path)
+    with pytest.warns(YoubotOptWarning, match="strict=False"):
+        load_model(path, strict=False)
+    # on a body that cannot move (the welded base) it is only a warning
+    free = _mjcf(tmp_path, "free.xml", free=True)
+    free.write_text(free.read_text().replace("0.1 0.1 0.1", "0.1 0.1 0.3"))
+    with pytest.warns(YoubotOptWarning, match="I1 \\+ I2 >= I3"):
+        _assert_same_dynamics(load_model(free), urdf_arm, rng)
+
+
+def test_malformed_numbers_are_refused_by_name(tmp_path):
+    """A number that is not one is an InvalidModelError naming the attribute and line."""
+    path = _mjcf(tmp_path)
+    path.write_text(path.read_text().replace('gear="20"', 'gear="twenty"'))
+    with pytest.raises(InvalidModelError, match=r"arm.xml:\d+: <motor>: gear='twenty'"):
+        load_model(path)

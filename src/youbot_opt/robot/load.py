@@ -303,7 +303,7 @@ def load_model(
         urdf_path = urdf_path.resolve()
         dirs = (urdf_path.parent, *example_package_dirs(urdf_path), *extra)
         if is_mjcf(urdf_path):
-            mjcf = load_mjcf_strict(urdf_path, size_limits=sizes)
+            mjcf = load_mjcf_strict(urdf_path, strict=strict, size_limits=sizes)
             built = (mjcf.model, mjcf.visual_model, mjcf.collision_model)
             mimic_source = None  # MJCF has no <mimic>; equality couplings are refused
         else:

@@ -14,6 +14,7 @@ limits, and a free joint on the root body is welded (fixed base, as URDFs load).
 from __future__ import annotations
 
 import logging
+import math
 import os
 import re
 import warnings
@@ -65,6 +66,8 @@ _ANGLE_ATTRS = ("euler", "axisangle")
 _ZERO_ATTRS = ("armature", "frictionloss", "stiffness")  # joint dynamics the optimisers lack
 _ACTUATORS = ("motor", "general", "position", "velocity", "intvelocity", "damper", "cylinder")
 _MJCF_ROOT = re.compile(rb"<\s*mujoco[\s>/]")
+_INERTIA_RTOL = 1e-6  # the URDF rules' tolerances (urdf_check.rules): round-off of
+_INERTIA_ATOL = 1e-12  # 6-7 significant digits [relative to the trace], and [kg m^2]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -103,8 +106,17 @@ def is_mjcf(path: str | os.PathLike[str]) -> bool:
     return bool(_MJCF_ROOT.search(head)) and b"<robot" not in head.split(b"<mujoco")[0]
 
 
-def _floats(text: str | None) -> list[float]:
-    return [float(x) for x in (text or "").split()]
+def _floats(elem: etree._Element, attr: str, name: str) -> list[float]:
+    """Return the numbers of attribute ``attr`` (empty if absent); refuse anything else."""
+    text = elem.get(attr) or ""
+    try:
+        values = [float(x) for x in text.split()]
+    except ValueError:
+        values = [math.nan]
+    if not all(math.isfinite(v) for v in values):
+        problem = f"{attr}={text!r} is not a list of finite numbers"
+        raise fail(InvalidModelError, site(name, elem), problem, "numbers are finite numbers")
+    return values
 
 
 def _refuse(root: etree._Element, name: str) -> None:
@@ -132,7 +144,7 @@ def _refuse(root: etree._Element, name: str) -> None:
             )
             raise fail(InvalidModelError, site(name, joint), problem, _RULE)
         for attr in _ZERO_ATTRS:
-            values = _floats(joint.get(attr))
+            values = _floats(joint, attr, name)
             if any(v != 0.0 for v in values):
                 problem = f"{attr}={joint.get(attr)!r}: the optimisers' dynamics have no {attr}"
                 raise fail(InvalidModelError, site(name, joint), problem, _RULE)
@@ -165,6 +177,63 @@ def _angle_unit(root: etree._Element, name: str) -> str:
     return "degree"
 
 
+def _moves(body: etree._Element) -> bool:
+    """Return True if a hinge or slide joint of ``body`` or of a body above it moves it."""
+    node: etree._Element | None = body
+    while node is not None and local_name(node.tag) == "body":
+        if any(local_name(j.tag) == "joint" and j.get("type", "hinge") in _MOVING for j in node):
+            return True
+        node = node.getparent()
+    return False
+
+
+def _inertia_matrix(inertial: etree._Element, name: str) -> np.ndarray | None:
+    """Return the rotational inertia [kg m^2] of an ``<inertial>`` (None if it gives none)."""
+    diag = _floats(inertial, "diaginertia", name)
+    full = _floats(inertial, "fullinertia", name)  # MuJoCo's order: xx yy zz xy xz yz
+    if len(full) == 6:
+        xx, yy, zz, xy, xz, yz = full
+        return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    return np.diag(diag) if len(diag) == 3 else None
+
+
+def _inertia_policy(root: etree._Element, name: str, *, strict: bool) -> None:
+    """Refuse (``strict``) or warn about implausible inertias, as the URDF loader does."""
+    for inertial in root.iter("inertial"):
+        body = inertial.getparent()
+        if body is None or local_name(body.tag) != "body":
+            continue
+        mass = (_floats(inertial, "mass", name) or [0.0])[0]
+        inertia = _inertia_matrix(inertial, name)
+        if inertia is None:
+            continue
+        moments = np.linalg.eigvalsh(inertia)
+        tol = _INERTIA_RTOL * abs(float(np.trace(inertia))) + _INERTIA_ATOL
+        if mass == 0.0 and np.any(inertia != 0.0):
+            problem, rule = "a massless body has non-zero inertia", "mass = 0 implies inertia = 0"
+        elif mass < 0.0 or moments[0] < -tol:
+            problem = f"mass {mass} kg, principal moments {moments.tolist()} kg m^2"
+            rule = "mass >= 0 and inertia positive semidefinite"
+        elif moments[0] + moments[1] < moments[2] - tol:
+            problem = f"principal moments {moments.tolist()} kg m^2 violate I1 + I2 >= I3"
+            rule = "principal moments obey the triangle inequality"
+        else:
+            continue
+        where = site(name, inertial, f"body {body.get('name')!r}")
+        if _moves(body) and strict:
+            problem += (
+                "; it enters M(q). To load it anyway, with a warning, pass strict=False to "
+                "load_model (command line: --lenient)"
+            )
+            raise fail(InvalidModelError, where, problem, rule)
+        why = "" if not _moves(body) else "loaded because strict=False (--lenient): "
+        warnings.warn(
+            f"{where.path}:{where.line}: {why}{problem} [rule: {rule}]",
+            YoubotOptWarning,
+            stacklevel=4,
+        )
+
+
 def _effort_limits(model: pin.Model, root: etree._Element, name: str) -> None:
     """Set each actuated joint's effort limit from its actuator (gear times the force bound)."""
     seen: dict[str, etree._Element] = {}
@@ -185,16 +254,16 @@ def _effort_limits(model: pin.Model, root: etree._Element, name: str) -> None:
             if not model.existJointName(joint):
                 problem = f"joint {joint!r} is not a moving joint of the model"
                 raise fail(URDFStructureError, where, problem, "actuators name model joints")
-            gear = (_floats(act.get("gear")) or [1.0])[0]
+            gear = (_floats(act, "gear", name) or [1.0])[0]
             bounds = []
             if act.get("forcerange") and act.get("forcelimited", "auto") != "false":
-                bounds.append(_floats(act.get("forcerange")))
+                bounds.append(_floats(act, "forcerange", name))
             if (
                 tag == "motor"
                 and act.get("ctrlrange")
                 and act.get("ctrllimited", "auto") != "false"
             ):
-                bounds.append(_floats(act.get("ctrlrange")))
+                bounds.append(_floats(act, "ctrlrange", name))
             limits = []
             for lo_hi in bounds:
                 if len(lo_hi) != 2 or not np.isclose(-lo_hi[0], lo_hi[1], rtol=1e-12, atol=0.0):
@@ -233,7 +302,7 @@ def _weld_free_joint(
 
 
 def load_mjcf_strict(
-    path: str | os.PathLike[str], *, size_limits: SizeLimits | None = None
+    path: str | os.PathLike[str], *, strict: bool = True, size_limits: SizeLimits | None = None
 ) -> LoadedMJCF:
     """Check an MJCF file, load it with Pinocchio's MJCF parser and check the model.
 
@@ -241,6 +310,11 @@ def load_mjcf_strict(
     ----------
     path : path-like
         The ``.xml`` file (root ``<mujoco>``).
+    strict : bool
+        Refuse a physically implausible ``<inertial>`` of a moving body (as
+        URDFs: mass >= 0, inertia positive semidefinite, triangle inequality,
+        no inertia without mass); False loads it with a warning. On a body
+        that cannot move it is always a warning.
     size_limits : SizeLimits, optional
         XML depth and element limits, joints and degrees of freedom (as URDFs).
 
@@ -261,14 +335,16 @@ def load_mjcf_strict(
     InvalidModelError
         A refused element (:data:`REFUSED_ELEMENTS`, named with its line), a
         ball joint, armature/friction/stiffness, an unknown angle unit, an
-        asymmetric actuator range, too many joints, or undefined dynamics.
+        implausible inertia of a moving body under ``strict``, an asymmetric
+        actuator range, too many joints, or undefined dynamics.
     ModelError
         If Pinocchio cannot build the model.
 
     Warns
     -----
     YoubotOptWarning
-        When the file has angles but no ``<compiler angle>`` (read in degrees).
+        When the file has angles but no ``<compiler angle>`` (read in degrees),
+        and for an implausible inertia that is loaded.
     """
     sizes = (size_limits or SizeLimits()).resolved()
     name = os.fspath(path)
@@ -289,6 +365,7 @@ def load_mjcf_strict(
         raise fail(URDFStructureError, site(name, root), problem, "an MJCF file's root is <mujoco>")
     _refuse(root, name)
     unit = _angle_unit(root, name)
+    _inertia_policy(root, name, strict=strict)
     moving = [
         j
         for j in root.iter("joint")
