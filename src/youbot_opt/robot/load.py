@@ -31,8 +31,10 @@ from youbot_opt.robot.catalogue import (
     find_robot,
 )
 from youbot_opt.robot.mimic import mimic_locks
+from youbot_opt.robot.mjcf import is_mjcf, load_mjcf_strict
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
+from youbot_opt.robot.payload import Payload
 from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
 from youbot_opt.robot.urdf_check.loader import load_urdf_strict
 from youbot_opt.robot.urdf_check.size import SizeLimits
@@ -195,6 +197,7 @@ def load_model(
     strict: bool = True,
     lock_joints: Mapping[str, float] | None = None,
     size_limits: SizeLimits | None = None,
+    payload: Payload | None = None,
 ) -> RobotModel:
     """Load a robot model.
 
@@ -245,6 +248,9 @@ def load_model(
         ``YOUBOT_OPT_MAX_XML_ELEMENTS``) when set, else the default
         (:class:`~youbot_opt.robot.urdf_check.size.SizeLimits`). Example:
         ``load_model("big.urdf", size_limits=SizeLimits(max_joints=5000))``.
+    payload : Payload, optional
+        A payload the robot carries (:meth:`RobotModel.with_payload`), in its
+        frame (the tip frame when the payload names none).
 
     Returns
     -------
@@ -259,7 +265,7 @@ def load_model(
         The file is not a loadable URDF (an implausible inertia on a moving
         link under ``strict``: the message says how to load it anyway).
     FrameNotFound
-        ``tip_frame`` is not a frame of the (reduced) model.
+        ``tip_frame`` (or the payload's frame) is not a frame of the (reduced) model.
     ParameterError
         ``damping`` is negative, not finite or over :data:`MAX_JOINT_DAMPING`
         (also a joint's ``<dynamics damping>`` when not overridden);
@@ -285,6 +291,7 @@ def load_model(
     locked_names = frozenset(str(k) for k in (lock_joints or {}))
     tip: str | None
     catalogue_name: str | None = None  # set only when loaded by name from the catalogue
+    mimic_source: Path | None = None  # the URDF whose <mimic> joints are locked
     if isinstance(source, ArmParameters):
         gravity = source.gravity
         text = urdf_string(source, damping=damping)
@@ -306,6 +313,7 @@ def load_model(
             urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
         )
         name = catalogue_name = source
+        mimic_source = urdf_path
     elif isinstance(source, str | os.PathLike):
         urdf_path = Path(source)
         try:
@@ -321,9 +329,15 @@ def load_model(
             )
         urdf_path = urdf_path.resolve()
         dirs = (urdf_path.parent, *example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(
-            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
-        )
+        if is_mjcf(urdf_path):
+            mjcf = load_mjcf_strict(urdf_path, strict=strict, size_limits=sizes)
+            built = (mjcf.model, mjcf.visual_model, mjcf.collision_model)
+            mimic_source = None  # MJCF has no <mimic>; equality couplings are refused
+        else:
+            built = _build_pinocchio_models(
+                urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+            )
+            mimic_source = urdf_path
         name, tip = built[0].name or urdf_path.stem, None
     else:
         raise ParameterError(
@@ -337,7 +351,7 @@ def load_model(
     # mimic joints are never independent: locked, with a warning
     locked = (
         *locked,
-        *mimic_locks(model, urdf_path, dict(locked), str(name), size_limits=sizes),
+        *mimic_locks(model, mimic_source, dict(locked), str(name), size_limits=sizes),
     )
     model, visual, collision = _lock(model, visual, collision, locked)
     if damping is not None:
@@ -348,7 +362,7 @@ def load_model(
     if tip is None:
         tip = model.frames[len(model.frames) - 1].name
     _log.debug("loaded %s from %s (nq=%d, locked %s)", name, urdf_path, model.nq, locked)
-    return RobotModel(
+    robot = RobotModel(
         name=name,
         model=model,
         visual_model=visual,
@@ -360,3 +374,4 @@ def load_model(
         strict=bool(strict),
         catalogue_name=catalogue_name,
     )
+    return robot if payload is None else robot.with_payload(payload)

@@ -13,7 +13,7 @@ study's planar convention (spec ``trajopt.md``). Loading is
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal, NamedTuple
 
@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike
 from youbot_opt._checks import check_bound_scale
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import FrameNotFound, ParameterError
+from youbot_opt.robot.payload import Payload, add_payload
 
 __all__ = [
     "RobotModel",
@@ -181,6 +182,9 @@ class RobotModel:
         (:func:`~youbot_opt.robot.catalogue.available_robots`), so that it can
         be loaded again by that name; None for a file loaded by path (whatever
         its ``<robot name>``) and for a model built in memory.
+    payload : Payload or None
+        The payload :attr:`model` carries (:meth:`with_payload`), its frame
+        resolved; None when it carries none.
     """
 
     name: str
@@ -193,9 +197,47 @@ class RobotModel:
     locked_joints: tuple[tuple[str, float], ...] = ()
     strict: bool = True
     catalogue_name: str | None = None
+    payload: Payload | None = None
 
     def __post_init__(self) -> None:
         self.frame_id(self.tip_frame)  # raises FrameNotFound listing the frames
+
+    def with_payload(self, payload: Payload) -> RobotModel:
+        """Return this robot carrying ``payload`` (:func:`~youbot_opt.robot.payload.add_payload`).
+
+        Parameters
+        ----------
+        payload : Payload
+            The payload; its ``frame`` None means :attr:`tip_frame`.
+
+        Returns
+        -------
+        RobotModel
+            A copy whose model has the payload's inertia added to the carrying
+            frame's joint, and whose :attr:`payload` names the frame.
+
+        Raises
+        ------
+        ParameterError
+            If ``payload`` is not a :class:`Payload`, or this robot already
+            carries one (attach one payload, the sum of what it carries, to the
+            robot as loaded).
+        FrameNotFound
+            If the payload's frame is not a frame of the model.
+        """
+        if not isinstance(payload, Payload):
+            raise ParameterError(
+                f"payload must be a Payload, got {type(payload).__name__}", name="payload"
+            )
+        if self.payload is not None:
+            raise ParameterError(
+                f"robot {self.name!r} already carries a payload ({self.payload}); attach one "
+                "payload to the robot as loaded",
+                name="payload",
+            )
+        frame = self.tip_frame if payload.frame is None else payload.frame
+        model = add_payload(self.model, self.frame_id(frame), payload)
+        return replace(self, model=model, payload=replace(payload, frame=frame))
 
     @property
     def nq(self) -> int:

@@ -24,6 +24,7 @@ from typing import Any
 from youbot_opt.exceptions import ModelError, ParameterError, RobotNotFound
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.payload import Payload
 
 __all__ = ["RobotSource", "urdf_digest"]
 
@@ -97,6 +98,8 @@ class RobotSource:
         into (:meth:`to_json` with ``folder``); None for a name or when not written so.
     relative_package_dirs : tuple of str
         Each of ``package_dirs`` relative to that folder; empty when not written so.
+    payload : Payload or None
+        The payload the robot carries (:meth:`RobotModel.with_payload`), attached again on load.
     """
 
     source: str
@@ -106,6 +109,7 @@ class RobotSource:
     urdf_sha256: str | None = None
     relative_source: str | None = None
     relative_package_dirs: tuple[str, ...] = ()
+    payload: Payload | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.source, str) or not self.source:
@@ -180,6 +184,7 @@ class RobotSource:
             lock_joints=tuple((str(k), float(v)) for k, v in robot.locked_joints),
             strict=robot.strict if strict is None else bool(strict),
             urdf_sha256=digest,
+            payload=robot.payload,
         )
 
     def candidates(self, folder: str | os.PathLike[str] | None = None) -> tuple[Path, ...]:
@@ -313,6 +318,7 @@ class RobotSource:
                 package_dirs=dirs,
                 strict=self.strict,
                 lock_joints=dict(self.lock_joints) or None,
+                payload=self.payload,
             )
         except ModelError as exc:
             if not missing:
@@ -337,7 +343,8 @@ class RobotSource:
         -------
         dict
             ``source``, ``package_dirs``, ``lock_joints``, ``strict``,
-            ``urdf_sha256``, ``relative_source`` and ``relative_package_dirs``.
+            ``urdf_sha256``, ``relative_source``, ``relative_package_dirs`` and
+            ``payload`` (:meth:`Payload.to_json`, or None).
         """
         relative_source, relative_dirs = self.relative_source, self.relative_package_dirs
         if folder is not None:
@@ -352,6 +359,7 @@ class RobotSource:
             "urdf_sha256": self.urdf_sha256,
             "relative_source": relative_source,
             "relative_package_dirs": list(relative_dirs),
+            "payload": None if self.payload is None else self.payload.to_json(),
         }
 
     @classmethod
@@ -372,4 +380,5 @@ class RobotSource:
             urdf_sha256=None if digest is None else str(digest),
             relative_source=None if relative is None else str(relative),
             relative_package_dirs=tuple(str(p) for p in data.get("relative_package_dirs") or ()),
+            payload=None if data.get("payload") is None else Payload.from_json(data["payload"]),
         )

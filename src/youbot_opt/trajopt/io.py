@@ -40,6 +40,7 @@ from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptErro
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.catalogue import available_robots
 from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.payload import Payload
 from youbot_opt.robot.source import RobotSource
 from youbot_opt.trajopt.certify import Tolerances, certify
 from youbot_opt.trajopt.check import checked
@@ -214,6 +215,7 @@ def save_result(
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "problem": result.problem.describe(),
         "robot_source": _robot_source(result.problem.robot, target.parent),
+        "payload": _payload_json(result.problem.robot),
         "method": result.method,
         "backend": result.backend,
         "status": result.status.value,
@@ -301,6 +303,11 @@ def _robot_source(robot: RobotModel, folder: Path) -> dict[str, Any] | None:
         return None
 
 
+def _payload_json(robot: RobotModel) -> dict[str, Any] | None:
+    """Return the payload the robot carries as JSON (its source has it too, if it has one)."""
+    return None if robot.payload is None else robot.payload.to_json()
+
+
 def _robot(desc: dict[str, Any], source: dict[str, Any] | None, path: Path) -> RobotModel:
     """Load the robot a result was solved on again, with the saved joint damping."""
     name = desc["robot"]
@@ -310,7 +317,8 @@ def _robot(desc: dict[str, Any], source: dict[str, Any] | None, path: Path) -> R
         old = name if name in available_robots() else desc.get("urdf_path")
         if old is None:
             raise ResultFileError(f"cannot reload robot {name!r}: no URDF path saved; pass robot=")
-        spec = RobotSource(source=str(old))
+        payload = None if desc.get("payload") is None else Payload.from_json(desc["payload"])
+        spec = RobotSource(source=str(old), payload=payload)
     where = spec.source
     try:
         robot = spec.load(folder=path.parent)
@@ -452,7 +460,7 @@ def _load(
     try:
         desc = meta["problem"]
         if robot is None:
-            robot = _robot(desc, meta["robot_source"], path)
+            robot = _robot({**desc, "payload": meta.get("payload")}, meta["robot_source"], path)
         problem = TrajOptProblem(
             robot=robot,
             start=BoundaryState(q=desc["start_q"], v=desc["start_v"]),

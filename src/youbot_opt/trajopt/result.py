@@ -26,6 +26,7 @@ from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
 from youbot_opt.robot.model import JointBounds
 from youbot_opt.trajopt.check import ResultCheck, check_result
+from youbot_opt.trajopt.export.samples import SampledTrajectory, sample_trajectory
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.trajectory import Trajectory
 
@@ -342,6 +343,33 @@ class TrajOptResult:
                 result=self,
             )
         return self
+
+    def sample(self, rate_hz: float) -> SampledTrajectory:
+        """Sample the plan at a controller's rate with its transcription's own interpolants.
+
+        Parameters
+        ----------
+        rate_hz : float
+            Controller rate in [Hz], > 0.
+
+        Returns
+        -------
+        SampledTrajectory
+            Time from the start [s], q, v, a, tau per sample, with the joint
+            names and units of the robot
+            (:func:`~youbot_opt.trajopt.export.samples.sample_trajectory`).
+
+        Raises
+        ------
+        ParameterError
+            If the result has no trajectory or ``rate_hz`` is not > 0.
+        """
+        if self.trajectory is None:
+            raise ParameterError(
+                f"cannot sample a result without a finite trajectory (status {self.status.value})",
+                name="trajectory",
+            )
+        return sample_trajectory(self.trajectory, self.problem.robot, rate_hz)
 
     def bounds(self) -> JointBounds:
         """Return the scaled joint bounds of this solve."""

@@ -171,6 +171,16 @@ class Trajectory:
         """Joint torques in [N m] at ``time`` [s] under the transcription's interpolant."""
         return self._eval(time, "tau")
 
+    def acceleration(self, time: float | Array) -> Array:
+        """Joint accelerations in [rad/s^2] at ``time`` [s]: d/dt of :meth:`velocity`.
+
+        Trapezoidal: constant on each interval, ``(v[k+1] - v[k]) / h``;
+        Hermite-Simpson: the derivative of the cubic Hermite through ``v`` and
+        ``a`` (equal to ``a`` at the knots); Radau: the quadratic through the
+        stage accelerations. At a knot time the interval that starts there is used.
+        """
+        return self._eval(time, "a")
+
     def interval_values(self, nodes: Array) -> Array:
         """``[q, v, tau]`` of each interval's own interpolant at local times ``nodes``.
 
@@ -206,6 +216,14 @@ class Trajectory:
         s = x * h
         q0, q1, v0, v1 = self.q[k], self.q[k + 1], self.v[k], self.v[k + 1]
         a0, a1 = self.a[k], self.a[k + 1]
+        if what == "a":  # d/dt of the velocity interpolant
+            if self.interpolation == "trapezoidal":
+                return np.asarray(np.broadcast_to((v1 - v0) / h, v0.shape))
+            dh00 = (6 * x**2 - 6 * x) / h
+            dh10 = 3 * x**2 - 4 * x + 1
+            dh01 = (-6 * x**2 + 6 * x) / h
+            dh11 = 3 * x**2 - 2 * x
+            return np.asarray(dh00 * v0 + dh10 * a0 + dh01 * v1 + dh11 * a1)
         if what == "tau":
             if self.interpolation == "trapezoidal":
                 out = self.tau[k] + x * (self.tau[k + 1] - self.tau[k])
@@ -235,12 +253,13 @@ class Trajectory:
         stages, ends = {
             "q": (self.v_stages, self.v),
             "v": (self.a_stages, self.a),
+            "a": (self.a_stages, self.a),
             "tau": (self.tau_stages, self.tau),
         }[what]
         assert stages is not None
         values = np.concatenate([stages[k], ends[k + 1][:, None, :]], axis=1)  # (M, 3, nv)
         xs = x[:, 0]
-        if what == "tau":
+        if what in ("tau", "a"):  # a: d/dt of v = v_k + h sum_j I_j(s) a_j
             return np.einsum("mj,mjc->mc", quadrature.radau_basis(xs), values)
         start = self.q[k] if what == "q" else self.v[k]
         return start + h * np.einsum("mj,mjc->mc", quadrature.radau_integral(xs), values)
