@@ -31,15 +31,32 @@ def test_cli_help_runs() -> None:
 
 
 def test_lazy_public_names_resolve_and_are_exported() -> None:
-    """Every lazily imported name is in ``__all__`` and resolves to the object of its module."""
+    """Every name of the public face (``__init__.pyi``, read with ast here) is in ``__all__``,
+    listed once, and resolves to the object of the module the stub names; importing the
+    package imports neither Pinocchio nor CasADi."""
+    import ast
     import importlib
+    import subprocess
+    import sys
+    from pathlib import Path
 
     import youbot_opt
 
-    for name, module in youbot_opt._LAZY.items():
-        assert name in youbot_opt.__all__
+    stub = Path(youbot_opt.__file__).with_suffix(".pyi")
+    names: list[tuple[str, str]] = []
+    for node in ast.parse(stub.read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.ImportFrom):
+            assert node.level == 1 and node.module, ast.dump(node)
+            names += [(alias.name, f"youbot_opt.{node.module}") for alias in node.names]
+    listed = [name for name, _ in names]
+    assert len(listed) == len(set(listed)), "a public name is listed twice"
+    assert sorted(listed) == sorted(youbot_opt.__all__)
+    for name, module in names:
         assert getattr(youbot_opt, name) is getattr(importlib.import_module(module), name)
     assert set(youbot_opt.__all__) <= set(dir(youbot_opt))
+    code = "import sys, youbot_opt; print(sorted({'pinocchio', 'casadi'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
 
 
 def _readme() -> str:
