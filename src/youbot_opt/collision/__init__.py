@@ -1,17 +1,22 @@
 """Collision (layer L2): scenes of obstacles, self-collision pairs, bounding balls, distances.
 
-Modules: :mod:`.shapes` (box, sphere, cylinder, capsule, half-space, mesh),
-:mod:`.scene` (:class:`Scene`, :class:`Obstacle`, furniture from a URDF),
-:mod:`.scene_file` (the JSON scene file), :mod:`.pairs` (self-collision pairs,
-SRDF), :mod:`.spheres` (bounding balls fitted once, cached, with their
-overshoot), :mod:`.distance` (smooth signed distances in CasADi),
-:mod:`.model` (:class:`CollisionModel`: the CasADi distances of a robot in a
-scene as a Function of the joints' placements) and :mod:`.exact` (coal's exact
-distances, the independent checker).
+Modules: :mod:`.shapes` and :mod:`.scene` (:class:`Scene`, furniture URDFs),
+:mod:`.scene_file` (the JSON file), :mod:`.pairs` (self-collision, SRDF),
+:mod:`.spheres` (bounding balls, cached, with their overshoot),
+:mod:`.distance` (smooth CasADi distances), :mod:`.model`
+(:class:`CollisionModel`: the distances as a Function of the joints'
+placements), :mod:`.exact` (coal's exact distances) and :mod:`.clearance`
+(configurations refused before solving, motions certified between samples).
 
     from youbot_opt.collision import Scene, build_collision_model
 """
 
+from youbot_opt.collision.clearance import (
+    ClearanceCertificate,
+    certify_clearance,
+    point_speed_bounds,
+    require_clearance,
+)
 from youbot_opt.collision.exact import ExactChecker, exact_checker, exact_distances
 from youbot_opt.collision.model import CollisionModel, build_collision_model, joint_placements
 from youbot_opt.collision.pairs import CollisionPairs, pairs_report, self_collision_pairs
@@ -22,6 +27,7 @@ from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Mesh,
 __all__ = [
     "Box",
     "Capsule",
+    "ClearanceCertificate",
     "CollisionModel",
     "CollisionPairs",
     "Cylinder",
@@ -32,12 +38,15 @@ __all__ = [
     "Scene",
     "Sphere",
     "build_collision_model",
+    "certify_clearance",
     "exact_checker",
     "exact_distances",
     "furniture",
     "joint_placements",
     "load_scene",
     "pairs_report",
+    "point_speed_bounds",
+    "require_clearance",
     "save_scene",
     "self_collision_pairs",
 ]
