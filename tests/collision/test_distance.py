@@ -12,6 +12,7 @@ from youbot_opt.collision import distance as dist
 from youbot_opt.collision.exact import exact_checker
 from youbot_opt.collision.model import CollisionModel, build_collision_model, joint_placements
 from youbot_opt.dynamics.symbolic import build_symbolic_model
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
 
 #: coal's GJK/EPA stops at a relative precision of 1e-6 on distances of at most 1 m
@@ -84,11 +85,18 @@ def test_smoothing_bounds():
 
 
 def _q_function(cm: CollisionModel, robot: RobotModel) -> ca.Function:
-    symbolic = build_symbolic_model(robot)
+    distances = cm.configuration_function(build_symbolic_model(robot).forward_kinematics)
     q = ca.SX.sym("q", robot.nq)
-    rotations, translations = symbolic.forward_kinematics(q)
-    d = cm.distance_function()(rotations, translations)
+    d = distances(q)
     return ca.Function("d_q", [q], [d, ca.jacobian(d, q)])
+
+
+def test_configuration_function_refuses_another_layout(ur5_cell: CollisionModel):
+    """A kinematics Function of another robot's size is refused, naming both layouts."""
+    q = ca.SX.sym("q", 2)
+    other = ca.Function("fk", [q], [ca.SX.zeros(3, 6), ca.SX.zeros(3, 2)])
+    with pytest.raises(ParameterError, match=r"must return rotations \(3, 18\)"):
+        ur5_cell.configuration_function(other)
 
 
 def test_gradients_match_finite_differences(ur5: RobotModel, ur5_cell: CollisionModel, rng):

@@ -26,6 +26,7 @@ from youbot_opt.collision.pairs import CollisionPairs, self_collision_pairs
 from youbot_opt.collision.scene import Obstacle, Scene
 from youbot_opt.collision.shapes import Box, Capsule, Cylinder, Mesh, Sphere
 from youbot_opt.collision.spheres import SphereFit, fit_spheres, geometry_hull, hull_points
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel, as_configuration
 
 __all__ = [
@@ -215,6 +216,43 @@ class CollisionModel:
             ["distance"],
             {"cse": True},
         )
+
+    def configuration_function(self, forward_kinematics: ca.Function) -> ca.Function:
+        """Return the Function q -> pair distances [m], composed with a kinematics Function once.
+
+        The one place where the distances meet the optimisers' symbolic
+        kinematics (this package cannot import :mod:`youbot_opt.dynamics`, a
+        sibling of its layer, so the caller passes the Function in).
+
+        Parameters
+        ----------
+        forward_kinematics : casadi.Function
+            ``q (nq,) -> rotations (3, 3 n_joints), translations (3, n_joints)``,
+            e.g. ``build_symbolic_model(robot).forward_kinematics``.
+
+        Returns
+        -------
+        casadi.Function
+            ``"collision_distances_q"``: ``q`` -> ``distance`` (n_pairs,) [m].
+
+        Raises
+        ------
+        ParameterError
+            The Function's outputs do not have the joints' layout.
+        """
+        n = self.n_joints
+        shapes = [forward_kinematics.size_out(i) for i in range(forward_kinematics.n_out())]
+        if shapes[:2] != [(3, 3 * n), (3, n)]:
+            raise ParameterError(
+                f"forward_kinematics must return rotations (3, {3 * n}) and translations "
+                f"(3, {n}), got {shapes}",
+                name="forward_kinematics",
+                value=shapes,
+            )
+        q = ca.SX.sym("q", forward_kinematics.size1_in(0))
+        rotations, translations = forward_kinematics(q)[:2]
+        d = self.distance_function()(rotations, translations)
+        return ca.Function("collision_distances_q", [q], [d], ["q"], ["distance"], {"cse": True})
 
     def _link_obstacle(self, centres: list[Expr], radii: Array, index: int, placement: Any) -> Expr:
         placed = self.obstacles[index]
