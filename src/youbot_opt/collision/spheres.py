@@ -47,10 +47,14 @@ DEFAULT_TARGET_OVERSHOOT = 0.015
 DEFAULT_MAX_SPHERES = 8
 #: Sides of the prism circumscribing a cylinder's circle.
 _PRISM_SIDES = 32
-#: Cells per cube face edge of the direction grid (6 (m+1)^2 directions).
-_GRID = 48
+#: Cells per cube face edge of the direction grids (6 (m+1)^2 directions): a
+#: coarse one to choose the ball count, a fine one for the reported overshoot.
+_COARSE_GRID = 24
+_FINE_GRID = 128
+#: Iterations of the Badoiu-Clarkson minimum-enclosing-ball centre.
+_CENTRE_ITERATIONS = 100
 #: Version of the fitting algorithm (part of the cache key).
-_FIT_VERSION = 1
+_FIT_VERSION = 2
 #: Most hull points a solid may have (a bigger mesh is refused).
 _MAX_POINTS = 200_000
 
@@ -224,9 +228,9 @@ def geometry_hull(geometry: object) -> HullPoints:
     )
 
 
-def _directions() -> tuple[Array, float]:
+def _directions(grid: int) -> tuple[Array, float]:
     """Return unit directions on a cube-sphere grid and their covering radius (chordal)."""
-    t = np.linspace(-1.0, 1.0, _GRID + 1)
+    t = np.linspace(-1.0, 1.0, grid + 1)
     grid_a, grid_b = np.meshgrid(t, t)
     a, b = grid_a.ravel(), grid_b.ravel()
     one = np.ones_like(a)
@@ -238,7 +242,7 @@ def _directions() -> tuple[Array, float]:
     dirs: Array = stacked / np.linalg.norm(stacked, axis=1, keepdims=True)
     # a point of a face lies within sqrt(2)/GRID of a grid node; both at distance >= 1
     # from the origin, so their directions are within (pi/2) sqrt(2)/GRID (angle >= chord).
-    return dirs, (math.pi / 2) * math.sqrt(2) / _GRID
+    return dirs, (math.pi / 2) * math.sqrt(2) / grid
 
 
 def _hull(points: Array) -> tuple[Array, Array]:
@@ -275,6 +279,21 @@ def _slab_points(vertices: Array, edges: Array, coord: Array, lo: float, hi: flo
     return np.vstack(out)
 
 
+def _centre(points: Array) -> Array:
+    """Return a centre of a small ball around ``points``: Badoiu-Clarkson from the box centre.
+
+    The radius is computed from the centre afterwards, so the ball contains
+    the points whatever the centre; the iteration only makes it smaller.
+    """
+    box = (points.min(axis=0) + points.max(axis=0)) / 2
+    centre = box.copy()
+    for i in range(1, _CENTRE_ITERATIONS + 1):
+        far = points[np.argmax(np.linalg.norm(points - centre, axis=1))]
+        centre = centre + (far - centre) / (i + 1)
+    reach = np.linalg.norm(points - centre, axis=1).max()
+    return centre if reach < np.linalg.norm(points - box, axis=1).max() else box
+
+
 def _fit_k(vertices: Array, edges: Array, k: int, dirs: Array, cover: float) -> SphereFit:
     """Fit ``k`` balls along the principal axis; their overshoot bound."""
     centroid = vertices.mean(axis=0)
@@ -288,7 +307,7 @@ def _fit_k(vertices: Array, edges: Array, k: int, dirs: Array, cover: float) -> 
         slab = _slab_points(local, edges, coord, cuts[i], cuts[i + 1])
         if len(slab) == 0:
             continue
-        center = (slab.min(axis=0) + slab.max(axis=0)) / 2
+        center = _centre(slab)
         radius = float(np.linalg.norm(slab - center, axis=1).max())
         overshoot = max(
             overshoot,
@@ -329,7 +348,9 @@ def _overshoot(
 def _cache_key(hull: HullPoints, target: float, max_spheres: int) -> str:
     digest = hashlib.sha256()
     digest.update(np.ascontiguousarray(np.asarray(hull.points, dtype="<f8")).tobytes())
-    digest.update(f"{_FIT_VERSION}|{_GRID}|{hull.slack!r}|{target!r}|{max_spheres}".encode())
+    digest.update(
+        f"{_FIT_VERSION}|{_COARSE_GRID}|{_FINE_GRID}|{_CENTRE_ITERATIONS}|{hull.slack!r}|{target!r}|{max_spheres}".encode()
+    )
     return digest.hexdigest()
 
 
@@ -397,16 +418,18 @@ def fit_spheres(
     if cache and (hit := _read_cache(path)) is not None:
         return hit
     vertices, edges = _hull(points)
-    dirs, cover = _directions()
-    best: SphereFit | None = None
+    dirs, cover = _directions(_COARSE_GRID)
+    chosen: tuple[float, int] | None = None
     for k in range(1, max_spheres + 1):
-        fit = _fit_k(vertices, edges, k, dirs, cover)
-        if best is None or fit.overshoot < best.overshoot:
-            best = fit
-        if fit.overshoot + hull.slack <= target_overshoot:
-            best = fit
+        over = _fit_k(vertices, edges, k, dirs, cover).overshoot
+        if chosen is None or over < chosen[0]:
+            chosen = (over, k)
+        if over + hull.slack <= target_overshoot:
+            chosen = (over, k)
             break
-    assert best is not None
+    assert chosen is not None
+    # the chosen count again, its overshoot bounded on the fine grid (a smaller remainder)
+    best = _fit_k(vertices, edges, chosen[1], *_directions(_FINE_GRID))
     result = SphereFit(
         centers=best.centers, radii=best.radii, overshoot=best.overshoot + hull.slack
     )
