@@ -10,7 +10,7 @@ import pytest
 
 from youbot_opt.collision import Box, Capsule, Cylinder, HalfSpace, Mesh, Obstacle, Scene, Sphere
 from youbot_opt.collision.scene_file import MAX_SCENE_BYTES, load_scene, save_scene
-from youbot_opt.exceptions import ModelError, ParameterError
+from youbot_opt.exceptions import ModelError, ParameterError, UnsafePathError
 
 HEADER = {"schema": "youbot_opt.scene", "schema_version": 1}
 
@@ -143,6 +143,14 @@ def test_huge_count_and_huge_file_refused(tmp_path: Path):
     with pytest.raises(ParameterError, match="not JSON"):
         (tmp_path / "bad.json").write_text("{")
         load_scene(tmp_path / "bad.json")
+
+
+def test_mesh_entry_follows_the_mesh_policy(tmp_path: Path):
+    """A mesh of a format the URDF loader refuses is refused naming the scene entry."""
+    (tmp_path / "part.txt").write_text("solid")
+    path = _write(tmp_path, [{"name": "part", "shape": "mesh", "path": "part.txt"}])
+    with pytest.raises(UnsafePathError, match=r"obstacles\[0\]"):
+        load_scene(path)
 
 
 def test_furniture_entry(tmp_path: Path):

@@ -24,6 +24,7 @@ from youbot_opt._files import atomic_write_text
 from youbot_opt.collision.scene import MAX_OBSTACLES, Obstacle, Scene, furniture
 from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Mesh, Shape, Sphere
 from youbot_opt.exceptions import ParameterError, YoubotOptError
+from youbot_opt.robot.urdf_check.meshes import check_mesh_file
 
 __all__ = ["MAX_SCENE_BYTES", "SCENE_SCHEMA", "SCENE_VERSION", "load_scene", "save_scene"]
 
@@ -108,7 +109,9 @@ def _shape(kind: str, entry: Mapping[str, Any], where: str, folder: Path) -> Sha
         return HalfSpace()
     scale = _numbers(entry.get("scale", [1.0, 1.0, 1.0]), f"{where}.scale")
     path = _relative_file(entry["path"], f"{where}.path", folder)
-    return Mesh(path=path, scale=scale)  # type: ignore[arg-type]
+    # the URDF loader's mesh policy: format, size, a regular file inside the folder
+    checked = check_mesh_file(path, (folder,), referenced_by=f"scene entry {where}")
+    return Mesh(path=checked, scale=scale)  # type: ignore[arg-type]
 
 
 def _obstacles(entry: object, where: str, folder: Path) -> Scene:
