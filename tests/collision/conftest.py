@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import warnings
-from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -13,16 +12,16 @@ from youbot_opt.collision.model import CollisionModel, build_collision_model
 from youbot_opt.robot.model import RobotModel
 
 
-@pytest.fixture(scope="session", autouse=True)
-def _fit_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
-    """Sphere fits are cached in a temporary folder, never in the user's cache."""
-    old = os.environ.get("YOUBOT_OPT_CACHE")
-    os.environ["YOUBOT_OPT_CACHE"] = str(tmp_path_factory.mktemp("cache"))
-    yield
-    if old is None:
-        del os.environ["YOUBOT_OPT_CACHE"]
-    else:
-        os.environ["YOUBOT_OPT_CACHE"] = old
+@pytest.fixture(scope="session")
+def fit_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A temporary folder for sphere fits (never the user's cache), shared by the session."""
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture(autouse=True)
+def _fit_cache_env(fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """During each collision test, fits are cached in :func:`fit_cache` (restored after)."""
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
 
 
 @pytest.fixture(scope="session")
@@ -70,6 +69,8 @@ def cell() -> Scene:
 
 
 @pytest.fixture(scope="session")
-def ur5_cell(ur5: RobotModel, cell: Scene) -> CollisionModel:
+def ur5_cell(ur5: RobotModel, cell: Scene, fit_cache: Path) -> CollisionModel:
     """The ur5's collision model in the cell (self pairs from its SRDF)."""
-    return build_collision_model(ur5, cell)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
+        return build_collision_model(ur5, cell)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -22,10 +24,13 @@ from youbot_opt.robot.model import RobotModel
 
 
 @pytest.fixture(scope="module")
-def pillar_checker(ur5: RobotModel):
+def pillar_checker(ur5: RobotModel, fit_cache: Path):
     """ur5 with a thin pillar at 0.45 m on the y axis, no self-collision."""
     pillar = Obstacle(name="pillar", shape=Cylinder(radius=0.02, length=2.0), xyz=(0.0, 0.45, 0.5))
-    return exact_checker(build_collision_model(ur5, Scene((pillar,)), self_collision=False), ur5)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
+        cm = build_collision_model(ur5, Scene((pillar,)), self_collision=False)
+    return exact_checker(cm, ur5)
 
 
 def test_start_inside_obstacle_refused_naming_link_and_obstacle(ur5: RobotModel):

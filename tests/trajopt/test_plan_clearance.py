@@ -20,6 +20,12 @@ from youbot_opt.trajopt.guess import straight_line_guess
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
 
+@pytest.fixture(autouse=True)
+def _fit_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Sphere fits are cached in a temporary folder during each test, never the user's."""
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+
+
 @pytest.fixture(scope="module")
 def ur5():
     """The ur5 of example-robot-data."""
