@@ -29,6 +29,7 @@ LAYERS: dict[str, int] = {
     "dynamics": 2,
     "nlp": 2,
     "sweeps": 2,
+    "collision": 2,
     "trajopt": 3,
     "ikpath": 3,
     "viz": 4,
