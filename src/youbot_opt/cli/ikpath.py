@@ -1,15 +1,12 @@
-"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2).
+"""``youbot-opt ikpath``: minimum-motion cyclic joint path through targets (study 2).
+
+Planar targets X Y [m] (``--example``, ``--lengths``, ``--robot youbot``) are
+solved here; spatial ones (X Y Z, an approach or a pose, ``--targets FILE``,
+any other ``--robot``, ``--tip-frame``) by :mod:`youbot_opt.cli.ikpath_spatial`.
+Exit 0: best start succeeded; 1: failed; 2: unreachable target. Starts are
+saved in ``--out DIR`` as they finish; a rerun resumes. Details: docs/ikpath.md.
 
     youbot-opt ikpath --example A --starts 200
-    youbot-opt ikpath --example B --method ipopt --starts 200 --json
-    youbot-opt ikpath --lengths 3 2 2 --limit 1.5708 --target 0 7 --target 5 0 --method ipopt
-    youbot-opt ikpath --robot youbot --target 0.3 0.3 --target 0.1 0.5 --target 0.35 0.1
-    youbot-opt ikpath --robot ur5 --target 0.4 0.2 0.3 --target 0.3 -0.3 0.4 --target 0.5 0 0.2
-
-Targets X Y [m] are planar (--example, --lengths, --robot youbot); X Y Z, X Y Z AX AY AZ
-(approach of the frame's z axis), X Y Z QX QY QZ QW (pose) or --targets FILE are spatial
-(any --robot NAME|PATH, --frame). Exit 0: best start succeeded; 1: failed; 2: unreachable target.
-Starts are saved in --out DIR as they finish; a rerun resumes. Details: docs/ikpath.md.
 """
 
 from __future__ import annotations
@@ -18,143 +15,41 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from youbot_opt.cli.cluster_args import (
-    add_keep_results_arg,
-    add_scheduler_args,
-    report_shard,
-    scheduler_address,
+import numpy as np
+
+from youbot_opt._typing import JSONDict
+from youbot_opt.cli.flags import report_shard, scheduler_address
+from youbot_opt.cli.ikpath_spatial import run_spatial
+from youbot_opt.cli.ikpath_starts import (
+    STARTS_FILE,
+    StartsFile,
+    print_starts,
+    start_sweep,
+    write_starts,
 )
-from youbot_opt.cli.ikpath_starts import print_starts, start_fields, start_sweep
-from youbot_opt.cli.robot_args import add_loading_options
+from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.parser import PLANAR_REACH_EVALUATIONS, START_KIND_NAMES
 from youbot_opt.cli.run_size import check_ikpath_size
 from youbot_opt.exceptions import ParameterError
-
-if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast
-    from youbot_opt.ikpath.multistart import MultistartResult
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.reachability.planar import ReachVerdict
-
-# The choices of the parser, spelled out here so that building it imports no solver;
-# tests/cli/test_cli_help.py checks them against the library's EXAMPLES, METHODS, START_KINDS.
-EXAMPLE_NAMES: tuple[str, ...] = ("A", "B")
-METHOD_NAMES: tuple[str, ...] = ("al", "ipopt")
-START_KIND_NAMES: tuple[str, ...] = ("feasible", "uniform")
-PLANAR_REACH_EVALUATIONS = 20_000
-SPATIAL_REACH_BOXES = 200_000  # ikpath.spatial_reachability.DEFAULT_INTERVAL_BOXES
-SPATIAL_REACH_SECONDS = 1.0  # ikpath.spatial_reachability.DEFAULT_INTERVAL_SECONDS
-SPATIAL_START_KIND_NAMES: tuple[str, ...] = ("mixed", "coherent", "random")
-
-
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``ikpath`` sub-command."""
-    p = sub.add_parser(
-        "ikpath",
-        help="minimum-motion cyclic IK path through tip targets (study 2)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    src = p.add_argument_group("arm and targets")
-    src.add_argument("--example", choices=EXAMPLE_NAMES, help="the study's example A or B")
-    src.add_argument(
-        "--robot",
-        metavar="NAME|PATH",
-        help="youbot (planar, targets: platform x z), or a robot name (ur5, panda, ...) or "
-        "URDF path for spatial targets",
-    )
-    src.add_argument("--frame", metavar="F", help="spatial: the frame that visits the targets")
-    add_loading_options(src)
-    src.add_argument(
-        "--targets",
-        metavar="FILE",
-        dest="targets_file",
-        help="spatial: targets from a CSV or JSON file (see above)",
-    )
-    src.add_argument(
-        "--tol", type=float, default=1e-6, help="spatial: position tolerance [m] (default 1e-6)"
-    )
-    src.add_argument(
-        "--orientation-tol",
-        type=float,
-        default=1e-6,
-        help="spatial: orientation tolerance [rad] (default 1e-6)",
-    )
-    src.add_argument("--lengths", type=float, nargs="+", metavar="L", help="link lengths [m]")
-    src.add_argument(
-        "--target",
-        type=float,
-        nargs="+",
-        action="append",
-        metavar="X",
-        help="a target (repeat, in visiting order): X Y [m] (planar), X Y Z, X Y Z AX AY AZ "
-        "or X Y Z QX QY QZ QW (spatial)",
-    )
-    lim = p.add_argument_group("joint limits [rad]")
-    lim.add_argument("--limit", type=float, metavar="C", help="symmetric limits |q_i| <= C")
-    lim.add_argument("--lower", type=float, nargs="+", metavar="L", help="lower limit(s)")
-    lim.add_argument("--upper", type=float, nargs="+", metavar="U", help="upper limit(s)")
-    lim.add_argument("--no-limits", action="store_true", help="ignore the arm's joint limits")
-    lim.add_argument(
-        "--reach-evaluations",
-        type=int,
-        default=None,
-        metavar="N",
-        help="budget of the reachability test: planar, evaluations of the branch and bound "
-        f"(3+ links; default {PLANAR_REACH_EVALUATIONS}); spatial, boxes of the interval "
-        f"search per target (default {SPATIAL_REACH_BOXES}, within its "
-        f"{SPATIAL_REACH_SECONDS:g} s per target)",
-    )
-    run = p.add_argument_group("solver")
-    run.add_argument("--method", choices=METHOD_NAMES, default="al", help="al (default) or ipopt")
-    run.add_argument(
-        "--starts", type=int, default=1, help="number of starts (default 1: the zero vector only)"
-    )
-    run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
-    run.add_argument(
-        "--start-kind",
-        choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
-        default=None,
-        help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
-        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
-    )
-    run.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        help="worker processes (default: the CPUs, 1 below 8 starts)",
-    )
-    add_scheduler_args(run)  # --starts > 1 on a Dask cluster
-    run.add_argument(
-        "--max-wall-time",
-        type=float,
-        default=None,
-        metavar="S",
-        help="wall-time limit of each start's solve [s] (status max_time when reached)",
-    )
-    out = p.add_argument_group("output")
-    out.add_argument(
-        "--out",
-        metavar="DIR",
-        help="run folder (default: a new youbot_opt_runs/ikpath-<UTC time> in the cwd)",
-    )
-    out.add_argument(
-        "--segment-time",
-        type=float,
-        default=1.0,
-        metavar="S",
-        help="replay: duration of each move between targets [s] (default 1)",
-    )
-    out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
-    add_keep_results_arg(out)
-    out.add_argument("--json", action="store_true", help="print one JSON object")
-    out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
-    p.set_defaults(func=_run)
+from youbot_opt.ikpath.examples import STUDY_E_A, example_problem
+from youbot_opt.ikpath.io import save_result
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.ikpath.methods.ipopt import IpoptOptions
+from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
+from youbot_opt.ikpath.targets import position_targets
+from youbot_opt.robot.planar import PlanarChain, youbot_chain
+from youbot_opt.sweeps.resume import ShardReport
+from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
+from youbot_opt.viz.plots.ikpath import plot_arm_path, plot_convergence, plot_minima, plot_workspace
 
 
 def _spatial_mode(args: argparse.Namespace) -> bool:
     """Whether the command line asks for the spatial problem (see the usage text)."""
-    if args.frame or args.targets_file:
+    if args.tip_frame or args.targets_file:
         return True
     if args.robot is not None and args.robot != "youbot":
         return True
@@ -163,13 +58,6 @@ def _spatial_mode(args: argparse.Namespace) -> bool:
 
 def _problem(args: argparse.Namespace) -> CyclicIKProblem:
     """Build the problem from the command line."""
-    import numpy as np
-
-    from youbot_opt.ikpath.examples import example_problem
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.targets import position_targets
-    from youbot_opt.robot.planar import PlanarChain
-
     if args.example:
         if args.lengths or args.target or args.robot:
             raise ParameterError(
@@ -190,7 +78,6 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
                 raise ParameterError(
                     "--robot fixes the lengths", name="lengths", value=args.lengths
                 )
-            from youbot_opt.robot.planar import youbot_chain
 
             chain = youbot_chain()
         elif args.lengths:
@@ -242,11 +129,8 @@ def _report(
     problem: CyclicIKProblem,
     verdicts: tuple[ReachVerdict, ...],
     ms: MultistartResult | None,
+    starts: StartsFile | None,
 ) -> dict[str, Any]:
-    import numpy as np
-
-    from youbot_opt.ikpath.examples import STUDY_E_A
-    from youbot_opt.ikpath.reachability.planar import Reachability
 
     chain = problem.planar_chain
     doc: dict[str, Any] = {
@@ -261,7 +145,7 @@ def _report(
     }
     if args.example == "A":
         doc["study_E"] = STUDY_E_A
-    if ms is None:
+    if ms is None or starts is None:
         doc.update(status="unreachable", E=None, configurations=None, max_residual=None)
         return doc
     best = ms.best
@@ -298,7 +182,8 @@ def _report(
         workers=ms.n_workers,
         starts_per_second=ms.starts_per_second(),
         resumed=ms.resumed,
-        **start_fields(ms.results, ms.attempts, _residual_field),
+        retried=starts.retried,
+        starts_file=starts.path.name,
     )
     return doc
 
@@ -310,7 +195,7 @@ def _residual_field(r: Any) -> dict[str, Any]:  # noqa: ANN401 - IKPathResult or
     return {"max_residual": r.max_residual}
 
 
-def _print_text(doc: dict[str, Any]) -> None:
+def _print_text(doc: dict[str, Any], crashed: list[JSONDict]) -> None:
     if doc["q_lower"] is None:
         lims = "none"
     else:
@@ -327,9 +212,9 @@ def _print_text(doc: dict[str, Any]) -> None:
     if doc["E"] is None:
         return
     if doc["starts"] == 1:
-        _print_single_start(doc)
+        _print_single_start(doc, crashed)
     else:
-        _print_multistart(doc)
+        _print_multistart(doc, crashed)
     for j, q in enumerate(doc["configurations"]):
         print(f"  q{j + 1} = [{', '.join(f'{v:+.6f}' for v in q)}] rad")
     if "study_E" in doc:
@@ -339,15 +224,14 @@ def _print_text(doc: dict[str, Any]) -> None:
         )
 
 
-def _print_single_start(doc: dict[str, Any]) -> None:
+def _print_single_start(doc: dict[str, Any], crashed: list[JSONDict]) -> None:
     """Print the one run of ``--starts 1`` (the zero start) as one run, not as a multistart."""
     resumed = " (loaded from the output folder: resumed)" if doc["resumed"] else ""
     print(f"one start (the zero vector), {doc['wall_time']:.2f} s{resumed}")
     if doc["retried"]:
         print("  retried once after a failed attempt")
-    for o in doc["start_outcomes"]:
-        if o["status"] == "crashed":
-            print(f"  failed after {o['attempts']} attempts: {o['message']}")
+    for o in crashed:
+        print(f"  failed after {o['attempts']} attempts: {o['message']}")
     print(
         f"result: E = {doc['E']:.10f} rad^2 ({doc['status']}); max residual "
         f"{doc['max_residual']:.2e} m, limit violation {doc['limit_violation']:.2e} rad"
@@ -361,9 +245,9 @@ def _print_failure(doc: dict[str, Any]) -> None:
         print(f"failed: {doc['message']}")
 
 
-def _print_multistart(doc: dict[str, Any]) -> None:
+def _print_multistart(doc: dict[str, Any], crashed: list[JSONDict]) -> None:
     """Print the multistart's outcomes, its local minima, the zero start and the best."""
-    print_starts(doc)
+    print_starts(doc, crashed)
     for m in doc["minima"][:8]:
         print(
             f"  local minimum E = {m['E']:.10f} rad^2 found by {m['count']} starts "
@@ -381,8 +265,6 @@ def _print_multistart(doc: dict[str, Any]) -> None:
 
 def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
     """Warn on stderr about every target whose reachability was not decided."""
-    from youbot_opt.ikpath.reachability.planar import Reachability
-
     for v in verdicts:
         if v.status is Reachability.UNDECIDED:
             print(
@@ -405,15 +287,6 @@ def _write_outputs(
     doc: dict[str, Any],
 ) -> list[Path]:
     """Write the run folder: figures, replay, saved result, then ``summary.json``."""
-    from youbot_opt.cli.output import save_figure, write_summary
-    from youbot_opt.ikpath.io import save_result
-    from youbot_opt.viz.plots.ikpath import (
-        plot_arm_path,
-        plot_convergence,
-        plot_minima,
-        plot_workspace,
-    )
-
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
         best = ms.best
@@ -422,9 +295,8 @@ def _write_outputs(
             files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
         files.append(save_result(best, folder / "result.json"))
+        files.append(folder / STARTS_FILE)
         if not args.no_replay:
-            from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
-
             files.append(
                 export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)
             )
@@ -435,14 +307,8 @@ def _write_outputs(
     return files
 
 
-def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.cli.output import print_json, print_outputs, run_folder
-    from youbot_opt.ikpath.methods.al import ALOptions
-    from youbot_opt.ikpath.methods.ipopt import IpoptOptions
-    from youbot_opt.ikpath.multistart import run_multistart
-    from youbot_opt.ikpath.reachability.planar import Reachability, check_reachability
-    from youbot_opt.sweeps.resume import ShardReport
-
+def run(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt ikpath``; returns the exit code (0 ok, 1 failed, 2 unreachable)."""
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):
         raise ParameterError(
             f"--segment-time must be a positive duration in [s], got {args.segment_time}",
@@ -453,8 +319,6 @@ def _run(args: argparse.Namespace) -> int:
         n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ())
     )  # noqa: E501
     if _spatial_mode(args):
-        from youbot_opt.cli.ikpath_spatial import run_spatial
-
         return run_spatial(args)
     if args.start_kind is None:
         args.start_kind = "feasible"
@@ -499,12 +363,13 @@ def _run(args: argparse.Namespace) -> int:
         if isinstance(got, ShardReport):  # --shard I/K solved its share
             return report_shard(got)
         ms = got
-    doc = _report(args, problem, verdicts, ms)
+    starts = None if ms is None else write_starts(folder, ms.results, ms.attempts, _residual_field)
+    doc = _report(args, problem, verdicts, ms, starts)
     files = _write_outputs(args, folder, problem, verdicts, ms, doc)
     if args.json:
         print_json(doc)
     else:
-        _print_text(doc)
+        _print_text(doc, [] if starts is None else starts.crashed)
     print_outputs(folder, files)
     for v in unreachable:
         print(f"youbot-opt: error: {v.describe()}", file=sys.stderr)

@@ -18,20 +18,34 @@ import argparse
 import math
 import sys
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 
-from youbot_opt.cli.ikpath_starts import StartProgress, print_starts, start_fields, start_sweep
-from youbot_opt.cli.robot_args import loading_options
+from youbot_opt.cli.flags import loading_options, report_shard, scheduler_address
+from youbot_opt.cli.ikpath_starts import (
+    StartProgress,
+    StartsFile,
+    print_starts,
+    start_sweep,
+    write_starts,
+)
+from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.warning_lines import flush_warnings
 from youbot_opt.exceptions import ParameterError
-
-if TYPE_CHECKING:
-    from youbot_opt.ikpath.methods.al import ALOptions
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.nlp.ipopt import IpoptOptions
-    from youbot_opt.robot.model import RobotModel
-    from youbot_opt.viz.meshcat.scene import RobotLike
+from youbot_opt.ikpath.io import RobotSource, save_result
+from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
+from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
+from youbot_opt.ikpath.targets import Target, load_targets, quaternion_to_matrix
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.sweeps.resume import ShardReport
+from youbot_opt.viz.meshcat.ikpath import export_spatial_ikpath_html
+from youbot_opt.viz.meshcat.scene import RobotLike
+from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
 
 __all__ = ["SPATIAL_DEFAULT_START_KIND", "StartProgress", "run_spatial", "spatial_targets"]
 
@@ -39,7 +53,7 @@ SPATIAL_DEFAULT_START_KIND = "mixed"
 """``--start-kind`` of spatial runs when none is given."""
 
 
-def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
+def spatial_targets(args: argparse.Namespace) -> tuple[Target, ...]:
     """Targets from ``--target`` (3, 6 or 7 numbers) and ``--targets FILE``.
 
     Raises
@@ -47,8 +61,6 @@ def spatial_targets(args: argparse.Namespace) -> tuple[Any, ...]:
     ParameterError
         For a ``--target`` of another length, or both sources at once.
     """
-    from youbot_opt.ikpath.targets import Target, load_targets, quaternion_to_matrix
-
     tol = {"position_tol": args.tol, "orientation_tol": args.orientation_tol}
     if args.targets_file and args.target:
         raise ParameterError(
@@ -111,9 +123,7 @@ def _check_spatial_flags(args: argparse.Namespace) -> str | None:
 
 def _problem(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
     """Build the spatial problem of the command line on the loaded ``robot``."""
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-
-    frame = args.frame or robot.tip_frame
+    frame = args.tip_frame or robot.tip_frame
     targets = spatial_targets(args)
     if len(targets) < 2:
         raise ParameterError(
@@ -144,10 +154,7 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     if args.max_wall_time is None:
         return None
     if args.method == "al":
-        from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS
-
         return replace(SPATIAL_AL_OPTIONS, max_wall_time=args.max_wall_time)
-    from youbot_opt.nlp.ipopt import IpoptOptions
 
     return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
 
@@ -169,17 +176,8 @@ def _start_kind(kind: str | None, problem: CyclicIKProblem) -> str:
 
 def run_spatial(args: argparse.Namespace) -> int:
     """Run the spatial IK path from the parsed command line; return the exit status."""
-    from youbot_opt.cli.cluster_args import report_shard, scheduler_address
-    from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
-    from youbot_opt.cli.warning_lines import flush_warnings
-    from youbot_opt.ikpath.io import RobotSource, save_result
-    from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
-    from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
-    from youbot_opt.robot.load import load_model
-    from youbot_opt.sweeps.resume import ShardReport
-
     kind = _check_spatial_flags(args)
-    robot = load_model(args.robot or "youbot", tip_frame=args.frame, **loading_options(args))  # type: ignore[arg-type]
+    robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))  # type: ignore[arg-type]
     flush_warnings()  # the loader's warnings, grouped, before the run
     problem = _problem(args, robot)
     kind = _start_kind(kind, problem)
@@ -217,6 +215,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     unreachable = [v for v in verdicts if v.status is Reachability3D.UNREACHABLE]
     files = []
     code = 2
+    starts: StartsFile | None = None
     if not unreachable:
         for v in verdicts:
             if v.status is Reachability3D.UNDECIDED:
@@ -238,6 +237,7 @@ def run_spatial(args: argparse.Namespace) -> int:
         if isinstance(ms, ShardReport):  # --shard I/K solved its share
             return report_shard(ms)
         best = ms.best
+        starts = write_starts(folder, ms.results, ms.attempts)
         doc.update(
             status=best.status.value,
             E=best.objective,
@@ -254,17 +254,15 @@ def run_spatial(args: argparse.Namespace) -> int:
             starts_per_second=ms.starts_per_second,
             wall_time=ms.wall_time,
             resumed=ms.resumed,
-            **start_fields(ms.results, ms.attempts),
+            retried=starts.retried,
+            starts_file=starts.path.name,
         )
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
-        from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
 
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
         files.append(save_figure(plot_spatial_path(best), folder, "ikpath_path3d.png"))
         if not args.no_replay:
-            from youbot_opt.viz.meshcat.ikpath import export_spatial_ikpath_html
-
             files.append(
                 export_spatial_ikpath_html(
                     best,
@@ -273,32 +271,42 @@ def run_spatial(args: argparse.Namespace) -> int:
                     segment_time=args.segment_time,
                 )
             )
-        files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
+        files += [
+            starts.path,
+            folder / "manifest.json",
+            folder / "items",
+        ]  # the starts, by the sweep store
         code = 0 if best.success else 1
     else:
         doc.update(status="unreachable", E=None, result=None)
     doc["output_folder"] = str(folder.resolve())
     doc["files"] = [f.name for f in files] + ["summary.json"]
-    from youbot_opt.cli.output import write_summary
 
     files.append(write_summary(folder, doc))
     if args.json:
         print_json(doc)
     else:
-        _print_text(doc, robot.name, frame, len(targets), args.method)
+        _print_text(doc, robot.name, frame, len(targets), args.method, starts)
     print_outputs(folder, files)
     for v in unreachable:
         print(f"youbot-opt: error: unreachable: {v.message}", file=sys.stderr)
     return code
 
 
-def _print_text(doc: dict[str, Any], robot: str, frame: str, n_targets: int, method: str) -> None:
+def _print_text(
+    doc: dict[str, Any],
+    robot: str,
+    frame: str,
+    n_targets: int,
+    method: str,
+    starts: StartsFile | None,
+) -> None:
     print(f"IK path (spatial): {robot}, frame {frame}, {n_targets} targets, method {method}")
     for v in doc["reachability"]:
         print(f"  target {v['index']}: {v['verdict']} ({v['message']})")
-    if doc["E"] is None:
+    if doc["E"] is None or starts is None:
         return
-    print_starts(doc)
+    print_starts(doc, starts.crashed)
     print(
         f"best: E = {doc['E']:.10g} rad^2 ({doc['status']}, start {doc['start_index']}), "
         f"{doc['n_success']} of {doc['starts']} starts succeeded, {len(doc['minima'])} "

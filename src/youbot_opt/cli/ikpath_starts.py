@@ -3,7 +3,7 @@
 The progress of the starts on stderr (:class:`StartProgress`), the
 :class:`~youbot_opt.sweeps.options.SweepOptions` of the command line
 (:func:`start_sweep`: workers, progress, the run folder as the resumable store,
-``--shard``), the per-start fields of ``summary.json`` (:func:`start_fields`)
+``--shard``), the per-start rows of ``starts.jsonl`` (:func:`write_starts`)
 and the printed lines about the starts (:func:`print_starts`).
 """
 
@@ -13,22 +13,33 @@ import argparse
 import math
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import NamedTuple, TextIO
 
+from youbot_opt._files import write_json_lines
+from youbot_opt._typing import JSONDict
+from youbot_opt.ikpath.result import IKPathResult
+from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.sweeps.options import SweepOptions
 
-if TYPE_CHECKING:
-    from youbot_opt.ikpath.result import IKPathResult
+__all__ = [
+    "STARTS_FILE",
+    "StartProgress",
+    "StartsFile",
+    "print_starts",
+    "start_sweep",
+    "write_starts",
+]
 
-__all__ = ["StartProgress", "print_starts", "start_fields", "start_sweep"]
+STARTS_FILE = "starts.jsonl"
+"""The run folder's per-start rows, one JSON object a line (named in ``summary.json``)."""
 
 
 class StartProgress:
     """Progress of the starts on stderr: a bar on a terminal, else a line per tenth."""
 
-    def __init__(self, stream: Any = None) -> None:
+    def __init__(self, stream: TextIO | None = None) -> None:
         self.stream = sys.stderr if stream is None else stream
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.tic = time.perf_counter()
@@ -89,38 +100,53 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
     )
 
 
-def start_fields(
+class StartsFile(NamedTuple):
+    """What :func:`write_starts` wrote: the file, and what the printed summary needs of it."""
+
+    path: Path
+    """``starts.jsonl`` in the run folder."""
+    retried: list[int]
+    """Indices of the starts that needed more than one attempt."""
+    crashed: list[JSONDict]
+    """The rows of the starts that crashed on every attempt (their ``message`` says why)."""
+
+
+def write_starts(
+    folder: Path,
     results: Sequence[IKPathResult],
     attempts: Sequence[int],
-    detail: Callable[[Any], dict[str, Any]] | None = None,
-) -> dict[str, Any]:
-    """Return the per-start fields of ``summary.json``: ``retried`` and ``start_outcomes``.
+    detail: Callable[[IKPathResult | StartSummary[IKPathResult]], JSONDict] | None = None,
+) -> StartsFile:
+    """Write one JSON object per start to ``folder/starts.jsonl`` (:data:`STARTS_FILE`).
+
+    Each row holds ``index``, ``status``, ``E`` [rad^2], the ``detail`` fields,
+    ``attempts`` (``null``: unknown) and ``message`` (``null`` on a success).
 
     Parameters
     ----------
+    folder : Path
+        The run folder.
     results : sequence of IKPathResult
         One result per start, in start order (``--no-keep-results``: a
         :class:`~youbot_opt.ikpath.stored.StoredResults`, whose journal
-        summaries are read instead of the results).
+        summaries are read instead, one at a time: a sweep of a million starts
+        is never held in memory).
     attempts : sequence of int
-        Attempts per start (empty: unknown, written as ``null``).
+        Attempts per start (empty: unknown).
     detail : callable ``(result or StartSummary) -> dict``, optional
         Mode-specific fields of each start, written after ``E``.
 
     Returns
     -------
-    dict
-        ``retried`` (indices of the starts that needed more than one attempt)
-        and ``start_outcomes`` (one row per start; from a ``StoredResults`` a
-        :class:`~youbot_opt.cli.output.StreamedList` that reads the journal again
-        each time it is iterated, so ``summary.json`` and ``--json`` write the
-        rows one at a time and a sweep of a million starts does not hold them).
+    StartsFile
+        The file, the retried starts and the crashed starts' rows.
     """
-    from youbot_opt.cli.output import StreamedList
-    from youbot_opt.ikpath.stored import StoredResults
+    crashed: list[JSONDict] = []
 
-    def row(index: int, status: str, r: Any, attempts: int | None) -> dict[str, Any]:  # noqa: ANN401
-        return {
+    def row(
+        index: int, status: str, r: IKPathResult | StartSummary[IKPathResult], attempts: int | None
+    ) -> JSONDict:
+        out: JSONDict = {
             "index": index,
             "status": status,
             "E": r.objective,
@@ -128,30 +154,32 @@ def start_fields(
             "attempts": attempts,
             "message": None if r.success else r.message,
         }
+        if status == "crashed":
+            crashed.append(out)
+        return out
 
+    rows: Iterable[JSONDict]
     if isinstance(results, StoredResults):  # streamed from the journal, never all in memory
-        stored = results
-
-        def rows() -> Iterator[dict[str, Any]]:
-            return (row(s.index, s.status, s, s.attempts) for s in stored.summaries())
-
-        retried = [s.index for s in stored.summaries() if s.attempts > 1]
-        return {"retried": retried, "start_outcomes": StreamedList(rows, len(stored))}
-    return {
-        "retried": [i for i, a in enumerate(attempts) if a > 1],
-        "start_outcomes": [
+        rows = (row(s.index, s.status, s, s.attempts) for s in results.summaries())
+        retried = [s.index for s in results.summaries() if s.attempts > 1]
+    else:
+        rows = (
             row(i, r.status.value, r, attempts[i] if attempts else None)
             for i, r in enumerate(results)
-        ],
-    }
+        )
+        retried = [i for i, a in enumerate(attempts) if a > 1]
+    path = folder / STARTS_FILE
+    write_json_lines(path, rows)
+    return StartsFile(path, retried, crashed)
 
 
-def print_starts(doc: dict[str, Any]) -> None:
+def print_starts(doc: Mapping[str, object], crashed: Sequence[Mapping[str, object]]) -> None:
     """Print how the starts ran: throughput and outcomes, resumed, retried and crashed starts.
 
     ``doc`` is the run's summary (``starts``, ``seed``, ``start_kind``,
     ``workers``, ``wall_time`` [s], ``starts_per_second`` [1/s],
-    ``status_counts``, ``resumed`` and the fields of :func:`start_fields`).
+    ``status_counts``, ``resumed`` and ``retried``); ``crashed`` the rows of
+    :attr:`StartsFile.crashed`.
     """
     print(
         f"multistart: {doc['starts']} starts (seed {doc['seed']}, {doc['start_kind']}), "
@@ -162,6 +190,5 @@ def print_starts(doc: dict[str, Any]) -> None:
         print(f"  {doc['resumed']} starts loaded from the output folder (resumed)")
     if doc["retried"]:
         print(f"  retried after a failed attempt: starts {doc['retried']}")
-    for o in doc["start_outcomes"]:
-        if o["status"] == "crashed":
-            print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")
+    for o in crashed:
+        print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")
