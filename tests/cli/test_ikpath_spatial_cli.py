@@ -76,7 +76,7 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 
 
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
-    from youbot_opt.cli import ikpath_spatial
+    from youbot_opt.cli import ikpath as ikpath_command
     from youbot_opt.ikpath.reachability import spatial as spatial_reachability
 
     real, seen = spatial_reachability.check_reachability_3d, []
@@ -85,7 +85,7 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
         seen.append(kw)
         return real(problem, **kw)
 
-    monkeypatch.setattr(ikpath_spatial, "check_reachability_3d", spy)
+    monkeypatch.setattr(ikpath_command, "check_reachability_3d", spy)
     argv = [*_UR5, "--method", "ipopt", "--reach-evaluations", "64", "--json", "--no-replay"]
     assert main(argv) == 0
     assert seen == [{"interval_boxes": 64}]

@@ -188,7 +188,7 @@ def test_cli_no_keep_results_runs_end_to_end(tmp_path, capsys):
 
 def test_start_rows_of_a_lean_run_are_streamed_from_the_journal(two_link, tmp_path):
     """``write_starts`` of stored results reads the journal: the same starts.jsonl as held ones."""
-    from youbot_opt.cli.ikpath_starts import write_starts
+    from youbot_opt.cli.ikpath_text import write_starts
 
     lean = _planar(two_link, tmp_path / "lean", keep=False)
     full = _planar(two_link, tmp_path / "full", keep=True)
