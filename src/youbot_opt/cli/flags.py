@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TypedDict
 
 from youbot_opt.cli.warning_lines import flush_warnings
 from youbot_opt.exceptions import ParameterError
@@ -29,6 +30,7 @@ from youbot_opt.sweeps.scheduler import (
 )
 
 __all__ = [
+    "LoadingOptions",
     "ipopt_options",
     "is_study_youbot",
     "load_robot",
@@ -38,7 +40,15 @@ __all__ = [
 ]
 
 
-def loading_options(args: argparse.Namespace) -> dict[str, object]:
+class LoadingOptions(TypedDict):
+    """The keywords of :func:`~youbot_opt.robot.load.load_model` that the loading flags set."""
+
+    package_dirs: tuple[str, ...]
+    strict: bool
+    lock_joints: dict[str, float] | None
+
+
+def loading_options(args: argparse.Namespace) -> LoadingOptions:
     """Return ``load_model``'s keywords of ``--package-dir``, ``--lenient`` and ``--lock``.
 
     Raises
@@ -87,7 +97,7 @@ def load_robot(args: argparse.Namespace, *, damping: float | None = None) -> Rob
         args.robot,
         tip_frame=args.tip_frame,
         damping=damping,
-        **loading_options(args),  # type: ignore[arg-type]
+        **loading_options(args),
     )
     flush_warnings()  # the loader's warnings, grouped, before the run
     return robot

@@ -413,7 +413,7 @@ def _run_planar(args: argparse.Namespace) -> int:
 def _run_3d(args: argparse.Namespace) -> int:
     """Run an IK path with 3-D targets; return the exit status."""
     kind = _check_flags_3d(args)
-    robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))  # type: ignore[arg-type]
+    robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))
     flush_warnings()  # the loader's warnings, grouped, before the run
     problem = _problem_3d(args, robot)
     kind = _start_kind_3d(kind, problem)

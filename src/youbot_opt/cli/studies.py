@@ -20,12 +20,12 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt._files import json_ready
+from youbot_opt._typing import JSONDict
 from youbot_opt.cli.flags import ipopt_options, report_shard, scheduler_address
 from youbot_opt.cli.output import (
     ProgressLine,
@@ -47,6 +47,8 @@ from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.trajopt.io import save_result
 from youbot_opt.trajopt.multistart import run_multistart
 from youbot_opt.trajopt.pareto import pareto_sweep
+from youbot_opt.trajopt.refine import Refinement
+from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.viz.plots import (
     plot_bound_scaling,
@@ -96,7 +98,7 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 
 
 # ------------------------------------------------------------------ helpers
-def _solver(args: argparse.Namespace) -> Any:
+def _solver(args: argparse.Namespace) -> TrajOptSolver:
 
     problem = study1_problem(args.knots)
     check_trajopt_size(
@@ -160,7 +162,7 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
     )
 
 
-def _all_certified(plans: list[tuple[Any, Any]]) -> bool:
+def _all_certified(plans: list[tuple[TrajOptResult, Refinement | None]]) -> bool:
     """Whether every refined plan is certified (vacuously true with ``--no-refine``)."""
     return all(record is not None and record.certified for _, record in plans)
 
@@ -175,7 +177,7 @@ _STORE = ("manifest.json", "items")  # the sweep store's files, at the top of th
 def _emit(
     args: argparse.Namespace,
     folder: Path,
-    summary: dict[str, Any],
+    summary: JSONDict,
     table: list[str],
     files: list[Path | None],
 ) -> None:
