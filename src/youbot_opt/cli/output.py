@@ -12,6 +12,7 @@ and ``replay.html``; sweeps report progress on stderr through
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import logging
 import math
 import sys
@@ -23,7 +24,7 @@ from typing import IO, TextIO
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-from youbot_opt._files import atomic_writer, json_ready, write_json_stream
+from youbot_opt._files import atomic_write_text, json_ready
 from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.io import save_result
@@ -101,19 +102,17 @@ def write_summary(
 ) -> Path:
     """Write ``summary`` as indented JSON to ``folder/name`` atomically; return the path.
 
-    A :class:`~youbot_opt._files.StreamedList` in ``summary`` (a sweep's
-    per-start rows) is written one item at a time, so the file's size, not
-    the document's, never sits in memory.
+    A sweep's per-start rows are not in it: they go to their own JSON Lines file
+    (:func:`~youbot_opt._files.write_json_lines`), so a summary stays small.
     """
     path = Path(folder) / name
-    with atomic_writer(path) as handle:
-        write_json_stream(handle, json_ready(summary))
+    atomic_write_text(path, json.dumps(json_ready(summary), indent=2) + "\n")
     return path
 
 
 def print_json(doc: Mapping[str, object], stream: IO[str] | None = None) -> None:
-    """Print ``doc`` as indented JSON (``--json``) to stdout, streaming its long lists."""
-    write_json_stream(sys.stdout if stream is None else stream, json_ready(doc))
+    """Print ``doc`` as indented JSON (``--json``) to stdout (or ``stream``)."""
+    print(json.dumps(json_ready(doc), indent=2), file=sys.stdout if stream is None else stream)
 
 
 def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
