@@ -245,3 +245,33 @@ def test_single_start_solve_on_another_robot_suggests_a_multistart(capsys, tmp_p
     assert len(hints) == 1 and "local optimum" in hints[0], out
     main([*argv, str(tmp_path / "youbot")])  # the study's base case: its optimum is known
     assert "--starts" not in capsys.readouterr().out
+
+
+def test_every_command_has_a_module_and_a_run_function():
+    """parser.COMMANDS names each command of the parser once, with a callable in its module."""
+    import importlib
+
+    from youbot_opt.cli.parser import COMMANDS
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert list(sub.choices) == list(COMMANDS)
+    for module, function in COMMANDS.values():
+        assert callable(getattr(importlib.import_module(f"youbot_opt.cli.{module}"), function))
+
+
+_ONLY_CHOSEN = """
+import sys
+from youbot_opt.cli import main
+main(["robots", "--names"])
+print("CLI:", *sorted(m for m in sys.modules if m.startswith("youbot_opt.cli.")))
+"""
+
+
+def test_main_imports_only_the_chosen_command_module():
+    """``youbot-opt robots`` imports the robots module, not solve's, studies' or ikpath's."""
+    proc = subprocess.run([sys.executable, "-c", _ONLY_CHOSEN], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    loaded = set(proc.stdout.strip().splitlines()[-1].split()[1:])
+    assert "youbot_opt.cli.robots" in loaded
+    assert not loaded & {f"youbot_opt.cli.{m}" for m in ("solve", "studies", "ikpath", "output")}
