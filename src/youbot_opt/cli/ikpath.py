@@ -18,7 +18,9 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import TextIO, cast
 
@@ -327,9 +329,8 @@ def _planar_outputs(
     problem: CyclicIKProblem,
     verdicts: tuple[ReachVerdict, ...],
     ms: MultistartResult | None,
-    doc: JSONDict,
 ) -> list[Path]:
-    """Write the run folder: figures, replay, saved result, then ``summary.json``."""
+    """Write a planar run's figures, replay and saved result; return the folder's files."""
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
         best = ms.best
@@ -344,10 +345,28 @@ def _planar_outputs(
                 export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)
             )
         files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
+    return files
+
+
+def _finish(
+    args: argparse.Namespace,
+    folder: Path,
+    doc: JSONDict,
+    files: list[Path],
+    print_text: Callable[[], None],
+    errors: list[str],
+) -> None:
+    """Write ``summary.json`` (naming the files), print it or its text, the folder and errors."""
     doc["output_folder"] = str(folder.resolve())
     doc["files"] = [f.name for f in files] + ["summary.json"]
     files.append(write_summary(folder, doc))
-    return files
+    if args.json:
+        print_json(doc)
+    else:
+        print_text()
+    print_outputs(folder, files)
+    for error in errors:
+        print(f"youbot-opt: error: {error}", file=sys.stderr)
 
 
 def _run_planar(args: argparse.Namespace) -> int:
@@ -397,14 +416,10 @@ def _run_planar(args: argparse.Namespace) -> int:
         ms = got
     starts = None if ms is None else write_starts(folder, ms.results, ms.attempts, residual_field)
     doc = planar_summary(args, problem, verdicts, ms, starts)
-    files = _planar_outputs(args, folder, problem, verdicts, ms, doc)
-    if args.json:
-        print_json(doc)
-    else:
-        print_planar(doc, [] if starts is None else starts.crashed)
-    print_outputs(folder, files)
-    for v in unreachable:
-        print(f"youbot-opt: error: {v.describe()}", file=sys.stderr)
+    files = _planar_outputs(args, folder, problem, verdicts, ms)
+    crashed = [] if starts is None else starts.crashed
+    errors = [v.describe() for v in unreachable]
+    _finish(args, folder, doc, files, partial(print_planar, doc, crashed), errors)
     if ms is None:
         return 2
     return 0 if ms.best.success else 1
@@ -447,7 +462,6 @@ def _run_3d(args: argparse.Namespace) -> int:
         add_result_3d(doc, args, ms, kind, starts)
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
-
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
         files.append(save_figure(plot_spatial_path(best), folder, "ikpath_path3d.png"))
         if not args.no_replay:
@@ -459,25 +473,13 @@ def _run_3d(args: argparse.Namespace) -> int:
                     segment_time=args.segment_time,
                 )
             )
-        files += [
-            starts.path,
-            folder / "manifest.json",
-            folder / "items",
-        ]  # the starts, by the sweep store
+        files += [starts.path, folder / "manifest.json", folder / "items"]  # the starts
         code = 0 if best.success else 1
     else:
         doc.update(status="unreachable", E=None, result=None)
-    doc["output_folder"] = str(folder.resolve())
-    doc["files"] = [f.name for f in files] + ["summary.json"]
-
-    files.append(write_summary(folder, doc))
-    if args.json:
-        print_json(doc)
-    else:
-        print_3d(doc, robot.name, frame, len(targets), args.method, starts)
-    print_outputs(folder, files)
-    for v in unreachable:
-        print(f"youbot-opt: error: unreachable: {v.message}", file=sys.stderr)
+    errors = [f"unreachable: {v.message}" for v in unreachable]
+    text = partial(print_3d, doc, robot.name, frame, len(targets), args.method, starts)
+    _finish(args, folder, doc, files, text, errors)
     return code
 
 
