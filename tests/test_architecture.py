@@ -241,7 +241,7 @@ def test_one_ik_problem_type():
         ("from youbot_opt.cli import main\n", "layer"),
         ("from youbot_opt.trajopt.solver import _private\n", "private"),
         ('"""A module docstring of thirteen lines.\n' + "\n" * 12 + '"""\n', "docstring"),
-        ("def f():\n    from youbot_opt.cli.solve import run_solve\n", "cli"),
+        ("def f():\n    from youbot_opt.cli.solve import run\n", "cli"),
     ],
 )
 def test_the_rules_catch_violations(tmp_path, source, expected):
@@ -325,3 +325,96 @@ def test_no_twin_modules():
 def test_twin_rule_tells_stems_from_compounds(a: str, b: str, twins: bool) -> None:
     """The twin rule flags a stem and its derivative, never a compound name."""
     assert _twins(a, b) is twins
+
+
+#: The packages held to "no ``Any`` in a public signature" (ARCHITECTURE.md rule 9); the
+#: others join as they are cleaned.
+NO_ANY_PACKAGES: tuple[str, ...] = ("cli",)
+
+_PUBLIC_DUNDERS = ("__init__", "__call__")
+
+
+def _mentions_any(annotation: ast.expr | None) -> bool:
+    """Whether an annotation names ``Any`` (``Any``, ``typing.Any``, or inside a string)."""
+    if annotation is None:
+        return False
+    for node in ast.walk(annotation):
+        if isinstance(node, ast.Name) and node.id == "Any":
+            return True
+        if isinstance(node, ast.Attribute) and node.attr == "Any":
+            return True
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            try:
+                if _mentions_any(ast.parse(node.value, mode="eval").body):
+                    return True
+            except SyntaxError:
+                continue
+    return False
+
+
+def _signature_any(func: ast.FunctionDef | ast.AsyncFunctionDef) -> list[str]:
+    args = func.args
+    every = [*args.posonlyargs, *args.args, *args.kwonlyargs, args.vararg, args.kwarg]
+    found = [a.arg for a in every if a is not None and _mentions_any(a.annotation)]
+    return found + (["return"] if _mentions_any(func.returns) else [])
+
+
+def _public(name: str) -> bool:
+    return not name.startswith("_") or name in _PUBLIC_DUNDERS
+
+
+def _any_in_public_signatures(module: str, path: Path) -> list[str]:
+    """``module.name(param)`` for each public function, method or field annotated with Any."""
+    if any(part.startswith("_") and part != "__init__" for part in module.split(".")[1:]):
+        return []  # a private module has no public signature
+    found = []
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and _public(node.name):
+            found += [f"{module}.{node.name}({p})" for p in _signature_any(node)]
+        elif isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+            for item in node.body:
+                if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)) and _public(item.name):
+                    where = f"{module}.{node.name}.{item.name}"
+                    found += [f"{where}({p})" for p in _signature_any(item)]
+                elif isinstance(item, ast.AnnAssign) and _mentions_any(item.annotation):
+                    found.append(f"{module}.{node.name}.{ast.unparse(item.target)} (field)")
+    return found
+
+
+def test_no_any_in_a_public_signature():
+    """No public function, method or field of the covered packages is annotated with Any."""
+    found = [
+        hit
+        for module, path in MODULES.items()
+        if _top(module) in NO_ANY_PACKAGES
+        for hit in _any_in_public_signatures(module, path)
+    ]
+    assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize(
+    ("source", "caught"),
+    [
+        ("from typing import Any\ndef f(x: Any) -> None: ...\n", True),
+        ("import typing\ndef f(*, x: int = 0) -> dict[str, typing.Any]: ...\n", True),
+        ("def f(**kw: 'Any') -> None: ...\n", True),
+        ("class C:\n    def m(self, x: list[Any]) -> None: ...\n", True),
+        ("class C:\n    def __init__(self, x: Any) -> None: ...\n", True),
+        ("@dataclass\nclass C:\n    field: Any | None = None\n", True),
+        ("def _f(x: Any) -> Any: ...\nclass _C:\n    x: Any\n", False),
+        ("def f(x: object) -> dict[str, object]: ...\n", False),
+    ],
+)
+def test_the_any_rule_catches_a_planted_violation(tmp_path, source, caught):
+    """A planted public Any in a covered package fails the rule; private names and object pass."""
+    planted = f"youbot_opt.{NO_ANY_PACKAGES[0]}.planted_check"
+    MODULES[planted] = tmp_path / "planted_check.py"
+    MODULES[planted].write_text(source)
+    try:
+        if caught:
+            with pytest.raises(AssertionError):
+                test_no_any_in_a_public_signature()
+        else:
+            assert _any_in_public_signatures(planted, MODULES[planted]) == []
+    finally:
+        del MODULES[planted]

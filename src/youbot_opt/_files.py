@@ -1,11 +1,12 @@
-"""The files youbot_opt writes: atomic writes, JSON sanitising, the schema header.
+"""The files youbot_opt writes: atomic writes, JSON sanitising, JSON Lines, the schema header.
 
 Owns what every writer of a result, record, manifest or summary needs, written
 once: :func:`atomic_write_bytes` (a kill leaves the old file or the new one),
 :func:`json_ready` (numpy values, paths, enums to JSON, NaN/inf to ``null``),
-:func:`write_json_stream` (lists too long for memory, :class:`StreamedList`,
-one item at a time) and :func:`schema_header` / :func:`check_schema_header`
-(schema name, version, writing software, checksum). Layer 0. Example::
+:func:`write_json_lines` (one JSON object a line: a sweep's per-start rows),
+:func:`write_json_stream` (lists too long for memory, one item at a time) and
+:func:`schema_header` / :func:`check_schema_header` (schema name, version,
+writing software, checksum). Layer 0. Example::
 
     doc = {**schema_header("youbot_opt.x", 1, sha256=json_digest(body)), "result": body}
     atomic_write_text(path, json.dumps(json_ready(doc), allow_nan=False))
@@ -45,9 +46,11 @@ __all__ = [
     "json_digest",
     "json_ready",
     "json_roundtrip",
+    "read_json_lines",
     "read_npz",
     "schema_header",
     "software_versions",
+    "write_json_lines",
     "write_json_stream",
 ]
 
@@ -340,6 +343,54 @@ def write_json_stream(handle: IO[str] | IO[bytes], value: Any, indent: int = 2) 
     for chunk in iter_json(value, indent):
         handle.write(chunk.encode() if binary else chunk)  # type: ignore[arg-type]
     handle.write(b"\n" if binary else "\n")  # type: ignore[arg-type]
+
+
+def write_json_lines(path: str | os.PathLike[str], rows: Iterable[Mapping[str, object]]) -> int:
+    """Write ``rows`` to ``path`` as JSON Lines (one JSON object a line), atomically.
+
+    Each row goes through :func:`json_ready` and is written as it comes, so
+    the rows of a long sweep never sit in memory together.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file, conventionally ``*.jsonl``; replaced as :func:`atomic_writer` does.
+    rows : iterable of mapping
+        The objects, in order.
+
+    Returns
+    -------
+    int
+        The number of rows written.
+    """
+    count = 0
+    with atomic_writer(path) as handle:
+        for row in rows:
+            line = json.dumps(json_ready(row), allow_nan=False, separators=(",", ":"))
+            handle.write(line.encode("utf-8") + b"\n")
+            count += 1
+    return count
+
+
+def read_json_lines(path: str | os.PathLike[str]) -> Iterator[dict[str, object]]:
+    """Yield the objects of a JSON Lines file in order (blank lines are skipped).
+
+    Raises
+    ------
+    ResultFileError
+        If a line is not a JSON object.
+    """
+    with open(path, encoding="utf-8") as handle:
+        for number, line in enumerate(handle, start=1):
+            if not line.strip():
+                continue
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError as exc:
+                raise ResultFileError(f"{path}:{number}: not JSON ({exc})") from exc
+            if not isinstance(row, dict):
+                raise ResultFileError(f"{path}:{number}: not a JSON object")
+            yield row
 
 
 def json_roundtrip(value: Any) -> Any:

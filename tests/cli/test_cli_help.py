@@ -17,7 +17,7 @@ from youbot_opt.cli.pareto_table import distinct_points, pareto_summary, pareto_
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 SPHINX = re.compile(r"``|:(mod|func|class|meth|attr|data|exc|obj):`")
-HEAVY = ("casadi", "pinocchio", "scipy", "matplotlib", "meshcat")
+HEAVY = ("numpy", "casadi", "pinocchio", "scipy", "matplotlib", "meshcat")
 
 
 def _help_texts() -> dict[str, str]:
@@ -85,26 +85,29 @@ print("HEAVY:", *sorted({{m.split(".")[0] for m in sys.modules}} & set({heavy!r}
 
 
 @pytest.mark.parametrize(
-    "argv",
+    ("argv", "heavy"),
     [
-        ["--help"],
-        ["ikpath", "--help"],
-        ["solve", "--help"],
-        ["report", "--help"],
-        ["pareto", "--help"],
-        ["main", "--help"],
-        ["reproduce-study1", "--help"],
-        ["solve", "--no-such-option"],
-        ["ikpath", "--method", "nope"],
+        (["--help"], HEAVY),
+        (["ikpath", "--help"], HEAVY),
+        (["solve", "--help"], HEAVY),
+        (["report", "--help"], HEAVY),
+        (["pareto", "--help"], HEAVY),
+        (["main", "--help"], HEAVY),
+        (["reproduce-study1", "--help"], HEAVY),
+        # An error message cuts long values with _checks.MAX_SHOWN_CHARS: _checks imports NumPy.
+        (["solve", "--no-such-option"], HEAVY[1:]),
+        (["ikpath", "--method", "nope"], HEAVY[1:]),
+        (["ikpath", "--frame", "tool0"], HEAVY[1:]),
     ],
-    ids=" ".join,
+    ids=lambda v: " ".join(v) if isinstance(v, list) else "",
 )
-def test_help_and_argument_errors_import_no_solver(argv):
-    """Parsing --help or a bad argument imports none of CasADi, Pinocchio, SciPy, matplotlib.
+def test_help_and_argument_errors_import_no_solver(argv, heavy):
+    """Parsing --help imports none of NumPy, CasADi, Pinocchio, SciPy, matplotlib, meshcat.
 
-    This is structural: the speed itself is measured in benchmarks/bench_cli.py.
+    An argument error imports no solver either (NumPy only). This is structural: the speed
+    itself is measured in benchmarks/bench_cli.py.
     """
-    code = _NO_HEAVY.format(argv=argv, heavy=HEAVY)
+    code = _NO_HEAVY.format(argv=argv, heavy=heavy)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().splitlines()[-1] == "HEAVY:", proc.stdout[-500:]
@@ -112,14 +115,16 @@ def test_help_and_argument_errors_import_no_solver(argv):
 
 def test_parser_choices_match_the_library():
     """The choices spelled out in the CLI (to keep --help fast) equal the library's."""
-    from youbot_opt.cli import ikpath
+    from youbot_opt.cli import parser
     from youbot_opt.ikpath.examples import EXAMPLES
     from youbot_opt.ikpath.solve import METHODS
     from youbot_opt.ikpath.starts import START_KINDS
+    from youbot_opt.nlp.ipopt import LINEAR_SOLVERS
 
-    assert ikpath.EXAMPLE_NAMES == tuple(sorted(EXAMPLES))
-    assert ikpath.METHOD_NAMES == tuple(METHODS)
-    assert ikpath.START_KIND_NAMES == tuple(START_KINDS)
+    assert parser.EXAMPLE_NAMES == tuple(sorted(EXAMPLES))
+    assert parser.METHOD_NAMES == tuple(METHODS)
+    assert parser.START_KIND_NAMES == tuple(START_KINDS)
+    assert parser.LINEAR_SOLVER_NAMES == LINEAR_SOLVERS
 
 
 def _point(beta, duration, work, success=True, dominated=False):
@@ -240,3 +245,33 @@ def test_single_start_solve_on_another_robot_suggests_a_multistart(capsys, tmp_p
     assert len(hints) == 1 and "local optimum" in hints[0], out
     main([*argv, str(tmp_path / "youbot")])  # the study's base case: its optimum is known
     assert "--starts" not in capsys.readouterr().out
+
+
+def test_every_command_has_a_module_and_a_run_function():
+    """parser.COMMANDS names each command of the parser once, with a callable in its module."""
+    import importlib
+
+    from youbot_opt.cli.parser import COMMANDS
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert list(sub.choices) == list(COMMANDS)
+    for module, function in COMMANDS.values():
+        assert callable(getattr(importlib.import_module(f"youbot_opt.cli.{module}"), function))
+
+
+_ONLY_CHOSEN = """
+import sys
+from youbot_opt.cli import main
+main(["robots", "--names"])
+print("CLI:", *sorted(m for m in sys.modules if m.startswith("youbot_opt.cli.")))
+"""
+
+
+def test_main_imports_only_the_chosen_command_module():
+    """``youbot-opt robots`` imports the robots module, not solve's, studies' or ikpath's."""
+    proc = subprocess.run([sys.executable, "-c", _ONLY_CHOSEN], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    loaded = set(proc.stdout.strip().splitlines()[-1].split()[1:])
+    assert "youbot_opt.cli.robots" in loaded
+    assert not loaded & {f"youbot_opt.cli.{m}" for m in ("solve", "studies", "ikpath", "output")}

@@ -81,7 +81,7 @@ def test_memory_error_is_a_last_resort_line(
         def boom(args: object, error: type[BaseException] = error) -> int:
             raise error()
 
-        monkeypatch.setattr(report, "_run", boom)
+        monkeypatch.setattr(report, "run", boom)
         assert main(["report"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "out of" in err[0]

@@ -11,8 +11,14 @@ import numpy as np
 import pytest
 import umsgpack
 
+from youbot_opt._files import read_json_lines
 from youbot_opt.cli import main
 from youbot_opt.ikpath.io import load_result
+
+
+def _starts(doc: dict) -> list[dict]:
+    """The per-start rows of a run: its ``starts.jsonl``, named in the summary."""
+    return list(read_json_lines(Path(doc["output_folder"]) / doc["starts_file"]))
 
 
 @pytest.fixture(autouse=True)
@@ -191,13 +197,13 @@ def test_starts_show_progress_name_the_folder_and_resume(capsys, tmp_path):
     assert lines[0].startswith(f"ikpath: 20 start(s), each saved to {out.resolve() / 'items'}")
     done = [int(ln.split()[1].split("/")[0]) for ln in lines if " starts done, best E " in ln]
     assert done == [1, *range(2, 21, 2)]  # the first start, then a line per tenth (no tty)
-    assert [o["index"] for o in doc["start_outcomes"]] == list(range(20))
-    assert all(o["attempts"] == 1 for o in doc["start_outcomes"])
+    assert [o["index"] for o in _starts(doc)] == list(range(20))
+    assert all(o["attempts"] == 1 for o in _starts(doc))
     assert {"manifest.json", "items"} <= set(doc["files"])
     code, again, err = _json(capsys, [*argv, "--json", "--no-replay"])
     assert code == 0 and again["resumed"] == 20
     assert "ikpath: 20/20 starts done" in err
-    assert [o["E"] for o in again["start_outcomes"]] == [o["E"] for o in doc["start_outcomes"]]
+    assert [o["E"] for o in _starts(again)] == [o["E"] for o in _starts(doc)]
 
 
 def test_single_start_prints_one_run(capsys):
@@ -228,6 +234,7 @@ def test_spatial_csv_targets_with_a_pose_solve_on_ur5(capsys, tmp_path):
         "items",  # the starts, in the sweep store
         "manifest.json",
         "result.json",
+        "starts.jsonl",  # one JSON object a line per start
         "summary.json",
     ]
 

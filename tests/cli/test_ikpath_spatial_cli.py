@@ -3,11 +3,19 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
+from youbot_opt._files import read_json_lines
 from youbot_opt.cli import main
 from youbot_opt.ikpath.io import load_result
+
+
+def _starts(doc: dict) -> list[dict]:
+    """The per-start rows of a run: its ``starts.jsonl``, named in the summary."""
+    return list(read_json_lines(Path(doc["output_folder"]) / doc["starts_file"]))
+
 
 _UR5 = ["ikpath", "--robot", "ur5", "--target", "0.4", "0.2", "0.3", "--target", "0.3", "-0.3"]
 _UR5 += ["0.4", "--target", "0.5", "0", "0.2"]
@@ -31,7 +39,7 @@ def test_shards_then_collect_then_resume_and_result_json_reloads(capsys, tmp_pat
     assert cap.err.startswith(f"ikpath: 3 start(s), each saved to {out.resolve() / 'items'}")
     assert "ikpath: 3/3 starts done" in cap.err  # progress (no tty: a line per tenth)
     assert doc["resumed"] == 2 and doc["start_kind"] == "coherent" and doc["retried"] == []
-    assert [o["attempts"] for o in doc["start_outcomes"]] == [1, 1, 1]
+    assert [o["attempts"] for o in _starts(doc)] == [1, 1, 1]
     assert {"manifest.json", "items", "result.json"} <= set(doc["files"])
     # result.json reloads on its own (robot "ur5" from the file) and passes the FK re-check
     best = load_result(out / "result.json")
@@ -68,6 +76,7 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 
 
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
+    from youbot_opt.cli import ikpath as ikpath_command
     from youbot_opt.ikpath.reachability import spatial as spatial_reachability
 
     real, seen = spatial_reachability.check_reachability_3d, []
@@ -76,7 +85,7 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
         seen.append(kw)
         return real(problem, **kw)
 
-    monkeypatch.setattr(spatial_reachability, "check_reachability_3d", spy)
+    monkeypatch.setattr(ikpath_command, "check_reachability_3d", spy)
     argv = [*_UR5, "--method", "ipopt", "--reach-evaluations", "64", "--json", "--no-replay"]
     assert main(argv) == 0
     assert seen == [{"interval_boxes": 64}]
@@ -85,7 +94,7 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
 
 
 def test_spatial_names_and_budgets_of_the_parser_match_the_library():
-    from youbot_opt.cli import ikpath
+    from youbot_opt.cli import parser as ikpath
     from youbot_opt.ikpath.reachability.spatial import (
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
@@ -117,9 +126,7 @@ def test_scheduler_file_runs_the_spatial_starts_on_a_dask_cluster(capsys, tmp_pa
         again = json.loads(capsys.readouterr().out)
     assert remote["resumed"] == 0 and again["resumed"] == 3
     # The same IPOPT from the same starts in other processes: E equal to rounding.
-    assert [o["status"] for o in remote["start_outcomes"]] == [
-        o["status"] for o in local["start_outcomes"]
-    ]
+    assert [o["status"] for o in _starts(remote)] == [o["status"] for o in _starts(local)]
     assert remote["E"] == pytest.approx(local["E"], rel=1e-10)
     assert again["E"] == remote["E"]
 
@@ -144,9 +151,34 @@ def test_a_planar_urdf_gets_the_planar_feasible_starts_by_default(capsys, tmp_pa
         'type="fixed"><parent link="l1"/><child link="tip"/><origin xyz="0.8 0 0"/></joint>'
         '<link name="tip"/></robot>'
     )
-    argv = ["ikpath", "--robot", str(path), "--frame", "tip", "--method", "ipopt"]
+    argv = ["ikpath", "--robot", str(path), "--tip-frame", "tip", "--method", "ipopt"]
     argv += ["--target", "1.5", "0.2", "0", "--target", "0.3", "1.4", "0", "--starts", "4"]
     argv += ["--out", str(tmp_path / "run"), "--json", "--no-progress", "--no-replay"]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["start_kind"] == "feasible" and doc["status"] == "solved"
+
+
+def test_frame_is_refused_with_a_message_naming_tip_frame(capsys):
+    """``ikpath --frame`` is no alias: argparse exits 2 with one line naming --tip-frame."""
+    with pytest.raises(SystemExit) as exc:
+        main([*_UR5, "--frame", "tool0"])
+    assert exc.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.endswith("error: --frame is not an option: use --tip-frame F"), last
+
+
+def test_start_rows_go_to_starts_jsonl_and_not_to_the_summary(capsys, tmp_path):
+    """A JSON object a line per start in starts.jsonl, named by summary.json; --json omits them."""
+    out = tmp_path / "run"
+    argv = [*_UR5, "--method", "ipopt", "--starts", "2", "--start-kind", "coherent"]
+    assert main([*argv, "--out", str(out), "--no-replay", "--no-progress", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    summary = json.loads((out / "summary.json").read_text())
+    assert "start_outcomes" not in doc and "start_outcomes" not in summary
+    assert doc["starts_file"] == summary["starts_file"] == "starts.jsonl"
+    assert "starts.jsonl" in summary["files"]
+    lines = (out / "starts.jsonl").read_text().splitlines()
+    rows = [json.loads(line) for line in lines]
+    assert [r["index"] for r in rows] == [0, 1]
+    assert all(set(r) == {"index", "status", "E", "attempts", "message"} for r in rows)

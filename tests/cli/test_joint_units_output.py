@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.cli.advice import gripper_note
-from youbot_opt.cli.solve import format_result
+from youbot_opt.cli.trajopt_text import format_result
 from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem

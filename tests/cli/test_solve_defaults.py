@@ -9,7 +9,8 @@ import pytest
 
 from youbot_opt.cli import build_parser, main
 from youbot_opt.cli.advice import next_step
-from youbot_opt.cli.solve import DEFAULT_TRANSCRIPTION, transcription
+from youbot_opt.cli.parser import DEFAULT_TRANSCRIPTION
+from youbot_opt.cli.solve import transcription
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.refine import RefinementBudget, refine
@@ -87,10 +88,11 @@ def test_an_uncertified_run_prints_the_next_step(
 
 def test_unresolved_damping_suggests_radau(one_round, monkeypatch: pytest.MonkeyPatch):
     """A damping rate of 561 1/s (the iiwa's joint 7) on this grid: rate x h > 2 -> radau."""
+    import youbot_opt.cli.advice as advice
     import youbot_opt.dynamics.numeric as numeric
 
     monkeypatch.setattr(
-        numeric, "damping_rate", lambda *a, **k: numeric.DampingRate(rate=561.0, joint="j7")
+        advice, "damping_rate", lambda *a, **k: numeric.DampingRate(rate=561.0, joint="j7")
     )
     text = next_step(*one_round)
     assert text.startswith("--transcription radau (L-stable; j7's damping relaxes at 561 1/s")

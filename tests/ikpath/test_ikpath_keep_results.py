@@ -18,6 +18,7 @@ import pytest
 from test_ikpath_solvers import LA, LB, TARGETS_2
 
 from _sigkill import ITEM_SLEEP, kill_repeatedly
+from youbot_opt._files import read_json_lines
 from youbot_opt.cli import main
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
@@ -29,6 +30,12 @@ from youbot_opt.ikpath.stored import StoredResults
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_records
+
+
+def _starts(doc: dict) -> list[dict]:
+    """The per-start rows of a run: its ``starts.jsonl``, named in the summary."""
+    return list(read_json_lines(Path(doc["output_folder"]) / doc["starts_file"]))
+
 
 N = 24  # planar starts: 14-ish distinct minima, several found more than once
 
@@ -175,23 +182,22 @@ def test_cli_no_keep_results_runs_end_to_end(tmp_path, capsys):
     full, lean = docs
     for key in ("E", "configurations", "start_index", "n_success", "status_counts", "minima"):
         assert lean[key] == full[key], key
-    assert lean["start_outcomes"] == full["start_outcomes"]
+    assert _starts(lean) == _starts(full)
     assert (tmp_path / "--no-keep-results" / "ikpath_minima.png").is_file()
 
 
-def test_summary_rows_of_a_lean_run_are_streamed_from_the_journal(two_link, tmp_path):
-    """``start_fields`` of stored results holds no row: it reads the journal when written."""
-    from youbot_opt._files import StreamedList
-    from youbot_opt.cli.ikpath_starts import start_fields
+def test_start_rows_of_a_lean_run_are_streamed_from_the_journal(two_link, tmp_path):
+    """``write_starts`` of stored results reads the journal: the same starts.jsonl as held ones."""
+    from youbot_opt.cli.ikpath_text import write_starts
 
     lean = _planar(two_link, tmp_path / "lean", keep=False)
     full = _planar(two_link, tmp_path / "full", keep=True)
-    streamed = start_fields(lean.results, lean.attempts)
-    held = start_fields(full.results, full.attempts)
-    assert isinstance(streamed["start_outcomes"], StreamedList)
-    assert len(streamed["start_outcomes"]) == N
-    assert list(streamed["start_outcomes"]) == held["start_outcomes"]
-    assert streamed["retried"] == held["retried"]
+    streamed = write_starts(tmp_path / "lean", lean.results, lean.attempts)
+    held = write_starts(tmp_path / "full", full.results, full.attempts)
+    rows = list(read_json_lines(streamed.path))
+    assert len(rows) == N and [r["index"] for r in rows] == list(range(N))
+    assert rows == list(read_json_lines(held.path))
+    assert streamed.retried == held.retried and streamed.crashed == held.crashed
 
 
 @pytest.mark.slow
@@ -213,7 +219,7 @@ def test_sigkilled_lean_cli_multistart_resumes_to_the_full_result(two_link, tmp_
     assert doc["E"] == full.best.objective and doc["start_index"] == full.best_index
     assert doc["status_counts"] == full.status_counts()
     assert [m["count"] for m in doc["minima"]] == [m.count for m in full.minima]
-    got = doc["start_outcomes"]
+    got = _starts(doc)
     assert [o["index"] for o in got] == list(range(60))  # every start once, in order
     for o, r in zip(got, full.results, strict=True):
         assert (o["status"], o["E"], o["attempts"]) == (r.status.value, r.objective, 1)

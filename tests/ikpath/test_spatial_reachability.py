@@ -332,7 +332,7 @@ def test_cli_prints_the_interval_certificate(tmp_path, monkeypatch, capsys):
         "ikpath",
         "--robot",
         str(model_path),
-        "--frame",
+        "--tip-frame",
         "tip",
         "--target",
         "-6",

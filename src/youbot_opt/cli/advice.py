@@ -12,9 +12,12 @@ solution that moves").
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
+
+from youbot_opt.dynamics.numeric import damping_rate
+from youbot_opt.trajopt.refine import Refinement
+from youbot_opt.trajopt.result import TrajOptResult
 
 __all__ = ["GRIPPER_WORDS", "UNRESOLVED_DAMPING", "gripper_note", "next_step"]
 
@@ -25,7 +28,7 @@ the trapezoid's amplification ``(1 - z/2) / (1 + z/2)`` turns negative there,
 so the damped mode alternates from knot to knot instead of decaying."""
 
 
-def next_step(result: Any, record: Any) -> str:
+def next_step(result: TrajOptResult, record: Refinement) -> str:
     """Name the next thing to try for a plan the refinement did not certify.
 
     Chosen from what failed: a failed solve -> a multistart; a grid that does
@@ -34,8 +37,6 @@ def next_step(result: Any, record: Any) -> str:
     that is not L-stable -> ``--transcription radau``; a budget that ran out
     while the errors fell -> more rounds, knots or time; else a multistart.
     """
-    from youbot_opt.dynamics.numeric import damping_rate
-
     budget, rounds = record.budget, record.rounds
     last = rounds[-1] if rounds else None
     if last is None or not result.success or result.trajectory is None:
@@ -66,7 +67,7 @@ GRIPPER_WORDS = ("finger", "gripper", "hand", "jaw")
 """Words in a prismatic joint's name that make it a finger or gripper (:func:`gripper_note`)."""
 
 
-def gripper_note(result: Any) -> str:
+def gripper_note(result: TrajOptResult) -> str:
     """Say so when a prismatic finger or gripper joint moves in the plan ("" when none does).
 
     Such a joint is planned like any other: its force enters the work ``W``

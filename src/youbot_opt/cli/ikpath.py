@@ -1,15 +1,15 @@
-"""youbot-opt ikpath: minimum-motion cyclic joint path through targets (study 2).
+"""``youbot-opt ikpath``: minimum-motion cyclic joint path through targets, on any robot.
+
+Planar targets X Y [m] (``--example``, ``--lengths``, ``--robot youbot``) or
+3-D ones (X Y Z, an approach or a pose, ``--targets FILE``, any other
+``--robot``, ``--tip-frame``): every target's reachability is decided first
+(exit 2 with the certificate of an unreachable one), then the resumable
+multistart runs into the run folder's sweep store (progress on stderr) and the
+folder gets the figures, ``result.json``, ``starts.jsonl``, ``summary.json``
+and ``replay.html`` (:mod:`youbot_opt.cli.ikpath_text`). Exit 0: best start
+succeeded; 1: failed. Details: docs/ikpath.md.
 
     youbot-opt ikpath --example A --starts 200
-    youbot-opt ikpath --example B --method ipopt --starts 200 --json
-    youbot-opt ikpath --lengths 3 2 2 --limit 1.5708 --target 0 7 --target 5 0 --method ipopt
-    youbot-opt ikpath --robot youbot --target 0.3 0.3 --target 0.1 0.5 --target 0.35 0.1
-    youbot-opt ikpath --robot ur5 --target 0.4 0.2 0.3 --target 0.3 -0.3 0.4 --target 0.5 0 0.2
-
-Targets X Y [m] are planar (--example, --lengths, --robot youbot); X Y Z, X Y Z AX AY AZ
-(approach of the frame's z axis), X Y Z QX QY QZ QW (pose) or --targets FILE are spatial
-(any --robot NAME|PATH, --frame). Exit 0: best start succeeded; 1: failed; 2: unreachable target.
-Starts are saved in --out DIR as they finish; a rerun resumes. Details: docs/ikpath.md.
 """
 
 from __future__ import annotations
@@ -17,159 +17,143 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TextIO, cast
 
-from youbot_opt.cli.cluster_args import (
-    add_keep_results_arg,
-    add_scheduler_args,
-    report_shard,
-    scheduler_address,
+import numpy as np
+
+from youbot_opt._typing import JSONDict
+from youbot_opt.cli.flags import loading_options, report_shard, scheduler_address
+from youbot_opt.cli.ikpath_text import (
+    STARTS_FILE,
+    StartsFile,
+    add_result_3d,
+    planar_summary,
+    print_3d,
+    print_planar,
+    residual_field,
+    summary_3d,
+    warn_undecided_3d,
+    warn_undecided_planar,
+    write_starts,
 )
-from youbot_opt.cli.ikpath_starts import print_starts, start_fields, start_sweep
-from youbot_opt.cli.robot_args import add_loading_options
+from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.parser import PLANAR_REACH_EVALUATIONS, START_KIND_NAMES
 from youbot_opt.cli.run_size import check_ikpath_size
+from youbot_opt.cli.warning_lines import flush_warnings
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.examples import example_problem
+from youbot_opt.ikpath.io import RobotSource, save_result
+from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
+from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
+from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
+from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
+from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
+from youbot_opt.nlp.ipopt import IpoptOptions
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.planar import PlanarChain, youbot_chain
+from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.resume import ShardReport
+from youbot_opt.viz.meshcat.ikpath import export_ikpath_html, export_spatial_ikpath_html
+from youbot_opt.viz.meshcat.scene import RobotLike
+from youbot_opt.viz.plots.ikpath import (
+    plot_arm_path,
+    plot_convergence,
+    plot_leg_motion,
+    plot_minima,
+    plot_spatial_path,
+    plot_workspace,
+)
 
-if TYPE_CHECKING:  # the library is imported in _run, so --help and argument errors stay fast
-    from youbot_opt.ikpath.multistart import MultistartResult
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.reachability.planar import ReachVerdict
+__all__ = ["SPATIAL_DEFAULT_START_KIND", "StartProgress", "run", "start_sweep"]
 
-# The choices of the parser, spelled out here so that building it imports no solver;
-# tests/cli/test_cli_help.py checks them against the library's EXAMPLES, METHODS, START_KINDS.
-EXAMPLE_NAMES: tuple[str, ...] = ("A", "B")
-METHOD_NAMES: tuple[str, ...] = ("al", "ipopt")
-START_KIND_NAMES: tuple[str, ...] = ("feasible", "uniform")
-PLANAR_REACH_EVALUATIONS = 20_000
-SPATIAL_REACH_BOXES = 200_000  # ikpath.spatial_reachability.DEFAULT_INTERVAL_BOXES
-SPATIAL_REACH_SECONDS = 1.0  # ikpath.spatial_reachability.DEFAULT_INTERVAL_SECONDS
-SPATIAL_START_KIND_NAMES: tuple[str, ...] = ("mixed", "coherent", "random")
-
-
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``ikpath`` sub-command."""
-    p = sub.add_parser(
-        "ikpath",
-        help="minimum-motion cyclic IK path through tip targets (study 2)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    src = p.add_argument_group("arm and targets")
-    src.add_argument("--example", choices=EXAMPLE_NAMES, help="the study's example A or B")
-    src.add_argument(
-        "--robot",
-        metavar="NAME|PATH",
-        help="youbot (planar, targets: platform x z), or a robot name (ur5, panda, ...) or "
-        "URDF path for spatial targets",
-    )
-    src.add_argument("--frame", metavar="F", help="spatial: the frame that visits the targets")
-    add_loading_options(src)
-    src.add_argument(
-        "--targets",
-        metavar="FILE",
-        dest="targets_file",
-        help="spatial: targets from a CSV or JSON file (see above)",
-    )
-    src.add_argument(
-        "--tol", type=float, default=1e-6, help="spatial: position tolerance [m] (default 1e-6)"
-    )
-    src.add_argument(
-        "--orientation-tol",
-        type=float,
-        default=1e-6,
-        help="spatial: orientation tolerance [rad] (default 1e-6)",
-    )
-    src.add_argument("--lengths", type=float, nargs="+", metavar="L", help="link lengths [m]")
-    src.add_argument(
-        "--target",
-        type=float,
-        nargs="+",
-        action="append",
-        metavar="X",
-        help="a target (repeat, in visiting order): X Y [m] (planar), X Y Z, X Y Z AX AY AZ "
-        "or X Y Z QX QY QZ QW (spatial)",
-    )
-    lim = p.add_argument_group("joint limits [rad]")
-    lim.add_argument("--limit", type=float, metavar="C", help="symmetric limits |q_i| <= C")
-    lim.add_argument("--lower", type=float, nargs="+", metavar="L", help="lower limit(s)")
-    lim.add_argument("--upper", type=float, nargs="+", metavar="U", help="upper limit(s)")
-    lim.add_argument("--no-limits", action="store_true", help="ignore the arm's joint limits")
-    lim.add_argument(
-        "--reach-evaluations",
-        type=int,
-        default=None,
-        metavar="N",
-        help="budget of the reachability test: planar, evaluations of the branch and bound "
-        f"(3+ links; default {PLANAR_REACH_EVALUATIONS}); spatial, boxes of the interval "
-        f"search per target (default {SPATIAL_REACH_BOXES}, within its "
-        f"{SPATIAL_REACH_SECONDS:g} s per target)",
-    )
-    run = p.add_argument_group("solver")
-    run.add_argument("--method", choices=METHOD_NAMES, default="al", help="al (default) or ipopt")
-    run.add_argument(
-        "--starts", type=int, default=1, help="number of starts (default 1: the zero vector only)"
-    )
-    run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
-    run.add_argument(
-        "--start-kind",
-        choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
-        default=None,
-        help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
-        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
-    )
-    run.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        help="worker processes (default: the CPUs, 1 below 8 starts)",
-    )
-    add_scheduler_args(run)  # --starts > 1 on a Dask cluster
-    run.add_argument(
-        "--max-wall-time",
-        type=float,
-        default=None,
-        metavar="S",
-        help="wall-time limit of each start's solve [s] (status max_time when reached)",
-    )
-    out = p.add_argument_group("output")
-    out.add_argument(
-        "--out",
-        metavar="DIR",
-        help="run folder (default: a new youbot_opt_runs/ikpath-<UTC time> in the cwd)",
-    )
-    out.add_argument(
-        "--segment-time",
-        type=float,
-        default=1.0,
-        metavar="S",
-        help="replay: duration of each move between targets [s] (default 1)",
-    )
-    out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
-    add_keep_results_arg(out)
-    out.add_argument("--json", action="store_true", help="print one JSON object")
-    out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
-    p.set_defaults(func=_run)
+SPATIAL_DEFAULT_START_KIND = "mixed"
+"""``--start-kind`` of spatial runs when none is given."""
 
 
+class StartProgress:
+    """Progress of the starts on stderr: a bar on a terminal, else a line per tenth."""
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.tic = time.perf_counter()
+        self.shown = -1
+
+    def __call__(self, done: int, total: int, best: float) -> None:
+        """Report ``done`` of ``total`` starts and the best ``E`` so far [rad^2]."""
+        best_txt = f"{best:.10g} rad^2" if math.isfinite(best) else "none converged yet"
+        elapsed = time.perf_counter() - self.tic
+        if self.tty:
+            width = 30
+            fill = int(width * done / total)
+            self.stream.write(
+                f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} starts, "
+                f"best E {best_txt}, {elapsed:.1f} s"
+            )
+            if done == total:
+                self.stream.write("\n")
+        else:
+            tenth = 10 * done // total
+            if tenth == self.shown and done != total:
+                return
+            self.shown = tenth
+            self.stream.write(
+                f"ikpath: {done}/{total} starts done, best E {best_txt}, {elapsed:.1f} s\n"
+            )
+        self.stream.flush()
+
+
+def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepOptions:
+    """Return how the starts of the command line run, and say on stderr where they are saved.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``--starts``, ``--workers`` (default: 1 below 8 starts, else the CPUs),
+        ``--no-progress``, ``--shard`` and ``--keep-results/--no-keep-results``.
+    folder : Path
+        The run folder: the sweep store, which a rerun with ``--out`` resumes.
+    executor : str
+        A Dask scheduler address, ``"process"`` (several starts: a crashing
+        start cannot end the run) or ``"serial"``.
+    """
+    workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
+    if not args.no_progress:
+        print(
+            f"ikpath: {args.starts} start(s), each saved to {folder.resolve() / 'items'} as it "
+            f"finishes (rerun with --out {folder} to resume)",
+            file=sys.stderr,
+        )
+    return SweepOptions(
+        executor=executor,
+        workers=workers,
+        progress=None if args.no_progress else StartProgress(),
+        out=folder,
+        shard=args.shard,
+        keep_results=getattr(args, "keep_results", True),
+    )
+
+
+# ------------------------------------------------------------------ the problem
 def _spatial_mode(args: argparse.Namespace) -> bool:
     """Whether the command line asks for the spatial problem (see the usage text)."""
-    if args.frame or args.targets_file:
+    if args.tip_frame or args.targets_file:
         return True
     if args.robot is not None and args.robot != "youbot":
         return True
     return any(len(t) != 2 for t in args.target or ())
 
 
-def _problem(args: argparse.Namespace) -> CyclicIKProblem:
-    """Build the problem from the command line."""
-    import numpy as np
-
-    from youbot_opt.ikpath.examples import example_problem
-    from youbot_opt.ikpath.problem import CyclicIKProblem
-    from youbot_opt.ikpath.targets import position_targets
-    from youbot_opt.robot.planar import PlanarChain
-
+def _planar_problem(args: argparse.Namespace) -> CyclicIKProblem:
+    """Build the planar problem of the command line."""
     if args.example:
         if args.lengths or args.target or args.robot:
             raise ParameterError(
@@ -190,7 +174,6 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
                 raise ParameterError(
                     "--robot fixes the lengths", name="lengths", value=args.lengths
                 )
-            from youbot_opt.robot.planar import youbot_chain
 
             chain = youbot_chain()
         elif args.lengths:
@@ -218,202 +201,136 @@ def _problem(args: argparse.Namespace) -> CyclicIKProblem:
     )
 
 
-def _num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
+def _targets_3d(args: argparse.Namespace) -> tuple[Target, ...]:
+    """Targets from ``--target`` (3, 6 or 7 numbers) and ``--targets FILE``.
 
-
-def _verdict_json(v: ReachVerdict) -> dict[str, Any]:
-    return {
-        "index": v.index,
-        "target": v.target.tolist(),
-        "verdict": v.status.value,
-        "method": v.method,
-        "witness": None if v.witness is None else v.witness.tolist(),
-        "witness_error": _num(v.witness_error),
-        "distance_lower": v.distance_lower,
-        "distance_upper": v.distance_upper,
-        "nearest": v.nearest.tolist(),
-        "message": v.describe(),
-    }
-
-
-def _report(
-    args: argparse.Namespace,
-    problem: CyclicIKProblem,
-    verdicts: tuple[ReachVerdict, ...],
-    ms: MultistartResult | None,
-) -> dict[str, Any]:
-    import numpy as np
-
-    from youbot_opt.ikpath.examples import STUDY_E_A
-    from youbot_opt.ikpath.reachability.planar import Reachability
-
-    chain = problem.planar_chain
-    doc: dict[str, Any] = {
-        "chain": chain.name,
-        "lengths": chain.lengths.tolist(),
-        "q_lower": [_num(v) for v in chain.q_lower] if problem.bounded else None,
-        "q_upper": [_num(v) for v in chain.q_upper] if problem.bounded else None,
-        "targets": problem.target_points.tolist(),
-        "method": args.method,
-        "reachability": [_verdict_json(v) for v in verdicts],
-        "reachability_undecided": [v.index for v in verdicts if v.status is Reachability.UNDECIDED],
-    }
-    if args.example == "A":
-        doc["study_E"] = STUDY_E_A
-    if ms is None:
-        doc.update(status="unreachable", E=None, configurations=None, max_residual=None)
-        return doc
-    best = ms.best
-    doc.update(
-        status=best.status.value,
-        message=best.message,
-        E=best.objective,
-        configurations=best.configurations.tolist(),
-        residuals=best.position_errors.tolist(),
-        max_residual=best.max_position_error(),
-        limit_violation=best.limit_violation,
-        multipliers=best.multipliers.tolist(),
-        iterations=best.iterations,
-        solve_time=best.wall_time,
-        start_index=ms.best_index,
-        starts=ms.n_starts,
-        seed=ms.seed,
-        start_kind=args.start_kind,
-        n_success=ms.n_success,
-        best_count=ms.best_count,
-        status_counts=ms.status_counts(),
-        minima=[
-            {
-                "E": m.objective,
-                "count": m.count,
-                "first_start": m.start_indices[0],
-                "max_residual": m.result.max_position_error(),
-                "multiplier_norm": float(np.linalg.norm(m.result.multipliers)),
-            }
-            for m in ms.minima
-        ],
-        zero_start={"status": ms.results[0].status.value, "E": ms.results[0].objective},
-        wall_time=ms.wall_time,
-        workers=ms.n_workers,
-        starts_per_second=ms.starts_per_second(),
-        resumed=ms.resumed,
-        **start_fields(ms.results, ms.attempts, _residual_field),
-    )
-    return doc
-
-
-def _residual_field(r: Any) -> dict[str, Any]:  # noqa: ANN401 - IKPathResult or StartSummary
-    """Return the planar per-start field of ``summary.json``: the largest residual in [m]."""
-    if hasattr(r, "max_position_error"):  # a result, not its stored summary
-        return {"max_residual": r.max_position_error()}
-    return {"max_residual": r.max_residual}
-
-
-def _print_text(doc: dict[str, Any]) -> None:
-    if doc["q_lower"] is None:
-        lims = "none"
-    else:
-        lo = ", ".join("-inf" if v is None else f"{v:.4g}" for v in doc["q_lower"])
-        hi = ", ".join("inf" if v is None else f"{v:.4g}" for v in doc["q_upper"])
-        lims = f"[{lo}] .. [{hi}] rad"
-    print(
-        f"IK path: {doc['chain']} l = {doc['lengths']} m, limits {lims}, "
-        f"{len(doc['targets'])} targets, method {doc['method']}"
-    )
-    print("reachability (exact, no sampling):")
-    for v in doc["reachability"]:
-        print(f"  {v['message']}")
-    if doc["E"] is None:
-        return
-    if doc["starts"] == 1:
-        _print_single_start(doc)
-    else:
-        _print_multistart(doc)
-    for j, q in enumerate(doc["configurations"]):
-        print(f"  q{j + 1} = [{', '.join(f'{v:+.6f}' for v in q)}] rad")
-    if "study_E" in doc:
-        print(
-            f"study reported E = {doc['study_E']} from the zero guess "
-            f"(difference {doc['study_E'] - doc['E']:+.4f} rad^2; see docs/ikpath.md)"
+    Raises
+    ------
+    ParameterError
+        For a ``--target`` of another length, or both sources at once.
+    """
+    tol = {"position_tol": args.tol, "orientation_tol": args.orientation_tol}
+    if args.targets_file and args.target:
+        raise ParameterError(
+            "give targets either with --target or with --targets FILE, not both",
+            name="target",
+            value=args.targets_file,
         )
-
-
-def _print_single_start(doc: dict[str, Any]) -> None:
-    """Print the one run of ``--starts 1`` (the zero start) as one run, not as a multistart."""
-    resumed = " (loaded from the output folder: resumed)" if doc["resumed"] else ""
-    print(f"one start (the zero vector), {doc['wall_time']:.2f} s{resumed}")
-    if doc["retried"]:
-        print("  retried once after a failed attempt")
-    for o in doc["start_outcomes"]:
-        if o["status"] == "crashed":
-            print(f"  failed after {o['attempts']} attempts: {o['message']}")
-    print(
-        f"result: E = {doc['E']:.10f} rad^2 ({doc['status']}); max residual "
-        f"{doc['max_residual']:.2e} m, limit violation {doc['limit_violation']:.2e} rad"
-    )
-    _print_failure(doc)
-
-
-def _print_failure(doc: dict[str, Any]) -> None:
-    """Print why the best start failed (nothing for a success)."""
-    if doc["status"] not in ("solved", "solved_acceptable"):
-        print(f"failed: {doc['message']}")
-
-
-def _print_multistart(doc: dict[str, Any]) -> None:
-    """Print the multistart's outcomes, its local minima, the zero start and the best."""
-    print_starts(doc)
-    for m in doc["minima"][:8]:
-        print(
-            f"  local minimum E = {m['E']:.10f} rad^2 found by {m['count']} starts "
-            f"(first: start {m['first_start']})"
-        )
-    z = doc["zero_start"]
-    print(f"start 0 (the zero vector): {z['status']}, E = {z['E']:.10f} rad^2")
-    print(
-        f"best: E = {doc['E']:.10f} rad^2 ({doc['status']}), found by {doc['best_count']} of "
-        f"{doc['starts']} starts; max residual {doc['max_residual']:.2e} m, "
-        f"limit violation {doc['limit_violation']:.2e} rad"
-    )
-    _print_failure(doc)
-
-
-def _warn_undecided(verdicts: tuple[ReachVerdict, ...]) -> None:
-    """Warn on stderr about every target whose reachability was not decided."""
-    from youbot_opt.ikpath.reachability.planar import Reachability
-
-    for v in verdicts:
-        if v.status is Reachability.UNDECIDED:
-            print(
-                f"youbot-opt: warning: reachability of target p{v.index + 1} = "
-                f"({v.target[0]:.6g}, {v.target[1]:.6g}) is undecided (branch and bound "
-                f"budget exhausted after {v.evaluations} evaluations): its distance to the "
-                f"workspace is certified only to lie in [{v.distance_lower:.6g}, "
-                f"{v.distance_upper:.6g}] m; solving anyway (a failed solve may mean the "
-                "target is unreachable; a larger --reach-evaluations may decide it)",
-                file=sys.stderr,
+    if args.targets_file:
+        return load_targets(args.targets_file, **tol)
+    out = []
+    for k, t in enumerate(args.target or ()):
+        if len(t) == 3:
+            out.append(Target(position=t, **tol))
+        elif len(t) == 6:
+            out.append(Target(position=t[:3], approach=t[3:], **tol))
+        elif len(t) == 7:
+            out.append(Target(position=t[:3], rotation=quaternion_to_matrix(t[3:]), **tol))
+        else:
+            raise ParameterError(
+                f"--target {k + 1} has {len(t)} numbers; spatial targets take X Y Z, "
+                "X Y Z AX AY AZ or X Y Z QX QY QZ QW",
+                name="target",
+                value=t,
             )
+    return tuple(out)
 
 
-def _write_outputs(
+def _check_flags_3d(args: argparse.Namespace) -> str | None:
+    """Refuse the planar-only flags; return the start kind (None: the robot kind's)."""
+    if args.example or args.lengths:
+        raise ParameterError(
+            "--example/--lengths describe planar chains; spatial targets need --robot",
+            name="robot",
+            value=args.robot,
+        )
+    if args.reach_evaluations is not None and args.reach_evaluations < 1:
+        raise ParameterError(
+            f"--reach-evaluations must be >= 1, got {args.reach_evaluations}",
+            name="reach_evaluations",
+            value=args.reach_evaluations,
+        )
+    kind = args.start_kind
+    if kind not in (None, "mixed", "coherent", "random", "feasible"):
+        raise ParameterError(
+            f"--start-kind {kind} is a planar start kind; spatial targets take mixed "
+            "(default), coherent or random",
+            name="start_kind",
+            value=kind,
+        )
+    if args.max_wall_time is not None and not (
+        math.isfinite(args.max_wall_time) and args.max_wall_time > 0
+    ):
+        raise ParameterError(
+            f"--max-wall-time must be a positive time in [s], got {args.max_wall_time}",
+            name="max_wall_time",
+            value=args.max_wall_time,
+        )
+    return kind
+
+
+def _problem_3d(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
+    """Build the 3-D problem of the command line on the loaded ``robot``."""
+    frame = args.tip_frame or robot.tip_frame
+    targets = _targets_3d(args)
+    if len(targets) < 2:
+        raise ParameterError(
+            f"a cyclic path needs at least 2 targets, got {len(targets)}",
+            name="target",
+            value=len(targets),
+        )
+    lower = upper = None
+    if args.limit is not None:
+        if not args.limit > 0:
+            raise ParameterError(f"--limit must be > 0, got {args.limit}", name="limit")
+        lower, upper = -args.limit, args.limit
+    lower = args.lower if args.lower is not None else lower
+    upper = args.upper if args.upper is not None else upper
+    n = CyclicIKProblem(robot=robot, frame=frame, targets=targets).n_joints
+    return CyclicIKProblem(
+        robot=robot,
+        frame=frame,
+        targets=targets,
+        use_limits=not args.no_limits,
+        q_lower=None if lower is None else np.broadcast_to(lower, (n,)),
+        q_upper=None if upper is None else np.broadcast_to(upper, (n,)),
+    )
+
+
+def _options_3d(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
+    """Solver options of ``--method`` with ``--max-wall-time`` (None: the defaults)."""
+    if args.max_wall_time is None:
+        return None
+    if args.method == "al":
+        return replace(SPATIAL_AL_OPTIONS, max_wall_time=args.max_wall_time)
+
+    return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
+
+
+def _start_kind_3d(kind: str | None, problem: CyclicIKProblem) -> str:
+    """Return the start kind: ``feasible`` (planar starts) for a planar robot, else ``mixed``."""
+    if kind is None:
+        return "feasible" if problem.chain is not None else SPATIAL_DEFAULT_START_KIND
+    if kind == "feasible" and problem.chain is None:
+        raise ParameterError(
+            f"--start-kind feasible is a planar start kind; robot {problem.robot_model.name!r} "
+            f"is not planar for frame {problem.frame!r}: spatial targets take mixed (default), "
+            "coherent or random",
+            name="start_kind",
+            value=kind,
+        )
+    return kind
+
+
+# ------------------------------------------------------------------ the runs
+def _planar_outputs(
     args: argparse.Namespace,
     folder: Path,
     problem: CyclicIKProblem,
     verdicts: tuple[ReachVerdict, ...],
     ms: MultistartResult | None,
-    doc: dict[str, Any],
 ) -> list[Path]:
-    """Write the run folder: figures, replay, saved result, then ``summary.json``."""
-    from youbot_opt.cli.output import save_figure, write_summary
-    from youbot_opt.ikpath.io import save_result
-    from youbot_opt.viz.plots.ikpath import (
-        plot_arm_path,
-        plot_convergence,
-        plot_minima,
-        plot_workspace,
-    )
-
+    """Write a planar run's figures, replay and saved result; return the folder's files."""
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
         best = ms.best
@@ -422,40 +339,38 @@ def _write_outputs(
             files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
         files.append(save_result(best, folder / "result.json"))
+        files.append(folder / STARTS_FILE)
         if not args.no_replay:
-            from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
-
             files.append(
                 export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)
             )
         files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
-    doc["output_folder"] = str(folder.resolve())
-    doc["files"] = [f.name for f in files] + ["summary.json"]
-    files.append(write_summary(folder, doc))
     return files
 
 
-def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.cli.output import print_json, print_outputs, run_folder
-    from youbot_opt.ikpath.methods.al import ALOptions
-    from youbot_opt.ikpath.methods.ipopt import IpoptOptions
-    from youbot_opt.ikpath.multistart import run_multistart
-    from youbot_opt.ikpath.reachability.planar import Reachability, check_reachability
-    from youbot_opt.sweeps.resume import ShardReport
+def _finish(
+    args: argparse.Namespace,
+    folder: Path,
+    doc: JSONDict,
+    files: list[Path],
+    print_text: Callable[[], None],
+    errors: list[str],
+) -> None:
+    """Write ``summary.json`` (naming the files), print it or its text, the folder and errors."""
+    doc["output_folder"] = str(folder.resolve())
+    doc["files"] = [f.name for f in files] + ["summary.json"]
+    files.append(write_summary(folder, doc))
+    if args.json:
+        print_json(doc)
+    else:
+        print_text()
+    print_outputs(folder, files)
+    for error in errors:
+        print(f"youbot-opt: error: {error}", file=sys.stderr)
 
-    if not (math.isfinite(args.segment_time) and args.segment_time > 0):
-        raise ParameterError(
-            f"--segment-time must be a positive duration in [s], got {args.segment_time}",
-            name="segment_time",
-            value=args.segment_time,
-        )
-    check_ikpath_size(
-        n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ())
-    )  # noqa: E501
-    if _spatial_mode(args):
-        from youbot_opt.cli.ikpath_spatial import run_spatial
 
-        return run_spatial(args)
+def _run_planar(args: argparse.Namespace) -> int:
+    """Run a planar IK path; return the exit status."""
     if args.start_kind is None:
         args.start_kind = "feasible"
     elif args.start_kind not in START_KIND_NAMES:
@@ -467,7 +382,7 @@ def _run(args: argparse.Namespace) -> int:
         )
     if args.reach_evaluations is None:
         args.reach_evaluations = PLANAR_REACH_EVALUATIONS
-    problem = _problem(args)
+    problem = _planar_problem(args)
     if args.reach_evaluations < 1:
         raise ParameterError(
             f"--reach-evaluations must be >= 1, got {args.reach_evaluations}",
@@ -479,7 +394,7 @@ def _run(args: argparse.Namespace) -> int:
     folder = run_folder("ikpath", args.out)
     ms = None
     if not unreachable:
-        _warn_undecided(verdicts)
+        warn_undecided_planar(verdicts)
         options: ALOptions | IpoptOptions | None = None
         if args.max_wall_time is not None:
             kind = ALOptions if args.method == "al" else IpoptOptions.for_ikpath
@@ -499,15 +414,84 @@ def _run(args: argparse.Namespace) -> int:
         if isinstance(got, ShardReport):  # --shard I/K solved its share
             return report_shard(got)
         ms = got
-    doc = _report(args, problem, verdicts, ms)
-    files = _write_outputs(args, folder, problem, verdicts, ms, doc)
-    if args.json:
-        print_json(doc)
-    else:
-        _print_text(doc)
-    print_outputs(folder, files)
-    for v in unreachable:
-        print(f"youbot-opt: error: {v.describe()}", file=sys.stderr)
+    starts = None if ms is None else write_starts(folder, ms.results, ms.attempts, residual_field)
+    doc = planar_summary(args, problem, verdicts, ms, starts)
+    files = _planar_outputs(args, folder, problem, verdicts, ms)
+    crashed = [] if starts is None else starts.crashed
+    errors = [v.describe() for v in unreachable]
+    _finish(args, folder, doc, files, partial(print_planar, doc, crashed), errors)
     if ms is None:
         return 2
     return 0 if ms.best.success else 1
+
+
+def _run_3d(args: argparse.Namespace) -> int:
+    """Run an IK path with 3-D targets; return the exit status."""
+    kind = _check_flags_3d(args)
+    robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))
+    flush_warnings()  # the loader's warnings, grouped, before the run
+    problem = _problem_3d(args, robot)
+    kind = _start_kind_3d(kind, problem)
+    frame = problem.frame
+    targets = problem.targets
+    options = _options_3d(args)
+    executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
+    budget = {} if args.reach_evaluations is None else {"interval_boxes": args.reach_evaluations}
+    verdicts = check_reachability_3d(problem, **budget)
+    folder = run_folder("ikpath", args.out)
+    doc = summary_3d(args, problem, robot.name, verdicts)
+    unreachable = [v for v in verdicts if v.status is Reachability3D.UNREACHABLE]
+    files: list[Path] = []
+    code = 2
+    starts: StartsFile | None = None
+    if not unreachable:
+        warn_undecided_3d(verdicts)
+        ms = run_spatial_multistart(
+            problem,
+            method=args.method,
+            n_starts=args.starts,
+            seed=args.seed,
+            starts=kind,
+            options=options,
+            sweep=start_sweep(args, folder, executor),
+        )
+        if isinstance(ms, ShardReport):  # --shard I/K solved its share
+            return report_shard(ms)
+        best = ms.best
+        starts = write_starts(folder, ms.results, ms.attempts)
+        add_result_3d(doc, args, ms, kind, starts)
+        source = RobotSource.of(robot, strict=not args.lenient)
+        files.append(save_result(best, folder / "result.json", source))
+        files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
+        files.append(save_figure(plot_spatial_path(best), folder, "ikpath_path3d.png"))
+        if not args.no_replay:
+            files.append(
+                export_spatial_ikpath_html(
+                    best,
+                    cast("RobotLike", robot),
+                    folder / "replay.html",
+                    segment_time=args.segment_time,
+                )
+            )
+        files += [starts.path, folder / "manifest.json", folder / "items"]  # the starts
+        code = 0 if best.success else 1
+    else:
+        doc.update(status="unreachable", E=None, result=None)
+    errors = [f"unreachable: {v.message}" for v in unreachable]
+    text = partial(print_3d, doc, robot.name, frame, len(targets), args.method, starts)
+    _finish(args, folder, doc, files, text, errors)
+    return code
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt ikpath``; returns the exit code (0 ok, 1 failed, 2 unreachable)."""
+    if not (math.isfinite(args.segment_time) and args.segment_time > 0):
+        raise ParameterError(
+            f"--segment-time must be a positive duration in [s], got {args.segment_time}",
+            name="segment_time",
+            value=args.segment_time,
+        )
+    check_ikpath_size(
+        n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ())
+    )  # noqa: E501
+    return _run_3d(args) if _spatial_mode(args) else _run_planar(args)

@@ -16,45 +16,20 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
+from youbot_opt._typing import JSONDict
 from youbot_opt._version import __version__
+from youbot_opt.cli.output import open_folder, report_outputs, write_solve_outputs
+from youbot_opt.cli.refinement import refine_result
+from youbot_opt.cli.trajopt_text import certificate_of, format_result
+from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.trajopt.solver import TrajOptSolver
+
+__all__ = ["run"]
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``main`` sub-command."""
-    p = sub.add_parser(
-        "main",
-        help="run the main job (the study-1 base case)",
-        description="Solve the study-1 base case (beta = 0.5, trapezoidal, straight-line "
-        "start) on the study's 50 knots, refine the grid until the plan is certified, and "
-        "write the run folder. Other grids, robots and transcriptions: youbot-opt solve.",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        metavar="DIR",
-        help="output folder (default: a new youbot_opt_runs/main-<date>-<time>)",
-    )
-    from youbot_opt.cli.solve import add_refine_arguments
-
-    add_refine_arguments(p, grid="the study's 50-knot grid")
-    p.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.cli.solve import (
-        certificate_of,
-        format_result,
-        open_folder,
-        refine_result,
-        report_outputs,
-        write_solve_outputs,
-    )
-    from youbot_opt.reproduction.study1 import study1_problem
-    from youbot_opt.trajopt.solver import TrajOptSolver
-
+def run(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt main``; returns the exit code (0 certified, 1 not, 2 bad input)."""
     tic = time.perf_counter()
     grid = "refined from 50 knots" if args.refine else "50 fixed knots"
     print(f"youbot_opt {__version__}: study-1 base case (beta = 0.5, {grid}, trapezoidal, "
@@ -75,7 +50,7 @@ def _run(args: argparse.Namespace) -> int:
               "certificate's tolerances:\n      the fixed 50-knot trapezoidal grid is too "
               "coarse here. Without --no-refine the grid\n      is refined until the plan "
               "passes.")  # fmt: skip
-    summary = {
+    summary: JSONDict = {
         **(result.summary() if refined is None else refined.summary()),
         "build_time_s": solver.build_time,
     }

@@ -11,70 +11,51 @@ and ``replay.html``; sweeps report progress on stderr through
 
 from __future__ import annotations
 
-import argparse
 import datetime as _dt
+import json
+import logging
 import math
 import sys
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, TextIO
+from typing import IO, TextIO
 
-from youbot_opt._files import StreamedList, atomic_writer, json_ready, write_json_stream
+import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+from youbot_opt._files import atomic_write_text, json_ready
+from youbot_opt._typing import JSONDict
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.trajopt.io import save_result
+from youbot_opt.trajopt.multistart import MultistartResult
+from youbot_opt.trajopt.refine import Refinement
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.viz.meshcat.replay import export_html
+from youbot_opt.viz.meshcat.results import export_results_html
+from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_multistart, plot_trajectory
+from youbot_opt.viz.plots.trajopt import plot_refinement
 
 __all__ = [
     "DEFAULT_ROOT",
-    "add_command",
-    "run_folder",
-    "json_ready",
-    "StreamedList",
-    "write_summary",
-    "print_json",
-    "save_figure",
-    "print_outputs",
     "ProgressLine",
+    "draw_figure",
+    "open_folder",
+    "optima_replay",
+    "print_json",
+    "print_outputs",
+    "replay_html",
+    "report_outputs",
+    "run_folder",
+    "save_figure",
+    "write_solve_outputs",
+    "write_summary",
 ]
+
+_log = logging.getLogger(__name__)
 
 DEFAULT_ROOT = Path("youbot_opt_runs")
 """Parent of the per-run folders made when no ``--out`` is given (relative to the cwd)."""
-
-
-def add_command(
-    sub: argparse._SubParsersAction,  # type: ignore[type-arg]
-    name: str,
-    *,
-    help: str,  # noqa: A002 - the argparse keyword
-    description: str,
-    **kwargs: Any,
-) -> argparse.ArgumentParser:
-    """Add one sub-command to the dispatcher and return its parser.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The dispatcher's sub-parsers.
-    name : str
-        The sub-command (``youbot-opt NAME``).
-    help : str
-        One line for ``youbot-opt --help``.
-    description : str
-        The text at the top of ``youbot-opt NAME --help``.
-    **kwargs
-        Further :meth:`argparse._SubParsersAction.add_parser` keywords
-        (``epilog``, ``formatter_class``).
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The sub-command's parser, for its arguments.
-    """
-    parser: argparse.ArgumentParser = sub.add_parser(
-        name, help=help, description=description, **kwargs
-    )
-    return parser
 
 
 def run_folder(
@@ -117,29 +98,25 @@ def run_folder(
 
 
 def write_summary(
-    folder: str | Path, summary: Mapping[str, Any], name: str = "summary.json"
+    folder: str | Path, summary: Mapping[str, object], name: str = "summary.json"
 ) -> Path:
     """Write ``summary`` as indented JSON to ``folder/name`` atomically; return the path.
 
-    A :class:`~youbot_opt._files.StreamedList` in ``summary`` (a sweep's
-    per-start rows) is written one item at a time, so the file's size, not
-    the document's, never sits in memory.
+    A sweep's per-start rows are not in it: they go to their own JSON Lines file
+    (:func:`~youbot_opt._files.write_json_lines`), so a summary stays small.
     """
     path = Path(folder) / name
-    with atomic_writer(path) as handle:
-        write_json_stream(handle, json_ready(summary))
+    atomic_write_text(path, json.dumps(json_ready(summary), indent=2) + "\n")
     return path
 
 
-def print_json(doc: Mapping[str, Any], stream: IO[str] | None = None) -> None:
-    """Print ``doc`` as indented JSON (``--json``) to stdout, streaming its long lists."""
-    write_json_stream(sys.stdout if stream is None else stream, json_ready(doc))
+def print_json(doc: Mapping[str, object], stream: IO[str] | None = None) -> None:
+    """Print ``doc`` as indented JSON (``--json``) to stdout (or ``stream``)."""
+    print(json.dumps(json_ready(doc), indent=2), file=sys.stdout if stream is None else stream)
 
 
 def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
     """Save a matplotlib figure as ``folder/name`` (PNG unless a suffix is given); close it."""
-    import matplotlib.pyplot as plt
-
     path = Path(folder) / (name if Path(name).suffix else f"{name}.png")
     fig.savefig(path, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
@@ -185,7 +162,7 @@ class ProgressLine:
         self.tty = self.stream.isatty()
         self.tic = time.perf_counter()
 
-    def __call__(self, done: int, total: int, last: Any) -> None:
+    def __call__(self, done: int, total: int, last: object) -> None:
         """Report item ``done`` of ``total``; ``last`` is the sweep's item (status, objective)."""
         if self.quiet:
             return
@@ -193,7 +170,7 @@ class ProgressLine:
         what = getattr(last, "key", None) or f"beta={getattr(last, 'beta', '?')}"
         line = (
             f"{self.label}: {done}/{total} [{time.perf_counter() - self.tic:6.1f} s] "
-            f"{what}: {last.status} f={f:.6g}"
+            f"{what}: {getattr(last, 'status', '?')} f={f:.6g}"
         )
         end = "" if self.tty else "\n"
         self.stream.write(("\r" if self.tty else "") + line + end)
@@ -203,3 +180,123 @@ class ProgressLine:
         """End the in-place line on a terminal."""
         if self.tty and not self.quiet:
             self.stream.write("\n")
+
+
+def open_folder(command: str, out: str | Path | None) -> Path:
+    """Create the run's output folder (:func:`run_folder`).
+
+    Raises
+    ------
+    ParameterError
+        If ``out`` exists and is not a folder, or cannot be created.
+    """
+    try:
+        return run_folder(command, out)
+    except OSError as exc:
+        raise ParameterError(
+            f"cannot use the output folder (--out): {exc}", name="out", value=out
+        ) from exc
+
+
+def draw_figure(
+    folder: Path, name: str, make: Callable[..., Figure], *args: object, **kwargs: object
+) -> Path | None:
+    """Draw and save one figure; a figure that cannot be drawn is logged and skipped."""
+    try:
+        fig = make(*args, **kwargs)
+    except ParameterError as exc:  # e.g. no converged run to draw
+        _log.warning("figure %s not drawn: %s", name, exc)
+        return None
+    return save_figure(fig, folder, name)
+
+
+def write_solve_outputs(
+    folder: Path,
+    result: TrajOptResult,
+    summary: JSONDict,
+    multistart: MultistartResult | None = None,
+    *,
+    refinement: Refinement | None = None,
+) -> list[Path]:
+    """Write a solve's result, figures, replay and summary into ``folder``.
+
+    Parameters
+    ----------
+    folder : Path
+        The run's output folder.
+    result : TrajOptResult
+        The solution (the best start's after a multistart).
+    summary : dict
+        The JSON summary; ``"output_folder"`` and ``"files"`` are added.
+    multistart : MultistartResult, optional
+        The multistart the result comes from: adds its histogram, and the
+        replay shows its distinct optima side by side.
+    refinement : Refinement, optional
+        The record of the refinement that made ``result``: saved with it, drawn
+        (``refinement.png``) and summarised (``"refinement"``).
+
+    Returns
+    -------
+    list of Path
+        The files written, ``summary.json`` last.
+    """
+    files: list[Path | None] = [save_result(result, folder / "result.npz", refinement=refinement)]
+    if result.trajectory is not None:
+        files.append(draw_figure(folder, "trajectory.png", plot_trajectory, result))
+        files.append(draw_figure(folder, "arm.png", plot_arm_2d, None, result))
+    if refinement is not None:
+        files.append(draw_figure(folder, "refinement.png", plot_refinement, refinement))
+        summary["refinement"] = refinement.summary()
+    runs: MultistartResult | Refinement | list[TrajOptResult] = [result]
+    if multistart is not None:  # every start's solve
+        runs = multistart
+    elif refinement is not None:  # every round's solve
+        runs = refinement
+    files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
+    if multistart is not None:
+        files.append(draw_figure(folder, "multistart.png", plot_multistart, multistart))
+        files.append(optima_replay(folder, multistart))
+    elif result.trajectory is not None:
+        files.append(replay_html(folder, [result], [f"f = {result.objective:.5g}"]))
+    written = [f for f in files if f is not None]
+    summary["output_folder"] = str(folder.resolve())
+    summary["files"] = [f.name for f in written] + ["summary.json"]
+    written.append(write_summary(folder, summary))
+    return written
+
+
+def optima_replay(
+    folder: Path,
+    multistart: MultistartResult,
+    objective_tol: float = 1e-5,
+    traj_tol: float = 1e-2,
+    limit: int = 6,
+) -> Path | None:
+    """Write ``replay.html`` with up to ``limit`` distinct optima of a multistart, side by side."""
+    optima = multistart.distinct_optima(objective_tol, traj_tol)[:limit]
+    labels = [
+        f"optimum {i + 1}: f = {o.objective:.5g}, {o.count} of {o.n_starts} starts"
+        for i, o in enumerate(optima)
+    ]
+    return replay_html(folder, [o.best.result for o in optima], labels)
+
+
+def replay_html(
+    folder: Path, results: Sequence[TrajOptResult | None], labels: Sequence[str]
+) -> Path | None:
+    """Write ``replay.html``: the results side by side (one: the plain replay)."""
+    kept = [(r, lab) for r, lab in zip(results, labels, strict=True) if r is not None]
+    if not kept or any(r.trajectory is None for r, _ in kept):
+        return None
+    if len(kept) == 1:
+        traj = kept[0][0].trajectory
+        assert traj is not None  # checked above
+        return export_html(kept[0][0].problem.robot, traj.t, traj.q, folder / "replay.html")
+    return export_results_html(
+        [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]
+    )
+
+
+def report_outputs(folder: Path, files: list[Path], as_json: bool) -> None:
+    """Print the output folder and its files: to stdout, or to stderr under ``--json``."""
+    print_outputs(folder, files, stream=sys.stderr if as_json else sys.stdout)

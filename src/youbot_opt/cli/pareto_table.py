@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+
+from youbot_opt._typing import JSONDict
+from youbot_opt.trajopt.pareto import ParetoFront, ParetoPoint
 
 __all__ = ["DISTINCT_RTOL", "distinct_points", "pareto_summary", "pareto_table"]
 
@@ -23,7 +25,9 @@ def _same(a: float, b: float, rtol: float) -> bool:
     return abs(a - b) <= rtol * max(abs(a), abs(b), 1e-300)
 
 
-def distinct_points(points: Sequence[Any], rtol: float = DISTINCT_RTOL) -> list[list[Any]]:
+def distinct_points(
+    points: Sequence[ParetoPoint], rtol: float = DISTINCT_RTOL
+) -> list[list[ParetoPoint]]:
     """Group the converged, non-dominated points whose T and W agree within ``rtol``.
 
     Parameters
@@ -41,7 +45,7 @@ def distinct_points(points: Sequence[Any], rtol: float = DISTINCT_RTOL) -> list[
     """
     keep = [p for p in points if p.success and not p.dominated]
     keep.sort(key=lambda p: (p.duration, p.work, p.beta))
-    groups: list[list[Any]] = []
+    groups: list[list[ParetoPoint]] = []
     for p in keep:
         for group in groups:
             q = group[0]
@@ -59,7 +63,7 @@ def _fmt(x: float, spec: str) -> str:
     return format(x, spec) if math.isfinite(x) else "-"
 
 
-def pareto_table(front: Any, rtol: float = DISTINCT_RTOL) -> list[str]:
+def pareto_table(front: ParetoFront, rtol: float = DISTINCT_RTOL) -> list[str]:
     """Return the lines of the printed Pareto table.
 
     Parameters
@@ -104,7 +108,7 @@ def pareto_table(front: Any, rtol: float = DISTINCT_RTOL) -> list[str]:
     return lines
 
 
-def pareto_summary(front: Any, rtol: float = DISTINCT_RTOL) -> dict[str, Any]:
+def pareto_summary(front: ParetoFront, rtol: float = DISTINCT_RTOL) -> JSONDict:
     """Return ``front.summary()`` with the distinct points added.
 
     Parameters

@@ -14,43 +14,27 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import TYPE_CHECKING
 
-from youbot_opt.cli.output import add_command
-from youbot_opt.cli.robot_args import add_robot_arguments, is_study_youbot, load_robot
+import numpy as np
+import pinocchio as pin
 
-if TYPE_CHECKING:  # Pinocchio is imported in the functions, so --help stays fast
-    import numpy as np
+from youbot_opt.cli.flags import is_study_youbot, load_robot
+from youbot_opt.robot.catalogue import youbot_urdf_path
+from youbot_opt.robot.model import (
+    JointUnits,
+    RobotModel,
+    as_configuration,
+    frame_placement,
+    tip_pose,
+)
+from youbot_opt.robot.params import STUDY_Q_START
 
-    from youbot_opt.robot.model import JointUnits, RobotModel
-
-__all__ = ["register", "format_report"]
+__all__ = ["format_report", "run"]
 
 _PLANAR_TIP = "gripper_tip"
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``report`` sub-command."""
-    p = add_command(
-        sub,
-        "report",
-        help="print a model report: joints, masses, limits, M(q), gravity torques, tip pose",
-        description="Print a model report of a robot at a configuration.",
-    )
-    add_robot_arguments(p)
-    p.add_argument(
-        "--q",
-        type=float,
-        nargs="+",
-        default=None,
-        metavar="Q",
-        help="configuration in [rad] (default: the study's start for youbot, else neutral)",
-    )
-    p.set_defaults(func=_run)
-
-
 def _fmt(x: np.ndarray, digits: int = 6) -> str:
-    import numpy as np
 
     return np.array2string(np.asarray(x), precision=digits, suppress_small=True, max_line_width=100)
 
@@ -68,8 +52,6 @@ def _limit_row(name: str, lo: float, hi: float, vel: float, eff: float, unit: Jo
 
 def _per_joint(values: np.ndarray, units: list[str]) -> str:
     """``value unit`` pairs when the units differ, else the array and its one unit."""
-    import numpy as np
-
     if len(set(units)) == 1:
         return f"{_fmt(values)} {units[0]}"
     small = np.abs(values) < 1e-12  # round-off zeros, as _fmt's suppress_small prints them
@@ -92,12 +74,6 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
     str
         Multi-line report (SI units, with data-sheet degrees beside the limits).
     """
-    import numpy as np
-    import pinocchio as pin
-
-    from youbot_opt.robot.catalogue import youbot_urdf_path
-    from youbot_opt.robot.model import as_configuration, frame_placement, tip_pose
-
     qa = as_configuration(robot, q)
     model = robot.model
     data = robot.create_data()
@@ -152,12 +128,8 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
     return "\n".join(lines)
 
 
-def _run(args: argparse.Namespace) -> int:
-    import numpy as np
-    import pinocchio as pin
-
-    from youbot_opt.robot.params import STUDY_Q_START
-
+def run(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt report``; returns the exit code."""
     robot = load_robot(args)
     if args.q is not None:
         q = np.asarray(args.q, dtype=float)

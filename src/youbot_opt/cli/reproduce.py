@@ -21,41 +21,18 @@ import time
 from pathlib import Path
 from typing import Any
 
-from youbot_opt.cli.output import add_command
+from youbot_opt.cli.output import print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.reproduction.figures import FIGURES
+from youbot_opt.reproduction.report import write_report
+from youbot_opt.reproduction.runs import ReproductionConfig, reproduce_study1
+from youbot_opt.trajopt.io import save_result
 
-__all__ = ["register"]
-
-
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``reproduce-study1`` sub-command."""
-    p = add_command(
-        sub,
-        "reproduce-study1",
-        help="reproduce study 1 (its transcription and the correct ones), certified",
-        description="Reproduce study 1 with the study's own transcription and the correct "
-        "ones; write JSON and markdown tables.",
-    )
-    p.add_argument("--quick", action="store_true",
-                   help="a fast subset (3 base-case starts, 2 search starts)")  # fmt: skip
-    p.add_argument("--out", default=None, metavar="DIR",
-                   help="output folder (default: new, under youbot_opt_runs/)")  # fmt: skip
-    p.add_argument("--search-starts", type=int, default=None, metavar="K",
-                   help="second-optimum search starts (default: 200, quick: 2)")  # fmt: skip
-    p.add_argument("--starts", type=int, default=None, metavar="K",
-                   help="spline starts of the base case (default: 50, quick: 3)")  # fmt: skip
-    p.add_argument("--seed", type=int, default=0, help="base seed of every multistart")
-    p.add_argument("--workers", type=int, default=None, help="parallel starts (default: CPUs)")
-    p.add_argument("--serial", action="store_true", help="run starts in this process")
-    p.add_argument("--from-json", default=None, metavar="FILE",
-                   help="rebuild the tables from a saved JSON file, without solving")  # fmt: skip
-    p.set_defaults(func=_run)
+__all__ = ["run"]
 
 
-def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.cli.output import print_outputs, run_folder
-    from youbot_opt.exceptions import ParameterError
-    from youbot_opt.reproduction.runs import ReproductionConfig, reproduce_study1
-
+def run(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt reproduce-study1``; returns the exit code."""
     results: dict[str, Any] = {}
     if args.from_json is not None:
         try:
@@ -93,11 +70,6 @@ def _run(args: argparse.Namespace) -> int:
 
 def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) -> list[Path]:
     """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first)."""
-    from youbot_opt.cli.output import save_figure, write_summary
-    from youbot_opt.reproduction.figures import FIGURES
-    from youbot_opt.reproduction.report import write_report
-    from youbot_opt.trajopt.io import save_result
-
     files = list(write_report(data, folder))
     if results:  # the solves first: nothing below can lose them
         (folder / "results").mkdir(exist_ok=True)

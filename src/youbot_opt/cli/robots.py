@@ -22,9 +22,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from youbot_opt._files import atomic_write_text
-from youbot_opt.cli.output import add_command
+from youbot_opt.exceptions import ModelError, RobotNotFound, URDFError, YoubotOptWarning
+from youbot_opt.robot.catalogue import available_robots, find_robot
+from youbot_opt.robot.load import load_model
+from youbot_opt.robot.urdf_check.xml import parse_xml_strict, root_of
 
-__all__ = ["register", "RobotSurvey", "survey"]
+__all__ = ["RobotSurvey", "run", "survey"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -67,8 +70,6 @@ class RobotSurvey:
 
 
 def _joint_types(path: Path) -> str:
-    from youbot_opt.exceptions import URDFError
-    from youbot_opt.robot.urdf_check.xml import parse_xml_strict, root_of
 
     try:
         root = root_of(parse_xml_strict(path.read_bytes(), str(path)), str(path))
@@ -82,8 +83,6 @@ def _joint_types(path: Path) -> str:
 
 def _reason(exc: Exception, urdf: Path) -> str:
     """Return the rule, the element and where it is (``line N``, or a mesh's file and line)."""
-    from youbot_opt.exceptions import URDFError
-
     if not isinstance(exc, URDFError) or not exc.rule:
         return str(exc).splitlines()[0]
     where = [] if exc.element is None else [str(exc.element)]
@@ -106,10 +105,6 @@ def survey(name: str) -> RobotSurvey:
     RobotSurvey
         Status, sizes, joint types and the reason of a refusal.
     """
-    from youbot_opt.exceptions import ModelError, YoubotOptWarning
-    from youbot_opt.robot.catalogue import find_robot
-    from youbot_opt.robot.load import load_model
-
     entry = find_robot(name)
     path = entry.urdf_path if entry is not None else Path(name).resolve()
     reason = message = ""
@@ -146,51 +141,6 @@ def survey(name: str) -> RobotSurvey:
     )
 
 
-_EPILOG = """\
-verdicts:
-    default   loads as it is (what --robot NAME|PATH does)
-    lenient   loads only with --lenient; the rule that needs it and its line follow
-    refused   does not load even with --lenient; the rule and its line follow
-
-exit status:
-    0  every robot was surveyed, whatever its verdict (read the verdicts from
-       the table, or "status" in --json)
-    2  an argument is neither a robot name nor an existing file
-
-examples:
-    youbot-opt robots --names
-    youbot-opt robots ur5 panda
-    youbot-opt robots path/to/my_arm.urdf ur5 [--json]
-"""
-
-
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``robots`` sub-command."""
-    p = add_command(
-        sub,
-        "robots",
-        help="whether robots load, by name or URDF path: dof, joint types, default or --lenient",
-        description="Say whether robots load, each with a fixed base: the robots --robot "
-        "accepts by name (youbot, youbot_arm_5dof and every URDF of the installed "
-        "example-robot-data; all of them by default) and URDF files of your own, given by "
-        "path. For each: nq/nv, the joint types of its file, and whether it loads by "
-        "default, only with --lenient, or is refused (with the rule and its line).",
-        epilog=_EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "names",
-        nargs="*",
-        metavar="NAME|PATH",
-        help="robot names or URDF files to survey, mixed freely (default: every name); a "
-        "known name is taken as the name",
-    )
-    p.add_argument("--names", dest="names_only", action="store_true", help="print names only")
-    p.add_argument("--json", action="store_true", help="print one JSON list on stdout")
-    p.add_argument("--out", default=None, metavar="FILE", help="also write the rows as JSON")
-    p.set_defaults(func=_run)
-
-
 def _is_file(text: str) -> bool:
     try:
         return Path(text).is_file()
@@ -198,10 +148,8 @@ def _is_file(text: str) -> bool:
         return False
 
 
-def _run(args: argparse.Namespace) -> int:
-    from youbot_opt.exceptions import RobotNotFound
-    from youbot_opt.robot.catalogue import available_robots
-
+def run(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt robots``; returns the exit code."""
     known = available_robots()
     names = list(args.names) or list(known)
     unknown = [n for n in names if n not in known and not _is_file(n)]

@@ -18,6 +18,7 @@ import os
 import re
 
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.robot.urdf_check.xml import limit
 
 __all__ = [
     "BYTES_PER_IK_START",
@@ -150,8 +151,6 @@ def check_ikpath_size(*, n_starts: int, n_links: int, n_targets: int) -> None:
     ParameterError
         Naming the limit and how to raise it, or the memory the run would take.
     """
-    from youbot_opt.robot.urdf_check.xml import limit
-
     links_limit = limit("MAX_IK_LINKS", MAX_IK_LINKS)
     if n_links > links_limit:
         raise ParameterError(
@@ -184,8 +183,6 @@ def check_sweep_values(count: float, option: str) -> None:
     ParameterError
         Naming the count, the limit and how to raise it.
     """
-    from youbot_opt.robot.urdf_check.xml import limit
-
     values_limit = limit("MAX_SWEEP_VALUES", MAX_SWEEP_VALUES)
     if count > values_limit:
         raise ParameterError(

@@ -20,36 +20,45 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from youbot_opt.cli.cluster_args import (
-    SEED_LIMIT,
-    add_keep_results_arg,
-    add_scheduler_args,
-    int_in_range,
-    out_arg,
-    report_shard,
-    scheduler_address,
-)
-from youbot_opt.cli.output import ProgressLine, add_command
-from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
-from youbot_opt.cli.solve import (
-    add_ipopt_arguments,
-    add_refine_arguments,
+from youbot_opt._checks import check_beta, check_bound_scale
+from youbot_opt._files import json_ready
+from youbot_opt._typing import JSONDict
+from youbot_opt.cli.flags import ipopt_options, report_shard, scheduler_address
+from youbot_opt.cli.output import (
+    ProgressLine,
     draw_figure,
-    ipopt_options,
     open_folder,
-    refine_many,
-    refinement_figures,
+    optima_replay,
     replay_html,
     report_outputs,
+    write_summary,
 )
+from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
+from youbot_opt.cli.refinement import refine_many, refinement_figures
+from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
+from youbot_opt.sweeps.resume import ShardReport
+from youbot_opt.trajopt.bound_scaling import bound_scaling_study
+from youbot_opt.trajopt.io import save_result
+from youbot_opt.trajopt.multistart import run_multistart
+from youbot_opt.trajopt.pareto import pareto_sweep
+from youbot_opt.trajopt.refine import Refinement
+from youbot_opt.trajopt.result import TrajOptResult
+from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.viz.plots import (
+    plot_bound_scaling,
+    plot_convergence,
+    plot_multistart,
+    plot_pareto,
+    plot_trajectory,
+)
 
-__all__ = ["register", "parse_values"]
+__all__ = ["bounds", "multistart", "parse_values", "pareto"]
 
 
 def parse_values(text: str, name: str) -> tuple[float, ...]:
@@ -88,113 +97,8 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--knots", type=int, default=50, help="collocation knots (default 50)")
-    p.add_argument(
-        "--seed",
-        type=int_in_range("--seed", 0, SEED_LIMIT),
-        default=0,
-        help="base seed of the random starts (default 0)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        help="parallel worker processes (default: CPUs available; 0 = in-process)",
-    )
-    p.add_argument(
-        "--out",
-        type=out_arg,
-        default=None,
-        metavar="DIR",
-        help="output folder (default: a new youbot_opt_runs/<command>-<date>-<time>); "
-        "each finished item is saved there as it completes and rerunning resumes",
-    )
-    p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
-    p.add_argument(
-        "--transcription",
-        default="trapezoidal",
-        choices=("trapezoidal", "hermite-simpson", "radau", "auto"),
-        help="collocation scheme (radau is L-stable, for stiff joint damping; auto picks "
-        "radau when the damping is stiff on the grid, else hermite-simpson)",
-    )
-    p.add_argument(
-        "--backend", default="symbolic", choices=("symbolic", "pinocchio"), help="dynamics backend"
-    )
-    add_ipopt_arguments(p)
-    p.add_argument(
-        "--item-timeout",
-        type=float,
-        default=None,
-        metavar="SECONDS",
-        help="wall-clock limit per item attempt: a solve still running then is killed, "
-        "recorded as failed and retried once (default: none; needs --workers >= 1)",
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    add_scheduler_args(p)
-    add_keep_results_arg(p)  # --no-keep-results: the starts stay in the folder (10^4+ starts)
-    add_refine_arguments(p, unrefined="the reported plans are neither refined nor certified")
-
-
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``multistart``, ``pareto`` and ``bounds`` sub-commands."""
-    p = add_command(
-        sub,
-        "multistart",
-        help="seeded multistart of the study-1 problem",
-        description="Solve study 1 from seeded random spline guesses.",
-    )
-    _common(p)
-    p.add_argument("--starts", type=int, default=50, help="random spline starts (default 50)")
-    p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1]")
-    p.add_argument("--bound-scale", type=float, default=1.0, help="bound scale (1 = data sheet)")
-    p.add_argument("--straight", action="store_true", help="also start from the straight line")
-    p.add_argument(
-        "--obj-tol",
-        type=float,
-        default=1e-5,
-        help="relative objective tolerance of the distinct-optima clustering",
-    )
-    p.add_argument(
-        "--traj-tol",
-        type=float,
-        default=1e-2,
-        help="trajectory distance tolerance in [rad] of the clustering",
-    )
-    p.set_defaults(func=_run_multistart)
-
-    p = sub.add_parser(
-        "pareto",
-        help="warm-started weighted-sum Pareto sweep",
-        description="Sweep beta, each solve warm-started from the previous.",
-    )
-    _common(p)
-    p.add_argument("--betas", default="0.05:0.95:0.05", help="'start:stop:step' or 'a,b,c'")
-    p.add_argument("--bound-scale", type=float, default=1.0, help="bound scale (1 = data sheet)")
-    p.add_argument(
-        "--first-starts",
-        type=int,
-        default=0,
-        help="seeded starts at the first beta (default 0: straight line only)",
-    )
-    p.set_defaults(func=_run_pareto)
-
-    p = sub.add_parser(
-        "bounds",
-        help="bound-scaling sensitivity study",
-        description="Re-solve with all bounds scaled by each factor.",
-    )
-    _common(p)
-    p.add_argument("--scales", default="1,0.95,0.9,0.85", help="'a,b,c' or 'start:stop:step'")
-    p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1]")
-    p.add_argument("--starts", type=int, default=5, help="random starts per scale (default 5)")
-    p.set_defaults(func=_run_bounds)
-
-
 # ------------------------------------------------------------------ helpers
-def _solver(args: argparse.Namespace) -> Any:
-    from youbot_opt.reproduction.study1 import study1_problem
-    from youbot_opt.trajopt.solver import TrajOptSolver
+def _solver(args: argparse.Namespace) -> TrajOptSolver:
 
     problem = study1_problem(args.knots)
     check_trajopt_size(
@@ -231,7 +135,6 @@ def _check(
             "same folder",
             name="shard",
         )
-    from youbot_opt._checks import check_beta, check_bound_scale
 
     for name in ("starts", "first_starts"):
         value = getattr(args, name, None)
@@ -259,7 +162,7 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
     )
 
 
-def _all_certified(plans: list[tuple[Any, Any]]) -> bool:
+def _all_certified(plans: list[tuple[TrajOptResult, Refinement | None]]) -> bool:
     """Whether every refined plan is certified (vacuously true with ``--no-refine``)."""
     return all(record is not None and record.certified for _, record in plans)
 
@@ -274,13 +177,11 @@ _STORE = ("manifest.json", "items")  # the sweep store's files, at the top of th
 def _emit(
     args: argparse.Namespace,
     folder: Path,
-    summary: dict[str, Any],
+    summary: JSONDict,
     table: list[str],
     files: list[Path | None],
 ) -> None:
     """Write summary.json, print the table (or the JSON) and where the outputs are."""
-    from youbot_opt.cli.output import json_ready, write_summary
-
     written = [f for f in files if f is not None]
     summary["output_folder"] = str(folder.resolve())
     summary["files"] = [f.name for f in written] + [_STORE[0], f"{_STORE[1]}/", "summary.json"]
@@ -296,10 +197,8 @@ def _emit(
 
 
 # ----------------------------------------------------------------- commands
-def _run_multistart(args: argparse.Namespace) -> int:
-    from youbot_opt.sweeps.resume import ShardReport
-    from youbot_opt.trajopt.multistart import run_multistart
-
+def multistart(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt multistart``; returns the exit code."""
     _check(args)
     solver = _solver(args)
     folder = open_folder("multistart", args.out)  # the sweep store shares it
@@ -337,10 +236,6 @@ def _run_multistart(args: argparse.Namespace) -> int:
     table += lines
     files: list[Path | None] = refinement_figures(folder, refined, [label for label, _ in best])
     if res.best is not None and res.best.result is not None:
-        from youbot_opt.cli.solve import optima_replay
-        from youbot_opt.trajopt.io import save_result
-        from youbot_opt.viz.plots import plot_convergence, plot_multistart, plot_trajectory
-
         plan, record = refined[0] if refined else (res.best.result, None)  # --no-refine: grid's
         summary["plan"] = {**plan.summary(), "certified": record is not None and record.certified}
         files += [
@@ -354,10 +249,8 @@ def _run_multistart(args: argparse.Namespace) -> int:
     return 0 if res.best is not None and _all_certified(refined) else 1
 
 
-def _run_pareto(args: argparse.Namespace) -> int:
-    from youbot_opt.sweeps.resume import ShardReport
-    from youbot_opt.trajopt.pareto import pareto_sweep
-
+def pareto(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt pareto``; returns the exit code."""
     betas = parse_values(args.betas, "betas")
     _check(args, betas=betas)
     solver = _solver(args)
@@ -374,7 +267,6 @@ def _run_pareto(args: argparse.Namespace) -> int:
     prog.close()
     if isinstance(front, ShardReport):  # --shard I/K solved its share of the first point
         return report_shard(front)
-    from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
 
     table = pareto_table(front)  # distinct points counted, W with its unit
     best = [p for p in front.nondominated() if p.result is not None]
@@ -383,8 +275,6 @@ def _run_pareto(args: argparse.Namespace) -> int:
     table += lines
     files: list[Path | None] = refinement_figures(folder, plans, [label for label, _ in items])
     if best:
-        from youbot_opt.viz.plots import plot_pareto
-
         picks = sorted({round(i * (len(best) - 1) / 4) for i in range(5)})  # ends + 3 between
         picks.sort(key=lambda i: best[i].beta)
         grid = [x for _, x in items]  # the grid's plans (--no-refine), else the refined ones
@@ -401,10 +291,8 @@ def _run_pareto(args: argparse.Namespace) -> int:
     return 0 if front.nondominated() and _all_certified(plans) else 1
 
 
-def _run_bounds(args: argparse.Namespace) -> int:
-    from youbot_opt.sweeps.resume import ShardReport
-    from youbot_opt.trajopt.bound_scaling import bound_scaling_study
-
+def bounds(args: argparse.Namespace) -> int:
+    """Run ``youbot-opt bounds``; returns the exit code."""
     scales = parse_values(args.scales, "scales")
     _check(args, scales=scales)
     solver = _solver(args)
@@ -442,8 +330,6 @@ def _run_bounds(args: argparse.Namespace) -> int:
     table += lines
     files += refinement_figures(folder, plans, [label for label, _ in items])
     if solved:
-        from youbot_opt.viz.plots import plot_bound_scaling
-
         shown = [p for p, _ in plans] or [x for _, x in solved]  # --no-refine: the grid's
         labels = [
             f"{r.bound_scale:.0%} bounds: f = {x.objective:.5g}"
