@@ -68,15 +68,15 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 
 
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
-    from youbot_opt.ikpath.reachability import spatial as spatial_reachability
+    from youbot_opt.ikpath.reachability import general as reachability_3d
 
-    real, seen = spatial_reachability.check_reachability_3d, []
+    real, seen = reachability_3d.check_reachability_3d, []
 
     def spy(problem, **kw):
         seen.append(kw)
         return real(problem, **kw)
 
-    monkeypatch.setattr(spatial_reachability, "check_reachability_3d", spy)
+    monkeypatch.setattr(reachability_3d, "check_reachability_3d", spy)
     argv = [*_UR5, "--method", "ipopt", "--reach-evaluations", "64", "--json", "--no-replay"]
     assert main(argv) == 0
     assert seen == [{"interval_boxes": 64}]
@@ -86,7 +86,7 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
 
 def test_spatial_names_and_budgets_of_the_parser_match_the_library():
     from youbot_opt.cli import ikpath
-    from youbot_opt.ikpath.reachability.spatial import (
+    from youbot_opt.ikpath.reachability.general import (
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
     )

@@ -11,7 +11,7 @@ from youbot_opt.ikpath.dls import dls_ik, greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
+from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target

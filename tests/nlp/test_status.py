@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import pytest
 
-from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
 from youbot_opt.trajopt.result import SolveStatus as TrajOptSolveStatus
 
 
 def test_one_enum_for_both_optimisers() -> None:
-    """trajopt re-exports it and IKStatus is a deprecated alias of it."""
-    assert TrajOptSolveStatus is SolveStatus and IKStatus is SolveStatus
+    """trajopt re-exports it; the IKStatus alias of 0.1.0 is gone."""
+    import youbot_opt.ikpath as ikpath
+    import youbot_opt.ikpath.result as ikpath_result
+
+    assert TrajOptSolveStatus is SolveStatus
+    assert not hasattr(ikpath, "IKStatus") and not hasattr(ikpath_result, "IKStatus")
 
 
 @pytest.mark.parametrize(

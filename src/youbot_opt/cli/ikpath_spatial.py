@@ -144,9 +144,9 @@ def _options(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     if args.max_wall_time is None:
         return None
     if args.method == "al":
-        from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS
+        from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D
 
-        return replace(SPATIAL_AL_OPTIONS, max_wall_time=args.max_wall_time)
+        return replace(AL_OPTIONS_3D, max_wall_time=args.max_wall_time)
     from youbot_opt.nlp.ipopt import IpoptOptions
 
     return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
@@ -173,7 +173,7 @@ def run_spatial(args: argparse.Namespace) -> int:
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
     from youbot_opt.cli.warning_lines import flush_warnings
     from youbot_opt.ikpath.io import RobotSource, save_result
-    from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
+    from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
     from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
     from youbot_opt.sweeps.resume import ShardReport

@@ -48,7 +48,7 @@ class Evaluation(NamedTuple):
         ``dE/dx`` in [rad].
     constraints : ndarray, shape (m * s,)
         ``c(x)`` stacked per target, in [m] (planar: ``F(q_j) - p_j``, ``m = 2``;
-        spatial problems: ``m`` rows per target, see docs/ikpath.md).
+        3-D problems: ``m`` rows per target, see docs/ikpath.md).
     jacobian_blocks : ndarray, shape (s, m, n)
         ``dc_j/dq_j`` in [m/rad]; ``dc/dx`` is block diagonal with these blocks.
     """
@@ -722,7 +722,7 @@ def _check_targets(
         point = np.array(item.position if isinstance(item, Target) else item, dtype=float)
         if point.ndim != 1 or point.size not in (2, 3) or (point.size == 2 and plane is None):
             raise ParameterError(
-                f"targets must be SpatialTargets or points of shape {want} in [m], got "
+                f"targets must be Target objects or points of shape {want} in [m], got "
                 f"{np.asarray(raw, dtype=object).tolist()!r}",
                 name="targets",
                 value=raw,

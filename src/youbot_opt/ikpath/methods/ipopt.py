@@ -5,7 +5,7 @@ planar chain's closed form, or a robot frame's kinematics written symbolically
 from the Pinocchio model), derivatives (CasADi's exact Hessian) and algorithm
 (IPOPT's interior point on the joint box); only the problem data are shared.
 :class:`IpoptIKSolver` (planar chains, the targets as parameters) and
-:class:`SpatialIpoptSolver` (any robot) are built once and re-solved. Why this
+:class:`IpoptIKSolver3D` (any robot) are built once and re-solved. Why this
 makes a check: docs/design.md, "Module notes".
 
 >>> result = IpoptIKSolver(problem).solve(None, x0)  # doctest: +SKIP
@@ -42,8 +42,8 @@ __all__ = [
     "IpoptIKSolver",
     "IpoptOptions",
     "solve_ipopt",
-    "solve_spatial_ipopt",
-    "SpatialIpoptSolver",
+    "solve_ipopt_3d",
+    "IpoptIKSolver3D",
 ]
 
 _STATUS: Mapping[str, SolveStatus] = MappingProxyType(
@@ -379,8 +379,8 @@ def frame_expression(problem: CyclicIKProblem, theta: ca.SX) -> tuple[ca.SX, ca.
     return pos + rot @ ca.DM(frame.translation), rot @ ca.DM(frame.rotation)
 
 
-class SpatialIpoptSolver:
-    """IPOPT solver of one spatial problem, built once and re-solved from many starts.
+class IpoptIKSolver3D:
+    """IPOPT solver of one 3-D problem (any robot), built once and re-solved from many starts.
 
     Parameters
     ----------
@@ -431,7 +431,7 @@ class SpatialIpoptSolver:
         self._ubg = np.r_[np.zeros(self._n_eq), np.full(len(ineqs), np.inf)]
         opts = self.options.to_casadi(True, solver_settings=BOUND_SETTINGS)
         single_threaded_blas()
-        self._solver = ca.nlpsol("spatial_ikpath", "ipopt", {"x": x, "f": energy, "g": g}, opts)
+        self._solver = ca.nlpsol("ikpath_3d", "ipopt", {"x": x, "f": energy, "g": g}, opts)
 
     def solve(self, x0: ArrayLike | None = None) -> IKPathResult:
         """Solve from ``x0`` (default: zero clipped into the limits)."""
@@ -468,15 +468,15 @@ class SpatialIpoptSolver:
         )
 
 
-_CACHE: dict[int, tuple[CyclicIKProblem, SpatialIpoptSolver]] = {}
+_CACHE: dict[int, tuple[CyclicIKProblem, IpoptIKSolver3D]] = {}
 
 
-def solve_spatial_ipopt(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> IKPathResult:
+def solve_ipopt_3d(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> IKPathResult:
     """Solve once by IPOPT (the solver is built once per problem object and reused)."""
     hit = _CACHE.get(id(problem))
     if hit is None or hit[0] is not problem:
         if len(_CACHE) >= 8:
             _CACHE.clear()
-        hit = (problem, SpatialIpoptSolver(problem))
+        hit = (problem, IpoptIKSolver3D(problem))
         _CACHE[id(problem)] = hit
     return hit[1].solve(x0)
