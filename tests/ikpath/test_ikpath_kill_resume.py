@@ -194,7 +194,7 @@ def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
     doc = json.loads(good)
     for bad in (
         good[: len(good) // 2],  # torn, as by a disk fault
-        json.dumps({**doc, "schema_version": 2}).encode(),
+        json.dumps({**doc, "schema_version": doc["schema_version"] + 1}).encode(),
         json.dumps({**doc, "sha256": "0" * 64}).encode(),
     ):
         payload.write_bytes(bad)

@@ -178,8 +178,8 @@ def _rewrite(path: Path, edit) -> None:
 def test_load_refuses_newer_corrupt_or_foreign_files(result_a, tmp_path):
     """A newer schema, a changed number, another schema or non-JSON: ResultFileError."""
     path = save_result(result_a, tmp_path / "r.json")
-    _rewrite(path, lambda d: d.update(schema_version=2))
-    with pytest.raises(ResultFileError, match="schema version 2 is newer"):
+    _rewrite(path, lambda d: d.update(schema_version=3))
+    with pytest.raises(ResultFileError, match="schema version 3 is newer"):
         load_result(path)
     path = save_result(result_a, tmp_path / "r.json")
     _rewrite(path, lambda d: d["result"]["configurations"][0].__setitem__(0, 0.5))
