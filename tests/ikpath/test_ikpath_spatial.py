@@ -249,11 +249,11 @@ def test_targets_from_csv_and_json_files(tmp_path):
 
 def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     from youbot_opt.viz.meshcat.ikpath import (
-        export_spatial_ikpath_html,
-        spatial_replay_robot,
-        spatial_replay_track,
+        export_ikpath_html,
+        replay_robot,
+        replay_track,
     )
-    from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
+    from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_path
 
     path = tmp_path / "wheel.urdf"
     path.write_text(_planar_urdf((1.0,), None, continuous=True))
@@ -267,18 +267,18 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
     result = solve(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
-    names = [g.name for g in spatial_replay_robot(result, robot).visual_model.geometryObjects]
+    names = [g.name for g in replay_robot(result, robot).visual_model.geometryObjects]
     assert {"target_1", "target_1_axis_0", "target_1_axis_2", "target_3"} <= set(names)
     assert "target_2_axis_0" not in names  # position targets: a sphere, no triad
-    t, q = spatial_replay_track(result, segment_time=0.5, samples_per_leg=12)
+    t, q = replay_track(result, segment_time=0.5, samples_per_leg=12)
     assert t[-1] == pytest.approx(1.5) and q.shape == (37, 2)  # (cos, sin) of the wheel
     # The closing leg turns back through 4 pi / 3: consecutive samples are pi / 9 apart, so
     # the viewer's shortest-arc interpolation between samples follows the unwrapped angle.
     steps = np.abs(np.diff(np.unwrap(np.arctan2(q[:, 1], q[:, 0]))))
     assert np.max(steps) <= np.pi / 9 + 1e-12
-    html = export_spatial_ikpath_html(result, robot, tmp_path / "replay.html")
+    html = export_ikpath_html(result, tmp_path / "replay.html", robot=robot)
     assert html.stat().st_size > 10_000 and "meshcat" in html.read_text()[:200_000].lower()
-    assert plot_leg_motion(result).axes and plot_spatial_path(result).axes
+    assert plot_leg_motion(result).axes and plot_path(result).axes
 
 
 def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):

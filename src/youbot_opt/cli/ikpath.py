@@ -408,16 +408,16 @@ def _write_outputs(
     from youbot_opt.cli.output import save_figure, write_summary
     from youbot_opt.ikpath.io import save_result
     from youbot_opt.viz.plots.ikpath import (
-        plot_arm_path,
         plot_convergence,
         plot_minima,
+        plot_path,
         plot_workspace,
     )
 
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
         best = ms.best
-        files.append(save_figure(plot_arm_path(best), folder, "ikpath_arm.png"))
+        files.append(save_figure(plot_path(best), folder, "ikpath_arm.png"))
         if best.history:
             files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))

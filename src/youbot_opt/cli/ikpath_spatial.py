@@ -258,18 +258,18 @@ def run_spatial(args: argparse.Namespace) -> int:
         )
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
-        from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
+        from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_path
 
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
-        files.append(save_figure(plot_spatial_path(best), folder, "ikpath_path3d.png"))
+        files.append(save_figure(plot_path(best), folder, "ikpath_path3d.png"))
         if not args.no_replay:
-            from youbot_opt.viz.meshcat.ikpath import export_spatial_ikpath_html
+            from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
 
             files.append(
-                export_spatial_ikpath_html(
+                export_ikpath_html(
                     best,
-                    cast("RobotLike", robot),
                     folder / "replay.html",
+                    robot=cast("RobotLike", robot),
                     segment_time=args.segment_time,
                 )
             )
