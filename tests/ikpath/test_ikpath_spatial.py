@@ -426,3 +426,47 @@ def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
     assert isinstance(solve(far, check_reachability=False, method="al"), IKPathResult)
     with pytest.raises(ParameterError, match="planar robot"):
         solve(_ur5_problem(0), planar=True)
+
+
+def test_a_planar_robot_constrains_one_orientation_angle(tmp_path):
+    """#25 item 4: pose and axis targets on a planar robot carry no always-zero rows.
+
+    A pose constrains the plane position (2 rows) and the angle about the normal
+    (1 row); an axis that turns in the plane 1 row, one along the normal none. The
+    Jacobians match central differences (1e-6), and IPOPT, which the 3-row pose had
+    overconstrained (13 equations for 9 unknowns), solves it as the AL does.
+    """
+    path = tmp_path / "planar3.urdf"
+    path.write_text(_planar_urdf((1.0, 1.0, 1.0), 3.0))
+    robot = load_model(path, tip_frame="tip")
+    base = CyclicIKProblem(
+        robot=robot.model, frame="tip", targets=(Target(position=(1, 1, 0)),) * 2
+    )
+    rng = np.random.default_rng(2)
+    qs = rng.uniform(-1.5, 1.5, (3, 3))
+    p = [base.placement(q) for q in qs]
+    x_axis, z_axis = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    problem = base.with_targets(
+        (
+            Target(position=p[0].translation, rotation=p[0].rotation),
+            Target(position=p[1].translation, approach=p[1].rotation[:, 0], approach_axis=x_axis),
+            Target(position=p[2].translation, approach=p[2].rotation[:, 2], approach_axis=z_axis),
+        )
+    )
+    assert [problem.rows_of(t) for t in problem.targets] == [3, 3, 2]
+    assert problem.block_rows == 3 and problem.n_constraints == 9
+    data = problem.create_data()
+    for j in range(3):
+        theta = rng.uniform(-1.0, 1.0, 3)
+        _, jac = problem.block(j, theta, data)
+        fd = np.column_stack(
+            [
+                (problem.block(j, theta + e, data)[0] - problem.block(j, theta - e, data)[0]) / 2e-6
+                for e in 1e-6 * np.eye(3)
+            ]
+        )
+        np.testing.assert_allclose(jac, fd, atol=1e-6)
+    for method in ("al", "ipopt"):
+        result = solve(problem, method=method, x0=(qs + 0.3).ravel())
+        assert result.success, (method, result.status, result.message)
+        assert result.max_position_error() <= 1e-6 and result.max_orientation_error() <= 1e-6

@@ -411,19 +411,26 @@ class IpoptIKSolver3D:
             k = problem.position_rows
             rows = list(range(k))
             wt = target.orientation_weight
+            planar = problem.orientation_basis(target)  # a planar robot: one angle
             if target.rotation is not None:
                 r_e = ca.DM(target.rotation).T @ rot
                 vex = ca.vertcat(
                     r_e[2, 1] - r_e[1, 2], r_e[0, 2] - r_e[2, 0], r_e[1, 0] - r_e[0, 1]
                 )
-                eqs.append(wt * 0.5 * vex)
+                if planar is None:
+                    eqs.append(wt * 0.5 * vex)
+                    rows += [k, k + 1, k + 2]
+                else:
+                    eqs.append(wt * 0.5 * (ca.DM(planar) @ vex))
+                    rows += [k]
                 ineqs.append(ca.trace(r_e) + 0.5)
-                rows += [k, k + 1, k + 2]
             elif target.approach is not None:
-                axis = rot @ ca.DM(target.approach_axis)
-                eqs.append(wt * (ca.DM(target.approach_basis()) @ axis))
-                ineqs.append(ca.dot(ca.DM(target.approach), axis))
-                rows += [k, k + 1]
+                basis = target.approach_basis() if planar is None else planar
+                if basis.shape[0]:  # none: the axis keeps its direction (met or not)
+                    axis = rot @ ca.DM(target.approach_axis)
+                    eqs.append(wt * (ca.DM(basis) @ axis))
+                    ineqs.append(ca.dot(ca.DM(target.approach), axis))
+                    rows += list(range(k, k + basis.shape[0]))
             self._rows.append(rows)
         self._n_eq = int(sum(e.shape[0] for e in eqs))
         g = ca.vertcat(*eqs, *ineqs)
