@@ -16,8 +16,7 @@ this script holds the reading of the older ones. It carries:
 - an IK-path result file (``.json``, schema ``youbot_opt.ikpath_result`` 1 or
   ``youbot_opt.spatial_ikpath_result`` 1) to ``youbot_opt.ikpath_result`` 2: the
   status values of 0.1.0 (``"success"``, ...) renamed, a planar file's
-  ``constraint_tol`` recorded; also the IK payloads of a sweep store (and the
-  status of its summaries).
+  ``constraint_tol`` recorded; also the IK payloads of a sweep store.
 
 Each PATH is carried in place and the original kept beside it as
 ``PATH.0.1.0.bak`` (refused if that exists), or, with ``--out``, written to a
@@ -222,7 +221,6 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
     try:
         for key, record in records.items():
             summary = dict(record.summary)
-            summary.update(ik_summary_status(summary))
             if trajectory and manifest["kind"] == "pareto":  # 0.1.0 points: warm-started
                 summary.setdefault("start", "previous")
                 summary.setdefault("solve_time_s", 0.0)
@@ -333,19 +331,11 @@ def carry_ik(source: Path, target: Path) -> None:
         _copy(source, target)
 
 
-def ik_summary_status(summary: dict[str, Any]) -> dict[str, Any]:
-    """Return the update of a start's summary that renames a 0.1.0 IK status (or none)."""
-    status = summary.get("status")
-    return {"status": IK_STATUS[status]} if isinstance(status, str) and status in IK_STATUS else {}
-
-
 def ik_payloads_are_current(folder: Path, manifest: dict[str, Any]) -> bool:
     """Return whether every IK-path payload of a current-schema store is current too."""
     for record in journal_records(folder, manifest).values():
         payload = None if record.payload is None else folder / "items" / record.payload
         if payload is not None and is_ik_result(payload) and not ik_result_is_current(payload):
-            return False
-        if ik_summary_status(dict(record.summary)):
             return False
     return True
 
