@@ -80,7 +80,7 @@ from youbot_opt.ikpath import (
     solve_augmented_lagrangian,
 )
 from youbot_opt.ikpath.dls import greedy_path
-from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_starts_3d
@@ -283,7 +283,7 @@ def bench_spatial(robot: str, n_targets: int, repeats: int, n_starts: int) -> di
     row: dict[str, Any] = {"robot": robot, "targets": n_targets, "greedy_E": e_greedy}
     row["greedy_ok"] = greedy_ok
     al, wall_al, _ = _repeat(lambda: solve(problem, method="al", x0=x0), repeats)
-    ipopt_solver = SpatialIpoptSolver(problem)
+    ipopt_solver = IpoptIKSolver3D(problem)
     ip, wall_ip, _ = _repeat(lambda: ipopt_solver.solve(x0), repeats)
     row.update(
         al_ms=wall_al * 1e3,

@@ -13,6 +13,10 @@ this script holds the reading of the older ones. It carries:
   (not its path) and its problem carries no ``beta``; its payloads are carried
   as result files are. Other payloads (IK paths) are copied unchanged. Cached
   optima (``optima.json``) are left out: the sweep chooses them again.
+- an IK-path result file (``.json``, schema ``youbot_opt.ikpath_result`` 1 or
+  ``youbot_opt.spatial_ikpath_result`` 1) to ``youbot_opt.ikpath_result`` 2: the
+  status values of 0.1.0 (``"success"``, ...) renamed, a planar file's
+  ``constraint_tol`` recorded; also the IK payloads of a sweep store.
 
 Each PATH is carried in place and the original kept beside it as
 ``PATH.0.1.0.bak`` (refused if that exists), or, with ``--out``, written to a
@@ -23,6 +27,7 @@ the current format is left alone (and said so).
     python scripts/migrate_0_1_0.py runs/multistart-1 result.npz
     python scripts/migrate_0_1_0.py --urdf my_arm.urdf old_sweep   # its URDF has moved
     python scripts/migrate_0_1_0.py --out new.npz old.npz
+    python scripts/migrate_0_1_0.py ik_result.json
 
 Exit status: 0 when every path was carried or already current, 1 otherwise.
 """
@@ -42,7 +47,11 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._files import atomic_writer, json_roundtrip
+from youbot_opt._files import atomic_writer, json_digest, json_roundtrip
+from youbot_opt.ikpath.io import SCHEMA as IK_SCHEMA
+from youbot_opt.ikpath.io import SCHEMA_VERSION as IK_VERSION
+from youbot_opt.ikpath.methods.al import ALOptions
+from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.catalogue import available_robots
 from youbot_opt.robot.source import RobotSource, urdf_digest
 from youbot_opt.sweeps.records import ItemRecord
@@ -197,7 +206,9 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
         params = trajectory_params(params, urdf)
     payloads = [r.payload for r in records.values() if r.payload is not None]
     suffix = Path(payloads[0]).suffix if payloads else ".npz"
-    carry: Callable[[Path, Path], None] = carry_result if trajectory and suffix == ".npz" else _copy
+    carry: Callable[[Path, Path], None] = (
+        carry_result if trajectory and suffix == ".npz" else carry_ik
+    )
     target.mkdir()
     store = SweepStore(
         target,
@@ -235,11 +246,110 @@ def store_is_current(folder: Path) -> bool:
     problem = manifest["params"].get("problem")
     if isinstance(problem, dict) and "start_q" in problem:
         return "beta" not in problem and "urdf_path" not in problem
-    return True
+    return ik_payloads_are_current(folder, manifest)
 
 
 def _copy(source: Path, target: Path) -> None:
     shutil.copyfile(source, target)
+
+
+# ------------------------------------------------------------------ IK-path result files
+IK_SCHEMA_3D = "youbot_opt.spatial_ikpath_result"  # 0.1.0: a 3-D result's own schema
+IK_STATUS = {  # the IKStatus values of 0.1.0 -> SolveStatus values
+    "success": "solved",
+    "time_limit": "max_time",
+    "numerical_error": "non_finite",
+    "check_failed": "constraint_violation",
+}
+
+
+def read_ik_result(path: Path) -> dict[str, Any]:
+    """Return the JSON document of an IK-path result file, of any schema (checksum checked)."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise MigrationError(f"not a readable JSON file: {exc}") from exc
+    if not isinstance(doc, dict) or doc.get("schema") not in (IK_SCHEMA, IK_SCHEMA_3D):
+        raise MigrationError("not an IK-path result file")
+    body = doc.get("result")
+    if not isinstance(body, dict) or doc.get("sha256") != json_digest(body):
+        raise MigrationError("checksum mismatch: the IK-path result file is corrupt")
+    return doc
+
+
+def is_ik_result(path: Path) -> bool:
+    """Return whether ``path`` is a JSON file of an IK-path result schema (old or current)."""
+    try:
+        return read_ik_result(path) is not None
+    except MigrationError:
+        return False
+
+
+def ik_result_is_current(path: Path) -> bool:
+    """Return whether the IK-path result file is already of the current schema."""
+    doc = read_ik_result(path)
+    return doc["schema"] == IK_SCHEMA and doc.get("schema_version") == IK_VERSION
+
+
+def _ik_constraint_tol(method: str) -> float:
+    """Return the ``|c_i|`` tolerance [m] 0.1.0 solved a planar file with (not recorded)."""
+    if method == "ipopt":
+        return float(IpoptOptions.for_ikpath().constr_viol_tol)  # type: ignore[arg-type]
+    return ALOptions().constraint_tol
+
+
+def carry_ik_result(source: Path, target: Path) -> None:
+    """Write the IK-path result file ``source`` (0.1.0) to ``target`` in the current schema."""
+    doc = read_ik_result(source)
+    if doc["schema"] == IK_SCHEMA and doc.get("schema_version") == IK_VERSION:
+        shutil.copyfile(source, target)
+        return
+    if doc.get("schema_version") != 1:
+        raise MigrationError(
+            f"IK-path result of unknown schema version {doc.get('schema_version')!r}"
+        )
+    body = dict(doc["result"])
+    body["status"] = IK_STATUS.get(body["status"], body["status"])
+    if "chain" in body:  # a planar method's result: its tolerance recorded from now on
+        body.setdefault("constraint_tol", _ik_constraint_tol(str(body["method"])))
+    new = {
+        **doc,
+        "schema": IK_SCHEMA,
+        "schema_version": IK_VERSION,
+        "sha256": json_digest(body),
+        "result": body,
+    }
+    with atomic_writer(target) as handle:
+        handle.write((json.dumps(new, indent=1, allow_nan=False) + "\n").encode())
+
+
+def carry_ik(source: Path, target: Path) -> None:
+    """Carry a sweep store's payload: an IK-path result file as above, any other copied."""
+    if is_ik_result(source):
+        carry_ik_result(source, target)
+    else:
+        _copy(source, target)
+
+
+def ik_payloads_are_current(folder: Path, manifest: dict[str, Any]) -> bool:
+    """Return whether every IK-path payload of a current-schema store is current too."""
+    for record in journal_records(folder, manifest).values():
+        payload = None if record.payload is None else folder / "items" / record.payload
+        if payload is not None and is_ik_result(payload) and not ik_result_is_current(payload):
+            return False
+    return True
+
+
+def file_kind(path: Path) -> str:
+    """Return what the file ``path`` holds: ``"IK-path result"`` or ``"trajectory result"``."""
+    return "IK-path result" if is_ik_result(path) else "trajectory result"
+
+
+FILE_KINDS: dict[str, tuple[Callable[[Path], bool], Callable[[Path, Path], None]]] = {
+    "trajectory result": (result_is_current, carry_result),
+    "IK-path result": (ik_result_is_current, carry_ik_result),
+}
+"""Per kind of file: whether it is current, and how it is carried forward."""
 
 
 # ------------------------------------------------------------------ the command
@@ -250,8 +360,8 @@ def migrate(path: Path, out: Path | None, urdf: Path | None) -> str:
         raise MigrationError("a folder without manifest.json: not a sweep store")
     if not store and not path.is_file():
         raise MigrationError("no such file or folder")
-    what = "sweep store" if store else "trajectory result"
-    if store_is_current(path) if store else result_is_current(path):
+    what = "sweep store" if store else file_kind(path)
+    if store_is_current(path) if store else FILE_KINDS[what][0](path):
         return f"{path}: already current ({what}), left alone"
     target = out if out is not None else path
     backup = Path(str(path) + BACKUP)
@@ -264,7 +374,7 @@ def migrate(path: Path, out: Path | None, urdf: Path | None) -> str:
         if store:
             carry_store(path, tmp, urdf)
         else:
-            carry_result(path, tmp)
+            FILE_KINDS[what][1](path, tmp)
         if out is None:
             path.rename(backup)  # the original first: it is never lost
         if store:

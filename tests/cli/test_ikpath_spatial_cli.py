@@ -77,7 +77,7 @@ def test_max_wall_time_stops_each_spatial_solve(capsys):
 
 def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
     from youbot_opt.cli import ikpath as ikpath_command
-    from youbot_opt.ikpath.reachability import spatial as spatial_reachability
+    from youbot_opt.ikpath.reachability import general as spatial_reachability
 
     real, seen = spatial_reachability.check_reachability_3d, []
 
@@ -95,7 +95,7 @@ def test_reach_evaluations_is_the_interval_search_budget(capsys, monkeypatch):
 
 def test_spatial_names_and_budgets_of_the_parser_match_the_library():
     from youbot_opt.cli import parser as ikpath
-    from youbot_opt.ikpath.reachability.spatial import (
+    from youbot_opt.ikpath.reachability.general import (
         DEFAULT_INTERVAL_BOXES,
         DEFAULT_INTERVAL_SECONDS,
     )

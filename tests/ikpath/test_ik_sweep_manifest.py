@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
+from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.spatial_solve import open_spatial_store
 from youbot_opt.ikpath.sweep import options_json
@@ -35,7 +35,7 @@ def test_options_json_omits_exactly_the_final_phase_fields_that_hold_the_default
     assert planar == options_json("al", ALOptions())
     for name in ("initial_multipliers", "retry_least_squares", "newton_final", "newton_violation"):
         assert name not in planar
-    spatial = options_json("al", SPATIAL_AL_OPTIONS)
+    spatial = options_json("al", AL_OPTIONS_3D)
     assert spatial["newton_final"] is True and spatial["retry_least_squares"] is True
     assert "initial_multipliers" not in spatial and "newton_violation" not in spatial
     assert spatial["penalty_initial"] == 1e3
@@ -51,8 +51,8 @@ def test_spatial_store_resumes_with_the_defaults_and_refuses_other_settings(ur5_
     kw = {"method": "al", "n_starts": 4, "seed": 0, "kind": "mixed"}
     first = open_spatial_store(tmp_path, ur5_problem, options=None, **kw)
     assert not first.resumed
-    again = open_spatial_store(tmp_path, ur5_problem, options=SPATIAL_AL_OPTIONS, **kw)
+    again = open_spatial_store(tmp_path, ur5_problem, options=AL_OPTIONS_3D, **kw)
     assert again.resumed
-    changed = replace(SPATIAL_AL_OPTIONS, newton_final=False)
+    changed = replace(AL_OPTIONS_3D, newton_final=False)
     with pytest.raises(ParameterError, match="newton_final"):
         open_spatial_store(tmp_path, ur5_problem, options=changed, **kw)

@@ -1,9 +1,9 @@
 """Files written by youbot_opt at commit 74bfa23 load and resume with today's code.
 
 The fixtures in ``tests/fixtures/files_74bfa23`` were written by that commit
-(see the README there); they must never be regenerated. The sweep store is
-carried to today's layout by ``scripts/migrate_0_1_0.py`` first (its IK payloads
-are still read by ikpath as 0.1.0 wrote them).
+(see the README there); they must never be regenerated. The package refuses
+them naming ``scripts/migrate_0_1_0.py``; carried by it (the store's layout,
+its IK payloads and the result file), they load and resume with their numbers.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from _migrate import REFUSAL, migrate
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_result
+from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
@@ -34,7 +35,7 @@ def _old_store(tmp_path: Path, edit: Callable[[Path], None] | None = None) -> Pa
     shutil.copytree(OLD / "ik_sweep", out)
     if edit is not None:
         edit(out / "manifest.json")
-    done = migrate(out)  # the flat layout of 0.1.0 to the journal (payloads copied unchanged)
+    done = migrate(out)  # the flat layout of 0.1.0 to the journal, the IK payloads carried
     assert done.returncode == 0, done.stderr
     return out
 
@@ -68,7 +69,7 @@ def test_old_ipopt_sweep_store_resumes_without_solving(tmp_path):
     result = _resume(out)
     assert result.resumed == 3
     assert [r.status for r in result.results] == [SolveStatus.SOLVED] * 3
-    # The old writer's IKStatus value "success" loads as SOLVED; E as stored by 74bfa23.
+    # The old writer's IKStatus value "success" is carried to SOLVED; E as stored by 74bfa23.
     assert result.best.objective == 7.069456165533798
     assert (out / "manifest.json").read_text() == manifest
 
@@ -79,14 +80,31 @@ def test_old_store_refuses_options_that_differ_in_a_new_field(tmp_path):
         _resume(_old_store(tmp_path), IpoptOptions.for_ikpath(hessian="limited-memory"))
 
 
-def test_old_ik_result_file_loads_and_passes_the_check():
-    """An AL result file of 74bfa23 loads with its stored E, status SOLVED, and re-checks clean."""
+def test_old_ik_result_file_is_refused_naming_the_migration():
+    """The AL result file of 74bfa23 (schema 1) is refused; the message names the script."""
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        load_result(OLD / "ik_al.json")
+
+
+def test_old_ik_result_file_migrated_loads_and_passes_the_check(tmp_path):
+    """Migrated, the AL result file of 74bfa23 loads with its stored E, SOLVED, re-checks clean."""
     stored = json.loads((OLD / "ik_al.json").read_text())["result"]
     assert stored["status"] == "success"  # the old IKStatus value
-    result = load_result(OLD / "ik_al.json")
+    new = tmp_path / "ik_al.json"
+    done = migrate("--out", new, OLD / "ik_al.json")
+    assert done.returncode == 0, done.stderr
+    assert "IK-path result of 0.1.0 carried forward" in done.stdout
+    result = load_result(new)
     assert result.status is SolveStatus.SOLVED and result.method == "al"
     assert abs(result.objective - stored["objective"]) <= 1e-12  # recomputed by Pinocchio
+    assert result.constraint_tol == ALOptions().constraint_tol  # 0.1.0's default, recorded
     assert result.check().passed
+
+
+def test_old_store_payload_is_refused_naming_the_migration(tmp_path):
+    """An IK payload of the 0.1.0 store, read alone, is refused naming the script too."""
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        load_result(OLD / "ik_sweep" / "items" / "start_0000.ikpath")
 
 
 def test_store_with_every_ipopt_field_resumes_too(tmp_path):

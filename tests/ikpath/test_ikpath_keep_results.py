@@ -23,10 +23,10 @@ from youbot_opt.cli import main
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import PlanarStarts, Starts3D, make_starts, make_starts_3d
 from youbot_opt.ikpath.stored import StoredResults
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_records
@@ -86,7 +86,7 @@ def test_planar_lean_run_equals_the_full_run(two_link, tmp_path, workers, faults
     if workers == 2:
         assert lean.status_counts()["crashed"] == 1
         crashed = lean.results[5]  # rebuilt from the journal: its start and the last reason
-        assert crashed.status is IKStatus.CRASHED and "worker process crashed" in crashed.message
+        assert crashed.status is SolveStatus.CRASHED and "worker process crashed" in crashed.message
     # Other tolerances: re-clustered from the folder, equal to the full run's re-clustering.
     # Coarser ones merge distinct minima (14 -> 11 here); finer ones may split one.
     coarse = _minima(full.distinct_optima(objective_tol=0.1, q_tol=3.0))

@@ -22,7 +22,7 @@ from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_result
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.store import stored_record, stored_records
@@ -163,7 +163,7 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
     faults(crash={"start_0001"})
     res = run_multistart(two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=2, out=tmp_path))
     crashed = res.results[1]
-    assert crashed.status is IKStatus.CRASHED and "worker process crashed" in crashed.message
+    assert crashed.status is SolveStatus.CRASHED and "worker process crashed" in crashed.message
     assert res.attempts == (1, 2, 1, 1, 1, 1)
     assert all(r.success for i, r in enumerate(res.results) if i != 1)
     rec = _record(tmp_path, "start_0001")
@@ -176,7 +176,7 @@ def test_worker_crashing_always_is_recorded_failed_after_two_attempts(
         two_link, n_starts=N, seed=4, sweep=SweepOptions(workers=1, out=tmp_path)
     )
     assert solver_calls == [] and again.resumed == N
-    assert again.results[1].status is IKStatus.CRASHED
+    assert again.results[1].status is SolveStatus.CRASHED
     assert again.results[1].message == rec["reasons"][-1]
     for i in (0, 2, 3, 4, 5):
         assert again.results[i].objective == pytest.approx(
@@ -201,7 +201,7 @@ def test_corrupted_or_newer_files_raise_result_file_error(two_link, tmp_path):
     doc = json.loads(good)
     for bad in (
         good[: len(good) // 2],  # torn, as by a disk fault
-        json.dumps({**doc, "schema_version": 2}).encode(),
+        json.dumps({**doc, "schema_version": doc["schema_version"] + 1}).encode(),
         json.dumps({**doc, "sha256": "0" * 64}).encode(),
     ):
         payload.write_bytes(bad)

@@ -18,7 +18,7 @@ from youbot_opt.ikpath.multistart import (
     run_multistart,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.result import IKStatus
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.sweeps.options import SweepOptions
 
@@ -102,7 +102,7 @@ def test_a_raising_start_is_retried_once_then_crashed(two_link, monkeypatch):
 
     monkeypatch.setattr(sweep_mod, "solve_augmented_lagrangian", flaky)
     res = run_multistart(two_link, n_starts=4, seed=0, sweep=SweepOptions(workers=1))
-    assert res.results[0].status is IKStatus.CRASHED
+    assert res.results[0].status is SolveStatus.CRASHED
     assert res.results[0].message == "RuntimeError: boom"
     assert len(calls) == 2 and res.attempts == (2, 1, 1, 1)
     assert all(r.success for r in res.results[1:])

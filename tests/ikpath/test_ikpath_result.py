@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from _migrate import migrate
 from youbot_opt._files import json_digest
-from youbot_opt.exceptions import ParameterError, SolveFailed
+from youbot_opt.exceptions import ParameterError, ResultFileError, SolveFailed
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_result, save_result
 from youbot_opt.ikpath.methods.al import ALOptions
@@ -162,7 +163,7 @@ def test_failures_are_kept_and_tolerance_is_validated():
 
 
 def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(result, tmp_path):
-    """The tolerance is saved; a file without it (older writer) loads with ALOptions' default."""
+    """The tolerance is saved; a 0.1.0 file without it gets ALOptions' default by the migration."""
     custom = solve(example_problem("B"), options=ALOptions(constraint_tol=1e-9))
     assert custom.success and custom.constraint_tol == 1e-9
     assert load_result(save_result(custom, tmp_path / "c")).constraint_tol == 1e-9
@@ -171,6 +172,11 @@ def test_constraint_tolerance_survives_the_file_and_old_files_get_the_default(re
     del doc["result"]["constraint_tol"]
     doc["sha256"] = json_digest(doc["result"])
     path.write_text(json.dumps(doc))
+    with pytest.raises(ResultFileError, match="incomplete or invalid.*constraint_tol"):
+        load_result(path)  # the current schema records it
+    doc["schema_version"] = 1  # as 0.1.0 wrote it
+    path.write_text(json.dumps(doc))
+    assert migrate(path).returncode == 0
     old = load_result(path)
     assert old.constraint_tol == ALOptions().constraint_tol and old.success
 

@@ -11,7 +11,7 @@ from youbot_opt.ikpath.dls import dls_ik, greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
+from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
@@ -249,11 +249,11 @@ def test_targets_from_csv_and_json_files(tmp_path):
 
 def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     from youbot_opt.viz.meshcat.ikpath import (
-        export_spatial_ikpath_html,
-        spatial_replay_robot,
-        spatial_replay_track,
+        export_ikpath_html,
+        replay_robot,
+        replay_track,
     )
-    from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_spatial_path
+    from youbot_opt.viz.plots.ikpath import plot_leg_motion, plot_path
 
     path = tmp_path / "wheel.urdf"
     path.write_text(_planar_urdf((1.0,), None, continuous=True))
@@ -267,18 +267,18 @@ def test_standalone_replay_draws_targets_triads_and_unwrapped_legs(tmp_path):
     problem = CyclicIKProblem(robot=robot.model, frame="tip", targets=targets)
     result = solve(problem, x0=[0.0, 2.0, 4.0])
     assert result.success
-    names = [g.name for g in spatial_replay_robot(result, robot).visual_model.geometryObjects]
+    names = [g.name for g in replay_robot(result, robot).visual_model.geometryObjects]
     assert {"target_1", "target_1_axis_0", "target_1_axis_2", "target_3"} <= set(names)
     assert "target_2_axis_0" not in names  # position targets: a sphere, no triad
-    t, q = spatial_replay_track(result, segment_time=0.5, samples_per_leg=12)
+    t, q = replay_track(result, segment_time=0.5, samples_per_leg=12)
     assert t[-1] == pytest.approx(1.5) and q.shape == (37, 2)  # (cos, sin) of the wheel
     # The closing leg turns back through 4 pi / 3: consecutive samples are pi / 9 apart, so
     # the viewer's shortest-arc interpolation between samples follows the unwrapped angle.
     steps = np.abs(np.diff(np.unwrap(np.arctan2(q[:, 1], q[:, 0]))))
     assert np.max(steps) <= np.pi / 9 + 1e-12
-    html = export_spatial_ikpath_html(result, robot, tmp_path / "replay.html")
+    html = export_ikpath_html(result, tmp_path / "replay.html", robot=robot)
     assert html.stat().st_size > 10_000 and "meshcat" in html.read_text()[:200_000].lower()
-    assert plot_leg_motion(result).axes and plot_spatial_path(result).axes
+    assert plot_leg_motion(result).axes and plot_path(result).axes
 
 
 def test_dls_handles_a_pose_block_the_chain_cannot_span(tmp_path):
@@ -426,3 +426,47 @@ def test_solve_picks_the_methods_and_defaults_of_the_robot_kind(tmp_path):
     assert isinstance(solve(far, check_reachability=False, method="al"), IKPathResult)
     with pytest.raises(ParameterError, match="planar robot"):
         solve(_ur5_problem(0), planar=True)
+
+
+def test_a_planar_robot_constrains_one_orientation_angle(tmp_path):
+    """#25 item 4: pose and axis targets on a planar robot carry no always-zero rows.
+
+    A pose constrains the plane position (2 rows) and the angle about the normal
+    (1 row); an axis that turns in the plane 1 row, one along the normal none. The
+    Jacobians match central differences (1e-6), and IPOPT, which the 3-row pose had
+    overconstrained (13 equations for 9 unknowns), solves it as the AL does.
+    """
+    path = tmp_path / "planar3.urdf"
+    path.write_text(_planar_urdf((1.0, 1.0, 1.0), 3.0))
+    robot = load_model(path, tip_frame="tip")
+    base = CyclicIKProblem(
+        robot=robot.model, frame="tip", targets=(Target(position=(1, 1, 0)),) * 2
+    )
+    rng = np.random.default_rng(2)
+    qs = rng.uniform(-1.5, 1.5, (3, 3))
+    p = [base.placement(q) for q in qs]
+    x_axis, z_axis = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    problem = base.with_targets(
+        (
+            Target(position=p[0].translation, rotation=p[0].rotation),
+            Target(position=p[1].translation, approach=p[1].rotation[:, 0], approach_axis=x_axis),
+            Target(position=p[2].translation, approach=p[2].rotation[:, 2], approach_axis=z_axis),
+        )
+    )
+    assert [problem.rows_of(t) for t in problem.targets] == [3, 3, 2]
+    assert problem.block_rows == 3 and problem.n_constraints == 9
+    data = problem.create_data()
+    for j in range(3):
+        theta = rng.uniform(-1.0, 1.0, 3)
+        _, jac = problem.block(j, theta, data)
+        fd = np.column_stack(
+            [
+                (problem.block(j, theta + e, data)[0] - problem.block(j, theta - e, data)[0]) / 2e-6
+                for e in 1e-6 * np.eye(3)
+            ]
+        )
+        np.testing.assert_allclose(jac, fd, atol=1e-6)
+    for method in ("al", "ipopt"):
+        result = solve(problem, method=method, x0=(qs + 0.3).ravel())
+        assert result.success, (method, result.status, result.message)
+        assert result.max_position_error() <= 1e-6 and result.max_orientation_error() <= 1e-6

@@ -124,7 +124,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
     # targets; IPOPT from the same start reaches the same minimum (E to 1e-8 relative).
     from dataclasses import replace
 
-    from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS
+    from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D
 
     robot = load_model("panda")
     base = CyclicIKProblem(
@@ -141,7 +141,7 @@ def test_least_squares_initial_multipliers_keep_the_panda_off_its_limits():
         targets.append(Target(position=placement.translation, rotation=rot))
     problem = base.with_targets(targets)
     x0 = make_starts_3d(problem, 1, seed=0)[0]
-    opts = replace(SPATIAL_AL_OPTIONS, initial_multipliers="least_squares")
+    opts = replace(AL_OPTIONS_3D, initial_multipliers="least_squares")
     al = solve(problem, method="al", x0=x0, options=opts)
     ip = solve(problem, method="ipopt", x0=x0)
     assert al.success and ip.success, (al.message, ip.message)

@@ -13,14 +13,14 @@ from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.dls import random_theta
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
-from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
-from youbot_opt.ikpath.reachability.spatial import (
+from youbot_opt.ikpath.reachability.general import (
     Reachability3D,
     check_reachability_3d,
     interval_search,
     joint_box,
 )
+from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
+from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model

@@ -9,7 +9,7 @@ import pytest
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.dls import dls_ik
-from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.nlp.status import SolveStatus
@@ -79,7 +79,7 @@ def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachabl
 def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
     ur5_reachable, tmp_path, monkeypatch
 ):
-    real = SpatialIpoptSolver.solve
+    real = IpoptIKSolver3D.solve
     x_first = make_starts_3d(ur5_reachable, 1, seed=0)[0]
     calls = []
 
@@ -89,7 +89,7 @@ def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
             raise RuntimeError("boom")
         return real(self, x0)
 
-    monkeypatch.setattr(SpatialIpoptSolver, "solve", flaky)
+    monkeypatch.setattr(IpoptIKSolver3D, "solve", flaky)
     sweep = SweepOptions(executor="serial", out=tmp_path)
     res = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
     assert len(calls) == 2 and res.attempts == (2, 1, 1)

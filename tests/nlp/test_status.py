@@ -1,27 +1,26 @@
-"""One SolveStatus for both optimisers; the old values of IK-path files still load."""
+"""One SolveStatus for both optimisers; the old IK-path values are carried by the migration."""
 
 from __future__ import annotations
 
 import pytest
 
-from youbot_opt.ikpath.result import IKStatus
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus, status_from_ipopt
 from youbot_opt.trajopt.result import SolveStatus as TrajOptSolveStatus
 
 
 def test_one_enum_for_both_optimisers() -> None:
-    """trajopt re-exports it and IKStatus is a deprecated alias of it."""
-    assert TrajOptSolveStatus is SolveStatus and IKStatus is SolveStatus
+    """trajopt re-exports it; the IKStatus alias of 0.1.0 is gone."""
+    import youbot_opt.ikpath as ikpath
+    import youbot_opt.ikpath.result as ikpath_result
+
+    assert TrajOptSolveStatus is SolveStatus
+    assert not hasattr(ikpath, "IKStatus") and not hasattr(ikpath_result, "IKStatus")
 
 
 @pytest.mark.parametrize(
     ("old", "new"),
     [
-        ("success", SolveStatus.SOLVED),
-        ("time_limit", SolveStatus.MAX_TIME),
-        ("numerical_error", SolveStatus.NON_FINITE),
-        ("check_failed", SolveStatus.CONSTRAINT_VIOLATION),
         ("max_iterations", SolveStatus.MAX_ITERATIONS),
         ("stalled", SolveStatus.STALLED),
         ("infeasible", SolveStatus.INFEASIBLE),
@@ -31,8 +30,15 @@ def test_one_enum_for_both_optimisers() -> None:
     ],
 )
 def test_values_of_saved_files_load(old: str, new: SolveStatus) -> None:
-    """IK-path files stored IKStatus values ("success", ...); trajopt ones SolveStatus values."""
+    """Files of both optimisers store SolveStatus values."""
     assert SolveStatus(old) is new
+
+
+@pytest.mark.parametrize("old", ["success", "time_limit", "numerical_error", "check_failed"])
+def test_old_ik_values_are_refused(old: str) -> None:
+    """The IKStatus values of 0.1.0 files no longer load (scripts/migrate_0_1_0.py carries them)."""
+    with pytest.raises(ValueError):
+        SolveStatus(old)
 
 
 def test_old_names_are_gone_and_success() -> None:

@@ -10,7 +10,7 @@ from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.robot.planar import PlanarChain
-from youbot_opt.viz.plots.ikpath import plot_arm_path, plot_convergence, plot_workspace
+from youbot_opt.viz.plots.ikpath import plot_convergence, plot_path, plot_workspace
 
 
 @pytest.fixture(scope="module")
@@ -20,7 +20,7 @@ def result():
 
 def test_arm_path_draws_every_configuration(result):
     """One polyline per configuration, through the Pinocchio joint positions."""
-    ax = plot_arm_path(result).axes[0]
+    ax = plot_path(result).axes[0]
     arms = [line for line in ax.lines if line.get_label().startswith("q")]
     assert len(arms) == result.problem.n_targets
     pts = result.problem.chain.joint_positions(result.configurations[2])
@@ -76,3 +76,36 @@ def test_workspace_legend_names_every_verdict_colour():
         ("undecided", "tab:orange"),
     ):
         assert to_rgba(entries[f"target: {verdict}"].get_color()) == to_rgba(color)
+
+
+def test_one_plot_function_draws_a_3d_robot_in_3d():
+    """plot_path on a robot that is not a planar chain: the frame's path in 3-D, targets marked."""
+    from youbot_opt.ikpath.result import build_result
+    from youbot_opt.ikpath.targets import Target
+    from youbot_opt.nlp.status import SolveStatus
+    from youbot_opt.robot.load import load_model
+
+    robot = load_model("ur5")
+    base = CyclicIKProblem(
+        robot=robot, frame=robot.tip_frame, targets=(Target(position=(0, 0, 0)),) * 2
+    )
+    q = np.random.default_rng(1).uniform(-2, 2, (3, base.n_joints))
+    problem = base.with_targets(
+        tuple(Target(position=base.placement(theta).translation) for theta in q)
+    )
+    res = build_result(
+        problem,
+        method="al",
+        status=SolveStatus.SOLVED,
+        x=q.ravel(),
+        multipliers=np.zeros(problem.n_constraints),
+        iterations=1,
+        wall_time=0.0,
+        message="",
+        start=q.ravel(),
+    )
+    ax = plot_path(res, samples_per_leg=5).axes[0]
+    assert ax.name == "3d"
+    x, y, z = ax.lines[0].get_data_3d()
+    np.testing.assert_allclose(np.column_stack([x, y, z]), res.frame_path(5), atol=1e-12)
+    assert [t.get_text() for t in ax.texts] == [" T1", " T2", " T3"]

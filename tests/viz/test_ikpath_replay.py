@@ -178,8 +178,8 @@ def _rewrite(path: Path, edit) -> None:
 def test_load_refuses_newer_corrupt_or_foreign_files(result_a, tmp_path):
     """A newer schema, a changed number, another schema or non-JSON: ResultFileError."""
     path = save_result(result_a, tmp_path / "r.json")
-    _rewrite(path, lambda d: d.update(schema_version=2))
-    with pytest.raises(ResultFileError, match="schema version 2 is newer"):
+    _rewrite(path, lambda d: d.update(schema_version=3))
+    with pytest.raises(ResultFileError, match="schema version 3 is newer"):
         load_result(path)
     path = save_result(result_a, tmp_path / "r.json")
     _rewrite(path, lambda d: d["result"]["configurations"][0].__setitem__(0, 0.5))
@@ -201,3 +201,29 @@ def test_load_refuses_newer_corrupt_or_foreign_files(result_a, tmp_path):
     path.write_text("{not json")
     with pytest.raises(ResultFileError, match="cannot read"):
         load_result(path)
+
+
+def test_one_replay_for_every_robot(result_a, tmp_path):
+    """A planar chain is drawn on its links unless a robot is given; a 3-D one on its robot."""
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.ikpath.targets import Target
+    from youbot_opt.robot.load import load_model
+
+    on_chain = replay_robot(result_a)
+    assert on_chain.model is result_a.problem.planar_chain.model and on_chain.package_dirs == ()
+    robot = result_a.problem.robot_model  # the chain as a RobotModel: drawn as any robot
+    on_robot = replay_robot(result_a, robot)
+    names = [g.name for g in on_robot.visual_model.geometryObjects]
+    assert {f"target_{j + 1}" for j in range(5)} <= set(names)
+    t, q = replay_track(result_a, 0.5, robot)
+    assert q.shape == (5 * 12 + 1, result_a.problem.model.nq) and t[-1] == 2.5
+    ur5 = load_model("ur5")
+    problem = CyclicIKProblem(
+        robot=ur5, frame=ur5.tip_frame, targets=(Target(position=(0.3, 0.2, 0.4)),) * 2
+    )
+    res = solve(problem, x0=np.zeros(2 * problem.n_joints))
+    shown = replay_robot(res)  # the problem's own robot, its visuals and a marker per target
+    assert shown.model is problem.model and shown.name == ur5.name
+    assert len(shown.visual_model.geometryObjects) == len(ur5.visual_model.geometryObjects) + 2
+    page = export_ikpath_html(res, tmp_path / "ur5.html", segment_time=0.5)
+    assert page.stat().st_size > 0

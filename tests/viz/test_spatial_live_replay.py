@@ -19,8 +19,8 @@ from youbot_opt.nlp.status import SolveStatus  # noqa: E402
 from youbot_opt.robot.load import load_model  # noqa: E402
 from youbot_opt.viz import MeshcatServer  # noqa: E402
 from youbot_opt.viz.meshcat.ikpath import (  # noqa: E402
-    replay_spatial_ikpath,
-    spatial_replay_robot,
+    replay_ikpath,
+    replay_robot,
 )
 
 _INERTIAL = (  # the loader checks that M(q) is positive definite
@@ -85,11 +85,11 @@ def test_live_spatial_replay_draws_the_targets_and_ends_at_the_first_configurati
     with MeshcatServer(timeout=20.0) as server:
         assert server.zmq_url.startswith("tcp://127.0.0.1:")
         vis = server.visualizer()
-        replay_spatial_ikpath(result, robot, viewer=vis, segment_time=0.02, realtime=True)
+        replay_ikpath(result, robot, viewer=vis, segment_time=0.02, realtime=True)
         scene = _server_scene(vis)
         vis.close()
     assert not server.running
-    shown = spatial_replay_robot(result, robot)
+    shown = replay_robot(result, robot)
     root = f"/meshcat/ikpath/{shown.name}"
     transforms = {
         c["path"]: np.reshape(c["matrix"], (4, 4)).T for c in scene if c["type"] == "set_transform"

@@ -48,11 +48,11 @@ from youbot_opt.cli.warning_lines import flush_warnings
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import RobotSource, save_result
-from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
+from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
-from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -61,14 +61,13 @@ from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain, youbot_chain
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
-from youbot_opt.viz.meshcat.ikpath import export_ikpath_html, export_spatial_ikpath_html
+from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
 from youbot_opt.viz.meshcat.scene import RobotLike
 from youbot_opt.viz.plots.ikpath import (
-    plot_arm_path,
     plot_convergence,
     plot_leg_motion,
     plot_minima,
-    plot_spatial_path,
+    plot_path,
     plot_workspace,
 )
 
@@ -302,7 +301,7 @@ def _options_3d(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     if args.max_wall_time is None:
         return None
     if args.method == "al":
-        return replace(SPATIAL_AL_OPTIONS, max_wall_time=args.max_wall_time)
+        return replace(AL_OPTIONS_3D, max_wall_time=args.max_wall_time)
 
     return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
 
@@ -334,7 +333,7 @@ def _planar_outputs(
     files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
     if ms is not None:
         best = ms.best
-        files.append(save_figure(plot_arm_path(best), folder, "ikpath_arm.png"))
+        files.append(save_figure(plot_path(best), folder, "ikpath_arm.png"))
         if best.history:
             files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
         files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
@@ -463,13 +462,13 @@ def _run_3d(args: argparse.Namespace) -> int:
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
-        files.append(save_figure(plot_spatial_path(best), folder, "ikpath_path3d.png"))
+        files.append(save_figure(plot_path(best), folder, "ikpath_path3d.png"))
         if not args.no_replay:
             files.append(
-                export_spatial_ikpath_html(
+                export_ikpath_html(
                     best,
-                    cast("RobotLike", robot),
                     folder / "replay.html",
+                    robot=cast("RobotLike", robot),
                     segment_time=args.segment_time,
                 )
             )

@@ -25,8 +25,8 @@ from youbot_opt._typing import JSONDict
 from youbot_opt.ikpath.examples import STUDY_E_A
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.general import Reachability3D, ReachVerdict3D
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict
-from youbot_opt.ikpath.reachability.spatial import Reachability3D, ReachVerdict3D
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.spatial_solve import SpatialMultistart
 from youbot_opt.ikpath.stored import StartSummary, StoredResults

@@ -27,6 +27,11 @@ from youbot_opt.ikpath.multistart import (
     run_multistart,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
+from youbot_opt.ikpath.reachability.general import (
+    Reachability3D,
+    ReachVerdict3D,
+    check_reachability_3d,
+)
 from youbot_opt.ikpath.reachability.planar import (
     Reachability,
     ReachVerdict,
@@ -34,14 +39,8 @@ from youbot_opt.ikpath.reachability.planar import (
     decide_reachability,
     require_reachable,
 )
-from youbot_opt.ikpath.reachability.spatial import (
-    Reachability3D,
-    ReachVerdict3D,
-    check_reachability_3d,
-)
 from youbot_opt.ikpath.result import (
     IKPathResult,
-    IKStatus,
     JointPath,
     OuterIterate,
 )
@@ -62,7 +61,6 @@ __all__ = [
     "EXAMPLES",
     "Evaluation",
     "IKPathResult",
-    "IKStatus",
     "IpoptIKSolver",
     "IpoptOptions",
     "JointPath",

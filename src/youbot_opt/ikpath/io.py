@@ -1,13 +1,13 @@
 """Save and load IK-path results: one JSON file with a schema name, version and checksum.
 
-``save_result`` writes a planar method's result in schema
-``youbot_opt.ikpath_result`` (the chain, targets, configurations, reported
-figures and history) and any other in ``youbot_opt.spatial_ikpath_result``
-(the robot's :class:`~youbot_opt.robot.source.RobotSource`, a fingerprint of
-its kinematics, frame, targets, limits, ...), both under ``"result"`` with its
-SHA-256 under ``"sha256"``; writes are atomic. ``load_result`` rebuilds the
-problem, recomputes E, the target errors (Pinocchio) and the limit violation,
-refuses a corrupt, newer or disagreeing file, and re-checks a claimed success.
+``save_result`` writes schema ``youbot_opt.ikpath_result``: a planar
+method's result records its chain (targets, configurations, reported figures
+and history), any other the robot's :class:`~youbot_opt.robot.source.RobotSource`,
+a fingerprint of its kinematics, frame, targets, limits, ...; the body under
+``"result"``, its SHA-256 under ``"sha256"``; writes are atomic. ``load_result``
+rebuilds the problem, recomputes E, the target errors (Pinocchio) and the limit
+violation, refuses a corrupt, newer, older (``scripts/migrate_0_1_0.py`` carries
+those) or disagreeing file, and re-checks a claimed success.
 
 >>> load_result(save_result(result, "path.json")).objective  # doctest: +SKIP
 """
@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt._files import (
+    MIGRATION_SCRIPT,
     array_digest,
     atomic_write_bytes,
     check_schema_header,
@@ -36,7 +37,6 @@ from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
-from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain
@@ -45,7 +45,6 @@ from youbot_opt.robot.source import RobotSource
 __all__ = [
     "RECHECK_TOL",
     "SCHEMA",
-    "SCHEMA_3D",
     "SCHEMA_VERSION",
     "RobotSource",
     "encode_document",
@@ -64,10 +63,10 @@ __all__ = [
 ]
 
 SCHEMA = "youbot_opt.ikpath_result"
-"""Schema of a planar method's result (the chain is in the file)."""
-SCHEMA_3D = "youbot_opt.spatial_ikpath_result"
-"""Schema of any other result (the robot's source is in the file)."""
-SCHEMA_VERSION = 1
+"""Schema of an IK-path result file (a planar chain's or any robot's)."""
+SCHEMA_VERSION = 2
+"""The one version read: 1 (and the 3-D schema ``youbot_opt.spatial_ikpath_result``) was
+written by 0.1.0 and is carried forward by ``scripts/migrate_0_1_0.py``."""
 RECHECK_TOL = 1e-9
 """Largest accepted ``|stored - recomputed|`` of E [rad^2] and of the residuals or target
 errors [m, rad] of an IK-path file: both come from the same float64 formulas, which agree
@@ -167,7 +166,7 @@ def write_document(path: str | os.PathLike[str], data: bytes) -> Path:
 
 
 def read_document(
-    path: str | os.PathLike[str], *, schema: str, version: int, what: str
+    path: str | os.PathLike[str], *, schema: str, version: int, what: str, oldest: int = 1
 ) -> dict[str, Any]:
     """Return the ``"result"`` body of a file written from :func:`encode_document`.
 
@@ -181,19 +180,22 @@ def read_document(
         The newest schema version this reader supports.
     what : str
         What the file holds, for messages (``"an IK-path result"``).
+    oldest : int, optional
+        The oldest schema version this reader supports (an older file is
+        refused naming ``scripts/migrate_0_1_0.py``).
 
     Raises
     ------
     ResultFileError
-        If the file is missing or not JSON, of another schema, of a newer (or
-        invalid) schema version, or fails its checksum.
+        If the file is missing or not JSON, of another schema, of a newer, older
+        (or invalid) schema version, or fails its checksum.
     """
     source = Path(path)
     try:
         doc = json.loads(source.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ResultFileError(f"{source}: cannot read {what}: {exc}") from exc
-    check_schema_header(doc, schema=schema, supported=version, source=str(source))
+    check_schema_header(doc, schema=schema, supported=version, source=str(source), oldest=oldest)
     body = doc.get("result")
     if not isinstance(body, dict) or doc.get("sha256") != json_digest(body):
         raise ResultFileError(f"{source}: checksum mismatch; the file is corrupt")
@@ -271,7 +273,7 @@ def _parse_planar(body: dict[str, Any]) -> IKPathResult:
     return build_result(
         problem,
         method=str(body["method"]),
-        status=SolveStatus(body["status"]),  # also the values of IKStatus ("success", ...)
+        status=SolveStatus(body["status"]),
         x=np.array(body["configurations"], dtype=float),
         multipliers=np.array(body["multipliers"], dtype=float),
         iterations=int(body["iterations"]),
@@ -279,27 +281,13 @@ def _parse_planar(body: dict[str, Any]) -> IKPathResult:
         wall_time=float(body["wall_time"]),
         message=str(body["message"]),
         start=np.array(body["start"], dtype=float),
-        constraint_tol=float(body.get("constraint_tol", _default_tol(str(body["method"])))),
+        constraint_tol=float(body["constraint_tol"]),
         history=history,
     )
 
 
-def _default_tol(method: str) -> float:
-    """Return the default ``|c_i|`` tolerance in [m] of ``method``.
-
-    For the planar files of 0.1.0 written before ``constraint_tol`` was (the
-    one old-format rule of this reader: tests/fixtures/files_74bfa23).
-    """
-    from youbot_opt.ikpath.methods.al import ALOptions
-
-    if method == "ipopt":
-        return float(IpoptOptions.for_ikpath().constr_viol_tol)  # type: ignore[arg-type]
-    return ALOptions().constraint_tol
-
-
-def _load_planar(source: Path) -> IKPathResult:
-    """Read a planar result file; E and position errors recomputed and compared (1e-9)."""
-    body = read_document(source, schema=SCHEMA, version=SCHEMA_VERSION, what="an IK-path result")
+def _load_planar(source: Path, body: dict[str, Any]) -> IKPathResult:
+    """Read a planar result's body; E and position errors recomputed and compared (1e-9)."""
     try:
         result = _parse_planar(body)
         stored_e = float(body["objective"])
@@ -488,9 +476,10 @@ def _parse_3d(
     )
 
 
-def _load_3d(source: Path, robot: RobotModel | pin.Model | None) -> IKPathResult:
-    """Read a 3-D result file; target errors recomputed by ``pin.framesForwardKinematics``."""
-    body = read_document(source, schema=SCHEMA_3D, version=SCHEMA_VERSION, what="an IK-path result")
+def _load_3d(
+    source: Path, body: dict[str, Any], robot: RobotModel | pin.Model | None
+) -> IKPathResult:
+    """Read a 3-D result's body; target errors recomputed by ``pin.framesForwardKinematics``."""
     try:
         result, stored_pos, stored_ang = _parse_3d(body, robot, source)
         stored_e = float(body["objective"])
@@ -566,7 +555,7 @@ def encode_result(
     if _is_planar(result):
         return encode_document(SCHEMA, SCHEMA_VERSION, _planar_body(result))
     where = None if folder is None else Path(folder)
-    return encode_document(SCHEMA_3D, SCHEMA_VERSION, _body_3d(result, robot, where))
+    return encode_document(SCHEMA, SCHEMA_VERSION, _body_3d(result, robot, where))
 
 
 def save_result(
@@ -596,13 +585,7 @@ def save_result(
     return write_document(path, encode_result(result, robot, folder=Path(path).parent))
 
 
-def _schema_of(source: Path) -> object:
-    """Return the ``schema`` field of the JSON file ``source`` (None if unreadable)."""
-    try:
-        doc = json.loads(source.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return None
-    return doc.get("schema") if isinstance(doc, dict) else None
+_SCHEMA_3D_0_1_0 = "youbot_opt.spatial_ikpath_result"  # 0.1.0's 3-D results: refused
 
 
 def load_result(
@@ -632,7 +615,8 @@ def load_result(
     ------
     ResultFileError
         If the file is missing or not JSON, of another schema or a newer
-        version, fails its checksum, is incomplete, its robot cannot be loaded
+        version, written by 0.1.0 (the message names ``scripts/migrate_0_1_0.py``,
+        which carries it forward), fails its checksum, is incomplete, its robot cannot be loaded
         (the URDF not found: the message names the paths tried; or edited: it
         names the file and both SHA-256) or differs from the one it was solved
         on, its stored E or target errors disagree with the recomputed ones by
@@ -640,6 +624,30 @@ def load_result(
         the recomputed errors or limits do not confirm.
     """
     source = Path(path)
-    if _schema_of(source) == SCHEMA_3D:
-        return _load_3d(source, robot)
-    return _load_planar(source)
+    try:
+        body = read_document(
+            source,
+            schema=SCHEMA,
+            version=SCHEMA_VERSION,
+            oldest=SCHEMA_VERSION,
+            what="an IK-path result",
+        )
+    except ResultFileError:
+        if _schema_of(source) == _SCHEMA_3D_0_1_0:
+            raise ResultFileError(
+                f"{source}: written by youbot_opt 0.1.0 (schema 1); run "
+                f"`python {MIGRATION_SCRIPT} {source}` to carry it forward"
+            ) from None
+        raise
+    if "chain" in body:
+        return _load_planar(source, body)
+    return _load_3d(source, body, robot)
+
+
+def _schema_of(source: Path) -> object:
+    """Return the ``schema`` field of the JSON file ``source`` (None if unreadable)."""
+    try:
+        doc = json.loads(source.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return doc.get("schema") if isinstance(doc, dict) else None

@@ -48,7 +48,7 @@ class Evaluation(NamedTuple):
         ``dE/dx`` in [rad].
     constraints : ndarray, shape (m * s,)
         ``c(x)`` stacked per target, in [m] (planar: ``F(q_j) - p_j``, ``m = 2``;
-        spatial problems: ``m`` rows per target, see docs/ikpath.md).
+        3-D problems: ``m`` rows per target, see docs/ikpath.md).
     jacobian_blocks : ndarray, shape (s, m, n)
         ``dc_j/dq_j`` in [m/rad]; ``dc/dx`` is block diagonal with these blocks.
     """
@@ -136,8 +136,9 @@ class CyclicIKProblem:
     ``Q`` is the ``(s, n)`` array of the active joints' angles; solvers work on
     its row-major flattening ``x = Q.ravel()`` (``n s`` unknowns) and ``m``
     constraint rows per target (position 3, pose 6, approach 5; on a planar
-    robot a position has 2 rows, its plane coordinates). Continuous joints are
-    never wrapped.
+    robot a position has 2 rows, its plane coordinates, and an orientation is
+    one angle about the plane's normal: a pose 3 rows, an approach 3 or 2, see
+    :meth:`orientation_basis`). Continuous joints are never wrapped.
 
     Attributes
     ----------
@@ -180,6 +181,8 @@ class CyclicIKProblem:
         must lie in the plane (within their ``position_tol``).
     target_points : ndarray, shape (s, 2) or (s, 3)
         Target positions in [m]: plane coordinates on a planar robot, else world.
+    neutral_rotation : ndarray, shape (3, 3)
+        World rotation of the frame at :attr:`neutral`.
     """
 
     robot: RobotModel | PlanarChain
@@ -198,6 +201,7 @@ class CyclicIKProblem:
     continuous: Array = field(init=False)
     plane: Plane | None = field(init=False)
     target_points: Array = field(init=False)
+    neutral_rotation: Array = field(init=False)
 
     def __post_init__(self) -> None:
         robot: object = self.robot
@@ -309,6 +313,7 @@ class CyclicIKProblem:
             ("continuous", cont_arr),
             ("plane", plane),
             ("target_points", points),
+            ("neutral_rotation", _frame_rotation(model, fid, neutral)),
         ):
             object.__setattr__(self, key, value)
 
@@ -378,9 +383,43 @@ class CyclicIKProblem:
         """Rows of a position error: 2 on a planar robot (its plane coordinates), else 3."""
         return 3 if self.plane is None else 2
 
+    def orientation_basis(self, target: Target) -> Array | None:
+        """Directions the orientation error of ``target`` is measured along on a planar robot.
+
+        A planar robot's frame turns about the plane's normal ``n`` only: its
+        orientation is one angle, so a pose target constrains that angle (one
+        row, the error ``log3(R_j^T R)`` along ``R_j^T n``) and an approach
+        target's axis ``R a`` either keeps its direction (``a`` along the
+        frame's ``R^T n``: no row, the target is met or missed whatever the
+        angle) or turns in the plane (one row, ``R a`` along ``n x d``). The
+        other rows would be constant (zero for a target the robot can meet).
+
+        Returns
+        -------
+        ndarray, shape (k, 3), or None
+            The ``k`` directions (``k`` = 1 or 0), or None: every row (a robot
+            that is not planar, or a position target).
+        """
+        if self.plane is None or target.kind == "position":
+            return None
+        n = self.plane.normal
+        if target.rotation is not None:
+            return (target.rotation.T @ n)[None, :]
+        axis = self.neutral_rotation @ target.approach_axis
+        if np.linalg.norm(np.cross(n, axis)) <= 1e-12:
+            return np.zeros((0, 3))
+        across = np.cross(n, np.asarray(target.approach, dtype=float))
+        size = float(np.linalg.norm(across))
+        if size <= 1e-12:  # d along n while the axis turns in the plane: never met
+            return self.plane.basis.T[:1]
+        return (across / size)[None, :]
+
     def rows_of(self, target: Target) -> int:
         """Constraint rows of ``target`` on this robot (position rows + orientation rows)."""
-        return target.n_rows - 3 + self.position_rows
+        basis = self.orientation_basis(target)
+        if basis is None:
+            return target.n_rows - 3 + self.position_rows
+        return self.position_rows + basis.shape[0]
 
     @property
     def block_rows(self) -> int:
@@ -470,7 +509,8 @@ class CyclicIKProblem:
         Position rows are ``p - p_j`` (Jacobian ``R J_v`` from the LOCAL frame
         Jacobian), on a planar robot ``B^T (p - p_j)`` with ``B = plane.basis``;
         pose rows ``w log3(R_j^T R)`` with Jacobian ``w Jlog3 J_w``;
-        approach rows ``w b_k^T R a`` with Jacobian ``-w b_k^T R [a]_x J_w``.
+        approach rows ``w b_k^T R a`` with Jacobian ``-w b_k^T R [a]_x J_w``; on a
+        planar robot the orientation rows along :meth:`orientation_basis` only.
         """
         target = self.targets[j]
         m, n = self.block_rows, self.n_joints
@@ -492,15 +532,21 @@ class CyclicIKProblem:
             block[:2] = axes @ (rot @ jac[:3])
         k = self.position_rows
         w = target.orientation_weight
+        planar = self.orientation_basis(target)
         if target.rotation is not None:
             r_err = target.rotation.T @ rot
-            c[k : k + 3] = w * pin.log3(r_err)
-            block[k : k + 3] = w * (pin.Jlog3(r_err) @ jac[3:])
+            if planar is None:
+                c[k : k + 3] = w * pin.log3(r_err)
+                block[k : k + 3] = w * (pin.Jlog3(r_err) @ jac[3:])
+            else:  # one angle about the plane's normal
+                c[k] = w * float(planar[0] @ pin.log3(r_err))
+                block[k] = w * (planar[0] @ pin.Jlog3(r_err) @ jac[3:])
         elif target.approach is not None:
-            basis = target.approach_basis()
+            basis = target.approach_basis() if planar is None else planar
+            r = basis.shape[0]
             a = target.approach_axis
-            c[k : k + 2] = w * (basis @ (rot @ a))
-            block[k : k + 2] = -w * (basis @ rot @ pin.skew(a) @ jac[3:])
+            c[k : k + r] = w * (basis @ (rot @ a))
+            block[k : k + r] = -w * (basis @ rot @ pin.skew(a) @ jac[3:])
         return c, block
 
     @property
@@ -696,6 +742,13 @@ class CyclicIKProblem:
         return centre, radius
 
 
+def _frame_rotation(model: pin.Model, frame_id: int, q: Array) -> Array:
+    """World rotation (3, 3) of frame ``frame_id`` at configuration ``q``."""
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    return np.array(data.oMf[frame_id].rotation)
+
+
 def _check_targets(
     raw: Sequence[Target | ArrayLike] | ArrayLike, plane: Plane | None, frame: str
 ) -> tuple[tuple[Target, ...], Array]:
@@ -722,7 +775,7 @@ def _check_targets(
         point = np.array(item.position if isinstance(item, Target) else item, dtype=float)
         if point.ndim != 1 or point.size not in (2, 3) or (point.size == 2 and plane is None):
             raise ParameterError(
-                f"targets must be SpatialTargets or points of shape {want} in [m], got "
+                f"targets must be Target objects or points of shape {want} in [m], got "
                 f"{np.asarray(raw, dtype=object).tolist()!r}",
                 name="targets",
                 value=raw,

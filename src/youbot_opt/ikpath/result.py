@@ -25,7 +25,6 @@ from youbot_opt.nlp.status import SolveStatus, apply_check
 
 __all__ = [
     "SolveStatus",
-    "IKStatus",
     "OuterIterate",
     "IKPathResult",
     "IKResultCheck",
@@ -33,13 +32,6 @@ __all__ = [
     "build_result",
     "checked",
 ]
-
-
-IKStatus = SolveStatus
-"""Deprecated alias of :class:`~youbot_opt.nlp.status.SolveStatus` (the IK-path
-names ``SUCCESS``, ``TIME_LIMIT``, ``NUMERICAL_ERROR``, ``CHECK_FAILED`` are
-aliases of its members ``SOLVED``, ``MAX_TIME``, ``NON_FINITE``,
-``CONSTRAINT_VIOLATION``); kept so that code written against it runs."""
 
 
 class OuterIterate(NamedTuple):

@@ -19,15 +19,15 @@ from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.ikpath.methods.al import (
-    SPATIAL_AL_OPTIONS,
+    AL_OPTIONS_3D,
     ALOptions,
     run_augmented_lagrangian,
     solve_augmented_lagrangian,
 )
-from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver, solve_ipopt, solve_spatial_ipopt
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D, solve_ipopt, solve_ipopt_3d
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.general import require_reachable_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
-from youbot_opt.ikpath.reachability.spatial import require_reachable_3d
 from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.nlp.ipopt import IpoptOptions
 
@@ -99,7 +99,7 @@ def solve(
     study's AL settings (``ALOptions()``) or IPOPT on the chain's closed form, a
     result with per-target residuals (:class:`IKPathResult`). Any other problem
     (or ``planar=False``) by the general ones: the AL with
-    :data:`~youbot_opt.ikpath.methods.al.SPATIAL_AL_OPTIONS` or IPOPT on the
+    :data:`~youbot_opt.ikpath.methods.al.AL_OPTIONS_3D` or IPOPT on the
     frame's symbolic kinematics, reachability not decided unless asked, a
     result with position and orientation errors (:class:`IKPathResult`).
 
@@ -151,9 +151,9 @@ def solve(
         require_reachable_3d(problem)
     if method == "ipopt":
         if options is None:
-            return solve_spatial_ipopt(problem, x0)
-        return SpatialIpoptSolver(problem, options).solve(x0)  # type: ignore[arg-type]
-    opts = SPATIAL_AL_OPTIONS if options is None else options
+            return solve_ipopt_3d(problem, x0)
+        return IpoptIKSolver3D(problem, options).solve(x0)  # type: ignore[arg-type]
+    opts = AL_OPTIONS_3D if options is None else options
     start = problem.check_start(x0)
     run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
     return build_result(problem, **run.result_fields(start), inner_iterations=run.inner_iterations)

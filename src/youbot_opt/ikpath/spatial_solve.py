@@ -30,8 +30,8 @@ from youbot_opt.ikpath.io import (
     load_result,
     problem_spec_3d,
 )
-from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
-from youbot_opt.ikpath.methods.ipopt import SpatialIpoptSolver
+from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D
 from youbot_opt.ikpath.multistart import resolve_executor
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import check_reachability
@@ -189,7 +189,7 @@ def open_spatial_store(
         If its manifest is corrupted or from a newer schema.
     """
     if options is None and method == "al":
-        options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
+        options = AL_OPTIONS_3D  # the defaults of solve(planar=False), written out
     spec = problem_spec_3d(problem)
     params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
     load = functools.partial(load_result, robot=problem.model)
@@ -203,7 +203,7 @@ def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) ->
     return result
 
 
-def _solve_ipopt(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> IKPathResult:
+def _solve_ipopt(handle: WorkerSolver[IpoptIKSolver3D], x0: Array) -> IKPathResult:
     """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
     return handle.get().solve(x0)
 
@@ -228,7 +228,7 @@ def _figures(result: IKPathResult) -> dict[str, Any]:
 
 SPATIAL_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     solve_al=_solve_al,
-    ipopt_solver=SpatialIpoptSolver,
+    ipopt_solver=IpoptIKSolver3D,
     solve_ipopt=_solve_ipopt,
     crashed=_crashed,
     figures=_figures,

@@ -172,7 +172,7 @@ class PlanarStarts(IndexedStarts):
 
 
 def check_start_request(n_starts: int, kind: str, kinds: Sequence[str]) -> int:
-    """Check the number of starts and the start kind of a multistart (planar or spatial).
+    """Check the number of starts and the start kind of a multistart (planar or 3-D).
 
     Parameters
     ----------
@@ -181,7 +181,7 @@ def check_start_request(n_starts: int, kind: str, kinds: Sequence[str]) -> int:
     kind : str
         How the random starts are drawn.
     kinds : sequence of str
-        The valid kinds (:data:`START_KINDS`, or the spatial ones).
+        The valid kinds (:data:`START_KINDS`, or the 3-D ones).
 
     Returns
     -------

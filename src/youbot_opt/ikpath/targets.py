@@ -6,7 +6,7 @@ pose) or its local ``approach_axis`` pointing along the world direction
 ``approach`` (an approach axis, e.g. a drill or a suction cup: rotation about
 the axis is free). Each target carries the tolerances that decide whether it
 is met ([m] and [rad]) and the weight [m/rad] that puts orientation rows into
-the constraint's metre scale (see docs/ikpath.md, "Spatial targets").
+the constraint's metre scale (see docs/ikpath.md, "3-D targets").
 """
 
 from __future__ import annotations

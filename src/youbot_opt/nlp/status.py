@@ -4,10 +4,9 @@ A failed solve is a status, not an exception (Drake, toppra): sweeps keep
 going and the result says why. The trajectory optimiser and the IK-path
 solver report the same outcomes with the same members; :attr:`success` is
 true only for :attr:`~SolveStatus.SOLVED` and
-:attr:`~SolveStatus.SOLVED_ACCEPTABLE`. Values written by older versions
-(the IK-path ``"success"``, ``"time_limit"``, ...) still load.
+:attr:`~SolveStatus.SOLVED_ACCEPTABLE`.
 
->>> SolveStatus("success") is SolveStatus.SOLVED, status_from_ipopt("Solve_Succeeded")
+>>> SolveStatus("solved") is SolveStatus.SOLVED, status_from_ipopt("Solve_Succeeded")
 (True, <SolveStatus.SOLVED: 'solved'>)
 """
 
@@ -30,12 +29,7 @@ __all__ = [
 
 
 class SolveStatus(enum.Enum):
-    """How a solve ended (:attr:`success` only for the first two).
-
-    The values the IK-path files of 0.1.0 hold (``"success"``, ...) still load
-    (``SolveStatus("success") is SolveStatus.SOLVED``) until the IK-path files
-    of 0.1.0 are carried by ``scripts/migrate_0_1_0.py`` too.
-    """
+    """How a solve ended (:attr:`success` only for the first two)."""
 
     SOLVED = "solved"
     """Converged to the solver's tolerances, and the independent check passed."""
@@ -67,18 +61,6 @@ class SolveStatus(enum.Enum):
         """True for :attr:`SOLVED` and :attr:`SOLVED_ACCEPTABLE`."""
         return self in (SolveStatus.SOLVED, SolveStatus.SOLVED_ACCEPTABLE)
 
-    @classmethod
-    def _missing_(cls, value: object) -> SolveStatus | None:
-        """Read the values of the former ``IKStatus`` (saved IK-path results and sweeps)."""
-        return _OLD_VALUES.get(value) if isinstance(value, str) else None
-
-
-_OLD_VALUES: dict[str, SolveStatus] = {
-    "success": SolveStatus.SOLVED,
-    "time_limit": SolveStatus.MAX_TIME,
-    "numerical_error": SolveStatus.NON_FINITE,
-    "check_failed": SolveStatus.CONSTRAINT_VIOLATION,
-}
 
 IPOPT_STATUS: Mapping[str, SolveStatus] = MappingProxyType(
     {

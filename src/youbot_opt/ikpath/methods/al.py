@@ -5,7 +5,7 @@ Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
 constraints ``c(x) = 0`` and the joint box; the inner solver is
 :func:`~youbot_opt.ikpath.methods.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
 ``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
-in docs/design.md, "Module notes". Spatial problems switch on a safeguarded
+in docs/design.md, "Module notes". 3-D problems switch on a safeguarded
 final phase of SQP steps (``ALOptions.newton_final``, docs/ikpath.md).
 
 >>> result = solve_augmented_lagrangian(problem, x0, ALOptions())  # doctest: +SKIP
@@ -36,7 +36,7 @@ from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.nlp.status import SolveStatus
 
 __all__ = [
-    "SPATIAL_AL_OPTIONS",
+    "AL_OPTIONS_3D",
     "ALOptions",
     "ALResultFields",
     "ALRun",
@@ -95,7 +95,7 @@ class ALOptions:
         otherwise the AL continues from its own iterate as if nothing happened. Needs
         the problem's ``lagrangian_hessian``. Off by
         default (the planar solver is the study's method as published); on for
-        spatial problems, whose nearly singular pose Jacobians make the first-order
+        3-D problems, whose nearly singular pose Jacobians make the first-order
         multiplier updates crawl (docs/ikpath.md).
     newton_violation : float
         ``max |c_i|`` in [m] at which the final phase is tried.
@@ -220,7 +220,7 @@ class ALRun(NamedTuple):
     def result_fields(self, start: Array) -> ALResultFields:
         """Return the keywords the result builders share for this run from ``start`` [rad].
 
-        Both :func:`~youbot_opt.ikpath.result.build_result` and the spatial
+        Both :func:`~youbot_opt.ikpath.result.build_result` and the 3-D
         ``build_result`` take them (``method = "al"``).
         """
         return ALResultFields(
@@ -630,7 +630,7 @@ def _licq_note(ev: Evaluation, lam: Array, mu: float) -> str:
     c = np.abs(ev.constraints.reshape(-1, m)).max(axis=1)
     j = int(np.argmax(c))
     block = ev.jacobian_blocks[j]
-    block = block[np.any(block != 0.0, axis=1)]  # padding rows of a spatial block are zero
+    block = block[np.any(block != 0.0, axis=1)]  # padding rows of a 3-D block are zero
     sv = np.linalg.svd(block, compute_uv=False) if block.size else np.zeros(0)
     if sv.size < 2 or sv[-1] > _SINGULAR_RATIO * sv[0]:
         return ""
@@ -735,8 +735,8 @@ def _inner_solve(
     return np.clip(out.x, lower, upper), int(out.nit), str(out.message)
 
 
-SPATIAL_AL_OPTIONS = ALOptions(penalty_initial=1e3, newton_final=True, retry_least_squares=True)
-"""Default AL settings of the spatial problem: ``mu_0 = 1e3`` (with ``mu_0 = 10`` the
+AL_OPTIONS_3D = ALOptions(penalty_initial=1e3, newton_final=True, retry_least_squares=True)
+"""Default AL settings of the 3-D problem: ``mu_0 = 1e3`` (with ``mu_0 = 10`` the
 motion term of a 6-joint arm with 2 pi limits outweighs the penalty and the first
 inner solves leave the targets for good; measured on ur5, docs/ikpath.md) and the
 safeguarded final SQP phase (``newton_final``: nearly singular pose Jacobians make

@@ -5,7 +5,7 @@ planar chain's closed form, or a robot frame's kinematics written symbolically
 from the Pinocchio model), derivatives (CasADi's exact Hessian) and algorithm
 (IPOPT's interior point on the joint box); only the problem data are shared.
 :class:`IpoptIKSolver` (planar chains, the targets as parameters) and
-:class:`SpatialIpoptSolver` (any robot) are built once and re-solved. Why this
+:class:`IpoptIKSolver3D` (any robot) are built once and re-solved. Why this
 makes a check: docs/design.md, "Module notes".
 
 >>> result = IpoptIKSolver(problem).solve(None, x0)  # doctest: +SKIP
@@ -42,8 +42,8 @@ __all__ = [
     "IpoptIKSolver",
     "IpoptOptions",
     "solve_ipopt",
-    "solve_spatial_ipopt",
-    "SpatialIpoptSolver",
+    "solve_ipopt_3d",
+    "IpoptIKSolver3D",
 ]
 
 _STATUS: Mapping[str, SolveStatus] = MappingProxyType(
@@ -379,8 +379,8 @@ def frame_expression(problem: CyclicIKProblem, theta: ca.SX) -> tuple[ca.SX, ca.
     return pos + rot @ ca.DM(frame.translation), rot @ ca.DM(frame.rotation)
 
 
-class SpatialIpoptSolver:
-    """IPOPT solver of one spatial problem, built once and re-solved from many starts.
+class IpoptIKSolver3D:
+    """IPOPT solver of one 3-D problem (any robot), built once and re-solved from many starts.
 
     Parameters
     ----------
@@ -411,19 +411,26 @@ class SpatialIpoptSolver:
             k = problem.position_rows
             rows = list(range(k))
             wt = target.orientation_weight
+            planar = problem.orientation_basis(target)  # a planar robot: one angle
             if target.rotation is not None:
                 r_e = ca.DM(target.rotation).T @ rot
                 vex = ca.vertcat(
                     r_e[2, 1] - r_e[1, 2], r_e[0, 2] - r_e[2, 0], r_e[1, 0] - r_e[0, 1]
                 )
-                eqs.append(wt * 0.5 * vex)
+                if planar is None:
+                    eqs.append(wt * 0.5 * vex)
+                    rows += [k, k + 1, k + 2]
+                else:
+                    eqs.append(wt * 0.5 * (ca.DM(planar) @ vex))
+                    rows += [k]
                 ineqs.append(ca.trace(r_e) + 0.5)
-                rows += [k, k + 1, k + 2]
             elif target.approach is not None:
-                axis = rot @ ca.DM(target.approach_axis)
-                eqs.append(wt * (ca.DM(target.approach_basis()) @ axis))
-                ineqs.append(ca.dot(ca.DM(target.approach), axis))
-                rows += [k, k + 1]
+                basis = target.approach_basis() if planar is None else planar
+                if basis.shape[0]:  # none: the axis keeps its direction (met or not)
+                    axis = rot @ ca.DM(target.approach_axis)
+                    eqs.append(wt * (ca.DM(basis) @ axis))
+                    ineqs.append(ca.dot(ca.DM(target.approach), axis))
+                    rows += list(range(k, k + basis.shape[0]))
             self._rows.append(rows)
         self._n_eq = int(sum(e.shape[0] for e in eqs))
         g = ca.vertcat(*eqs, *ineqs)
@@ -431,7 +438,7 @@ class SpatialIpoptSolver:
         self._ubg = np.r_[np.zeros(self._n_eq), np.full(len(ineqs), np.inf)]
         opts = self.options.to_casadi(True, solver_settings=BOUND_SETTINGS)
         single_threaded_blas()
-        self._solver = ca.nlpsol("spatial_ikpath", "ipopt", {"x": x, "f": energy, "g": g}, opts)
+        self._solver = ca.nlpsol("ikpath_3d", "ipopt", {"x": x, "f": energy, "g": g}, opts)
 
     def solve(self, x0: ArrayLike | None = None) -> IKPathResult:
         """Solve from ``x0`` (default: zero clipped into the limits)."""
@@ -468,15 +475,15 @@ class SpatialIpoptSolver:
         )
 
 
-_CACHE: dict[int, tuple[CyclicIKProblem, SpatialIpoptSolver]] = {}
+_CACHE: dict[int, tuple[CyclicIKProblem, IpoptIKSolver3D]] = {}
 
 
-def solve_spatial_ipopt(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> IKPathResult:
+def solve_ipopt_3d(problem: CyclicIKProblem, x0: ArrayLike | None = None) -> IKPathResult:
     """Solve once by IPOPT (the solver is built once per problem object and reused)."""
     hit = _CACHE.get(id(problem))
     if hit is None or hit[0] is not problem:
         if len(_CACHE) >= 8:
             _CACHE.clear()
-        hit = (problem, SpatialIpoptSolver(problem))
+        hit = (problem, IpoptIKSolver3D(problem))
         _CACHE[id(problem)] = hit
     return hit[1].solve(x0)

@@ -1,7 +1,7 @@
 """Whether each target of a cyclic IK path can be reached, decided before solving.
 
 :mod:`.planar` gives exact verdicts for planar chains (with a witness or a
-certificate; :mod:`.branch_and_bound` for 4+ links with limits); :mod:`.spatial`
+certificate; :mod:`.branch_and_bound` for 4+ links with limits); :mod:`.general`
 decides 3-D targets by a witness, the reach sphere or the interval bounds of
 :mod:`.interval`.
 

@@ -6,7 +6,7 @@ angles are bounded below by the exact distance to the last two links'
 workspace minus a rigorous Lipschitz term, and bisected until decided (spec
 ``docs/ikpath.md``); the bound and its rounding margin are derived in
 docs/design.md, "Module notes". :func:`bisect_boxes` (split boxes on their widest
-weighted side) is shared with the spatial interval search.
+weighted side) is shared with the 3-D interval search.
 """
 
 from __future__ import annotations

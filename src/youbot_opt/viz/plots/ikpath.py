@@ -1,19 +1,20 @@
 """Figures of IK-path results (matplotlib, no pyplot state: safe under Agg).
 
 Every function takes result objects and returns a ``matplotlib.figure.Figure``
-(or draws on a given ``Axes``): the arm at every visited configuration with
-the targets (:func:`plot_arm_path`), the convergence history
-(:func:`plot_convergence`), the reachable workspace under the joint limits
-with the targets and their verdicts (:func:`plot_workspace`) and the minima
-found by a multistart (:func:`plot_minima`). :func:`save_figures` writes them
-as PNG files. Spatial results: the joint motion per leg (:func:`plot_leg_motion`)
-and the frame's path through the targets in 3-D (:func:`plot_spatial_path`).
+(or draws on a given ``Axes``): the path with its targets, whatever the robot
+(:func:`plot_path`: a planar chain's arm at every visited configuration in its
+plane, any other robot's frame path in 3-D), the joint motion per leg
+(:func:`plot_leg_motion`), the convergence history (:func:`plot_convergence`),
+a planar chain's reachable workspace under the joint limits with the targets
+and their verdicts (:func:`plot_workspace`) and the minima found by a
+multistart (:func:`plot_minima`). :func:`save_figures` writes them as PNG files.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib as mpl
 import numpy as np
@@ -29,12 +30,11 @@ from youbot_opt.ikpath.reachability.planar import ReachVerdict, check_reachabili
 from youbot_opt.ikpath.result import IKPathResult
 
 __all__ = [
-    "plot_arm_path",
+    "plot_path",
     "plot_convergence",
     "plot_workspace",
     "plot_minima",
     "plot_leg_motion",
-    "plot_spatial_path",
     "save_figures",
 ]
 
@@ -56,21 +56,31 @@ def _mark_targets(ax: Axes, targets: np.ndarray, colors: Sequence[str] | None = 
         ax.annotate(f"p{j + 1}", (x, y), textcoords="offset points", xytext=(6, 6), color=c)
 
 
-def plot_arm_path(result: IKPathResult, ax: Axes | None = None) -> Figure:
-    """Draw the arm at every configuration of the path, with the targets.
+def plot_path(result: IKPathResult, ax: Axes | None = None, samples_per_leg: int = 20) -> Figure:
+    """Draw the path through the targets, whatever the robot.
+
+    A planar chain (:attr:`CyclicIKProblem.chain`) is drawn in its plane: the
+    arm at every configuration, the tip's cycle, the targets. Any other robot:
+    the frame's path in 3-D (straight joint-space legs), the targets with a
+    pose's axes or an approach axis.
 
     Parameters
     ----------
     result : IKPathResult
         A solve result.
     ax : matplotlib.axes.Axes, optional
-        Axes to draw on (a new figure by default).
+        Axes to draw on (a 3-D one for a robot that is not a planar chain; a
+        new figure by default).
+    samples_per_leg : int
+        Samples of the frame's path per leg (3-D drawing).
 
     Returns
     -------
     matplotlib.figure.Figure
         The figure.
     """
+    if result.problem.chain is None:
+        return _plot_path_3d(result, ax, samples_per_leg)
     fig, ax = _new_axes(ax)
     chain = result.problem.planar_chain
     data = chain.create_data()
@@ -307,7 +317,7 @@ def save_figures(
     out.mkdir(parents=True, exist_ok=True)
     best = result.best if isinstance(result, MultistartResult) else result
     figures = {
-        "ikpath_arm.png": plot_arm_path(best),
+        "ikpath_arm.png": plot_path(best),
         "ikpath_workspace.png": plot_workspace(best.problem, verdicts),
     }
     if best.history:
@@ -323,7 +333,7 @@ def save_figures(
 
 
 def plot_leg_motion(result: IKPathResult, baseline: np.ndarray | None = None) -> Figure:
-    """Joint motion per leg of a spatial path: ``|q_{j+1,i} - q_{j,i}|`` stacked by joint.
+    """Joint motion per leg of a path: ``|q_{j+1,i} - q_{j,i}|`` stacked by joint.
 
     Parameters
     ----------
@@ -353,24 +363,28 @@ def plot_leg_motion(result: IKPathResult, baseline: np.ndarray | None = None) ->
     return fig
 
 
-def plot_spatial_path(result: IKPathResult, samples_per_leg: int = 20) -> Figure:
+def _plot_path_3d(result: IKPathResult, ax: Axes | None, samples_per_leg: int) -> Figure:
     """Draw the frame's path (straight joint-space legs) through the targets, in 3-D [m]."""
-    fig = Figure(figsize=(6.0, 6.0), layout="constrained")
-    ax = fig.add_subplot(projection="3d")
+    ax3d: Any  # a mpl_toolkits.mplot3d Axes3D
+    if ax is None:
+        fig = Figure(figsize=(6.0, 6.0), layout="constrained")
+        ax3d = fig.add_subplot(projection="3d")
+    else:
+        fig, ax3d = ax.figure, ax  # type: ignore[assignment]
     path = result.frame_path(samples_per_leg)
-    ax.plot(path[:, 0], path[:, 1], path[:, 2], color="tab:blue", label="frame path")
+    ax3d.plot(path[:, 0], path[:, 1], path[:, 2], color="tab:blue", label="frame path")
     for j, target in enumerate(result.problem.targets):
         p = target.position
-        ax.scatter(*p, color="tab:red", s=30)
-        ax.text(*p, f" T{j + 1}", color="tab:red")
+        ax3d.scatter(*p, color="tab:red", s=30)
+        ax3d.text(*p, f" T{j + 1}", color="tab:red")
         if target.rotation is not None:
             for k, c in enumerate(("r", "g", "b")):
                 axis = target.rotation[:, k] * 0.05
-                ax.plot(*np.column_stack([p, p + axis]), color=c)
+                ax3d.plot(*np.column_stack([p, p + axis]), color=c)
         elif target.approach is not None:
-            ax.plot(*np.column_stack([p, p + 0.08 * target.approach]), color="k")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.set_title(f"{result.problem.frame}: {result.status.value}")
+            ax3d.plot(*np.column_stack([p, p + 0.08 * target.approach]), color="k")
+    ax3d.set_xlabel("x [m]")
+    ax3d.set_ylabel("y [m]")
+    ax3d.set_zlabel("z [m]")
+    ax3d.set_title(f"{result.problem.frame}: {result.status.value}")
     return fig

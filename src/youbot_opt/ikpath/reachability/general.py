@@ -1,4 +1,4 @@
-"""Reachability of spatial targets: witness, certificate, or undecided (issue 14, item 3).
+"""Reachability of 3-D targets on any robot: witness, certificate, or undecided (issue 14, item 3).
 
 Each target of a :class:`~youbot_opt.ikpath.problem.CyclicIKProblem` gets a
 :class:`ReachVerdict3D`: reachable (joint values within the limits that meet it,
