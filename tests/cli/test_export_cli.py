@@ -87,3 +87,16 @@ def test_export_refuses_a_failed_result_unless_allowed(youbot, tmp_path):
     with pytest.raises(ParameterError, match="allow-failed"):
         run_export(_args(tmp_path, "json"))
     assert run_export(_args(tmp_path, "json", allow_failed=True)) == 0
+
+
+def test_the_command_line_runs_export(result, run, capsys):
+    """`youbot-opt export RUN --format csv --rate 250` as a user types it (through main)."""
+    from youbot_opt.cli import main
+
+    assert main(["export", str(run), "--format", "csv", "--rate", "250"]) == 0
+    back = read_csv(run / NAMES["csv"])
+    np.testing.assert_array_equal(back.q, result.sample(RATE).q)
+    with pytest.raises(SystemExit) as info:  # argparse's choices
+        main(["export", str(run), "--format", "xml"])
+    assert info.value.code == 2
+    assert "invalid choice: 'xml'" in capsys.readouterr().err

@@ -22,6 +22,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.payload import Payload
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.scheduler import (
     check_scheduler_address,
@@ -97,10 +98,43 @@ def load_robot(args: argparse.Namespace, *, damping: float | None = None) -> Rob
         args.robot,
         tip_frame=args.tip_frame,
         damping=damping,
+        payload=payload_of(args),
         **loading_options(args),
     )
     flush_warnings()  # the loader's warnings, grouped, before the run
     return robot
+
+
+def payload_of(args: argparse.Namespace) -> Payload | None:
+    """Return the :class:`Payload` of ``--payload-mass/-com/-inertia/-frame`` (None: no mass).
+
+    Raises
+    ------
+    ParameterError
+        If a payload flag is given without ``--payload-mass``, or a value is
+        not a rigid body's (as :class:`~youbot_opt.robot.payload.Payload`).
+    """
+    mass = getattr(args, "payload_mass", None)
+    others = {
+        "--payload-com": getattr(args, "payload_com", None),
+        "--payload-inertia": getattr(args, "payload_inertia", None),
+        "--payload-frame": getattr(args, "payload_frame", None),
+    }
+    if mass is None:
+        given = [flag for flag, value in others.items() if value is not None]
+        if given:
+            raise ParameterError(
+                f"{', '.join(given)} given without --payload-mass: give the payload's mass in [kg]",
+                name="payload_mass",
+            )
+        return None
+    com, inertia, frame = others.values()
+    return Payload(
+        mass=mass,
+        com=(0.0, 0.0, 0.0) if com is None else tuple(com),
+        inertia=((0.0, 0.0, 0.0),) * 3 if inertia is None else tuple(inertia),
+        frame=frame,
+    )
 
 
 def ipopt_options(args: argparse.Namespace) -> IpoptOptions:

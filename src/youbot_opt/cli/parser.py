@@ -54,6 +54,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bounds": ("studies", "bounds"),
     "reproduce-study1": ("reproduce", "run"),
     "ikpath": ("ikpath", "run"),
+    "export": ("export", "run_export"),
 }
 
 DEFAULT_COMMAND = "main"
@@ -298,6 +299,34 @@ def _robot_arguments(parser: argparse.ArgumentParser, *, default: str = "youbot"
     _loading_options(group)
     group.add_argument(
         "--tip-frame", default=None, metavar="F", help="end-effector frame (default: the robot's)"
+    )
+    load = parser.add_argument_group("payload (a rigid body fixed in a robot frame)")
+    load.add_argument(
+        "--payload-mass", type=float, default=None, metavar="KG", help="payload mass in [kg]"
+    )
+    load.add_argument(
+        "--payload-com",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="its centre of mass in [m], in the payload frame (default: the frame's origin)",
+    )
+    load.add_argument(
+        "--payload-inertia",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="I",
+        help="its inertia about the centre of mass in [kg m^2], in the frame's axes: 3 "
+        "principal moments, 6 values ixx ixy ixz iyy iyz izz, or 9 row by row (default 0: "
+        "a point mass)",
+    )
+    load.add_argument(
+        "--payload-frame",
+        default=None,
+        metavar="F",
+        help="the frame carrying it (default: the tip frame)",
     )
 
 
@@ -776,8 +805,60 @@ def _ikpath(sub: _Sub) -> None:
 
 
 #: What adds each command to the parser, in ``--help`` order (``_studies``: three).
+_EXPORT_EPILOG = """\
+formats (docs/export.md):
+    csv      a header row "time [s],<joint>.q [rad],...,<joint>.tau [N m]", then one row a sample
+    json     youbot_opt.trajectory_samples: time, q, v, a, tau, joint names and units
+    ros2     a trajectory_msgs/JointTrajectory message (JSON, also the YAML `ros2 topic pub` reads)
+    rosbag   a rosbag2 folder holding that message (needs `pip install youbot_opt[ros2]`)
+
+examples (RUN_FOLDER: the run folder a solve wrote):
+    youbot-opt export runs/ur5 --format csv --rate 500   [runs/ur5: the run folder of a solve]
+    youbot-opt export runs/ur5/result.npz --format rosbag --topic /arm/joint_trajectory   [idem]
+"""
+
+
+def _export(sub: _Sub) -> None:
+    p = sub.add_parser(
+        "export",
+        help="a run's plan sampled at a controller's rate, as CSV, JSON or ROS 2",
+        description="Sample a saved plan at a controller's rate with its transcription's own "
+        "interpolation (positions, velocities, accelerations, torques) and write it for a "
+        "controller. The result is re-checked against its robot model when loaded.",
+        epilog=_EXPORT_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "run", metavar="RUN_FOLDER", help="a run folder holding result.npz, or a result file"
+    )
+    p.add_argument(
+        "--format", choices=("csv", "json", "ros2", "rosbag"), default="csv", help="(default csv)"
+    )
+    p.add_argument(
+        "--rate", type=float, default=100.0, metavar="HZ", help="sample rate in [Hz] (default 100)"
+    )
+    p.add_argument(
+        "--out",
+        type=out_arg,
+        default=None,
+        metavar="PATH",
+        help="output file or folder (default: trajectory_<rate>hz<suffix> beside the result)",
+    )
+    p.add_argument(
+        "--topic",
+        default=None,
+        metavar="TOPIC",
+        help="the rosbag's topic (default /joint_trajectory)",
+    )
+    p.add_argument(
+        "--allow-failed",
+        action="store_true",
+        help="export a result whose re-check on load failed (it is refused by default)",
+    )
+
+
 _ADDERS: tuple[Callable[[_Sub], None], ...] = (
-    _main, _solve, _report, _robots, _studies, _reproduce, _ikpath,
+    _main, _solve, _report, _robots, _studies, _reproduce, _ikpath, _export,
 )  # fmt: skip
 
 

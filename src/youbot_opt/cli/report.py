@@ -99,6 +99,12 @@ def format_report(robot: RobotModel, q: np.ndarray) -> str:
         lines.append(_limit_row(model.names[jid], lo[iq], hi[iq], vel[iv], eff[iv], units[iv]))
     damping_units = [f"{u.effort} s/{u.position}" for u in units]
     lines.append(f"damping: {_per_joint(robot.damping, damping_units)}")
+    if robot.payload is not None:
+        p = robot.payload
+        lines.append(
+            f"payload: {p.mass:g} kg at {list(p.com)} m in frame {p.frame!r} (included in the "
+            "body masses, M(q) and N(q) below)"
+        )
     mass_matrix = pin.crba(model, data, qa)
     mass_matrix = np.triu(mass_matrix) + np.triu(mass_matrix, 1).T
     lines += [
