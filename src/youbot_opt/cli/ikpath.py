@@ -41,7 +41,14 @@ from youbot_opt.cli.ikpath_text import (
     warn_undecided_planar,
     write_starts,
 )
-from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.output import (
+    print_json,
+    print_outputs,
+    replay_or_warn,
+    run_folder,
+    save_figure,
+    write_summary,
+)
 from youbot_opt.cli.parser import PLANAR_REACH_EVALUATIONS, START_KIND_NAMES
 from youbot_opt.cli.run_size import check_ikpath_size
 from youbot_opt.cli.warning_lines import flush_warnings
@@ -340,9 +347,12 @@ def _planar_outputs(
         files.append(save_result(best, folder / "result.json"))
         files.append(folder / STARTS_FILE)
         if not args.no_replay:
-            files.append(
-                export_ikpath_html(best, folder / "replay.html", segment_time=args.segment_time)
+            page = replay_or_warn(
+                lambda: export_ikpath_html(
+                    best, folder / "replay.html", segment_time=args.segment_time
+                )
             )
+            files += [page] if page is not None else []
         files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
     return files
 
@@ -464,14 +474,15 @@ def _run_3d(args: argparse.Namespace) -> int:
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
         files.append(save_figure(plot_path(best), folder, "ikpath_path3d.png"))
         if not args.no_replay:
-            files.append(
-                export_ikpath_html(
+            page = replay_or_warn(
+                lambda: export_ikpath_html(
                     best,
                     folder / "replay.html",
                     robot=cast("RobotLike", robot),
                     segment_time=args.segment_time,
                 )
             )
+            files += [page] if page is not None else []
         files += [starts.path, folder / "manifest.json", folder / "items"]  # the starts
         code = 0 if best.success else 1
     else:

@@ -17,6 +17,7 @@ import logging
 import math
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import IO, TextIO
@@ -26,7 +27,7 @@ from matplotlib.figure import Figure
 
 from youbot_opt._files import atomic_write_text, json_ready
 from youbot_opt._typing import JSONDict
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.trajopt.io import save_result
 from youbot_opt.trajopt.multistart import MultistartResult
 from youbot_opt.trajopt.refine import Refinement
@@ -284,17 +285,39 @@ def optima_replay(
 def replay_html(
     folder: Path, results: Sequence[TrajOptResult | None], labels: Sequence[str]
 ) -> Path | None:
-    """Write ``replay.html``: the results side by side (one: the plain replay)."""
+    """Write ``replay.html``: the results side by side (one: the plain replay).
+
+    A motion too long to replay (over ``MAX_REPLAY_FRAMES`` frames) gets a
+    warning and no replay; the run's other files are written.
+    """
     kept = [(r, lab) for r, lab in zip(results, labels, strict=True) if r is not None]
     if not kept or any(r.trajectory is None for r, _ in kept):
         return None
     if len(kept) == 1:
         traj = kept[0][0].trajectory
         assert traj is not None  # checked above
-        return export_html(kept[0][0].problem.robot, traj.t, traj.q, folder / "replay.html")
-    return export_results_html(
-        [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]
+        robot = kept[0][0].problem.robot
+        return replay_or_warn(lambda: export_html(robot, traj.t, traj.q, folder / "replay.html"))
+    return replay_or_warn(
+        lambda: export_results_html(
+            [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]
+        )
     )
+
+
+def replay_or_warn(write: Callable[[], Path]) -> Path | None:
+    """Return ``write()``, the replay page; a motion too long to replay warns and gives None.
+
+    The limit is ``youbot_opt.viz.meshcat.scene.MAX_REPLAY_FRAMES``; any other
+    error propagates.
+    """
+    try:
+        return write()
+    except ParameterError as exc:
+        if exc.name != "replay_frames":
+            raise
+        warnings.warn(f"replay.html not written: {exc}", YoubotOptWarning, stacklevel=2)
+        return None
 
 
 def report_outputs(folder: Path, files: list[Path], as_json: bool) -> None:

@@ -36,6 +36,8 @@ __all__ = [
     "START_KIND_NAMES",
     "build_parser",
     "cut_long_values",
+    "MAX_SEGMENT_TIME",
+    "float_in_range",
     "int_in_range",
     "out_arg",
     "parse_lock",
@@ -65,6 +67,8 @@ DEFAULT_TRANSCRIPTION = "radau"
 
 #: Largest ``--max-iter``: IPOPT stores its iteration cap in a 32-bit int.
 MAX_ITER_LIMIT = 2**31 - 1
+#: Longest ``ikpath --segment-time`` [s]: a minute per move already replays slower than any arm.
+MAX_SEGMENT_TIME = 60.0
 #: Largest ``--seed``: NumPy's legacy seeds (the spline guesses) are 32-bit.
 SEED_LIMIT = 2**32 - 1
 
@@ -167,6 +171,23 @@ def int_in_range(flag: str, lo: int, hi: int) -> Callable[[str], int]:
             ) from None
         if not lo <= value <= hi:
             raise argparse.ArgumentTypeError(f"{flag} must be in {lo}..{hi}, got {value}")
+        return value
+
+    return parse
+
+
+def float_in_range(flag: str, lo: float, hi: float) -> Callable[[str], float]:
+    """Return an argparse ``type``: a number in ``(lo, hi]``, else an error naming the range."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be a number in ({lo:g}, {hi:g}], got {text!r}"
+            ) from None
+        if not lo < value <= hi:
+            raise argparse.ArgumentTypeError(f"{flag} must be in ({lo:g}, {hi:g}], got {text}")
         return value
 
     return parse
@@ -793,10 +814,11 @@ def _ikpath(sub: _Sub) -> None:
     )
     out.add_argument(
         "--segment-time",
-        type=float,
+        type=float_in_range("--segment-time", 0.0, MAX_SEGMENT_TIME),
         default=1.0,
         metavar="S",
-        help="replay: duration of each move between targets [s] (default 1)",
+        help=f"replay: duration of each move between targets [s], in (0, {MAX_SEGMENT_TIME:g}] "
+        "(default 1)",
     )
     out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
     _keep_results_arg(out)

@@ -26,8 +26,10 @@ def certificate_of(result: TrajOptResult, record: Refinement | None = None) -> C
     """Return the :func:`youbot_opt.trajopt.certify.certify` certificate of ``result``, or None.
 
     The last round's certificate of its refinement ``record``, when it has one.
+    A failed solve gets none: its plan is no motion to certify, and simulating it
+    can take unbounded time (a 2-knot infeasible solve reports T = 5.7e5 s).
     """
-    if result.trajectory is None:
+    if result.trajectory is None or not result.success:
         return None
     if record is not None and record.certificate is not None:
         return record.certificate  # the last round's, already computed
@@ -73,6 +75,8 @@ def format_result(
         lines.append(note)
     if certificate is not None:
         lines += ["", str(certificate)]
+    elif not result.success:
+        lines += ["", "certificate   none: the solve failed, there is no plan to certify"]
     active = result.active_bounds(1e-6) if result.trajectory is not None else []
     lines += ["", f"active bounds (within 1e-6): {len(active)}"]
     if active:

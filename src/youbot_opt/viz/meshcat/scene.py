@@ -27,6 +27,7 @@ from youbot_opt.exceptions import FrameNotFound, ParameterError
 from youbot_opt.viz.meshcat.geometry import set_object_command
 
 __all__ = [
+    "MAX_REPLAY_FRAMES",
     "GHOST_OPACITY",
     "TARGET_RADIUS",
     "RobotLike",
@@ -296,10 +297,30 @@ def _track_run(t: Array, q: Array) -> Run:
                offset=np.zeros(3), opacity=1.0, color=0, with_targets=False)  # fmt: skip
 
 
+MAX_REPLAY_FRAMES = 36_000
+"""Most key frames of one replay: 20 min at 30 frames/s (each frame holds every body's pose)."""
+
+
 def frame_times(runs: Sequence[Run], fps: float) -> Array:
-    """Key-frame times in [s]: every ``1 / fps`` from the earliest start, and the latest end."""
+    """Key-frame times in [s]: every ``1 / fps`` from the earliest start, and the latest end.
+
+    Raises
+    ------
+    ParameterError
+        If the motion needs more than :data:`MAX_REPLAY_FRAMES` frames at ``fps``
+        (``name="replay_frames"``; the message names the duration and the limit).
+    """
     start = min(float(run.t[0]) for run in runs)
     stop = max(float(run.t[-1]) for run in runs)
+    frames = (stop - start) * fps
+    if not frames <= MAX_REPLAY_FRAMES:
+        raise ParameterError(
+            f"a replay of {stop - start:.6g} s at {fps:g} frames/s needs {frames:.3g} frames, "
+            f"more than MAX_REPLAY_FRAMES = {MAX_REPLAY_FRAMES}; replay a shorter motion or "
+            "lower the frame rate",
+            name="replay_frames",
+            value=frames,
+        )
     grid = start + np.arange(int(np.floor((stop - start) * fps)) + 1) / fps
     return np.append(grid[grid < stop - 1e-9], stop)
 

@@ -1,0 +1,48 @@
+"""Work with no end is bounded: a failed 2-knot solve, a replay of 1e6 s per move (#29).
+
+Before: `solve --knots 2 --no-refine` spent minutes certifying, then replaying, a failed
+plan with T = 5.7e5 s (1.7e7 frames); `ikpath --segment-time 1e6` asked the replay
+for 6e7 frames.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from youbot_opt.cli import main
+from youbot_opt.viz.meshcat.scene import MAX_REPLAY_FRAMES, Run, frame_times
+
+
+def test_a_failed_two_knot_solve_returns_at_once_with_its_files(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert (
+        main(["solve", "--robot", "youbot", "--knots", "2", "--no-refine", "--out", str(out)]) == 1
+    )
+    text = capsys.readouterr()
+    assert "certificate   none: the solve failed" in text.out
+    assert f"more than MAX_REPLAY_FRAMES = {MAX_REPLAY_FRAMES}" in text.err
+    assert not (out / "replay.html").exists()
+    summary = json.loads((out / "summary.json").read_text())
+    assert (out / "result.npz").is_file() and summary["status"] != "solved"
+
+
+@pytest.mark.parametrize("value", ["1e6", "0", "-1", "nan", "inf"])
+def test_segment_time_is_range_checked(value, tmp_path, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["ikpath", "--example", "A", "--segment-time", value, "--out", str(tmp_path / "r")])
+    assert info.value.code == 2
+    assert "--segment-time must be" in capsys.readouterr().err
+
+
+def test_the_frame_limit_names_duration_and_limit():
+    import numpy as np
+
+    from youbot_opt.exceptions import ParameterError
+
+    long = Run(node="", t=np.array([0.0, 1e4]), q=np.zeros((2, 1)), offset=np.zeros(3),
+               opacity=1.0, color=0, with_targets=False)  # fmt: skip
+    with pytest.raises(ParameterError, match=r"replay of 10000 s at 30 frames/s needs 3e\+05"):
+        frame_times([long], 30.0)
+    assert frame_times([long], 3.0).size == 30_001  # within the limit: every frame
