@@ -12,7 +12,9 @@ this script holds the reading of the older ones. It carries:
   manifest of a trajectory sweep names its robot by the SHA-256 of its URDF
   (not its path) and its problem carries no ``beta``; its payloads are carried
   as result files are. Other payloads (IK paths) are copied unchanged. Cached
-  optima (``optima.json``) are left out: the sweep chooses them again.
+  optima (``optima.json``) are left out: the sweep chooses them again. An IK
+  multistart's manifest gains ``start_rng`` and names only the IPOPT fields that
+  differ from their default; its summaries' 0.1.0 statuses get today's values.
 
 Each PATH is carried in place and the original kept beside it as
 ``PATH.0.1.0.bak`` (refused if that exists), or, with ``--out``, written to a
@@ -195,6 +197,9 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
     trajectory = isinstance(params.get("problem"), dict) and "start_q" in params["problem"]
     if trajectory:
         params = trajectory_params(params, urdf)
+    ik = manifest["kind"] == IK_SWEEP_KIND
+    if ik:
+        params = ik_params(params)
     payloads = [r.payload for r in records.values() if r.payload is not None]
     suffix = Path(payloads[0]).suffix if payloads else ".npz"
     carry: Callable[[Path, Path], None] = carry_result if trajectory and suffix == ".npz" else _copy
@@ -210,6 +215,8 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
     try:
         for key, record in records.items():
             summary = dict(record.summary)
+            if ik:
+                summary = ik_summary(summary)
             if trajectory and manifest["kind"] == "pareto":  # 0.1.0 points: warm-started
                 summary.setdefault("start", "previous")
                 summary.setdefault("solve_time_s", 0.0)
@@ -235,11 +242,50 @@ def store_is_current(folder: Path) -> bool:
     problem = manifest["params"].get("problem")
     if isinstance(problem, dict) and "start_q" in problem:
         return "beta" not in problem and "urdf_path" not in problem
+    if manifest["kind"] == IK_SWEEP_KIND:
+        return ik_params(manifest["params"]) == manifest["params"]
     return True
 
 
 def _copy(source: Path, target: Path) -> None:
     shutil.copyfile(source, target)
+
+
+# ------------------------------------------------------------------ IK-path sweep stores
+IK_SWEEP_KIND = "ikpath_multistart"
+IK_STATUS_0_1_0 = {
+    "success": "solved",
+    "time_limit": "max_time",
+    "numerical_error": "non_finite",
+    "check_failed": "constraint_violation",
+}
+"""The IK statuses of 0.1.0 that a journal summary may hold, and today's values."""
+
+
+def ik_params(params: dict[str, Any]) -> dict[str, Any]:
+    """Return an IK multistart's manifest parameters in today's form.
+
+    Its starts are drawn per index (``start_rng``; a store of 0.1.0 drew them
+    from one generator: the starts it did not finish are drawn anew), and its
+    IPOPT settings name only the fields that differ from their IK default
+    (commit 02cdf49 wrote every field).
+    """
+    from youbot_opt.ikpath.sweep import options_json
+    from youbot_opt.nlp.ipopt import IpoptOptions
+
+    params = dict(params)
+    params.setdefault("start_rng", "per-index")
+    options = params.get("options")
+    if isinstance(options, dict) and options.get("type") == "IpoptOptions":
+        fields = {k: v for k, v in options.items() if k != "type"}
+        params["options"] = json_roundtrip(options_json("ipopt", IpoptOptions.for_ikpath(**fields)))
+    return params
+
+
+def ik_summary(summary: dict[str, Any]) -> dict[str, Any]:
+    """Return an IK start's journal summary with today's status value."""
+    status = summary.get("status")
+    return {**summary, "status": IK_STATUS_0_1_0.get(status, status)}
 
 
 # ------------------------------------------------------------------ the command

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from test_ikpath_solvers import LA, LB, TARGETS_2, _two_link_optimum
 
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.multistart import (
@@ -168,10 +168,12 @@ def test_clustering_merges_equal_minima(two_link):
     assert sum(m.count for m in again) == res.n_success
 
 
-def test_starts_are_per_index_and_old_stores_keep_theirs(tmp_path):
-    """Start k does not depend on n_starts; a store without start_rng keeps its legacy draws."""
+def test_starts_are_per_index_and_old_stores_are_carried_by_the_script(tmp_path):
+    """Start k does not depend on n_starts; a store without start_rng is refused, then migrated."""
     import json
     import shutil
+
+    from _migrate import REFUSAL, migrate
 
     prob = example_problem("B")
     np.testing.assert_array_equal(make_starts(prob, 12, seed=3)[:5], make_starts(prob, 5, seed=3))
@@ -179,12 +181,19 @@ def test_starts_are_per_index_and_old_stores_keep_theirs(tmp_path):
     assert not np.array_equal(legacy[1:], make_starts(prob, 4, seed=3)[1:])
     with pytest.raises(ParameterError, match="choose one of per-index, legacy"):
         make_starts(prob, 3, seed=0, rng="global")
-    # An old store: its manifest names no start_rng. Resuming it draws the legacy starts.
+    # An old store: its manifest names no start_rng. The package refuses it, naming the script.
     run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
     manifest = tmp_path / "manifest.json"
     doc = json.loads(manifest.read_text())
     del doc["params"]["start_rng"]
     manifest.write_text(json.dumps(doc))
     shutil.rmtree(tmp_path / "items")  # its items go; the manifest stays
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
+    done = migrate(tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(manifest.read_text())["params"]["start_rng"] == "per-index"
+    # Its unfinished starts are drawn per index now.
     old = run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
-    np.testing.assert_array_equal([np.ravel(r.start) for r in old.results], legacy)
+    new = make_starts(prob, 4, seed=3)
+    np.testing.assert_array_equal([np.ravel(r.start) for r in old.results], new)

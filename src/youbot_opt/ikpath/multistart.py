@@ -35,7 +35,6 @@ from youbot_opt.ikpath.sweep import (
     progress_callbacks,
     solve_starts,
     status_counts,
-    stored_start_rng,
     stream_starts,
 )
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
@@ -353,12 +352,11 @@ def run_multistart(
         found = require_reachable(problem, tuple(verdicts))
     elif check_reachability:
         found = check_targets(problem)
-    rng = "per-index" if sweep.out is None else stored_start_rng(sweep.out)
     x0s: Array | PlanarStarts
-    if rng == "per-index" and not sweep.keep_results:  # each start drawn as its task is made
+    if not sweep.keep_results:  # each start drawn as its task is made
         x0s = PlanarStarts(problem, n_starts, seed, kind=starts, verdicts=found)
-    else:  # a legacy store's starts share one generator: drawn together
-        x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found, rng=rng)
+    else:
+        x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
     executor, workers = resolve_executor(sweep)
     store = None
     if sweep.out is not None:
@@ -370,7 +368,6 @@ def run_multistart(
             n_starts=len(x0s),
             seed=int(seed),
             kind=starts,
-            rng=rng,
             clean=sweep.shard is None,
         )
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))

@@ -54,8 +54,7 @@ class StartSummary(Generic[R]):
     attempts : int
         Attempts made, earlier runs on the same output included.
     message : str or None
-        Why a start that did not succeed failed (``None`` if the journal line
-        predates the field, or on success).
+        Why a start that did not succeed failed (``None`` on success).
     result : IKPathResult or None
         The full result, for the kept starts only (best and distinct minima).
     """
@@ -87,8 +86,8 @@ class StartSummary(Generic[R]):
             objective=num(summary.get("objective"), math.nan),
             max_residual=num(residual, math.inf),
             max_orientation_error=num(summary.get("max_orientation_error"), 0.0),
-            iterations=int(summary.get("iterations") or 0),
-            solve_time=float(summary.get("wall_time_s") or 0.0),
+            iterations=int(summary["iterations"]),
+            solve_time=float(summary["wall_time_s"]),
             attempts=int(attempts),
             message=summary.get("message"),
         )

@@ -26,6 +26,7 @@ from typing import Any, Generic, NamedTuple, TypeVar
 
 import numpy as np
 
+from youbot_opt._files import MIGRATION_SCRIPT
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.ikpath.io import encode_result, load_result, problem_spec
@@ -68,7 +69,6 @@ __all__ = [
     "starts_store",
     "solve_starts",
     "stream_starts",
-    "stored_start_rng",
     "start_key",
 ]
 
@@ -216,11 +216,8 @@ def start_key(index: int, n_starts: int) -> str:
     return f"start_{int(index):0{width}d}"
 
 
-_IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
+IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
 """The IK IPOPT settings a sweep manifest held before the unified IpoptOptions."""
-_IPOPT_FIELDS_SINCE_02CDF49 = ("fast_kkt", "linear_solver_library")
-"""IPOPT settings added after commit 02cdf49 (which wrote every field): left out of
-both manifest forms when they hold the IK default, so stores of either form resume."""
 _AL_FIELDS_FINAL_PHASE = (
     "initial_multipliers",
     "retry_least_squares",
@@ -231,16 +228,14 @@ _AL_FIELDS_FINAL_PHASE = (
 default, so that planar stores written before them still resume."""
 
 
-def options_json(
-    method: str, options: ALOptions | IpoptOptions | None, *, every_field: bool = False
-) -> dict[str, Any]:
+def options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[str, Any]:
     """Return the JSON-ready settings of ``method`` that a sweep manifest holds.
 
     The one rule of the planar and spatial IK sweeps. Defaults are filled in,
     so ``None`` equals :class:`ALOptions` ``()`` or :meth:`IpoptOptions.for_ikpath`.
-    IPOPT fields added since 74bfa23 are left out when they hold their default
-    (``every_field=True``: written all the same, as commit 02cdf49 did), and so
-    are the AL fields of the spatial final phase: stores of those versions resume.
+    IPOPT fields added since 74bfa23, and the AL fields of the spatial final
+    phase, are written only when they differ from their default (the manifest
+    form of today's stores).
 
     Parameters
     ----------
@@ -248,8 +243,6 @@ def options_json(
         The method.
     options : ALOptions or IpoptOptions or None
         Its settings.
-    every_field : bool
-        Write every IPOPT field (the manifest form of commit 02cdf49).
 
     Returns
     -------
@@ -266,26 +259,15 @@ def options_json(
     for f in dataclasses.fields(opts):
         value = getattr(opts, f.name)
         if (
-            (
-                not every_field
-                and isinstance(opts, IpoptOptions)
-                and f.name not in _IPOPT_FIELDS_74BFA23
-                and value == getattr(defaults, f.name)
-            )
-            or (
-                isinstance(opts, IpoptOptions)
-                and f.name in _IPOPT_FIELDS_SINCE_02CDF49
-                and value == getattr(defaults, f.name)
-            )
-            or (
-                isinstance(opts, ALOptions)
-                and f.name in _AL_FIELDS_FINAL_PHASE
-                and value == getattr(ALOptions(), f.name)
-            )
+            isinstance(opts, IpoptOptions)
+            and f.name not in IPOPT_FIELDS_74BFA23
+            and value == getattr(defaults, f.name)
+        ) or (
+            isinstance(opts, ALOptions)
+            and f.name in _AL_FIELDS_FINAL_PHASE
+            and value == getattr(ALOptions(), f.name)
         ):
-            # Fields added since 74bfa23 are written only when they differ from the
-            # default, so that a store of that version still resumes (same manifest).
-            continue
+            continue  # written only when not default
         if isinstance(value, Mapping):
             value = {
                 str(k): v if isinstance(v, str | int | float | bool | None) else repr(v)
@@ -295,33 +277,33 @@ def options_json(
     return out
 
 
-def _stored_options_form(
-    out: str | os.PathLike[str], method: str, options: ALOptions | IpoptOptions | None
-) -> dict[str, Any]:
-    """Return the options as ``out``'s manifest holds them: every field if so, else compact."""
-    full = options_json(method, options, every_field=True)
-    try:
-        manifest = json.loads((Path(out) / "manifest.json").read_text(encoding="utf-8"))
-        stored = manifest["params"]["options"]
-    except (OSError, ValueError, KeyError, TypeError):
-        stored = None  # no store yet, or the store itself reports the bad manifest
-    return full if stored == full else options_json(method, options)
+def _refuse_old(out: str | os.PathLike[str]) -> None:
+    """Refuse an IK store of 0.1.0 in ``out``: no ``start_rng``, or every IPOPT field written.
 
-
-def stored_start_rng(out: str | os.PathLike[str]) -> str:
-    """How the starts of the IK sweep in ``out`` were drawn (``"per-index"`` for a new one).
-
-    A manifest written before per-index starts names no ``start_rng``: its
-    starts are ``"legacy"`` ones, and resuming it keeps them.
+    ``scripts/migrate_0_1_0.py`` carries such a store forward.
     """
     manifest = Path(out) / "manifest.json"
-    if not manifest.is_file():
-        return "per-index"
     try:
-        params = json.loads(manifest.read_text(encoding="utf-8")).get("params") or {}
-    except (OSError, ValueError, AttributeError):
-        return "per-index"  # the store itself reports the bad manifest
-    return str(params.get("start_rng", "legacy"))
+        stored = json.loads(manifest.read_text(encoding="utf-8"))
+        version, params = int(stored["schema_version"]), stored["params"]
+        if stored["kind"] != SWEEP_KIND:
+            return  # another sweep: the store refuses it
+        options = params["options"]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return  # none, or another form: the store checks it
+    defaults = IpoptOptions.for_ikpath()
+    every_field = isinstance(options, dict) and any(
+        name not in IPOPT_FIELDS_74BFA23
+        and name != "type"
+        and hasattr(defaults, name)
+        and value == getattr(defaults, name)
+        for name, value in options.items()
+    )
+    if "start_rng" not in params or every_field:
+        raise ResultFileError(
+            f"sweep manifest {manifest}: written by youbot_opt 0.1.0 (schema {version}); "
+            f"run `python {MIGRATION_SCRIPT} {out}` to carry it forward"
+        )
 
 
 def _write_encoded(encode: Callable[[Any], bytes], result: Any, path: Path) -> None:
@@ -345,7 +327,6 @@ def open_store(
     n_starts: int,
     seed: int,
     kind: str,
-    rng: str = "per-index",
     clean: bool = True,
 ) -> SweepStore:
     """Open (or create) the output directory of one IK-path multistart.
@@ -368,9 +349,6 @@ def open_store(
         Number of starts and seed of the random starts.
     kind : {"feasible", "uniform"}
         How random starts are drawn.
-    rng : {"per-index", "legacy"}
-        How their random numbers are drawn (``"legacy"``: stores written
-        before per-index starts, whose manifest does not name it).
     clean : bool
         Remove leftover temporary files (not in a shard run: other shards
         may be writing into the same folder).
@@ -385,14 +363,13 @@ def open_store(
     ParameterError
         If ``out`` holds another kind of sweep or one with other parameters.
     ResultFileError
-        If its manifest is corrupted or from a newer schema.
+        If its manifest is corrupted, from a newer schema, or written by 0.1.0
+        (``scripts/migrate_0_1_0.py`` carries it forward).
     """
+    _refuse_old(out)
     spec = problem_spec(problem)
-    params = starts_params(
-        spec, method, _stored_options_form(out, method, options), n_starts, seed, kind
-    )
-    if rng != "legacy":
-        params["start_rng"] = rng
+    params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
+    params["start_rng"] = "per-index"  # start k does not depend on n_starts
     return starts_store(out, PLANAR_STARTS, params, load_result, clean)
 
 
