@@ -9,8 +9,7 @@ import pytest
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial_solve import open_spatial_store
-from youbot_opt.ikpath.sweep import options_json
+from youbot_opt.ikpath.sweep import open_store_3d, options_json
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
 
@@ -49,10 +48,10 @@ def test_spatial_store_resumes_with_the_defaults_and_refuses_other_settings(ur5_
     default (True), which it writes out.
     """
     kw = {"method": "al", "n_starts": 4, "seed": 0, "kind": "mixed"}
-    first = open_spatial_store(tmp_path, ur5_problem, options=None, **kw)
+    first = open_store_3d(tmp_path, ur5_problem, options=None, **kw)
     assert not first.resumed
-    again = open_spatial_store(tmp_path, ur5_problem, options=SPATIAL_AL_OPTIONS, **kw)
+    again = open_store_3d(tmp_path, ur5_problem, options=SPATIAL_AL_OPTIONS, **kw)
     assert again.resumed
     changed = replace(SPATIAL_AL_OPTIONS, newton_final=False)
     with pytest.raises(ParameterError, match="newton_final"):
-        open_spatial_store(tmp_path, ur5_problem, options=changed, **kw)
+        open_store_3d(tmp_path, ur5_problem, options=changed, **kw)

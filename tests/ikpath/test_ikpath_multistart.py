@@ -61,7 +61,7 @@ def test_multistart_finds_enumerated_global_optimum(two_link, method):
     assert res.best.objective == pytest.approx(e_star, abs=1e-9)
     assert configuration_distance(res.best.configurations, q_star) < 1e-6
     assert res.best_count >= 1
-    assert sum(m.count for m in res.minima) == res.n_success
+    assert sum(m.count for m in res.minima) == res.n_converged
     assert [m.objective for m in res.minima] == sorted(m.objective for m in res.minima)
 
 
@@ -153,7 +153,7 @@ def test_clustering_merges_equal_minima(two_link):
     """Results within the tolerances form one minimum whose count is the number of members."""
     res = run_multistart(two_link, n_starts=10, seed=2, sweep=SweepOptions(workers=1))
     merged = cluster_minima(res.results, objective_tol=1e6, q_tol=1e6)
-    assert len(merged) == 1 and merged[0].count == res.n_success
+    assert len(merged) == 1 and merged[0].count == res.n_converged
     again = res.distinct_optima()  # default tolerances: the same clustering as res.minima
     assert [(m.objective, m.count, m.start_indices) for m in again] == [
         (m.objective, m.count, m.start_indices) for m in res.minima
@@ -165,7 +165,7 @@ def test_clustering_merges_equal_minima(two_link):
             assert abs(a.objective - b.objective) > 1e-6 * max(1.0, abs(a.objective)) or (
                 configuration_distance(a.result.configurations, b.result.configurations) > 1e-3
             )
-    assert sum(m.count for m in again) == res.n_success
+    assert sum(m.count for m in again) == res.n_converged
 
 
 def test_starts_are_per_index_and_old_stores_are_carried_by_the_script(tmp_path):

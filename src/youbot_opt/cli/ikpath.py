@@ -280,7 +280,7 @@ def _report(
         starts=ms.n_starts,
         seed=ms.seed,
         start_kind=args.start_kind,
-        n_success=ms.n_success,
+        n_success=ms.n_converged,
         best_count=ms.best_count,
         status_counts=ms.status_counts(),
         minima=[

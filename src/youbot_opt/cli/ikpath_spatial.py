@@ -173,8 +173,8 @@ def run_spatial(args: argparse.Namespace) -> int:
     from youbot_opt.cli.output import print_json, print_outputs, run_folder, save_figure
     from youbot_opt.cli.warning_lines import flush_warnings
     from youbot_opt.ikpath.io import RobotSource, save_result
+    from youbot_opt.ikpath.multistart import run_multistart
     from youbot_opt.ikpath.reachability.spatial import Reachability3D, check_reachability_3d
-    from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
     from youbot_opt.robot.load import load_model
     from youbot_opt.sweeps.resume import ShardReport
 
@@ -226,8 +226,9 @@ def run_spatial(args: argparse.Namespace) -> int:
                     "a larger --reach-evaluations may decide it)",
                     file=sys.stderr,
                 )
-        ms = run_spatial_multistart(
+        ms = run_multistart(
             problem,
+            planar=False,
             method=args.method,
             n_starts=args.starts,
             seed=args.seed,
@@ -247,11 +248,11 @@ def run_spatial(args: argparse.Namespace) -> int:
             seed=args.seed,
             start_kind=kind,
             max_wall_time=args.max_wall_time,
-            workers=ms.workers,
-            n_success=ms.n_success,
+            workers=ms.n_workers,
+            n_success=ms.n_converged,
             status_counts=ms.status_counts(),
-            minima=[{"E": ms.results[g[0]].objective, "count": len(g)} for g in ms.minima],
-            starts_per_second=ms.starts_per_second,
+            minima=[{"E": m.objective, "count": m.count} for m in ms.minima],
+            starts_per_second=ms.starts_per_second(),
             wall_time=ms.wall_time,
             resumed=ms.resumed,
             **start_fields(ms.results, ms.attempts),

@@ -4,7 +4,7 @@ Owns what the IK multistarts add to the robot-agnostic sweep engine
 (:mod:`youbot_opt.sweeps`), once for both problem kinds: the resumable start loop
 :func:`solve_starts`, whose problem-specific parts (worker tasks, crashed result,
 summary figures, store format) come in a :class:`StartSolvers` (:data:`PLANAR_STARTS`,
-``spatial_solve.SPATIAL_STARTS``); the manifest rule (:func:`options_json`,
+and :data:`STARTS_3D`); the manifest rule (:func:`options_json`,
 :func:`starts_params`, :func:`starts_store`), start keys and progress. A start that
 fails every attempt becomes a ``CRASHED`` result whose message is the last reason.
 
@@ -29,11 +29,12 @@ import numpy as np
 from youbot_opt._files import MIGRATION_SCRIPT
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.ikpath.io import encode_result, load_result, problem_spec
-from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.io import encode_result, load_result, problem_spec, problem_spec_3d
+from youbot_opt.ikpath.methods.al import SPATIAL_AL_OPTIONS, ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions, SpatialIpoptSolver
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
+from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -55,13 +56,16 @@ from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 __all__ = [
     "PAYLOAD_SUFFIX",
     "PLANAR_STARTS",
+    "STARTS_3D",
     "SWEEP_KIND",
+    "SWEEP_KIND_3D",
     "StartSolvers",
     "StreamedOutcome",
     "SweepOutcome",
     "crashed_result",
     "encoded_saver",
     "open_store",
+    "open_store_3d",
     "options_json",
     "progress_callbacks",
     "status_counts",
@@ -77,6 +81,11 @@ SWEEP_KIND = "ikpath_multistart"
 
 PAYLOAD_SUFFIX = ".ikpath"
 """Suffix of the stored result files (JSON; not ``.json``, which names the records)."""
+
+SWEEP_KIND_3D = "spatial_ikpath_multistart"
+"""``kind`` of the sweep store of a multistart by the general (3-D) methods (its manifest)."""
+
+_PAYLOAD_SUFFIX_3D = ".spatial"  # JSON of encode_result (".json" names the records)
 
 
 ProblemT = TypeVar("ProblemT")
@@ -208,6 +217,49 @@ PLANAR_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
     encode=encode_result,
 )
 """How :func:`solve_starts` solves the starts of a planar :class:`CyclicIKProblem`."""
+
+
+def _solve_al_3d(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
+    """Worker task: one start with the general AL (exceptions propagate: they are retried)."""
+    result = solve(problem, method="al", x0=x0, options=options, planar=False)
+    assert isinstance(result, IKPathResult)
+    return result
+
+
+def _solve_ipopt_3d(handle: WorkerSolver[SpatialIpoptSolver], x0: Array) -> IKPathResult:
+    """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
+    return handle.get().solve(x0)
+
+
+def _crashed_3d(
+    problem: CyclicIKProblem,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    x0: Array,
+    message: str,
+) -> IKPathResult:
+    return crashed_result(build_result, problem, method, x0, message)
+
+
+def _figures_3d(result: IKPathResult) -> dict[str, Any]:
+    """Figures of a start's record summary: its largest target errors in [m] and [rad]."""
+    return {
+        "max_position_error": float(np.max(result.position_errors)),
+        "max_orientation_error": float(np.max(result.orientation_errors)),
+    }
+
+
+STARTS_3D: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
+    solve_al=_solve_al_3d,
+    ipopt_solver=SpatialIpoptSolver,
+    solve_ipopt=_solve_ipopt_3d,
+    crashed=_crashed_3d,
+    figures=_figures_3d,
+    store_kind=SWEEP_KIND_3D,
+    suffix=_PAYLOAD_SUFFIX_3D,
+    encode=encode_result,
+)
+"""How :func:`solve_starts` solves the starts of a problem by the general (3-D) methods."""
 
 
 def start_key(index: int, n_starts: int) -> str:
@@ -371,6 +423,40 @@ def open_store(
     params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
     params["start_rng"] = "per-index"  # start k does not depend on n_starts
     return starts_store(out, PLANAR_STARTS, params, load_result, clean)
+
+
+def open_store_3d(
+    out: str | os.PathLike[str],
+    problem: CyclicIKProblem,
+    *,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    n_starts: int,
+    seed: int,
+    kind: str,
+    clean: bool = True,
+) -> SweepStore:
+    """Open (or create) the output directory of one multistart by the general (3-D) methods.
+
+    The manifest holds the problem (:func:`~youbot_opt.ikpath.io.problem_spec_3d`:
+    robot fingerprint, frame, targets, limits, weights), method, options,
+    ``n_starts``, ``seed`` and start kind; reopening with any of them changed
+    raises. Stored starts are reloaded with the same forward-kinematics
+    re-check as :func:`~youbot_opt.ikpath.io.load_result`.
+
+    Raises
+    ------
+    ParameterError
+        If ``out`` holds another kind of sweep or one with other parameters.
+    ResultFileError
+        If its manifest is corrupted or from a newer schema.
+    """
+    if options is None and method == "al":
+        options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
+    spec = problem_spec_3d(problem)
+    params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
+    load = functools.partial(load_result, robot=problem.model)
+    return starts_store(out, STARTS_3D, params, load, clean)
 
 
 def starts_params(
@@ -542,7 +628,7 @@ def solve_starts(
         ``out`` and ``progress`` are the caller's.
     solvers : StartSolvers
         How the problem's starts are solved: :data:`PLANAR_STARTS`, or
-        :data:`~youbot_opt.ikpath.spatial_solve.SPATIAL_STARTS`.
+        :data:`STARTS_3D`.
     store : SweepStore, optional
         Where finished starts are saved and resumed from.
     on_resumed : callable ``(results)``, optional
@@ -652,7 +738,6 @@ def stream_starts(
     distance: Callable[[ResultT, ResultT], float],
     objective_tol: float,
     q_tol: float,
-    by_objective: bool,
     on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
     on_final: Callable[[int, _Outcome], None] | None = None,
 ) -> StreamedOutcome[ResultT] | ShardReport:
@@ -675,9 +760,6 @@ def stream_starts(
         Distance in [rad] of two successful results' configurations.
     objective_tol, q_tol : float
         Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
-    by_objective : bool
-        The start closest to the targets is ranked by ``(max_residual, E)``
-        (planar) rather than by position plus orientation error (spatial).
     problem, method, options, sweep, solvers, on_resumed, on_final
         As :func:`solve_starts`; ``on_resumed`` is given an iterable, read once.
 
@@ -793,7 +875,7 @@ def stream_starts(
             ClusterIndices(clusters, c, index_of, sorted_order=False) for c in range(len(clusters))
         ),
         kept=kept,
-        tally=tally_starts(results.summaries(), by_objective=by_objective),
+        tally=tally_starts(results.summaries()),
     )
 
 
