@@ -44,11 +44,13 @@ from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StartTally, S
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
     STARTS_3D,
-    open_store,
-    open_store_3d,
+    SWEEP_KIND,
+    SWEEP_KIND_3D,
     progress_callbacks,
+    result_codec,
     solve_starts,
     status_counts,
+    store_params,
     stream_starts,
 )
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
@@ -57,7 +59,7 @@ from youbot_opt.sweeps.pool import ExecutorLike, default_workers
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 from youbot_opt.sweeps.selection import Clusters
-from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.store import open_store
 
 __all__ = [
     "LocalOptimum",
@@ -479,22 +481,10 @@ def _run_planar(
         x0s = PlanarStarts(problem, n_starts, seed, kind=starts, verdicts=found)
     else:
         x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
-    store = None
-    if sweep.out is not None:
-        store = open_store(
-            sweep.out,
-            problem,
-            method=method,
-            options=options,
-            n_starts=len(x0s),
-            seed=int(seed),
-            kind=starts,
-            clean=sweep.shard is None,
-        )
     executor, n_workers = resolve_executor(sweep)
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
-        planar=True, verdicts=found, objective_tol=objective_tol, q_tol=q_tol, store=store,
+        planar=True, verdicts=found, objective_tol=objective_tol, q_tol=q_tol,
         sweep=replace(sweep, executor=executor, workers=n_workers),
     )  # fmt: skip
 
@@ -534,23 +524,10 @@ def _run_3d(
     else:  # each start drawn as its task is made
         x0s = Starts3D(problem, n_starts, seed, kind=starts)
     executor, n_workers = resolve_executor(sweep)
-    sweep = replace(sweep, executor=executor, workers=n_workers)
-    store = None
-    if sweep.out is not None:
-        store = open_store_3d(
-            sweep.out,
-            problem,
-            method=method,
-            options=options,
-            n_starts=len(x0s),
-            seed=int(seed),
-            kind=starts,
-            clean=sweep.shard is None,
-        )
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
-        planar=False, verdicts=(), objective_tol=objective_tol, q_tol=q_tol, store=store,
-        sweep=sweep,
+        planar=False, verdicts=(), objective_tol=objective_tol, q_tol=q_tol,
+        sweep=replace(sweep, executor=executor, workers=n_workers),
     )  # fmt: skip
 
 
@@ -567,10 +544,22 @@ def _run(
     verdicts: tuple[ReachVerdict, ...],
     objective_tol: float,
     q_tol: float,
-    store: SweepStore | None,
     sweep: SweepOptions,
 ) -> MultistartResult | ShardReport:
     """Solve the starts ``x0s`` (``sweep`` resolved) and cluster the minima."""
+    store = None
+    if sweep.out is not None:
+        params = store_params(
+            problem, planar=planar, method=method, options=options, n_starts=len(x0s),
+            seed=seed, kind=starts,
+        )  # fmt: skip
+        store = open_store(
+            sweep.out,
+            SWEEP_KIND if planar else SWEEP_KIND_3D,
+            params,
+            result_codec(problem, planar=planar),
+            clean=sweep.shard is None,
+        )
     solvers = PLANAR_STARTS if planar else STARTS_3D
     distance = minimum_distance(problem, planar=planar)
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))

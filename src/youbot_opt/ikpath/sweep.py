@@ -1,11 +1,11 @@
-"""Run the starts of an IK multistart (planar or spatial): one task per start, saved as it ends.
+"""Run the starts of an IK multistart (planar or 3-D): one task per start, saved as it ends.
 
 Owns what the IK multistarts add to the robot-agnostic sweep engine
 (:mod:`youbot_opt.sweeps`), once for both problem kinds: the resumable start loop
 :func:`solve_starts`, whose problem-specific parts (worker tasks, crashed result,
 summary figures, store format) come in a :class:`StartSolvers` (:data:`PLANAR_STARTS`,
-and :data:`STARTS_3D`); the manifest rule (:func:`options_json`,
-:func:`starts_params`, :func:`starts_store`), start keys and progress. A start that
+:data:`STARTS_3D`); the manifest rule (:func:`options_json`,
+:func:`store_params`, :func:`result_codec`), start keys and progress. A start that
 fails every attempt becomes a ``CRASHED`` result whose message is the last reason.
 
     outcome = solve_starts(problem, x0s, method="al", options=None, solvers=PLANAR_STARTS,
@@ -18,7 +18,6 @@ import dataclasses
 import functools
 import json
 import math
-import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,7 +48,7 @@ from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import ShardReport, run_resumable
 from youbot_opt.sweeps.selection import Clusters
-from youbot_opt.sweeps.store import ItemRecord, SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.store import Codec, ItemRecord, SweepStore, atomic_write_bytes
 from youbot_opt.sweeps.tasks import TaskSequence
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 
@@ -64,13 +63,11 @@ __all__ = [
     "SweepOutcome",
     "crashed_result",
     "encoded_saver",
-    "open_store",
-    "open_store_3d",
     "options_json",
     "progress_callbacks",
     "status_counts",
-    "starts_params",
-    "starts_store",
+    "result_codec",
+    "store_params",
     "solve_starts",
     "stream_starts",
     "start_key",
@@ -329,7 +326,7 @@ def options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[
     return out
 
 
-def _refuse_old(out: str | os.PathLike[str]) -> None:
+def _refuse_old(out: Path) -> None:
     """Refuse an IK store of 0.1.0 in ``out``: no ``start_rng``, or every IPOPT field written.
 
     ``scripts/migrate_0_1_0.py`` carries such a store forward.
@@ -370,140 +367,73 @@ def encoded_saver(encode: Callable[[ResultT], bytes]) -> Callable[[ResultT, Path
     return functools.partial(_write_encoded, encode)
 
 
-def open_store(
-    out: str | os.PathLike[str],
+def store_params(
     problem: CyclicIKProblem,
     *,
+    planar: bool,
     method: str,
     options: ALOptions | IpoptOptions | None,
     n_starts: int,
     seed: int,
     kind: str,
-    clean: bool = True,
-) -> SweepStore:
-    """Open (or create) the output directory of one IK-path multistart.
+) -> dict[str, Any]:
+    """Return the parameters an IK multistart's manifest binds its store to.
 
-    The store's kind is ``"ikpath_multistart"``; each start's payload is
-    ``items/<hh>/<key>.ikpath``, the JSON of
-    :func:`youbot_opt.ikpath.io.encode_result`.
+    The problem (planar methods: :func:`~youbot_opt.ikpath.io.problem_spec`, its
+    chain, targets and ``use_limits``; general ones:
+    :func:`~youbot_opt.ikpath.io.problem_spec_3d`, robot fingerprint, frame,
+    targets, limits, weights), method, options (:func:`options_json`; the
+    general AL's ``None`` written out as its defaults), ``n_starts``, ``seed``
+    and start kind, and on the planar methods ``start_rng`` (start ``k`` does
+    not depend on ``n_starts``). A rerun with any of them changed is refused
+    by the store.
 
     Parameters
     ----------
-    out : path-like
-        Output directory (created if missing).
     problem : CyclicIKProblem
-        The problem (its chain, targets and ``use_limits`` go into the manifest).
+        The problem.
+    planar : bool
+        Whether the planar methods solve it (the store's kind: :data:`SWEEP_KIND`,
+        else :data:`SWEEP_KIND_3D`).
     method : {"al", "ipopt"}
         Solver.
     options : ALOptions or IpoptOptions or None
         Settings of the method (``None``: its defaults).
     n_starts, seed : int
         Number of starts and seed of the random starts.
-    kind : {"feasible", "uniform"}
+    kind : str
         How random starts are drawn.
-    clean : bool
-        Remove leftover temporary files (not in a shard run: other shards
-        may be writing into the same folder).
-
-    Returns
-    -------
-    SweepStore
-        The store; ``store.resumed`` tells whether the directory held this sweep.
-
-    Raises
-    ------
-    ParameterError
-        If ``out`` holds another kind of sweep or one with other parameters.
-    ResultFileError
-        If its manifest is corrupted, from a newer schema, or written by 0.1.0
-        (``scripts/migrate_0_1_0.py`` carries it forward).
     """
-    _refuse_old(out)
-    spec = problem_spec(problem)
-    params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
-    params["start_rng"] = "per-index"  # start k does not depend on n_starts
-    return starts_store(out, PLANAR_STARTS, params, load_result, clean)
-
-
-def open_store_3d(
-    out: str | os.PathLike[str],
-    problem: CyclicIKProblem,
-    *,
-    method: str,
-    options: ALOptions | IpoptOptions | None,
-    n_starts: int,
-    seed: int,
-    kind: str,
-    clean: bool = True,
-) -> SweepStore:
-    """Open (or create) the output directory of one multistart by the general (3-D) methods.
-
-    The manifest holds the problem (:func:`~youbot_opt.ikpath.io.problem_spec_3d`:
-    robot fingerprint, frame, targets, limits, weights), method, options,
-    ``n_starts``, ``seed`` and start kind; reopening with any of them changed
-    raises. Stored starts are reloaded with the same forward-kinematics
-    re-check as :func:`~youbot_opt.ikpath.io.load_result`.
-
-    Raises
-    ------
-    ParameterError
-        If ``out`` holds another kind of sweep or one with other parameters.
-    ResultFileError
-        If its manifest is corrupted or from a newer schema.
-    """
-    if options is None and method == "al":
+    if not planar and options is None and method == "al":
         options = SPATIAL_AL_OPTIONS  # the defaults of solve(planar=False), written out
-    spec = problem_spec_3d(problem)
-    params = starts_params(spec, method, options_json(method, options), n_starts, seed, kind)
-    load = functools.partial(load_result, robot=problem.model)
-    return starts_store(out, STARTS_3D, params, load, clean)
-
-
-def starts_params(
-    problem: dict[str, Any],
-    method: str,
-    options: dict[str, Any],
-    n_starts: int,
-    seed: int,
-    starts: str,
-) -> dict[str, Any]:
-    """Return the parameters an IK multistart's manifest binds its store to.
-
-    ``problem`` is the problem's JSON description, ``options`` the settings of
-    :func:`options_json`, ``starts`` the start kind; a rerun with any of them
-    changed is refused by the store.
-    """
-    return {
-        "problem": problem,
+    params: dict[str, Any] = {
+        "problem": problem_spec(problem) if planar else problem_spec_3d(problem),
         "method": method,
-        "options": options,
+        "options": options_json(method, options),
         "n_starts": int(n_starts),
         "seed": int(seed),
-        "starts": starts,
+        "starts": kind,
     }
+    if planar:
+        params["start_rng"] = "per-index"
+    return params
 
 
-def starts_store(
-    out: str | os.PathLike[str],
-    solvers: StartSolvers[Any, ResultT],
-    params: dict[str, Any],
-    load: Callable[[Path], ResultT],
-    clean: bool,
-) -> SweepStore:
-    """Open (or create) the sweep store of an IK multistart in the problem's format.
+def result_codec(problem: CyclicIKProblem, *, planar: bool) -> Codec[IKPathResult]:
+    """Return how an IK multistart's payloads are stored: :mod:`youbot_opt.ikpath.io` JSON.
 
-    Payloads are ``solvers.encode(result)``, written by the workers without a
-    per-item fsync and made durable by group; ``load`` reads and re-checks one.
+    Payloads are ``encode_result(result)``, written by the workers without a
+    per-item fsync and made durable by group; each is reloaded with the same
+    re-check as :func:`~youbot_opt.ikpath.io.load_result`. A planar store of
+    0.1.0 is refused (``scripts/migrate_0_1_0.py`` carries it forward).
     """
-    return SweepStore(
-        out,
-        kind=solvers.store_kind,
-        params=params,
+    solvers = PLANAR_STARTS if planar else STARTS_3D
+    return Codec(
         save=encoded_saver(solvers.encode),
-        load=load,
+        load=load_result if planar else functools.partial(load_result, robot=problem.model),
         suffix=solvers.suffix,
-        clean=clean,
         encode=solvers.encode,
+        refuse_old=_refuse_old if planar else None,
     )
 
 
