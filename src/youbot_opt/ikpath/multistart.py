@@ -54,10 +54,8 @@ from youbot_opt.ikpath.sweep import (
     stream_starts,
 )
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
-from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.sweeps.pool import ExecutorLike, default_workers
+from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
-from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 from youbot_opt.sweeps.selection import Clusters
 from youbot_opt.sweeps.store import open_store
 
@@ -70,7 +68,6 @@ __all__ = [
     "configuration_distance",
     "make_starts",
     "minimum_distance",
-    "resolve_executor",
     "run_multistart",
 ]
 
@@ -644,40 +641,3 @@ def _stored_minima(
 
 def _key_index(key: str) -> int:
     return int(key.rsplit("_", 1)[1])
-
-
-def resolve_executor(sweep: SweepOptions) -> tuple[ExecutorLike, int]:
-    """Return where the starts of a multistart run and how many run at once.
-
-    ``executor`` ``None`` becomes ``"serial"`` when ``workers`` is 1, else
-    ``"process"``; the count is ``workers`` if given, else the CPUs available,
-    the caller's pool size or the Dask cluster's total threads.
-    """
-    executor, max_workers = sweep.executor, sweep.workers
-    if executor is None:
-        workers = max_workers or default_workers()
-        executor = "serial" if workers == 1 else "process"
-    elif executor == "serial":
-        workers = 1
-    elif executor == "process":
-        workers = max_workers or default_workers()
-    elif sweep.distributed:  # a Dask cluster: its total threads unless workers says otherwise
-        workers = max_workers or _dask_threads(executor)
-    else:  # the caller's pool or executor: its size unless max_workers says otherwise
-        size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
-        dask_client = getattr(executor, "_client", None)  # client.get_executor()
-        if size is None and dask_client is not None and is_dask_client(dask_client):
-            size = cluster_threads(dask_client)
-        workers = max_workers or int(size or default_workers())
-    return executor, workers
-
-
-def _dask_threads(executor: object) -> int:
-    """Total threads of the Dask cluster of a client or scheduler address."""
-    if is_dask_client(executor):
-        return cluster_threads(executor)  # type: ignore[arg-type]
-    client = connect(str(executor))
-    try:
-        return cluster_threads(client)
-    finally:
-        client.close()
