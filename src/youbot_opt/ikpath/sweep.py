@@ -265,7 +265,7 @@ def start_key(index: int, n_starts: int) -> str:
     return f"start_{int(index):0{width}d}"
 
 
-IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
+_IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
 """The IK IPOPT settings a sweep manifest held before the unified IpoptOptions."""
 _AL_FIELDS_FINAL_PHASE = (
     "initial_multipliers",
@@ -309,7 +309,7 @@ def options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[
         value = getattr(opts, f.name)
         if (
             isinstance(opts, IpoptOptions)
-            and f.name not in IPOPT_FIELDS_74BFA23
+            and f.name not in _IPOPT_FIELDS_74BFA23
             and value == getattr(defaults, f.name)
         ) or (
             isinstance(opts, ALOptions)
@@ -342,7 +342,7 @@ def _refuse_old(out: Path) -> None:
         return  # none, or another form: the store checks it
     defaults = IpoptOptions.for_ikpath()
     every_field = isinstance(options, dict) and any(
-        name not in IPOPT_FIELDS_74BFA23
+        name not in _IPOPT_FIELDS_74BFA23
         and name != "type"
         and hasattr(defaults, name)
         and value == getattr(defaults, name)
