@@ -35,7 +35,7 @@ Spatial problems (issue 14, ``--spatial-only`` / ``--planar-only``): ur5
 frame placements of configurations drawn uniformly in the joint limits
 (clipped to ``[-pi, pi]``, ``default_rng(2026)``), even targets full poses,
 odd ones positions. Per case: ms per solve of both methods from the greedy
-start (median of ``--repeats``), starts/s of :func:`run_spatial_multistart`
+start (median of ``--repeats``), starts/s of :func:`run_multistart`
 on 1 and 2 workers, and the total joint motion ``E`` of the best minimum
 against the greedy baseline (each target solved by damped least squares
 from the previous configuration, :func:`greedy_path`): the ratio must be <= 1.
@@ -82,7 +82,6 @@ from youbot_opt.ikpath import (
 from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D
 from youbot_opt.ikpath.solve import solve
-from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.sweeps.options import SweepOptions
@@ -295,8 +294,8 @@ def bench_spatial(robot: str, n_targets: int, repeats: int, n_starts: int) -> di
     )
     best = math.inf
     for method in ("al", "ipopt"):
-        ms = run_spatial_multistart(problem, method=method, n_starts=n_starts, seed=0, workers=2)
-        row[f"{method}_starts_per_s_2w"] = ms.starts_per_second
+        ms = run_multistart(problem, method=method, n_starts=n_starts, seed=0, workers=2)
+        row[f"{method}_starts_per_s_2w"] = ms.starts_per_second()
         row[f"{method}_best_E"] = ms.best.objective if ms.best.success else math.nan
         row[f"{method}_n_success"] = sum(r.success for r in ms.results)
         row[f"{method}_n_minima"] = len(ms.minima)
@@ -347,7 +346,7 @@ def bench_memory_case(n_starts: int, keep: bool) -> dict[str, Any]:
         held, peak = tracemalloc.get_traced_memory()  # the result is still alive: held
         tracemalloc.stop()
         tic = time.perf_counter()
-        best, counts, n_success, minima = ms.best, ms.status_counts(), ms.n_success, ms.minima
+        best, counts, n_success, minima = ms.best, ms.status_counts(), ms.n_converged, ms.minima
         accessors = time.perf_counter() - tic
         row: dict[str, Any] = {
             "starts": n_starts,

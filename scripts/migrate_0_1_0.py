@@ -12,7 +12,9 @@ this script holds the reading of the older ones. It carries:
   manifest of a trajectory sweep names its robot by the SHA-256 of its URDF
   (not its path) and its problem carries no ``beta``; its payloads are carried
   as result files are. Other payloads (IK paths) are copied unchanged. Cached
-  optima (``optima.json``) are left out: the sweep chooses them again.
+  optima (``optima.json``) are left out: the sweep chooses them again. An IK
+  multistart's manifest gains ``start_rng`` and names only the IPOPT fields that
+  differ from their default; its summaries' 0.1.0 statuses get today's values.
 - an IK-path result file (``.json``, schema ``youbot_opt.ikpath_result`` 1 or
   ``youbot_opt.spatial_ikpath_result`` 1) to ``youbot_opt.ikpath_result`` 2: the
   status values of 0.1.0 (``"success"``, ...) renamed, a planar file's
@@ -204,6 +206,9 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
     trajectory = isinstance(params.get("problem"), dict) and "start_q" in params["problem"]
     if trajectory:
         params = trajectory_params(params, urdf)
+    ik = manifest["kind"] == IK_SWEEP_KIND
+    if ik:
+        params = ik_params(params)
     payloads = [r.payload for r in records.values() if r.payload is not None]
     suffix = Path(payloads[0]).suffix if payloads else ".npz"
     carry: Callable[[Path, Path], None] = (
@@ -221,6 +226,8 @@ def carry_store(source: Path, target: Path, urdf: Path | None) -> None:
     try:
         for key, record in records.items():
             summary = dict(record.summary)
+            if ik or manifest["kind"] == IK_SWEEP_KIND_3D:
+                summary = ik_summary(summary)
             if trajectory and manifest["kind"] == "pareto":  # 0.1.0 points: warm-started
                 summary.setdefault("start", "previous")
                 summary.setdefault("solve_time_s", 0.0)
@@ -246,6 +253,8 @@ def store_is_current(folder: Path) -> bool:
     problem = manifest["params"].get("problem")
     if isinstance(problem, dict) and "start_q" in problem:
         return "beta" not in problem and "urdf_path" not in problem
+    if manifest["kind"] == IK_SWEEP_KIND and ik_params(manifest["params"]) != manifest["params"]:
+        return False
     return ik_payloads_are_current(folder, manifest)
 
 
@@ -253,9 +262,11 @@ def _copy(source: Path, target: Path) -> None:
     shutil.copyfile(source, target)
 
 
-# ------------------------------------------------------------------ IK-path result files
+# ------------------------------------------------------------------ IK-path sweep stores
+IK_SWEEP_KIND = "ikpath_multistart"
+IK_SWEEP_KIND_3D = "spatial_ikpath_multistart"  # the 3-D IK multistart's store kind
 IK_SCHEMA_3D = "youbot_opt.spatial_ikpath_result"  # 0.1.0: a 3-D result's own schema
-IK_STATUS = {  # the IKStatus values of 0.1.0 -> SolveStatus values
+IK_STATUS = {  # the IKStatus values of 0.1.0 -> SolveStatus values (results and summaries)
     "success": "solved",
     "time_limit": "max_time",
     "numerical_error": "non_finite",
@@ -350,6 +361,32 @@ FILE_KINDS: dict[str, tuple[Callable[[Path], bool], Callable[[Path, Path], None]
     "IK-path result": (ik_result_is_current, carry_ik_result),
 }
 """Per kind of file: whether it is current, and how it is carried forward."""
+
+
+def ik_params(params: dict[str, Any]) -> dict[str, Any]:
+    """Return an IK multistart's manifest parameters in today's form.
+
+    Its starts are drawn per index (``start_rng``; a store of 0.1.0 drew them
+    from one generator: the starts it did not finish are drawn anew), and its
+    IPOPT settings name only the fields that differ from their IK default
+    (commit 02cdf49 wrote every field).
+    """
+    from youbot_opt.ikpath.sweep import options_json
+    from youbot_opt.nlp.ipopt import IpoptOptions
+
+    params = dict(params)
+    params.setdefault("start_rng", "per-index")
+    options = params.get("options")
+    if isinstance(options, dict) and options.get("type") == "IpoptOptions":
+        fields = {k: v for k, v in options.items() if k != "type"}
+        params["options"] = json_roundtrip(options_json("ipopt", IpoptOptions.for_ikpath(**fields)))
+    return params
+
+
+def ik_summary(summary: dict[str, Any]) -> dict[str, Any]:
+    """Return an IK start's journal summary with today's status value."""
+    status = summary.get("status")
+    return {**summary, "status": IK_STATUS.get(status, status)}
 
 
 # ------------------------------------------------------------------ the command

@@ -9,10 +9,10 @@ import pytest
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial_solve import open_spatial_store
-from youbot_opt.ikpath.sweep import options_json
+from youbot_opt.ikpath.sweep import SWEEP_KIND_3D, options_json, result_codec, store_params
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
+from youbot_opt.sweeps.store import SweepStore, open_store
 
 
 @pytest.fixture(scope="module")
@@ -49,10 +49,16 @@ def test_spatial_store_resumes_with_the_defaults_and_refuses_other_settings(ur5_
     default (True), which it writes out.
     """
     kw = {"method": "al", "n_starts": 4, "seed": 0, "kind": "mixed"}
-    first = open_spatial_store(tmp_path, ur5_problem, options=None, **kw)
+    first = _open_3d(tmp_path, ur5_problem, options=None, **kw)
     assert not first.resumed
-    again = open_spatial_store(tmp_path, ur5_problem, options=AL_OPTIONS_3D, **kw)
+    again = _open_3d(tmp_path, ur5_problem, options=AL_OPTIONS_3D, **kw)
     assert again.resumed
     changed = replace(AL_OPTIONS_3D, newton_final=False)
     with pytest.raises(ParameterError, match="newton_final"):
-        open_spatial_store(tmp_path, ur5_problem, options=changed, **kw)
+        _open_3d(tmp_path, ur5_problem, options=changed, **kw)
+
+
+def _open_3d(out, problem, *, options, **kw) -> SweepStore:  # type: ignore[no-untyped-def]
+    """Open the store of a multistart of ``problem`` by the general methods."""
+    params = store_params(problem, planar=False, options=options, **kw)
+    return open_store(out, SWEEP_KIND_3D, params, result_codec(problem, planar=False))

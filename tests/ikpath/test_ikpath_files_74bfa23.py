@@ -64,8 +64,11 @@ def test_old_ipopt_sweep_store_resumes_without_solving(tmp_path):
     """An IK IPOPT multistart store of 74bfa23 resumes: all 3 starts loaded, manifest kept."""
     out = _old_store(tmp_path)
     manifest = (out / "manifest.json").read_text()
-    options = json.loads(manifest)["params"]["options"]
-    assert set(options) == {"type", "tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra"}
+    params = json.loads(manifest)["params"]
+    assert set(params["options"]) == {
+        "type", "tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra"
+    }  # fmt: skip
+    assert params["start_rng"] == "per-index"  # added by the script
     result = _resume(out)
     assert result.resumed == 3
     assert [r.status for r in result.results] == [SolveStatus.SOLVED] * 3
@@ -107,8 +110,8 @@ def test_old_store_payload_is_refused_naming_the_migration(tmp_path):
         load_result(OLD / "ik_sweep" / "items" / "start_0000.ikpath")
 
 
-def test_store_with_every_ipopt_field_resumes_too(tmp_path):
-    """A manifest holding every IpoptOptions field (as commit 02cdf49 wrote it) also resumes."""
+def test_store_with_every_ipopt_field_is_refused_then_carried(tmp_path):
+    """A manifest holding every IpoptOptions field (as commit 02cdf49 wrote it) is carried too."""
 
     def every_field(path: Path) -> None:
         manifest = json.loads(path.read_text())
@@ -126,3 +129,8 @@ def test_store_with_every_ipopt_field_resumes_too(tmp_path):
 
     out = _old_store(tmp_path, every_field)
     assert _resume(out).resumed == 3
+    # The same form in a store of today's schema is refused, naming the script.
+    every_field(out / "manifest.json")
+    shutil.rmtree(str(out) + ".0.1.0.bak")
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        _resume(out)

@@ -23,7 +23,6 @@ from youbot_opt.cli import main
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import PlanarStarts, Starts3D, make_starts, make_starts_3d
 from youbot_opt.ikpath.stored import StoredResults
 from youbot_opt.nlp.status import SolveStatus
@@ -62,9 +61,9 @@ def _assert_same(lean: MultistartResult, full: MultistartResult) -> None:
     assert lean.best_index == full.best_index
     assert _minima(lean.minima) == _minima(full.minima)
     assert lean.status_counts() == full.status_counts()
-    assert (lean.n_starts, lean.n_success, lean.best_count) == (
+    assert (lean.n_starts, lean.n_converged, lean.best_count) == (
         full.n_starts,
-        full.n_success,
+        full.n_converged,
         full.best_count,
     )
     assert list(lean.attempts) == list(full.attempts)
@@ -102,25 +101,23 @@ def test_planar_nothing_succeeded_best_is_the_start_closest_to_the_targets(two_l
     opts = ALOptions(max_outer_iterations=1, newton_final=False, retry_least_squares=False)
     full = _planar(two_link, tmp_path / "full", keep=True, options=opts, n_starts=10)
     lean = _planar(two_link, tmp_path / "lean", keep=False, options=opts, n_starts=10)
-    assert full.n_success == 0 and full.minima == ()  # the case under test
+    assert full.n_converged == 0 and full.minima == ()  # the case under test
     _assert_same(lean, full)
     assert lean.best.max_position_error() == full.best.max_position_error()
 
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_spatial_lean_run_equals_the_full_run(ur5_reachable, tmp_path, workers):
-    def run(out, keep) -> SpatialMultistart:  # type: ignore[no-untyped-def]
+    def run(out, keep) -> MultistartResult:  # type: ignore[no-untyped-def]
         sweep = SweepOptions(out=out, keep_results=keep)
-        return run_spatial_multistart(
-            ur5_reachable, n_starts=8, seed=1, workers=workers, sweep=sweep
-        )
+        return run_multistart(ur5_reachable, n_starts=8, seed=1, workers=workers, sweep=sweep)
 
     full, lean = run(tmp_path / "full", True), run(tmp_path / "lean", False)
     assert isinstance(lean.results, StoredResults) and lean.results.held == len(lean.minima)
     assert lean.best.objective == full.best.objective and lean.best_index == full.best_index
-    assert [tuple(g) for g in lean.minima] == [tuple(g) for g in full.minima]
-    assert any(len(g) > 1 for g in full.minima)  # a real clustering
-    assert lean.status_counts() == full.status_counts() and lean.n_success == full.n_success
+    assert _minima(lean.minima) == _minima(full.minima)
+    assert any(m.count > 1 for m in full.minima)  # a real clustering
+    assert lean.status_counts() == full.status_counts() and lean.n_converged == full.n_converged
     assert list(lean.attempts) == list(full.attempts)
     for i, r in enumerate(full.results):
         np.testing.assert_array_equal(lean.results[i].configurations, r.configurations)

@@ -149,7 +149,7 @@ def test_worker_crashing_once_is_retried_and_succeeds(two_link, method, faults, 
     ref = run_multistart(two_link, method=method, n_starts=N, seed=4, sweep=SweepOptions(workers=1))
     assert (tmp_path / "crashed-start_0002").exists()  # the hook really fired
     assert res.attempts == (1, 1, 2, 1, 1, 1)
-    assert res.n_success == N
+    assert res.n_converged == N
     _same_results(res, ref)
     rec = _record(out, "start_0002")
     assert rec["state"] == "done" and rec["attempts"] == 2

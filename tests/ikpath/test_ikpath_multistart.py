@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from test_ikpath_solvers import LA, LB, TARGETS_2, _two_link_optimum
 
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.ikpath import sweep as sweep_mod
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.multistart import (
@@ -61,7 +61,7 @@ def test_multistart_finds_enumerated_global_optimum(two_link, method):
     assert res.best.objective == pytest.approx(e_star, abs=1e-9)
     assert configuration_distance(res.best.configurations, q_star) < 1e-6
     assert res.best_count >= 1
-    assert sum(m.count for m in res.minima) == res.n_success
+    assert sum(m.count for m in res.minima) == res.n_converged
     assert [m.objective for m in res.minima] == sorted(m.objective for m in res.minima)
 
 
@@ -153,7 +153,7 @@ def test_clustering_merges_equal_minima(two_link):
     """Results within the tolerances form one minimum whose count is the number of members."""
     res = run_multistart(two_link, n_starts=10, seed=2, sweep=SweepOptions(workers=1))
     merged = cluster_minima(res.results, objective_tol=1e6, q_tol=1e6)
-    assert len(merged) == 1 and merged[0].count == res.n_success
+    assert len(merged) == 1 and merged[0].count == res.n_converged
     again = res.distinct_optima()  # default tolerances: the same clustering as res.minima
     assert [(m.objective, m.count, m.start_indices) for m in again] == [
         (m.objective, m.count, m.start_indices) for m in res.minima
@@ -165,13 +165,15 @@ def test_clustering_merges_equal_minima(two_link):
             assert abs(a.objective - b.objective) > 1e-6 * max(1.0, abs(a.objective)) or (
                 configuration_distance(a.result.configurations, b.result.configurations) > 1e-3
             )
-    assert sum(m.count for m in again) == res.n_success
+    assert sum(m.count for m in again) == res.n_converged
 
 
-def test_starts_are_per_index_and_old_stores_keep_theirs(tmp_path):
-    """Start k does not depend on n_starts; a store without start_rng keeps its legacy draws."""
+def test_starts_are_per_index_and_old_stores_are_carried_by_the_script(tmp_path):
+    """Start k does not depend on n_starts; a store without start_rng is refused, then migrated."""
     import json
     import shutil
+
+    from _migrate import REFUSAL, migrate
 
     prob = example_problem("B")
     np.testing.assert_array_equal(make_starts(prob, 12, seed=3)[:5], make_starts(prob, 5, seed=3))
@@ -179,12 +181,19 @@ def test_starts_are_per_index_and_old_stores_keep_theirs(tmp_path):
     assert not np.array_equal(legacy[1:], make_starts(prob, 4, seed=3)[1:])
     with pytest.raises(ParameterError, match="choose one of per-index, legacy"):
         make_starts(prob, 3, seed=0, rng="global")
-    # An old store: its manifest names no start_rng. Resuming it draws the legacy starts.
+    # An old store: its manifest names no start_rng. The package refuses it, naming the script.
     run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
     manifest = tmp_path / "manifest.json"
     doc = json.loads(manifest.read_text())
     del doc["params"]["start_rng"]
     manifest.write_text(json.dumps(doc))
     shutil.rmtree(tmp_path / "items")  # its items go; the manifest stays
+    with pytest.raises(ResultFileError, match=REFUSAL):
+        run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
+    done = migrate(tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(manifest.read_text())["params"]["start_rng"] == "per-index"
+    # Its unfinished starts are drawn per index now.
     old = run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
-    np.testing.assert_array_equal([np.ravel(r.start) for r in old.results], legacy)
+    new = make_starts(prob, 4, seed=3)
+    np.testing.assert_array_equal([np.ravel(r.start) for r in old.results], new)

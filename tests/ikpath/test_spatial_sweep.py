@@ -10,7 +10,7 @@ import pytest
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.dls import dls_ik
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D
-from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
+from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.options import SweepOptions
@@ -44,7 +44,7 @@ def test_starts_are_seeded_prefix_stable_and_coherent_ones_meet_their_targets(ur
 def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachable, tmp_path):
     def run(**kw):
         sweep = SweepOptions(executor="serial", out=tmp_path, **kw)
-        return run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4, sweep=sweep)
+        return run_multistart(ur5_reachable, method="ipopt", n_starts=4, sweep=sweep)
 
     report = run(shard=(1, 2))  # share 1 of 2: starts 0 and 2, then a report (not a raise)
     assert isinstance(report, ShardReport) and report.shard == (1, 2)
@@ -63,7 +63,7 @@ def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachabl
     assert calls[-1][2] == min(r.objective for r in collected.results if r.success)
     again = run()
     assert again.resumed == 4
-    fresh = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4)
+    fresh = run_multistart(ur5_reachable, method="ipopt", n_starts=4)
     for a, b, c in zip(fresh.results, collected.results, again.results, strict=True):
         assert a.status is b.status is c.status
         # Loaded starts keep the stored angles; every start is the same IPOPT from the
@@ -71,7 +71,7 @@ def test_shards_save_their_starts_and_reruns_resume_without_solving(ur5_reachabl
         np.testing.assert_array_equal(a.configurations, b.configurations)
         np.testing.assert_array_equal(b.configurations, c.configurations)
     with pytest.raises(ParameterError):  # another sweep in the same folder
-        run_spatial_multistart(
+        run_multistart(
             ur5_reachable, method="ipopt", n_starts=4, seed=1, sweep=SweepOptions(out=tmp_path)
         )
 
@@ -91,23 +91,23 @@ def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
 
     monkeypatch.setattr(IpoptIKSolver3D, "solve", flaky)
     sweep = SweepOptions(executor="serial", out=tmp_path)
-    res = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
+    res = run_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
     assert len(calls) == 2 and res.attempts == (2, 1, 1)
     assert res.results[0].status is SolveStatus.CRASHED
     assert res.results[0].message.startswith("RuntimeError: boom")
     assert res.status_counts()["crashed"] == 1 and res.best_index != 0
-    again = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
+    again = run_multistart(ur5_reachable, method="ipopt", n_starts=3, sweep=sweep)
     assert len(calls) == 2 and again.resumed == 3  # out of attempts: not tried again
     assert again.results[0].status is SolveStatus.CRASHED
     assert again.results[0].message.startswith("RuntimeError: boom")
 
 
 def test_process_pool_equals_serial(ur5_reachable):
-    serial = run_spatial_multistart(ur5_reachable, method="ipopt", n_starts=4)
-    pooled = run_spatial_multistart(
+    serial = run_multistart(ur5_reachable, method="ipopt", n_starts=4)
+    pooled = run_multistart(
         ur5_reachable, method="ipopt", n_starts=4, sweep=SweepOptions(executor="process", workers=2)
     )
-    assert serial.workers == 1 and pooled.workers == 2
+    assert serial.n_workers == 1 and pooled.n_workers == 2
     # The same IPOPT from the same starts, in worker processes: equal to rounding (1e-10 rad).
     for a, b in zip(serial.results, pooled.results, strict=True):
         assert a.status is b.status
@@ -130,7 +130,7 @@ def test_a_planar_robot_multistart_starts_where_the_planar_one_does_and_finds_it
     robot = CyclicIKProblem(robot=chain.robot(), targets=targets)
     assert robot.chain is not None and not isinstance(robot.robot, PlanarChain)
     ref = run_multistart(planar, n_starts=20, seed=0)
-    got = run_spatial_multistart(robot, n_starts=20, seed=0)
+    got = run_multistart(robot, n_starts=20, seed=0, planar=False)  # the general methods
     assert got.start_kind == "feasible"
     np.testing.assert_allclose(
         [r.start.ravel() for r in got.results], [r.start.ravel() for r in ref.results], atol=1e-9
@@ -138,4 +138,4 @@ def test_a_planar_robot_multistart_starts_where_the_planar_one_does_and_finds_it
     assert ref.best.success and got.best.success
     assert abs(got.best.objective - ref.best.objective) <= 1e-8
     with pytest.raises(ParameterError, match="needs a planar robot"):
-        run_spatial_multistart(ur5_reachable, n_starts=2, starts="feasible")
+        run_multistart(ur5_reachable, n_starts=2, starts="feasible")

@@ -195,7 +195,7 @@ def test_cli_multistart_reports_the_refined_plan(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """trajectory.png and result.npz show the refined plan (--no-refine: the best start's grid)."""
-    import youbot_opt.viz.plots as plots
+    import youbot_opt.cli.studies as plots  # the command module imports the name it draws with
     from youbot_opt.trajopt.io import load_refined, load_result
 
     drawn: list[Any] = []

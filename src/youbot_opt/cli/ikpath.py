@@ -60,7 +60,6 @@ from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
-from youbot_opt.ikpath.spatial_solve import run_spatial_multistart
 from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.load import load_model
@@ -455,8 +454,9 @@ def _run_3d(args: argparse.Namespace) -> int:
     starts: StartsFile | None = None
     if not unreachable:
         warn_undecided_3d(verdicts)
-        ms = run_spatial_multistart(
+        ms = run_multistart(
             problem,
+            planar=False,
             method=args.method,
             n_starts=args.starts,
             seed=args.seed,

@@ -28,7 +28,6 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import Reachability3D, ReachVerdict3D
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict
 from youbot_opt.ikpath.result import IKPathResult
-from youbot_opt.ikpath.spatial_solve import SpatialMultistart
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 
 __all__ = [
@@ -205,7 +204,7 @@ def planar_summary(
         starts=ms.n_starts,
         seed=ms.seed,
         start_kind=args.start_kind,
-        n_success=ms.n_success,
+        n_success=ms.n_converged,
         best_count=ms.best_count,
         status_counts=ms.status_counts(),
         minima=[
@@ -359,7 +358,7 @@ def summary_3d(
 def add_result_3d(
     doc: JSONDict,
     args: argparse.Namespace,
-    ms: SpatialMultistart,
+    ms: MultistartResult,
     kind: str,
     starts: StartsFile,
 ) -> None:
@@ -374,11 +373,11 @@ def add_result_3d(
         seed=args.seed,
         start_kind=kind,
         max_wall_time=args.max_wall_time,
-        workers=ms.workers,
-        n_success=ms.n_success,
+        workers=ms.n_workers,
+        n_success=ms.n_converged,
         status_counts=ms.status_counts(),
-        minima=[{"E": ms.results[g[0]].objective, "count": len(g)} for g in ms.minima],
-        starts_per_second=ms.starts_per_second,
+        minima=[{"E": m.objective, "count": m.count} for m in ms.minima],
+        starts_per_second=ms.starts_per_second(),
         wall_time=ms.wall_time,
         resumed=ms.resumed,
         retried=starts.retried,

@@ -1,7 +1,7 @@
 """Minimum-motion cyclic IK paths: planar arms (study 2, spec ``ikpath.md``) and any robot.
 
 One problem, :class:`CyclicIKProblem`, on a RobotModel or a PlanarChain; build,
-check, solve, inspect (a 3-D robot: :func:`solve`, :func:`run_spatial_multistart`)::
+check, solve, inspect (a 3-D robot too: :func:`solve`, :func:`run_multistart`)::
 
     chain = PlanarChain(lengths=[3, 2, 2], q_lower=-1.5708, q_upper=1.5708)
     problem = CyclicIKProblem(robot=chain, targets=[(-1, 5), (-3, 3), (-3, -4), (0, 5), (3, 2)])
@@ -45,7 +45,6 @@ from youbot_opt.ikpath.result import (
     OuterIterate,
 )
 from youbot_opt.ikpath.solve import METHODS, Method, solve
-from youbot_opt.ikpath.spatial_solve import SpatialMultistart, run_spatial_multistart
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 from youbot_opt.ikpath.targets import Target, load_targets
@@ -74,7 +73,6 @@ __all__ = [
     "Reachability",
     "RobotSource",
     "STUDY_E_A",
-    "SpatialMultistart",
     "Reachability3D",
     "Target",
     "ReachVerdict3D",
@@ -97,7 +95,6 @@ __all__ = [
     "minimize_bfgs",
     "require_reachable",
     "run_multistart",
-    "run_spatial_multistart",
     "save_result",
     "solve",
     "solve_augmented_lagrangian",

@@ -1,16 +1,19 @@
 """Seeded multistart of IK-path solves, with the distinct local minima (spec ``ikpath.md``).
 
-Owns :func:`run_multistart`, :class:`MultistartResult`, :class:`LocalOptimum`,
-:func:`configuration_distance` and :func:`cluster_minima`. The starts are drawn in
-the parent process, so they do not depend on the executor; how they run
-(crash-isolated workers, one retry, resumable ``out`` directory) is one
-:class:`~youbot_opt.sweeps.options.SweepOptions` (:mod:`youbot_opt.ikpath.sweep`).
+Owns :func:`run_multistart` (any robot: a planar chain by the planar methods, any
+other by the general ones, as :func:`~youbot_opt.ikpath.solve.solve` chooses),
+:class:`MultistartResult`, :class:`LocalOptimum`, :func:`configuration_distance`
+and :func:`cluster_minima`. The starts are drawn in the parent process, so they
+do not depend on the executor; how they run (crash-isolated workers, one retry,
+resumable ``out`` directory) is one :class:`~youbot_opt.sweeps.options.SweepOptions`
+(:mod:`youbot_opt.ikpath.sweep`).
 
     ms = run_multistart(problem, n_starts=100, sweep=SweepOptions(workers=4, out="runs/ik"))
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -25,25 +28,36 @@ from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.methods.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.planar import check_reachability as check_planar
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
-from youbot_opt.ikpath.starts import START_KINDS, PlanarStarts, make_starts
+from youbot_opt.ikpath.starts import (
+    START_KINDS,
+    START_KINDS_3D,
+    PlanarStarts,
+    Starts3D,
+    check_start_request,
+    make_starts,
+    make_starts_3d,
+)
 from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StartTally, StoredResults
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
-    open_store,
+    STARTS_3D,
+    SWEEP_KIND,
+    SWEEP_KIND_3D,
     progress_callbacks,
+    result_codec,
     solve_starts,
     status_counts,
-    stored_start_rng,
+    store_params,
     stream_starts,
 )
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
-from youbot_opt.sweeps.options import SweepOptions
-from youbot_opt.sweeps.pool import ExecutorLike, default_workers
+from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
-from youbot_opt.sweeps.scheduler import cluster_threads, connect, is_dask_client
 from youbot_opt.sweeps.selection import Clusters
+from youbot_opt.sweeps.store import open_store
 
 __all__ = [
     "LocalOptimum",
@@ -53,7 +67,7 @@ __all__ = [
     "cluster_minima",
     "configuration_distance",
     "make_starts",
-    "resolve_executor",
+    "minimum_distance",
     "run_multistart",
 ]
 
@@ -102,6 +116,11 @@ class MultistartResult:
         ``"al"`` or ``"ipopt"``.
     seed : int
         Seed of the random starts.
+    start_kind : str
+        How the random starts were drawn (:data:`~youbot_opt.ikpath.starts.START_KINDS`,
+        :data:`~youbot_opt.ikpath.starts.START_KINDS_3D`).
+    planar : bool
+        Whether the planar methods solved the starts (else the general ones).
     results : sequence of IKPathResult
         One per start, in start order: a tuple, or with ``keep_results=False``
         a :class:`~youbot_opt.ikpath.stored.StoredResults` that holds the
@@ -110,7 +129,7 @@ class MultistartResult:
     minima : tuple of LocalOptimum
         Distinct minima of the successful starts, best (lowest E) first.
     verdicts : tuple of ReachVerdict
-        Reachability verdicts of the targets (empty if not checked).
+        Planar reachability verdicts of the targets (empty if not checked).
     wall_time : float
         Elapsed time in [s].
     n_workers : int
@@ -133,6 +152,8 @@ class MultistartResult:
     problem: CyclicIKProblem
     method: str
     seed: int
+    start_kind: str
+    planar: bool
     results: Sequence[IKPathResult]
     minima: tuple[LocalOptimum, ...]
     verdicts: tuple[ReachVerdict, ...]
@@ -151,23 +172,27 @@ class MultistartResult:
         return len(self.results)
 
     @property
-    def n_success(self) -> int:
-        """Number of successful starts."""
+    def n_converged(self) -> int:
+        """Number of successful starts (they met the targets)."""
         if self.tally is not None:
-            return self.tally.n_success
+            return self.tally.n_converged
         return sum(r.success for r in self.results)
 
     @property
     def best(self) -> IKPathResult:
-        """Best successful result, or the start with the smallest residual if none succeeded.
+        """Best successful result, or the start closest to the targets if none succeeded.
 
-        Ties of the residual go to the smaller ``E``, then to the lower start index.
+        Closest: the smallest position plus orientation error (0 on the planar
+        methods); ties go to the smaller ``E``, then to the lower start index.
         """
         if self.minima:
             return self.minima[0].result
         if self.tally is not None:
             return self.results[self.tally.closest]
-        return min(self.results, key=lambda r: (r.max_position_error(), r.objective))
+        return min(
+            self.results,
+            key=lambda r: (r.max_position_error() + r.max_orientation_error(), r.objective),
+        )
 
     @property
     def best_index(self) -> int:
@@ -182,7 +207,7 @@ class MultistartResult:
         return self.minima[0].count if self.minima else 0
 
     def status_counts(self) -> dict[str, int]:
-        """Count the starts per :class:`IKStatus` value."""
+        """Count the starts per status value."""
         if self.tally is not None:
             return dict(self.tally.status_counts)
         return status_counts(self.results)
@@ -202,14 +227,17 @@ class MultistartResult:
         temporary table), with the same result as ``keep_results=True``.
         """
         results = self.results
+        distance = minimum_distance(self.problem, planar=self.planar)
         if not isinstance(results, StoredResults):
-            return cluster_minima(results, objective_tol=objective_tol, q_tol=q_tol)
+            return cluster_minima(
+                results, objective_tol=objective_tol, q_tol=q_tol, distance=distance
+            )
         if (objective_tol, q_tol) == (self.objective_tol, self.q_tol):
             return self.minima
         for name, tol in (("objective_tol", objective_tol), ("q_tol", q_tol)):
             if not tol >= 0:
                 raise ParameterError(f"{name} must be >= 0, got {tol!r}", name=name, value=tol)
-        kept, clusters = results.cluster(_minima_rule(objective_tol, q_tol))
+        kept, clusters = results.cluster(_minima_rule(objective_tol, q_tol, distance))
         reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
         return _stored_minima(clusters, reps)
 
@@ -226,8 +254,36 @@ def configuration_distance(qa: Array, qb: Array) -> float:
     return float(np.max(np.abs(diff - shift)))
 
 
+def minimum_distance(
+    problem: CyclicIKProblem, *, planar: bool
+) -> Callable[[IKPathResult, IKPathResult], float]:
+    """Return how far apart two results of ``problem`` are, in [rad], for telling minima apart.
+
+    The planar methods: :func:`configuration_distance` (every joint modulo a
+    common 2 pi shift); the general ones: the largest joint difference with
+    the continuous joints modulo a common 2 pi shift.
+    """
+    if planar:
+        return _planar_distance
+    return functools.partial(_distance_3d, np.asarray(problem.continuous, dtype=bool))
+
+
+def _planar_distance(a: IKPathResult, b: IKPathResult) -> float:
+    return configuration_distance(a.configurations, b.configurations)
+
+
+def _distance_3d(continuous: Array, a: IKPathResult, b: IKPathResult) -> float:
+    diff = a.configurations - b.configurations
+    shift = np.where(continuous, 2 * np.pi * np.round(np.median(diff, axis=0) / (2 * np.pi)), 0.0)
+    return float(np.max(np.abs(diff - shift)))
+
+
 def cluster_minima(
-    results: Sequence[IKPathResult], *, objective_tol: float = 1e-6, q_tol: float = 1e-3
+    results: Sequence[IKPathResult],
+    *,
+    objective_tol: float = 1e-6,
+    q_tol: float = 1e-3,
+    distance: Callable[[IKPathResult, IKPathResult], float] | None = None,
 ) -> tuple[LocalOptimum, ...]:
     """Group successful results into distinct local minima, best first.
 
@@ -242,7 +298,10 @@ def cluster_minima(
     objective_tol : float
         Relative tolerance on ``E`` (``|dE| <= objective_tol * max(1, E)``).
     q_tol : float
-        Tolerance in [rad] on :func:`configuration_distance`.
+        Tolerance in [rad] on ``distance``.
+    distance : callable ``(a, b) -> float``, optional
+        How far apart two results are in [rad] (default: :func:`configuration_distance`
+        of their configurations; see :func:`minimum_distance`).
 
     Returns
     -------
@@ -252,9 +311,7 @@ def cluster_minima(
     groups = cluster_optima(
         (i for i, r in enumerate(results) if r.success),
         objective=lambda i: results[i].objective,
-        distance=lambda i, j: configuration_distance(
-            results[i].configurations, results[j].configurations
-        ),
+        distance=lambda i, j: (distance or _planar_distance)(results[i], results[j]),
         obj_tol=objective_tol,
         dist_tol=q_tol,
     )
@@ -273,17 +330,23 @@ def run_multistart(
     problem: CyclicIKProblem,
     *,
     method: Method = "al",
-    n_starts: int = 100,
+    n_starts: int | None = None,
     seed: int = 0,
-    starts: str = "feasible",
+    starts: str | None = None,
     options: ALOptions | IpoptOptions | None = None,
+    planar: bool | None = None,
     check_reachability: bool = True,
     objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
     verdicts: Sequence[ReachVerdict] | None = None,
+    workers: int | None = None,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> MultistartResult | ShardReport:
     """Solve from ``n_starts`` seeded starts in parallel and report the distinct minima.
+
+    A problem with a planar chain (:attr:`CyclicIKProblem.chain`) is solved by
+    the planar methods, any other (or ``planar=False``) by the general ones,
+    as :func:`~youbot_opt.ikpath.solve.solve` chooses.
 
     Parameters
     ----------
@@ -291,41 +354,55 @@ def run_multistart(
         The problem.
     method : {"al", "ipopt"}
         Solver.
-    n_starts : int
-        Number of starts (start 0 is the study's zero vector).
+    n_starts : int, optional
+        Number of starts (default: 100 on the planar methods, else 16). Start 0
+        is the study's zero vector (planar) or the greedy DLS path (general).
     seed : int
-        Seed of the random starts, drawn in this process by
-        :func:`youbot_opt.ikpath.starts.make_starts` (one seeded generator per
-        start index), so they do not depend on the executor.
-    starts : {"feasible", "uniform"}
-        How random starts are drawn (see :mod:`youbot_opt.ikpath.starts`).
+        Seed of the random starts, drawn in this process (one seeded generator
+        per start index), so they do not depend on the executor.
+    starts : str, optional
+        How random starts are drawn (:mod:`youbot_opt.ikpath.starts`): the
+        planar methods' ``"feasible"`` (default) or ``"uniform"``; the general
+        ones' ``"mixed"`` (default), ``"coherent"``, ``"random"`` or, on a
+        planar robot only, ``"feasible"`` (the planar starts: random exact IK
+        solutions, the reachability witnesses as fallback; default there).
     options : ALOptions or IpoptOptions, optional
-        Settings of the method.
+        Settings of the method (``max_wall_time`` [s] bounds each start's solve).
+    planar : bool, optional
+        Use the planar methods (default: when the problem has a chain); False
+        solves a planar robot by the general methods.
     check_reachability : bool
-        Decide every target's reachability first (raises ``UnreachableTarget``,
-        warns about undecided ones); ignored when ``verdicts`` are given.
+        Planar methods: decide every target's reachability first (raises
+        ``UnreachableTarget``, warns about undecided ones); ignored when
+        ``verdicts`` are given.
     objective_tol, q_tol : float
-        Clustering tolerances (see :func:`cluster_minima`).
+        Clustering tolerances (see :func:`cluster_minima` and :func:`minimum_distance`).
     verdicts : sequence of ReachVerdict, optional
-        Verdicts of the targets already decided by the caller (e.g. with
-        another budget); used instead of deciding again (an unreachable one
-        still raises). Their witnesses are the fallback of feasible starts.
+        Planar methods: verdicts of the targets already decided by the caller
+        (e.g. with another budget); used instead of deciding again (an
+        unreachable one still raises). Their witnesses are the fallback of
+        feasible starts.
+    workers : int, optional
+        Shortcut for ``sweep.workers`` (contradicting it raises).
     sweep : SweepOptions
         How the starts run. ``executor``: a process pool owned by this call
-        and rebuilt if a worker dies, ``"serial"``, or the caller's pool or
-        executor (not shut down here); default ``"serial"`` when ``workers``
-        is 1, else ``"process"``. ``workers``: starts in flight (default: the
-        CPUs available, or the caller's pool size). ``max_attempts``: per
-        start, earlier runs on ``out`` included (default 2). ``timeout`` [s]
-        per start attempt (worker pools only). ``out``: each finished start is
-        saved there as it completes (``manifest.json``, ``items/``), and a
-        rerun with the same problem, method, options, ``n_starts``, ``seed``
-        and ``starts`` resumes. ``progress``: ``(done, total, best_objective)``
-        as starts finish (see :data:`Progress`). ``keep_results=False`` (needs
-        ``out``): each start is drawn when its task is made, and only the
-        distinct minima's results are held; ``results`` and ``attempts`` read
-        the output folder when indexed, and the counts and the fallback best
-        come from one pass over the journal (:mod:`youbot_opt.ikpath.stored`).
+        and rebuilt if a worker dies, ``"serial"``, a Dask client or scheduler
+        address, or the caller's pool or executor (not shut down here);
+        default ``"serial"`` when ``workers`` is 1, else ``"process"``.
+        ``workers``: starts in flight (default: the planar methods, the CPUs
+        available or the caller's pool size; the general ones, 1).
+        ``max_attempts``: per start, earlier runs on ``out`` included (default
+        2; out of attempts a start becomes a ``crashed`` result).
+        ``timeout`` [s] per start attempt (worker pools only). ``out``: each
+        finished start is saved there as it completes (``manifest.json``,
+        ``items/``), and a rerun with the same problem, method, options,
+        ``n_starts``, ``seed`` and ``starts`` resumes. ``progress``:
+        ``(done, total, best_objective)`` as starts finish (see
+        :data:`Progress`). ``keep_results=False`` (needs ``out``): each start
+        is drawn when its task is made, and only the distinct minima's results
+        are held; ``results`` and ``attempts`` read the output folder when
+        indexed, and the counts and the fallback best come from one pass over
+        the journal (:mod:`youbot_opt.ikpath.stored`).
 
     Returns
     -------
@@ -337,15 +414,58 @@ def run_multistart(
     Raises
     ------
     ParameterError
-        For an unknown method, foreign options, ``method="ipopt"`` on a chain
-        with fewer than 2 free joints, or an ``out`` holding another sweep.
+        For an unknown method or start kind, foreign options, ``method="ipopt"``
+        on a chain with fewer than 2 free joints, ``planar=True`` without a
+        chain, ``workers`` contradicting ``sweep.workers``, or an ``out``
+        holding another sweep.
     UnreachableTarget
-        If ``check_reachability`` and a target is unreachable.
+        Planar methods: if ``check_reachability`` and a target is unreachable.
     ResultFileError
-        If a file in ``out`` is corrupted or from a newer schema.
+        If a file in ``out`` is corrupted, from a newer schema or from 0.1.0.
     """
     t0 = time.perf_counter()
     check_method(method, options)
+    use_planar = problem.chain is not None if planar is None else bool(planar)
+    if workers is not None:
+        if sweep.workers is not None and sweep.workers != workers:
+            raise ParameterError(
+                f"workers={workers} contradicts sweep.workers={sweep.workers}",
+                name="workers",
+                value=workers,
+            )
+        sweep = replace(sweep, workers=int(workers))
+    if use_planar:
+        problem.planar_chain  # noqa: B018 - raises ParameterError without a chain
+        return _run_planar(
+            problem, t0, method=method, n_starts=100 if n_starts is None else n_starts,
+            seed=seed, starts="feasible" if starts is None else starts, options=options,
+            check_reachability=check_reachability, objective_tol=objective_tol, q_tol=q_tol,
+            verdicts=verdicts, sweep=sweep,
+        )  # fmt: skip
+    if starts is None:
+        starts = "feasible" if problem.chain is not None else "mixed"
+    return _run_3d(
+        problem, t0, method=method, n_starts=16 if n_starts is None else n_starts, seed=seed,
+        starts=starts, options=options, objective_tol=objective_tol, q_tol=q_tol, sweep=sweep,
+    )  # fmt: skip
+
+
+def _run_planar(
+    problem: CyclicIKProblem,
+    t0: float,
+    *,
+    method: Method,
+    n_starts: int,
+    seed: int,
+    starts: str,
+    options: ALOptions | IpoptOptions | None,
+    check_reachability: bool,
+    objective_tol: float,
+    q_tol: float,
+    verdicts: Sequence[ReachVerdict] | None,
+    sweep: SweepOptions,
+) -> MultistartResult | ShardReport:
+    """:func:`run_multistart` by the planar methods."""
     if method == "ipopt":
         check_degrees_of_freedom(problem)
     found: tuple[ReachVerdict, ...] = ()
@@ -353,60 +473,129 @@ def run_multistart(
         found = require_reachable(problem, tuple(verdicts))
     elif check_reachability:
         found = check_targets(problem)
-    rng = "per-index" if sweep.out is None else stored_start_rng(sweep.out)
     x0s: Array | PlanarStarts
-    if rng == "per-index" and not sweep.keep_results:  # each start drawn as its task is made
+    if not sweep.keep_results:  # each start drawn as its task is made
         x0s = PlanarStarts(problem, n_starts, seed, kind=starts, verdicts=found)
-    else:  # a legacy store's starts share one generator: drawn together
-        x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found, rng=rng)
-    executor, workers = resolve_executor(sweep)
+    else:
+        x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
+    executor, n_workers = resolve_executor(sweep)
+    return _run(
+        problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
+        planar=True, verdicts=found, objective_tol=objective_tol, q_tol=q_tol,
+        sweep=replace(sweep, executor=executor, workers=n_workers),
+    )  # fmt: skip
+
+
+def _run_3d(
+    problem: CyclicIKProblem,
+    t0: float,
+    *,
+    method: Method,
+    n_starts: int,
+    seed: int,
+    starts: str,
+    options: ALOptions | IpoptOptions | None,
+    objective_tol: float,
+    q_tol: float,
+    sweep: SweepOptions,
+) -> MultistartResult | ShardReport:
+    """:func:`run_multistart` by the general methods."""
+    check_start_request(n_starts, starts, (*START_KINDS_3D, "feasible"))
+    if starts == "feasible" and problem.chain is None:
+        raise ParameterError(
+            f"start kind 'feasible' needs a planar robot; {problem.robot_model.name!r} is not "
+            f"planar for frame {problem.frame!r}: use mixed, coherent or random",
+            name="starts",
+            value=starts,
+        )
+    if sweep.workers is None and sweep.executor is None:
+        sweep = replace(sweep, workers=1)
+    x0s: Array | Starts3D | PlanarStarts
+    if starts == "feasible":
+        found = check_planar(problem)
+        x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=found)
+        if sweep.keep_results:
+            x0s = np.array([x0s[k] for k in range(len(x0s))])
+    elif sweep.keep_results:
+        x0s = make_starts_3d(problem, n_starts, seed, kind=starts)
+    else:  # each start drawn as its task is made
+        x0s = Starts3D(problem, n_starts, seed, kind=starts)
+    executor, n_workers = resolve_executor(sweep)
+    return _run(
+        problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
+        planar=False, verdicts=(), objective_tol=objective_tol, q_tol=q_tol,
+        sweep=replace(sweep, executor=executor, workers=n_workers),
+    )  # fmt: skip
+
+
+def _run(
+    problem: CyclicIKProblem,
+    t0: float,
+    x0s: Array | PlanarStarts | Starts3D,
+    *,
+    method: Method,
+    seed: int,
+    starts: str,
+    options: ALOptions | IpoptOptions | None,
+    planar: bool,
+    verdicts: tuple[ReachVerdict, ...],
+    objective_tol: float,
+    q_tol: float,
+    sweep: SweepOptions,
+) -> MultistartResult | ShardReport:
+    """Solve the starts ``x0s`` (``sweep`` resolved) and cluster the minima."""
     store = None
     if sweep.out is not None:
+        params = store_params(
+            problem, planar=planar, method=method, options=options, n_starts=len(x0s),
+            seed=seed, kind=starts,
+        )  # fmt: skip
         store = open_store(
             sweep.out,
-            problem,
-            method=method,
-            options=options,
-            n_starts=len(x0s),
-            seed=int(seed),
-            kind=starts,
-            rng=rng,
+            SWEEP_KIND if planar else SWEEP_KIND_3D,
+            params,
+            result_codec(problem, planar=planar),
             clean=sweep.shard is None,
         )
+    solvers = PLANAR_STARTS if planar else STARTS_3D
+    distance = minimum_distance(problem, planar=planar)
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
-    run = replace(sweep, executor=executor, workers=workers)
     results: Sequence[IKPathResult]
     attempts: Sequence[int]
     tally: StartTally | None = None
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
-            problem, x0s, method=method, options=options, sweep=run, solvers=PLANAR_STARTS,
-            store=store, distance=_result_distance, objective_tol=objective_tol, q_tol=q_tol,
-            by_objective=True, on_resumed=on_resumed, on_final=on_final,
+            problem, x0s, method=method, options=options, sweep=sweep, solvers=solvers,
+            store=store, distance=distance, objective_tol=objective_tol, q_tol=q_tol,
+            on_resumed=on_resumed, on_final=on_final,
         )  # fmt: skip
         if isinstance(streamed, ShardReport):
             return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
         minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
-    else:  # the starts were drawn together by make_starts
+    else:  # the starts were drawn together
         outcome = solve_starts(
-            problem, np.asarray(x0s), method=method, options=options, sweep=run,
-            solvers=PLANAR_STARTS, store=store, on_resumed=on_resumed, on_final=on_final,
+            problem, np.asarray(x0s), method=method, options=options, sweep=sweep,
+            solvers=solvers, store=store, on_resumed=on_resumed, on_final=on_final,
         )  # fmt: skip
         if isinstance(outcome, ShardReport):
             return outcome
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
-        minima = cluster_minima(outcome.results, objective_tol=objective_tol, q_tol=q_tol)
+        minima = cluster_minima(
+            outcome.results, objective_tol=objective_tol, q_tol=q_tol, distance=distance
+        )
     return MultistartResult(
         problem=problem,
         method=method,
         seed=int(seed),
+        start_kind=starts,
+        planar=planar,
         results=results,
         minima=minima,
-        verdicts=found,
+        verdicts=verdicts,
         wall_time=time.perf_counter() - t0,
-        n_workers=workers,
+        n_workers=int(sweep.workers or 1),
         attempts=attempts,
         resumed=resumed,
         output=None if store is None else store.directory,
@@ -416,15 +605,13 @@ def run_multistart(
     )
 
 
-def _result_distance(a: IKPathResult, b: IKPathResult) -> float:
-    return configuration_distance(a.configurations, b.configurations)
-
-
-def _minima_rule(objective_tol: float, q_tol: float) -> KeepRule[StartSummary[IKPathResult]]:
+def _minima_rule(
+    objective_tol: float, q_tol: float, distance: Callable[[IKPathResult, IKPathResult], float]
+) -> KeepRule[StartSummary[IKPathResult]]:
     """:func:`cluster_minima`'s rule over start summaries holding their results."""
     return KeepRule(
         objective=lambda s: s.objective if s.success else None,
-        distance=lambda a, b: _result_distance(a.result, b.result),  # type: ignore[arg-type]
+        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
         obj_tol=objective_tol,
         dist_tol=q_tol,
     )
@@ -454,40 +641,3 @@ def _stored_minima(
 
 def _key_index(key: str) -> int:
     return int(key.rsplit("_", 1)[1])
-
-
-def resolve_executor(sweep: SweepOptions) -> tuple[ExecutorLike, int]:
-    """Return where the starts of a multistart run and how many run at once.
-
-    ``executor`` ``None`` becomes ``"serial"`` when ``workers`` is 1, else
-    ``"process"``; the count is ``workers`` if given, else the CPUs available,
-    the caller's pool size or the Dask cluster's total threads.
-    """
-    executor, max_workers = sweep.executor, sweep.workers
-    if executor is None:
-        workers = max_workers or default_workers()
-        executor = "serial" if workers == 1 else "process"
-    elif executor == "serial":
-        workers = 1
-    elif executor == "process":
-        workers = max_workers or default_workers()
-    elif sweep.distributed:  # a Dask cluster: its total threads unless workers says otherwise
-        workers = max_workers or _dask_threads(executor)
-    else:  # the caller's pool or executor: its size unless max_workers says otherwise
-        size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
-        dask_client = getattr(executor, "_client", None)  # client.get_executor()
-        if size is None and dask_client is not None and is_dask_client(dask_client):
-            size = cluster_threads(dask_client)
-        workers = max_workers or int(size or default_workers())
-    return executor, workers
-
-
-def _dask_threads(executor: object) -> int:
-    """Total threads of the Dask cluster of a client or scheduler address."""
-    if is_dask_client(executor):
-        return cluster_threads(executor)  # type: ignore[arg-type]
-    client = connect(str(executor))
-    try:
-        return cluster_threads(client)
-    finally:
-        client.close()

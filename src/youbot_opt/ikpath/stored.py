@@ -54,8 +54,7 @@ class StartSummary(Generic[R]):
     attempts : int
         Attempts made, earlier runs on the same output included.
     message : str or None
-        Why a start that did not succeed failed (``None`` if the journal line
-        predates the field, or on success).
+        Why a start that did not succeed failed (``None`` on success).
     result : IKPathResult or None
         The full result, for the kept starts only (best and distinct minima).
     """
@@ -87,8 +86,8 @@ class StartSummary(Generic[R]):
             objective=num(summary.get("objective"), math.nan),
             max_residual=num(residual, math.inf),
             max_orientation_error=num(summary.get("max_orientation_error"), 0.0),
-            iterations=int(summary.get("iterations") or 0),
-            solve_time=float(summary.get("wall_time_s") or 0.0),
+            iterations=int(summary["iterations"]),
+            solve_time=float(summary["wall_time_s"]),
             attempts=int(attempts),
             message=summary.get("message"),
         )
@@ -101,8 +100,9 @@ class StartSummary(Generic[R]):
     def miss(self) -> float:
         """How far the start is from meeting the targets: the fallback best's rank.
 
-        Planar: ``max_residual`` [m]; spatial: position plus orientation error
-        (the measure ``SpatialMultistart.best`` ranks by when nothing succeeded).
+        Largest position error plus largest orientation error (0 on the
+        planar methods), the measure ``MultistartResult.best`` ranks by when
+        nothing succeeded.
         """
         return self.max_residual + self.max_orientation_error
 
@@ -115,8 +115,8 @@ class StartTally:
     ----------
     n_starts : int
         Number of starts.
-    n_success : int
-        Successful starts.
+    n_converged : int
+        Successful starts (they met the targets).
     status_counts : dict of str to int
         Starts per status value.
     closest : int
@@ -126,13 +126,13 @@ class StartTally:
     """
 
     n_starts: int
-    n_success: int
+    n_converged: int
     status_counts: dict[str, int]
     closest: int
 
 
-def tally_starts(summaries: Iterable[StartSummary[Any]], *, by_objective: bool) -> StartTally:
-    """Count the starts and find the closest one in one pass (``by_objective``: ``E`` breaks ties).
+def tally_starts(summaries: Iterable[StartSummary[Any]]) -> StartTally:
+    """Count the starts and find the closest one in one pass (``E`` breaks ties of the miss).
 
     The closest start is the first one (lowest index) of smallest rank, as
     ``min`` over the results in start order finds it.
@@ -145,10 +145,10 @@ def tally_starts(summaries: Iterable[StartSummary[Any]], *, by_objective: bool) 
         n += 1
         ok += s.success
         counts[s.status] = counts.get(s.status, 0) + 1
-        rank = (s.max_residual, s.objective) if by_objective else (s.miss,)
+        rank = (s.miss, s.objective)
         if best is None or rank < best:
             best, closest = rank, s.index
-    return StartTally(n_starts=n, n_success=ok, status_counts=counts, closest=closest)
+    return StartTally(n_starts=n, n_converged=ok, status_counts=counts, closest=closest)
 
 
 class StoredResults(LazySequence[R]):

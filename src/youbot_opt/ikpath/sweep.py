@@ -1,11 +1,11 @@
-"""Run the starts of an IK multistart (planar or spatial): one task per start, saved as it ends.
+"""Run the starts of an IK multistart (planar or 3-D): one task per start, saved as it ends.
 
 Owns what the IK multistarts add to the robot-agnostic sweep engine
 (:mod:`youbot_opt.sweeps`), once for both problem kinds: the resumable start loop
 :func:`solve_starts`, whose problem-specific parts (worker tasks, crashed result,
 summary figures, store format) come in a :class:`StartSolvers` (:data:`PLANAR_STARTS`,
-``spatial_solve.SPATIAL_STARTS``); the manifest rule (:func:`options_json`,
-:func:`starts_params`, :func:`starts_store`), start keys and progress. A start that
+:data:`STARTS_3D`); the manifest rule (:func:`options_json`,
+:func:`store_params`, :func:`result_codec`), start keys and progress. A start that
 fails every attempt becomes a ``CRASHED`` result whose message is the last reason.
 
     outcome = solve_starts(problem, x0s, method="al", options=None, solvers=PLANAR_STARTS,
@@ -18,7 +18,6 @@ import dataclasses
 import functools
 import json
 import math
-import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,13 +25,15 @@ from typing import Any, Generic, NamedTuple, TypeVar
 
 import numpy as np
 
+from youbot_opt._files import MIGRATION_SCRIPT
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ResultFileError
-from youbot_opt.ikpath.io import encode_result, load_result, problem_spec
-from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
-from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.io import encode_result, load_result, problem_spec, problem_spec_3d
+from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptIKSolver3D, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
+from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -47,28 +48,28 @@ from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
 from youbot_opt.sweeps.resume import ShardReport, run_resumable
 from youbot_opt.sweeps.selection import Clusters
-from youbot_opt.sweeps.store import ItemRecord, SweepStore, atomic_write_bytes
+from youbot_opt.sweeps.store import Codec, ItemRecord, SweepStore, atomic_write_bytes
 from youbot_opt.sweeps.tasks import TaskSequence
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 
 __all__ = [
     "PAYLOAD_SUFFIX",
     "PLANAR_STARTS",
+    "STARTS_3D",
     "SWEEP_KIND",
+    "SWEEP_KIND_3D",
     "StartSolvers",
     "StreamedOutcome",
     "SweepOutcome",
     "crashed_result",
     "encoded_saver",
-    "open_store",
     "options_json",
     "progress_callbacks",
     "status_counts",
-    "starts_params",
-    "starts_store",
+    "result_codec",
+    "store_params",
     "solve_starts",
     "stream_starts",
-    "stored_start_rng",
     "start_key",
 ]
 
@@ -77,6 +78,11 @@ SWEEP_KIND = "ikpath_multistart"
 
 PAYLOAD_SUFFIX = ".ikpath"
 """Suffix of the stored result files (JSON; not ``.json``, which names the records)."""
+
+SWEEP_KIND_3D = "spatial_ikpath_multistart"
+"""``kind`` of the sweep store of a multistart by the general (3-D) methods (its manifest)."""
+
+_PAYLOAD_SUFFIX_3D = ".spatial"  # JSON of encode_result (".json" names the records)
 
 
 ProblemT = TypeVar("ProblemT")
@@ -210,6 +216,49 @@ PLANAR_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
 """How :func:`solve_starts` solves the starts of a planar :class:`CyclicIKProblem`."""
 
 
+def _solve_al_3d(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
+    """Worker task: one start with the general AL (exceptions propagate: they are retried)."""
+    result = solve(problem, method="al", x0=x0, options=options, planar=False)
+    assert isinstance(result, IKPathResult)
+    return result
+
+
+def _solve_ipopt_3d(handle: WorkerSolver[IpoptIKSolver3D], x0: Array) -> IKPathResult:
+    """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
+    return handle.get().solve(x0)
+
+
+def _crashed_3d(
+    problem: CyclicIKProblem,
+    method: str,
+    options: ALOptions | IpoptOptions | None,
+    x0: Array,
+    message: str,
+) -> IKPathResult:
+    return crashed_result(build_result, problem, method, x0, message)
+
+
+def _figures_3d(result: IKPathResult) -> dict[str, Any]:
+    """Figures of a start's record summary: its largest target errors in [m] and [rad]."""
+    return {
+        "max_position_error": float(np.max(result.position_errors)),
+        "max_orientation_error": float(np.max(result.orientation_errors)),
+    }
+
+
+STARTS_3D: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
+    solve_al=_solve_al_3d,
+    ipopt_solver=IpoptIKSolver3D,
+    solve_ipopt=_solve_ipopt_3d,
+    crashed=_crashed_3d,
+    figures=_figures_3d,
+    store_kind=SWEEP_KIND_3D,
+    suffix=_PAYLOAD_SUFFIX_3D,
+    encode=encode_result,
+)
+"""How :func:`solve_starts` solves the starts of a problem by the general (3-D) methods."""
+
+
 def start_key(index: int, n_starts: int) -> str:
     """Store key of start ``index``: ``"start_0007"`` (wider when ``n_starts > 10000``)."""
     width = max(4, len(str(max(int(n_starts) - 1, 0))))
@@ -218,9 +267,6 @@ def start_key(index: int, n_starts: int) -> str:
 
 _IPOPT_FIELDS_74BFA23 = ("tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra")
 """The IK IPOPT settings a sweep manifest held before the unified IpoptOptions."""
-_IPOPT_FIELDS_SINCE_02CDF49 = ("fast_kkt", "linear_solver_library")
-"""IPOPT settings added after commit 02cdf49 (which wrote every field): left out of
-both manifest forms when they hold the IK default, so stores of either form resume."""
 _AL_FIELDS_FINAL_PHASE = (
     "initial_multipliers",
     "retry_least_squares",
@@ -231,16 +277,14 @@ _AL_FIELDS_FINAL_PHASE = (
 default, so that planar stores written before them still resume."""
 
 
-def options_json(
-    method: str, options: ALOptions | IpoptOptions | None, *, every_field: bool = False
-) -> dict[str, Any]:
+def options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[str, Any]:
     """Return the JSON-ready settings of ``method`` that a sweep manifest holds.
 
     The one rule of the planar and spatial IK sweeps. Defaults are filled in,
     so ``None`` equals :class:`ALOptions` ``()`` or :meth:`IpoptOptions.for_ikpath`.
-    IPOPT fields added since 74bfa23 are left out when they hold their default
-    (``every_field=True``: written all the same, as commit 02cdf49 did), and so
-    are the AL fields of the spatial final phase: stores of those versions resume.
+    IPOPT fields added since 74bfa23, and the AL fields of the spatial final
+    phase, are written only when they differ from their default (the manifest
+    form of today's stores).
 
     Parameters
     ----------
@@ -248,8 +292,6 @@ def options_json(
         The method.
     options : ALOptions or IpoptOptions or None
         Its settings.
-    every_field : bool
-        Write every IPOPT field (the manifest form of commit 02cdf49).
 
     Returns
     -------
@@ -266,26 +308,15 @@ def options_json(
     for f in dataclasses.fields(opts):
         value = getattr(opts, f.name)
         if (
-            (
-                not every_field
-                and isinstance(opts, IpoptOptions)
-                and f.name not in _IPOPT_FIELDS_74BFA23
-                and value == getattr(defaults, f.name)
-            )
-            or (
-                isinstance(opts, IpoptOptions)
-                and f.name in _IPOPT_FIELDS_SINCE_02CDF49
-                and value == getattr(defaults, f.name)
-            )
-            or (
-                isinstance(opts, ALOptions)
-                and f.name in _AL_FIELDS_FINAL_PHASE
-                and value == getattr(ALOptions(), f.name)
-            )
+            isinstance(opts, IpoptOptions)
+            and f.name not in _IPOPT_FIELDS_74BFA23
+            and value == getattr(defaults, f.name)
+        ) or (
+            isinstance(opts, ALOptions)
+            and f.name in _AL_FIELDS_FINAL_PHASE
+            and value == getattr(ALOptions(), f.name)
         ):
-            # Fields added since 74bfa23 are written only when they differ from the
-            # default, so that a store of that version still resumes (same manifest).
-            continue
+            continue  # written only when not default
         if isinstance(value, Mapping):
             value = {
                 str(k): v if isinstance(v, str | int | float | bool | None) else repr(v)
@@ -295,33 +326,33 @@ def options_json(
     return out
 
 
-def _stored_options_form(
-    out: str | os.PathLike[str], method: str, options: ALOptions | IpoptOptions | None
-) -> dict[str, Any]:
-    """Return the options as ``out``'s manifest holds them: every field if so, else compact."""
-    full = options_json(method, options, every_field=True)
-    try:
-        manifest = json.loads((Path(out) / "manifest.json").read_text(encoding="utf-8"))
-        stored = manifest["params"]["options"]
-    except (OSError, ValueError, KeyError, TypeError):
-        stored = None  # no store yet, or the store itself reports the bad manifest
-    return full if stored == full else options_json(method, options)
+def _refuse_old(out: Path) -> None:
+    """Refuse an IK store of 0.1.0 in ``out``: no ``start_rng``, or every IPOPT field written.
 
-
-def stored_start_rng(out: str | os.PathLike[str]) -> str:
-    """How the starts of the IK sweep in ``out`` were drawn (``"per-index"`` for a new one).
-
-    A manifest written before per-index starts names no ``start_rng``: its
-    starts are ``"legacy"`` ones, and resuming it keeps them.
+    ``scripts/migrate_0_1_0.py`` carries such a store forward.
     """
     manifest = Path(out) / "manifest.json"
-    if not manifest.is_file():
-        return "per-index"
     try:
-        params = json.loads(manifest.read_text(encoding="utf-8")).get("params") or {}
-    except (OSError, ValueError, AttributeError):
-        return "per-index"  # the store itself reports the bad manifest
-    return str(params.get("start_rng", "legacy"))
+        stored = json.loads(manifest.read_text(encoding="utf-8"))
+        version, params = int(stored["schema_version"]), stored["params"]
+        if stored["kind"] != SWEEP_KIND:
+            return  # another sweep: the store refuses it
+        options = params["options"]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return  # none, or another form: the store checks it
+    defaults = IpoptOptions.for_ikpath()
+    every_field = isinstance(options, dict) and any(
+        name not in _IPOPT_FIELDS_74BFA23
+        and name != "type"
+        and hasattr(defaults, name)
+        and value == getattr(defaults, name)
+        for name, value in options.items()
+    )
+    if "start_rng" not in params or every_field:
+        raise ResultFileError(
+            f"sweep manifest {manifest}: written by youbot_opt 0.1.0 (schema {version}); "
+            f"run `python {MIGRATION_SCRIPT} {out}` to carry it forward"
+        )
 
 
 def _write_encoded(encode: Callable[[Any], bytes], result: Any, path: Path) -> None:
@@ -336,111 +367,73 @@ def encoded_saver(encode: Callable[[ResultT], bytes]) -> Callable[[ResultT, Path
     return functools.partial(_write_encoded, encode)
 
 
-def open_store(
-    out: str | os.PathLike[str],
+def store_params(
     problem: CyclicIKProblem,
     *,
+    planar: bool,
     method: str,
     options: ALOptions | IpoptOptions | None,
     n_starts: int,
     seed: int,
     kind: str,
-    rng: str = "per-index",
-    clean: bool = True,
-) -> SweepStore:
-    """Open (or create) the output directory of one IK-path multistart.
+) -> dict[str, Any]:
+    """Return the parameters an IK multistart's manifest binds its store to.
 
-    The store's kind is ``"ikpath_multistart"``; each start's payload is
-    ``items/<hh>/<key>.ikpath``, the JSON of
-    :func:`youbot_opt.ikpath.io.encode_result`.
+    The problem (planar methods: :func:`~youbot_opt.ikpath.io.problem_spec`, its
+    chain, targets and ``use_limits``; general ones:
+    :func:`~youbot_opt.ikpath.io.problem_spec_3d`, robot fingerprint, frame,
+    targets, limits, weights), method, options (:func:`options_json`; the
+    general AL's ``None`` written out as its defaults), ``n_starts``, ``seed``
+    and start kind, and on the planar methods ``start_rng`` (start ``k`` does
+    not depend on ``n_starts``). A rerun with any of them changed is refused
+    by the store.
 
     Parameters
     ----------
-    out : path-like
-        Output directory (created if missing).
     problem : CyclicIKProblem
-        The problem (its chain, targets and ``use_limits`` go into the manifest).
+        The problem.
+    planar : bool
+        Whether the planar methods solve it (the store's kind: :data:`SWEEP_KIND`,
+        else :data:`SWEEP_KIND_3D`).
     method : {"al", "ipopt"}
         Solver.
     options : ALOptions or IpoptOptions or None
         Settings of the method (``None``: its defaults).
     n_starts, seed : int
         Number of starts and seed of the random starts.
-    kind : {"feasible", "uniform"}
+    kind : str
         How random starts are drawn.
-    rng : {"per-index", "legacy"}
-        How their random numbers are drawn (``"legacy"``: stores written
-        before per-index starts, whose manifest does not name it).
-    clean : bool
-        Remove leftover temporary files (not in a shard run: other shards
-        may be writing into the same folder).
-
-    Returns
-    -------
-    SweepStore
-        The store; ``store.resumed`` tells whether the directory held this sweep.
-
-    Raises
-    ------
-    ParameterError
-        If ``out`` holds another kind of sweep or one with other parameters.
-    ResultFileError
-        If its manifest is corrupted or from a newer schema.
     """
-    spec = problem_spec(problem)
-    params = starts_params(
-        spec, method, _stored_options_form(out, method, options), n_starts, seed, kind
-    )
-    if rng != "legacy":
-        params["start_rng"] = rng
-    return starts_store(out, PLANAR_STARTS, params, load_result, clean)
-
-
-def starts_params(
-    problem: dict[str, Any],
-    method: str,
-    options: dict[str, Any],
-    n_starts: int,
-    seed: int,
-    starts: str,
-) -> dict[str, Any]:
-    """Return the parameters an IK multistart's manifest binds its store to.
-
-    ``problem`` is the problem's JSON description, ``options`` the settings of
-    :func:`options_json`, ``starts`` the start kind; a rerun with any of them
-    changed is refused by the store.
-    """
-    return {
-        "problem": problem,
+    if not planar and options is None and method == "al":
+        options = AL_OPTIONS_3D  # the defaults of solve(planar=False), written out
+    params: dict[str, Any] = {
+        "problem": problem_spec(problem) if planar else problem_spec_3d(problem),
         "method": method,
-        "options": options,
+        "options": options_json(method, options),
         "n_starts": int(n_starts),
         "seed": int(seed),
-        "starts": starts,
+        "starts": kind,
     }
+    if planar:
+        params["start_rng"] = "per-index"
+    return params
 
 
-def starts_store(
-    out: str | os.PathLike[str],
-    solvers: StartSolvers[Any, ResultT],
-    params: dict[str, Any],
-    load: Callable[[Path], ResultT],
-    clean: bool,
-) -> SweepStore:
-    """Open (or create) the sweep store of an IK multistart in the problem's format.
+def result_codec(problem: CyclicIKProblem, *, planar: bool) -> Codec[IKPathResult]:
+    """Return how an IK multistart's payloads are stored: :mod:`youbot_opt.ikpath.io` JSON.
 
-    Payloads are ``solvers.encode(result)``, written by the workers without a
-    per-item fsync and made durable by group; ``load`` reads and re-checks one.
+    Payloads are ``encode_result(result)``, written by the workers without a
+    per-item fsync and made durable by group; each is reloaded with the same
+    re-check as :func:`~youbot_opt.ikpath.io.load_result`. A planar store of
+    0.1.0 is refused (``scripts/migrate_0_1_0.py`` carries it forward).
     """
-    return SweepStore(
-        out,
-        kind=solvers.store_kind,
-        params=params,
+    solvers = PLANAR_STARTS if planar else STARTS_3D
+    return Codec(
         save=encoded_saver(solvers.encode),
-        load=load,
+        load=load_result if planar else functools.partial(load_result, robot=problem.model),
         suffix=solvers.suffix,
-        clean=clean,
         encode=solvers.encode,
+        refuse_old=_refuse_old if planar else None,
     )
 
 
@@ -565,7 +558,7 @@ def solve_starts(
         ``out`` and ``progress`` are the caller's.
     solvers : StartSolvers
         How the problem's starts are solved: :data:`PLANAR_STARTS`, or
-        :data:`~youbot_opt.ikpath.spatial_solve.SPATIAL_STARTS`.
+        :data:`STARTS_3D`.
     store : SweepStore, optional
         Where finished starts are saved and resumed from.
     on_resumed : callable ``(results)``, optional
@@ -675,7 +668,6 @@ def stream_starts(
     distance: Callable[[ResultT, ResultT], float],
     objective_tol: float,
     q_tol: float,
-    by_objective: bool,
     on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
     on_final: Callable[[int, _Outcome], None] | None = None,
 ) -> StreamedOutcome[ResultT] | ShardReport:
@@ -698,9 +690,6 @@ def stream_starts(
         Distance in [rad] of two successful results' configurations.
     objective_tol, q_tol : float
         Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
-    by_objective : bool
-        The start closest to the targets is ranked by ``(max_residual, E)``
-        (planar) rather than by position plus orientation error (spatial).
     problem, method, options, sweep, solvers, on_resumed, on_final
         As :func:`solve_starts`; ``on_resumed`` is given an iterable, read once.
 
@@ -816,7 +805,7 @@ def stream_starts(
             ClusterIndices(clusters, c, index_of, sorted_order=False) for c in range(len(clusters))
         ),
         kept=kept,
-        tally=tally_starts(results.summaries(), by_objective=by_objective),
+        tally=tally_starts(results.summaries()),
     )
 
 

@@ -2,10 +2,10 @@
 
 Owns the execution settings shared by the multistarts, the Pareto sweep and
 the bound-scaling study (spec: rule 6 of ``ARCHITECTURE.md``): where items
-run, how many at once, the per-attempt time limit, the attempts per item,
-the output directory a rerun resumes from, and the progress callback. What a
-sweep computes (its solver, starts, weights, seeds) stays in its own
-arguments; how it is run is this one frozen value.
+run, how many at once (:func:`resolve_executor`), the per-attempt time limit,
+the attempts per item, the output directory a rerun resumes from, and the
+progress callback. What a sweep computes (its solver, starts, weights, seeds)
+stays in its own arguments; how it is run is this one frozen value.
 
     sweep = SweepOptions(executor="serial", out="runs/ms", max_attempts=3)
     res = run_multistart(solver, 50, sweep=sweep)
@@ -22,10 +22,15 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.pool import ExecutorLike, WorkerPool
-from youbot_opt.sweeps.scheduler import is_dask_client, is_scheduler_address
+from youbot_opt.sweeps.pool import ExecutorLike, WorkerPool, default_workers
+from youbot_opt.sweeps.scheduler import (
+    cluster_threads,
+    connect,
+    is_dask_client,
+    is_scheduler_address,
+)
 
-__all__ = ["SweepOptions"]
+__all__ = ["SweepOptions", "resolve_executor"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -182,3 +187,40 @@ class SweepOptions:
     def directory(self) -> Path | None:
         """``out`` as a :class:`~pathlib.Path` (``None``: nothing is saved)."""
         return None if self.out is None else Path(self.out)
+
+
+def resolve_executor(sweep: SweepOptions) -> tuple[ExecutorLike, int]:
+    """Return where the starts of a multistart run and how many run at once.
+
+    ``executor`` ``None`` becomes ``"serial"`` when ``workers`` is 1, else
+    ``"process"``; the count is ``workers`` if given, else the CPUs available,
+    the caller's pool size or the Dask cluster's total threads.
+    """
+    executor, max_workers = sweep.executor, sweep.workers
+    if executor is None:
+        workers = max_workers or default_workers()
+        executor = "serial" if workers == 1 else "process"
+    elif executor == "serial":
+        workers = 1
+    elif executor == "process":
+        workers = max_workers or default_workers()
+    elif sweep.distributed:  # a Dask cluster: its total threads unless workers says otherwise
+        workers = max_workers or _dask_threads(executor)
+    else:  # the caller's pool or executor: its size unless max_workers says otherwise
+        size = getattr(executor, "workers", None) or getattr(executor, "_max_workers", None)
+        dask_client = getattr(executor, "_client", None)  # client.get_executor()
+        if size is None and dask_client is not None and is_dask_client(dask_client):
+            size = cluster_threads(dask_client)
+        workers = max_workers or int(size or default_workers())
+    return executor, workers
+
+
+def _dask_threads(executor: object) -> int:
+    """Total threads of the Dask cluster of a client or scheduler address."""
+    if is_dask_client(executor):
+        return cluster_threads(executor)  # type: ignore[arg-type]
+    client = connect(str(executor))
+    try:
+        return cluster_threads(client)
+    finally:
+        client.close()

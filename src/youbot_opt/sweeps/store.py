@@ -6,10 +6,10 @@ folders by the first two hex digits of SHA-256 of the key) and the journal
 ``DIR/items/journal/*.jsonl`` (:mod:`.journal`: one checksummed line per attempt
 with summary, binding and payload checksum), indexed by one int per key (records
 are read back from their lines). Payloads are written atomically, by the driver
-or the worker (:class:`ItemWriter`), durable in groups before their journal
-lines (``docs/scaling.md``). Older stores: ``scripts/migrate_0_1_0.py``.
+or the worker, durable in groups before their journal lines. :func:`open_store`
+opens one with an optimiser's :class:`Codec` (its payload format).
 
->>> store = SweepStore(out, kind="pareto", params=params, save=save, load=load)  # doctest: +SKIP
+>>> store = open_store(out, "pareto", params, codec)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ import uuid
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Generic, TypeVar
 
 from youbot_opt._files import (
     TMP_PREFIX,
@@ -62,6 +63,7 @@ from youbot_opt.sweeps.selection import Clusters
 
 __all__ = [  # the item formats are re-exported: they were defined here before
     "SCHEMA_VERSION",
+    "Codec",
     "ItemRecord",
     "ItemWriter",
     "SweepStore",
@@ -69,6 +71,7 @@ __all__ = [  # the item formats are re-exported: they were defined here before
     "atomic_write_bytes",
     "check_key",
     "fanout_name",
+    "open_store",
     "stored_record",
     "stored_records",
     "write_unsynced",
@@ -137,6 +140,89 @@ def _read_json(path: Path, what: str) -> dict[str, Any]:
         migrate=str(path.parent),
     )
     return data
+
+
+R = TypeVar("R")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Codec(Generic[R]):
+    """How an optimiser's result becomes a store payload and back (one per optimiser).
+
+    Attributes
+    ----------
+    save : callable ``(result, path)``
+        Write a payload file (atomically); a module-level function or partial
+        when workers write (it pickles to them).
+    load : callable ``(path) -> result``
+        Read (and re-check) a payload file.
+    suffix : str
+        Suffix of the payload files (not ``.json``, which names the records).
+    encode : callable ``(result) -> bytes``, optional
+        The payload's content, for workers that write without a per-item fsync
+        (made durable by group); ``None``: ``save`` writes.
+    refuse_old : callable ``(directory)``, optional
+        Raise :class:`~youbot_opt.exceptions.ResultFileError` when the folder
+        holds a store of this optimiser in an older form (naming the script that
+        carries it forward); called before the store is opened.
+    """
+
+    save: Callable[[R, Path], object]
+    load: Callable[[Path], R]
+    suffix: str
+    encode: Callable[[R], bytes] | None = None
+    refuse_old: Callable[[Path], None] | None = None
+
+
+def open_store(
+    out: str | os.PathLike[str],
+    kind: str,
+    params: Mapping[str, Any],
+    codec: Codec[Any],
+    *,
+    clean: bool = True,
+) -> SweepStore:
+    """Open (or create) the store of one sweep in ``out``, its payloads by ``codec``.
+
+    Parameters
+    ----------
+    out : path-like
+        Output directory (created if missing).
+    kind : str
+        Kind of sweep (``"multistart"``, ``"pareto"``, ``"ikpath_multistart"``, ...).
+    params : mapping
+        The sweep's defining parameters (JSON-ready; a rerun with others is refused).
+    codec : Codec
+        The optimiser's payload format.
+    clean : bool
+        Remove leftover temporary files (not in a shard run: other shards
+        may be writing into the same folder).
+
+    Returns
+    -------
+    SweepStore
+        The store; ``store.resumed`` tells whether the directory held this sweep.
+
+    Raises
+    ------
+    ParameterError
+        If ``out`` holds another kind of sweep or one with other parameters.
+    ResultFileError
+        If its manifest is corrupted, from a newer schema, or (``codec.refuse_old``)
+        from an older version.
+    """
+    if codec.refuse_old is not None:
+        codec.refuse_old(Path(out))
+    return SweepStore(
+        out,
+        kind=kind,
+        params=params,
+        save=codec.save,
+        load=codec.load,
+        suffix=codec.suffix,
+        clean=clean,
+        encode=codec.encode,
+    )
 
 
 class SweepStore:

@@ -22,6 +22,7 @@ from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
+from youbot_opt.sweeps.store import open_store
 from youbot_opt.trajopt.multistart import (
     MultistartResult,
     StoredStarts,
@@ -38,7 +39,7 @@ from youbot_opt.trajopt.sweep import (
     default_dt0,
     solve_starts,
 )
-from youbot_opt.trajopt.sweep_store import open_store, sweep_params
+from youbot_opt.trajopt.sweep_store import result_codec, sweep_params
 
 __all__ = ["BoundScalingRow", "BoundScalingResult", "bound_scaling_study", "DEFAULT_SCALES"]
 
@@ -236,7 +237,9 @@ def bound_scaling_study(
             "include_straight": include_straight,
             "dt0": dt0,
         }
-        store = open_store(sweep.directory, "bounds", params, solver, clean=sweep.shard is None)
+        store = open_store(
+            sweep.directory, "bounds", params, result_codec(solver), clean=sweep.shard is None
+        )
     solved = solve_starts(
         solver,
         StartJobChain(jobs_by_scale),  # made when asked for: keep_results=False holds none

@@ -28,7 +28,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
-from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.store import SweepStore, open_store
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.stored_starts import ConvergedStarts, OptimumMembers, StoredStarts
 from youbot_opt.trajopt.sweep import (
@@ -40,7 +40,7 @@ from youbot_opt.trajopt.sweep import (
     solve_starts,
     start_seeds,
 )
-from youbot_opt.trajopt.sweep_store import open_store, sweep_params
+from youbot_opt.trajopt.sweep_store import result_codec, sweep_params
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
@@ -524,7 +524,9 @@ def run_multistart(
             "include_straight": include_straight,
             "dt0": dt0,
         }
-        store = open_store(sweep.directory, "multistart", params, solver, clean=sweep.shard is None)
+        store = open_store(
+            sweep.directory, "multistart", params, result_codec(solver), clean=sweep.shard is None
+        )
     solved = solve_starts(solver, jobs, store=store, sweep=sweep, keep=optima_rule())
     if isinstance(solved, ShardReport):
         return solved

@@ -28,13 +28,13 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, process_context, run_tasks
 from youbot_opt.sweeps.resume import ShardReport
-from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.store import SweepStore, open_store
 from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import check_solver, worker_solver
-from youbot_opt.trajopt.sweep_store import open_store, sweep_params
+from youbot_opt.trajopt.sweep_store import result_codec, sweep_params
 
 __all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFAULT_BETAS"]
 
@@ -384,7 +384,7 @@ def pareto_sweep(
             "warm_start": warm_start,
             "cold_fallback": cold_fallback,
         }
-        store = open_store(out, "pareto", params, solver, clean=sweep.shard is None)
+        store = open_store(out, "pareto", params, result_codec(solver), clean=sweep.shard is None)
     points: list[ParetoPoint] = []
     first: MultistartResult | None = None
     previous: TrajOptResult | None = None

@@ -1,18 +1,19 @@
 """The on-disk store of a trajectory sweep: its identity and its payloads (spec ``trajopt.md``).
 
-Owns :func:`open_store` (a :class:`~youbot_opt.sweeps.store.SweepStore` whose
-payloads are :mod:`youbot_opt.trajopt.io` result files) and what its manifest
-records: :func:`sweep_params` (problem, method, backend, options) with the robot
+Owns :func:`result_codec` (the :class:`~youbot_opt.sweeps.store.Codec` of a
+sweep whose payloads are :mod:`youbot_opt.trajopt.io` result files) and what its
+manifest records: :func:`sweep_params` (problem, method, backend, options) with the robot
 named by :func:`robot_identity`, the SHA-256 of its URDF's content, so a store
 resumes wherever the output folder, the URDF or the package now lie.
 
-    store = open_store("runs/ms", "multistart", {**sweep_params(solver), "seed": 0}, solver)
+    params = {**sweep_params(solver), "seed": 0}
+    store = open_store("runs/ms", "multistart", params, result_codec(solver))
 """
 
 from __future__ import annotations
 
+import functools
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -20,57 +21,27 @@ from youbot_opt._files import MIGRATION_SCRIPT
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import urdf_digest
-from youbot_opt.sweeps.store import SCHEMA_VERSION, SweepStore
+from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
-__all__ = ["open_store", "robot_identity", "sweep_params"]
+__all__ = ["result_codec", "robot_identity", "sweep_params"]
 
 
-def open_store(
-    out: str | os.PathLike[str],
-    kind: str,
-    params: dict[str, Any],
-    solver: TrajOptSolver,
-    *,
-    clean: bool = True,
-) -> SweepStore:
-    """Open a sweep store whose payloads are trajectory results.
+def result_codec(solver: TrajOptSolver) -> Codec[TrajOptResult]:
+    """Return how a trajectory sweep's payloads are stored: :mod:`youbot_opt.trajopt.io` files.
 
-    A store written by 0.1.0 (its problem holds a ``"beta"`` or the URDF's
-    absolute ``"urdf_path"``) is refused: ``scripts/migrate_0_1_0.py`` carries it
-    forward.
-
-    Parameters
-    ----------
-    out : path-like
-        Output directory (created if missing).
-    kind : str
-        Kind of sweep (``"multistart"``, ``"pareto"``, ``"bounds"``).
-    params : dict
-        The sweep's defining parameters, from :func:`sweep_params` and the
-        sweep's own (a rerun with others is refused).
-    solver : TrajOptSolver
-        Its robot loads the stored results (:mod:`youbot_opt.trajopt.io` files).
-    clean : bool
-        Remove leftover temporary files (not in a shard run: other shards
-        may be writing into the same folder).
-
-    Returns
-    -------
-    SweepStore
-        The store.
+    Its robot loads the stored results. A store written by 0.1.0 (its problem
+    holds a ``"beta"`` or the URDF's absolute ``"urdf_path"``) is refused:
+    ``scripts/migrate_0_1_0.py`` carries it forward.
     """
     from youbot_opt.trajopt.io import load_result, save_result
 
-    robot = solver.problem.robot
-
-    def load(path: Path) -> TrajOptResult:
-        return load_result(path, robot=robot)
-
-    _refuse_0_1_0(Path(out))
-    return SweepStore(
-        out, kind=kind, params=params, save=save_result, load=load, suffix=".npz", clean=clean
+    return Codec(
+        save=save_result,
+        load=functools.partial(load_result, robot=solver.problem.robot),
+        suffix=".npz",
+        refuse_old=_refuse_0_1_0,
     )
 
 

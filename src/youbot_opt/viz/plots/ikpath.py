@@ -277,7 +277,7 @@ def plot_minima(result: MultistartResult) -> Figure:
     ax.set_xticks(range(len(minima)), labels, rotation=45, ha="right")
     ax.set_xlabel("E of the local minimum [rad²]")
     ax.set_ylabel("starts")
-    failed = result.n_starts - result.n_success
+    failed = result.n_starts - result.n_converged
     shown = f", lowest {len(minima)} shown" if len(minima) < len(result.minima) else ""
     ax.set_title(
         f"{result.method}: {result.n_starts} start{'' if result.n_starts == 1 else 's'} "
