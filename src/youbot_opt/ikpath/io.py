@@ -14,6 +14,7 @@ those) or disagreeing file, and re-checks a claimed success.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -33,7 +34,7 @@ from youbot_opt._files import (
     schema_header,
     software_versions,
 )
-from youbot_opt.exceptions import ResultFileError, YoubotOptError
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
@@ -41,6 +42,11 @@ from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain
 from youbot_opt.robot.source import RobotSource
+
+DEFAULT_LOAD_POSITION_TOL = 1e-6
+"""The loader's position tolerance [m] of a target (:class:`Target`'s default)."""
+DEFAULT_LOAD_ORIENTATION_TOL = 1e-6
+"""The loader's orientation tolerance [rad] of a target (:class:`Target`'s default)."""
 
 __all__ = [
     "RECHECK_TOL",
@@ -255,7 +261,7 @@ def _planar_body(result: IKPathResult) -> dict[str, Any]:
     }
 
 
-def _parse_planar(body: dict[str, Any]) -> IKPathResult:
+def _parse_planar(body: dict[str, Any], constraint_tol: float) -> IKPathResult:
     spec = body["chain"]
     chain = PlanarChain(
         lengths=spec["lengths"],
@@ -281,15 +287,24 @@ def _parse_planar(body: dict[str, Any]) -> IKPathResult:
         wall_time=float(body["wall_time"]),
         message=str(body["message"]),
         start=np.array(body["start"], dtype=float),
-        constraint_tol=float(body["constraint_tol"]),
+        constraint_tol=constraint_tol,
         history=history,
     )
 
 
-def _load_planar(source: Path, body: dict[str, Any]) -> IKPathResult:
-    """Read a planar result's body; E and position errors recomputed and compared (1e-9)."""
+def _load_planar(source: Path, body: dict[str, Any], position_tol: float) -> IKPathResult:
+    """Read a planar result's body; E and position errors recomputed and compared (1e-9).
+
+    The success claim is re-checked at ``min(constraint_tol of the file, position_tol)``.
+    """
     try:
-        result = _parse_planar(body)
+        saved_tol = float(body["constraint_tol"])
+        result = _parse_planar(body, min(saved_tol, position_tol))
+        if not saved_tol <= position_tol:
+            note = (
+                f"checked at constraint_tol = {position_tol:.3g} m, not the file's {saved_tol:.3g}"
+            )
+            result = dataclasses.replace(result, message=f"{result.message}; {note}")
         stored_e = float(body["objective"])
         stored_res = np.array(body["residuals"], dtype=float)
     except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
@@ -477,9 +492,17 @@ def _parse_3d(
 
 
 def _load_3d(
-    source: Path, body: dict[str, Any], robot: RobotModel | pin.Model | None
+    source: Path,
+    body: dict[str, Any],
+    robot: RobotModel | pin.Model | None,
+    tols: tuple[float, float],
 ) -> IKPathResult:
-    """Read a 3-D result's body; target errors recomputed by ``pin.framesForwardKinematics``."""
+    """Read a 3-D result's body; target errors recomputed by ``pin.framesForwardKinematics``.
+
+    A success claim is re-checked at each target's tolerance or the caller's
+    ``tols`` (position [m], orientation [rad]), whichever is smaller, and
+    against the model's joint limits (the file's may not be wider).
+    """
     try:
         result, stored_pos, stored_ang = _parse_3d(body, robot, source)
         stored_e = float(body["objective"])
@@ -507,9 +530,20 @@ def _load_3d(
             f"{source}: the stored figures disagree with pin.framesForwardKinematics on the "
             f"configurations (the file was edited or the robot changed): {'; '.join(bad[:4])}"
         )
+    problem = result.problem
+    if problem.use_limits and problem.q_lower is not None and problem.q_upper is not None:
+        lower, upper = _model_limits(problem)
+        wider = np.flatnonzero((problem.q_lower < lower) | (problem.q_upper > upper))
+        if wider.size:
+            names = [problem.joint_names[j] for j in wider]
+            raise ResultFileError(
+                f"{source}: the file's joint limits are wider than the model's for {names} "
+                f"(file {problem.q_lower[wider].tolist()}..{problem.q_upper[wider].tolist()}, "
+                f"model {lower[wider].tolist()}..{upper[wider].tolist()} rad or m)"
+            )
     if result.success:
-        pt = np.array([t.position_tol for t in result.problem.targets])
-        ot = np.array([t.orientation_tol for t in result.problem.targets])
+        pt = np.minimum([t.position_tol for t in problem.targets], tols[0])
+        ot = np.minimum([t.orientation_tol for t in problem.targets], tols[1])
         missed = np.flatnonzero((result.position_errors > pt) | (result.orientation_errors > ot))
         if missed.size or result.limit_violation > 0.0:
             raise ResultFileError(
@@ -517,6 +551,15 @@ def _load_3d(
                 f"missed or the limits are violated by {result.limit_violation:.3g} rad"
             )
     return result
+
+
+def _model_limits(problem: CyclicIKProblem) -> tuple[np.ndarray, np.ndarray]:
+    """Return the model's position limits [rad or m] of the problem's joints."""
+    model = problem.model
+    idx = [model.joints[model.getJointId(name)].idx_q for name in problem.joint_names]
+    lower = np.asarray(model.lowerPositionLimit, dtype=float)[idx]
+    upper = np.asarray(model.upperPositionLimit, dtype=float)[idx]
+    return lower, upper
 
 
 def _is_planar(result: IKPathResult) -> bool:
@@ -589,7 +632,11 @@ _SCHEMA_3D_0_1_0 = "youbot_opt.spatial_ikpath_result"  # 0.1.0's 3-D results: re
 
 
 def load_result(
-    path: str | os.PathLike[str], *, robot: RobotModel | pin.Model | None = None
+    path: str | os.PathLike[str],
+    *,
+    robot: RobotModel | pin.Model | None = None,
+    position_tol: float = DEFAULT_LOAD_POSITION_TOL,
+    orientation_tol: float = DEFAULT_LOAD_ORIENTATION_TOL,
 ) -> IKPathResult:
     """Read a result written by :func:`save_result` and check it against its robot.
 
@@ -603,6 +650,13 @@ def load_result(
         from the recorded path relative to the file's folder, only with the
         recorded content (:meth:`RobotSource.load`). A planar result rebuilds
         its chain from the file.
+    position_tol : float, optional
+        The caller's largest position error [m] of a target (the library's
+        default 1e-6 unless you pass another). A success claim is re-checked
+        at the smaller of this and the file's tolerance of each target (a
+        planar result: of its ``constraint_tol``): a file can only tighten it.
+    orientation_tol : float, optional
+        The caller's largest orientation error [rad] (as ``position_tol``).
 
     Returns
     -------
@@ -616,7 +670,8 @@ def load_result(
     ResultFileError
         If the file is missing or not JSON, of another schema or a newer
         version, written by 0.1.0 (the message names ``scripts/migrate_0_1_0.py``,
-        which carries it forward), fails its checksum, is incomplete, its robot cannot be loaded
+        which carries it forward), fails its checksum, is incomplete, its
+        joint limits (with ``use_limits``) are wider than the model's, its robot cannot be loaded
         (the URDF not found: the message names the paths tried; or edited: it
         names the file and both SHA-256) or differs from the one it was solved
         on, its stored E or target errors disagree with the recomputed ones by
@@ -639,9 +694,25 @@ def load_result(
                 f"`python {MIGRATION_SCRIPT} {source}` to carry it forward"
             ) from None
         raise
+    tols = (
+        _caller_tol(position_tol, "position_tol", "m"),
+        _caller_tol(orientation_tol, "orientation_tol", "rad"),
+    )
     if "chain" in body:
-        return _load_planar(source, body)
-    return _load_3d(source, body, robot)
+        return _load_planar(source, body, tols[0])
+    return _load_3d(source, body, robot, tols)
+
+
+def _caller_tol(value: float, name: str, unit: str) -> float:
+    """Return the caller's tolerance ``value`` as a float, or raise ParameterError."""
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    if not (ok and 0.0 < float(value) < math.inf):
+        raise ParameterError(
+            f"{name} must be a positive finite number in [{unit}], got {value!r}",
+            name=name,
+            value=value,
+        )
+    return float(value)
 
 
 def _schema_of(source: Path) -> object:

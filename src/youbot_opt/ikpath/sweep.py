@@ -430,7 +430,15 @@ def result_codec(problem: CyclicIKProblem, *, planar: bool) -> Codec[IKPathResul
     solvers = PLANAR_STARTS if planar else STARTS_3D
     return Codec(
         save=encoded_saver(solvers.encode),
-        load=load_result if planar else functools.partial(load_result, robot=problem.model),
+        # the sweep's own problem is the caller: its targets' tolerances re-check a payload
+        load=load_result
+        if planar
+        else functools.partial(
+            load_result,
+            robot=problem.model,
+            position_tol=max(t.position_tol for t in problem.targets),
+            orientation_tol=max(t.orientation_tol for t in problem.targets),
+        ),
         suffix=solvers.suffix,
         encode=solvers.encode,
         refuse_old=_refuse_old if planar else None,
