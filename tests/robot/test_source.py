@@ -317,3 +317,15 @@ def test_a_spatial_ik_result_of_such_a_file_reloads_that_file(tmp_path: Path) ->
     urdf.unlink()
     with pytest.raises(ResultFileError, match="not found"):
         load_result(path)
+
+
+def test_a_recorded_path_that_is_no_robot_file_is_named_not_read(tmp_path: Path) -> None:
+    """A result may name any path (../../etc/shadow): only robot files are hashed (#29)."""
+    secret = tmp_path / "shadow"
+    secret.write_text("root:secret\n")
+    data = {"source": str(secret), "urdf_sha256": "0" * 64, "relative_source": None}
+    source = RobotSource.from_json(data)
+    with pytest.raises(ModelError, match="is not a robot file") as info:
+        source.locate()
+    digest = hashlib.sha256(secret.read_bytes()).hexdigest()
+    assert digest[:12] not in str(info.value) and str(secret) in str(info.value)

@@ -26,7 +26,10 @@ from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.payload import Payload
 
-__all__ = ["RobotSource", "urdf_digest"]
+__all__ = ["ROBOT_FILE_SUFFIXES", "RobotSource", "urdf_digest"]
+
+ROBOT_FILE_SUFFIXES = (".urdf", ".xml", ".mjcf")
+"""Suffixes of the robot files a recorded source may name (URDF, MJCF); nothing else is read."""
 
 _log = logging.getLogger(__name__)
 
@@ -223,7 +226,10 @@ class RobotSource:
             If no candidate exists; the message names every path tried.
         ModelError
             If candidates exist but none has the recorded content; the message
-            names each and both SHA-256 (first 12 hex digits).
+            names each and both SHA-256 (first 12 hex digits). Only files with
+            a robot file's suffix (:data:`ROBOT_FILE_SUFFIXES`) are read: a
+            result file may name any path (``../../etc/shadow``), which is named
+            and not read.
         """
         if self.urdf_sha256 is None:
             return self.source
@@ -234,6 +240,9 @@ class RobotSource:
             raise RobotNotFound(f"the robot's URDF is not found: tried {where}", path=self.source)
         differ = []
         for path in found:
+            if path.suffix.lower() not in ROBOT_FILE_SUFFIXES:  # never read what is no robot file
+                differ.append(f"{path} is not a robot file (suffix not in {ROBOT_FILE_SUFFIXES})")
+                continue
             digest = urdf_digest(path, Path(self.source).stem)
             if digest == self.urdf_sha256:
                 return str(path)
