@@ -46,3 +46,17 @@ def test_the_frame_limit_names_duration_and_limit():
     with pytest.raises(ParameterError, match=r"replay of 10000 s at 30 frames/s needs 3e\+05"):
         frame_times([long], 30.0)
     assert frame_times([long], 3.0).size == 30_001  # within the limit: every frame
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["pareto", "--first-starts", "1000000000000"],
+        ["reproduce-study1", "--quick", "--starts", "100000000000000"],
+    ],
+)
+def test_start_counts_past_the_memory_are_refused_before_any_task_list(argv, tmp_path, capsys):
+    """Before: both built their task lists eagerly (hours and all the memory)."""
+    assert main([*argv, "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "TiB of memory" in err and "YOUBOT_OPT_MEMORY_LIMIT_GB" in err

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt.cli.output import print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.figures import FIGURES
 from youbot_opt.reproduction.report import write_report
@@ -52,6 +53,12 @@ def run(args: argparse.Namespace) -> int:
             changes["executor"] = "serial"
         config = (
             ReproductionConfig.quick(**changes) if args.quick else ReproductionConfig(**changes)
+        )
+        # the sweeps list every start's task up front: refuse what cannot fit in memory
+        check_trajopt_size(
+            n_knots=config.n_knots,
+            nq=3,  # the study's planar youBot
+            n_starts=max(config.n_starts, config.search_starts),
         )
         folder = run_folder("reproduce-study1", args.out)
         tic = time.perf_counter()

@@ -104,7 +104,8 @@ def _solver(args: argparse.Namespace) -> TrajOptSolver:
     check_trajopt_size(
         n_knots=args.knots,
         nq=problem.robot.nq,
-        n_starts=getattr(args, "starts", 1),
+        # every start's task is listed up front: pareto's --first-starts counts too
+        n_starts=max(getattr(args, "starts", 1) or 1, getattr(args, "first_starts", 1) or 1),
         max_knots=args.max_knots if getattr(args, "refine", False) else 0,
     )
     method = args.transcription.replace("-", "_")
