@@ -48,6 +48,7 @@ __all__ = [
     "json_roundtrip",
     "read_json_lines",
     "read_npz",
+    "read_regular_file",
     "schema_header",
     "software_versions",
     "write_json_lines",
@@ -620,3 +621,48 @@ def read_npz(path: Path, *, max_bytes: int = MAX_RESULT_BYTES) -> dict[str, np.n
         raise
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise ResultFileError(f"{path} is not a readable result file (corrupted?): {exc}") from exc
+
+
+def read_regular_file(
+    path: Path, *, max_bytes: int = MAX_RESULT_BYTES, what: str = "file"
+) -> bytes:
+    """Return the bytes of a regular file of at most ``max_bytes``; never block on a FIFO.
+
+    A FIFO, a device (``/dev/zero``), a folder or a socket is refused before it
+    is opened, and so is a file larger than the limit.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    max_bytes : int, optional
+        Largest size [bytes] (:data:`MAX_RESULT_BYTES`).
+    what : str, optional
+        What the file should hold, for the message (``"an IK-path result"``).
+
+    Returns
+    -------
+    bytes
+        The content.
+
+    Raises
+    ------
+    ResultFileError
+        If the path is missing, not a regular file, too large or unreadable.
+    """
+    try:
+        info = os.stat(path)
+    except OSError as exc:
+        raise ResultFileError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
+    if not stat.S_ISREG(info.st_mode):
+        raise ResultFileError(f"{path} is not a regular file; {what} is a file")
+    if info.st_size > max_bytes:
+        raise ResultFileError(
+            f"{path} holds {info.st_size} bytes, more than the limit MAX_RESULT_BYTES = "
+            f"{max_bytes} of {what}; not read"
+        )
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(max_bytes + 1)[: max_bytes + 1]
+    except OSError as exc:
+        raise ResultFileError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc

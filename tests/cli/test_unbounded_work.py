@@ -60,3 +60,33 @@ def test_start_counts_past_the_memory_are_refused_before_any_task_list(argv, tmp
     assert main([*argv, "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert "TiB of memory" in err and "YOUBOT_OPT_MEMORY_LIMIT_GB" in err
+
+
+def test_a_fifo_or_a_device_is_refused_without_blocking(tmp_path, capsys):
+    """--from-json and IK result files: a FIFO blocked forever, /dev/zero ate the memory."""
+    import os
+
+    from youbot_opt.exceptions import ResultFileError
+    from youbot_opt.ikpath.io import load_result
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for path in (fifo, "/dev/zero"):
+        assert (
+            main(["reproduce-study1", "--from-json", str(path), "--out", str(tmp_path / "r")]) == 2
+        )
+        assert "is not a regular file" in capsys.readouterr().err
+        with pytest.raises(ResultFileError, match="is not a regular file"):
+            load_result(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [("[1, 2]", "is an object, got a list"), ('{"a": 1}', "field 'config' must be a JSON dict")],
+)
+def test_a_reproduction_json_of_the_wrong_shape_is_refused(text, message, tmp_path, capsys):
+    path = tmp_path / "wrong.json"
+    path.write_text(text)
+    assert main(["reproduce-study1", "--from-json", str(path), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err

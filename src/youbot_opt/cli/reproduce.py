@@ -21,9 +21,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from youbot_opt._files import read_regular_file
 from youbot_opt.cli.output import print_outputs, run_folder, save_figure, write_summary
 from youbot_opt.cli.run_size import check_trajopt_size
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.reproduction.figures import FIGURES
 from youbot_opt.reproduction.report import write_report
 from youbot_opt.reproduction.runs import ReproductionConfig, reproduce_study1
@@ -32,16 +33,41 @@ from youbot_opt.trajopt.io import save_result
 __all__ = ["run"]
 
 
+_TOP_KEYS: dict[str, type] = {
+    "config": dict, "base": dict, "search": dict, "ablation": list, "extremes": dict,
+    "pareto": dict, "refinement": dict, "timings": dict,
+}  # fmt: skip
+"""The top-level fields of a reproduction JSON (``Study1Reproduction.to_json``) and their types."""
+
+
+def _check_reproduction_json(data: object, path: str) -> None:
+    """Refuse ``--from-json`` data that is not a reproduction's JSON, naming the field."""
+    if not isinstance(data, dict):
+        raise ParameterError(
+            f"--from-json {path}: a reproduction JSON is an object, got a {type(data).__name__}",
+            name="from_json",
+        )
+    for key, kind in _TOP_KEYS.items():
+        if not isinstance(data.get(key), kind):
+            found = type(data[key]).__name__ if key in data else "nothing"
+            raise ParameterError(
+                f"--from-json {path}: field {key!r} must be a JSON {kind.__name__}, got "
+                f"{found} (write it with `youbot-opt reproduce-study1 --out DIR`)",
+                name="from_json",
+            )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``youbot-opt reproduce-study1``; returns the exit code."""
     results: dict[str, Any] = {}
     if args.from_json is not None:
         try:
-            data = json.loads(Path(args.from_json).read_text())
-        except (OSError, ValueError) as exc:
+            data = json.loads(read_regular_file(Path(args.from_json), what="a reproduction JSON"))
+        except (ResultFileError, ValueError, RecursionError) as exc:
             raise ParameterError(
                 f"cannot read {args.from_json!r}: {exc}", name="from_json"
             ) from exc
+        _check_reproduction_json(data, args.from_json)
         folder = run_folder("reproduce-study1", args.out)
     else:
         changes: dict[str, Any] = {"seed": args.seed, "workers": args.workers}

@@ -31,6 +31,7 @@ from youbot_opt._files import (
     atomic_write_bytes,
     check_schema_header,
     json_digest,
+    read_regular_file,
     schema_header,
     software_versions,
 )
@@ -198,8 +199,8 @@ def read_document(
     """
     source = Path(path)
     try:
-        doc = json.loads(source.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        doc = json.loads(read_regular_file(source, what=what).decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ResultFileError(f"{source}: cannot read {what}: {exc}") from exc
     check_schema_header(doc, schema=schema, supported=version, source=str(source), oldest=oldest)
     body = doc.get("result")
@@ -718,7 +719,7 @@ def _caller_tol(value: float, name: str, unit: str) -> float:
 def _schema_of(source: Path) -> object:
     """Return the ``schema`` field of the JSON file ``source`` (None if unreadable)."""
     try:
-        doc = json.loads(source.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        doc = json.loads(read_regular_file(source).decode("utf-8"))
+    except (ResultFileError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
         return None
     return doc.get("schema") if isinstance(doc, dict) else None
