@@ -35,7 +35,7 @@ __all__ = ["run"]
 
 _TOP_KEYS: dict[str, type] = {
     "config": dict, "base": dict, "search": dict, "ablation": list, "extremes": dict,
-    "pareto": dict, "refinement": dict, "timings": dict,
+    "pareto": dict, "refinement": list, "timings": dict,
 }  # fmt: skip
 """The top-level fields of a reproduction JSON (``Study1Reproduction.to_json``) and their types."""
 
