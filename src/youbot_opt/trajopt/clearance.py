@@ -1,17 +1,18 @@
 """Clearance of a trajectory problem and of a plan, with coal's exact geometry (#28 items 4-5).
 
-:func:`check_boundary_clearance` refuses a problem whose start or goal is
-closer than the margin to an obstacle or to the robot itself, before any
-solve, naming the link and the obstacle. :func:`certify_plan_clearance`
-certifies a planned motion between its knots with
-:func:`youbot_opt.collision.certify_clearance` (the point-speed bound of
-``docs/scene.md``, from the plan's joint speeds).
+:func:`clearance_constraint`: a problem's :class:`~youbot_opt.trajopt.problem.Clearance`
+as the NLP's path constraint (conservative ball distances >= the margin).
+:func:`check_boundary_clearance` refuses a start or goal closer than the margin
+to an obstacle or the robot itself, before any solve, naming link and obstacle.
+:func:`certify_plan_clearance` certifies a plan between its knots with
+:func:`youbot_opt.collision.certify_clearance` (point-speed bound, ``docs/scene.md``).
 
 >>> check_boundary_clearance(problem, checker, margin=0.01)  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 
 from youbot_opt.collision.clearance import (
@@ -19,12 +20,74 @@ from youbot_opt.collision.clearance import (
     certify_clearance,
     require_clearance,
 )
-from youbot_opt.collision.exact import ExactChecker
+from youbot_opt.collision.exact import ExactChecker, exact_checker
+from youbot_opt.collision.model import CollisionModel, build_collision_model
+from youbot_opt.dynamics.symbolic import build_symbolic_model
 from youbot_opt.robot.model import RobotModel
-from youbot_opt.trajopt.problem import TrajOptProblem
+from youbot_opt.trajopt.problem import Clearance, TrajOptProblem
 from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.trajopt.transcription.path import PathConstraint
 
-__all__ = ["check_boundary_clearance", "certify_plan_clearance"]
+__all__ = [
+    "check_boundary_clearance",
+    "certify_plan_clearance",
+    "clearance_checker",
+    "clearance_constraint",
+    "collision_model",
+]
+
+
+def collision_model(robot: RobotModel, clearance: Clearance) -> CollisionModel:
+    """Return the bounding-ball collision model of ``robot`` in ``clearance``'s scene and pairs."""
+    return build_collision_model(
+        robot,
+        clearance.scene,
+        self_collision=clearance.self_collision,
+        pairs=clearance.pairs,
+    )
+
+
+def clearance_checker(robot: RobotModel, clearance: Clearance) -> ExactChecker:
+    """Return coal's exact solids for the pairs of :func:`collision_model` (the certificate's)."""
+    return exact_checker(collision_model(robot, clearance), robot)
+
+
+def clearance_constraint(problem: TrajOptProblem) -> PathConstraint | None:
+    """Return the NLP's clearance path constraint of ``problem`` (None without a clearance).
+
+    Rows: every checked pair's conservative distance [m] (never above coal's
+    exact one), held at or above ``problem.clearance.margin``; the exact
+    clearance is then at least the margin at every point the transcription
+    constrains (knots and interior points).
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        The problem; its robot in angle coordinates is the kinematics'.
+
+    Returns
+    -------
+    PathConstraint or None
+        ``"clearance"``: ``(q, v) -> d (n_pairs,)`` [m] with lower bound the
+        margin; None when the problem has no clearance or no pair to check.
+    """
+    spec = problem.clearance
+    if spec is None:
+        return None
+    model = collision_model(problem.robot, spec)
+    if model.n_pairs == 0:
+        return None
+    distances = model.configuration_function(build_symbolic_model(problem.robot).forward_kinematics)
+    q = ca.SX.sym("q", problem.nv)
+    v = ca.SX.sym("v", problem.nv)
+    function = ca.Function("clearance", [q, v], [distances(q)], ["q", "v"], ["distance"])
+    return PathConstraint(
+        name="clearance",
+        function=function,
+        lower=np.full(model.n_pairs, spec.margin),
+        upper=np.full(model.n_pairs, np.inf),
+        labels=tuple(f"{a} / {b}" for a, b in model.pair_names),
+    )
 
 
 def check_boundary_clearance(

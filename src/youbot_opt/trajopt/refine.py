@@ -524,7 +524,15 @@ def transfer_start(
         lam = np.asarray(old.multipliers[name], dtype=float)
         if block.count == 1:
             lam_g_blocks[name] = lam
-        elif name in nlp.path_bounds:
+        elif name in nlp.path_limits and block.count == n_new:  # knot rows: densities
+            density = lam / w_old[:, None]
+            lam_g_blocks[name] = (
+                np.stack(
+                    [np.interp(t_new, t_old, density[:, j]) for j in range(block.width)], axis=1
+                )
+                * w_new[:, None]
+            )
+        elif name in nlp.path_bounds or name in nlp.path_limits:
             lam_g_blocks[name] = lam[parent] / pieces
         else:
             lam_g_blocks[name] = lam[parent]
