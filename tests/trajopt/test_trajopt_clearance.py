@@ -111,3 +111,22 @@ def test_clearance_margin_checked() -> None:
     """A negative margin is refused, naming it."""
     with pytest.raises(ParameterError, match="margin"):
         Clearance(margin=-0.01)
+
+
+def test_saved_clearance_rechecked_on_load(free: TrajOptProblem, tmp_path) -> None:
+    """The scene and margin round-trip; a loaded plan is checked against coal, not the file."""
+    from youbot_opt.trajopt.io import load_result, save_result
+
+    problem = dataclasses.replace(free, clearance=_ball_over_tip(free))
+    result = TrajOptSolver(problem).solve(beta=0.5)
+    assert result.status.success
+    assert result.check().clearance >= MARGIN - result.feasibility_tol
+    loaded = load_result(save_result(result, tmp_path / "swing"))
+    assert loaded.problem.clearance == problem.clearance
+    assert loaded.status.success
+    # the same plan under a larger margin than it keeps: the check refuses it on load
+    wider = dataclasses.replace(problem.clearance, margin=0.05)
+    strict = dataclasses.replace(result, problem=dataclasses.replace(problem, clearance=wider))
+    reloaded = load_result(save_result(strict, tmp_path / "strict"))
+    assert not reloaded.status.success
+    assert "clearance" in reloaded.message and "'ball'" in reloaded.message
