@@ -130,3 +130,36 @@ def test_saved_clearance_rechecked_on_load(free: TrajOptProblem, tmp_path) -> No
     reloaded = load_result(save_result(strict, tmp_path / "strict"))
     assert not reloaded.status.success
     assert "clearance" in reloaded.message and "'ball'" in reloaded.message
+
+
+def test_refinement_removes_a_clip_between_knots(free: TrajOptProblem) -> None:
+    """A 5 mm ball on the free tip path between the constrained points of a 4-knot grid.
+
+    The knots-and-midpoints NLP does not see it (its plan is the free one) and
+    the exact certificate finds the clip; refinement splits that interval and
+    ends with a plan whose clearance the certificate proves at every time.
+    """
+    from youbot_opt.trajopt.refine import RefinementBudget, refine
+
+    coarse = dataclasses.replace(free, n_knots=4)
+    plan = TrajOptSolver(coarse).solve(beta=0.5)
+    assert plan.trajectory is not None
+    when = 1.3 * plan.duration / 3  # 30 % into interval 1, between knot 1 and its midpoint
+    tip = frame_placement(coarse.robot, plan.trajectory(when), "gripper_tip").translation
+    ball = Obstacle(name="ball", shape=Sphere(radius=0.005), xyz=tuple(tip))
+    clearance = Clearance(scene=Scene((ball,)), self_collision=False)
+    problem = dataclasses.replace(coarse, clearance=clearance)
+    checker = clearance_checker(problem.robot, clearance)
+    solver = TrajOptSolver(problem)
+    knots_only = solver.solve(beta=0.5)
+    assert knots_only.status.success and knots_only.trajectory is not None
+    assert not certify_plan_clearance(knots_only.trajectory, problem.robot, checker).certified
+
+    refined = refine(solver, beta=0.5, budget=RefinementBudget(certify=False))
+    first = refined.refinement.rounds[0]
+    assert first.certificate_passed is False
+    assert any("clearance" in f and "'ball'" in f for f in first.failures)
+    assert refined.refinement.certified, refined.refinement.reason
+    assert refined.result.trajectory is not None
+    cert = certify_plan_clearance(refined.result.trajectory, problem.robot, checker)
+    assert cert.certified and cert.lower_bound >= -cert.tolerance
