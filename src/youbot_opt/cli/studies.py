@@ -15,6 +15,7 @@ contents: docs/design.md, "Module notes"). Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -39,6 +40,7 @@ from youbot_opt.cli.output import (
 from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
 from youbot_opt.cli.refinement import refine_many, refinement_figures
 from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
+from youbot_opt.cli.solve import clearance_of
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
@@ -101,6 +103,9 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 def _solver(args: argparse.Namespace) -> TrajOptSolver:
 
     problem = study1_problem(args.knots)
+    clearance = clearance_of(args)
+    if clearance is not None:
+        problem = dataclasses.replace(problem, clearance=clearance)
     check_trajopt_size(
         n_knots=args.knots,
         nq=problem.robot.nq,

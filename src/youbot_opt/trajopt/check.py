@@ -232,18 +232,14 @@ def _knot_clearance(problem: TrajOptProblem, q: Array, tol: float) -> tuple[floa
     spec = problem.clearance
     if spec is None:
         return math.nan, ""
-    from youbot_opt.trajopt.clearance import clearance_checker
+    from youbot_opt.trajopt.clearance import knot_clearance
 
-    checker = clearance_checker(problem.robot, spec)
-    names = checker.model.pair_names
-    if not names:
+    found = knot_clearance(problem, q)
+    if found is None:
         return math.nan, ""
-    d = np.array([checker.distances(problem.robot, qk) for qk in q])
-    k, i = np.unravel_index(int(np.argmin(d)), d.shape)
-    low = float(d[k, i])
+    low, (a, b), k = found
     if low >= spec.margin - tol:
         return low, ""
-    a, b = names[i]
     return low, (
         f"clearance {low:.4g} m < margin {spec.margin:g} m at knot {k} ({a!r} / {b!r}, coal)"
     )

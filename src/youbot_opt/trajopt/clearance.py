@@ -15,6 +15,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from youbot_opt._typing import Array
 from youbot_opt.collision.clearance import (
     ClearanceCertificate,
     certify_clearance,
@@ -34,7 +35,35 @@ __all__ = [
     "clearance_checker",
     "clearance_constraint",
     "collision_model",
+    "knot_clearance",
 ]
+
+
+def knot_clearance(problem: TrajOptProblem, q: Array) -> tuple[float, tuple[str, str], int] | None:
+    """Return coal's smallest clearance [m] over the knots, its pair and its knot.
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        A problem with a clearance (None is returned without one, or without pairs).
+    q : ndarray, shape (n, nv)
+        Knot configurations in [rad] ([m] for prismatic joints).
+
+    Returns
+    -------
+    tuple of (float, (str, str), int) or None
+        Distance in [m], the pair's names and the knot index.
+    """
+    spec = problem.clearance
+    if spec is None:
+        return None
+    checker = clearance_checker(problem.robot, spec)
+    names = checker.model.pair_names
+    if not names:
+        return None
+    d = np.array([checker.distances(problem.robot, qk) for qk in np.asarray(q, dtype=float)])
+    k, i = np.unravel_index(int(np.argmin(d)), d.shape)
+    return float(d[k, i]), names[int(i)], int(k)
 
 
 def collision_model(robot: RobotModel, clearance: Clearance) -> CollisionModel:
