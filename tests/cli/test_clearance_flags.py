@@ -65,3 +65,4 @@ def test_solve_summary_names_closest_pair(tmp_path) -> None:
     clearance = summary["clearance"]
     assert clearance["closest_pair"][1] == "ball"
     assert clearance["closest_m"] >= 0.01 - 1e-6 and clearance["margin_m"] == 0.01
+    assert (out / "clearance.png").stat().st_size > 0  # the clearance-over-time figure

@@ -206,6 +206,11 @@ def run(args: argparse.Namespace) -> int:
     files = write_solve_outputs(
         folder, result, summary, ms if has_optimum else None, refinement=record
     )
+    if problem.clearance is not None and result.trajectory is not None:
+        from youbot_opt.viz.plots.trajopt import plot_clearance
+
+        plot_clearance(result).savefig(folder / "clearance.png", dpi=120)
+        files.append(folder / "clearance.png")
     if args.json:
         print(json.dumps(json_ready(summary)))
     else:
