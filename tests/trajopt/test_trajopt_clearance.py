@@ -163,3 +163,15 @@ def test_refinement_removes_a_clip_between_knots(free: TrajOptProblem) -> None:
     assert refined.result.trajectory is not None
     cert = certify_plan_clearance(refined.result.trajectory, problem.robot, checker)
     assert cert.certified and cert.lower_bound >= -cert.tolerance
+
+
+def test_ball_overshoot_at_the_start_refused(free: TrajOptProblem) -> None:
+    """Self-collision on the youBot: the platform's balls overshoot its box by over 10 cm.
+
+    Coal clears the start by 15 cm, the balls of ('platform_0', 'arm_link_2_0')
+    by 6 mm: with a 1 cm margin the NLP would be infeasible at its fixed first
+    knot, so the solver refuses it first, naming the pair and both distances.
+    """
+    problem = dataclasses.replace(free, clearance=Clearance(margin=MARGIN))
+    with pytest.raises(ParameterError, match=r"start: the bounding balls of pair 'platform_0"):
+        TrajOptSolver(problem)

@@ -24,6 +24,7 @@ from youbot_opt.collision.clearance import (
 from youbot_opt.collision.exact import ExactChecker, exact_checker
 from youbot_opt.collision.model import CollisionModel, build_collision_model
 from youbot_opt.dynamics.symbolic import build_symbolic_model
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.trajopt.problem import Clearance, TrajOptProblem
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -36,7 +37,43 @@ __all__ = [
     "clearance_constraint",
     "collision_model",
     "knot_clearance",
+    "require_model_clearance",
 ]
+
+
+def require_model_clearance(problem: TrajOptProblem, constraint: PathConstraint) -> None:
+    """Refuse a start or goal whose bounding-ball distance is below the margin.
+
+    The NLP holds the conservative ball distances (never above coal's) at
+    every knot, the first and last included, and those are fixed: a pair whose
+    balls overshoot its geometry by more than its coal clearance minus the
+    margin makes the NLP infeasible from the start, whatever coal says.
+
+    Raises
+    ------
+    ParameterError
+        Naming the state, the pair, the ball and coal distances and the margin
+        (and the ways out: a smaller margin, ``self_collision=False`` or the
+        pair disabled).
+    """
+    assert problem.clearance is not None
+    checker = clearance_checker(problem.robot, problem.clearance)
+    for what, state in (("start", problem.start), ("goal", problem.goal)):
+        zero = np.zeros(problem.nv)
+        model = np.asarray(constraint.function(state.q, zero), dtype=float).ravel()
+        bad = np.flatnonzero(model < constraint.lower)
+        if bad.size == 0:
+            continue
+        i = int(bad[np.argmin(model[bad] - constraint.lower[bad])])
+        exact = checker.distances(problem.robot, state.q)
+        raise ParameterError(
+            f"{what}: the bounding balls of pair {constraint.labels[i]!r} are "
+            f"{model[i]:.4g} m apart (coal: {float(exact[i]):.4g} m), below the margin "
+            f"{problem.clearance.margin:g} m the NLP holds at every knot: the balls overshoot "
+            "the geometry; use a smaller margin, disable the pair, or leave self-collision out",
+            name=what,
+            value=float(model[i]),
+        )
 
 
 def knot_clearance(problem: TrajOptProblem, q: Array) -> tuple[float, tuple[str, str], int] | None:

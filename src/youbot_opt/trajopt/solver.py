@@ -632,6 +632,7 @@ def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
         check_boundary_clearance,
         clearance_checker,
         clearance_constraint,
+        require_model_clearance,
     )
 
     check_boundary_clearance(
@@ -640,7 +641,10 @@ def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
         margin=problem.clearance.margin,
     )
     constraint = clearance_constraint(problem)
-    return () if constraint is None else (constraint,)
+    if constraint is None:
+        return ()
+    require_model_clearance(problem, constraint)
+    return (constraint,)
 
 
 def auto_transcription(problem: TrajOptProblem) -> str:
