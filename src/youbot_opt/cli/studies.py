@@ -40,7 +40,6 @@ from youbot_opt.cli.output import (
 from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
 from youbot_opt.cli.refinement import refine_many, refinement_figures
 from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
-from youbot_opt.cli.solve import clearance_of
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
@@ -101,6 +100,8 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 
 # ------------------------------------------------------------------ helpers
 def _solver(args: argparse.Namespace) -> TrajOptSolver:
+
+    from youbot_opt.cli.solve import clearance_of  # the solve command's flags, same rules
 
     problem = study1_problem(args.knots)
     clearance = clearance_of(args)
