@@ -416,6 +416,30 @@ def _refine_arguments(
 _Sub = argparse._SubParsersAction  # type: ignore[type-arg]
 
 
+def _clearance_arguments(p: argparse.ArgumentParser) -> None:
+    """Add ``--scene``, ``--margin`` and ``--no-self-collision`` (#28)."""
+    p.add_argument(
+        "--scene",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="obstacles (JSON scene file, docs/scene.md): the motion keeps --margin from them "
+        "and from the robot itself at every knot and collocation point",
+    )
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=None,
+        metavar="M",
+        help="required clearance in [m] (default 0 with --scene; alone: self-collision only)",
+    )
+    p.add_argument(
+        "--no-self-collision",
+        action="store_true",
+        help="with --scene: do not keep the robot's own links apart (the SRDF's active pairs)",
+    )
+
+
 def _main(sub: _Sub) -> None:
     p = sub.add_parser(
         "main",
@@ -522,6 +546,7 @@ def _solve(sub: _Sub) -> None:
         help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    _clearance_arguments(p)
     _refine_arguments(p)
 
 
@@ -644,6 +669,7 @@ def _studies(sub: _Sub) -> None:
     p.add_argument("--beta", type=float, default=0.5, help="time weight in [0, 1]")
     p.add_argument("--bound-scale", type=float, default=1.0, help="bound scale (1 = data sheet)")
     p.add_argument("--straight", action="store_true", help="also start from the straight line")
+    _clearance_arguments(p)
     p.add_argument(
         "--obj-tol",
         type=float,
@@ -671,6 +697,7 @@ def _studies(sub: _Sub) -> None:
         default=0,
         help="seeded starts at the first beta (default 0: straight line only)",
     )
+    _clearance_arguments(p)
 
     p = sub.add_parser(
         "bounds",

@@ -144,4 +144,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         q = pin.neutral(robot.model)
     print(format_report(robot, q))
+    if len(robot.collision_model.geometryObjects) > 1:  # a pair needs two geometries
+        from youbot_opt.collision.pairs import pairs_report, self_collision_pairs
+
+        print("\n".join(pairs_report(self_collision_pairs(robot))))
     return 0

@@ -15,6 +15,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 
@@ -35,11 +36,13 @@ from youbot_opt.cli.parser import DEFAULT_TRANSCRIPTION
 from youbot_opt.cli.refinement import refine_result
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.cli.trajopt_text import MULTISTART_HINT, certificate_of, format_result
+from youbot_opt.collision.scene import Scene
+from youbot_opt.collision.scene_file import load_scene
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
-from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.problem import BoundaryState, Clearance, TrajOptProblem
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.spline_guess import random_spline_guess
@@ -59,7 +62,35 @@ def transcription(args: argparse.Namespace) -> str:
     return "trapezoidal" if is_study_youbot(args) else DEFAULT_TRANSCRIPTION
 
 
+def clearance_of(args: argparse.Namespace) -> Clearance | None:
+    """Return the problem's clearance from ``--scene``, ``--margin``, ``--no-self-collision``.
+
+    None without ``--scene`` and ``--margin``: the scene-less problem.
+    """
+    scene_file = getattr(args, "scene", None)
+    margin = getattr(args, "margin", None)
+    if scene_file is None and margin is None:
+        if getattr(args, "no_self_collision", False):
+            raise ParameterError(
+                "--no-self-collision needs --scene (without one there is nothing to check)",
+                name="no_self_collision",
+            )
+        return None
+    return Clearance(
+        scene=Scene() if scene_file is None else load_scene(scene_file),
+        margin=0.0 if margin is None else margin,
+        self_collision=not args.no_self_collision,
+    )
+
+
 def _problem(args: argparse.Namespace) -> TrajOptProblem:
+    clearance = clearance_of(args)
+    if clearance is not None:
+        return dataclasses.replace(_free_problem(args), clearance=clearance)
+    return _free_problem(args)
+
+
+def _free_problem(args: argparse.Namespace) -> TrajOptProblem:
     is_youbot = is_study_youbot(args)
     if args.damping is not None and not is_youbot:
         raise ParameterError("--damping applies to the youBot only", name="damping")
@@ -175,6 +206,11 @@ def run(args: argparse.Namespace) -> int:
     files = write_solve_outputs(
         folder, result, summary, ms if has_optimum else None, refinement=record
     )
+    if problem.clearance is not None and result.trajectory is not None:
+        from youbot_opt.viz.plots.trajopt import plot_clearance
+
+        plot_clearance(result).savefig(folder / "clearance.png", dpi=120)
+        files.append(folder / "clearance.png")
     if args.json:
         print(json.dumps(json_ready(summary)))
     else:

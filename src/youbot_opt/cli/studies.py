@@ -15,6 +15,7 @@ contents: docs/design.md, "Module notes"). Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -100,7 +101,12 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 # ------------------------------------------------------------------ helpers
 def _solver(args: argparse.Namespace) -> TrajOptSolver:
 
+    from youbot_opt.cli.solve import clearance_of  # the solve command's flags, same rules
+
     problem = study1_problem(args.knots)
+    clearance = clearance_of(args)
+    if clearance is not None:
+        problem = dataclasses.replace(problem, clearance=clearance)
     check_trajopt_size(
         n_knots=args.knots,
         nq=problem.robot.nq,

@@ -26,7 +26,15 @@ from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Mesh,
 from youbot_opt.exceptions import ParameterError, YoubotOptError
 from youbot_opt.robot.urdf_check.meshes import check_mesh_file
 
-__all__ = ["MAX_SCENE_BYTES", "SCENE_SCHEMA", "SCENE_VERSION", "load_scene", "save_scene"]
+__all__ = [
+    "MAX_SCENE_BYTES",
+    "SCENE_SCHEMA",
+    "SCENE_VERSION",
+    "load_scene",
+    "save_scene",
+    "scene_document",
+    "scene_from_document",
+]
 
 #: Largest scene file read, in bytes.
 MAX_SCENE_BYTES = 1 << 20
@@ -193,6 +201,30 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
             name="path",
             value=where,
         ) from e
+    return scene_from_document(doc, folder=file.absolute().parent)
+
+
+def scene_from_document(doc: object, *, folder: str | os.PathLike[str]) -> Scene:
+    """Read a scene from the parsed JSON of a scene file (:func:`load_scene`'s checks).
+
+    Parameters
+    ----------
+    doc : object
+        The document (a dict with ``schema``, ``schema_version``, ``obstacles``).
+    folder : path-like
+        The folder mesh and furniture paths are relative to.
+
+    Returns
+    -------
+    Scene
+        Its obstacles, in document order.
+
+    Raises
+    ------
+    ParameterError
+        The document breaks the schema; the message names the key path.
+    """
+    where = "scene"
     if not isinstance(doc, dict):
         raise _refuse(where, "must hold a JSON object", doc)
     for key in doc:
@@ -212,10 +244,9 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
     if len(entries) > MAX_OBSTACLES:
         raise _refuse("obstacles", f"a scene holds at most {MAX_OBSTACLES} obstacles", len(entries))
     scene = Scene()
-    folder = file.absolute().parent
     for i, entry in enumerate(entries):
         try:
-            scene = scene + _obstacles(entry, f"obstacles[{i}]", folder)
+            scene = scene + _obstacles(entry, f"obstacles[{i}]", Path(folder))
         except ParameterError:
             raise
         except YoubotOptError as e:
@@ -257,10 +288,14 @@ def save_scene(scene: Scene, path: str | os.PathLike[str]) -> None:
     path : path-like
         The file to write (atomically).
     """
-    folder = Path(path).absolute().parent
-    doc = {
+    doc = scene_document(scene, folder=Path(path).absolute().parent)
+    atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
+
+
+def scene_document(scene: Scene, *, folder: str | os.PathLike[str]) -> dict[str, Any]:
+    """Return the JSON document of a scene file, mesh paths relative to ``folder``."""
+    return {
         "schema": SCENE_SCHEMA,
         "schema_version": SCENE_VERSION,
-        "obstacles": [_entry(o, folder) for o in scene.obstacles],
+        "obstacles": [_entry(o, Path(folder)) for o in scene.obstacles],
     }
-    atomic_write_text(path, json.dumps(doc, indent=2) + "\n")

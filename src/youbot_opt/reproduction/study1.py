@@ -28,6 +28,7 @@ from youbot_opt.trajopt.objectives import objective_value
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.transcription import TrapezoidalCollocation
 from youbot_opt.trajopt.transcription.base import Expressions
+from youbot_opt.trajopt.transcription.path import PathConstraint
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.result import TrajOptResult
@@ -211,7 +212,12 @@ class StudyTranscription(TrapezoidalCollocation):
         return [("defect_position", defect_q), ("defect_velocity", defect_v)]
 
     def expressions(
-        self, problem: TrajOptProblem, sym: dict[str, Any], accel: dict[str, Any], beta: Any
+        self,
+        problem: TrajOptProblem,
+        sym: dict[str, Any],
+        accel: dict[str, Any],
+        beta: Any,
+        paths: tuple[PathConstraint, ...] = (),
     ) -> Expressions:
         """Build the trapezoidal pieces, with the time term of deviation (4).
 
@@ -228,7 +234,7 @@ class StudyTranscription(TrapezoidalCollocation):
                 f"robot already applies damping {own.tolist()} N m s/rad, so it would count twice; "
                 "load the robot without damping (study1_problem()) or switch deviation (3) off"
             )
-        parts = super().expressions(problem, sym, accel, beta)
+        parts = super().expressions(problem, sym, accel, beta, paths)
         if not self.deviations.time_n_dt:
             return parts
         total = self.deviations.duration(sym["dt"], problem.n_knots)

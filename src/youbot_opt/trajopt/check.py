@@ -46,6 +46,9 @@ class ResultCheck(NamedTuple):
     defect : float
         Largest collocation defect by ``pin.aba`` (not CasADi), [rad] or [rad/s];
         NaN for a transcription other than trapezoidal and Hermite-Simpson.
+    clearance : float
+        Smallest exact (coal) distance [m] of a checked pair at the knots, for a
+        problem with a :class:`~youbot_opt.trajopt.problem.Clearance`; NaN without.
     """
 
     status: SolveStatus
@@ -54,6 +57,7 @@ class ResultCheck(NamedTuple):
     bound_violation: float
     boundary_violation: float
     defect: float
+    clearance: float = math.nan
 
     @property
     def passed(self) -> bool:
@@ -218,6 +222,29 @@ def _work(result: CheckedSolution, v: Mapping[str, Array], dt: float) -> float:
     return float(0.5 * dt * np.sum(p[:-1] + p[1:]))
 
 
+def _knot_clearance(problem: TrajOptProblem, q: Array, tol: float) -> tuple[float, str]:
+    """Smallest exact clearance [m] at the knots, and why it falls short of the margin.
+
+    Coal's distances (:mod:`youbot_opt.collision.exact`), not the NLP's balls;
+    the NLP's conservative distances are >= the margin at the knots, so coal's
+    are too, up to the feasibility tolerance ``tol`` [m].
+    """
+    spec = problem.clearance
+    if spec is None:
+        return math.nan, ""
+    from youbot_opt.trajopt.clearance import knot_clearance
+
+    found = knot_clearance(problem, q)
+    if found is None:
+        return math.nan, ""
+    low, (a, b), k = found
+    if low >= spec.margin - tol:
+        return low, ""
+    return low, (
+        f"clearance {low:.4g} m < margin {spec.margin:g} m at knot {k} ({a!r} / {b!r}, coal)"
+    )
+
+
 def check_result(result: CheckedSolution, *, feasibility_tol: float | None = None) -> ResultCheck:
     """Re-check a result independently of IPOPT's flag and of the NLP.
 
@@ -323,16 +350,20 @@ def check_result(result: CheckedSolution, *, feasibility_tol: float | None = Non
     over = [
         f"{k} violated by {x:.3g}" for k, x in worst.items() if x > tol or math.isinf(x)
     ]  # NaN: unchecked
+    clearance, short = _knot_clearance(problem, v["q"], tol)
+    if short:
+        over.append(short)
     if result.trajectory is None:
         over.append("no trajectory")
     elif not np.array_equal(result.trajectory.q, v["q"]):
         over.append("trajectory knots differ from the variables")
     if base.success and over:
         msg = ", ".join(over + wrong) + f" (feasibility_tol = {tol:.3g})"
-        return ResultCheck(SolveStatus.CONSTRAINT_VIOLATION, msg, *figures)
+        return ResultCheck(SolveStatus.CONSTRAINT_VIOLATION, msg, *figures, clearance)
     if wrong:
-        return ResultCheck(SolveStatus.FAILED, "inconsistent result: " + "; ".join(wrong), *figures)
-    return ResultCheck(base, "", *figures)
+        why = "inconsistent result: " + "; ".join(wrong)
+        return ResultCheck(SolveStatus.FAILED, why, *figures, clearance)
+    return ResultCheck(base, "", *figures, clearance)
 
 
 def checked(result: ResultT) -> ResultT:

@@ -1,30 +1,159 @@
 """Clearance of a trajectory problem and of a plan, with coal's exact geometry (#28 items 4-5).
 
-:func:`check_boundary_clearance` refuses a problem whose start or goal is
-closer than the margin to an obstacle or to the robot itself, before any
-solve, naming the link and the obstacle. :func:`certify_plan_clearance`
-certifies a planned motion between its knots with
-:func:`youbot_opt.collision.certify_clearance` (the point-speed bound of
-``docs/scene.md``, from the plan's joint speeds).
+:func:`clearance_constraint`: a problem's :class:`~youbot_opt.trajopt.problem.Clearance`
+as the NLP's path constraint (conservative ball distances >= the margin).
+:func:`check_boundary_clearance` refuses a start or goal closer than the margin
+to an obstacle or the robot itself, before any solve, naming link and obstacle.
+:func:`certify_plan_clearance` certifies a plan between its knots with
+:func:`youbot_opt.collision.certify_clearance` (point-speed bound, ``docs/scene.md``).
 
 >>> check_boundary_clearance(problem, checker, margin=0.01)  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 
+from youbot_opt._typing import Array
 from youbot_opt.collision.clearance import (
     ClearanceCertificate,
     certify_clearance,
     require_clearance,
 )
-from youbot_opt.collision.exact import ExactChecker
+from youbot_opt.collision.exact import ExactChecker, exact_checker
+from youbot_opt.collision.model import CollisionModel, build_collision_model
+from youbot_opt.dynamics.symbolic import build_symbolic_model
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
-from youbot_opt.trajopt.problem import TrajOptProblem
+from youbot_opt.trajopt.problem import Clearance, TrajOptProblem
 from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.trajopt.transcription.path import PathConstraint
 
-__all__ = ["check_boundary_clearance", "certify_plan_clearance"]
+__all__ = [
+    "check_boundary_clearance",
+    "certify_plan_clearance",
+    "clearance_checker",
+    "clearance_constraint",
+    "collision_model",
+    "knot_clearance",
+    "require_model_clearance",
+]
+
+
+def require_model_clearance(problem: TrajOptProblem, constraint: PathConstraint) -> None:
+    """Refuse a start or goal whose bounding-ball distance is below the margin.
+
+    The NLP holds the conservative ball distances (never above coal's) at
+    every knot, the first and last included, and those are fixed: a pair whose
+    balls overshoot its geometry by more than its coal clearance minus the
+    margin makes the NLP infeasible from the start, whatever coal says.
+
+    Raises
+    ------
+    ParameterError
+        Naming the state, the pair, the ball and coal distances and the margin
+        (and the ways out: a smaller margin, ``self_collision=False`` or the
+        pair disabled).
+    """
+    assert problem.clearance is not None
+    checker = clearance_checker(problem.robot, problem.clearance)
+    for what, state in (("start", problem.start), ("goal", problem.goal)):
+        zero = np.zeros(problem.nv)
+        model = np.asarray(constraint.function(state.q, zero), dtype=float).ravel()
+        bad = np.flatnonzero(model < constraint.lower)
+        if bad.size == 0:
+            continue
+        i = int(bad[np.argmin(model[bad] - constraint.lower[bad])])
+        exact = checker.distances(problem.robot, state.q)
+        raise ParameterError(
+            f"{what}: the bounding balls of pair {constraint.labels[i]!r} are "
+            f"{model[i]:.4g} m apart (coal: {float(exact[i]):.4g} m), below the margin "
+            f"{problem.clearance.margin:g} m the NLP holds at every knot: the balls overshoot "
+            "the geometry; use a smaller margin, disable the pair, or leave self-collision out",
+            name=what,
+            value=float(model[i]),
+        )
+
+
+def knot_clearance(problem: TrajOptProblem, q: Array) -> tuple[float, tuple[str, str], int] | None:
+    """Return coal's smallest clearance [m] over the knots, its pair and its knot.
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        A problem with a clearance (None is returned without one, or without pairs).
+    q : ndarray, shape (n, nv)
+        Knot configurations in [rad] ([m] for prismatic joints).
+
+    Returns
+    -------
+    tuple of (float, (str, str), int) or None
+        Distance in [m], the pair's names and the knot index.
+    """
+    spec = problem.clearance
+    if spec is None:
+        return None
+    checker = clearance_checker(problem.robot, spec)
+    names = checker.model.pair_names
+    if not names:
+        return None
+    d = np.array([checker.distances(problem.robot, qk) for qk in np.asarray(q, dtype=float)])
+    k, i = np.unravel_index(int(np.argmin(d)), d.shape)
+    return float(d[k, i]), names[int(i)], int(k)
+
+
+def collision_model(robot: RobotModel, clearance: Clearance) -> CollisionModel:
+    """Return the bounding-ball collision model of ``robot`` in ``clearance``'s scene and pairs."""
+    return build_collision_model(
+        robot,
+        clearance.scene,
+        self_collision=clearance.self_collision,
+        pairs=clearance.pairs,
+    )
+
+
+def clearance_checker(robot: RobotModel, clearance: Clearance) -> ExactChecker:
+    """Return coal's exact solids for the pairs of :func:`collision_model` (the certificate's)."""
+    return exact_checker(collision_model(robot, clearance), robot)
+
+
+def clearance_constraint(problem: TrajOptProblem) -> PathConstraint | None:
+    """Return the NLP's clearance path constraint of ``problem`` (None without a clearance).
+
+    Rows: every checked pair's conservative distance [m] (never above coal's
+    exact one), held at or above ``problem.clearance.margin``; the exact
+    clearance is then at least the margin at every point the transcription
+    constrains (knots and interior points).
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        The problem; its robot in angle coordinates is the kinematics'.
+
+    Returns
+    -------
+    PathConstraint or None
+        ``"clearance"``: ``(q, v) -> d (n_pairs,)`` [m] with lower bound the
+        margin; None when the problem has no clearance or no pair to check.
+    """
+    spec = problem.clearance
+    if spec is None:
+        return None
+    model = collision_model(problem.robot, spec)
+    if model.n_pairs == 0:
+        return None
+    distances = model.configuration_function(build_symbolic_model(problem.robot).forward_kinematics)
+    q = ca.SX.sym("q", problem.nv)
+    v = ca.SX.sym("v", problem.nv)
+    function = ca.Function("clearance", [q, v], [distances(q)], ["q", "v"], ["distance"])
+    return PathConstraint(
+        name="clearance",
+        function=function,
+        lower=np.full(model.n_pairs, spec.margin),
+        upper=np.full(model.n_pairs, np.inf),
+        labels=tuple(f"{a} / {b}" for a, b in model.pair_names),
+    )
 
 
 def check_boundary_clearance(

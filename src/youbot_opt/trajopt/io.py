@@ -35,6 +35,8 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import Array
+from youbot_opt.collision.pairs import CollisionPairs
+from youbot_opt.collision.scene_file import scene_document, scene_from_document
 from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -44,7 +46,7 @@ from youbot_opt.robot.payload import Payload
 from youbot_opt.robot.source import RobotSource
 from youbot_opt.trajopt.certify import Tolerances, certify
 from youbot_opt.trajopt.check import checked
-from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.problem import BoundaryState, Clearance, TrajOptProblem
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
     DEFAULT_FEASIBILITY_TOL,
@@ -163,6 +165,35 @@ def _differences(saved: Tolerances, used: Tolerances) -> str:
     return ", ".join(f"{k}: file {a[k]:.3g}, used {b[k]:.3g}" for k in a if a[k] != b[k])
 
 
+def _describe(problem: TrajOptProblem, folder: Path) -> dict[str, Any]:
+    """Describe the problem, with its clearance (scene document, margin, pairs) if any."""
+    desc = problem.describe()
+    spec = problem.clearance
+    if spec is not None:
+        desc["clearance"] = {
+            "scene": scene_document(spec.scene, folder=folder),
+            "margin": spec.margin,
+            "self_collision": spec.self_collision,
+            "pairs": None if spec.pairs is None else [list(p) for p in spec.pairs.active],
+        }
+    return desc
+
+
+def _clearance(desc: dict[str, Any] | None, robot: str, folder: Path) -> Clearance | None:
+    """Return the clearance of a saved problem (None: the problem had none)."""
+    if desc is None:
+        return None
+    pairs = desc["pairs"]
+    return Clearance(
+        scene=scene_from_document(desc["scene"], folder=folder),
+        margin=float(desc["margin"]),
+        self_collision=bool(desc["self_collision"]),
+        pairs=None
+        if pairs is None
+        else CollisionPairs(robot=robot, active=tuple((str(a), str(b)) for a, b in pairs)),
+    )
+
+
 def save_result(
     result: TrajOptResult,
     path: str | os.PathLike[str],
@@ -213,7 +244,7 @@ def save_result(
     meta: dict[str, Any] = {
         **schema_header(SCHEMA, SCHEMA_VERSION, software_versions(pin, ca, np)),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "problem": result.problem.describe(),
+        "problem": _describe(result.problem, target.parent),
         "robot_source": _robot_source(result.problem.robot, target.parent),
         "payload": _payload_json(result.problem.robot),
         "method": result.method,
@@ -471,6 +502,7 @@ def _load(
             dt_min=desc["dt_min"],
             dt_max=np.inf if desc["dt_max"] is None else desc["dt_max"],
             damping=bool(desc["damping"]),
+            clearance=_clearance(desc.get("clearance"), str(robot.name), path.absolute().parent),
         )
         opts = dict(meta["options"])
         scalars = meta["scalars"]

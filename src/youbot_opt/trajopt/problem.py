@@ -19,7 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from youbot_opt._checks import check_nonnegative
 from youbot_opt._typing import Array
+from youbot_opt.collision.pairs import CollisionPairs
+from youbot_opt.collision.scene import Scene
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import BOUND_FAMILIES, BoundFamily, JointBounds, RobotModel
@@ -27,6 +30,7 @@ from youbot_opt.robot.model import BOUND_FAMILIES, BoundFamily, JointBounds, Rob
 __all__ = [
     "BoundaryState",
     "BoundFamily",
+    "Clearance",
     "JointBounds",
     "TrajOptProblem",
 ]
@@ -82,6 +86,39 @@ class BoundaryState:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class Clearance:
+    """Clearance the motion must keep from a scene and from the robot itself (#28).
+
+    Plain values: the optimiser builds the collision model (bounding balls)
+    and its CasADi distances from them (:mod:`youbot_opt.trajopt.clearance`).
+
+    Attributes
+    ----------
+    scene : Scene
+        The obstacles (may be empty: self-collision only).
+    margin : float
+        Required clearance in [m] (>= 0) of every checked pair.
+    self_collision : bool
+        Also keep the robot's own links apart (the SRDF's active pairs).
+    pairs : CollisionPairs or None
+        The self-collision pairs; the shipped SRDF's when None.
+    """
+
+    scene: Scene = Scene()
+    margin: float = 0.0  # [m]
+    self_collision: bool = True
+    pairs: CollisionPairs | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.scene, Scene):
+            raise ParameterError(
+                f"scene must be a Scene, got {type(self.scene).__name__}", name="scene"
+            )
+        object.__setattr__(self, "margin", check_nonnegative(self.margin, "margin", unit="m"))
+        object.__setattr__(self, "self_collision", bool(self.self_collision))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class TrajOptProblem:
     """Point-to-point, time/work-optimal motion of a fixed-base robot.
 
@@ -109,6 +146,10 @@ class TrajOptProblem:
         Bounds on the free time step in [s] (``dt > 0`` in the study).
     damping : bool
         Apply the model's viscous joint damping in the dynamics.
+    clearance : Clearance or None
+        Keep the motion clear of a scene's obstacles and of the robot itself,
+        at the knots and each transcription's interior points; None (default):
+        no collision constraints, the NLP of a scene-less problem.
     """
 
     robot: RobotModel
@@ -120,6 +161,7 @@ class TrajOptProblem:
     dt_min: float = 1e-6  # [s]
     dt_max: float = math.inf  # [s]
     damping: bool = True
+    clearance: Clearance | None = None
 
     def __post_init__(self) -> None:
         # Continuous joints are planned in angle coordinates (docs/design.md).
@@ -170,6 +212,11 @@ class TrajOptProblem:
             raise ParameterError(
                 f"need 0 < dt_min < dt_max [s], got dt_min={self.dt_min}, dt_max={self.dt_max}",
                 name="dt_min",
+            )
+        if self.clearance is not None and not isinstance(self.clearance, Clearance):
+            raise ParameterError(
+                f"clearance must be a Clearance or None, got {type(self.clearance).__name__}",
+                name="clearance",
             )
         self.check_boundary(1.0)
 

@@ -26,10 +26,13 @@ from numpy.typing import NDArray
 
 from youbot_opt._checks import check_int, check_positive, check_time_limit, check_unit_interval
 from youbot_opt._typing import Array
+from youbot_opt.collision.clearance import ClearanceCertificate
+from youbot_opt.collision.exact import ExactChecker
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
+from youbot_opt.trajopt.clearance import certify_plan_clearance, clearance_checker
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.quadrature import grid_weights
 from youbot_opt.trajopt.result import TrajOptResult
@@ -524,7 +527,15 @@ def transfer_start(
         lam = np.asarray(old.multipliers[name], dtype=float)
         if block.count == 1:
             lam_g_blocks[name] = lam
-        elif name in nlp.path_bounds:
+        elif name in nlp.path_limits and block.count == n_new:  # knot rows: densities
+            density = lam / w_old[:, None]
+            lam_g_blocks[name] = (
+                np.stack(
+                    [np.interp(t_new, t_old, density[:, j]) for j in range(block.width)], axis=1
+                )
+                * w_new[:, None]
+            )
+        elif name in nlp.path_bounds or name in nlp.path_limits:
             lam_g_blocks[name] = lam[parent] / pieces
         else:
             lam_g_blocks[name] = lam[parent]
@@ -537,10 +548,14 @@ def _round(
     budget: RefinementBudget,
     solve_time: float,
     deadline: float | None,
-) -> tuple[RefinementRound, CollocationError | None, Certificate | None]:
+    checker: ExactChecker | None = None,
+) -> tuple[
+    RefinementRound, CollocationError | None, Certificate | None, ClearanceCertificate | None
+]:
     tic = time.perf_counter()
     error: CollocationError | None = None
     cert: Certificate | None = None
+    clear: ClearanceCertificate | None = None
     if result.trajectory is not None:
         error = collocation_error(result)
         wanted = budget.certify_every_round or error.max <= budget.tolerance
@@ -549,6 +564,19 @@ def _round(
             limit = None if deadline is None else deadline - time.perf_counter()
             if limit is None or limit > 0.0:  # none left: not certified, said by the caller
                 cert = certify(result, tolerances=budget.tolerances, time_limit=limit)
+        spec = result.problem.clearance
+        if result.success and checker is not None and spec is not None:
+            clear = certify_plan_clearance(
+                result.trajectory, result.problem.robot, checker, margin=spec.margin
+            )
+    failures = () if cert is None else tuple(cert.failures())
+    if clear is not None and not clear.certified:
+        t, a, b, d = min(clear.failures, key=lambda f: f[3])
+        failures += (f"clearance {d:.3g} m < margin {clear.margin:g} m at t = {t:.4g} s "
+                     f"({a!r} / {b!r}, coal)",)  # fmt: skip
+    passed = None if cert is None else cert.ok
+    if clear is not None:
+        passed = clear.certified and (passed is None or passed)
     nan = math.nan
     record = RefinementRound(
         index=index,
@@ -559,8 +587,8 @@ def _round(
         max_error=error.max if error is not None else nan,
         t=error.t if error is not None else np.zeros(0),
         errors=error.relative if error is not None else np.zeros(0),
-        certificate_passed=None if cert is None else cert.ok,
-        failures=() if cert is None else tuple(cert.failures()),
+        certificate_passed=passed,
+        failures=failures,
         feedback_rms=nan if cert is None else cert.feedback_rms,
         feedback_peak=nan if cert is None else cert.feedback_peak,
         local_position=nan if cert is None else cert.local_position_max,
@@ -569,7 +597,25 @@ def _round(
         check_time=time.perf_counter() - tic,
         objective_history=np.asarray(result.objective_history, dtype=float),
     )
-    return record, error, cert
+    return record, error, cert, clear
+
+
+def _clearance_errors(
+    error: CollocationError, clear: ClearanceCertificate | None, tolerance: float
+) -> Array:
+    """Interval errors raised above ``tolerance`` where the clearance certificate fails.
+
+    The intervals holding a failing sample are split like those whose
+    collocation error is too large (the new knots and midpoints are constrained).
+    """
+    errors = np.array(error.relative, dtype=float)
+    if clear is None or clear.certified:
+        return errors
+    t = np.asarray(error.t, dtype=float)
+    for time_, *_ in clear.failures:
+        k = int(np.clip(np.searchsorted(t, time_, side="right") - 1, 0, errors.size - 1))
+        errors[k] = max(errors[k], 4.0 * tolerance)
+    return errors
 
 
 def refine(
@@ -650,8 +696,13 @@ def refine(
     cert: Certificate | None = None
     exponents: float | Array = float(exponent)
     split: tuple[Array, NDArray[np.intp], float] | None = None  # previous errors, parents, T
+    spec = solver.problem.clearance
+    checker = None if spec is None else clearance_checker(solver.problem.robot, spec)
+    clear: ClearanceCertificate | None = None
     while True:
-        record, error, cert = _round(len(rounds), result, budget, solve_time, deadline)
+        record, error, cert, clear = _round(
+            len(rounds), result, budget, solve_time, deadline, checker
+        )
         if (
             error is not None
             and split is not None
@@ -672,25 +723,29 @@ def refine(
         reason = ""
         if error is None or not result.success:
             reason = f"the solve of round {record.index} failed ({result.status.value})"
-        elif error.max <= budget.tolerance and (
-            not budget.certify or (cert is not None and cert.ok)
+        elif (
+            error.max <= budget.tolerance
+            and (not budget.certify or (cert is not None and cert.ok))
+            and (clear is None or clear.certified)
         ):
             reason = "certified"
         if reason or error is None:
             break
-        if error.max <= tolerance:  # errors within tolerance, certificate not: split tighter
+        clipped = clear is not None and not clear.certified
+        if error.max <= tolerance and not clipped:  # certificate failed: split tighter
             tolerance = 0.25 * error.max
         why = (
             f"max error {error.max:.3g} > {budget.tolerance:g}"
             if error.max > budget.tolerance
             else f"certificate failed ({'; '.join(record.failures)})"
-            if cert is not None
+            if cert is not None or clipped
             else "no time left for the certificate"
         )
+        errors = _clearance_errors(error, clear, budget.safety * tolerance)
         cap = budget.max_pieces
         while True:  # a grid beyond max_knots: fewer pieces per interval first, then stop
             fractions, parent = split_grid(
-                error.t, error.relative, budget.safety * tolerance, exponents, cap
+                error.t, errors, budget.safety * tolerance, exponents, cap
             )
             if fractions.size + 1 <= budget.max_knots or cap == 2:
                 break

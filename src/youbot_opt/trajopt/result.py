@@ -482,6 +482,30 @@ class TrajOptResult:
             "max_violation": num(self.max_violation),
             "uniform_grid": self.grid is None,
             "certified": False,  # a bare result is never certified: Refined.summary() says
+            **self._clearance_summary(),
+        }
+
+    def _clearance_summary(self) -> dict[str, Any]:
+        """``{"clearance": ...}``: coal's closest pair at the knots and the margin, if any."""
+        spec = self.problem.clearance
+        q = self.variables.get("q")
+        if spec is None or q is None or not np.all(np.isfinite(q)):
+            return {}
+        from youbot_opt.trajopt.clearance import knot_clearance
+
+        found = knot_clearance(self.problem, q)
+        if found is None:
+            return {}
+        distance, pair, knot = found
+        return {
+            "clearance": {
+                "margin_m": spec.margin,
+                "closest_m": distance,
+                "closest_pair": list(pair),
+                "knot": knot,
+                "obstacles": [o.name for o in spec.scene.obstacles],
+                "self_collision": spec.self_collision,
+            }
         }
 
 

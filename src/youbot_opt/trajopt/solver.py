@@ -51,6 +51,7 @@ from youbot_opt.trajopt.transcription.derivatives import (
     dynamics_kernels,
     structured_functions,
 )
+from youbot_opt.trajopt.transcription.path import PathConstraint
 
 __all__ = ["TrajOptSolver", "solve", "auto_transcription", "DEFAULT_FEASIBILITY_TOL"]
 
@@ -195,12 +196,15 @@ class TrajOptSolver:
             fast = compile_kernels(kernels, wait=wait, label=label) if compile else kernels
             self.compiled = fast is not kernels
             self._kernels = (fast, kernels)
+        self._paths = _path_constraints(problem)
         self._build(tic)
 
     def _build(self, tic: float) -> None:
         """Transcribe ``self.problem`` on ``self.method``'s grid; set up the IPOPT solvers."""
         problem = self.problem
-        self.nlp: TranscribedNLP = self.method.build(problem, self.dynamics.forward_dynamics)
+        self.nlp: TranscribedNLP = self.method.build(
+            problem, self.dynamics.forward_dynamics, self._paths
+        )
         self._derivatives: dict[str, ca.Function] = {}
         # the knot accelerations of each result, from the compiled kernel when there is one
         forward = self.dynamics.forward_dynamics
@@ -209,7 +213,7 @@ class TrajOptSolver:
             forward = fast.forward
             # the compiled forward kernel carries its Jacobian: IPOPT's constraint
             # evaluations and the NLP gradient CasADi builds from ``nlp`` run compiled too
-            fns = structured_functions(self.method, problem, fast, values=fast)
+            fns = structured_functions(self.method, problem, fast, values=fast, paths=self._paths)
             self._nlp_function = fns.nlp
             self._derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g}
             if self._exact_hessian:
@@ -271,6 +275,7 @@ class TrajOptSolver:
             new.options = dataclasses.replace(self.options, max_wall_time=cap)
         new.feasibility_tol, new.compiled = self.feasibility_tol, self.compiled
         new._exact_hessian, new._kernels = self._exact_hessian, self._kernels
+        new._paths = self._paths
         new._build(tic)
         return new
 
@@ -610,6 +615,36 @@ class TrajOptSolver:
             grid=self.method.fractions,
         )
         return checked(result)  # the independent check (pin.aba, no NLP) sets the status
+
+
+def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
+    """Return the problem's path constraints: its clearance, checked at start and goal first.
+
+    Raises
+    ------
+    ParameterError
+        The start or goal lacks the clearance margin (coal's exact distances),
+        naming the state, the link and the obstacle.
+    """
+    if problem.clearance is None:
+        return ()
+    from youbot_opt.trajopt.clearance import (
+        check_boundary_clearance,
+        clearance_checker,
+        clearance_constraint,
+        require_model_clearance,
+    )
+
+    check_boundary_clearance(
+        problem,
+        clearance_checker(problem.robot, problem.clearance),
+        margin=problem.clearance.margin,
+    )
+    constraint = clearance_constraint(problem)
+    if constraint is None:
+        return ()
+    require_model_clearance(problem, constraint)
+    return (constraint,)
 
 
 def auto_transcription(problem: TrajOptProblem) -> str:

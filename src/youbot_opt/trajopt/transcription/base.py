@@ -27,6 +27,7 @@ from youbot_opt.exceptions import ParameterError, TranscriptionError
 from youbot_opt.trajopt.objectives import duration, objective_value
 from youbot_opt.trajopt.quadrature import QuadratureRule, grid_weights, quadrature_weights
 from youbot_opt.trajopt.trajectory import Interpolation, Trajectory
+from youbot_opt.trajopt.transcription.path import PathConstraint
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
@@ -152,6 +153,10 @@ class TranscribedNLP:
     unbounded : tuple of str
         Variable blocks given no bounds of their own in :meth:`variable_bounds`
         because the path blocks imply them (Hermite-Simpson's ``v_mid``).
+    path_limits : mapping of str to (ndarray, ndarray)
+        Inequality blocks of ``g`` from :class:`PathConstraint` s (``clearance_knots``,
+        ``clearance_midpoints``, ...) -> their ``(lower, upper)`` row bounds, shape
+        ``(width,)`` each; empty without path constraints.
     """
 
     method: str
@@ -169,6 +174,7 @@ class TranscribedNLP:
     constraints: Layout
     path_bounds: Mapping[str, str] = field(default_factory=dict)
     unbounded: tuple[str, ...] = ()
+    path_limits: Mapping[str, tuple[Array, Array]] = field(default_factory=dict)
 
     @property
     def n_variables(self) -> int:
@@ -183,7 +189,8 @@ class TranscribedNLP:
     @property
     def n_inequalities(self) -> int:
         """Number of path-inequality rows of ``g`` (zero for trapezoidal collocation)."""
-        return sum(self.constraints[name].size for name in self.path_bounds)
+        names = [*self.path_bounds, *self.path_limits]
+        return sum(self.constraints[name].size for name in names)
 
     @property
     def n_equalities(self) -> int:
@@ -229,15 +236,16 @@ class TranscribedNLP:
         values["start_velocity"] = start.velocity
         values["goal_position"] = goal.q
         values["goal_velocity"] = goal.velocity
-        lbg = self.constraints.pack(values)
+        upper = dict(values)
+        for name, (lower_row, upper_row) in self.path_limits.items():
+            values[name], upper[name] = lower_row, upper_row
         if not self.path_bounds:
-            return lbg, lbg.copy()
+            return self.constraints.pack(values), self.constraints.pack(upper)
         if bounds is None:
             raise TranscriptionError(
                 f"the {self.method} NLP has path constraints {sorted(self.path_bounds)}: "
                 "constraint_bounds needs the joint bounds (bounds=problem.bounds(scale))"
             )
-        upper = dict(values)
         for name, family in self.path_bounds.items():
             values[name] = getattr(bounds, f"{family}_lower")
             upper[name] = getattr(bounds, f"{family}_upper")
@@ -404,7 +412,20 @@ class Transcription(ABC):
             interpolation=self.interpolation,
         )
 
-    def build(self, problem: TrajOptProblem, forward_dynamics: ca.Function) -> TranscribedNLP:
+    def path_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any]]:
+        """Where path constraints are evaluated: group name -> ``(q, v)``, each ``(nv, count)``.
+
+        The dynamics points (knots, Hermite-Simpson's midpoints, Radau's stages)
+        by default.
+        """
+        return {group: (q, v) for group, (q, v, _) in self.dynamics_points(sym).items()}
+
+    def build(
+        self,
+        problem: TrajOptProblem,
+        forward_dynamics: ca.Function,
+        paths: tuple[PathConstraint, ...] = (),
+    ) -> TranscribedNLP:
         """Transcribe ``problem`` with the per-knot dynamics ``forward_dynamics``.
 
         Parameters
@@ -413,6 +434,9 @@ class Transcription(ABC):
             The problem spec.
         forward_dynamics : casadi.Function
             ``(q[nv], v[nv], tau[nv]) -> a[nv]`` in [rad/s^2].
+        paths : tuple of PathConstraint
+            Path constraints held at every :meth:`path_points` group (none by
+            default: the NLP of a problem without them).
 
         Returns
         -------
@@ -441,7 +465,7 @@ class Transcription(ABC):
             for group, (q, v, tau) in self.dynamics_points(sym).items()
         }
         beta = ca.MX.sym("beta")
-        parts = self.expressions(problem, sym, accel, beta)
+        parts = self.expressions(problem, sym, accel, beta, paths)
         return TranscribedNLP(
             method=self.name,
             interpolation=self.interpolation,
@@ -458,17 +482,23 @@ class Transcription(ABC):
             constraints=parts.constraints,
             path_bounds=dict(parts.path_bounds),
             unbounded=tuple(self.unbounded),
+            path_limits=dict(parts.path_limits),
         )
 
     def expressions(
-        self, problem: TrajOptProblem, sym: dict[str, Any], accel: dict[str, Any], beta: Any
+        self,
+        problem: TrajOptProblem,
+        sym: dict[str, Any],
+        accel: dict[str, Any],
+        beta: Any,
+        paths: tuple[PathConstraint, ...] = (),
     ) -> Expressions:
         """Objective, constraints and their terms from variables and accelerations.
 
         Works with SX and MX alike; :meth:`build` passes the mapped dynamics as
         ``accel``, :mod:`youbot_opt.trajopt.transcription.derivatives` passes free symbols.
         """
-        nv, n = problem.nv, problem.n_knots
+        n = problem.n_knots
         q, v = sym["q"], sym["v"]
         defects = self.collocation(sym, accel)
         boundary = [
@@ -479,8 +509,15 @@ class Transcription(ABC):
         ]
         path = self.path_constraints(sym, accel)
         g_blocks = defects + boundary + [(name, expr) for name, _, expr in path]
+        limits: dict[str, tuple[Array, Array]] = {}
+        points = self.path_points(sym) if paths else {}
+        for constraint in paths:
+            for group, (qp, vp) in points.items():
+                name = f"{constraint.name}_{group}"
+                g_blocks.append((name, constraint.evaluate(qp, vp)))
+                limits[name] = (constraint.lower, constraint.upper)
         g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
-        constraints = Layout([(name, nv, expr.size2()) for name, expr in g_blocks])
+        constraints = Layout([(name, expr.size1(), expr.size2()) for name, expr in g_blocks])
         dt = sym["dt"]
         terms = [ca.mtimes(ca.sum1(sym[name] ** 2), ca.DM(w)) for name, w in self.work_weights(n)]
         work = terms[0]
@@ -496,6 +533,7 @@ class Transcription(ABC):
             work=work,
             constraints=constraints,
             path_bounds={name: family for name, family, _ in path},
+            path_limits=limits,
         )
 
     def work_weights(self, n_knots: int) -> list[tuple[str, Array]]:
@@ -569,6 +607,8 @@ class Expressions(NamedTuple):
     constraints: Layout
     path_bounds: Mapping[str, str] = MappingProxyType({})
     """Inequality blocks of ``g`` -> bound family (see :attr:`TranscribedNLP.path_bounds`)."""
+    path_limits: Mapping[str, tuple[Array, Array]] = MappingProxyType({})
+    """Path-constraint blocks of ``g`` -> row bounds (see :attr:`TranscribedNLP.path_limits`)."""
 
 
 def uniform_times(guess: Trajectory, n_knots: int) -> tuple[float, Array]:

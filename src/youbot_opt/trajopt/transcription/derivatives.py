@@ -23,6 +23,7 @@ from youbot_opt.exceptions import TranscriptionError
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import TrajOptProblem
     from youbot_opt.trajopt.transcription.base import Transcription
+    from youbot_opt.trajopt.transcription.path import PathConstraint
 
 __all__ = [
     "NLPFunctions",
@@ -139,6 +140,7 @@ def structured_functions(
     kernels: Kernels,
     *,
     values: Kernels | None = None,
+    paths: tuple[PathConstraint, ...] = (),
 ) -> NLPFunctions:
     """Build the NLP and its exact derivatives from per-point kernels.
 
@@ -154,6 +156,9 @@ def structured_functions(
         Kernels for the plain ``nlp`` Function (default ``kernels``), whose
         ``forward`` must be differentiable by CasADi (the SX kernel, or a
         compiled one from :func:`compile_kernels`, which carries its Jacobian).
+    paths : tuple of PathConstraint
+        Path constraints of the NLP (SX Functions of ``(q, v)``; their exact
+        derivatives come from ``x`` directly, as they involve no dynamics).
 
     Returns
     -------
@@ -172,7 +177,7 @@ def structured_functions(
     accel = {g: ca.SX.sym(f"a_{g}", nv, counts[g]) for g in groups}
     jac_sym = {g: ca.SX.sym(f"J_{g}", nv, 3 * nv * counts[g]) for g in groups}
     hess_sym = {g: ca.SX.sym(f"H_{g}", 3 * nv, 3 * nv * counts[g]) for g in groups}
-    parts = method.expressions(problem, sym, accel, beta)
+    parts = method.expressions(problem, sym, accel, beta, paths)
     f, g = parts.f, parts.g
     lam_g = ca.SX.sym("lam_g", g.numel())
     lam_f = ca.SX.sym("lam_f")

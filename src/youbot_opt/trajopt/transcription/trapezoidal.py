@@ -67,6 +67,16 @@ class TrapezoidalCollocation(Transcription):
             defect_v = v[:, 1:] - v[:, :-1] - 0.5 * self.per_interval(a[:, 1:] + a[:, :-1], dt)
         return [("defect_position", defect_q), ("defect_velocity", defect_v)]
 
+    def path_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any]]:
+        """Evaluate at the knots and at the midpoints of the quadratic position, linear velocity.
+
+        ``q(t_k + h_k / 2) = (q_k + q_{k+1}) / 2 + h_k (v_k - v_{k+1}) / 8``.
+        """
+        q, v, dt = sym["q"], sym["v"], sym["dt"]
+        q_mid = 0.5 * (q[:, :-1] + q[:, 1:]) + self.per_interval(v[:, :-1] - v[:, 1:], dt) / 8
+        v_mid = 0.5 * (v[:, :-1] + v[:, 1:])
+        return {"knots": (q, v), "midpoints": (q_mid, v_mid)}
+
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
         """Knot values of ``guess`` resampled on the grid's ``n_knots`` times."""
         dt, t = self.knot_times(guess, n_knots)

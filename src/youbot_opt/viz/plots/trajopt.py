@@ -37,7 +37,14 @@ if TYPE_CHECKING:
     from youbot_opt.trajopt.multistart import MultistartResult, StartOutcome
     from youbot_opt.trajopt.refine import Refined, Refinement, RefinementRound
 
-__all__ = ["plot_trajectory", "plot_convergence", "plot_arm_2d", "plot_refinement", "QUANTITIES"]
+__all__ = [
+    "plot_trajectory",
+    "plot_convergence",
+    "plot_arm_2d",
+    "plot_refinement",
+    "plot_clearance",
+    "QUANTITIES",
+]
 
 QUANTITIES: tuple[tuple[str, str, str], ...] = (
     ("q", "angle", "q [rad]"),
@@ -668,4 +675,61 @@ def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) 
     ax_err.legend(fontsize="small", loc="best")
     status = "certified" if record.certified else "not certified"
     ax_grid.set_title(title or f"mesh refinement: {status}, {len(record.rounds)} round(s)")
+    return fig
+
+
+def plot_clearance(result: TrajOptResult, *, samples: int = 400) -> Figure:
+    """Plot coal's clearance over time: the closest pair per group, and the margin.
+
+    Groups: the robot against itself, and each obstacle of the problem's scene;
+    each curve is the smallest exact distance of the group's pairs at each of
+    ``samples`` times of the plan, the knots marked.
+
+    Parameters
+    ----------
+    result : TrajOptResult
+        A result with a trajectory and a problem with a clearance.
+    samples : int
+        Sample times over the plan (>= 2).
+
+    Returns
+    -------
+    Figure
+        One axes: distance [m] over time [s], the margin as a dashed line.
+
+    Raises
+    ------
+    ParameterError
+        The result has no trajectory, or its problem no clearance.
+    """
+    from youbot_opt.trajopt.clearance import clearance_checker
+
+    spec = result.problem.clearance
+    traj = result.trajectory
+    if spec is None or traj is None:
+        raise ParameterError(
+            "plot_clearance needs a result with a trajectory and a clearance", name="result"
+        )
+    robot = result.problem.robot
+    checker = clearance_checker(robot, spec)
+    names = checker.model.pair_names
+    obstacles = {o.name for o in spec.scene.obstacles}
+    groups: dict[str, list[int]] = {}
+    for i, (_, b) in enumerate(names):
+        groups.setdefault(b if b in obstacles else "self-collision", []).append(i)
+    t = np.linspace(float(traj.t[0]), float(traj.t[-1]), max(int(samples), 2))
+    d = np.array([checker.distances(robot, traj(ti)) for ti in t]).reshape(t.size, len(names))
+    dk = np.array([checker.distances(robot, q) for q in traj.q]).reshape(len(traj.t), len(names))
+    fig, axes = new_figure(1, 1, (7.0, 3.6))
+    ax = axes[0, 0]
+    for g, (label, rows) in enumerate(sorted(groups.items())):
+        colour = joint_colour(g)
+        ax.plot(t, d[:, rows].min(axis=1), color=colour, label=label)
+        ax.plot(traj.t, dk[:, rows].min(axis=1), "o", color=colour, markersize=3)
+    ax.axhline(spec.margin, color="k", linestyle="--", linewidth=1.0, label="margin")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("clearance [m]")
+    ax.set_title(f"clearance (coal, closest pair per group; margin {spec.margin:g} m)")
+    if groups:
+        ax.legend(loc="best", fontsize="small")
     return fig
