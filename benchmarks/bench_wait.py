@@ -5,7 +5,8 @@ Run ``python benchmarks/bench_wait.py [--quick] [--repeats N] [--reference-start
 Each case runs ``youbot-opt`` in a fresh interpreter (``python -m youbot_opt``),
 with default settings (refinement on), and times the whole command: start-up,
 loading, build, every refinement round, the certificate, the printed report and
-the run folder, until the command returns. Cases:
+the run folder, until the command returns (and, warm, the command's CPU time:
+less inflated by other processes than its wall time). Cases:
 
 * **solve, ur5**: ``youbot-opt solve --robot ur5 --start 0 -1.2 1 -0.5 0.3 0
   --goal 0.8 -0.6 0.4 -1.2 -0.3 0.5 --out DIR`` (the motion of
@@ -35,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -82,8 +84,12 @@ def _ur5_targets(n: int, seed: int = 2026) -> list[list[str]]:
     return out
 
 
+_CPU: list[float] = []  # CPU time [s] (user + system) of each command, in order
+
+
 def _cli(args: list[str], cache: Path) -> tuple[float, subprocess.CompletedProcess[str]]:
     env = {**os.environ, "YOUBOT_OPT_CACHE": str(cache)}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     tic = time.perf_counter()
     done = subprocess.run(
         [sys.executable, "-m", "youbot_opt", *args],
@@ -92,7 +98,10 @@ def _cli(args: list[str], cache: Path) -> tuple[float, subprocess.CompletedProce
         text=True,
         check=False,
     )
-    return time.perf_counter() - tic, done
+    wall = time.perf_counter() - tic
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    _CPU.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    return wall, done
 
 
 def _wait_for_background(cache: Path, timeout: float = 900.0) -> float:
@@ -105,7 +114,7 @@ def _wait_for_background(cache: Path, timeout: float = 900.0) -> float:
 
 def solve_case(robot: str, args: list[str], repeats: int, work: Path) -> dict[str, Any]:
     """Cold then warm runs of one ``solve`` command; medians of ``repeats``."""
-    cold, warm, waits = [], [], []
+    cold, warm, waits, warm_cpu = [], [], [], []
     summary: dict[str, Any] = {}
     for rep in range(repeats):
         cache = work / f"cache-{robot}-{rep}"
@@ -117,6 +126,8 @@ def solve_case(robot: str, args: list[str], repeats: int, work: Path) -> dict[st
             summary = json.loads(summary_file.read_text()) if summary_file.exists() else {}
             ok = done.returncode == 0 and bool(summary.get("certified"))
             times.append(wall if ok else float("nan"))
+            if kind == "warm":
+                warm_cpu.append(_CPU[-1])
             if not ok:
                 print(f"  {robot} {kind}: exit {done.returncode}\n{done.stderr[-2000:]}")
             if kind == "cold":
@@ -126,6 +137,7 @@ def solve_case(robot: str, args: list[str], repeats: int, work: Path) -> dict[st
         "case": f"solve {robot}",
         "cold_s": statistics.median(cold),
         "warm_s": statistics.median(warm),
+        "warm_cpu_s": statistics.median(warm_cpu),
         "background_compile_s": statistics.median(waits),
         "objective": summary.get("objective"),
         "n_knots": summary.get("n_knots"),
@@ -173,6 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--reference-starts", type=int, default=200)
     parser.add_argument("--targets", type=int, nargs="+", default=[4, 6])
+    parser.add_argument("--robots", nargs="+", default=["ur5", "panda"], choices=["ur5", "panda"])
     parser.add_argument("--no-solve", action="store_true")
     parser.add_argument("--no-ikpath", action="store_true")
     parser.add_argument("--json", action="store_true")
@@ -190,24 +203,25 @@ def main(argv: list[str] | None = None) -> int:
                 "panda": ["solve", "--robot", "panda", *PANDA_LOCK, "--start", *start]
                 + ["--goal", *goal],
             }
-            rows += [solve_case(name, args, repeats, work) for name, args in cases.items()]
+            rows += [solve_case(name, cases[name], repeats, work) for name in opts.robots]
         if not opts.no_ikpath:
             rows += [ikpath_case(n, repeats, reference, work) for n in opts.targets]
     if opts.json:
         print(json.dumps({"load_average": load, "rows": rows}, indent=1))
         return 0
     print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; {repeats} repeat(s), medians")
-    print(f"{'case':<24}{'cold [s]':>9}{'warm [s]':>9}{'bg [s]':>8}{'IPOPT [s]':>10}"
+    print(f"{'case':<24}{'cold [s]':>9}{'warm [s]':>9}{'cpu [s]':>8}{'bg [s]':>8}{'IPOPT [s]':>10}"
           f"{'knots':>6}{'rounds':>7}{'f':>12}{'files':>6}")  # fmt: skip
     for r in rows:
         if r["case"].startswith("solve"):
-            print(f"{r['case']:<24}{r['cold_s']:>9.2f}{r['warm_s']:>9.2f}"
+            print(f"{r['case']:<24}{r['cold_s']:>9.2f}{r['warm_s']:>9.2f}{r['warm_cpu_s']:>8.2f}"
                   f"{r['background_compile_s']:>8.1f}{r['ipopt_s'] or float('nan'):>10.3f}"
                   f"{r['n_knots'] or 0:>6}{r['rounds'] or 0:>7}"
                   f"{r['objective'] or float('nan'):>12.4f}"
                   f"{r['files']:>6}")  # fmt: skip
     print(f"targets: warm <= {TARGETS['warm']} s, cold <= {TARGETS['cold']} s "
-          "(bg: wait for the cold run's background compile after it returned)")  # fmt: skip
+          "(cpu: the warm command's user + system CPU time; bg: wait for the cold run's "
+          "background compile after it returned)")  # fmt: skip
     ik = [r for r in rows if r["case"].startswith("ikpath")]
     if ik:
         print(f"\n{'case':<24}{'wall [s]':>9}{'E default':>11}{'ref starts':>11}{'ref E':>10}"
