@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import logging
+import os
 import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -71,6 +74,40 @@ def test_fresh_lock_means_no_second_compile(
     assert compile_function(f, wait=False) is f
     time.sleep(0.5)
     assert not list(tmp_path.glob("tiny_*.so")) and not list(tmp_path.glob(".build-*"))
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the lock's holder is checked on POSIX")
+def test_lock_of_a_dead_compile_is_reclaimed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A lock naming a process that has ended (a killed compile) is taken over at once.
+
+    A lock naming a live process still starts no second compiler; the log says
+    when the compiled code will be used.
+    """
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    f = _function(3.5)
+    assert compile_function(f, wait=False) is f
+    _wait_unlocked(tmp_path)
+    library = next(tmp_path.glob("tiny_*.so"))
+    library.unlink()
+    lock = library.with_suffix(".lock")
+    lock.write_text(str(os.getpid()))  # alive: this process
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        assert compile_function(f, wait=False) is f
+    assert "being compiled by another process" in caplog.text
+    assert "a run started after that compile has finished" in caplog.text
+    time.sleep(0.5)
+    assert not list(tmp_path.glob("tiny_*.so"))
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])  # noqa: S603
+    dead.wait()
+    lock.write_text(str(dead.pid))  # a compile killed long before STALE_LOCK
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        assert compile_function(f, wait=False) is f
+    assert "goes on after this command returns" in caplog.text
+    _wait_unlocked(tmp_path)
+    assert library.is_file()
 
 
 def test_failed_background_compile_warns_next_time(

@@ -21,7 +21,6 @@ from youbot_opt.cli.output import draw_figure
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound, refine
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
-from youbot_opt.viz.plots.trajopt import plot_refinement
 
 __all__ = [
     "refine_many",
@@ -130,6 +129,8 @@ def refinement_figures(
     """
     if not refined:
         return []
+    from youbot_opt.viz.plots.trajopt import plot_refinement  # matplotlib: only when drawing
+
     done = [(record, label) for (_, record), label in zip(refined, labels, strict=True) if record]
     return [
         draw_figure(

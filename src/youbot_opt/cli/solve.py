@@ -203,6 +203,13 @@ def run(args: argparse.Namespace) -> int:
     if certificate is not None:
         summary["certificate"] = certificate.summary()
     has_optimum = ms is not None and ms.best is not None and ms.best.result is not None
+    if not args.json:  # the plan and its certificate first, before the figures are drawn
+        if ms is not None and not has_optimum:
+            print("youbot-opt: no start converged; the least violated failed start follows")
+        print(format_result(result, certificate, refinement=record))
+        if ms is None and result.success and not problem.robot.name.startswith("youbot"):
+            print(MULTISTART_HINT)
+        print(flush=True)
     files = write_solve_outputs(
         folder, result, summary, ms if has_optimum else None, refinement=record
     )
@@ -213,12 +220,5 @@ def run(args: argparse.Namespace) -> int:
         files.append(folder / "clearance.png")
     if args.json:
         print(json.dumps(json_ready(summary)))
-    else:
-        if ms is not None and not has_optimum:
-            print("youbot-opt: no start converged; the least violated failed start follows")
-        print(format_result(result, certificate, refinement=record))
-        if ms is None and result.success and not problem.robot.name.startswith("youbot"):
-            print(MULTISTART_HINT)
-        print()
     report_outputs(folder, files, args.json)
     return 0 if result.success and (record is None or record.certified) else 1

@@ -60,6 +60,8 @@ _BACKGROUND_SCRIPT = """
 import os, shutil, subprocess, sys
 compiler, source, target, library, lock, failed, tmp, *flags = sys.argv[1:]
 try:
+    with open(lock, "w") as out:
+        out.write(str(os.getpid()))  # who holds the lock: a dead holder's lock is reclaimed
     if hasattr(os, "nice"):
         os.nice(19)  # leave the cores to the solve that is running meanwhile
     slot = open(os.path.join(os.path.dirname(library), ".compile-slot"), "w")
@@ -291,12 +293,18 @@ def _compile_in_background(
     directory.mkdir(parents=True, exist_ok=True)
     lock = library.with_suffix(".lock")
     try:
-        if time.time() - lock.stat().st_mtime < STALE_LOCK:
-            _log.info("%s is being compiled by another process; not compiled this time", what)
+        alive = _holder_alive(lock)
+        if alive or (alive is None and time.time() - lock.stat().st_mtime < STALE_LOCK):
+            _log.info(
+                "%s is being compiled by another process; this solve runs CasADi's virtual "
+                "machine, a run started after that compile has finished the compiled code",
+                what,
+            )
             return
         lock.unlink()  # a dead process's lock
     except FileNotFoundError:
         pass
+    queued = sum(1 for other in directory.glob("*.lock") if other != lock)
     try:
         os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
     except FileExistsError:  # another process got there first
@@ -314,13 +322,37 @@ def _compile_in_background(
         start_new_session=True,  # survives the end of this process
     )
     _log.info(
-        "compiling %s to C in the background (%.0f kB, about %.0f s); this solve runs "
-        "CasADi's virtual machine, the next one the compiled code (cached in %s)",
+        "compiling %s to C in the background (%.0f kB, about %.0f s%s); this solve runs "
+        "CasADi's virtual machine; the compiler goes on after this command returns, and a run "
+        "started after it has finished uses the compiled code (cached in %s)",
         what,
         len(code) / 1e3,
         seconds,
+        f", after {queued} other compile(s) of this cache" if queued else "",
         directory,
     )
+
+
+def _holder_alive(lock: Path) -> bool | None:
+    """Whether the process named in ``lock`` is running; None if unknown (no PID, not POSIX).
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is no lock.
+    """
+    text = lock.read_text(errors="replace").strip()
+    if os.name != "posix" or not text.isdigit():  # os.kill(pid, 0) signals on Windows
+        return None
+    try:
+        os.kill(int(text), 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    except (OSError, OverflowError):
+        return None
+    return True
 
 
 def _compile(
