@@ -90,3 +90,14 @@ def test_a_reproduction_json_of_the_wrong_shape_is_refused(text, message, tmp_pa
     assert main(["reproduce-study1", "--from-json", str(path), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_a_fifo_as_the_linear_solver_library_is_refused(tmp_path, capsys):
+    """IPOPT's dlopen of a FIFO blocked forever (#29)."""
+    import os
+
+    fifo = tmp_path / "libhsl.so"
+    os.mkfifo(fifo)
+    argv = ["solve", "--linear-solver", "ma27", "--linear-solver-library", str(fifo)]
+    assert main([*argv, "--no-refine", "--out", str(tmp_path / "r")]) == 2
+    assert "is not a regular file" in capsys.readouterr().err

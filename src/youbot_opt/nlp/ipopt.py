@@ -17,6 +17,7 @@ from __future__ import annotations
 import ctypes
 import math
 import os
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -208,6 +209,7 @@ class IpoptOptions:
                     f"{self.linear_solver_library!r}",
                     name="linear_solver_library",
                 )
+            _check_library_path(self.linear_solver_library)
         if self.hessian not in _HESSIANS:
             raise ParameterError(
                 f"hessian must be one of {_HESSIANS}, got {self.hessian!r}", name="hessian"
@@ -445,3 +447,22 @@ def single_threaded_blas() -> None:
     """
     if not os.environ.get("OPENBLAS_NUM_THREADS"):  # unset or empty: OpenBLAS's default
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
+def _check_library_path(library: str) -> None:
+    """Refuse a library path that exists but is no regular file (a FIFO would block dlopen).
+
+    A bare library name (no folder) is left to the dynamic loader's search path.
+    """
+    if os.sep not in library:
+        return
+    try:
+        mode = os.stat(library).st_mode
+    except OSError:
+        return  # a missing file: IPOPT's own error names it
+    if not stat.S_ISREG(mode):
+        raise ParameterError(
+            f"linear_solver_library {library!r} is not a regular file (a shared library is)",
+            name="linear_solver_library",
+            value=library,
+        )
