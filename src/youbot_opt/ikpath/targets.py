@@ -22,12 +22,16 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
+from youbot_opt._checks import shown
+from youbot_opt._files import read_regular_file
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 
 __all__ = [
     "Target",
     "TARGET_KINDS",
+    "MAX_TARGETS",
+    "MAX_TARGETS_FILE_BYTES",
     "load_targets",
     "position_targets",
     "quaternion_to_matrix",
@@ -252,38 +256,93 @@ def position_targets(points: ArrayLike) -> tuple[Target, ...]:
 
 
 _CSV_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw", "ax", "ay", "az")
+_TOL_KEYS = ("position_tol", "orientation_tol", "orientation_weight")
+_GROUPS = {"quaternion": ("qx", "qy", "qz", "qw"), "approach": ("ax", "ay", "az")}
+_JSON_KEYS = ("position", "quaternion_xyzw", "approach", "approach_axis", *_TOL_KEYS)
+
+MAX_TARGETS = 1000
+"""Most targets a file may hold (the reachability check is quadratic in their number)."""
+MAX_TARGETS_FILE_BYTES = 4 * 2**20
+"""Largest targets file [bytes] (4 MiB: 1000 targets take under 200 kB)."""
 
 
-def _target_from_record(rec: dict[str, object], where: str, defaults: dict[str, float]) -> Target:
-    """One target from a JSON object or CSV row (see :func:`load_targets`)."""
-    kw: dict[str, object] = dict(defaults)
-    for key in ("position_tol", "orientation_tol", "orientation_weight"):
-        if rec.get(key) not in (None, ""):
-            kw[key] = float(rec[key])  # type: ignore[arg-type]
-    try:
-        if "position" in rec:
-            position = rec["position"]
-        else:
-            position = [float(rec[k]) for k in ("x", "y", "z")]  # type: ignore[arg-type]
-        quat = rec.get("quaternion_xyzw")
-        if quat is None and all(rec.get(k) not in (None, "") for k in ("qx", "qy", "qz", "qw")):
-            quat = [float(rec[k]) for k in ("qx", "qy", "qz", "qw")]  # type: ignore[arg-type]
-        approach = rec.get("approach")
-        if approach is None and all(rec.get(k) not in (None, "") for k in ("ax", "ay", "az")):
-            approach = [float(rec[k]) for k in ("ax", "ay", "az")]  # type: ignore[arg-type]
-    except (KeyError, TypeError, ValueError) as exc:
+def _number(value: object, where: str, key: str) -> float:
+    """``value`` as a float, else a ParameterError naming the row and the column or key."""
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
         raise ParameterError(
-            f"{where}: a target needs a position (x, y, z [m]); got {rec!r} ({exc})",
+            f"{where}: {key} must be a number, got {shown(value)}", name="targets", value=key
+        )
+    try:
+        return float(value)
+    except ValueError:
+        raise ParameterError(
+            f"{where}: {key} must be a number, got {shown(value)}", name="targets", value=key
+        ) from None
+
+
+def _target_from_record(rec: object, where: str, defaults: dict[str, float]) -> Target:
+    """One target from a JSON object or CSV row (see :func:`load_targets`).
+
+    Unknown keys, partial quaternions or approach directions and values that are
+    not numbers are refused, naming the row and the column or key: orientation is
+    never dropped without a word.
+    """
+    if not isinstance(rec, dict):
+        raise ParameterError(
+            f"{where}: a target is an object with a position, got {shown(rec)}", name="targets"
+        )
+    given = {k for k, v in rec.items() if v not in (None, "")}
+    json_form = "position" in rec or not any(k in rec for k in _CSV_COLUMNS)
+    known = _JSON_KEYS if json_form else (*_CSV_COLUMNS, *_TOL_KEYS)
+    unknown = sorted(str(k) for k in rec if k not in known)
+    if unknown:
+        raise ParameterError(
+            f"{where}: unknown {'key' if json_form else 'column'} {', '.join(map(repr, unknown))} "
+            f"(known: {', '.join(known)})",
             name="targets",
-            value=rec,
-        ) from exc
+            value=unknown[0],
+        )
+    kw: dict[str, object] = dict(defaults)
+    for key in _TOL_KEYS:
+        if key in given:
+            kw[key] = _number(rec[key], where, key)
+    if json_form:
+        if "position" not in given:
+            raise ParameterError(f"{where}: a target needs a position [m]", name="targets")
+        position = rec["position"]
+        quat = rec.get("quaternion_xyzw")
+        approach = rec.get("approach")
+    else:
+        missing = [k for k in ("x", "y", "z") if k not in given]
+        if missing:
+            raise ParameterError(
+                f"{where}: a target needs a position; column {', '.join(missing)} is empty",
+                name="targets",
+            )
+        position = [_number(rec[k], where, k) for k in ("x", "y", "z")]
+        parts: dict[str, list[float] | None] = {}
+        for group, cols in _GROUPS.items():
+            have = [c for c in cols if c in given]
+            if have and len(have) < len(cols):
+                lacking = [c for c in cols if c not in given]
+                raise ParameterError(
+                    f"{where}: a partial {group} ({', '.join(have)} given, "
+                    f"{', '.join(lacking)} empty); give all of {', '.join(cols)} or none",
+                    name="targets",
+                    value=lacking[0],
+                )
+            parts[group] = [_number(rec[c], where, c) for c in cols] if have else None
+        quat, approach = parts["quaternion"], parts["approach"]
     if quat is not None:
         kw["rotation"] = quaternion_to_matrix(quat)  # type: ignore[arg-type]
     if approach is not None:
         kw["approach"] = approach
         if rec.get("approach_axis") is not None:
             kw["approach_axis"] = rec["approach_axis"]
-    return Target(position=position, **kw)  # type: ignore[arg-type]
+    try:
+        return Target(position=position, **kw)  # type: ignore[arg-type]
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}", name="targets") from exc
 
 
 def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:
@@ -299,20 +358,31 @@ def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:
     Raises
     ------
     ParameterError
-        Unknown suffix, unreadable file, or a row without a valid position.
+        Unknown suffix; a file that is missing, no regular file, over
+        :data:`MAX_TARGETS_FILE_BYTES`, not UTF-8, not JSON/CSV or with more
+        than :data:`MAX_TARGETS` targets; an unknown column or key, a partial
+        quaternion or approach direction, a value that is not a number, or a
+        row without a position (the message names the row and the column).
     """
     file = Path(path)
-    if not file.is_file():
+    try:
+        text = read_regular_file(
+            file, max_bytes=MAX_TARGETS_FILE_BYTES, what="a targets file"
+        ).decode("utf-8")
+    except ResultFileError as exc:
+        raise ParameterError(str(exc), name="targets", value=str(file)) from exc
+    except UnicodeDecodeError as exc:
         raise ParameterError(
-            f"targets file {str(file)!r} does not exist", name="targets", value=str(file)
-        )
-    text = file.read_text(encoding="utf-8")
+            f"{file}: not UTF-8 text ({exc.reason} at byte {exc.start})",
+            name="targets",
+            value=str(file),
+        ) from exc
     if file.suffix.lower() == ".json":
         try:
             data = json.loads(text)
-        except json.JSONDecodeError as exc:
+        except (json.JSONDecodeError, RecursionError) as exc:
             raise ParameterError(
-                f"{file}: not valid JSON ({exc})", name="targets", value=str(file)
+                f"{file}: not valid JSON ({str(exc)[:200]})", name="targets", value=str(file)
             ) from exc
         records = data.get("targets") if isinstance(data, dict) else data
         if not isinstance(records, list):
@@ -322,19 +392,42 @@ def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:
                 value=str(file),
             )
     elif file.suffix.lower() == ".csv":
-        reader = csv.DictReader(io.StringIO(text))
-        missing = [c for c in ("x", "y", "z") if c not in (reader.fieldnames or ())]
-        if missing:
+        try:
+            reader = csv.DictReader(io.StringIO(text))
+            columns = [c.strip() for c in reader.fieldnames or ()]
+            rows = list(reader)
+        except csv.Error as exc:
+            raise ParameterError(f"{file}: not a CSV file ({exc})", name="targets") from exc
+        for k, row in enumerate(rows):
+            if None in row:  # more values than the header names
+                raise ParameterError(
+                    f"{file.name} row {k + 1}: {len(row[None]) + len(columns)} values for the "
+                    f"{len(columns)} columns of the header",
+                    name="targets",
+                    value=str(file),
+                )
+        records = [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in rows]
+        unknown = [c for c in columns if c not in (*_CSV_COLUMNS, *_TOL_KEYS)]
+        missing = [c for c in ("x", "y", "z") if c not in columns]
+        if missing or unknown:
             raise ParameterError(
                 f"{file}: the CSV header must name the columns x, y, z (optional "
-                f"{', '.join(_CSV_COLUMNS[3:])}); missing {', '.join(missing)}",
+                f"{', '.join((*_CSV_COLUMNS[3:], *_TOL_KEYS))}); "
+                + (f"missing {', '.join(missing)}" if missing else "")
+                + ("; " if missing and unknown else "")
+                + (f"unknown column {', '.join(map(repr, unknown))}" if unknown else ""),
                 name="targets",
                 value=str(file),
             )
-        records = [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in reader]
     else:
         raise ParameterError(
             f"targets file must end in .csv or .json, got {file.name!r}",
+            name="targets",
+            value=str(file),
+        )
+    if len(records) > MAX_TARGETS:
+        raise ParameterError(
+            f"{file}: {len(records)} targets, more than MAX_TARGETS = {MAX_TARGETS}",
             name="targets",
             value=str(file),
         )
