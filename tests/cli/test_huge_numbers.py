@@ -17,7 +17,7 @@ from youbot_opt.cli import main
     [
         (
             ["solve", "--damping", "1e308", "--transcription", "auto"],
-            "damping must be in [0, MAX_JOINT_DAMPING = 10000] N m s/rad, got 1e+308",
+            "damping must be in [0, MAX_JOINT_DAMPING = 1e+06] N m s/rad, got 1e+308",
         ),
         (
             ["solve", "--bound-scale", "1e308"],

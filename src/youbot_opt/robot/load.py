@@ -41,12 +41,12 @@ from youbot_opt.robot.urdf_check.size import SizeLimits
 
 __all__ = ["MAX_JOINT_DAMPING", "load_model"]
 
-MAX_JOINT_DAMPING = 1e4
-"""Largest viscous joint damping [N m s/rad] a model may carry (override or URDF).
+MAX_JOINT_DAMPING = 1e6
+"""Largest viscous joint damping [N m s/rad, or N s/m] a model may carry (override or URDF).
 
-10^4 N m of torque to turn a joint at 1 rad/s is beyond any arm's motor and
-gearbox (the youBot study uses 0.1); larger values describe no arm and only
-overflow the stiffness analysis that chooses the transcription.
+50 times the largest in example-robot-data (pr2's 2e4 N s/m); the youBot study
+uses 0.1. Larger values describe no arm and only overflow the stiffness
+analysis that chooses the transcription (1e308 ended in numpy's LinAlgError).
 """
 
 _log = logging.getLogger(__name__)
