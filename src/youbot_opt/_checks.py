@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import Any, SupportsFloat, SupportsIndex
+from typing import Any, SupportsFloat, SupportsIndex, SupportsInt
 
 import numpy as np
 
@@ -36,6 +36,7 @@ __all__ = [
     "iterable",
     "shown",
     "to_float",
+    "to_int",
 ]
 
 #: Most characters of a user's value an error message echoes; a longer value
@@ -52,6 +53,16 @@ def to_float(value: object) -> float:
         return float(value)
     raise TypeError(
         f"float() argument must be a string or a real number, not {type(value).__name__!r}"
+    )
+
+
+def to_int(value: object) -> int:
+    """``int(value)``, for a value read from a file: a TypeError as ``int``'s if it is none."""
+    if isinstance(value, str | bytes | bytearray | SupportsInt | SupportsIndex):
+        return int(value)
+    raise TypeError(
+        "int() argument must be a string, a bytes-like object or a real number, "
+        f"not {type(value).__name__!r}"
     )
 
 
