@@ -14,7 +14,8 @@ Layer 0: imports nothing of youbot_opt but :mod:`youbot_opt.exceptions`.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Iterable
+from typing import Any, SupportsFloat, SupportsIndex, SupportsInt
 
 import numpy as np
 
@@ -32,12 +33,44 @@ __all__ = [
     "check_shape",
     "check_time_limit",
     "check_unit_interval",
+    "iterable",
     "shown",
+    "to_float",
+    "to_int",
 ]
 
 #: Most characters of a user's value an error message echoes; a longer value
 #: is cut there and followed by its length, e.g. ``'xxx…' … (100000 characters)``.
 MAX_SHOWN_CHARS = 200
+
+
+def to_float(value: object) -> float:
+    """``float(value)``, for a value read from a file: a TypeError as ``float``'s if it is none.
+
+    Accepts what :class:`float` accepts (numbers, numpy scalars, numeric strings).
+    """
+    if isinstance(value, str | bytes | bytearray | SupportsFloat | SupportsIndex):
+        return float(value)
+    raise TypeError(
+        f"float() argument must be a string or a real number, not {type(value).__name__!r}"
+    )
+
+
+def to_int(value: object) -> int:
+    """``int(value)``, for a value read from a file: a TypeError as ``int``'s if it is none."""
+    if isinstance(value, str | bytes | bytearray | SupportsInt | SupportsIndex):
+        return int(value)
+    raise TypeError(
+        "int() argument must be a string, a bytes-like object or a real number, "
+        f"not {type(value).__name__!r}"
+    )
+
+
+def iterable(value: object) -> Iterable[object]:
+    """``value``, for a value read from a file: a TypeError as ``iter``'s if it is not iterable."""
+    if isinstance(value, Iterable):
+        return value
+    raise TypeError(f"{type(value).__name__!r} object is not iterable")
 
 
 def shown(value: Any) -> str:

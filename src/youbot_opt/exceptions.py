@@ -8,8 +8,6 @@ facts are kept as attributes where callers may want them programmatically.
 
 from __future__ import annotations
 
-from typing import Any
-
 __all__ = [
     "YoubotOptError",
     "ParameterError",
@@ -43,11 +41,11 @@ class ParameterError(YoubotOptError, ValueError):
     ----------
     name : str or None
         Name of the offending argument or field, when known.
-    value : Any
+    value : object
         The offending value, when known.
     """
 
-    def __init__(self, message: str, *, name: str | None = None, value: Any = None) -> None:
+    def __init__(self, message: str, *, name: str | None = None, value: object = None) -> None:
         super().__init__(message)
         self.name = name
         self.value = value
@@ -109,11 +107,11 @@ class SolveFailed(YoubotOptError):
 
     Attributes
     ----------
-    result : Any
+    result : object
         The failed result object, with the best iterate the solver reached.
     """
 
-    def __init__(self, message: str, *, result: Any = None) -> None:
+    def __init__(self, message: str, *, result: object = None) -> None:
         super().__init__(message)
         self.result = result
 
@@ -125,13 +123,13 @@ class UnreachableTarget(YoubotOptError):
     ----------
     index : int
         Index of the target in the problem's list (0-based).
-    target : Any
+    target : object
         The target position in [m] (or the chain's length unit).
-    verdict : Any
+    verdict : object
         The reachability verdict object with the reach limits and nearest point.
     """
 
-    def __init__(self, message: str, *, index: int, target: Any, verdict: Any = None) -> None:
+    def __init__(self, message: str, *, index: int, target: object, verdict: object = None) -> None:
         super().__init__(message)
         self.index = index
         self.target = target

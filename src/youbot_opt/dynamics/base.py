@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.tree import as_pin_model, read_tree
@@ -124,9 +125,9 @@ class Dynamics:
     damping: Array
     forward_dynamics: ca.Function
     inverse_dynamics: ca.Function
-    _keepalive: tuple[Any, ...] = field(default=(), repr=False, compare=False)
+    _keepalive: tuple[object, ...] = field(default=(), repr=False, compare=False)
 
-    def forward(self, q: Any, v: Any, tau: Any) -> Array:
+    def forward(self, q: ArrayLike, v: ArrayLike, tau: ArrayLike) -> Array:
         """Evaluate the forward dynamics numerically.
 
         Parameters
@@ -155,7 +156,7 @@ class Dynamics:
         )
         return np.asarray(self.forward_dynamics(*args), dtype=float).reshape(-1)
 
-    def inverse(self, q: Any, v: Any, a: Any) -> Array:
+    def inverse(self, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> Array:
         """Evaluate the inverse dynamics numerically.
 
         Parameters

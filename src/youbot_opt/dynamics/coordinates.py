@@ -14,10 +14,10 @@ Example: ``q_pin = to_pin_configuration(model, theta)``; ``pin.aba(model, data, 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
@@ -54,7 +54,7 @@ def continuous_joints(model: pin.Model) -> tuple[int, ...]:
     )
 
 
-def _angle_vector(model: pin.Model, q: Any, name: str, size: int) -> Array:
+def _angle_vector(model: pin.Model, q: ArrayLike, name: str, size: int) -> Array:
     arr = np.asarray(q, dtype=float).reshape(-1)
     if arr.shape != (size,):
         raise ParameterError(
@@ -65,7 +65,7 @@ def _angle_vector(model: pin.Model, q: Any, name: str, size: int) -> Array:
     return arr
 
 
-def to_pin_configuration(model: pin.Model, q: Any) -> Array:
+def to_pin_configuration(model: pin.Model, q: ArrayLike) -> Array:
     """Pinocchio configuration (nq,) of the angle coordinates ``q`` (nv,).
 
     Parameters
@@ -95,7 +95,7 @@ def to_pin_configuration(model: pin.Model, q: Any) -> Array:
     return out
 
 
-def from_pin_configuration(model: pin.Model, q_pin: Any) -> Array:
+def from_pin_configuration(model: pin.Model, q_pin: ArrayLike) -> Array:
     """Angle coordinates (nv,) of a Pinocchio configuration (nq,); angles in (-π, π]."""
     x = _angle_vector(model, q_pin, "q_pin", model.nq)
     if model.nq == model.nv:

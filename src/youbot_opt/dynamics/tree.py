@@ -130,7 +130,7 @@ class TreeSpec:
         return self.nv
 
 
-def as_pin_model(model: Any) -> pin.Model:
+def as_pin_model(model: object) -> pin.Model:
     """Return the ``pin.Model`` behind ``model`` (a ``pin.Model`` or anything with ``.model``).
 
     Parameters

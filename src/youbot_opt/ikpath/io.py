@@ -18,13 +18,14 @@ import dataclasses
 import json
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from youbot_opt._checks import to_float, to_int
 from youbot_opt._files import (
     MIGRATION_SCRIPT,
     array_digest,
@@ -35,6 +36,7 @@ from youbot_opt._files import (
     schema_header,
     software_versions,
 )
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
@@ -95,7 +97,7 @@ def limits_from_json(values: Iterable[float | None], fill: float) -> np.ndarray:
     return np.array([fill if v is None else float(v) for v in values], dtype=float)
 
 
-def history_to_json(history: Iterable[OuterIterate]) -> list[dict[str, Any]]:
+def history_to_json(history: Iterable[OuterIterate]) -> list[JSONDict]:
     """JSON form of the outer iterations of a result (non-finite figures as ``null``)."""
     return [
         {
@@ -112,7 +114,7 @@ def history_to_json(history: Iterable[OuterIterate]) -> list[dict[str, Any]]:
 
 
 def history_from_json(
-    items: Iterable[dict[str, Any]], n_targets: int, n_joints: int
+    items: Iterable[Mapping[str, object]], n_targets: int, n_joints: int
 ) -> tuple[OuterIterate, ...]:
     """Inverse of :func:`history_to_json`; each iterate's ``x`` shaped (n_targets, n_joints).
 
@@ -122,24 +124,24 @@ def history_from_json(
         For a missing field or a value of the wrong shape or type.
     """
 
-    def num(value: Any) -> float:
-        return math.nan if value is None else float(value)
+    def num(value: object) -> float:
+        return math.nan if value is None else to_float(value)
 
     return tuple(
         OuterIterate(
-            int(h["iteration"]),
+            to_int(h["iteration"]),
             np.array(h["x"], dtype=float).reshape(n_targets, n_joints),
             num(h["objective"]),
             num(h["violation"]),
             num(h["stationarity"]),
             num(h["penalty"]),
-            int(h["inner_iterations"]),
+            to_int(h["inner_iterations"]),
         )
         for h in items
     )
 
 
-def encode_document(schema: str, version: int, body: dict[str, Any]) -> bytes:
+def encode_document(schema: str, version: int, body: Mapping[str, object]) -> bytes:
     """UTF-8 JSON of ``body`` under ``"result"``, behind the schema header and its SHA-256.
 
     Parameters
@@ -174,7 +176,7 @@ def write_document(path: str | os.PathLike[str], data: bytes) -> Path:
 
 def read_document(
     path: str | os.PathLike[str], *, schema: str, version: int, what: str, oldest: int = 1
-) -> dict[str, Any]:
+) -> JSONDict:
     """Return the ``"result"`` body of a file written from :func:`encode_document`.
 
     Parameters
@@ -209,7 +211,7 @@ def read_document(
     return body
 
 
-def problem_spec(problem: CyclicIKProblem) -> dict[str, Any]:
+def problem_spec(problem: CyclicIKProblem) -> JSONDict:
     """JSON-ready description of ``problem``: chain, targets and ``use_limits``.
 
     The form stored in result files (infinite limits as ``null``); sweeps put it
@@ -329,7 +331,7 @@ def _kinematics_digest(model: pin.Model) -> str:
     return array_digest(np.concatenate([placements.ravel(), frames.ravel(), limits.ravel()]))
 
 
-def problem_spec_3d(problem: CyclicIKProblem) -> dict[str, Any]:
+def problem_spec_3d(problem: CyclicIKProblem) -> JSONDict:
     """JSON-ready description of ``problem`` (result files and sweep manifests).
 
     Returns

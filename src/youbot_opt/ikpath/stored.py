@@ -17,8 +17,9 @@ import itertools
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeVar
 
+from youbot_opt._checks import to_float, to_int
 from youbot_opt.sweeps.lazy import LazySequence, ListEquality
 from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.selection import Clusters, stream_optima
@@ -72,24 +73,25 @@ class StartSummary(Generic[R]):
     result: R | None = None
 
     @classmethod
-    def from_record(cls, summary: Mapping[str, Any], attempts: int) -> StartSummary[R]:
+    def from_record(cls, summary: Mapping[str, object], attempts: int) -> StartSummary[R]:
         """Build from a journal line's summary (planar or spatial figures)."""
 
-        def num(x: Any, missing: float) -> float:  # noqa: ANN401 - a JSON number or None
-            return missing if x is None else float(x)
+        def num(x: object, missing: float) -> float:
+            return missing if x is None else to_float(x)
 
         residual = summary.get("max_residual", summary.get("max_position_error"))
+        message = summary.get("message")
         return cls(
-            index=int(summary["index"]),
+            index=to_int(summary["index"]),
             status=str(summary["status"]),
             success=bool(summary["success"]),
             objective=num(summary.get("objective"), math.nan),
             max_residual=num(residual, math.inf),
             max_orientation_error=num(summary.get("max_orientation_error"), 0.0),
-            iterations=int(summary["iterations"]),
-            solve_time=float(summary["wall_time_s"]),
+            iterations=to_int(summary["iterations"]),
+            solve_time=to_float(summary["wall_time_s"]),
             attempts=int(attempts),
-            message=summary.get("message"),
+            message=None if message is None else str(message),
         )
 
     def with_result(self, result: R) -> StartSummary[R]:
@@ -131,7 +133,7 @@ class StartTally:
     closest: int
 
 
-def tally_starts(summaries: Iterable[StartSummary[Any]]) -> StartTally:
+def tally_starts(summaries: Iterable[StartSummary[R]]) -> StartTally:
     """Count the starts and find the closest one in one pass (``E`` breaks ties of the miss).
 
     The closest start is the first one (lowest index) of smallest rank, as

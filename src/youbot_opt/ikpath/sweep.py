@@ -26,7 +26,7 @@ from typing import Any, Generic, NamedTuple, TypeVar
 import numpy as np
 
 from youbot_opt._files import MIGRATION_SCRIPT
-from youbot_opt._typing import Array
+from youbot_opt._typing import Array, JSONDict
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.ikpath.io import encode_result, load_result, problem_spec, problem_spec_3d
 from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions, solve_augmented_lagrangian
@@ -114,7 +114,7 @@ def crashed_result(
     method: str,
     x0: Array,
     message: str,
-    **fields: Any,
+    **fields: object,
 ) -> ResultT:
     """Return the ``CRASHED`` result of a start that produced none (configurations = its start).
 
@@ -180,7 +180,8 @@ class StartSolvers(Generic[ProblemT, ResultT]):
     ipopt_solver : callable ``(problem, options) -> solver``
         Builds the IPOPT solver, once per worker.
     solve_ipopt : callable ``(handle, x0) -> result``
-        Worker task: one start with the worker's solver (a :class:`WorkerSolver`).
+        Worker task: one start with the worker's solver (a :class:`WorkerSolver` of the
+        planar or the spatial IPOPT solver).
     crashed : callable ``(problem, method, options, x0, message) -> result``
         The ``CRASHED`` result of a start that produced none (configurations = its start).
     figures : callable ``(result) -> dict``
@@ -195,9 +196,12 @@ class StartSolvers(Generic[ProblemT, ResultT]):
 
     solve_al: Callable[[ProblemT, ALOptions | None, Array], ResultT]
     ipopt_solver: Callable[[ProblemT, IpoptOptions | None], object]
-    solve_ipopt: Callable[[WorkerSolver[Any], Array], ResultT]
+    solve_ipopt: (
+        Callable[[WorkerSolver[IpoptIKSolver], Array], ResultT]
+        | Callable[[WorkerSolver[IpoptIKSolver3D], Array], ResultT]
+    )
     crashed: Callable[[ProblemT, str, ALOptions | IpoptOptions | None, Array, str], ResultT]
-    figures: Callable[[ResultT], dict[str, Any]]
+    figures: Callable[[ResultT], JSONDict]
     store_kind: str
     suffix: str
     encode: Callable[[ResultT], bytes]
@@ -277,7 +281,7 @@ _AL_FIELDS_FINAL_PHASE = (
 default, so that planar stores written before them still resume."""
 
 
-def options_json(method: str, options: ALOptions | IpoptOptions | None) -> dict[str, Any]:
+def options_json(method: str, options: ALOptions | IpoptOptions | None) -> JSONDict:
     """Return the JSON-ready settings of ``method`` that a sweep manifest holds.
 
     The one rule of the planar and spatial IK sweeps. Defaults are filled in,
@@ -376,7 +380,7 @@ def store_params(
     n_starts: int,
     seed: int,
     kind: str,
-) -> dict[str, Any]:
+) -> JSONDict:
     """Return the parameters an IK multistart's manifest binds its store to.
 
     The problem (planar methods: :func:`~youbot_opt.ikpath.io.problem_spec`, its
@@ -825,9 +829,7 @@ def _payload(
     return start.result, _summary(figures, start.index, start.result)
 
 
-def json_summary(
-    figures: Callable[[ResultT], dict[str, Any]], index: int, result: ResultT
-) -> dict[str, Any]:
+def json_summary(figures: Callable[[ResultT], JSONDict], index: int, result: ResultT) -> JSONDict:
     """Return a start's journal summary as the store reads it back (JSON round trip)."""
     return json.loads(json.dumps(_summary(figures, index, result)))
 

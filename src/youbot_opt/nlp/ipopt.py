@@ -18,13 +18,17 @@ import ctypes
 import math
 import os
 import stat
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Literal, TypeAlias, TypedDict, Unpack
 
 from youbot_opt._checks import check_time_limit
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
+
+if TYPE_CHECKING:  # casadi stays unimported until a solver is built (the CLI parser reads this)
+    import casadi as ca
 
 __all__ = [
     "IpoptOptions",
@@ -92,8 +96,28 @@ MUMPS and SPRAL are built in, the others are loaded at run time
 (:data:`RUNTIME_SOLVERS`)."""
 
 HessianMode = Literal["auto", "exact", "limited-memory"]
+
+NlpsolOption: TypeAlias = (
+    "bool | int | float | str | ca.Function"
+    " | Sequence[NlpsolOption] | Mapping[str, NlpsolOption] | None"
+)
+"""A value in CasADi's ``nlpsol`` options dict (nested dicts for a plugin's own options)."""
+
 MuStrategy = Literal["adaptive", "monotone"]
 _HESSIANS: tuple[str, ...] = ("auto", "exact", "limited-memory")
+
+
+class _OtherFields(TypedDict, total=False):
+    """The :class:`IpoptOptions` fields :meth:`IpoptOptions.for_ikpath` passes on unchanged."""
+
+    max_iter: int
+    max_cpu_time: float | None
+    max_wall_time: float | None
+    print_level: int
+    linear_solver: str
+    linear_solver_library: str | None
+    hessian: HessianMode
+    extra: Mapping[str, IpoptValue]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -233,7 +257,7 @@ class IpoptOptions:
         constr_viol_tol: float = 1e-11,
         mu_strategy: MuStrategy = "monotone",
         fast_kkt: bool = False,
-        **changes: Any,
+        **changes: Unpack[_OtherFields],
     ) -> IpoptOptions:
         """Return the IK-path solver's defaults, with ``changes``.
 
@@ -291,7 +315,7 @@ class IpoptOptions:
         *,
         warm_start: bool = False,
         solver_settings: Mapping[str, IpoptValue] | None = None,
-    ) -> dict[str, Any]:
+    ) -> dict[str, NlpsolOption]:
         """``nlpsol`` options dict (``ipopt.*`` keys, banner and timing output off).
 
         Parameters
@@ -346,7 +370,7 @@ class IpoptOptions:
         ipopt.update(self.extra)
         return {"ipopt": ipopt, "print_time": False}
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JSONDict:
         """JSON-ready dictionary of the fields.
 
         ``constr_viol_tol``, ``max_wall_time`` and ``linear_solver_library``
@@ -355,7 +379,7 @@ class IpoptOptions:
         the dictionary (stored in result files and sweep manifests) of options
         that do not use them is the one earlier versions wrote.
         """
-        out: dict[str, Any] = {
+        out: JSONDict = {
             "tol": self.tol,
             "max_iter": self.max_iter,
             "max_cpu_time": self.max_cpu_time,

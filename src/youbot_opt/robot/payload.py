@@ -14,13 +14,14 @@ the gravity torque by ``-m J^T g``. Attach it with :meth:`RobotModel.with_payloa
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import ArrayLike
 
+from youbot_opt._checks import to_float
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 
 __all__ = ["Payload", "add_payload"]
@@ -28,7 +29,7 @@ __all__ = ["Payload", "add_payload"]
 _INERTIA_TOL = 1e-12  # [kg m^2] round-off allowed in the symmetry and triangle checks
 
 
-def _vector3(name: str, value: ArrayLike) -> tuple[float, float, float]:
+def _vector3(name: str, value: object) -> tuple[float, float, float]:
     try:
         arr = np.array(value, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -38,7 +39,7 @@ def _vector3(name: str, value: ArrayLike) -> tuple[float, float, float]:
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
-def _inertia(value: ArrayLike) -> tuple[tuple[float, ...], ...]:
+def _inertia(value: object) -> tuple[tuple[float, ...], ...]:
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -70,6 +71,24 @@ def _inertia(value: ArrayLike) -> tuple[tuple[float, ...], ...]:
     return tuple(tuple(float(x) for x in row) for row in arr)
 
 
+def _mass(value: object) -> float:
+    try:
+        mass = to_float(value)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"mass must be a number [kg], got {value!r}") from exc
+    if not (math.isfinite(mass) and mass >= 0.0):
+        raise ParameterError(
+            f"payload mass must be finite and >= 0 [kg], got {value!r}", name="mass"
+        )
+    return mass
+
+
+def _frame(value: object) -> str | None:
+    if value is not None and (not isinstance(value, str) or not value):
+        raise ParameterError(f"frame must be a frame name, got {value!r}", name="frame")
+    return value
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Payload:
     """A rigid payload fixed in a frame of the robot.
@@ -98,25 +117,16 @@ class Payload:
     frame: str | None = None
 
     def __post_init__(self) -> None:
-        try:
-            mass = float(self.mass)
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"mass must be a number [kg], got {self.mass!r}") from exc
-        if not (math.isfinite(mass) and mass >= 0.0):
-            raise ParameterError(
-                f"payload mass must be finite and >= 0 [kg], got {self.mass!r}", name="mass"
-            )
-        object.__setattr__(self, "mass", mass)
+        object.__setattr__(self, "mass", _mass(self.mass))
         object.__setattr__(self, "com", _vector3("com", self.com))
         object.__setattr__(self, "inertia", _inertia(self.inertia))
-        if self.frame is not None and (not isinstance(self.frame, str) or not self.frame):
-            raise ParameterError(f"frame must be a frame name, got {self.frame!r}", name="frame")
+        _frame(self.frame)
 
     def spatial_inertia(self) -> pin.Inertia:
         """Return the payload as a ``pinocchio.Inertia`` in its frame."""
         return pin.Inertia(self.mass, np.array(self.com), np.array(self.inertia, dtype=float))
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JSONDict:
         """JSON-ready form: ``mass`` [kg], ``com`` [m], ``inertia`` [kg m^2] (3x3), ``frame``."""
         return {
             "mass": self.mass,
@@ -126,7 +136,7 @@ class Payload:
         }
 
     @classmethod
-    def from_json(cls, data: dict[str, Any]) -> Payload:
+    def from_json(cls, data: Mapping[str, object]) -> Payload:
         """Inverse of :meth:`to_json`.
 
         Raises
@@ -134,12 +144,10 @@ class Payload:
         KeyError, TypeError, ValueError
             If ``data`` is not such a form (``ParameterError`` is a ValueError).
         """
-        return cls(
-            mass=data["mass"],
-            com=data.get("com", (0.0, 0.0, 0.0)),
-            inertia=data.get("inertia", np.zeros((3, 3))),
-            frame=data.get("frame"),
-        )
+        mass = _mass(data["mass"])  # checked in the constructor's order
+        com = _vector3("com", data.get("com", (0.0, 0.0, 0.0)))
+        inertia = _inertia(data.get("inertia", np.zeros((3, 3))))
+        return cls(mass=mass, com=com, inertia=inertia, frame=_frame(data.get("frame")))
 
 
 def add_payload(model: pin.Model, frame_id: int, payload: Payload) -> pin.Model:

@@ -17,10 +17,12 @@ import hashlib
 import logging
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
+from youbot_opt._checks import iterable, to_float
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ModelError, ParameterError, RobotNotFound
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
@@ -338,7 +340,7 @@ class RobotSource:
                 path=source,
             ) from exc
 
-    def to_json(self, *, folder: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    def to_json(self, *, folder: str | os.PathLike[str] | None = None) -> JSONDict:
         """JSON-ready form.
 
         Parameters
@@ -372,7 +374,7 @@ class RobotSource:
         }
 
     @classmethod
-    def from_json(cls, data: dict[str, Any]) -> RobotSource:
+    def from_json(cls, data: Mapping[str, object]) -> RobotSource:
         """Inverse of :meth:`to_json`; older forms (without digest and relative paths) too.
 
         Raises
@@ -381,13 +383,22 @@ class RobotSource:
             If ``data`` is not such a form (``ParameterError`` is a ValueError).
         """
         digest, relative = data.get("urdf_sha256"), data.get("relative_source")
+        source = str(data["source"])  # read in the order the fields are listed
+        package_dirs = tuple(str(p) for p in iterable(data.get("package_dirs", ())))
+        pairs = (iterable(pair) for pair in iterable(data.get("lock_joints", ())))
+        lock_joints = tuple((str(k), to_float(v)) for k, v in pairs)
+        strict = bool(data.get("strict", True))
+        relative_dirs = iterable(data.get("relative_package_dirs") or ())
+        payload = data.get("payload")
+        if payload is not None and not isinstance(payload, Mapping):
+            raise TypeError(f"payload must be a JSON object or null, got {payload!r}")
         return cls(
-            source=str(data["source"]),
-            package_dirs=tuple(str(p) for p in data.get("package_dirs", ())),
-            lock_joints=tuple((str(k), float(v)) for k, v in data.get("lock_joints", ())),
-            strict=bool(data.get("strict", True)),
+            source=source,
+            package_dirs=package_dirs,
+            lock_joints=lock_joints,
+            strict=strict,
             urdf_sha256=None if digest is None else str(digest),
             relative_source=None if relative is None else str(relative),
-            relative_package_dirs=tuple(str(p) for p in data.get("relative_package_dirs") or ()),
-            payload=None if data.get("payload") is None else Payload.from_json(data["payload"]),
+            relative_package_dirs=tuple(str(p) for p in relative_dirs),
+            payload=None if payload is None else Payload.from_json(payload),
         )

@@ -120,8 +120,8 @@ def run_batch(init: bytes | None, batch: bytes) -> bytes:
 def run_dask(
     runner: TaskRunner,
     client: Client,
-    initializer: Callable[..., Any] | None,
-    initargs: tuple[Any, ...],
+    initializer: Callable[..., object] | None,
+    initargs: tuple[object, ...],
     batch_size: int | None,
 ) -> None:
     """Run on a Dask cluster: batches of items, per-item outcomes, crash-charged singles.

@@ -42,7 +42,7 @@ _log = logging.getLogger(__name__)
 _DIGEST = 16  # hex characters of SHA-256 that guard a line
 
 
-def encode_line(record: Mapping[str, Any]) -> bytes:
+def encode_line(record: Mapping[str, object]) -> bytes:
     """Encode ``record`` as one journal line: ``<sha256[:16]> <json>`` and a newline (UTF-8)."""
     text = json.dumps(record, separators=(",", ":"), allow_nan=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:_DIGEST]

@@ -95,8 +95,8 @@ def _watch_parent(parent: int) -> None:
 def _worker_main(
     conn: Connection,
     parent: int,
-    initializer: Callable[..., Any] | None,
-    initargs: tuple[Any, ...],
+    initializer: Callable[..., object] | None,
+    initargs: tuple[object, ...],
     init_blob: bytes | None,
 ) -> None:
     """Body of a worker process: run ``(key, fn, args)`` messages until ``None`` or EOF."""
@@ -144,7 +144,12 @@ def _death_reason(exitcode: int | None) -> str:
 class _Worker:
     """One worker process, its pipe and the task it is running."""
 
-    def __init__(self, ctx: BaseContext, initializer: Any, initargs: tuple[Any, ...]) -> None:
+    def __init__(
+        self,
+        ctx: BaseContext,
+        initializer: Callable[..., object] | None,
+        initargs: tuple[object, ...],
+    ) -> None:
         self.conn, child = ctx.Pipe()
         args: tuple[Any, ...]
         if ctx.get_start_method() == "fork":  # inherited, not pickled (e.g. a built solver)
@@ -201,8 +206,8 @@ class WorkerPool:
         self,
         workers: int | None = None,
         *,
-        initializer: Callable[..., Any] | None = None,
-        initargs: tuple[Any, ...] = (),
+        initializer: Callable[..., object] | None = None,
+        initargs: tuple[object, ...] = (),
     ) -> None:
         self.workers = _check_workers(default_workers() if workers is None else workers)
         self._initializer = initializer
@@ -354,8 +359,8 @@ def run_tasks(
     *,
     executor: ExecutorLike = "process",
     workers: int | None = None,
-    initializer: Callable[..., Any] | None = None,
-    initargs: tuple[Any, ...] = (),
+    initializer: Callable[..., object] | None = None,
+    initargs: tuple[object, ...] = (),
     max_attempts: int = 2,
     on_outcome: Callable[[TaskOutcome], None] | None = None,
     timeout: float | None = None,
@@ -451,8 +456,8 @@ def _run(
     client: Client | None,
     *,
     workers: int | None,
-    initializer: Callable[..., Any] | None,
-    initargs: tuple[Any, ...],
+    initializer: Callable[..., object] | None,
+    initargs: tuple[object, ...],
     max_attempts: int,
     on_outcome: Callable[[TaskOutcome], None] | None,
     timeout: float | None,

@@ -177,7 +177,7 @@ class Codec(Generic[R]):
 def open_store(
     out: str | os.PathLike[str],
     kind: str,
-    params: Mapping[str, Any],
+    params: Mapping[str, object],
     codec: Codec[Any],
     *,
     clean: bool = True,
@@ -282,7 +282,7 @@ class SweepStore:
         directory: str | os.PathLike[str],
         *,
         kind: str,
-        params: Mapping[str, Any],
+        params: Mapping[str, object],
         save: Callable[[Any, Path], object],
         load: Callable[[Path], Any],
         suffix: str = ".npz",
@@ -637,7 +637,7 @@ class SweepStore:
         return rec.attempts < max_attempts, rec.attempts
 
     def write_done(
-        self, key: str, payload: Any, summary: Mapping[str, Any], *, attempts: int = 1
+        self, key: str, payload: Any, summary: Mapping[str, object], *, attempts: int = 1
     ) -> ItemRecord:
         """Save a finished item written here: payload first, then its record.
 
@@ -805,7 +805,7 @@ class SweepStore:
         with contextlib.suppress(Exception):
             self._close_readers()
 
-    def fingerprint(self, keys: Iterable[str], extra: Mapping[str, Any]) -> str:
+    def fingerprint(self, keys: Iterable[str], extra: Mapping[str, object]) -> str:
         """SHA-256 naming the records of ``keys`` as they are now (state, attempts, checksum).
 
         With ``extra`` (e.g. a selection rule's tolerances) it names what a
@@ -822,7 +822,7 @@ class SweepStore:
         """Return the number of items with a record (from the index)."""
         return len(self._index) + sum(1 for k in self._unflushed if k not in self._index)
 
-    def fingerprint_all(self, extra: Mapping[str, Any]) -> str:
+    def fingerprint_all(self, extra: Mapping[str, object]) -> str:
         """SHA-256 naming every record of the store as it is now, and ``extra``; no line read.
 
         The store keeps the sum (mod 2^256) of one SHA-256 digest per record

@@ -68,8 +68,8 @@ class Task:
     """
 
     key: str
-    fn: Callable[..., Any]
-    args: tuple[Any, ...] = ()
+    fn: Callable[..., object]
+    args: tuple[object, ...] = ()
     attempts: int = 0
 
 

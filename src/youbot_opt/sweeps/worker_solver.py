@@ -49,13 +49,15 @@ class WorkerSolver(Generic[S]):
     """
 
     build: Callable[..., S]
-    args: tuple[Any, ...] = ()
+    args: tuple[object, ...] = ()
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
     prebuilt: S | None = field(default=None, compare=False)
     ship: bool = field(default=True, compare=False)
 
     @classmethod
-    def of(cls, build: Callable[..., S], *args: Any, prebuilt: S | None = None) -> WorkerSolver[S]:
+    def of(
+        cls, build: Callable[..., S], *args: object, prebuilt: S | None = None
+    ) -> WorkerSolver[S]:
         """Make the handle of one run (a fresh token) for ``build(*args)``."""
         return cls(build=build, args=tuple(args), prebuilt=prebuilt)
 
@@ -97,7 +99,7 @@ class WorkerSolver(Generic[S]):
         return solver
 
 
-def hold_solver(handle: WorkerSolver[Any]) -> None:
+def hold_solver(handle: WorkerSolver[S]) -> None:
     """Pool initializer: hold ``handle``'s solver for every item this worker runs."""
     _CACHE.solver = handle.get()
     _CACHE.token = handle.token

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import coal
 import meshcat.commands as mc
 import meshcat.geometry as mg
+import meshcat.path
 import numpy as np
 import pinocchio as pin
 import umsgpack
@@ -28,7 +29,7 @@ from youbot_opt.exceptions import ModelError
 from youbot_opt.robot.urdf_check.meshes import load_mesh_file
 from youbot_opt.robot.urdf_check.resources import MESH_SUFFIXES
 
-__all__ = ["set_object_command"]
+__all__ = ["SceneCommand", "set_object_command"]
 
 
 class _MeshFileGeometry(mg.Geometry):
@@ -44,6 +45,14 @@ class _MeshFileGeometry(mg.Geometry):
     def lower(self, object_data: Any) -> dict[str, Any]:
         data = self.data.decode("utf-8") if self.fmt == "obj" else umsgpack.Ext(0x12, self.data)
         return {"uuid": self.uuid, "type": "_meshfile_geometry", "format": self.fmt, "data": data}
+
+
+class SceneCommand(Protocol):
+    """A meshcat command, sent with ``visualizer.window.send``."""
+
+    def lower(self) -> dict[str, object]:
+        """Return the command's message (msgpack-ready)."""
+        ...
 
 
 class _ZCylinder(mg.Cylinder):
@@ -116,7 +125,7 @@ def _bvh_mesh(geom: Any) -> tuple[Array, Array]:
     return np.asarray(geom.vertices(), dtype=float), np.array(faces)
 
 
-def _triangles(go: pin.GeometryObject, cache: dict[tuple[Any, ...], Any] | None) -> Any:
+def _triangles(go: pin.GeometryObject, cache: dict[tuple[object, ...], object] | None) -> object:
     """Convert the triangles of ``go`` to meshcat geometry, once per (name, file, scale)."""
     if cache is None:
         return mg.TriangularMeshGeometry(*_bvh_mesh(go.geometry))
@@ -130,10 +139,10 @@ def set_object_command(
     go: pin.GeometryObject,
     package_dirs: Sequence[str | Path],
     opacity: float,
-    path: Any,
+    path: meshcat.path.Path,
     *,
-    triangles: dict[tuple[Any, ...], Any] | None = None,
-) -> Any:
+    triangles: dict[tuple[object, ...], object] | None = None,
+) -> SceneCommand:
     """Build the meshcat ``set_object`` command that draws one geometry object.
 
     Parameters
@@ -152,7 +161,7 @@ def set_object_command(
 
     Returns
     -------
-    object
+    SceneCommand
         A command with ``lower()``, to be sent with ``visualizer.window.send``.
 
     Raises

@@ -15,7 +15,7 @@ import html
 import logging
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import meshcat
 import numpy as np
@@ -26,6 +26,10 @@ from youbot_opt.viz.meshcat import scene
 from youbot_opt.viz.meshcat.replay import html_target, replay, standalone_page, write_page
 from youbot_opt.viz.meshcat.scene import RobotLike
 from youbot_opt.viz.meshcat.server import MeshcatServer
+
+if TYPE_CHECKING:
+    from youbot_opt.trajopt.result import TrajOptResult
+    from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = ["result_tracks", "replay_results", "export_results_html"]
 
@@ -54,7 +58,9 @@ _LAYOUTS = ("side_by_side", "ghosts")
 
 
 def result_tracks(
-    results: Sequence[Any], labels: Sequence[str] | None = None, robot: RobotLike | None = None
+    results: Sequence[TrajOptResult | Trajectory],
+    labels: Sequence[str] | None = None,
+    robot: RobotLike | None = None,
 ) -> tuple[RobotLike, list[tuple[Array, Array, str]]]:
     """Turn trajectory results into labelled tracks ``(t, q, label)`` of one robot.
 
@@ -103,7 +109,8 @@ def result_tracks(
                 f"robot {robot.name!r} has nq = {robot.model.nq}",
                 name="results",
             )
-        default = f"{i}: f = {item.objective:.5g}" if problem is not None else f"run {i}"
+        objective = getattr(item, "objective", None)  # a result has one, a Trajectory none
+        default = f"{i}: f = {objective:.5g}" if problem is not None else f"run {i}"
         tracks.append((traj.t, traj.q, default if labels is None else str(labels[i])))
     if robot is None:
         raise ParameterError("robot is required when only Trajectories are given", name="robot")
@@ -126,7 +133,7 @@ def _arrange(
 
 
 def replay_results(
-    results: Sequence[Any],
+    results: Sequence[TrajOptResult | Trajectory],
     *,
     labels: Sequence[str] | None = None,
     layout: str = "side_by_side",
@@ -159,7 +166,7 @@ def replay_results(
 
 
 def export_results_html(
-    results: Sequence[Any],
+    results: Sequence[TrajOptResult | Trajectory],
     path: str | Path,
     *,
     labels: Sequence[str] | None = None,
