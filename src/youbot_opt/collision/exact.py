@@ -27,7 +27,7 @@ from youbot_opt.robot.model import RobotModel
 __all__ = ["ExactChecker", "convex_hull_solid", "exact_checker", "exact_distances"]
 
 
-def convex_hull_solid(points: Array) -> Any:
+def convex_hull_solid(points: Array) -> coal.CollisionGeometry:
     """Return the coal Convex hull of points [m] (the solid a mesh counts as)."""
     bvh = coal.BVHModelOBBRSS()
     bvh.beginModel(0, len(points))
@@ -75,9 +75,9 @@ class ExactChecker:
     """
 
     model: CollisionModel
-    link_solids: tuple[Any, ...]
+    link_solids: tuple[coal.CollisionGeometry, ...]
     link_placements: tuple[pin.SE3, ...]
-    obstacle_solids: tuple[Any, ...]
+    obstacle_solids: tuple[coal.CollisionGeometry, ...]
 
     def distances(self, robot: RobotModel, q: Array) -> Array:
         """Return coal's signed distance [m] of every checked pair at ``q``.

@@ -21,6 +21,7 @@ from typing import Any
 
 from youbot_opt._checks import shown
 from youbot_opt._files import atomic_write_text
+from youbot_opt._typing import JSONDict
 from youbot_opt.collision.scene import MAX_OBSTACLES, Obstacle, Scene, furniture
 from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Mesh, Shape, Sphere
 from youbot_opt.exceptions import ParameterError, YoubotOptError
@@ -292,7 +293,7 @@ def save_scene(scene: Scene, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
 
 
-def scene_document(scene: Scene, *, folder: str | os.PathLike[str]) -> dict[str, Any]:
+def scene_document(scene: Scene, *, folder: str | os.PathLike[str]) -> JSONDict:
     """Return the JSON document of a scene file, mesh paths relative to ``folder``."""
     return {
         "schema": SCENE_SCHEMA,
