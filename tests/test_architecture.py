@@ -329,7 +329,15 @@ def test_twin_rule_tells_stems_from_compounds(a: str, b: str, twins: bool) -> No
 
 #: The packages held to "no ``Any`` in a public signature" (ARCHITECTURE.md rule 9); the
 #: others join as they are cleaned.
-NO_ANY_PACKAGES: tuple[str, ...] = ("cli", "exceptions", "robot", "dynamics", "nlp", "ikpath", "collision")
+NO_ANY_PACKAGES: tuple[str, ...] = (
+    "cli",
+    "exceptions",
+    "robot",
+    "dynamics",
+    "nlp",
+    "ikpath",
+    "collision",
+)
 
 _PUBLIC_DUNDERS = ("__init__", "__call__")
 

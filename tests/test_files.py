@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import enum
-import io
 import json
 import math
 import os
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -15,19 +13,16 @@ import pytest
 
 from youbot_opt._files import (
     TMP_PREFIX,
-    StreamedList,
     array_digest,
     atomic_write_bytes,
     atomic_write_text,
     atomic_writer,
     check_schema_header,
-    iter_json,
     json_digest,
     json_ready,
     json_roundtrip,
     schema_header,
     software_versions,
-    write_json_stream,
 )
 from youbot_opt._version import __version__
 from youbot_opt.exceptions import ParameterError, ResultFileError
@@ -256,77 +251,3 @@ def test_check_schema_header_refuses_a_version_older_than_oldest_naming_the_scri
         check_schema_header(
             doc, schema="demo", supported=2, oldest=2, source="f.json", migrate="run/a"
         )
-
-
-_ROWS = [
-    {
-        "index": i,
-        "E": i / 3,
-        "x": [1.5, None, {"a": [2, 3]}],
-        "message": "two\nlines" if i % 2 else None,
-    }
-    for i in range(5)
-]
-
-
-def _materialised(value: object) -> object:
-    if isinstance(value, StreamedList):
-        return [json_ready(item) for item in value]
-    if isinstance(value, dict):
-        return {k: _materialised(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_materialised(v) for v in value]
-    return value
-
-
-@pytest.mark.parametrize(
-    "doc",
-    [
-        {"a": 1, "rows": StreamedList(lambda: iter(_ROWS), 5), "b": {"c": [1, 2], "d": {}}},
-        {"rows": StreamedList(lambda: iter(()), 0), "e": []},
-        {"nested": {"deep": StreamedList(lambda: iter(_ROWS), 5)}, "z": "end"},
-        [StreamedList(lambda: iter(_ROWS[:2]), 2), 3, {}],
-        {"plain": [1, {"q": 2.5}], "none": None},
-        {},
-    ],
-)
-def test_iter_json_is_json_dumps_of_the_materialised_document(doc: object) -> None:
-    """Byte for byte what ``json.dumps(indent=2)`` writes once the streamed lists are lists."""
-    expected = json.dumps(_materialised(doc), indent=2)
-    assert "".join(iter_json(doc)) == expected
-    text, binary = io.StringIO(), io.BytesIO()
-    write_json_stream(text, doc)
-    write_json_stream(binary, doc)
-    assert text.getvalue() == expected + "\n"
-    assert binary.getvalue() == (expected + "\n").encode()
-
-
-def test_write_json_stream_writes_each_row_before_the_next_is_made() -> None:
-    """The rows are written as they are produced, never gathered (a million-start summary)."""
-    produced: list[int] = []
-
-    def rows() -> Iterator[dict[str, int]]:
-        for i in range(1000):
-            produced.append(i)
-            yield {"index": i}
-
-    class Handle(io.StringIO):
-        def write(self, chunk: str) -> int:
-            if f'"index": {len(produced) - 1}' in chunk:  # the newest row, written now
-                assert len(produced) == written[0] + 1
-                written[0] += 1
-            return super().write(chunk)
-
-    written = [0]
-    doc = {"head": 1, "rows": StreamedList(rows, 1000), "tail": 2}
-    write_json_stream(Handle(), doc)
-    assert written[0] == 1000  # every row written right after it was made
-    assert len(list(doc["rows"])) == 1000 and len(produced) == 2000  # iterable again
-
-
-def test_streamed_list_is_left_alone_by_json_ready_and_refused_by_json_dumps() -> None:
-    rows = StreamedList(lambda: iter(_ROWS), 5)
-    assert json_ready({"rows": rows})["rows"] is rows
-    assert len(rows) == 5 and repr(rows) == "StreamedList(5 items)"
-    with pytest.raises(TypeError):
-        json.dumps(rows)

@@ -4,7 +4,7 @@ Owns what every writer of a result, record, manifest or summary needs, written
 once: :func:`atomic_write_bytes` (a kill leaves the old file or the new one),
 :func:`json_ready` (numpy values, paths, enums to JSON, NaN/inf to ``null``),
 :func:`write_json_lines` (one JSON object a line: a sweep's per-start rows),
-:func:`write_json_stream` (lists too long for memory, one item at a time) and
+:func:`read_npz` / :func:`read_regular_file` (bounded reads that never block) and
 :func:`schema_header` / :func:`check_schema_header` (schema name, version,
 writing software, checksum). Layer 0. Example::
 
@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import io
 import json
 import math
 import os
 import stat
 import tempfile
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from types import ModuleType
 from typing import IO, Any
@@ -35,14 +34,12 @@ __all__ = [
     "MAX_RESULT_BYTES",
     "MIGRATION_SCRIPT",
     "TMP_PREFIX",
-    "StreamedList",
     "array_digest",
     "atomic_write_bytes",
     "atomic_write_text",
     "atomic_writer",
     "check_schema_header",
     "fsync_dir",
-    "iter_json",
     "json_digest",
     "json_ready",
     "json_roundtrip",
@@ -52,7 +49,6 @@ __all__ = [
     "schema_header",
     "software_versions",
     "write_json_lines",
-    "write_json_stream",
 ]
 
 MIGRATION_SCRIPT = "scripts/migrate_0_1_0.py"
@@ -226,124 +222,6 @@ def json_ready(value: Any) -> Any:
     if hasattr(value, "value") and hasattr(value, "name") and not isinstance(value, (int, str)):
         return json_ready(value.value)  # enums
     return value
-
-
-class StreamedList:
-    """A JSON array produced one item at a time, for :func:`iter_json`.
-
-    Stands in a document where a list of many items (one per start of a
-    sweep) would otherwise be built in memory: :func:`iter_json` writes its
-    items as ``factory()`` yields them, each through :func:`json_ready`.
-    :func:`json_ready` leaves it unchanged; ``json.dumps`` does not accept it.
-    Iterating it again calls ``factory`` again.
-
-    Parameters
-    ----------
-    factory : callable
-        Returns a fresh iterator over the items, in order.
-    length : int
-        Number of items ``factory`` yields (``len``; 0 writes ``[]``).
-    """
-
-    __slots__ = ("_factory", "_length")
-
-    def __init__(self, factory: Callable[[], Iterable[Any]], length: int) -> None:
-        self._factory = factory
-        self._length = int(length)
-
-    def __len__(self) -> int:
-        return self._length
-
-    def __iter__(self) -> Iterator[Any]:
-        return iter(self._factory())
-
-    def __repr__(self) -> str:
-        return f"StreamedList({self._length} items)"
-
-
-def _streams(value: Any) -> bool:
-    """Whether a nest of dicts and lists holds a :class:`StreamedList`."""
-    if isinstance(value, StreamedList):
-        return True
-    if isinstance(value, dict):
-        return any(_streams(v) for v in value.values())
-    if isinstance(value, list):
-        return any(_streams(v) for v in value)
-    return False
-
-
-def iter_json(value: Any, indent: int = 2, _level: int = 0) -> Iterator[str]:
-    """Chunks of ``json.dumps(value, indent=indent)``, streaming :class:`StreamedList` items.
-
-    ``value`` is :func:`json_ready` output (dicts with ``str`` keys, lists,
-    JSON scalars) that may hold :class:`StreamedList` objects; their items are
-    converted with :func:`json_ready` one at a time. The concatenated chunks
-    are the text ``json.dumps`` writes for the same document with the lists
-    materialised, byte for byte.
-
-    Parameters
-    ----------
-    value : Any
-        The document.
-    indent : int
-        Spaces per nesting level (as ``json.dumps``'s ``indent``).
-
-    Yields
-    ------
-    str
-        Consecutive pieces of the JSON text (no trailing newline).
-    """
-    pad = " " * (indent * _level)
-    if not _streams(value):
-        yield json.dumps(value, indent=indent).replace("\n", "\n" + pad)
-        return
-    inner = " " * (indent * (_level + 1))
-    if isinstance(value, dict):
-        items: Iterable[tuple[str | None, Any]] = value.items()
-        opening, closing = "{", "}"
-    else:
-        items = ((None, v) for v in value)
-        opening, closing = "[", "]"
-    empty = True
-    for key, item in items:
-        yield (opening + "\n" if empty else ",\n") + inner
-        empty = False
-        if key is not None:
-            yield json.dumps(key) + ": "
-        if not isinstance(value, StreamedList) and not _streams(item):
-            yield json.dumps(item, indent=indent).replace("\n", "\n" + inner)
-        else:
-            yield from iter_json(
-                json_ready(item) if isinstance(value, StreamedList) else item, indent, _level + 1
-            )
-    if empty:
-        yield opening + closing
-    else:
-        yield "\n" + pad + closing
-
-
-def write_json_stream(handle: IO[str] | IO[bytes], value: Any, indent: int = 2) -> None:
-    """Write ``value`` as indented JSON plus a newline to ``handle``, streaming its lists.
-
-    The text equals ``json.dumps(value, indent=indent)`` and a newline, for the same
-    document with every :class:`StreamedList` materialised (:func:`iter_json`);
-    a binary handle gets it UTF-8 encoded.
-
-    Parameters
-    ----------
-    handle : text or binary file
-        Where to write (e.g. from :func:`atomic_writer`, or ``sys.stdout``).
-    value : Any
-        :func:`json_ready` output, possibly holding :class:`StreamedList` objects.
-    indent : int
-        Spaces per nesting level.
-    """
-    binary = isinstance(handle, io.RawIOBase | io.BufferedIOBase) or "b" in getattr(
-        handle, "mode", ""
-    )
-    for chunk in iter_json(value, indent):
-        handle.write(chunk.encode() if binary else chunk)  # type: ignore[arg-type]
-    handle.write(b"\n" if binary else "\n")  # type: ignore[arg-type]
 
 
 def write_json_lines(path: str | os.PathLike[str], rows: Iterable[Mapping[str, object]]) -> int:
