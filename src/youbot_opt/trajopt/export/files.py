@@ -32,7 +32,15 @@ from youbot_opt.exceptions import ResultFileError, YoubotOptError
 from youbot_opt.robot.model import JointUnits
 from youbot_opt.trajopt.export.samples import SampledTrajectory, acceleration_unit
 
-__all__ = ["SCHEMA", "SCHEMA_VERSION", "read_csv", "read_json", "write_csv", "write_json"]
+__all__ = [
+    "SCHEMA",
+    "SCHEMA_VERSION",
+    "read_csv",
+    "read_json",
+    "writable_target",
+    "write_csv",
+    "write_json",
+]
 
 SCHEMA = "youbot_opt.trajectory_samples"
 SCHEMA_VERSION = 1
@@ -56,7 +64,8 @@ def _units_from(position: str) -> JointUnits:
     )
 
 
-def _target(path: str | os.PathLike[str]) -> Path:
+def writable_target(path: str | os.PathLike[str]) -> Path:
+    """Return ``path`` as a Path whose folder exists, else raise ResultFileError naming it."""
     target = Path(path)
     if not target.parent.is_dir():
         raise ResultFileError(f"cannot write {target}: directory {target.parent} does not exist")
@@ -83,7 +92,7 @@ def write_csv(samples: SampledTrajectory, path: str | os.PathLike[str]) -> Path:
     ResultFileError
         If the folder does not exist.
     """
-    target = _target(path)
+    target = writable_target(path)
     header = ["time [s]"]
     for field in _FIELDS:
         header += [
@@ -200,7 +209,7 @@ def write_json(samples: SampledTrajectory, path: str | os.PathLike[str]) -> Path
     ResultFileError
         If the folder does not exist.
     """
-    target = _target(path)
+    target = writable_target(path)
     body = json_ready(_body(samples))
     doc = {**schema_header(SCHEMA, SCHEMA_VERSION, sha256=json_digest(body)), "samples": body}
     atomic_write_text(target, json.dumps(doc, allow_nan=False) + "\n")

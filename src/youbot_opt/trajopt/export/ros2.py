@@ -28,6 +28,7 @@ from youbot_opt._files import atomic_write_text
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.robot.model import JointUnits
+from youbot_opt.trajopt.export.files import writable_target
 from youbot_opt.trajopt.export.samples import SampledTrajectory
 
 __all__ = [
@@ -95,9 +96,7 @@ def write_ros2_message(samples: SampledTrajectory, path: str | os.PathLike[str])
     ResultFileError
         If the folder does not exist.
     """
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise ResultFileError(f"cannot write {target}: directory {target.parent} does not exist")
+    target = writable_target(path)
     points = []
     for i in range(samples.n_samples):
         stamp = _duration(samples.time[i])
@@ -214,8 +213,7 @@ def write_rosbag(
         raise ResultFileError(
             f"cannot write rosbag {target}: it exists; remove it or choose another"
         )
-    if not target.parent.is_dir():
-        raise ResultFileError(f"cannot write {target}: directory {target.parent} does not exist")
+    writable_target(target)
     store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
     types = store.types
     message = types[MESSAGE_TYPE](
