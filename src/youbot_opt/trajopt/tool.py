@@ -1,0 +1,724 @@
+"""Tool constraints of a trajectory problem: kinds, NLP rows, boundary check, certificate (#30).
+
+:class:`KeepAxis` (a tool axis within an angle [rad] of a world direction),
+:class:`NearLine` (the tool point within a distance [m] of a segment),
+:class:`ToolSpeed` (the tool point's speed [m/s]); :func:`tool_constraint` is the
+NLP's path constraint, :func:`check_boundary_tool` refuses a bad start or goal,
+:func:`certify_plan_tool` certifies a plan between knots (``docs/tool.md``).
+
+>>> upright = KeepAxis(axis=(1, 0, 0), direction=(0, 0, 1), max_angle=0.2)  # [rad]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import ClassVar
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from youbot_opt._checks import check_positive
+from youbot_opt._typing import Array
+from youbot_opt.dynamics.symbolic import build_symbolic_model
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.trajopt.trajectory import Trajectory
+from youbot_opt.trajopt.transcription.path import PathConstraint
+
+__all__ = [
+    "KeepAxis",
+    "NearLine",
+    "ToolCertificate",
+    "ToolConstraint",
+    "ToolSpeed",
+    "certify_plan_tool",
+    "check_boundary_tool",
+    "knot_tool",
+    "tool_constraint",
+    "tool_from_document",
+    "tool_measures",
+    "tool_curvature_bounds",
+]
+
+_MAX_EVALUATIONS = 20_000  # bisection samples per constraint before giving up
+
+
+def _unit_vector(name: str, value: object) -> Array:
+    """Return ``value`` as a finite unit 3-vector (normalised), or raise naming ``name``."""
+    try:
+        arr = np.array(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be 3 numbers, got {value!r}", name=name) from exc
+    norm = float(np.linalg.norm(arr)) if arr.size == 3 and np.all(np.isfinite(arr)) else 0.0
+    if norm < 1e-12:
+        raise ParameterError(
+            f"{name} must be a finite non-zero 3-vector, got {value!r}", name=name, value=value
+        )
+    out = arr / norm
+    out.setflags(write=False)
+    return out
+
+
+def _point(name: str, value: object) -> Array:
+    """Return ``value`` as a finite 3-vector in [m], or raise naming ``name``."""
+    try:
+        arr = np.array(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be 3 numbers [m], got {value!r}", name=name) from exc
+    if arr.size != 3 or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must be 3 finite numbers [m], got {value!r}", name=name)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ToolConstraint:
+    """One measure of a tool frame held at or below a limit along the whole motion.
+
+    Attributes
+    ----------
+    frame : str or None
+        The tool frame's name; None (default) is the problem robot's tip frame.
+    """
+
+    frame: str | None = None
+    kind: ClassVar[str] = ""
+    unit: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        if self.frame is not None and (not isinstance(self.frame, str) or not self.frame):
+            raise ParameterError(f"frame must be a frame name or None, got {self.frame!r}")
+
+    @property
+    def limit(self) -> float:
+        """The largest allowed measure, in :attr:`unit`."""
+        raise NotImplementedError
+
+    @property
+    def label(self) -> str:
+        """Short name for reports (``"keep axis"``, ...)."""
+        return self.kind.replace("_", " ")
+
+    def row(self, rot: ca.SX, pos: ca.SX, vel: ca.SX) -> tuple[ca.SX, float, float]:
+        """Return the NLP row ``c`` (dimensionless, smooth) and its bounds ``(lower, upper)``."""
+        raise NotImplementedError
+
+    def measure(self, rot: Array, pos: Array, vel: Array) -> float:
+        """Return the measure of placement ``(R, p)``, point velocity [m/s], in :attr:`unit`."""
+        raise NotImplementedError
+
+    def slack(self, tol: float) -> float:
+        """How far the measure may exceed :attr:`limit` when its row is off by ``tol``."""
+        raise NotImplementedError
+
+    def document(self) -> dict[str, object]:
+        """JSON-ready description (read back by :func:`tool_from_document`)."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class KeepAxis(ToolConstraint):
+    """Keep a tool axis within ``max_angle`` of a world direction (a cup upright).
+
+    Row: ``(R a) . d >= cos(max_angle)`` (``a``, ``d`` unit vectors).
+
+    Attributes
+    ----------
+    axis : ndarray, shape (3,)
+        The axis in the tool frame (normalised).
+    direction : ndarray, shape (3,)
+        The world direction (normalised).
+    max_angle : float
+        Largest angle between them in [rad], in ``(0, pi)``.
+    """
+
+    axis: Array
+    direction: Array
+    max_angle: float
+    kind: ClassVar[str] = "keep_axis"
+    unit: ClassVar[str] = "rad"
+
+    def __post_init__(self) -> None:
+        ToolConstraint.__post_init__(self)
+        object.__setattr__(self, "axis", _unit_vector("axis", self.axis))
+        object.__setattr__(self, "direction", _unit_vector("direction", self.direction))
+        angle = check_positive(self.max_angle, "max_angle", unit="rad")
+        if angle >= math.pi:
+            raise ParameterError(
+                f"max_angle must be < pi rad (180 deg), got {angle:g} rad",
+                name="max_angle",
+                value=angle,
+            )
+        object.__setattr__(self, "max_angle", angle)
+
+    @property
+    def limit(self) -> float:  # noqa: D102
+        return self.max_angle
+
+    def row(self, rot: ca.SX, pos: ca.SX, vel: ca.SX) -> tuple[ca.SX, float, float]:  # noqa: D102
+        return (
+            ca.dot(rot @ ca.DM(self.axis), ca.DM(self.direction)),
+            math.cos(self.max_angle),
+            math.inf,
+        )
+
+    def measure(self, rot: Array, pos: Array, vel: Array) -> float:  # noqa: D102
+        return float(np.arccos(np.clip((rot @ self.axis) @ self.direction, -1.0, 1.0)))
+
+    def slack(self, tol: float) -> float:  # noqa: D102
+        return float(np.arccos(max(math.cos(self.max_angle) - tol, -1.0))) - self.max_angle
+
+    def document(self) -> dict[str, object]:  # noqa: D102
+        return {
+            "kind": self.kind,
+            "frame": self.frame,
+            "axis": self.axis.tolist(),
+            "direction": self.direction.tolist(),
+            "max_angle_rad": self.max_angle,
+        }
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NearLine(ToolConstraint):
+    """Keep the tool point within ``tolerance`` of the world segment ``p0``-``p1`` (a weld).
+
+    Row: ``|p - proj(p)|^2 / tolerance^2 <= 1`` with ``proj`` the clamped
+    projection onto the segment: the squared distance to a convex set is
+    continuously differentiable (its gradient ``2 (p - proj(p))`` is
+    continuous where the clamp switches).
+
+    Attributes
+    ----------
+    p0, p1 : ndarray, shape (3,)
+        The segment's ends in the world frame [m] (equal ends: a point).
+    tolerance : float
+        Largest distance in [m] (> 0).
+    """
+
+    p0: Array
+    p1: Array
+    tolerance: float
+    kind: ClassVar[str] = "near_line"
+    unit: ClassVar[str] = "m"
+
+    def __post_init__(self) -> None:
+        ToolConstraint.__post_init__(self)
+        object.__setattr__(self, "p0", _point("p0", self.p0))
+        object.__setattr__(self, "p1", _point("p1", self.p1))
+        object.__setattr__(self, "tolerance", check_positive(self.tolerance, "tolerance", unit="m"))
+
+    @property
+    def limit(self) -> float:  # noqa: D102
+        return self.tolerance
+
+    def _offset(self, pos: ca.SX | Array) -> ca.SX | Array:
+        """``p - proj(p)``: the tool point's offset from its closest point of the segment."""
+        u = self.p1 - self.p0
+        length2 = float(u @ u)
+        if length2 == 0.0:
+            return pos - self.p0
+        if isinstance(pos, ca.SX):
+            sym = ca.fmin(ca.fmax(ca.dot(pos - ca.DM(self.p0), ca.DM(u)) / length2, 0.0), 1.0)
+            return pos - ca.DM(self.p0) - sym * ca.DM(u)
+        s = float(np.clip((pos - self.p0) @ u / length2, 0.0, 1.0))
+        return pos - self.p0 - s * u
+
+    def row(self, rot: ca.SX, pos: ca.SX, vel: ca.SX) -> tuple[ca.SX, float, float]:  # noqa: D102
+        d = self._offset(pos)
+        return ca.dot(d, d) / self.tolerance**2, -math.inf, 1.0
+
+    def measure(self, rot: Array, pos: Array, vel: Array) -> float:  # noqa: D102
+        return float(np.linalg.norm(self._offset(np.asarray(pos, dtype=float))))
+
+    def slack(self, tol: float) -> float:  # noqa: D102
+        return self.tolerance * (math.sqrt(1.0 + tol) - 1.0)
+
+    def document(self) -> dict[str, object]:  # noqa: D102
+        return {
+            "kind": self.kind,
+            "frame": self.frame,
+            "p0_m": self.p0.tolist(),
+            "p1_m": self.p1.tolist(),
+            "tolerance_m": self.tolerance,
+        }
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ToolSpeed(ToolConstraint):
+    """Keep the tool point's linear speed at or below ``max_speed``.
+
+    Row: ``|J(q) v|^2 / max_speed^2 <= 1``.
+
+    Attributes
+    ----------
+    max_speed : float
+        Largest speed in [m/s] (> 0).
+    """
+
+    max_speed: float
+    kind: ClassVar[str] = "tool_speed"
+    unit: ClassVar[str] = "m/s"
+
+    def __post_init__(self) -> None:
+        ToolConstraint.__post_init__(self)
+        object.__setattr__(
+            self, "max_speed", check_positive(self.max_speed, "max_speed", unit="m/s")
+        )
+
+    @property
+    def limit(self) -> float:  # noqa: D102
+        return self.max_speed
+
+    def row(self, rot: ca.SX, pos: ca.SX, vel: ca.SX) -> tuple[ca.SX, float, float]:  # noqa: D102
+        return ca.dot(vel, vel) / self.max_speed**2, -math.inf, 1.0
+
+    def measure(self, rot: Array, pos: Array, vel: Array) -> float:  # noqa: D102
+        return float(np.linalg.norm(vel))
+
+    def slack(self, tol: float) -> float:  # noqa: D102
+        return self.max_speed * (math.sqrt(1.0 + tol) - 1.0)
+
+    def document(self) -> dict[str, object]:  # noqa: D102
+        return {"kind": self.kind, "frame": self.frame, "max_speed_m_per_s": self.max_speed}
+
+
+def tool_from_document(doc: dict[str, object]) -> ToolConstraint:
+    """Return the constraint a :meth:`ToolConstraint.document` describes.
+
+    Raises
+    ------
+    ParameterError
+        Unknown kind or bad values.
+    """
+    kind = doc.get("kind")
+    frame = doc.get("frame")
+    frame = None if frame is None else str(frame)
+    if kind == KeepAxis.kind:
+        return KeepAxis(
+            frame=frame,
+            axis=_point("axis", doc["axis"]),
+            direction=_point("direction", doc["direction"]),
+            max_angle=float(doc["max_angle_rad"]),  # type: ignore[arg-type]
+        )
+    if kind == NearLine.kind:
+        return NearLine(
+            frame=frame,
+            p0=_point("p0", doc["p0_m"]),
+            p1=_point("p1", doc["p1_m"]),
+            tolerance=float(doc["tolerance_m"]),  # type: ignore[arg-type]
+        )
+    if kind == ToolSpeed.kind:
+        return ToolSpeed(frame=frame, max_speed=float(doc["max_speed_m_per_s"]))  # type: ignore[arg-type]
+    raise ParameterError(f"unknown tool constraint kind {kind!r}", name="tool", value=kind)
+
+
+def _frame(robot: RobotModel, constraint: ToolConstraint) -> str:
+    return robot.tip_frame if constraint.frame is None else constraint.frame
+
+
+def tool_constraint(
+    robot: RobotModel, constraints: Sequence[ToolConstraint]
+) -> PathConstraint | None:
+    """Return the NLP's ``"tool"`` path constraint: one smooth dimensionless row per constraint.
+
+    Kinematics from the CasADi transcription of Pinocchio
+    (:meth:`youbot_opt.dynamics.symbolic.SymbolicModel.frame_placement`); the
+    tool point's velocity is ``(dp/dq) v``.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot in angle coordinates (the problem's).
+    constraints : sequence of ToolConstraint
+        The constraints (none: None is returned).
+
+    Returns
+    -------
+    PathConstraint or None
+    """
+    if not constraints:
+        return None
+    symbolic = build_symbolic_model(robot)
+    q = ca.SX.sym("q", robot.nv)
+    v = ca.SX.sym("v", robot.nv)
+    rows, lower, upper = [], [], []
+    placements: dict[str, tuple[ca.SX, ca.SX, ca.SX]] = {}
+    for c in constraints:
+        name = _frame(robot, c)
+        if name not in placements:
+            rot, pos = symbolic.frame_placement(name)(q)
+            placements[name] = (rot, pos, ca.jtimes(pos, q, v))
+        row, lo, hi = c.row(*placements[name])
+        rows.append(row)
+        lower.append(lo)
+        upper.append(hi)
+    function = ca.Function("tool", [q, v], [ca.vertcat(*rows)], ["q", "v"], ["c"])
+    return PathConstraint(
+        name="tool",
+        function=function,
+        lower=np.array(lower),
+        upper=np.array(upper),
+        labels=tuple(f"{c.label} ({_frame(robot, c)})" for c in constraints),
+    )
+
+
+def tool_measures(
+    robot: RobotModel, constraints: Sequence[ToolConstraint], q: Array, v: Array
+) -> Array:
+    """Return each constraint's measure at each state, with Pinocchio (not the NLP's CasADi).
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot in angle coordinates.
+    constraints : sequence of ToolConstraint
+        The constraints.
+    q, v : ndarray, shape (n, nv) or (nv,)
+        Joint positions [rad] and velocities [rad/s].
+
+    Returns
+    -------
+    ndarray, shape (n, len(constraints))
+        Angles [rad], distances [m], speeds [m/s].
+    """
+    model = robot.model
+    data = model.createData()
+    q2 = np.atleast_2d(np.asarray(q, dtype=float))
+    v2 = np.atleast_2d(np.asarray(v, dtype=float))
+    ids = [robot.frame_id(_frame(robot, c)) for c in constraints]
+    out = np.empty((q2.shape[0], len(constraints)))
+    for k in range(q2.shape[0]):
+        pin.forwardKinematics(model, data, q2[k], v2[k])
+        for i, (c, fid) in enumerate(zip(constraints, ids, strict=True)):
+            placement = pin.updateFramePlacement(model, data, fid)
+            vel = pin.getFrameVelocity(model, data, fid, pin.LOCAL_WORLD_ALIGNED).linear
+            out[k, i] = c.measure(placement.rotation, placement.translation, vel)
+    return out
+
+
+def check_boundary_tool(
+    robot: RobotModel,
+    constraints: Sequence[ToolConstraint],
+    states: Sequence[tuple[str, Array, Array]],
+) -> None:
+    """Refuse a start or goal that breaks a tool constraint, before any solve.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot in angle coordinates.
+    constraints : sequence of ToolConstraint
+        The constraints.
+    states : sequence of (str, ndarray, ndarray)
+        ``("start", q, v)``, ``("goal", q, v)``.
+
+    Raises
+    ------
+    ParameterError
+        ``start: keep axis (gripper_tip) is 0.61 rad, above its limit 0.35 rad``;
+        the error's ``name`` is the state, its ``value`` the measure.
+    """
+    for what, q, v in states:
+        values = tool_measures(robot, constraints, q, v)[0]
+        for c, value in zip(constraints, values, strict=True):
+            if value > c.limit * (1.0 + 1e-9):
+                raise ParameterError(
+                    f"{what}: {c.label} ({_frame(robot, c)}) is {value:.4g} {c.unit}, above its "
+                    f"limit {c.limit:.4g} {c.unit}; the motion must start and end inside every "
+                    "tool constraint",
+                    name=what,
+                    value=float(value),
+                )
+
+
+def knot_tool(
+    robot: RobotModel, constraints: Sequence[ToolConstraint], q: Array, v: Array
+) -> list[tuple[float, int]]:
+    """Return each constraint's largest measure over the knots and its knot index."""
+    values = tool_measures(robot, constraints, q, v)
+    return [(float(values[k, i]), int(k)) for i, k in enumerate(np.argmax(values, axis=0))]
+
+
+def _lever_arms(robot: RobotModel, frame: str) -> tuple[Array, Array]:
+    """Per velocity index: the lever arm ``R_j`` [m] to the frame's origin, and revolute flags.
+
+    ``R_j`` bounds the distance from joint ``j``'s axis to the frame's origin:
+    the norms of the joint placements after ``j`` on the chain, their
+    prismatic travel and the frame's offset from its parent joint; joints off
+    the chain get 0. A prismatic joint moves the point at its own speed (``R_j = 1``).
+    """
+    model = robot.model
+    fr = model.frames[robot.frame_id(frame)]
+    chain = []
+    joint = int(fr.parentJoint)
+    while joint > 0:
+        chain.append(joint)
+        joint = int(model.parents[joint])
+    chain.reverse()
+    travel = np.maximum(np.abs(model.lowerPositionLimit), np.abs(model.upperPositionLimit))
+    prismatic = {j: model.joints[j].shortname().startswith("JointModelP") for j in chain}
+    arms = np.zeros(model.nv)
+    revolute = np.zeros(model.nv, dtype=bool)
+    for i, j in enumerate(chain):
+        idx = model.joints[j].idx_v
+        if prismatic[j]:
+            arms[idx] = 1.0
+            continue
+        revolute[idx] = True
+        radius = float(np.linalg.norm(fr.placement.translation))
+        for k in chain[i + 1 :]:
+            radius += float(np.linalg.norm(model.jointPlacements[k].translation))
+            if prismatic[k]:
+                radius += float(travel[model.joints[k].idx_q])
+        arms[idx] = radius
+    return arms, revolute
+
+
+def tool_curvature_bounds(
+    robot: RobotModel,
+    constraints: Sequence[ToolConstraint],
+    v_max: Array,
+    a_max: Array,
+    j_max: Array,
+) -> Array:
+    """Return a bound on the second time derivative of each constraint's tool vector.
+
+    With lever arms ``R_j`` (:func:`_lever_arms`), ``W = sum_rev v_j``,
+    ``Wd = sum_rev a_j``, ``V = sum_j v_j``, ``S = sum_j v_j R_j`` (tool point
+    speed), ``A = sum_j a_j R_j``, ``P = A + W S + 2 S V`` (tool point
+    acceleration): the tool axis ``R a`` has ``|(R a)''| <= Wd + 2 W^2``
+    [1/s^2]; the tool point ``|p''| <= P`` [m/s^2]; the tool point's velocity
+    ``u = J v`` has ``|u''| <= sum_j (jerk_j R_j + 2 a_j C1_j + v_j C2_j)``
+    [m/s^3] with ``C1_j = W R_j + 2 S`` and ``C2_j = (Wd + W^2) R_j + 4 W S + 2 P``
+    (each Jacobian column ``z_j x r_j`` and its derivatives). ``docs/tool.md``.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot in angle coordinates.
+    constraints : sequence of ToolConstraint
+        The constraints.
+    v_max, a_max, j_max : ndarray, shape (nv,)
+        Bounds on the joints' speeds, accelerations and jerks along the motion.
+
+    Returns
+    -------
+    ndarray, shape (len(constraints),)
+        ``K``: between two samples ``h`` apart, the vector leaves the straight
+        line between its sampled values by at most ``K h^2 / 8``.
+    """
+    v = np.abs(np.asarray(v_max, dtype=float))
+    a = np.abs(np.asarray(a_max, dtype=float))
+    jerk = np.abs(np.asarray(j_max, dtype=float))
+    out = []
+    for c in constraints:
+        arms, revolute = _lever_arms(robot, _frame(robot, c))
+        on_chain = arms > 0
+        w, wd = float(np.sum(v[revolute])), float(np.sum(a[revolute]))
+        speed_sum = float(np.sum(v[on_chain]))
+        s = float(np.sum(v * arms))
+        p = float(np.sum(a * arms)) + w * s + 2.0 * s * speed_sum
+        if isinstance(c, KeepAxis):
+            out.append(wd + 2.0 * w * w)
+        elif isinstance(c, NearLine):
+            out.append(p)
+        else:
+            c1 = w * arms + 2.0 * s
+            c2 = (wd + w * w) * arms + 4.0 * w * s + 2.0 * p
+            out.append(float(np.sum((jerk * arms + 2.0 * a * c1 + v * c2)[on_chain])))
+    return np.array(out, dtype=float)
+
+
+def _between(constraint: ToolConstraint, m0: float, m1: float, deviation: float) -> float:
+    """Bound on the measure between two samples whose vector deviates by ``deviation``.
+
+    The measures are convex in the tool vector (a distance to a segment, a
+    speed) or, for an axis, the cone of half-angle ``max(m0, m1) < pi/2`` is
+    convex: the straight line between the samples keeps ``max(m0, m1)``; the
+    deviation adds at most ``deviation`` (an angle ``asin(deviation / |chord|)``
+    with ``|chord| >= cos((m0 + m1) / 2)``).
+    """
+    top = max(m0, m1)
+    if not isinstance(constraint, KeepAxis):
+        return top + deviation
+    half = (m0 + m1) / 2
+    if top >= math.pi / 2:
+        return math.pi
+    return top + math.asin(min(1.0, deviation / math.cos(half)))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ToolCertificate:
+    """One tool constraint of a motion, certified between samples.
+
+    Attributes
+    ----------
+    constraint : ToolConstraint
+        The constraint.
+    certified : bool
+        Its measure stays at or below ``limit + tolerance`` at every time.
+    tolerance : float
+        Allowed excess, in the constraint's unit.
+    upper_bound : float
+        Certified bound on the largest measure (the sampled largest when not certified).
+    worst_time, worst_value : float
+        The sample with the largest measure [s] and its value.
+    failures : tuple of (float, float)
+        Samples above ``limit + tolerance`` (or where the bound could not be
+        closed on the finest subinterval): time [s], value.
+    n_samples : int
+        Evaluations made.
+    curvature_bound : float
+        ``K`` of :func:`tool_curvature_bounds` used between samples.
+    """
+
+    constraint: ToolConstraint
+    certified: bool
+    tolerance: float
+    upper_bound: float
+    worst_time: float
+    worst_value: float
+    failures: tuple[tuple[float, float], ...]
+    n_samples: int
+    curvature_bound: float
+
+    def describe(self) -> str:
+        """One line: ``keep axis: <= 0.3497 rad (limit 0.35 rad), certified``."""
+        c = self.constraint
+        if self.certified:
+            bound = f"{self.upper_bound:.4g} {c.unit}"
+            return f"{c.label}: <= {bound} (limit {c.limit:.4g} {c.unit}), certified"
+        return (
+            f"{c.label} {self.worst_value:.4g} {c.unit} > limit {c.limit:.4g} {c.unit} "
+            f"at t = {self.worst_time:.4g} s"
+        )
+
+
+def _certify_one(
+    constraint: ToolConstraint,
+    measure: Callable[[float], float],
+    times: Array,
+    curvature: float,
+    tolerance: float,
+) -> ToolCertificate:
+    """Bisect between samples until the second-order bound is within ``limit + tolerance``."""
+    need = constraint.limit + tolerance
+    failures: list[tuple[float, float]] = []
+    worst = (-math.inf, 0.0)
+    evaluations = 0
+    shortest = 1e-6 * float(times[-1] - times[0])  # [s] a subinterval not split further
+
+    def sample(t: float) -> float:
+        nonlocal evaluations, worst
+        evaluations += 1
+        m = measure(t)
+        worst = max(worst, (m, t))
+        if m > need:
+            failures.append((t, m))
+        return m
+
+    values = {float(t): sample(float(t)) for t in times}
+    stack = [(float(times[i]), float(times[i + 1])) for i in range(len(times) - 1)][::-1]
+    upper = -math.inf
+    while stack and evaluations < _MAX_EVALUATIONS:
+        t0, t1 = stack.pop()
+        m0, m1 = values[t0], values[t1]
+        bound = _between(constraint, m0, m1, curvature * (t1 - t0) ** 2 / 8)
+        if bound <= need or m0 > need or m1 > need:
+            upper = max(upper, bound)
+            continue
+        if t1 - t0 < shortest:  # not provable at this resolution: a failure where it is
+            failures.append(((t0 + t1) / 2, bound))
+            continue
+        tm = (t0 + t1) / 2
+        values[tm] = sample(tm)
+        stack += [(tm, t1), (t0, tm)]
+    certified = not failures and not stack
+    return ToolCertificate(
+        constraint=constraint,
+        certified=certified,
+        tolerance=tolerance,
+        upper_bound=upper if certified else worst[0],
+        worst_time=worst[1],
+        worst_value=worst[0],
+        failures=tuple(failures),
+        n_samples=evaluations,
+        curvature_bound=curvature,
+    )
+
+
+def _plan_bounds(trajectory: Trajectory, robot: RobotModel, per_interval: int) -> tuple[Array, ...]:
+    """Joint speed, acceleration and jerk bounds of a plan, from samples inside each interval.
+
+    Speeds: the larger of the velocity limits and 1.1 x the sampled largest;
+    accelerations and jerks (finite differences of the accelerations): 1.1 x
+    the sampled largest. Samples stay inside the intervals, where the
+    transcription's interpolant is one polynomial (its acceleration may jump at a knot).
+    """
+    t = np.asarray(trajectory.t, dtype=float)
+    inner = np.linspace(0.02, 0.98, per_interval)
+    grid = t[:-1, None] + np.diff(t)[:, None] * inner[None, :]  # (n_intervals, k)
+    flat = grid.ravel()
+    speeds = np.abs(np.asarray(trajectory.velocity(flat), dtype=float)).max(axis=0)
+    acc = np.asarray(trajectory.acceleration(flat), dtype=float).reshape(*grid.shape, -1)
+    jerk = np.diff(acc, axis=1) / np.diff(grid, axis=1)[:, :, None]
+    v_max = np.maximum(np.abs(robot.velocity_limit), 1.1 * speeds)
+    return v_max, 1.1 * np.abs(acc).max(axis=(0, 1)), 1.1 * np.abs(jerk).max(axis=(0, 1))
+
+
+def certify_plan_tool(
+    trajectory: Trajectory,
+    robot: RobotModel,
+    constraints: Sequence[ToolConstraint],
+    *,
+    relative_tolerance: float = 1e-3,
+    samples_per_interval: int = 4,
+) -> tuple[ToolCertificate, ...]:
+    """Certify each tool constraint of a plan at every time, not only at its knots.
+
+    Joint speed, acceleration and jerk bounds come from the plan
+    (:func:`_plan_bounds`); :func:`tool_curvature_bounds` turns them into a
+    bound ``K`` on the tool vector's second derivative, and samples are
+    bisected until ``max(m0, m1) + K h^2 / 8`` (for an axis its angle) proves
+    the limit (``docs/tool.md``).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The plan (``trajectory(t)``, ``.velocity(t)``, ``.acceleration(t)``).
+    robot : RobotModel
+        The robot in angle coordinates.
+    constraints : sequence of ToolConstraint
+        The constraints.
+    relative_tolerance : float
+        Allowed excess as a fraction of each limit.
+    samples_per_interval : int
+        Samples per knot interval to start from (>= 1).
+
+    Returns
+    -------
+    tuple of ToolCertificate
+        One per constraint.
+    """
+    t = np.asarray(trajectory.t, dtype=float)
+    k = max(int(samples_per_interval), 1)
+    times = np.concatenate(
+        [np.linspace(t[i], t[i + 1], k + 1)[:-1] for i in range(len(t) - 1)] + [t[-1:]]
+    )
+    v_max, a_max, j_max = _plan_bounds(trajectory, robot, 4 * k + 1)
+    curvature = tool_curvature_bounds(robot, constraints, v_max, a_max, j_max)
+    out = []
+    for i, c in enumerate(constraints):
+
+        def measure(time: float, c: ToolConstraint = c) -> float:
+            q = np.asarray(trajectory(time), dtype=float)
+            v = np.asarray(trajectory.velocity(time), dtype=float)
+            return float(tool_measures(robot, (c,), q, v)[0, 0])
+
+        out.append(
+            _certify_one(c, measure, times, float(curvature[i]), relative_tolerance * c.limit)
+        )
+    return tuple(out)
