@@ -246,3 +246,21 @@ def test_documents_round_trip(free: TrajOptProblem) -> None:
     assert "tool" not in free.describe()
     with pytest.raises(ParameterError, match="unknown tool constraint kind"):
         tool_from_document({"kind": "wobble"})
+
+
+def test_saved_tool_constraints_rechecked_on_load(free: TrajOptProblem, tmp_path) -> None:
+    """The constraints round-trip; a loaded plan is checked against them, not the file."""
+    from youbot_opt.trajopt.io import load_result, save_result
+
+    problem = dataclasses.replace(free, tool=(_upright(free),))
+    result = TrajOptSolver(problem, "hermite_simpson").solve(beta=0.5)
+    assert result.status.success
+    assert result.summary()["tool"][0]["largest_at_knots"] <= TILT + 1e-6
+    loaded = load_result(save_result(result, tmp_path / "cup"))
+    assert loaded.problem.tool == problem.tool and loaded.status.success
+    # the same plan under a tighter tilt than it keeps: the check refuses it on load
+    tighter = dataclasses.replace(problem, tool=(_upright(free, 0.01),))
+    strict = dataclasses.replace(result, problem=tighter)
+    reloaded = load_result(save_result(strict, tmp_path / "strict"))
+    assert not reloaded.status.success
+    assert "keep axis" in reloaded.message and "limit 0.01 rad" in reloaded.message

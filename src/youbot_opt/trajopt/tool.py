@@ -74,7 +74,7 @@ def _point(name: str, value: object) -> Array:
     return arr
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class ToolConstraint:
     """One measure of a tool frame held at or below a limit along the whole motion.
 
@@ -91,6 +91,12 @@ class ToolConstraint:
     def __post_init__(self) -> None:
         if self.frame is not None and (not isinstance(self.frame, str) or not self.frame):
             raise ParameterError(f"frame must be a frame name or None, got {self.frame!r}")
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and other.document() == self.document()  # type: ignore[attr-defined]
+
+    def __hash__(self) -> int:
+        return hash(repr(self.document()))
 
     @property
     def limit(self) -> float:
@@ -119,7 +125,7 @@ class ToolConstraint:
         raise NotImplementedError
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class KeepAxis(ToolConstraint):
     """Keep a tool axis within ``max_angle`` of a world direction (a cup upright).
 
@@ -181,7 +187,7 @@ class KeepAxis(ToolConstraint):
         }
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class NearLine(ToolConstraint):
     """Keep the tool point within ``tolerance`` of the world segment ``p0``-``p1`` (a weld).
 
@@ -246,7 +252,7 @@ class NearLine(ToolConstraint):
         }
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class ToolSpeed(ToolConstraint):
     """Keep the tool point's linear speed at or below ``max_speed``.
 
