@@ -101,4 +101,12 @@ from .trajopt.refine import (
 from .trajopt.result import TrajOptResult as TrajOptResult
 from .trajopt.solver import TrajOptSolver as TrajOptSolver
 from .trajopt.spline_guess import random_spline_guess as random_spline_guess
+from .trajopt.tool import (
+    KeepAxis as KeepAxis,
+    NearLine as NearLine,
+    ToolCertificate as ToolCertificate,
+    ToolConstraint as ToolConstraint,
+    ToolSpeed as ToolSpeed,
+    certify_plan_tool as certify_plan_tool,
+)
 from .trajopt.trajectory import Trajectory as Trajectory

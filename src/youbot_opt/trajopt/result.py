@@ -495,10 +495,11 @@ class TrajOptResult:
         from youbot_opt.trajopt.tool import knot_tool
 
         found = knot_tool(self.problem.robot, tool, q, v)
+        tip = self.problem.robot.tip_frame
         return {
             "tool": [
-                {**c.document(), "label": c.label, "unit": c.unit, "limit": c.limit,
-                 "largest_at_knots": value, "knot": k}
+                {**c.document(), "label": f"{c.label} ({c.frame or tip})", "unit": c.unit,
+                 "limit": c.limit, "largest_at_knots": value, "knot": k}
                 for c, (value, k) in zip(tool, found, strict=True)
             ]
         }  # fmt: skip
