@@ -19,6 +19,7 @@ import pytest
 from youbot_opt.exceptions import FrameNotFound, ParameterError
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import frame_placement
+from youbot_opt.trajopt.certify import certify
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import refine
 from youbot_opt.trajopt.solver import TrajOptSolver
@@ -95,6 +96,7 @@ def test_cup_kept_upright(free: TrajOptProblem, free_results: dict, method: str)
     assert refinement.rounds[0].objective >= unconstrained.objective - 1e-9
     # round 0 held the knots but not everything between them: found, then fixed
     assert any("keep axis" in f for f in refinement.rounds[0].failures)
+    assert refinement.certificate is not None and refinement.certificate.tool[0].certified
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -132,6 +134,10 @@ def test_knot_only_violation_caught_between_knots(free: TrajOptProblem) -> None:
     (cert,) = certify_plan_tool(result.trajectory, result.problem.robot, (upright,))
     assert not cert.certified and cert.worst_value > TILT * (1 + 1e-3)
     assert cert.failures and "keep axis" in cert.describe()
+    # the trajectory certificate lists it among its checks
+    full = certify(result)
+    assert not full.ok and any(f.startswith("tool: keep axis [rad]") for f in full.failures())
+    assert full.summary()["tool"][0]["certified"] is False
 
 
 def _rows(problem: TrajOptProblem, constraints) -> tuple:

@@ -575,14 +575,17 @@ def _round(
             clear = certify_plan_clearance(
                 result.trajectory, result.problem.robot, checker, margin=spec.margin
             )
-        if result.success and result.problem.tool:
+        if cert is not None and cert.tool:
+            tool = cert.tool
+        elif result.success and result.problem.tool:
             tool = certify_plan_tool(result.trajectory, result.problem.robot, result.problem.tool)
     failures = () if cert is None else tuple(cert.failures())
     if clear is not None and not clear.certified:
         t, a, b, d = min(clear.failures, key=lambda f: f[3])
         failures += (f"clearance {d:.3g} m < margin {clear.margin:g} m at t = {t:.4g} s "
                      f"({a!r} / {b!r}, coal)",)  # fmt: skip
-    failures += tuple(c.describe() for c in tool if not c.certified)
+    if cert is None or not cert.tool:  # the certificate's failures list its own
+        failures += tuple(c.describe() for c in tool if not c.certified)
     passed = None if cert is None else cert.ok
     if clear is not None:
         passed = clear.certified and (passed is None or passed)

@@ -591,6 +591,13 @@ class ToolCertificate:
     n_samples: int
     curvature_bound: float
 
+    @property
+    def value(self) -> float:
+        """The certified bound, else the largest failing value (``inf``: bisection not closed)."""
+        if self.certified:
+            return self.upper_bound
+        return max((v for _, v in self.failures), default=math.inf)
+
     def describe(self) -> str:
         """One line: ``keep axis: <= 0.3497 rad (limit 0.35 rad), certified``."""
         c = self.constraint
