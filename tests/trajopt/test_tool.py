@@ -11,6 +11,7 @@ cost no lower than the free one. The free plan's tool peaks at 0.46 m/s; held to
 from __future__ import annotations
 
 import dataclasses
+import pickle
 
 import casadi as ca
 import numpy as np
@@ -247,7 +248,8 @@ def test_documents_round_trip(free: TrajOptProblem) -> None:
     )
     for c in kinds:
         back = tool_from_document(c.document())
-        assert back.document() == c.document()
+        assert back.document() == c.document() and back == c and hash(back) == hash(c)
+        assert pickle.loads(pickle.dumps(c)) == c  # a multistart's workers receive the problem
     assert dataclasses.replace(free, tool=kinds).describe()["tool"][2]["max_speed_m_per_s"] == 0.4
     assert "tool" not in free.describe()
     with pytest.raises(ParameterError, match="unknown tool constraint kind"):
