@@ -28,11 +28,11 @@ from youbot_opt.trajopt.tool import (
     KeepAxis,
     NearLine,
     ToolSpeed,
-    certify_plan_tool,
     tool_constraint,
     tool_from_document,
     tool_measures,
 )
+from youbot_opt.trajopt.tool_certificate import certify_plan_tool
 
 METHODS = ("trapezoidal", "hermite_simpson", "radau")
 TILT = 0.03  # [rad]

@@ -42,7 +42,7 @@ from youbot_opt.trajopt.simulate import (
     sample_times,
     simulate,
 )
-from youbot_opt.trajopt.tool import ToolCertificate, certify_plan_tool
+from youbot_opt.trajopt.tool_certificate import ToolCertificate, certify_plan_tool
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [

@@ -37,7 +37,7 @@ from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.quadrature import grid_weights
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
-from youbot_opt.trajopt.tool import ToolCertificate, certify_plan_tool
+from youbot_opt.trajopt.tool_certificate import ToolCertificate, certify_plan_tool
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
