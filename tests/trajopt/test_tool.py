@@ -27,6 +27,7 @@ from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.tool import (
     KeepAxis,
     NearLine,
+    ToolConstraint,
     ToolSpeed,
     tool_constraint,
     tool_from_document,
@@ -225,6 +226,8 @@ def test_moving_goal_over_the_speed_limit_refused(free: TrajOptProblem) -> None:
         (lambda: NearLine(p0=(0, 0), p1=(0, 0, 1), tolerance=0.01), "p0"),
         (lambda: NearLine(p0=(0, 0, 0), p1=(0, 0, 1), tolerance=0.0), "tolerance"),
         (lambda: ToolSpeed(max_speed=float("nan")), "max_speed"),
+        (lambda: ToolSpeed(max_speed=1.0, frame=""), "frame"),
+        (lambda: ToolConstraint(), "use KeepAxis, NearLine or ToolSpeed"),
     ],
 )
 def test_bad_constraints_refused(make, match: str) -> None:

@@ -83,8 +83,15 @@ class ToolConstraint:
     unit: ClassVar[str] = ""
 
     def __post_init__(self) -> None:
+        if type(self) is ToolConstraint:
+            raise ParameterError(
+                "ToolConstraint is the base of the kinds: use KeepAxis, NearLine or ToolSpeed",
+                name="tool",
+            )
         if self.frame is not None and (not isinstance(self.frame, str) or not self.frame):
-            raise ParameterError(f"frame must be a frame name or None, got {self.frame!r}")
+            raise ParameterError(
+                f"frame must be a frame name or None, got {self.frame!r}", name="frame"
+            )
 
     def __eq__(self, other: object) -> bool:
         return type(other) is type(self) and other.document() == self.document()  # type: ignore[attr-defined]
