@@ -440,6 +440,45 @@ def _clearance_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _tool_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the tool constraints of ``solve`` (#30, docs/tool.md): on the tip frame (--tip-frame)."""
+    g = p.add_argument_group("tool constraints (on the --tip-frame; docs/tool.md)")
+    g.add_argument(
+        "--keep-axis",
+        type=float,
+        nargs=6,
+        default=None,
+        metavar=("AX", "AY", "AZ", "DX", "DY", "DZ"),
+        help="keep the tool axis A (tool frame) within --max-tilt of the world direction D "
+        "(a cup upright)",
+    )
+    g.add_argument(
+        "--max-tilt",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="largest angle between the --keep-axis axis and direction, in DEGREES",
+    )
+    g.add_argument(
+        "--line",
+        type=float,
+        nargs=6,
+        default=None,
+        metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+        help="keep the tool point within --line-tol of the world segment P0-P1 [m] (a weld)",
+    )
+    g.add_argument(
+        "--line-tol", type=float, default=None, metavar="M", help="distance to --line in [m]"
+    )
+    g.add_argument(
+        "--tool-speed",
+        type=float,
+        default=None,
+        metavar="M_PER_S",
+        help="largest linear speed of the tool point in [m/s]",
+    )
+
+
 def _main(sub: _Sub) -> None:
     p = sub.add_parser(
         "main",
@@ -547,6 +586,7 @@ def _solve(sub: _Sub) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _clearance_arguments(p)
+    _tool_arguments(p)
     _refine_arguments(p)
 
 

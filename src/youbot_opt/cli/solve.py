@@ -47,6 +47,7 @@ from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.spline_guess import random_spline_guess
 from youbot_opt.trajopt.sweep import default_dt0
+from youbot_opt.trajopt.tool import KeepAxis, NearLine, ToolConstraint, ToolSpeed
 
 __all__ = ["run", "transcription"]
 
@@ -83,11 +84,37 @@ def clearance_of(args: argparse.Namespace) -> Clearance | None:
     )
 
 
+def tool_of(args: argparse.Namespace) -> tuple[ToolConstraint, ...]:
+    """Return the tool constraints of the ``solve`` flags (docs/tool.md).
+
+    ``--keep-axis`` with ``--max-tilt`` (degrees), ``--line`` with
+    ``--line-tol`` [m] (each pair given together), ``--tool-speed`` [m/s].
+    """
+    out: list[ToolConstraint] = []
+    for flag, value, other, limit in (
+        ("--keep-axis", args.keep_axis, "--max-tilt", args.max_tilt),
+        ("--line", args.line, "--line-tol", args.line_tol),
+    ):
+        if (value is None) != (limit is None):
+            given, missing = (flag, other) if limit is None else (other, flag)
+            raise ParameterError(f"{given} needs {missing}", name=missing.lstrip("-"))
+    if args.keep_axis is not None:
+        axis, direction = args.keep_axis[:3], args.keep_axis[3:]
+        out.append(KeepAxis(axis=axis, direction=direction, max_angle=math.radians(args.max_tilt)))
+    if args.line is not None:
+        out.append(NearLine(p0=args.line[:3], p1=args.line[3:], tolerance=args.line_tol))
+    if args.tool_speed is not None:
+        out.append(ToolSpeed(max_speed=args.tool_speed))
+    return tuple(out)
+
+
 def _problem(args: argparse.Namespace) -> TrajOptProblem:
+    problem = _free_problem(args)
     clearance = clearance_of(args)
     if clearance is not None:
-        return dataclasses.replace(_free_problem(args), clearance=clearance)
-    return _free_problem(args)
+        problem = dataclasses.replace(problem, clearance=clearance)
+    tool = tool_of(args)
+    return dataclasses.replace(problem, tool=tool) if tool else problem
 
 
 def _free_problem(args: argparse.Namespace) -> TrajOptProblem:
@@ -218,6 +245,11 @@ def run(args: argparse.Namespace) -> int:
 
         plot_clearance(result).savefig(folder / "clearance.png", dpi=120)
         files.append(folder / "clearance.png")
+    if problem.tool and result.trajectory is not None:
+        from youbot_opt.viz.plots.tool import plot_tool
+
+        plot_tool(result).savefig(folder / "tool.png", dpi=120)
+        files.append(folder / "tool.png")
     if args.json:
         print(json.dumps(json_ready(summary)))
     report_outputs(folder, files, args.json)

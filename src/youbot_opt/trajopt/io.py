@@ -54,6 +54,7 @@ from youbot_opt.trajopt.result import (
     SolveStatus,
     TrajOptResult,
 )
+from youbot_opt.trajopt.tool import tool_from_document
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription import get_transcription
 
@@ -503,6 +504,7 @@ def _load(
             dt_max=np.inf if desc["dt_max"] is None else desc["dt_max"],
             damping=bool(desc["damping"]),
             clearance=_clearance(desc.get("clearance"), str(robot.name), path.absolute().parent),
+            tool=tuple(tool_from_document(d) for d in desc.get("tool", ())),
         )
         opts = dict(meta["options"])
         scalars = meta["scalars"]
