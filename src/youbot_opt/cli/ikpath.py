@@ -261,7 +261,7 @@ def _check_flags_3d(args: argparse.Namespace) -> str | None:
             value=args.reach_evaluations,
         )
     kind = args.start_kind
-    if kind not in (None, "mixed", "coherent", "random", "feasible"):
+    if kind not in (None, "mixed", "coherent", "random", "feasible", BRANCH_KIND):
         raise ParameterError(
             f"--start-kind {kind} is a planar start kind; spatial targets take mixed "
             "(default), coherent or random",
@@ -408,7 +408,7 @@ def _run_planar(args: argparse.Namespace) -> int:
         args.method = "al"
     if args.start_kind is None:
         args.start_kind = BRANCH_KIND if args.starts is None else "feasible"
-    elif args.start_kind not in START_KIND_NAMES:
+    elif args.start_kind not in (*START_KIND_NAMES, BRANCH_KIND):
         raise ParameterError(
             f"--start-kind {args.start_kind} is a spatial start kind; planar targets take "
             f"{' or '.join(START_KIND_NAMES)}",

@@ -181,7 +181,7 @@ def _print_certainty(doc: Mapping[str, Any]) -> None:
     )
     if c["next_E"] is not None:
         gap = (c["next_E"] - doc["E"]) / max(abs(doc["E"]), 1e-300)
-        text += f", the next best E = {c['next_E']:.10g} rad^2 ({gap:+.1%})"
+        text += f", the next best E = {c['next_E']:.10g} rad^2 ({gap:+.2%})"
     if c["best_count"] == 1:
         text += "; only one start found it: more starts (--starts N) may find a better one"
     print(text)

@@ -824,10 +824,12 @@ def _ikpath(sub: _Sub) -> None:
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
     run.add_argument(
         "--start-kind",
-        choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
+        choices=(*START_KIND_NAMES, *SPATIAL_START_KIND_NAMES, "branches"),
         default=None,
         help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
-        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
+        "(default for other robots), coherent, random or, for a planar robot, feasible "
+        "(spatial); branches (both, the default without --starts): witnesses and coherent "
+        "IK branches first",
     )
     run.add_argument(
         "--workers",
