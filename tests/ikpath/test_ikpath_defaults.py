@@ -8,6 +8,7 @@ that the result says how sure it is, and that the AL's final phase emits no over
 
 from __future__ import annotations
 
+import json
 import types
 import warnings
 
@@ -158,3 +159,18 @@ def test_al_final_phase_emits_no_overflow_warning():
         warnings.simplefilter("error", RuntimeWarning)
         result = solve(problem, x0=x0)
     assert np.all(np.isfinite(result.configurations))
+
+
+def test_cli_spatial_default_is_ipopt_on_automatic_starts_and_says_how_sure(capsys, tmp_path):
+    """ur5 without --starts/--method: IPOPT on the branch starts; summary.json holds certainty."""
+    problem = _ur5_problem(4)
+    argv = ["ikpath", "--robot", "ur5", "--no-progress", "--no-replay", "--json"]
+    for point in problem.target_points:
+        argv += ["--target", *(f"{v:.6f}" for v in point)]
+    assert main([*argv, "--out", str(tmp_path / "r")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["method"] == "ipopt" and doc["start_kind"] == BRANCH_KIND
+    assert doc["E"] == pytest.approx(14.7794546568, rel=1e-8)
+    cert = doc["certainty"]
+    assert cert["starts"] == doc["starts"] and cert["best_count"] == doc["minima"][0]["count"]
+    assert cert["distinct_minima"] == len(doc["minima"]) and cert["next_E"] > doc["E"]

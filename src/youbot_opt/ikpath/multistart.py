@@ -388,8 +388,12 @@ def run_multistart(
     method : {"al", "ipopt"}
         Solver.
     n_starts : int, optional
-        Number of starts (default: 100 on the planar methods, else 16). Start 0
-        is the study's zero vector (planar) or the greedy DLS path (general).
+        Number of starts. Default (with ``starts`` None): the automatic starts,
+        start 0, the witnesses of ``verdicts`` and the cheapest coherent IK
+        branches, at most :func:`~youbot_opt.ikpath.starts.start_budget`
+        (:class:`~youbot_opt.ikpath.starts.BranchStarts`); with a ``starts`` kind,
+        100 on the planar methods, else 16. Start 0 is the study's zero vector
+        (planar) or the greedy DLS path (general).
     seed : int
         Seed of the random starts, drawn in this process (one seeded generator
         per start index), so they do not depend on the executor.
@@ -399,6 +403,8 @@ def run_multistart(
         ones' ``"mixed"`` (default), ``"coherent"``, ``"random"`` or, on a
         planar robot only, ``"feasible"`` (the planar starts: random exact IK
         solutions, the reachability witnesses as fallback; default there).
+        ``"branches"`` (both; the default when ``n_starts`` is None): the
+        automatic starts, then the robot kind's random ones.
     options : ALOptions or IpoptOptions, optional
         Settings of the method (``max_wall_time`` [s] bounds each start's solve).
     planar : bool, optional
@@ -410,10 +416,11 @@ def run_multistart(
         ``verdicts`` are given.
     objective_tol, q_tol : float
         Clustering tolerances (see :func:`cluster_minima` and :func:`minimum_distance`).
-    verdicts : sequence of ReachVerdict, optional
-        Planar methods: verdicts of the targets already decided by the caller
-        (e.g. with another budget); used instead of deciding again (an
-        unreachable one still raises). Their witnesses are the fallback of
+    verdicts : sequence of ReachVerdict or ReachVerdict3D, optional
+        Their witnesses make a start of the automatic starts. Planar methods:
+        verdicts of the targets already decided by the caller (e.g. with
+        another budget); used instead of deciding again (an unreachable one
+        still raises). Their witnesses are the fallback of
         feasible starts.
     workers : int, optional
         Shortcut for ``sweep.workers`` (contradicting it raises).
@@ -559,19 +566,15 @@ def _run_3d(
         x0s = BranchStarts(problem, n_starts, seed, verdicts=verdicts or ())
         if sweep.keep_results:
             x0s = np.array([x0s[k] for k in range(len(x0s))])
-        n_starts = len(x0s)
-    n_starts = _count(n_starts, 16)
-    if starts == BRANCH_KIND:
-        pass  # drawn above
     elif starts == "feasible":
         found = check_planar(problem)
-        x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=found)
+        x0s = PlanarStarts(problem, _count(n_starts, 16), seed, kind="feasible", verdicts=found)
         if sweep.keep_results:
             x0s = np.array([x0s[k] for k in range(len(x0s))])
     elif sweep.keep_results:
-        x0s = make_starts_3d(problem, n_starts, seed, kind=starts)
+        x0s = make_starts_3d(problem, _count(n_starts, 16), seed, kind=starts)
     else:  # each start drawn as its task is made
-        x0s = Starts3D(problem, n_starts, seed, kind=starts)
+        x0s = Starts3D(problem, _count(n_starts, 16), seed, kind=starts)
     executor, n_workers = resolve_executor(sweep)
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
