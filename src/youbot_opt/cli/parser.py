@@ -847,17 +847,29 @@ def _ikpath(sub: _Sub) -> None:
         f"{SPATIAL_REACH_SECONDS:g} s per target)",
     )
     run = p.add_argument_group("solver")
-    run.add_argument("--method", choices=METHOD_NAMES, default="al", help="al (default) or ipopt")
     run.add_argument(
-        "--starts", type=int, default=1, help="number of starts (default 1: the zero vector only)"
+        "--method",
+        choices=METHOD_NAMES,
+        default=None,
+        help="al or ipopt (default: al for planar targets, ipopt for spatial ones)",
+    )
+    run.add_argument(
+        "--starts",
+        type=int,
+        default=None,
+        help="number of starts (default: automatic, the zero or greedy start, the targets' "
+        "witnesses and the cheapest coherent IK branches, at most 2 s n within [16, 64]; "
+        "1: the zero vector or the greedy path only)",
     )
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
     run.add_argument(
         "--start-kind",
-        choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
+        choices=(*START_KIND_NAMES, *SPATIAL_START_KIND_NAMES, "branches"),
         default=None,
         help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
-        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
+        "(default for other robots), coherent, random or, for a planar robot, feasible "
+        "(spatial); branches (both, the default without --starts): witnesses and coherent "
+        "IK branches first",
     )
     run.add_argument(
         "--workers",
