@@ -384,7 +384,10 @@ def pareto_sweep(
             "warm_start": warm_start,
             "cold_fallback": cold_fallback,
         }
-        store = open_store(out, "pareto", params, result_codec(solver), clean=sweep.shard is None)
+        making = partial(_point_making, values, bound_scale)
+        store = open_store(
+            out, "pareto", params, result_codec(solver, making), clean=sweep.shard is None
+        )
     points: list[ParetoPoint] = []
     first: MultistartResult | None = None
     previous: TrajOptResult | None = None
@@ -465,6 +468,21 @@ def pareto_sweep(
         wall_time=time.perf_counter() - tic,
         resumed=resumed,
     )
+
+
+def _point_making(
+    betas: Sequence[float], bound_scale: float, key: str
+) -> dict[str, float | int | None]:
+    """Return what makes the point of ``key`` (``point_<k>``): its beta and bound scale."""
+    rest = key.removeprefix("point_")
+    if (
+        key == rest
+        or not rest.isdigit()
+        or int(rest) >= len(betas)
+        or key != f"point_{int(rest):03d}"
+    ):
+        raise KeyError(key)
+    return {"beta": betas[int(rest)], "bound_scale": bound_scale}
 
 
 def _write_point(store: SweepStore, key: str, point: ParetoPoint, attempts: int) -> None:
