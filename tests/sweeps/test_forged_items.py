@@ -130,3 +130,28 @@ def test_item_passed_off_as_another_start_is_refused(small_solver, tmp_path: Pat
     with pytest.warns(YoubotOptWarning, match=r"seed"):
         again = _sweep(small_solver, 0.5, tmp_path / "b", n=2)
     assert [s.objective for s in again.starts] == [s.objective for s in first.starts]
+
+
+def _ik(targets, out: Path, n: int = 3):  # type: ignore[no-untyped-def]
+    from youbot_opt.ikpath.multistart import run_multistart
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.robot.planar import PlanarChain
+
+    problem = CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 0.8]), targets=targets)
+    return run_multistart(problem, n_starts=n, seed=4, sweep=SweepOptions(workers=1, out=out))
+
+
+_T1 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.4, -1.0)]
+_T2 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.5, -1.0)]
+
+
+def test_forged_ik_item_from_other_targets_is_refused(tmp_path: Path) -> None:
+    """IK: items of a sweep over other targets, re-bound, are refused (they miss these targets)."""
+    _ik(_T1, tmp_path / "t1")
+    mine = _ik(_T2, tmp_path / "t2")
+    _forge(tmp_path / "t1", tmp_path / "t2")
+    with pytest.warns(YoubotOptWarning, match=r"start_0000.*problem differs"):
+        again = _ik(_T2, tmp_path / "t2")
+    assert again.resumed == 0
+    assert [r.objective for r in again.results] == [r.objective for r in mine.results]
+
