@@ -15,7 +15,6 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from youbot_opt.cli.output_errors import os_error_line
 from youbot_opt.cli.parser import COMMANDS, build_parser, cut_long_values, parse
 from youbot_opt.cli.warning_lines import warnings_as_lines
 from youbot_opt.exceptions import YoubotOptError
@@ -70,6 +69,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"youbot-opt: error: {cut_long_values(str(exc), argv)}", file=sys.stderr)
         return 2
     except OSError as exc:  # a path the system refused: one line naming it, what it needs
+        from youbot_opt.cli.output_errors import os_error_line  # not before: --help stays light
+
         print(f"youbot-opt: error: {cut_long_values(os_error_line(exc), argv)}", file=sys.stderr)
         return 2
     except (MemoryError, RecursionError) as exc:  # last resort: limits are checked before

@@ -43,6 +43,8 @@ def _meant(name: str) -> Path:
 def os_error_line(exc: OSError) -> str:
     """Return one line naming the path of ``exc`` and what was expected there."""
     why = exc.strerror or str(exc)
+    if exc.errno is None:  # raised by us with its own message
+        return str(exc)
     if exc.filename is None:
         return f"{why} (errno {exc.errno}); nothing half-written is kept"
     path = _meant(str(exc.filename))
