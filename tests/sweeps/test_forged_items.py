@@ -154,4 +154,3 @@ def test_forged_ik_item_from_other_targets_is_refused(tmp_path: Path) -> None:
         again = _ik(_T2, tmp_path / "t2")
     assert again.resumed == 0
     assert [r.objective for r in again.results] == [r.objective for r in mine.results]
-

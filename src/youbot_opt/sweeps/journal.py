@@ -216,7 +216,7 @@ class JournalWriter:
                 fh.flush()
                 os.fsync(fh.fileno())
         except OSError as exc:  # a full disk: the error names the journal (a torn line is refused)
-            if exc.filename is None:
+            if exc.filename is None and exc.errno is not None:
                 exc.filename = str(self.path)
             raise
         if not self._created:  # the new file's entry in its folder, durable once
