@@ -57,6 +57,9 @@ def _check_reproduction_json(data: object, path: str) -> None:
             )
 
 
+_MAX_SHOWN = 200  # characters of the reason a wrong-shaped field gave (a field may be huge)
+
+
 class _Seen:
     """The field of a ``--from-json`` document read last (``data['base']['study']``)."""
 
@@ -120,7 +123,7 @@ def _from_json(data: dict[str, Any], path: str, folder: Path) -> tuple[list[Path
         files = _write_outputs(tracked, {}, folder)
         return files, _converged(tracked)
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
-        what = f"{type(exc).__name__}: {exc}"
+        what = f"{type(exc).__name__}: {str(exc)[:_MAX_SHOWN]}"
         raise ParameterError(
             f"--from-json {path}: field {seen.last.removeprefix('data')} does not hold what a "
             f"reproduction JSON holds there ({what}); write it with "
