@@ -154,3 +154,19 @@ def test_forged_ik_item_from_other_targets_is_refused(tmp_path: Path) -> None:
         again = _ik(_T2, tmp_path / "t2")
     assert again.resumed == 0
     assert [r.objective for r in again.results] == [r.objective for r in mine.results]
+
+
+def test_forged_pareto_point_is_refused_and_recomputed(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Pareto: a point of a beta = 0.9 front re-bound into a beta = 0.5 front is recomputed."""
+    from youbot_opt.trajopt.pareto import pareto_sweep
+
+    def front(beta: float, out: Path):  # type: ignore[no-untyped-def]
+        opts = SweepOptions(executor="serial", out=out)
+        return pareto_sweep(small_solver, [beta], first_starts=0, sweep=opts)
+
+    other, mine = front(0.9, tmp_path / "b09"), front(0.5, tmp_path / "b05")
+    assert other.points[0].objective != mine.points[0].objective
+    _forge(tmp_path / "b09", tmp_path / "b05")
+    with pytest.warns(YoubotOptWarning, match=r"point_000.*beta = 0\.9"):
+        again = front(0.5, tmp_path / "b05")
+    assert again.resumed == 0 and again.points[0].objective == mine.points[0].objective

@@ -399,6 +399,8 @@ def pareto_sweep(
         for k, beta in enumerate(values):
             key = f"point_{k:03d}"
             again, attempts = (True, 0) if store is None else store.needs_work(key, max_attempts)
+            if not again and store is not None and not _loadable(store, key):
+                again, attempts = True, 0  # refused (warned): another sweep's, or torn
             if k == 0 and first_starts > 0:
                 # Rerun on resume too: its own store in DIR/first_point loads every start.
                 got = run_multistart(
@@ -498,6 +500,12 @@ def _save_attempt(store: SweepStore, o: TaskOutcome) -> None:
         _write_point(store, o.key, o.value, o.attempts)
     else:
         store.write_failed(o.key, str(o.error), attempts=o.attempts)
+
+
+def _loadable(store: SweepStore, key: str) -> bool:
+    """Whether a finished point may be loaded: failed, or done and passing the store's checks."""
+    record = store.record(key)
+    return record is not None and (record.state != "done" or store.verify(key))
 
 
 def _load_point(store: SweepStore, key: str, beta: float) -> ParetoPoint:
