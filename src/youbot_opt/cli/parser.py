@@ -548,7 +548,8 @@ def _solve(sub: _Sub) -> None:
         "--starts",
         type=int,
         default=1,
-        help="number of random starts; > 1 runs a multistart (default 1)",
+        help="number of random starts; > 1 runs a multistart (default 1), saved in "
+        "--out DIR/starts as they finish: a rerun with the same --out resumes",
     )
     p.add_argument(
         "--workers",

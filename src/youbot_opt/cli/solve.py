@@ -18,6 +18,7 @@ import argparse
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -151,6 +152,10 @@ def _representative(ms: MultistartResult) -> TrajOptResult | None:
     return min(failed, key=lambda r: (not math.isfinite(r.max_violation), r.max_violation))
 
 
+STARTS_FOLDER = "starts"
+"""Sub-folder of ``solve --starts K --out D`` where the starts are saved (a rerun resumes)."""
+
+
 def _multistart(args: argparse.Namespace, solver: TrajOptSolver) -> MultistartResult:
     """Run the starts in a process pool (serial with ``--workers 0``), progress on stderr."""
     if args.workers is not None and args.workers < 0:
@@ -158,8 +163,13 @@ def _multistart(args: argparse.Namespace, solver: TrajOptSolver) -> MultistartRe
     executor: str = "serial" if args.workers == 0 else "process"
     executor = scheduler_address(args) or executor  # --scheduler / --scheduler-file: Dask
     prog = ProgressLine("solve", args.quiet or args.json)
+    # --out D: the starts are saved in D/starts as they finish, so a rerun resumes (#29)
+    store = None if args.out is None else Path(args.out) / STARTS_FOLDER
     sweep = SweepOptions(
-        executor=executor, workers=None if args.workers == 0 else args.workers, progress=prog
+        executor=executor,
+        workers=None if args.workers == 0 else args.workers,
+        progress=prog,
+        out=store,
     )
     ms = run_multistart(
         solver, args.starts, beta=args.beta, bound_scale=args.bound_scale, seed=args.seed,
@@ -193,6 +203,7 @@ def run(args: argparse.Namespace) -> int:
         extra["multistart"] = {
             "n_starts": ms.n_starts,
             "success_rate": ms.success_rate,
+            "resumed": ms.resumed,  # starts loaded from --out DIR/starts, not solved again
             "starts": [s.summary() for s in ms.starts],
         }
     else:

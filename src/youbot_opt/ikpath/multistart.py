@@ -609,7 +609,7 @@ def _run(
             sweep.out,
             SWEEP_KIND if planar else SWEEP_KIND_3D,
             params,
-            result_codec(problem, planar=planar),
+            result_codec(problem, planar=planar, starts=x0s),
             clean=sweep.shard is None,
         )
     solvers = PLANAR_STARTS if planar else STARTS_3D
