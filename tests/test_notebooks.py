@@ -10,7 +10,10 @@ narrative talks about -- are checked.
 from __future__ import annotations
 
 import ast
+import base64
+import html
 import importlib.util
+import json
 import re
 import time
 from pathlib import Path
@@ -32,6 +35,7 @@ EXPECTED = [
     "05_other_robot",
     "06_your_robot",
     "07_spatial_ik_path",
+    "08_arm_in_a_cell",
 ]
 CELL_TIMEOUT = 300  # [s] per cell; quick-mode cells take < 30 s on 2 busy cores
 MIN_PROSE_WORDS = 250  # words of markdown prose per notebook, formulas and code excluded
@@ -253,6 +257,25 @@ def _check_07(out: dict[str, Any], tmp: Path) -> None:
     assert out["png"] >= 2
 
 
+def _check_08(out: dict[str, Any], tmp: Path) -> None:
+    import umsgpack
+
+    text = out["text"]
+    assert re.search(r"status\s+solved", text)
+    assert "clearance certified: True" in text
+    assert "disabled by SRDF" in text  # the pairs report
+    assert out["png"] >= 1  # the clearance figure
+    (page,) = _replays(out)
+    blob = re.search(r"var commands = (\[.*?\]);", html.unescape(page), re.S)
+    assert blob is not None
+    commands = [umsgpack.unpackb(base64.b64decode(c)) for c in json.loads(blob.group(1))]
+    drawn = {c["path"] for c in commands if c["type"] == "set_object"}
+    assert {"/meshcat/youbot_opt/ur5/obstacles/table", "/meshcat/youbot_opt/ur5/obstacles/shelf",
+            "/meshcat/youbot_opt/ur5/carried/held_box"} <= drawn  # fmt: skip
+    scene = tmp / "youbot_opt_runs" / "notebook_08" / "cell.json"
+    assert scene.stat().st_size > 0
+
+
 CHECKS = {
     "01_model_and_dynamics": _check_01,
     "02_trajectory_solve": _check_02,
@@ -261,6 +284,7 @@ CHECKS = {
     "05_other_robot": _check_05,
     "06_your_robot": _check_06,
     "07_spatial_ik_path": _check_07,
+    "08_arm_in_a_cell": _check_08,
 }
 
 
