@@ -36,6 +36,7 @@ EXPECTED = [
     "06_your_robot",
     "07_spatial_ik_path",
     "08_arm_in_a_cell",
+    "09_payload_and_export",
 ]
 CELL_TIMEOUT = 300  # [s] per cell; quick-mode cells take < 30 s on 2 busy cores
 MIN_PROSE_WORDS = 250  # words of markdown prose per notebook, formulas and code excluded
@@ -276,6 +277,17 @@ def _check_08(out: dict[str, Any], tmp: Path) -> None:
     assert scene.stat().st_size > 0
 
 
+def _check_09(out: dict[str, Any], tmp: Path) -> None:
+    text = out["text"]
+    t_ratio, w_ratio = (float(x) for x in re.search(r"T x (\S+), W x (\S+)", text).groups())
+    assert t_ratio > 1.0 and w_ratio > 1.0  # carrying 0.5 kg: slower and costlier
+    equal = re.findall(r"values equal (\w+), largest time difference (\S+) s", text)
+    assert [e for e, _ in equal] == ["True"] * 3  # CSV, JSON, ROS 2 message
+    assert max(float(d) for _, d in equal) <= 1e-9  # the message's stamps: whole nanoseconds
+    assert "MJCF arm: status solved" in text and "MJCF arm certificate: PASSED" in text
+    assert (tmp / "youbot_opt_runs" / "notebook_09" / "plan.ros2.json").stat().st_size > 0
+
+
 CHECKS = {
     "01_model_and_dynamics": _check_01,
     "02_trajectory_solve": _check_02,
@@ -285,6 +297,7 @@ CHECKS = {
     "06_your_robot": _check_06,
     "07_spatial_ik_path": _check_07,
     "08_arm_in_a_cell": _check_08,
+    "09_payload_and_export": _check_09,
 }
 
 
