@@ -10,7 +10,10 @@ narrative talks about -- are checked.
 from __future__ import annotations
 
 import ast
+import base64
+import html
 import importlib.util
+import json
 import re
 import time
 from pathlib import Path
@@ -32,6 +35,8 @@ EXPECTED = [
     "05_other_robot",
     "06_your_robot",
     "07_spatial_ik_path",
+    "08_arm_in_a_cell",
+    "09_payload_and_export",
     "10_tool_constraints",
 ]
 CELL_TIMEOUT = 300  # [s] per cell; quick-mode cells take < 30 s on 2 busy cores
@@ -254,6 +259,36 @@ def _check_07(out: dict[str, Any], tmp: Path) -> None:
     assert out["png"] >= 2
 
 
+def _check_08(out: dict[str, Any], tmp: Path) -> None:
+    import umsgpack
+
+    text = out["text"]
+    assert re.search(r"status\s+solved", text)
+    assert "clearance certified: True" in text
+    assert "disabled by SRDF" in text  # the pairs report
+    assert out["png"] >= 1  # the clearance figure
+    (page,) = _replays(out)
+    blob = re.search(r"var commands = (\[.*?\]);", html.unescape(page), re.S)
+    assert blob is not None
+    commands = [umsgpack.unpackb(base64.b64decode(c)) for c in json.loads(blob.group(1))]
+    drawn = {c["path"] for c in commands if c["type"] == "set_object"}
+    assert {"/meshcat/youbot_opt/ur5/obstacles/table", "/meshcat/youbot_opt/ur5/obstacles/shelf",
+            "/meshcat/youbot_opt/ur5/carried/held_box"} <= drawn  # fmt: skip
+    scene = tmp / "youbot_opt_runs" / "notebook_08" / "cell.json"
+    assert scene.stat().st_size > 0
+
+
+def _check_09(out: dict[str, Any], tmp: Path) -> None:
+    text = out["text"]
+    t_ratio, w_ratio = (float(x) for x in re.search(r"T x (\S+), W x (\S+)", text).groups())
+    assert t_ratio > 1.0 and w_ratio > 1.0  # carrying 0.5 kg: slower and costlier
+    equal = re.findall(r"values equal (\w+), largest time difference (\S+) s", text)
+    assert [e for e, _ in equal] == ["True"] * 3  # CSV, JSON, ROS 2 message
+    assert max(float(d) for _, d in equal) <= 1e-9  # the message's stamps: whole nanoseconds
+    assert "MJCF arm: status solved" in text and "MJCF arm certificate: PASSED" in text
+    assert (tmp / "youbot_opt_runs" / "notebook_09" / "plan.ros2.json").stat().st_size > 0
+
+
 def _check_10(out: dict[str, Any], tmp: Path) -> None:
     text = out["text"]
     for what in ("cup", "speed", "line"):
@@ -279,6 +314,8 @@ CHECKS = {
     "05_other_robot": _check_05,
     "06_your_robot": _check_06,
     "07_spatial_ik_path": _check_07,
+    "08_arm_in_a_cell": _check_08,
+    "09_payload_and_export": _check_09,
     "10_tool_constraints": _check_10,
 }
 

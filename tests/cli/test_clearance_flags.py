@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import base64
 import json
+import re
 
 import pytest
+import umsgpack
 
 from youbot_opt.cli import main
 from youbot_opt.cli.parser import parse
@@ -66,3 +69,9 @@ def test_solve_summary_names_closest_pair(tmp_path) -> None:
     assert clearance["closest_pair"][1] == "ball"
     assert clearance["closest_m"] >= 0.01 - 1e-6 and clearance["margin_m"] == 0.01
     assert (out / "clearance.png").stat().st_size > 0  # the clearance-over-time figure
+    page = (out / "replay.html").read_text(encoding="utf-8")
+    blob = re.search(r"var commands = (\[.*?\]);", page, re.S)
+    assert blob is not None
+    commands = [umsgpack.unpackb(base64.b64decode(c)) for c in json.loads(blob.group(1))]
+    drawn = {c["path"] for c in commands if c["type"] == "set_object"}
+    assert any(path.endswith("/obstacles/ball") for path in drawn)  # the scene is replayed

@@ -53,8 +53,18 @@ def test_panda_srdf_found_beside(panda: RobotModel):
 
 
 def test_report_lines(ur5: RobotModel):
-    """The report's first line gives the counts, then one line per active pair."""
-    pairs = self_collision_pairs(ur5)
+    """The report's first line gives the counts, then one line per active pair, then one per
+    left-out pair with its reason (#28 item 2)."""
+    pairs = self_collision_pairs(ur5, disable=[("base_link", "forearm_link")])
     lines = pairs_report(pairs)
-    assert lines[0].startswith("self-collision: 16 active pairs (8 adjacent, 4 disabled by SRDF")
-    assert len(lines) == 17 and lines[1] == "  base_link_0 <-> forearm_link_0"
+    assert lines[0].startswith("self-collision: 15 active pairs (8 adjacent, 4 disabled by SRDF")
+    assert len(lines) == 1 + 15 + 8 + 4 + 1 and lines[1] == "  base_link_0 <-> wrist_1_link_0"
+    assert "  shoulder_link_0 <-> upper_arm_link_0  disabled (adjacent)" in lines
+    assert sum(line.endswith("disabled (SRDF)") for line in lines) == 4
+    assert lines[-1] == "  base_link_0 <-> forearm_link_0  disabled (user)"
+
+
+def test_disable_unknown_link_lists_close_names(ur5: RobotModel):
+    """A misspelt link is refused naming it and the close names."""
+    with pytest.raises(ParameterError, match=r"'forearm_lnk'.*close names: \['forearm_link'"):
+        self_collision_pairs(ur5, disable=[("forearm_lnk", "base_link")])

@@ -319,8 +319,13 @@ def replay_html(
     if len(kept) == 1:
         traj = kept[0][0].trajectory
         assert traj is not None  # checked above
-        robot = kept[0][0].problem.robot
-        return replay_or_warn(lambda: export_html(robot, traj.t, traj.q, folder / "replay.html"))
+        problem = kept[0][0].problem
+        scene = None if problem.clearance is None else problem.clearance.scene
+        return replay_or_warn(
+            lambda: export_html(
+                problem.robot, traj.t, traj.q, folder / "replay.html", obstacles=scene
+            )
+        )
     return replay_or_warn(
         lambda: export_results_html(
             [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]

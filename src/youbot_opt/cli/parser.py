@@ -416,8 +416,28 @@ def _refine_arguments(
 _Sub = argparse._SubParsersAction  # type: ignore[type-arg]
 
 
+def _pair_arguments(p: argparse.ArgumentParser) -> None:
+    """Add ``--srdf`` and ``--disable-pair`` (#28 item 2): which self-collision pairs count."""
+    p.add_argument(
+        "--srdf",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="SRDF whose <disable_collisions> pairs are left out (default: the SRDF beside "
+        "the URDF, if any)",
+    )
+    p.add_argument(
+        "--disable-pair",
+        nargs=2,
+        action="append",
+        default=None,
+        metavar=("LINK_A", "LINK_B"),
+        help="leave out the self-collision pairs of these two links (or geometries); repeatable",
+    )
+
+
 def _clearance_arguments(p: argparse.ArgumentParser) -> None:
-    """Add ``--scene``, ``--margin`` and ``--no-self-collision`` (#28)."""
+    """Add ``--scene``, ``--margin``, ``--no-self-collision`` and the pair flags (#28)."""
     p.add_argument(
         "--scene",
         type=Path,
@@ -438,6 +458,7 @@ def _clearance_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="with --scene: do not keep the robot's own links apart (the SRDF's active pairs)",
     )
+    _pair_arguments(p)
 
 
 def _tool_arguments(p: argparse.ArgumentParser) -> None:
@@ -606,6 +627,7 @@ def _report(sub: _Sub) -> None:
         metavar="Q",
         help="configuration in [rad] (default: the study's start for youbot, else neutral)",
     )
+    _pair_arguments(p)
 
 
 _ROBOTS_EPILOG = """\

@@ -147,5 +147,10 @@ def run(args: argparse.Namespace) -> int:
     if len(robot.collision_model.geometryObjects) > 1:  # a pair needs two geometries
         from youbot_opt.collision.pairs import pairs_report, self_collision_pairs
 
-        print("\n".join(pairs_report(self_collision_pairs(robot))))
+        pairs = self_collision_pairs(
+            robot,
+            srdf=True if args.srdf is None else args.srdf,
+            disable=[tuple(pair) for pair in args.disable_pair or ()],
+        )
+        print("\n".join(pairs_report(pairs)))
     return 0

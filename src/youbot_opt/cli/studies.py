@@ -104,7 +104,7 @@ def _solver(args: argparse.Namespace) -> TrajOptSolver:
     from youbot_opt.cli.solve import clearance_of  # the solve command's flags, same rules
 
     problem = study1_problem(args.knots)
-    clearance = clearance_of(args)
+    clearance = clearance_of(args, problem.robot)
     if clearance is not None:
         problem = dataclasses.replace(problem, clearance=clearance)
     check_trajopt_size(

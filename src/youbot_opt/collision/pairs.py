@@ -12,6 +12,7 @@ disables. :func:`pairs_report` gives the lines the ``report`` command prints.
 
 from __future__ import annotations
 
+import difflib
 import logging
 import os
 from collections.abc import Iterable
@@ -119,9 +120,10 @@ def _check_disable(
             elif name in names:
                 sides.append({name})
             else:
+                close = difflib.get_close_matches(str(name), [*links, *names], n=5, cutoff=0.5)
                 raise ParameterError(
                     f"disable[{i}]: {shown(name)} is neither a collision geometry nor a link; "
-                    f"geometries: {names}, links: {sorted(links)}",
+                    f"close names: {close or 'none'}; geometries: {names}, links: {sorted(links)}",
                     name=f"disable[{i}]",
                     value=name,
                 )
@@ -232,7 +234,8 @@ def pairs_report(pairs: CollisionPairs) -> list[str]:
     Returns
     -------
     list of str
-        A summary line (counts and SRDF), then one line per active pair.
+        A summary line (counts and SRDF), then one line per active pair, then
+        one per left-out pair with the reason (adjacent, SRDF or user).
     """
     lines = [
         f"self-collision: {len(pairs.active)} active pairs ({len(pairs.adjacent)} adjacent, "
@@ -240,4 +243,10 @@ def pairs_report(pairs: CollisionPairs) -> list[str]:
         f"{len(pairs.user_disabled)} disabled by the caller)"
     ]
     lines += [f"  {a} <-> {b}" for a, b in pairs.active]
+    for reason, left_out in (
+        ("adjacent", pairs.adjacent),
+        ("SRDF", pairs.srdf_disabled),
+        ("user", pairs.user_disabled),
+    ):
+        lines += [f"  {a} <-> {b}  disabled ({reason})" for a, b in left_out]
     return lines

@@ -8,6 +8,8 @@ files as ``_meshfile_object`` with their own materials and their textures as
 ``data:`` URIs. A translucent copy, or a COLLADA mesh
 whose URDF material overrides the file's, is drawn from the triangles
 Pinocchio (coal) loaded, in the URDF colour and without textures.
+Obstacles of a :class:`~youbot_opt.collision.scene.Scene` are drawn
+semi-transparent in a colour per kind of shape (:func:`obstacle_command`).
 """
 
 from __future__ import annotations
@@ -25,11 +27,18 @@ import pinocchio as pin
 import umsgpack
 
 from youbot_opt._typing import Array
+from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere
 from youbot_opt.exceptions import ModelError
 from youbot_opt.robot.urdf_check.meshes import load_mesh_file
 from youbot_opt.robot.urdf_check.resources import MESH_SUFFIXES
 
-__all__ = ["SceneCommand", "set_object_command"]
+__all__ = [
+    "OBSTACLE_COLORS",
+    "OBSTACLE_OPACITY",
+    "SceneCommand",
+    "obstacle_command",
+    "set_object_command",
+]
 
 
 class _MeshFileGeometry(mg.Geometry):
@@ -207,3 +216,70 @@ def set_object_command(
         f"({', '.join(MESH_SUFFIXES)}), boxes, spheres, cylinders, capsules and triangle meshes",
         path=mesh_path or None,
     )
+
+
+#: RGB colour (``0xRRGGBB``) of an obstacle, per kind of shape.
+OBSTACLE_COLORS = {
+    "Box": 0xA0522D,
+    "Sphere": 0x4C72B0,
+    "Cylinder": 0x55A868,
+    "Capsule": 0xC44E52,
+    "HalfSpace": 0x9E9E9E,
+    "Mesh": 0x8172B2,
+}
+OBSTACLE_OPACITY = 0.5  # [-] obstacles are drawn semi-transparent
+HALF_SPACE_SIZE = 10.0  # [m] side of the slab that draws a half-space
+HALF_SPACE_DEPTH = 0.01  # [m] thickness of that slab, below the plane z = 0
+
+
+class _Slab(mg.Box):
+    """A box whose top face is the plane z = 0 of its frame (a half-space, drawn)."""
+
+    def intrinsic_transform(self) -> Array:
+        # meshcat sends the matrix flattened row by row and three.js reads it column by
+        # column: the translation goes in the last row
+        matrix = np.eye(4)
+        matrix[3, 2] = -self.lengths[2] / 2.0
+        return matrix
+
+
+def obstacle_command(shape: Shape, path: meshcat.path.Path) -> SceneCommand:
+    """Build the meshcat ``set_object`` command that draws one obstacle shape.
+
+    The shape is drawn in its own frame (its pose is sent separately), in the
+    colour of its kind (:data:`OBSTACLE_COLORS`) at :data:`OBSTACLE_OPACITY`; a
+    half-space is a thin square slab of :data:`HALF_SPACE_SIZE` [m] under its
+    plane, a mesh its triangles as coal reads them, scaled.
+
+    Parameters
+    ----------
+    shape : Shape
+        A :class:`~youbot_opt.collision.shapes.Box`, ``Sphere``, ``Cylinder``,
+        ``Capsule``, ``HalfSpace`` or ``Mesh``.
+    path : meshcat.path.Path
+        Scene path of the object.
+
+    Returns
+    -------
+    SceneCommand
+        A command with ``lower()``, to be sent with ``visualizer.window.send``.
+    """
+    kind = type(shape).__name__
+    material = mg.MeshPhongMaterial(
+        color=OBSTACLE_COLORS[kind], opacity=OBSTACLE_OPACITY, transparent=True
+    )
+    geometry: mg.Geometry
+    if isinstance(shape, Box):
+        geometry = mg.Box(list(shape.size))
+    elif isinstance(shape, Sphere):
+        geometry = mg.Sphere(shape.radius)
+    elif isinstance(shape, Cylinder):
+        geometry = _ZCylinder(shape.length, shape.radius)
+    elif isinstance(shape, Capsule):
+        geometry = mg.TriangularMeshGeometry(*_capsule_mesh(shape.radius, shape.length / 2.0))
+    elif isinstance(shape, HalfSpace):
+        geometry = _Slab([HALF_SPACE_SIZE, HALF_SPACE_SIZE, HALF_SPACE_DEPTH])
+    else:
+        bvh = coal.MeshLoader().load(str(shape.path), np.array(shape.scale, dtype=float))
+        geometry = mg.TriangularMeshGeometry(*_bvh_mesh(bvh))
+    return mc.SetObject(geometry, material, path)

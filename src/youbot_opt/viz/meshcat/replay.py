@@ -26,6 +26,7 @@ import numpy as np
 import umsgpack
 
 from youbot_opt._typing import Array
+from youbot_opt.collision.scene import Scene
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.viz.meshcat import scene
 from youbot_opt.viz.meshcat.scene import RobotLike
@@ -137,6 +138,7 @@ def replay(
     realtime: bool = True,
     speed: float = 1.0,
     label: str | None = None,
+    obstacles: Scene | None = None,
 ) -> meshcat.Visualizer:
     """Play a trajectory in a live meshcat viewer.
 
@@ -172,6 +174,10 @@ def replay(
         Playback speed factor for ``realtime`` (2.0 plays twice as fast).
     label : str, optional
         Scene name of the main copy; default: the robot's name.
+    obstacles : Scene, optional
+        Obstacles drawn with the copies (semi-transparent, a colour per kind):
+        world-fixed ones placed once, those carried by a robot frame moving
+        with it.
 
     Returns
     -------
@@ -195,6 +201,7 @@ def replay(
     runs = scene.layout_runs(
         robot, t, q, ghosts=ghosts, extra=extra, spacing=spacing, root=frame_path, label=label
     )
+    runs = scene.attach_obstacles(robot, runs, obstacles)
     checked_targets = scene.check_targets(targets)
     vis, owned = _viewer(viewer)
     try:
@@ -250,6 +257,7 @@ def scene_html(
     spacing: Array | None = None,
     loop: bool = True,
     frame_path: str = "youbot_opt",
+    obstacles: Scene | None = None,
 ) -> str:
     """Build the standalone HTML page of an animated replay (no server needed).
 
@@ -268,6 +276,7 @@ def scene_html(
     runs = scene.layout_runs(
         robot, t, q, ghosts=ghosts, extra=extra, spacing=spacing, root=frame_path
     )
+    runs = scene.attach_obstacles(robot, runs, obstacles)
     checked_targets = scene.check_targets(targets)
     return standalone_page(
         robot, runs, fps=fps, ee_path=ee_path, targets=checked_targets, loop=loop
@@ -316,6 +325,7 @@ def export_html(
     spacing: Array | None = None,
     loop: bool = True,
     frame_path: str = "youbot_opt",
+    obstacles: Scene | None = None,
 ) -> Path:
     """Write a standalone HTML file that plays the trajectory offline.
 
@@ -351,6 +361,8 @@ def export_html(
         Play the animation in a loop (True) or once.
     frame_path : str
         Scene path under which everything is drawn.
+    obstacles : Scene, optional
+        Obstacles drawn with the copies, as in :func:`replay`.
 
     Returns
     -------
@@ -368,7 +380,7 @@ def export_html(
     target = html_target(path)
     page = scene_html(
         robot, t, q, fps=fps, ee_path=ee_path, targets=targets, ghosts=ghosts, extra=extra,
-        spacing=spacing, loop=loop, frame_path=frame_path,
+        spacing=spacing, loop=loop, frame_path=frame_path, obstacles=obstacles,
     )  # fmt: skip
     return write_page(target, page)
 

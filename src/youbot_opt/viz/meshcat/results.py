@@ -21,6 +21,7 @@ import meshcat
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.collision.scene import Scene
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.viz.meshcat import scene
 from youbot_opt.viz.meshcat.replay import html_target, replay, standalone_page, write_page
@@ -132,6 +133,16 @@ def _arrange(
     return {"ghosts": [], "extra": rest, "spacing": spacing}
 
 
+def _scene_of(
+    results: Sequence[TrajOptResult | Trajectory], obstacles: Scene | None
+) -> Scene | None:
+    """``obstacles``, or else the scene of the first result's problem clearance, if any."""
+    if obstacles is not None or not results:
+        return obstacles
+    clearance = getattr(getattr(results[0], "problem", None), "clearance", None)
+    return getattr(clearance, "scene", None)
+
+
 def replay_results(
     results: Sequence[TrajOptResult | Trajectory],
     *,
@@ -144,12 +155,14 @@ def replay_results(
     realtime: bool = True,
     speed: float = 1.0,
     frame_path: str = "youbot_opt",
+    obstacles: Scene | None = None,
 ) -> meshcat.Visualizer:
     """Play several trajectory results together in a live meshcat viewer.
 
     ``results``, ``labels`` and ``robot`` are as in :func:`result_tracks`
     (copies are named by their labels); ``layout`` as in
-    :func:`export_results_html`; the other parameters as in :func:`replay`.
+    :func:`export_results_html`; ``obstacles`` as in :func:`export_results_html`;
+    the other parameters as in :func:`replay`.
 
     Returns
     -------
@@ -161,7 +174,7 @@ def replay_results(
     placed = _arrange(robot, tracks, layout, spacing)
     return replay(
         robot, t, q, viewer=viewer, frame_path=frame_path, ee_path=ee_path, realtime=realtime,
-        speed=speed, label=label, **placed,
+        speed=speed, label=label, obstacles=_scene_of(results, obstacles), **placed,
     )  # fmt: skip
 
 
@@ -177,6 +190,7 @@ def export_results_html(
     spacing: Array | None = None,
     loop: bool = True,
     frame_path: str = "youbot_opt",
+    obstacles: Scene | None = None,
 ) -> Path:
     """Write one standalone HTML file that plays several trajectory results together.
 
@@ -198,6 +212,9 @@ def export_results_html(
         Default: the first result's robot.
     fps, ee_path, spacing, loop, frame_path
         As in :func:`export_html`.
+    obstacles : Scene, optional
+        Obstacles drawn with the copies; default: the scene of the first
+        result's problem clearance (none for a Trajectory or a problem without).
 
     Returns
     -------
@@ -218,6 +235,7 @@ def export_results_html(
     t, q, label = tracks[0]
     placed = _arrange(robot, tracks, layout, spacing)
     runs = scene.layout_runs(robot, t, q, root=frame_path, label=label, **placed)
+    runs = scene.attach_obstacles(robot, runs, _scene_of(results, obstacles))
     title = "side by side, in this order" if layout == "side_by_side" else "first, then ghosts"
     legend = _legend(title, runs, [lab for _, _, lab in tracks])
     page = standalone_page(

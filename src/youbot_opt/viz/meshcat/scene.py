@@ -5,14 +5,17 @@ A scene holds one or more runs (trajectories). Each run is a copy of the robot
 under its own scene node: the first at the origin, ``extra`` runs side by side
 (translated), ``ghosts`` translucent over the first. Between knots,
 configurations are interpolated on the configuration space (``pin.interpolate``),
-and clamped before the first and after the last knot.
+and clamped before the first and after the last knot. The obstacles of a
+:class:`~youbot_opt.collision.scene.Scene` go with each copy that shows
+targets (world-fixed ones placed once, under the copy's node) and with every
+copy for those carried by a robot frame, which move with their frame.
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol
 
@@ -23,8 +26,10 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt._typing import Array
+from youbot_opt.collision.scene import Obstacle, Scene
+from youbot_opt.collision.shapes import HalfSpace
 from youbot_opt.exceptions import FrameNotFound, ParameterError
-from youbot_opt.viz.meshcat.geometry import set_object_command
+from youbot_opt.viz.meshcat.geometry import obstacle_command, set_object_command
 
 __all__ = [
     "MAX_REPLAY_FRAMES",
@@ -35,6 +40,7 @@ __all__ = [
     "check_robot",
     "check_targets",
     "layout_runs",
+    "attach_obstacles",
     "frame_times",
     "ee_points",
     "scene_points",
@@ -104,6 +110,10 @@ class Run:
         RGB colour (``0xRRGGBB``) of its end-effector path.
     with_targets : bool
         Whether the targets are drawn with this copy.
+    world : tuple of Obstacle
+        World-fixed obstacles drawn with this copy (placed once).
+    carried : tuple of (Obstacle, int)
+        Obstacles carried by a robot frame, with the frame's index: they move with it.
     """
 
     node: str
@@ -113,6 +123,8 @@ class Run:
     opacity: float
     color: int
     with_targets: bool
+    world: tuple[Obstacle, ...] = ()
+    carried: tuple[tuple[Obstacle, int], ...] = ()
 
 
 def check_robot(robot: RobotLike) -> None:
@@ -254,6 +266,33 @@ def layout_runs(
     return runs
 
 
+def attach_obstacles(robot: RobotLike, runs: Sequence[Run], obstacles: Scene | None) -> list[Run]:
+    """Give the runs the obstacles of ``obstacles`` to draw.
+
+    World-fixed obstacles go with the runs that show targets (the main copy and
+    the side-by-side ones, not the ghosts); carried ones with every run.
+
+    Raises
+    ------
+    ParameterError
+        If ``obstacles`` is not a Scene or None.
+    FrameNotFound
+        If an obstacle is carried by a frame the robot does not have.
+    """
+    if obstacles is None:
+        return list(runs)
+    if not isinstance(obstacles, Scene):
+        raise ParameterError(
+            f"obstacles must be a Scene or None, got a {type(obstacles).__name__}",
+            name="obstacles",
+        )
+    world = tuple(o for o in obstacles.obstacles if o.frame is None)
+    carried = tuple(
+        (o, _frame_index(robot, o.frame)) for o in obstacles.obstacles if o.frame is not None
+    )
+    return [replace(run, world=world if run.with_targets else (), carried=carried) for run in runs]
+
+
 def side_by_side_spacing(robot: RobotLike, tracks: Sequence[tuple[Array, Array]]) -> Array:
     """Offset in [m] between side-by-side copies that keeps a planar motion face on.
 
@@ -338,10 +377,15 @@ def _sample(model: pin.Model, t: Array, q: Array, times: Array) -> Array:
 
 def _tip_frame_id(robot: RobotLike) -> int:
     """Index of the tip frame; a link's frame when a fixed joint shares its name (z1)."""
+    return _frame_index(robot, robot.tip_frame)
+
+
+def _frame_index(robot: RobotLike, name: str) -> int:
+    """Index of frame ``name``; a link's frame when a fixed joint shares its name (z1)."""
     frames = robot.model.frames
-    matches = [i for i in range(len(frames)) if frames[i].name == robot.tip_frame]
+    matches = [i for i in range(len(frames)) if frames[i].name == name]
     if not matches:
-        raise FrameNotFound(robot.tip_frame, tuple(f.name for f in frames))
+        raise FrameNotFound(name, tuple(f.name for f in frames))
     bodies = [i for i in matches if frames[i].type == pin.FrameType.BODY]
     return int((bodies or matches)[0])
 
@@ -373,16 +417,31 @@ def scene_points(robot: RobotLike, runs: Sequence[Run], times: Array) -> Array:
             pin.forwardKinematics(model, data, qk)
             points += [placement.translation + run.offset for placement in data.oMi]
             points.append(pin.updateFramePlacement(model, data, frame_id).translation + run.offset)
+        points += [
+            o.translation + run.offset for o in run.world if not isinstance(o.shape, HalfSpace)
+        ]
     return np.array(points)
 
 
-def _geometry_poses(robot: RobotLike, q: Array) -> list[Array]:
-    """Poses (4, 4) of every visual geometry object at ``q``, in the robot's base frame."""
+def _geometry_poses(robot: RobotLike, run: Run, q: Array) -> list[Array]:
+    """Poses (4, 4) at ``q`` of the visual geometry objects, then of ``run``'s carried obstacles."""
     model, data = robot.model, robot.model.createData()
     gdata = robot.visual_model.createData()
     pin.forwardKinematics(model, data, q)
     pin.updateGeometryPlacements(model, data, robot.visual_model, gdata)
-    return [gdata.oMg[i].homogeneous.copy() for i in range(robot.visual_model.ngeoms)]
+    poses = [gdata.oMg[i].homogeneous.copy() for i in range(robot.visual_model.ngeoms)]
+    for obstacle, frame_id in run.carried:
+        frame = pin.updateFramePlacement(model, data, frame_id).homogeneous
+        poses.append(frame @ _pose(obstacle))
+    return poses
+
+
+def _pose(obstacle: Obstacle) -> Array:
+    """Pose (4, 4) of an obstacle's shape frame in its parent frame (world or carrying)."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = obstacle.rotation
+    matrix[:3, 3] = obstacle.translation
+    return matrix
 
 
 def _translation(offset: Array) -> Array:
@@ -400,7 +459,7 @@ def build_scene(
     targets: Array | None,
     ee_times: Array,
 ) -> list[list[str]]:
-    """Send the objects of every run: robot copy, end-effector path, targets.
+    """Send the objects of every run: robot copy, obstacles, end-effector path, targets.
 
     Parameters
     ----------
@@ -420,7 +479,8 @@ def build_scene(
     Returns
     -------
     list of list of str
-        Per run, the scene path of each visual geometry object.
+        Per run, the scene path of each visual geometry object, then of each
+        carried obstacle.
     """
     nodes = []
     triangles: dict[tuple[object, ...], object] = {}  # shared by the copies of the robot
@@ -435,6 +495,17 @@ def build_scene(
                 go, robot.package_dirs, run.opacity, vis[node].path, triangles=triangles
             )
             vis.window.send(command)
+            run_nodes.append(node)
+        taken: list[str] = []
+        for obstacle in run.world:  # placed once
+            taken.append(_node_name(obstacle.name, taken))
+            node = f"{run.node}/obstacles/{taken[-1]}"
+            vis.window.send(obstacle_command(obstacle.shape, vis[node].path))
+            vis[node].set_transform(_pose(obstacle))
+        for obstacle, _ in run.carried:  # posed with the robot, key frame by key frame
+            taken.append(_node_name(obstacle.name, taken))
+            node = f"{run.node}/carried/{taken[-1]}"
+            vis.window.send(obstacle_command(obstacle.shape, vis[node].path))
             run_nodes.append(node)
         nodes.append(run_nodes)
         if ee_path:
@@ -460,7 +531,7 @@ def show_at(
     """Send the pose of every geometry object of every run at time ``time_s`` [s]."""
     for run, run_nodes in zip(runs, nodes, strict=True):
         q = _sample(robot.model, run.t, run.q, np.array([time_s]))[0]
-        for node, pose in zip(run_nodes, _geometry_poses(robot, q), strict=True):
+        for node, pose in zip(run_nodes, _geometry_poses(robot, run, q), strict=True):
             vis[node].set_transform(pose)
 
 
@@ -487,7 +558,7 @@ def animation(
     for run, run_nodes in zip(runs, nodes, strict=True):
         for time_s, q in zip(times, _sample(robot.model, run.t, run.q, times), strict=True):
             with result.at_frame(vis, float((time_s - times[0]) * fps)) as frame:
-                for node, pose in zip(run_nodes, _geometry_poses(robot, q), strict=True):
+                for node, pose in zip(run_nodes, _geometry_poses(robot, run, q), strict=True):
                     frame[node].set_transform(pose)
     return result
 

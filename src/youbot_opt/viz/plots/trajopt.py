@@ -683,7 +683,8 @@ def plot_clearance(result: TrajOptResult, *, samples: int = 400) -> Figure:
 
     Groups: the robot against itself, and each obstacle of the problem's scene;
     each curve is the smallest exact distance of the group's pairs at each of
-    ``samples`` times of the plan, the knots marked.
+    ``samples`` times of the plan, the knots marked; its legend entry names the
+    group's closest pair, its distance and when.
 
     Parameters
     ----------
@@ -724,7 +725,10 @@ def plot_clearance(result: TrajOptResult, *, samples: int = 400) -> Figure:
     ax = axes[0, 0]
     for g, (label, rows) in enumerate(sorted(groups.items())):
         colour = joint_colour(g)
-        ax.plot(t, d[:, rows].min(axis=1), color=colour, label=label)
+        k, j = np.unravel_index(np.argmin(d[:, rows]), (t.size, len(rows)))
+        a, b = names[rows[j]]
+        closest = f"{label}: {a} - {b}, {d[k, rows[j]]:.3g} m at {t[k]:.3g} s"
+        ax.plot(t, d[:, rows].min(axis=1), color=colour, label=closest)
         ax.plot(traj.t, dk[:, rows].min(axis=1), "o", color=colour, markersize=3)
     ax.axhline(spec.margin, color="k", linestyle="--", linewidth=1.0, label="margin")
     ax.set_xlabel("t [s]")
