@@ -14,16 +14,13 @@ import numpy as np
 import pytest
 
 from youbot_opt.collision import Obstacle, Scene, Sphere
+from youbot_opt.collision.clearance import Clearance, clearance_checker
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import STUDY_Q_GOAL, STUDY_Q_START
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import frame_placement
-from youbot_opt.trajopt.clearance import (
-    certify_plan_clearance,
-    clearance_checker,
-    clearance_constraint,
-)
-from youbot_opt.trajopt.problem import BoundaryState, Clearance, TrajOptProblem
+from youbot_opt.trajopt.clearance import certify_plan_clearance, clearance_constraint
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 MARGIN = 0.01  # [m]

@@ -12,7 +12,7 @@ import pytest
 from youbot_opt.collision.scene import Obstacle, Scene
 from youbot_opt.collision.shapes import Sphere
 from youbot_opt.robot.load import load_model
-from youbot_opt.trajopt.problem import Clearance
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.trajopt.trajectory import Trajectory
 
 matplotlib.use("Agg")

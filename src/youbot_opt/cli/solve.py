@@ -37,6 +37,7 @@ from youbot_opt.cli.parser import DEFAULT_TRANSCRIPTION
 from youbot_opt.cli.refinement import refine_result
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.cli.trajopt_text import MULTISTART_HINT, certificate_of, format_result
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.collision.pairs import self_collision_pairs
 from youbot_opt.collision.scene import Scene
 from youbot_opt.collision.scene_file import load_scene
@@ -45,7 +46,7 @@ from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
-from youbot_opt.trajopt.problem import BoundaryState, Clearance, TrajOptProblem
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.spline_guess import random_spline_guess

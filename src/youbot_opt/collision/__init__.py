@@ -6,14 +6,18 @@ Modules: :mod:`.shapes` and :mod:`.scene` (:class:`Scene`, furniture URDFs),
 :mod:`.distance` (smooth CasADi distances), :mod:`.model`
 (:class:`CollisionModel`: the distances as a Function of the joints'
 placements), :mod:`.exact` (coal's exact distances) and :mod:`.clearance`
-(configurations refused before solving, motions certified between samples).
+(:class:`Clearance`, the spec both optimisers take; configurations refused
+before solving, motions certified between samples).
 
     from youbot_opt.collision import Scene, build_collision_model
 """
 
 from youbot_opt.collision.clearance import (
+    Clearance,
     ClearanceCertificate,
     certify_clearance,
+    clearance_checker,
+    collision_model,
     point_speed_bounds,
     require_clearance,
 )
@@ -27,6 +31,7 @@ from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Mesh,
 __all__ = [
     "Box",
     "Capsule",
+    "Clearance",
     "ClearanceCertificate",
     "CollisionModel",
     "CollisionPairs",
@@ -39,6 +44,8 @@ __all__ = [
     "Sphere",
     "build_collision_model",
     "certify_clearance",
+    "clearance_checker",
+    "collision_model",
     "exact_checker",
     "exact_distances",
     "furniture",

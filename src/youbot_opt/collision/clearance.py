@@ -19,17 +19,73 @@ import numpy as np
 
 from youbot_opt._checks import check_nonnegative, check_positive
 from youbot_opt._typing import Array
-from youbot_opt.collision.exact import ExactChecker
+from youbot_opt.collision.exact import ExactChecker, exact_checker
+from youbot_opt.collision.model import CollisionModel, build_collision_model
+from youbot_opt.collision.pairs import CollisionPairs
+from youbot_opt.collision.scene import Scene
 from youbot_opt.collision.spheres import hull_points
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
 
 __all__ = [
+    "Clearance",
     "ClearanceCertificate",
+    "clearance_checker",
+    "collision_model",
     "certify_clearance",
     "point_speed_bounds",
     "require_clearance",
 ]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Clearance:
+    """Clearance a motion must keep from a scene and from the robot itself (#28).
+
+    Plain values, taken by the trajectory problem and the cyclic IK path: the
+    optimiser builds the collision model (bounding balls, :func:`collision_model`),
+    its CasADi distances and coal's solids (:func:`clearance_checker`) from them.
+
+    Attributes
+    ----------
+    scene : Scene
+        The obstacles (may be empty: self-collision only).
+    margin : float
+        Required clearance in [m] (>= 0) of every checked pair.
+    self_collision : bool
+        Also keep the robot's own links apart (the SRDF's active pairs).
+    pairs : CollisionPairs or None
+        The self-collision pairs; the shipped SRDF's when None.
+    """
+
+    scene: Scene = Scene()
+    margin: float = 0.0  # [m]
+    self_collision: bool = True
+    pairs: CollisionPairs | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.scene, Scene):
+            raise ParameterError(
+                f"scene must be a Scene, got {type(self.scene).__name__}", name="scene"
+            )
+        object.__setattr__(self, "margin", check_nonnegative(self.margin, "margin", unit="m"))
+        object.__setattr__(self, "self_collision", bool(self.self_collision))
+
+
+def collision_model(robot: RobotModel, clearance: Clearance) -> CollisionModel:
+    """Return the bounding-ball collision model of ``robot`` in ``clearance``'s scene and pairs."""
+    return build_collision_model(
+        robot,
+        clearance.scene,
+        self_collision=clearance.self_collision,
+        pairs=clearance.pairs,
+    )
+
+
+def clearance_checker(robot: RobotModel, clearance: Clearance) -> ExactChecker:
+    """Return coal's exact solids for the pairs of :func:`collision_model` (the certificate's)."""
+    return exact_checker(collision_model(robot, clearance), robot)
+
 
 #: Most exact evaluations one certificate makes before it gives up (a refusal).
 _MAX_EVALUATIONS = 200_000

@@ -12,6 +12,7 @@ check, solve, inspect (a 3-D robot too: :func:`solve`, :func:`run_multistart`)::
 
 from __future__ import annotations
 
+from youbot_opt.ikpath.clearance import IKClearance, certify_path_clearance
 from youbot_opt.ikpath.dls import greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, STUDY_E_A, example_problem
 from youbot_opt.ikpath.io import load_result, save_result
@@ -59,6 +60,7 @@ __all__ = [
     "CyclicIKProblem",
     "EXAMPLES",
     "Evaluation",
+    "IKClearance",
     "IKPathResult",
     "IpoptIKSolver",
     "IpoptOptions",
@@ -81,6 +83,7 @@ __all__ = [
     "StoredResults",
     "TipKinematics",
     "chain_from_robot",
+    "certify_path_clearance",
     "check_reachability",
     "check_reachability_3d",
     "cluster_minima",

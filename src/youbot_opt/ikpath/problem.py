@@ -24,7 +24,13 @@ import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.exceptions import ModelError, ParameterError
+from youbot_opt.ikpath.clearance import (
+    DEFAULT_LEG_SAMPLES,
+    IKClearance,
+    require_path_clearance,
+)
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain, Plane, chain_from_robot, motion_plane
@@ -164,6 +170,16 @@ class CyclicIKProblem:
         robot's (continuous joints: unlimited).
     joint_weights : ndarray, shape (n,), optional
         Diagonal ``W`` of the cost (default ones).
+    clearance : Clearance or None
+        Clearance the joint path keeps from a scene and from the robot itself
+        (#28), at the targets' configurations and along the legs between them
+        (straight lines in joint space, closing the cycle); the general IPOPT
+        method holds it (:mod:`youbot_opt.ikpath.clearance`).
+    leg_samples : int
+        Interior samples ``K`` per leg of the clearance rows (``K + 1`` steps
+        per leg; more: less conservative, more rows).
+    clearance_rows : IKClearance or None
+        The clearance rows built from :attr:`clearance` (None without).
     chain : PlanarChain or None
         The planar chain the problem was built on or, for a RobotModel that is
         planar for ``frame`` with position targets only, its chain
@@ -192,6 +208,8 @@ class CyclicIKProblem:
     q_lower: Array | None = None
     q_upper: Array | None = None
     joint_weights: Array | None = None
+    clearance: Clearance | None = None
+    leg_samples: int = DEFAULT_LEG_SAMPLES
     robot_model: RobotModel = field(init=False)
     chain: PlanarChain | None = field(init=False)
     model: pin.Model = field(init=False)
@@ -202,6 +220,7 @@ class CyclicIKProblem:
     plane: Plane | None = field(init=False)
     target_points: Array = field(init=False)
     neutral_rotation: Array = field(init=False)
+    clearance_rows: IKClearance | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         robot: object = self.robot
@@ -316,6 +335,28 @@ class CyclicIKProblem:
             ("neutral_rotation", _frame_rotation(model, fid, neutral)),
         ):
             object.__setattr__(self, key, value)
+        object.__setattr__(self, "clearance_rows", self._build_clearance())
+        require_path_clearance(self, None)  # a target point inside an obstacle
+
+    def _build_clearance(self) -> IKClearance | None:
+        """Check :attr:`clearance` and :attr:`leg_samples`; build the rows (None without)."""
+        if self.clearance is None:
+            return None
+        if not isinstance(self.clearance, Clearance):
+            raise ParameterError(
+                f"clearance must be a Clearance or None, got {type(self.clearance).__name__}",
+                name="clearance",
+                value=type(self.clearance).__name__,
+            )
+        k = self.leg_samples
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= 1000:
+            raise ParameterError(
+                f"leg_samples must be an integer in [0, 1000], got {k!r}",
+                name="leg_samples",
+                value=k,
+            )
+        object.__setattr__(self, "leg_samples", int(k))
+        return IKClearance.build(self, self.clearance, int(k))
 
     def __reduce__(self) -> tuple[Any, ...]:
         """Pickle by the defining fields, without the robot's geometry (meshes)."""
@@ -323,10 +364,14 @@ class CyclicIKProblem:
         if isinstance(self.robot, PlanarChain):
             robot = self.robot
         else:
-            robot = replace(
+            robot = replace(  # a clearance needs the collision geometry, never the visual
                 self.robot_model,
                 visual_model=pin.GeometryModel(),
-                collision_model=pin.GeometryModel(),
+                collision_model=(
+                    self.robot_model.collision_model
+                    if self.clearance is not None
+                    else pin.GeometryModel()
+                ),
             )
         spec = {
             "robot": robot,
@@ -336,6 +381,8 @@ class CyclicIKProblem:
             "q_lower": self.q_lower,
             "q_upper": self.q_upper,
             "joint_weights": self.joint_weights,
+            "clearance": self.clearance,
+            "leg_samples": self.leg_samples,
         }
         return (_rebuild_problem, (spec,))
 
@@ -474,6 +521,8 @@ class CyclicIKProblem:
             q_lower=self.q_lower,
             q_upper=self.q_upper,
             joint_weights=self.joint_weights,
+            clearance=self.clearance,
+            leg_samples=self.leg_samples,
         )
 
     # -- kinematics -------------------------------------------------------------------
@@ -714,6 +763,7 @@ class CyclicIKProblem:
         else:
             labels, unit = [repr(name) for name in self.joint_names], ""
         require_within_limits(x, self.lower, self.upper, labels, unit=unit)
+        require_path_clearance(self, x)
         return x
 
     def reach_radius(self) -> tuple[Array, float]:

@@ -142,7 +142,16 @@ def solve(
         ``planar=True`` on a problem without a chain.
     """
     check_method(method, options)
-    use_planar = problem.chain is not None if planar is None else bool(planar)
+    clear = problem.clearance_rows is not None
+    use_planar = problem.chain is not None and not clear if planar is None else bool(planar)
+    if clear and (use_planar or method != "ipopt"):
+        raise ParameterError(
+            "a problem with a clearance is solved by the general IPOPT method only "
+            "(method='ipopt', planar=False or unset); the augmented Lagrangian and the "
+            f"planar methods do not hold clearance rows (got method={method!r})",
+            name="method",
+            value=method,
+        )
     if use_planar:
         problem.planar_chain  # noqa: B018 - raises ParameterError without a chain
         if check_reachability is None or check_reachability:

@@ -48,7 +48,7 @@ class ResultCheck(NamedTuple):
         NaN for a transcription other than trapezoidal and Hermite-Simpson.
     clearance : float
         Smallest exact (coal) distance [m] of a checked pair at the knots, for a
-        problem with a :class:`~youbot_opt.trajopt.problem.Clearance`; NaN without.
+        problem with a :class:`~youbot_opt.collision.clearance.Clearance`; NaN without.
     """
 
     status: SolveStatus

@@ -1,6 +1,6 @@
 """Clearance of a trajectory problem and of a plan, with coal's exact geometry (#28 items 4-5).
 
-:func:`clearance_constraint`: a problem's :class:`~youbot_opt.trajopt.problem.Clearance`
+:func:`clearance_constraint`: a problem's :class:`~youbot_opt.collision.clearance.Clearance`
 as the NLP's path constraint (conservative ball distances >= the margin).
 :func:`check_boundary_clearance` refuses a start or goal closer than the margin
 to an obstacle or the robot itself, before any solve, naming link and obstacle.
@@ -19,23 +19,22 @@ from youbot_opt._typing import Array
 from youbot_opt.collision.clearance import (
     ClearanceCertificate,
     certify_clearance,
+    clearance_checker,
+    collision_model,
     require_clearance,
 )
-from youbot_opt.collision.exact import ExactChecker, exact_checker
-from youbot_opt.collision.model import CollisionModel, build_collision_model
+from youbot_opt.collision.exact import ExactChecker
 from youbot_opt.dynamics.symbolic import build_symbolic_model
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
-from youbot_opt.trajopt.problem import Clearance, TrajOptProblem
+from youbot_opt.trajopt.problem import TrajOptProblem
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription.path import PathConstraint
 
 __all__ = [
     "check_boundary_clearance",
     "certify_plan_clearance",
-    "clearance_checker",
     "clearance_constraint",
-    "collision_model",
     "knot_clearance",
     "require_model_clearance",
 ]
@@ -101,21 +100,6 @@ def knot_clearance(problem: TrajOptProblem, q: Array) -> tuple[float, tuple[str,
     d = np.array([checker.distances(problem.robot, qk) for qk in np.asarray(q, dtype=float)])
     k, i = np.unravel_index(int(np.argmin(d)), d.shape)
     return float(d[k, i]), names[int(i)], int(k)
-
-
-def collision_model(robot: RobotModel, clearance: Clearance) -> CollisionModel:
-    """Return the bounding-ball collision model of ``robot`` in ``clearance``'s scene and pairs."""
-    return build_collision_model(
-        robot,
-        clearance.scene,
-        self_collision=clearance.self_collision,
-        pairs=clearance.pairs,
-    )
-
-
-def clearance_checker(robot: RobotModel, clearance: Clearance) -> ExactChecker:
-    """Return coal's exact solids for the pairs of :func:`collision_model` (the certificate's)."""
-    return exact_checker(collision_model(robot, clearance), robot)
 
 
 def clearance_constraint(problem: TrajOptProblem) -> PathConstraint | None:

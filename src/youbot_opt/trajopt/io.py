@@ -35,6 +35,7 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import Array
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.collision.pairs import CollisionPairs
 from youbot_opt.collision.scene_file import scene_document, scene_from_document
 from youbot_opt.dynamics.numeric import batched_aba
@@ -46,7 +47,7 @@ from youbot_opt.robot.payload import Payload
 from youbot_opt.robot.source import RobotSource
 from youbot_opt.trajopt.certify import Tolerances, certify
 from youbot_opt.trajopt.check import checked
-from youbot_opt.trajopt.problem import BoundaryState, Clearance, TrajOptProblem
+from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound
 from youbot_opt.trajopt.result import (
     DEFAULT_FEASIBILITY_TOL,

@@ -19,10 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._checks import check_nonnegative
 from youbot_opt._typing import Array
-from youbot_opt.collision.pairs import CollisionPairs
-from youbot_opt.collision.scene import Scene
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import BOUND_FAMILIES, BoundFamily, JointBounds, RobotModel
@@ -31,7 +29,6 @@ from youbot_opt.trajopt.tool import ToolConstraint
 __all__ = [
     "BoundaryState",
     "BoundFamily",
-    "Clearance",
     "JointBounds",
     "TrajOptProblem",
 ]
@@ -84,39 +81,6 @@ class BoundaryState:
         """Joint velocities in [rad/s] (never None after construction)."""
         assert self.v is not None
         return self.v
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Clearance:
-    """Clearance the motion must keep from a scene and from the robot itself (#28).
-
-    Plain values: the optimiser builds the collision model (bounding balls)
-    and its CasADi distances from them (:mod:`youbot_opt.trajopt.clearance`).
-
-    Attributes
-    ----------
-    scene : Scene
-        The obstacles (may be empty: self-collision only).
-    margin : float
-        Required clearance in [m] (>= 0) of every checked pair.
-    self_collision : bool
-        Also keep the robot's own links apart (the SRDF's active pairs).
-    pairs : CollisionPairs or None
-        The self-collision pairs; the shipped SRDF's when None.
-    """
-
-    scene: Scene = Scene()
-    margin: float = 0.0  # [m]
-    self_collision: bool = True
-    pairs: CollisionPairs | None = None
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.scene, Scene):
-            raise ParameterError(
-                f"scene must be a Scene, got {type(self.scene).__name__}", name="scene"
-            )
-        object.__setattr__(self, "margin", check_nonnegative(self.margin, "margin", unit="m"))
-        object.__setattr__(self, "self_collision", bool(self.self_collision))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -26,13 +26,13 @@ from numpy.typing import NDArray
 
 from youbot_opt._checks import check_int, check_positive, check_time_limit, check_unit_interval
 from youbot_opt._typing import Array
-from youbot_opt.collision.clearance import ClearanceCertificate
+from youbot_opt.collision.clearance import ClearanceCertificate, clearance_checker
 from youbot_opt.collision.exact import ExactChecker
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
-from youbot_opt.trajopt.clearance import certify_plan_clearance, clearance_checker
+from youbot_opt.trajopt.clearance import certify_plan_clearance
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.quadrature import grid_weights
 from youbot_opt.trajopt.result import TrajOptResult

@@ -636,9 +636,9 @@ def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
     tool = _tool_constraint(problem)
     if problem.clearance is None:
         return tool
+    from youbot_opt.collision.clearance import clearance_checker
     from youbot_opt.trajopt.clearance import (
         check_boundary_clearance,
-        clearance_checker,
         clearance_constraint,
         require_model_clearance,
     )

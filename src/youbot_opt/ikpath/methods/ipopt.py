@@ -450,9 +450,12 @@ class IpoptIKSolver3D:
             ineqs += ineq
             self._rows.append(rows)
         self._n_eq = int(sum(e.shape[0] for e in eqs))
-        g = ca.vertcat(*eqs, *ineqs)
-        self._lbg = np.zeros(g.shape[0])
-        self._ubg = np.r_[np.zeros(self._n_eq), np.full(len(ineqs), np.inf)]
+        clear = problem.clearance_rows  # rows >= the margin (docs/ikpath.md, "Clearance")
+        clear_rows = clear.function(x) if clear is not None else ca.SX(0, 1)
+        margin = clear.spec.margin if clear is not None else 0.0
+        g = ca.vertcat(*eqs, *ineqs, clear_rows)
+        self._lbg = np.r_[np.zeros(self._n_eq + len(ineqs)), np.full(clear_rows.shape[0], margin)]
+        self._ubg = np.r_[np.zeros(self._n_eq), np.full(len(ineqs) + clear_rows.shape[0], np.inf)]
         opts = self.options.to_casadi(True, solver_settings=BOUND_SETTINGS)
         single_threaded_blas()
         self._solver = ca.nlpsol("ikpath_3d", "ipopt", {"x": x, "f": energy, "g": g}, opts)

@@ -703,7 +703,7 @@ def plot_clearance(result: TrajOptResult, *, samples: int = 400) -> Figure:
     ParameterError
         The result has no trajectory, or its problem no clearance.
     """
-    from youbot_opt.trajopt.clearance import clearance_checker
+    from youbot_opt.collision.clearance import clearance_checker
 
     spec = result.problem.clearance
     traj = result.trajectory

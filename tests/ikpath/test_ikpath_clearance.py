@@ -1,0 +1,160 @@
+"""Clearance in the cyclic IK path (#28 item 4, IK half): a planar arm and a disc.
+
+The 3-link arm (capsules of radius 0.05 m) visits (2, 1) and (2, -1); its free
+optimum turns the base the short way, and its links sweep through a disc at
+(1.2, 0). With the clearance the path must turn the long way round: the legs
+then clear the disc by the margin in coal, and E is larger.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+from collections.abc import Iterator
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from youbot_opt.collision import Cylinder, Obstacle, Scene
+from youbot_opt.collision.clearance import Clearance
+from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.clearance import certify_path_clearance
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.planar import PlanarChain
+
+TARGETS = [(2.0, 1.0), (2.0, -1.0)]
+LIMITS = {"q_lower": -2 * np.pi, "q_upper": 2 * np.pi}
+MARGIN = 0.02  # [m]
+
+
+@pytest.fixture(autouse=True)
+def _fit_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Ball fits go to a temporary folder, never the user's cache."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+        yield
+
+
+def _arm(lengths: tuple[float, ...] = (1.0, 1.0, 1.0), radius: float = 0.05) -> RobotModel:
+    """A planar chain whose links are capsules (collision geometry)."""
+    robot = PlanarChain(lengths=list(lengths)).robot()
+    geometry = pin.GeometryModel()
+    for j, length in enumerate(lengths, start=1):
+        placement = pin.SE3(pin.utils.rotate("y", np.pi / 2), np.array([length / 2, 0.0, 0.0]))
+        capsule = coal.Capsule(radius, length)
+        geometry.addGeometryObject(pin.GeometryObject(f"link{j}", j, j, placement, capsule))
+    return dataclasses.replace(robot, collision_model=geometry)
+
+
+def _disc(x: float, y: float, radius: float = 0.1) -> Scene:
+    return Scene((Obstacle(name="disc", shape=Cylinder(radius=radius, length=1.0), xyz=(x, y, 0)),))
+
+
+@pytest.fixture(scope="module")
+def arm() -> RobotModel:
+    return _arm()
+
+
+def _problem(arm: RobotModel, scene: Scene, leg_samples: int = 8) -> CyclicIKProblem:
+    clearance = Clearance(scene=scene, margin=MARGIN, self_collision=False)
+    return CyclicIKProblem(
+        robot=arm, targets=TARGETS, clearance=clearance, leg_samples=leg_samples, **LIMITS
+    )
+
+
+def _free_optimum(arm: RobotModel) -> tuple[CyclicIKProblem, np.ndarray]:
+    free = CyclicIKProblem(robot=arm, targets=TARGETS, **LIMITS)
+    x0 = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]])
+    result = solve(free, method="ipopt", x0=x0, planar=False)
+    assert result.status.name == "SOLVED"
+    return free, result.configurations
+
+
+def test_known_answer_the_path_turns_the_long_way(arm: RobotModel) -> None:
+    free, q_free = _free_optimum(arm)
+    problem = _problem(arm, _disc(1.2, 0.0))
+    crossing = certify_path_clearance(problem, q_free)
+    assert crossing is not None and not crossing.certified
+    assert crossing.closest_distance < 0  # the free legs cross the disc
+    start = q_free.copy()
+    start[0, 0] -= 2 * np.pi  # the base the long way round
+    result = solve(problem, method="ipopt", x0=start)
+    assert result.status.name == "SOLVED", result.message
+    x = result.configurations.ravel()
+    assert np.max(problem.residuals(x)) < 1e-9
+    assert problem.clearance_rows is not None
+    assert np.min(problem.clearance_rows.rows(x)) >= MARGIN - 1e-8
+    certificate = certify_path_clearance(problem, x)
+    assert certificate is not None and certificate.certified
+    assert certificate.lower_bound >= MARGIN
+    assert result.objective >= free.objective(q_free.ravel())
+
+
+def test_rows_gradients_match_central_differences(arm: RobotModel) -> None:
+    problem = _problem(arm, _disc(1.2, 0.0), leg_samples=3)
+    rows = problem.clearance_rows
+    assert rows is not None
+    assert len(rows.labels) == 2 * 4 * rows.n_pairs
+    rng = np.random.default_rng(7)
+    h = 1e-6
+    for _ in range(3):
+        x = rng.uniform(-1.5, 1.5, problem.n_variables)
+        numeric = np.column_stack(
+            [(rows.rows(x + h * e) - rows.rows(x - h * e)) / (2 * h) for e in np.eye(x.size)]
+        )
+        np.testing.assert_allclose(rows.rows_jacobian(x), numeric, atol=1e-6)
+
+
+def test_rows_never_exceed_coal_along_a_leg(arm: RobotModel) -> None:
+    """A step's row is a lower bound on coal's distance anywhere on the step."""
+    problem = _problem(arm, _disc(1.2, 0.0), leg_samples=2)
+    rows = problem.clearance_rows
+    assert rows is not None
+    x = np.array([[0.3, 0.2, -0.4], [1.4, -0.3, 0.5]])
+    bound = rows.rows(x.ravel()).reshape(2, 3, rows.n_pairs)
+    legs = [(x[0], x[1]), (x[1], x[0])]
+    for j, (qa, qb) in enumerate(legs):
+        for k in range(3):
+            for f in np.linspace(k / 3, (k + 1) / 3, 7):
+                theta = qa + f * (qb - qa)
+                exact = rows.checker.distances(problem.robot_model, problem.configuration(theta))
+                assert np.all(bound[j, k] <= exact + 1e-9)
+
+
+def test_target_inside_obstacle_refused(arm: RobotModel) -> None:
+    with pytest.raises(ParameterError, match=r"target 0 .* inside obstacle 'disc'"):
+        _problem(arm, _disc(2.0, 1.0))
+
+
+def test_start_inside_obstacle_refused(arm: RobotModel) -> None:
+    _, q_free = _free_optimum(arm)
+    problem = _problem(arm, _disc(1.2, 0.0))
+    inside = q_free.copy()
+    inside[0] = [0.0, 0.0, 0.0]  # the stretched arm lies across the disc
+    with pytest.raises(ParameterError, match=r"start configuration 0: link geometry 'link2'"):
+        problem.check_start(inside)
+
+
+def test_clearance_needs_the_general_ipopt_method(arm: RobotModel) -> None:
+    problem = _problem(arm, _disc(1.2, 0.0))
+    with pytest.raises(ParameterError, match="general IPOPT method only"):
+        solve(problem, method="al")
+
+
+def test_clearance_is_checked_and_pickled(arm: RobotModel, tmp_path: Path) -> None:
+    with pytest.raises(ParameterError, match="clearance must be a Clearance"):
+        CyclicIKProblem(robot=arm, targets=TARGETS, clearance=0.1)  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="leg_samples"):
+        _problem(arm, _disc(1.2, 0.0), leg_samples=-1)
+    problem = _problem(arm, _disc(1.2, 0.0))
+    again = pickle.loads(pickle.dumps(problem))
+    x = np.linspace(-1, 1, problem.n_variables)
+    assert again.clearance == problem.clearance and again.leg_samples == problem.leg_samples
+    assert problem.clearance_rows is not None and again.clearance_rows is not None
+    np.testing.assert_allclose(again.clearance_rows.rows(x), problem.clearance_rows.rows(x))
+    assert problem.with_targets(TARGETS[::-1]).clearance == problem.clearance
