@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from youbot_opt._checks import check_int
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.records import (
@@ -211,16 +212,16 @@ class Study1Reproduction:
     """
 
     config: ReproductionConfig
-    base: dict[str, Any] = field(default_factory=dict)
-    search: dict[str, Any] = field(default_factory=dict)
-    ablation: list[dict[str, Any]] = field(default_factory=list)
-    extremes: dict[str, Any] = field(default_factory=dict)
-    pareto: dict[str, Any] = field(default_factory=dict)
-    refinement: list[dict[str, Any]] = field(default_factory=list)
+    base: dict[str, JSONDict] = field(default_factory=dict)
+    search: dict[str, JSONDict] = field(default_factory=dict)
+    ablation: list[JSONDict] = field(default_factory=list)
+    extremes: dict[str, list[JSONDict]] = field(default_factory=dict)
+    pareto: dict[str, list[JSONDict]] = field(default_factory=dict)
+    refinement: list[JSONDict] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     results: dict[str, TrajOptResult] = field(default_factory=dict, repr=False)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JSONDict:
         """Return the whole reproduction as a JSON-ready dictionary."""
         from dataclasses import asdict
 
