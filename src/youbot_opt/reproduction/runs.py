@@ -16,7 +16,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict, Unpack
 
 from youbot_opt._checks import check_int
 from youbot_opt._typing import JSONDict
@@ -46,6 +46,29 @@ __all__ = ["ReproductionConfig", "Study1Reproduction", "reproduce_study1"]
 
 _log = logging.getLogger(__name__)
 Progress = Callable[[str], None]
+
+
+class _ConfigChanges(TypedDict, total=False):
+    """Fields of :class:`ReproductionConfig` that :meth:`ReproductionConfig.quick` may override."""
+
+    variants: tuple[str, ...]
+    n_knots: int
+    beta: float
+    n_starts: int
+    seed: int
+    ablation_starts: int
+    ablation_betas: tuple[float, ...]
+    extreme_betas: tuple[float, ...]
+    extreme_starts: int
+    pareto_betas: tuple[float, ...]
+    pareto_first_starts: int
+    search_starts: int
+    refinement_knots: tuple[int, ...]
+    refinement_variants: tuple[str, ...]
+    tol: float
+    max_iter: int
+    executor: str
+    workers: int | None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -138,7 +161,7 @@ class ReproductionConfig:
             )
 
     @classmethod
-    def quick(cls, **changes: Any) -> ReproductionConfig:
+    def quick(cls, **changes: Unpack[_ConfigChanges]) -> ReproductionConfig:
         """Make a fast subset for tests and smoke runs (about 15 s).
 
         The study's code and the correct trapezoidal transcription, 3 starts at the
@@ -146,7 +169,7 @@ class ReproductionConfig:
         Pareto weights, and the trapezoidal refinement 50 -> 100 knots;
         ``changes`` override fields.
         """
-        base: dict[str, Any] = dict(
+        base: _ConfigChanges = dict(
             variants=("study", "trapezoidal"),
             n_starts=3,
             search_starts=2,
