@@ -154,13 +154,19 @@ def ikpath_case(n: int, repeats: int, reference: int, work: Path) -> dict[str, A
     args = ["ikpath", "--robot", "ur5", "--json", "--no-progress"]
     for t in _ur5_targets(n):
         args += ["--target", *t]
-    walls, energy = [], float("nan")
+    walls, cpus, energy = [], [], float("nan")
     for rep in range(repeats + 1):  # the first run warms the cache
         wall, done = _cli([*args, "--out", str(work / f"ik{n}-{rep}")], cache)
         energy = _energy(done)
         if rep:
             walls.append(wall)
-    row = {"case": f"ikpath ur5 {n} targets", "wall_s": statistics.median(walls), "E": energy}
+            cpus.append(_CPU[-1])
+    row = {
+        "case": f"ikpath ur5 {n} targets",
+        "wall_s": statistics.median(walls),
+        "cpu_s": statistics.median(cpus),
+        "E": energy,
+    }
     if reference:
         wall, done = _cli(
             [*args, "--starts", str(reference), "--out", str(work / f"ref{n}")], cache
@@ -224,11 +230,11 @@ def main(argv: list[str] | None = None) -> int:
           "background compile after it returned)")  # fmt: skip
     ik = [r for r in rows if r["case"].startswith("ikpath")]
     if ik:
-        print(f"\n{'case':<24}{'wall [s]':>9}{'E default':>11}{'ref starts':>11}{'ref E':>10}"
-              f"{'ref wall':>9}{'E / ref':>8}")  # fmt: skip
+        print(f"\n{'case':<24}{'wall [s]':>9}{'cpu [s]':>8}{'E default':>11}{'ref starts':>11}"
+              f"{'ref E':>10}{'ref wall':>9}{'E / ref':>8}")  # fmt: skip
         for r in ik:
             ref = r.get("reference_E", float("nan"))
-            print(f"{r['case']:<24}{r['wall_s']:>9.2f}{r['E']:>11.4f}"
+            print(f"{r['case']:<24}{r['wall_s']:>9.2f}{r['cpu_s']:>8.2f}{r['E']:>11.4f}"
                   f"{r.get('reference_starts', 0):>11}{ref:>10.4f}"
                   f"{r.get('reference_wall_s', float('nan')):>9.1f}"
                   f"{r['E'] / ref:>8.3f}")  # fmt: skip

@@ -32,6 +32,7 @@ EXPECTED = [
     "05_other_robot",
     "06_your_robot",
     "07_spatial_ik_path",
+    "10_tool_constraints",
 ]
 CELL_TIMEOUT = 300  # [s] per cell; quick-mode cells take < 30 s on 2 busy cores
 MIN_PROSE_WORDS = 250  # words of markdown prose per notebook, formulas and code excluded
@@ -253,6 +254,23 @@ def _check_07(out: dict[str, Any], tmp: Path) -> None:
     assert out["png"] >= 2
 
 
+def _check_10(out: dict[str, Any], tmp: Path) -> None:
+    text = out["text"]
+    for what in ("cup", "speed", "line"):
+        assert f"{what}: certified True" in text, text
+    tilt = float(re.search(r"largest tilt (\S+) rad", text).group(1))
+    assert tilt > 0.03  # the free plan tips the cup beyond the limit
+    first, free = (
+        float(x) for x in re.search(r"first grid f = (\S+) >= free f = (\S+)", text).groups()
+    )
+    assert first >= free - 1e-9
+    t_free, t_slow = (
+        float(x) for x in re.search(r"T free (\S+) s, T limited (\S+) s", text).groups()
+    )
+    assert t_slow > t_free
+    assert out["png"] >= 2
+
+
 CHECKS = {
     "01_model_and_dynamics": _check_01,
     "02_trajectory_solve": _check_02,
@@ -261,6 +279,7 @@ CHECKS = {
     "05_other_robot": _check_05,
     "06_your_robot": _check_06,
     "07_spatial_ik_path": _check_07,
+    "10_tool_constraints": _check_10,
 }
 
 

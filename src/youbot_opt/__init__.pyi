@@ -101,4 +101,14 @@ from .trajopt.refine import (
 from .trajopt.result import TrajOptResult as TrajOptResult
 from .trajopt.solver import TrajOptSolver as TrajOptSolver
 from .trajopt.spline_guess import random_spline_guess as random_spline_guess
+from .trajopt.tool import (
+    KeepAxis as KeepAxis,
+    NearLine as NearLine,
+    ToolConstraint as ToolConstraint,
+    ToolSpeed as ToolSpeed,
+)
+from .trajopt.tool_certificate import (
+    ToolCertificate as ToolCertificate,
+    certify_plan_tool as certify_plan_tool,
+)
 from .trajopt.trajectory import Trajectory as Trajectory

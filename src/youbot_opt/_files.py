@@ -55,6 +55,7 @@ MIGRATION_SCRIPT = "scripts/migrate_0_1_0.py"
 """The script that carries files and stores written by youbot_opt 0.1.0 forward."""
 
 TMP_PREFIX = ".tmp-"
+_MAX_REASON = 300  # characters of a library's own reason quoted in an error (zipfile quotes bytes)
 """Name prefix of the temporary files of :func:`atomic_writer` (``.tmp-<name>.<random>``)."""
 
 
@@ -143,7 +144,12 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
     """
     target = Path(path)
     mode = _mode_for(target)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f"{TMP_PREFIX}{target.name}.")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f"{TMP_PREFIX}{target.name}.")
+    except OSError as exc:  # no folder, a read-only one, a full disk: name the file meant
+        if exc.errno is not None:
+            exc.filename = str(target)
+        raise
     try:
         os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as handle:
@@ -151,9 +157,11 @@ def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.errno is not None and exc.filename in (None, tmp):
+            exc.filename = str(target)
         raise
     fsync_dir(target.parent)
 
@@ -467,6 +475,7 @@ def read_npz(path: Path, *, max_bytes: int = MAX_RESULT_BYTES) -> dict[str, np.n
         more than ``max_bytes`` or declares arrays larger than its content.
     """
     import zipfile
+    import zlib
 
     try:
         with zipfile.ZipFile(path) as archive:
@@ -497,8 +506,12 @@ def read_npz(path: Path, *, max_bytes: int = MAX_RESULT_BYTES) -> dict[str, np.n
             return {key: np.array(npz[key]) for key in npz.files}
     except ResultFileError:
         raise
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
-        raise ResultFileError(f"{path} is not a readable result file (corrupted?): {exc}") from exc
+    except (  # what zipfile and zlib raise on forged archives (encrypted: RuntimeError)
+        OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError, zlib.error,
+        NotImplementedError, RuntimeError,
+    ) as exc:  # fmt: skip
+        why = str(exc) if len(str(exc)) <= _MAX_REASON else str(exc)[:_MAX_REASON] + " ..."
+        raise ResultFileError(f"{path} is not a readable result file (corrupted?): {why}") from exc
 
 
 def read_regular_file(

@@ -36,7 +36,8 @@ def _json(capsys, argv):
 def test_example_b_json(capsys):
     """Example B from the zero start: success, E = 15.6058914, limits met, all targets reachable."""
     code, doc, _ = _json(
-        capsys, ["ikpath", "--example", "B", "--json", "--no-progress", "--no-replay"]
+        capsys,
+        ["ikpath", "--example", "B", "--starts", "1", "--json", "--no-progress", "--no-replay"],
     )
     assert code == 0
     assert doc["status"] == "solved"
@@ -207,11 +208,12 @@ def test_starts_show_progress_name_the_folder_and_resume(capsys, tmp_path):
 
 
 def test_single_start_prints_one_run(capsys):
-    """With the default one start, the text reads as one run: no multistart or zero-start line."""
-    code = main(["ikpath", "--example", "A", "--no-progress", "--no-replay"])
+    """With --starts 1 (the study's zero start) the text reads as one run, and says so."""
+    code = main(["ikpath", "--example", "A", "--starts", "1", "--no-progress", "--no-replay"])
     out = capsys.readouterr().out
     assert code == 0
     assert "one start (the zero vector)" in out and "result: E = 0.8405135867" in out
+    assert "certainty: one start, nothing to compare with" in out
     assert "multistart:" not in out and "zero start" not in out and "best:" not in out
 
 

@@ -68,6 +68,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except YoubotOptError as exc:
         print(f"youbot-opt: error: {cut_long_values(str(exc), argv)}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a path the system refused: one line naming it, what it needs
+        from youbot_opt.cli.output_errors import os_error_line  # not before: --help stays light
+
+        print(f"youbot-opt: error: {cut_long_values(os_error_line(exc), argv)}", file=sys.stderr)
+        return 2
     except (MemoryError, RecursionError) as exc:  # last resort: limits are checked before
         what = "memory" if isinstance(exc, MemoryError) else "stack"
         print(f"youbot-opt: error: out of {what} (a size no limit foresaw; please report it)",

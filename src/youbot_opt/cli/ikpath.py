@@ -60,6 +60,7 @@ from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
+from youbot_opt.ikpath.starts import BRANCH_KIND
 from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.load import load_model
@@ -122,7 +123,8 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
     Parameters
     ----------
     args : argparse.Namespace
-        ``--starts``, ``--workers`` (default: 1 below 8 starts, else the CPUs),
+        ``--starts`` (None: automatic), ``--workers`` (default: 1 below 8 starts or
+        serial automatic starts, else the CPUs),
         ``--no-progress``, ``--shard`` and ``--keep-results/--no-keep-results``.
     folder : Path
         The run folder: the sweep store, which a rerun with ``--out`` resumes.
@@ -130,10 +132,13 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
         A Dask scheduler address, ``"process"`` (several starts: a crashing
         start cannot end the run) or ``"serial"``.
     """
-    workers = args.workers if args.workers is not None else (1 if args.starts < 8 else None)
+    workers = args.workers
+    if workers is None and (args.starts is None or args.starts < 8):
+        workers = 1 if executor == "serial" or args.starts is not None else None
     if not args.no_progress:
+        count = "automatic starts" if args.starts is None else f"{args.starts} start(s)"
         print(
-            f"ikpath: {args.starts} start(s), each saved to {folder.resolve() / 'items'} as it "
+            f"ikpath: {count}, each saved to {folder.resolve() / 'items'} as it "
             f"finishes (rerun with --out {folder} to resume)",
             file=sys.stderr,
         )
@@ -256,7 +261,7 @@ def _check_flags_3d(args: argparse.Namespace) -> str | None:
             value=args.reach_evaluations,
         )
     kind = args.start_kind
-    if kind not in (None, "mixed", "coherent", "random", "feasible"):
+    if kind not in (None, "mixed", "coherent", "random", "feasible", BRANCH_KIND):
         raise ParameterError(
             f"--start-kind {kind} is a planar start kind; spatial targets take mixed "
             "(default), coherent or random",
@@ -312,8 +317,13 @@ def _options_3d(args: argparse.Namespace) -> ALOptions | IpoptOptions | None:
     return IpoptOptions.for_ikpath(max_wall_time=args.max_wall_time)
 
 
-def _start_kind_3d(kind: str | None, problem: CyclicIKProblem) -> str:
-    """Return the start kind: ``feasible`` (planar starts) for a planar robot, else ``mixed``."""
+def _start_kind_3d(kind: str | None, problem: CyclicIKProblem, n_starts: int | None) -> str:
+    """Return the start kind: ``branches`` (automatic starts), ``feasible`` or ``mixed``.
+
+    ``feasible`` (the planar starts) for a planar robot, else ``mixed``.
+    """
+    if kind is None and n_starts is None:
+        return BRANCH_KIND
     if kind is None:
         return "feasible" if problem.chain is not None else SPATIAL_DEFAULT_START_KIND
     if kind == "feasible" and problem.chain is None:
@@ -328,6 +338,21 @@ def _start_kind_3d(kind: str | None, problem: CyclicIKProblem) -> str:
 
 
 # ------------------------------------------------------------------ the runs
+def _executor(args: argparse.Namespace, spatial: bool) -> str:
+    """Where the starts run: a Dask scheduler, a process pool, or this process.
+
+    Automatic starts run here unless they are AL solves of spatial targets
+    (about 0.1 s each, against IPOPT's 0.01 s and the planar methods' ms: a pool
+    pays off only for them).
+    """
+    address = scheduler_address(args)
+    if address:
+        return address
+    if args.starts is None:
+        return "process" if spatial and args.method == "al" else "serial"
+    return "process" if args.starts > 1 else "serial"
+
+
 def _planar_outputs(
     args: argparse.Namespace,
     folder: Path,
@@ -379,9 +404,11 @@ def _finish(
 
 def _run_planar(args: argparse.Namespace) -> int:
     """Run a planar IK path; return the exit status."""
+    if args.method is None:
+        args.method = "al"
     if args.start_kind is None:
-        args.start_kind = "feasible"
-    elif args.start_kind not in START_KIND_NAMES:
+        args.start_kind = BRANCH_KIND if args.starts is None else "feasible"
+    elif args.start_kind not in (*START_KIND_NAMES, BRANCH_KIND):
         raise ParameterError(
             f"--start-kind {args.start_kind} is a spatial start kind; planar targets take "
             f"{' or '.join(START_KIND_NAMES)}",
@@ -408,7 +435,7 @@ def _run_planar(args: argparse.Namespace) -> int:
             kind = ALOptions if args.method == "al" else IpoptOptions.for_ikpath
             options = kind(max_wall_time=args.max_wall_time)
         # With --scheduler / --scheduler-file the starts run on that Dask cluster.
-        executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
+        executor = _executor(args, spatial=False)
         got = run_multistart(
             problem,
             method=args.method,
@@ -436,14 +463,16 @@ def _run_planar(args: argparse.Namespace) -> int:
 def _run_3d(args: argparse.Namespace) -> int:
     """Run an IK path with 3-D targets; return the exit status."""
     kind = _check_flags_3d(args)
+    if args.method is None:  # IPOPT: exact Hessians, 10-40x faster per spatial solve
+        args.method = "ipopt"
     robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))
     flush_warnings()  # the loader's warnings, grouped, before the run
     problem = _problem_3d(args, robot)
-    kind = _start_kind_3d(kind, problem)
+    kind = _start_kind_3d(kind, problem, args.starts)
     frame = problem.frame
     targets = problem.targets
     options = _options_3d(args)
-    executor = scheduler_address(args) or ("process" if args.starts > 1 else "serial")
+    executor = _executor(args, spatial=True)
     budget = {} if args.reach_evaluations is None else {"interval_boxes": args.reach_evaluations}
     verdicts = check_reachability_3d(problem, **budget)
     folder = run_folder("ikpath", args.out)
@@ -462,6 +491,7 @@ def _run_3d(args: argparse.Namespace) -> int:
             seed=args.seed,
             starts=kind,
             options=options,
+            verdicts=verdicts,
             sweep=start_sweep(args, folder, executor),
         )
         if isinstance(ms, ShardReport):  # --shard I/K solved its share
@@ -502,6 +532,8 @@ def run(args: argparse.Namespace) -> int:
             value=args.segment_time,
         )
     check_ikpath_size(
-        n_starts=args.starts, n_links=len(args.lengths or ()), n_targets=len(args.target or ())
-    )  # noqa: E501
+        n_starts=64 if args.starts is None else args.starts,
+        n_links=len(args.lengths or ()),
+        n_targets=len(args.target or ()),
+    )
     return _run_3d(args) if _spatial_mode(args) else _run_planar(args)

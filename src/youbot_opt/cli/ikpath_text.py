@@ -34,6 +34,7 @@ __all__ = [
     "STARTS_FILE",
     "StartsFile",
     "add_result_3d",
+    "certainty",
     "planar_summary",
     "print_3d",
     "print_planar",
@@ -144,6 +145,48 @@ def print_starts(doc: Mapping[str, object], crashed: Sequence[Mapping[str, objec
         print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")
 
 
+def certainty(ms: MultistartResult) -> JSONDict:
+    """Return how sure the best path is: who reached it, how many minima, the next best.
+
+    ``best_count`` of ``starts`` reached the best minimum (``n_success`` met the
+    targets); ``distinct_minima`` counts paths, a path and its 2 pi shifts or a
+    turn of a joint that moves no target being one
+    (:func:`~youbot_opt.ikpath.multistart.minimum_distance`);
+    ``next_E`` [rad^2] is the second best minimum (``None``: none).
+    """
+    return {
+        "best_count": ms.best_count,
+        "starts": ms.n_starts,
+        "n_success": ms.n_converged,
+        "distinct_minima": len(ms.minima),
+        "next_E": ms.minima[1].objective if len(ms.minima) > 1 else None,
+    }
+
+
+def _print_certainty(doc: Mapping[str, Any]) -> None:
+    """Print the certainty of the best path (:func:`certainty`), or why there is none."""
+    c = doc["certainty"]
+    if c["starts"] == 1:
+        print(
+            "certainty: one start, nothing to compare with (run without --starts for the "
+            "automatic starts)"
+        )
+        return
+    if not c["best_count"]:
+        print(f"certainty: none of {c['starts']} starts met the targets")
+        return
+    text = (
+        f"certainty: {c['best_count']} of {c['starts']} starts reached the best E "
+        f"({c['n_success']} met the targets), {c['distinct_minima']} distinct minima"
+    )
+    if c["next_E"] is not None:
+        gap = (c["next_E"] - doc["E"]) / max(abs(doc["E"]), 1e-300)
+        text += f", the next best E = {c['next_E']:.10g} rad^2 ({gap:+.2%})"
+    if c["best_count"] == 1:
+        text += "; only one start found it: more starts (--starts N) may find a better one"
+    print(text)
+
+
 # ------------------------------------------------------------------ planar
 def _num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
@@ -206,6 +249,7 @@ def planar_summary(
         start_kind=args.start_kind,
         n_success=ms.n_converged,
         best_count=ms.best_count,
+        certainty=certainty(ms),
         status_counts=ms.status_counts(),
         minima=[
             {
@@ -278,13 +322,14 @@ def _print_single_start(doc: dict[str, Any], crashed: list[JSONDict]) -> None:
         f"result: E = {doc['E']:.10f} rad^2 ({doc['status']}); max residual "
         f"{doc['max_residual']:.2e} m, limit violation {doc['limit_violation']:.2e} rad"
     )
+    _print_certainty(doc)
     _print_failure(doc)
 
 
 def _print_failure(doc: dict[str, Any]) -> None:
     """Print why the best start failed (nothing for a success)."""
     if doc["status"] not in ("solved", "solved_acceptable"):
-        print(f"failed: {doc['message']}")
+        print(f"failed ({doc['status']}): {doc['message']}")
 
 
 def _print_multistart(doc: dict[str, Any], crashed: list[JSONDict]) -> None:
@@ -302,6 +347,7 @@ def _print_multistart(doc: dict[str, Any], crashed: list[JSONDict]) -> None:
         f"{doc['starts']} starts; max residual {doc['max_residual']:.2e} m, "
         f"limit violation {doc['limit_violation']:.2e} rad"
     )
+    _print_certainty(doc)
     _print_failure(doc)
 
 
@@ -375,6 +421,7 @@ def add_result_3d(
         max_wall_time=args.max_wall_time,
         workers=ms.n_workers,
         n_success=ms.n_converged,
+        certainty=certainty(ms),
         status_counts=ms.status_counts(),
         minima=[{"E": m.objective, "count": m.count} for m in ms.minima],
         starts_per_second=ms.starts_per_second(),
@@ -418,7 +465,8 @@ def print_3d(
         f"{doc['n_success']} of {doc['starts']} starts succeeded, {len(doc['minima'])} "
         "distinct minima"
     )
+    _print_certainty(doc)
+    if not doc["result"]["success"]:
+        print(f"failed ({doc['status']}): {doc['result']['message']}")
     for j, q in enumerate(doc["result"]["configurations_rad"]):
         print(f"  q{j + 1} = [{', '.join(f'{x:+.6f}' for x in q)}] rad")
-    if not doc["result"]["success"]:
-        print(f"failed: {doc['result']['message']}")

@@ -440,6 +440,45 @@ def _clearance_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _tool_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the tool constraints of ``solve`` (#30, docs/tool.md): on the tip frame (--tip-frame)."""
+    g = p.add_argument_group("tool constraints (on the --tip-frame; docs/tool.md)")
+    g.add_argument(
+        "--keep-axis",
+        type=float,
+        nargs=6,
+        default=None,
+        metavar=("AX", "AY", "AZ", "DX", "DY", "DZ"),
+        help="keep the tool axis A (tool frame) within --max-tilt of the world direction D "
+        "(a cup upright)",
+    )
+    g.add_argument(
+        "--max-tilt",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="largest angle between the --keep-axis axis and direction, in DEGREES",
+    )
+    g.add_argument(
+        "--line",
+        type=float,
+        nargs=6,
+        default=None,
+        metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+        help="keep the tool point within --line-tol of the world segment P0-P1 [m] (a weld)",
+    )
+    g.add_argument(
+        "--line-tol", type=float, default=None, metavar="M", help="distance to --line in [m]"
+    )
+    g.add_argument(
+        "--tool-speed",
+        type=float,
+        default=None,
+        metavar="M_PER_S",
+        help="largest linear speed of the tool point in [m/s]",
+    )
+
+
 def _main(sub: _Sub) -> None:
     p = sub.add_parser(
         "main",
@@ -509,7 +548,8 @@ def _solve(sub: _Sub) -> None:
         "--starts",
         type=int,
         default=1,
-        help="number of random starts; > 1 runs a multistart (default 1)",
+        help="number of random starts; > 1 runs a multistart (default 1), saved in "
+        "--out DIR/starts as they finish: a rerun with the same --out resumes",
     )
     p.add_argument(
         "--workers",
@@ -547,6 +587,7 @@ def _solve(sub: _Sub) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _clearance_arguments(p)
+    _tool_arguments(p)
     _refine_arguments(p)
 
 
@@ -807,17 +848,29 @@ def _ikpath(sub: _Sub) -> None:
         f"{SPATIAL_REACH_SECONDS:g} s per target)",
     )
     run = p.add_argument_group("solver")
-    run.add_argument("--method", choices=METHOD_NAMES, default="al", help="al (default) or ipopt")
     run.add_argument(
-        "--starts", type=int, default=1, help="number of starts (default 1: the zero vector only)"
+        "--method",
+        choices=METHOD_NAMES,
+        default=None,
+        help="al or ipopt (default: al for planar targets, ipopt for spatial ones)",
+    )
+    run.add_argument(
+        "--starts",
+        type=int,
+        default=None,
+        help="number of starts (default: automatic, the zero or greedy start, the targets' "
+        "witnesses and the cheapest coherent IK branches, at most 2 s n within [16, 64]; "
+        "1: the zero vector or the greedy path only)",
     )
     run.add_argument("--seed", type=int, default=0, help="seed of the random starts")
     run.add_argument(
         "--start-kind",
-        choices=START_KIND_NAMES + SPATIAL_START_KIND_NAMES,
+        choices=(*START_KIND_NAMES, *SPATIAL_START_KIND_NAMES, "branches"),
         default=None,
         help="random starts: feasible (default for a planar robot) or uniform (planar); mixed "
-        "(default for other robots), coherent, random or, for a planar robot, feasible (spatial)",
+        "(default for other robots), coherent, random or, for a planar robot, feasible "
+        "(spatial); branches (both, the default without --starts): witnesses and coherent "
+        "IK branches first",
     )
     run.add_argument(
         "--workers",

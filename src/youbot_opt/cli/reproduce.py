@@ -57,6 +57,86 @@ def _check_reproduction_json(data: object, path: str) -> None:
             )
 
 
+_MAX_SHOWN = 200  # characters of the reason a wrong-shaped field gave (a field may be huge)
+
+
+class _Seen:
+    """The field of a ``--from-json`` document read last (``data['base']['study']``)."""
+
+    def __init__(self) -> None:
+        self.last = "the document"
+
+
+class _Fields(dict):  # type: ignore[type-arg]
+    """A JSON object that records which field is read (to name a wrong-shaped one)."""
+
+    def __init__(self, data: dict[str, Any], path: str, seen: _Seen) -> None:
+        super().__init__(data)
+        self._path, self._seen = path, seen
+
+    def __getitem__(self, key: Any) -> Any:
+        where = f"{self._path}[{key!r}]"
+        self._seen.last = where
+        return _tracked(super().__getitem__(key), where, self._seen)
+
+    def get(self, key: Any, default: Any = None) -> Any:
+        return self[key] if key in self else default
+
+    def values(self) -> Any:  # type: ignore[override]
+        return [self[k] for k in self]
+
+    def items(self) -> Any:  # type: ignore[override]
+        return [(k, self[k]) for k in self]
+
+
+class _Items(list):  # type: ignore[type-arg]
+    """A JSON list that records which item is read (see :class:`_Fields`)."""
+
+    def __init__(self, data: list[Any], path: str, seen: _Seen) -> None:
+        super().__init__(data)
+        self._path, self._seen = path, seen
+
+    def __getitem__(self, i: Any) -> Any:
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        where = f"{self._path}[{i}]"
+        self._seen.last = where
+        return _tracked(super().__getitem__(i), where, self._seen)
+
+    def __iter__(self) -> Any:
+        return (self[i] for i in range(len(self)))
+
+
+def _tracked(value: Any, path: str, seen: _Seen) -> Any:
+    if isinstance(value, dict) and not isinstance(value, _Fields):
+        return _Fields(value, path, seen)
+    if isinstance(value, list) and not isinstance(value, _Items):
+        return _Items(value, path, seen)
+    return value
+
+
+def _from_json(data: dict[str, Any], path: str, folder: Path) -> tuple[list[Path], bool]:
+    """Write the outputs of a ``--from-json`` document; a wrong-shaped field is named."""
+    seen = _Seen()
+    tracked = _Fields(data, "data", seen)
+    try:
+        files = _write_outputs(tracked, {}, folder)
+        return files, _converged(tracked)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
+        what = f"{type(exc).__name__}: {str(exc)[:_MAX_SHOWN]}"
+        raise ParameterError(
+            f"--from-json {path}: field {seen.last.removeprefix('data')} does not hold what a "
+            f"reproduction JSON holds there ({what}); write it with "
+            "`youbot-opt reproduce-study1 --out DIR`",
+            name="from_json",
+        ) from exc
+
+
+def _converged(data: dict[str, Any]) -> bool:
+    """Whether every base-case multistart converged at least once."""
+    return all(b["best"] is not None and b["success_rate"] > 0 for b in data["base"].values())
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``youbot-opt reproduce-study1``; returns the exit code."""
     results: dict[str, Any] = {}
@@ -69,6 +149,10 @@ def run(args: argparse.Namespace) -> int:
             ) from exc
         _check_reproduction_json(data, args.from_json)
         folder = run_folder("reproduce-study1", args.out)
+        files, ok = _from_json(data, args.from_json, folder)
+        print((folder / files[1].name).read_text())
+        print_outputs(folder, files)
+        return 0 if ok else 1
     else:
         changes: dict[str, Any] = {"seed": args.seed, "workers": args.workers}
         if args.starts is not None:
@@ -97,8 +181,7 @@ def run(args: argparse.Namespace) -> int:
     files = _write_outputs(data, results, folder)
     print((folder / files[1].name).read_text())
     print_outputs(folder, files)
-    ok = all(b["best"] is not None and b["success_rate"] > 0 for b in data["base"].values())
-    return 0 if ok else 1
+    return 0 if _converged(data) else 1
 
 
 def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) -> list[Path]:

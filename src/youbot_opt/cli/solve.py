@@ -18,6 +18,7 @@ import argparse
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -47,6 +48,7 @@ from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.spline_guess import random_spline_guess
 from youbot_opt.trajopt.sweep import default_dt0
+from youbot_opt.trajopt.tool import KeepAxis, NearLine, ToolConstraint, ToolSpeed
 
 __all__ = ["run", "transcription"]
 
@@ -83,11 +85,37 @@ def clearance_of(args: argparse.Namespace) -> Clearance | None:
     )
 
 
+def tool_of(args: argparse.Namespace) -> tuple[ToolConstraint, ...]:
+    """Return the tool constraints of the ``solve`` flags (docs/tool.md).
+
+    ``--keep-axis`` with ``--max-tilt`` (degrees), ``--line`` with
+    ``--line-tol`` [m] (each pair given together), ``--tool-speed`` [m/s].
+    """
+    out: list[ToolConstraint] = []
+    for flag, value, other, limit in (
+        ("--keep-axis", args.keep_axis, "--max-tilt", args.max_tilt),
+        ("--line", args.line, "--line-tol", args.line_tol),
+    ):
+        if (value is None) != (limit is None):
+            given, missing = (flag, other) if limit is None else (other, flag)
+            raise ParameterError(f"{given} needs {missing}", name=missing.lstrip("-"))
+    if args.keep_axis is not None:
+        axis, direction = args.keep_axis[:3], args.keep_axis[3:]
+        out.append(KeepAxis(axis=axis, direction=direction, max_angle=math.radians(args.max_tilt)))
+    if args.line is not None:
+        out.append(NearLine(p0=args.line[:3], p1=args.line[3:], tolerance=args.line_tol))
+    if args.tool_speed is not None:
+        out.append(ToolSpeed(max_speed=args.tool_speed))
+    return tuple(out)
+
+
 def _problem(args: argparse.Namespace) -> TrajOptProblem:
+    problem = _free_problem(args)
     clearance = clearance_of(args)
     if clearance is not None:
-        return dataclasses.replace(_free_problem(args), clearance=clearance)
-    return _free_problem(args)
+        problem = dataclasses.replace(problem, clearance=clearance)
+    tool = tool_of(args)
+    return dataclasses.replace(problem, tool=tool) if tool else problem
 
 
 def _free_problem(args: argparse.Namespace) -> TrajOptProblem:
@@ -124,6 +152,10 @@ def _representative(ms: MultistartResult) -> TrajOptResult | None:
     return min(failed, key=lambda r: (not math.isfinite(r.max_violation), r.max_violation))
 
 
+STARTS_FOLDER = "starts"
+"""Sub-folder of ``solve --starts K --out D`` where the starts are saved (a rerun resumes)."""
+
+
 def _multistart(args: argparse.Namespace, solver: TrajOptSolver) -> MultistartResult:
     """Run the starts in a process pool (serial with ``--workers 0``), progress on stderr."""
     if args.workers is not None and args.workers < 0:
@@ -131,8 +163,13 @@ def _multistart(args: argparse.Namespace, solver: TrajOptSolver) -> MultistartRe
     executor: str = "serial" if args.workers == 0 else "process"
     executor = scheduler_address(args) or executor  # --scheduler / --scheduler-file: Dask
     prog = ProgressLine("solve", args.quiet or args.json)
+    # --out D: the starts are saved in D/starts as they finish, so a rerun resumes (#29)
+    store = None if args.out is None else Path(args.out) / STARTS_FOLDER
     sweep = SweepOptions(
-        executor=executor, workers=None if args.workers == 0 else args.workers, progress=prog
+        executor=executor,
+        workers=None if args.workers == 0 else args.workers,
+        progress=prog,
+        out=store,
     )
     ms = run_multistart(
         solver, args.starts, beta=args.beta, bound_scale=args.bound_scale, seed=args.seed,
@@ -166,6 +203,7 @@ def run(args: argparse.Namespace) -> int:
         extra["multistart"] = {
             "n_starts": ms.n_starts,
             "success_rate": ms.success_rate,
+            "resumed": ms.resumed,  # starts loaded from --out DIR/starts, not solved again
             "starts": [s.summary() for s in ms.starts],
         }
     else:
@@ -218,6 +256,11 @@ def run(args: argparse.Namespace) -> int:
 
         plot_clearance(result).savefig(folder / "clearance.png", dpi=120)
         files.append(folder / "clearance.png")
+    if problem.tool and result.trajectory is not None:
+        from youbot_opt.viz.plots.tool import plot_tool
+
+        plot_tool(result).savefig(folder / "tool.png", dpi=120)
+        files.append(folder / "tool.png")
     if args.json:
         print(json.dumps(json_ready(summary)))
     report_outputs(folder, files, args.json)

@@ -73,6 +73,11 @@ def format_result(
     note = gripper_note(result)
     if note:
         lines.append(note)
+    for row in s.get("tool", ()):
+        lines.append(
+            f"tool          {row['label']}: largest at the knots {row['largest_at_knots']:.4g} "
+            f"{row['unit']} (knot {row['knot']}), limit {row['limit']:.4g} {row['unit']}"
+        )
     if certificate is not None:
         lines += ["", str(certificate)]
     elif not result.success:

@@ -21,24 +21,30 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.dls import random_theta
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.methods.ipopt import IpoptOptions, check_degrees_of_freedom
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability.general import ReachVerdict3D
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, require_reachable
 from youbot_opt.ikpath.reachability.planar import check_reachability as check_planar
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets
 from youbot_opt.ikpath.starts import (
+    BRANCH_KIND,
     START_KINDS,
     START_KINDS_3D,
+    BranchStarts,
     PlanarStarts,
     Starts3D,
     check_start_request,
     make_starts,
     make_starts_3d,
+    periodic_joints,
 )
 from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StartTally, StoredResults
 from youbot_opt.ikpath.sweep import (
@@ -66,6 +72,7 @@ __all__ = [
     "START_KINDS",
     "cluster_minima",
     "configuration_distance",
+    "free_joints",
     "make_starts",
     "minimum_distance",
     "run_multistart",
@@ -260,21 +267,47 @@ def minimum_distance(
     """Return how far apart two results of ``problem`` are, in [rad], for telling minima apart.
 
     The planar methods: :func:`configuration_distance` (every joint modulo a
-    common 2 pi shift); the general ones: the largest joint difference with
-    the continuous joints modulo a common 2 pi shift.
+    common 2 pi shift); the general ones: the largest joint difference with the
+    revolute joints modulo a common 2 pi shift (the same E, the same targets met)
+    and the joints that move no target (:func:`free_joints`: a wrist turning
+    about the tool axis of position targets) modulo any common shift, so one
+    path is one minimum however often it was found shifted.
     """
     if planar:
         return _planar_distance
-    return functools.partial(_distance_3d, np.asarray(problem.continuous, dtype=bool))
+    n = problem.n_joints
+    revolute = periodic_joints(problem) | (problem.upper[:n] - problem.lower[:n] >= 2 * np.pi)
+    revolute &= ~np.array([_prismatic(problem, int(j)) for j in problem.active])
+    return functools.partial(_distance_3d, revolute, free_joints(problem))
+
+
+def free_joints(problem: CyclicIKProblem, samples: int = 3) -> npt.NDArray[np.bool_]:
+    """Joints that move no target's rows at ``samples`` seeded configurations, shape (n,)."""
+    rng = np.random.default_rng(0)
+    data = problem.create_data()
+    moves = np.zeros(problem.n_joints)
+    for _ in range(samples):
+        theta = random_theta(problem, rng)
+        for j in range(problem.n_targets):
+            moves = np.maximum(moves, np.max(np.abs(problem.block(j, theta, data)[1]), axis=0))
+    return moves < 1e-9
+
+
+def _prismatic(problem: CyclicIKProblem, joint: int) -> bool:
+    return bool(problem.model.joints[joint].shortname().startswith("JointModelP"))
 
 
 def _planar_distance(a: IKPathResult, b: IKPathResult) -> float:
     return configuration_distance(a.configurations, b.configurations)
 
 
-def _distance_3d(continuous: Array, a: IKPathResult, b: IKPathResult) -> float:
+def _distance_3d(
+    revolute: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], a: IKPathResult, b: IKPathResult
+) -> float:
     diff = a.configurations - b.configurations
-    shift = np.where(continuous, 2 * np.pi * np.round(np.median(diff, axis=0) / (2 * np.pi)), 0.0)
+    median = np.median(diff, axis=0)
+    shift = np.where(revolute, 2 * np.pi * np.round(median / (2 * np.pi)), 0.0)
+    shift = np.where(free, median, shift)
     return float(np.max(np.abs(diff - shift)))
 
 
@@ -338,7 +371,7 @@ def run_multistart(
     check_reachability: bool = True,
     objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
-    verdicts: Sequence[ReachVerdict] | None = None,
+    verdicts: Sequence[ReachVerdict] | Sequence[ReachVerdict3D] | None = None,
     workers: int | None = None,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> MultistartResult | ShardReport:
@@ -355,8 +388,12 @@ def run_multistart(
     method : {"al", "ipopt"}
         Solver.
     n_starts : int, optional
-        Number of starts (default: 100 on the planar methods, else 16). Start 0
-        is the study's zero vector (planar) or the greedy DLS path (general).
+        Number of starts. Default (with ``starts`` None): the automatic starts,
+        start 0, the witnesses of ``verdicts`` and the cheapest coherent IK
+        branches, at most :func:`~youbot_opt.ikpath.starts.start_budget`
+        (:class:`~youbot_opt.ikpath.starts.BranchStarts`); with a ``starts`` kind,
+        100 on the planar methods, else 16. Start 0 is the study's zero vector
+        (planar) or the greedy DLS path (general).
     seed : int
         Seed of the random starts, drawn in this process (one seeded generator
         per start index), so they do not depend on the executor.
@@ -366,6 +403,8 @@ def run_multistart(
         ones' ``"mixed"`` (default), ``"coherent"``, ``"random"`` or, on a
         planar robot only, ``"feasible"`` (the planar starts: random exact IK
         solutions, the reachability witnesses as fallback; default there).
+        ``"branches"`` (both; the default when ``n_starts`` is None): the
+        automatic starts, then the robot kind's random ones.
     options : ALOptions or IpoptOptions, optional
         Settings of the method (``max_wall_time`` [s] bounds each start's solve).
     planar : bool, optional
@@ -377,10 +416,11 @@ def run_multistart(
         ``verdicts`` are given.
     objective_tol, q_tol : float
         Clustering tolerances (see :func:`cluster_minima` and :func:`minimum_distance`).
-    verdicts : sequence of ReachVerdict, optional
-        Planar methods: verdicts of the targets already decided by the caller
-        (e.g. with another budget); used instead of deciding again (an
-        unreachable one still raises). Their witnesses are the fallback of
+    verdicts : sequence of ReachVerdict or ReachVerdict3D, optional
+        Their witnesses make a start of the automatic starts. Planar methods:
+        verdicts of the targets already decided by the caller (e.g. with
+        another budget); used instead of deciding again (an unreachable one
+        still raises). Their witnesses are the fallback of
         feasible starts.
     workers : int, optional
         Shortcut for ``sweep.workers`` (contradicting it raises).
@@ -434,19 +474,22 @@ def run_multistart(
                 value=workers,
             )
         sweep = replace(sweep, workers=int(workers))
+    if starts is None and n_starts is None:
+        starts = BRANCH_KIND
     if use_planar:
         problem.planar_chain  # noqa: B018 - raises ParameterError without a chain
         return _run_planar(
-            problem, t0, method=method, n_starts=100 if n_starts is None else n_starts,
-            seed=seed, starts="feasible" if starts is None else starts, options=options,
+            problem, t0, method=method, n_starts=n_starts, seed=seed,
+            starts="feasible" if starts is None else starts, options=options,
             check_reachability=check_reachability, objective_tol=objective_tol, q_tol=q_tol,
-            verdicts=verdicts, sweep=sweep,
+            verdicts=verdicts, sweep=sweep,  # type: ignore[arg-type]
         )  # fmt: skip
     if starts is None:
         starts = "feasible" if problem.chain is not None else "mixed"
     return _run_3d(
-        problem, t0, method=method, n_starts=16 if n_starts is None else n_starts, seed=seed,
-        starts=starts, options=options, objective_tol=objective_tol, q_tol=q_tol, sweep=sweep,
+        problem, t0, method=method, n_starts=n_starts, seed=seed, starts=starts,
+        options=options, objective_tol=objective_tol, q_tol=q_tol, verdicts=verdicts,
+        sweep=sweep,
     )  # fmt: skip
 
 
@@ -455,7 +498,7 @@ def _run_planar(
     t0: float,
     *,
     method: Method,
-    n_starts: int,
+    n_starts: int | None,
     seed: int,
     starts: str,
     options: ALOptions | IpoptOptions | None,
@@ -470,14 +513,18 @@ def _run_planar(
         check_degrees_of_freedom(problem)
     found: tuple[ReachVerdict, ...] = ()
     if verdicts is not None:
-        found = require_reachable(problem, tuple(verdicts))
+        found = require_reachable(problem, tuple(verdicts))  # type: ignore[arg-type]
     elif check_reachability:
         found = check_targets(problem)
-    x0s: Array | PlanarStarts
-    if not sweep.keep_results:  # each start drawn as its task is made
-        x0s = PlanarStarts(problem, n_starts, seed, kind=starts, verdicts=found)
+    x0s: Array | PlanarStarts | BranchStarts
+    if starts == BRANCH_KIND:
+        x0s = BranchStarts(problem, n_starts, seed, verdicts=found, planar=True)
+        if sweep.keep_results:
+            x0s = np.array([x0s[k] for k in range(len(x0s))])
+    elif not sweep.keep_results:  # each start drawn as its task is made
+        x0s = PlanarStarts(problem, _count(n_starts, 100), seed, kind=starts, verdicts=found)
     else:
-        x0s = make_starts(problem, n_starts, seed, kind=starts, verdicts=found)
+        x0s = make_starts(problem, _count(n_starts, 100), seed, kind=starts, verdicts=found)
     executor, n_workers = resolve_executor(sweep)
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
@@ -491,16 +538,20 @@ def _run_3d(
     t0: float,
     *,
     method: Method,
-    n_starts: int,
+    n_starts: int | None,
     seed: int,
     starts: str,
     options: ALOptions | IpoptOptions | None,
     objective_tol: float,
     q_tol: float,
+    verdicts: Sequence[ReachVerdict] | Sequence[ReachVerdict3D] | None,
     sweep: SweepOptions,
 ) -> MultistartResult | ShardReport:
     """:func:`run_multistart` by the general methods."""
-    check_start_request(n_starts, starts, (*START_KINDS_3D, "feasible"))
+    if starts != BRANCH_KIND or n_starts is not None:
+        check_start_request(
+            _count(n_starts, 16), starts, (*START_KINDS_3D, "feasible", BRANCH_KIND)
+        )
     if starts == "feasible" and problem.chain is None:
         raise ParameterError(
             f"start kind 'feasible' needs a planar robot; {problem.robot_model.name!r} is not "
@@ -510,16 +561,20 @@ def _run_3d(
         )
     if sweep.workers is None and sweep.executor is None:
         sweep = replace(sweep, workers=1)
-    x0s: Array | Starts3D | PlanarStarts
-    if starts == "feasible":
+    x0s: Array | Starts3D | PlanarStarts | BranchStarts
+    if starts == BRANCH_KIND:
+        x0s = BranchStarts(problem, n_starts, seed, verdicts=verdicts or ())
+        if sweep.keep_results:
+            x0s = np.array([x0s[k] for k in range(len(x0s))])
+    elif starts == "feasible":
         found = check_planar(problem)
-        x0s = PlanarStarts(problem, n_starts, seed, kind="feasible", verdicts=found)
+        x0s = PlanarStarts(problem, _count(n_starts, 16), seed, kind="feasible", verdicts=found)
         if sweep.keep_results:
             x0s = np.array([x0s[k] for k in range(len(x0s))])
     elif sweep.keep_results:
-        x0s = make_starts_3d(problem, n_starts, seed, kind=starts)
+        x0s = make_starts_3d(problem, _count(n_starts, 16), seed, kind=starts)
     else:  # each start drawn as its task is made
-        x0s = Starts3D(problem, n_starts, seed, kind=starts)
+        x0s = Starts3D(problem, _count(n_starts, 16), seed, kind=starts)
     executor, n_workers = resolve_executor(sweep)
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
@@ -531,7 +586,7 @@ def _run_3d(
 def _run(
     problem: CyclicIKProblem,
     t0: float,
-    x0s: Array | PlanarStarts | Starts3D,
+    x0s: Array | PlanarStarts | Starts3D | BranchStarts,
     *,
     method: Method,
     seed: int,
@@ -554,7 +609,7 @@ def _run(
             sweep.out,
             SWEEP_KIND if planar else SWEEP_KIND_3D,
             params,
-            result_codec(problem, planar=planar),
+            result_codec(problem, planar=planar, starts=x0s),
             clean=sweep.shard is None,
         )
     solvers = PLANAR_STARTS if planar else STARTS_3D
@@ -603,6 +658,10 @@ def _run(
         objective_tol=objective_tol,
         q_tol=q_tol,
     )
+
+
+def _count(n_starts: int | None, default: int) -> int:
+    return default if n_starts is None else n_starts
 
 
 def _minima_rule(

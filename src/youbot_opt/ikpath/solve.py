@@ -93,6 +93,9 @@ def solve(
 ) -> IKPathResult:
     """Solve the cyclic IK-path problem once, with the defaults of its robot's kind.
 
+    One local solve from ``x0``: for the best path without choosing a start, use
+    :func:`~youbot_opt.ikpath.multistart.run_multistart` (its automatic starts).
+
     A problem with a planar chain (:attr:`CyclicIKProblem.chain`: a PlanarChain,
     or a RobotModel that is planar for the frame with position targets) is
     solved by the planar methods: the exact reachability verdicts first, the

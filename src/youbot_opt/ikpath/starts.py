@@ -16,12 +16,15 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import casadi as ca
 import numpy as np
+import numpy.typing as npt
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.dls import greedy_path, random_theta
 from youbot_opt.ikpath.geometry import two_link_ik
+from youbot_opt.ikpath.methods.ipopt import frame_expression, target_rows
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, theta_ranges
 from youbot_opt.sweeps.lazy import LazySequence
@@ -37,6 +40,12 @@ __all__ = [
     "Starts3D",
     "START_KINDS",
     "START_RNGS",
+    "BRANCH_KIND",
+    "BranchStarts",
+    "branch_chains",
+    "periodic_joints",
+    "start_budget",
+    "target_samples",
 ]
 
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
@@ -386,3 +395,239 @@ class Starts3D(IndexedStarts):
 
 CHECKPOINT = 1024
 """Starts between two kept generator states of :class:`Starts3D`."""
+
+
+# ------------------------------------------------------------------ branch starts
+def target_samples(
+    problem: CyclicIKProblem,
+    j: int,
+    n_samples: int,
+    rng: np.random.Generator,
+    *,
+    iterations: int = 80,
+) -> Array:
+    """Solve target ``j`` alone from ``n_samples`` random seeds: (k, n) solutions [rad], k <= n.
+
+    Damped least squares on the target's rows (CasADi, all seeds at once: see
+    :func:`~youbot_opt.ikpath.methods.ipopt.target_rows`), projected on the joint box;
+    only the seeds that meet the target (its tolerances, by Pinocchio) are kept. Joints
+    that do not move the target's rows at any kept solution (a wrist turning about the
+    tool axis for a position) are set to their clipped zero: any value meets the target,
+    and one value costs no motion.
+    """
+    fn = _rows_function(problem, j).map(int(n_samples))
+    n = problem.n_joints
+    lo, hi = problem.lower[:n], problem.upper[:n]
+    draw_lo, draw_hi = np.maximum(lo, -np.pi), np.minimum(hi, np.pi)
+    theta = rng.uniform(np.minimum(draw_lo, draw_hi), np.maximum(draw_lo, draw_hi), (n_samples, n))
+    lam = np.full(n_samples, 1e-2)
+
+    def rows(t: Array) -> tuple[Array, Array]:
+        out = fn(t.T)
+        c = np.asarray(out[0], dtype=float).T  # (k, m)
+        jac = np.asarray(out[1], dtype=float).reshape(c.shape[1], n_samples, n)
+        return c, jac.transpose(1, 0, 2)
+
+    c, jac = rows(theta)
+    cost = np.einsum("km,km->k", c, c)
+    eye = np.eye(c.shape[1])
+    for _ in range(iterations):
+        if np.all(cost <= 1e-24):
+            break
+        gram = jac @ jac.transpose(0, 2, 1) + lam[:, None, None] ** 2 * eye
+        step = np.einsum("kmn,km->kn", jac, np.linalg.solve(gram, c[..., None])[..., 0])
+        trial = np.clip(theta - step, lo, hi)
+        c_t, jac_t = rows(trial)
+        cost_t = np.einsum("km,km->k", c_t, c_t)
+        better = cost_t < cost
+        theta[better], c[better], jac[better], cost[better] = (
+            trial[better], c_t[better], jac_t[better], cost_t[better]
+        )  # fmt: skip
+        lam = np.where(better, np.maximum(lam / 10.0, 1e-9), np.minimum(lam * 10.0, 1e6))
+    data = problem.create_data()
+    target = problem.targets[j]
+    kept = [k for k in range(n_samples) if target.met(problem.placement(theta[k], data))]
+    out = theta[kept]
+    if out.size:
+        moves = np.max(np.abs(jac[kept]), axis=(0, 1))
+        free = moves < 1e-9
+        out[:, free] = np.clip(0.0, lo, hi)[free]
+    return out
+
+
+def _rows_function(problem: CyclicIKProblem, j: int) -> ca.Function:
+    """``theta -> (c_j, dc_j/dtheta)``: target ``j``'s equality rows and their Jacobian."""
+    theta = ca.SX.sym("theta", problem.n_joints)
+    eq = target_rows(problem, j, *frame_expression(problem, theta))[0]
+    return ca.Function("rows", [theta], [eq, ca.jacobian(eq, theta)])
+
+
+def periodic_joints(problem: CyclicIKProblem) -> npt.NDArray[np.bool_]:
+    """Joints whose angle may wrap: revolute with limits at least 4 pi apart (or none), (n,)."""
+    n = problem.n_joints
+    revolute = np.array(
+        [
+            not problem.model.joints[int(j)].shortname().startswith("JointModelP")
+            for j in problem.active
+        ]
+    )
+    span = problem.upper[:n] - problem.lower[:n]
+    return revolute & (~problem.use_limits | (span >= 4 * np.pi - 1e-9) | ~np.isfinite(span))
+
+
+def branch_chains(
+    problem: CyclicIKProblem,
+    samples: Sequence[Array],
+    n_chains: int,
+) -> tuple[Array, Array]:
+    """Return the cheapest cyclic chains of per-target solutions: (k, n s) starts and their E.
+
+    Dynamic programming over the cycle (min-plus products of the per-leg cost matrices):
+    for every solution of target 0, the chain of one solution per target that closes the
+    cycle with the least ``E`` (angles of :func:`periodic_joints` compared modulo 2 pi,
+    then unwound along the chain with the fewest turns, :func:`_best_windings`). Distinct
+    chains, cheapest first, at most ``n_chains``; ``E`` in [rad^2] of each unwound chain.
+    """
+    periodic = periodic_joints(problem)
+    w = problem.weights
+    cands = [np.where(periodic, (np.asarray(c) + np.pi) % (2 * np.pi) - np.pi, c) for c in samples]
+    s = len(cands)
+
+    def legs(a: Array, b: Array) -> Array:
+        d = b[None, :, :] - a[:, None, :]
+        d = np.where(periodic, (d + np.pi) % (2 * np.pi) - np.pi, d)
+        return 0.5 * np.einsum("abn,n->ab", d * d, w)
+
+    value = legs(cands[0], cands[1])  # (K0, K1): cheapest from a at 0 to b at 1
+    back = []
+    for j in range(1, s - 1):
+        total = value[:, :, None] + legs(cands[j], cands[j + 1])[None, :, :]
+        arg = np.argmin(total, axis=1)
+        back.append(arg)
+        value = np.take_along_axis(total, arg[:, None, :], axis=1)[:, 0, :]
+    closing = value + legs(cands[s - 1], cands[0]).T  # (K0, K_{s-1})
+    last = np.argmin(closing, axis=1)
+    cost = closing[np.arange(len(last)), last]
+    seen: set[tuple[tuple[int, int], ...]] = set()
+    chains, energies = [], []
+    for a in np.argsort(cost, kind="stable"):
+        idx = [int(a)] * s
+        idx[s - 1] = int(last[a])
+        for j in range(s - 2, 0, -1):
+            idx[j] = int(back[j - 1][a, idx[j + 1]])
+        key = tuple(sorted((j, i) for j, i in enumerate(idx)))
+        if key in seen:
+            continue
+        seen.add(key)
+        x = _unwound(problem, np.array([cands[j][i] for j, i in enumerate(idx)]))
+        chains.append(x)
+        energies.append(problem.objective(x))
+        if len(chains) >= n_chains:
+            break
+    return np.array(chains).reshape(-1, problem.n_variables), np.array(energies)
+
+
+BRANCH_KIND = "branches"
+"""Start kind of automatic starts: witnesses, then coherent IK branches (:class:`BranchStarts`)."""
+
+BRANCH_SAMPLES = 100
+"""Random seeds per target whose IK solutions the branch chains are made of."""
+
+PRUNE_RATIO = 2.0
+"""A chain whose own E exceeds this multiple of the cheapest chain's is not solved.
+
+Local solves from a feasible chain ended at 0.8-0.95 of its E (ur5, 4 and 6 targets):
+a chain more than twice as long as the cheapest is not expected to end below it.
+"""
+
+
+def start_budget(problem: CyclicIKProblem) -> int:
+    """Return the most starts an automatic multistart solves: ``2 s n`` within [16, 64]."""
+    return int(min(64, max(16, 2 * problem.n_targets * problem.n_joints)))
+
+
+class BranchStarts(IndexedStarts):
+    """Starts that find the best paths without being asked: witnesses and coherent branches.
+
+    Start 0 is the usual one (planar: the zero vector; else the greedy DLS path);
+    start 1 the reachability witnesses of the targets as one path (when every
+    target has one; unwound along the cycle); then the cheapest cyclic chains of
+    per-target IK solutions (:func:`target_samples`, :func:`branch_chains`), at
+    most ``n_starts``, without those whose own ``E`` exceeds :data:`PRUNE_RATIO`
+    times the cheapest chain's. Beyond them (an explicit larger ``n_starts``)
+    the robot kind's random starts (planar ``feasible``, else ``mixed``) of the
+    same seed. Deterministic in the problem and the seed; picklable.
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem.
+    n_starts : int or None
+        Number of starts; ``None``: start 0, the witnesses and the chains kept,
+        at most :func:`start_budget`.
+    seed : int
+        Seed of the IK samples and of the random starts beyond the chains.
+    verdicts : sequence
+        Reachability verdicts (planar or 3-D); their witnesses make start 1.
+    planar : bool
+        Whether start 0 and the random starts are the planar methods'.
+    """
+
+    def __init__(
+        self,
+        problem: CyclicIKProblem,
+        n_starts: int | None,
+        seed: int,
+        *,
+        verdicts: Sequence[object] = (),
+        planar: bool = False,
+    ) -> None:
+        budget = start_budget(problem) if n_starts is None else int(n_starts)
+        witnesses = [getattr(v, "witness", None) for v in verdicts]
+        fixed: list[Array] = [
+            problem.default_start() if planar else greedy_path(problem)[0].ravel()
+        ]
+        if len(witnesses) == problem.n_targets and all(w is not None for w in witnesses):
+            fixed.append(_unwound(problem, np.array(witnesses, dtype=float)))
+        rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(2**31,)))
+        samples = []
+        for j in range(problem.n_targets):
+            found = target_samples(problem, j, BRANCH_SAMPLES, rng)
+            w = witnesses[j] if j < len(witnesses) else None
+            if w is not None:
+                found = np.vstack([found, np.asarray(w, dtype=float)[None, :]])
+            samples.append(found)
+        chains = np.empty((0, problem.n_variables))
+        self.chain_energies = np.empty(0)
+        if all(len(c) for c in samples):
+            chains, energies = branch_chains(problem, samples, max(budget - len(fixed), 0))
+            keep = energies <= PRUNE_RATIO * float(np.min(energies, initial=np.inf))
+            chains, self.chain_energies = chains[keep], energies[keep]
+        self._fixed = np.array([*fixed, *chains]).reshape(-1, problem.n_variables)
+        self._fixed = np.clip(self._fixed, problem.lower, problem.upper)
+        self._n = (
+            min(len(self._fixed), budget)
+            if n_starts is None
+            else check_start_request(n_starts, BRANCH_KIND, (BRANCH_KIND,))
+        )
+        self._rest: IndexedStarts = (
+            PlanarStarts(problem, self._n, seed, kind="feasible", verdicts=verdicts)  # type: ignore[arg-type]
+            if planar
+            else Starts3D(problem, self._n, seed, kind="mixed")
+        )
+
+    def draw(self, j: int) -> Array:
+        """Return start ``j``: a fixed start (0, witnesses, chains), else a random one [rad]."""
+        return self._fixed[j].copy() if j < len(self._fixed) else self._rest[j]
+
+
+def _unwound(problem: CyclicIKProblem, q: Array) -> Array:
+    """Return the (s, n) path ``q`` with periodic joints unwound along the cycle, as (n s,)."""
+    q = q.copy()
+    for i in np.flatnonzero(periodic_joints(problem)):
+        q[:, i] = _best_windings(q[:, i])
+        lo, hi = problem.lower[i], problem.upper[i]
+        mid = 0.5 * (lo + hi) if problem.use_limits and np.isfinite(lo + hi) else 0.0
+        col_mid = 0.5 * (q[:, i].min() + q[:, i].max())
+        q[:, i] += 2 * np.pi * np.round((mid - col_mid) / (2 * np.pi))
+    return np.clip(q.ravel(), problem.lower, problem.upper)

@@ -423,15 +423,20 @@ def store_params(
     return params
 
 
-def result_codec(problem: CyclicIKProblem, *, planar: bool) -> Codec[IKPathResult]:
+def result_codec(
+    problem: CyclicIKProblem, *, planar: bool, starts: Sequence[Array] | Array | None = None
+) -> Codec[IKPathResult]:
     """Return how an IK multistart's payloads are stored: :mod:`youbot_opt.ikpath.io` JSON.
 
     Payloads are ``encode_result(result)``, written by the workers without a
     per-item fsync and made durable by group; each is reloaded with the same
     re-check as :func:`~youbot_opt.ikpath.io.load_result`. A planar store of
-    0.1.0 is refused (``scripts/migrate_0_1_0.py`` carries it forward).
+    0.1.0 is refused (``scripts/migrate_0_1_0.py`` carries it forward). With
+    ``starts`` (the sweep's start configurations, by index) a payload read back
+    is re-checked against the sweep's own problem (:func:`check_item`).
     """
     solvers = PLANAR_STARTS if planar else STARTS_3D
+    check = None if starts is None else functools.partial(check_item, problem, planar, starts)
     return Codec(
         save=encoded_saver(solvers.encode),
         # the sweep's own problem is the caller: its targets' tolerances re-check a payload
@@ -446,7 +451,41 @@ def result_codec(problem: CyclicIKProblem, *, planar: bool) -> Codec[IKPathResul
         suffix=solvers.suffix,
         encode=solvers.encode,
         refuse_old=_refuse_old if planar else None,
+        check=check,
     )
+
+
+def check_item(
+    problem: CyclicIKProblem,
+    planar: bool,
+    starts: Sequence[Array] | Array,
+    key: str,
+    result: IKPathResult,
+) -> str | None:
+    """Why ``result``, read back as item ``key``, is not that start of the sweep (``None``: it is).
+
+    Its problem (chain or robot, targets, tolerances, limits) must be the
+    sweep's and its start of the start's size; the loader has re-checked its
+    configurations against those targets.
+    """
+    n = len(starts)
+    index = key.rsplit("_", 1)[-1]
+    if not (key.startswith("start_") and index.isdigit() and int(index) < n):
+        return f"{key!r} is no start of this sweep"
+    if start_key(int(index), n) != key:
+        return f"{key!r} is no start of this sweep"
+    spec = problem_spec if planar else problem_spec_3d
+    mine, theirs = spec(problem), spec(result.problem)
+    if mine != theirs:
+        fields = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
+        return f"its problem differs in {', '.join(fields) or 'its values'}"
+    # Its start is not compared with start ``key``'s: stores of 74bfa23 (migrated) drew
+    # their starts otherwise and resume; a start's item under another start's key is
+    # still a checked minimum of this very problem.
+    got = np.asarray(result.start, dtype=float)
+    if got.size != np.asarray(starts[int(index)]).size:
+        return f"its start has {got.size} values, start {int(index)}'s has another size"
+    return None
 
 
 class SweepOutcome(NamedTuple, Generic[ResultT]):

@@ -309,9 +309,9 @@ def _target_from_record(rec: object, where: str, defaults: dict[str, float]) -> 
     if json_form:
         if "position" not in given:
             raise ParameterError(f"{where}: a target needs a position [m]", name="targets")
-        position = rec["position"]
-        quat = rec.get("quaternion_xyzw")
-        approach = rec.get("approach")
+        position = _numbers(rec["position"], where, "position", 3)
+        quat = _numbers(rec.get("quaternion_xyzw"), where, "quaternion_xyzw", 4)
+        approach = _numbers(rec.get("approach"), where, "approach", 3)
     else:
         missing = [k for k in ("x", "y", "z") if k not in given]
         if missing:
@@ -341,8 +341,21 @@ def _target_from_record(rec: object, where: str, defaults: dict[str, float]) -> 
             kw["approach_axis"] = rec["approach_axis"]
     try:
         return Target(position=position, **kw)  # type: ignore[arg-type]
-    except ParameterError as exc:
+    except (ParameterError, TypeError, ValueError) as exc:
         raise ParameterError(f"{where}: {exc}", name="targets") from exc
+
+
+def _numbers(value: object, where: str, key: str, n: int) -> list[float] | None:
+    """Return a JSON list of ``n`` numbers as floats (``None`` stays), else refuse it by name."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != n:
+        raise ParameterError(
+            f"{where}: {key} must be a list of {n} numbers, got {shown(value)}",
+            name="targets",
+            value=key,
+        )
+    return [_number(x, where, f"{key}[{i}]") for i, x in enumerate(value)]
 
 
 def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:

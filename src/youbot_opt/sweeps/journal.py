@@ -209,11 +209,16 @@ class JournalWriter:
         int
             Byte offset of the first of ``lines`` in :attr:`path`.
         """
-        with self.path.open("ab") as fh:
-            start = fh.seek(0, os.SEEK_END)
-            fh.write(b"".join(lines))
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            with self.path.open("ab") as fh:
+                start = fh.seek(0, os.SEEK_END)
+                fh.write(b"".join(lines))
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:  # a full disk: the error names the journal (a torn line is refused)
+            if exc.filename is None and exc.errno is not None:
+                exc.filename = str(self.path)
+            raise
         if not self._created:  # the new file's entry in its folder, durable once
             fsync_dir(self.path.parent)
             self._created = True

@@ -165,6 +165,13 @@ class Codec(Generic[R]):
         Raise :class:`~youbot_opt.exceptions.ResultFileError` when the folder
         holds a store of this optimiser in an older form (naming the script that
         carries it forward); called before the store is opened.
+    check : callable ``(key, result) -> str or None``, optional
+        Why a loaded payload is not item ``key`` of this sweep (``None``: it
+        is): the payload's own problem parameters, start and figures re-checked
+        against the sweep's problem. The journal's checksums only show that a
+        line and its payload were not torn; anyone can recompute them, so an
+        item copied from another sweep and re-bound passes them. A payload this
+        refuses is warned about and recomputed, never loaded.
     """
 
     save: Callable[[R, Path], object]
@@ -172,6 +179,7 @@ class Codec(Generic[R]):
     suffix: str
     encode: Callable[[R], bytes] | None = None
     refuse_old: Callable[[Path], None] | None = None
+    check: Callable[[str, R], str | None] | None = None
 
 
 def open_store(
@@ -222,6 +230,7 @@ def open_store(
         suffix=codec.suffix,
         clean=clean,
         encode=codec.encode,
+        check=codec.check,
     )
 
 
@@ -251,6 +260,9 @@ class SweepStore:
     encode : callable ``(payload) -> bytes``, optional
         If given, payloads are written from these bytes without a per-item
         ``fsync`` (made durable by group, see :meth:`flush`) instead of by ``save``.
+    check : callable ``(key, payload) -> str or None``, optional
+        Re-checks a loaded payload against the sweep's own problem (see
+        :class:`Codec`); a payload it refuses is recomputed.
 
     Attributes
     ----------
@@ -288,6 +300,7 @@ class SweepStore:
         suffix: str = ".npz",
         clean: bool = True,
         encode: Callable[[Any], bytes] | None = None,
+        check: Callable[[str, Any], str | None] | None = None,
     ) -> None:
         self.directory = Path(directory)
         self.kind = str(kind)
@@ -295,6 +308,8 @@ class SweepStore:
         self._save = save
         self._load = load
         self._encode = encode
+        self._check = check
+        self._checked: tuple[str, Any] | None = None  # the payload verify() loaded, for load()
         self.suffix = suffix
         self.items_dir = self.directory / ITEMS
         self.items_dir.mkdir(parents=True, exist_ok=True)
@@ -544,6 +559,16 @@ class SweepStore:
             return f"its payload {path.name} is missing"
         if record.checksum != sha256_file(path):
             return f"its payload {path.name} does not match its checksum (edited or torn)"
+        if self._check is None:
+            return None
+        try:  # what the payload claims, against this sweep's problem (checksums prove nothing)
+            payload = self._load(path)
+        except ResultFileError as exc:
+            return f"its payload {path.name} cannot be read ({exc})"
+        why = self._check(key, payload)
+        if why is not None:
+            return f"its payload {path.name} is not this sweep's item: {why}"
+        self._checked = (key, payload)
         return None
 
     def verify(self, key: str) -> bool:
@@ -903,8 +928,11 @@ class SweepStore:
         if not self.verify(key):
             raise ResultFileError(
                 f"item {key!r} of {self.directory} was refused (its payload {path} does not "
-                "match its checksum); rerun the sweep to recompute it"
+                "match its checksum or its sweep's problem); rerun the sweep to recompute it"
             )
+        checked, self._checked = self._checked, None
+        if checked is not None and checked[0] == key:
+            return checked[1]
         return self._load(path)
 
 

@@ -39,7 +39,7 @@ from youbot_opt.trajopt.sweep import (
     default_dt0,
     solve_starts,
 )
-from youbot_opt.trajopt.sweep_store import result_codec, sweep_params
+from youbot_opt.trajopt.sweep_store import jobs_making, result_codec, sweep_params
 
 __all__ = ["BoundScalingRow", "BoundScalingResult", "bound_scaling_study", "DEFAULT_SCALES"]
 
@@ -226,6 +226,7 @@ def bound_scaling_study(
         )
         for i, s in enumerate(values)
     ]
+    chain = StartJobChain(jobs_by_scale)  # made when asked for: keep_results=False holds none
     store = None
     if sweep.directory is not None:
         params = {
@@ -238,11 +239,15 @@ def bound_scaling_study(
             "dt0": dt0,
         }
         store = open_store(
-            sweep.directory, "bounds", params, result_codec(solver), clean=sweep.shard is None
+            sweep.directory,
+            "bounds",
+            params,
+            result_codec(solver, jobs_making(chain)),
+            clean=sweep.shard is None,
         )
     solved = solve_starts(
         solver,
-        StartJobChain(jobs_by_scale),  # made when asked for: keep_results=False holds none
+        chain,
         store=store,
         sweep=sweep,
         keep=optima_rule(group=lambda start: start.key.split("_", 1)[0]),  # per scale

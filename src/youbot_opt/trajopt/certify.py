@@ -42,6 +42,7 @@ from youbot_opt.trajopt.simulate import (
     sample_times,
     simulate,
 )
+from youbot_opt.trajopt.tool_certificate import ToolCertificate, certify_plan_tool
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
@@ -189,6 +190,9 @@ class Certificate:
     joint_units : tuple of JointUnits
         Units of each joint coordinate (:meth:`RobotModel.joint_units`), for
         the report; empty: every joint revolute.
+    tool : tuple of ToolCertificate
+        The problem's tool constraints certified between samples of the plan
+        (:func:`youbot_opt.trajopt.tool.certify_plan_tool`); empty without any.
     """
 
     robot: str
@@ -210,6 +214,7 @@ class Certificate:
     tolerances: Tolerances = field(default_factory=Tolerances)
     incomplete: str = ""
     joint_units: tuple[JointUnits, ...] = ()
+    tool: tuple[ToolCertificate, ...] = ()
 
     # ------------------------------------------------------------ aggregates
     @property
@@ -289,6 +294,11 @@ class Certificate:
             note = f"{side} {abs(c.excess):.2e} {unit} {'over' if c.excess > 0.0 else 'to'} the "
             note += f"bound at t = {c.time:.4g} s, joint {c.joint}"
             rows.append((label, c.relative, nan, limit, note))
+        for t in self.tool:
+            kind = t.constraint
+            note = "certified between samples" if t.certified else t.describe()
+            label = f"tool: {kind.label} [{kind.unit}]"
+            rows.append((label, t.value, nan, kind.limit + t.tolerance, note))
         return rows
 
     def failures(self, tolerances: Tolerances | None = None) -> list[str]:
@@ -360,6 +370,12 @@ class Certificate:
             key = f"bound_{c.quantity}_{c.where}"
             out.update({f"{key}_excess": num(c.excess), f"{key}_relative": num(c.relative)})
             out.update({f"{key}_time_s": num(c.time), f"{key}_joint": c.joint})
+        if self.tool:
+            out["tool"] = [
+                {"label": t.constraint.label, "certified": t.certified, "value": num(t.value),
+                 "limit": t.constraint.limit, "unit": t.constraint.unit}
+                for t in self.tool
+            ]  # fmt: skip
         return out
 
     def __str__(self) -> str:
@@ -607,6 +623,9 @@ def certify(
         ol_final, ol_time = math.inf, open_loop.stop_time - float(trajectory.t[0])
 
     checks = check_bounds(trajectory, bounds, samples_per_interval=samples_per_interval)
+    tool: tuple[ToolCertificate, ...] = ()
+    if isinstance(plan, TrajOptResult) and plan.problem.tool:
+        tool = certify_plan_tool(trajectory, plan.problem.robot, plan.problem.tool)
     return Certificate(
         robot=model.name,
         n_knots=trajectory.n_knots,
@@ -627,6 +646,7 @@ def certify(
         tolerances=Tolerances() if tolerances is None else tolerances,
         incomplete=incomplete,
         joint_units=model.joint_units(),
+        tool=tool,
     )
 
 

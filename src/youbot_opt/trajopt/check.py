@@ -245,6 +245,20 @@ def _knot_clearance(problem: TrajOptProblem, q: Array, tol: float) -> tuple[floa
     )
 
 
+def _knot_tool(problem: TrajOptProblem, q: Array, v: Array, tol: float) -> list[str]:
+    """Each tool constraint the knots break (Pinocchio's measures; ``tol``: the rows' slack)."""
+    if not problem.tool:
+        return []
+    from youbot_opt.trajopt.tool import knot_tool
+
+    found = knot_tool(problem.robot, problem.tool, q, v)
+    return [
+        f"{c.label} {value:.4g} {c.unit} > limit {c.limit:g} {c.unit} at knot {k}"
+        for c, (value, k) in zip(problem.tool, found, strict=True)
+        if value > c.limit + c.slack(tol)
+    ]
+
+
 def check_result(result: CheckedSolution, *, feasibility_tol: float | None = None) -> ResultCheck:
     """Re-check a result independently of IPOPT's flag and of the NLP.
 
@@ -353,6 +367,7 @@ def check_result(result: CheckedSolution, *, feasibility_tol: float | None = Non
     clearance, short = _knot_clearance(problem, v["q"], tol)
     if short:
         over.append(short)
+    over += _knot_tool(problem, v["q"], v["v"], tol)
     if result.trajectory is None:
         over.append("no trajectory")
     elif not np.array_equal(result.trajectory.q, v["q"]):

@@ -54,6 +54,7 @@ from youbot_opt.trajopt.result import (
     SolveStatus,
     TrajOptResult,
 )
+from youbot_opt.trajopt.tool import tool_from_document
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription import get_transcription
 
@@ -304,7 +305,7 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, Array]]:
         meta, schema=SCHEMA, supported=SCHEMA_VERSION, oldest=SCHEMA_VERSION, source=str(path)
     )
     checksums = meta.get("checksums", {})
-    if set(checksums) != set(arrays):
+    if not isinstance(checksums, dict) or set(checksums) != set(arrays):
         raise ResultFileError(f"{path}: arrays do not match the metadata's list (corrupted file)")
     for key, arr in arrays.items():
         if array_digest(arr) != checksums[key]:
@@ -503,6 +504,7 @@ def _load(
             dt_max=np.inf if desc["dt_max"] is None else desc["dt_max"],
             damping=bool(desc["damping"]),
             clearance=_clearance(desc.get("clearance"), str(robot.name), path.absolute().parent),
+            tool=tuple(tool_from_document(d) for d in desc.get("tool", ())),
         )
         opts = dict(meta["options"])
         scalars = meta["scalars"]
@@ -550,11 +552,14 @@ def _load(
         record = _refinement(meta.get("refinement"), arrays)
     except ResultFileError:
         raise
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc
     # A file is data from outside: the independent check, at the caller's tolerance and
     # the model's bounds, sets the status it deserves (load_refined certifies again).
-    result = checked(result)
+    try:
+        result = checked(result)
+    except (TypeError, ValueError, KeyError) as exc:  # a figure of the wrong type
+        raise ResultFileError(f"{path}: malformed result metadata ({exc!r})") from exc
     notes = [rebuilt] if rebuilt else []
     if saved_tol != tol:
         notes.append(f"checked at feasibility_tol = {tol:.3g}, not the file's {saved_tol:.3g}")

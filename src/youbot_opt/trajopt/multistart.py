@@ -40,7 +40,7 @@ from youbot_opt.trajopt.sweep import (
     solve_starts,
     start_seeds,
 )
-from youbot_opt.trajopt.sweep_store import result_codec, sweep_params
+from youbot_opt.trajopt.sweep_store import jobs_making, result_codec, sweep_params
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
@@ -525,7 +525,11 @@ def run_multistart(
             "dt0": dt0,
         }
         store = open_store(
-            sweep.directory, "multistart", params, result_codec(solver), clean=sweep.shard is None
+            sweep.directory,
+            "multistart",
+            params,
+            result_codec(solver, jobs_making(jobs)),
+            clean=sweep.shard is None,
         )
     solved = solve_starts(solver, jobs, store=store, sweep=sweep, keep=optima_rule())
     if isinstance(solved, ShardReport):

@@ -384,7 +384,10 @@ def pareto_sweep(
             "warm_start": warm_start,
             "cold_fallback": cold_fallback,
         }
-        store = open_store(out, "pareto", params, result_codec(solver), clean=sweep.shard is None)
+        making = partial(_point_making, values, bound_scale)
+        store = open_store(
+            out, "pareto", params, result_codec(solver, making), clean=sweep.shard is None
+        )
     points: list[ParetoPoint] = []
     first: MultistartResult | None = None
     previous: TrajOptResult | None = None
@@ -396,6 +399,8 @@ def pareto_sweep(
         for k, beta in enumerate(values):
             key = f"point_{k:03d}"
             again, attempts = (True, 0) if store is None else store.needs_work(key, max_attempts)
+            if not again and store is not None and not _loadable(store, key):
+                again, attempts = True, 0  # refused (warned): another sweep's, or torn
             if k == 0 and first_starts > 0:
                 # Rerun on resume too: its own store in DIR/first_point loads every start.
                 got = run_multistart(
@@ -467,6 +472,21 @@ def pareto_sweep(
     )
 
 
+def _point_making(
+    betas: Sequence[float], bound_scale: float, key: str
+) -> dict[str, float | int | None]:
+    """Return what makes the point of ``key`` (``point_<k>``): its beta and bound scale."""
+    rest = key.removeprefix("point_")
+    if (
+        key == rest
+        or not rest.isdigit()
+        or int(rest) >= len(betas)
+        or key != f"point_{int(rest):03d}"
+    ):
+        raise KeyError(key)
+    return {"beta": betas[int(rest)], "bound_scale": bound_scale}
+
+
 def _write_point(store: SweepStore, key: str, point: ParetoPoint, attempts: int) -> None:
     if point.result is None:
         store.write_failed(key, point.reason or "error", attempts=attempts)
@@ -480,6 +500,12 @@ def _save_attempt(store: SweepStore, o: TaskOutcome) -> None:
         _write_point(store, o.key, o.value, o.attempts)
     else:
         store.write_failed(o.key, str(o.error), attempts=o.attempts)
+
+
+def _loadable(store: SweepStore, key: str) -> bool:
+    """Whether a finished point may be loaded: failed, or done and passing the store's checks."""
+    record = store.record(key)
+    return record is not None and (record.state != "done" or store.verify(key))
 
 
 def _load_point(store: SweepStore, key: str, beta: float) -> ParetoPoint:

@@ -26,6 +26,7 @@ from youbot_opt.collision.scene import Scene
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import BOUND_FAMILIES, BoundFamily, JointBounds, RobotModel
+from youbot_opt.trajopt.tool import ToolConstraint
 
 __all__ = [
     "BoundaryState",
@@ -150,6 +151,11 @@ class TrajOptProblem:
         Keep the motion clear of a scene's obstacles and of the robot itself,
         at the knots and each transcription's interior points; None (default):
         no collision constraints, the NLP of a scene-less problem.
+    tool : tuple of ToolConstraint
+        Constraints on a tool frame (:mod:`youbot_opt.trajopt.tool`: an axis
+        kept near a direction, the tool point near a segment, a tool speed
+        limit), held at the knots and interior points and certified between
+        them; empty (default): none.
     """
 
     robot: RobotModel
@@ -162,6 +168,7 @@ class TrajOptProblem:
     dt_max: float = math.inf  # [s]
     damping: bool = True
     clearance: Clearance | None = None
+    tool: tuple[ToolConstraint, ...] = ()
 
     def __post_init__(self) -> None:
         # Continuous joints are planned in angle coordinates (docs/design.md).
@@ -218,6 +225,15 @@ class TrajOptProblem:
                 f"clearance must be a Clearance or None, got {type(self.clearance).__name__}",
                 name="clearance",
             )
+        tool = tuple(self.tool)
+        for c in tool:
+            if not isinstance(c, ToolConstraint):
+                raise ParameterError(
+                    f"tool entries must be ToolConstraints, got {type(c).__name__}", name="tool"
+                )
+            if c.frame is not None:
+                self.robot.frame_id(c.frame)  # raises FrameNotFound listing the frames
+        object.__setattr__(self, "tool", tool)
         self.check_boundary(1.0)
 
     # ------------------------------------------------------------------ sizes
@@ -295,4 +311,5 @@ class TrajOptProblem:
             "dt_max": None if math.isinf(self.dt_max) else self.dt_max,
             "damping": self.damping,
             "model_damping": np.asarray(self.robot.damping, dtype=float).tolist(),
+            **({"tool": [c.document() for c in self.tool]} if self.tool else {}),
         }

@@ -37,6 +37,7 @@ from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.quadrature import grid_weights
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import BoundaryLike, GuessLike, TrajOptSolver
+from youbot_opt.trajopt.tool_certificate import ToolCertificate, certify_plan_tool
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
@@ -550,12 +551,17 @@ def _round(
     deadline: float | None,
     checker: ExactChecker | None = None,
 ) -> tuple[
-    RefinementRound, CollocationError | None, Certificate | None, ClearanceCertificate | None
+    RefinementRound,
+    CollocationError | None,
+    Certificate | None,
+    ClearanceCertificate | None,
+    tuple[ToolCertificate, ...],
 ]:
     tic = time.perf_counter()
     error: CollocationError | None = None
     cert: Certificate | None = None
     clear: ClearanceCertificate | None = None
+    tool: tuple[ToolCertificate, ...] = ()
     if result.trajectory is not None:
         error = collocation_error(result)
         wanted = budget.certify_every_round or error.max <= budget.tolerance
@@ -569,14 +575,22 @@ def _round(
             clear = certify_plan_clearance(
                 result.trajectory, result.problem.robot, checker, margin=spec.margin
             )
+        if cert is not None and cert.tool:
+            tool = cert.tool
+        elif result.success and result.problem.tool:
+            tool = certify_plan_tool(result.trajectory, result.problem.robot, result.problem.tool)
     failures = () if cert is None else tuple(cert.failures())
     if clear is not None and not clear.certified:
         t, a, b, d = min(clear.failures, key=lambda f: f[3])
         failures += (f"clearance {d:.3g} m < margin {clear.margin:g} m at t = {t:.4g} s "
                      f"({a!r} / {b!r}, coal)",)  # fmt: skip
+    if cert is None or not cert.tool:  # the certificate's failures list its own
+        failures += tuple(c.describe() for c in tool if not c.certified)
     passed = None if cert is None else cert.ok
     if clear is not None:
         passed = clear.certified and (passed is None or passed)
+    if tool:
+        passed = all(c.certified for c in tool) and (passed is None or passed)
     nan = math.nan
     record = RefinementRound(
         index=index,
@@ -597,22 +611,27 @@ def _round(
         check_time=time.perf_counter() - tic,
         objective_history=np.asarray(result.objective_history, dtype=float),
     )
-    return record, error, cert, clear
+    return record, error, cert, clear, tool
 
 
 def _clearance_errors(
-    error: CollocationError, clear: ClearanceCertificate | None, tolerance: float
+    error: CollocationError,
+    clear: ClearanceCertificate | None,
+    tolerance: float,
+    tool: tuple[ToolCertificate, ...] = (),
 ) -> Array:
-    """Interval errors raised above ``tolerance`` where the clearance certificate fails.
+    """Interval errors raised above ``tolerance`` where the clearance or a tool certificate fails.
 
     The intervals holding a failing sample are split like those whose
     collocation error is too large (the new knots and midpoints are constrained).
     """
     errors = np.array(error.relative, dtype=float)
-    if clear is None or clear.certified:
+    times = [] if clear is None else [f[0] for f in clear.failures]
+    times += [f[0] for c in tool for f in c.failures]
+    if not times:
         return errors
     t = np.asarray(error.t, dtype=float)
-    for time_, *_ in clear.failures:
+    for time_ in times:
         k = int(np.clip(np.searchsorted(t, time_, side="right") - 1, 0, errors.size - 1))
         errors[k] = max(errors[k], 4.0 * tolerance)
     return errors
@@ -699,8 +718,9 @@ def refine(
     spec = solver.problem.clearance
     checker = None if spec is None else clearance_checker(solver.problem.robot, spec)
     clear: ClearanceCertificate | None = None
+    tool: tuple[ToolCertificate, ...] = ()
     while True:
-        record, error, cert, clear = _round(
+        record, error, cert, clear, tool = _round(
             len(rounds), result, budget, solve_time, deadline, checker
         )
         if (
@@ -727,11 +747,12 @@ def refine(
             error.max <= budget.tolerance
             and (not budget.certify or (cert is not None and cert.ok))
             and (clear is None or clear.certified)
+            and all(c.certified for c in tool)
         ):
             reason = "certified"
         if reason or error is None:
             break
-        clipped = clear is not None and not clear.certified
+        clipped = (clear is not None and not clear.certified) or not all(c.certified for c in tool)
         if error.max <= tolerance and not clipped:  # certificate failed: split tighter
             tolerance = 0.25 * error.max
         why = (
@@ -741,7 +762,7 @@ def refine(
             if cert is not None or clipped
             else "no time left for the certificate"
         )
-        errors = _clearance_errors(error, clear, budget.safety * tolerance)
+        errors = _clearance_errors(error, clear, budget.safety * tolerance, tool)
         cap = budget.max_pieces
         while True:  # a grid beyond max_knots: fewer pieces per interval first, then stop
             fractions, parent = split_grid(

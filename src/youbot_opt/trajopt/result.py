@@ -483,7 +483,26 @@ class TrajOptResult:
             "uniform_grid": self.grid is None,
             "certified": False,  # a bare result is never certified: Refined.summary() says
             **self._clearance_summary(),
+            **self._tool_summary(),
         }
+
+    def _tool_summary(self) -> dict[str, Any]:
+        """``{"tool": [...]}``: each tool constraint, its limit and its largest knot value."""
+        q, v = self.variables.get("q"), self.variables.get("v")
+        tool = self.problem.tool
+        if not tool or q is None or v is None or not np.all(np.isfinite(q)):
+            return {}
+        from youbot_opt.trajopt.tool import knot_tool
+
+        found = knot_tool(self.problem.robot, tool, q, v)
+        tip = self.problem.robot.tip_frame
+        return {
+            "tool": [
+                {**c.document(), "label": f"{c.label} ({c.frame or tip})", "unit": c.unit,
+                 "limit": c.limit, "largest_at_knots": value, "knot": k}
+                for c, (value, k) in zip(tool, found, strict=True)
+            ]
+        }  # fmt: skip
 
     def _clearance_summary(self) -> dict[str, Any]:
         """``{"clearance": ...}``: coal's closest pair at the knots and the margin, if any."""

@@ -350,6 +350,13 @@ class TrajOptSolver:
         start_state = _boundary("start", start, problem.start)
         goal_state = _boundary("goal", goal, problem.goal)
         problem.check_boundary(bound_scale, start_state, goal_state)
+        if problem.tool and (start is not None or goal is not None):
+            from youbot_opt.trajopt.tool import check_boundary_tool
+
+            states = [("start", start_state.q, start_state.velocity)]
+            check_boundary_tool(
+                problem.robot, problem.tool, [*states, ("goal", goal_state.q, goal_state.velocity)]
+            )
         guess_traj = resolve_guess(problem, guess, start=start_state, goal=goal_state)
         nlp = self.nlp
         dt_range = self._dt_range()
@@ -618,7 +625,7 @@ class TrajOptSolver:
 
 
 def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
-    """Return the problem's path constraints: its clearance, checked at start and goal first.
+    """Return the problem's path constraints: clearance and tool, start and goal checked first.
 
     Raises
     ------
@@ -626,8 +633,9 @@ def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
         The start or goal lacks the clearance margin (coal's exact distances),
         naming the state, the link and the obstacle.
     """
+    tool = _tool_constraint(problem)
     if problem.clearance is None:
-        return ()
+        return tool
     from youbot_opt.trajopt.clearance import (
         check_boundary_clearance,
         clearance_checker,
@@ -642,9 +650,27 @@ def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
     )
     constraint = clearance_constraint(problem)
     if constraint is None:
-        return ()
+        return tool
     require_model_clearance(problem, constraint)
-    return (constraint,)
+    return (constraint, *tool)
+
+
+def _tool_constraint(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
+    """Return the problem's tool path constraint, its start and goal checked first.
+
+    Raises
+    ------
+    ParameterError
+        The start or goal breaks a tool constraint (naming it and the value).
+    """
+    if not problem.tool:
+        return ()
+    from youbot_opt.trajopt.tool import check_boundary_tool, tool_constraint
+
+    states = [(w, s.q, s.velocity) for w, s in (("start", problem.start), ("goal", problem.goal))]
+    check_boundary_tool(problem.robot, problem.tool, states)
+    constraint = tool_constraint(problem.robot, problem.tool)
+    return () if constraint is None else (constraint,)
 
 
 def auto_transcription(problem: TrajOptProblem) -> str:

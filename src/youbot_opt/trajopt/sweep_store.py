@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import functools
 import json
+import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,15 +27,36 @@ from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
-__all__ = ["result_codec", "robot_identity", "sweep_params"]
+__all__ = [
+    "ItemMaking",
+    "check_item",
+    "jobs_making",
+    "result_codec",
+    "robot_identity",
+    "sweep_params",
+]
+
+ItemMaking = Callable[[str], Mapping[str, float | int | None]]
+"""``key -> {"beta": ..., "bound_scale": ..., "seed": ...}``: what makes item ``key`` of a
+sweep (``"seed"`` only where the item is a seeded start); ``KeyError``: no such item."""
+
+OBJECTIVE_RTOL = 1e-9
+"""Relative tolerance of a stored item's objective re-evaluated at its sweep's beta
+(summation order only: the loader has checked duration and work against the variables)."""
 
 
-def result_codec(solver: TrajOptSolver) -> Codec[TrajOptResult]:
+def result_codec(solver: TrajOptSolver, made_by: ItemMaking | None = None) -> Codec[TrajOptResult]:
     """Return how a trajectory sweep's payloads are stored: :mod:`youbot_opt.trajopt.io` files.
 
     Its robot loads the stored results. A store written by 0.1.0 (its problem
     holds a ``"beta"`` or the URDF's absolute ``"urdf_path"``) is refused:
     ``scripts/migrate_0_1_0.py`` carries it forward.
+
+    With ``made_by`` every payload read back is re-checked against the sweep's
+    own problem (:func:`check_item`): the solver's problem, method and robot,
+    the item's beta, bound scale and start seed, and its objective re-evaluated
+    at the sweep's beta; an item copied from another sweep is refused and
+    recomputed, whatever its checksums say.
     """
     from youbot_opt.trajopt.io import load_result, save_result
 
@@ -42,7 +65,62 @@ def result_codec(solver: TrajOptSolver) -> Codec[TrajOptResult]:
         load=functools.partial(load_result, robot=solver.problem.robot),
         suffix=".npz",
         refuse_old=_refuse_0_1_0,
+        check=None if made_by is None else functools.partial(check_item, solver, made_by),
     )
+
+
+def jobs_making(jobs: Any) -> ItemMaking:
+    """Return what makes each item of start jobs (``jobs.job(key)``): beta, bound scale, seed."""
+    return functools.partial(_job_making, jobs)
+
+
+def _job_making(jobs: Any, key: str) -> dict[str, float | int | None]:
+    job = jobs.job(key)
+    return {"beta": job.beta, "bound_scale": job.bound_scale, "seed": job.seed}
+
+
+def _problem(result_or_solver: TrajOptResult | TrajOptSolver) -> dict[str, Any]:
+    desc = result_or_solver.problem.describe()
+    desc.pop("urdf_path", None)
+    return json.loads(json.dumps(desc, allow_nan=True))
+
+
+def check_item(
+    solver: TrajOptSolver, made_by: ItemMaking, key: str, result: TrajOptResult
+) -> str | None:
+    """Why ``result``, read back as item ``key``, is not that item of the sweep (``None``: it is).
+
+    Compared with what makes the item (``made_by(key)``) and the sweep's
+    solver: the problem (boundary states, knots, bounds, clearance, robot
+    digest), the transcription, beta, the bound scale, the start's seed, and
+    the objective ``beta T + (1 - beta) W`` at the sweep's beta (relative
+    :data:`OBJECTIVE_RTOL`).
+    """
+    try:
+        made = made_by(key)
+    except KeyError:
+        return f"{key!r} is no item of this sweep"
+    if result.method != solver.method.name:
+        return f"transcription {result.method!r}, the sweep's is {solver.method.name!r}"
+    if result.problem.robot is not solver.problem.robot:
+        return "another robot"
+    mine, theirs = _problem(solver), _problem(result)
+    if mine != theirs:
+        fields = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
+        return f"its problem differs in {', '.join(fields)}"
+    for name in ("beta", "bound_scale", "seed"):
+        if name in made and getattr(result, name) != made[name]:
+            return f"{name} = {getattr(result, name)!r}, the item's is {made[name]!r}"
+    beta = float(made.get("beta", result.beta) or 0.0)
+    value = beta * result.duration + (1.0 - beta) * result.work
+    if not (math.isfinite(value) and math.isfinite(result.objective)):
+        return "a success with a non-finite objective" if result.success else None
+    if not abs(result.objective - value) <= OBJECTIVE_RTOL * max(1.0, abs(value)):
+        return (
+            f"objective {result.objective:.9g}, but at the sweep's beta = {beta:g} its "
+            f"trajectory gives {value:.9g}"
+        )
+    return None
 
 
 def robot_identity(robot: RobotModel) -> str | None:

@@ -564,12 +564,20 @@ def _sqp_step(
 
     Zero rows of ``J`` (padding, the z row of a planar chain) drop out; the Hessian
     is shifted to be positive definite on the null space of ``J`` (:func:`_inertia_shift`).
+    None also where the remaining rows of ``J`` are (nearly) dependent (rank below
+    their number at 1e-10 relative): the KKT matrix is then singular to working
+    precision and its solution's multipliers are noise of any size (they overflowed
+    ``J^T lam`` on ur5 with 12 targets, a target's joints held at limits).
     """
     rows = np.any(jac[:, free] != 0.0, axis=1)
     a = jac[np.ix_(rows, free)]
     h = hess[np.ix_(free, free)]
-    if not (np.all(np.isfinite(h)) and np.all(np.isfinite(grad_l))):
+    if not (np.all(np.isfinite(h)) and np.all(np.isfinite(grad_l)) and np.all(np.isfinite(a))):
         return None
+    if a.size:
+        sv = np.linalg.svd(a, compute_uv=False)
+        if sv.size < a.shape[0] or sv[-1] <= 1e-10 * max(1.0, float(sv[0])):
+            return None
     try:
         h = h + _inertia_shift(a, h) * np.eye(h.shape[0])
         kkt = np.block([[h, a.T], [a, np.zeros((a.shape[0], a.shape[0]))]])

@@ -43,6 +43,7 @@ __all__ = [
     "IpoptOptions",
     "solve_ipopt",
     "solve_ipopt_3d",
+    "target_rows",
     "IpoptIKSolver3D",
 ]
 
@@ -379,6 +380,47 @@ def frame_expression(problem: CyclicIKProblem, theta: ca.SX) -> tuple[ca.SX, ca.
     return pos + rot @ ca.DM(frame.translation), rot @ ca.DM(frame.rotation)
 
 
+def target_rows(
+    problem: CyclicIKProblem, j: int, pos: ca.SX, rot: ca.SX
+) -> tuple[ca.SX, list[ca.SX], list[int]]:
+    """Equality rows, inequalities (``>= 0``) and row indices of target ``j`` at (pos, rot).
+
+    ``pos`` and ``rot`` are the frame's symbolic position and rotation
+    (:func:`frame_expression`); the rows are the NLP's (position, ``vex`` of the
+    orientation error or the approach rows, see :class:`IpoptIKSolver3D`), the
+    indices say which of the target's ``block_rows`` they are.
+    """
+    target = problem.targets[j]
+    eqs: list[ca.SX] = []
+    ineqs: list[ca.SX] = []
+    if problem.plane is None:
+        eqs.append(pos - ca.DM(target.position))
+    else:  # a planar robot: the 2 plane coordinates (the third row is identically 0)
+        eqs.append(ca.DM(problem.plane.basis.T) @ (pos - ca.DM(target.position)))
+    k = problem.position_rows
+    rows = list(range(k))
+    wt = target.orientation_weight
+    planar = problem.orientation_basis(target)  # a planar robot: one angle
+    if target.rotation is not None:
+        r_e = ca.DM(target.rotation).T @ rot
+        vex = ca.vertcat(r_e[2, 1] - r_e[1, 2], r_e[0, 2] - r_e[2, 0], r_e[1, 0] - r_e[0, 1])
+        if planar is None:
+            eqs.append(wt * 0.5 * vex)
+            rows += [k, k + 1, k + 2]
+        else:
+            eqs.append(wt * 0.5 * (ca.DM(planar) @ vex))
+            rows += [k]
+        ineqs.append(ca.trace(r_e) + 0.5)
+    elif target.approach is not None:
+        basis = target.approach_basis() if planar is None else planar
+        if basis.shape[0]:  # none: the axis keeps its direction (met or not)
+            axis = rot @ ca.DM(target.approach_axis)
+            eqs.append(wt * (ca.DM(basis) @ axis))
+            ineqs.append(ca.dot(ca.DM(target.approach), axis))
+            rows += list(range(k, k + basis.shape[0]))
+    return ca.vertcat(*eqs), ineqs, rows
+
+
 class IpoptIKSolver3D:
     """IPOPT solver of one 3-D problem (any robot), built once and re-solved from many starts.
 
@@ -402,35 +444,10 @@ class IpoptIKSolver3D:
             d = configs[(j + 1) % s] - configs[j]
             energy = energy + 0.5 * ca.dot(d * w, d)
         eqs, ineqs, self._rows = [], [], []
-        for j, target in enumerate(problem.targets):
-            pos, rot = frame_expression(problem, configs[j])
-            if problem.plane is None:
-                eqs.append(pos - ca.DM(target.position))
-            else:  # a planar robot: the 2 plane coordinates (the third row is identically 0)
-                eqs.append(ca.DM(problem.plane.basis.T) @ (pos - ca.DM(target.position)))
-            k = problem.position_rows
-            rows = list(range(k))
-            wt = target.orientation_weight
-            planar = problem.orientation_basis(target)  # a planar robot: one angle
-            if target.rotation is not None:
-                r_e = ca.DM(target.rotation).T @ rot
-                vex = ca.vertcat(
-                    r_e[2, 1] - r_e[1, 2], r_e[0, 2] - r_e[2, 0], r_e[1, 0] - r_e[0, 1]
-                )
-                if planar is None:
-                    eqs.append(wt * 0.5 * vex)
-                    rows += [k, k + 1, k + 2]
-                else:
-                    eqs.append(wt * 0.5 * (ca.DM(planar) @ vex))
-                    rows += [k]
-                ineqs.append(ca.trace(r_e) + 0.5)
-            elif target.approach is not None:
-                basis = target.approach_basis() if planar is None else planar
-                if basis.shape[0]:  # none: the axis keeps its direction (met or not)
-                    axis = rot @ ca.DM(target.approach_axis)
-                    eqs.append(wt * (ca.DM(basis) @ axis))
-                    ineqs.append(ca.dot(ca.DM(target.approach), axis))
-                    rows += list(range(k, k + basis.shape[0]))
+        for j in range(s):
+            eq, ineq, rows = target_rows(problem, j, *frame_expression(problem, configs[j]))
+            eqs.append(eq)
+            ineqs += ineq
             self._rows.append(rows)
         self._n_eq = int(sum(e.shape[0] for e in eqs))
         g = ca.vertcat(*eqs, *ineqs)

@@ -1,0 +1,172 @@
+"""Forged sweep items (#29): copied from another sweep, re-bound, checksums recomputed.
+
+The attacker uses the library's own code: the journal lines of a beta = 0.9
+store are re-bound to the beta = 0.5 store's published binding (its manifest)
+and re-encoded with :func:`~youbot_opt.sweeps.journal.encode_line`, which
+recomputes their checksums; the payloads are copied beside them. The store's
+checksums then all agree, so only what the payload itself says can tell: the
+item is re-checked against the sweep's own problem (beta, bound scale, start
+seed, objective at the sweep's beta) and refused, then recomputed.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import warnings
+from pathlib import Path
+
+import pytest
+
+from youbot_opt.exceptions import YoubotOptWarning
+from youbot_opt.sweeps.journal import encode_line, read_journal
+from youbot_opt.sweeps.options import SweepOptions
+
+_KNOTS = 15
+
+
+@pytest.fixture(scope="module")
+def small_solver():  # type: ignore[no-untyped-def]
+    """A 15-knot study-1 solver, built once for the tests below."""
+    from youbot_opt.reproduction.study1 import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    return TrajOptSolver(study1_problem(_KNOTS))
+
+
+def _forge(source: Path, target: Path, keys: dict[str, str] | None = None) -> None:
+    """Copy ``source``'s items into ``target`` as an attacker would (re-bound, re-checksummed).
+
+    ``keys`` renames items (source key -> target key): a start's item passed off as another's.
+    """
+    binding = json.loads((target / "manifest.json").read_text())["binding"]
+    lines, _ = read_journal(source / "items" / "journal")
+    folder = target / "items" / "journal"
+    shutil.rmtree(folder)
+    folder.mkdir()
+    out = bytearray()
+    for line in lines:
+        key = (keys or {}).get(line["key"], line["key"])
+        forged = {**line, "key": key, "sweep": binding}
+        if line.get("payload"):
+            src = source / "items" / line["payload"]
+            name = src.name.replace(line["key"], key)
+            dst_rel = next(target.glob(f"items/*/{name}")).relative_to(target / "items")
+            shutil.copyfile(src, target / "items" / dst_rel)
+            forged["payload"] = dst_rel.as_posix()
+        out += encode_line(forged)  # the library's own checksum
+    (folder / "forged.jsonl").write_bytes(bytes(out))
+
+
+def _sweep(solver, beta: float, out: Path, *, keep: bool = True, n: int = 1):  # type: ignore[no-untyped-def]
+    from youbot_opt.trajopt.multistart import run_multistart
+
+    opts = SweepOptions(executor="serial", out=out, keep_results=keep)
+    return run_multistart(solver, n, beta=beta, seed=5, include_straight=False, sweep=opts)
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_forged_item_from_another_beta_is_refused(small_solver, tmp_path: Path, keep: bool) -> None:  # type: ignore[no-untyped-def]
+    """A beta = 0.9 item re-bound into a beta = 0.5 store is refused and recomputed."""
+    other = _sweep(small_solver, 0.9, tmp_path / "b09", keep=keep)
+    mine = _sweep(small_solver, 0.5, tmp_path / "b05", keep=keep)
+    f09, f05 = other.best.objective, mine.best.objective
+    assert f09 != f05
+    _forge(tmp_path / "b09", tmp_path / "b05")
+    with pytest.warns(YoubotOptWarning, match=r"start_0000.*beta = 0\.9.*0\.5"):
+        again = _sweep(small_solver, 0.5, tmp_path / "b05", keep=keep)
+    assert again.best.objective == f05  # not the beta = 0.9 optimum
+    assert again.best.result is not None and again.best.result.beta == 0.5
+    with warnings.catch_warnings():  # recomputed and bound again: loaded without a word
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert _sweep(small_solver, 0.5, tmp_path / "b05", keep=keep).best.objective == f05
+
+
+def test_forged_item_with_edited_beta_is_refused(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """The payload's own beta edited to the sweep's: its objective then betrays it."""
+    import numpy as np
+
+    from youbot_opt.trajopt.io import load_result, save_result
+
+    _sweep(small_solver, 0.9, tmp_path / "b09")
+    mine = _sweep(small_solver, 0.5, tmp_path / "b05")
+    npz = next((tmp_path / "b09").glob("items/*/start_0000.npz"))
+    result = load_result(npz, robot=small_solver.problem.robot)
+    import dataclasses
+
+    edited = dataclasses.replace(result, beta=0.5)  # objective still the beta = 0.9 one
+    save_result(edited, npz)
+    with np.load(npz) as data:
+        assert "metadata" in data
+    _forge(tmp_path / "b09", tmp_path / "b05")  # lines re-made over the edited payload
+    lines, _ = read_journal(tmp_path / "b05" / "items" / "journal")
+    from youbot_opt.sweeps.records import sha256_file
+
+    fixed = []
+    for line in lines:  # the attacker also recomputes the payload checksum
+        fixed.append(
+            {**line, "checksum": sha256_file(tmp_path / "b05" / "items" / line["payload"])}
+        )
+    (tmp_path / "b05" / "items" / "journal" / "forged.jsonl").write_bytes(
+        b"".join(encode_line(x) for x in fixed)
+    )
+    with pytest.warns(YoubotOptWarning, match=r"start_0000.*objective"):
+        again = _sweep(small_solver, 0.5, tmp_path / "b05")
+    assert again.resumed == 0
+    assert again.best.objective == mine.best.objective
+
+
+def test_item_passed_off_as_another_start_is_refused(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Start 0's item re-keyed as start 1 of the same sweep: its seed is not start 1's."""
+    first = _sweep(small_solver, 0.5, tmp_path / "a", n=2)
+    _sweep(small_solver, 0.5, tmp_path / "b", n=2)
+    lines, _ = read_journal(tmp_path / "a" / "items" / "journal")
+    assert {x["key"] for x in lines} == {"start_0000", "start_0001"}
+    _forge(
+        tmp_path / "a",
+        tmp_path / "b",
+        keys={"start_0001": "start_0000", "start_0000": "start_0001"},
+    )
+    with pytest.warns(YoubotOptWarning, match=r"seed"):
+        again = _sweep(small_solver, 0.5, tmp_path / "b", n=2)
+    assert [s.objective for s in again.starts] == [s.objective for s in first.starts]
+
+
+def _ik(targets, out: Path, n: int = 3):  # type: ignore[no-untyped-def]
+    from youbot_opt.ikpath.multistart import run_multistart
+    from youbot_opt.ikpath.problem import CyclicIKProblem
+    from youbot_opt.robot.planar import PlanarChain
+
+    problem = CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 0.8]), targets=targets)
+    return run_multistart(problem, n_starts=n, seed=4, sweep=SweepOptions(workers=1, out=out))
+
+
+_T1 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.4, -1.0)]
+_T2 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.5, -1.0)]
+
+
+def test_forged_ik_item_from_other_targets_is_refused(tmp_path: Path) -> None:
+    """IK: items of a sweep over other targets, re-bound, are refused (they miss these targets)."""
+    _ik(_T1, tmp_path / "t1")
+    mine = _ik(_T2, tmp_path / "t2")
+    _forge(tmp_path / "t1", tmp_path / "t2")
+    with pytest.warns(YoubotOptWarning, match=r"start_0000.*problem differs"):
+        again = _ik(_T2, tmp_path / "t2")
+    assert again.resumed == 0
+    assert [r.objective for r in again.results] == [r.objective for r in mine.results]
+
+
+def test_forged_pareto_point_is_refused_and_recomputed(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Pareto: a point of a beta = 0.9 front re-bound into a beta = 0.5 front is recomputed."""
+    from youbot_opt.trajopt.pareto import pareto_sweep
+
+    def front(beta: float, out: Path):  # type: ignore[no-untyped-def]
+        opts = SweepOptions(executor="serial", out=out)
+        return pareto_sweep(small_solver, [beta], first_starts=0, sweep=opts)
+
+    other, mine = front(0.9, tmp_path / "b09"), front(0.5, tmp_path / "b05")
+    assert other.points[0].objective != mine.points[0].objective
+    _forge(tmp_path / "b09", tmp_path / "b05")
+    with pytest.warns(YoubotOptWarning, match=r"point_000.*beta = 0\.9"):
+        again = front(0.5, tmp_path / "b05")
+    assert again.resumed == 0 and again.points[0].objective == mine.points[0].objective
