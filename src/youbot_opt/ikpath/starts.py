@@ -50,6 +50,7 @@ __all__ = [
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
 """How random starts can be drawn (``kind`` of :func:`make_starts`)."""
 
+
 def make_starts(
     problem: CyclicIKProblem,
     n_starts: int,
