@@ -337,6 +337,7 @@ NO_ANY_PACKAGES: tuple[str, ...] = (
     "nlp",
     "ikpath",
     "collision",
+    "viz",
 )
 
 _PUBLIC_DUNDERS = ("__init__", "__call__")

@@ -177,10 +177,6 @@ def test_starts_are_per_index_and_old_stores_are_carried_by_the_script(tmp_path)
 
     prob = example_problem("B")
     np.testing.assert_array_equal(make_starts(prob, 12, seed=3)[:5], make_starts(prob, 5, seed=3))
-    legacy = make_starts(prob, 4, seed=3, rng="legacy")
-    assert not np.array_equal(legacy[1:], make_starts(prob, 4, seed=3)[1:])
-    with pytest.raises(ParameterError, match="choose one of per-index, legacy"):
-        make_starts(prob, 3, seed=0, rng="global")
     # An old store: its manifest names no start_rng. The package refuses it, naming the script.
     run_multistart(prob, n_starts=4, seed=3, sweep=SweepOptions(workers=1, out=tmp_path))
     manifest = tmp_path / "manifest.json"

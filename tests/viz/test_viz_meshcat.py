@@ -32,8 +32,12 @@ from youbot_opt.exceptions import (  # noqa: E402
     ViewerError,
 )
 from youbot_opt.robot.load import load_model  # noqa: E402
-from youbot_opt.robot.urdf_check.meshes import check_mesh_file, dae_texture_references  # noqa: E402
-from youbot_opt.viz import MeshcatServer, connect, export_html, load_mesh_file, replay  # noqa: E402
+from youbot_opt.robot.urdf_check.meshes import (  # noqa: E402
+    check_mesh_file,
+    dae_texture_references,
+    load_mesh_file,
+)
+from youbot_opt.viz import MeshcatServer, connect, export_html, replay  # noqa: E402
 from youbot_opt.viz.meshcat.geometry import set_object_command  # noqa: E402
 from youbot_opt.viz.meshcat.replay import scene_html  # noqa: E402
 

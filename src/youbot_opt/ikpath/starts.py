@@ -39,7 +39,6 @@ __all__ = [
     "START_KINDS_3D",
     "Starts3D",
     "START_KINDS",
-    "START_RNGS",
     "BRANCH_KIND",
     "BranchStarts",
     "branch_chains",
@@ -51,9 +50,6 @@ __all__ = [
 START_KINDS: tuple[str, ...] = ("feasible", "uniform")
 """How random starts can be drawn (``kind`` of :func:`make_starts`)."""
 
-START_RNGS: tuple[str, ...] = ("per-index", "legacy")
-"""Where start ``k``'s random numbers come from (``rng`` of :func:`make_starts`)."""
-
 
 def make_starts(
     problem: CyclicIKProblem,
@@ -62,7 +58,6 @@ def make_starts(
     *,
     kind: str = "feasible",
     verdicts: Sequence[ReachVerdict] = (),
-    rng: str = "per-index",
 ) -> Array:
     """Draw the starts: the zero vector (clipped), then seeded random ones; (n_starts, n s).
 
@@ -91,35 +86,17 @@ def make_starts(
         How random starts are drawn (see above).
     verdicts : sequence of ReachVerdict
         Reachability verdicts; their witnesses are the fallback of ``"feasible"``.
-    rng : {"per-index", "legacy"}
-        ``"per-index"`` (default): start ``k`` from its own child seed, so it
-        does not depend on ``n_starts``; ``"legacy"``: one generator for all
-        starts (the draws of stores written before per-index starts).
 
     Raises
     ------
     ParameterError
-        If ``n_starts < 1``, or ``kind`` or ``rng`` is unknown.
+        If ``n_starts < 1``, or ``kind`` is unknown.
     """
     check_start_request(n_starts, kind, START_KINDS)
-    _check_choice(rng, START_RNGS, what="start rng", name="rng")
-    lo = np.maximum(problem.lower, -np.pi)
-    hi = np.minimum(problem.upper, np.pi)
-    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
-    if rng == "legacy":
-        gen = np.random.default_rng(seed)
-        starts = gen.uniform(lo, hi, size=(int(n_starts), problem.n_variables))
-        if kind == "feasible":
-            for k in range(1, int(n_starts)):
-                starts[k] = _feasible_start(problem, gen, starts[k], verdicts)
-    else:
-        source = PlanarStarts(problem, int(n_starts), seed, kind=kind, verdicts=verdicts)
-        return np.array([source[k] for k in range(int(n_starts))]).reshape(
-            int(n_starts), problem.n_variables
-        )
-    starts = np.clip(starts, problem.lower, problem.upper)
-    starts[0] = problem.default_start()
-    return starts
+    source = PlanarStarts(problem, int(n_starts), seed, kind=kind, verdicts=verdicts)
+    return np.array([source[k] for k in range(int(n_starts))]).reshape(
+        int(n_starts), problem.n_variables
+    )
 
 
 class IndexedStarts(LazySequence[Array]):

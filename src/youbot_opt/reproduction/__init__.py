@@ -13,7 +13,7 @@ Command line: ``youbot-opt reproduce-study1 [--quick] [--out DIR]``.
 from __future__ import annotations
 
 from youbot_opt.reproduction.records import VARIANTS, Variant, ablation_variant
-from youbot_opt.reproduction.report import markdown_report, pareto_knee, write_report
+from youbot_opt.reproduction.report import ParetoPoint, markdown_report, pareto_knee, write_report
 from youbot_opt.reproduction.runs import ReproductionConfig, Study1Reproduction, reproduce_study1
 from youbot_opt.reproduction.search import cluster_optima, vertex_multistart
 from youbot_opt.reproduction.study1 import (
@@ -28,6 +28,7 @@ __all__ = [
     "DEVIATION_NAMES",
     "STUDY_DAMPING",
     "VARIANTS",
+    "ParetoPoint",
     "ReproductionConfig",
     "Study1Reproduction",
     "StudyDeviations",

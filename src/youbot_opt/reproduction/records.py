@@ -14,6 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from youbot_opt._typing import JSONDict
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.study1 import (
     STUDY_DAMPING,
@@ -142,8 +143,8 @@ def _certificate(result: TrajOptResult, robot: RobotModel) -> dict[str, Any] | N
 
 
 def record(
-    variant: Variant, result: TrajOptResult, solvers: Any = None, **extra: Any
-) -> dict[str, Any]:
+    variant: Variant, result: TrajOptResult, solvers: ArmSolvers | None = None, **extra: object
+) -> JSONDict:
     """JSON-ready figures of one solve, with its certificates.
 
     Parameters
@@ -169,7 +170,7 @@ def record(
     """
     n = result.problem.n_knots
     dev = variant.deviations
-    row: dict[str, Any] = {
+    row: JSONDict = {
         "variant": variant.key,
         "label": variant.label,
         "deviations": None if dev is None else dev.label,
@@ -214,7 +215,7 @@ def optima_record(
     *,
     with_trajectory: bool = False,
     objective_tol: float = 1e-6,
-) -> dict[str, Any]:
+) -> JSONDict:
     """Best record plus every distinct optimum (objective, T, W, count) of a multistart.
 
     Parameters

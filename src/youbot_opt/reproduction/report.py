@@ -16,11 +16,11 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 from youbot_opt._files import atomic_write_text, json_ready
 
-__all__ = ["STUDY_REPORTED", "markdown_report", "write_report", "pareto_knee"]
+__all__ = ["STUDY_REPORTED", "ParetoPoint", "markdown_report", "write_report", "pareto_knee"]
 
 STUDY_REPORTED: dict[str, str] = {
     "objective": "9.359 (92 % of starts)",
@@ -203,7 +203,17 @@ def _extremes_table(data: dict[str, Any]) -> str:
     return _table(header, rows)
 
 
-def pareto_knee(points: list[dict[str, Any]]) -> float | None:
+class ParetoPoint(TypedDict, total=False):
+    """One point of a reproduction's Pareto section, as :func:`pareto_knee` reads it."""
+
+    beta: float
+    duration_s: float
+    work: float
+    success: bool
+    dominated: bool
+
+
+def pareto_knee(points: list[ParetoPoint]) -> float | None:
     """Weight of the front's corner: the non-dominated point farthest from the chord.
 
     ``T`` and ``W`` are normalised to [0, 1] over the non-dominated points, and
@@ -212,7 +222,7 @@ def pareto_knee(points: list[dict[str, Any]]) -> float | None:
 
     Parameters
     ----------
-    points : list of dict
+    points : list of ParetoPoint
         Records with ``beta``, ``duration_s``, ``work``, ``success`` and ``dominated``.
 
     Returns

@@ -16,9 +16,10 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict, Unpack
 
 from youbot_opt._checks import check_int
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.reproduction.records import (
@@ -45,6 +46,29 @@ __all__ = ["ReproductionConfig", "Study1Reproduction", "reproduce_study1"]
 
 _log = logging.getLogger(__name__)
 Progress = Callable[[str], None]
+
+
+class _ConfigChanges(TypedDict, total=False):
+    """Fields of :class:`ReproductionConfig` that :meth:`ReproductionConfig.quick` may override."""
+
+    variants: tuple[str, ...]
+    n_knots: int
+    beta: float
+    n_starts: int
+    seed: int
+    ablation_starts: int
+    ablation_betas: tuple[float, ...]
+    extreme_betas: tuple[float, ...]
+    extreme_starts: int
+    pareto_betas: tuple[float, ...]
+    pareto_first_starts: int
+    search_starts: int
+    refinement_knots: tuple[int, ...]
+    refinement_variants: tuple[str, ...]
+    tol: float
+    max_iter: int
+    executor: str
+    workers: int | None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -137,7 +161,7 @@ class ReproductionConfig:
             )
 
     @classmethod
-    def quick(cls, **changes: Any) -> ReproductionConfig:
+    def quick(cls, **changes: Unpack[_ConfigChanges]) -> ReproductionConfig:
         """Make a fast subset for tests and smoke runs (about 15 s).
 
         The study's code and the correct trapezoidal transcription, 3 starts at the
@@ -145,7 +169,7 @@ class ReproductionConfig:
         Pareto weights, and the trapezoidal refinement 50 -> 100 knots;
         ``changes`` override fields.
         """
-        base: dict[str, Any] = dict(
+        base: _ConfigChanges = dict(
             variants=("study", "trapezoidal"),
             n_starts=3,
             search_starts=2,
@@ -211,16 +235,16 @@ class Study1Reproduction:
     """
 
     config: ReproductionConfig
-    base: dict[str, Any] = field(default_factory=dict)
-    search: dict[str, Any] = field(default_factory=dict)
-    ablation: list[dict[str, Any]] = field(default_factory=list)
-    extremes: dict[str, Any] = field(default_factory=dict)
-    pareto: dict[str, Any] = field(default_factory=dict)
-    refinement: list[dict[str, Any]] = field(default_factory=list)
+    base: dict[str, JSONDict] = field(default_factory=dict)
+    search: dict[str, JSONDict] = field(default_factory=dict)
+    ablation: list[JSONDict] = field(default_factory=list)
+    extremes: dict[str, list[JSONDict]] = field(default_factory=dict)
+    pareto: dict[str, list[JSONDict]] = field(default_factory=dict)
+    refinement: list[JSONDict] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     results: dict[str, TrajOptResult] = field(default_factory=dict, repr=False)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JSONDict:
         """Return the whole reproduction as a JSON-ready dictionary."""
         from dataclasses import asdict
 

@@ -15,8 +15,9 @@ tolerances); :func:`search_record` summarises a run for the reproduction's JSON.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.records import ArmSolvers, Variant, record
 from youbot_opt.sweeps.optima import cluster_optima as cluster_items
@@ -186,9 +187,7 @@ def converged_results(starts: Sequence[VertexStart]) -> list[TrajOptResult]:
     return [s.result for s in starts if s.result is not None]
 
 
-def search_record(
-    variant: Variant, starts: list[VertexStart], solvers: ArmSolvers
-) -> dict[str, Any]:
+def search_record(variant: Variant, starts: list[VertexStart], solvers: ArmSolvers) -> JSONDict:
     """JSON-ready summary of a vertex-LP multistart: statuses and each optimum's record.
 
     Parameters

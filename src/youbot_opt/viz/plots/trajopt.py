@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 from matplotlib import colormaps
 from matplotlib.cm import ScalarMappable
@@ -67,7 +68,7 @@ def new_figure(
     figsize: tuple[float, float],
     *,
     sharex: bool | Literal["none", "all", "row", "col"] = False,
-) -> tuple[Figure, Any]:
+) -> tuple[Figure, npt.NDArray[np.object_]]:
     """Make a constrained-layout figure and its ``(nrows, ncols)`` array of axes (no pyplot)."""
     fig = Figure(figsize=figsize, layout="constrained")
     axes = fig.subplots(nrows, ncols, sharex=sharex, squeeze=False)
