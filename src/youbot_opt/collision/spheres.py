@@ -56,6 +56,8 @@ _FINE_GRID = 128
 _CENTRE_ITERATIONS = 100
 #: Version of the fitting algorithm (part of the cache key).
 _FIT_VERSION = 3
+#: Overshoot [m] more balls must save to be taken when the target is out of reach.
+_WORTH = 0.002
 #: Most hull points a solid may have (a bigger mesh is refused).
 _MAX_POINTS = 200_000
 
@@ -387,7 +389,7 @@ def _cache_key(hull: HullPoints, target: float, max_spheres: int) -> str:
     digest = hashlib.sha256()
     digest.update(np.ascontiguousarray(np.asarray(hull.points, dtype="<f8")).tobytes())
     digest.update(
-        f"{_FIT_VERSION}|{_COARSE_GRID}|{_FINE_GRID}|{_CENTRE_ITERATIONS}|{hull.slack!r}|{target!r}|{max_spheres}".encode()
+        f"{_FIT_VERSION}|{_COARSE_GRID}|{_FINE_GRID}|{_CENTRE_ITERATIONS}|{_WORTH}|{hull.slack!r}|{target!r}|{max_spheres}".encode()
     )
     return digest.hexdigest()
 
@@ -421,7 +423,8 @@ def fit_spheres(
         The solid's containing polytope (:func:`hull_points`, :func:`geometry_hull`).
     target_overshoot : float
         The fit takes the grid with the fewest balls (1 to ``max_spheres``)
-        whose overshoot is at most this, in [m]; the best grid when none is.
+        whose overshoot is at most this, in [m]; when none is, the fewest
+        balls within 2 mm of the best grid's overshoot.
     max_spheres : int
         Most balls.
     cache : bool
@@ -461,16 +464,20 @@ def fit_spheres(
     axes = vt if vt.shape[0] == 3 else np.eye(3)
     local = centred @ axes.T
     extent = local.max(axis=0) - local.min(axis=0)
-    dirs, cover = _directions(_COARSE_GRID)
-    chosen: tuple[float, tuple[int, int, int]] | None = None
+    # grids compared by the sampled overshoot on the coarse grid (no remainder: an
+    # estimate, which would otherwise favour small balls); the chosen one is bounded below
+    dirs, _ = _directions(_COARSE_GRID)
+    tried: list[tuple[float, tuple[int, int, int]]] = []
     for counts in _grid_counts(extent, max_spheres):
-        over = _fit_cells(vertices, counts, dirs, cover).overshoot
-        if chosen is None or over < chosen[0]:
-            chosen = (over, counts)
-        if over + hull.slack <= target_overshoot:
-            chosen = (over, counts)
+        tried.append((_fit_cells(vertices, counts, dirs, 0.0).overshoot, counts))
+        if tried[-1][0] + hull.slack <= target_overshoot:
             break
-    assert chosen is not None
+    # the fewest balls within _WORTH of the best bound: more balls cost the NLP more
+    # than a few millimetres of overshoot are worth
+    best_over = min(over for over, _ in tried)
+    chosen = next(
+        t for t in tried if t[0] <= max(best_over + _WORTH, target_overshoot - hull.slack)
+    )
     # the chosen grid again, its overshoot bounded on the fine grid (a smaller remainder)
     best = _fit_cells(vertices, chosen[1], *_directions(_FINE_GRID))
     result = SphereFit(
