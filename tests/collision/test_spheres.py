@@ -100,3 +100,54 @@ def test_halfspace_has_no_balls():
     """A half-space is unbounded: fitting it is refused."""
     with pytest.raises(ParameterError, match="unbounded"):
         hull_points(HalfSpace())
+
+
+def test_wide_box_is_cut_across(rng):
+    """A flat, wide box (the youBot platform's shape) is cut along two axes, not into slabs.
+
+    Slabs along its long side give balls as wide as the box (overshoot about
+    16 cm on the platform); cells across both long sides keep it under 6 cm,
+    with every corner inside and every sampled ball point within the overshoot.
+    """
+    hull = hull_points(Box(size=(0.6, 0.4, 0.1)))
+    fit = fit_spheres(hull, cache=False)
+    assert len(fit.radii) <= 16
+    assert fit.overshoot < 0.06
+    spread = np.ptp(fit.centers, axis=0)
+    assert spread[0] > 0.1 and spread[1] > 0.1  # centres spread over both long sides
+    assert _inside_union(hull.points, fit.centers, fit.radii).max() <= 1e-12
+    samples = _surface_samples(rng, fit.centers, fit.radii, 5_000)
+    assert _distance_to_hull(samples, hull.points).max() <= fit.overshoot
+
+
+def test_count_cap(rng):
+    """The count cap bounds the ball count; on a wide plate a cap of 16 fits tighter than 4."""
+    hull = hull_points(Box(size=(0.5, 0.3, 0.08)))
+    small = fit_spheres(hull, max_spheres=4, target_overshoot=0.0, cache=False)
+    large = fit_spheres(hull, max_spheres=16, target_overshoot=0.0, cache=False)
+    assert len(small.radii) <= 4 and len(large.radii) <= 16
+    assert large.overshoot < small.overshoot
+
+
+def test_study_youbot_self_collision_allows_a_realistic_margin():
+    """At the study's start and goal the youBot's self pairs read >= 5 cm apart in the ball model.
+
+    The slab fit read 6 mm at the start and -37 mm at the goal (the platform's
+    balls overshot its box by 16 cm), so self-collision was infeasible at any
+    useful margin.
+    """
+    from youbot_opt.collision import Scene
+    from youbot_opt.collision.exact import exact_checker
+    from youbot_opt.collision.model import build_collision_model, joint_placements
+    from youbot_opt.reproduction.study1 import STUDY_Q_GOAL, STUDY_Q_START
+    from youbot_opt.robot.load import load_model
+
+    robot = load_model("youbot")
+    cm = build_collision_model(robot, Scene(()))
+    assert cm.self_pairs
+    function, checker = cm.distance_function(), exact_checker(cm, robot)
+    for q in (np.array(STUDY_Q_START), np.array(STUDY_Q_GOAL)):
+        model = np.asarray(function(*joint_placements(robot, q))).ravel()
+        exact = checker.distances(robot, q)
+        assert model.min() >= 0.05, dict(zip(cm.pair_names, model, strict=True))
+        assert np.all(model <= exact + 1e-9)  # still conservative

@@ -163,12 +163,15 @@ def test_refinement_removes_a_clip_between_knots(free: TrajOptProblem) -> None:
 
 
 def test_ball_overshoot_at_the_start_refused(free: TrajOptProblem) -> None:
-    """Self-collision on the youBot: the platform's balls overshoot its box by over 10 cm.
+    """Self-collision on the youBot: a margin the balls cannot meet at the start is refused.
 
-    Coal clears the start by 15 cm, the balls of ('platform_0', 'arm_link_2_0')
-    by 6 mm: with a 1 cm margin the NLP would be infeasible at its fixed first
-    knot, so the solver refuses it first, naming the pair and both distances.
+    Coal clears ('arm_link_1_0', 'arm_link_3_0') at the study's start by 94.7 mm,
+    their balls by 91.0 mm: with a 93 mm margin the NLP would be infeasible at
+    its fixed first knot, so the solver refuses it first, naming the pair and
+    both distances.
+    A 1 cm margin, refused by the slab fit of before (6 mm there), is accepted.
     """
-    problem = dataclasses.replace(free, clearance=Clearance(margin=MARGIN))
-    with pytest.raises(ParameterError, match=r"start: the bounding balls of pair 'platform_0"):
+    TrajOptSolver(dataclasses.replace(free, clearance=Clearance(margin=MARGIN)))
+    problem = dataclasses.replace(free, clearance=Clearance(margin=0.093))
+    with pytest.raises(ParameterError, match=r"start: the bounding balls of pair 'arm_link_1_0"):
         TrajOptSolver(problem)

@@ -1,9 +1,10 @@
 """Bounding balls of collision geometry, fitted once and cached on disk, with their overshoot.
 
 A solid (a link's geometry or a mesh obstacle) is replaced by its convex hull
-(a cylinder by a circumscribed prism), cut into ``k`` slabs across its
-principal axis, and each slab's part enclosed by one ball: the union contains
-the solid, so distances to it are conservative. The overshoot [m] is a
+(a cylinder by a circumscribed prism), cut by a grid of cells in its principal
+axes (slabs along the longest axis, or cells across two or three axes for a
+wide solid), and each cell's part enclosed by one ball: the union contains the
+solid, so distances to it are conservative. The overshoot [m] is a
 rigorous bound on how far a ball's point lies from the hull (the support-function
 bound of ``docs/scene.md``). Fits are cached as JSON in :func:`collision_cache_dir`.
 
@@ -42,9 +43,9 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 #: Fit overshoot the sphere count is raised to reach, in [m].
-DEFAULT_TARGET_OVERSHOOT = 0.015
+DEFAULT_TARGET_OVERSHOOT = 0.01
 #: Most spheres fitted to one solid.
-DEFAULT_MAX_SPHERES = 8
+DEFAULT_MAX_SPHERES = 16
 #: Sides of the prism circumscribing a cylinder's circle.
 _PRISM_SIDES = 32
 #: Cells per cube face edge of the direction grids (6 (m+1)^2 directions): a
@@ -54,7 +55,9 @@ _FINE_GRID = 128
 #: Iterations of the Badoiu-Clarkson minimum-enclosing-ball centre.
 _CENTRE_ITERATIONS = 100
 #: Version of the fitting algorithm (part of the cache key).
-_FIT_VERSION = 2
+_FIT_VERSION = 3
+#: Overshoot [m] more balls must save to be taken when the target is out of reach.
+_WORTH = 0.002
 #: Most hull points a solid may have (a bigger mesh is refused).
 _MAX_POINTS = 200_000
 
@@ -255,14 +258,11 @@ def _hull(points: Array) -> tuple[Array, Array]:
         edges = np.array([(i, j) for i in idx for j in idx if i < j], dtype=int).reshape(-1, 2)
         return pts, edges
     vertices = hull.points[hull.vertices]
-    remap = {int(v): k for k, v in enumerate(hull.vertices)}
-    found: set[tuple[int, int]] = set()
-    for simplex in hull.simplices:
-        s = [remap[int(v)] for v in simplex]
-        for i in range(len(s)):
-            a, b = s[i], s[(i + 1) % len(s)]
-            found.add((min(a, b), max(a, b)))
-    return vertices, np.array(sorted(found), dtype=int)
+    remap = np.full(len(hull.points), -1, dtype=int)
+    remap[hull.vertices] = np.arange(len(hull.vertices))
+    tri = remap[hull.simplices]
+    pairs = np.vstack([tri[:, [i, (i + 1) % tri.shape[1]]] for i in range(tri.shape[1])])
+    return vertices, np.unique(np.sort(pairs, axis=1), axis=0)
 
 
 def _slab_points(vertices: Array, edges: Array, coord: Array, lo: float, hi: float) -> Array:
@@ -294,35 +294,74 @@ def _centre(points: Array) -> Array:
     return centre if reach < np.linalg.norm(points - box, axis=1).max() else box
 
 
-def _fit_k(vertices: Array, edges: Array, k: int, dirs: Array, cover: float) -> SphereFit:
-    """Fit ``k`` balls along the principal axis; their overshoot bound."""
+def _clip(vertices: Array, edges: Array | None, lo: Array, hi: Array) -> Array:
+    """Return points whose convex hull is (hull of ``vertices``) ∩ the box ``lo <= x <= hi``.
+
+    One axis at a time: a convex polytope cut by a slab has for vertices its
+    own vertices inside and its edges' crossings of the two planes.
+    """
+    part = vertices
+    for axis in range(3):
+        if len(part) == 0:
+            break
+        if edges is None or axis > 0:
+            part, edges = _hull(part)
+        part = _slab_points(part, edges, part[:, axis], float(lo[axis]), float(hi[axis]))
+    return part
+
+
+def _fit_cells(
+    vertices: Array, counts: tuple[int, int, int], dirs: Array, cover: float
+) -> SphereFit:
+    """Fit one ball per cell of a ``counts`` grid over the principal-axes box; their overshoot."""
     centroid = vertices.mean(axis=0)
     _, _, vt = np.linalg.svd(vertices - centroid, full_matrices=False)
     axes = vt if vt.shape[0] == 3 else np.eye(3)
     local = (vertices - centroid) @ axes.T
-    coord = local[:, 0]
-    cuts = np.linspace(coord.min(), coord.max(), k + 1)
+    local, edges = _hull(local)
+    cuts = [np.linspace(local[:, i].min(), local[:, i].max(), counts[i] + 1) for i in range(3)]
     centers, radii, overshoot = [], [], 0.0
-    for i in range(k):
-        slab = _slab_points(local, edges, coord, cuts[i], cuts[i + 1])
-        if len(slab) == 0:
-            continue
-        center = _centre(slab)
-        radius = float(np.linalg.norm(slab - center, axis=1).max())
-        overshoot = max(
-            overshoot,
-            _overshoot(local, edges, coord, (cuts[i], cuts[i + 1]), center, radius, dirs, cover),
-        )
-        centers.append(center @ axes + centroid)
-        radii.append(radius)
+    for i in range(counts[0]):
+        for j in range(counts[1]):
+            for k in range(counts[2]):
+                lo = np.array([cuts[0][i], cuts[1][j], cuts[2][k]])
+                hi = np.array([cuts[0][i + 1], cuts[1][j + 1], cuts[2][k + 1]])
+                part = _clip(local, edges, lo, hi)
+                if len(part) == 0:
+                    continue
+                center = _centre(part)
+                radius = float(np.linalg.norm(part - center, axis=1).max())
+                over = _overshoot(local, edges, part, (lo, hi), center, radius, dirs, cover)
+                overshoot = max(overshoot, over)
+                centers.append(center @ axes + centroid)
+                radii.append(radius)
     return SphereFit(centers=np.array(centers), radii=np.array(radii), overshoot=overshoot)
+
+
+def _grid_counts(extent: Array, max_spheres: int) -> list[tuple[int, int, int]]:
+    """Cell counts to try, fewest cells first, at most ``max_spheres`` cells each.
+
+    Slabs along the principal axis (1 to ``max_spheres``), and grids of
+    cubic-ish cells whose edge ``s`` shrinks geometrically from the longest
+    extent (an axis shorter than ``s`` is not cut), so that wide or L-shaped
+    solids are cut across as well.
+    """
+    out: set[tuple[int, int, int]] = {(k, 1, 1) for k in range(1, max_spheres + 1)}
+    longest = float(extent.max())
+    for step in range(200) if longest > 0 else ():
+        s = longest * 0.85**step
+        counts = tuple(max(1, math.ceil(e / s - 1e-9)) for e in extent)
+        if math.prod(counts) > max_spheres:
+            break
+        out.add(counts)  # type: ignore[arg-type]
+    return sorted(out, key=lambda c: (math.prod(c), c))
 
 
 def _overshoot(
     local: Array,
     edges: Array,
-    coord: Array,
-    cut: tuple[float, float],
+    part: Array,
+    cell: tuple[Array, Array],
     center: Array,
     radius: float,
     dirs: Array,
@@ -331,16 +370,17 @@ def _overshoot(
     """Upper bound [m] on the distance from a point of one ball to the hull.
 
     For a convex part ``P`` of the hull, ``sup_{p in ball} dist(p, P) = max_u
-    (h_ball(u) - h_P(u))``; sampled on the grid it misses at most ``(radius +
-    max_P |x - center|) * cover`` (both support functions are Lipschitz). ``P``
-    is the hull's part within ``radius`` of the ball's slab (the balls' own
-    slab alone when that bound is smaller).
+    (h_ball(u) - h_P(u))`` bounds the distance to the hull; sampled on the grid
+    it misses at most ``(radius + max_P |x - center|) * cover`` (both support
+    functions are Lipschitz). ``P`` is the hull's part within ``radius`` of the
+    ball's cell (the cell's own part alone when that bound is smaller).
     """
     best = math.inf
     for grow in (0.0, radius):
-        part = _slab_points(local, edges, coord, cut[0] - grow, cut[1] + grow) - center
-        reach = float(np.linalg.norm(part, axis=1).max())
-        gap = float(np.max(radius - (dirs @ part.T).max(axis=1)))
+        piece = part if grow == 0.0 else _clip(local, edges, cell[0] - grow, cell[1] + grow)
+        piece = piece - center
+        reach = float(np.linalg.norm(piece, axis=1).max())
+        gap = float(np.max(radius - (dirs @ piece.T).max(axis=1)))
         best = min(best, max(gap, 0.0) + (radius + reach) * cover)
     return best
 
@@ -349,7 +389,7 @@ def _cache_key(hull: HullPoints, target: float, max_spheres: int) -> str:
     digest = hashlib.sha256()
     digest.update(np.ascontiguousarray(np.asarray(hull.points, dtype="<f8")).tobytes())
     digest.update(
-        f"{_FIT_VERSION}|{_COARSE_GRID}|{_FINE_GRID}|{_CENTRE_ITERATIONS}|{hull.slack!r}|{target!r}|{max_spheres}".encode()
+        f"{_FIT_VERSION}|{_COARSE_GRID}|{_FINE_GRID}|{_CENTRE_ITERATIONS}|{_WORTH}|{hull.slack!r}|{target!r}|{max_spheres}".encode()
     )
     return digest.hexdigest()
 
@@ -382,8 +422,9 @@ def fit_spheres(
     hull : HullPoints
         The solid's containing polytope (:func:`hull_points`, :func:`geometry_hull`).
     target_overshoot : float
-        The fit takes the fewest balls (1 to ``max_spheres``) whose overshoot is
-        at most this, in [m]; the best count when none is.
+        The fit takes the grid with the fewest balls (1 to ``max_spheres``)
+        whose overshoot is at most this, in [m]; when none is, the fewest
+        balls within 2 mm of the best grid's overshoot.
     max_spheres : int
         Most balls.
     cache : bool
@@ -417,19 +458,28 @@ def fit_spheres(
     path = collision_cache_dir() / f"spheres-{_cache_key(hull, target_overshoot, max_spheres)}.json"
     if cache and (hit := _read_cache(path)) is not None:
         return hit
-    vertices, edges = _hull(points)
-    dirs, cover = _directions(_COARSE_GRID)
-    chosen: tuple[float, int] | None = None
-    for k in range(1, max_spheres + 1):
-        over = _fit_k(vertices, edges, k, dirs, cover).overshoot
-        if chosen is None or over < chosen[0]:
-            chosen = (over, k)
-        if over + hull.slack <= target_overshoot:
-            chosen = (over, k)
+    vertices, _ = _hull(points)
+    centred = vertices - vertices.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    axes = vt if vt.shape[0] == 3 else np.eye(3)
+    local = centred @ axes.T
+    extent = local.max(axis=0) - local.min(axis=0)
+    # grids compared by the sampled overshoot on the coarse grid (no remainder: an
+    # estimate, which would otherwise favour small balls); the chosen one is bounded below
+    dirs, _ = _directions(_COARSE_GRID)
+    tried: list[tuple[float, tuple[int, int, int]]] = []
+    for counts in _grid_counts(extent, max_spheres):
+        tried.append((_fit_cells(vertices, counts, dirs, 0.0).overshoot, counts))
+        if tried[-1][0] + hull.slack <= target_overshoot:
             break
-    assert chosen is not None
-    # the chosen count again, its overshoot bounded on the fine grid (a smaller remainder)
-    best = _fit_k(vertices, edges, chosen[1], *_directions(_FINE_GRID))
+    # the fewest balls within _WORTH of the best bound: more balls cost the NLP more
+    # than a few millimetres of overshoot are worth
+    best_over = min(over for over, _ in tried)
+    chosen = next(
+        t for t in tried if t[0] <= max(best_over + _WORTH, target_overshoot - hull.slack)
+    )
+    # the chosen grid again, its overshoot bounded on the fine grid (a smaller remainder)
+    best = _fit_cells(vertices, chosen[1], *_directions(_FINE_GRID))
     result = SphereFit(
         centers=best.centers, radii=best.radii, overshoot=best.overshoot + hull.slack
     )
