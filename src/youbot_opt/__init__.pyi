@@ -102,3 +102,4 @@ from .trajopt.result import TrajOptResult as TrajOptResult
 from .trajopt.solver import TrajOptSolver as TrajOptSolver
 from .trajopt.spline_guess import random_spline_guess as random_spline_guess
 from .trajopt.trajectory import Trajectory as Trajectory
+from .trajopt.waypoints import Waypoints as Waypoints, load_waypoints as load_waypoints
