@@ -112,3 +112,4 @@ from .trajopt.tool_certificate import (
     certify_plan_tool as certify_plan_tool,
 )
 from .trajopt.trajectory import Trajectory as Trajectory
+from .trajopt.waypoints import Waypoints as Waypoints, load_waypoints as load_waypoints
