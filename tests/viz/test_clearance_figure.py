@@ -9,10 +9,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.collision.scene import Obstacle, Scene
 from youbot_opt.collision.shapes import Sphere
 from youbot_opt.robot.load import load_model
-from youbot_opt.collision.clearance import Clearance
 from youbot_opt.trajopt.trajectory import Trajectory
 
 matplotlib.use("Agg")
