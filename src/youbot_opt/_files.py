@@ -45,6 +45,7 @@ __all__ = [
     "json_roundtrip",
     "read_json_lines",
     "read_npz",
+    "read_input_text",
     "read_regular_file",
     "schema_header",
     "software_versions",
@@ -557,3 +558,26 @@ def read_regular_file(
             return handle.read(max_bytes + 1)[: max_bytes + 1]
     except OSError as exc:
         raise ResultFileError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
+
+
+def read_input_text(file: Path, *, max_bytes: int, what: str, name: str) -> str:
+    """Return a user's input file (targets, waypoints) as text, refused as a parameter.
+
+    :func:`read_regular_file` under ``max_bytes`` [bytes], decoded as UTF-8.
+
+    Raises
+    ------
+    ParameterError
+        Named ``name`` with the path as value: a missing, special or oversized
+        file, or text that is not UTF-8 (the reason and the byte).
+    """
+    try:
+        return read_regular_file(file, max_bytes=max_bytes, what=what).decode("utf-8")
+    except ResultFileError as exc:
+        raise ParameterError(str(exc), name=name, value=str(file)) from exc
+    except UnicodeDecodeError as exc:
+        raise ParameterError(
+            f"{file}: not UTF-8 text ({exc.reason} at byte {exc.start})",
+            name=name,
+            value=str(file),
+        ) from exc

@@ -23,9 +23,9 @@ import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from youbot_opt._checks import shown
-from youbot_opt._files import read_regular_file
+from youbot_opt._files import read_input_text
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.exceptions import ParameterError
 
 __all__ = [
     "Target",
@@ -378,18 +378,9 @@ def load_targets(path: str | Path, **defaults: float) -> tuple[Target, ...]:
         row without a position (the message names the row and the column).
     """
     file = Path(path)
-    try:
-        text = read_regular_file(
-            file, max_bytes=MAX_TARGETS_FILE_BYTES, what="a targets file"
-        ).decode("utf-8")
-    except ResultFileError as exc:
-        raise ParameterError(str(exc), name="targets", value=str(file)) from exc
-    except UnicodeDecodeError as exc:
-        raise ParameterError(
-            f"{file}: not UTF-8 text ({exc.reason} at byte {exc.start})",
-            name="targets",
-            value=str(file),
-        ) from exc
+    text = read_input_text(
+        file, max_bytes=MAX_TARGETS_FILE_BYTES, what="a targets file", name="targets"
+    )
     if file.suffix.lower() == ".json":
         try:
             data = json.loads(text)

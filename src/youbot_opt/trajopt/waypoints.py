@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._files import read_regular_file
+from youbot_opt._files import read_input_text
 from youbot_opt._typing import Array
-from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import JointBounds
 
 __all__ = ["MAX_WAYPOINTS", "MAX_WAYPOINTS_FILE_BYTES", "Waypoints", "load_waypoints"]
@@ -186,18 +186,9 @@ def load_waypoints(path: str | Path, *, closed: bool | None = None) -> Waypoints
         JSON key (the message names the row and the column).
     """
     file = Path(path)
-    try:
-        text = read_regular_file(
-            file, max_bytes=MAX_WAYPOINTS_FILE_BYTES, what="a waypoints file"
-        ).decode("utf-8")
-    except ResultFileError as exc:
-        raise ParameterError(str(exc), name="waypoints", value=str(file)) from exc
-    except UnicodeDecodeError as exc:
-        raise ParameterError(
-            f"{file}: not UTF-8 text ({exc.reason} at byte {exc.start})",
-            name="waypoints",
-            value=str(file),
-        ) from exc
+    text = read_input_text(
+        file, max_bytes=MAX_WAYPOINTS_FILE_BYTES, what="a waypoints file", name="waypoints"
+    )
     suffix = file.suffix.lower()
     file_closed = False
     rows: list[list[float]] = []
