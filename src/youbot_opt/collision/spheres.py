@@ -183,10 +183,11 @@ def _prism(radius: float, length: float) -> HullPoints:
 
 def _mesh_vertices(path: Path, scale: Array) -> Array:
     """Vertices [m] of a mesh file read by coal's loader (assimp, as Pinocchio)."""
-    import coal
+    from youbot_opt.robot.urdf_check.geometry_cache import mesh_loader
 
     try:
-        bvh = coal.MeshLoader().load(str(path), scale)
+        with mesh_loader([path]) as loader:
+            bvh = loader.load(str(path), scale)
     except (RuntimeError, ValueError) as e:
         raise ModelError(f"cannot read the mesh {str(path)!r}: {e}", path=str(path)) from e
     return np.asarray(bvh.vertices(), dtype=float)

@@ -36,6 +36,7 @@ from youbot_opt.exceptions import (
     YoubotOptWarning,
 )
 from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
+from youbot_opt.robot.urdf_check.geometry_cache import mesh_loader
 from youbot_opt.robot.urdf_check.resources import (
     allowed_roots,
     check_mesh,
@@ -505,14 +506,15 @@ def load_urdf_strict(
     text = etree.tostring(root_of(tree, name), encoding="unicode")
     dirs = [os.fspath(d) for d in allowed_roots(package_dirs)]
     error: Exception | None = None
-    with _c_stderr_captured() as report:
+    meshes = [real for elem, _, real in references if elem.tag == "mesh"]
+    with _c_stderr_captured() as report, mesh_loader(meshes) as loader:
         try:
             model = pin.buildModelFromXML(text)
             visual = pin.buildGeomFromUrdfString(
-                model, text, pin.GeometryType.VISUAL, package_dirs=dirs
+                model, text, pin.GeometryType.VISUAL, package_dirs=dirs, mesh_loader=loader
             )
             collision = pin.buildGeomFromUrdfString(
-                model, text, pin.GeometryType.COLLISION, package_dirs=dirs
+                model, text, pin.GeometryType.COLLISION, package_dirs=dirs, mesh_loader=loader
             )
         except (ValueError, RuntimeError) as e:
             error = e

@@ -22,11 +22,11 @@ from types import MappingProxyType
 from typing import NamedTuple
 from urllib.parse import unquote
 
-import coal
 import numpy as np
 from lxml import etree
 
 from youbot_opt.exceptions import InvalidModelError, UnsafePathError, URDFError
+from youbot_opt.robot.urdf_check.geometry_cache import mesh_loader
 from youbot_opt.robot.urdf_check.resources import (
     MAX_RESOURCE_BYTES,
     MESH_SUFFIXES,
@@ -216,7 +216,8 @@ def _texture_uri(dae: Path, ref: TextureReference, roots: Sequence[Path], where:
 def _ply_as_stl(real: Path, where: Site) -> bytes:
     """Binary STL of the triangles coal (assimp) reads from a PLY file, unscaled."""
     try:
-        bvh = coal.MeshLoader().load(os.fspath(real), np.ones(3))
+        with mesh_loader([real]) as loader:
+            bvh = loader.load(os.fspath(real), np.ones(3))
     except (RuntimeError, ValueError) as e:
         problem = f"mesh {os.fspath(real)!r} is not a PLY file assimp reads: {e}"
         raise fail(InvalidModelError, where, problem, "meshes are readable by assimp") from e

@@ -29,6 +29,7 @@ import umsgpack
 from youbot_opt._typing import Array
 from youbot_opt.collision.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere
 from youbot_opt.exceptions import ModelError
+from youbot_opt.robot.urdf_check.geometry_cache import mesh_loader
 from youbot_opt.robot.urdf_check.meshes import load_mesh_file
 from youbot_opt.robot.urdf_check.resources import MESH_SUFFIXES
 
@@ -280,6 +281,7 @@ def obstacle_command(shape: Shape, path: meshcat.path.Path) -> SceneCommand:
     elif isinstance(shape, HalfSpace):
         geometry = _Slab([HALF_SPACE_SIZE, HALF_SPACE_SIZE, HALF_SPACE_DEPTH])
     else:
-        bvh = coal.MeshLoader().load(str(shape.path), np.array(shape.scale, dtype=float))
+        with mesh_loader([shape.path]) as loader:
+            bvh = loader.load(str(shape.path), np.array(shape.scale, dtype=float))
         geometry = mg.TriangularMeshGeometry(*_bvh_mesh(bvh))
     return mc.SetObject(geometry, material, path)
