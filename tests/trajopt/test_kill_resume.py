@@ -162,7 +162,10 @@ _SCALES, _SCALE_STARTS = (1.0, 0.95, 0.9), 10  # 3 x (10 splines + straight line
 
 
 def _cli(out: Path, command: str = "multistart") -> list[str]:
+    # --no-refine: what is under test is the sweep store; refining the reported plans after
+    # the sweep (49 Pareto points, about 1 s each) is tested in tests/cli/test_cli_runs.py.
     common = ["--knots", str(_KNOTS), "--seed", str(_SEED), "--out", str(out), "--json", "--quiet"]
+    common += ["--no-refine"]
     if command == "multistart":
         extra = ["--starts", str(_STARTS), "--workers", "2", "--straight"]
     elif command == "pareto":
