@@ -362,7 +362,135 @@ def _solve_ours(robot: Any, clearance: Any, n_knots: int) -> dict[str, Any]:
     solver, build_wall, _ = _timed(lambda: TrajOptSolver(problem, "hermite_simpson"))
     solver.solve(beta=BETA)  # warm-up: the kernels compile or load
     result, wall, cpu = _timed(lambda: solver.solve(beta=BETA))
-    return {"result": result, "build_s": build_wall, "wall_s": wall, "cpu_s": cpu}
+    return {
+        "result": result, "solver": solver, "build_s": build_wall, "wall_s": wall, "cpu_s": cpu
+    }  # fmt: skip
+
+
+def _start_goal_pairs(
+    robot: Any, checker: Any, n: int, seed: int = 28
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Notebook 08's pick and place, then ``n - 1`` seeded perturbations of both.
+
+    Each end is within the joint limits and at least ``MARGIN`` from every
+    obstacle by coal (the exact checker); draws that are not are redrawn.
+    """
+    rng = np.random.default_rng(seed)
+    spread = np.array([0.3, 0.2, 0.2, 0.3, 0.3, 0.3])  # [rad]
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    out = [(Q_PICK, Q_PLACE)]
+    while len(out) < n:
+        ends = [q + rng.uniform(-1, 1, q.shape) * spread for q in (Q_PICK, Q_PLACE)]
+        if all(
+            np.all(q >= lo) and np.all(q <= hi) and checker.distances(robot, q).min() >= MARGIN
+            for q in ends
+        ):
+            out.append((ends[0], ends[1]))
+    return out
+
+
+def _certify(checker: Any, robot: Any, motion: Any, t0: float, t1: float, n_knots: int) -> Any:
+    """One exact checker for every plan: coal distances between samples, the speed bound."""
+    from youbot_opt.collision import certify_clearance
+
+    times = np.linspace(t0, t1, 4 * n_knots)
+    dense = np.linspace(t0, t1, 400)
+    q = np.array([motion(t) for t in dense])
+    speeds = np.abs(np.diff(q, axis=0) / np.diff(dense)[:, None]).max(axis=0)
+    v_max = np.maximum(np.abs(robot.velocity_limit), 1.1 * speeds)
+    return certify_clearance(checker, robot, motion, times, v_max=v_max, margin=MARGIN)
+
+
+def compare_solves(
+    robot: Any,
+    checker: Any,
+    clearance: Any,
+    drake: DrakeScene,
+    ours: dict[str, Any],
+    *,
+    n_knots: int,
+    n_pairs: int,
+) -> dict[str, Any]:
+    """Ours (with and without the scene) and Drake's kinematic optimisation on start/goal pairs.
+
+    Success: the solver says so and one exact checker (coal, the certificate
+    of docs/scene.md: samples and the point-speed bound) certifies
+    ``MARGIN`` less its 1 mm tolerance over the whole plan; a penetration is
+    a plan whose smallest sampled coal distance is negative.
+    """
+    import dataclasses
+
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    solver = ours["solver"]
+    free = TrajOptSolver(dataclasses.replace(solver.problem, clearance=None), "hermite_simpson")
+    free.solve(beta=BETA)  # warm-up
+    n_points = 2 * n_knots - 1  # knots and Hermite-Simpson midpoints
+    pairs = _start_goal_pairs(robot, checker, max(n_pairs, 1))
+    rows: dict[str, list[dict[str, Any]]] = {
+        "ours": [], "ours, free space": [], "Drake kinematic, snopt": [],
+        "Drake kinematic, ipopt": [], f"Drake kinematic, snopt, {4 * n_points} pts": [],
+    }  # fmt: skip
+    for q0, q1 in pairs:
+        for name, s in (("ours", solver), ("ours, free space", free)):
+            result, wall, cpu = _timed(lambda s=s, a=q0, b=q1: s.solve(beta=BETA, start=a, goal=b))
+            plan = result.trajectory
+            t = np.asarray(plan.t, dtype=float)
+            cert = _certify(checker, robot, plan, float(t[0]), float(t[-1]), n_knots)
+            rows[name].append(
+                {"ok": bool(result.success), "wall_s": wall, "cpu_s": cpu,
+                 "T": float(t[-1] - t[0]), "cert": cert, "f": float(result.objective)}
+            )  # fmt: skip
+        for solver_name, n_s in (("snopt", 1), ("ipopt", 1), ("snopt", 4)):
+            name = f"Drake kinematic, {solver_name}" + (f", {4 * n_points} pts" if n_s > 1 else "")
+            try:
+                r = drake_kinematic_solve(
+                    drake, robot, q0, q1, margin=MARGIN, n_samples=n_s * n_points,
+                    control_points=n_knots, solver_name=solver_name,
+                )  # fmt: skip
+            except Exception as exc:  # noqa: BLE001 - a solver not built in, reported
+                print(f"{name}: not run ({exc})")
+                continue
+            r["ok"] = r.pop("success")
+            r["T"] = r["duration_s"]
+            r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
+            rows[name].append(r)
+    print(
+        f"\nSolves around the scene: {len(pairs)} start/goal pairs (notebook 08's pick and place "
+        f"and seeded perturbations, both ends >= {MARGIN} m by coal), margin {MARGIN} m, "
+        f"{n_points} constrained points per plan. ok: the solver's success and coal's "
+        "certificate of the margin (less 1 mm) over the whole plan, the same exact checker for all."
+    )
+    print(
+        f"{'':<32} {'ok':>6} {'solver ok':>9} {'penetr.':>7} {'wall [s]':>9} {'CPU [s]':>8} "
+        f"{'T [s]':>6} {'f ours':>7} {'min clearance [m]':>18}"
+    )
+    summary: dict[str, Any] = {"pairs": len(pairs), "n_points": n_points}
+    base = None
+    for name, rs in rows.items():
+        if not rs:
+            continue
+        ok = sum(r["ok"] and r["cert"].certified for r in rs)
+        solver_ok = sum(r["ok"] for r in rs)
+        pen = sum(r["cert"].closest_distance < 0 for r in rs)
+        wall = statistics.median(r["wall_s"] for r in rs)
+        cpu = statistics.median(r["cpu_s"] for r in rs)
+        dur = statistics.median(r["T"] for r in rs)
+        f = f"{statistics.median(r['f'] for r in rs):>7.3f}" if "f" in rs[0] else f"{'-':>7}"
+        lowest = min(r["cert"].closest_distance for r in rs)
+        base = base or wall
+        summary[name] = {"ok": ok, "solver_ok": solver_ok, "penetrations": pen,
+                         "median_wall_s": wall, "median_cpu_s": cpu, "median_T_s": dur,
+                         "f": f.strip(), "min_clearance_m": lowest}  # fmt: skip
+        print(
+            f"{name:<32} {ok:>3}/{len(rs):<2} {solver_ok:>9} {pen:>7} {wall:>9.3f} {cpu:>8.3f} "
+            f"{dur:>6.3f} {f} {lowest:>18.5f}   ({wall / base:.2f}x ours)"
+        )
+    print(
+        "medians over the pairs; ours keeps the dynamics and torque limits; Drake's problem has "
+        "no dynamics (B-spline path, minimum T + path length): a kinematic reference"
+    )
+    return summary
 
 
 def _closest(d: np.ndarray, pairs: tuple[tuple[str, str], ...]) -> tuple[str, float]:
@@ -370,30 +498,20 @@ def _closest(d: np.ndarray, pairs: tuple[tuple[str, str], ...]) -> tuple[str, fl
     return f"{pairs[k][0]} - {pairs[k][1]}", float(d[k])
 
 
-def _min_clearance(checker: Any, robot: Any, motion: Callable[[float], Any], t0: float,
-                   t1: float, n: int = 200) -> tuple[float, str]:  # fmt: skip
-    best, pair = np.inf, ""
-    for t in np.linspace(t0, t1, n):
-        d = checker.distances(robot, np.asarray(motion(t), dtype=float))
-        k = int(np.argmin(d))
-        if d[k] < best:
-            best, pair = float(d[k]), " - ".join(checker.model.pair_names[k])
-    return best, pair
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="10 knots, 2 passes, 1 sample")
+    parser.add_argument("--quick", action="store_true", help="10 knots, 2 pairs, 2 passes")
     parser.add_argument("--scene", type=Path, help="scene file (default: notebook 08's cell)")
     parser.add_argument("--robot", default=ROBOT)
     parser.add_argument("--knots", type=int, default=16)
     parser.add_argument("--samples", type=int, default=4, help="samples between two knots")
     parser.add_argument("--repeats", type=int, default=5, help="timing passes")
+    parser.add_argument("--pairs", type=int, default=10, help="start/goal pairs to solve")
     parser.add_argument("--no-solve", action="store_true", help="skip the solve comparison")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     if args.quick:
-        args.knots, args.samples, args.repeats = 10, 1, 2
+        args.knots, args.samples, args.repeats, args.pairs = 10, 1, 2, 2
     try:
         import pydrake  # noqa: F401
     except ImportError as exc:
@@ -402,7 +520,6 @@ def main() -> int:
 
     from youbot_opt.collision import Clearance, clearance_checker, load_scene
     from youbot_opt.robot.load import load_model
-    from youbot_opt.trajopt.clearance import certify_plan_clearance
 
     robot = load_model(args.robot)
     out: dict[str, Any] = {"robot": args.robot}
@@ -488,58 +605,9 @@ def main() -> int:
             f"{1e6 * statistics.median(cpu_drake):>24.1f}"
         )
 
-        cert = certify_plan_clearance(plan, robot, checker, margin=MARGIN)
-        ours_min_dense = _min_clearance(checker, robot, plan, float(t[0]), float(t[-1]))
-        out["ours_solve"] = {
-            "success": bool(ours["result"].success),
-            "wall_s": ours["wall_s"],
-            "cpu_s": ours["cpu_s"],
-            "build_s": ours["build_s"],
-            "duration_s": float(t[-1] - t[0]),
-            "certified": bool(cert.certified),
-            "min_clearance_m": ours_min_dense[0],
-        }
         if not args.no_solve:
-            n_points = 2 * args.knots - 1  # knots and Hermite-Simpson midpoints
-            rows = []
-            for name in ("snopt", "ipopt"):
-                try:
-                    r = drake_kinematic_solve(
-                        drake, robot, Q_PICK, Q_PLACE, margin=MARGIN, n_samples=n_points,
-                        control_points=args.knots, solver_name=name,
-                    )  # fmt: skip
-                except Exception as exc:  # noqa: BLE001 - a solver not built in, reported
-                    print(f"Drake {name}: not run ({exc})")
-                    continue
-                r["min_clearance_m"], r["closest"] = _min_clearance(
-                    checker, robot, r.pop("motion"), r["t_start"], r["t_end"]
-                )
-                rows.append(r)
-            out["drake_solves"] = rows
-            s = out["ours_solve"]
-            print(
-                f"\nSolve around the scene (margin {MARGIN} m, {n_points} constrained points "
-                "each; clearance measured by coal at 200 samples per plan)"
-            )
-            print(
-                f"{'':<34} {'ok':>3} {'wall [s]':>9} {'CPU [s]':>9} {'T [s]':>7} "
-                f"{'min clearance [m]':>18}"
-            )
-            print(
-                f"{'ours, dynamics, Hermite-Simpson':<34} {'y' if s['success'] else 'n':>3} "
-                f"{s['wall_s']:>9.3f} {s['cpu_s']:>9.3f} {s['duration_s']:>7.3f} "
-                f"{s['min_clearance_m']:>18.5f}"
-            )
-            for r in rows:
-                print(
-                    f"{'Drake kinematic, ' + r['solver']:<34} {'y' if r['success'] else 'n':>3} "
-                    f"{r['wall_s']:>9.3f} {r['cpu_s']:>9.3f} {r['duration_s']:>7.3f} "
-                    f"{r['min_clearance_m']:>18.5f}   (wall {r['wall_s'] / s['wall_s']:.1f}x ours)"
-                )
-            print(
-                f"ours: certified between knots {cert.certified} (lower bound "
-                f"{cert.lower_bound:.4f} m); Drake's problem has no dynamics and no torque "
-                "limits: a kinematic reference, not the same problem"
+            out["solves"] = compare_solves(
+                robot, checker, clearance, drake, ours, n_knots=args.knots, n_pairs=args.pairs
             )
     if args.json:
         print(json.dumps(out, default=float))
