@@ -1,8 +1,9 @@
 """Clearance side by side with Drake (issue 28, item 8): the same scene, robot and configurations.
 
-Run ``python benchmarks/bench_scene.py [--quick] [--scene FILE] [--robot ur5] [--no-solve]
-[--json]``. Drake comes with the ``bench`` extra (``pip install -e ".[bench]"``);
-without it the script prints that and exits with 2, measuring nothing.
+Run ``python benchmarks/bench_scene.py [--quick] [--scene FILE] [--robot ur5] [--pairs N]
+[--no-refine] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
+(``pip install -e ".[bench]"``); without it the script prints that and exits
+with 2, measuring nothing.
 
 * **The scene** is a scene file of our format (``--scene``; by default the cell
   of notebook 08: a table, a shelf panel and a box held by ``tool0``) read by
@@ -24,13 +25,20 @@ without it the script prints that and exits with 2, measuring nothing.
   max |ours - Drake| [m], the closest pair each reports, and the time per
   configuration of each (forward kinematics included; medians of ``--repeats``
   passes, in the same run).
-* **Solve**: ours (``TrajOptSolver.solve``, the full dynamics, torque limits and
-  the clearance rows) against Drake's ``KinematicTrajectoryOptimization`` with
+* **Solves** on ``--pairs`` start/goal pairs (notebook 08's pick and place,
+  then seeded perturbations of both, each end within the limits and at least
+  the margin from the scene by coal): ours (``TrajOptSolver.solve`` on one
+  built solver, full dynamics, torque limits and the clearance rows; also the
+  whole of ``refine()``, and the same solver without the scene: what the
+  scene costs) against Drake's ``KinematicTrajectoryOptimization`` with
   ``MinimumDistanceLowerBoundConstraint`` at as many path samples as we have
-  constrained points. Drake's problem has **no dynamics** (a B-spline path with
-  duration, velocity and position bounds, minimum time plus path length): it is
-  a kinematic reference, not the same problem. Both plans are then measured by
-  one exact checker (coal, 200 samples per plan) for the smallest clearance.
+  constrained points (SNOPT and IPOPT), and at four times as many (SNOPT).
+  Drake's problem has **no dynamics** (a B-spline path with duration,
+  velocity and position bounds, minimum time plus path length): it is a
+  kinematic reference, not the same problem. Every plan is then judged by one
+  exact checker, coal's certificate of docs/scene.md (samples and the
+  point-speed bound): success is the solver's success and the margin, less
+  1 mm, certified over the whole plan.
 """
 
 from __future__ import annotations
@@ -410,16 +418,19 @@ def compare_solves(
     *,
     n_knots: int,
     n_pairs: int,
+    with_refine: bool = True,
 ) -> dict[str, Any]:
     """Ours (with and without the scene) and Drake's kinematic optimisation on start/goal pairs.
 
     Success: the solver says so and one exact checker (coal, the certificate
     of docs/scene.md: samples and the point-speed bound) certifies
     ``MARGIN`` less its 1 mm tolerance over the whole plan; a penetration is
-    a plan whose smallest sampled coal distance is negative.
+    a plan the solver calls a success whose smallest sampled coal distance is
+    negative.
     """
     import dataclasses
 
+    from youbot_opt.trajopt.refine import refine
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     solver = ours["solver"]
@@ -428,12 +439,27 @@ def compare_solves(
     n_points = 2 * n_knots - 1  # knots and Hermite-Simpson midpoints
     pairs = _start_goal_pairs(robot, checker, max(n_pairs, 1))
     rows: dict[str, list[dict[str, Any]]] = {
-        "ours": [], "ours, free space": [], "Drake kinematic, snopt": [],
+        "ours": [], "ours, refined (refine())": [], "ours, free space": [],
+        "Drake kinematic, snopt": [],
         "Drake kinematic, ipopt": [], f"Drake kinematic, snopt, {4 * n_points} pts": [],
     }  # fmt: skip
-    for q0, q1 in pairs:
-        for name, s in (("ours", solver), ("ours, free space", free)):
-            result, wall, cpu = _timed(lambda s=s, a=q0, b=q1: s.solve(beta=BETA, start=a, goal=b))
+    if not with_refine:
+        del rows["ours, refined (refine())"]
+    for i, (q0, q1) in enumerate(pairs):
+        print(f"pair {i + 1}/{len(pairs)} ...", file=sys.stderr, flush=True)
+        runs = [("ours", solver), ("ours, refined (refine())", None), ("ours, free space", free)]
+        for name, s in runs:
+            if name not in rows:
+                continue
+            if s is None:  # the whole of refine(): round 0's solve, certificates, new grids
+                refined, wall, cpu = _timed(
+                    lambda a=q0, b=q1: refine(solver, beta=BETA, start=a, goal=b)
+                )
+                result = refined.result
+            else:
+                result, wall, cpu = _timed(
+                    lambda s=s, a=q0, b=q1: s.solve(beta=BETA, start=a, goal=b)
+                )
             plan = result.trajectory
             t = np.asarray(plan.t, dtype=float)
             cert = _certify(checker, robot, plan, float(t[0]), float(t[-1]), n_knots)
@@ -459,7 +485,8 @@ def compare_solves(
         f"\nSolves around the scene: {len(pairs)} start/goal pairs (notebook 08's pick and place "
         f"and seeded perturbations, both ends >= {MARGIN} m by coal), margin {MARGIN} m, "
         f"{n_points} constrained points per plan. ok: the solver's success and coal's "
-        "certificate of the margin (less 1 mm) over the whole plan, the same exact checker for all."
+        "certificate of the margin (less 1 mm) over the whole plan, the same exact checker for "
+        "all; penetr. and min clearance: over the plans the solver calls a success."
     )
     print(
         f"{'':<32} {'ok':>6} {'solver ok':>9} {'penetr.':>7} {'wall [s]':>9} {'CPU [s]':>8} "
@@ -472,12 +499,12 @@ def compare_solves(
             continue
         ok = sum(r["ok"] and r["cert"].certified for r in rs)
         solver_ok = sum(r["ok"] for r in rs)
-        pen = sum(r["cert"].closest_distance < 0 for r in rs)
+        pen = sum(r["ok"] and r["cert"].closest_distance < 0 for r in rs)
         wall = statistics.median(r["wall_s"] for r in rs)
         cpu = statistics.median(r["cpu_s"] for r in rs)
         dur = statistics.median(r["T"] for r in rs)
         f = f"{statistics.median(r['f'] for r in rs):>7.3f}" if "f" in rs[0] else f"{'-':>7}"
-        lowest = min(r["cert"].closest_distance for r in rs)
+        lowest = min((r["cert"].closest_distance for r in rs if r["ok"]), default=np.nan)
         base = base or wall
         summary[name] = {"ok": ok, "solver_ok": solver_ok, "penetrations": pen,
                          "median_wall_s": wall, "median_cpu_s": cpu, "median_T_s": dur,
@@ -500,7 +527,7 @@ def _closest(d: np.ndarray, pairs: tuple[tuple[str, str], ...]) -> tuple[str, fl
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="10 knots, 2 pairs, 2 passes")
+    parser.add_argument("--quick", action="store_true", help="10 knots, 2 pairs, no refine")
     parser.add_argument("--scene", type=Path, help="scene file (default: notebook 08's cell)")
     parser.add_argument("--robot", default=ROBOT)
     parser.add_argument("--knots", type=int, default=16)
@@ -508,10 +535,12 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=5, help="timing passes")
     parser.add_argument("--pairs", type=int, default=10, help="start/goal pairs to solve")
     parser.add_argument("--no-solve", action="store_true", help="skip the solve comparison")
+    parser.add_argument("--no-refine", action="store_true", help="skip refine() (slow)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     if args.quick:
         args.knots, args.samples, args.repeats, args.pairs = 10, 1, 2, 2
+        args.no_refine = True
     try:
         import pydrake  # noqa: F401
     except ImportError as exc:
@@ -607,8 +636,9 @@ def main() -> int:
 
         if not args.no_solve:
             out["solves"] = compare_solves(
-                robot, checker, clearance, drake, ours, n_knots=args.knots, n_pairs=args.pairs
-            )
+                robot, checker, clearance, drake, ours, n_knots=args.knots, n_pairs=args.pairs,
+                with_refine=not args.no_refine,
+            )  # fmt: skip
     if args.json:
         print(json.dumps(out, default=float))
     return 0
