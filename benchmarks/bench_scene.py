@@ -1,0 +1,648 @@
+"""Clearance side by side with Drake (issue 28, item 8): the same scene, robot and configurations.
+
+Run ``python benchmarks/bench_scene.py [--quick] [--scene FILE] [--robot ur5] [--pairs N]
+[--no-refine] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
+(``pip install -e ".[bench]"``); without it the script prints that and exits
+with 2, measuring nothing.
+
+* **The scene** is a scene file of our format (``--scene``; by default the cell
+  of notebook 08: a table, a shelf panel and a box held by ``tool0``) read by
+  :func:`youbot_opt.collision.load_scene`. Drake gets the same primitives as
+  Drake shapes (boxes as ``Box``, ...), world-fixed ones on the world body and
+  carried ones on the carrying link's body at the same pose.
+* **The robot** is parsed by Drake's ``Parser`` from the same URDF text (its
+  visual and collision elements taken out), and each collision geometry of our
+  model is registered on the same body at the same pose: a mesh as a ``Convex``
+  read from an ``.obj`` file holding the convex hull of the mesh's vertices
+  (:func:`hull_obj_text`), the solid coal measures too; a primitive as itself.
+  Collision filters leave exactly our robot-vs-scene pairs (no self pairs, no
+  obstacle-vs-obstacle pairs, a held box not against the links holding it).
+* **Configurations**: the knots of our solved plan (Hermite-Simpson, a margin
+  of 1 cm from the scene) and ``--samples`` samples between each two knots.
+  At each one, every pair's distance by coal
+  (:class:`youbot_opt.collision.ExactChecker`, the certificate's checker) and by
+  Drake's ``QueryObject.ComputeSignedDistancePairwiseClosestPoints``; printed:
+  max |ours - Drake| [m], the closest pair each reports, and the time per
+  configuration of each (forward kinematics included; medians of ``--repeats``
+  passes, in the same run).
+* **Solves** on ``--pairs`` start/goal pairs (notebook 08's pick and place,
+  then seeded perturbations of both, each end within the limits and at least
+  the margin from the scene by coal): ours (``TrajOptSolver.solve`` on one
+  built solver, full dynamics, torque limits and the clearance rows; also the
+  whole of ``refine()``, and the same solver without the scene: what the
+  scene costs) against Drake's ``KinematicTrajectoryOptimization`` with
+  ``MinimumDistanceLowerBoundConstraint`` at as many path samples as we have
+  constrained points (SNOPT and IPOPT), and at four times as many (SNOPT).
+  Drake's problem has **no dynamics** (a B-spline path with duration,
+  velocity and position bounds, minimum time plus path length): it is a
+  kinematic reference, not the same problem. Every plan is then judged by one
+  exact checker, coal's certificate of docs/scene.md (samples and the
+  point-speed bound): success is the solver's success and the margin, less
+  1 mm, certified over the whole plan.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+DRAKE_HINT = 'pip install -e ".[bench]"'
+ROBOT = "ur5"
+Q_PICK = np.array([-0.6, -1.0, 1.6, -2.1, -1.57, 0.0])  # [rad] notebook 08's pick pose
+Q_PLACE = np.array([0.6, -1.0, 1.6, -2.1, -1.57, 0.0])  # [rad] and place pose
+MARGIN = 0.01  # [m]
+BETA = 0.5
+#: The cell of notebook 08 (a table, a shelf panel on it, a box held by the tool).
+CELL = {
+    "schema": "youbot_opt.scene",
+    "schema_version": 1,
+    "obstacles": [
+        {"name": "table", "shape": "box", "size": [0.5, 1.4, 0.04], "xyz": [0.55, 0.0, -0.02]},
+        {"name": "shelf", "shape": "box", "size": [0.3, 0.03, 0.3], "xyz": [0.6, 0.08, 0.15]},
+        {
+            "name": "held box",
+            "shape": "box",
+            "size": [0.06, 0.06, 0.06],
+            "xyz": [0, 0, 0.04],
+            "frame": "tool0",
+        },
+    ],
+}
+
+
+# -- pure helpers (no Drake) ------------------------------------------------------------
+
+
+def hull_obj_text(points: np.ndarray) -> str:
+    """Return Wavefront OBJ text of the convex hull of ``points`` [m] (outward triangles).
+
+    Drake's ``Convex`` reads an ``.obj``; the solid is the hull of its
+    vertices, as coal's convex hull of the same mesh (``collision.exact``).
+    """
+    from scipy.spatial import ConvexHull
+
+    pts = np.asarray(points, dtype=float)
+    hull = ConvexHull(pts)
+    used = np.unique(hull.simplices)
+    index = {int(v): i + 1 for i, v in enumerate(used)}
+    centre = pts[used].mean(axis=0)
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in pts[used]]
+    for tri in hull.simplices:
+        a, b, c = (pts[i] for i in tri)
+        if np.dot(np.cross(b - a, c - a), a - centre) < 0:  # orient outwards
+            tri = tri[[0, 2, 1]]
+        lines.append("f " + " ".join(str(index[int(i)]) for i in tri))
+    return "\n".join(lines) + "\n"
+
+
+def strip_geometry(urdf: str) -> str:
+    """Return URDF text without ``<visual>`` and ``<collision>`` elements (Drake gets ours)."""
+    return re.sub(r"<(visual|collision)\b.*?</\1>", "", urdf, flags=re.DOTALL)
+
+
+def _timed(fn: Callable[[], Any]) -> tuple[Any, float, float]:
+    """``fn()``, its wall time and its CPU time in [s]."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    value = fn()
+    return value, time.perf_counter() - wall, time.process_time() - cpu
+
+
+# -- Drake's side -------------------------------------------------------------------------
+
+
+def _rigid(rotation: np.ndarray, translation: np.ndarray) -> Any:
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    return RigidTransform(RotationMatrix(np.asarray(rotation)), np.asarray(translation))
+
+
+class DrakeScene:
+    """Our robot and scene in a Drake diagram (``MultibodyPlant`` + ``SceneGraph``).
+
+    Attributes set: ``plant``, ``scene_graph``, ``diagram``, ``context``,
+    ``plant_context``, ``names`` (GeometryId -> our geometry or obstacle name),
+    ``order`` (our q index -> Drake's), ``pairs`` (our scene pairs as name pairs).
+    """
+
+    def __init__(self, robot: Any, checker: Any, folder: Path) -> None:
+        import coal
+        import pinocchio as pin
+        from pydrake.geometry import (
+            Box,
+            Capsule,
+            CollisionFilterDeclaration,
+            Convex,
+            Cylinder,
+            GeometrySet,
+            HalfSpace,
+            ProximityProperties,
+            Sphere,
+        )
+        from pydrake.multibody.parsing import Parser
+        from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+        from pydrake.systems.framework import DiagramBuilder
+
+        from youbot_opt.collision import shapes
+
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
+        urdf = strip_geometry(Path(robot.urdf_path).read_text(encoding="utf-8"))
+        (instance,) = Parser(plant).AddModelsFromString(urdf, "urdf")
+        model = robot.model
+        names: dict[Any, str] = {}
+
+        def register(body: Any, pose: Any, shape: Any, name: str) -> None:
+            gid = plant.RegisterCollisionGeometry(body, pose, shape, name, ProximityProperties())
+            names[gid] = name
+
+        for geom in robot.collision_model.geometryObjects:
+            frame = model.frames[geom.parentFrame]
+            body = plant.GetBodyByName(frame.name, instance)
+            # geometry placement is in the parent joint's frame; Drake wants the body's
+            x = frame.placement.inverse() * pin.SE3(geom.placement)
+            g = geom.geometry
+            if isinstance(g, coal.BVHModelBase):
+                path = folder / f"{geom.name}.obj"
+                path.write_text(hull_obj_text(np.asarray(g.vertices())), encoding="utf-8")
+                shape: Any = Convex(str(path))
+            elif isinstance(g, coal.Box):
+                shape = Box(*(2 * np.asarray(g.halfSide)))
+            elif isinstance(g, coal.Sphere):
+                shape = Sphere(g.radius)
+            elif isinstance(g, coal.Cylinder):
+                shape = Cylinder(g.radius, 2 * g.halfLength)
+            elif isinstance(g, coal.Capsule):
+                shape = Capsule(g.radius, 2 * g.halfLength)
+            else:
+                raise NotImplementedError(f"{geom.name}: {type(g).__name__} has no Drake shape")
+            register(body, _rigid(x.rotation, x.translation), shape, geom.name)
+        for placed in checker.model.obstacles:
+            o = placed.obstacle
+            s = o.shape
+            if isinstance(s, shapes.Box):
+                shape = Box(*s.size)
+            elif isinstance(s, shapes.Sphere):
+                shape = Sphere(s.radius)
+            elif isinstance(s, shapes.Cylinder):
+                shape = Cylinder(s.radius, s.length)
+            elif isinstance(s, shapes.Capsule):
+                shape = Capsule(s.radius, s.length)
+            elif isinstance(s, shapes.HalfSpace):
+                shape = HalfSpace()
+            else:  # a mesh: its convex hull, as coal's
+                from youbot_opt.collision.spheres import hull_points
+
+                path = folder / f"obstacle_{len(names)}.obj"
+                path.write_text(hull_obj_text(hull_points(s).points), encoding="utf-8")
+                shape = Convex(str(path))
+            if o.frame is None:
+                body = plant.world_body()
+                pose = _rigid(o.rotation, o.translation)
+            else:  # URDF fixed joints stay bodies in Drake: the frame's body, at its pose
+                frame = plant.GetFrameByName(o.frame, instance)
+                body = frame.body()
+                pose = frame.GetFixedPoseInBodyFrame().multiply(_rigid(o.rotation, o.translation))
+            register(body, pose, shape, o.name)
+        plant.Finalize()
+        # leave exactly our robot-vs-scene pairs
+        ours = set(checker.model.pair_names[len(checker.model.self_pairs) :])
+        ids = list(names)
+        manager = scene_graph.collision_filter_manager()
+        for i, a in enumerate(ids):
+            for b in ids[i + 1 :]:
+                pair = (names[a], names[b])
+                if pair in ours or pair[::-1] in ours:
+                    continue
+                manager.Apply(
+                    CollisionFilterDeclaration().ExcludeBetween(GeometrySet(a), GeometrySet(b))
+                )
+        self.diagram = builder.Build()
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant, self.scene_graph = plant, scene_graph
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self.sg_context = scene_graph.GetMyContextFromRoot(self.context)
+        self.names = names
+        self.pairs = tuple(checker.model.pair_names[len(checker.model.self_pairs) :])
+        self.pair_index = {p: i for i, p in enumerate(self.pairs)}
+        drake_names = [
+            plant.get_joint(j).name()
+            for j in plant.GetJointIndices(instance)
+            if plant.get_joint(j).num_positions() == 1
+        ]
+        starts = {
+            plant.get_joint(j).name(): plant.get_joint(j).position_start()
+            for j in plant.GetJointIndices(instance)
+        }
+        ours_names = [model.names[j] for j in range(1, model.njoints)]
+        if sorted(drake_names) != sorted(ours_names):
+            raise ValueError(f"joints differ: Drake {drake_names}, ours {ours_names}")
+        self.order = np.array([starts[n] for n in ours_names])
+        self.nq = plant.num_positions()
+
+    def to_drake(self, q: np.ndarray) -> np.ndarray:
+        """Our configuration in Drake's joint order."""
+        out = np.zeros(self.nq)
+        out[self.order] = q
+        return out
+
+    def from_drake(self, q: np.ndarray) -> np.ndarray:
+        """Drake's configuration in our joint order."""
+        return np.asarray(q)[self.order]
+
+    def distances(self, q: np.ndarray) -> np.ndarray:
+        """Drake's signed distance [m] of each of our scene pairs at our ``q``, in our order."""
+        self.plant.SetPositions(self.plant_context, self.to_drake(q))
+        query = self.scene_graph.get_query_output_port().Eval(self.sg_context)
+        out = np.full(len(self.pairs), np.nan)
+        for r in query.ComputeSignedDistancePairwiseClosestPoints():
+            a, b = self.names[r.id_A], self.names[r.id_B]
+            k = self.pair_index.get((a, b), self.pair_index.get((b, a)))
+            if k is None:
+                raise AssertionError(f"Drake reports a pair we do not check: {a} - {b}")
+            out[k] = r.distance
+        return out
+
+    def link_pose_error(self, robot: Any, frames: list[str], qs: np.ndarray) -> float:
+        """Largest |position difference| [m] of ``frames`` between Drake and Pinocchio."""
+        import pinocchio as pin
+
+        data = robot.create_data()
+        worst = 0.0
+        for q in qs:
+            pin.framesForwardKinematics(robot.model, data, q)
+            self.plant.SetPositions(self.plant_context, self.to_drake(q))
+            for name in frames:
+                ours = data.oMf[robot.frame_id(name)].translation
+                theirs = self.plant.GetFrameByName(name).CalcPoseInWorld(self.plant_context)
+                worst = max(worst, float(np.linalg.norm(ours - theirs.translation())))
+        return worst
+
+
+def drake_kinematic_solve(
+    drake: DrakeScene,
+    robot: Any,
+    q_start: np.ndarray,
+    q_goal: np.ndarray,
+    *,
+    margin: float,
+    n_samples: int,
+    control_points: int,
+    solver_name: str,
+) -> dict[str, Any]:
+    """Drake's KinematicTrajectoryOptimization around the scene: a kinematic reference.
+
+    Minimum duration plus path length over a cubic B-spline path with
+    ``control_points`` control points; position and velocity bounds of the
+    URDF; the path at rest at both ends; ``MinimumDistanceLowerBoundConstraint``
+    (``margin``, our robot-vs-scene pairs through the filters) at ``n_samples``
+    evenly spaced path parameters. No dynamics, no torque limits.
+    """
+    from pydrake.multibody.inverse_kinematics import MinimumDistanceLowerBoundConstraint
+    from pydrake.planning import KinematicTrajectoryOptimization
+    from pydrake.solvers import IpoptSolver, SnoptSolver
+
+    plant, nq = drake.plant, drake.nq
+    start, goal = drake.to_drake(q_start), drake.to_drake(q_goal)
+
+    def build() -> tuple[Any, Any]:
+        trajopt = KinematicTrajectoryOptimization(nq, control_points, spline_order=4)
+        prog = trajopt.get_mutable_prog()
+        trajopt.AddDurationCost(1.0)
+        trajopt.AddPathLengthCost(1.0)
+        trajopt.AddPositionBounds(plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
+        trajopt.AddVelocityBounds(plant.GetVelocityLowerLimits(), plant.GetVelocityUpperLimits())
+        trajopt.AddDurationConstraint(0.05, 10.0)
+        trajopt.AddPathPositionConstraint(start, start, 0)
+        trajopt.AddPathPositionConstraint(goal, goal, 1)
+        trajopt.AddPathVelocityConstraint(np.zeros(nq), np.zeros(nq), 0)
+        trajopt.AddPathVelocityConstraint(np.zeros(nq), np.zeros(nq), 1)
+        constraint = MinimumDistanceLowerBoundConstraint(
+            plant, margin, drake.plant_context, None, 0.05
+        )
+        for s in np.linspace(0, 1, n_samples):
+            trajopt.AddPathPositionConstraint(constraint, s)
+        guess = np.linspace(start, goal, control_points).T
+        prog.SetInitialGuess(trajopt.control_points(), guess)
+        prog.SetInitialGuess(trajopt.duration(), 2.0)
+        return trajopt, prog
+
+    (trajopt, prog), build_wall, _ = _timed(build)
+    solver = SnoptSolver() if solver_name == "snopt" else IpoptSolver()
+    result, wall, cpu = _timed(lambda: solver.Solve(prog))
+    path = trajopt.ReconstructTrajectory(result)
+    return {
+        "solver": solver_name,
+        "success": bool(result.is_success()),
+        "build_s": build_wall,
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "duration_s": float(path.end_time() - path.start_time()),
+        "motion": lambda t: drake.from_drake(path.value(t).ravel()),
+        "t_end": float(path.end_time()),
+        "t_start": float(path.start_time()),
+    }
+
+
+# -- the benchmark --------------------------------------------------------------------
+
+
+def _solve_ours(robot: Any, clearance: Any, n_knots: int) -> dict[str, Any]:
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    problem = TrajOptProblem(
+        robot=robot,
+        start=BoundaryState(q=Q_PICK),
+        goal=BoundaryState(q=Q_PLACE),
+        n_knots=n_knots,
+        clearance=clearance,
+    )
+    solver, build_wall, _ = _timed(lambda: TrajOptSolver(problem, "hermite_simpson"))
+    solver.solve(beta=BETA)  # warm-up: the kernels compile or load
+    result, wall, cpu = _timed(lambda: solver.solve(beta=BETA))
+    return {
+        "result": result, "solver": solver, "build_s": build_wall, "wall_s": wall, "cpu_s": cpu
+    }  # fmt: skip
+
+
+def _start_goal_pairs(
+    robot: Any, checker: Any, n: int, seed: int = 28
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Notebook 08's pick and place, then ``n - 1`` seeded perturbations of both.
+
+    Each end is within the joint limits and at least ``MARGIN`` from every
+    obstacle by coal (the exact checker); draws that are not are redrawn.
+    """
+    rng = np.random.default_rng(seed)
+    spread = np.array([0.3, 0.2, 0.2, 0.3, 0.3, 0.3])  # [rad]
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    out = [(Q_PICK, Q_PLACE)]
+    while len(out) < n:
+        ends = [q + rng.uniform(-1, 1, q.shape) * spread for q in (Q_PICK, Q_PLACE)]
+        if all(
+            np.all(q >= lo) and np.all(q <= hi) and checker.distances(robot, q).min() >= MARGIN
+            for q in ends
+        ):
+            out.append((ends[0], ends[1]))
+    return out
+
+
+def _certify(checker: Any, robot: Any, motion: Any, t0: float, t1: float, n_knots: int) -> Any:
+    """One exact checker for every plan: coal distances between samples, the speed bound."""
+    from youbot_opt.collision import certify_clearance
+
+    times = np.linspace(t0, t1, 4 * n_knots)
+    dense = np.linspace(t0, t1, 400)
+    q = np.array([motion(t) for t in dense])
+    speeds = np.abs(np.diff(q, axis=0) / np.diff(dense)[:, None]).max(axis=0)
+    v_max = np.maximum(np.abs(robot.velocity_limit), 1.1 * speeds)
+    return certify_clearance(checker, robot, motion, times, v_max=v_max, margin=MARGIN)
+
+
+def compare_solves(
+    robot: Any,
+    checker: Any,
+    clearance: Any,
+    drake: DrakeScene,
+    ours: dict[str, Any],
+    *,
+    n_knots: int,
+    n_pairs: int,
+    with_refine: bool = True,
+) -> dict[str, Any]:
+    """Ours (with and without the scene) and Drake's kinematic optimisation on start/goal pairs.
+
+    Success: the solver says so and one exact checker (coal, the certificate
+    of docs/scene.md: samples and the point-speed bound) certifies
+    ``MARGIN`` less its 1 mm tolerance over the whole plan; a penetration is
+    a plan the solver calls a success whose smallest sampled coal distance is
+    negative.
+    """
+    import dataclasses
+
+    from youbot_opt.trajopt.refine import refine
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    solver = ours["solver"]
+    free = TrajOptSolver(dataclasses.replace(solver.problem, clearance=None), "hermite_simpson")
+    free.solve(beta=BETA)  # warm-up
+    n_points = 2 * n_knots - 1  # knots and Hermite-Simpson midpoints
+    pairs = _start_goal_pairs(robot, checker, max(n_pairs, 1))
+    rows: dict[str, list[dict[str, Any]]] = {
+        "ours": [], "ours, refined (refine())": [], "ours, free space": [],
+        "Drake kinematic, snopt": [],
+        "Drake kinematic, ipopt": [], f"Drake kinematic, snopt, {4 * n_points} pts": [],
+    }  # fmt: skip
+    if not with_refine:
+        del rows["ours, refined (refine())"]
+    for i, (q0, q1) in enumerate(pairs):
+        print(f"pair {i + 1}/{len(pairs)} ...", file=sys.stderr, flush=True)
+        runs = [("ours", solver), ("ours, refined (refine())", None), ("ours, free space", free)]
+        for name, s in runs:
+            if name not in rows:
+                continue
+            if s is None:  # the whole of refine(): round 0's solve, certificates, new grids
+                refined, wall, cpu = _timed(
+                    lambda a=q0, b=q1: refine(solver, beta=BETA, start=a, goal=b)
+                )
+                result = refined.result
+            else:
+                result, wall, cpu = _timed(
+                    lambda s=s, a=q0, b=q1: s.solve(beta=BETA, start=a, goal=b)
+                )
+            plan = result.trajectory
+            t = np.asarray(plan.t, dtype=float)
+            cert = _certify(checker, robot, plan, float(t[0]), float(t[-1]), n_knots)
+            rows[name].append(
+                {"ok": bool(result.success), "wall_s": wall, "cpu_s": cpu,
+                 "T": float(t[-1] - t[0]), "cert": cert, "f": float(result.objective)}
+            )  # fmt: skip
+        for solver_name, n_s in (("snopt", 1), ("ipopt", 1), ("snopt", 4)):
+            name = f"Drake kinematic, {solver_name}" + (f", {4 * n_points} pts" if n_s > 1 else "")
+            try:
+                r = drake_kinematic_solve(
+                    drake, robot, q0, q1, margin=MARGIN, n_samples=n_s * n_points,
+                    control_points=n_knots, solver_name=solver_name,
+                )  # fmt: skip
+            except Exception as exc:  # noqa: BLE001 - a solver not built in, reported
+                print(f"{name}: not run ({exc})")
+                continue
+            r["ok"] = r.pop("success")
+            r["T"] = r["duration_s"]
+            r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
+            rows[name].append(r)
+    print(
+        f"\nSolves around the scene: {len(pairs)} start/goal pairs (notebook 08's pick and place "
+        f"and seeded perturbations, both ends >= {MARGIN} m by coal), margin {MARGIN} m, "
+        f"{n_points} constrained points per plan. ok: the solver's success and coal's "
+        "certificate of the margin (less 1 mm) over the whole plan, the same exact checker for "
+        "all; penetr. and min clearance: over the plans the solver calls a success."
+    )
+    print(
+        f"{'':<32} {'ok':>6} {'solver ok':>9} {'penetr.':>7} {'wall [s]':>9} {'CPU [s]':>8} "
+        f"{'T [s]':>6} {'f ours':>7} {'min clearance [m]':>18}"
+    )
+    summary: dict[str, Any] = {"pairs": len(pairs), "n_points": n_points}
+    base = None
+    for name, rs in rows.items():
+        if not rs:
+            continue
+        ok = sum(r["ok"] and r["cert"].certified for r in rs)
+        solver_ok = sum(r["ok"] for r in rs)
+        pen = sum(r["ok"] and r["cert"].closest_distance < 0 for r in rs)
+        wall = statistics.median(r["wall_s"] for r in rs)
+        cpu = statistics.median(r["cpu_s"] for r in rs)
+        dur = statistics.median(r["T"] for r in rs)
+        f = f"{statistics.median(r['f'] for r in rs):>7.3f}" if "f" in rs[0] else f"{'-':>7}"
+        lowest = min((r["cert"].closest_distance for r in rs if r["ok"]), default=np.nan)
+        base = base or wall
+        summary[name] = {"ok": ok, "solver_ok": solver_ok, "penetrations": pen,
+                         "median_wall_s": wall, "median_cpu_s": cpu, "median_T_s": dur,
+                         "f": f.strip(), "min_clearance_m": lowest}  # fmt: skip
+        print(
+            f"{name:<32} {ok:>3}/{len(rs):<2} {solver_ok:>9} {pen:>7} {wall:>9.3f} {cpu:>8.3f} "
+            f"{dur:>6.3f} {f} {lowest:>18.5f}   ({wall / base:.2f}x ours)"
+        )
+    print(
+        "medians over the pairs; ours keeps the dynamics and torque limits; Drake's problem has "
+        "no dynamics (B-spline path, minimum T + path length): a kinematic reference"
+    )
+    return summary
+
+
+def _closest(d: np.ndarray, pairs: tuple[tuple[str, str], ...]) -> tuple[str, float]:
+    k = int(np.nanargmin(d))
+    return f"{pairs[k][0]} - {pairs[k][1]}", float(d[k])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="10 knots, 2 pairs, no refine")
+    parser.add_argument("--scene", type=Path, help="scene file (default: notebook 08's cell)")
+    parser.add_argument("--robot", default=ROBOT)
+    parser.add_argument("--knots", type=int, default=16)
+    parser.add_argument("--samples", type=int, default=4, help="samples between two knots")
+    parser.add_argument("--repeats", type=int, default=5, help="timing passes")
+    parser.add_argument("--pairs", type=int, default=10, help="start/goal pairs to solve")
+    parser.add_argument("--no-solve", action="store_true", help="skip the solve comparison")
+    parser.add_argument("--no-refine", action="store_true", help="skip refine() (slow)")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    if args.quick:
+        args.knots, args.samples, args.repeats, args.pairs = 10, 1, 2, 2
+        args.no_refine = True
+    try:
+        import pydrake  # noqa: F401
+    except ImportError as exc:
+        print(f"bench_scene: pydrake is not installed ({exc}): {DRAKE_HINT}", file=sys.stderr)
+        return 2
+
+    from youbot_opt.collision import Clearance, clearance_checker, load_scene
+    from youbot_opt.robot.load import load_model
+
+    robot = load_model(args.robot)
+    out: dict[str, Any] = {"robot": args.robot}
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        path = args.scene
+        if path is None:
+            path = folder / "cell.json"
+            path.write_text(json.dumps(CELL), encoding="utf-8")
+        scene = load_scene(path)
+        clearance = Clearance(scene=scene, margin=MARGIN, self_collision=False)
+        checker = clearance_checker(robot, clearance)
+        drake, drake_build, _ = _timed(lambda: DrakeScene(robot, checker, folder))
+        pairs = drake.pairs
+        print(
+            f"{args.robot} in {path.name}: {len(scene.obstacles)} obstacles, {len(pairs)} "
+            f"robot-vs-scene pairs; Drake diagram built in {drake_build:.2f} s"
+        )
+
+        ours = _solve_ours(robot, clearance, args.knots)
+        plan = ours["result"].trajectory
+        t = np.asarray(plan.t, dtype=float)
+        k = args.samples + 1
+        times = np.concatenate(
+            [np.linspace(t[i], t[i + 1], k + 1)[:-1] for i in range(len(t) - 1)] + [t[-1:]]
+        )
+        qs = np.asarray(plan(times), dtype=float)
+        frames = ["tool0", "wrist_2_link", "forearm_link"]
+        pose_err = drake.link_pose_error(robot, frames, qs[:: max(len(qs) // 10, 1)])
+
+        coal_d = np.array([checker.distances(robot, q) for q in qs])
+        drake_d = np.array([drake.distances(q) for q in qs])
+        diff = np.abs(coal_d - drake_d)
+        worst = np.unravel_index(int(np.nanargmax(diff)), diff.shape)
+        agree = int(
+            sum(np.argmin(a) == np.nanargmin(b) for a, b in zip(coal_d, drake_d, strict=True))
+        )
+        i_min = int(np.argmin(coal_d.min(axis=1)))
+        ours_pair, ours_min = _closest(coal_d[i_min], pairs)
+        j_min = int(np.nanargmin(np.nanmin(drake_d, axis=1)))
+        drake_pair, drake_min = _closest(drake_d[j_min], pairs)
+
+        cpu_ours, cpu_drake, wall_ours, wall_drake = [], [], [], []
+        for _ in range(args.repeats):  # alternating passes, same machine state
+            _, w, c = _timed(lambda: [checker.distances(robot, q) for q in qs])
+            wall_ours.append(w / len(qs))
+            cpu_ours.append(c / len(qs))
+            _, w, c = _timed(lambda: [drake.distances(q) for q in qs])
+            wall_drake.append(w / len(qs))
+            cpu_drake.append(c / len(qs))
+        per_ours, per_drake = statistics.median(wall_ours), statistics.median(wall_drake)
+        out["distances"] = {
+            "configurations": len(qs),
+            "pairs": len(pairs),
+            "max_abs_diff_m": float(np.nanmax(diff)),
+            "worst_pair": " - ".join(pairs[worst[1]]),
+            "frame_position_error_m": pose_err,
+            "same_closest_pair": agree,
+            "ours_closest": [ours_pair, ours_min, float(times[i_min])],
+            "drake_closest": [drake_pair, drake_min, float(times[j_min])],
+            "ours_s_per_config": per_ours,
+            "drake_s_per_config": per_drake,
+            "ours_cpu_per_config": statistics.median(cpu_ours),
+            "drake_cpu_per_config": statistics.median(cpu_drake),
+        }
+        print(
+            f"\nDistances at {len(qs)} configurations ({len(t)} knots of our plan and "
+            f"{args.samples} samples between each two), {len(pairs)} pairs each; "
+            f"frames agree to {pose_err:.1e} m"
+        )
+        print(f"{'':<32} {'ours (coal)':>24} {'Drake (SceneGraph)':>24}")
+        worst_pair = out["distances"]["worst_pair"]
+        print(f"{'max |ours - Drake| [m]':<32} {np.nanmax(diff):>49.2e}   ({worst_pair})")
+        print(f"{'closest pair':<32} {ours_pair:>24} {drake_pair:>24}")
+        print(f"{'  its distance [m]':<32} {ours_min:>24.5f} {drake_min:>24.5f}")
+        print(f"{'same closest pair per config':<32} {agree:>49d} / {len(qs)}")
+        print(
+            f"{'time per configuration [us]':<32} {1e6 * per_ours:>24.1f} {1e6 * per_drake:>24.1f}"
+            f"   (Drake / ours {per_drake / per_ours:.2f}x, wall, median of {args.repeats})"
+        )
+        print(
+            f"{'  CPU per configuration [us]':<32} {1e6 * statistics.median(cpu_ours):>24.1f} "
+            f"{1e6 * statistics.median(cpu_drake):>24.1f}"
+        )
+
+        if not args.no_solve:
+            out["solves"] = compare_solves(
+                robot, checker, clearance, drake, ours, n_knots=args.knots, n_pairs=args.pairs,
+                with_refine=not args.no_refine,
+            )  # fmt: skip
+    if args.json:
+        print(json.dumps(out, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
