@@ -241,14 +241,14 @@ class TimedResult:
     def summary(self) -> dict[str, Any]:
         """JSON-ready figures: waypoint times [s], T [s], W, status, waypoint error [rad]."""
         return {
-            "waypoint_times": [float(t) for t in self.waypoint_times],
-            "segment_durations": [float(d) for d in self.segment_durations],
+            "waypoint_times_s": [float(t) for t in self.waypoint_times],
+            "segment_durations_s": [float(d) for d in self.segment_durations],
             "closed": self.waypoints.closed,
-            "duration": self.duration,
+            "duration_s": self.duration,
             "work": self.work,
             "status": str(self.result.status.value),
             "success": self.success,
-            "waypoint_error": self.waypoint_error,
+            "waypoint_error_rad": self.waypoint_error,
         }
 
 
