@@ -271,6 +271,10 @@ class TimedSolver:
     options, backend, feasibility_tol, compile
         As :class:`~youbot_opt.trajopt.solver.TrajOptSolver`.
 
+    Mesh refinement through waypoints is not built
+    (:func:`~youbot_opt.trajopt.refine.refine` takes a one-segment solver): the
+    plan is solved on ``knots_per_segment`` knots a segment and certified as is.
+
     Raises
     ------
     ParameterError
@@ -343,10 +347,10 @@ class TimedSolver:
         self.waypoint_knots = tuple(ends_knots[r + 1 - skip] for r in range(rows))
         self.closing_knot = ends_knots[-1] if waypoints.closed else None
         self.points = np.vstack([problem.start.q, ends])  # (S + 1, nv)
-        self.solver = _SegmentSolver(
+        self._segments = _SegmentSolver(
             plain, self.method, options, backend, feasibility_tol=feasibility_tol, compile=compile
         )
-        self.problem = self.solver.problem
+        self.problem = self._segments.problem
 
     def guess_durations(self, bound_scale: float = 1.0) -> Array:
         """Segment durations [s] of the initial guess.
@@ -404,7 +408,7 @@ class TimedSolver:
         beta, bound_scale = check_beta(beta), check_bound_scale(bound_scale)
         self.waypoints.check(self.problem.bounds(bound_scale), robot_name=self.problem.robot.name)
         self.method.initial_values = self._initial_values(bound_scale)
-        result = self.solver.solve(beta=beta, bound_scale=bound_scale, warm_start=False)
+        result = self._segments.solve(beta=beta, bound_scale=bound_scale, warm_start=False)
         return self._timed(result)
 
     def _timed(self, result: TrajOptResult) -> TimedResult:
