@@ -49,7 +49,9 @@ def test_solve_through_a_waypoints_file(tmp_path, capsys):
 
 def test_solve_waypoints_text_and_closed(tmp_path, capsys):
     (tmp_path / "w.json").write_text(json.dumps({"q": WAYPOINTS}))
-    code = main(["solve", "--waypoints", "w.json", "--closed", "--out", "run"])
+    code = main(
+        ["solve", "--waypoints", "w.json", "--closed", "--segment-knots", "15", "--out", "run"]
+    )
     out = capsys.readouterr().out
     assert code == 0
     assert "timed through 2 waypoints (closed: back to waypoint 1)" in out
@@ -71,6 +73,10 @@ def test_solve_waypoints_text_and_closed(tmp_path, capsys):
         (["--waypoints", "w.csv", "--starts", "2"], "--starts does not apply with --waypoints"),
         (["--waypoints", "w.csv", "--transcription", "radau"], "'radau'"),
         (["--waypoints", "missing.csv"], "missing.csv"),
+        (["--segment-knots", "9"], "--segment-knots applies with --waypoints only"),
+        (["--waypoints", "w.csv", "--knots", "30"], "--knots (use --segment-knots) does not"),
+        (["--waypoints", "w.csv", "--max-rounds", "3"], "--max-rounds: refinement through"),
+        (["--waypoints", "w.csv", "--segment-knots", "1"], "knots_per_segment must be an int >= 2"),
     ],
 )
 def test_solve_waypoints_refusals(tmp_path, capsys, argv, message):

@@ -615,10 +615,18 @@ def _solve(sub: _Sub) -> None:
         "--waypoints",
         metavar="FILE",
         help="pass through these configurations (CSV or JSON, rad) in order at free times, "
-        "20 knots a segment, hermite-simpson unless --transcription; not refined",
+        "hermite-simpson unless --transcription; certified once, not refined (refinement "
+        "through waypoints is not built)",
     )
     timed.add_argument(
         "--closed", action="store_true", help="with --waypoints: end back at the first one"
+    )
+    timed.add_argument(
+        "--segment-knots",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --waypoints: knots of each segment, its ends included (default 20)",
     )
 
 

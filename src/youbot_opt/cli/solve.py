@@ -214,8 +214,9 @@ def run(args: argparse.Namespace) -> int:
 
         method = "hermite_simpson" if args.transcription is None else transcription(args)
         return run_solve(args, problem, method)
-    if args.closed:
-        raise ParameterError("--closed applies with --waypoints only", name="closed")
+    for flag, given in (("--closed", args.closed), ("--segment-knots", args.segment_knots)):
+        if given:
+            raise ParameterError(f"{flag} applies with --waypoints only", name=flag[2:])
     check_trajopt_size(
         n_knots=args.knots,
         nq=problem.robot.nq,

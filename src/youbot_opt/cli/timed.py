@@ -24,7 +24,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.trajopt.certify import Certificate
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
-from youbot_opt.trajopt.timed import TimedResult, TimedSolver
+from youbot_opt.trajopt.timed import DEFAULT_KNOTS_PER_SEGMENT, TimedResult, TimedSolver
 from youbot_opt.trajopt.waypoints import Waypoints, load_waypoints
 
 __all__ = ["NOT_REFINED", "run_solve", "time_ik_path", "timed_lines", "timed_summary"]
@@ -72,13 +72,29 @@ def run_solve(args: argparse.Namespace, problem: TrajOptProblem, method: str) ->
     for flag, bad in (
         ("--starts", args.starts != 1),
         ("--guess spline", args.guess != "straight"),
+        ("--knots (use --segment-knots)", args.knots != 50),
     ):
         if bad:
             raise ParameterError(f"{flag} does not apply with --waypoints", name="waypoints")
-    waypoints = load_waypoints(args.waypoints, closed=True if args.closed else None)
-    solver = TimedSolver(
-        problem, waypoints, method, options=ipopt_options(args), backend=args.backend
+    refine_flags = (
+        ("--error-tol", args.error_tol != 1e-3),
+        ("--max-rounds", args.max_rounds != 8),
+        ("--max-knots", args.max_knots != 1000),
+        ("--refine-time", args.refine_time is not None),
     )
+    for flag, given in refine_flags:
+        if given:
+            raise ParameterError(
+                f"{flag}: refinement through waypoints is not built; the plan is certified "
+                "once on its grid (--segment-knots sets it)",
+                name="waypoints",
+            )
+    waypoints = load_waypoints(args.waypoints, closed=True if args.closed else None)
+    knots = DEFAULT_KNOTS_PER_SEGMENT if args.segment_knots is None else args.segment_knots
+    solver = TimedSolver(
+        problem, waypoints, method, knots_per_segment=knots, options=ipopt_options(args),
+        backend=args.backend,
+    )  # fmt: skip
     timed = solver.solve(beta=args.beta, bound_scale=args.bound_scale)
     certificate = _certificate(timed)
     summary: JSONDict = {**timed.result.summary(), "timed": timed_summary(timed, certificate)}
