@@ -88,7 +88,8 @@ def test_solve_waypoints_refusals(tmp_path, capsys, argv, message):
 def test_ikpath_timed_youbot(capsys):
     chain = youbot_chain()
     targets = [chain.tip_position(np.array(q)) for q in ([0.3, -0.2, 0.5], [-0.2, 0.4, 0.9])]
-    argv = ["ikpath", "--robot", "youbot", "--timed", "--json", "--no-progress", "--no-replay"]
+    argv = ["ikpath", "--robot", "youbot", "--timed", "--segment-knots", "15", "--json"]
+    argv += ["--no-progress", "--no-replay"]
     for x, z in targets:
         argv += ["--target", f"{x:.6f}", f"{z:.6f}"]
     code, doc, _ = _json(capsys, [*argv, "--out", "ik"])
@@ -110,3 +111,10 @@ def test_ikpath_timed_needs_masses(capsys):
     argv = ["ikpath", "--lengths", "1", "1", "--target", "1", "1", "--target", "1.5", "0"]
     assert main([*argv, "--timed", "--no-progress"]) == 2
     assert "--timed needs a robot with masses" in capsys.readouterr().err
+
+
+def test_ikpath_segment_knots_needs_timed(capsys):
+    argv = ["ikpath", "--robot", "youbot", "--target", "0.0", "0.6", "--target", "-0.1", "0.5"]
+    assert main([*argv, "--segment-knots", "15", "--no-progress"]) == 2
+    assert "--segment-knots applies with --timed only" in capsys.readouterr().err
+    assert not Path("youbot_opt_runs").exists()  # refused before the run

@@ -405,7 +405,7 @@ def _finish(
 
 def _time_path(
     args: argparse.Namespace,
-    robot: RobotModel,
+    robot: RobotModel | None,
     best: IKPathResult,
     folder: Path,
     doc: JSONDict,
@@ -420,7 +420,11 @@ def _time_path(
         return print_text, False
     from youbot_opt.cli.timed import time_ik_path
 
-    entry, lines, written, ok = time_ik_path(robot, best.configurations, folder)
+    assert robot is not None  # --timed: the youBot (planar) or the spatial run's robot
+
+    entry, lines, written, ok = time_ik_path(
+        robot, best.configurations, folder, knots_per_segment=args.segment_knots
+    )
     doc["timed"] = entry
     files += written
 
@@ -491,8 +495,9 @@ def _run_planar(args: argparse.Namespace) -> int:
     errors = [v.describe() for v in unreachable]
     text: Callable[[], None] = partial(print_planar, doc, crashed)
     timed_ok = True
-    if ms is not None and args.timed:
-        text, timed_ok = _time_path(args, load_model("youbot"), ms.best, folder, doc, files, text)
+    if ms is not None:
+        robot = load_model("youbot") if args.timed else None
+        text, timed_ok = _time_path(args, robot, ms.best, folder, doc, files, text)
     _finish(args, folder, doc, files, text, errors)
     if ms is None:
         return 2
@@ -574,6 +579,8 @@ def run(args: argparse.Namespace) -> int:
             name="segment_time",
             value=args.segment_time,
         )
+    if args.segment_knots is not None and not args.timed:
+        raise ParameterError("--segment-knots applies with --timed only", name="segment_knots")
     check_ikpath_size(
         n_starts=64 if args.starts is None else args.starts,
         n_links=len(args.lengths or ()),

@@ -950,6 +950,13 @@ def _ikpath(sub: _Sub) -> None:
         help="then time the path: a closed cycle through its configurations from the first, "
         "at rest, at free times (needs masses: --robot youbot or a URDF robot; docs/timed.md)",
     )
+    out.add_argument(
+        "--segment-knots",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --timed: knots of each segment, its ends included (default 20)",
+    )
 
 
 #: What adds each command to the parser, in ``--help`` order (``_studies``: three).

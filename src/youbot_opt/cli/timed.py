@@ -113,7 +113,7 @@ def run_solve(args: argparse.Namespace, problem: TrajOptProblem, method: str) ->
 
 
 def time_ik_path(
-    robot: RobotModel, configurations: object, folder: Path
+    robot: RobotModel, configurations: object, folder: Path, *, knots_per_segment: int | None = None
 ) -> tuple[JSONDict, list[str], list[Path], bool]:
     """``ikpath --timed``: time the path's configurations as a closed cycle from the first.
 
@@ -122,13 +122,15 @@ def time_ik_path(
     (dict, list of str, list of Path, bool)
         The ``"timed"`` summary entry, its text lines, the files written
         (``timed_result.npz``) and whether it succeeded and is certified.
+        ``knots_per_segment``: ``--segment-knots`` (None: the default).
     """
     from youbot_opt.trajopt.io import save_result
 
     waypoints = Waypoints.from_configurations(configurations, closed=True)
     start = BoundaryState(q=waypoints.q[0])
     problem = TrajOptProblem(robot=robot, start=start, goal=start)
-    timed = TimedSolver(problem, waypoints).solve()
+    knots = DEFAULT_KNOTS_PER_SEGMENT if knots_per_segment is None else knots_per_segment
+    timed = TimedSolver(problem, waypoints, knots_per_segment=knots).solve()
     certificate = _certificate(timed)
     files: list[Path] = []
     if timed.result.trajectory is not None:
