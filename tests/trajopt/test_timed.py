@@ -144,3 +144,15 @@ def test_errors_name_the_bad_value(problem):
         TimedSolver(problem, Waypoints(q=[[0.0, 0.0, 0.0], [0.0, 9.0, 0.0]]))
     with pytest.raises(ParameterError, match="nothing to time"):
         TimedSolver(problem, Waypoints(q=[problem.start.q], closed=True))
+
+
+def test_one_segment_is_the_point_to_point_solve(youbot):
+    """A first waypoint equal to the start leaves one segment: the plain NLP, the same guess."""
+    plain = TrajOptSolver(study1_problem(20, robot=youbot), "hermite_simpson").solve(beta=0.5)
+    problem = study1_problem(robot=youbot)
+    timed = solve_through(problem, Waypoints(q=[problem.start.q]), knots_per_segment=20)
+    assert plain.success and timed.success
+    assert timed.segment_durations.shape == (1,) and timed.waypoint_times.tolist() == [0.0]
+    # same NLP up to the order of operations, same start: IPOPT's tolerance apart
+    assert timed.result.objective == pytest.approx(plain.objective, rel=1e-7)
+    assert timed.duration == pytest.approx(plain.duration, rel=1e-6)

@@ -24,7 +24,7 @@ from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
-from youbot_opt.trajopt.guess import inverse_dynamics
+from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, inverse_dynamics
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL, TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
@@ -356,17 +356,25 @@ class TimedSolver:
         """Segment durations [s] of the initial guess.
 
         Each joint covers its distance at :data:`GUESS_SPEED_FRACTION` of its
-        velocity limit; the slowest joint sets the segment's duration.
+        velocity limit; the slowest joint sets the segment's duration (at least
+        0.1 s). Stretched, in proportion, to the point-to-point solve's default
+        guess duration :data:`~youbot_opt.trajopt.guess.DEFAULT_GUESS_DURATION`
+        when shorter in total: one segment is then that solve's straight line.
         """
         b = self.problem.bounds(bound_scale)
         speed = GUESS_SPEED_FRACTION * np.minimum(np.abs(b.v_lower), np.abs(b.v_upper))
         dq = np.abs(np.diff(self.points, axis=0))
         with np.errstate(divide="ignore", invalid="ignore"):
             times = np.where(dq > 0.0, dq / speed, 0.0)
-        return np.maximum(np.max(times, axis=1), _MIN_GUESS_SEGMENT)
+        durations = np.maximum(np.max(times, axis=1), _MIN_GUESS_SEGMENT)
+        return durations * max(1.0, DEFAULT_GUESS_DURATION / float(durations.sum()))
 
     def _initial_values(self, bound_scale: float) -> dict[str, Array]:
-        """Piecewise-linear positions, constant velocity a segment, inverse-dynamics torques."""
+        """Piecewise-linear positions, constant velocity a segment, inverse-dynamics torques.
+
+        As the straight-line guess, the end velocities are the segments' (the NLP
+        imposes rest there).
+        """
         durations = self.guess_durations(bound_scale)
         m, pts = self.intervals, self.points
         s = np.repeat(np.arange(durations.size), m)  # segment of each interval
@@ -379,7 +387,6 @@ class TimedSolver:
         q = np.vstack([at(np.zeros(s.size)), pts[-1:]])
         v = np.vstack([vel[s], vel[-1:]])
         v[m::m][:-1] = 0.5 * (vel[:-1] + vel[1:])  # shared segment ends: the mean
-        v[0] = v[-1] = 0.0
         zeros = np.zeros_like(q)
         values = {"q": q, "v": v, "tau": inverse_dynamics(self.problem, q, v, zeros)}
         if isinstance(self.method, HermiteSimpsonCollocation):
