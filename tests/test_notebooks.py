@@ -38,6 +38,7 @@ EXPECTED = [
     "08_arm_in_a_cell",
     "09_payload_and_export",
     "10_tool_constraints",
+    "11_timed_waypoints",
 ]
 CELL_TIMEOUT = 300  # [s] per cell; quick-mode cells take < 30 s on 2 busy cores
 MIN_PROSE_WORDS = 250  # words of markdown prose per notebook, formulas and code excluded
@@ -306,6 +307,28 @@ def _check_10(out: dict[str, Any], tmp: Path) -> None:
     assert out["png"] >= 2
 
 
+def _check_11(out: dict[str, Any], tmp: Path) -> None:
+    text = out["text"]
+    times = [float(t) for t in re.findall(r"waypoint \d reached at t = (\S+) s", text)]
+    assert len(times) == 2 and 0.0 < times[0] < times[1]
+    total, parts = (
+        float(x) for x in re.search(r"T = (\S+) s = sum of segments (\S+) s", text).groups()
+    )
+    assert times[1] < total and abs(total - parts) <= 1e-4  # printed to 4 decimals
+    assert "certificate passed: True" in text
+    two, one = (
+        float(x)
+        for x in re.search(r"two segments f = (\S+) <= one segment f = (\S+)", text).groups()
+    )
+    assert two <= one * (1 + 1e-6)  # the single-segment optimum is feasible for two segments
+    detour, plain = (
+        float(x) for x in re.search(r"detour: T = (\S+) s against (\S+) s", text).groups()
+    )
+    assert detour > plain
+    assert "back at waypoint 1: True, success True" in text
+    assert out["png"] >= 1  # the trajectory figure
+
+
 CHECKS = {
     "01_model_and_dynamics": _check_01,
     "02_trajectory_solve": _check_02,
@@ -317,6 +340,7 @@ CHECKS = {
     "08_arm_in_a_cell": _check_08,
     "09_payload_and_export": _check_09,
     "10_tool_constraints": _check_10,
+    "11_timed_waypoints": _check_11,
 }
 
 

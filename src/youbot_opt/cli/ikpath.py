@@ -60,6 +60,7 @@ from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
+from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.starts import BRANCH_KIND
 from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -402,8 +403,46 @@ def _finish(
         print(f"youbot-opt: error: {error}", file=sys.stderr)
 
 
+def _time_path(
+    args: argparse.Namespace,
+    robot: RobotModel | None,
+    best: IKPathResult,
+    folder: Path,
+    doc: JSONDict,
+    files: list[Path],
+    print_text: Callable[[], None],
+) -> tuple[Callable[[], None], bool]:
+    """Time the best path (``--timed``, docs/timed.md); return the printer, whether it passed."""
+    if not args.timed:
+        return print_text, True
+    if not best.success:
+        doc["timed"] = {"status": "not run: the IK path failed"}
+        return print_text, False
+    from youbot_opt.cli.timed import time_ik_path
+
+    assert robot is not None  # --timed: the youBot (planar) or the spatial run's robot
+
+    entry, lines, written, ok = time_ik_path(
+        robot, best.configurations, folder, knots_per_segment=args.segment_knots
+    )
+    doc["timed"] = entry
+    files += written
+
+    def text() -> None:
+        print_text()
+        print("\n".join(["", *lines]), flush=True)
+
+    return text, ok
+
+
 def _run_planar(args: argparse.Namespace) -> int:
     """Run a planar IK path; return the exit status."""
+    if args.timed and (args.robot != "youbot" or args.example):
+        raise ParameterError(
+            "--timed needs a robot with masses: --robot youbot (planar) or a URDF robot; "
+            "the arms of --lengths and --example are kinematic only",
+            name="timed",
+        )
     if args.method is None:
         args.method = "al"
     if args.start_kind is None:
@@ -454,10 +493,15 @@ def _run_planar(args: argparse.Namespace) -> int:
     files = _planar_outputs(args, folder, problem, verdicts, ms)
     crashed = [] if starts is None else starts.crashed
     errors = [v.describe() for v in unreachable]
-    _finish(args, folder, doc, files, partial(print_planar, doc, crashed), errors)
+    text: Callable[[], None] = partial(print_planar, doc, crashed)
+    timed_ok = True
+    if ms is not None:
+        robot = load_model("youbot") if args.timed else None
+        text, timed_ok = _time_path(args, robot, ms.best, folder, doc, files, text)
+    _finish(args, folder, doc, files, text, errors)
     if ms is None:
         return 2
-    return 0 if ms.best.success else 1
+    return 0 if ms.best.success and timed_ok else 1
 
 
 def _run_3d(args: argparse.Namespace) -> int:
@@ -518,7 +562,11 @@ def _run_3d(args: argparse.Namespace) -> int:
     else:
         doc.update(status="unreachable", E=None, result=None)
     errors = [f"unreachable: {v.message}" for v in unreachable]
+    text: Callable[[], None]
     text = partial(print_3d, doc, robot.name, frame, len(targets), args.method, starts)
+    if not unreachable:
+        text, timed_ok = _time_path(args, robot, best, folder, doc, files, text)
+        code = code if timed_ok else 1
     _finish(args, folder, doc, files, text, errors)
     return code
 
@@ -531,6 +579,8 @@ def run(args: argparse.Namespace) -> int:
             name="segment_time",
             value=args.segment_time,
         )
+    if args.segment_knots is not None and not args.timed:
+        raise ParameterError("--segment-knots applies with --timed only", name="segment_knots")
     check_ikpath_size(
         n_starts=64 if args.starts is None else args.starts,
         n_links=len(args.lengths or ()),

@@ -610,6 +610,24 @@ def _solve(sub: _Sub) -> None:
     _clearance_arguments(p)
     _tool_arguments(p)
     _refine_arguments(p)
+    timed = p.add_argument_group("through waypoints (docs/timed.md)")
+    timed.add_argument(
+        "--waypoints",
+        metavar="FILE",
+        help="pass through these configurations (CSV or JSON, rad) in order at free times, "
+        "hermite-simpson unless --transcription; certified once, not refined (refinement "
+        "through waypoints is not built)",
+    )
+    timed.add_argument(
+        "--closed", action="store_true", help="with --waypoints: end back at the first one"
+    )
+    timed.add_argument(
+        "--segment-knots",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --waypoints: knots of each segment, its ends included (default 20)",
+    )
 
 
 def _report(sub: _Sub) -> None:
@@ -926,6 +944,19 @@ def _ikpath(sub: _Sub) -> None:
     _keep_results_arg(out)
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    out.add_argument(
+        "--timed",
+        action="store_true",
+        help="then time the path: a closed cycle through its configurations from the first, "
+        "at rest, at free times (needs masses: --robot youbot or a URDF robot; docs/timed.md)",
+    )
+    out.add_argument(
+        "--segment-knots",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --timed: knots of each segment, its ends included (default 20)",
+    )
 
 
 #: What adds each command to the parser, in ``--help`` order (``_studies``: three).

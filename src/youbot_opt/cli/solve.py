@@ -209,6 +209,14 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--knots must be >= 2, got {args.knots}", name="knots")
     check_beta(args.beta)  # before the NLP is built (the solve checks it with the same rule)
     problem = _problem(args)
+    if args.waypoints is not None:
+        from youbot_opt.cli.timed import run_solve
+
+        method = "hermite_simpson" if args.transcription is None else transcription(args)
+        return run_solve(args, problem, method)
+    for flag, given in (("--closed", args.closed), ("--segment-knots", args.segment_knots)):
+        if given:
+            raise ParameterError(f"{flag} applies with --waypoints only", name=flag[2:])
     check_trajopt_size(
         n_knots=args.knots,
         nq=problem.robot.nq,

@@ -518,13 +518,7 @@ class Transcription(ABC):
                 limits[name] = (constraint.lower, constraint.upper)
         g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
         constraints = Layout([(name, expr.size1(), expr.size2()) for name, expr in g_blocks])
-        dt = sym["dt"]
-        terms = [ca.mtimes(ca.sum1(sym[name] ** 2), ca.DM(w)) for name, w in self.work_weights(n)]
-        work = terms[0]
-        for term in terms[1:]:
-            work += term
-        work = dt * work
-        total_time = duration(dt, n)
+        total_time, work = self.time_and_work(sym, n)
         f = objective_value(total_time, work, beta)
         return Expressions(
             f=f,
@@ -535,6 +529,23 @@ class Transcription(ABC):
             path_bounds={name: family for name, family, _ in path},
             path_limits=limits,
         )
+
+    def time_and_work(self, sym: dict[str, Any], n_knots: int) -> tuple[Any, Any]:
+        """Return the objective's terms ``(T, W)`` in [s] and [N^2 m^2 s] from the variables.
+
+        ``T = (N - 1) dt`` and ``W = dt sum_blocks w . (tau . tau)``
+        (:meth:`work_weights`); a scheme with one step per segment
+        (:mod:`youbot_opt.trajopt.timed`) sums its segments instead.
+        """
+        dt = sym["dt"]
+        terms = [
+            ca.mtimes(ca.sum1(sym[name] ** 2), ca.DM(w)) for name, w in self.work_weights(n_knots)
+        ]
+        work = terms[0]
+        for term in terms[1:]:
+            work += term
+        work = dt * work
+        return duration(dt, n_knots), work
 
     def work_weights(self, n_knots: int) -> list[tuple[str, Array]]:
         """Torque blocks and their weights: ``W = dt sum_blocks w . (tau . tau)`` per column.

@@ -1,0 +1,120 @@
+"""``solve --waypoints FILE [--closed]`` and ``ikpath ... --timed``: real small runs (#30)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from youbot_opt.cli import main
+from youbot_opt.robot.planar import youbot_chain
+
+WAYPOINTS = [[0.3, -0.2, 0.5], [-0.2, 0.4, 0.9]]  # [rad], inside the youBot's limits
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+
+
+def _json(capsys, argv):
+    code = main(argv)
+    out = capsys.readouterr()
+    return code, json.loads(out.out), out.err
+
+
+def test_solve_through_a_waypoints_file(tmp_path, capsys):
+    (tmp_path / "w.csv").write_text(
+        "q1,q2,q3\n" + "\n".join(",".join(map(str, r)) for r in WAYPOINTS)
+    )
+    code, doc, _ = _json(capsys, ["solve", "--waypoints", "w.csv", "--json", "--out", "run"])
+    assert code == 0
+    timed = doc["timed"]
+    assert timed["success"] and timed["certified"] and not timed["refined"]
+    times = timed["waypoint_times_s"]
+    assert len(times) == 2 and 0.0 < times[0] < times[1] < timed["duration_s"]
+    assert timed["duration_s"] == pytest.approx(sum(timed["segment_durations_s"]), rel=1e-12)
+    assert doc["duration_s"] == pytest.approx(timed["duration_s"], rel=1e-12)
+    assert doc["method"] == "hermite_simpson" and doc["certificate"] is not None
+    saved = json.loads((Path("run") / "summary.json").read_text())
+    assert saved["timed"]["waypoint_times_s"] == times
+    # the saved plan passes through the waypoints at the reported times
+    from youbot_opt.trajopt.io import load_result
+
+    plan = load_result(Path("run") / "result.npz").trajectory
+    np.testing.assert_allclose(plan(np.array(times)), WAYPOINTS, atol=1e-6)
+
+
+def test_solve_waypoints_text_and_closed(tmp_path, capsys):
+    (tmp_path / "w.json").write_text(json.dumps({"q": WAYPOINTS}))
+    code = main(
+        ["solve", "--waypoints", "w.json", "--closed", "--segment-knots", "15", "--out", "run"]
+    )
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "timed through 2 waypoints (closed: back to waypoint 1)" in out
+    assert "waypoint 2" in out and "duration T" in out and "certificate  passed" in out
+    assert "not refined" in out
+    doc = json.loads((Path("run") / "summary.json").read_text())
+    assert doc["timed"]["closed"] is True
+    from youbot_opt.trajopt.io import load_result
+
+    plan = load_result(Path("run") / "result.npz").trajectory
+    np.testing.assert_allclose(plan.q[-1], WAYPOINTS[0], atol=1e-6)
+    np.testing.assert_allclose(plan.v[-1], 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--closed"], "--closed applies with --waypoints only"),
+        (["--waypoints", "w.csv", "--starts", "2"], "--starts does not apply with --waypoints"),
+        (["--waypoints", "w.csv", "--transcription", "radau"], "'radau'"),
+        (["--waypoints", "missing.csv"], "missing.csv"),
+        (["--segment-knots", "9"], "--segment-knots applies with --waypoints only"),
+        (["--waypoints", "w.csv", "--knots", "30"], "--knots (use --segment-knots) does not"),
+        (["--waypoints", "w.csv", "--max-rounds", "3"], "--max-rounds: refinement through"),
+        (["--waypoints", "w.csv", "--segment-knots", "1"], "knots_per_segment must be an int >= 2"),
+    ],
+)
+def test_solve_waypoints_refusals(tmp_path, capsys, argv, message):
+    (tmp_path / "w.csv").write_text("0.3,-0.2,0.5\n")
+    assert main(["solve", *argv]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_ikpath_timed_youbot(capsys):
+    chain = youbot_chain()
+    targets = [chain.tip_position(np.array(q)) for q in ([0.3, -0.2, 0.5], [-0.2, 0.4, 0.9])]
+    argv = ["ikpath", "--robot", "youbot", "--timed", "--segment-knots", "15", "--json"]
+    argv += ["--no-progress", "--no-replay"]
+    for x, z in targets:
+        argv += ["--target", f"{x:.6f}", f"{z:.6f}"]
+    code, doc, _ = _json(capsys, [*argv, "--out", "ik"])
+    assert code == 0
+    timed = doc["timed"]
+    assert timed["success"] and timed["certified"] and timed["closed"]
+    # the first configuration is the start: reached at t = 0, the others later, in order
+    times = timed["waypoint_times_s"]
+    assert times[0] == 0.0 and 0.0 < times[1] < timed["duration_s"]
+    assert (Path("ik") / "timed_result.npz").exists()
+    from youbot_opt.trajopt.io import load_result
+
+    plan = load_result(Path("ik") / "timed_result.npz").trajectory
+    np.testing.assert_allclose(plan(np.array(times)), doc["configurations"], atol=1e-6)
+    np.testing.assert_allclose(plan.q[-1], doc["configurations"][0], atol=1e-6)
+
+
+def test_ikpath_timed_needs_masses(capsys):
+    argv = ["ikpath", "--lengths", "1", "1", "--target", "1", "1", "--target", "1.5", "0"]
+    assert main([*argv, "--timed", "--no-progress"]) == 2
+    assert "--timed needs a robot with masses" in capsys.readouterr().err
+
+
+def test_ikpath_segment_knots_needs_timed(capsys):
+    argv = ["ikpath", "--robot", "youbot", "--target", "0.0", "0.6", "--target", "-0.1", "0.5"]
+    assert main([*argv, "--segment-knots", "15", "--no-progress"]) == 2
+    assert "--segment-knots applies with --timed only" in capsys.readouterr().err
+    assert not Path("youbot_opt_runs").exists()  # refused before the run
