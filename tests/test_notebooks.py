@@ -1,4 +1,4 @@
-"""Notebooks 01-06: stripped in git, narrative, and executed headless in quick mode.
+"""The numbered notebooks (01-11): stripped in git, narrative, and executed headless in quick mode.
 
 Each notebook is executed with nbclient in a fresh ``python3`` kernel, with
 ``YOUBOT_QUICK=1`` (small studies) and a temporary working directory, so that
@@ -68,8 +68,8 @@ def _ids(paths: list[Path]) -> list[str]:
 
 
 # ------------------------------------------------------------------ in git
-def test_the_five_notebooks_exist() -> None:
-    """notebooks/ holds exactly the numbered notebooks 01-05."""
+def test_the_numbered_notebooks_exist() -> None:
+    """notebooks/ holds exactly the numbered notebooks of EXPECTED."""
     assert [p.stem for p in NOTEBOOKS] == EXPECTED
 
 
