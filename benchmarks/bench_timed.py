@@ -209,6 +209,34 @@ def _youbot_case() -> tuple[Any, Array, bool]:
     return problem, w, False
 
 
+def _ikpath_case() -> tuple[Any, Array, bool]:
+    """The youBot round a cyclic IK path through 3 targets, from rest at its first configuration.
+
+    The targets are the tip positions of the youBot case's 3 configurations;
+    the path is the best of 20 seeded starts (:func:`youbot_opt.ikpath.run_multistart`),
+    timed as ``youbot-opt ikpath ... --timed`` does: a closed cycle.
+    """
+    import pinocchio as pin
+
+    from youbot_opt.ikpath import CyclicIKProblem, run_multistart
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+
+    robot = load_model("youbot")
+    model, data = robot.model, robot.model.createData()
+    frame = model.getFrameId(robot.tip_frame)
+    targets = []
+    for q in _youbot_case()[1]:
+        pin.framesForwardKinematics(model, data, q)
+        targets.append(tuple(np.round(data.oMf[frame].translation, 4)))
+    path = run_multistart(CyclicIKProblem(robot=robot, targets=targets), n_starts=20, seed=0)
+    if not path.best.success:
+        raise RuntimeError("the cyclic IK path failed")
+    w = np.asarray(path.best.configurations, dtype=float)
+    state = BoundaryState(q=w[0])
+    return TrajOptProblem(robot=robot, start=state, goal=state), w, True
+
+
 def _ur5_case() -> tuple[Any, Array, bool]:
     """UR5 from rest through 4 configurations and back to the first (a closed cycle)."""
     from youbot_opt.robot.load import load_model
@@ -229,7 +257,11 @@ def _ur5_case() -> tuple[Any, Array, bool]:
     return problem, w, True
 
 
-CASES: dict[str, Callable[[], tuple[Any, Array, bool]]] = {"youbot": _youbot_case, "ur5": _ur5_case}
+CASES: dict[str, Callable[[], tuple[Any, Array, bool]]] = {
+    "youbot": _youbot_case,
+    "youbot-ikpath": _ikpath_case,
+    "ur5": _ur5_case,
+}
 
 
 def _certificate_figure(cert: Any) -> str:
@@ -249,7 +281,9 @@ def run_case(name: str, *, samples: int, gridpoints: int, knots: int) -> dict[st
     waypoints = Waypoints(q=w, closed=closed)
     goal = None if closed else problem.goal.q
     visits = path_visits(problem.start.q, waypoints.visits, goal)
-    row: dict[str, Any] = {"case": name, "robot": problem.robot.name, "visits": len(visits)}
+    row: dict[str, Any] = {
+        "case": name, "robot": problem.robot.name, "visits": len(visits), "closed": closed,
+    }  # fmt: skip
 
     tic = time.perf_counter()
     solver = timed.TimedSolver(problem, waypoints, knots_per_segment=knots)
@@ -261,7 +295,7 @@ def run_case(name: str, *, samples: int, gridpoints: int, knots: int) -> dict[st
     row["ours"] = {
         "T": ours.duration, "W": ours.work, "success": ours.success,
         "certified": cert.ok, "certificate": _certificate_figure(cert),
-        "build_s": build, "solve_s": solve,
+        "failures": cert.failures(), "build_s": build, "solve_s": solve,
         "waypoint_times": [float(x) for x in ours.waypoint_times],
     }  # fmt: skip
 
@@ -269,7 +303,8 @@ def run_case(name: str, *, samples: int, gridpoints: int, knots: int) -> dict[st
     cert_t = certify(topp.trajectory, problem.robot, bounds=problem.bounds())
     row["toppra"] = {
         "T": topp.duration, "W": topp.work, "certified": cert_t.ok,
-        "certificate": _certificate_figure(cert_t), "solve_s": topp.wall,
+        "certificate": _certificate_figure(cert_t), "failures": cert_t.failures(),
+        "solve_s": topp.wall,
         "visit_times": [float(x) for x in topp.visit_times],
     }  # fmt: skip
     row["ratio"] = ours.duration / topp.duration
@@ -279,7 +314,8 @@ def run_case(name: str, *, samples: int, gridpoints: int, knots: int) -> dict[st
 
 def _print(row: dict[str, Any]) -> None:
     o, t = row["ours"], row["toppra"]
-    print(f"\n{row['case']} ({row['robot']}), {row['visits']} configurations from rest to rest")
+    cycle = ", a closed cycle" if row["closed"] else ""
+    print(f"\n{row['case']} ({row['robot']}), {row['visits']} configurations{cycle}, rest to rest")
     print(f"  {'':8} {'T [s]':>8} {'W [N^2 m^2 s]':>14} {'wall [s]':>16}  certificate")
     wall = f"{o['build_s']:.2f}+{o['solve_s']:.2f}"
     print(f"  {'ours':8} {o['T']:8.4f} {o['W']:14.4f} {wall:>16}  {o['certificate']}")
@@ -288,6 +324,9 @@ def _print(row: dict[str, Any]) -> None:
           f"{'holds' if row['holds'] else 'DOES NOT hold'}")  # fmt: skip
     print(f"  ours at the waypoints [s]: {np.round(o['waypoint_times'], 3).tolist()}")
     print(f"  TOPP-RA at the visits [s]: {np.round(t['visit_times'], 3).tolist()}")
+    for side, fails in (("ours", o["failures"]), ("TOPP-RA", t["failures"])):
+        for line in fails:
+            print(f"  {side} certificate: {line}")
 
 
 def main(argv: list[str] | None = None) -> int:
