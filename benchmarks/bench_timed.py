@@ -218,7 +218,8 @@ def _ikpath_case() -> tuple[Any, Array, bool]:
     """
     import pinocchio as pin
 
-    from youbot_opt.ikpath import CyclicIKProblem, run_multistart
+    from youbot_opt.ikpath import CyclicIKProblem, MultistartResult, run_multistart
+    from youbot_opt.ikpath.targets import position_targets
     from youbot_opt.robot.load import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
@@ -228,9 +229,10 @@ def _ikpath_case() -> tuple[Any, Array, bool]:
     targets = []
     for q in _youbot_case()[1]:
         pin.framesForwardKinematics(model, data, q)
-        targets.append(tuple(np.round(data.oMf[frame].translation, 4)))
-    path = run_multistart(CyclicIKProblem(robot=robot, targets=targets), n_starts=20, seed=0)
-    if not path.best.success:
+        targets.append(np.round(data.oMf[frame].translation, 4))
+    problem = CyclicIKProblem(robot=robot, targets=position_targets(targets))
+    path = run_multistart(problem, n_starts=20, seed=0)
+    if not isinstance(path, MultistartResult) or not path.best.success:
         raise RuntimeError("the cyclic IK path failed")
     w = np.asarray(path.best.configurations, dtype=float)
     state = BoundaryState(q=w[0])
