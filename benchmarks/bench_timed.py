@@ -287,7 +287,7 @@ def _toppra_row(problem: Any, visits: Array, **kwargs: Any) -> dict[str, Any]:
     topp = toppra_through(problem, visits, **kwargs)
     cert = certify(topp.trajectory, problem.robot, bounds=problem.bounds())
     return {
-        "T": topp.duration, "W": topp.work, "certified": cert.ok,
+        "T": topp.duration, "W": topp.work, "certified": bool(cert.ok),
         "certificate": _certificate_figure(cert), "failures": cert.failures(),
         "solve_s": topp.wall, "visit_times": [float(x) for x in topp.visit_times],
     }  # fmt: skip
@@ -317,8 +317,8 @@ def run_case(
     solve = time.perf_counter() - tic
     cert = certify(ours.result)
     row["ours"] = {
-        "T": ours.duration, "W": ours.work, "success": ours.success,
-        "certified": cert.ok, "certificate": _certificate_figure(cert),
+        "T": ours.duration, "W": ours.work, "success": bool(ours.success),
+        "certified": bool(cert.ok), "certificate": _certificate_figure(cert),
         "failures": cert.failures(), "build_s": build, "solve_s": solve,
         "waypoint_times": [float(x) for x in ours.waypoint_times],
     }  # fmt: skip
