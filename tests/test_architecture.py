@@ -339,6 +339,7 @@ NO_ANY_PACKAGES: tuple[str, ...] = (
     "collision",
     "viz",
     "sweeps",
+    "reproduction",
 )
 
 #: Public names of the covered packages still annotated with Any, each with its cause; an
