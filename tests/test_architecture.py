@@ -338,7 +338,17 @@ NO_ANY_PACKAGES: tuple[str, ...] = (
     "ikpath",
     "collision",
     "viz",
+    "sweeps",
+    "reproduction",
 )
+
+#: Public names of the covered packages still annotated with Any, each with its cause; an
+#: entry goes when its cause does (and one that no longer matches fails the rule).
+ANY_EXEMPT: dict[str, str] = {
+    "youbot_opt.sweeps.records.ItemRecord.summary (field)": (
+        "trajopt/sweep.py and trajopt/pareto.py read summary values with float()/int()"
+    ),
+}
 
 _PUBLIC_DUNDERS = ("__init__", "__call__")
 
@@ -398,6 +408,9 @@ def test_no_any_in_a_public_signature():
         if _top(module) in NO_ANY_PACKAGES
         for hit in _any_in_public_signatures(module, path)
     ]
+    stale = sorted(set(ANY_EXEMPT) - set(found))
+    assert not stale, "exempted but no longer annotated with Any (drop them):\n" + "\n".join(stale)
+    found = [hit for hit in found if hit not in ANY_EXEMPT]
     assert not found, "\n".join(found)
 
 
@@ -427,3 +440,60 @@ def test_the_any_rule_catches_a_planted_violation(tmp_path, source, caught):
             assert _any_in_public_signatures(planted, MODULES[planted]) == []
     finally:
         del MODULES[planted]
+
+
+def _any_aliases(path: Path) -> list[str]:
+    """Module-level names bound to ``Any`` itself (``X = Any``, ``X: TypeAlias = typing.Any``)."""
+
+    def is_any(value: ast.expr | None) -> bool:
+        return (isinstance(value, ast.Name) and value.id == "Any") or (
+            isinstance(value, ast.Attribute) and value.attr == "Any"
+        )
+
+    found = []
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Assign) and is_any(node.value):
+            found += [ast.unparse(t) for t in node.targets]
+        elif isinstance(node, ast.AnnAssign) and is_any(node.value):
+            found.append(ast.unparse(node.target))
+    return found
+
+
+#: Modules whose ``Expr = Any`` alias still stands (#26): their expressions mix CasADi SX, MX,
+#: DM, NumPy arrays and 0/None placeholders, and casadi's stubs refuse an ``SX | MX`` union in
+#: arithmetic; typing them (TypeVars over SX/MX) is open work. An entry goes with its alias.
+ANY_ALIAS_EXEMPT: tuple[str, ...] = (
+    "youbot_opt.collision.distance",
+    "youbot_opt.collision.model",
+    "youbot_opt.dynamics.spatial_algebra",
+    "youbot_opt.dynamics.symbolic",
+)
+
+
+def test_no_alias_of_any():
+    """No module names ``Any`` under another name: such an alias passes the ``Any`` rule unseen."""
+    found = {
+        module: [f"{module}.{name} = Any" for name in _any_aliases(path)]
+        for module, path in MODULES.items()
+    }
+    stale = [m for m in ANY_ALIAS_EXEMPT if not found.get(m)]
+    assert not stale, "exempted but without an alias of Any (drop them): " + ", ".join(stale)
+    bad = [hit for module, hits in found.items() if module not in ANY_ALIAS_EXEMPT for hit in hits]
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize(
+    ("source", "caught"),
+    [
+        ("from typing import Any\nExpr = Any\n", True),
+        ("import typing\nExpr: typing.TypeAlias = typing.Any\n", True),
+        ("import typing as t\nA = B = t.Any\n", True),
+        ("from typing import Any\nJSON = dict[str, Any]\n", False),
+        ("from typing import Any\ndef f() -> None:\n    x = Any\n", False),
+    ],
+)
+def test_the_alias_rule_catches_a_planted_alias(tmp_path, source, caught):
+    """A module-level alias of Any is found; Any used inside a type or a function is not."""
+    path = tmp_path / "planted_alias.py"
+    path.write_text(source)
+    assert bool(_any_aliases(path)) is caught

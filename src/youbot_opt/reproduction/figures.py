@@ -12,8 +12,8 @@ solving: :func:`plot_base_case`, :func:`plot_fronts`, :func:`plot_refinement`;
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, cast
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -32,6 +32,11 @@ _VARIANT_COLOURS = {
 _W_UNIT = r"N$^2$ m$^2$ s"  # unit of the work W = int tau . tau dt
 
 
+def _layout(data: Mapping[str, object]) -> dict[str, Any]:
+    """Read the reproduction's JSON by the layout of ``Study1Reproduction.to_json()``."""
+    return cast("dict[str, Any]", data)
+
+
 def _limits() -> dict[str, np.ndarray]:
     """Data-sheet bounds of the planar youBot: position [rad], speed [rad/s], torque [N m]."""
     from youbot_opt.robot.load import load_model
@@ -45,7 +50,7 @@ def _limits() -> dict[str, np.ndarray]:
 
 
 def plot_base_case(
-    data: dict[str, Any], keys: tuple[str, ...] = ("study", "trapezoidal")
+    data: Mapping[str, object], keys: tuple[str, ...] = ("study", "trapezoidal")
 ) -> Figure:
     """Best beta = 0.5 trajectories of the variants ``keys``, one column per variant.
 
@@ -62,6 +67,7 @@ def plot_base_case(
         Rows: joint angle [rad], speed [rad/s], torque [N m] against time [s];
         data-sheet bounds dashed.
     """
+    data = _layout(data)
     keys = tuple(k for k in keys if "trajectory" in ((data["base"].get(k) or {}).get("best") or {}))
     limits = _limits()
     fig = Figure(figsize=(4.2 * max(len(keys), 1), 6.6), layout="constrained")
@@ -99,7 +105,7 @@ def plot_base_case(
 
 
 def plot_fronts(
-    data: dict[str, Any], keys: tuple[str, ...] = ("study", "trapezoidal", "hermite_simpson")
+    data: Mapping[str, object], keys: tuple[str, ...] = ("study", "trapezoidal", "hermite_simpson")
 ) -> Figure:
     """Duration (log axis) against work of the variants' weighted-sum sweeps.
 
@@ -117,6 +123,7 @@ def plot_fronts(
         dominated points crossed, beta = 0.5 ringed; a paper-arm certificate that
         fails is drawn hollow.
     """
+    data = _layout(data)
     fig = Figure(figsize=(7.0, 4.6), layout="constrained")
     ax = fig.subplots()
     for key in (k for k in keys if k in data["pareto"]):
@@ -149,7 +156,7 @@ def plot_fronts(
     return fig
 
 
-def plot_refinement(data: dict[str, Any]) -> Figure:
+def plot_refinement(data: Mapping[str, object]) -> Figure:
     """Objective and certificate figures against the number of knots.
 
     Parameters
@@ -164,6 +171,7 @@ def plot_refinement(data: dict[str, Any]) -> Figure:
         paper-arm certificate's feedback/plan torque RMS ratio and its local
         position error [rad] against knots (log-log), default tolerances dashed.
     """
+    data = _layout(data)
     fig = Figure(figsize=(9.0, 3.8), layout="constrained")
     left, right = fig.subplots(1, 2)
     by_variant: dict[str, list[dict[str, Any]]] = {}
@@ -202,11 +210,14 @@ def plot_refinement(data: dict[str, Any]) -> Figure:
     return fig
 
 
-def _has_trajectories(data: dict[str, Any]) -> bool:
+def _has_trajectories(data: Mapping[str, object]) -> bool:
+    data = _layout(data)
     return any("trajectory" in (b.get("best") or {}) for b in (data.get("base") or {}).values())
 
 
-FIGURES: dict[str, tuple[Callable[[dict[str, Any]], bool], Callable[[dict[str, Any]], Figure]]] = {
+FIGURES: dict[
+    str, tuple[Callable[[Mapping[str, object]], bool], Callable[[Mapping[str, object]], Figure]]
+] = {
     "repro_base_case": (_has_trajectories, plot_base_case),
     "repro_pareto": (lambda data: bool(data.get("pareto")), plot_fronts),
     "repro_refinement": (lambda data: bool(data.get("refinement")), plot_refinement),

@@ -15,8 +15,9 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import Any, TypedDict, cast
 
 from youbot_opt._files import atomic_write_text, json_ready
 
@@ -35,6 +36,11 @@ STUDY_REPORTED: dict[str, str] = {
 
 JSON_NAME = "study1_reproduction.json"
 MARKDOWN_NAME = "study1_reproduction.md"
+
+
+def _layout(data: Mapping[str, object]) -> dict[str, Any]:
+    """Read the reproduction's JSON by the layout of ``Study1Reproduction.to_json()``."""
+    return cast("dict[str, Any]", data)
 
 
 def _f(x: Any, digits: int = 4) -> str:
@@ -289,7 +295,7 @@ def _refinement_table(data: dict[str, Any]) -> str:
     return note + "\n\n" + _table(header, rows)
 
 
-def markdown_report(data: dict[str, Any]) -> str:
+def markdown_report(data: Mapping[str, object]) -> str:
     """All comparison tables as one markdown document.
 
     Parameters
@@ -303,6 +309,7 @@ def markdown_report(data: dict[str, Any]) -> str:
         Markdown with one section per part of the reproduction (sections that
         were not run are omitted).
     """
+    data = _layout(data)
     cfg = data["config"]
     parts = [
         "# Study 1 reproduced: tables",
@@ -335,7 +342,7 @@ def markdown_report(data: dict[str, Any]) -> str:
     return "\n\n".join(parts) + "\n"
 
 
-def write_report(data: dict[str, Any], out_dir: str | os.PathLike[str]) -> tuple[Path, Path]:
+def write_report(data: Mapping[str, object], out_dir: str | os.PathLike[str]) -> tuple[Path, Path]:
     """Write the JSON figures and the markdown tables to ``out_dir`` (created if needed).
 
     Parameters
@@ -350,6 +357,7 @@ def write_report(data: dict[str, Any], out_dir: str | os.PathLike[str]) -> tuple
     tuple of Path
         The JSON and markdown files (``study1_reproduction.json``, ``.md``).
     """
+    data = _layout(data)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     json_path, md_path = out / JSON_NAME, out / MARKDOWN_NAME

@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack
 
 import casadi as ca
 import numpy as np
@@ -31,7 +31,13 @@ from youbot_opt.trajopt.transcription.base import Expressions
 from youbot_opt.trajopt.transcription.path import PathConstraint
 
 if TYPE_CHECKING:
+    from youbot_opt.collision.clearance import Clearance
+    from youbot_opt.robot.model import BoundFamily
     from youbot_opt.trajopt.result import TrajOptResult
+    from youbot_opt.trajopt.tool import ToolConstraint
+
+_E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: the transcription works with both
+_N = TypeVar("_N", float, ca.SX, ca.MX)  # a time step: a number or an expression
 
 __all__ = [
     "study1_problem",
@@ -128,7 +134,7 @@ class StudyDeviations:
         return "+".join(nums) if nums else "none"
 
     # ---------------------------------------------------------- objective
-    def duration(self, dt: Any, n_knots: int) -> Any:
+    def duration(self, dt: _N, n_knots: int) -> _N:
         """Time term ``T`` in [s] the study's code used: ``n dt`` or ``(n - 1) dt``."""
         return (n_knots if self.time_n_dt else n_knots - 1) * dt
 
@@ -189,7 +195,7 @@ class StudyTranscription(TrapezoidalCollocation):
     def __repr__(self) -> str:
         return f"StudyTranscription({self.deviations!r})"
 
-    def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
+    def dynamics_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E, _E]]:
         """Evaluate the dynamics at the knots, deviation (3) folded in: ``FD(q, v, tau - b v)``.
 
         ``tau - b v`` stays a linear selection of the decision variables, as the
@@ -199,7 +205,7 @@ class StudyTranscription(TrapezoidalCollocation):
         b = self.deviations.damping
         return {"knots": (q, v, tau - b * v if b > 0.0 else tau)}
 
-    def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
+    def collocation(self, sym: dict[str, _E], accel: dict[str, _E]) -> list[tuple[str, _E]]:
         """Position defects as in the study, velocity defects with deviations (1) and (2)."""
         dev = self.deviations
         q, v, dt = sym["q"], sym["v"], sym["dt"]
@@ -214,9 +220,9 @@ class StudyTranscription(TrapezoidalCollocation):
     def expressions(
         self,
         problem: TrajOptProblem,
-        sym: dict[str, Any],
-        accel: dict[str, Any],
-        beta: Any,
+        sym: dict[str, _E],
+        accel: dict[str, _E],
+        beta: _E,
         paths: tuple[PathConstraint, ...] = (),
     ) -> Expressions:
         """Build the trapezoidal pieces, with the time term of deviation (4).
@@ -242,12 +248,23 @@ class StudyTranscription(TrapezoidalCollocation):
         return parts._replace(f=f, duration=total)
 
 
+class _ProblemFields(TypedDict, total=False):
+    """The :class:`TrajOptProblem` fields :func:`study1_problem` passes through."""
+
+    duration: float | None
+    scaled_bounds: tuple[BoundFamily, ...]
+    dt_min: float
+    dt_max: float
+    clearance: Clearance | None
+    tool: tuple[ToolConstraint, ...]
+
+
 def study1_problem(
     n_knots: int = 50,
     *,
     robot: RobotModel | None = None,
     damping: float | None = None,
-    **kwargs: Any,
+    **kwargs: Unpack[_ProblemFields],
 ) -> TrajOptProblem:
     """Return the study-1 problem: youBot from (-pi/6, -pi/6, -pi/3) to (pi/6, pi/6, pi/3) at rest.
 

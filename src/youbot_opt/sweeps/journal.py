@@ -49,7 +49,7 @@ def encode_line(record: Mapping[str, object]) -> bytes:
     return f"{digest} {text}\n".encode()
 
 
-def read_journal(folder: Path) -> tuple[list[dict[str, Any]], int]:
+def read_journal(folder: Path) -> tuple[list[dict[str, object]], int]:
     """Every intact line of every journal file in ``folder``, oldest file first.
 
     Parameters
@@ -67,7 +67,7 @@ def read_journal(folder: Path) -> tuple[list[dict[str, Any]], int]:
     if not folder.is_dir():
         return [], 0
     files = sorted(folder.glob("*.jsonl"))
-    records: list[dict[str, Any]] = []
+    records: list[dict[str, object]] = []
     bad = 0
     for path in files:
         try:
@@ -84,7 +84,7 @@ def read_journal(folder: Path) -> tuple[list[dict[str, Any]], int]:
     return records, bad
 
 
-def scan_journal(files: Iterable[Path]) -> Iterator[tuple[int, int, dict[str, Any] | None]]:
+def scan_journal(files: Iterable[Path]) -> Iterator[tuple[int, int, dict[str, object] | None]]:
     """Stream every line of ``files`` in order, one line in memory at a time.
 
     Yields
@@ -109,7 +109,7 @@ def scan_journal(files: Iterable[Path]) -> Iterator[tuple[int, int, dict[str, An
                     yield number, start, _decode(line.rstrip(b"\n"))
 
 
-def read_line(path: Path | BinaryIO, offset: int) -> dict[str, Any] | None:
+def read_line(path: Path | BinaryIO, offset: int) -> dict[str, object] | None:
     """Read the record of the journal line at byte ``offset`` (``None``: unreadable).
 
     ``path`` is the journal file or a binary file object open on it.
@@ -135,7 +135,7 @@ def _lines(data: bytes) -> Iterator[bytes]:
         yield b""  # torn tail: decodes to None
 
 
-def _decode(line: bytes) -> dict[str, Any] | None:
+def _decode(line: bytes) -> dict[str, object] | None:
     digest, _, text = line.partition(b" ")
     if len(digest) != _DIGEST or hashlib.sha256(text).hexdigest()[:_DIGEST].encode() != digest:
         return None

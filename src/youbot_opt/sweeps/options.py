@@ -19,7 +19,6 @@ from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.pool import ExecutorLike, WorkerPool, default_workers
@@ -92,7 +91,7 @@ class SweepOptions:
     timeout: float | None = None
     max_attempts: int = 2
     out: str | os.PathLike[str] | None = None
-    progress: Callable[[int, int, Any], None] | None = None
+    progress: Callable[..., None] | None = None  # (done, total, last): last per sweep
     batch_size: int | None = None
     shard: tuple[int, int] | None = None
     keep_results: bool = True

@@ -19,10 +19,10 @@ import hashlib
 import os
 import re
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Generic, Literal, TypeVar
 
 from youbot_opt._files import TMP_PREFIX
 from youbot_opt.exceptions import ParameterError, ResultFileError
@@ -53,6 +53,11 @@ JOURNAL = "journal"
 _KEY = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 
 ItemState = Literal["done", "failed"]
+
+P = TypeVar("P")
+"""The payload type of a store's items (a result an optimiser writes)."""
+V = TypeVar("V")
+"""The type of a task's value."""
 
 
 def check_key(key: str) -> str:
@@ -108,7 +113,7 @@ class ItemRecord:
     sweep: str | None = None
     checksum: str | None = None
 
-    def to_json(self, version: int = RECORD_VERSION) -> dict[str, Any]:
+    def to_json(self, version: int = RECORD_VERSION) -> dict[str, object]:
         """Return the record as written to disk (a journal line)."""
         return {
             "schema": "youbot_opt.sweep_item",
@@ -124,7 +129,7 @@ class ItemRecord:
         }
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any], path: Path) -> ItemRecord:
+    def from_json(cls, data: Mapping[str, object], path: Path) -> ItemRecord:
         """Parse a record read from ``path``.
 
         Raises
@@ -136,7 +141,10 @@ class ItemRecord:
             state = data["state"]
             if state not in ("done", "failed"):
                 raise ValueError(f"state {state!r}")
-            attempts = int(data["attempts"])
+            attempts = data["attempts"]
+            if not isinstance(attempts, (int, float, str)):
+                raise TypeError(f"attempts {attempts!r}")
+            attempts = int(attempts)
             if attempts < 1:
                 raise ValueError(f"attempts {attempts}")
             payload = data.get("payload")
@@ -146,14 +154,33 @@ class ItemRecord:
                 key=str(data["key"]),
                 state=state,
                 attempts=attempts,
-                reasons=tuple(str(r) for r in data.get("reasons", ())),
-                summary=dict(data.get("summary") or {}),
-                payload=payload,
+                reasons=tuple(str(r) for r in _listed(data.get("reasons", ()))),
+                summary=_mapping(data.get("summary")),
+                payload=payload if isinstance(payload, str) else None,
                 sweep=None if data.get("sweep") is None else str(data["sweep"]),
                 checksum=None if data.get("checksum") is None else str(data["checksum"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ResultFileError(f"item record {path} is corrupted: {exc}") from exc
+
+
+def _listed(value: object) -> tuple[object, ...]:
+    if not isinstance(value, Iterable):
+        raise TypeError(f"expected a list, got {type(value).__name__}")
+    return tuple(value)
+
+
+def _mapping(value: object) -> dict[str, object]:
+    if not value:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"expected a mapping, got {type(value).__name__}")
+    return dict(value)
+
+
+def _commit_time(line: Mapping[str, object]) -> int:
+    t = line.get("t", 0)
+    return t if isinstance(t, int) else 0
 
 
 def fanout_name(key: str, suffix: str) -> str:
@@ -183,7 +210,7 @@ def write_unsynced(path: Path, data: bytes) -> None:
 
 
 @dataclass(frozen=True, slots=True)
-class WrittenItem:
+class WrittenItem(Generic[V]):
     """What a worker reports after writing its own item's payload (see :class:`ItemWriter`).
 
     Attributes
@@ -194,18 +221,18 @@ class WrittenItem:
         SHA-256 (hex) of the bytes the worker wrote.
     summary : dict
         JSON-ready figures of the item.
-    value : Any
+    value : object
         The task's value, or ``None`` when the driver keeps no results.
     """
 
     payload: str
     checksum: str
-    summary: dict[str, Any]
-    value: Any = None
+    summary: dict[str, object]
+    value: V | None = None
 
 
 @dataclass(frozen=True, slots=True)
-class ItemWriter:
+class ItemWriter(Generic[P]):
     """A picklable recipe by which a worker writes an item's payload into a store's folder.
 
     The driver then checks the file against the reported checksum before it
@@ -226,10 +253,10 @@ class ItemWriter:
 
     items_dir: str
     suffix: str
-    save: Callable[[Any, Path], object] | None
-    encode: Callable[[Any], bytes] | None
+    save: Callable[[P, Path], object] | None
+    encode: Callable[[P], bytes] | None
 
-    def write(self, key: str, payload: Any) -> tuple[str, str]:
+    def write(self, key: str, payload: P) -> tuple[str, str]:
         """Write ``payload`` as the item ``key``; returns its relative path and SHA-256."""
         name = fanout_name(key, self.suffix)
         path = Path(self.items_dir) / name  # its folder exists: made when the store opened
@@ -263,14 +290,14 @@ def stored_records(directory: str | os.PathLike[str]) -> list[ItemRecord]:
     journal = Path(directory) / ITEMS / JOURNAL
     out = []
     lines = read_journal(journal)[0]
-    lines.sort(key=lambda d: d.get("t", 0) if isinstance(d.get("t", 0), int) else 0)
+    lines.sort(key=_commit_time)
     for data in lines:
         with contextlib.suppress(ResultFileError):
             out.append(ItemRecord.from_json(data, journal))
     return out
 
 
-def stored_record(directory: str | os.PathLike[str], key: str) -> dict[str, Any] | None:
+def stored_record(directory: str | os.PathLike[str], key: str) -> dict[str, object] | None:
     """Return the latest record of ``key`` in a sweep folder as JSON (``None``: none).
 
     For monitors and tests: the fields of :meth:`ItemRecord.to_json`

@@ -186,10 +186,10 @@ def open_store(
     out: str | os.PathLike[str],
     kind: str,
     params: Mapping[str, object],
-    codec: Codec[Any],
+    codec: Codec[R],
     *,
     clean: bool = True,
-) -> SweepStore:
+) -> SweepStore[R]:
     """Open (or create) the store of one sweep in ``out``, its payloads by ``codec``.
 
     Parameters
@@ -234,7 +234,7 @@ def open_store(
     )
 
 
-class SweepStore:
+class SweepStore(Generic[R]):
     """Output directory of one sweep: manifest, payload files and the summary journal.
 
     Parameters
@@ -295,12 +295,12 @@ class SweepStore:
         *,
         kind: str,
         params: Mapping[str, object],
-        save: Callable[[Any, Path], object],
-        load: Callable[[Path], Any],
+        save: Callable[[R, Path], object],
+        load: Callable[[Path], R],
         suffix: str = ".npz",
         clean: bool = True,
-        encode: Callable[[Any], bytes] | None = None,
-        check: Callable[[str, Any], str | None] | None = None,
+        encode: Callable[[R], bytes] | None = None,
+        check: Callable[[str, R], str | None] | None = None,
     ) -> None:
         self.directory = Path(directory)
         self.kind = str(kind)
@@ -309,7 +309,7 @@ class SweepStore:
         self._load = load
         self._encode = encode
         self._check = check
-        self._checked: tuple[str, Any] | None = None  # the payload verify() loaded, for load()
+        self._checked: tuple[str, R] | None = None  # the payload verify() loaded, for load()
         self.suffix = suffix
         self.items_dir = self.directory / ITEMS
         self.items_dir.mkdir(parents=True, exist_ok=True)
@@ -511,7 +511,7 @@ class SweepStore:
         """Where the payload of ``key`` is (or will be) stored."""
         return self.items_dir / fanout_name(key, self.suffix)
 
-    def writer(self) -> ItemWriter | None:
+    def writer(self) -> ItemWriter[R] | None:
         """Return the recipe by which workers write their own payloads."""
         return ItemWriter(str(self.items_dir), self.suffix, self._save, self._encode)
 
@@ -662,7 +662,7 @@ class SweepStore:
         return rec.attempts < max_attempts, rec.attempts
 
     def write_done(
-        self, key: str, payload: Any, summary: Mapping[str, object], *, attempts: int = 1
+        self, key: str, payload: R, summary: Mapping[str, object], *, attempts: int = 1
     ) -> ItemRecord:
         """Save a finished item written here: payload first, then its record.
 
@@ -908,7 +908,7 @@ class SweepStore:
             return None  # another selection, or one of 0.1.0 (lists of keys): chosen again
         return Clusters.open(self.directory / name, reps, counts)
 
-    def load(self, key: str) -> Any:
+    def load(self, key: str) -> R:
         """Load the payload of a done item (checked against its checksum first).
 
         Raises

@@ -19,7 +19,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Generic, TypeVar
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.lazy import LazySequence
@@ -36,8 +36,11 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
+V = TypeVar("V")
+"""The type of a task's value."""
 
-def invoke(fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, float]:
+
+def invoke(fn: Callable[..., V], args: tuple[object, ...]) -> tuple[V, float]:
     """Run one task; returns its value and wall time in [s]."""
     tic = time.perf_counter()
     value = fn(*args)
@@ -130,14 +133,14 @@ def task_keys(tasks: Sequence[Task]) -> Iterator[str]:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class TaskOutcome:
+class TaskOutcome(Generic[V]):
     """Outcome of one attempt of a task.
 
     Attributes
     ----------
     key : str
         Task key.
-    value : Any
+    value : object
         What ``fn`` returned (``None`` for a failed attempt).
     error : str or None
         Why the attempt failed; ``None`` on success.
@@ -151,7 +154,7 @@ class TaskOutcome:
     """
 
     key: str
-    value: Any
+    value: V
     error: str | None
     attempts: int
     final: bool
@@ -191,7 +194,7 @@ class TaskRunner:
         workers: int,
         max_attempts: int,
         timeout: float | None,
-        on_outcome: Callable[[TaskOutcome], None] | None,
+        on_outcome: Callable[[TaskOutcome[object]], None] | None,
         *,
         keep_values: bool = True,
     ) -> None:
@@ -204,14 +207,14 @@ class TaskRunner:
         self.max_attempts = max_attempts
         self.timeout = timeout
         self.on_outcome = on_outcome
-        self.outcomes: dict[str, TaskOutcome] = {}
+        self.outcomes: dict[str, TaskOutcome[object]] = {}
 
     def next_key(self) -> str:
         """Key of the next task to run: a retry first, else the next pending one."""
         return self.retry.popleft() if self.retry else self.pending.popleft()
 
     def emit(
-        self, key: str, value: Any, error: str | None, wall: float, *, final: bool = False
+        self, key: str, value: object, error: str | None, wall: float, *, final: bool = False
     ) -> None:
         """Record one attempt of ``key`` (a retry is queued unless it is final)."""
         self.attempts[key] += 1
