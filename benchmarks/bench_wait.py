@@ -104,11 +104,50 @@ def _cli(args: list[str], cache: Path) -> tuple[float, subprocess.CompletedProce
     return wall, done
 
 
+#: A lock with no compiler's pid in it yet older than this is stale [s]: the background
+#: compiler writes its pid into the lock as it starts.
+NO_PID_GRACE = 60.0
+
+
+def lock_is_stale(lock: Path, now: float | None = None) -> str | None:
+    """Why ``lock`` is stale (its compiler is dead, or never started, or it is older than any
+    compile: ``codegen.STALE_LOCK``), or None while a compile may still hold it."""
+    from youbot_opt.nlp.codegen import STALE_LOCK
+
+    try:
+        text = lock.read_text(errors="replace").strip()
+        age = (time.time() if now is None else now) - lock.stat().st_mtime
+    except FileNotFoundError:
+        return None  # released meanwhile: not stale, simply gone
+    if age > STALE_LOCK:
+        return f"{age:.0f} s old, longer than any compile ({STALE_LOCK:.0f} s)"
+    if not text.isdigit():
+        return f"no compiler pid after {age:.0f} s" if age > NO_PID_GRACE else None
+    try:
+        os.kill(int(text), 0)
+    except ProcessLookupError:
+        return f"its compiler (pid {text}) is not running"
+    except (PermissionError, OSError, OverflowError):
+        return None  # another user's process, or unknown: wait for it
+    return None
+
+
 def _wait_for_background(cache: Path, timeout: float = 900.0) -> float:
-    """Wait until no background compile holds a lock in ``cache``; return the wait [s]."""
+    """Wait until no background compile holds a lock in ``cache``; return the wait [s].
+
+    A stale lock (see :func:`lock_is_stale`) is reported and not waited for.
+    """
     tic = time.perf_counter()
-    while any(cache.rglob("*.lock")) and time.perf_counter() - tic < timeout:
+    while time.perf_counter() - tic < timeout:
+        locks = list(cache.rglob("*.lock"))
+        stale = {lock: lock_is_stale(lock) for lock in locks}
+        if all(stale.values()):  # none left, or only stale ones
+            for lock, why in stale.items():
+                print(f"  stale compile lock {lock} ({why}): not waiting for it")
+            break
         time.sleep(0.5)
+    else:
+        print(f"  background compiles of {cache} still running after {timeout:.0f} s")
     return time.perf_counter() - tic
 
 

@@ -275,3 +275,28 @@ def test_main_imports_only_the_chosen_command_module():
     loaded = set(proc.stdout.strip().splitlines()[-1].split()[1:])
     assert "youbot_opt.cli.robots" in loaded
     assert not loaded & {f"youbot_opt.cli.{m}" for m in ("solve", "studies", "ikpath", "output")}
+
+
+_SOLVE_PATH = """
+import sys
+import youbot_opt.cli.solve
+print("LOADED:", *sorted(m for m in sys.modules if m.split(".")[0] in {heavy!r}
+      or m in {light!r}))
+"""
+
+
+def test_solve_command_imports_nothing_it_does_not_need_yet():
+    """Importing the solve command (what ``youbot-opt solve`` runs first) imports no SciPy,
+    matplotlib or meshcat, nor the reproduction's runs and the sweeps' figures (issue 27).
+
+    SciPy comes with the certificate's integration (or a spline start, or a sphere fit),
+    matplotlib with the figures, meshcat with the replay. Pinocchio and CasADi are needed at
+    once (the robot and the NLP); coal is imported by Pinocchio's own bindings, so it is
+    not checked here.
+    """
+    heavy = ["scipy", "matplotlib", "meshcat"]
+    light = ["youbot_opt.reproduction.runs", "youbot_opt.viz.plots.studies"]
+    code = _SOLVE_PATH.format(heavy=heavy, light=light)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == "LOADED:"

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 from youbot_opt._files import atomic_write_text
 from youbot_opt._typing import Array
@@ -251,6 +250,8 @@ def _directions(grid: int) -> tuple[Array, float]:
 
 def _hull(points: Array) -> tuple[Array, Array]:
     """Vertices and edges (pairs of indices into the vertices) of the convex hull."""
+    from scipy.spatial import ConvexHull, QhullError  # SciPy: only when a hull is fitted
+
     try:
         hull = ConvexHull(points)
     except (QhullError, ValueError):  # flat or degenerate: every pair is a segment

@@ -7,39 +7,10 @@
 optimum), :mod:`~youbot_opt.reproduction.report` (tables) and
 :mod:`~youbot_opt.reproduction.figures`.
 
+Names of ``__init__.pyi`` are imported on first use (``lazy_loader``).
 Command line: ``youbot-opt reproduce-study1 [--quick] [--out DIR]``.
 """
 
-from __future__ import annotations
+import lazy_loader
 
-from youbot_opt.reproduction.records import VARIANTS, Variant, ablation_variant
-from youbot_opt.reproduction.report import ParetoPoint, markdown_report, pareto_knee, write_report
-from youbot_opt.reproduction.runs import ReproductionConfig, Study1Reproduction, reproduce_study1
-from youbot_opt.reproduction.search import cluster_optima, vertex_multistart
-from youbot_opt.reproduction.study1 import (
-    DEVIATION_NAMES,
-    STUDY_DAMPING,
-    StudyDeviations,
-    StudyTranscription,
-)
-from youbot_opt.reproduction.study_guess import vertex_spline_guess
-
-__all__ = [
-    "DEVIATION_NAMES",
-    "STUDY_DAMPING",
-    "VARIANTS",
-    "ParetoPoint",
-    "ReproductionConfig",
-    "Study1Reproduction",
-    "StudyDeviations",
-    "StudyTranscription",
-    "Variant",
-    "ablation_variant",
-    "cluster_optima",
-    "markdown_report",
-    "pareto_knee",
-    "reproduce_study1",
-    "vertex_multistart",
-    "vertex_spline_guess",
-    "write_report",
-]
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

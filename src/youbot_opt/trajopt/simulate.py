@@ -21,8 +21,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-from scipy import sparse
-from scipy.integrate import solve_ivp
 
 from youbot_opt._typing import Array
 from youbot_opt.dynamics.numeric import (
@@ -321,6 +319,9 @@ def integrate_intervals(
     ParameterError
         If the trajectory and the robot disagree in size or the robot is unsupported.
     """
+    from scipy import sparse  # SciPy: only when the certificate integrates
+    from scipy.integrate import solve_ivp
+
     robot = as_numeric_robot(robot)
     _check_dimensions(trajectory, robot)
     batch = batched_aba(robot, damping=damping)
@@ -411,6 +412,8 @@ def simulate(
         If sizes disagree, the robot or interpolant is unsupported, or
         ``stop_deviation`` is not positive.
     """
+    from scipy.integrate import solve_ivp  # SciPy: only when the certificate integrates
+
     robot = as_numeric_robot(robot)
     _check_dimensions(trajectory, robot)
     if stop_deviation is not None and not stop_deviation > 0.0:

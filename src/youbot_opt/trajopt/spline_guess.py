@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
-from scipy.optimize import linprog
 
 from youbot_opt._checks import check_bound_scale, check_int, check_positive
 from youbot_opt._typing import Array
@@ -227,6 +226,8 @@ def spline_constraints(
 
 def _nearest_points(lp: SplineConstraints, target: Array) -> Array | None:
     """Control points within ``lp`` nearest ``target`` in L1, or None if the LP is infeasible."""
+    from scipy.optimize import linprog  # SciPy: only when a spline start is drawn
+
     n = target.size
     # Variables (b, e): minimise sum(e) with -e <= b - target <= e.
     eye = np.eye(n)

@@ -6,19 +6,12 @@ state). One solve: :mod:`youbot_opt.viz.plots.trajopt`; sweeps
 :mod:`youbot_opt.viz.plots.studies`; IK paths of study 2:
 :mod:`youbot_opt.viz.plots.ikpath`.
 
+The names of ``__init__.pyi`` are imported on first use (``lazy_loader``), so
+drawing one solve does not import the sweeps' figures.
+
 >>> plot_trajectory(result).savefig("trajectory.png")  # doctest: +SKIP
 """
 
-from __future__ import annotations
+import lazy_loader
 
-from youbot_opt.viz.plots.studies import plot_bound_scaling, plot_multistart, plot_pareto
-from youbot_opt.viz.plots.trajopt import plot_arm_2d, plot_convergence, plot_trajectory
-
-__all__ = [
-    "plot_trajectory",
-    "plot_convergence",
-    "plot_arm_2d",
-    "plot_multistart",
-    "plot_pareto",
-    "plot_bound_scaling",
-]
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
