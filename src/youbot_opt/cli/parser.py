@@ -926,6 +926,7 @@ def _ikpath(sub: _Sub) -> None:
     _keep_results_arg(out)
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    _clearance_arguments(p)  # 3-D robots, --method ipopt (docs/ikpath.md, "Clearance")
 
 
 #: What adds each command to the parser, in ``--help`` order (``_studies``: three).
