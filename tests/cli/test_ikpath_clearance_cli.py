@@ -9,6 +9,8 @@ import pytest
 
 from youbot_opt.cli import main
 from youbot_opt.collision import Box, Obstacle, Scene, save_scene
+from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.ikpath.io import load_result
 
 _UR5 = ["ikpath", "--robot", "ur5", "--target", "0.4", "0.2", "0.3", "--target", "0.3", "-0.3"]
 _UR5 += ["0.4"]
@@ -16,10 +18,12 @@ MARGIN = 0.01  # [m]
 
 
 @pytest.fixture(autouse=True)
-def _in_tmp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Run in a temporary cwd; ball fits cached there, never in the user's cache."""
+def _in_tmp(
+    tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Run in a temporary cwd; ball fits cached for the session, never in the user's cache."""
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path / "fits"))
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
 
 
 def _scene(tmp_path: Path) -> Path:
@@ -46,6 +50,18 @@ def test_scene_run_reports_the_closest_pair(tmp_path: Path, capsys) -> None:
     assert clearance["certified"] is True
     assert clearance["closest_m"] >= MARGIN - 1e-3  # coal's, certified within 1 mm
     assert clearance["closest_leg"] in (0, 1) and 0 <= clearance["closest_fraction"] < 1
+    # result.json records the scene and margin; loading re-checks with coal at the caller's margin
+    saved = json.loads((out / "result.json").read_text())["result"]["clearance"]
+    assert saved["margin"] == MARGIN and saved["self_collision"] is False
+    assert [o["name"] for o in saved["scene"]["obstacles"]] == ["box"]
+    best = load_result(out / "result.json")
+    assert best.success and best.problem.clearance is not None
+    assert best.problem.clearance.margin == MARGIN
+    far = clearance["closest_m"] + 0.05  # more than the path keeps
+    with pytest.raises(ResultFileError, match=r"does not keep the caller's clearance"):
+        load_result(out / "result.json", margin=far)
+    with pytest.raises(ParameterError, match="margin must be"):
+        load_result(out / "result.json", margin=-1.0)
 
 
 @pytest.mark.parametrize(
