@@ -10,8 +10,8 @@ import pytest
 import umsgpack
 
 from youbot_opt.cli import main
+from youbot_opt.cli.flags import clearance_of
 from youbot_opt.cli.parser import parse
-from youbot_opt.cli.solve import clearance_of
 from youbot_opt.collision import Obstacle, Scene, Sphere, save_scene
 from youbot_opt.exceptions import ParameterError
 

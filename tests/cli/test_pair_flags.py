@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from youbot_opt.cli import main
+from youbot_opt.cli.flags import clearance_of
 from youbot_opt.cli.parser import parse
-from youbot_opt.cli.solve import clearance_of
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.load import load_model
 

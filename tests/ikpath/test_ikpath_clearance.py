@@ -22,6 +22,7 @@ from youbot_opt.collision import Cylinder, Obstacle, Scene
 from youbot_opt.collision.clearance import Clearance
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.clearance import certify_path_clearance
+from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.robot.model import RobotModel
@@ -158,3 +159,27 @@ def test_clearance_is_checked_and_pickled(arm: RobotModel, tmp_path: Path) -> No
     assert problem.clearance_rows is not None and again.clearance_rows is not None
     np.testing.assert_allclose(again.clearance_rows.rows(x), problem.clearance_rows.rows(x))
     assert problem.with_targets(TARGETS[::-1]).clearance == problem.clearance
+
+
+def test_generated_starts_may_collide_a_users_may_not(arm: RobotModel) -> None:
+    """Start 0 (the zero vector: the stretched arm across the disc) is generated: solved."""
+    problem = _problem(arm, _disc(1.2, 0.0, radius=0.5))
+    inside = np.zeros(problem.n_variables)
+    with pytest.raises(ParameterError, match=r"start configuration 0: link geometry"):
+        solve(problem, method="ipopt", x0=inside)  # the user's start
+    np.testing.assert_array_equal(problem.check_start(inside, generated=True), inside)
+    np.testing.assert_array_equal(problem.check_start(None), problem.default_start())
+    found = run_multistart(problem, method="ipopt", n_starts=3, starts="random", seed=0)
+    assert found.n_starts == 3
+    colliding = 0
+    for result in found.results:
+        try:
+            problem.check_start(result.start)
+        except ParameterError:
+            colliding += 1
+    assert colliding >= 1  # a generated start in collision was solved, not refused
+    best = found.best.configurations.ravel()
+    certificate = certify_path_clearance(problem, best)
+    assert certificate is not None and certificate.certified
+    with pytest.raises(ParameterError, match="general IPOPT method only"):
+        run_multistart(problem, method="al", n_starts=2, starts="random")

@@ -83,11 +83,11 @@ def test_a_raising_start_is_retried_then_crashed_and_stays_crashed_on_resume(
     x_first = make_starts_3d(ur5_reachable, 1, seed=0)[0]
     calls = []
 
-    def flaky(self, x0=None):
+    def flaky(self, x0=None, **kw):
         if np.array_equal(np.asarray(x0), x_first):
             calls.append(1)
             raise RuntimeError("boom")
-        return real(self, x0)
+        return real(self, x0, **kw)
 
     monkeypatch.setattr(IpoptIKSolver3D, "solve", flaky)
     sweep = SweepOptions(executor="serial", out=tmp_path)

@@ -2,7 +2,8 @@
 
 :func:`load_robot` loads the robot of ``--robot``, ``--package-dir``,
 ``--lenient``, ``--lock`` and ``--tip-frame`` (:func:`loading_options`: the
-keywords of :func:`~youbot_opt.robot.load.load_model`); :func:`ipopt_options`
+keywords of :func:`~youbot_opt.robot.load.load_model`); :func:`clearance_of`
+reads ``--scene`` and its companions; :func:`ipopt_options`
 reads ``--max-iter`` and ``--linear-solver``; :func:`scheduler_address` turns
 ``--scheduler`` / ``--scheduler-file`` into the address a sweep connects to
 (``None``: the local pool; guide: ``docs/scaling.md``); :func:`report_shard`
@@ -18,6 +19,10 @@ import sys
 from typing import TypedDict
 
 from youbot_opt.cli.warning_lines import flush_warnings
+from youbot_opt.collision.clearance import Clearance
+from youbot_opt.collision.pairs import self_collision_pairs
+from youbot_opt.collision.scene import Scene
+from youbot_opt.collision.scene_file import load_scene
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.load import load_model
@@ -32,6 +37,7 @@ from youbot_opt.sweeps.scheduler import (
 
 __all__ = [
     "LoadingOptions",
+    "clearance_of",
     "ipopt_options",
     "is_study_youbot",
     "load_robot",
@@ -194,3 +200,42 @@ def scheduler_address(args: argparse.Namespace) -> str | None:
             name="scheduler",
         )
     return check_scheduler_address(address, name="scheduler")
+
+
+def clearance_of(args: argparse.Namespace, robot: RobotModel | None = None) -> Clearance | None:
+    """Return the problem's clearance from the ``--scene`` flags (``_clearance_arguments``).
+
+    ``--srdf`` and ``--disable-pair`` choose the self-collision pairs of
+    ``robot`` (default: the robot of ``args``). None without ``--scene`` and
+    ``--margin``: the scene-less problem.
+    """
+    scene_file = getattr(args, "scene", None)
+    margin = getattr(args, "margin", None)
+    srdf = getattr(args, "srdf", None)
+    disable = [tuple(pair) for pair in getattr(args, "disable_pair", None) or ()]
+    if scene_file is None and margin is None:
+        for flag, given in (
+            ("no_self_collision", getattr(args, "no_self_collision", False)),
+            ("srdf", srdf is not None),
+            ("disable_pair", bool(disable)),
+        ):
+            if given:
+                raise ParameterError(
+                    f"--{flag.replace('_', '-')} needs --scene or --margin (without them "
+                    "there is nothing to check)",
+                    name=flag,
+                )
+        return None
+    pairs = None
+    if srdf is not None or disable:
+        pairs = self_collision_pairs(
+            load_robot(args) if robot is None else robot,
+            srdf=True if srdf is None else srdf,
+            disable=disable,
+        )
+    return Clearance(
+        scene=Scene() if scene_file is None else load_scene(scene_file),
+        margin=0.0 if margin is None else margin,
+        self_collision=not args.no_self_collision,
+        pairs=pairs,
+    )

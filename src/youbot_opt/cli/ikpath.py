@@ -27,11 +27,12 @@ from typing import TextIO, cast
 import numpy as np
 
 from youbot_opt._typing import JSONDict
-from youbot_opt.cli.flags import loading_options, report_shard, scheduler_address
+from youbot_opt.cli.flags import clearance_of, loading_options, report_shard, scheduler_address
 from youbot_opt.cli.ikpath_text import (
     STARTS_FILE,
     StartsFile,
     add_result_3d,
+    clearance_summary,
     planar_summary,
     print_3d,
     print_planar,
@@ -52,7 +53,9 @@ from youbot_opt.cli.output import (
 from youbot_opt.cli.parser import PLANAR_REACH_EVALUATIONS, START_KIND_NAMES
 from youbot_opt.cli.run_size import check_ikpath_size
 from youbot_opt.cli.warning_lines import flush_warnings
+from youbot_opt.collision.clearance import Clearance
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.clearance import certify_path_clearance
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import RobotSource, save_result
 from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
@@ -280,8 +283,10 @@ def _check_flags_3d(args: argparse.Namespace) -> str | None:
     return kind
 
 
-def _problem_3d(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
-    """Build the 3-D problem of the command line on the loaded ``robot``."""
+def _problem_3d(
+    args: argparse.Namespace, robot: RobotModel, clearance: Clearance | None = None
+) -> CyclicIKProblem:
+    """Build the 3-D problem of the command line on the loaded ``robot`` (and ``--scene``)."""
     frame = args.tip_frame or robot.tip_frame
     targets = _targets_3d(args)
     if len(targets) < 2:
@@ -305,6 +310,7 @@ def _problem_3d(args: argparse.Namespace, robot: RobotModel) -> CyclicIKProblem:
         use_limits=not args.no_limits,
         q_lower=None if lower is None else np.broadcast_to(lower, (n,)),
         q_upper=None if upper is None else np.broadcast_to(upper, (n,)),
+        clearance=clearance,
     )
 
 
@@ -435,8 +441,24 @@ def _time_path(
     return text, ok
 
 
+_CLEARANCE_FLAGS = ("scene", "margin", "no_self_collision", "srdf", "disable_pair")
+
+
+def _refuse_clearance_planar(args: argparse.Namespace) -> None:
+    """Refuse ``--scene`` and its companions on planar targets (the chains have no geometry)."""
+    given = [f for f in _CLEARANCE_FLAGS if getattr(args, f, None) not in (None, False, [])]
+    if given:
+        flag = "--" + given[0].replace("_", "-")
+        raise ParameterError(
+            f"{flag} needs a 3-D robot (--robot NAME with X Y Z targets): the planar chains of "
+            "--example, --lengths and --robot youbot with X Y targets have no collision geometry",
+            name=given[0],
+        )
+
+
 def _run_planar(args: argparse.Namespace) -> int:
     """Run a planar IK path; return the exit status."""
+    _refuse_clearance_planar(args)
     if args.timed and (args.robot != "youbot" or args.example):
         raise ParameterError(
             "--timed needs a robot with masses: --robot youbot (planar) or a URDF robot; "
@@ -511,7 +533,15 @@ def _run_3d(args: argparse.Namespace) -> int:
         args.method = "ipopt"
     robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))
     flush_warnings()  # the loader's warnings, grouped, before the run
-    problem = _problem_3d(args, robot)
+    clearance = clearance_of(args, robot)
+    if clearance is not None and args.method != "ipopt":
+        raise ParameterError(
+            f"--method {args.method} does not hold the clearance of --scene/--margin: use "
+            "--method ipopt (the default for 3-D targets)",
+            name="method",
+            value=args.method,
+        )
+    problem = _problem_3d(args, robot, clearance)
     kind = _start_kind_3d(kind, problem, args.starts)
     frame = problem.frame
     targets = problem.targets
@@ -543,6 +573,9 @@ def _run_3d(args: argparse.Namespace) -> int:
         best = ms.best
         starts = write_starts(folder, ms.results, ms.attempts)
         add_result_3d(doc, args, ms, kind, starts)
+        if clearance is not None:
+            certificate = certify_path_clearance(problem, best.configurations)
+            doc["clearance"] = clearance_summary(clearance, args.scene, certificate)
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))

@@ -22,6 +22,7 @@ import numpy as np
 
 from youbot_opt._files import write_json_lines
 from youbot_opt._typing import JSONDict
+from youbot_opt.collision.clearance import Clearance, ClearanceCertificate
 from youbot_opt.ikpath.examples import STUDY_E_A
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -35,6 +36,7 @@ __all__ = [
     "StartsFile",
     "add_result_3d",
     "certainty",
+    "clearance_summary",
     "planar_summary",
     "print_3d",
     "print_planar",
@@ -444,6 +446,53 @@ def warn_undecided_3d(verdicts: Sequence[ReachVerdict3D]) -> None:
             )
 
 
+def clearance_summary(
+    spec: Clearance, scene: Path | None, certificate: ClearanceCertificate | None
+) -> JSONDict:
+    """Return the summary's ``clearance``: the scene, margin and coal's closest pair.
+
+    ``closest_leg`` and ``closest_fraction``: where along the closed path (leg
+    ``j`` from target ``j`` to the next, the fraction of it).
+    """
+    doc: JSONDict = {
+        "scene": None if scene is None else str(scene),
+        "margin_m": spec.margin,
+        "self_collision": spec.self_collision,
+        "obstacles": [o.name for o in spec.scene.obstacles],
+        "certified": None,
+    }
+    if certificate is None:  # no pair to check
+        return doc
+    leg = int(math.floor(certificate.closest_time))
+    doc.update(
+        certified=certificate.certified,
+        lower_bound_m=certificate.lower_bound,
+        closest_pair=list(certificate.closest_pair),
+        closest_m=certificate.closest_distance,
+        closest_leg=leg,
+        closest_fraction=certificate.closest_time - leg,
+        n_samples=certificate.n_samples,
+    )
+    return doc
+
+
+def _print_clearance(doc: dict[str, Any]) -> None:
+    """Print the clearance line of a 3-D run (coal's closest pair, where on the path)."""
+    clear = doc.get("clearance")
+    if clear is None:
+        return
+    if clear["certified"] is None:
+        print(f"clearance: margin {clear['margin_m']:g} m, no pair to check")
+        return
+    verdict = "certified" if clear["certified"] else "NOT certified"
+    a, b = clear["closest_pair"]
+    print(
+        f"clearance: closest pair {a} / {b} at {clear['closest_m']:.6g} m (coal), "
+        f"leg {clear['closest_leg']} at fraction {clear['closest_fraction']:.3f}; margin "
+        f"{clear['margin_m']:g} m, {verdict} (lower bound {clear['lower_bound_m']:.6g} m)"
+    )
+
+
 def print_3d(
     summary: JSONDict,
     robot: str,
@@ -466,6 +515,7 @@ def print_3d(
         "distinct minima"
     )
     _print_certainty(doc)
+    _print_clearance(doc)
     if not doc["result"]["success"]:
         print(f"failed ({doc['status']}): {doc['result']['message']}")
     for j, q in enumerate(doc["result"]["configurations_rad"]):

@@ -957,6 +957,7 @@ def _ikpath(sub: _Sub) -> None:
         metavar="N",
         help="with --timed: knots of each segment, its ends included (default 20)",
     )
+    _clearance_arguments(p)  # 3-D robots, --method ipopt (docs/ikpath.md, "Clearance")
 
 
 #: What adds each command to the parser, in ``--help`` order (``_studies``: three).

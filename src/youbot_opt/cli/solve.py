@@ -25,7 +25,13 @@ import numpy as np
 from youbot_opt._checks import check_beta
 from youbot_opt._files import json_ready
 from youbot_opt._typing import JSONDict
-from youbot_opt.cli.flags import ipopt_options, is_study_youbot, load_robot, scheduler_address
+from youbot_opt.cli.flags import (
+    clearance_of,
+    ipopt_options,
+    is_study_youbot,
+    load_robot,
+    scheduler_address,
+)
 from youbot_opt.cli.output import (
     ProgressLine,
     open_folder,
@@ -37,13 +43,8 @@ from youbot_opt.cli.parser import DEFAULT_TRANSCRIPTION
 from youbot_opt.cli.refinement import refine_result
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.cli.trajopt_text import MULTISTART_HINT, certificate_of, format_result
-from youbot_opt.collision.clearance import Clearance
-from youbot_opt.collision.pairs import self_collision_pairs
-from youbot_opt.collision.scene import Scene
-from youbot_opt.collision.scene_file import load_scene
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
-from youbot_opt.robot.model import RobotModel
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.multistart import MultistartResult, run_multistart
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
@@ -65,45 +66,6 @@ def transcription(args: argparse.Namespace) -> str:
     if args.transcription is not None:
         return str(args.transcription).replace("-", "_")
     return "trapezoidal" if is_study_youbot(args) else DEFAULT_TRANSCRIPTION
-
-
-def clearance_of(args: argparse.Namespace, robot: RobotModel | None = None) -> Clearance | None:
-    """Return the problem's clearance from the ``--scene`` flags (``_clearance_arguments``).
-
-    ``--srdf`` and ``--disable-pair`` choose the self-collision pairs of
-    ``robot`` (default: the robot of ``args``). None without ``--scene`` and
-    ``--margin``: the scene-less problem.
-    """
-    scene_file = getattr(args, "scene", None)
-    margin = getattr(args, "margin", None)
-    srdf = getattr(args, "srdf", None)
-    disable = [tuple(pair) for pair in getattr(args, "disable_pair", None) or ()]
-    if scene_file is None and margin is None:
-        for flag, given in (
-            ("no_self_collision", getattr(args, "no_self_collision", False)),
-            ("srdf", srdf is not None),
-            ("disable_pair", bool(disable)),
-        ):
-            if given:
-                raise ParameterError(
-                    f"--{flag.replace('_', '-')} needs --scene or --margin (without them "
-                    "there is nothing to check)",
-                    name=flag,
-                )
-        return None
-    pairs = None
-    if srdf is not None or disable:
-        pairs = self_collision_pairs(
-            load_robot(args) if robot is None else robot,
-            srdf=True if srdf is None else srdf,
-            disable=disable,
-        )
-    return Clearance(
-        scene=Scene() if scene_file is None else load_scene(scene_file),
-        margin=0.0 if margin is None else margin,
-        self_collision=not args.no_self_collision,
-        pairs=pairs,
-    )
 
 
 def tool_of(args: argparse.Namespace) -> tuple[ToolConstraint, ...]:

@@ -27,7 +27,7 @@ import numpy as np
 from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt._files import json_ready
 from youbot_opt._typing import JSONDict
-from youbot_opt.cli.flags import ipopt_options, report_shard, scheduler_address
+from youbot_opt.cli.flags import clearance_of, ipopt_options, report_shard, scheduler_address
 from youbot_opt.cli.output import (
     ProgressLine,
     draw_figure,
@@ -100,8 +100,6 @@ def parse_values(text: str, name: str) -> tuple[float, ...]:
 
 # ------------------------------------------------------------------ helpers
 def _solver(args: argparse.Namespace) -> TrajOptSolver:
-
-    from youbot_opt.cli.solve import clearance_of  # the solve command's flags, same rules
 
     problem = study1_problem(args.knots)
     clearance = clearance_of(args, problem.robot)

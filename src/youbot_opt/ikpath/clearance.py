@@ -229,7 +229,7 @@ def require_path_clearance(problem: ClearedPath, x0: Array | None) -> None:
 
 
 def certify_path_clearance(
-    problem: ClearedPath, x: Array, *, tolerance: float = 1e-3
+    problem: ClearedPath, x: Array, *, tolerance: float = 1e-3, margin: float | None = None
 ) -> ClearanceCertificate | None:
     """Certify the closed joint path through ``x`` with coal's exact distances.
 
@@ -245,6 +245,8 @@ def certify_path_clearance(
         The path in [rad].
     tolerance : float
         Allowed shortfall in [m] (ends the bisection).
+    margin : float, optional
+        Required clearance in [m] (default: the problem's).
 
     Returns
     -------
@@ -271,6 +273,6 @@ def certify_path_clearance(
         motion,
         times,
         v_max=v_max,
-        margin=rows.spec.margin,
+        margin=rows.spec.margin if margin is None else margin,
         tolerance=tolerance,
     )

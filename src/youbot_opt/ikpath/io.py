@@ -37,7 +37,11 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import JSONDict
+from youbot_opt.collision.clearance import Clearance
+from youbot_opt.collision.pairs import CollisionPairs
+from youbot_opt.collision.scene_file import scene_document, scene_from_document
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
+from youbot_opt.ikpath.clearance import certify_path_clearance
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, OuterIterate, build_result
 from youbot_opt.ikpath.targets import Target, quaternion_to_matrix
@@ -50,6 +54,8 @@ DEFAULT_LOAD_POSITION_TOL = 1e-6
 """The loader's position tolerance [m] of a target (:class:`Target`'s default)."""
 DEFAULT_LOAD_ORIENTATION_TOL = 1e-6
 """The loader's orientation tolerance [rad] of a target (:class:`Target`'s default)."""
+DEFAULT_LOAD_MARGIN = 0.0
+"""The loader's clearance [m] of a path with a scene: no penetration (coal)."""
 
 __all__ = [
     "RECHECK_TOL",
@@ -362,12 +368,43 @@ def problem_spec_3d(problem: CyclicIKProblem) -> JSONDict:
     }
 
 
+def _clearance_json(problem: CyclicIKProblem, folder: Path | None) -> JSONDict | None:
+    """Return the problem's clearance: scene, margin [m], pairs, leg samples (None: none)."""
+    spec = problem.clearance
+    if spec is None:
+        return None
+    return {
+        "scene": scene_document(spec.scene, folder=Path.cwd() if folder is None else folder),
+        "margin": spec.margin,
+        "self_collision": spec.self_collision,
+        "pairs": None if spec.pairs is None else [list(p) for p in spec.pairs.active],
+        "leg_samples": problem.leg_samples,
+    }
+
+
+def _clearance_of(desc: Any, robot: str, folder: Path) -> tuple[Clearance | None, dict[str, int]]:
+    """Return the saved clearance and ``leg_samples`` keyword (None, {}: the problem had none)."""
+    if desc is None:
+        return None, {}
+    pairs = desc["pairs"]
+    spec = Clearance(
+        scene=scene_from_document(desc["scene"], folder=folder),
+        margin=float(desc["margin"]),
+        self_collision=bool(desc["self_collision"]),
+        pairs=None
+        if pairs is None
+        else CollisionPairs(robot=robot, active=tuple((str(a), str(b)) for a, b in pairs)),
+    )
+    return spec, {"leg_samples": int(desc["leg_samples"])}
+
+
 def _body_3d(
     result: IKPathResult, robot: RobotSource | None, folder: Path | None
 ) -> dict[str, Any]:
     return {
         "robot": None if robot is None else robot.to_json(folder=folder),
         **problem_spec_3d(result.problem),
+        "clearance": _clearance_json(result.problem, folder),
         "method": result.method,
         "status": result.status.value,
         "message": result.message,
@@ -403,8 +440,8 @@ def _target(d: dict[str, Any]) -> Target:
 
 def _model_of(
     body: dict[str, Any], robot: RobotModel | pin.Model | None, source: Path
-) -> pin.Model:
-    """Return the caller's model, else the file's robot source loaded; check its fingerprint."""
+) -> RobotModel | pin.Model:
+    """Return the caller's robot, else the file's robot source loaded; check its fingerprint."""
     if robot is None:
         spec = body.get("robot")
         if spec is None:
@@ -413,15 +450,14 @@ def _model_of(
                 "pinocchio.Model it was solved on)"
             )
         try:
-            model = RobotSource.from_json(spec).load(folder=source.parent).model
+            robot = RobotSource.from_json(spec).load(folder=source.parent)
         except YoubotOptError as exc:
             raise ResultFileError(
                 f"{source}: cannot load the robot it was solved on: {exc}; pass robot= (the "
                 "RobotModel to check it against, e.g. load_model(...) of an edited URDF if "
                 "the change is intended)"
             ) from exc
-    else:
-        model = robot.model if isinstance(robot, RobotModel) else robot
+    model = robot.model if isinstance(robot, RobotModel) else robot
     want = body["model"]
     if list(model.names) != list(want["joints"]) or _kinematics_digest(model) != str(
         want["kinematics_sha256"]
@@ -431,7 +467,7 @@ def _model_of(
             f"{want['name']!r}, joints {want['joints']}; got {model.name!r}, joints "
             f"{list(model.names)}, or other joint placements/limits)"
         )
-    return model
+    return robot
 
 
 def _fk_errors(problem: CyclicIKProblem, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -457,8 +493,17 @@ def _parse_3d(
     body: dict[str, Any], robot: RobotModel | pin.Model | None, source: Path
 ) -> tuple[IKPathResult, np.ndarray, np.ndarray]:
     model = _model_of(body, robot, source)
+    name = model.name if isinstance(model, RobotModel) else str(model.name)
+    clearance, legs = _clearance_of(body.get("clearance"), name, source.parent)
+    if clearance is not None and not isinstance(model, RobotModel):
+        raise ResultFileError(
+            f"{source}: the path keeps clearance from a scene; pass robot= as a RobotModel "
+            "(with its collision geometry), not a pinocchio.Model"
+        )
     problem = CyclicIKProblem(
         robot=model,
+        clearance=clearance,
+        **legs,
         frame=str(body["frame"]),
         targets=tuple(_target(t) for t in body["targets"]),
         use_limits=bool(body["use_limits"]),
@@ -503,6 +548,7 @@ def _load_3d(
     body: dict[str, Any],
     robot: RobotModel | pin.Model | None,
     tols: tuple[float, float],
+    margin: float,
 ) -> IKPathResult:
     """Read a 3-D result's body; target errors recomputed by ``pin.framesForwardKinematics``.
 
@@ -556,6 +602,14 @@ def _load_3d(
             raise ResultFileError(
                 f"{source}: claims {result.status.value!r} but targets {missed.tolist()} are "
                 f"missed or the limits are violated by {result.limit_violation:.3g} rad"
+            )
+        certificate = certify_path_clearance(problem, result.configurations, margin=margin)
+        if certificate is not None and not certificate.certified:
+            a, b = certificate.closest_pair
+            raise ResultFileError(
+                f"{source}: claims {result.status.value!r} but its path does not keep the "
+                f"caller's clearance {margin:g} m (coal): {a} / {b} at "
+                f"{certificate.closest_distance:.4g} m, leg {int(certificate.closest_time)}"
             )
     return result
 
@@ -644,6 +698,7 @@ def load_result(
     robot: RobotModel | pin.Model | None = None,
     position_tol: float = DEFAULT_LOAD_POSITION_TOL,
     orientation_tol: float = DEFAULT_LOAD_ORIENTATION_TOL,
+    margin: float = DEFAULT_LOAD_MARGIN,
 ) -> IKPathResult:
     """Read a result written by :func:`save_result` and check it against its robot.
 
@@ -664,6 +719,11 @@ def load_result(
         planar result: of its ``constraint_tol``): a file can only tighten it.
     orientation_tol : float, optional
         The caller's largest orientation error [rad] (as ``position_tol``).
+    margin : float, optional
+        The caller's clearance [m] of a path saved with a scene (default 0:
+        no penetration): a success claim is re-checked with coal along the
+        whole closed path (:func:`~youbot_opt.ikpath.clearance.certify_path_clearance`)
+        against this margin, never the file's.
 
     Returns
     -------
@@ -683,7 +743,7 @@ def load_result(
         names the file and both SHA-256) or differs from the one it was solved
         on, its stored E or target errors disagree with the recomputed ones by
         more than 1e-9 (e.g. a moved target), or it claims a 3-D success that
-        the recomputed errors or limits do not confirm.
+        the recomputed errors, limits or clearance (``margin``) do not confirm.
     """
     source = Path(path)
     try:
@@ -707,7 +767,14 @@ def load_result(
     )
     if "chain" in body:
         return _load_planar(source, body, tols[0])
-    return _load_3d(source, body, robot, tols)
+    ok = isinstance(margin, int | float) and not isinstance(margin, bool)
+    if not (ok and 0.0 <= float(margin) < math.inf):
+        raise ParameterError(
+            f"margin must be a finite number >= 0 in [m], got {margin!r}",
+            name="margin",
+            value=margin,
+        )
+    return _load_3d(source, body, robot, tols, float(margin))
 
 
 def _caller_tol(value: float, name: str, unit: str) -> float:

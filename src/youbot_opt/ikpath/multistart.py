@@ -33,7 +33,7 @@ from youbot_opt.ikpath.reachability.general import ReachVerdict3D
 from youbot_opt.ikpath.reachability.planar import ReachVerdict, require_reachable
 from youbot_opt.ikpath.reachability.planar import check_reachability as check_planar
 from youbot_opt.ikpath.result import IKPathResult
-from youbot_opt.ikpath.solve import Method, check_method, check_targets
+from youbot_opt.ikpath.solve import Method, check_method, check_targets, uses_planar_methods
 from youbot_opt.ikpath.starts import (
     BRANCH_KIND,
     START_KINDS,
@@ -465,7 +465,7 @@ def run_multistart(
     """
     t0 = time.perf_counter()
     check_method(method, options)
-    use_planar = problem.chain is not None if planar is None else bool(planar)
+    use_planar = uses_planar_methods(problem, method, planar)
     if workers is not None:
         if sweep.workers is not None and sweep.workers != workers:
             raise ParameterError(

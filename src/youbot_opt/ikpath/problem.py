@@ -747,13 +747,18 @@ class CyclicIKProblem:
         """Return the zero vector clipped into the limits, shape (n s,)."""
         return np.clip(np.zeros(self.n_variables), self.lower, self.upper)
 
-    def check_start(self, x0: ArrayLike | None) -> Array:
+    def check_start(self, x0: ArrayLike | None, *, generated: bool = False) -> Array:
         """Validate a start (``None``: :meth:`default_start`), shape (n s,).
+
+        A user's start (``generated=False``) with a configuration in collision
+        is refused; the default start and the starts a multistart generates
+        (``generated=True``) may collide (IPOPT accepts infeasible starts).
 
         Raises
         ------
         ParameterError
-            Wrong size, not finite, or outside the limits (names the entry).
+            Wrong size, not finite, outside the limits (names the entry), or a
+            user's start in collision (with a clearance).
         """
         if x0 is None:
             return self.default_start()
@@ -763,7 +768,8 @@ class CyclicIKProblem:
         else:
             labels, unit = [repr(name) for name in self.joint_names], ""
         require_within_limits(x, self.lower, self.upper, labels, unit=unit)
-        require_path_clearance(self, x)
+        if not generated:
+            require_path_clearance(self, x)
         return x
 
     def reach_radius(self) -> tuple[Array, float]:

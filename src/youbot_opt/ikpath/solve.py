@@ -82,6 +82,27 @@ def check_targets(problem: CyclicIKProblem) -> tuple[ReachVerdict, ...]:
     return verdicts
 
 
+def uses_planar_methods(problem: CyclicIKProblem, method: str, planar: bool | None) -> bool:
+    """Whether ``problem`` goes to the planar methods (default: with a chain, no clearance).
+
+    Raises
+    ------
+    ParameterError
+        A problem with a clearance and the AL or the planar methods.
+    """
+    clear = problem.clearance_rows is not None
+    use_planar = problem.chain is not None and not clear if planar is None else bool(planar)
+    if clear and (use_planar or method != "ipopt"):
+        raise ParameterError(
+            "a problem with a clearance is solved by the general IPOPT method only "
+            "(method='ipopt', planar=False or unset); the augmented Lagrangian and the "
+            f"planar methods do not hold clearance rows (got method={method!r})",
+            name="method",
+            value=method,
+        )
+    return use_planar
+
+
 def solve(
     problem: CyclicIKProblem,
     *,
@@ -142,16 +163,7 @@ def solve(
         ``planar=True`` on a problem without a chain.
     """
     check_method(method, options)
-    clear = problem.clearance_rows is not None
-    use_planar = problem.chain is not None and not clear if planar is None else bool(planar)
-    if clear and (use_planar or method != "ipopt"):
-        raise ParameterError(
-            "a problem with a clearance is solved by the general IPOPT method only "
-            "(method='ipopt', planar=False or unset); the augmented Lagrangian and the "
-            f"planar methods do not hold clearance rows (got method={method!r})",
-            name="method",
-            value=method,
-        )
+    use_planar = uses_planar_methods(problem, method, planar)
     if use_planar:
         problem.planar_chain  # noqa: B018 - raises ParameterError without a chain
         if check_reachability is None or check_reachability:

@@ -229,7 +229,7 @@ def _solve_al_3d(problem: CyclicIKProblem, options: ALOptions | None, x0: Array)
 
 def _solve_ipopt_3d(handle: WorkerSolver[IpoptIKSolver3D], x0: Array) -> IKPathResult:
     """Worker task: one start with this worker's IPOPT solver (built once per worker)."""
-    return handle.get().solve(x0)
+    return handle.get().solve(x0, generated=True)  # a generated start may collide
 
 
 def _crashed_3d(

@@ -460,10 +460,13 @@ class IpoptIKSolver3D:
         single_threaded_blas()
         self._solver = ca.nlpsol("ikpath_3d", "ipopt", {"x": x, "f": energy, "g": g}, opts)
 
-    def solve(self, x0: ArrayLike | None = None) -> IKPathResult:
-        """Solve from ``x0`` (default: zero clipped into the limits)."""
+    def solve(self, x0: ArrayLike | None = None, *, generated: bool = False) -> IKPathResult:
+        """Solve from ``x0`` (default: zero clipped into the limits).
+
+        ``generated``: a start the multistart made (may collide; a user's may not).
+        """
         prob = self.problem
-        start = prob.check_start(x0)
+        start = prob.check_start(x0, generated=generated)
         t0 = time.perf_counter()
         sol = self._solver(x0=start, lbx=prob.lower, ubx=prob.upper, lbg=self._lbg, ubg=self._ubg)
         wall = time.perf_counter() - t0
