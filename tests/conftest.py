@@ -7,6 +7,7 @@ test modules belong here.
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,6 +21,20 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 STUDY1_SOLVER_KNOTS = 20
 """Knots of the shared :func:`study1_solver` (small: the machinery is under test there)."""
+
+
+@pytest.fixture(scope="session")
+def fit_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A temporary folder for sphere fits (never the user's cache), shared by the session.
+
+    Every test that builds a collision model points ``YOUBOT_OPT_CACHE`` here, so each
+    robot's fit is computed once per session; with pytest-xdist the workers of one run
+    share it (the fit cache writes each file atomically).
+    """
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent  # <basetemp root>/popen-gwN: the run's root is shared
+    return base / "fits"
 
 
 @pytest.fixture(scope="session")

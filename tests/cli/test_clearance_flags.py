@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import json
 import re
+from pathlib import Path
 
 import pytest
 import umsgpack
@@ -17,9 +18,9 @@ from youbot_opt.exceptions import ParameterError
 
 
 @pytest.fixture(autouse=True)
-def _fit_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+def _fit_cache(fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Sphere fits are cached in a temporary folder during each test, never the user's."""
-    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
 
 
 @pytest.mark.parametrize("command", ["solve", "multistart", "pareto"])

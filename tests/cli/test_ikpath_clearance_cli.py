@@ -18,12 +18,10 @@ MARGIN = 0.01  # [m]
 
 
 @pytest.fixture(autouse=True)
-def _in_tmp(
-    tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def _in_tmp(tmp_path: Path, fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Run in a temporary cwd; ball fits cached for the session, never in the user's cache."""
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
 
 
 def _scene(tmp_path: Path) -> Path:

@@ -12,16 +12,6 @@ from youbot_opt.collision.model import CollisionModel, build_collision_model
 from youbot_opt.robot.model import RobotModel
 
 
-@pytest.fixture(scope="session")
-def fit_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A temporary folder for sphere fits (never the user's cache), shared by the session.
-
-    The same folder as the clearance tests of the other packages (``<basetemp>/fits``),
-    so each robot's fit is computed once per session.
-    """
-    return tmp_path_factory.getbasetemp() / "fits"
-
-
 @pytest.fixture(autouse=True)
 def _fit_cache_env(fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """During each collision test, fits are cached in :func:`fit_cache` (restored after)."""

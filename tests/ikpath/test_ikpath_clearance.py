@@ -34,10 +34,10 @@ MARGIN = 0.02  # [m]
 
 
 @pytest.fixture(autouse=True)
-def _fit_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+def _fit_cache(fit_cache: Path) -> Iterator[None]:
     """Ball fits go to a temporary folder, never the user's cache."""
     with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+        mp.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
         yield
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -21,9 +23,9 @@ from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
 
 @pytest.fixture(autouse=True)
-def _fit_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+def _fit_cache(fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Sphere fits are cached in a temporary folder during each test, never the user's."""
-    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
 
 
 @pytest.fixture(scope="module")

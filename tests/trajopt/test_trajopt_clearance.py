@@ -9,6 +9,7 @@ certificate, between them, at an objective no lower than its own free optimum.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,9 +33,9 @@ KNOT_TOL = 1e-5  # [m]
 
 
 @pytest.fixture(autouse=True)
-def _fit_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+def _fit_cache(fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Sphere fits are cached in a temporary folder during each test, never the user's."""
-    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
 
 
 @pytest.fixture(scope="module")

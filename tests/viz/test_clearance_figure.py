@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import matplotlib
@@ -19,9 +20,9 @@ matplotlib.use("Agg")
 
 
 @pytest.fixture(autouse=True)
-def _fit_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+def _fit_cache(fit_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Sphere fits are cached in a temporary folder during each test, never the user's."""
-    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path_factory.getbasetemp() / "fits"))
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
 
 
 def test_clearance_figure_names_the_closest_pair_per_group_and_the_margin():
