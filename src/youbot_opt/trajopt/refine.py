@@ -497,6 +497,8 @@ def transfer_start(
     copied from the parent interval; a pointwise bound multiplier is a density
     times its quadrature weight, so knot ones are interpolated as densities
     (per trapezoidal weight) and re-weighted, interval ones shared among the pieces.
+    Rows tied to no knot or interval (the boundary conditions, the pinned
+    waypoints of :mod:`youbot_opt.trajopt.timed`) keep their multipliers.
     """
     nlp, method = solver.nlp, solver.method
     n_new = t_new.size
@@ -526,7 +528,7 @@ def transfer_start(
     lam_g_blocks: dict[str, Array] = {}
     for name, block in nlp.constraints.blocks.items():
         lam = np.asarray(old.multipliers[name], dtype=float)
-        if block.count == 1:
+        if block.count == 1 or block.count not in (n_new - 1, n_new):  # rows of no knot
             lam_g_blocks[name] = lam
         elif name in nlp.path_limits and block.count == n_new:  # knot rows: densities
             density = lam / w_old[:, None]
