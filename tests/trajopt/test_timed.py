@@ -198,3 +198,33 @@ def test_refine_through_waypoints_keeps_them_pinned(problem):
         x.n_knots for x in record.rounds
     ]
     assert first.refinement is None and not first.certified
+
+
+def test_refine_through_waypoints_says_why_it_cannot_certify():
+    """The UR5 closed cycle at beta = 1 (docs/timed.md): a torque switches bang-bang in an interval.
+
+    Hermite-Simpson's quadratic torque through 150, 150, -150 N m peaks 25 % over
+    the bound however short the interval, so splitting cannot certify it: the
+    record says which check failed, round by round, and the waypoints stay hit.
+    (IPOPT's default relaxes the 150 N m bounds by 1.5e-6 > the 1e-6 feasibility
+    tolerance: honor_original_bounds puts the solution back inside them.)
+    """
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+
+    start = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])
+    state = BoundaryState(q=start)
+    problem = TrajOptProblem(robot=load_model("ur5"), start=state, goal=state)
+    w = Waypoints(q=[start, [0.8, -0.6, 0.4, -1.2, -0.3, 0.5]], closed=True)
+    options = IpoptOptions(extra={"honor_original_bounds": "yes"})
+    solver = TimedSolver(problem, w, options=options)
+    refined = solver.refine(beta=1.0, budget=RefinementBudget(max_rounds=2))
+    record = refined.refinement
+    assert refined.success and not refined.certified
+    assert [r.certificate_passed for r in record.rounds] == [False, False]
+    assert record.rounds[1].n_knots > record.rounds[0].n_knots == 39
+    assert "bound torque, between knots" in record.reason and "after 2 rounds" in record.reason
+    assert refined.waypoint_knots[0] == 0 and refined.waypoint_times[0] == 0.0
+    assert refined.waypoint_error <= refined.result.feasibility_tol
+    assert refined.result.variables["q"][-1] == pytest.approx(start, abs=1e-6)
