@@ -136,7 +136,8 @@ def test_solve_waypoints_refines_with_the_usual_flags(tmp_path, capsys):
     assert code == 1  # 2 rounds do not reach 1e-4 from 8 knots a segment
     assert "refine: round 0: 22 knots" in out.err and "refine: round 1:" in out.err
     assert "NOT certified" in out.out and "after 2 rounds" in out.out
-    assert "  round  knots" in out.out
+    assert "  round  knots" in out.out  # the table, printed once, with the result
+    assert "refined      2 rounds, NOT certified: max error" in out.out
     doc = json.loads((Path("run") / "summary.json").read_text())
     timed = doc["timed"]
     assert timed["refined"] and not timed["certified"] and not doc["certified"]

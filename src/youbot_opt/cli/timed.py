@@ -50,8 +50,14 @@ def timed_summary(timed: TimedResult, certificate: Certificate | None) -> JSONDi
     return doc
 
 
-def timed_lines(timed: TimedResult, certificate: Certificate | None) -> list[str]:
-    """Text lines: each waypoint's time, T, W, the waypoint error, certificate and rounds."""
+def timed_lines(
+    timed: TimedResult, certificate: Certificate | None, *, table: bool = True
+) -> list[str]:
+    """Text lines: each waypoint's time, T, W, the waypoint error, certificate and rounds.
+
+    ``table``: the refinement's rounds as a table (False: one line, the table
+    being printed with the result).
+    """
     r = timed.result
     closed = " (closed: back to waypoint 1)" if timed.waypoints.closed else ""
     lines = [f"timed through {timed.waypoints.count} waypoints{closed}, {r.method}"]
@@ -69,10 +75,15 @@ def timed_lines(timed: TimedResult, certificate: Certificate | None) -> list[str
     else:
         verdict = "passed" if certificate.ok else "FAILED: " + "; ".join(certificate.failures())
         lines.append(f"  certificate  {verdict}")
-    if timed.refinement is None:
+    record = timed.refinement
+    if record is None:
         lines.append(f"  {NOT_REFINED}")
+    elif table:
+        lines += [f"  {line}" for line in refinement_table(r, record)]
     else:
-        lines += [f"  {line}" for line in refinement_table(r, timed.refinement)]
+        why = record.reason.removeprefix("not certified: ")
+        verdict = "certified" if record.certified else f"NOT certified: {why}"
+        lines.append(f"  refined      {len(record.rounds)} rounds, {verdict}")
     return lines
 
 
@@ -116,7 +127,7 @@ def run_solve(args: argparse.Namespace, problem: TrajOptProblem, method: str) ->
     if not args.json:
         print(format_result(timed.result, certificate, refinement=timed.refinement))
         print()
-        print("\n".join(timed_lines(timed, certificate)), flush=True)
+        print("\n".join(timed_lines(timed, certificate, table=False)), flush=True)
     folder = open_folder("solve", args.out)
     files = write_solve_outputs(folder, timed.result, summary, refinement=timed.refinement)
     if args.json:

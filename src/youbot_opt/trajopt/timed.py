@@ -7,7 +7,9 @@ the ``dt`` block has one entry per segment, the waypoint knots are pinned by
 equality rows, ``T`` and ``W`` sum the segments; objective, bounds and dynamics
 are the single-segment NLP's. A solution is then exactly a point of the
 ordinary NLP on the grid of its own steps: it is reported, checked and
-certified as one (:class:`TimedResult`). Spec and units: docs/timed.md.
+certified as one (:class:`TimedResult`), and :meth:`TimedSolver.refine` refines
+it within its segments with :func:`~youbot_opt.trajopt.refine.refine`'s loop.
+Spec and units: docs/timed.md.
 """
 
 from __future__ import annotations
