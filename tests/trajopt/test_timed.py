@@ -225,6 +225,8 @@ def test_refine_through_waypoints_says_why_it_cannot_certify():
     assert [r.certificate_passed for r in record.rounds] == [False, False]
     assert record.rounds[1].n_knots > record.rounds[0].n_knots == 39
     assert "bound torque, between knots" in record.reason and "after 2 rounds" in record.reason
+    assert "torque switches between its bounds inside an interval" in record.reason
+    assert "trapezoidal" in record.reason
     assert refined.waypoint_knots[0] == 0 and refined.waypoint_times[0] == 0.0
     assert refined.waypoint_error <= refined.result.feasibility_tol
     assert refined.result.variables["q"][-1] == pytest.approx(start, abs=1e-6)
