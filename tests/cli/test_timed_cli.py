@@ -32,7 +32,13 @@ def test_solve_through_a_waypoints_file(tmp_path, capsys):
     code, doc, _ = _json(capsys, ["solve", "--waypoints", "w.csv", "--json", "--out", "run"])
     assert code == 0
     timed = doc["timed"]
-    assert timed["success"] and timed["certified"] and not timed["refined"]
+    # refined by default (docs/timed.md): the rounds are recorded
+    assert timed["success"] and timed["certified"] and timed["refined"]
+    rounds = timed["refinement"]["rounds"]
+    assert timed["refinement"]["reason"] == "certified" and rounds[0]["n_knots"] == 58
+    assert rounds[-1]["certificate_passed"] and rounds[-1]["max_error"] <= 1e-3
+    assert doc["certified"] and doc["n_knots"] == rounds[-1]["n_knots"]
+    assert doc["refinement"]["rounds"] == rounds
     times = timed["waypoint_times_s"]
     assert len(times) == 2 and 0.0 < times[0] < times[1] < timed["duration_s"]
     assert timed["duration_s"] == pytest.approx(sum(timed["segment_durations_s"]), rel=1e-12)
@@ -49,14 +55,13 @@ def test_solve_through_a_waypoints_file(tmp_path, capsys):
 
 def test_solve_waypoints_text_and_closed(tmp_path, capsys):
     (tmp_path / "w.json").write_text(json.dumps({"q": WAYPOINTS}))
-    code = main(
-        ["solve", "--waypoints", "w.json", "--closed", "--segment-knots", "15", "--out", "run"]
-    )
+    argv = ["solve", "--waypoints", "w.json", "--closed", "--segment-knots", "15"]
+    code = main([*argv, "--no-refine", "--out", "run"])
     out = capsys.readouterr().out
     assert code == 0
     assert "timed through 2 waypoints (closed: back to waypoint 1)" in out
     assert "waypoint 2" in out and "duration T" in out and "certificate  passed" in out
-    assert "not refined" in out
+    assert "not refined (--no-refine)" in out
     doc = json.loads((Path("run") / "summary.json").read_text())
     assert doc["timed"]["closed"] is True
     from youbot_opt.trajopt.io import load_result
@@ -75,7 +80,6 @@ def test_solve_waypoints_text_and_closed(tmp_path, capsys):
         (["--waypoints", "missing.csv"], "missing.csv"),
         (["--segment-knots", "9"], "--segment-knots applies with --waypoints only"),
         (["--waypoints", "w.csv", "--knots", "30"], "--knots (use --segment-knots) does not"),
-        (["--waypoints", "w.csv", "--max-rounds", "3"], "--max-rounds: refinement through"),
         (["--waypoints", "w.csv", "--segment-knots", "1"], "knots_per_segment must be an int >= 2"),
     ],
 )
@@ -95,7 +99,8 @@ def test_ikpath_timed_youbot(capsys):
     code, doc, _ = _json(capsys, [*argv, "--out", "ik"])
     assert code == 0
     timed = doc["timed"]
-    assert timed["success"] and timed["certified"] and timed["closed"]
+    assert timed["success"] and timed["certified"] and timed["closed"] and timed["refined"]
+    assert timed["refinement"]["reason"] == "certified"
     # the first configuration is the start: reached at t = 0, the others later, in order
     times = timed["waypoint_times_s"]
     assert times[0] == 0.0 and 0.0 < times[1] < timed["duration_s"]
@@ -117,4 +122,26 @@ def test_ikpath_segment_knots_needs_timed(capsys):
     argv = ["ikpath", "--robot", "youbot", "--target", "0.0", "0.6", "--target", "-0.1", "0.5"]
     assert main([*argv, "--segment-knots", "15", "--no-progress"]) == 2
     assert "--segment-knots applies with --timed only" in capsys.readouterr().err
+    assert main([*argv, "--max-rounds", "2", "--no-progress"]) == 2
+    assert "--max-rounds applies with --timed only" in capsys.readouterr().err
     assert not Path("youbot_opt_runs").exists()  # refused before the run
+
+
+def test_solve_waypoints_refines_with_the_usual_flags(tmp_path, capsys):
+    """``--max-rounds``, ``--error-tol``: the rounds are printed (stderr and the table)."""
+    (tmp_path / "w.json").write_text(json.dumps({"q": WAYPOINTS}))
+    argv = ["solve", "--waypoints", "w.json", "--segment-knots", "8", "--max-rounds", "2"]
+    code = main([*argv, "--error-tol", "1e-4", "--out", "run"])
+    out = capsys.readouterr()
+    assert code == 1  # 2 rounds do not reach 1e-4 from 8 knots a segment
+    assert "refine: round 0: 22 knots" in out.err and "refine: round 1:" in out.err
+    assert "NOT certified" in out.out and "after 2 rounds" in out.out
+    assert "  round  knots" in out.out  # the table, printed once, with the result
+    assert "refined      2 rounds, NOT certified: max error" in out.out
+    doc = json.loads((Path("run") / "summary.json").read_text())
+    timed = doc["timed"]
+    assert timed["refined"] and not timed["certified"] and not doc["certified"]
+    assert [r["round"] for r in timed["refinement"]["rounds"]] == [0, 1]
+    assert "error tolerance 0.0001, at most 2 rounds" in timed["refinement"]["budget"]
+    # the waypoints stay hit on the refined grid
+    assert timed["success"] and timed["waypoint_error_rad"] <= 1e-6

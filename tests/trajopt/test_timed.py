@@ -20,6 +20,7 @@ import pytest
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.certify import certify
+from youbot_opt.trajopt.refine import RefinementBudget
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.timed import TimedSolver, solve_through
 from youbot_opt.trajopt.waypoints import Waypoints
@@ -156,3 +157,76 @@ def test_one_segment_is_the_point_to_point_solve(youbot):
     # same NLP up to the order of operations, same start: IPOPT's tolerance apart
     assert timed.result.objective == pytest.approx(plain.objective, rel=1e-7)
     assert timed.duration == pytest.approx(plain.duration, rel=1e-6)
+
+
+def test_refine_through_waypoints_keeps_them_pinned(problem):
+    """Refinement splits intervals within their segments: the waypoint knots stay segment ends.
+
+    The study arm through three waypoints at beta = 1 (benchmarks/bench_timed.py's
+    youBot case): certified on 20 knots a segment, its largest interval error
+    2e-3 over the 1e-3 tolerance; refined, certified again, T moves by < 1 %.
+    """
+    w = np.vstack([WAYPOINTS, [0.5, 0.8, -0.4]])
+    solver = TimedSolver(problem, Waypoints(q=w))
+    first = solver.solve(beta=1.0)
+    assert first.success, first.result.message
+    assert certify(first.result).ok
+    refined = solver.refine(first=first, budget=RefinementBudget(max_rounds=4))
+    record = refined.refinement
+    assert record is not None and record.rounds[0].n_knots == 77
+    assert record.rounds[0].max_error > record.budget.tolerance
+    assert refined.certified and record.reason == "certified", record.reason
+    assert record.rounds[-1].n_knots > 77  # it did split
+    assert record.rounds[-1].max_error <= record.budget.tolerance
+    r = refined.result
+    assert r.success and r.problem.n_knots == record.rounds[-1].n_knots
+    assert refined.duration == pytest.approx(first.duration, rel=0.01)
+    # every waypoint still hit, exactly at its knot, a segment end
+    assert refined.waypoint_error <= r.feasibility_tol
+    q = r.variables["q"]
+    for k, row in zip(refined.waypoint_knots, w, strict=True):
+        np.testing.assert_allclose(q[k], row, rtol=0, atol=r.feasibility_tol)
+    t = r.trajectory.t
+    np.testing.assert_allclose(refined.waypoint_times, t[list(refined.waypoint_knots)])
+    np.testing.assert_allclose(
+        np.cumsum(refined.segment_durations)[:-1], refined.waypoint_times, rtol=1e-12
+    )
+    assert refined.duration == pytest.approx(refined.segment_durations.sum(), rel=1e-12)
+    summary = refined.summary()
+    assert summary["refinement"]["reason"] == "certified"
+    assert [x["n_knots"] for x in summary["refinement"]["rounds"]] == [
+        x.n_knots for x in record.rounds
+    ]
+    assert first.refinement is None and not first.certified
+
+
+def test_refine_through_waypoints_says_why_it_cannot_certify():
+    """The UR5 closed cycle at beta = 1 (docs/timed.md): a torque switches bang-bang in an interval.
+
+    Hermite-Simpson's quadratic torque through 150, 150, -150 N m peaks 25 % over
+    the bound however short the interval, so splitting cannot certify it: the
+    record says which check failed, round by round, and the waypoints stay hit.
+    (IPOPT's default relaxes the 150 N m bounds by 1.5e-6 > the 1e-6 feasibility
+    tolerance: honor_original_bounds puts the solution back inside them.)
+    """
+    from youbot_opt.nlp.ipopt import IpoptOptions
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+
+    start = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])
+    state = BoundaryState(q=start)
+    problem = TrajOptProblem(robot=load_model("ur5"), start=state, goal=state)
+    w = Waypoints(q=[start, [0.8, -0.6, 0.4, -1.2, -0.3, 0.5]], closed=True)
+    options = IpoptOptions(extra={"honor_original_bounds": "yes"})
+    solver = TimedSolver(problem, w, options=options)
+    refined = solver.refine(beta=1.0, budget=RefinementBudget(max_rounds=2))
+    record = refined.refinement
+    assert refined.success and not refined.certified
+    assert [r.certificate_passed for r in record.rounds] == [False, False]
+    assert record.rounds[1].n_knots > record.rounds[0].n_knots == 39
+    assert "bound torque, between knots" in record.reason and "after 2 rounds" in record.reason
+    assert "torque switches between its bounds inside an interval" in record.reason
+    assert "trapezoidal" in record.reason
+    assert refined.waypoint_knots[0] == 0 and refined.waypoint_times[0] == 0.0
+    assert refined.waypoint_error <= refined.result.feasibility_tol
+    assert refined.result.variables["q"][-1] == pytest.approx(start, abs=1e-6)

@@ -429,7 +429,7 @@ def _time_path(
     assert robot is not None  # --timed: the youBot (planar) or the spatial run's robot
 
     entry, lines, written, ok = time_ik_path(
-        robot, best.configurations, folder, knots_per_segment=args.segment_knots
+        robot, best.configurations, folder, knots_per_segment=args.segment_knots, args=args
     )
     doc["timed"] = entry
     files += written
@@ -614,6 +614,17 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.segment_knots is not None and not args.timed:
         raise ParameterError("--segment-knots applies with --timed only", name="segment_knots")
+    if not args.timed:
+        refine_flags = (
+            ("--no-refine", not args.refine),
+            ("--error-tol", args.error_tol != 1e-3),
+            ("--max-rounds", args.max_rounds != 8),
+            ("--max-knots", args.max_knots != 1000),
+            ("--refine-time", args.refine_time is not None),
+        )
+        for flag, given in refine_flags:
+            if given:
+                raise ParameterError(f"{flag} applies with --timed only", name="timed")
     check_ikpath_size(
         n_starts=64 if args.starts is None else args.starts,
         n_links=len(args.lengths or ()),

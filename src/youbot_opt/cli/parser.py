@@ -615,8 +615,7 @@ def _solve(sub: _Sub) -> None:
         "--waypoints",
         metavar="FILE",
         help="pass through these configurations (CSV or JSON, rad) in order at free times, "
-        "hermite-simpson unless --transcription; certified once, not refined (refinement "
-        "through waypoints is not built)",
+        "hermite-simpson unless --transcription; refined within the segments like any plan",
     )
     timed.add_argument(
         "--closed", action="store_true", help="with --waypoints: end back at the first one"
@@ -958,6 +957,7 @@ def _ikpath(sub: _Sub) -> None:
         help="with --timed: knots of each segment, its ends included (default 20)",
     )
     _clearance_arguments(p)  # 3-D robots, --method ipopt (docs/ikpath.md, "Clearance")
+    _refine_arguments(p, grid="with --timed, the timed plan's grid")
 
 
 #: What adds each command to the parser, in ``--help`` order (``_studies``: three).

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from youbot_opt._typing import JSONDict
@@ -28,6 +29,7 @@ __all__ = [
     "refinement_budget",
     "refinement_figures",
     "refinement_table",
+    "round_printer",
 ]
 
 
@@ -57,6 +59,13 @@ def refine_result(
     """
     if not getattr(args, "refine", False) or result is None or result.trajectory is None:
         return None
+    return refine(
+        solver, first=result, budget=refinement_budget(args), progress=round_printer(quiet)
+    )
+
+
+def round_printer(quiet: bool = False) -> Callable[[RefinementRound], None]:
+    """Return the ``progress`` of a refinement: one line per round on stderr (none if ``quiet``)."""
 
     def progress(r: RefinementRound) -> None:
         if not quiet:
@@ -68,7 +77,7 @@ def refine_result(
                 flush=True,
             )
 
-    return refine(solver, first=result, budget=refinement_budget(args), progress=progress)
+    return progress
 
 
 def refine_many(

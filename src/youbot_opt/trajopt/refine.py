@@ -49,6 +49,7 @@ __all__ = [
     "RefinementRound",
     "refine",
     "observed_exponents",
+    "overshoot_note",
     "predicted_knots",
     "solution_moved",
     "stiffness_note",
@@ -482,6 +483,36 @@ def stiffness_note(
     )
 
 
+def overshoot_note(result: TrajOptResult, cert: Certificate | None) -> str:
+    """Say why splitting cannot pass a Hermite-Simpson torque overshoot ("" if not the case).
+
+    Hermite-Simpson's torque is the quadratic through an interval's knot and
+    midpoint torques. Where a torque switches between its bounds inside an
+    interval (a bang-bang arc, at ``beta`` near 1) the quadratic through
+    ``u, u, -u`` peaks at ``1.25 u`` however short the interval, so the
+    certificate's between-knots torque check keeps failing, by up to 25 % of
+    the half range, whatever the grid. The trapezoidal scheme's torque is
+    linear between knots and cannot overshoot (docs/timed.md measures both).
+    """
+    if cert is None or result.method != "hermite_simpson" or result.trajectory is None:
+        return ""
+    limit = cert.tolerances.between_bound
+    over = [
+        b
+        for b in cert.bounds
+        if b.quantity == "torque" and b.where == "between" and not b.relative <= limit
+    ]
+    if not over or not np.any(switching_intervals(result)):
+        return ""
+    b = over[0]
+    return (
+        f"; joint {b.joint}'s torque switches between its bounds inside an interval (worst at "
+        f"t = {b.time:.4g} s): the Hermite-Simpson quadratic overshoots there by up to 25 % "
+        "however short the interval, so splitting cannot pass the between-knots torque check; "
+        "the trapezoidal transcription (linear torque, --transcription trapezoidal) can"
+    )
+
+
 def _knot_weights(t: Array) -> Array:
     h = np.diff(t)
     return grid_weights("trapezoidal", h)[0]
@@ -497,6 +528,8 @@ def transfer_start(
     copied from the parent interval; a pointwise bound multiplier is a density
     times its quadrature weight, so knot ones are interpolated as densities
     (per trapezoidal weight) and re-weighted, interval ones shared among the pieces.
+    Rows tied to no knot or interval (the boundary conditions, the pinned
+    waypoints of :mod:`youbot_opt.trajopt.timed`) keep their multipliers.
     """
     nlp, method = solver.nlp, solver.method
     n_new = t_new.size
@@ -526,7 +559,7 @@ def transfer_start(
     lam_g_blocks: dict[str, Array] = {}
     for name, block in nlp.constraints.blocks.items():
         lam = np.asarray(old.multipliers[name], dtype=float)
-        if block.count == 1:
+        if block.count == 1 or block.count not in (n_new - 1, n_new):  # rows of no knot
             lam_g_blocks[name] = lam
         elif name in nlp.path_limits and block.count == n_new:  # knot rows: densities
             density = lam / w_old[:, None]
@@ -782,6 +815,7 @@ def refine(
             reason = f"{why} after {elapsed:.3g} s"
         if reason:
             note = stiffness_note(result, error, budget.tolerance, exponents)
+            note += overshoot_note(result, cert)
             reason = f"not certified: {reason}{note} (budget: {budget.describe()})"
             break
         round_tic = tic + elapsed

@@ -7,25 +7,31 @@ the ``dt`` block has one entry per segment, the waypoint knots are pinned by
 equality rows, ``T`` and ``W`` sum the segments; objective, bounds and dynamics
 are the single-segment NLP's. A solution is then exactly a point of the
 ordinary NLP on the grid of its own steps: it is reported, checked and
-certified as one (:class:`TimedResult`). Spec and units: docs/timed.md.
+certified as one (:class:`TimedResult`), and :meth:`TimedSolver.refine` refines
+it within its segments with :func:`~youbot_opt.trajopt.refine.refine`'s loop.
+Spec and units: docs/timed.md.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import casadi as ca
 import numpy as np
 
-from youbot_opt._checks import check_beta, check_bound_scale
+from youbot_opt._checks import check_beta, check_bound_scale, check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, inverse_dynamics
 from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+from youbot_opt.trajopt.refine import Refinement, RefinementBudget, RefinementRound, refine
 from youbot_opt.trajopt.result import DEFAULT_FEASIBILITY_TOL, TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -72,25 +78,60 @@ class _WaypointNLP(TranscribedNLP):
 class _Segmented(Transcription):
     """A collocation scheme with one free step per segment and pinned waypoint knots.
 
-    Interval ``k`` of segment ``s = k // m`` lasts ``dt[s]``; ``m`` intervals a
-    segment. Built only by :class:`TimedSolver`.
+    Segment ``s`` has ``counts[s]`` intervals; interval ``k`` of segment ``s``
+    lasts ``r_k dt[s]``, the ratios ``r`` of the grid's ``fractions`` within
+    each segment (mean 1 a segment: ``dt[s]`` is its mean step). Built only by
+    :class:`TimedSolver` (uniform segments) and by refinement (split ones).
     """
 
     plain: ClassVar[type[Transcription]]
 
-    def __init__(self, segments: int, intervals: int, pinned: Array) -> None:
-        super().__init__(np.ones(segments * intervals))  # the grid branch: steps per interval
-        self.segments, self.intervals = segments, intervals
+    def __init__(self, counts: Any, pinned: Array, fractions: Any = None) -> None:
+        counts = np.asarray(counts, dtype=np.intp)
+        total = int(counts.sum())
+        super().__init__(np.ones(total) if fractions is None else fractions)
+        assert self.fractions is not None and self.fractions.size == total
+        self.counts = counts
+        self.segments = int(counts.size)
+        self.ends = np.concatenate(([0], np.cumsum(counts)))  # knot of each segment end
+        self.segment = np.repeat(np.arange(self.segments), counts)  # segment of each interval
+        share = np.bincount(self.segment, weights=self.fractions) / counts  # mean per segment
+        self.step_ratios = self.fractions / share[self.segment]  # r_k, mean 1 a segment
+        self.uniform_segments = fractions is None
+        select = np.zeros((total, self.segments))
+        select[np.arange(total), self.segment] = self.step_ratios
+        self.select = ca.DM(select)  # (M, S)
         self.pinned = np.asarray(pinned, dtype=float)  # (S - 1, nv), the inner segment ends
-        self.select = ca.DM(np.kron(np.eye(segments), np.ones((intervals, 1))))  # (M, S)
         self.initial_values: dict[str, Array] = {}
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(segments={self.segments}, intervals={self.intervals})"
+        return f"{type(self).__name__}(counts={self.counts.tolist()})"
 
     def with_fractions(self, fractions: Any) -> Transcription:
         """Return the plain scheme on a grid: a segmented solution is a point of its NLP."""
         return self.plain(fractions)
+
+    def split(self, fractions: Any, boundaries: Array) -> _Segmented:
+        """Return the same segments on a finer grid whose knots include the segment ends.
+
+        ``fractions`` are the new grid's interval fractions of ``T``, ``boundaries``
+        the inner segment ends as fractions of ``T`` on that grid (what
+        :func:`~youbot_opt.trajopt.refine.split_grid` keeps: it splits intervals,
+        never moves a knot).
+        """
+        f = np.asarray(fractions, dtype=float)
+        edges = np.cumsum(f / f.sum())
+        knots = np.searchsorted(edges, np.asarray(boundaries) - 1e-9) + 1
+        if knots.size and (
+            np.any(np.abs(edges[knots - 1] - boundaries) > 1e-9) or np.any(np.diff(knots) < 1)
+        ):
+            raise ParameterError("the new grid does not keep the waypoint knots", name="fractions")
+        counts = np.diff(np.concatenate(([0], knots, [f.size])))
+        return type(self)(counts, self.pinned, f)
+
+    def steps_value(self, dt: Array) -> Array:
+        """Interval steps [s] of the per-segment steps ``dt`` [s] (numbers)."""
+        return self.step_ratios * np.asarray(dt, dtype=float).ravel()[self.segment]
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """Return the plain scheme's blocks, ``dt`` with one step [s] per segment."""
@@ -98,22 +139,26 @@ class _Segmented(Transcription):
         return [(name, self.segments, 1) if name == "dt" else (name, w, c) for name, w, c in blocks]
 
     def steps_of(self, dt: Any) -> Any:
-        """Interval steps ``h_k = dt[k // m]`` as a ``1 x M`` row."""
+        """Interval steps ``h_k = r_k dt[s_k]`` as a ``1 x M`` row."""
         return ca.mtimes(self.select, dt).T
 
     def per_interval(self, expr: Any, dt: Any) -> Any:
-        """``expr`` (``nv x M``) with column ``k`` times its segment's step."""
+        """``expr`` (``nv x M``) with column ``k`` times its step."""
         return expr * ca.repmat(self.steps_of(dt), expr.size1(), 1)
 
     def time_and_work(self, sym: dict[str, Any], n_knots: int) -> tuple[Any, Any]:
-        """``T = m sum_s dt_s`` and ``W = sum_k h_k Q_k``, ``Q_k`` the interval's quadrature."""
+        """``T = sum_s counts_s dt_s`` and ``W = sum_k h_k Q_k`` (``Q_k``: interval quadrature)."""
         h = self.steps_of(sym["dt"])
         p = ca.sum1(sym["tau"] ** 2)
         if "tau_mid" in sym:  # Simpson
             inner = (p[:, :-1] + 4 * ca.sum1(sym["tau_mid"] ** 2) + p[:, 1:]) / 6
         else:  # trapezoid
             inner = (p[:, :-1] + p[:, 1:]) / 2
-        return self.intervals * ca.sum1(sym["dt"]), ca.sum2(h * inner)
+        if self.uniform_segments:  # the unrefined NLP, expression for expression
+            total = int(self.counts[0]) * ca.sum1(sym["dt"])
+        else:
+            total = ca.mtimes(ca.DM(self.counts.astype(float)).T, sym["dt"])
+        return total, ca.sum2(h * inner)
 
     def expressions(
         self,
@@ -125,7 +170,7 @@ class _Segmented(Transcription):
     ) -> Any:
         """Return the plain expressions plus the ``waypoint_position`` rows (inner ends)."""
         parts = super().expressions(problem, sym, accel, beta, paths)
-        knots = [self.intervals * (s + 1) for s in range(self.segments - 1)]
+        knots = [int(k) for k in self.ends[1:-1]]
         pinned = ca.horzcat(*[sym["q"][:, k] for k in knots])
         blocks = [(b.name, b.width, b.count) for b in parts.constraints.blocks.values()]
         return parts._replace(
@@ -145,8 +190,14 @@ class _Segmented(Transcription):
         return _WaypointNLP(**fields, waypoint_q=self.pinned)
 
     def knot_guess(self, guess: Trajectory, n_knots: int) -> dict[str, Array]:
-        """Return the piecewise-linear guess :class:`TimedSolver` set (not ``guess``)."""
-        return {name: np.array(value) for name, value in self.initial_values.items()}
+        """Return the piecewise-linear guess :class:`TimedSolver` set, else ``guess`` here."""
+        if self.initial_values:
+            return {name: np.array(value) for name, value in self.initial_values.items()}
+        values = self.plain(self.fractions).knot_guess(guess, n_knots)  # the mean step as dt
+        assert self.fractions is not None
+        share = np.bincount(self.segment, weights=self.fractions)  # each segment's part of T
+        values["dt"] = guess.duration * share / self.counts
+        return values
 
 
 class _SegmentedHermiteSimpson(_Segmented, HermiteSimpsonCollocation):
@@ -158,7 +209,31 @@ class _SegmentedTrapezoidal(_Segmented, TrapezoidalCollocation):
 
 
 class _SegmentSolver(TrajOptSolver):
-    """A :class:`TrajOptSolver` of a segmented NLP reporting on its solution's grid."""
+    """A :class:`TrajOptSolver` of a segmented NLP reporting on its solution's grid.
+
+    :meth:`on_grid` keeps the segments (refinement splits intervals within
+    them); ``grids`` (shared by the solvers it makes) maps a knot count to its
+    segmented scheme, so a refined result's waypoint knots can be found.
+    """
+
+    method: _Segmented
+    grids: dict[int, _Segmented]
+    _boundaries: Array  # inner segment ends of the last solution, as fractions of T
+
+    def on_grid(self, fractions: Any, *, max_wall_time: float | None = None) -> TrajOptSolver:
+        """Return the segmented NLP on a finer grid of the last solution (``split``)."""
+        tic = time.perf_counter()
+        new = copy.copy(self)  # shares problem spec, options, dynamics and kernels
+        new.method = self.method.split(fractions, self._boundaries)
+        new.problem = dataclasses.replace(self.problem, n_knots=int(new.method.ends[-1]) + 1)
+        if max_wall_time is not None:
+            check_time_limit(max_wall_time, "max_wall_time")
+            own = self.options.max_wall_time
+            cap = float(max_wall_time) if own is None else min(own, float(max_wall_time))
+            new.options = dataclasses.replace(self.options, max_wall_time=cap)
+        new._build(tic)
+        self.grids[new.problem.n_knots] = new.method
+        return new
 
     def _result(
         self,
@@ -171,14 +246,13 @@ class _SegmentSolver(TrajOptSolver):
         **kw: Any,
     ) -> TrajOptResult:
         method = self.method
-        assert isinstance(method, _Segmented)
         nlp = self.nlp
         values = nlp.variables.unpack(x)
-        dt = values["dt"].ravel()
-        steps = np.repeat(dt, method.intervals)
+        steps = method.steps_value(values["dt"])
         usable = bool(np.all(np.isfinite(steps)) and np.all(steps > 0.0))
         fractions = steps / steps.sum() if usable else np.ones(steps.size)
-        plain = self.on_grid(fractions)
+        self._boundaries = np.cumsum(fractions)[method.ends[1:-1] - 1]
+        plain = TrajOptSolver.on_grid(self, fractions)  # with_fractions: the plain scheme
         values["dt"] = np.array([[steps.mean() if usable else np.nan]])
         x_plain = plain.nlp.variables.pack(values)
         lam = nlp.variables.unpack(lam_x)
@@ -190,7 +264,14 @@ class _SegmentSolver(TrajOptSolver):
         lbg, ubg = plain.nlp.constraint_bounds(kw["start"], kw["goal"], joint_bounds)
         kw["bounds"] = (lbx, ubx, lbg, ubg)
         lam_x_plain = plain.nlp.variables.pack(lam)
-        return plain._result(x_plain, lam_x_plain, lam_g_plain, stats, error, note, **kw)
+        result = plain._result(x_plain, lam_x_plain, lam_g_plain, stats, error, note, **kw)
+        if np.all(np.isfinite(lam_g)):
+            pinned = rows["waypoint_position"]  # kept: refinement warm-starts the next grid
+            pinned.setflags(write=False)
+            result = dataclasses.replace(
+                result, multipliers={**result.multipliers, "waypoint_position": pinned}
+            )
+        return result
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -214,6 +295,9 @@ class TimedResult:
     waypoint_error : float
         Largest ``|q(t_i) - w_i|`` [rad] over the waypoints (the trajectory
         evaluated at its own times; also the return to the first row when closed).
+    refinement : Refinement or None
+        The record of :meth:`TimedSolver.refine` (its rounds, verdict and
+        reason); None when solved once on the starting grid.
     """
 
     result: TrajOptResult
@@ -222,6 +306,7 @@ class TimedResult:
     waypoint_times: Array
     segment_durations: Array
     waypoint_error: float
+    refinement: Refinement | None = None
 
     @property
     def duration(self) -> float:
@@ -238,9 +323,17 @@ class TimedResult:
         """The solve succeeded and every waypoint is hit within ``feasibility_tol``."""
         return bool(self.result.success) and self.waypoint_error <= self.result.feasibility_tol
 
+    @property
+    def certified(self) -> bool:
+        """:attr:`success` and a refinement that ended certified (False when not refined)."""
+        return self.success and self.refinement is not None and self.refinement.certified
+
     def summary(self) -> dict[str, Any]:
-        """JSON-ready figures: waypoint times [s], T [s], W, status, waypoint error [rad]."""
-        return {
+        """JSON-ready figures: waypoint times [s], T [s], W, status, waypoint error [rad].
+
+        With a refinement also ``"refinement"`` (:meth:`Refinement.summary`: its rounds).
+        """
+        doc: dict[str, Any] = {
             "waypoint_times_s": [float(t) for t in self.waypoint_times],
             "segment_durations_s": [float(d) for d in self.segment_durations],
             "closed": self.waypoints.closed,
@@ -250,6 +343,9 @@ class TimedResult:
             "success": self.success,
             "waypoint_error_rad": self.waypoint_error,
         }
+        if self.refinement is not None:
+            doc["refinement"] = self.refinement.summary()
+        return doc
 
 
 class TimedSolver:
@@ -271,9 +367,9 @@ class TimedSolver:
     options, backend, feasibility_tol, compile
         As :class:`~youbot_opt.trajopt.solver.TrajOptSolver`.
 
-    Mesh refinement through waypoints is not built
-    (:func:`~youbot_opt.trajopt.refine.refine` takes a one-segment solver): the
-    plan is solved on ``knots_per_segment`` knots a segment and certified as is.
+    :meth:`solve` solves on ``knots_per_segment`` knots a segment;
+    :meth:`refine` then splits intervals within their segments until the plan
+    is certified (:func:`~youbot_opt.trajopt.refine.refine`'s loop and budget).
 
     Raises
     ------
@@ -329,6 +425,7 @@ class TimedSolver:
         self.waypoints = waypoints
         visits = waypoints.visits
         skip = int(np.array_equal(visits[0], problem.start.q))  # the first row is the start
+        self._skip = skip
         ends = visits[skip:] if waypoints.closed else np.vstack([visits[skip:], problem.goal.q])
         if waypoints.closed and ends.shape[0] < 2:  # from the start straight back to it
             raise ParameterError(
@@ -340,17 +437,21 @@ class TimedSolver:
         goal = BoundaryState(q=ends[-1]) if waypoints.closed else problem.goal
         plain = dataclasses.replace(problem, n_knots=segments * m + 1, goal=goal)
         cls = _SegmentedTrapezoidal if method == "trapezoidal" else _SegmentedHermiteSimpson
-        self.method = cls(segments, m, ends[:-1])
-        # the knot of each segment end (0: the start), then of each waypoint row
-        ends_knots = [0, *(m * (s + 1) for s in range(segments))]
-        rows = waypoints.count
-        self.waypoint_knots = tuple(ends_knots[r + 1 - skip] for r in range(rows))
-        self.closing_knot = ends_knots[-1] if waypoints.closed else None
+        self.method = cls(np.full(segments, m), ends[:-1])
+        self.waypoint_knots, self.closing_knot = self._knots(self.method)
         self.points = np.vstack([problem.start.q, ends])  # (S + 1, nv)
         self._segments = _SegmentSolver(
             plain, self.method, options, backend, feasibility_tol=feasibility_tol, compile=compile
         )
+        self._segments.grids = {plain.n_knots: self.method}
         self.problem = self._segments.problem
+
+    def _knots(self, method: _Segmented) -> tuple[tuple[int, ...], int | None]:
+        """Return the knot of each waypoint row (0: the start) and of the return (or None)."""
+        ends = [int(k) for k in method.ends]
+        rows = self.waypoints.count
+        closing = ends[-1] if self.waypoints.closed else None
+        return tuple(ends[r + 1 - self._skip] for r in range(rows)), closing
 
     def guess_durations(self, bound_scale: float = 1.0) -> Array:
         """Segment durations [s] of the initial guess.
@@ -418,29 +519,73 @@ class TimedSolver:
         result = self._segments.solve(beta=beta, bound_scale=bound_scale, warm_start=False)
         return self._timed(result)
 
+    def refine(
+        self,
+        beta: float = 0.5,
+        bound_scale: float = 1.0,
+        *,
+        budget: RefinementBudget | None = None,
+        progress: Callable[[RefinementRound], None] | None = None,
+        first: TimedResult | None = None,
+    ) -> TimedResult:
+        """Solve, then refine within the segments until certified or the budget runs out.
+
+        :func:`~youbot_opt.trajopt.refine.refine`'s rounds on the segmented NLP:
+        each round estimates every interval's collocation error on the result
+        (an ordinary one on its own grid), certifies it, splits the worst
+        intervals (equal pieces, so the waypoint knots stay segment ends and
+        each segment keeps its own step) and re-solves warm-started from the
+        previous solution (primal, bound and defect multipliers, and the
+        waypoint rows' own).
+
+        Parameters
+        ----------
+        beta, bound_scale
+            As :meth:`solve` (taken from ``first`` when given).
+        budget : RefinementBudget, optional
+            Tolerance and limits (its defaults when None).
+        progress : callable, optional
+            Called with each :class:`~youbot_opt.trajopt.refine.RefinementRound`.
+        first : TimedResult, optional
+            This solver's :meth:`solve` result, refined instead of solving again.
+
+        Returns
+        -------
+        TimedResult
+            The last round's plan with its :attr:`TimedResult.refinement` record
+            (:attr:`TimedResult.certified`; otherwise the record's reason says why).
+        """
+        if first is None:
+            first = self.solve(beta=beta, bound_scale=bound_scale)
+        elif first.result.problem.n_knots != self.problem.n_knots:
+            raise ParameterError("first must be this solver's solve() result", name="first")
+        refined = refine(self._segments, first=first.result, budget=budget, progress=progress)
+        return dataclasses.replace(self._timed(refined.result), refinement=refined.refinement)
+
     def _timed(self, result: TrajOptResult) -> TimedResult:
         traj = result.trajectory
+        method = self._segments.grids[result.problem.n_knots]
+        knots, closing = self._knots(method)
         rows = self.waypoints.count
         if traj is None:
             nan = np.full(rows, np.nan)
             return TimedResult(
-                result=result, waypoints=self.waypoints, waypoint_knots=self.waypoint_knots,
-                waypoint_times=nan, segment_durations=np.full(self.method.segments, np.nan),
+                result=result, waypoints=self.waypoints, waypoint_knots=knots,
+                waypoint_times=nan, segment_durations=np.full(method.segments, np.nan),
                 waypoint_error=math.inf,
             )  # fmt: skip
         t = np.asarray(traj.t, dtype=float)
-        times = t[list(self.waypoint_knots)]
+        times = t[list(knots)]
         hits = [(times, self.waypoints.q)]
-        if self.closing_knot is not None:
-            hits.append((t[[self.closing_knot]], self.waypoints.q[:1]))
+        if closing is not None:
+            hits.append((t[[closing]], self.waypoints.q[:1]))
         error = max(float(np.max(np.abs(traj(ts) - w))) for ts, w in hits)
-        ends = t[:: self.intervals]
         return TimedResult(
             result=result,
             waypoints=self.waypoints,
-            waypoint_knots=self.waypoint_knots,
+            waypoint_knots=knots,
             waypoint_times=times,
-            segment_durations=np.diff(ends),
+            segment_durations=np.diff(t[method.ends]),
             waypoint_error=error,
         )
 
