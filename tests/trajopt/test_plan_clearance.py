@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +61,32 @@ def test_goal_inside_obstacle_refused_before_solving(ur5):
         ParameterError, match=r"goal: link geometry '\w+' penetrates obstacle 'ball'"
     ):
         check_boundary_clearance(problem, checker)
+
+
+def test_a_goal_given_to_solve_inside_an_obstacle_is_refused_before_ipopt(ur5):
+    """solve(goal=...) with a goal inside an obstacle: refused naming the goal and the ball.
+
+    The problem's own start and goal are clear (the solver builds); the override puts the
+    wrist (its coal solid) inside a ball. A clear override is accepted and solved.
+    """
+    from youbot_opt.collision import Clearance
+    from youbot_opt.robot.model import frame_placement
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    problem = _swing(ur5)
+    inside = problem.goal.q.copy()
+    inside[0] = np.deg2rad(90.0)  # between start and goal, the shoulder turned
+    wrist = frame_placement(ur5, inside, "wrist_2_link").translation
+    ball = Obstacle(name="ball", shape=Sphere(radius=0.05), xyz=tuple(wrist))
+    clear = Clearance(scene=Scene((ball,)), self_collision=False)
+    solver = TrajOptSolver(dataclasses.replace(problem, clearance=clear))
+    with pytest.raises(
+        ParameterError, match=r"goal: link geometry '\w+' penetrates obstacle 'ball'"
+    ):
+        solver.solve(goal=inside)
+    with pytest.raises(ParameterError, match=r"start: link geometry '\w+' penetrates obstacle"):
+        solver.solve(start=inside)
+    assert solver.solve(goal=problem.goal.q).problem.clearance == clear  # a clear goal runs
 
 
 def test_knots_clear_but_plan_clips_between_them(ur5):

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import casadi as ca
 import numpy as np
@@ -52,6 +52,9 @@ from youbot_opt.trajopt.transcription.derivatives import (
     structured_functions,
 )
 from youbot_opt.trajopt.transcription.path import PathConstraint
+
+if TYPE_CHECKING:
+    from youbot_opt.collision.exact import ExactChecker
 
 __all__ = ["TrajOptSolver", "solve", "auto_transcription", "DEFAULT_FEASIBILITY_TOL"]
 
@@ -197,6 +200,7 @@ class TrajOptSolver:
             self.compiled = fast is not kernels
             self._kernels = (fast, kernels)
         self._paths = _path_constraints(problem)
+        self._checker: ExactChecker | None = None  # coal's solids, for overridden ends
         self._build(tic)
 
     def _build(self, tic: float) -> None:
@@ -350,6 +354,10 @@ class TrajOptSolver:
         start_state = _boundary("start", start, problem.start)
         goal_state = _boundary("goal", goal, problem.goal)
         problem.check_boundary(bound_scale, start_state, goal_state)
+        if problem.clearance is not None and (start is not None or goal is not None):
+            self._check_given_ends_clear(
+                [("start", start_state.q, start), ("goal", goal_state.q, goal)]
+            )
         if problem.tool and (start is not None or goal is not None):
             from youbot_opt.trajopt.tool import check_boundary_tool
 
@@ -408,6 +416,25 @@ class TrajOptSolver:
         )  # fmt: skip
 
     # --------------------------------------------------------------- helpers
+    def _check_given_ends_clear(self, ends: list[tuple[str, Array, object]]) -> None:
+        """Refuse a start or goal given to :meth:`solve` that lacks the clearance margin.
+
+        The problem's own start and goal were checked when the NLP was built; an
+        override is checked here with coal's exact distances (the checker built
+        once per solver), so a state inside an obstacle never reaches IPOPT.
+        """
+        from youbot_opt.collision.clearance import clearance_checker, require_clearance
+
+        clearance = self.problem.clearance
+        assert clearance is not None
+        if self._checker is None:
+            self._checker = clearance_checker(self.problem.robot, clearance)
+        for what, q, given in ends:
+            if given is not None:
+                require_clearance(
+                    self._checker, self.problem.robot, q, margin=clearance.margin, what=what
+                )
+
     def _best_iterate(
         self,
         x: Array,
