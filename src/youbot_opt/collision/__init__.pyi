@@ -5,6 +5,8 @@ from .clearance import (
     ClearanceCertificate as ClearanceCertificate,
     certify_clearance as certify_clearance,
     clearance_checker as clearance_checker,
+    clearance_document as clearance_document,
+    clearance_from_document as clearance_from_document,
     collision_model as collision_model,
     point_speed_bounds as point_speed_bounds,
     require_clearance as require_clearance,

@@ -12,17 +12,20 @@ where that falls below the margin are bisected until it holds or a sample fails.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import cast
 
 import numpy as np
 
 from youbot_opt._checks import check_nonnegative, check_positive
-from youbot_opt._typing import Array
+from youbot_opt._typing import Array, JSONDict
 from youbot_opt.collision.exact import ExactChecker, exact_checker
 from youbot_opt.collision.model import CollisionModel, build_collision_model
 from youbot_opt.collision.pairs import CollisionPairs
 from youbot_opt.collision.scene import Scene
+from youbot_opt.collision.scene_file import scene_document, scene_from_document
 from youbot_opt.collision.spheres import hull_points
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
@@ -31,6 +34,8 @@ __all__ = [
     "Clearance",
     "ClearanceCertificate",
     "clearance_checker",
+    "clearance_document",
+    "clearance_from_document",
     "collision_model",
     "certify_clearance",
     "point_speed_bounds",
@@ -85,6 +90,47 @@ def collision_model(robot: RobotModel, clearance: Clearance) -> CollisionModel:
 def clearance_checker(robot: RobotModel, clearance: Clearance) -> ExactChecker:
     """Return coal's exact solids for the pairs of :func:`collision_model` (the certificate's)."""
     return exact_checker(collision_model(robot, clearance), robot)
+
+
+def clearance_document(spec: Clearance, folder: Path) -> JSONDict:
+    """Describe a :class:`Clearance` for a result file: scene document, margin [m], pairs.
+
+    Mesh paths of the scene are written relative to ``folder`` (the file's folder);
+    :func:`clearance_from_document` reads the document back.
+    """
+    return {
+        "scene": scene_document(spec.scene, folder=folder),
+        "margin": spec.margin,
+        "self_collision": spec.self_collision,
+        "pairs": None if spec.pairs is None else [list(p) for p in spec.pairs.active],
+    }
+
+
+def clearance_from_document(doc: Mapping[str, object], robot: str, folder: Path) -> Clearance:
+    """Return the :class:`Clearance` a :func:`clearance_document` describes.
+
+    A malformed document raises what reading it raises (``KeyError``,
+    ``TypeError``, ``ValueError``, :class:`~youbot_opt.exceptions.ParameterError`):
+    the file readers turn those into their own file error.
+
+    Parameters
+    ----------
+    doc : mapping
+        The document (``scene``, ``margin`` [m], ``self_collision``, ``pairs``).
+    robot : str
+        The robot's name, for the active pairs.
+    folder : Path
+        The result file's folder (relative mesh paths of the scene resolve there).
+    """
+    pairs = cast("list[tuple[object, object]] | None", doc["pairs"])
+    return Clearance(
+        scene=scene_from_document(doc["scene"], folder=folder),
+        margin=float(cast(float, doc["margin"])),
+        self_collision=bool(doc["self_collision"]),
+        pairs=None
+        if pairs is None
+        else CollisionPairs(robot=robot, active=tuple((str(a), str(b)) for a, b in pairs)),
+    )
 
 
 #: Most exact evaluations one certificate makes before it gives up (a refusal).

@@ -37,9 +37,11 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import JSONDict
-from youbot_opt.collision.clearance import Clearance
-from youbot_opt.collision.pairs import CollisionPairs
-from youbot_opt.collision.scene_file import scene_document, scene_from_document
+from youbot_opt.collision.clearance import (
+    Clearance,
+    clearance_document,
+    clearance_from_document,
+)
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.ikpath.clearance import certify_path_clearance
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -370,31 +372,17 @@ def problem_spec_3d(problem: CyclicIKProblem) -> JSONDict:
 
 def _clearance_json(problem: CyclicIKProblem, folder: Path | None) -> JSONDict | None:
     """Return the problem's clearance: scene, margin [m], pairs, leg samples (None: none)."""
-    spec = problem.clearance
-    if spec is None:
+    if problem.clearance is None:
         return None
-    return {
-        "scene": scene_document(spec.scene, folder=Path.cwd() if folder is None else folder),
-        "margin": spec.margin,
-        "self_collision": spec.self_collision,
-        "pairs": None if spec.pairs is None else [list(p) for p in spec.pairs.active],
-        "leg_samples": problem.leg_samples,
-    }
+    doc = clearance_document(problem.clearance, Path.cwd() if folder is None else folder)
+    return {**doc, "leg_samples": problem.leg_samples}
 
 
 def _clearance_of(desc: Any, robot: str, folder: Path) -> tuple[Clearance | None, dict[str, int]]:
     """Return the saved clearance and ``leg_samples`` keyword (None, {}: the problem had none)."""
     if desc is None:
         return None, {}
-    pairs = desc["pairs"]
-    spec = Clearance(
-        scene=scene_from_document(desc["scene"], folder=folder),
-        margin=float(desc["margin"]),
-        self_collision=bool(desc["self_collision"]),
-        pairs=None
-        if pairs is None
-        else CollisionPairs(robot=robot, active=tuple((str(a), str(b)) for a, b in pairs)),
-    )
+    spec = clearance_from_document(desc, robot, folder)
     return spec, {"leg_samples": int(desc["leg_samples"])}
 
 

@@ -35,9 +35,10 @@ from youbot_opt._files import (
     software_versions,
 )
 from youbot_opt._typing import Array
-from youbot_opt.collision.clearance import Clearance
-from youbot_opt.collision.pairs import CollisionPairs
-from youbot_opt.collision.scene_file import scene_document, scene_from_document
+from youbot_opt.collision.clearance import (
+    clearance_document,
+    clearance_from_document,
+)
 from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -170,30 +171,9 @@ def _differences(saved: Tolerances, used: Tolerances) -> str:
 def _describe(problem: TrajOptProblem, folder: Path) -> dict[str, Any]:
     """Describe the problem, with its clearance (scene document, margin, pairs) if any."""
     desc = problem.describe()
-    spec = problem.clearance
-    if spec is not None:
-        desc["clearance"] = {
-            "scene": scene_document(spec.scene, folder=folder),
-            "margin": spec.margin,
-            "self_collision": spec.self_collision,
-            "pairs": None if spec.pairs is None else [list(p) for p in spec.pairs.active],
-        }
+    if problem.clearance is not None:
+        desc["clearance"] = clearance_document(problem.clearance, folder)
     return desc
-
-
-def _clearance(desc: dict[str, Any] | None, robot: str, folder: Path) -> Clearance | None:
-    """Return the clearance of a saved problem (None: the problem had none)."""
-    if desc is None:
-        return None
-    pairs = desc["pairs"]
-    return Clearance(
-        scene=scene_from_document(desc["scene"], folder=folder),
-        margin=float(desc["margin"]),
-        self_collision=bool(desc["self_collision"]),
-        pairs=None
-        if pairs is None
-        else CollisionPairs(robot=robot, active=tuple((str(a), str(b)) for a, b in pairs)),
-    )
 
 
 def save_result(
@@ -504,7 +484,11 @@ def _load(
             dt_min=desc["dt_min"],
             dt_max=np.inf if desc["dt_max"] is None else desc["dt_max"],
             damping=bool(desc["damping"]),
-            clearance=_clearance(desc.get("clearance"), str(robot.name), path.absolute().parent),
+            clearance=None
+            if desc.get("clearance") is None
+            else clearance_from_document(
+                desc["clearance"], str(robot.name), path.absolute().parent
+            ),
             tool=tuple(tool_from_document(d) for d in desc.get("tool", ())),
         )
         opts = dict(meta["options"])
