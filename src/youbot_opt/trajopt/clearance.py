@@ -141,7 +141,12 @@ def clearance_constraint(problem: TrajOptProblem) -> PathConstraint | None:
 
 
 def check_boundary_clearance(
-    problem: TrajOptProblem, checker: ExactChecker, *, margin: float = 0.0
+    problem: TrajOptProblem,
+    checker: ExactChecker,
+    *,
+    margin: float = 0.0,
+    start: Array | None = None,
+    goal: Array | None = None,
 ) -> None:
     """Refuse a problem whose start or goal lacks ``margin`` [m] of clearance.
 
@@ -153,6 +158,9 @@ def check_boundary_clearance(
         The coal solids of the robot's collision model in the scene.
     margin : float
         Required clearance in [m].
+    start, goal : ndarray, shape (nq,), optional
+        Configurations [rad] ([m] for prismatic joints) that replace the
+        problem's (a solve's overridden boundary states).
 
     Raises
     ------
@@ -161,8 +169,10 @@ def check_boundary_clearance(
         (distance -0.02 m, margin 0.01 m; ...)``: the closest offending pair;
         the error's ``name`` is ``"start"`` or ``"goal"``.
     """
-    require_clearance(checker, problem.robot, problem.start.q, margin=margin, what="start")
-    require_clearance(checker, problem.robot, problem.goal.q, margin=margin, what="goal")
+    q0 = problem.start.q if start is None else start
+    q1 = problem.goal.q if goal is None else goal
+    require_clearance(checker, problem.robot, q0, margin=margin, what="start")
+    require_clearance(checker, problem.robot, q1, margin=margin, what="goal")
 
 
 def certify_plan_clearance(

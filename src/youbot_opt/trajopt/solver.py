@@ -355,9 +355,7 @@ class TrajOptSolver:
         goal_state = _boundary("goal", goal, problem.goal)
         problem.check_boundary(bound_scale, start_state, goal_state)
         if problem.clearance is not None and (start is not None or goal is not None):
-            self._check_given_ends_clear(
-                [("start", start_state.q, start), ("goal", goal_state.q, goal)]
-            )
+            self._check_ends_clear(start_state.q, goal_state.q)
         if problem.tool and (start is not None or goal is not None):
             from youbot_opt.trajopt.tool import check_boundary_tool
 
@@ -416,24 +414,23 @@ class TrajOptSolver:
         )  # fmt: skip
 
     # --------------------------------------------------------------- helpers
-    def _check_given_ends_clear(self, ends: list[tuple[str, Array, object]]) -> None:
+    def _check_ends_clear(self, start: Array, goal: Array) -> None:
         """Refuse a start or goal given to :meth:`solve` that lacks the clearance margin.
 
-        The problem's own start and goal were checked when the NLP was built; an
-        override is checked here with coal's exact distances (the checker built
+        The problem's own ends were checked when the NLP was built; overridden ones
+        are checked here the same way (coal's exact distances; the checker is built
         once per solver), so a state inside an obstacle never reaches IPOPT.
         """
-        from youbot_opt.collision.clearance import clearance_checker, require_clearance
+        from youbot_opt.collision.clearance import clearance_checker
+        from youbot_opt.trajopt.clearance import check_boundary_clearance
 
         clearance = self.problem.clearance
         assert clearance is not None
         if self._checker is None:
             self._checker = clearance_checker(self.problem.robot, clearance)
-        for what, q, given in ends:
-            if given is not None:
-                require_clearance(
-                    self._checker, self.problem.robot, q, margin=clearance.margin, what=what
-                )
+        check_boundary_clearance(
+            self.problem, self._checker, margin=clearance.margin, start=start, goal=goal
+        )
 
     def _best_iterate(
         self,
