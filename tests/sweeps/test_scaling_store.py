@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from youbot_opt.exceptions import ParameterError, YoubotOptWarning
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima, select_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task
@@ -313,3 +313,21 @@ def test_bound_scaling_keeps_the_best_of_each_scale(traj_solver, tmp_path: Path)
     for a, b in zip(full.rows, lean.rows, strict=True):
         assert (a.objective, a.active_counts()) == (b.objective, b.active_counts())
         assert len(a.multistart.distinct_optima()) == len(b.multistart.distinct_optima())
+
+
+def test_a_stored_summary_figure_is_read_as_a_number_or_refused_naming_it() -> None:
+    record = ItemRecord(
+        key="start_0003",
+        state="done",
+        attempts=1,
+        summary={"solve_time_s": 0.25, "text": "1.5", "null": None, "flag": True, "list": [1]},
+    )
+    assert record.number("solve_time_s") == 0.25
+    assert record.number("text") == 1.5
+    assert math.isnan(record.number("null"))
+    assert record.number("absent", default=0.0) == 0.0
+    for name in ("flag", "list", "absent"):
+        with pytest.raises(ResultFileError, match=f"start_0003.*'{name}'"):
+            record.number(name)
+    with pytest.raises(ResultFileError, match="'word' = 'fast' is not a number"):
+        ItemRecord(key="k", state="done", attempts=1, summary={"word": "fast"}).number("word")

@@ -22,7 +22,7 @@ import tempfile
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Generic, Literal, TypeVar
+from typing import Generic, Literal, TypeVar
 
 from youbot_opt._files import TMP_PREFIX
 from youbot_opt.exceptions import ParameterError, ResultFileError
@@ -108,7 +108,7 @@ class ItemRecord:
     state: ItemState
     attempts: int
     reasons: tuple[str, ...] = ()
-    summary: Mapping[str, Any] = field(default_factory=dict)
+    summary: Mapping[str, object] = field(default_factory=dict)
     payload: str | None = None
     sweep: str | None = None
     checksum: str | None = None
@@ -127,6 +127,41 @@ class ItemRecord:
             "sweep": self.sweep,
             "checksum": self.checksum,
         }
+
+    def number(self, name: str, default: float | None = None) -> float:
+        """Return the summary's figure ``name`` as a float (a JSON ``null`` reads as NaN).
+
+        Parameters
+        ----------
+        name : str
+            Key of the figure in :attr:`summary` (e.g. ``"solve_time_s"``, in the
+            unit its name gives).
+        default : float or None
+            Returned when the key is absent; ``None``: an absent key is an error.
+
+        Raises
+        ------
+        ResultFileError
+            If the figure is absent (without a default) or neither a number nor
+            the text of one.
+        """
+        if name not in self.summary:
+            if default is None:
+                raise ResultFileError(f"item {self.key!r}: its summary has no {name!r}")
+            return default
+        value = self.summary[name]
+        if value is None:
+            return float("nan")
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise ResultFileError(
+                f"item {self.key!r}: summary {name!r} = {value!r} is not a number"
+            )
+        try:
+            return float(value)
+        except ValueError as exc:
+            raise ResultFileError(
+                f"item {self.key!r}: summary {name!r} = {value!r} is not a number"
+            ) from exc
 
     @classmethod
     def from_json(cls, data: Mapping[str, object], path: Path) -> ItemRecord:

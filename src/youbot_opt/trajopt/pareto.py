@@ -514,5 +514,4 @@ def _load_point(store: SweepStore, key: str, beta: float) -> ParetoPoint:
     if record.state == "failed":
         return _error_point(beta, record.reasons[-1] if record.reasons else "failed")
     result: TrajOptResult = store.load(key)
-    s = record.summary
-    return _point(beta, result, str(s["start"]), float(s["solve_time_s"]))
+    return _point(beta, result, str(record.summary["start"]), record.number("solve_time_s"))

@@ -462,10 +462,7 @@ def _light_start(job: _StartJob, record: ItemRecord) -> StartOutcome:
         return StartOutcome._error(job, record.reasons[-1] if record.reasons else "failed",
                                    record.attempts)  # fmt: skip
     s = record.summary
-
-    def num(x: Any) -> float:  # noqa: ANN401 - a JSON number or None
-        return float("nan") if x is None else float(x)
-
+    num = record.number
     return StartOutcome(
         key=job.key,
         index=job.index,
@@ -473,14 +470,14 @@ def _light_start(job: _StartJob, record: ItemRecord) -> StartOutcome:
         guess=job.guess,
         status=str(s["status"]),
         success=bool(s["success"]),
-        objective=num(s["objective"]),
-        duration=num(s["duration_s"]),
-        work=num(s["work"]),
-        iterations=int(s["iterations"]),
-        solve_time=float(s["solve_time_s"]),
-        guess_time=float(s["guess_time_s"]),
+        objective=num("objective"),
+        duration=num("duration_s"),
+        work=num("work"),
+        iterations=int(num("iterations")),
+        solve_time=num("solve_time_s"),
+        guess_time=num("guess_time_s"),
         attempts=record.attempts,
-        reason=s.get("reason"),
+        reason=None if s.get("reason") is None else str(s["reason"]),
     )
 
 
@@ -491,7 +488,7 @@ def _load_start(store: SweepStore, job: _StartJob) -> StartOutcome:
         reason = record.reasons[-1] if record.reasons else "failed"
         return StartOutcome._error(job, reason, record.attempts)
     result: TrajOptResult = store.load(job.key)
-    guess_time = float(record.summary.get("guess_time_s") or 0.0)
+    guess_time = record.number("guess_time_s", default=0.0)
     return StartOutcome._from(job, result, guess_time, record.attempts)
 
 
