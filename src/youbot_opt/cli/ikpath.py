@@ -505,6 +505,7 @@ def _run_planar(args: argparse.Namespace) -> int:
             seed=args.seed,
             starts=args.start_kind,
             verdicts=verdicts,
+            time_budget=args.time_budget,
             sweep=start_sweep(args, folder, executor),
         )
         if isinstance(got, ShardReport):  # --shard I/K solved its share
@@ -566,6 +567,7 @@ def _run_3d(args: argparse.Namespace) -> int:
             starts=kind,
             options=options,
             verdicts=verdicts,
+            time_budget=args.time_budget,
             sweep=start_sweep(args, folder, executor),
         )
         if isinstance(ms, ShardReport):  # --shard I/K solved its share
@@ -604,6 +606,29 @@ def _run_3d(args: argparse.Namespace) -> int:
     return code
 
 
+def _check_time_budget(args: argparse.Namespace) -> None:
+    """Refuse a ``--time-budget`` that is no positive, finite time, or comes with ``--starts``."""
+    budget = args.time_budget
+    if budget is None:
+        return
+    if not (math.isfinite(budget) and budget > 0):
+        raise ParameterError(
+            f"--time-budget must be a positive, finite time in [s], got {budget}",
+            name="time_budget",
+            value=budget,
+        )
+    asked = (
+        f"--starts {args.starts}" if args.starts is not None else f"--start-kind {args.start_kind}"
+    )
+    if args.starts is not None or args.start_kind not in (None, BRANCH_KIND):
+        raise ParameterError(
+            f"--time-budget applies to the automatic starts only (no --starts, no --start-kind "
+            f"but branches); the starts of {asked} all run",
+            name="time_budget",
+            value=budget,
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``youbot-opt ikpath``; returns the exit code (0 ok, 1 failed, 2 unreachable)."""
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):
@@ -625,6 +650,7 @@ def run(args: argparse.Namespace) -> int:
         for flag, given in refine_flags:
             if given:
                 raise ParameterError(f"{flag} applies with --timed only", name="timed")
+    _check_time_budget(args)
     check_ikpath_size(
         n_starts=64 if args.starts is None else args.starts,
         n_links=len(args.lengths or ()),
