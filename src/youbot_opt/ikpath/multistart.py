@@ -671,25 +671,29 @@ def _run(
     results: Sequence[IKPathResult]
     attempts: Sequence[int]
     tally: StartTally | None = None
+    deadline = None if budget is None else t0 + budget - time.perf_counter() + time.monotonic()
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
             problem, x0s, method=method, options=options, sweep=sweep, solvers=solvers,
             store=store, distance=distance, objective_tol=objective_tol, q_tol=q_tol,
-            on_resumed=on_resumed, on_final=on_final,
+            on_resumed=on_resumed, on_final=on_final, deadline=deadline,
         )  # fmt: skip
         if isinstance(streamed, ShardReport):
             return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
+        not_run = streamed.not_run
         minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
     else:  # the starts were drawn together
         outcome = solve_starts(
             problem, np.asarray(x0s), method=method, options=options, sweep=sweep,
             solvers=solvers, store=store, on_resumed=on_resumed, on_final=on_final,
+            deadline=deadline,
         )  # fmt: skip
         if isinstance(outcome, ShardReport):
             return outcome
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
+        not_run = outcome.not_run
         minima = cluster_minima(
             outcome.results, objective_tol=objective_tol, q_tol=q_tol, distance=distance
         )
@@ -711,6 +715,7 @@ def _run(
         objective_tol=objective_tol,
         q_tol=q_tol,
         time_budget=budget,
+        not_run=not_run,
     )
 
 
