@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import math
 
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 
 from youbot_opt.cli import main
+from youbot_opt.cli.ikpath import StartProgress
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.multistart import run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -162,3 +164,24 @@ def test_the_stalled_straight_arm_case_stops_at_its_budget():
     assert ms.budget_reached and 1 <= ms.n_starts < 16 and ms.planned_starts == 16
     assert not ms.best.success and ms.best.status.value == "stalled"
     assert ms.wall_time < 20.0  # wide slack: 2 s, the start running then, drawing the starts
+
+
+def test_a_progress_bar_stopped_by_the_budget_ends_its_line():
+    """On a terminal the bar ends its line at the last start, or at end() if the budget stops."""
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    stream = Tty()
+    bar = StartProgress(stream)
+    bar(1, 16, math.inf)
+    assert not stream.getvalue().endswith("\n")
+    bar.end()
+    bar.end()  # once only
+    assert stream.getvalue().count("\n") == 1 and "1/16 starts" in stream.getvalue()
+    stream = Tty()
+    bar = StartProgress(stream)
+    bar(16, 16, 1.0)
+    bar.end()
+    assert stream.getvalue().count("\n") == 1
