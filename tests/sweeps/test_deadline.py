@@ -132,3 +132,18 @@ def test_a_deadline_ends_the_sweep_at_its_first_unfinished_task_and_a_rerun_goes
     got = _resume(tmp_path, tasks, keep=keep, deadline=None)
     assert got.not_run == 0 and got.resumed == 6
     assert [got.items[f"t{i}"] for i in range(N)] == [float(i * i) for i in range(N)]
+
+
+def test_dask_begins_no_new_batch_after_the_deadline():
+    """One batch of one task in flight: it runs, the deadline stops the others."""
+    distributed = pytest.importorskip("distributed")
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster, set_as_default=False) as client,
+    ):
+        out = run_tasks(_tasks(), executor=client, workers=1, batch_size=1, deadline=PAST)
+        assert list(out) == ["t0"] and out["t0"].value == 0.0
+        out = run_tasks(_tasks(), executor=client, workers=1, batch_size=1)
+        assert sorted(out) == sorted(f"t{i}" for i in range(N))
