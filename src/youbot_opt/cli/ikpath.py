@@ -64,7 +64,7 @@ from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
 from youbot_opt.ikpath.result import IKPathResult
-from youbot_opt.ikpath.starts import BRANCH_KIND
+from youbot_opt.ikpath.starts import AUTOMATIC_TIME_BUDGET, BRANCH_KIND
 from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.robot.load import load_model
@@ -96,6 +96,7 @@ class StartProgress:
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.tic = time.perf_counter()
         self.shown = -1
+        self.open = False  # a bar is on the terminal without its line end
 
     def __call__(self, done: int, total: int, best: float) -> None:
         """Report ``done`` of ``total`` starts and the best ``E`` so far [rad^2]."""
@@ -108,6 +109,7 @@ class StartProgress:
                 f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} starts, "
                 f"best E {best_txt}, {elapsed:.1f} s"
             )
+            self.open = done != total
             if done == total:
                 self.stream.write("\n")
         else:
@@ -119,6 +121,13 @@ class StartProgress:
                 f"ikpath: {done}/{total} starts done, best E {best_txt}, {elapsed:.1f} s\n"
             )
         self.stream.flush()
+
+    def end(self) -> None:
+        """End the bar's line if the run ended before every start (a time budget)."""
+        if self.open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.open = False
 
 
 def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepOptions:
@@ -141,6 +150,9 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
         workers = 1 if executor == "serial" or args.starts is not None else None
     if not args.no_progress:
         count = "automatic starts" if args.starts is None else f"{args.starts} start(s)"
+        if args.starts is None and args.start_kind in (None, BRANCH_KIND):
+            budget = args.time_budget or AUTOMATIC_TIME_BUDGET
+            count += f" (time budget {budget:g} s)"
         print(
             f"ikpath: {count}, each saved to {folder.resolve() / 'items'} as it "
             f"finishes (rerun with --out {folder} to resume)",
@@ -154,6 +166,12 @@ def start_sweep(args: argparse.Namespace, folder: Path, executor: str) -> SweepO
         shard=args.shard,
         keep_results=getattr(args, "keep_results", True),
     )
+
+
+def _end_progress(sweep: SweepOptions) -> None:
+    """End the progress bar's line (a time budget may stop the starts before the last)."""
+    if isinstance(sweep.progress, StartProgress):
+        sweep.progress.end()
 
 
 # ------------------------------------------------------------------ the problem
@@ -497,6 +515,7 @@ def _run_planar(args: argparse.Namespace) -> int:
             options = kind(max_wall_time=args.max_wall_time)
         # With --scheduler / --scheduler-file the starts run on that Dask cluster.
         executor = _executor(args, spatial=False)
+        sweep = start_sweep(args, folder, executor)
         got = run_multistart(
             problem,
             method=args.method,
@@ -505,8 +524,10 @@ def _run_planar(args: argparse.Namespace) -> int:
             seed=args.seed,
             starts=args.start_kind,
             verdicts=verdicts,
-            sweep=start_sweep(args, folder, executor),
+            time_budget=args.time_budget,
+            sweep=sweep,
         )
+        _end_progress(sweep)
         if isinstance(got, ShardReport):  # --shard I/K solved its share
             return report_shard(got)
         ms = got
@@ -557,6 +578,7 @@ def _run_3d(args: argparse.Namespace) -> int:
     starts: StartsFile | None = None
     if not unreachable:
         warn_undecided_3d(verdicts)
+        sweep = start_sweep(args, folder, executor)
         ms = run_multistart(
             problem,
             planar=False,
@@ -566,8 +588,10 @@ def _run_3d(args: argparse.Namespace) -> int:
             starts=kind,
             options=options,
             verdicts=verdicts,
-            sweep=start_sweep(args, folder, executor),
+            time_budget=args.time_budget,
+            sweep=sweep,
         )
+        _end_progress(sweep)
         if isinstance(ms, ShardReport):  # --shard I/K solved its share
             return report_shard(ms)
         best = ms.best
@@ -604,6 +628,29 @@ def _run_3d(args: argparse.Namespace) -> int:
     return code
 
 
+def _check_time_budget(args: argparse.Namespace) -> None:
+    """Refuse a ``--time-budget`` that is no positive, finite time, or comes with ``--starts``."""
+    budget = args.time_budget
+    if budget is None:
+        return
+    if not (math.isfinite(budget) and budget > 0):
+        raise ParameterError(
+            f"--time-budget must be a positive, finite time in [s], got {budget}",
+            name="time_budget",
+            value=budget,
+        )
+    asked = (
+        f"--starts {args.starts}" if args.starts is not None else f"--start-kind {args.start_kind}"
+    )
+    if args.starts is not None or args.start_kind not in (None, BRANCH_KIND):
+        raise ParameterError(
+            f"--time-budget applies to the automatic starts only (no --starts, no --start-kind "
+            f"but branches); the starts of {asked} all run",
+            name="time_budget",
+            value=budget,
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``youbot-opt ikpath``; returns the exit code (0 ok, 1 failed, 2 unreachable)."""
     if not (math.isfinite(args.segment_time) and args.segment_time > 0):
@@ -625,6 +672,7 @@ def run(args: argparse.Namespace) -> int:
         for flag, given in refine_flags:
             if given:
                 raise ParameterError(f"{flag} applies with --timed only", name="timed")
+    _check_time_budget(args)
     check_ikpath_size(
         n_starts=64 if args.starts is None else args.starts,
         n_links=len(args.lengths or ()),

@@ -35,6 +35,7 @@ __all__ = [
     "STARTS_FILE",
     "StartsFile",
     "add_result_3d",
+    "budget_fields",
     "certainty",
     "clearance_summary",
     "planar_summary",
@@ -131,20 +132,45 @@ def print_starts(doc: Mapping[str, object], crashed: Sequence[Mapping[str, objec
 
     ``doc`` is the run's summary (``starts``, ``seed``, ``start_kind``,
     ``workers``, ``wall_time`` [s], ``starts_per_second`` [1/s],
-    ``status_counts``, ``resumed`` and ``retried``); ``crashed`` the rows of
-    :attr:`StartsFile.crashed`.
+    ``status_counts``, ``resumed`` and ``retried``, and the time budget's
+    ``planned_starts``, ``time_budget`` and ``budget_reached``); ``crashed`` the
+    rows of :attr:`StartsFile.crashed`.
     """
     print(
         f"multistart: {doc['starts']} starts (seed {doc['seed']}, {doc['start_kind']}), "
         f"{doc['workers']} workers, {doc['wall_time']:.2f} s "
         f"({doc['starts_per_second']:.1f} starts/s); outcomes {doc['status_counts']}"
     )
+    if doc.get("budget_reached"):
+        ran, planned = doc["starts"], doc["planned_starts"]
+        assert isinstance(ran, int) and isinstance(planned, int)
+        folder = doc.get("output_folder", "DIR")
+        print(
+            f"  time budget {doc['time_budget']:g} s reached: {ran} of {planned} automatic "
+            f"starts ran, {planned - ran} not run (rerun with "
+            f"--out {folder} to go on with them, or give a larger --time-budget)"
+        )
     if doc["resumed"]:
         print(f"  {doc['resumed']} starts loaded from the output folder (resumed)")
     if doc["retried"]:
         print(f"  retried after a failed attempt: starts {doc['retried']}")
     for o in crashed:
         print(f"  start {o['index']} failed after {o['attempts']} attempts: {o['message']}")
+
+
+def budget_fields(ms: MultistartResult) -> JSONDict:
+    """Return the summary's start tally: the starts run, planned, and the time budget.
+
+    ``starts`` ran (or were loaded), of ``planned_starts``; ``time_budget`` [s] of
+    the automatic starts (``None``: starts asked for, which all run);
+    ``budget_reached``: it stopped the run before every planned start ran.
+    """
+    return {
+        "starts": ms.n_starts,
+        "planned_starts": ms.planned_starts,
+        "time_budget": ms.time_budget,
+        "budget_reached": ms.budget_reached,
+    }
 
 
 def certainty(ms: MultistartResult) -> JSONDict:
@@ -168,6 +194,9 @@ def certainty(ms: MultistartResult) -> JSONDict:
 def _print_certainty(doc: Mapping[str, Any]) -> None:
     """Print the certainty of the best path (:func:`certainty`), or why there is none."""
     c = doc["certainty"]
+    if c["starts"] == 1 and doc.get("budget_reached"):
+        print("certainty: one start ran within the time budget, nothing to compare with")
+        return
     if c["starts"] == 1:
         print(
             "certainty: one start, nothing to compare with (run without --starts for the "
@@ -246,7 +275,7 @@ def planar_summary(
         iterations=best.iterations,
         solve_time=best.wall_time,
         start_index=ms.best_index,
-        starts=ms.n_starts,
+        **budget_fields(ms),
         seed=ms.seed,
         start_kind=args.start_kind,
         n_success=ms.n_converged,
@@ -299,7 +328,7 @@ def print_planar(summary: JSONDict, crashed: list[JSONDict]) -> None:
         print(f"  {v['message']}")
     if doc["E"] is None:
         return
-    if doc["starts"] == 1:
+    if doc["planned_starts"] == 1:
         _print_single_start(doc, crashed)
     else:
         _print_multistart(doc, crashed)
@@ -417,7 +446,7 @@ def add_result_3d(
         E=best.objective,
         result=best.to_dict(),
         start_index=ms.best_index,
-        starts=len(ms.results),
+        **budget_fields(ms),
         seed=args.seed,
         start_kind=kind,
         max_wall_time=args.max_wall_time,

@@ -828,6 +828,10 @@ target. Starts are saved in --out DIR as they finish; a rerun resumes. Details: 
 """
 
 
+#: ``ikpath``'s default ``--time-budget`` [s]: ikpath.starts.AUTOMATIC_TIME_BUDGET (a test checks).
+AUTOMATIC_TIME_BUDGET_S = 20.0
+
+
 def _ikpath(sub: _Sub) -> None:
     p = sub.add_parser(
         "ikpath",
@@ -924,6 +928,15 @@ def _ikpath(sub: _Sub) -> None:
         default=None,
         metavar="S",
         help="wall-time limit of each start's solve [s] (status max_time when reached)",
+    )
+    run.add_argument(
+        "--time-budget",
+        type=float,
+        default=None,
+        metavar="S",
+        help="automatic starts (no --starts): begin no new start S s after they are "
+        f"drawn (default {AUTOMATIC_TIME_BUDGET_S:g}); running starts finish, "
+        "and a rerun with --out DIR goes on with the others",
     )
     out = p.add_argument_group("output")
     out.add_argument(

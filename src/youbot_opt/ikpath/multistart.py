@@ -35,6 +35,7 @@ from youbot_opt.ikpath.reachability.planar import check_reachability as check_pl
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import Method, check_method, check_targets, uses_planar_methods
 from youbot_opt.ikpath.starts import (
+    AUTOMATIC_TIME_BUDGET,
     BRANCH_KIND,
     START_KINDS,
     START_KINDS_3D,
@@ -42,6 +43,7 @@ from youbot_opt.ikpath.starts import (
     PlanarStarts,
     Starts3D,
     check_start_request,
+    check_time_budget,
     make_starts,
     make_starts_3d,
     periodic_joints,
@@ -154,6 +156,12 @@ class MultistartResult:
         gathered in one pass at the end of the run; ``None`` otherwise.
     objective_tol, q_tol : float
         The clustering tolerances :attr:`minima` were chosen with.
+    time_budget : float or None
+        The automatic starts' wall-time budget in [s] (``None``: starts asked for,
+        which all run).
+    not_run : int
+        Planned starts the time budget left unrun (0: every planned start ran);
+        they follow the starts of :attr:`results` (see :attr:`planned_starts`).
     """
 
     problem: CyclicIKProblem
@@ -172,11 +180,23 @@ class MultistartResult:
     tally: StartTally | None = None
     objective_tol: float = 1e-6
     q_tol: float = 1e-3
+    time_budget: float | None = None
+    not_run: int = 0
 
     @property
     def n_starts(self) -> int:
-        """Number of starts."""
+        """Number of starts that ran (or were loaded from :attr:`output`)."""
         return len(self.results)
+
+    @property
+    def planned_starts(self) -> int:
+        """Number of starts planned: those that ran and those the time budget left unrun."""
+        return self.n_starts + self.not_run
+
+    @property
+    def budget_reached(self) -> bool:
+        """Whether the time budget stopped the run before every planned start ran."""
+        return self.not_run > 0
 
     @property
     def n_converged(self) -> int:
@@ -373,6 +393,7 @@ def run_multistart(
     q_tol: float = 1e-3,
     verdicts: Sequence[ReachVerdict] | Sequence[ReachVerdict3D] | None = None,
     workers: int | None = None,
+    time_budget: float | None = None,
     sweep: SweepOptions = SweepOptions(),  # noqa: B008 - frozen, so sharing it is safe
 ) -> MultistartResult | ShardReport:
     """Solve from ``n_starts`` seeded starts in parallel and report the distinct minima.
@@ -424,6 +445,15 @@ def run_multistart(
         feasible starts.
     workers : int, optional
         Shortcut for ``sweep.workers`` (contradicting it raises).
+    time_budget : float, optional
+        Automatic starts only (``n_starts`` None): wall time in [s], counted from
+        this call, after which no new start begins (default
+        :data:`~youbot_opt.ikpath.starts.AUTOMATIC_TIME_BUDGET`, 20 s). Starts
+        running then finish; at least one start runs. The result holds the
+        starts that ran, in start order, and :attr:`MultistartResult.not_run`
+        counts the rest; a rerun on the same ``sweep.out`` loads the finished
+        starts and goes on with the others. Starts asked for (``n_starts``
+        given, or another ``starts`` kind) all run: a budget with them is refused.
     sweep : SweepOptions
         How the starts run. ``executor``: a process pool owned by this call
         and rebuilt if a worker dies, ``"serial"``, a Dask client or scheduler
@@ -456,8 +486,9 @@ def run_multistart(
     ParameterError
         For an unknown method or start kind, foreign options, ``method="ipopt"``
         on a chain with fewer than 2 free joints, ``planar=True`` without a
-        chain, ``workers`` contradicting ``sweep.workers``, or an ``out``
-        holding another sweep.
+        chain, ``workers`` contradicting ``sweep.workers``, an ``out``
+        holding another sweep, or a ``time_budget`` that is not a positive,
+        finite time or comes with starts asked for.
     UnreachableTarget
         Planar methods: if ``check_reachability`` and a target is unreachable.
     ResultFileError
@@ -476,21 +507,37 @@ def run_multistart(
         sweep = replace(sweep, workers=int(workers))
     if starts is None and n_starts is None:
         starts = BRANCH_KIND
+    budget = _time_budget(time_budget, automatic=starts == BRANCH_KIND and n_starts is None)
     if use_planar:
         problem.planar_chain  # noqa: B018 - raises ParameterError without a chain
         return _run_planar(
             problem, t0, method=method, n_starts=n_starts, seed=seed,
             starts="feasible" if starts is None else starts, options=options,
             check_reachability=check_reachability, objective_tol=objective_tol, q_tol=q_tol,
-            verdicts=verdicts, sweep=sweep,  # type: ignore[arg-type]
+            verdicts=verdicts, sweep=sweep, budget=budget,  # type: ignore[arg-type]
         )  # fmt: skip
     if starts is None:
         starts = "feasible" if problem.chain is not None else "mixed"
     return _run_3d(
         problem, t0, method=method, n_starts=n_starts, seed=seed, starts=starts,
         options=options, objective_tol=objective_tol, q_tol=q_tol, verdicts=verdicts,
-        sweep=sweep,
+        sweep=sweep, budget=budget,
     )  # fmt: skip
+
+
+def _time_budget(time_budget: float | None, *, automatic: bool) -> float | None:
+    """Return the time budget in [s] of a run (``None``: none; starts asked for all run)."""
+    if time_budget is None:
+        return AUTOMATIC_TIME_BUDGET if automatic else None
+    budget = check_time_budget(time_budget)
+    if not automatic:
+        raise ParameterError(
+            f"time_budget={time_budget!r} applies to the automatic starts only (n_starts "
+            "None, starts None or 'branches'); starts asked for all run",
+            name="time_budget",
+            value=time_budget,
+        )
+    return budget
 
 
 def _run_planar(
@@ -507,6 +554,7 @@ def _run_planar(
     q_tol: float,
     verdicts: Sequence[ReachVerdict] | None,
     sweep: SweepOptions,
+    budget: float | None,
 ) -> MultistartResult | ShardReport:
     """:func:`run_multistart` by the planar methods."""
     if method == "ipopt":
@@ -529,7 +577,7 @@ def _run_planar(
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
         planar=True, verdicts=found, objective_tol=objective_tol, q_tol=q_tol,
-        sweep=replace(sweep, executor=executor, workers=n_workers),
+        sweep=replace(sweep, executor=executor, workers=n_workers), budget=budget,
     )  # fmt: skip
 
 
@@ -546,6 +594,7 @@ def _run_3d(
     q_tol: float,
     verdicts: Sequence[ReachVerdict] | Sequence[ReachVerdict3D] | None,
     sweep: SweepOptions,
+    budget: float | None,
 ) -> MultistartResult | ShardReport:
     """:func:`run_multistart` by the general methods."""
     if starts != BRANCH_KIND or n_starts is not None:
@@ -579,7 +628,7 @@ def _run_3d(
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
         planar=False, verdicts=(), objective_tol=objective_tol, q_tol=q_tol,
-        sweep=replace(sweep, executor=executor, workers=n_workers),
+        sweep=replace(sweep, executor=executor, workers=n_workers), budget=budget,
     )  # fmt: skip
 
 
@@ -597,8 +646,12 @@ def _run(
     objective_tol: float,
     q_tol: float,
     sweep: SweepOptions,
+    budget: float | None,
 ) -> MultistartResult | ShardReport:
-    """Solve the starts ``x0s`` (``sweep`` resolved) and cluster the minima."""
+    """Solve the starts ``x0s`` (``sweep`` resolved) and cluster the minima.
+
+    ``budget`` [s]: no start begins later than ``t0 + budget`` (``None``: every start runs).
+    """
     store = None
     if sweep.out is not None:
         params = store_params(
@@ -618,25 +671,29 @@ def _run(
     results: Sequence[IKPathResult]
     attempts: Sequence[int]
     tally: StartTally | None = None
+    deadline = None if budget is None else t0 + budget - time.perf_counter() + time.monotonic()
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
             problem, x0s, method=method, options=options, sweep=sweep, solvers=solvers,
             store=store, distance=distance, objective_tol=objective_tol, q_tol=q_tol,
-            on_resumed=on_resumed, on_final=on_final,
+            on_resumed=on_resumed, on_final=on_final, deadline=deadline,
         )  # fmt: skip
         if isinstance(streamed, ShardReport):
             return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
+        not_run = streamed.not_run
         minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
     else:  # the starts were drawn together
         outcome = solve_starts(
             problem, np.asarray(x0s), method=method, options=options, sweep=sweep,
             solvers=solvers, store=store, on_resumed=on_resumed, on_final=on_final,
+            deadline=deadline,
         )  # fmt: skip
         if isinstance(outcome, ShardReport):
             return outcome
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
+        not_run = outcome.not_run
         minima = cluster_minima(
             outcome.results, objective_tol=objective_tol, q_tol=q_tol, distance=distance
         )
@@ -657,6 +714,8 @@ def _run(
         tally=tally,
         objective_tol=objective_tol,
         q_tol=q_tol,
+        time_budget=budget,
+        not_run=not_run,
     )
 
 

@@ -497,6 +497,8 @@ class SweepOutcome(NamedTuple, Generic[ResultT]):
     """Attempts made per start, earlier runs included (0: none was needed here nor before)."""
     resumed: int
     """Starts loaded from the store instead of solved."""
+    not_run: int = 0
+    """Starts a deadline left unrun: they follow the starts of ``results``."""
 
 
 def _summary(
@@ -590,6 +592,7 @@ def solve_starts(
     store: SweepStore | None = None,
     on_resumed: Callable[[list[ResultT]], None] | None = None,
     on_final: Callable[[int, ResultT], None] | None = None,
+    deadline: float | None = None,
 ) -> SweepOutcome[ResultT] | ShardReport:
     """Solve every start of ``x0s`` (loading those ``store`` holds), one task per start.
 
@@ -616,6 +619,10 @@ def solve_starts(
         Called once, before any solve, with the results loaded from ``store``.
     on_final : callable ``(index, result)``, optional
         Called in this process when a start is final (solved, or out of attempts).
+    deadline : float, optional
+        A :func:`time.monotonic` instant after which no new start begins
+        (:func:`~youbot_opt.sweeps.resume.run_resumable`): the outcome then holds
+        the starts before the first unfinished one and counts the rest as ``not_run``.
 
     Returns
     -------
@@ -680,13 +687,16 @@ def solve_starts(
         on_final=None if on_final is None else lambda key, r, _: on_final(index[key], r),
         # workers write their own result files
         describe=functools.partial(_describe_start, solvers.figures),
+        deadline=deadline,
     )
     if isinstance(got, ShardReport):  # a shard run: its share is saved, nothing to collect
         return got
+    ran = keys[: n - got.not_run]
     return SweepOutcome(
-        results=tuple(got.items[k] for k in keys),
-        attempts=tuple(got.attempts[k] for k in keys),
+        results=tuple(got.items[k] for k in ran),
+        attempts=tuple(got.attempts[k] for k in ran),
         resumed=got.resumed,
+        not_run=got.not_run,
     )
 
 
@@ -705,6 +715,8 @@ class StreamedOutcome(NamedTuple, Generic[ResultT]):
     """The representatives' full results, by start index."""
     tally: StartTally
     """Counts per status, successes and the start closest to the targets."""
+    not_run: int = 0
+    """Starts a deadline left unrun: they follow the starts of ``results``."""
 
 
 def stream_starts(
@@ -721,6 +733,7 @@ def stream_starts(
     q_tol: float,
     on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
     on_final: Callable[[int, _Outcome], None] | None = None,
+    deadline: float | None = None,
 ) -> StreamedOutcome[ResultT] | ShardReport:
     """Solve every start with ``keep_results=False``: summaries streamed, the minima kept.
 
@@ -741,7 +754,7 @@ def stream_starts(
         Distance in [rad] of two successful results' configurations.
     objective_tol, q_tol : float
         Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
-    problem, method, options, sweep, solvers, on_resumed, on_final
+    problem, method, options, sweep, solvers, on_resumed, on_final, deadline
         As :func:`solve_starts`; ``on_resumed`` is given an iterable, read once.
 
     Returns
@@ -829,9 +842,11 @@ def stream_starts(
         describe=functools.partial(_describe_start, solvers.figures),
         light=light,
         keep=rule,
+        deadline=deadline,
     )
     if isinstance(got, ShardReport):
         return got
+    ran = n - got.not_run  # the starts before the first one a deadline left unrun
     items = got.items
     clusters = got.clusters
     if not isinstance(clusters, Clusters):  # pragma: no cover - IK stores never held the old form
@@ -846,17 +861,19 @@ def stream_starts(
         return items[start_key(i, n)]
 
     results = StoredResults(
-        n, load=lambda i: load(start_key(i, n)), summary=summary, kept=kept, items=items, full=full
-    )
+        ran, load=lambda i: load(start_key(i, n)), summary=summary, kept=kept, items=items,
+        full=full,
+    )  # fmt: skip
     return StreamedOutcome(
         results=results,
-        attempts=_Attempts(n, lambda i: got.attempts[start_key(i, n)]),
+        attempts=_Attempts(ran, lambda i: got.attempts[start_key(i, n)]),
         resumed=got.resumed,
         minima=tuple(
             ClusterIndices(clusters, c, index_of, sorted_order=False) for c in range(len(clusters))
         ),
         kept=kept,
         tally=tally_starts(results.summaries()),
+        not_run=got.not_run,
     )
 
 

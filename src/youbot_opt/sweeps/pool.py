@@ -366,6 +366,7 @@ def run_tasks(
     timeout: float | None = None,
     batch_size: int | None = None,
     keep_values: bool = True,
+    deadline: float | None = None,
 ) -> dict[str, TaskOutcome]:
     """Run keyed tasks, retrying failures, and report each attempt as it ends.
 
@@ -405,11 +406,16 @@ def run_tasks(
         those of tasks whose last attempt failed, without values
         (``on_outcome`` still sees every outcome), so a long sweep's values
         are not held by this call.
+    deadline : float, optional
+        A :func:`time.monotonic` instant after which no new task begins (checked
+        as attempts end: the first ``workers`` tasks always begin; tasks running
+        then finish, and their retries run). A task it stopped gets no outcome.
 
     Returns
     -------
     dict of str to TaskOutcome
-        The last outcome of each task run here, by key.
+        The last outcome of each task run here, by key (none for a task the
+        ``deadline`` stopped).
 
     Raises
     ------
@@ -443,6 +449,7 @@ def run_tasks(
             timeout=timeout,
             batch_size=batch_size,
             keep_values=keep_values,
+            deadline=deadline,
         )
     finally:
         if own_client and client is not None:
@@ -463,6 +470,7 @@ def _run(
     timeout: float | None,
     batch_size: int | None,
     keep_values: bool,
+    deadline: float | None,
 ) -> dict[str, TaskOutcome]:
     if workers is None:
         if isinstance(executor, WorkerPool):
@@ -502,7 +510,13 @@ def _run(
                 name="timeout",
             )
     runner = _LocalRunner(
-        task_list, workers, max_attempts, timeout, on_outcome, keep_values=keep_values
+        task_list,
+        workers,
+        max_attempts,
+        timeout,
+        on_outcome,
+        keep_values=keep_values,
+        deadline=deadline,
     )
     if executor == "serial":
         if initializer is not None:

@@ -15,6 +15,7 @@ distinct optima (:class:`StoredItems` reads the rest back from the journal).
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -28,7 +29,7 @@ from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, run_tasks
 from youbot_opt.sweeps.scheduler import ClusterLostError, connect, is_scheduler_address
 from youbot_opt.sweeps.selection import Clusters, stream_optima
 from youbot_opt.sweeps.store import ItemRecord, ItemWriter, SweepStore, WrittenItem
-from youbot_opt.sweeps.tasks import task_keys
+from youbot_opt.sweeps.tasks import TaskSequence, task_keys
 
 __all__ = [
     "Describe",
@@ -105,6 +106,9 @@ class Resumed(NamedTuple, Generic[T]):
     """``keep_results=False``: the distinct optima as keys, each best first, best
     optimum first (``select_optima``'s rule), as a :class:`~youbot_opt.sweeps.selection.Clusters`
     (members read from disk, counted by ``len``); empty otherwise."""
+    not_run: int = 0
+    """Tasks from the first one a ``deadline`` left unfinished on (0: every task
+    finished); ``items``, ``attempts``, ``resumed`` and ``clusters`` cover the tasks before it."""
 
 
 class StoredItems(MutableMapping[str, T]):
@@ -208,6 +212,7 @@ def run_resumable(
     describe: Describe | None = None,
     light: Callable[[str, ItemRecord], T] | None = None,
     keep: KeepRule[T] | None = None,
+    deadline: float | None = None,
 ) -> Resumed[T] | ShardReport:
     """Run the tasks a store does not hold as finished, saving every attempt as it ends.
 
@@ -248,6 +253,13 @@ def run_resumable(
     keep : KeepRule, optional
         Which full items ``options.keep_results=False`` keeps (the distinct
         optima, :func:`~youbot_opt.sweeps.optima.select_optima`); needed then.
+    deadline : float, optional
+        A :func:`time.monotonic` instant after which no new task begins
+        (:func:`~youbot_opt.sweeps.pool.run_tasks`; tasks running then finish,
+        at least one task begins). The sweep then ends at its first unfinished
+        task: the result covers the tasks before it and counts the others in
+        :attr:`Resumed.not_run` (finished ones among them stay in ``store``,
+        where a rerun loads them and goes on with the rest).
 
     Returns
     -------
@@ -299,17 +311,20 @@ def run_resumable(
                 describe if store is not None else None,
                 light if store is not None else None,
                 keep_all,
+                deadline,
             )
     assert light is not None
     with store.grouped():
         got = _stream_all(
             tasks, store, options, convert, payload, initializer, initargs,
             on_resumed,  # type: ignore[arg-type]  # given a read-only view, not a dict
-            on_final, describe, light,
+            on_final, describe, light, deadline,
         )  # fmt: skip
     if isinstance(got, ShardReport):
         return got
     assert keep is not None and light is not None
+    if got.not_run:  # a deadline ended the sweep: its optima are those of the tasks run
+        tasks = _head(tasks, len(tasks) - got.not_run)
 
     def full(key: str) -> T:
         if not store.verify(key):  # warned; forgotten by the store, so it is run again
@@ -339,7 +354,7 @@ def run_resumable(
             with store.grouped():  # recorded in the store, which got.items reads from
                 _stream_all(
                     redo, store, options, convert, payload, initializer, initargs, None, None,
-                    describe, light,
+                    describe, light, None,
                 )  # fmt: skip
             continue
         got.items.update(kept)
@@ -358,18 +373,24 @@ def _stream_all(
     on_final: Callable[[str, T, int], None] | None,
     describe: Describe | None,
     light: Callable[[str, ItemRecord], T],
+    deadline: float | None,
 ) -> Resumed[T] | ShardReport:
     """``keep_results=False``: run the unfinished tasks in chunks, keeping nothing per item.
 
     Tasks are taken from ``tasks`` as they are needed, :data:`CHUNK` at a time;
     what an item is comes back from the store (:class:`StoredItems`). One
-    worker pool (or Dask connection) serves every chunk.
+    worker pool (or Dask connection) serves every chunk; past ``deadline`` no
+    further chunk is taken.
     """
     max_attempts = options.max_attempts
     items = StoredItems(tasks, store, light)
     finished = 0
+    loaded = bytearray()  # with a deadline: which positions were loaded (resumed)
     for key in task_keys(tasks):  # what the store holds as finished (counted, not kept)
-        finished += not store.needs_work(key, max_attempts)[0]
+        done = not store.needs_work(key, max_attempts)[0]
+        finished += done
+        if deadline is not None:
+            loaded.append(done)
     resumed = finished
     if on_resumed is not None:  # a view: read during the call, before anything runs
         on_resumed(_Finished(items, store, max_attempts))
@@ -421,6 +442,8 @@ def _stream_all(
     stream = todo()
     try:
         while True:
+            if ran and deadline is not None and time.monotonic() >= deadline:
+                break  # past the deadline: no further chunk
             part = _take(stream, CHUNK)
             chunk = {t.key: t for t in part}
             if len(chunk) < len(part):
@@ -446,6 +469,7 @@ def _stream_all(
                     timeout=options.timeout,
                     batch_size=options.batch_size,
                     keep_values=False,
+                    deadline=deadline,
                 )
                 part = redo
     except ClusterLostError as exc:
@@ -463,12 +487,30 @@ def _stream_all(
         return ShardReport(
             shard=shard, ran=ran, finished=finished, total=len(tasks), directory=store.directory
         )
+    if deadline is not None and finished != len(tasks):  # the tasks before the first unrun
+        cut = next(
+            pos
+            for pos, key in enumerate(task_keys(tasks))
+            if store.needs_work(key, max_attempts)[0]
+        )
+        head = _head(tasks, cut)
+        return Resumed(
+            items=StoredItems(head, store, light),
+            attempts=StoredAttempts(head, store),
+            resumed=sum(loaded[:cut]),
+            not_run=len(tasks) - cut,
+        )
     if finished != len(tasks):  # a repeated key was skipped as finished by its first task
         raise ParameterError(
             f"task keys must be unique: {len(tasks)} tasks, {finished} finished items",
             name="tasks",
         )
     return Resumed(items=items, attempts=StoredAttempts(tasks, store), resumed=resumed)
+
+
+def _head(tasks: Sequence[Task], count: int) -> Sequence[Task]:
+    """Return the first ``count`` tasks (a :class:`TaskSequence` stays lazy)."""
+    return tasks.head(count) if isinstance(tasks, TaskSequence) else tasks[:count]
 
 
 def _take(stream: Iterator[Task], n: int) -> list[Task]:
@@ -520,6 +562,7 @@ def _run_all(
     describe: Describe | None,
     light: Callable[[str, ItemRecord], T] | None,
     keep_all: bool,
+    deadline: float | None,
 ) -> Resumed[T] | ShardReport:
     max_attempts = options.max_attempts
     items: dict[str, T] = {}
@@ -543,6 +586,7 @@ def _run_all(
         attempts[task.key] = made
         todo.append(replace(task, attempts=made))
     resumed = len(items)
+    resumed_keys = set(items)
     shard = options.shard
     if shard is not None:  # only this shard's positions; the others are other jobs' work
         mine = {t.key for pos, t in enumerate(tasks) if pos % shard[1] == shard[0] - 1}
@@ -616,6 +660,7 @@ def _run_all(
                 timeout=options.timeout,
                 batch_size=options.batch_size,
                 keep_values=False,
+                deadline=deadline,
             )
             todo, redo = redo, []
     except ClusterLostError as exc:
@@ -637,6 +682,16 @@ def _run_all(
         return ShardReport(
             shard=shard, ran=ran, finished=len(items), total=len(tasks), directory=where
         )
-    missing = [t.key for t in tasks if t.key not in items]
-    assert not missing, f"run_tasks returned no final outcome for {missing}"
+    keys = list(task_keys(tasks))
+    cut = next((pos for pos, key in enumerate(keys) if key not in items), len(keys))
+    assert deadline is not None or cut == len(keys), f"run_tasks left {keys[cut:]} unfinished"
+    if cut < len(keys):  # a deadline stopped the sweep: the tasks before the first unrun
+        loaded = sum(1 for key in keys[:cut] if key in resumed_keys)
+        head = {key: items[key] for key in keys[:cut]}
+        return Resumed(
+            items=head,
+            attempts={key: attempts[key] for key in keys[:cut]},
+            resumed=loaded,
+            not_run=len(keys) - cut,
+        )
     return Resumed(items=items, attempts=attempts, resumed=resumed)

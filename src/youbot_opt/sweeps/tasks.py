@@ -116,6 +116,10 @@ class TaskSequence(LazySequence[Task]):
     def __len__(self) -> int:
         return self._count
 
+    def head(self, count: int) -> TaskSequence:
+        """Return the first ``count`` tasks (at most all), still made when asked for."""
+        return TaskSequence(min(max(int(count), 0), self._count), self._make, self._key)
+
     noun = "task"
 
     def _item(self, j: int) -> Task:
@@ -186,6 +190,11 @@ class TaskRunner:
         Keep every outcome in :attr:`outcomes` (default); ``False`` keeps
         only failed ones, without values, and forgets finished tasks, so a
         long sweep's values and tasks are not held here.
+    deadline : float, optional
+        A :func:`time.monotonic` instant after which no pending task begins:
+        checked as attempts end, so the first tasks always begin, and the
+        retries of begun tasks still run. The tasks it stopped are in
+        :attr:`not_begun`, in order, and get no outcome.
     """
 
     def __init__(
@@ -197,8 +206,11 @@ class TaskRunner:
         on_outcome: Callable[[TaskOutcome[object]], None] | None,
         *,
         keep_values: bool = True,
+        deadline: float | None = None,
     ) -> None:
         self.keep_values = keep_values
+        self.deadline = deadline
+        self.not_begun: list[str] = []
         self.tasks = {t.key: t for t in tasks}
         self.attempts = {t.key: t.attempts for t in tasks}
         self.pending = deque(t.key for t in tasks)
@@ -235,6 +247,9 @@ class TaskRunner:
             self.outcomes.pop(key, None)
         if final and not self.keep_values:  # a finished task is never needed again
             del self.tasks[key], self.attempts[key]
+        if self.pending and self.deadline is not None and time.monotonic() >= self.deadline:
+            self.not_begun += self.pending  # past the deadline: no new task begins
+            self.pending.clear()
         if self.on_outcome is not None:
             self.on_outcome(outcome)
 
