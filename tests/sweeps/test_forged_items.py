@@ -132,13 +132,14 @@ def test_item_passed_off_as_another_start_is_refused(small_solver, tmp_path: Pat
     assert [s.objective for s in again.starts] == [s.objective for s in first.starts]
 
 
-def _ik(targets, out: Path, n: int = 3):  # type: ignore[no-untyped-def]
+def _ik(targets, out: Path, n: int = 3, *, keep: bool = True):  # type: ignore[no-untyped-def]
     from youbot_opt.ikpath.multistart import run_multistart
     from youbot_opt.ikpath.problem import CyclicIKProblem
     from youbot_opt.robot.planar import PlanarChain
 
     problem = CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 0.8]), targets=targets)
-    return run_multistart(problem, n_starts=n, seed=4, sweep=SweepOptions(workers=1, out=out))
+    sweep = SweepOptions(workers=1, out=out, keep_results=keep)
+    return run_multistart(problem, n_starts=n, seed=4, sweep=sweep)
 
 
 _T1 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.4, -1.0)]
@@ -170,3 +171,34 @@ def test_forged_pareto_point_is_refused_and_recomputed(small_solver, tmp_path: P
     with pytest.warns(YoubotOptWarning, match=r"point_000.*beta = 0\.9"):
         again = front(0.5, tmp_path / "b05")
     assert again.resumed == 0 and again.points[0].objective == mine.points[0].objective
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_ik_item_passed_off_as_another_start_is_refused(tmp_path: Path, keep: bool) -> None:
+    """IK: start 1's item re-keyed as start 3 of the same sweep (and back) is refused.
+
+    Both are checked minima of this very problem, so only the start each item
+    carries tells: it is not the start the sweep draws for its key. The two are
+    solved again from their own starts; start 0 (untouched) is loaded.
+    """
+    import numpy as np
+
+    first = _ik(_T1, tmp_path / "a", n=4, keep=keep)
+    _ik(_T1, tmp_path / "b", n=4, keep=keep)
+    starts = [np.asarray(first.results[i].start) for i in range(4)]
+    assert not np.array_equal(starts[1], starts[3])
+    assert first.results[1].objective != first.results[3].objective  # other minima
+    _forge(
+        tmp_path / "a",
+        tmp_path / "b",
+        keys={"start_0001": "start_0003", "start_0003": "start_0001"},
+    )
+    with pytest.warns(YoubotOptWarning, match=r"start_000[13].*its start is not start [13]"):
+        again = _ik(_T1, tmp_path / "b", n=4, keep=keep)
+    assert again.resumed == 2
+    for i in range(4):
+        assert np.array_equal(np.asarray(again.results[i].start), starts[i])
+        assert again.results[i].objective == first.results[i].objective
+    with warnings.catch_warnings():  # solved again and bound: loaded without a word
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert _ik(_T1, tmp_path / "b", n=4, keep=keep).resumed == 4
