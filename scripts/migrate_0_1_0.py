@@ -15,6 +15,9 @@ this script holds the reading of the older ones. It carries:
   optima (``optima.json``) are left out: the sweep chooses them again. An IK
   multistart's manifest gains ``start_rng`` and names only the IPOPT fields that
   differ from their default; its summaries' 0.1.0 statuses get today's values.
+  Its items are kept as they are: on resume, those whose start is not the start
+  the sweep now draws for their key (0.1.0 drew starts 1, 2, ... from one
+  generator) are refused, warned about and solved again (#29); start 0 resumes.
 - an IK-path result file (``.json``, schema ``youbot_opt.ikpath_result`` 1 or
   ``youbot_opt.spatial_ikpath_result`` 1) to ``youbot_opt.ikpath_result`` 2: the
   status values of 0.1.0 (``"success"``, ...) renamed, a planar file's
@@ -367,7 +370,9 @@ def ik_params(params: dict[str, Any]) -> dict[str, Any]:
     """Return an IK multistart's manifest parameters in today's form.
 
     Its starts are drawn per index (``start_rng``; a store of 0.1.0 drew them
-    from one generator: the starts it did not finish are drawn anew), and its
+    from one generator: the starts it did not finish are drawn anew, and a
+    finished one whose item carries another start is refused on resume and
+    solved again), and its
     IPOPT settings name only the fields that differ from their IK default
     (commit 02cdf49 wrote every field).
     """

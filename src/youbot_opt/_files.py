@@ -39,6 +39,7 @@ __all__ = [
     "atomic_write_text",
     "atomic_writer",
     "check_schema_header",
+    "file_kind",
     "fsync_dir",
     "json_digest",
     "json_ready",
@@ -81,6 +82,32 @@ def fsync_dir(directory: str | os.PathLike[str]) -> None:
         os.close(fd)
 
 
+def file_kind(mode: int) -> str:
+    """Name what a file that is not a regular file is, for a message (``"a FIFO"``).
+
+    Parameters
+    ----------
+    mode : int
+        ``st_mode`` of :func:`os.stat` or :func:`os.lstat`.
+
+    Returns
+    -------
+    str
+        ``"a FIFO"``, ``"a character device"``, ``"a block device"``, ``"a socket"``,
+        ``"a folder"``, ``"a symbolic link"`` or ``"a regular file"``.
+    """
+    kinds = (
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISLNK, "a symbolic link"),
+        (stat.S_ISREG, "a regular file"),
+    )
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
 def _process_umask() -> int:
     """Return the process umask, read without changing it where the system allows."""
     with contextlib.suppress(OSError, ValueError):
@@ -104,7 +131,8 @@ def _mode_for(target: Path) -> int:
             f"{os.readlink(target)!r}); remove it or choose another output path"
         )
     if not stat.S_ISREG(info.st_mode):
-        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file"
+        kind = file_kind(info.st_mode)
+        kind = kind if kind == "a folder" else f"not a regular file but {kind}"
         raise ParameterError(
             f"refusing to write {str(target)!r}: it is {kind} (a device, FIFO, socket "
             "or folder is never replaced); choose a regular file's path"
@@ -547,7 +575,9 @@ def read_regular_file(
     except OSError as exc:
         raise ResultFileError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
     if not stat.S_ISREG(info.st_mode):
-        raise ResultFileError(f"{path} is not a regular file; {what} is a file")
+        raise ResultFileError(
+            f"{path} is not a regular file ({file_kind(info.st_mode)}); {what} is a file"
+        )
     if info.st_size > max_bytes:
         raise ResultFileError(
             f"{path} holds {info.st_size} bytes, more than the limit MAX_RESULT_BYTES = "

@@ -8,6 +8,7 @@ for 6e7 frames.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -71,12 +72,12 @@ def test_a_fifo_or_a_device_is_refused_without_blocking(tmp_path, capsys):
 
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
-    for path in (fifo, "/dev/zero"):
+    for path, kind in ((fifo, "a FIFO"), ("/dev/zero", "a character device")):
         assert (
             main(["reproduce-study1", "--from-json", str(path), "--out", str(tmp_path / "r")]) == 2
         )
-        assert "is not a regular file" in capsys.readouterr().err
-        with pytest.raises(ResultFileError, match="is not a regular file"):
+        assert f"is not a regular file ({kind})" in capsys.readouterr().err
+        with pytest.raises(ResultFileError, match=rf"is not a regular file \({kind}\)"):
             load_result(path)
 
 
@@ -101,3 +102,72 @@ def test_a_fifo_as_the_linear_solver_library_is_refused(tmp_path, capsys):
     argv = ["solve", "--linear-solver", "ma27", "--linear-solver-library", str(fifo)]
     assert main([*argv, "--no-refine", "--out", str(tmp_path / "r")]) == 2
     assert "is not a regular file" in capsys.readouterr().err
+
+
+def _in_a_thread(call, seconds: float = 20.0):
+    """Run ``call`` in a daemon thread; fail (instead of hanging the suite) if it blocks."""
+    import threading
+
+    box: dict[str, BaseException | None] = {}
+
+    def run() -> None:
+        try:
+            call()
+        except BaseException as exc:  # noqa: BLE001 - handed back to the test
+            box["raised"] = exc
+        else:
+            box["raised"] = None
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), f"{call!r} blocked for {seconds} s"
+    return box["raised"]
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_a_library_path_that_is_no_regular_file_is_named_and_never_opened(tmp_path, capsys, kind):
+    """--linear-solver-library and IPOPT's own hsllib option: a FIFO blocked dlopen (#29).
+
+    The refusal names the path and what it is; ``extra={"hsllib": fifo}`` (IPOPT's
+    option, which wins over the field) went straight to ``ctypes.CDLL`` and blocked.
+    """
+    import os
+
+    from youbot_opt.exceptions import ParameterError
+    from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver
+
+    if kind == "fifo":
+        path = tmp_path / "libhsl.so"
+        os.mkfifo(path)
+        what = "a FIFO"
+    else:
+        path = Path("/dev/zero")
+        what = "a character device"
+    argv = ["solve", "--linear-solver", "ma27", "--linear-solver-library", str(path)]
+    assert main([*argv, "--no-refine", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and what in err and "Traceback" not in err
+    for options in (
+        IpoptOptions(linear_solver="ma27", extra={"hsllib": str(path)}),
+        IpoptOptions(linear_solver="pardiso", extra={"pardisolib": str(path)}),
+    ):
+        raised = _in_a_thread(lambda options=options: check_linear_solver(options))
+        assert isinstance(raised, ParameterError), raised
+        assert str(path) in str(raised) and what in str(raised)
+
+
+def test_a_trajectory_result_path_that_is_a_fifo_is_named_as_one(tmp_path):
+    """load_result of a FIFO said "does not exist"; it names what the path is."""
+    import os
+
+    from youbot_opt.exceptions import ResultFileError
+    from youbot_opt.trajopt.io import load_result
+
+    fifo = tmp_path / "result.npz"
+    os.mkfifo(fifo)
+    raised = _in_a_thread(lambda: load_result(fifo))
+    assert isinstance(raised, ResultFileError)
+    assert "is not a regular file (a FIFO)" in str(raised) and str(fifo) in str(raised)
+    with pytest.raises(ResultFileError, match="does not exist"):
+        load_result(tmp_path / "missing.npz")

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from _migrate import REFUSAL, migrate
-from youbot_opt.exceptions import ParameterError, ResultFileError
+from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptWarning
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import load_result
 from youbot_opt.ikpath.methods.al import ALOptions
@@ -60,8 +60,22 @@ def _resume(out: Path, options: IpoptOptions | None = None):
     )
 
 
-def test_old_ipopt_sweep_store_resumes_without_solving(tmp_path):
-    """An IK IPOPT multistart store of 74bfa23 resumes: all 3 starts loaded, manifest kept."""
+def _resume_refusing_old_starts(out: Path):
+    """Resume a carried 0.1.0 store: starts 1 and 2 were drawn by 0.1.0's single generator.
+
+    Their items carry those starts, which are not the starts 1 and 2 this sweep
+    draws (per index), so they are refused, warned about and solved again (#29);
+    start 0 (the zero start, the same in both) is loaded.
+    """
+    with pytest.warns(YoubotOptWarning, match=r"start_000[12].*its start is not start [12]"):
+        return _resume(out)
+
+
+def test_old_ipopt_sweep_store_resumes_without_solving_start_0(tmp_path):
+    """An IK IPOPT multistart store of 74bfa23 resumes: start 0 loaded, manifest kept.
+
+    Starts 1 and 2 are solved again from today's starts: the result equals a fresh run.
+    """
     out = _old_store(tmp_path)
     manifest = (out / "manifest.json").read_text()
     params = json.loads(manifest)["params"]
@@ -69,12 +83,20 @@ def test_old_ipopt_sweep_store_resumes_without_solving(tmp_path):
         "type", "tol", "constr_viol_tol", "max_iter", "max_wall_time", "extra"
     }  # fmt: skip
     assert params["start_rng"] == "per-index"  # added by the script
-    result = _resume(out)
-    assert result.resumed == 3
-    assert [r.status for r in result.results] == [SolveStatus.SOLVED] * 3
+    carried = {p.stem: load_result(p) for p in out.glob("items/*/*.ikpath")}
+    assert sorted(carried) == ["start_0000", "start_0001", "start_0002"]
     # The old writer's IKStatus value "success" is carried to SOLVED; E as stored by 74bfa23.
-    assert result.best.objective == 7.069456165533798
+    assert [r.status for r in carried.values()] == [SolveStatus.SOLVED] * 3
+    assert min(r.objective for r in carried.values()) == 7.069456165533798
+    result = _resume_refusing_old_starts(out)
+    assert result.resumed == 1
+    assert [r.status for r in result.results] == [SolveStatus.SOLVED] * 3
+    assert result.results[0].objective == carried["start_0000"].objective  # loaded, not solved
+    fresh = _resume(tmp_path / "fresh")
+    assert [r.objective for r in result.results] == [r.objective for r in fresh.results]
+    assert result.best.objective == fresh.best.objective
     assert (out / "manifest.json").read_text() == manifest
+    assert _resume(out).resumed == 3  # solved again and bound: loaded without a word
 
 
 def test_old_store_refuses_options_that_differ_in_a_new_field(tmp_path):
@@ -128,7 +150,7 @@ def test_store_with_every_ipopt_field_is_refused_then_carried(tmp_path):
         path.write_text(json.dumps(manifest, indent=1))
 
     out = _old_store(tmp_path, every_field)
-    assert _resume(out).resumed == 3
+    assert _resume_refusing_old_starts(out).resumed == 1  # start 0; 1 and 2 drawn by 0.1.0
     # The same form in a store of today's schema is refused, naming the script.
     every_field(out / "manifest.json")
     shutil.rmtree(str(out) + ".0.1.0.bak")

@@ -116,6 +116,161 @@ def test_forged_item_with_edited_beta_is_refused(small_solver, tmp_path: Path) -
     assert again.best.objective == mine.best.objective
 
 
+def _edit_payload(store: Path, key: str, robot, edit) -> None:  # type: ignore[no-untyped-def]
+    """Rewrite item ``key``'s payload with ``edit(result)`` and re-checksum its journal line.
+
+    As an attacker would: the library's ``load_result``/``save_result`` rewrite the
+    payload, :func:`~youbot_opt.sweeps.records.sha256_file` recomputes its checksum
+    and :func:`~youbot_opt.sweeps.journal.encode_line` the line's own.
+    """
+    from youbot_opt.sweeps.records import sha256_file
+    from youbot_opt.trajopt.io import load_result, save_result
+
+    npz = next(store.glob(f"items/*/{key}.npz"))
+    save_result(edit(load_result(npz, robot=robot)), npz)
+    folder = store / "items" / "journal"
+    lines, _ = read_journal(folder)
+    fixed = [
+        {**x, "checksum": sha256_file(store / "items" / x["payload"])} if x["key"] == key else x
+        for x in lines
+    ]
+    for old in folder.iterdir():
+        old.unlink()
+    (folder / "edited.jsonl").write_bytes(b"".join(encode_line(x) for x in fixed))
+
+
+def _at_beta(result, beta: float):  # type: ignore[no-untyped-def]
+    """``result`` passed off as a solve at ``beta``: its beta and its objective made consistent."""
+    import dataclasses
+
+    value = beta * result.duration + (1.0 - beta) * result.work
+    return dataclasses.replace(result, beta=beta, objective=value)
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_forged_item_with_beta_and_objective_edited_consistently_is_refused(  # type: ignore[no-untyped-def]
+    small_solver, tmp_path: Path, keep: bool
+) -> None:
+    """A beta = 0.9 optimum whose beta and objective are edited to a beta = 0.5 solve.
+
+    Problem, beta, bound scale, seed and objective (re-evaluated from its own
+    trajectory at the sweep's beta) all agree, and the plan is feasible: only
+    optimality tells. At the sweep's beta the stored point is no first-order
+    optimum of the sweep's problem (the gradient of the Lagrangian, with the
+    file's multipliers, is far from zero), so it is refused and recomputed.
+    """
+    robot = small_solver.problem.robot
+    _sweep(small_solver, 0.9, tmp_path / "b09", keep=keep)
+    mine = _sweep(small_solver, 0.5, tmp_path / "b05", keep=keep)
+    _forge(tmp_path / "b09", tmp_path / "b05")
+    _edit_payload(tmp_path / "b05", "start_0000", robot, lambda r: _at_beta(r, 0.5))
+    with pytest.warns(YoubotOptWarning, match=r"start_0000.*first-order optimum.*beta = 0\.5"):
+        again = _sweep(small_solver, 0.5, tmp_path / "b05", keep=keep)
+    assert again.resumed == 0
+    assert again.best.objective == mine.best.objective
+    with warnings.catch_warnings():  # recomputed and bound again: loaded without a word
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert _sweep(small_solver, 0.5, tmp_path / "b05", keep=keep).resumed == 1
+
+
+def _fitted_multipliers(solver, result, beta: float, how: str):  # type: ignore[no-untyped-def]
+    """``result`` with multipliers made up to zero its Lagrangian's gradient at ``beta``.
+
+    ``how = "bounds"``: every variable's bound multiplier absorbs the residual
+    (then they push against bounds the plan does not touch); ``"rows"``: the
+    constraint multipliers are the least-squares fit, the bound ones the file's.
+    """
+    import dataclasses
+
+    import casadi as ca
+    import numpy as np
+
+    from youbot_opt.trajopt.transcription.base import BOUND_NAMES
+
+    nlp = solver.nlp
+    m = result.multipliers
+    x = nlp.variables.pack(dict(result.variables))
+    blocks = nlp.variables.blocks
+    lam_x = nlp.variables.pack(
+        {n: m[f"{BOUND_NAMES[n]}_lower"] + m[f"{BOUND_NAMES[n]}_upper"] for n in blocks}
+    )
+    lam_g = nlp.constraints.pack({k: m[k] for k in nlp.constraints.blocks})
+    grad_f, jac_g = solver.first_order_functions()
+    grad = np.asarray(grad_f(x, beta)[1]).ravel()
+    jac = np.asarray(ca.densify(jac_g(x, beta)[1]))
+    if how == "bounds":
+        lam_x = -(grad + jac.T @ lam_g)
+    else:
+        lam_g = np.linalg.lstsq(jac.T, -(grad + lam_x), rcond=None)[0]
+    fitted = dict(nlp.constraints.unpack(lam_g))
+    for name, block in nlp.variables.blocks.items():
+        lam = block.take(lam_x)
+        fitted[f"{BOUND_NAMES[name]}_lower"] = np.minimum(lam, 0.0)
+        fitted[f"{BOUND_NAMES[name]}_upper"] = np.maximum(lam, 0.0)
+    return dataclasses.replace(result, multipliers=fitted)
+
+
+@pytest.mark.parametrize(
+    ("how", "message"),
+    [("bounds", "complementarity|side without a bound"), ("rows", "gradient of its Lagrangian")],
+)
+def test_forged_item_with_made_up_multipliers_is_refused(  # type: ignore[no-untyped-def]
+    small_solver, tmp_path: Path, how: str, message: str
+) -> None:
+    """The edited beta = 0.9 optimum with multipliers fitted at beta = 0.5 is refused too.
+
+    The multipliers are the file's: checked, never trusted. Those that zero the
+    gradient push against bounds the plan does not touch; a least-squares fit
+    of the constraint multipliers leaves the gradient far from zero.
+    """
+    robot = small_solver.problem.robot
+    _sweep(small_solver, 0.9, tmp_path / "b09")
+    mine = _sweep(small_solver, 0.5, tmp_path / "b05")
+    _forge(tmp_path / "b09", tmp_path / "b05")
+
+    def edit(result):  # type: ignore[no-untyped-def]
+        return _fitted_multipliers(small_solver, _at_beta(result, 0.5), 0.5, how)
+
+    _edit_payload(tmp_path / "b05", "start_0000", robot, edit)
+    with pytest.warns(YoubotOptWarning, match=rf"start_0000.*first-order optimum.*({message})"):
+        again = _sweep(small_solver, 0.5, tmp_path / "b05")
+    assert again.resumed == 0
+    assert again.best.objective == mine.best.objective
+
+
+def test_stored_successes_are_first_order_optima_of_their_sweep(small_solver) -> None:  # type: ignore[no-untyped-def]
+    """What the resume check requires holds for genuine solves, with a wide margin.
+
+    Three transcriptions, beta 0.1, 0.5 and 0.9: each solve is a first-order
+    optimum at its own beta (relative figures below 1e-8, the tolerance is 1e-6),
+    and none at another beta 0.4 away (above 0.1).
+    """
+    import dataclasses
+
+    from youbot_opt.reproduction.study1 import study1_problem
+    from youbot_opt.trajopt.optimality import first_order
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    for method in ("trapezoidal", "hermite_simpson", "radau"):
+        solver = (
+            small_solver
+            if method == "trapezoidal"
+            else TrajOptSolver(study1_problem(_KNOTS), method, dynamics=small_solver.dynamics)
+        )
+        for beta in (0.1, 0.5, 0.9):
+            result = solver.solve(beta=beta)
+            assert result.success
+            own = first_order(solver, result, beta=beta)
+            assert own.passed, own.reason
+            worst = max(own.stationarity, own.complementarity, own.wrong_side) / own.scale
+            assert worst < 1e-8 and own.rtol == 1e-6
+            other = first_order(solver, result, beta=0.5 if beta != 0.5 else 0.9)
+            assert not other.passed and other.stationarity / other.scale > 0.1
+            assert "gradient of its Lagrangian" in str(other.reason)
+            scaled = first_order(solver, dataclasses.replace(result), beta=beta, bound_scale=0.5)
+            assert not scaled.passed and "violates a bound" in str(scaled.reason)
+
+
 def test_item_passed_off_as_another_start_is_refused(small_solver, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """Start 0's item re-keyed as start 1 of the same sweep: its seed is not start 1's."""
     first = _sweep(small_solver, 0.5, tmp_path / "a", n=2)
@@ -132,13 +287,14 @@ def test_item_passed_off_as_another_start_is_refused(small_solver, tmp_path: Pat
     assert [s.objective for s in again.starts] == [s.objective for s in first.starts]
 
 
-def _ik(targets, out: Path, n: int = 3):  # type: ignore[no-untyped-def]
+def _ik(targets, out: Path, n: int = 3, *, keep: bool = True):  # type: ignore[no-untyped-def]
     from youbot_opt.ikpath.multistart import run_multistart
     from youbot_opt.ikpath.problem import CyclicIKProblem
     from youbot_opt.robot.planar import PlanarChain
 
     problem = CyclicIKProblem(robot=PlanarChain(lengths=[1.0, 0.8]), targets=targets)
-    return run_multistart(problem, n_starts=n, seed=4, sweep=SweepOptions(workers=1, out=out))
+    sweep = SweepOptions(workers=1, out=out, keep_results=keep)
+    return run_multistart(problem, n_starts=n, seed=4, sweep=sweep)
 
 
 _T1 = [(1.2, 0.5), (0.3, 1.1), (-0.9, 0.6), (0.4, -1.0)]
@@ -170,3 +326,34 @@ def test_forged_pareto_point_is_refused_and_recomputed(small_solver, tmp_path: P
     with pytest.warns(YoubotOptWarning, match=r"point_000.*beta = 0\.9"):
         again = front(0.5, tmp_path / "b05")
     assert again.resumed == 0 and again.points[0].objective == mine.points[0].objective
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_ik_item_passed_off_as_another_start_is_refused(tmp_path: Path, keep: bool) -> None:
+    """IK: start 1's item re-keyed as start 3 of the same sweep (and back) is refused.
+
+    Both are checked minima of this very problem, so only the start each item
+    carries tells: it is not the start the sweep draws for its key. The two are
+    solved again from their own starts; start 0 (untouched) is loaded.
+    """
+    import numpy as np
+
+    first = _ik(_T1, tmp_path / "a", n=4, keep=keep)
+    _ik(_T1, tmp_path / "b", n=4, keep=keep)
+    starts = [np.asarray(first.results[i].start) for i in range(4)]
+    assert not np.array_equal(starts[1], starts[3])
+    assert first.results[1].objective != first.results[3].objective  # other minima
+    _forge(
+        tmp_path / "a",
+        tmp_path / "b",
+        keys={"start_0001": "start_0003", "start_0003": "start_0001"},
+    )
+    with pytest.warns(YoubotOptWarning, match=r"start_000[13].*its start is not start [13]"):
+        again = _ik(_T1, tmp_path / "b", n=4, keep=keep)
+    assert again.resumed == 2
+    for i in range(4):
+        assert np.array_equal(np.asarray(again.results[i].start), starts[i])
+        assert again.results[i].objective == first.results[i].objective
+    with warnings.catch_warnings():  # solved again and bound: loaded without a word
+        warnings.simplefilter("error", YoubotOptWarning)
+        assert _ik(_T1, tmp_path / "b", n=4, keep=keep).resumed == 4

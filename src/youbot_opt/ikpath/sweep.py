@@ -465,8 +465,12 @@ def check_item(
     """Why ``result``, read back as item ``key``, is not that start of the sweep (``None``: it is).
 
     Its problem (chain or robot, targets, tolerances, limits) must be the
-    sweep's and its start of the start's size; the loader has re-checked its
-    configurations against those targets.
+    sweep's, and its start (the configurations it was solved from, which the
+    item carries) must be the start the sweep itself draws for ``key``
+    (``starts[i]``, equal value for value): an item of start ``j`` passed off
+    under start ``i``'s key is refused and start ``i`` solved, whatever its
+    checksums say. The loader has re-checked its configurations against the
+    targets.
     """
     n = len(starts)
     index = key.rsplit("_", 1)[-1]
@@ -479,12 +483,17 @@ def check_item(
     if mine != theirs:
         fields = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
         return f"its problem differs in {', '.join(fields) or 'its values'}"
-    # Its start is not compared with start ``key``'s: stores of 74bfa23 (migrated) drew
-    # their starts otherwise and resume; a start's item under another start's key is
-    # still a checked minimum of this very problem.
-    got = np.asarray(result.start, dtype=float)
-    if got.size != np.asarray(starts[int(index)]).size:
-        return f"its start has {got.size} values, start {int(index)}'s has another size"
+    i = int(index)
+    got = np.asarray(result.start, dtype=float).ravel()
+    planned = np.asarray(starts[i], dtype=float).ravel()
+    if got.size != planned.size:
+        return f"its start has {got.size} values, start {i}'s has {planned.size}"
+    if not np.array_equal(got, planned):
+        gap = float(np.max(np.abs(got - planned)))
+        return (
+            f"its start is not start {i} of this sweep (they differ by up to {gap:.3g} rad): "
+            "an item solved from another start"
+        )
     return None
 
 

@@ -24,6 +24,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Literal, TypeAlias, TypedDict, Unpack
 
 from youbot_opt._checks import check_time_limit
+from youbot_opt._files import file_kind
 from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 
@@ -433,6 +434,7 @@ def check_linear_solver(options: IpoptOptions) -> str | None:
     library = str(given if given is not None else (options.linear_solver_library or default))
     name = options.linear_solver
     where = "HSL" if option == "hsllib" else "Pardiso"
+    _check_library_path(library)  # from extra too: dlopen of a FIFO never returns
     try:
         handle = ctypes.CDLL(library)
     except OSError as exc:
@@ -486,7 +488,8 @@ def _check_library_path(library: str) -> None:
         return  # a missing file: IPOPT's own error names it
     if not stat.S_ISREG(mode):
         raise ParameterError(
-            f"linear_solver_library {library!r} is not a regular file (a shared library is)",
+            f"linear_solver_library {library!r} is not a regular file but {file_kind(mode)} "
+            "(a shared library is a regular file); not opened",
             name="linear_solver_library",
             value=library,
         )

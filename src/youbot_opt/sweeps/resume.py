@@ -333,6 +333,7 @@ def run_resumable(
 
     extra = {"obj_tol": keep.obj_tol, "dist_tol": keep.dist_tol, "best": keep.distance is None,
              "grouped": keep.group is not None}  # fmt: skip
+    redone: set[str] = set()  # items counted as resumed, then refused and run again
     while True:  # the kept optima, loaded (a refused payload is recomputed, then chosen again)
         # every task is finished (checked by _stream_all), so if the store holds no other
         # item its records are exactly the sweep's: named without reading a line
@@ -351,6 +352,7 @@ def run_resumable(
                 store.save_selection(fingerprint, clusters)
         except _Refused as exc:
             redo = [tasks[i] for i, k in enumerate(task_keys(tasks)) if k == exc.key]
+            redone.add(exc.key)
             with store.grouped():  # recorded in the store, which got.items reads from
                 _stream_all(
                     redo, store, options, convert, payload, initializer, initargs, None, None,
@@ -358,7 +360,7 @@ def run_resumable(
                 )  # fmt: skip
             continue
         got.items.update(kept)
-        return got._replace(clusters=clusters)
+        return got._replace(clusters=clusters, resumed=max(got.resumed - len(redone), 0))
 
 
 def _stream_all(

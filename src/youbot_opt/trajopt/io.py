@@ -30,6 +30,7 @@ from youbot_opt._files import (
     array_digest,
     atomic_writer,
     check_schema_header,
+    file_kind,
     read_npz,
     schema_header,
     software_versions,
@@ -274,7 +275,10 @@ def save_result(
 def _read(path: Path) -> tuple[dict[str, Any], dict[str, Array]]:
     """Metadata and checksum-verified arrays of a result file."""
     if not path.is_file():
-        raise ResultFileError(f"result file {path} does not exist")
+        if not path.exists():
+            raise ResultFileError(f"result file {path} does not exist")
+        kind = file_kind(path.stat().st_mode)
+        raise ResultFileError(f"result file {path} is not a regular file ({kind}); not opened")
     arrays = read_npz(path)
     if "metadata" not in arrays:
         raise ResultFileError(f"{path} has no metadata entry; not a youbot_opt result file")

@@ -236,6 +236,7 @@ class TrajOptSolver:
         # IPOPT instances are created on first use: a refinement round only warm-starts
         self._cold_solver: Any = None
         self._warm_solver: Any = None
+        self._first_order: tuple[ca.Function, ca.Function] | None = None
         self.build_time = time.perf_counter() - tic
         _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
 
@@ -293,6 +294,48 @@ class TrajOptSolver:
                 "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
             )
         return self._cold_solver
+
+    def nlp_bounds(
+        self,
+        bound_scale: float = 1.0,
+        start: BoundaryState | None = None,
+        goal: BoundaryState | None = None,
+    ) -> tuple[Array, Array, Array, Array]:
+        """Return ``(lbx, ubx, lbg, ubg)``: the NLP's bounds at ``bound_scale``, as :meth:`solve`.
+
+        Parameters
+        ----------
+        bound_scale : float
+            Factor on the bound families (checked by the caller).
+        start, goal : BoundaryState, optional
+            The boundary states (the problem's when omitted).
+        """
+        problem = self.problem
+        joint_bounds = problem.bounds(bound_scale)
+        lbx, ubx = self.nlp.variable_bounds(joint_bounds, self._dt_range())
+        lbg, ubg = self.nlp.constraint_bounds(
+            problem.start if start is None else start,
+            problem.goal if goal is None else goal,
+            joint_bounds,
+        )
+        return lbx, ubx, lbg, ubg
+
+    def first_order_functions(self) -> tuple[ca.Function, ca.Function]:
+        """Return ``(x, p) -> (f, grad_f)`` and ``(x, p) -> (g, jac_g)`` of this NLP.
+
+        The exact derivatives IPOPT is given where the backend has them (compiled
+        when the kernels are), else CasADi's AD of the transcribed graph, built
+        once. :func:`youbot_opt.trajopt.optimality.first_order` evaluates them.
+        """
+        if "grad_f" in self._derivatives:
+            return self._derivatives["grad_f"], self._derivatives["jac_g"]
+        if self._first_order is None:
+            x, p, f, g = self.nlp.x, self.nlp.p, self.nlp.f, self.nlp.g
+            self._first_order = (
+                ca.Function("grad_f", [x, p], [f, ca.gradient(f, x)]),
+                ca.Function("jac_g", [x, p], [g, ca.jacobian(g, x)]),
+            )
+        return self._first_order
 
     def _point_accelerations(self, q: Array, v: Array, tau: Array) -> Array:
         """Forward dynamics [rad/s^2] at knot-major points ``(q, v, tau)`` (the NLP's kernel)."""
@@ -381,9 +424,7 @@ class TrajOptSolver:
             solver = self._solver
         if not np.all(np.isfinite(x0)):
             raise ParameterError("the initial guess is not finite", name="guess")
-        joint_bounds = problem.bounds(bound_scale)
-        lbx, ubx = nlp.variable_bounds(joint_bounds, dt_range)
-        lbg, ubg = nlp.constraint_bounds(start_state, goal_state, joint_bounds)
+        lbx, ubx, lbg, ubg = self.nlp_bounds(bound_scale, start_state, goal_state)
 
         self._recorder.reset((lbx, ubx, lbg, ubg), self.feasibility_tol)
         wall, cpu = time.perf_counter(), time.process_time()

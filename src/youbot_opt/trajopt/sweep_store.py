@@ -20,10 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt._files import MIGRATION_SCRIPT
-from youbot_opt.exceptions import ResultFileError
+from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import urdf_digest
 from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec
+from youbot_opt.trajopt.optimality import first_order
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
@@ -54,9 +55,10 @@ def result_codec(solver: TrajOptSolver, made_by: ItemMaking | None = None) -> Co
 
     With ``made_by`` every payload read back is re-checked against the sweep's
     own problem (:func:`check_item`): the solver's problem, method and robot,
-    the item's beta, bound scale and start seed, and its objective re-evaluated
-    at the sweep's beta; an item copied from another sweep is refused and
-    recomputed, whatever its checksums say.
+    the item's beta, bound scale and start seed, its objective re-evaluated
+    at the sweep's beta, and a success's first-order optimality at that beta;
+    an item copied from another sweep is refused and recomputed, whatever its
+    checksums say.
     """
     from youbot_opt.trajopt.io import load_result, save_result
 
@@ -94,7 +96,11 @@ def check_item(
     solver: the problem (boundary states, knots, bounds, clearance, robot
     digest), the transcription, beta, the bound scale, the start's seed, and
     the objective ``beta T + (1 - beta) W`` at the sweep's beta (relative
-    :data:`OBJECTIVE_RTOL`).
+    :data:`OBJECTIVE_RTOL`). A success must moreover be a first-order optimum
+    of the sweep's NLP at the sweep's beta and bound scale
+    (:func:`youbot_opt.trajopt.optimality.first_order`: the KKT conditions with
+    the file's multipliers checked, never trusted), so a plan optimal for
+    another beta, its beta and objective edited to agree, is refused.
     """
     try:
         made = made_by(key)
@@ -119,6 +125,19 @@ def check_item(
         return (
             f"objective {result.objective:.9g}, but at the sweep's beta = {beta:g} its "
             f"trajectory gives {value:.9g}"
+        )
+    if not result.success:
+        return None  # no optimality claimed: a failed start is never a sweep's optimum
+    scale = made.get("bound_scale")
+    try:
+        report = first_order(
+            solver, result, beta=beta, bound_scale=result.bound_scale if scale is None else scale
+        )
+    except ParameterError as exc:
+        return f"a success that cannot be checked: {exc}"
+    if not report.passed:
+        return f"it is no first-order optimum of the sweep's problem at beta = {beta:g}: " + str(
+            report.reason
         )
     return None
 
