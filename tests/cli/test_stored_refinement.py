@@ -106,20 +106,29 @@ def test_a_rerun_reuses_the_stored_refined_plans(
         assert f"{label}: T = {duration:.3f} s" in replay
 
 
+def _save(refined: Refined, path: Path) -> Path:
+    return save_result(refined.result, path, refinement=refined.refinement)
+
+
+def _store(folder: Path) -> SweepStore[Refined]:
+    """The run folder's store of refined plans, opened as the library opens it (no checks)."""
+    manifest = json.loads((folder / "refined" / "manifest.json").read_text())
+    return SweepStore(
+        folder / "refined", kind="refined", params=manifest["params"], save=_save, load=load_refined
+    )
+
+
+def _key(store: SweepStore[Refined], item: str) -> str:
+    (key,) = [k for k in store.keys() if k.startswith(f"{item}.")]
+    return key
+
+
 def test_a_tampered_stored_plan_is_refined_again(
     first_run: tuple[Path, dict], rerun: Callable[..., tuple[int, dict, str]]
 ) -> None:
     """A stored plan with edited torques (checksums recomputed) is refused and refined again."""
-    store_dir = rerun.folder / "refined"  # type: ignore[attr-defined]
-    manifest = json.loads((store_dir / "manifest.json").read_text())
-
-    def save(refined: Refined, path: Path) -> Path:
-        return save_result(refined.result, path, refinement=refined.refinement)
-
-    store = SweepStore(
-        store_dir, kind="refined", params=manifest["params"], save=save, load=load_refined
-    )
-    (key,) = [k for k in store.keys() if k.startswith("point_001.")]  # beta = 0.7
+    store = _store(rerun.folder)  # type: ignore[attr-defined]
+    key = _key(store, "point_001")  # beta = 0.7
     result, record = load_refined(store.payload_path(key))
     assert record.certified
     tau = np.array(result.variables["tau"], dtype=float)
@@ -132,6 +141,20 @@ def test_a_tampered_stored_plan_is_refined_again(
     assert "beta = 0.7: stored refined plan not reused" in err and "refining it again" in err
     assert [r["stored"] for r in summary["refinement"]] == [False, True]  # 0.7 first (shorter T)
     assert _plans(summary) == _plans(first_run[1])  # refined again: the same plan
+
+
+def test_another_points_plan_under_this_key_is_refined_again(
+    first_run: tuple[Path, dict], rerun: Callable[..., tuple[int, dict, str]]
+) -> None:
+    """Beta 0.3's refined plan (a sound plan) re-bound as beta 0.7's is refused: not its plan."""
+    store = _store(rerun.folder)  # type: ignore[attr-defined]
+    other = load_refined(store.payload_path(_key(store, "point_000")))
+    store.write_done(_key(store, "point_001"), other, {"label": "beta = 0.7"})
+    store.close()
+    calls, summary, err = rerun()
+    assert calls == 1
+    assert "beta = 0.3, the grid plan's is 0.7" in err and "refining it again" in err
+    assert _plans(summary) == _plans(first_run[1])
 
 
 def test_a_changed_budget_refines_again(
