@@ -298,9 +298,15 @@ def check_refined(
 
 
 def _save(refined: Refined, path: Path) -> Path:
+    """Write a refined plan; a write the system refuses raises its ``OSError`` (as the store's)."""
     from youbot_opt.trajopt.io import save_result
 
-    return save_result(refined.result, path, refinement=refined.refinement)
+    try:
+        return save_result(refined.result, path, refinement=refined.refinement)
+    except ResultFileError as exc:
+        if isinstance(exc.__cause__, OSError):  # full disk, read-only folder: the path, the fix
+            raise exc.__cause__ from None
+        raise
 
 
 def refined_codec(
