@@ -22,8 +22,9 @@ import pytest
 import youbot_opt.cli.refinement as refinement
 from youbot_opt.cli import main
 from youbot_opt.sweeps.store import SweepStore
-from youbot_opt.trajopt.io import load_refined, save_result
+from youbot_opt.trajopt.io import load_refined, load_result, save_result
 from youbot_opt.trajopt.refine import Refined
+from youbot_opt.trajopt.sweep_store import check_refined
 
 ARGV = ["pareto", "--betas", "0.3,0.7", "--knots", "15", "--workers", "0", "--quiet", "--json"]
 
@@ -155,6 +156,28 @@ def test_another_points_plan_under_this_key_is_refined_again(
     assert calls == 1
     assert "beta = 0.3, the grid plan's is 0.7" in err and "refining it again" in err
     assert _plans(summary) == _plans(first_run[1])
+
+
+def test_a_certified_claim_is_checked_against_the_budgets_tolerance(
+    first_run: tuple[Path, dict], tmp_path: Path
+) -> None:
+    """A plan stored as certified under a tolerance its errors exceed is refused (check_refined)."""
+    folder = tmp_path / "run"
+    shutil.copytree(first_run[0], folder)
+    store = _store(folder)
+    key = _key(store, "point_001")
+    (grid_file,) = (folder / "items").glob("*/point_001.npz")
+    grid = load_result(grid_file)
+    refined = load_refined(store.payload_path(key), robot=grid.problem.robot)
+    store.close()
+    budget = refined.refinement.budget
+    assert check_refined({key: grid}, budget, folder, key, refined) is None
+    tight = dataclasses.replace(budget, tolerance=1e-12)  # claimed: all errors within 1e-12
+    forged = Refined(refined.result, dataclasses.replace(refined.refinement, budget=tight))
+    why = check_refined({key: grid}, tight, folder, key, forged)
+    assert why is not None and "stored as certified, but its max error" in why
+    assert "another budget" in str(check_refined({key: grid}, tight, folder, key, refined))
+    assert "no refined plan" in str(check_refined({}, budget, folder, key, refined))
 
 
 def test_a_changed_budget_refines_again(

@@ -26,12 +26,14 @@ from typing import Any
 import numpy as np
 
 from youbot_opt._files import MIGRATION_SCRIPT, array_digest, json_digest
-from youbot_opt.collision.clearance import clearance_document
+from youbot_opt.collision.clearance import clearance_checker, clearance_document
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import urdf_digest
 from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec, SweepStore, open_store
 from youbot_opt.trajopt.certify import Tolerances
+from youbot_opt.trajopt.clearance import certify_plan_clearance
+from youbot_opt.trajopt.mesh_error import collocation_error
 from youbot_opt.trajopt.refine import Refined, RefinementBudget
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
@@ -258,7 +260,9 @@ def check_refined(
     ``refined`` comes from :func:`~youbot_opt.trajopt.io.load_refined` (the
     independent check and the certificate already re-run); refused when the
     loaded plan fails its check, when its saved certificate claim fails at the
-    caller's tolerances, when its budget is not ``budget``, or when it is not a
+    caller's tolerances, when its budget is not ``budget``, when it is stored
+    as certified but its collocation error exceeds ``budget.tolerance`` or
+    (with a clearance) its clearance between the knots fails, or when it is not a
     refinement of ``grids[key]``: robot, transcription, problem (boundary
     states, bounds, clearance: all but the grid's size), beta, bound scale,
     seed, round 0 on the grid plan's knots and objective, and its objective
@@ -274,6 +278,10 @@ def check_refined(
         return f"its certificate fails on load ({record.reason})"
     if record.budget != budget:
         return f"refined with another budget ({record.budget.describe()})"
+    if record.certified:  # the rest of the verdict: the collocation error, the clearance
+        why = _certified_on_load(result, budget)
+        if why:
+            return why
     if result.problem.robot is not grid.problem.robot:
         return "another robot"
     if result.method != grid.method:
@@ -295,6 +303,26 @@ def check_refined(
     ):
         return f"objective {result.objective:.9g}, but its trajectory gives {value:.9g}"
     return None
+
+
+def _certified_on_load(result: TrajOptResult, budget: RefinementBudget) -> str:
+    """Why a plan stored as certified is not, besides its certificate ("": it is).
+
+    As :func:`~youbot_opt.trajopt.refine.refine` decides it: every interval's
+    collocation error within ``budget.tolerance`` and, with a clearance, the
+    exact clearance between the knots (the loader checks it at the knots).
+    """
+    error = collocation_error(result)
+    if not error.max <= budget.tolerance:
+        return f"stored as certified, but its max error is {error.max:.3g} > {budget.tolerance:g}"
+    spec = result.problem.clearance
+    if spec is not None and result.trajectory is not None:
+        robot = result.problem.robot
+        checker = clearance_checker(robot, spec)
+        clear = certify_plan_clearance(result.trajectory, robot, checker, margin=spec.margin)
+        if not clear.certified:
+            return "stored as certified, but its clearance between the knots fails"
+    return ""
 
 
 def _save(refined: Refined, path: Path) -> Path:
