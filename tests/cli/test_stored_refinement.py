@@ -214,3 +214,18 @@ def test_a_kill_while_refining_loses_only_the_plan_in_progress(
     summary = json.loads(capsys.readouterr().out)
     assert len(calls) == 2  # one more: the plan in progress when stopped
     assert [r["stored"] for r in summary["refinement"]] == [True, False]
+
+
+def test_plans_refined_in_worker_processes_are_the_same_and_stored(
+    first_run: tuple[Path, dict], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--workers 2: the plans are refined in worker processes, bit-equal to in-process, stored."""
+    argv = [*ARGV, "--workers", "2", "--out", str(tmp_path / "run")]  # the last --workers wins
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert [r["stored"] for r in summary["refinement"]] == [False, False]
+    assert _plans(summary) == _plans(first_run[1])
+    assert main(argv) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert [r["stored"] for r in again["refinement"]] == [True, True]
+    assert _plans(again) == _plans(first_run[1])

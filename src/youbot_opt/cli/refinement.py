@@ -20,12 +20,16 @@ from pathlib import Path
 
 from youbot_opt._typing import JSONDict
 from youbot_opt.cli.advice import next_step
+from youbot_opt.cli.flags import scheduler_address
 from youbot_opt.cli.output import draw_figure
 from youbot_opt.exceptions import YoubotOptWarning
+from youbot_opt.sweeps.pool import Task, TaskOutcome, default_workers, process_context, run_tasks
 from youbot_opt.sweeps.store import SweepStore
+from youbot_opt.sweeps.worker_solver import WorkerSolver, hold_solver
 from youbot_opt.trajopt.refine import Refined, Refinement, RefinementBudget, RefinementRound, refine
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.sweep import worker_solver
 from youbot_opt.trajopt.sweep_store import open_refined, refined_key
 
 __all__ = [
@@ -145,10 +149,14 @@ def refine_many(
         f"  {'':<14} {'knots':>6} {'f':>12} {'T [s]':>9}  certified",
     ]
     try:
+        keyed = list(zip(keys, items, strict=True))
+        found = {k: None if store is None else _stored(store, k, x[0]) for k, x in keyed}
+        todo = {k: (x[0], x[2]) for k, x in keyed if found[k] is None and k in grids}
+        made = _refine_in_workers(solver, todo, args, budget, store, quiet)
         for (label, _, result), key in zip(items, keys, strict=True):
-            done = None if store is None else _stored(store, key, label)
-            stored = done is not None
-            if not quiet:
+            stored = found[key] is not None
+            done = found[key] or made.get(key)
+            if not quiet and key not in made:
                 print(
                     f"refine: {label}{' (stored)' if stored else ''}", file=sys.stderr, flush=True
                 )
@@ -175,6 +183,55 @@ def refine_many(
         if store is not None:
             store.close()
     return refined, lines, summaries
+
+
+def _refine_task(
+    handle: WorkerSolver[TrajOptSolver], first: TrajOptResult, budget: RefinementBudget
+) -> Refined:
+    """Worker task: refine one plan on the worker's solver."""
+    return refine(handle.get(), first=first, budget=budget)
+
+
+def _refine_in_workers(
+    solver: TrajOptSolver,
+    todo: dict[str, tuple[str, TrajOptResult]],
+    args: argparse.Namespace,
+    budget: RefinementBudget,
+    store: SweepStore[Refined] | None,
+    quiet: bool,
+) -> dict[str, Refined]:
+    """Refine the plans ``todo`` (by store key: label, grid plan) in local worker processes.
+
+    Only when the sweep ran in local worker processes (``--workers`` not 0, no
+    Dask scheduler) and more than one plan is to be refined; each plan is
+    stored as it comes back. A plan whose worker failed is left out (refined
+    in this process afterwards, as without workers).
+    """
+    if len(todo) < 2 or getattr(args, "workers", 0) == 0 or scheduler_address(args):
+        return {}
+    handle = worker_solver(solver, keep=process_context().get_start_method() == "fork")
+    made: dict[str, Refined] = {}
+
+    def keep(outcome: TaskOutcome) -> None:
+        if outcome.ok:
+            label, refined = todo[outcome.key][0], outcome.value
+            made[outcome.key] = refined
+            if store is not None:  # kept at once: a kill loses only the plans in progress
+                store.write_done(outcome.key, refined, _journal_summary(label, refined))
+            if not quiet:
+                print(f"refine: {label}", file=sys.stderr, flush=True)
+
+    run_tasks(
+        [Task(key=k, fn=_refine_task, args=(handle, x, budget)) for k, (_, x) in todo.items()],
+        executor="process",
+        workers=min(args.workers or default_workers(), len(todo)),
+        initializer=hold_solver,
+        initargs=(handle,),
+        max_attempts=1,
+        on_outcome=keep,
+        keep_values=False,
+    )
+    return made
 
 
 def _journal_summary(label: str, done: Refined) -> JSONDict:
