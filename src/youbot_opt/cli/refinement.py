@@ -117,9 +117,11 @@ def refine_many(
     folder : Path, optional
         The run folder: each refined plan is stored in ``folder/refined`` as it
         is made (keyed by the item's key, its grid plan and the budget), and a
-        stored one is reused, after the loader's check and the certificate at
-        the budget's tolerances (:func:`youbot_opt.trajopt.sweep_store.open_refined`); one
-        that fails them is refined again (said on stderr). None: nothing stored.
+        stored one is reused after the loader's check, the certificate at the
+        budget's tolerances and
+        :func:`~youbot_opt.trajopt.sweep_store.check_refined`; one that fails
+        them is refined again (said on stderr). None: nothing stored. With
+        worker processes (``--workers`` not 0) the plans are refined in a pool.
 
     Returns
     -------
