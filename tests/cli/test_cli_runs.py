@@ -167,6 +167,8 @@ def test_multistart_folder_resumes(capsys: pytest.CaptureFixture[str], tmp_path:
     again = json.loads(capsys.readouterr().out)
     assert again["resumed"] == 2
     assert again["best"]["objective"] == summary["best"]["objective"]
+    assert [r["stored"] for r in again["refinement"]] == [True]  # the refined plan: kept
+    assert again["plan"] == summary["plan"]
 
 
 def test_multistart_exits_1_when_the_plan_is_not_certified(

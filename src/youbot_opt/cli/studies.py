@@ -38,7 +38,7 @@ from youbot_opt.cli.output import (
     write_summary,
 )
 from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
-from youbot_opt.cli.refinement import refine_many, refinement_figures
+from youbot_opt.cli.refinement import REFINED, refine_many, refinement_figures
 from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
@@ -47,7 +47,7 @@ from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.trajopt.bound_scaling import bound_scaling_study
 from youbot_opt.trajopt.io import save_result
 from youbot_opt.trajopt.multistart import run_multistart
-from youbot_opt.trajopt.pareto import pareto_sweep
+from youbot_opt.trajopt.pareto import pareto_sweep, point_key
 from youbot_opt.trajopt.refine import Refinement
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
@@ -188,9 +188,11 @@ def _emit(
 ) -> None:
     """Write summary.json, print the table (or the JSON) and where the outputs are."""
     written = [f for f in files if f is not None]
+    stores = [*_STORE, *([REFINED] if (folder / REFINED).is_dir() else [])]
     summary["output_folder"] = str(folder.resolve())
-    summary["files"] = [f.name for f in written] + [_STORE[0], f"{_STORE[1]}/", "summary.json"]
-    written += [folder / name for name in _STORE] + [write_summary(folder, summary)]
+    folders = [f"{name}/" for name in stores[1:]]
+    summary["files"] = [f.name for f in written] + [_STORE[0], *folders, "summary.json"]
+    written += [folder / name for name in stores] + [write_summary(folder, summary)]
     if args.json:
         print(json.dumps(json_ready(summary), indent=1, default=str))
     else:
@@ -236,10 +238,15 @@ def multistart(args: argparse.Namespace) -> int:
     for s in itertools.islice(failed, 10):
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
     summary = res.summary(args.obj_tol, args.traj_tol)
-    best = [("best start", res.best.result)] if res.best is not None and res.best.result else []
-    refined, lines, summary["refinement"] = refine_many(solver, best, args, args.quiet or args.json)
+    best = (
+        [("best start", res.best.key, res.best.result)]
+        if res.best is not None and res.best.result
+        else []
+    )
+    quiet = args.quiet or args.json
+    refined, lines, summary["refinement"] = refine_many(solver, best, args, quiet, folder)
     table += lines
-    files: list[Path | None] = refinement_figures(folder, refined, [label for label, _ in best])
+    files: list[Path | None] = refinement_figures(folder, refined, [label for label, *_ in best])
     if res.best is not None and res.best.result is not None:
         plan, record = refined[0] if refined else (res.best.result, None)  # --no-refine: grid's
         summary["plan"] = {**plan.summary(), "certified": record is not None and record.certified}
@@ -275,14 +282,15 @@ def pareto(args: argparse.Namespace) -> int:
 
     table = pareto_table(front)  # distinct points counted, W with its unit
     best = [p for p in front.nondominated() if p.result is not None]
-    items = [(f"beta = {p.beta:g}", p.result) for p in best if p.result is not None]
-    plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
+    keys = {id(p): point_key(k) for k, p in enumerate(front.points)}  # the store's, by point
+    items = [(f"beta = {p.beta:g}", keys[id(p)], p.result) for p in best if p.result is not None]
+    plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json, folder)
     table += lines
-    files: list[Path | None] = refinement_figures(folder, plans, [label for label, _ in items])
+    files: list[Path | None] = refinement_figures(folder, plans, [label for label, *_ in items])
     if best:
         picks = sorted({round(i * (len(best) - 1) / 4) for i in range(5)})  # ends + 3 between
         picks.sort(key=lambda i: best[i].beta)
-        grid = [x for _, x in items]  # the grid's plans (--no-refine), else the refined ones
+        grid = [x for *_, x in items]  # the grid's plans (--no-refine), else the refined ones
         shown = [([p for p, _ in plans] or grid)[i] for i in picks]
         labels = [
             f"beta = {best[i].beta:g}: T = {x.duration:.3f} s, W = {x.work:.4g}"
@@ -328,17 +336,19 @@ def bounds(args: argparse.Namespace) -> int:
         )
     files: list[Path | None] = []
     solved = [
-        (r, r.best.result) for r in res.rows if r.best is not None and r.best.result is not None
+        (r, r.best.key, r.best.result)
+        for r in res.rows
+        if r.best is not None and r.best.result is not None
     ]
-    items = [(f"scale {r.bound_scale:.3f}", x) for r, x in solved]
-    plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json)
+    items = [(f"scale {r.bound_scale:.3f}", key, x) for r, key, x in solved]
+    plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json, folder)
     table += lines
-    files += refinement_figures(folder, plans, [label for label, _ in items])
+    files += refinement_figures(folder, plans, [label for label, *_ in items])
     if solved:
-        shown = [p for p, _ in plans] or [x for _, x in solved]  # --no-refine: the grid's
+        shown = [p for p, _ in plans] or [x for *_, x in solved]  # --no-refine: the grid's
         labels = [
             f"{r.bound_scale:.0%} bounds: f = {x.objective:.5g}"
-            for (r, _), x in zip(solved, shown, strict=True)
+            for (r, *_), x in zip(solved, shown, strict=True)
         ]
         files += [
             draw_figure(folder, "bound_scaling.png", plot_bound_scaling, res),

@@ -36,7 +36,14 @@ from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.sweep import check_solver, worker_solver
 from youbot_opt.trajopt.sweep_store import result_codec, sweep_params
 
-__all__ = ["ParetoPoint", "ParetoFront", "pareto_sweep", "dominated_mask", "DEFAULT_BETAS"]
+__all__ = [
+    "ParetoPoint",
+    "ParetoFront",
+    "pareto_sweep",
+    "dominated_mask",
+    "point_key",
+    "DEFAULT_BETAS",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -198,6 +205,11 @@ class ParetoFront:
             "wall_time_s": self.wall_time,
             "points": [p.summary() for p in self.points],
         }
+
+
+def point_key(k: int) -> str:
+    """Return the sweep store's key of the ``k``-th weight's point (from 0): ``point_<kkk>``."""
+    return f"point_{k:03d}"
 
 
 def _point(beta: float, result: TrajOptResult, start: str, solve_time: float) -> ParetoPoint:
@@ -397,7 +409,7 @@ def pareto_sweep(
     with contextlib.ExitStack() as stack:
         pool: WorkerPool | None = None
         for k, beta in enumerate(values):
-            key = f"point_{k:03d}"
+            key = point_key(k)
             again, attempts = (True, 0) if store is None else store.needs_work(key, max_attempts)
             if not again and store is not None and not _loadable(store, key):
                 again, attempts = True, 0  # refused (warned): another sweep's, or torn
@@ -477,12 +489,7 @@ def _point_making(
 ) -> dict[str, float | int | None]:
     """Return what makes the point of ``key`` (``point_<k>``): its beta and bound scale."""
     rest = key.removeprefix("point_")
-    if (
-        key == rest
-        or not rest.isdigit()
-        or int(rest) >= len(betas)
-        or key != f"point_{int(rest):03d}"
-    ):
+    if key == rest or not rest.isdigit() or int(rest) >= len(betas) or key != point_key(int(rest)):
         raise KeyError(key)
     return {"beta": betas[int(rest)], "bound_scale": bound_scale}
 

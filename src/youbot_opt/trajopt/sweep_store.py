@@ -4,7 +4,9 @@ Owns :func:`result_codec` (the :class:`~youbot_opt.sweeps.store.Codec` of a
 sweep whose payloads are :mod:`youbot_opt.trajopt.io` result files) and what its
 manifest records: :func:`sweep_params` (problem, method, backend, options) with the robot
 named by :func:`robot_identity`, the SHA-256 of its URDF's content, so a store
-resumes wherever the output folder, the URDF or the package now lie.
+resumes wherever the output folder, the URDF or the package now lie; and
+:func:`open_refined`, the store of a study's refined plans (:func:`refined_key`,
+:func:`check_refined`; docs/refinement.md, "Stored refined plans").
 
     params = {**sweep_params(solver), "seed": 0}
     store = open_store("runs/ms", "multistart", params, result_codec(solver))
@@ -12,26 +14,41 @@ resumes wherever the output folder, the URDF or the package now lie.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
+import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from youbot_opt._files import MIGRATION_SCRIPT
+import numpy as np
+
+from youbot_opt._files import MIGRATION_SCRIPT, array_digest, json_digest
+from youbot_opt.collision.clearance import clearance_checker, clearance_document
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.source import urdf_digest
-from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec
+from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec, SweepStore, open_store
+from youbot_opt.trajopt.certify import Tolerances
+from youbot_opt.trajopt.clearance import certify_plan_clearance
+from youbot_opt.trajopt.mesh_error import collocation_error
 from youbot_opt.trajopt.optimality import first_order
+from youbot_opt.trajopt.refine import Refined, RefinementBudget
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 __all__ = [
     "ItemMaking",
+    "budget_digest",
     "check_item",
+    "check_refined",
     "jobs_making",
+    "open_refined",
+    "plan_digest",
+    "refined_codec",
+    "refined_key",
     "result_codec",
     "robot_identity",
     "sweep_params",
@@ -196,3 +213,197 @@ def sweep_params(solver: TrajOptSolver) -> dict[str, Any]:
         "backend": solver.backend,
         "options": solver.options.to_dict(),
     }
+
+
+# ------------------------------------------------------ a study's refined plans
+_ITEM_CHARS = 60  # of the sweep key in a refined key (a store key holds at most 100)
+
+
+def plan_digest(result: TrajOptResult) -> str:
+    """SHA-256 (hex) of a plan: transcription, beta, bound scale, grid and every variable.
+
+    A plan saved and loaded again (:mod:`youbot_opt.trajopt.io`) has the same digest.
+    """
+    return json_digest(
+        {
+            "method": result.method,
+            "beta": float(result.beta),
+            "bound_scale": float(result.bound_scale),
+            "seed": result.seed,
+            "n_knots": result.problem.n_knots,
+            "grid": None if result.grid is None else array_digest(np.asarray(result.grid, float)),
+            "variables": {
+                name: [array_digest(np.asarray(v, dtype=float)), list(np.shape(v))]
+                for name, v in sorted(result.variables.items())
+            },
+        }
+    )
+
+
+def budget_digest(budget: RefinementBudget) -> str:
+    """SHA-256 (hex) of every field of a :class:`RefinementBudget` (its tolerances too)."""
+    body = {f.name: getattr(budget, f.name) for f in dataclasses.fields(budget)}
+    tol = budget.tolerances
+    body["tolerances"] = None if tol is None else dataclasses.asdict(tol)
+    return json_digest(body)
+
+
+def refined_key(item: str, grid: TrajOptResult, budget: RefinementBudget) -> str:
+    """Return the store key of ``grid`` (item ``item`` of a sweep) refined with ``budget``.
+
+    ``<item>.<16 hex of plan_digest(grid)>.<12 hex of budget_digest(budget)>``; the
+    item's key is cut to 60 characters (the digest of its plan tells items apart).
+    """
+    return f"{item[:_ITEM_CHARS]}.{plan_digest(grid)[:16]}.{budget_digest(budget)[:12]}"
+
+
+def _refined_problem(result: TrajOptResult, folder: Path) -> dict[str, object]:
+    """Return the problem's description but its grid size, with its clearance."""
+    desc = result.problem.describe()
+    for name in ("urdf_path", "n_knots"):
+        desc.pop(name, None)
+    spec = result.problem.clearance
+    desc["clearance"] = None if spec is None else clearance_document(spec, folder)
+    return desc
+
+
+def check_refined(
+    grids: Mapping[str, TrajOptResult],
+    budget: RefinementBudget,
+    folder: Path,
+    key: str,
+    refined: Refined,
+) -> str | None:
+    """Why ``refined``, read back as ``key``, is not the refinement of that grid plan (None: it is).
+
+    ``refined`` comes from :func:`~youbot_opt.trajopt.io.load_refined` (the
+    independent check and the certificate already re-run); refused when the
+    loaded plan fails its check, when its saved certificate claim fails at the
+    caller's tolerances, when its budget is not ``budget``, when it is stored
+    as certified but its collocation error exceeds ``budget.tolerance`` or
+    (with a clearance) its clearance between the knots fails, or when it is not a
+    refinement of ``grids[key]``: robot, transcription, problem (boundary
+    states, bounds, clearance: all but the grid's size), beta, bound scale,
+    seed, round 0 on the grid plan's knots and objective, and its objective
+    re-evaluated at its beta (relative :data:`OBJECTIVE_RTOL`).
+    """
+    grid = grids.get(key)
+    if grid is None:
+        return f"{key!r} is no refined plan of this study"
+    result, record = refined
+    if not result.success:
+        return f"the stored plan fails its check on load ({result.status.value})"
+    if record.certificate is not None and not record.certified:
+        return f"its certificate fails on load ({record.reason})"
+    if record.budget != budget:
+        return f"refined with another budget ({record.budget.describe()})"
+    if record.certified:  # the rest of the verdict: the collocation error, the clearance
+        why = _certified_on_load(result, budget)
+        if why:
+            return why
+    if result.problem.robot is not grid.problem.robot:
+        return "another robot"
+    if result.method != grid.method:
+        return f"transcription {result.method!r}, the grid plan's is {grid.method!r}"
+    mine, theirs = _refined_problem(grid, folder), _refined_problem(result, folder)
+    if mine != theirs:
+        fields = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
+        return f"its problem differs in {', '.join(fields)}"
+    for name in ("beta", "bound_scale", "seed"):
+        if getattr(result, name) != getattr(grid, name):
+            return f"{name} = {getattr(result, name)!r}, the grid plan's is {getattr(grid, name)!r}"
+    first = record.rounds[0] if record.rounds else None
+    if first is None or (first.n_knots, first.objective) != (grid.problem.n_knots, grid.objective):
+        return "its first round is not the grid plan"
+    value = result.beta * result.duration + (1.0 - result.beta) * result.work
+    if not (
+        math.isfinite(value)
+        and abs(result.objective - value) <= OBJECTIVE_RTOL * max(1.0, abs(value))
+    ):
+        return f"objective {result.objective:.9g}, but its trajectory gives {value:.9g}"
+    return None
+
+
+def _certified_on_load(result: TrajOptResult, budget: RefinementBudget) -> str:
+    """Why a plan stored as certified is not, besides its certificate ("": it is).
+
+    As :func:`~youbot_opt.trajopt.refine.refine` decides it: every interval's
+    collocation error within ``budget.tolerance`` and, with a clearance, the
+    exact clearance between the knots (the loader checks it at the knots).
+    """
+    error = collocation_error(result)
+    if not error.max <= budget.tolerance:
+        return f"stored as certified, but its max error is {error.max:.3g} > {budget.tolerance:g}"
+    spec = result.problem.clearance
+    if spec is not None and result.trajectory is not None:
+        robot = result.problem.robot
+        checker = clearance_checker(robot, spec)
+        clear = certify_plan_clearance(result.trajectory, robot, checker, margin=spec.margin)
+        if not clear.certified:
+            return "stored as certified, but its clearance between the knots fails"
+    return ""
+
+
+def _save(refined: Refined, path: Path) -> Path:
+    """Write a refined plan; a write the system refuses raises its ``OSError`` (as the store's)."""
+    from youbot_opt.trajopt.io import save_result
+
+    try:
+        return save_result(refined.result, path, refinement=refined.refinement)
+    except ResultFileError as exc:
+        if isinstance(exc.__cause__, OSError):  # full disk, read-only folder: the path, the fix
+            raise exc.__cause__ from None
+        raise
+
+
+def refined_codec(
+    solver: TrajOptSolver,
+    grids: Mapping[str, TrajOptResult],
+    budget: RefinementBudget,
+    folder: Path,
+) -> Codec[Refined]:
+    """Return how refined plans are stored: result files with their refinement record.
+
+    Read back by :func:`~youbot_opt.trajopt.io.load_refined` on the solver's
+    robot, certified again at ``budget.tolerances`` (the certificate's defaults
+    when None), then :func:`check_refined` against ``grids`` (by store key).
+    """
+    from youbot_opt.trajopt.io import load_refined
+
+    tolerances = budget.tolerances or Tolerances()
+    return Codec(
+        save=_save,
+        load=functools.partial(load_refined, robot=solver.problem.robot, tolerances=tolerances),
+        suffix=".npz",
+        check=functools.partial(check_refined, dict(grids), budget, folder),
+    )
+
+
+def open_refined(
+    out: str | os.PathLike[str],
+    solver: TrajOptSolver,
+    grids: Mapping[str, TrajOptResult],
+    budget: RefinementBudget,
+) -> SweepStore[Refined]:
+    """Open (or create) the store of a study's refined plans in ``out``.
+
+    Parameters
+    ----------
+    out : path-like
+        Its folder (``refined/`` of the run folder).
+    solver : TrajOptSolver
+        The study's solver (the grid plans' problem; its :func:`sweep_params`
+        are the store's parameters).
+    grids : mapping of str to TrajOptResult
+        The grid plans to refine, by :func:`refined_key`.
+    budget : RefinementBudget
+        The refinement budget (part of every key).
+
+    Raises
+    ------
+    ParameterError
+        If ``out`` holds the refined plans of another problem.
+    """
+    folder = Path(out)
+    codec = refined_codec(solver, grids, budget, folder)
+    return open_store(folder, "refined", sweep_params(solver), codec)
