@@ -161,6 +161,13 @@ def test_refinement_removes_a_clip_between_knots(free: TrajOptProblem) -> None:
     assert refined.result.trajectory is not None
     cert = certify_plan_clearance(refined.result.trajectory, problem.robot, checker)
     assert cert.certified and cert.lower_bound >= -cert.tolerance
+    # from a plan solved beforehand (the command line's way): the rounds' solvers check
+    # the plan's own ends with coal too (a finer grid's solver shares the coal checker)
+    again = refine(solver, first=knots_only, budget=RefinementBudget(certify=False))
+    assert again.refinement.certified, again.refinement.reason
+    assert [r.n_knots for r in again.refinement.rounds] == [
+        r.n_knots for r in refined.refinement.rounds
+    ]
 
 
 def test_ball_overshoot_at_the_start_refused(free: TrajOptProblem) -> None:

@@ -280,7 +280,7 @@ class TrajOptSolver:
             new.options = dataclasses.replace(self.options, max_wall_time=cap)
         new.feasibility_tol, new.compiled = self.feasibility_tol, self.compiled
         new._exact_hessian, new._kernels = self._exact_hessian, self._kernels
-        new._paths = self._paths
+        new._paths, new._checker = self._paths, self._checker  # the same coal solids
         new._build(tic)
         return new
 
