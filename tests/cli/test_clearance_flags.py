@@ -76,3 +76,21 @@ def test_solve_summary_names_closest_pair(tmp_path) -> None:
     commands = [umsgpack.unpackb(base64.b64decode(c)) for c in json.loads(blob.group(1))]
     drawn = {c["path"] for c in commands if c["type"] == "set_object"}
     assert any(path.endswith("/obstacles/ball") for path in drawn)  # the scene is replayed
+
+
+def test_solve_with_a_scene_refines_its_plan(tmp_path) -> None:
+    """Refinement (on by default) of a plan with a scene runs its rounds and certifies.
+
+    Before b151fac the finer grids' solvers lacked the coal checker that the plan's ends
+    are checked with, and the command ended in an AttributeError.
+    """
+    scene = Scene((Obstacle(name="ball", shape=Sphere(radius=0.03), xyz=(0.184, 0.0, 0.6745)),))
+    save_scene(scene, tmp_path / "scene.json")
+    out = tmp_path / "run"
+    argv = ["solve", "--knots", "12", "--scene", str(tmp_path / "scene.json"), "--margin", "0.01"]
+    argv += ["--no-self-collision", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    refinement = summary["refinement"]
+    assert refinement["certified"] is True, refinement
+    assert summary["clearance"]["closest_m"] >= 0.01 - 1e-6
