@@ -206,10 +206,7 @@ def test_refine_through_waypoints_says_why_it_cannot_certify():
     Hermite-Simpson's quadratic torque through 150, 150, -150 N m peaks 25 % over
     the bound however short the interval, so splitting cannot certify it: the
     record says which check failed, round by round, and the waypoints stay hit.
-    (IPOPT's default relaxes the 150 N m bounds by 1.5e-6 > the 1e-6 feasibility
-    tolerance: honor_original_bounds puts the solution back inside them.)
     """
-    from youbot_opt.nlp.ipopt import IpoptOptions
     from youbot_opt.robot.load import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
@@ -217,8 +214,7 @@ def test_refine_through_waypoints_says_why_it_cannot_certify():
     state = BoundaryState(q=start)
     problem = TrajOptProblem(robot=load_model("ur5"), start=state, goal=state)
     w = Waypoints(q=[start, [0.8, -0.6, 0.4, -1.2, -0.3, 0.5]], closed=True)
-    options = IpoptOptions(extra={"honor_original_bounds": "yes"})
-    solver = TimedSolver(problem, w, options=options)
+    solver = TimedSolver(problem, w)
     refined = solver.refine(beta=1.0, budget=RefinementBudget(max_rounds=2))
     record = refined.refinement
     assert refined.success and not refined.certified

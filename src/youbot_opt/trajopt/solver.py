@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, cast
 
 import casadi as ca
@@ -28,7 +29,13 @@ from youbot_opt.dynamics.base import Dynamics
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
-from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
+from youbot_opt.nlp.ipopt import (
+    IpoptOptions,
+    IpoptValue,
+    bound_relaxation,
+    check_linear_solver,
+    single_threaded_blas,
+)
 from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, resolve_guess
 from youbot_opt.trajopt.objectives import work as work_of
@@ -233,9 +240,10 @@ class TrajOptSolver:
             "trajopt_iterates", self.nlp.n_variables, self.nlp.n_constraints, self.nlp.p.numel()
         )
         single_threaded_blas()
-        # IPOPT instances are created on first use: a refinement round only warm-starts
-        self._cold_solver: Any = None
-        self._warm_solver: Any = None
+        # IPOPT instances are created on first use (a refinement round only warm-starts),
+        # one per bound relaxation (nlp.ipopt.bound_relaxation: None for IPOPT's default)
+        self._cold_solvers: dict[IpoptValue | None, Any] = {}
+        self._warm_solvers: dict[IpoptValue | None, Any] = {}
         self.build_time = time.perf_counter() - tic
         _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
 
@@ -283,16 +291,16 @@ class TrajOptSolver:
         new._build(tic)
         return new
 
-    @property
-    def _solver(self) -> Any:
-        """The cold-start IPOPT instance (built on first use)."""
-        if self._cold_solver is None:
-            opts = self.options.to_casadi(self._exact_hessian)
+    def _cold(self, relax: Mapping[str, IpoptValue]) -> Any:
+        """Return the cold-start IPOPT instance of a bound relaxation (built on first use)."""
+        key = relax.get("bound_relax_factor")
+        if key not in self._cold_solvers:
+            opts = self.options.to_casadi(self._exact_hessian, solver_settings=relax)
             opts["iteration_callback"] = self._recorder
-            self._cold_solver = ca.nlpsol(
+            self._cold_solvers[key] = ca.nlpsol(
                 "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
             )
-        return self._cold_solver
+        return self._cold_solvers[key]
 
     def _point_accelerations(self, q: Array, v: Array, tau: Array) -> Array:
         """Forward dynamics [rad/s^2] at knot-major points ``(q, v, tau)`` (the NLP's kernel)."""
@@ -369,21 +377,22 @@ class TrajOptSolver:
         warm = self._warm_start_point(guess) if warm_start else None
         if initial is not None:
             warm = self._initial_point(initial)
+        joint_bounds = problem.bounds(bound_scale)
+        lbx, ubx = nlp.variable_bounds(joint_bounds, dt_range)
+        lbg, ubg = nlp.constraint_bounds(start_state, goal_state, joint_bounds)
+        relax = bound_relaxation((lbx, ubx, lbg, ubg), self.feasibility_tol)
         if warm is not None:
             x0, lam_x0, lam_g0 = warm
-            solver = self._warm()
+            solver = self._warm(relax)
         else:
             values = self.method.knot_guess(guess_traj, problem.n_knots)
             if problem.duration is not None:
                 values["dt"] = np.array(dt_range[0])
             x0 = nlp.variables.pack(values)
             lam_x0, lam_g0 = np.zeros(nlp.n_variables), np.zeros(nlp.n_constraints)
-            solver = self._solver
+            solver = self._cold(relax)
         if not np.all(np.isfinite(x0)):
             raise ParameterError("the initial guess is not finite", name="guess")
-        joint_bounds = problem.bounds(bound_scale)
-        lbx, ubx = nlp.variable_bounds(joint_bounds, dt_range)
-        lbg, ubg = nlp.constraint_bounds(start_state, goal_state, joint_bounds)
 
         self._recorder.reset((lbx, ubx, lbg, ubg), self.feasibility_tol)
         wall, cpu = time.perf_counter(), time.process_time()
@@ -463,20 +472,24 @@ class TrajOptSolver:
         )
         return best.x.copy(), best.lam_x.copy(), best.lam_g.copy(), note
 
-    def _warm(self) -> Any:
-        """Return the warm-start IPOPT instance (built once, sharing the derivative Functions)."""
-        if self._warm_solver is None:
-            opts = self.options.to_casadi(self._exact_hessian, warm_start=True)
+    def _warm(self, relax: Mapping[str, IpoptValue]) -> Any:
+        """Return the warm-start IPOPT instance of a bound relaxation (sharing derivatives)."""
+        key = relax.get("bound_relax_factor")
+        if key not in self._warm_solvers:
+            opts = self.options.to_casadi(
+                self._exact_hessian, warm_start=True, solver_settings=relax
+            )
             opts["iteration_callback"] = self._recorder
             if self._derivatives:
                 opts.update(self._derivatives)
             else:
+                cold = self._cold(relax)
                 for option, name in (("grad_f", "nlp_grad_f"), ("jac_g", "nlp_jac_g")):
-                    opts[option] = self._solver.get_function(name)
+                    opts[option] = cold.get_function(name)
                 if self._exact_hessian:
-                    opts["hess_lag"] = self._solver.get_function("nlp_hess_l")
-            self._warm_solver = ca.nlpsol("trajopt_warm", "ipopt", self._nlp_function, opts)
-        return self._warm_solver
+                    opts["hess_lag"] = cold.get_function("nlp_hess_l")
+            self._warm_solvers[key] = ca.nlpsol("trajopt_warm", "ipopt", self._nlp_function, opts)
+        return self._warm_solvers[key]
 
     def _warm_start_point(self, guess: Any) -> tuple[Array, Array, Array] | None:
         """Primal-dual start ``(x0, lam_x0, lam_g0)`` from a compatible previous result."""
