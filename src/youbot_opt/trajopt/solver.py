@@ -276,8 +276,39 @@ class TrajOptSolver:
         tic = time.perf_counter()
         method = self.method.with_fractions(fractions)
         assert method.fractions is not None  # with_fractions(array) always sets a grid
+        return self._derived(method, method.fractions.size + 1, max_wall_time, tic)
+
+    def with_method(self, method: str, *, max_wall_time: float | None = None) -> TrajOptSolver:
+        """Return a solver of the same problem, grid, options and dynamics with another scheme.
+
+        Shares this solver's dynamics and (compiled) derivative kernels: what
+        refinement does when Hermite-Simpson cannot pass the certificate
+        (:func:`~youbot_opt.trajopt.refine.refine`, ``fallback``).
+
+        Parameters
+        ----------
+        method : str
+            The transcription's name (``"trapezoidal"``, ``"hermite_simpson"``, ``"radau"``).
+        max_wall_time : float, optional
+            As :meth:`on_grid`.
+
+        Returns
+        -------
+        TrajOptSolver
+            A new solver on the same knots; this one is unchanged.
+        """
+        tic = time.perf_counter()
+        scheme = get_transcription(method)
+        fractions = self.method.fractions
+        scheme = scheme if fractions is None else scheme.with_fractions(fractions)
+        return self._derived(scheme, self.problem.n_knots, max_wall_time, tic)
+
+    def _derived(
+        self, method: Transcription, n_knots: int, max_wall_time: float | None, tic: float
+    ) -> TrajOptSolver:
+        """Return a solver of ``method`` on ``n_knots`` sharing this one's dynamics and kernels."""
         new = object.__new__(TrajOptSolver)
-        new.problem = dataclasses.replace(self.problem, n_knots=method.fractions.size + 1)
+        new.problem = dataclasses.replace(self.problem, n_knots=n_knots)
         new.method = method
         new.options, new.dynamics, new.backend = self.options, self.dynamics, self.backend
         if max_wall_time is not None:
