@@ -165,8 +165,8 @@ def scheme_change(record: Refinement) -> str:
     if not switched:
         return ""
     return (
-        f"{first} -> {switched[0].method} from round {switched[0].index} "
-        f"(a torque overshoot no {first} grid removes)"
+        f"{first} -> {switched[0].method} from round {switched[0].index} (a torque switches "
+        "between its bounds inside an interval: Hermite-Simpson overshoots it on any grid)"
     )
 
 
