@@ -720,6 +720,11 @@ def refine(
 ) -> Refined:
     """Solve, then refine the grid until the plan is certified or the budget runs out.
 
+    A Hermite-Simpson round whose torque overshoots between knots where no grid
+    can remove it (:func:`torque_overshoot`) is followed by the trapezoidal
+    scheme on the same knots (:data:`FALLBACK`, warm-started from that plan),
+    within the same budget, unless ``budget.fallback`` is False.
+
     Parameters
     ----------
     solver : TrajOptSolver

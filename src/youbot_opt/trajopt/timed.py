@@ -547,7 +547,8 @@ class TimedSolver:
         intervals (equal pieces, so the waypoint knots stay segment ends and
         each segment keeps its own step) and re-solves warm-started from the
         previous solution (primal, bound and defect multipliers, and the
-        waypoint rows' own).
+        waypoint rows' own). A Hermite-Simpson torque overshoot no grid removes
+        switches it to the trapezoidal scheme on the same segments (``budget.fallback``).
 
         Parameters
         ----------
