@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.nlp.ipopt import FAST_KKT, IpoptOptions
+from youbot_opt.nlp.ipopt import (
+    BOUND_RELAX_FACTOR,
+    FAST_KKT,
+    RELAX_SHARE,
+    IpoptOptions,
+    bound_relaxation,
+)
 
 
 def test_fast_kkt_settings_reach_ipopt_and_records() -> None:
@@ -26,6 +32,18 @@ def test_fast_kkt_settings_reach_ipopt_and_records() -> None:
         assert IpoptOptions(**options.to_dict()) == options
     with pytest.raises(ParameterError, match="fast_kkt must be True or False, got 'yes'"):
         IpoptOptions(fast_kkt="yes")  # type: ignore[arg-type]
+
+
+def test_bound_relaxation_stays_within_a_share_of_the_tolerance() -> None:
+    """IPOPT's default where its relaxation is small enough, else a factor that keeps it so."""
+    assert (BOUND_RELAX_FACTOR, RELAX_SHARE) == (1e-8, 0.1)
+    youbot = [np.array([-9.5, -2.0, 0.5]), np.array([9.5, np.inf, -np.inf])]
+    assert bound_relaxation(youbot, 1e-6) == {}  # 9.5e-8 <= 1e-7: the study unchanged
+    assert bound_relaxation([np.array([np.inf])], 1e-6) == {}  # |b| < 1 counts as 1
+    ur5 = bound_relaxation([np.array([-150.0, 3.15]), np.array([150.0])], 1e-6)
+    assert ur5["bound_relax_factor"] == pytest.approx(1e-7 / 150, rel=1e-15)
+    assert ur5["bound_relax_factor"] * 150.0 <= RELAX_SHARE * 1e-6
+    assert bound_relaxation(youbot, 1e-7)["bound_relax_factor"] == pytest.approx(1e-8 / 9.5)
 
 
 @pytest.mark.parametrize("method", ["trapezoidal", "hermite_simpson"])

@@ -282,6 +282,40 @@ def test_exhausted_budget_says_which_check_failed():
         RefinementBudget(max_rounds=0)
     with pytest.raises(ParameterError, match="safety"):
         RefinementBudget(safety=0.0)
+    with pytest.raises(ParameterError, match="fallback must be True or False, got 1"):
+        RefinementBudget(fallback=1)  # type: ignore[arg-type]
+
+
+def test_a_hermite_simpson_torque_overshoot_falls_back_to_the_trapezoid():
+    """UR5 point-to-point at beta = 1 on 10 Hermite-Simpson knots (docs/refinement.md).
+
+    A torque switches between its 150 N m bounds inside an interval: no
+    Hermite-Simpson grid passes the between-knots torque check (measured: 8
+    rounds to 74 knots, not certified). The default budget re-solves the same 10
+    knots with the trapezoid from that plan and splits on its error: certified
+    (measured 10 HS, 10 and 145 trapezoidal knots). Without the fallback the
+    reason names the scheme to use; a transcription that needs none keeps its own.
+    """
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+
+    q0 = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])
+    q1 = np.array([0.8, -0.6, 0.4, -1.2, -0.3, 0.5])
+    problem = TrajOptProblem(
+        robot=load_model("ur5"), start=BoundaryState(q=q0), goal=BoundaryState(q=q1), n_knots=10
+    )
+    solver = TrajOptSolver(problem, "hermite_simpson")
+    refined = refine(solver, beta=1.0)
+    rounds = refined.refinement.rounds
+    assert refined.certified, refined.refinement.reason
+    assert [r.method for r in rounds[:2]] == ["hermite_simpson", "trapezoidal"]
+    assert rounds[1].n_knots == rounds[0].n_knots == 10 and rounds[0].certificate_passed is False
+    assert refined.result.method == "trapezoidal" and refined.result.problem.n_knots > 10
+    np.testing.assert_allclose(refined.result.trajectory.q[[0, -1]], [q0, q1], atol=1e-6)
+    budget = RefinementBudget(max_rounds=1, fallback=False)
+    alone = refine(solver, first=solver.solve(beta=1.0), budget=budget)
+    assert not alone.certified and "--transcription trapezoidal" in alone.refinement.reason
+    assert [r.method for r in alone.refinement.rounds] == ["hermite_simpson"]
 
 
 def test_a_knot_budget_shrinks_the_split_before_it_stops():

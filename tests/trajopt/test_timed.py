@@ -200,33 +200,97 @@ def test_refine_through_waypoints_keeps_them_pinned(problem):
     assert first.refinement is None and not first.certified
 
 
-def test_refine_through_waypoints_says_why_it_cannot_certify():
-    """The UR5 closed cycle at beta = 1 (docs/timed.md): a torque switches bang-bang in an interval.
+UR5_START = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])  # [rad]
+UR5_OTHER = np.array([0.8, -0.6, 0.4, -1.2, -0.3, 0.5])  # [rad]
 
-    Hermite-Simpson's quadratic torque through 150, 150, -150 N m peaks 25 % over
-    the bound however short the interval, so splitting cannot certify it: the
-    record says which check failed, round by round, and the waypoints stay hit.
-    (IPOPT's default relaxes the 150 N m bounds by 1.5e-6 > the 1e-6 feasibility
-    tolerance: honor_original_bounds puts the solution back inside them.)
-    """
-    from youbot_opt.nlp.ipopt import IpoptOptions
+
+@pytest.fixture(scope="module")
+def ur5_cycle():
+    """The UR5 closed cycle of docs/timed.md at beta = 1: its solver and its 39-knot plan."""
     from youbot_opt.robot.load import load_model
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
 
-    start = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])
-    state = BoundaryState(q=start)
+    state = BoundaryState(q=UR5_START)
     problem = TrajOptProblem(robot=load_model("ur5"), start=state, goal=state)
-    w = Waypoints(q=[start, [0.8, -0.6, 0.4, -1.2, -0.3, 0.5]], closed=True)
-    options = IpoptOptions(extra={"honor_original_bounds": "yes"})
-    solver = TimedSolver(problem, w, options=options)
-    refined = solver.refine(beta=1.0, budget=RefinementBudget(max_rounds=2))
+    solver = TimedSolver(problem, Waypoints(q=[UR5_START, UR5_OTHER], closed=True))
+    first = solver.solve(beta=1.0)
+    assert first.success, first.result.message  # no false violation of the 150 N m bounds
+    return solver, first
+
+
+def _check_cycle(refined):
+    assert refined.waypoint_knots[0] == 0 and refined.waypoint_times[0] == 0.0
+    assert refined.waypoint_error <= refined.result.feasibility_tol
+    assert refined.result.variables["q"][-1] == pytest.approx(UR5_START, abs=1e-6)
+
+
+def test_refine_through_waypoints_says_why_it_cannot_certify(ur5_cycle):
+    """The UR5 closed cycle at beta = 1 (docs/timed.md): a torque switches bang-bang in an interval.
+
+    Hermite-Simpson's quadratic torque through 150, 150, -150 N m peaks 25 % over
+    the bound however short the interval, so splitting cannot certify it: without
+    the trapezoidal fallback the record says which check failed, round by round,
+    the next step names the trapezoidal scheme, and the waypoints stay hit.
+    """
+    from youbot_opt.cli.advice import next_step
+
+    solver, first = ur5_cycle
+    budget = RefinementBudget(max_rounds=2, fallback=False)
+    refined = solver.refine(first=first, budget=budget)
     record = refined.refinement
     assert refined.success and not refined.certified
     assert [r.certificate_passed for r in record.rounds] == [False, False]
+    assert [r.method for r in record.rounds] == ["hermite_simpson"] * 2
     assert record.rounds[1].n_knots > record.rounds[0].n_knots == 39
     assert "bound torque, between knots" in record.reason and "after 2 rounds" in record.reason
     assert "torque switches between its bounds inside an interval" in record.reason
-    assert "trapezoidal" in record.reason
-    assert refined.waypoint_knots[0] == 0 and refined.waypoint_times[0] == 0.0
-    assert refined.waypoint_error <= refined.result.feasibility_tol
-    assert refined.result.variables["q"][-1] == pytest.approx(start, abs=1e-6)
+    assert "trapezoidal" in record.reason and "no trapezoidal fallback" in record.reason
+    step = next_step(refined.result, record)
+    assert step.startswith("--transcription trapezoidal (joint ")
+    assert "% of the half range, up to 25 % on any grid)" in step
+    _check_cycle(refined)
+
+
+def test_refine_through_waypoints_falls_back_to_the_trapezoid(ur5_cycle):
+    """By default the overshoot switches the refinement to the trapezoid on the same knots.
+
+    Round 1 re-solves the 39-knot grid with the trapezoidal scheme from round
+    0's plan; its error then drives the splits (the segments and pinned
+    waypoints kept). Two rounds leave it uncertified on its error, and the next
+    step is more rounds (the trapezoid's error has not yet been split).
+    """
+    from youbot_opt.cli.advice import next_step
+    from youbot_opt.cli.refinement import refinement_table
+
+    solver, first = ur5_cycle
+    refined = solver.refine(first=first, budget=RefinementBudget(max_rounds=2))
+    record = refined.refinement
+    assert [r.method for r in record.rounds] == ["hermite_simpson", "trapezoidal"]
+    assert [r.n_knots for r in record.rounds] == [39, 39]
+    assert refined.success and not refined.certified
+    assert refined.result.method == "trapezoidal"
+    assert (
+        record.reason.startswith("not certified: max error ") and "after 2 rounds" in record.reason
+    )
+    assert "switches between its bounds" not in record.reason  # the trapezoid cannot overshoot
+    assert next_step(refined.result, record).startswith("--max-rounds 4")
+    table = "\n".join(refinement_table(refined.result, record))
+    assert "scheme        hermite_simpson -> trapezoidal from round 1" in table
+    assert [x["method"] for x in refined.summary()["refinement"]["rounds"]] == [
+        "hermite_simpson",
+        "trapezoidal",
+    ]
+    _check_cycle(refined)
+
+
+@pytest.mark.slow
+def test_refine_through_waypoints_certifies_the_ur5_cycle_with_the_fallback(ur5_cycle):
+    """The default budget certifies the cycle (measured 39 HS, 39, 444, 471 trapezoidal knots)."""
+    solver, first = ur5_cycle
+    refined = solver.refine(first=first)
+    record = refined.refinement
+    assert refined.certified, record.reason
+    assert record.rounds[0].method == "hermite_simpson"
+    assert {r.method for r in record.rounds[1:]} == {"trapezoidal"}
+    assert record.rounds[-1].certificate_passed and record.rounds[-1].max_error <= 1e-3
+    _check_cycle(refined)

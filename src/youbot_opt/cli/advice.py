@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from youbot_opt.dynamics.numeric import damping_rate
-from youbot_opt.trajopt.refine import Refinement
+from youbot_opt.trajopt.refine import Refinement, torque_overshoot
 from youbot_opt.trajopt.result import TrajOptResult
 
 __all__ = ["GRIPPER_WORDS", "UNRESOLVED_DAMPING", "gripper_note", "next_step"]
@@ -31,7 +31,10 @@ so the damped mode alternates from knot to knot instead of decaying."""
 def next_step(result: TrajOptResult, record: Refinement) -> str:
     """Name the next thing to try for a plan the refinement did not certify.
 
-    Chosen from what failed: a failed solve -> a multistart; a grid that does
+    Chosen from what failed: a failed solve -> a multistart; a Hermite-Simpson
+    torque overshoot no grid removes (:func:`~youbot_opt.trajopt.refine.overshoot_note`:
+    the refinement's trapezoidal fallback was off or had no round left) ->
+    ``--transcription trapezoidal``; a grid that does
     not resolve the joint damping (``damping_rate * h`` above
     :data:`UNRESOLVED_DAMPING`) or errors that did not fall, under a scheme
     that is not L-stable -> ``--transcription radau``; a budget that ran out
@@ -41,10 +44,19 @@ def next_step(result: TrajOptResult, record: Refinement) -> str:
     last = rounds[-1] if rounds else None
     if last is None or not result.success or result.trajectory is None:
         return "a multistart: --starts 8 (the solve failed; other starts may converge)"
+    over = torque_overshoot(result, record.certificate)
+    if over is not None:
+        return (
+            f"--transcription trapezoidal (joint {over.joint}'s torque switches between its "
+            f"bounds inside an interval, at t = {over.time:.4g} s: the Hermite-Simpson quadratic "
+            f"overshoots there, by {100 * over.relative:.3g} % of the half range, up to 25 % "
+            "on any grid)"
+        )
     traj = result.trajectory
     stiff = damping_rate(result.problem.robot, traj.q, damping=result.problem.damping)
     z = stiff.rate * float(np.max(np.diff(traj.t)))
-    errors = [r.max_error for r in rounds if math.isfinite(r.max_error)]
+    scheme = [r for r in rounds if r.method == last.method]  # the fallback's rounds only
+    errors = [r.max_error for r in scheme if math.isfinite(r.max_error)]
     falling = len(errors) < 2 or errors[-1] < 0.5 * errors[-2]
     if result.method != "radau" and (z > UNRESOLVED_DAMPING or not falling):
         why = (

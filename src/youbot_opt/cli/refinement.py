@@ -39,6 +39,7 @@ __all__ = [
     "refinement_budget",
     "refinement_figures",
     "refinement_table",
+    "scheme_change",
     "round_printer",
 ]
 
@@ -81,13 +82,17 @@ def refine_result(
 
 def round_printer(quiet: bool = False) -> Callable[[RefinementRound], None]:
     """Return the ``progress`` of a refinement: one line per round on stderr (none if ``quiet``)."""
+    methods: list[str] = []
 
     def progress(r: RefinementRound) -> None:
+        methods.append(r.method)
         if not quiet:
             verdict = {True: "passes", False: "fails", None: "not run"}[r.certificate_passed]
+            scheme = f", {r.method}" if r.method != methods[0] else ""  # the fallback's
             print(
                 f"refine: round {r.index}: {r.n_knots} knots, f = {r.objective:.6g}, "
-                f"T = {r.duration:.4g} s, max error {r.max_error:.3g}, certificate {verdict}",
+                f"T = {r.duration:.4g} s, max error {r.max_error:.3g}, certificate {verdict}"
+                f"{scheme}",
                 file=sys.stderr,
                 flush=True,
             )
@@ -294,6 +299,18 @@ def refinement_figures(
     ]
 
 
+def scheme_change(record: Refinement) -> str:
+    """Say when the refinement's trapezoidal fallback changed the scheme ("" when it did not)."""
+    first = record.rounds[0].method if record.rounds else ""
+    switched = [r for r in record.rounds if r.method != first]
+    if not switched:
+        return ""
+    return (
+        f"{first} -> {switched[0].method} from round {switched[0].index} (a torque switches "
+        "between its bounds inside an interval: Hermite-Simpson overshoots it on any grid)"
+    )
+
+
 def refinement_table(result: TrajOptResult, record: Refinement | None = None) -> list[str]:
     """Lines describing a result's grid and certification (its refinement ``record``)."""
     if record is None:
@@ -313,6 +330,8 @@ def refinement_table(result: TrajOptResult, record: Refinement | None = None) ->
             f"{r.max_error:>10.3g} {r.feedback_rms:>7.3f} {r.feedback_peak:>7.3f} "
             f"{verdict:>6} {r.solve_time + r.check_time:>8.3f}"
         )
+    if scheme_change(record):
+        lines.append(f"scheme        {scheme_change(record)}")
     if not record.certified:
         lines.append(f"next          {next_step(result, record)}")
     return lines

@@ -21,7 +21,12 @@ from youbot_opt._files import json_ready
 from youbot_opt._typing import JSONDict
 from youbot_opt.cli.flags import ipopt_options
 from youbot_opt.cli.output import open_folder, report_outputs, write_solve_outputs
-from youbot_opt.cli.refinement import refinement_budget, refinement_table, round_printer
+from youbot_opt.cli.refinement import (
+    refinement_budget,
+    refinement_table,
+    round_printer,
+    scheme_change,
+)
 from youbot_opt.cli.trajopt_text import certificate_of, format_result
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel
@@ -83,7 +88,8 @@ def timed_lines(
     else:
         why = record.reason.removeprefix("not certified: ")
         verdict = "certified" if record.certified else f"NOT certified: {why}"
-        lines.append(f"  refined      {len(record.rounds)} rounds, {verdict}")
+        change = f"; {scheme_change(record)}" if scheme_change(record) else ""
+        lines.append(f"  refined      {len(record.rounds)} rounds, {verdict}{change}")
     return lines
 
 

@@ -31,7 +31,7 @@ from youbot_opt.collision.exact import ExactChecker
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.trajopt.certify import Certificate, Tolerances, certify
+from youbot_opt.trajopt.certify import BoundCheck, Certificate, Tolerances, certify
 from youbot_opt.trajopt.clearance import certify_plan_clearance
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.quadrature import grid_weights
@@ -42,6 +42,7 @@ from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
     "ERROR_EXPONENTS",
+    "FALLBACK",
     "MOVED",
     "Refined",
     "Refinement",
@@ -55,6 +56,7 @@ __all__ = [
     "stiffness_note",
     "split_grid",
     "switching_intervals",
+    "torque_overshoot",
     "transfer_start",
 ]
 
@@ -94,6 +96,12 @@ class RefinementBudget:
     safety : float
         Intervals are split so that their predicted error is ``safety *
         tolerance`` (in (0, 1]; a margin for what the prediction misses): 1 by default.
+    fallback : bool
+        When a Hermite-Simpson round fails the certificate by a torque
+        overshoot no grid can remove (:func:`overshoot_note`), continue with the
+        trapezoidal scheme on the same grid, warm-started from that round's
+        plan, within the same budget (default); ``False`` keeps
+        Hermite-Simpson and ends uncertified, the reason naming the scheme to use.
     """
 
     tolerance: float = 1e-3
@@ -105,6 +113,7 @@ class RefinementBudget:
     certify_every_round: bool = True
     tolerances: Tolerances | None = None
     safety: float = 1.0
+    fallback: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tolerance", check_positive(self.tolerance, "tolerance"))
@@ -122,6 +131,10 @@ class RefinementBudget:
                 value=self.safety,
             )
         object.__setattr__(self, "safety", safety)
+        if not isinstance(self.fallback, bool):
+            raise ParameterError(
+                f"fallback must be True or False, got {self.fallback!r}", name="fallback"
+            )
 
     def describe(self) -> str:
         """One line: the tolerance and the limits."""
@@ -129,6 +142,7 @@ class RefinementBudget:
         return (
             f"error tolerance {self.tolerance:g}, at most {self.max_rounds} rounds, "
             f"{self.max_knots} knots, time limit {limit}"
+            + ("" if self.fallback else ", no trapezoidal fallback")
         )
 
 
@@ -165,6 +179,8 @@ class RefinementRound:
         Wall time [s] of the build and solve, and of the error estimate and certificate.
     objective_history : ndarray, shape (iterations + 1,)
         IPOPT's objective per iteration of the round's solve (iteration 0: its start).
+    method : str
+        The round's transcription (it changes once when the budget's ``fallback`` acts).
     """
 
     index: int
@@ -184,6 +200,7 @@ class RefinementRound:
     solve_time: float
     check_time: float
     objective_history: Array = field(default_factory=lambda: np.zeros(0), compare=False)
+    method: str = ""
 
     def summary(self) -> dict[str, object]:
         """JSON-ready figures of the round (arrays left out)."""
@@ -206,6 +223,7 @@ class RefinementRound:
             "iterations": self.iterations,
             "solve_time_s": self.solve_time,
             "check_time_s": self.check_time,
+            "method": self.method,
         }
 
 
@@ -379,6 +397,11 @@ def observed_exponents(
     return np.where(pieces > 1, seen, m_old)
 
 
+FALLBACK = "trapezoidal"
+"""The scheme :func:`refine` continues with when Hermite-Simpson cannot pass the
+certificate (:func:`overshoot_note`; ``RefinementBudget.fallback``): its torque is
+linear between knots and cannot overshoot."""
+
 MOVED = 0.01
 """Relative change of the duration ``T`` between two rounds above which the
 solution has moved: its features (bound switches, the fast transients of a
@@ -483,6 +506,25 @@ def stiffness_note(
     )
 
 
+def torque_overshoot(result: TrajOptResult, cert: Certificate | None) -> BoundCheck | None:
+    """Return the torque overshoot no grid removes from a Hermite-Simpson plan (None if none).
+
+    The certificate's first failed between-knots torque check, when the plan's
+    active bounds switch inside an interval: :func:`overshoot_note`'s case.
+    """
+    if cert is None or result.method != "hermite_simpson" or result.trajectory is None:
+        return None
+    limit = cert.tolerances.between_bound
+    over = [
+        b
+        for b in cert.bounds
+        if b.quantity == "torque" and b.where == "between" and not b.relative <= limit
+    ]
+    if not over or not np.any(switching_intervals(result)):
+        return None
+    return over[0]
+
+
 def overshoot_note(result: TrajOptResult, cert: Certificate | None) -> str:
     """Say why splitting cannot pass a Hermite-Simpson torque overshoot ("" if not the case).
 
@@ -494,17 +536,9 @@ def overshoot_note(result: TrajOptResult, cert: Certificate | None) -> str:
     the half range, whatever the grid. The trapezoidal scheme's torque is
     linear between knots and cannot overshoot (docs/timed.md measures both).
     """
-    if cert is None or result.method != "hermite_simpson" or result.trajectory is None:
+    b = torque_overshoot(result, cert)
+    if b is None:
         return ""
-    limit = cert.tolerances.between_bound
-    over = [
-        b
-        for b in cert.bounds
-        if b.quantity == "torque" and b.where == "between" and not b.relative <= limit
-    ]
-    if not over or not np.any(switching_intervals(result)):
-        return ""
-    b = over[0]
     return (
         f"; joint {b.joint}'s torque switches between its bounds inside an interval (worst at "
         f"t = {b.time:.4g} s): the Hermite-Simpson quadratic overshoots there by up to 25 % "
@@ -643,6 +677,7 @@ def _round(
         solve_time=solve_time,
         check_time=time.perf_counter() - tic,
         objective_history=np.asarray(result.objective_history, dtype=float),
+        method=result.method,
     )
     return record, error, cert, clear, tool
 
@@ -684,6 +719,11 @@ def refine(
     first: TrajOptResult | None = None,
 ) -> Refined:
     """Solve, then refine the grid until the plan is certified or the budget runs out.
+
+    A Hermite-Simpson round whose torque overshoots between knots where no grid
+    can remove it (:func:`torque_overshoot`) is followed by the trapezoidal
+    scheme on the same knots (:data:`FALLBACK`, warm-started from that plan),
+    within the same budget, unless ``budget.fallback`` is False.
 
     Parameters
     ----------
@@ -795,16 +835,22 @@ def refine(
             if cert is not None or clipped
             else "no time left for the certificate"
         )
-        errors = _clearance_errors(error, clear, budget.safety * tolerance, tool)
-        cap = budget.max_pieces
-        while True:  # a grid beyond max_knots: fewer pieces per interval first, then stop
-            fractions, parent = split_grid(
-                error.t, errors, budget.safety * tolerance, exponents, cap
-            )
-            if fractions.size + 1 <= budget.max_knots or cap == 2:
-                break
-            cap = max(2, cap // 2)
-        split = (error.relative, parent, result.duration)
+        overshoot = overshoot_note(result, cert)
+        switch = budget.fallback and bool(overshoot)
+        if switch:  # no grid passes Hermite-Simpson here: the trapezoid on the same knots
+            h = np.diff(error.t)
+            fractions, parent = h / h.sum(), np.arange(h.size, dtype=np.intp)
+        else:
+            errors = _clearance_errors(error, clear, budget.safety * tolerance, tool)
+            cap = budget.max_pieces
+            while True:  # a grid beyond max_knots: fewer pieces per interval first, then stop
+                fractions, parent = split_grid(
+                    error.t, errors, budget.safety * tolerance, exponents, cap
+                )
+                if fractions.size + 1 <= budget.max_knots or cap == 2:
+                    break
+                cap = max(2, cap // 2)
+        split = None if switch else (error.relative, parent, result.duration)
         n_new = fractions.size + 1
         elapsed = time.perf_counter() - tic
         if len(rounds) >= budget.max_rounds:
@@ -814,13 +860,18 @@ def refine(
         elif budget.time_limit is not None and elapsed >= budget.time_limit:
             reason = f"{why} after {elapsed:.3g} s"
         if reason:
-            note = stiffness_note(result, error, budget.tolerance, exponents)
-            note += overshoot_note(result, cert)
+            note = stiffness_note(result, error, budget.tolerance, exponents) + overshoot
             reason = f"not certified: {reason}{note} (budget: {budget.describe()})"
             break
         round_tic = tic + elapsed
         left = None if budget.time_limit is None else budget.time_limit - elapsed  # > 0 here
-        solver = solver.on_grid(fractions, max_wall_time=left)  # shares dynamics and kernels
+        if switch:
+            _log.info("refinement: %s; continuing with the trapezoidal scheme", overshoot[2:])
+            solver = solver.with_method(FALLBACK, max_wall_time=left)
+            exponent = ERROR_EXPONENTS[FALLBACK]
+            exponents, tolerance = float(exponent), budget.tolerance
+        else:
+            solver = solver.on_grid(fractions, max_wall_time=left)  # shares dynamics, kernels
         t_new = solver.method.solution_times(result.duration / (n_new - 1), n_new)
         try:
             initial = transfer_start(result, solver, parent, t_new)

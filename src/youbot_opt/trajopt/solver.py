@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, cast
 
 import casadi as ca
@@ -28,7 +29,13 @@ from youbot_opt.dynamics.base import Dynamics
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.best_iterate import BestIterateRecorder, Iterate, better, violation_of
-from youbot_opt.nlp.ipopt import IpoptOptions, check_linear_solver, single_threaded_blas
+from youbot_opt.nlp.ipopt import (
+    IpoptOptions,
+    IpoptValue,
+    bound_relaxation,
+    check_linear_solver,
+    single_threaded_blas,
+)
 from youbot_opt.trajopt.check import checked
 from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, resolve_guess
 from youbot_opt.trajopt.objectives import work as work_of
@@ -233,9 +240,10 @@ class TrajOptSolver:
             "trajopt_iterates", self.nlp.n_variables, self.nlp.n_constraints, self.nlp.p.numel()
         )
         single_threaded_blas()
-        # IPOPT instances are created on first use: a refinement round only warm-starts
-        self._cold_solver: Any = None
-        self._warm_solver: Any = None
+        # IPOPT instances are created on first use (a refinement round only warm-starts),
+        # one per bound relaxation (nlp.ipopt.bound_relaxation: None for IPOPT's default)
+        self._cold_solvers: dict[IpoptValue | None, Any] = {}
+        self._warm_solvers: dict[IpoptValue | None, Any] = {}
         self._first_order: tuple[ca.Function, ca.Function] | None = None
         self.build_time = time.perf_counter() - tic
         _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
@@ -269,8 +277,39 @@ class TrajOptSolver:
         tic = time.perf_counter()
         method = self.method.with_fractions(fractions)
         assert method.fractions is not None  # with_fractions(array) always sets a grid
+        return self._derived(method, method.fractions.size + 1, max_wall_time, tic)
+
+    def with_method(self, method: str, *, max_wall_time: float | None = None) -> TrajOptSolver:
+        """Return a solver of the same problem, grid, options and dynamics with another scheme.
+
+        Shares this solver's dynamics and (compiled) derivative kernels: what
+        refinement does when Hermite-Simpson cannot pass the certificate
+        (:func:`~youbot_opt.trajopt.refine.refine`, ``fallback``).
+
+        Parameters
+        ----------
+        method : str
+            The transcription's name (``"trapezoidal"``, ``"hermite_simpson"``, ``"radau"``).
+        max_wall_time : float, optional
+            As :meth:`on_grid`.
+
+        Returns
+        -------
+        TrajOptSolver
+            A new solver on the same knots; this one is unchanged.
+        """
+        tic = time.perf_counter()
+        scheme = get_transcription(method)
+        fractions = self.method.fractions
+        scheme = scheme if fractions is None else scheme.with_fractions(fractions)
+        return self._derived(scheme, self.problem.n_knots, max_wall_time, tic)
+
+    def _derived(
+        self, method: Transcription, n_knots: int, max_wall_time: float | None, tic: float
+    ) -> TrajOptSolver:
+        """Return a solver of ``method`` on ``n_knots`` sharing this one's dynamics and kernels."""
         new = object.__new__(TrajOptSolver)
-        new.problem = dataclasses.replace(self.problem, n_knots=method.fractions.size + 1)
+        new.problem = dataclasses.replace(self.problem, n_knots=n_knots)
         new.method = method
         new.options, new.dynamics, new.backend = self.options, self.dynamics, self.backend
         if max_wall_time is not None:
@@ -284,16 +323,16 @@ class TrajOptSolver:
         new._build(tic)
         return new
 
-    @property
-    def _solver(self) -> Any:
-        """The cold-start IPOPT instance (built on first use)."""
-        if self._cold_solver is None:
-            opts = self.options.to_casadi(self._exact_hessian)
+    def _cold(self, relax: Mapping[str, IpoptValue]) -> Any:
+        """Return the cold-start IPOPT instance of a bound relaxation (built on first use)."""
+        key = relax.get("bound_relax_factor")
+        if key not in self._cold_solvers:
+            opts = self.options.to_casadi(self._exact_hessian, solver_settings=relax)
             opts["iteration_callback"] = self._recorder
-            self._cold_solver = ca.nlpsol(
+            self._cold_solvers[key] = ca.nlpsol(
                 "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
             )
-        return self._cold_solver
+        return self._cold_solvers[key]
 
     def nlp_bounds(
         self,
@@ -412,19 +451,20 @@ class TrajOptSolver:
         warm = self._warm_start_point(guess) if warm_start else None
         if initial is not None:
             warm = self._initial_point(initial)
+        lbx, ubx, lbg, ubg = self.nlp_bounds(bound_scale, start_state, goal_state)
+        relax = bound_relaxation((lbx, ubx, lbg, ubg), self.feasibility_tol)
         if warm is not None:
             x0, lam_x0, lam_g0 = warm
-            solver = self._warm()
+            solver = self._warm(relax)
         else:
             values = self.method.knot_guess(guess_traj, problem.n_knots)
             if problem.duration is not None:
                 values["dt"] = np.array(dt_range[0])
             x0 = nlp.variables.pack(values)
             lam_x0, lam_g0 = np.zeros(nlp.n_variables), np.zeros(nlp.n_constraints)
-            solver = self._solver
+            solver = self._cold(relax)
         if not np.all(np.isfinite(x0)):
             raise ParameterError("the initial guess is not finite", name="guess")
-        lbx, ubx, lbg, ubg = self.nlp_bounds(bound_scale, start_state, goal_state)
 
         self._recorder.reset((lbx, ubx, lbg, ubg), self.feasibility_tol)
         wall, cpu = time.perf_counter(), time.process_time()
@@ -504,20 +544,24 @@ class TrajOptSolver:
         )
         return best.x.copy(), best.lam_x.copy(), best.lam_g.copy(), note
 
-    def _warm(self) -> Any:
-        """Return the warm-start IPOPT instance (built once, sharing the derivative Functions)."""
-        if self._warm_solver is None:
-            opts = self.options.to_casadi(self._exact_hessian, warm_start=True)
+    def _warm(self, relax: Mapping[str, IpoptValue]) -> Any:
+        """Return the warm-start IPOPT instance of a bound relaxation (sharing derivatives)."""
+        key = relax.get("bound_relax_factor")
+        if key not in self._warm_solvers:
+            opts = self.options.to_casadi(
+                self._exact_hessian, warm_start=True, solver_settings=relax
+            )
             opts["iteration_callback"] = self._recorder
             if self._derivatives:
                 opts.update(self._derivatives)
             else:
+                cold = self._cold(relax)
                 for option, name in (("grad_f", "nlp_grad_f"), ("jac_g", "nlp_jac_g")):
-                    opts[option] = self._solver.get_function(name)
+                    opts[option] = cold.get_function(name)
                 if self._exact_hessian:
-                    opts["hess_lag"] = self._solver.get_function("nlp_hess_l")
-            self._warm_solver = ca.nlpsol("trajopt_warm", "ipopt", self._nlp_function, opts)
-        return self._warm_solver
+                    opts["hess_lag"] = cold.get_function("nlp_hess_l")
+            self._warm_solvers[key] = ca.nlpsol("trajopt_warm", "ipopt", self._nlp_function, opts)
+        return self._warm_solvers[key]
 
     def _warm_start_point(self, guess: Any) -> tuple[Array, Array, Array] | None:
         """Primal-dual start ``(x0, lam_x0, lam_g0)`` from a compatible previous result."""

@@ -223,16 +223,27 @@ class _SegmentSolver(TrajOptSolver):
     def on_grid(self, fractions: Any, *, max_wall_time: float | None = None) -> TrajOptSolver:
         """Return the segmented NLP on a finer grid of the last solution (``split``)."""
         tic = time.perf_counter()
+        return self._copy(self.method.split(fractions, self._boundaries), max_wall_time, tic)
+
+    def with_method(self, method: str, *, max_wall_time: float | None = None) -> TrajOptSolver:
+        """Return the segmented NLP of another scheme on the same grid and segments."""
+        tic = time.perf_counter()
+        segments = self.method
+        cls = _SegmentedTrapezoidal if method == "trapezoidal" else _SegmentedHermiteSimpson
+        fractions = None if segments.uniform_segments else segments.fractions
+        return self._copy(cls(segments.counts, segments.pinned, fractions), max_wall_time, tic)
+
+    def _copy(self, method: _Segmented, max_wall_time: float | None, tic: float) -> TrajOptSolver:
         new = copy.copy(self)  # shares problem spec, options, dynamics and kernels
-        new.method = self.method.split(fractions, self._boundaries)
-        new.problem = dataclasses.replace(self.problem, n_knots=int(new.method.ends[-1]) + 1)
+        new.method = method
+        new.problem = dataclasses.replace(self.problem, n_knots=int(method.ends[-1]) + 1)
         if max_wall_time is not None:
             check_time_limit(max_wall_time, "max_wall_time")
             own = self.options.max_wall_time
             cap = float(max_wall_time) if own is None else min(own, float(max_wall_time))
             new.options = dataclasses.replace(self.options, max_wall_time=cap)
         new._build(tic)
-        self.grids[new.problem.n_knots] = new.method
+        self.grids[new.problem.n_knots] = method
         return new
 
     def _result(
@@ -536,7 +547,8 @@ class TimedSolver:
         intervals (equal pieces, so the waypoint knots stay segment ends and
         each segment keeps its own step) and re-solves warm-started from the
         previous solution (primal, bound and defect multipliers, and the
-        waypoint rows' own).
+        waypoint rows' own). A Hermite-Simpson torque overshoot no grid removes
+        switches it to the trapezoidal scheme on the same segments (``budget.fallback``).
 
         Parameters
         ----------
