@@ -533,14 +533,7 @@ def _run_3d(args: argparse.Namespace) -> int:
         args.method = "ipopt"
     robot = load_model(args.robot or "youbot", tip_frame=args.tip_frame, **loading_options(args))
     flush_warnings()  # the loader's warnings, grouped, before the run
-    clearance = clearance_of(args, robot)
-    if clearance is not None and args.method != "ipopt":
-        raise ParameterError(
-            f"--method {args.method} does not hold the clearance of --scene/--margin: use "
-            "--method ipopt (the default for 3-D targets)",
-            name="method",
-            value=args.method,
-        )
+    clearance = clearance_of(args, robot)  # held by both methods (docs/ikpath.md)
     problem = _problem_3d(args, robot, clearance)
     kind = _start_kind_3d(kind, problem, args.starts)
     frame = problem.frame

@@ -98,6 +98,9 @@ class IKClearance:
         then pair; each held at or above ``spec.margin``.
     jacobian : casadi.Function
         ``x`` -> ``d rows / d x`` (dense).
+    transposed_product : casadi.Function
+        ``(x, w)`` -> ``(d rows / d x)^T w`` (reverse mode, without the dense
+        Jacobian: the augmented Lagrangian's gradient).
     labels : tuple of str
         Per row: ``"leg j step k: a / b"``.
     """
@@ -109,6 +112,7 @@ class IKClearance:
     distance: ca.Function
     function: ca.Function
     jacobian: ca.Function
+    transposed_product: ca.Function
     labels: tuple[str, ...]
 
     @property
@@ -163,6 +167,7 @@ class IKClearance:
                 rows.append(0.5 * (ds[k] + ds[k + 1] - reach))
                 labels += [f"leg {j} step {k}: {a} / {b}" for a, b in names]
         g = ca.vertcat(*rows) if n_pairs else ca.SX(0, 1)
+        w = ca.SX.sym("w", g.shape[0])
         return IKClearance(
             spec=spec,
             checker=checker,
@@ -171,6 +176,9 @@ class IKClearance:
             distance=distance,
             function=ca.Function("ik_clearance", [x], [g], ["x"], ["rows"]),
             jacobian=ca.Function("ik_clearance_jac", [x], [ca.jacobian(g, x)], ["x"], ["jac"]),
+            transposed_product=ca.Function(
+                "ik_clearance_jtw", [x, w], [ca.jtimes(g, x, w, True)], ["x", "w"], ["jtw"]
+            ),
             labels=tuple(labels),
         )
 
@@ -181,6 +189,11 @@ class IKClearance:
     def rows_jacobian(self, x: Array) -> Array:
         """Return ``d rows / d x`` (dense, shape (n_rows, n s))."""
         return np.asarray(self.jacobian(np.asarray(x, dtype=float)), dtype=float)
+
+    def rows_jacobian_transposed(self, x: Array, w: Array) -> Array:
+        """Return ``(d rows / d x)^T w``, shape (n s,), for row weights ``w`` (n_rows,)."""
+        out = self.transposed_product(np.asarray(x, dtype=float), np.asarray(w, dtype=float))
+        return np.asarray(out, dtype=float).ravel()
 
 
 def require_path_clearance(problem: ClearedPath, x0: Array | None) -> None:

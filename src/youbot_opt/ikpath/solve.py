@@ -85,20 +85,23 @@ def check_targets(problem: CyclicIKProblem) -> tuple[ReachVerdict, ...]:
 def uses_planar_methods(problem: CyclicIKProblem, method: str, planar: bool | None) -> bool:
     """Whether ``problem`` goes to the planar methods (default: with a chain, no clearance).
 
+    A problem with a clearance goes to the general methods (IPOPT or the AL, both
+    hold the clearance rows, docs/ikpath.md "Clearance").
+
     Raises
     ------
     ParameterError
-        A problem with a clearance and the AL or the planar methods.
+        A problem with a clearance and ``planar=True``.
     """
     clear = problem.clearance_rows is not None
     use_planar = problem.chain is not None and not clear if planar is None else bool(planar)
-    if clear and (use_planar or method != "ipopt"):
+    if clear and use_planar:
         raise ParameterError(
-            "a problem with a clearance is solved by the general IPOPT method only "
-            "(method='ipopt', planar=False or unset); the augmented Lagrangian and the "
-            f"planar methods do not hold clearance rows (got method={method!r})",
-            name="method",
-            value=method,
+            "a problem with a clearance is solved by the general methods only (planar=False "
+            "or unset, method='ipopt' or 'al'); the planar methods do not hold clearance "
+            f"rows (got planar=True, method={method!r})",
+            name="planar",
+            value=planar,
         )
     return use_planar
 
