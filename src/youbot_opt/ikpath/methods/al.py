@@ -310,11 +310,11 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
         weight = (mu * c - lam).reshape(s, -1)  # d L_A / d c
         value = ev.objective - float(lam @ c) + 0.5 * mu * float(c @ c)
         grad = ev.gradient + np.einsum("jkn,jk->jn", ev.jacobian_blocks, weight).ravel()
-        if rows is not None:  # PHR term of the rows g = rows - margin >= 0
-            shift = np.maximum(nu - mu * _slack(rows, x), 0.0)
-            value += (float(shift @ shift) - float(nu @ nu)) / (2.0 * mu)
-            if np.any(shift):  # the Jacobian only where a row contributes
-                grad = grad - rows.rows_jacobian_transposed(x, shift)
+        if rows is not None:
+            term, term_grad = _clearance_term(rows, x, nu, mu)
+            value += term
+            if term_grad is not None:
+                grad = grad + term_grad
         return value, grad
 
     x = start.copy()
@@ -443,6 +443,25 @@ def _clearance_rows(problem: CyclicIKProblem) -> IKClearance | None:
     """Return the problem's clearance rows, or None (no clearance, or no pair to keep apart)."""
     rows = problem.clearance_rows
     return None if rows is None or not rows.labels else rows
+
+
+def _clearance_term(
+    rows: IKClearance, x: Array, nu: Array, mu: float
+) -> tuple[float, Array | None]:
+    """Powell-Hestenes-Rockafellar term of the clearance rows and its gradient (None: zero).
+
+    With ``g = rows(x) - margin >= 0`` and multipliers ``nu >= 0`` the term is
+    ``sum_i psi(g_i, nu_i, mu)``, ``psi = -nu g + mu/2 g^2`` where ``g <= nu/mu``,
+    else ``-nu^2 / (2 mu)`` (Nocedal and Wright, eq. 17.65), written as
+    ``(|max(0, nu - mu g)|^2 - |nu|^2) / (2 mu)``; its gradient is
+    ``-J_g^T max(0, nu - mu g)`` (reverse mode; not formed where every row is
+    inactive, ``max(0, nu - mu g) = 0``).
+    """
+    shift = np.maximum(nu - mu * _slack(rows, x), 0.0)
+    value = (float(shift @ shift) - float(nu @ nu)) / (2.0 * mu)
+    if not np.any(shift):
+        return value, None
+    return value, -rows.rows_jacobian_transposed(x, shift)
 
 
 def _slack(rows: IKClearance, x: Array) -> Array:
