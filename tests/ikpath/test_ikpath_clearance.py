@@ -204,3 +204,18 @@ def test_generated_starts_may_collide_a_users_may_not(arm: RobotModel) -> None:
     assert certificate is not None and certificate.certified
     with pytest.raises(ParameterError, match="general methods only"):
         run_multistart(problem, method="al", n_starts=2, starts="random", planar=True)
+
+
+def test_multistart_by_the_augmented_lagrangian(arm: RobotModel) -> None:
+    """``run_multistart(method="al")`` holds the rows; IPOPT from its best stays there."""
+    problem = _problem(arm, _disc(1.2, 0.0))
+    found = run_multistart(problem, method="al", n_starts=4, starts="random", seed=0)
+    assert found.method == "al" and not found.planar and found.best.success
+    x = found.best.configurations.ravel()
+    assert problem.clearance_rows is not None
+    assert np.min(problem.clearance_rows.rows(x)) >= MARGIN - 1e-10
+    certificate = certify_path_clearance(problem, x)
+    assert certificate is not None and certificate.certified
+    ipopt = solve(problem, method="ipopt", x0=found.best.configurations)
+    assert ipopt.status.name == "SOLVED", ipopt.message
+    assert ipopt.objective == pytest.approx(found.best.objective, abs=1e-8)

@@ -19,16 +19,15 @@ from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.ikpath.methods.al import (
-    AL_OPTIONS_3D,
     ALOptions,
-    run_augmented_lagrangian,
     solve_augmented_lagrangian,
+    solve_augmented_lagrangian_3d,
 )
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D, solve_ipopt, solve_ipopt_3d
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import require_reachable_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
-from youbot_opt.ikpath.result import IKPathResult, build_result
+from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.nlp.ipopt import IpoptOptions
 
 __all__ = ["Method", "METHODS", "solve", "check_targets"]
@@ -180,7 +179,4 @@ def solve(
         if options is None:
             return solve_ipopt_3d(problem, x0)
         return IpoptIKSolver3D(problem, options).solve(x0)  # type: ignore[arg-type]
-    opts = AL_OPTIONS_3D if options is None else options
-    start = problem.check_start(x0)
-    run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
-    return build_result(problem, **run.result_fields(start), inner_iterations=run.inner_iterations)
+    return solve_augmented_lagrangian_3d(problem, x0, options)  # type: ignore[arg-type]

@@ -1,12 +1,13 @@
 """The study's method: augmented Lagrangian with a quasi-Newton inner solver.
 
 Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
-(bound-constrained Lagrangian method) on ``E(x)`` with the ``2 s`` target
-constraints ``c(x) = 0`` and the joint box; the inner solver is
+(bound-constrained Lagrangian method) on ``E(x)`` with the target constraints
+``c(x) = 0``, the joint box and, with a clearance, the rows ``g(x) >= 0`` by
+Powell-Hestenes-Rockafellar terms; the inner solver is
 :func:`~youbot_opt.ikpath.methods.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
-``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
-in docs/design.md, "Module notes". 3-D problems switch on a safeguarded
-final phase of SQP steps (``ALOptions.newton_final``, docs/ikpath.md).
+``docs/ikpath.md``; the outer loop, the stopping test, the stall rules and the
+inequality rows in docs/design.md, "Module notes". 3-D problems without clearance
+switch on a final phase of SQP steps (``ALOptions.newton_final``).
 
 >>> result = solve_augmented_lagrangian(problem, x0, ALOptions())  # doctest: +SKIP
 """
@@ -44,6 +45,7 @@ __all__ = [
     "first_order_multipliers",
     "run_augmented_lagrangian",
     "solve_augmented_lagrangian",
+    "solve_augmented_lagrangian_3d",
 ]
 
 _log = logging.getLogger(__name__)
@@ -97,7 +99,8 @@ class ALOptions:
         the problem's ``lagrangian_hessian``. Off by
         default (the planar solver is the study's method as published); on for
         3-D problems, whose nearly singular pose Jacobians make the first-order
-        multiplier updates crawl (docs/ikpath.md).
+        multiplier updates crawl (docs/ikpath.md). Never tried on a problem with
+        clearance rows (its KKT system holds only the target rows).
     newton_violation : float
         ``max |c_i|`` in [m] at which the final phase is tried.
     """
@@ -187,6 +190,42 @@ def solve_augmented_lagrangian(
         inner_iterations=run.inner_iterations,
         constraint_tol=opts.constraint_tol,
     )
+
+
+def solve_augmented_lagrangian_3d(
+    problem: CyclicIKProblem,
+    x0: ArrayLike | None = None,
+    options: ALOptions | None = None,
+    *,
+    generated: bool = False,
+) -> IKPathResult:
+    """Solve by the augmented Lagrangian as a general method (any robot, any clearance).
+
+    What :func:`~youbot_opt.ikpath.solve.solve` does with ``method="al"`` on a
+    problem it does not give to the planar methods: :data:`AL_OPTIONS_3D` by
+    default, a result judged by the targets' own tolerances (no ``constraint_tol``).
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem (its clearance rows, if any, are held).
+    x0 : array_like, shape (n s,) or (s, n), optional
+        Start in [rad]; the zero vector (clipped into the limits) by default.
+    options : ALOptions, optional
+        Method settings (default :data:`AL_OPTIONS_3D`).
+    generated : bool
+        A start a multistart made: it may collide (a user's may not,
+        :meth:`CyclicIKProblem.check_start`).
+
+    Returns
+    -------
+    IKPathResult
+        ``method = "al"``; failures are statuses.
+    """
+    opts = AL_OPTIONS_3D if options is None else options
+    start = problem.check_start(x0, generated=generated)
+    run = run_augmented_lagrangian(problem, start, opts)
+    return build_result(problem, **run.result_fields(start), inner_iterations=run.inner_iterations)
 
 
 class ALRun(NamedTuple):
@@ -452,7 +491,7 @@ def _clearance_term(
 
     With ``g = rows(x) - margin >= 0`` and multipliers ``nu >= 0`` the term is
     ``sum_i psi(g_i, nu_i, mu)``, ``psi = -nu g + mu/2 g^2`` where ``g <= nu/mu``,
-    else ``-nu^2 / (2 mu)`` (Nocedal and Wright, eq. 17.65), written as
+    else ``-nu^2 / (2 mu)`` (Nocedal and Wright, sec. 17.4: the slacks eliminated), written as
     ``(|max(0, nu - mu g)|^2 - |nu|^2) / (2 mu)``; its gradient is
     ``-J_g^T max(0, nu - mu g)`` (reverse mode; not formed where every row is
     inactive, ``max(0, nu - mu g) = 0``).
