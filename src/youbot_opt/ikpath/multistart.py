@@ -456,7 +456,7 @@ def run_multistart(
     ParameterError
         For an unknown method or start kind, foreign options, ``method="ipopt"``
         on a chain with fewer than 2 free joints, ``planar=True`` without a
-        chain, ``workers`` contradicting ``sweep.workers``, or an ``out``
+        chain or with a clearance, ``workers`` contradicting ``sweep.workers``, or an ``out``
         holding another sweep.
     UnreachableTarget
         Planar methods: if ``check_reachability`` and a target is unreachable.

@@ -162,7 +162,7 @@ def solve(
         verdict, reach, nearest point or certificate).
     ParameterError
         For an unknown method, foreign options, an invalid start, or
-        ``planar=True`` on a problem without a chain.
+        ``planar=True`` on a problem without a chain or with a clearance.
     """
     check_method(method, options)
     use_planar = uses_planar_methods(problem, method, planar)

@@ -49,6 +49,8 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
+_NO_ROWS = np.zeros(0)  # the clearance multipliers of a problem without clearance rows
+_NO_ROWS.flags.writeable = False
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -261,7 +263,7 @@ class ALRun(NamedTuple):
     history: tuple[OuterIterate, ...]
     inner_iterations: int
     wall_time: float
-    clearance_multipliers: Array = np.zeros(0)
+    clearance_multipliers: Array = _NO_ROWS
 
     def result_fields(self, start: Array) -> ALResultFields:
         """Return the keywords the result builders share for this run from ``start`` [rad].
