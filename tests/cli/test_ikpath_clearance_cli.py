@@ -84,3 +84,23 @@ def test_planar_targets_refuse_the_scene_flags(flags: list[str], capsys) -> None
     argv = ["ikpath", "--lengths", "1", "1", "--target", "1", "1", "--target", "1", "-1"]
     assert main([*argv, *flags, "--no-progress"]) == 2
     assert "needs a 3-D robot" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("flags", "where"),
+    [
+        (["--method", "al"], "process"),
+        (["--method", "al", "--scene", "s.json"], "serial"),
+        (["--method", "al", "--margin", "0.01"], "serial"),
+        (["--method", "ipopt", "--scene", "s.json"], "serial"),
+        (["--method", "al", "--scene", "s.json", "--starts", "4"], "process"),
+    ],
+)
+def test_automatic_al_starts_with_a_clearance_run_in_this_process(
+    flags: list[str], where: str
+) -> None:
+    """A pooled result carries its problem, whose clearance rows are rebuilt on arrival."""
+    from youbot_opt.cli.ikpath import _executor
+    from youbot_opt.cli.parser import parse
+
+    assert _executor(parse([*_UR5, *flags]), spatial=True) == where
