@@ -62,15 +62,19 @@ def test_scene_run_reports_the_closest_pair(tmp_path: Path, capsys) -> None:
         load_result(out / "result.json", margin=-1.0)
 
 
-@pytest.mark.parametrize(
-    ("argv", "match"),
-    [
-        (["--method", "al", "--margin", "0.01"], "--method al does not hold the clearance"),
-    ],
-)
-def test_3d_refusals(argv: list[str], match: str, capsys) -> None:
-    assert main([*_UR5, *argv, "--starts", "1", "--no-progress"]) == 2
-    assert match in capsys.readouterr().err
+def test_scene_run_by_the_augmented_lagrangian(tmp_path: Path, capsys) -> None:
+    """``--method al`` holds the clearance rows too (PHR terms, docs/ikpath.md)."""
+    out = tmp_path / "run"
+    argv = [*_UR5, "--scene", str(_scene(tmp_path)), "--margin", str(MARGIN), "--method", "al"]
+    argv += ["--no-self-collision", "--starts", "2", "--start-kind", "coherent"]
+    argv += ["--out", str(out), "--no-replay", "--no-progress"]
+    assert main(argv) == 0
+    assert "clearance: closest pair " in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["clearance"]["certified"] is True
+    assert summary["clearance"]["closest_m"] >= MARGIN - 1e-3
+    best = load_result(out / "result.json")
+    assert best.success and best.method == "al" and best.problem.clearance is not None
 
 
 @pytest.mark.parametrize(
@@ -80,3 +84,23 @@ def test_planar_targets_refuse_the_scene_flags(flags: list[str], capsys) -> None
     argv = ["ikpath", "--lengths", "1", "1", "--target", "1", "1", "--target", "1", "-1"]
     assert main([*argv, *flags, "--no-progress"]) == 2
     assert "needs a 3-D robot" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("flags", "where"),
+    [
+        (["--method", "al"], "process"),
+        (["--method", "al", "--scene", "s.json"], "serial"),
+        (["--method", "al", "--margin", "0.01"], "serial"),
+        (["--method", "ipopt", "--scene", "s.json"], "serial"),
+        (["--method", "al", "--scene", "s.json", "--starts", "4"], "process"),
+    ],
+)
+def test_automatic_al_starts_with_a_clearance_run_in_this_process(
+    flags: list[str], where: str
+) -> None:
+    """A pooled result carries its problem, whose clearance rows are rebuilt on arrival."""
+    from youbot_opt.cli.ikpath import _executor
+    from youbot_opt.cli.parser import parse
+
+    assert _executor(parse([*_UR5, *flags]), spatial=True) == where

@@ -141,10 +141,31 @@ def test_start_inside_obstacle_refused(arm: RobotModel) -> None:
         problem.check_start(inside)
 
 
-def test_clearance_needs_the_general_ipopt_method(arm: RobotModel) -> None:
+def test_clearance_refuses_the_planar_methods(arm: RobotModel) -> None:
     problem = _problem(arm, _disc(1.2, 0.0))
-    with pytest.raises(ParameterError, match="general IPOPT method only"):
-        solve(problem, method="al")
+    for method in ("al", "ipopt"):
+        with pytest.raises(ParameterError, match="general methods only .* planar methods do not"):
+            solve(problem, method=method, planar=True)  # type: ignore[arg-type]
+
+
+def test_known_answer_by_the_augmented_lagrangian(arm: RobotModel) -> None:
+    """The AL (general, PHR clearance rows) from IPOPT's start returns IPOPT's path."""
+    free, q_free = _free_optimum(arm)
+    problem = _problem(arm, _disc(1.2, 0.0))
+    start = q_free.copy()
+    start[0, 0] -= 2 * np.pi
+    ipopt = solve(problem, method="ipopt", x0=start)
+    al = solve(problem, method="al", x0=start)
+    assert al.status.name == "SOLVED", al.message
+    x = al.configurations.ravel()
+    assert np.max(problem.residuals(x)) < 1e-9
+    assert problem.clearance_rows is not None
+    assert np.min(problem.clearance_rows.rows(x)) >= MARGIN - 1e-10
+    certificate = certify_path_clearance(problem, x)
+    assert certificate is not None and certificate.certified
+    # both meet the targets to 1e-10 m and stationarity to 1e-8: E agrees to ~1e-9
+    assert al.objective == pytest.approx(ipopt.objective, abs=1e-8)
+    np.testing.assert_allclose(al.configurations, ipopt.configurations, atol=1e-6)
 
 
 def test_clearance_is_checked_and_pickled(arm: RobotModel, tmp_path: Path) -> None:
@@ -181,5 +202,20 @@ def test_generated_starts_may_collide_a_users_may_not(arm: RobotModel) -> None:
     best = found.best.configurations.ravel()
     certificate = certify_path_clearance(problem, best)
     assert certificate is not None and certificate.certified
-    with pytest.raises(ParameterError, match="general IPOPT method only"):
-        run_multistart(problem, method="al", n_starts=2, starts="random")
+    with pytest.raises(ParameterError, match="general methods only"):
+        run_multistart(problem, method="al", n_starts=2, starts="random", planar=True)
+
+
+def test_multistart_by_the_augmented_lagrangian(arm: RobotModel) -> None:
+    """``run_multistart(method="al")`` holds the rows; IPOPT from its best stays there."""
+    problem = _problem(arm, _disc(1.2, 0.0))
+    found = run_multistart(problem, method="al", n_starts=4, starts="random", seed=0)
+    assert found.method == "al" and not found.planar and found.best.success
+    x = found.best.configurations.ravel()
+    assert problem.clearance_rows is not None
+    assert np.min(problem.clearance_rows.rows(x)) >= MARGIN - 1e-10
+    certificate = certify_path_clearance(problem, x)
+    assert certificate is not None and certificate.certified
+    ipopt = solve(problem, method="ipopt", x0=found.best.configurations)
+    assert ipopt.status.name == "SOLVED", ipopt.message
+    assert ipopt.objective == pytest.approx(found.best.objective, abs=1e-8)

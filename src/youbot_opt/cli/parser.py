@@ -969,7 +969,7 @@ def _ikpath(sub: _Sub) -> None:
         metavar="N",
         help="with --timed: knots of each segment, its ends included (default 20)",
     )
-    _clearance_arguments(p)  # 3-D robots, --method ipopt (docs/ikpath.md, "Clearance")
+    _clearance_arguments(p)  # 3-D robots, both methods (docs/ikpath.md, "Clearance")
     _refine_arguments(p, grid="with --timed, the timed plan's grid")
 
 

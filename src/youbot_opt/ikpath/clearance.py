@@ -44,7 +44,7 @@ __all__ = [
 
 #: Interior samples per leg by default (K; K + 1 steps per leg).
 DEFAULT_LEG_SAMPLES = 8
-_ABS_EPS2 = 1e-12  # smoothing of |dq| in [rad^2]: sqrt(x^2 + eps^2) >= |x|
+_ABS_EPS2 = 1e-6  # smoothing of |dq| in [rad^2]: sqrt(x^2 + eps^2) >= |x|, eps = 1e-3 rad
 
 
 class ClearedPath(Protocol):
@@ -78,7 +78,11 @@ class IKClearance:
     step from sample ``a`` to ``b`` a pair keeps at least
     ``(d_a + d_b - sum_i |Delta q_i| R_i / (K + 1)) / 2`` with ``d`` the
     conservative ball distances (never above coal's). ``|x|`` is smoothed as
-    ``sqrt(x^2 + 1e-12)`` (never below ``|x|``).
+    ``sqrt(x^2 + 1e-6)`` (never below ``|x|``; it gives away at most
+    ``R_i 1e-3 / (K + 1)`` m of clearance where ``dq_i = 0``, and its curvature
+    there, ``1e3``, is one the augmented Lagrangian's BFGS can follow: with
+    ``1e-12`` it was ``1e6`` and a start whose legs ended with a joint at rest
+    took over a minute per inner solve).
 
     Attributes
     ----------
@@ -98,6 +102,9 @@ class IKClearance:
         then pair; each held at or above ``spec.margin``.
     jacobian : casadi.Function
         ``x`` -> ``d rows / d x`` (dense).
+    transposed_product : casadi.Function
+        ``(x, w)`` -> ``(d rows / d x)^T w`` (reverse mode, without the dense
+        Jacobian: the augmented Lagrangian's gradient).
     labels : tuple of str
         Per row: ``"leg j step k: a / b"``.
     """
@@ -109,6 +116,7 @@ class IKClearance:
     distance: ca.Function
     function: ca.Function
     jacobian: ca.Function
+    transposed_product: ca.Function
     labels: tuple[str, ...]
 
     @property
@@ -163,6 +171,7 @@ class IKClearance:
                 rows.append(0.5 * (ds[k] + ds[k + 1] - reach))
                 labels += [f"leg {j} step {k}: {a} / {b}" for a, b in names]
         g = ca.vertcat(*rows) if n_pairs else ca.SX(0, 1)
+        w = ca.SX.sym("w", g.shape[0])
         return IKClearance(
             spec=spec,
             checker=checker,
@@ -171,6 +180,9 @@ class IKClearance:
             distance=distance,
             function=ca.Function("ik_clearance", [x], [g], ["x"], ["rows"]),
             jacobian=ca.Function("ik_clearance_jac", [x], [ca.jacobian(g, x)], ["x"], ["jac"]),
+            transposed_product=ca.Function(
+                "ik_clearance_jtw", [x, w], [ca.jtimes(g, x, w, True)], ["x", "w"], ["jtw"]
+            ),
             labels=tuple(labels),
         )
 
@@ -181,6 +193,11 @@ class IKClearance:
     def rows_jacobian(self, x: Array) -> Array:
         """Return ``d rows / d x`` (dense, shape (n_rows, n s))."""
         return np.asarray(self.jacobian(np.asarray(x, dtype=float)), dtype=float)
+
+    def rows_jacobian_transposed(self, x: Array, w: Array) -> Array:
+        """Return ``(d rows / d x)^T w``, shape (n s,), for row weights ``w`` (n_rows,)."""
+        out = self.transposed_product(np.asarray(x, dtype=float), np.asarray(w, dtype=float))
+        return np.asarray(out, dtype=float).ravel()
 
 
 def require_path_clearance(problem: ClearedPath, x0: Array | None) -> None:

@@ -486,7 +486,7 @@ def run_multistart(
     ParameterError
         For an unknown method or start kind, foreign options, ``method="ipopt"``
         on a chain with fewer than 2 free joints, ``planar=True`` without a
-        chain, ``workers`` contradicting ``sweep.workers``, an ``out``
+        chain or with a clearance, ``workers`` contradicting ``sweep.workers``, an ``out``
         holding another sweep, or a ``time_budget`` that is not a positive,
         finite time or comes with starts asked for.
     UnreachableTarget

@@ -46,7 +46,8 @@ class OuterIterate(NamedTuple):
     objective : float
         ``E`` in [rad^2].
     violation : float
-        Largest constraint violation in [m] (inf-norm of ``c``).
+        Largest constraint violation in [m] (inf-norm of ``c``; the augmented
+        Lagrangian with clearance rows ``g >= 0``: also ``|min(g, nu / mu)|``).
     stationarity : float
         Inf-norm of the (projected) gradient of the Lagrangian used by the solver.
     penalty : float

@@ -19,16 +19,15 @@ from numpy.typing import ArrayLike
 
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 from youbot_opt.ikpath.methods.al import (
-    AL_OPTIONS_3D,
     ALOptions,
-    run_augmented_lagrangian,
     solve_augmented_lagrangian,
+    solve_augmented_lagrangian_3d,
 )
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D, solve_ipopt, solve_ipopt_3d
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.reachability.general import require_reachable_3d
 from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
-from youbot_opt.ikpath.result import IKPathResult, build_result
+from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.nlp.ipopt import IpoptOptions
 
 __all__ = ["Method", "METHODS", "solve", "check_targets"]
@@ -85,20 +84,23 @@ def check_targets(problem: CyclicIKProblem) -> tuple[ReachVerdict, ...]:
 def uses_planar_methods(problem: CyclicIKProblem, method: str, planar: bool | None) -> bool:
     """Whether ``problem`` goes to the planar methods (default: with a chain, no clearance).
 
+    A problem with a clearance goes to the general methods (IPOPT or the AL, both
+    hold the clearance rows, docs/ikpath.md "Clearance").
+
     Raises
     ------
     ParameterError
-        A problem with a clearance and the AL or the planar methods.
+        A problem with a clearance and ``planar=True``.
     """
     clear = problem.clearance_rows is not None
     use_planar = problem.chain is not None and not clear if planar is None else bool(planar)
-    if clear and (use_planar or method != "ipopt"):
+    if clear and use_planar:
         raise ParameterError(
-            "a problem with a clearance is solved by the general IPOPT method only "
-            "(method='ipopt', planar=False or unset); the augmented Lagrangian and the "
-            f"planar methods do not hold clearance rows (got method={method!r})",
-            name="method",
-            value=method,
+            "a problem with a clearance is solved by the general methods only (planar=False "
+            "or unset, method='ipopt' or 'al'); the planar methods do not hold clearance "
+            f"rows (got planar=True, method={method!r})",
+            name="planar",
+            value=planar,
         )
     return use_planar
 
@@ -160,7 +162,7 @@ def solve(
         verdict, reach, nearest point or certificate).
     ParameterError
         For an unknown method, foreign options, an invalid start, or
-        ``planar=True`` on a problem without a chain.
+        ``planar=True`` on a problem without a chain or with a clearance.
     """
     check_method(method, options)
     use_planar = uses_planar_methods(problem, method, planar)
@@ -177,7 +179,4 @@ def solve(
         if options is None:
             return solve_ipopt_3d(problem, x0)
         return IpoptIKSolver3D(problem, options).solve(x0)  # type: ignore[arg-type]
-    opts = AL_OPTIONS_3D if options is None else options
-    start = problem.check_start(x0)
-    run = run_augmented_lagrangian(problem, start, opts)  # type: ignore[arg-type]
-    return build_result(problem, **run.result_fields(start), inner_iterations=run.inner_iterations)
+    return solve_augmented_lagrangian_3d(problem, x0, options)  # type: ignore[arg-type]

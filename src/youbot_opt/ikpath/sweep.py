@@ -29,11 +29,15 @@ from youbot_opt._files import MIGRATION_SCRIPT
 from youbot_opt._typing import Array, JSONDict
 from youbot_opt.exceptions import ResultFileError
 from youbot_opt.ikpath.io import encode_result, load_result, problem_spec, problem_spec_3d
-from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions, solve_augmented_lagrangian
+from youbot_opt.ikpath.methods.al import (
+    AL_OPTIONS_3D,
+    ALOptions,
+    solve_augmented_lagrangian,
+    solve_augmented_lagrangian_3d,
+)
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptIKSolver3D, IpoptOptions
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult, build_result
-from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
@@ -222,9 +226,7 @@ PLANAR_STARTS: StartSolvers[CyclicIKProblem, IKPathResult] = StartSolvers(
 
 def _solve_al_3d(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
     """Worker task: one start with the general AL (exceptions propagate: they are retried)."""
-    result = solve(problem, method="al", x0=x0, options=options, planar=False)
-    assert isinstance(result, IKPathResult)
-    return result
+    return solve_augmented_lagrangian_3d(problem, x0, options, generated=True)  # may collide
 
 
 def _solve_ipopt_3d(handle: WorkerSolver[IpoptIKSolver3D], x0: Array) -> IKPathResult:

@@ -1,12 +1,13 @@
 """The study's method: augmented Lagrangian with a quasi-Newton inner solver.
 
 Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
-(bound-constrained Lagrangian method) on ``E(x)`` with the ``2 s`` target
-constraints ``c(x) = 0`` and the joint box; the inner solver is
+(bound-constrained Lagrangian method) on ``E(x)`` with the target constraints
+``c(x) = 0``, the joint box and, with a clearance, the rows ``g(x) >= 0`` by
+Powell-Hestenes-Rockafellar terms; the inner solver is
 :func:`~youbot_opt.ikpath.methods.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
-``docs/ikpath.md``; the outer loop, the stopping test and the stall rules are
-in docs/design.md, "Module notes". 3-D problems switch on a safeguarded
-final phase of SQP steps (``ALOptions.newton_final``, docs/ikpath.md).
+``docs/ikpath.md``; the outer loop, the stopping test, the stall rules and the
+inequality rows in docs/design.md, "Module notes". 3-D problems without clearance
+switch on a final phase of SQP steps (``ALOptions.newton_final``).
 
 >>> result = solve_augmented_lagrangian(problem, x0, ALOptions())  # doctest: +SKIP
 """
@@ -29,6 +30,7 @@ from scipy.optimize import Bounds, minimize
 from youbot_opt._checks import check_time_limit
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.ikpath.clearance import IKClearance
 from youbot_opt.ikpath.methods.best_iterate import pick_best
 from youbot_opt.ikpath.methods.bfgs import minimize_bfgs
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
@@ -43,9 +45,12 @@ __all__ = [
     "first_order_multipliers",
     "run_augmented_lagrangian",
     "solve_augmented_lagrangian",
+    "solve_augmented_lagrangian_3d",
 ]
 
 _log = logging.getLogger(__name__)
+_NO_ROWS = np.zeros(0)  # the clearance multipliers of a problem without clearance rows
+_NO_ROWS.flags.writeable = False
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -96,7 +101,8 @@ class ALOptions:
         the problem's ``lagrangian_hessian``. Off by
         default (the planar solver is the study's method as published); on for
         3-D problems, whose nearly singular pose Jacobians make the first-order
-        multiplier updates crawl (docs/ikpath.md).
+        multiplier updates crawl (docs/ikpath.md). Never tried on a problem with
+        clearance rows (its KKT system holds only the target rows).
     newton_violation : float
         ``max |c_i|`` in [m] at which the final phase is tried.
     """
@@ -188,6 +194,42 @@ def solve_augmented_lagrangian(
     )
 
 
+def solve_augmented_lagrangian_3d(
+    problem: CyclicIKProblem,
+    x0: ArrayLike | None = None,
+    options: ALOptions | None = None,
+    *,
+    generated: bool = False,
+) -> IKPathResult:
+    """Solve by the augmented Lagrangian as a general method (any robot, any clearance).
+
+    What :func:`~youbot_opt.ikpath.solve.solve` does with ``method="al"`` on a
+    problem it does not give to the planar methods: :data:`AL_OPTIONS_3D` by
+    default, a result judged by the targets' own tolerances (no ``constraint_tol``).
+
+    Parameters
+    ----------
+    problem : CyclicIKProblem
+        The problem (its clearance rows, if any, are held).
+    x0 : array_like, shape (n s,) or (s, n), optional
+        Start in [rad]; the zero vector (clipped into the limits) by default.
+    options : ALOptions, optional
+        Method settings (default :data:`AL_OPTIONS_3D`).
+    generated : bool
+        A start a multistart made: it may collide (a user's may not,
+        :meth:`CyclicIKProblem.check_start`).
+
+    Returns
+    -------
+    IKPathResult
+        ``method = "al"``; failures are statuses.
+    """
+    opts = AL_OPTIONS_3D if options is None else options
+    start = problem.check_start(x0, generated=generated)
+    run = run_augmented_lagrangian(problem, start, opts)
+    return build_result(problem, **run.result_fields(start), inner_iterations=run.inner_iterations)
+
+
 class ALRun(NamedTuple):
     """Raw outcome of :func:`run_augmented_lagrangian` (before a result is built).
 
@@ -207,6 +249,11 @@ class ALRun(NamedTuple):
         Total inner iterations.
     wall_time : float
         Time in [s].
+    clearance_multipliers : ndarray, shape (n_rows,)
+        Multipliers ``nu >= 0`` of the clearance rows ``rows(x) - margin >= 0``
+        (:class:`~youbot_opt.ikpath.clearance.IKClearance`, same order; sign
+        convention ``grad E = J^T lambda + J_g^T nu``); zero on a row the
+        stopping test found inactive; empty without clearance rows.
     """
 
     status: SolveStatus
@@ -216,6 +263,7 @@ class ALRun(NamedTuple):
     history: tuple[OuterIterate, ...]
     inner_iterations: int
     wall_time: float
+    clearance_multipliers: Array = _NO_ROWS
 
     def result_fields(self, start: Array) -> ALResultFields:
         """Return the keywords the result builders share for this run from ``start`` [rad].
@@ -294,6 +342,8 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
         lam = first_order_multipliers(problem.evaluate(start, data), start, lower, upper)[0]
     mu = opts.penalty_initial
     omega, eta = 1.0 / mu, 1.0 / mu**0.1
+    rows = _clearance_rows(problem)
+    nu = np.zeros(0 if rows is None else len(rows.labels))  # clearance multipliers, >= 0
 
     def lagrangian(x: Array) -> tuple[float, Array]:
         ev = problem.evaluate(x, data)
@@ -301,6 +351,11 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
         weight = (mu * c - lam).reshape(s, -1)  # d L_A / d c
         value = ev.objective - float(lam @ c) + 0.5 * mu * float(c @ c)
         grad = ev.gradient + np.einsum("jkn,jk->jn", ev.jacobian_blocks, weight).ravel()
+        if rows is not None:
+            term, term_grad = _clearance_term(rows, x, nu, mu)
+            value += term
+            if term_grad is not None:
+                grad = grad + term_grad
         return value, grad
 
     x = start.copy()
@@ -321,9 +376,17 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
         c = ev.constraints
         violation = float(np.max(np.abs(c)))
         _, grad = lagrangian(x)
+        nu_new, ev_ls = nu, ev
+        if rows is not None:  # inequality rows: violation and complementarity min(g, nu/mu)
+            g = _slack(rows, x)
+            nu_new = np.maximum(nu - mu * g, 0.0)
+            violation = max(violation, float(np.max(np.abs(np.minimum(g, nu / mu)))))
+            if np.any(nu_new):
+                jtnu = rows.rows_jacobian_transposed(x, nu_new)
+                ev_ls = ev._replace(gradient=ev.gradient - jtnu)
         # Stationarity with the AL's own estimate lam - mu c, and with the
         # least-squares estimate at x; either multiplier vector certifies a KKT point.
-        lam_ls, stationarity_ls = first_order_multipliers(ev, x, lower, upper)
+        lam_ls, stationarity_ls = first_order_multipliers(ev_ls, x, lower, upper)
         stationarity_al = float(np.max(np.abs(x - np.clip(x - grad, lower, upper))))
         stationarity = min(stationarity_al, stationarity_ls)
         history.append(
@@ -350,10 +413,12 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
             and stationarity <= opts.stationarity_tol
         ):
             lam = lam - mu * c if stationarity_al <= stationarity_ls else lam_ls
+            nu = nu_new
             status = SolveStatus.SOLVED
             message = (
                 f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
                 f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g}"
+                f"{_clearance_note(rows, x, nu)}"
             )
             break
         if _past(deadline):
@@ -363,7 +428,7 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
                 f"projected gradient {stationarity:.2e} ({inner_msg})"
             )
             break
-        if opts.newton_final and violation <= opts.newton_violation:
+        if opts.newton_final and rows is None and violation <= opts.newton_violation:
             final = _final_phase(
                 problem,  # type: ignore[arg-type]
                 x,
@@ -385,6 +450,7 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
             # of L_A) leaves c unchanged; repeating lam - mu c would then drift the
             # multipliers by mu c per iteration, so restart from the estimate at x.
             lam = lam - mu * c if inner_its > 0 else lam_ls
+            nu = nu_new
             eta = max(eta / mu**0.9, opts.constraint_tol)
             omega = max(omega / mu, opts.stationarity_tol)
         else:
@@ -411,7 +477,48 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
         visited = (h.x.ravel() for h in history)
         x, note = pick_best(problem, x, visited, opts.constraint_tol)  # type: ignore[arg-type]
         message = f"{message}; {note}" if note else message
-    return ALRun(status, message, x, lam, tuple(history), inner_total, time.perf_counter() - t0)
+    return ALRun(status, message, x, lam, tuple(history), inner_total, time.perf_counter() - t0, nu)
+
+
+def _clearance_rows(problem: CyclicIKProblem) -> IKClearance | None:
+    """Return the problem's clearance rows, or None (no clearance, or no pair to keep apart)."""
+    rows = problem.clearance_rows
+    return None if rows is None or not rows.labels else rows
+
+
+def _clearance_term(
+    rows: IKClearance, x: Array, nu: Array, mu: float
+) -> tuple[float, Array | None]:
+    """Powell-Hestenes-Rockafellar term of the clearance rows and its gradient (None: zero).
+
+    With ``g = rows(x) - margin >= 0`` and multipliers ``nu >= 0`` the term is
+    ``sum_i psi(g_i, nu_i, mu)``, ``psi = -nu g + mu/2 g^2`` where ``g <= nu/mu``,
+    else ``-nu^2 / (2 mu)`` (Nocedal and Wright, sec. 17.4: the slacks eliminated), written as
+    ``(|max(0, nu - mu g)|^2 - |nu|^2) / (2 mu)``; its gradient is
+    ``-J_g^T max(0, nu - mu g)`` (reverse mode; not formed where every row is
+    inactive, ``max(0, nu - mu g) = 0``).
+    """
+    shift = np.maximum(nu - mu * _slack(rows, x), 0.0)
+    value = (float(shift @ shift) - float(nu @ nu)) / (2.0 * mu)
+    if not np.any(shift):
+        return value, None
+    return value, -rows.rows_jacobian_transposed(x, shift)
+
+
+def _slack(rows: IKClearance, x: Array) -> Array:
+    """``g(x) = rows(x) - margin`` [m], to be kept ``>= 0``."""
+    return rows.rows(x) - rows.spec.margin
+
+
+def _clearance_note(rows: IKClearance | None, x: Array, nu: Array) -> str:
+    """Return the clearance part of a success message (``""`` without clearance rows)."""
+    if rows is None:
+        return ""
+    g = _slack(rows, x)
+    return (
+        f"; clearance rows >= margin - {max(0.0, -float(np.min(g))):.2e} m, "
+        f"{int(np.count_nonzero(nu))} of {g.size} with a multiplier > 0"
+    )
 
 
 class _FinalPhase(NamedTuple):

@@ -4,7 +4,8 @@ A failed solve (iteration cap, stall, local infeasibility) returns the best
 configurations the method visited rather than the last ones, ranked as in
 :mod:`youbot_opt.nlp.best_iterate`: among iterates meeting the targets to
 ``constraint_tol``, the lowest E; otherwise the smallest constraint
-violation ``max |F(q_j) - p_j|`` (recomputed with Pinocchio). Joint limits
+violation ``max |F(q_j) - p_j|`` (recomputed with Pinocchio; with a
+clearance, also the rows' shortfall below the margin). Joint limits
 need no ranking: both methods' iterates lie inside them (IPOPT's after
 projection onto the box).
 """
@@ -25,6 +26,9 @@ __all__ = ["rank", "pick_best"]
 def rank(problem: CyclicIKProblem, x: Array, iteration: int) -> Iterate:
     """Rank configurations ``x`` [rad]: E [rad^2] and ``max |F(q_j) - p_j|`` [m] (Pinocchio).
 
+    With a clearance the violation is the larger of that and the clearance rows'
+    largest shortfall below the margin [m] (:class:`~youbot_opt.ikpath.clearance.IKClearance`).
+
     Parameters
     ----------
     problem : CyclicIKProblem
@@ -41,6 +45,9 @@ def rank(problem: CyclicIKProblem, x: Array, iteration: int) -> Iterate:
     """
     empty = np.zeros(0)
     violation = float(np.max(np.abs(problem.constraints(x))))
+    rows = problem.clearance_rows
+    if rows is not None and rows.labels:
+        violation = max(violation, float(np.max(rows.spec.margin - rows.rows(x))))
     return Iterate(x, empty, empty, problem.objective(x), violation, iteration)
 
 

@@ -1,0 +1,186 @@
+"""The augmented Lagrangian with clearance rows (#28 item 4, IK half): ur5 and one box.
+
+The ur5 visits (0.4, 0.2, 0.3) and (0.3, -0.3, 0.4) m (the targets of
+tests/cli/test_ikpath_clearance_cli.py); a 0.1 m box at (0.3, -0.05, -0.15) m
+lies under the forearm's sweep, so with a 0.01 m margin two leg rows
+(forearm / box) are active at the solution. IPOPT, with the rows as
+constraints of its NLP, is the independent reference; coal's certificate
+(:func:`certify_path_clearance`) checks the path along the whole closed loop.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from youbot_opt.collision import Box, Obstacle, Scene
+from youbot_opt.collision.clearance import Clearance
+from youbot_opt.ikpath.clearance import IKClearance, certify_path_clearance
+from youbot_opt.ikpath.methods.al import (
+    AL_OPTIONS_3D,
+    _clearance_term,
+    first_order_multipliers,
+    run_augmented_lagrangian,
+)
+from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.result import IKPathResult
+from youbot_opt.ikpath.solve import solve
+from youbot_opt.ikpath.targets import Target
+from youbot_opt.robot.load import load_model
+
+MARGIN = 0.01  # [m]
+TARGETS = (Target(position=(0.4, 0.2, 0.3)), Target(position=(0.3, -0.3, 0.4)))
+#: Both methods stop at |c| <= 1e-10 m and a projected gradient <= 1e-8 rad; at a
+#: KKT point E changes only at second order, so the same minimum gives E within
+#: ~1e-9 rad^2 (measured: 1e-11): 1e-8 leaves room for rounding.
+E_TOL = 1e-8
+
+
+@pytest.fixture(scope="module")
+def problem(fit_cache: Path) -> Iterator[CyclicIKProblem]:
+    """ur5, two targets, one box under the forearm's sweep (ball fits in ``fit_cache``)."""
+    box = Obstacle(name="box", shape=Box(size=(0.1, 0.1, 0.1)), xyz=(0.3, -0.05, -0.15))
+    clearance = Clearance(scene=Scene((box,)), margin=MARGIN, self_collision=False)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
+        yield CyclicIKProblem(robot=load_model("ur5"), targets=TARGETS, clearance=clearance)
+
+
+@pytest.fixture(scope="module")
+def q_free(problem: CyclicIKProblem) -> np.ndarray:
+    """The free optimum (no clearance; the AL from the zero vector, E = 1.58936 rad^2)."""
+    free = solve(dataclasses.replace(problem, clearance=None), method="al")
+    assert free.status.name == "SOLVED", free.message
+    return free.configurations
+
+
+@pytest.fixture(scope="module")
+def ipopt(problem: CyclicIKProblem, q_free: np.ndarray) -> IKPathResult:
+    """IPOPT from the free optimum."""
+    return solve(problem, method="ipopt", x0=q_free)
+
+
+@pytest.fixture(scope="module")
+def al(problem: CyclicIKProblem, q_free: np.ndarray) -> IKPathResult:
+    """The AL (``AL_OPTIONS_3D``) from the same start."""
+    return solve(problem, method="al", x0=q_free)
+
+
+def _rows(problem: CyclicIKProblem) -> IKClearance:
+    assert problem.clearance_rows is not None
+    return problem.clearance_rows
+
+
+def _assert_feasible(problem: CyclicIKProblem, result: IKPathResult) -> None:
+    """Solved, targets met, rows at the margin, and coal certifies the closed path."""
+    assert result.status.name == "SOLVED", result.message
+    x = result.configurations.ravel()
+    assert np.all(problem.targets_met(x))
+    assert np.max(problem.residuals(x)) < 1e-9
+    assert np.min(_rows(problem).rows(x)) >= MARGIN - 1e-10
+    certificate = certify_path_clearance(problem, x)
+    assert certificate is not None and certificate.certified
+    assert certificate.lower_bound >= MARGIN - 1e-3  # coal's, bisected to 1 mm
+
+
+def test_al_and_ipopt_from_the_same_start_agree(
+    problem: CyclicIKProblem, q_free: np.ndarray, ipopt: IKPathResult, al: IKPathResult
+) -> None:
+    """The free optimum's legs come within the margin (rows): both bend them the same way."""
+    assert np.min(_rows(problem).rows(q_free.ravel())) < MARGIN  # the start breaks the rows
+    _assert_feasible(problem, ipopt)
+    _assert_feasible(problem, al)
+    assert al.method == "al" and "clearance rows >= margin" in al.message
+    np.testing.assert_array_equal(al.start, ipopt.start)
+    assert al.objective == pytest.approx(ipopt.objective, abs=E_TOL)
+    assert al.objective > problem.objective(q_free.ravel())  # the clearance costs motion
+    al_there = solve(problem, method="al", x0=ipopt.configurations)  # stays at IPOPT's
+    _assert_feasible(problem, al_there)
+    assert al_there.objective == pytest.approx(ipopt.objective, abs=E_TOL)
+
+
+def test_clearance_multipliers_are_complementary(
+    problem: CyclicIKProblem, q_free: np.ndarray
+) -> None:
+    """``nu >= 0``, ``nu > 0`` only on active rows, 0 on inactive ones; KKT holds with them."""
+    rows = _rows(problem)
+    run = run_augmented_lagrangian(problem, q_free.ravel(), AL_OPTIONS_3D)
+    assert run.status.name == "SOLVED", run.message
+    nu = run.clearance_multipliers
+    g = rows.rows(run.x) - MARGIN
+    assert nu.shape == g.shape == (len(rows.labels),)
+    assert np.all(nu >= 0.0)
+    active = np.abs(g) <= AL_OPTIONS_3D.constraint_tol
+    assert np.all(nu[~active] == 0.0)  # exactly: max(0, nu - mu g) on an inactive row
+    assert np.any(nu[active] > 1e-3)  # the forearm rows hold the path off the box
+    assert {rows.labels[i].split(": ")[1] for i in np.flatnonzero(nu)} == {"forearm_link_0 / box"}
+    # Stationarity of E - lambda^T c - nu^T g with the dense Jacobian (not the
+    # solver's reverse-mode product) and least-squares lambda.
+    ev = problem.evaluate(run.x)
+    shifted = ev._replace(gradient=ev.gradient - rows.rows_jacobian(run.x).T @ nu)
+    residual = first_order_multipliers(shifted, run.x, problem.lower, problem.upper)[1]
+    assert residual <= 1e-7
+
+
+def test_clearance_term_gradient_matches_central_differences(
+    problem: CyclicIKProblem, al: IKPathResult
+) -> None:
+    """The PHR term's gradient, with rows on both sides of ``g = nu / mu``."""
+    rows = _rows(problem)
+    rng = np.random.default_rng(3)
+    x0 = al.configurations.ravel()
+    mu = 1e3
+    h = 1e-6
+    for _ in range(3):
+        x = x0 + rng.uniform(-0.05, 0.05, x0.size)
+        g = rows.rows(x) - MARGIN
+        nu = rng.uniform(0.0, 2.0, g.size) * (rng.uniform(size=g.size) < 0.5)
+        nu[np.argsort(g)[:4]] = 50.0  # the closest rows in the quadratic branch
+        quadratic = g < nu / mu
+        assert 0 < np.count_nonzero(quadratic) < g.size
+        value, grad = _clearance_term(rows, x, nu, mu)
+        assert grad is not None
+        numeric = np.array(
+            [
+                (
+                    _clearance_term(rows, x + h * e, nu, mu)[0]
+                    - _clearance_term(rows, x - h * e, nu, mu)[0]
+                )
+                / (2 * h)
+                for e in np.eye(x.size)
+            ]
+        )
+        np.testing.assert_allclose(grad, numeric, rtol=1e-6, atol=1e-7)
+        psi = np.where(quadratic, -nu * g + 0.5 * mu * g**2, -(nu**2) / (2 * mu))
+        assert value == pytest.approx(float(np.sum(psi)), rel=1e-12, abs=1e-12)
+    # Every row inactive and nu = 0: no term, no gradient.
+    assert _clearance_term(rows, x0, np.zeros(len(rows.labels)), mu) == (0.0, None)
+
+
+def test_inactive_clearance_leaves_the_iterates_unchanged(
+    problem: CyclicIKProblem, fit_cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A box far away: the same iterates, bit for bit, as without clearance."""
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
+    far = Obstacle(name="far", shape=Box(size=(0.1, 0.1, 0.1)), xyz=(5.0, 5.0, 5.0))
+    cleared = dataclasses.replace(
+        problem, clearance=Clearance(scene=Scene((far,)), margin=MARGIN, self_collision=False)
+    )
+    free = dataclasses.replace(problem, clearance=None)
+    assert free.clearance_rows is None and cleared.clearance_rows is not None
+    opts = dataclasses.replace(AL_OPTIONS_3D, newton_final=False)  # off with a clearance
+    start = np.random.default_rng(0).uniform(-1.0, 1.0, free.n_variables)
+    a = run_augmented_lagrangian(free, start, opts)
+    b = run_augmented_lagrangian(cleared, start, opts)
+    assert a.status.name == b.status.name == "SOLVED"
+    assert len(a.history) == len(b.history) and a.inner_iterations == b.inner_iterations
+    for ha, hb in zip(a.history, b.history, strict=True):
+        np.testing.assert_array_equal(ha.x, hb.x)
+        assert ha.objective == hb.objective and ha.violation == hb.violation
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.multipliers, b.multipliers)
+    assert not np.any(b.clearance_multipliers)
