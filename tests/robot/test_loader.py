@@ -38,6 +38,7 @@ from youbot_opt.exceptions import (
     URDFSyntaxError,
     YoubotOptWarning,
 )
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.urdf_check import loader
 from youbot_opt.robot.urdf_check.loader import check_model, check_urdf_text, load_urdf_strict
 from youbot_opt.robot.urdf_check.resources import check_mesh
@@ -305,6 +306,15 @@ def test_urdf_path_must_be_a_small_regular_file(tmp_path: Path, monkeypatch) -> 
     monkeypatch.setattr(loader, "MAX_URDF_BYTES", 100)
     with pytest.raises(UnsafeURDFError, match="larger than 100 bytes"):
         load_urdf_strict(CORPUS / "valid" / "minimal.urdf", [])
+
+
+def test_load_model_names_a_fifo_or_a_device_for_what_it_is(tmp_path: Path) -> None:
+    """load_model on a FIFO or a device says what the path is (it is never opened)."""
+    fifo = tmp_path / "robot.urdf"
+    os.mkfifo(fifo)
+    for path, kind in ((fifo, "a FIFO"), ("/dev/zero", "a character device")):
+        with pytest.raises(RobotNotFound, match=f"nor an existing URDF file .*is {kind}"):
+            load_model(path)
 
 
 def test_a_name_too_long_for_a_path_is_not_found() -> None:

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from youbot_opt._files import file_kind
 from youbot_opt.exceptions import ParameterError, RobotNotFound
 from youbot_opt.robot.catalogue import (
     YOUBOT,
@@ -321,9 +322,13 @@ def load_model(
         except OSError:  # e.g. a name longer than the file system allows
             is_file = False
         if not is_file:
+            try:  # a FIFO or device: say what it is (it is never opened)
+                what = f" ({str(source)!r} is {file_kind(urdf_path.stat().st_mode)})"
+            except OSError:
+                what = ""
             raise RobotNotFound(
                 f"{str(source)!r} is neither a robot name (`youbot-opt robots` lists them: "
-                f"{', '.join(available_robots()[:10])}, ...) nor an existing URDF file",
+                f"{', '.join(available_robots()[:10])}, ...) nor an existing URDF file{what}",
                 available=available_robots(),
                 path=str(source),
             )
