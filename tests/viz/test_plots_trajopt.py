@@ -232,53 +232,6 @@ def test_plot_refinement_names_every_colour_in_a_legend(refinement):
     assert to_rgba(legend.get_lines()[0].get_color()) == red
 
 
-def test_plot_refinements_shows_each_plans_grids_rounds_and_verdict(refinement):
-    """The overview: first and final knots per plan, rounds as bars, failures marked apart."""
-    import dataclasses
-
-    from youbot_opt.viz.plots.trajopt import plot_refinements
-
-    failed = dataclasses.replace(refinement, certified=False, reason="budget spent",
-                                 rounds=refinement.rounds[:2])  # fmt: skip
-    records = [refinement, failed, refinement, refinement, refinement]
-    labels = [f"beta = {b:.1f}" for b in (0.1, 0.3, 0.5, 0.7, 0.9)]
-    fig = plot_refinements(records, labels)
-    _render(fig)
-    ax_knots, ax_rounds = fig.axes
-    legend = [t.get_text() for t in ax_knots.get_legend().get_texts()]
-    assert legend == ["first grid", "final grid: certified", "final grid: NOT certified"]
-    first, done, bad = ax_knots.get_lines()
-    assert list(first.get_ydata()) == [5] * 5  # round 0 on 5 knots, every plan
-    assert list(done.get_xdata()) == [0, 2, 3, 4] and list(done.get_ydata()) == [7] * 4
-    assert list(bad.get_xdata()) == [1] and list(bad.get_ydata()) == [6]
-    assert [p.get_height() for p in ax_rounds.patches] == [2, 1, 2, 2, 2]
-    assert [t.get_text() for t in ax_rounds.get_xticklabels()] == labels
-    assert ax_knots.get_title().startswith("mesh refinement of 5 plans: 4 certified (")
-    with pytest.raises(ParameterError, match="4 labels for 5 refinements"):
-        plot_refinements(records, labels[:4])
-    with pytest.raises(ParameterError, match="empty study"):
-        plot_refinements([], [])
-
-
-def test_a_study_of_many_plans_draws_one_refinement_overview(refinement, tmp_path):
-    """More than OVERVIEW_AFTER refined plans: one refinement.png; a few: one figure each."""
-    from youbot_opt.cli.refinement import OVERVIEW_AFTER, refinement_figures
-
-    many = [(None, refinement)] * (OVERVIEW_AFTER + 2) + [(None, None)]  # the last: no trajectory
-    labels = [f"plan {k}" for k in range(len(many))]
-    for name in ("many", "few", "one"):  # run folders exist when figures are drawn
-        (tmp_path / name).mkdir()
-    files = refinement_figures(tmp_path / "many", many, labels)  # type: ignore[arg-type]
-    assert files == [tmp_path / "many" / "refinement.png"]
-    assert sorted(p.name for p in (tmp_path / "many").iterdir()) == ["refinement.png"]
-    few = [(None, refinement)] * OVERVIEW_AFTER
-    files = refinement_figures(tmp_path / "few", few, labels[:OVERVIEW_AFTER])  # type: ignore[arg-type]
-    names = [f"refinement_{k}.png" for k in range(1, OVERVIEW_AFTER + 1)]
-    assert [p.name for p in files if p is not None] == names
-    one = refinement_figures(tmp_path / "one", few[:1], labels[:1])  # type: ignore[arg-type]
-    assert [p.name for p in one if p is not None] == ["refinement.png"]
-
-
 def test_plot_convergence_of_a_refinement_shows_every_rounds_solve(refinement):
     """One line per round through its IPOPT objectives, integer iterations, titled by the rounds."""
     from youbot_opt.trajopt.refine import Refined

@@ -33,7 +33,6 @@ from youbot_opt.trajopt.sweep import worker_solver
 from youbot_opt.trajopt.sweep_store import open_refined, refined_key
 
 __all__ = [
-    "OVERVIEW_AFTER",
     "REFINED",
     "refine_many",
     "refine_result",
@@ -274,31 +273,20 @@ def _stored(store: SweepStore[Refined], key: str, label: str) -> Refined | None:
     return store.load(key)
 
 
-OVERVIEW_AFTER = 3
-"""A study refining more plans than this draws one overview ``refinement.png`` of them all."""
-
-
 def refinement_figures(
     folder: Path, refined: list[tuple[TrajOptResult, Refinement | None]], labels: list[str]
 ) -> list[Path | None]:
-    """Draw the refinement of a study's plans into ``folder``.
+    """Draw each refined plan's rounds: ``refinement.png``, or ``refinement_<k>.png`` for several.
 
-    One refined plan: ``refinement.png`` of its rounds; two or three:
-    ``refinement_<k>.png`` each (``k`` from 1 in the order of ``refined``, the
-    title naming the label); more than :data:`OVERVIEW_AFTER`: one overview
-    ``refinement.png`` (knots of the first and final grid, rounds and verdict per
-    plan), the rounds of each plan being in ``summary.json``. Plans without a
-    refinement record (no trajectory to refine) are skipped; nothing is drawn
-    when nothing was refined (``--no-refine``).
+    Plans without a refinement record (no trajectory to refine) are skipped;
+    ``k`` counts from 1 in the order of ``refined``, and the title names the label.
+    Nothing is drawn when nothing was refined (``--no-refine``).
     """
     if not refined:
         return []
-    from youbot_opt.viz.plots.trajopt import plot_refinement, plot_refinements  # matplotlib
+    from youbot_opt.viz.plots.trajopt import plot_refinement  # matplotlib: only when drawing
 
     done = [(record, label) for (_, record), label in zip(refined, labels, strict=True) if record]
-    if len(done) > OVERVIEW_AFTER:
-        records, names = [r for r, _ in done], [label for _, label in done]
-        return [draw_figure(folder, "refinement.png", plot_refinements, records, names)]
     return [
         draw_figure(
             folder,

@@ -43,7 +43,6 @@ __all__ = [
     "plot_convergence",
     "plot_arm_2d",
     "plot_refinement",
-    "plot_refinements",
     "plot_clearance",
     "QUANTITIES",
 ]
@@ -677,73 +676,6 @@ def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) 
     ax_err.legend(fontsize="small", loc="best")
     status = "certified" if record.certified else "not certified"
     ax_grid.set_title(title or f"mesh refinement: {status}, {len(record.rounds)} round(s)")
-    return fig
-
-
-def plot_refinements(
-    records: Sequence[Refinement], labels: Sequence[str], *, title: str | None = None
-) -> Figure:
-    """One overview of a study's refinements: per plan, its knots, rounds and verdict.
-
-    Top: the knots of each plan's first round (hollow) and final round
-    (filled; green and round when certified, red and a cross when not), joined
-    by a line. Bottom: the rounds each plan took. Plans are in the given order
-    along the x axis, named by ``labels``.
-
-    Parameters
-    ----------
-    records : sequence of Refinement
-        What :func:`youbot_opt.trajopt.refine.refine` recorded for each plan.
-    labels : sequence of str
-        One label per record (e.g. ``"beta=0.50"``).
-    title : str, optional
-        Figure title (default: how many plans were certified, and the budget).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-
-    Raises
-    ------
-    ParameterError
-        If there is no record, the labels do not match the records one for one,
-        or a record has no round.
-    """
-    if not records:
-        raise ParameterError("no refinement to draw (an empty study)", name="records")
-    if len(labels) != len(records):
-        raise ParameterError(
-            f"{len(labels)} labels for {len(records)} refinements: give one label per plan",
-            name="labels",
-        )
-    if any(not r.rounds for r in records):
-        raise ParameterError("a refinement without rounds has nothing to draw", name="records")
-    x = np.arange(len(records))
-    first = np.array([r.rounds[0].n_knots for r in records])
-    final = np.array([r.rounds[-1].n_knots for r in records])
-    rounds = np.array([len(r.rounds) - 1 for r in records])  # refinement rounds after round 0
-    ok = np.array([r.certified for r in records])
-    fig, axes = new_figure(2, 1, figsize=(max(8.0, 0.18 * len(records) + 3.0), 6.0), sharex=True)
-    ax_knots, ax_rounds = axes[0, 0], axes[1, 0]
-    ax_knots.vlines(x, first, final, colors="0.6", linewidth=1.0)
-    ax_knots.plot(x, first, "o", mfc="none", mec="0.3", label="first grid")
-    if ok.any():
-        ax_knots.plot(x[ok], final[ok], "o", color="tab:green", label="final grid: certified")
-    if (~ok).any():
-        ax_knots.plot(x[~ok], final[~ok], "x", color=_SPLIT_COLOUR, markersize=8,
-                      markeredgewidth=2, label="final grid: NOT certified")  # fmt: skip
-    ax_knots.set_ylabel("knots")
-    ax_knots.legend(fontsize="small", loc="best")
-    ax_rounds.bar(x, rounds, color=np.where(ok, "tab:green", _SPLIT_COLOUR), alpha=0.7)
-    ax_rounds.set_ylabel("refinement rounds")
-    ax_rounds.yaxis.set_major_locator(MaxNLocator(integer=True))
-    step = max(1, len(records) // 25)  # at most about 25 tick labels
-    ax_rounds.set_xticks(x[::step], [labels[i] for i in x[::step]], rotation=60, ha="right",
-                         fontsize="small")  # fmt: skip
-    budget = records[0].budget.describe()
-    ax_knots.set_title(
-        title or f"mesh refinement of {len(records)} plans: {int(ok.sum())} certified ({budget})"
-    )
     return fig
 
 
