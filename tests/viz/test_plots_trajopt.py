@@ -275,8 +275,8 @@ def test_plot_refinements_overview_names_each_mark_and_the_failed_plan(refinemen
     _render(fig)
     ax_k, ax_r = fig.axes
     assert ax_k.get_title() == (
-        "mesh refinement of 2 plans (error tolerance 0.001, at most 8 rounds, 1000 knots, "
-        "time limit none): 1/2 certified"
+        "mesh refinement of 2 plans: 1/2 certified\n"
+        "(error tolerance 0.001, at most 8 rounds, 1000 knots, time limit none)"
     )
     first, ok, bad = ax_k.get_lines()
     np.testing.assert_array_equal(first.get_ydata(), [5, 5])  # round 0: 5 knots each

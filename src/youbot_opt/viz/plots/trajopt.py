@@ -720,7 +720,7 @@ def plot_refinements(
     final = np.array([r.rounds[-1].n_knots if r.rounds else np.nan for r in records], float)
     n_rounds = np.array([len(r.rounds) for r in records])
     ok = np.array([r.certified for r in records], dtype=bool)
-    width = min(16.0, max(6.0, 0.28 * len(records) + 2.0))
+    width = min(16.0, max(8.0, 0.28 * len(records) + 2.0))
     fig, axes = new_figure(2, 1, figsize=(width, 6.0), sharex=True)
     ax_k, ax_r = axes[0, 0], axes[1, 0]
     ax_k.vlines(x, np.fmin(first, final), np.fmax(first, final), colors="0.6", linewidth=1.0)
@@ -731,22 +731,24 @@ def plot_refinements(
         named = ", ".join(failed[:4]) + (f" and {len(failed) - 4} more" if len(failed) > 4 else "")
         ax_k.plot(x[~ok], final[~ok], "X", color=_SPLIT_COLOUR, markersize=9,
                   label=f"final knots: NOT certified ({named})")  # fmt: skip
+    ax_k.set_ylim(0.0, 1.6 * np.nanmax(np.fmax(first, final)))  # room for the legend above
     ax_k.set_ylabel("knots")
-    ax_k.legend(fontsize="small", loc="best")
+    ax_k.legend(fontsize="small", loc="upper center")
     ax_r.bar(x[ok], n_rounds[ok], color="tab:green", alpha=0.7, label="rounds: certified")
     if not ok.all():
         ax_r.bar(x[~ok], n_rounds[~ok], color="none", edgecolor=_SPLIT_COLOUR, hatch="//",
                  label="rounds: not certified")  # fmt: skip
+    ax_r.set_ylim(0.0, 1.4 * n_rounds.max() + 0.5)  # room for the legend above the bars
     ax_r.set_ylabel("rounds")
     ax_r.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax_r.set_xticks(x, [str(lab) for lab in labels], rotation=90 if len(records) > 8 else 0,
                     fontsize="small")  # fmt: skip
-    ax_r.legend(fontsize="small", loc="best")
+    ax_r.legend(fontsize="small", loc="upper center", ncol=2)
     budgets = sorted({r.budget.describe() for r in records})
     ax_k.set_title(
         title
-        or f"mesh refinement of {len(records)} plans ({'; '.join(budgets)}): "
-        f"{int(ok.sum())}/{len(records)} certified",
+        or f"mesh refinement of {len(records)} plans: {int(ok.sum())}/{len(records)} certified\n"
+        f"({'; '.join(budgets)})",
         fontsize="medium",
     )
     return fig
