@@ -258,3 +258,44 @@ def test_plot_convergence_of_a_multistart_is_titled_by_its_starts(solver):
     fig = plot_convergence(ms)
     n_ok = sum(s.result is not None and s.result.success for s in ms.starts)
     assert fig.axes[0].get_title() == f"Convergence of 2 starts ({n_ok} converged)"
+
+
+def test_plot_refinements_overview_names_each_mark_and_the_failed_plan(refinement):
+    """A study's overview: first and final knots, rounds, a not-certified plan named in red."""
+    import dataclasses
+
+    from matplotlib.colors import to_rgba
+
+    from youbot_opt.viz.plots.trajopt import plot_refinements
+
+    failed = dataclasses.replace(
+        refinement, certified=False, reason="at most 2 rounds", rounds=refinement.rounds[:2]
+    )
+    fig = plot_refinements([refinement, failed], ["beta = 0.3", "beta = 0.7"])
+    _render(fig)
+    ax_k, ax_r = fig.axes
+    assert ax_k.get_title() == (
+        "mesh refinement of 2 plans: 1/2 certified\n"
+        "(error tolerance 0.001, at most 8 rounds, 1000 knots, time limit none)"
+    )
+    first, ok, bad = ax_k.get_lines()
+    np.testing.assert_array_equal(first.get_ydata(), [5, 5])  # round 0: 5 knots each
+    np.testing.assert_array_equal(ok.get_xdata(), [0])
+    np.testing.assert_array_equal(ok.get_ydata(), [7])  # certified in round 2: 7 knots
+    np.testing.assert_array_equal(bad.get_xdata(), [1])
+    np.testing.assert_array_equal(bad.get_ydata(), [6])  # stopped after round 1: 6 knots
+    assert to_rgba(bad.get_color()) == to_rgba("tab:red")
+    texts = [t.get_text() for t in ax_k.get_legend().get_texts()]
+    assert texts == [
+        "first round's knots",
+        "final knots: certified",
+        "final knots: NOT certified (beta = 0.7)",
+    ]
+    assert [p.get_height() for p in ax_r.patches] == [3, 2]  # rounds, certified bar first
+    texts = [t.get_text() for t in ax_r.get_legend().get_texts()]
+    assert texts == ["rounds: certified", "rounds: not certified"]
+    assert [t.get_text() for t in ax_r.get_xticklabels()] == ["beta = 0.3", "beta = 0.7"]
+    with pytest.raises(ParameterError, match="1 labels for 2 refinements"):
+        plot_refinements([refinement, failed], ["beta = 0.3"])
+    with pytest.raises(ParameterError, match="no refinement"):
+        plot_refinements([], [])

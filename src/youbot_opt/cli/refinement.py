@@ -33,6 +33,7 @@ from youbot_opt.trajopt.sweep import worker_solver
 from youbot_opt.trajopt.sweep_store import open_refined, refined_key
 
 __all__ = [
+    "PER_PLAN_FIGURES",
     "REFINED",
     "refine_many",
     "refine_result",
@@ -273,20 +274,33 @@ def _stored(store: SweepStore[Refined], key: str, label: str) -> Refined | None:
     return store.load(key)
 
 
+PER_PLAN_FIGURES = 3
+"""The most refined plans drawn one figure each (:func:`refinement_figures`); more: an overview."""
+
+
 def refinement_figures(
     folder: Path, refined: list[tuple[TrajOptResult, Refinement | None]], labels: list[str]
 ) -> list[Path | None]:
-    """Draw each refined plan's rounds: ``refinement.png``, or ``refinement_<k>.png`` for several.
+    """Draw the refined plans' rounds: ``refinement.png``, or ``refinement_<k>.png`` for a few.
 
-    Plans without a refinement record (no trajectory to refine) are skipped;
-    ``k`` counts from 1 in the order of ``refined``, and the title names the label.
-    Nothing is drawn when nothing was refined (``--no-refine``).
+    One plan: ``refinement.png``, its rounds in detail
+    (:func:`~youbot_opt.viz.plots.trajopt.plot_refinement`); 2 to
+    :data:`PER_PLAN_FIGURES` plans: one such figure each, ``refinement_<k>.png``
+    (``k`` from 1 in the order of ``refined``, the title naming the label); more:
+    ONE overview ``refinement.png`` of all of them
+    (:func:`~youbot_opt.viz.plots.trajopt.plot_refinements`: knots of the first
+    and final round, rounds, certified or not), each plan's rounds being in
+    ``summary.json``. Plans without a refinement record (no trajectory to refine)
+    are skipped. Nothing is drawn when nothing was refined (``--no-refine``).
     """
     if not refined:
         return []
-    from youbot_opt.viz.plots.trajopt import plot_refinement  # matplotlib: only when drawing
+    from youbot_opt.viz.plots.trajopt import plot_refinement, plot_refinements  # matplotlib
 
     done = [(record, label) for (_, record), label in zip(refined, labels, strict=True) if record]
+    if len(done) > PER_PLAN_FIGURES:
+        records, names = [r for r, _ in done], [label for _, label in done]
+        return [draw_figure(folder, "refinement.png", plot_refinements, records, names)]
     return [
         draw_figure(
             folder,

@@ -1,7 +1,8 @@
 """Figures of one trajectory solve: joint curves, IPOPT convergence, the arm in 2-D.
 
 The study's plots (spec ``trajopt.md``): :func:`plot_trajectory`,
-:func:`plot_convergence`, :func:`plot_arm_2d` and :func:`plot_refinement`,
+:func:`plot_convergence`, :func:`plot_arm_2d`, :func:`plot_refinement` (and
+:func:`plot_refinements`, a study's overview),
 each returning a new Figure built without pyplot. Lines carry labels tests can
 find: the joint name, or ``"_bound <quantity> <joint|all> <lower|upper>"`` for
 a dashed bound.
@@ -43,6 +44,7 @@ __all__ = [
     "plot_convergence",
     "plot_arm_2d",
     "plot_refinement",
+    "plot_refinements",
     "plot_clearance",
     "QUANTITIES",
 ]
@@ -676,6 +678,79 @@ def plot_refinement(refined: Refined | Refinement, *, title: str | None = None) 
     ax_err.legend(fontsize="small", loc="best")
     status = "certified" if record.certified else "not certified"
     ax_grid.set_title(title or f"mesh refinement: {status}, {len(record.rounds)} round(s)")
+    return fig
+
+
+def plot_refinements(
+    records: Sequence[Refinement], labels: Sequence[str], *, title: str | None = None
+) -> Figure:
+    """Overview of a study's refinements: one column per plan, in order.
+
+    Top: each plan's knots in its first round (open circle) and its final
+    round (a filled dot if certified, a red cross if not), joined by a line;
+    the legend names the plans that were not certified. Bottom: the number of
+    rounds of each plan (a bar, hatched red if not certified). The title gives
+    the budget and how many plans were certified. :func:`plot_refinement`
+    draws one plan's rounds in detail.
+
+    Parameters
+    ----------
+    records : sequence of Refinement
+        The refinement records (:attr:`Refined.refinement`), one per plan.
+    labels : sequence of str
+        Each plan's label (e.g. ``"beta = 0.3"``), the x axis' ticks.
+    title : str, optional
+        Figure title (default: the number of plans, the budget and how many were certified).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ParameterError
+        If there is no record, or not one label per record.
+    """
+    if not records:
+        raise ParameterError("no refinement to draw", name="records")
+    if len(labels) != len(records):
+        raise ParameterError(f"{len(labels)} labels for {len(records)} refinements", name="labels")
+    x = np.arange(len(records))
+    first = np.array([r.rounds[0].n_knots if r.rounds else np.nan for r in records], float)
+    final = np.array([r.rounds[-1].n_knots if r.rounds else np.nan for r in records], float)
+    n_rounds = np.array([len(r.rounds) for r in records])
+    ok = np.array([r.certified for r in records], dtype=bool)
+    width = min(16.0, max(8.0, 0.28 * len(records) + 2.0))
+    fig, axes = new_figure(2, 1, figsize=(width, 6.0), sharex=True)
+    ax_k, ax_r = axes[0, 0], axes[1, 0]
+    ax_k.vlines(x, np.fmin(first, final), np.fmax(first, final), colors="0.6", linewidth=1.0)
+    ax_k.plot(x, first, "o", mfc="none", mec="0.3", label="first round's knots")
+    ax_k.plot(x[ok], final[ok], "o", color="tab:green", label="final knots: certified")
+    if not ok.all():
+        failed = [str(lab) for lab, good in zip(labels, ok, strict=True) if not good]
+        named = ", ".join(failed[:4]) + (f" and {len(failed) - 4} more" if len(failed) > 4 else "")
+        ax_k.plot(x[~ok], final[~ok], "X", color=_SPLIT_COLOUR, markersize=9,
+                  label=f"final knots: NOT certified ({named})")  # fmt: skip
+    ax_k.set_ylim(0.0, 1.6 * np.nanmax(np.fmax(first, final)))  # room for the legend above
+    ax_k.set_ylabel("knots")
+    ax_k.legend(fontsize="small", loc="upper center")
+    ax_r.bar(x[ok], n_rounds[ok], color="tab:green", alpha=0.7, label="rounds: certified")
+    if not ok.all():
+        ax_r.bar(x[~ok], n_rounds[~ok], color="none", edgecolor=_SPLIT_COLOUR, hatch="//",
+                 label="rounds: not certified")  # fmt: skip
+    ax_r.set_ylim(0.0, 1.4 * n_rounds.max() + 0.5)  # room for the legend above the bars
+    ax_r.set_ylabel("rounds")
+    ax_r.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax_r.set_xticks(x, [str(lab) for lab in labels], rotation=90 if len(records) > 8 else 0,
+                    fontsize="small")  # fmt: skip
+    ax_r.legend(fontsize="small", loc="upper center", ncol=2)
+    budgets = sorted({r.budget.describe() for r in records})
+    ax_k.set_title(
+        title
+        or f"mesh refinement of {len(records)} plans: {int(ok.sum())}/{len(records)} certified\n"
+        f"({'; '.join(budgets)})",
+        fontsize="medium",
+    )
     return fig
 
 
