@@ -340,6 +340,7 @@ NO_ANY_PACKAGES: tuple[str, ...] = (
     "viz",
     "sweeps",
     "reproduction",
+    "trajopt",
 )
 
 #: Public names of the covered packages still annotated with Any, each with its cause; an

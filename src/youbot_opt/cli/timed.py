@@ -17,6 +17,8 @@ import argparse
 import json
 from pathlib import Path
 
+from numpy.typing import ArrayLike
+
 from youbot_opt._files import json_ready
 from youbot_opt._typing import JSONDict
 from youbot_opt.cli.flags import ipopt_options
@@ -151,7 +153,7 @@ def _passed(timed: TimedResult, certificate: Certificate | None) -> bool:
 
 def time_ik_path(
     robot: RobotModel,
-    configurations: object,
+    configurations: ArrayLike,
     folder: Path,
     *,
     knots_per_segment: int | None = None,

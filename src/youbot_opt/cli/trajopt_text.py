@@ -8,6 +8,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import cast
+
 from youbot_opt.cli.advice import gripper_note
 from youbot_opt.cli.refinement import refinement_table
 from youbot_opt.robot.model import JointUnits
@@ -73,10 +76,11 @@ def format_result(
     note = gripper_note(result)
     if note:
         lines.append(note)
-    for row in s.get("tool", ()):
+    # summary()["tool"] is a list of one document per tool constraint (TrajOptResult.summary)
+    for tool in cast("Sequence[Mapping[str, object]]", s.get("tool", ())):
         lines.append(
-            f"tool          {row['label']}: largest at the knots {row['largest_at_knots']:.4g} "
-            f"{row['unit']} (knot {row['knot']}), limit {row['limit']:.4g} {row['unit']}"
+            f"tool          {tool['label']}: largest at the knots {tool['largest_at_knots']:.4g} "
+            f"{tool['unit']} (knot {tool['knot']}), limit {tool['limit']:.4g} {tool['unit']}"
         )
     if certificate is not None:
         lines += ["", str(certificate)]

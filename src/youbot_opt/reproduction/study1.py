@@ -224,7 +224,7 @@ class StudyTranscription(TrapezoidalCollocation):
         accel: dict[str, _E],
         beta: _E,
         paths: tuple[PathConstraint, ...] = (),
-    ) -> Expressions:
+    ) -> Expressions[_E]:
         """Build the trapezoidal pieces, with the time term of deviation (4).
 
         Raises

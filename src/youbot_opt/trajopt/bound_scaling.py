@@ -16,9 +16,9 @@ import time
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from youbot_opt._checks import check_beta, check_bound_scale
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
@@ -93,7 +93,7 @@ class BoundScalingRow:
         """Count the active bounds per family (``"velocity_upper"``: 3, ...)."""
         return dict(sorted(Counter(a.name for a in self.active).items()))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready figures of this scale."""
 
         def num(x: float) -> float | None:
@@ -132,7 +132,7 @@ class BoundScalingResult:
     seed: int
     wall_time: float = 0.0
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready summary of every scale."""
         return {
             "beta": self.beta,

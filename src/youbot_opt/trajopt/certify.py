@@ -17,12 +17,12 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from youbot_opt._checks import check_time_limit
-from youbot_opt._typing import Array
+from youbot_opt._typing import Array, JSONDict
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.dynamics.numeric import RobotLike
 from youbot_opt.exceptions import ParameterError
@@ -335,13 +335,13 @@ class Certificate:
         return self.passed()
 
     # -------------------------------------------------------------- reports
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready figures (non-finite numbers become ``None``)."""
 
         def num(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
 
-        out: dict[str, Any] = {
+        out: JSONDict = {
             "robot": self.robot,
             "n_knots": self.n_knots,
             "duration_s": num(self.duration),

@@ -19,11 +19,11 @@ import time
 from collections import Counter
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from youbot_opt._checks import check_beta, check_bound_scale
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
@@ -124,9 +124,9 @@ class LocalOptimum:
         """Largest objective minus smallest among the members (the last member's)."""
         return self.members[-1].objective - self.best.objective
 
-    def summary(self, *, seeds: bool = True) -> dict[str, Any]:
+    def summary(self, *, seeds: bool = True) -> JSONDict:
         """JSON-ready figures; ``seeds``: also every member's seed (reads every member)."""
-        out: dict[str, Any] = {
+        out: JSONDict = {
             "objective": self.objective,
             "duration_s": self.duration,
             "work": self.work,
@@ -358,7 +358,7 @@ class MultistartResult:
 
     def summary(
         self, objective_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
-    ) -> dict[str, Any]:
+    ) -> JSONDict:
         """JSON-ready summary: rates, status counts, best start, distinct optima, every start.
 
         Parameters
@@ -374,7 +374,7 @@ class MultistartResult:
         full = self.tally is None if starts is None else bool(starts)
         best = self.best
         counts = self.status_counts()
-        out: dict[str, Any] = {
+        out: JSONDict = {
             "beta": self.beta,
             "bound_scale": self.bound_scale,
             "seed": self.seed,

@@ -13,8 +13,9 @@ re-evaluation of a result share one definition.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypeVar
 
+import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
@@ -27,8 +28,10 @@ __all__ = [
     "work",
 ]
 
+_N = TypeVar("_N", float, ca.SX, ca.MX)  # a number or a CasADi expression: both are allowed
 
-def objective_value(duration: Any, work: Any, beta: Any) -> Any:
+
+def objective_value(duration: _N, work: _N, beta: _N) -> _N:
     """Return ``f = beta T + (1 - beta) W`` for a duration [s] and a work [N^2 m^2 s].
 
     Parameters
@@ -49,7 +52,7 @@ def objective_value(duration: Any, work: Any, beta: Any) -> Any:
     return beta * duration + (1 - beta) * work
 
 
-def duration(dt: Any, n_knots: int) -> Any:
+def duration(dt: _N, n_knots: int) -> _N:
     """Return the true duration ``T = (N - 1) dt`` in [s] of ``N`` knots, common step ``dt`` [s]."""
     return (n_knots - 1) * dt
 

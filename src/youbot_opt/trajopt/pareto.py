@@ -19,11 +19,11 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import Any
 
 import numpy as np
 
 from youbot_opt._checks import check_beta, check_bound_scale
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome, WorkerPool, process_context, run_tasks
@@ -139,7 +139,7 @@ class ParetoPoint:
     result: TrajOptResult | None = None
     reason: str | None = None
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready figures (everything but the result)."""
 
         def num(x: float) -> float | None:
@@ -194,7 +194,7 @@ class ParetoFront:
         """Fraction of weights whose solve converged."""
         return sum(p.success for p in self.points) / len(self.points) if self.points else 0.0
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready summary of every point."""
         return {
             "bound_scale": self.bound_scale,

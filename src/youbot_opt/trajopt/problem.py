@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from youbot_opt._typing import Array
+from youbot_opt._typing import Array, JSONDict
 from youbot_opt.collision.clearance import Clearance
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.exceptions import ParameterError
@@ -256,7 +256,7 @@ class TrajOptProblem:
                         value=float(x[j]),
                     )
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JSONDict:
         """JSON-ready description (robot name and URDF path, boundary, sizes)."""
         urdf = getattr(self.robot, "urdf_path", None)
         return {

@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from youbot_opt._typing import Array
+from youbot_opt._typing import Array, JSONDict
 from youbot_opt.dynamics.numeric import batched_aba
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.ipopt import IpoptOptions
@@ -451,7 +451,7 @@ class TrajOptResult:
                 collect(f"{block}_{side}", path.values, bound, side, lam_g)
         return sorted(rows, key=lambda r: (r.name, r.knot, r.joint))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready figures of the solve.
 
         ``"certified"`` is False: a result alone is never certified;
@@ -486,7 +486,7 @@ class TrajOptResult:
             **self._tool_summary(),
         }
 
-    def _tool_summary(self) -> dict[str, Any]:
+    def _tool_summary(self) -> JSONDict:
         """``{"tool": [...]}``: each tool constraint, its limit and its largest knot value."""
         q, v = self.variables.get("q"), self.variables.get("v")
         tool = self.problem.tool
@@ -504,7 +504,7 @@ class TrajOptResult:
             ]
         }  # fmt: skip
 
-    def _clearance_summary(self) -> dict[str, Any]:
+    def _clearance_summary(self) -> JSONDict:
         """``{"clearance": ...}``: coal's closest pair at the knots and the margin, if any."""
         spec = self.problem.clearance
         q = self.variables.get("q")
@@ -566,7 +566,7 @@ def _derive_structure(result: TrajOptResult) -> BoundStructure:
         return BoundStructure(unbounded=unbounded, path={})
     aba = batched_aba(result.problem.robot, damping=result.problem.damping)
     sym = {k: ca.DM(np.asarray(x, dtype=float).T) for k, x in result.variables.items()}
-    accel: dict[str, Any] = {}
+    accel: JSONDict = {}
     for group, (q, v, tau) in method.dynamics_points(sym).items():
         qn, vn, taun = (np.asarray(x, dtype=float).T for x in (q, v, tau))
         accel[group] = ca.DM(np.asarray(aba(qn, vn, taun)).reshape(vn.shape).T)

@@ -26,6 +26,7 @@ from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
+from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.sweeps.lazy import LazySequence
 from youbot_opt.sweeps.optima import KeepRule
@@ -186,7 +187,7 @@ class StartOutcome:
     result: TrajOptResult | None = None
     optimum: str | None = None
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready figures (everything but the result; NaN becomes ``None``)."""
 
         def num(x: float) -> float | None:
@@ -274,7 +275,7 @@ def start_seeds(seed: int, n_starts: int) -> tuple[int, ...]:
     return tuple(int(c.generate_state(1, dtype=np.uint32)[0]) for c in children)
 
 
-def check_solver(solver: Any) -> TrajOptSolver:
+def check_solver(solver: object) -> TrajOptSolver:
     """Return ``solver`` if it is a built :class:`~youbot_opt.trajopt.solver.TrajOptSolver`.
 
     Raises
@@ -449,7 +450,7 @@ def count_starts(jobs: Sequence[_StartJob], store: SweepStore) -> StartCounts:
 
 def _describe_start(
     key: str, args: tuple[Any, ...], value: tuple[TrajOptResult, float]
-) -> tuple[TrajOptResult, dict[str, Any]]:
+) -> tuple[TrajOptResult, JSONDict]:
     """Worker side: the payload (the result) and summary of a solved start."""
     job: _StartJob = args[1]
     result, guess_time = value

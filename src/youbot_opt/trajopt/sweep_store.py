@@ -21,11 +21,11 @@ import math
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from youbot_opt._files import MIGRATION_SCRIPT, array_digest, json_digest
+from youbot_opt._typing import JSONDict
 from youbot_opt.collision.clearance import clearance_checker, clearance_document
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.robot.model import RobotModel
@@ -38,6 +38,7 @@ from youbot_opt.trajopt.optimality import first_order
 from youbot_opt.trajopt.refine import Refined, RefinementBudget
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.sweep import StartJobChain, StartJobs
 
 __all__ = [
     "ItemMaking",
@@ -88,17 +89,17 @@ def result_codec(solver: TrajOptSolver, made_by: ItemMaking | None = None) -> Co
     )
 
 
-def jobs_making(jobs: Any) -> ItemMaking:
+def jobs_making(jobs: StartJobs | StartJobChain) -> ItemMaking:
     """Return what makes each item of start jobs (``jobs.job(key)``): beta, bound scale, seed."""
     return functools.partial(_job_making, jobs)
 
 
-def _job_making(jobs: Any, key: str) -> dict[str, float | int | None]:
+def _job_making(jobs: StartJobs | StartJobChain, key: str) -> dict[str, float | int | None]:
     job = jobs.job(key)
     return {"beta": job.beta, "bound_scale": job.bound_scale, "seed": job.seed}
 
 
-def _problem(result_or_solver: TrajOptResult | TrajOptSolver) -> dict[str, Any]:
+def _problem(result_or_solver: TrajOptResult | TrajOptSolver) -> JSONDict:
     desc = result_or_solver.problem.describe()
     desc.pop("urdf_path", None)
     return json.loads(json.dumps(desc, allow_nan=True))
@@ -198,7 +199,7 @@ def _refuse_0_1_0(out: Path) -> None:
         )
 
 
-def sweep_params(solver: TrajOptSolver) -> dict[str, Any]:
+def sweep_params(solver: TrajOptSolver) -> JSONDict:
     """JSON-ready description of the solver a sweep runs (part of its manifest).
 
     The problem's robot is named by :func:`robot_identity` (``"urdf_sha256"``),

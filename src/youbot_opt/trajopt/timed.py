@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from youbot_opt._checks import check_beta, check_bound_scale, check_time_limit
-from youbot_opt._typing import Array
+from youbot_opt._typing import Array, JSONDict
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.trajopt.guess import DEFAULT_GUESS_DURATION, inverse_dynamics
@@ -339,12 +339,12 @@ class TimedResult:
         """:attr:`success` and a refinement that ended certified (False when not refined)."""
         return self.success and self.refinement is not None and self.refinement.certified
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JSONDict:
         """JSON-ready figures: waypoint times [s], T [s], W, status, waypoint error [rad].
 
         With a refinement also ``"refinement"`` (:meth:`Refinement.summary`: its rounds).
         """
-        doc: dict[str, Any] = {
+        doc: JSONDict = {
             "waypoint_times_s": [float(t) for t in self.waypoint_times],
             "segment_durations_s": [float(d) for d in self.segment_durations],
             "closed": self.waypoints.closed,

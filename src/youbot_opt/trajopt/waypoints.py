@@ -17,9 +17,9 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from youbot_opt._files import read_input_text
 from youbot_opt._typing import Array
@@ -102,7 +102,7 @@ class Waypoints:
         return np.vstack([self.q, self.q[:1]]) if self.closed else np.array(self.q)
 
     @classmethod
-    def from_configurations(cls, configurations: Any, *, closed: bool = True) -> Waypoints:
+    def from_configurations(cls, configurations: ArrayLike, *, closed: bool = True) -> Waypoints:
         """Waypoints from a cyclic IK path's configurations (``IKPathResult.configurations``).
 
         Parameters

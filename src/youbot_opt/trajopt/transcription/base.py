@@ -17,10 +17,11 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, NamedTuple, TypeVar
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, TranscriptionError
@@ -44,6 +45,8 @@ __all__ = [
     "grid_times",
     "step_ratios",
 ]
+
+_E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: the transcriptions work with both
 
 BOUND_NAMES: dict[str, str] = {
     "q": "position",
@@ -164,12 +167,12 @@ class TranscribedNLP:
     rule: QuadratureRule
     n_knots: int
     nv: int
-    x: Any
-    p: Any
-    f: Any
-    g: Any
-    duration: Any
-    work: Any
+    x: ca.MX
+    p: ca.MX
+    f: ca.MX
+    g: ca.MX
+    duration: ca.MX
+    work: ca.MX
     variables: Layout
     constraints: Layout
     path_bounds: Mapping[str, str] = field(default_factory=dict)
@@ -291,7 +294,7 @@ class Transcription(ABC):
     """The grid's interval fractions (``None``: uniform; also for subclasses that
     define their own ``__init__``)."""
 
-    def __init__(self, fractions: Any = None) -> None:
+    def __init__(self, fractions: ArrayLike | None = None) -> None:
         self.fractions: Array | None = None if fractions is None else check_fractions(fractions)
 
     def __repr__(self) -> str:
@@ -304,7 +307,7 @@ class Transcription(ABC):
         """Whether the grid is uniform (no ``fractions`` given)."""
         return self.fractions is None
 
-    def with_fractions(self, fractions: Any) -> Transcription:
+    def with_fractions(self, fractions: ArrayLike | None) -> Transcription:
         """Return the same scheme on another grid (``None``: uniform)."""
         return type(self)(fractions)
 
@@ -312,13 +315,13 @@ class Transcription(ABC):
         """Step ratios ``r_k = h_k / mean(h)``, shape ``(n_knots - 1,)`` (ones if uniform)."""
         return step_ratios(self.fractions, n_knots)
 
-    def steps(self, dt: Any, n_knots: int) -> Any:
+    def steps(self, dt: _E, n_knots: int) -> _E:
         """Interval steps ``h_k = r_k dt`` as a ``1 x (N - 1)`` row (``dt`` itself if uniform)."""
         if self.fractions is None:
             return dt
         return dt * ca.DM(self.ratios(n_knots)).T
 
-    def per_interval(self, expr: Any, dt: Any) -> Any:
+    def per_interval(self, expr: _E, dt: _E) -> _E:
         """``expr`` (``nv x (N - 1)``) with column ``k`` times ``h_k = r_k dt``."""
         if self.fractions is None:
             return dt * expr
@@ -350,14 +353,14 @@ class Transcription(ABC):
         """Layout of ``x``: ``(name, width, count)`` per block, ``dt`` last."""
 
     @abstractmethod
-    def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
+    def dynamics_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E, _E]]:
         """Where the dynamics is evaluated: group name -> ``(q, v, tau)``, each ``(nv, count)``.
 
         The keys name the accelerations passed to :meth:`collocation`.
         """
 
     @abstractmethod
-    def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
+    def collocation(self, sym: dict[str, _E], accel: dict[str, _E]) -> list[tuple[str, _E]]:
         """Defect blocks ``(name, expression of shape (nv, count))``.
 
         Parameters
@@ -370,8 +373,8 @@ class Transcription(ABC):
         """
 
     def path_constraints(
-        self, sym: dict[str, Any], accel: dict[str, Any]
-    ) -> list[tuple[str, str, Any]]:
+        self, sym: dict[str, _E], accel: dict[str, _E]
+    ) -> list[tuple[str, str, _E]]:
         """Inequality blocks that keep the interpolant within the joint bounds between knots.
 
         Returns
@@ -412,7 +415,7 @@ class Transcription(ABC):
             interpolation=self.interpolation,
         )
 
-    def path_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any]]:
+    def path_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E]]:
         """Where path constraints are evaluated: group name -> ``(q, v)``, each ``(nv, count)``.
 
         The dynamics points (knots, Hermite-Simpson's midpoints, Radau's stages)
@@ -488,11 +491,11 @@ class Transcription(ABC):
     def expressions(
         self,
         problem: TrajOptProblem,
-        sym: dict[str, Any],
-        accel: dict[str, Any],
-        beta: Any,
+        sym: dict[str, _E],
+        accel: dict[str, _E],
+        beta: _E,
         paths: tuple[PathConstraint, ...] = (),
-    ) -> Expressions:
+    ) -> Expressions[_E]:
         """Objective, constraints and their terms from variables and accelerations.
 
         Works with SX and MX alike; :meth:`build` passes the mapped dynamics as
@@ -530,7 +533,7 @@ class Transcription(ABC):
             path_limits=limits,
         )
 
-    def time_and_work(self, sym: dict[str, Any], n_knots: int) -> tuple[Any, Any]:
+    def time_and_work(self, sym: dict[str, _E], n_knots: int) -> tuple[_E, _E]:
         """Return the objective's terms ``(T, W)`` in [s] and [N^2 m^2 s] from the variables.
 
         ``T = (N - 1) dt`` and ``W = dt sum_blocks w . (tau . tau)``
@@ -567,7 +570,7 @@ class Transcription(ABC):
         return grid_weights(self.rule, self.ratios(n_knots))
 
 
-def check_fractions(fractions: Any) -> Array:
+def check_fractions(fractions: ArrayLike) -> Array:
     """Validate a grid: positive finite interval fractions, normalised to sum 1.
 
     Raises
@@ -608,13 +611,13 @@ def grid_times(guess: Trajectory, fractions: Array) -> tuple[float, Array]:
     return total / fractions.size, guess.t[0] + total * edges
 
 
-class Expressions(NamedTuple):
-    """Symbolic pieces of a transcription (see :meth:`Transcription.expressions`)."""
+class Expressions(NamedTuple, Generic[_E]):
+    """Symbolic pieces of a transcription (:meth:`Transcription.expressions`): all SX or all MX."""
 
-    f: Any
-    g: Any
-    duration: Any
-    work: Any
+    f: _E
+    g: _E
+    duration: _E
+    work: _E
     constraints: Layout
     path_bounds: Mapping[str, str] = MappingProxyType({})
     """Inequality blocks of ``g`` -> bound family (see :attr:`TranscribedNLP.path_bounds`)."""

@@ -13,8 +13,9 @@ The derivation, and why the separated form is kept, are in docs/collocation.md.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar, TypeVar
 
+import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
@@ -22,6 +23,8 @@ from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription.base import Transcription
 
 __all__ = ["HermiteSimpsonCollocation"]
+
+_E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: the transcriptions work with both
 
 
 class HermiteSimpsonCollocation(Transcription):
@@ -45,14 +48,14 @@ class HermiteSimpsonCollocation(Transcription):
             ("dt", 1, 1),
         ]
 
-    def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
+    def dynamics_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E, _E]]:
         """Evaluate the dynamics at the ``N`` knots and the ``N - 1`` midpoints."""
         return {
             "knots": (sym["q"], sym["v"], sym["tau"]),
             "midpoints": (sym["q_mid"], sym["v_mid"], sym["tau_mid"]),
         }
 
-    def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
+    def collocation(self, sym: dict[str, _E], accel: dict[str, _E]) -> list[tuple[str, _E]]:
         """Simpson defects and Hermite midpoint conditions, ``(nv, N - 1)`` each."""
         q, v, dt = sym["q"], sym["v"], sym["dt"]
         qm, vm = sym["q_mid"], sym["v_mid"]
@@ -76,8 +79,8 @@ class HermiteSimpsonCollocation(Transcription):
         ]
 
     def path_constraints(
-        self, sym: dict[str, Any], accel: dict[str, Any]
-    ) -> list[tuple[str, str, Any]]:
+        self, sym: dict[str, _E], accel: dict[str, _E]
+    ) -> list[tuple[str, str, _E]]:
         """Bound the inner Bernstein control points of each interval's velocity cubic."""
         v, dt, a = sym["v"], sym["dt"], accel["knots"]
         q = sym["q"]

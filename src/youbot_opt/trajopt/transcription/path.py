@@ -15,6 +15,7 @@ blocks ``<name>_<group>`` of ``g``. Clearance (#28) is the first one
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypeVar
 
 import casadi as ca
 import numpy as np
@@ -23,6 +24,8 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
 __all__ = ["PathConstraint"]
+
+_E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: evaluated on either, returned alike
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -74,7 +77,7 @@ class PathConstraint:
         """Number of rows ``m`` per point."""
         return int(self.function.size1_out(0))
 
-    def evaluate(self, q: ca.SX | ca.MX, v: ca.SX | ca.MX) -> ca.SX | ca.MX:
+    def evaluate(self, q: _E, v: _E) -> _E:
         """``c`` at ``count`` points: ``q``, ``v`` of shape ``(nv, count)`` -> ``(m, count)``."""
         mapped = self.function.map(int(q.size2()))
         if isinstance(q, ca.SX) and isinstance(v, ca.SX):

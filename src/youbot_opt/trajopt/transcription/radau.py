@@ -13,8 +13,10 @@ bounds by their Bernstein control points (linear rows). Why: docs/refinement.md.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar, TypeVar
 
+import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
@@ -24,6 +26,8 @@ from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription.base import Transcription
 
 __all__ = ["RadauCollocation"]
+
+_E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: the transcriptions work with both
 
 _STAGES = ("stage1", "stage2")
 
@@ -60,23 +64,23 @@ class RadauCollocation(Transcription):
         stages = [(f"{x}_{s}", nv, m) for s in _STAGES for x in ("q", "v", "tau")]
         return [("q", nv, n_knots), ("v", nv, n_knots), ("tau", nv, n_knots), *stages, ("dt", 1, 1)]
 
-    def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
+    def dynamics_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E, _E]]:
         """Evaluate the dynamics at the ``N`` knots and the two inner stages of each interval."""
         points = {"knots": (sym["q"], sym["v"], sym["tau"])}
         for s in _STAGES:
             points[s] = (sym[f"q_{s}"], sym[f"v_{s}"], sym[f"tau_{s}"])
         return points
 
-    def _nodes(self, sym: dict[str, Any], accel: dict[str, Any], what: str) -> list[Any]:
+    def _nodes(self, sym: dict[str, _E], accel: dict[str, _E], what: str) -> list[Any]:
         """Values of ``q``, ``v`` or ``tau`` (or the accelerations, ``a``) at nodes 1, 2, 3."""
         if what == "a":
             return [accel["stage1"], accel["stage2"], accel["knots"][:, 1:]]
         return [sym[f"{what}_stage1"], sym[f"{what}_stage2"], sym[what][:, 1:]]
 
-    def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
+    def collocation(self, sym: dict[str, _E], accel: dict[str, _E]) -> list[tuple[str, _E]]:
         """Integral-form collocation rows at nodes 1, 2, 3 and the start torque."""
         dt = sym["dt"]
-        blocks: list[tuple[str, Any]] = []
+        blocks: list[tuple[str, _E]] = []
         for state, rate, label in (("q", "v", "position"), ("v", "a", "velocity")):
             start = sym[state][:, :-1]
             values = self._nodes(sym, accel, state)
@@ -99,11 +103,13 @@ class RadauCollocation(Transcription):
         return dt * combo if self.uniform else self.per_interval(combo, dt)
 
     def path_constraints(
-        self, sym: dict[str, Any], accel: dict[str, Any]
-    ) -> list[tuple[str, str, Any]]:
+        self, sym: dict[str, _E], accel: dict[str, _E]
+    ) -> list[tuple[str, str, _E]]:
         """Bound the inner Bernstein control points of each interval's ``q`` and ``v`` cubics."""
         rows = quadrature.radau_bernstein_inner()
-        out: list[tuple[str, str, Any]] = []
+        out: list[tuple[str, str, _E]] = []
+        what: str
+        label: str
         for what, label in (("v", "velocity"), ("q", "position")):
             values = [sym[what][:, :-1], *self._nodes(sym, accel, what)]
             for side, row in zip(("left", "right"), rows, strict=True):
@@ -155,7 +161,7 @@ class RadauCollocation(Transcription):
         self,
         values: dict[str, Array],
         a: Array,
-        accel: Any = None,
+        accel: Callable[[Array, Array, Array], Array] | None = None,
     ) -> Trajectory:
         """Solution trajectory with the stage values (``accel`` gives their accelerations).
 

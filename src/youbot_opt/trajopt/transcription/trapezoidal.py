@@ -10,8 +10,9 @@ torque. The equations and counts: the class docstring.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypeVar
 
+import casadi as ca
 import numpy as np
 
 from youbot_opt._typing import Array
@@ -19,6 +20,8 @@ from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.trajopt.transcription.base import Transcription
 
 __all__ = ["TrapezoidalCollocation"]
+
+_E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: the transcriptions work with both
 
 
 class TrapezoidalCollocation(Transcription):
@@ -51,11 +54,11 @@ class TrapezoidalCollocation(Transcription):
         """``q, v, tau`` of shape ``(nv, N)`` and the scalar ``dt``: ``3 nv N + 1`` variables."""
         return [("q", nv, n_knots), ("v", nv, n_knots), ("tau", nv, n_knots), ("dt", 1, 1)]
 
-    def dynamics_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any, Any]]:
+    def dynamics_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E, _E]]:
         """Evaluate the dynamics at the ``N`` knots."""
         return {"knots": (sym["q"], sym["v"], sym["tau"])}
 
-    def collocation(self, sym: dict[str, Any], accel: dict[str, Any]) -> list[tuple[str, Any]]:
+    def collocation(self, sym: dict[str, _E], accel: dict[str, _E]) -> list[tuple[str, _E]]:
         """Position and velocity defects, ``(nv, N - 1)`` each."""
         q, v, dt = sym["q"], sym["v"], sym["dt"]
         a = accel["knots"]
@@ -67,7 +70,7 @@ class TrapezoidalCollocation(Transcription):
             defect_v = v[:, 1:] - v[:, :-1] - 0.5 * self.per_interval(a[:, 1:] + a[:, :-1], dt)
         return [("defect_position", defect_q), ("defect_velocity", defect_v)]
 
-    def path_points(self, sym: dict[str, Any]) -> dict[str, tuple[Any, Any]]:
+    def path_points(self, sym: dict[str, _E]) -> dict[str, tuple[_E, _E]]:
         """Evaluate at the knots and at the midpoints of the quadratic position, linear velocity.
 
         ``q(t_k + h_k / 2) = (q_k + q_{k+1}) / 2 + h_k (v_k - v_{k+1}) / 8``.
