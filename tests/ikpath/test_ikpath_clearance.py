@@ -219,3 +219,25 @@ def test_multistart_by_the_augmented_lagrangian(arm: RobotModel) -> None:
     ipopt = solve(problem, method="ipopt", x0=found.best.configurations)
     assert ipopt.status.name == "SOLVED", ipopt.message
     assert ipopt.objective == pytest.approx(found.best.objective, abs=1e-8)
+
+
+def test_an_unpickled_problem_reuses_its_process_rows_only_for_an_equal_spec(
+    arm: RobotModel,
+) -> None:
+    """Unpickling reuses rows built for an equal problem; a margin or scene change rebuilds."""
+    base = _problem(arm, _disc(1.2, 0.0))
+    other_margin = dataclasses.replace(
+        base, clearance=Clearance(scene=_disc(1.2, 0.0), margin=0.05, self_collision=False)
+    )
+    other_scene = _problem(arm, _disc(1.3, 0.0))
+    problems = (base, other_margin, other_scene)
+    copies = [pickle.loads(pickle.dumps(p)) for p in problems]
+    for p, q in zip(problems, copies, strict=True):
+        assert q.clearance_rows is p.clearance_rows  # the process's rows, not rebuilt
+        assert q.clearance == p.clearance
+        assert pickle.loads(pickle.dumps(q)).clearance_rows is p.clearance_rows
+    rows = {id(q.clearance_rows) for q in copies}
+    assert len(rows) == 3  # margin and scene: each its own rows
+    assert copies[1].clearance_rows.spec.margin == 0.05
+    x = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]]).ravel()
+    assert not np.allclose(copies[0].clearance_rows.rows(x), copies[2].clearance_rows.rows(x))
