@@ -367,9 +367,9 @@ def _executor(args: argparse.Namespace, spatial: bool) -> str:
 
     Automatic starts run here unless they are AL solves of spatial targets
     (about 0.1 s each, against IPOPT's 0.01 s and the planar methods' ms: a pool
-    pays off only for them) without a clearance (each result a worker sends back
-    carries its problem, whose clearance rows are rebuilt on arrival: 0.4 s on
-    ur5 and one box, more than the AL's 0.1-0.2 s per start).
+    pays off only for them) without a clearance (each worker builds the clearance
+    rows once, about 0.5 s on ur5 and one box, more than the AL's 0.1-0.2 s per
+    start; results sent back reuse the parent's rows, ikpath/problem.py).
     """
     address = scheduler_address(args)
     if address:
