@@ -10,7 +10,8 @@ import pytest
 from youbot_opt.cli import main
 from youbot_opt.collision import Box, Obstacle, Scene, save_scene
 from youbot_opt.exceptions import ParameterError, ResultFileError
-from youbot_opt.ikpath.io import load_result
+from youbot_opt.ikpath.clearance import certify_path_clearance
+from youbot_opt.ikpath.io import SCHEMA, SCHEMA_VERSION, encode_document, load_result
 
 _UR5 = ["ikpath", "--robot", "ur5", "--target", "0.4", "0.2", "0.3", "--target", "0.3", "-0.3"]
 _UR5 += ["0.4"]
@@ -55,6 +56,15 @@ def test_scene_run_reports_the_closest_pair(tmp_path: Path, capsys) -> None:
     best = load_result(out / "result.json")
     assert best.success and best.problem.clearance is not None
     assert best.problem.clearance.margin == MARGIN
+    # the certificate is the result's: the summary's, the file's, the loaded one's
+    assert best.clearance == certify_path_clearance(best.problem, best.configurations)
+    assert best.clearance is not None and best.clearance.closest_distance == clearance["closest_m"]
+    doc = json.loads((out / "result.json").read_text())
+    assert doc["result"]["clearance_certificate"]["closest_m"] == clearance["closest_m"]
+    doc["result"]["clearance_certificate"].update(certified=False, closest_m=99.0)
+    (out / "edited.json").write_bytes(encode_document(SCHEMA, SCHEMA_VERSION, doc["result"]))
+    edited = load_result(out / "edited.json")  # recomputed, never the file's
+    assert edited.success and edited.clearance == best.clearance
     far = clearance["closest_m"] + 0.05  # more than the path keeps
     with pytest.raises(ResultFileError, match=r"does not keep the caller's clearance"):
         load_result(out / "result.json", margin=far)

@@ -23,8 +23,10 @@ from youbot_opt.collision.clearance import Clearance
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.clearance import certify_path_clearance
 from youbot_opt.ikpath.multistart import run_multistart
-from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.problem import _BUILT_ROWS, CyclicIKProblem
+from youbot_opt.ikpath.result import build_result
 from youbot_opt.ikpath.solve import solve
+from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.planar import PlanarChain
 
@@ -94,6 +96,28 @@ def test_known_answer_the_path_turns_the_long_way(arm: RobotModel) -> None:
     assert certificate is not None and certificate.certified
     assert certificate.lower_bound >= MARGIN
     assert result.objective >= free.objective(q_free.ravel())
+    assert result.clearance == certificate  # the result carries coal's certificate
+
+
+def test_a_success_whose_path_crosses_the_disc_is_downgraded(arm: RobotModel) -> None:
+    """A hand-moved path (the free optimum, through the disc) claimed solved: downgraded."""
+    _, q_free = _free_optimum(arm)
+    problem = _problem(arm, _disc(1.2, 0.0))
+    moved = build_result(
+        problem,
+        method="ipopt",
+        status=SolveStatus.SOLVED,
+        x=q_free,
+        multipliers=np.zeros((2, 2)),
+        iterations=1,
+        wall_time=0.0,
+        message="claimed",
+        start=q_free,
+    )
+    assert moved.clearance == certify_path_clearance(problem, q_free)
+    assert moved.clearance is not None and not moved.clearance.certified
+    assert moved.status is SolveStatus.CONSTRAINT_VIOLATION and not moved.success
+    assert "clearance margin 0.02 m (coal): link" in moved.message and "/ disc at" in moved.message
 
 
 def test_rows_gradients_match_central_differences(arm: RobotModel) -> None:
@@ -219,3 +243,29 @@ def test_multistart_by_the_augmented_lagrangian(arm: RobotModel) -> None:
     ipopt = solve(problem, method="ipopt", x0=found.best.configurations)
     assert ipopt.status.name == "SOLVED", ipopt.message
     assert ipopt.objective == pytest.approx(found.best.objective, abs=1e-8)
+
+
+def test_an_unpickled_problem_reuses_its_process_rows_only_for_an_equal_spec(
+    arm: RobotModel,
+) -> None:
+    """Unpickling reuses rows built for an equal problem; a margin or scene change rebuilds."""
+    base = _problem(arm, _disc(1.2, 0.0))
+    other_margin = dataclasses.replace(
+        base, clearance=Clearance(scene=_disc(1.2, 0.0), margin=0.05, self_collision=False)
+    )
+    other_scene = _problem(arm, _disc(1.3, 0.0))
+    problems = (base, other_margin, other_scene)
+    copies = [pickle.loads(pickle.dumps(p)) for p in problems]
+    for p, q in zip(problems, copies, strict=True):
+        assert q.clearance_rows is p.clearance_rows  # the process's rows, not rebuilt
+        assert q.clearance == p.clearance
+        assert pickle.loads(pickle.dumps(q)).clearance_rows is p.clearance_rows
+    rows = {id(q.clearance_rows) for q in copies}
+    assert len(rows) == 3  # margin and scene: each its own rows
+    assert copies[1].clearance_rows.spec.margin == 0.05
+    x = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]]).ravel()
+    assert not np.allclose(copies[0].clearance_rows.rows(x), copies[2].clearance_rows.rows(x))
+    _BUILT_ROWS.clear()  # another process: the rows are rebuilt, equal
+    fresh = pickle.loads(pickle.dumps(base))
+    assert fresh.clearance_rows is not base.clearance_rows
+    np.testing.assert_array_equal(fresh.clearance_rows.rows(x), base.clearance_rows.rows(x))

@@ -55,7 +55,6 @@ from youbot_opt.cli.run_size import check_ikpath_size
 from youbot_opt.cli.warning_lines import flush_warnings
 from youbot_opt.collision.clearance import Clearance
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.ikpath.clearance import certify_path_clearance
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.io import RobotSource, save_result
 from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
@@ -368,9 +367,9 @@ def _executor(args: argparse.Namespace, spatial: bool) -> str:
 
     Automatic starts run here unless they are AL solves of spatial targets
     (about 0.1 s each, against IPOPT's 0.01 s and the planar methods' ms: a pool
-    pays off only for them) without a clearance (each result a worker sends back
-    carries its problem, whose clearance rows are rebuilt on arrival: 0.4 s on
-    ur5 and one box, more than the AL's 0.1-0.2 s per start).
+    pays off only for them) without a clearance (each worker builds the clearance
+    rows once, about 0.5 s on ur5 and one box, more than the AL's 0.1-0.2 s per
+    start; results sent back reuse the parent's rows, ikpath/problem.py).
     """
     address = scheduler_address(args)
     if address:
@@ -594,8 +593,7 @@ def _run_3d(args: argparse.Namespace) -> int:
         starts = write_starts(folder, ms.results, ms.attempts)
         add_result_3d(doc, args, ms, kind, starts)
         if clearance is not None:
-            certificate = certify_path_clearance(problem, best.configurations)
-            doc["clearance"] = clearance_summary(clearance, args.scene, certificate)
+            doc["clearance"] = clearance_summary(clearance, args.scene, best.clearance)
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
         files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))

@@ -39,6 +39,7 @@ from youbot_opt._files import (
 from youbot_opt._typing import JSONDict
 from youbot_opt.collision.clearance import (
     Clearance,
+    ClearanceCertificate,
     clearance_document,
     clearance_from_document,
 )
@@ -276,6 +277,22 @@ def _planar_body(result: IKPathResult) -> dict[str, Any]:
     }
 
 
+def _certificate_json(cert: ClearanceCertificate | None) -> JSONDict | None:
+    """Return :attr:`IKPathResult.clearance` for the file (None: no clearance)."""
+    if cert is None:
+        return None
+    return {
+        "certified": cert.certified,
+        "margin_m": cert.margin,
+        "tolerance_m": cert.tolerance,
+        "lower_bound_m": cert.lower_bound,
+        "closest_pair": list(cert.closest_pair),
+        "closest_time": cert.closest_time,
+        "closest_m": cert.closest_distance,
+        "n_samples": cert.n_samples,
+    }
+
+
 def _parse_planar(body: dict[str, Any], constraint_tol: float) -> IKPathResult:
     spec = body["chain"]
     chain = PlanarChain(
@@ -406,6 +423,9 @@ def _body_3d(
         "wall_time": result.wall_time,
         "start": result.start.tolist(),
         "history": history_to_json(result.history),
+        # coal's certificate at the problem's margin, for the reader: load_result
+        # recomputes it from the configurations, never reads it.
+        "clearance_certificate": _certificate_json(result.clearance),
     }
 
 
@@ -523,6 +543,8 @@ def _parse_3d(
         message=str(body["message"]),
         start=problem.as_configurations(np.array(body["start"], dtype=float), name="start"),
         history=history,
+        # recomputed at the problem's margin, never the file's clearance_certificate
+        clearance=(None if problem.clearance_rows is None else certify_path_clearance(problem, q)),
     )
     return (
         result,
@@ -590,6 +612,14 @@ def _load_3d(
             raise ResultFileError(
                 f"{source}: claims {result.status.value!r} but targets {missed.tolist()} are "
                 f"missed or the limits are violated by {result.limit_violation:.3g} rad"
+            )
+        own = result.clearance
+        if own is not None and not own.certified:
+            a, b = own.closest_pair
+            raise ResultFileError(
+                f"{source}: claims {result.status.value!r} but its path does not keep its "
+                f"problem's clearance {own.margin:g} m (coal): {a} / {b} at "
+                f"{own.closest_distance:.4g} m, leg {int(own.closest_time)}"
             )
         certificate = certify_path_clearance(problem, result.configurations, margin=margin)
         if certificate is not None and not certificate.certified:

@@ -13,7 +13,10 @@ and their derivatives (from Pinocchio) but holds no solver state.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import pickle
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple, cast
@@ -221,6 +224,7 @@ class CyclicIKProblem:
     target_points: Array = field(init=False)
     neutral_rotation: Array = field(init=False)
     clearance_rows: IKClearance | None = field(init=False, repr=False)
+    _rows_key: str | None = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self) -> None:
         robot: object = self.robot
@@ -356,7 +360,35 @@ class CyclicIKProblem:
                 value=k,
             )
         object.__setattr__(self, "leg_samples", int(k))
-        return IKClearance.build(self, self.clearance, int(k))
+        key = _REBUILDING.get("key")
+        if key is not None:
+            cached = _BUILT_ROWS.get(key)
+            if cached is not None:
+                _BUILT_ROWS.move_to_end(key)
+                object.__setattr__(self, "_rows_key", key)
+                return cached
+        rows = IKClearance.build(self, self.clearance, int(k))
+        if key is not None:
+            object.__setattr__(self, "_rows_key", key)
+            _remember_rows(key, rows)
+        return rows
+
+    def _clearance_key(self, robot: RobotModel | PlanarChain) -> str | None:
+        """Digest of what :meth:`IKClearance.build` reads (None without a clearance).
+
+        The robot (its model and collision geometry), the frame, the clearance
+        (scene, margin, self-collision), the leg samples and the targets'
+        count: equal digests mean equal rows. Computed once per problem.
+        """
+        if self.clearance_rows is None:
+            return None
+        key = self._rows_key
+        if key is None:
+            made_of = (robot, self.frame, self.clearance, self.leg_samples, self.n_targets)
+            key = hashlib.sha256(pickle.dumps(made_of, protocol=5)).hexdigest()
+            object.__setattr__(self, "_rows_key", key)
+            _remember_rows(key, self.clearance_rows)
+        return key
 
     def __reduce__(self) -> tuple[Any, ...]:
         """Pickle by the defining fields, without the robot's geometry (meshes)."""
@@ -384,7 +416,7 @@ class CyclicIKProblem:
             "clearance": self.clearance,
             "leg_samples": self.leg_samples,
         }
-        return (_rebuild_problem, (spec,))
+        return (_rebuild_problem, (spec, self._clearance_key(robot)))
 
     @property
     def planar_chain(self) -> PlanarChain:
@@ -873,5 +905,29 @@ def _check_targets(
     return tuple(targets), out
 
 
-def _rebuild_problem(spec: dict[str, Any]) -> CyclicIKProblem:
-    return CyclicIKProblem(**spec)
+_ROWS_KEPT = 8
+"""Built clearance rows a process keeps (least recently used dropped first)."""
+
+_BUILT_ROWS: OrderedDict[str, IKClearance] = OrderedDict()
+"""Per process: clearance rows by :meth:`CyclicIKProblem._clearance_key`, so an
+unpickled problem (a pool worker's start, a result sent back) reuses the rows
+its process built for an equal problem instead of rebuilding them (~0.5 s)."""
+
+_REBUILDING: dict[str, str | None] = {"key": None}
+
+
+def _remember_rows(key: str, rows: IKClearance | None) -> None:
+    if rows is None:
+        return
+    _BUILT_ROWS[key] = rows
+    _BUILT_ROWS.move_to_end(key)
+    while len(_BUILT_ROWS) > _ROWS_KEPT:
+        _BUILT_ROWS.popitem(last=False)
+
+
+def _rebuild_problem(spec: dict[str, Any], rows_key: str | None = None) -> CyclicIKProblem:
+    _REBUILDING["key"] = rows_key
+    try:
+        return CyclicIKProblem(**spec)
+    finally:
+        _REBUILDING["key"] = None
