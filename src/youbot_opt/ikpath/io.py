@@ -613,22 +613,15 @@ def _load_3d(
                 f"{source}: claims {result.status.value!r} but targets {missed.tolist()} are "
                 f"missed or the limits are violated by {result.limit_violation:.3g} rad"
             )
-        own = result.clearance
-        if own is not None and not own.certified:
-            a, b = own.closest_pair
-            raise ResultFileError(
-                f"{source}: claims {result.status.value!r} but its path does not keep its "
-                f"problem's clearance {own.margin:g} m (coal): {a} / {b} at "
-                f"{own.closest_distance:.4g} m, leg {int(own.closest_time)}"
-            )
-        certificate = certify_path_clearance(problem, result.configurations, margin=margin)
-        if certificate is not None and not certificate.certified:
-            a, b = certificate.closest_pair
-            raise ResultFileError(
-                f"{source}: claims {result.status.value!r} but its path does not keep the "
-                f"caller's clearance {margin:g} m (coal): {a} / {b} at "
-                f"{certificate.closest_distance:.4g} m, leg {int(certificate.closest_time)}"
-            )
+        callers = certify_path_clearance(problem, result.configurations, margin=margin)
+        for whose, cert in (("its problem's", result.clearance), ("the caller's", callers)):
+            if cert is not None and not cert.certified:
+                a, b = cert.closest_pair
+                raise ResultFileError(
+                    f"{source}: claims {result.status.value!r} but its path does not keep "
+                    f"{whose} clearance {cert.margin:g} m (coal): {a} / {b} at "
+                    f"{cert.closest_distance:.4g} m, leg {int(cert.closest_time)}"
+                )
     return result
 
 
