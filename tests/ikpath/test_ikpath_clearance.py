@@ -269,3 +269,34 @@ def test_an_unpickled_problem_reuses_its_process_rows_only_for_an_equal_spec(
     fresh = pickle.loads(pickle.dumps(base))
     assert fresh.clearance_rows is not base.clearance_rows
     np.testing.assert_array_equal(fresh.clearance_rows.rows(x), base.clearance_rows.rows(x))
+
+
+def test_a_rebuild_in_another_thread_does_not_lend_its_rows(arm: RobotModel) -> None:
+    """The key of a problem being unpickled is per thread: a thread-pool executor may
+    unpickle several problems at once, and one must not take the rows of another."""
+    import threading
+
+    from youbot_opt.ikpath import problem as problem_module
+
+    base = _problem(arm, _disc(1.2, 0.0))
+    other = _problem(arm, _disc(1.3, 0.0))
+    pickle.dumps(base)  # base's rows are now in the process's cache under its key
+    key = base._clearance_key(base.robot_model)
+    inside, leave = threading.Event(), threading.Event()
+
+    def unpickling_base() -> None:  # stands for a thread paused inside _rebuild_problem
+        problem_module._REBUILDING.key = key
+        inside.set()
+        leave.wait(30)
+        problem_module._REBUILDING.key = None
+
+    thread = threading.Thread(target=unpickling_base)
+    thread.start()
+    try:
+        assert inside.wait(30)
+        built_here = dataclasses.replace(other)  # this thread builds other's own rows
+    finally:
+        leave.set()
+        thread.join(30)
+    assert built_here.clearance_rows is not base.clearance_rows
+    assert built_here.clearance_rows.spec == other.clearance_rows.spec

@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import math
 import pickle
+import threading
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -360,7 +361,7 @@ class CyclicIKProblem:
                 value=k,
             )
         object.__setattr__(self, "leg_samples", int(k))
-        key = _REBUILDING.get("key")
+        key: str | None = getattr(_REBUILDING, "key", None)
         if key is not None:
             cached = _BUILT_ROWS.get(key)
             if cached is not None:
@@ -913,7 +914,9 @@ _BUILT_ROWS: OrderedDict[str, IKClearance] = OrderedDict()
 unpickled problem (a pool worker's start, a result sent back) reuses the rows
 its process built for an equal problem instead of rebuilding them (~0.5 s)."""
 
-_REBUILDING: dict[str, str | None] = {"key": None}
+_REBUILDING = threading.local()
+"""The rows key of the problem :func:`_rebuild_problem` is unpickling, per thread (a
+thread-pool executor may unpickle several problems at once)."""
 
 
 def _remember_rows(key: str, rows: IKClearance | None) -> None:
@@ -926,8 +929,8 @@ def _remember_rows(key: str, rows: IKClearance | None) -> None:
 
 
 def _rebuild_problem(spec: dict[str, Any], rows_key: str | None = None) -> CyclicIKProblem:
-    _REBUILDING["key"] = rows_key
+    _REBUILDING.key = rows_key
     try:
         return CyclicIKProblem(**spec)
     finally:
-        _REBUILDING["key"] = None
+        _REBUILDING.key = None
