@@ -97,3 +97,16 @@ def test_unresolved_damping_suggests_radau(one_round, monkeypatch: pytest.Monkey
     text = next_step(*one_round)
     assert text.startswith("--transcription radau (L-stable; j7's damping relaxes at 561 1/s")
     assert "> 2, unresolved" in text
+
+
+@pytest.mark.parametrize("command", ["solve", "multistart", "pareto", "bounds"])
+def test_no_refine_fallback_keeps_hermite_simpson_in_the_budget(command):
+    """``--no-refine-fallback`` is ``RefinementBudget(fallback=False)``; the default falls back."""
+    from youbot_opt.cli.refinement import refinement_budget
+
+    parse = build_parser().parse_args
+    assert refinement_budget(parse([command])).fallback is True
+    assert refinement_budget(parse([command, "--no-refine-fallback"])).fallback is False
+    assert refinement_budget(parse([command, "--no-refine-fallback"])) == RefinementBudget(
+        fallback=False
+    )

@@ -124,6 +124,8 @@ def test_ikpath_segment_knots_needs_timed(capsys):
     assert "--segment-knots applies with --timed only" in capsys.readouterr().err
     assert main([*argv, "--max-rounds", "2", "--no-progress"]) == 2
     assert "--max-rounds applies with --timed only" in capsys.readouterr().err
+    assert main([*argv, "--no-refine-fallback", "--no-progress"]) == 2
+    assert "--no-refine-fallback applies with --timed only" in capsys.readouterr().err
     assert not Path("youbot_opt_runs").exists()  # refused before the run
 
 

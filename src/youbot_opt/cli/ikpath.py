@@ -662,6 +662,7 @@ def run(args: argparse.Namespace) -> int:
             ("--max-rounds", args.max_rounds != 8),
             ("--max-knots", args.max_knots != 1000),
             ("--refine-time", args.refine_time is not None),
+            ("--no-refine-fallback", not args.refine_fallback),
         )
         for flag, given in refine_flags:
             if given:

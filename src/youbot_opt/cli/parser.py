@@ -410,6 +410,13 @@ def _refine_arguments(
         metavar="SECONDS",
         help="no new refinement round after this wall time [s] (default: no limit)",
     )
+    g.add_argument(
+        "--no-refine-fallback",
+        dest="refine_fallback",
+        action="store_false",
+        help="keep Hermite-Simpson when its torque overshoots at a bang-bang switch (by "
+        "default the next round re-solves the same knots with the trapezoidal scheme)",
+    )
 
 
 # ------------------------------------------------------------------ the commands

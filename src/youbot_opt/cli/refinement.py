@@ -57,6 +57,7 @@ def refinement_budget(args: argparse.Namespace) -> RefinementBudget:
         max_rounds=args.max_rounds,
         max_knots=args.max_knots,
         time_limit=args.refine_time,
+        fallback=args.refine_fallback,
     )
 
 
