@@ -670,8 +670,8 @@ def _check(
     over the tolerance cannot be certified this round, so it gets only the
     certificate's bound checks (no simulation; a failed one fails the round's
     certificate, and a Hermite-Simpson torque overshoot among them calls the
-    trapezoidal fallback). The clearance and tool
-    certificates, which also choose the intervals to split, run every round.
+    trapezoidal fallback). The clearance and tool certificates, which also
+    choose the intervals to split, run every round.
     """
     error: CollocationError | None = None
     cert: Certificate | None = None
