@@ -194,11 +194,14 @@ def test_refinement_certifies_the_base_case(base_refined):
     Re-checked here, not read from the record: the certificate re-run on the
     final plan passes, and every interval's recomputed error is within the
     tolerance. f is within 0.5 % of the converged optimum (the 50-knot grid is
-    2.4 % above it), T within 1 %.
+    2.4 % above it), T within 1 %. The 50-knot plan's errors are over the
+    tolerance, so refinement does not simulate it (its record has no
+    certificate); certified here, it fails.
     """
     r, record = base_refined
     assert base_refined.certified and record.reason == "certified" and r.success
-    assert record.rounds[0].n_knots == 50 and record.rounds[0].certificate_passed is False
+    assert record.rounds[0].n_knots == 50 and record.rounds[0].certificate_passed is None
+    assert not certify(TrajOptSolver(study1_problem(50), "trapezoidal").solve(beta=0.5)).ok
     assert certify(r).ok
     assert collocation_error(r).max <= record.budget.tolerance
     assert r.grid is not None and r.problem.n_knots > 50
@@ -254,9 +257,11 @@ def test_refinement_drives_the_coarse_grid_exploit_to_the_true_family():
 
     The coarse solve is 'solved' with T = 4.1 s and one-interval re-simulation
     errors of ~15 rad; refinement must land in the true family (f within 1 %
-    of the converged optimum, T within 2 %) and pass the certificate.
+    of the converged optimum, T within 2 %) and pass the certificate. Every
+    round is certified here (``certify_every_round``), for round 0's figures.
     """
-    refined = refine(TrajOptSolver(study1_problem(8), "trapezoidal"), beta=0.5)
+    budget = RefinementBudget(certify_every_round=True)
+    refined = refine(TrajOptSolver(study1_problem(8), "trapezoidal"), beta=0.5, budget=budget)
     r = refined.result
     first = refined.refinement.rounds[0]
     assert first.status == "solved" and first.objective < 0.8 * F_CONVERGED
@@ -451,3 +456,71 @@ def test_the_time_limit_caps_a_rounds_solve_and_keeps_the_last_plan(monkeypatch)
     assert len(r.refinement.rounds) == 1
     assert "the time limit ran out in round 1's solve" in r.refinement.reason
     assert "round 0's plan is returned" in r.refinement.reason
+
+
+def _same_rounds(cheap, every):
+    """The two refinements made the same solves: grids, schemes, iterations, f, plan bit for bit."""
+    a, b = cheap.refinement.rounds, every.refinement.rounds
+    assert [(r.n_knots, r.method, r.iterations) for r in a] == [
+        (r.n_knots, r.method, r.iterations) for r in b
+    ]
+    assert [r.objective for r in a] == [r.objective for r in b]
+    for name, x in cheap.result.variables.items():
+        np.testing.assert_array_equal(x, every.result.variables[name])
+    assert cheap.certified == every.certified and cheap.refinement.reason == every.refinement.reason
+
+
+def test_the_certificate_is_simulated_only_where_the_plan_may_pass():
+    """Issue 27: the error estimate first, the forward simulation where the errors pass.
+
+    The study's base case (50 -> 86 -> 123 trapezoidal knots, f = 8.090279):
+    rounds 0 and 1 are over the tolerance and get no certificate; the final
+    plan gets the full one (its figures are in its record and
+    ``refinement.certificate``). Certifying every round changes none of the
+    solves (same grids, iterations and plan bit for bit), only the history.
+    A budget that stops over the tolerance still certifies the plan it returns.
+    """
+    solver = TrajOptSolver(study1_problem(50), "trapezoidal")
+    cheap = refine(solver, beta=0.5)
+    every = refine(solver, beta=0.5, budget=RefinementBudget(certify_every_round=True))
+    rounds = cheap.refinement.rounds
+    assert [r.n_knots for r in rounds] == [50, 86, 123]
+    assert round(cheap.result.objective, 6) == 8.090279 and cheap.certified
+    assert [r.certificate_passed for r in rounds] == [None, None, True]
+    assert all(np.isnan(r.feedback_rms) for r in rounds[:2]) and np.isfinite(rounds[2].feedback_rms)
+    assert cheap.refinement.certificate is not None and cheap.refinement.certificate.ok
+    assert [r.certificate_passed for r in every.refinement.rounds] == [False, True, True]
+    _same_rounds(cheap, every)
+    stopped = refine(solver, beta=0.5, budget=RefinementBudget(max_rounds=2))
+    last = stopped.refinement.rounds[-1]
+    assert not stopped.certified and last.max_error > 1e-3 and last.certificate_passed is True
+    assert stopped.refinement.certificate is not None and np.isfinite(last.feedback_rms)
+
+
+@pytest.mark.slow
+def test_the_cheap_decision_keeps_the_hermite_simpson_fallback():
+    """UR5, beta = 1, 10 Hermite-Simpson knots: the bound checks alone find the overshoot.
+
+    Round 0 is over the tolerance (no simulation) but its between-knots
+    torque check fails (``certificate_passed`` False, the check named), so
+    the trapezoidal fallback comes in the same round as with every round
+    certified, and every solve is the same.
+    """
+    from youbot_opt.robot.load import load_model
+    from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
+
+    q0 = np.array([0.0, -1.2, 1.0, -0.5, 0.3, 0.0])
+    q1 = np.array([0.8, -0.6, 0.4, -1.2, -0.3, 0.5])
+    problem = TrajOptProblem(
+        robot=load_model("ur5"), start=BoundaryState(q=q0), goal=BoundaryState(q=q1), n_knots=10
+    )
+    solver = TrajOptSolver(problem, "hermite_simpson")
+    first = solver.solve(beta=1.0)
+    cheap = refine(solver, first=first)
+    every = refine(solver, first=first, budget=RefinementBudget(certify_every_round=True))
+    zero = cheap.refinement.rounds[0]
+    assert zero.max_error > 1e-3 and zero.certificate_passed is False
+    assert np.isnan(zero.feedback_rms)
+    assert any(f.startswith("bound torque, between knots") for f in zero.failures)
+    assert [r.method for r in cheap.refinement.rounds[:2]] == ["hermite_simpson", "trapezoidal"]
+    _same_rounds(cheap, every)

@@ -31,7 +31,7 @@ from youbot_opt.collision.exact import ExactChecker
 from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.exceptions import ParameterError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.trajopt.certify import BoundCheck, Certificate, Tolerances, certify
+from youbot_opt.trajopt.certify import BoundCheck, Certificate, Tolerances, certify, check_bounds
 from youbot_opt.trajopt.clearance import certify_plan_clearance
 from youbot_opt.trajopt.mesh_error import CollocationError, collocation_error
 from youbot_opt.trajopt.quadrature import grid_weights
@@ -88,9 +88,15 @@ class RefinementBudget:
     certify : bool
         Also require the forward-simulation certificate to pass.
     certify_every_round : bool
-        Certify every round, for the history (default); ``False`` certifies
-        only the rounds whose errors are within the tolerance (faster; the
-        other rounds then have no certificate figures).
+        Run the certificate's forward simulation on every round, for the
+        history. ``False`` (default) decides cheaply: the collocation error
+        estimate first, the simulation only on the rounds whose errors are
+        within the tolerance (the plans that may pass) and on the last round,
+        so the plan returned always has its full certificate, and a plan is
+        never called certified without it. The other rounds have no
+        certificate figures; they get the certificate's bound checks alone
+        (``certificate_passed`` False if one fails, else None), which the
+        ``fallback`` needs.
     tolerances : Tolerances or None
         The certificate's thresholds (its defaults when None).
     safety : float
@@ -110,7 +116,7 @@ class RefinementBudget:
     time_limit: float | None = None
     max_pieces: int = 16
     certify: bool = True
-    certify_every_round: bool = True
+    certify_every_round: bool = False
     tolerances: Tolerances | None = None
     safety: float = 1.0
     fallback: bool = True
@@ -506,7 +512,28 @@ def stiffness_note(
     )
 
 
-def torque_overshoot(result: TrajOptResult, cert: Certificate | None) -> BoundCheck | None:
+class _BoundChecks(NamedTuple):
+    """The certificate's bound checks alone (no simulation), of a round over the tolerance."""
+
+    bounds: tuple[BoundCheck, ...]
+    tolerances: Tolerances
+
+
+def _bound_checks(result: TrajOptResult, tolerances: Tolerances | None) -> _BoundChecks | None:
+    """Return the certificate's bound checks of a plan (None without a trajectory).
+
+    The same :func:`~youbot_opt.trajopt.certify.check_bounds` call :func:`certify`
+    makes (the result's bounds, 20 samples per interval), without its simulations.
+    """
+    if result.trajectory is None:
+        return None
+    checks = check_bounds(result.trajectory, result.bounds())
+    return _BoundChecks(checks, Tolerances() if tolerances is None else tolerances)
+
+
+def torque_overshoot(
+    result: TrajOptResult, cert: Certificate | _BoundChecks | None
+) -> BoundCheck | None:
     """Return the torque overshoot no grid removes from a Hermite-Simpson plan (None if none).
 
     The certificate's first failed between-knots torque check, when the plan's
@@ -525,7 +552,7 @@ def torque_overshoot(result: TrajOptResult, cert: Certificate | None) -> BoundCh
     return over[0]
 
 
-def overshoot_note(result: TrajOptResult, cert: Certificate | None) -> str:
+def overshoot_note(result: TrajOptResult, cert: Certificate | _BoundChecks | None) -> str:
     """Say why splitting cannot pass a Hermite-Simpson torque overshoot ("" if not the case).
 
     Hermite-Simpson's torque is the quadratic through an interval's knot and
@@ -610,33 +637,54 @@ def transfer_start(
     return x0, nlp.variables.pack(lam_x_blocks), nlp.constraints.pack(lam_g_blocks)
 
 
-def _round(
-    index: int,
+class _Checks(NamedTuple):
+    """What a round measured of its plan (:func:`_check`)."""
+
+    error: CollocationError | None
+    cert: Certificate | None
+    clear: ClearanceCertificate | None
+    tool: tuple[ToolCertificate, ...]
+    bounds: _BoundChecks | None  # the bound checks alone, when the certificate was not run
+
+
+def _certificate(
+    result: TrajOptResult, budget: RefinementBudget, deadline: float | None
+) -> Certificate | None:
+    """Return the full certificate (forward simulation) within the time budget's rest."""
+    limit = None if deadline is None else deadline - time.perf_counter()
+    if limit is not None and limit <= 0.0:  # none left: not certified, said by the caller
+        return None
+    return certify(result, tolerances=budget.tolerances, time_limit=limit)
+
+
+def _check(
     result: TrajOptResult,
     budget: RefinementBudget,
-    solve_time: float,
     deadline: float | None,
     checker: ExactChecker | None = None,
-) -> tuple[
-    RefinementRound,
-    CollocationError | None,
-    Certificate | None,
-    ClearanceCertificate | None,
-    tuple[ToolCertificate, ...],
-]:
-    tic = time.perf_counter()
+) -> _Checks:
+    """Error estimate first; the forward simulation only when the plan may pass.
+
+    The certificate (:func:`certify`) runs when every interval is within the
+    tolerance, or on every round with ``budget.certify_every_round``; a plan
+    over the tolerance cannot be certified this round, so it gets only the
+    certificate's bound checks (no simulation; a failed one fails the round's
+    certificate, and a Hermite-Simpson torque overshoot among them calls the
+    trapezoidal fallback). The clearance and tool certificates, which also
+    choose the intervals to split, run every round.
+    """
     error: CollocationError | None = None
     cert: Certificate | None = None
     clear: ClearanceCertificate | None = None
     tool: tuple[ToolCertificate, ...] = ()
+    bounds: _BoundChecks | None = None
     if result.trajectory is not None:
         error = collocation_error(result)
         wanted = budget.certify_every_round or error.max <= budget.tolerance
         if result.success and budget.certify and wanted:
-            # the refinement's time budget bounds the certificate's simulations too
-            limit = None if deadline is None else deadline - time.perf_counter()
-            if limit is None or limit > 0.0:  # none left: not certified, said by the caller
-                cert = certify(result, tolerances=budget.tolerances, time_limit=limit)
+            cert = _certificate(result, budget, deadline)
+        elif result.success and budget.certify:
+            bounds = _bound_checks(result, budget.tolerances)
         spec = result.problem.clearance
         if result.success and checker is not None and spec is not None:
             clear = certify_plan_clearance(
@@ -646,6 +694,14 @@ def _round(
             tool = cert.tool
         elif result.success and result.problem.tool:
             tool = certify_plan_tool(result.trajectory, result.problem.robot, result.problem.tool)
+    return _Checks(error, cert, clear, tool, bounds)
+
+
+def _record(
+    index: int, result: TrajOptResult, checks: _Checks, solve_time: float, check_time: float
+) -> RefinementRound:
+    """Return the round's record of its plan and checks."""
+    error, cert, clear, tool = checks.error, checks.cert, checks.clear, checks.tool
     failures = () if cert is None else tuple(cert.failures())
     if clear is not None and not clear.certified:
         t, a, b, d = min(clear.failures, key=lambda f: f[3])
@@ -654,12 +710,23 @@ def _round(
     if cert is None or not cert.tool:  # the certificate's failures list its own
         failures += tuple(c.describe() for c in tool if not c.certified)
     passed = None if cert is None else cert.ok
+    if cert is None and checks.bounds is not None:  # a failed bound check fails the certificate
+        tol = checks.bounds.tolerances
+        over = [
+            f"bound {c.quantity}, {'at' if c.where == 'knots' else 'between'} knots (relative) "
+            f"= {c.relative:.3g} > {limit:.3g}"
+            for c in checks.bounds.bounds
+            if not c.relative
+            <= (limit := tol.knot_bound if c.where == "knots" else tol.between_bound)
+        ]
+        failures += tuple(over)
+        passed = False if over else None
     if clear is not None:
         passed = clear.certified and (passed is None or passed)
     if tool:
         passed = all(c.certified for c in tool) and (passed is None or passed)
     nan = math.nan
-    record = RefinementRound(
+    return RefinementRound(
         index=index,
         n_knots=result.problem.n_knots,
         status=result.status.value,
@@ -675,11 +742,28 @@ def _round(
         local_position=nan if cert is None else cert.local_position_max,
         iterations=result.iterations,
         solve_time=solve_time,
-        check_time=time.perf_counter() - tic,
+        check_time=check_time,
         objective_history=np.asarray(result.objective_history, dtype=float),
         method=result.method,
     )
-    return record, error, cert, clear, tool
+
+
+def _report(
+    rounds: list[RefinementRound],
+    record: RefinementRound,
+    check_time: float,
+    progress: Callable[[RefinementRound], None] | None,
+) -> None:
+    """Append the round (with its check time), log it and tell ``progress``."""
+    record = dataclasses.replace(record, check_time=check_time)
+    rounds.append(record)
+    _log.info(
+        "refinement round %d: %d knots, f = %.6g, T = %.4g s, max error %.3g, certificate %s",
+        record.index, record.n_knots, record.objective, record.duration, record.max_error,
+        record.certificate_passed,
+    )  # fmt: skip
+    if progress is not None:
+        progress(record)
 
 
 def _clearance_errors(
@@ -793,9 +877,10 @@ def refine(
     clear: ClearanceCertificate | None = None
     tool: tuple[ToolCertificate, ...] = ()
     while True:
-        record, error, cert, clear, tool = _round(
-            len(rounds), result, budget, solve_time, deadline, checker
-        )
+        check_tic = time.perf_counter()
+        checks = _check(result, budget, deadline, checker)
+        error, cert, clear, tool = checks.error, checks.cert, checks.clear, checks.tool
+        record = _record(len(rounds), result, checks, solve_time, 0.0)
         if (
             error is not None
             and split is not None
@@ -805,14 +890,6 @@ def refine(
             exponents = observed_exponents(split[0], error.relative, split[1], exponents, stretch)
         elif error is not None:  # first or moved solution: a bound switch inside lowers m
             exponents = np.where(switching_intervals(result), 1.0, float(exponent))
-        rounds.append(record)
-        _log.info(
-            "refinement round %d: %d knots, f = %.6g, T = %.4g s, max error %.3g, certificate %s",
-            record.index, record.n_knots, record.objective, record.duration, record.max_error,
-            record.certificate_passed,
-        )  # fmt: skip
-        if progress is not None:
-            progress(record)
         reason = ""
         if error is None or not result.success:
             reason = f"the solve of round {record.index} failed ({result.status.value})"
@@ -824,6 +901,7 @@ def refine(
         ):
             reason = "certified"
         if reason or error is None:
+            _report(rounds, record, time.perf_counter() - check_tic, progress)
             break
         clipped = (clear is not None and not clear.certified) or not all(c.certified for c in tool)
         if error.max <= tolerance and not clipped:  # certificate failed: split tighter
@@ -835,7 +913,7 @@ def refine(
             if cert is not None or clipped
             else "no time left for the certificate"
         )
-        overshoot = overshoot_note(result, cert)
+        overshoot = overshoot_note(result, cert if cert is not None else checks.bounds)
         switch = budget.fallback and bool(overshoot)
         if switch:  # no grid passes Hermite-Simpson here: the trapezoid on the same knots
             h = np.diff(error.t)
@@ -853,16 +931,24 @@ def refine(
         split = None if switch else (error.relative, parent, result.duration)
         n_new = fractions.size + 1
         elapsed = time.perf_counter() - tic
-        if len(rounds) >= budget.max_rounds:
-            reason = f"{why} after {len(rounds)} rounds"
+        if len(rounds) + 1 >= budget.max_rounds:
+            reason = f"{why} after {len(rounds) + 1} rounds"
         elif n_new > budget.max_knots:
             reason = f"{why}; the next grid needs {n_new} knots"
         elif budget.time_limit is not None and elapsed >= budget.time_limit:
             reason = f"{why} after {elapsed:.3g} s"
         if reason:
+            if cert is None and result.success and budget.certify:
+                # the plan returned has its full certificate, certified or not
+                cert = _certificate(result, budget, deadline)
+                checks = checks._replace(cert=cert, tool=cert.tool or tool if cert else tool)
+                record = _record(record.index, result, checks, solve_time, 0.0)
+                overshoot = overshoot_note(result, cert if cert is not None else checks.bounds)
             note = stiffness_note(result, error, budget.tolerance, exponents) + overshoot
             reason = f"not certified: {reason}{note} (budget: {budget.describe()})"
+            _report(rounds, record, time.perf_counter() - check_tic, progress)
             break
+        _report(rounds, record, time.perf_counter() - check_tic, progress)
         round_tic = tic + elapsed
         left = None if budget.time_limit is None else budget.time_limit - elapsed  # > 0 here
         if switch:
