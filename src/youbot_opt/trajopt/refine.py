@@ -41,6 +41,7 @@ from youbot_opt.trajopt.tool_certificate import ToolCertificate, certify_plan_to
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES
 
 __all__ = [
+    "BoundChecks",
     "ERROR_EXPONENTS",
     "FALLBACK",
     "MOVED",
@@ -512,14 +513,27 @@ def stiffness_note(
     )
 
 
-class _BoundChecks(NamedTuple):
-    """The certificate's bound checks alone (no simulation), of a round over the tolerance."""
+class BoundChecks(NamedTuple):
+    """The certificate's bound checks alone (no simulation), of a round over the tolerance.
+
+    Refinement runs the forward simulation only on rounds within the error
+    tolerance and on the last one (docs/refinement.md); the other rounds get these
+    checks, which :func:`torque_overshoot` and :func:`overshoot_note` read as they
+    read a :class:`~youbot_opt.trajopt.certify.Certificate`'s.
+
+    Attributes
+    ----------
+    bounds : tuple of BoundCheck
+        Velocity and torque bounds at knots and between them (20 samples an interval).
+    tolerances : Tolerances
+        The tolerances the checks are judged by (relative, dimensionless).
+    """
 
     bounds: tuple[BoundCheck, ...]
     tolerances: Tolerances
 
 
-def _bound_checks(result: TrajOptResult, tolerances: Tolerances | None) -> _BoundChecks | None:
+def _bound_checks(result: TrajOptResult, tolerances: Tolerances | None) -> BoundChecks | None:
     """Return the certificate's bound checks of a plan (None without a trajectory).
 
     The same :func:`~youbot_opt.trajopt.certify.check_bounds` call :func:`certify`
@@ -528,11 +542,11 @@ def _bound_checks(result: TrajOptResult, tolerances: Tolerances | None) -> _Boun
     if result.trajectory is None:
         return None
     checks = check_bounds(result.trajectory, result.bounds())
-    return _BoundChecks(checks, Tolerances() if tolerances is None else tolerances)
+    return BoundChecks(checks, Tolerances() if tolerances is None else tolerances)
 
 
 def torque_overshoot(
-    result: TrajOptResult, cert: Certificate | _BoundChecks | None
+    result: TrajOptResult, cert: Certificate | BoundChecks | None
 ) -> BoundCheck | None:
     """Return the torque overshoot no grid removes from a Hermite-Simpson plan (None if none).
 
@@ -552,7 +566,7 @@ def torque_overshoot(
     return over[0]
 
 
-def overshoot_note(result: TrajOptResult, cert: Certificate | _BoundChecks | None) -> str:
+def overshoot_note(result: TrajOptResult, cert: Certificate | BoundChecks | None) -> str:
     """Say why splitting cannot pass a Hermite-Simpson torque overshoot ("" if not the case).
 
     Hermite-Simpson's torque is the quadratic through an interval's knot and
@@ -644,7 +658,7 @@ class _Checks(NamedTuple):
     cert: Certificate | None
     clear: ClearanceCertificate | None
     tool: tuple[ToolCertificate, ...]
-    bounds: _BoundChecks | None  # the bound checks alone, when the certificate was not run
+    bounds: BoundChecks | None  # the bound checks alone, when the certificate was not run
 
 
 def _certificate(
@@ -677,7 +691,7 @@ def _check(
     cert: Certificate | None = None
     clear: ClearanceCertificate | None = None
     tool: tuple[ToolCertificate, ...] = ()
-    bounds: _BoundChecks | None = None
+    bounds: BoundChecks | None = None
     if result.trajectory is not None:
         error = collocation_error(result)
         wanted = budget.certify_every_round or error.max <= budget.tolerance
