@@ -48,7 +48,7 @@ from youbot_opt.ikpath.starts import (
     make_starts_3d,
     periodic_joints,
 )
-from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StartTally, StoredResults
+from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StoredResults
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
     STARTS_3D,
@@ -61,6 +61,7 @@ from youbot_opt.ikpath.sweep import (
     store_params,
     stream_starts,
 )
+from youbot_opt.sweeps.multistart import StartTally
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
@@ -152,7 +153,8 @@ class MultistartResult:
     output : Path or None
         Output directory the starts were saved to (``None``: not saved).
     tally : StartTally or None
-        ``keep_results=False``: counts and the start closest to the targets,
+        ``keep_results=False``: counts and (``found``) the index of the start
+        closest to the targets,
         gathered in one pass at the end of the run; ``None`` otherwise.
     objective_tol, q_tol : float
         The clustering tolerances :attr:`minima` were chosen with.
@@ -177,7 +179,7 @@ class MultistartResult:
     attempts: Sequence[int] = ()
     resumed: int = 0
     output: Path | None = None
-    tally: StartTally | None = None
+    tally: StartTally[int] | None = None
     objective_tol: float = 1e-6
     q_tol: float = 1e-3
     time_budget: float | None = None
@@ -215,7 +217,7 @@ class MultistartResult:
         if self.minima:
             return self.minima[0].result
         if self.tally is not None:
-            return self.results[self.tally.closest]
+            return self.results[self.tally.found]
         return min(
             self.results,
             key=lambda r: (r.max_position_error() + r.max_orientation_error(), r.objective),
@@ -225,7 +227,7 @@ class MultistartResult:
     def best_index(self) -> int:
         """Start index of :attr:`best` (no search through the folder)."""
         if self.tally is not None and not self.minima:
-            return self.tally.closest
+            return self.tally.found
         return self.results.index(self.best)  # StoredResults: found among the held ones
 
     @property
@@ -670,7 +672,7 @@ def _run(
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
     results: Sequence[IKPathResult]
     attempts: Sequence[int]
-    tally: StartTally | None = None
+    tally: StartTally[int] | None = None
     deadline = None if budget is None else t0 + budget - time.perf_counter() + time.monotonic()
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False

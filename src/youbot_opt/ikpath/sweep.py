@@ -41,12 +41,12 @@ from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
-    StartTally,
     StoredResults,
-    tally_starts,
+    closest_start,
 )
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.sweeps.lazy import LazySequence
+from youbot_opt.sweeps.multistart import StartTally, tally_starts
 from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
@@ -724,8 +724,8 @@ class StreamedOutcome(NamedTuple, Generic[ResultT]):
     """Start indices of each distinct minimum in cluster order (lowest ``E`` first)."""
     kept: dict[int, ResultT]
     """The representatives' full results, by start index."""
-    tally: StartTally
-    """Counts per status, successes and the start closest to the targets."""
+    tally: StartTally[int]
+    """Counts per status, successes and (``found``) the start closest to the targets."""
     not_run: int = 0
     """Starts a deadline left unrun: they follow the starts of ``results``."""
 
@@ -883,7 +883,10 @@ def stream_starts(
             ClusterIndices(clusters, c, index_of, sorted_order=False) for c in range(len(clusters))
         ),
         kept=kept,
-        tally=tally_starts(results.summaries()),
+        tally=tally_starts(
+            ((s.status, s.success) for s in results.summaries()),
+            found=closest_start(results.summaries()),
+        ),
         not_run=got.not_run,
     )
 

@@ -4,8 +4,8 @@ Owns :func:`run_multistart` (the study's 50 random starts per ``beta``: random
 feasible spline guesses, optionally plus the straight line, each seeded from
 ``SeedSequence(seed).spawn`` so results do not depend on the executor),
 :class:`MultistartResult`, :class:`LocalOptimum` and :func:`trajectory_distance`.
-With ``keep_results=False`` the result holds no start: :class:`StartTally` (counts,
-best, optima) is computed once at the end and the starts are read from the folder.
+With ``keep_results=False`` the result holds no start: its tally (counts, optima)
+is computed once at the end and the starts are read from the folder.
 How starts run is one :class:`~youbot_opt.sweeps.options.SweepOptions`; the job
 machinery is :mod:`youbot_opt.trajopt.sweep`.
 
@@ -25,6 +25,7 @@ import numpy as np
 from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.multistart import StartTally, tally_starts
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
@@ -35,10 +36,10 @@ from youbot_opt.trajopt.sweep import (
     StartJobs,
     StartOutcome,
     check_solver,
-    count_starts,
     default_dt0,
     solve_starts,
     start_seeds,
+    start_states,
 )
 from youbot_opt.trajopt.sweep_store import jobs_making, result_codec, sweep_params
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -47,13 +48,12 @@ __all__ = [
     "LocalOptimum",
     "MultistartResult",
     "StartOutcome",
-    "StartTally",
     "StoredStarts",
     "default_dt0",
     "optima_rule",
     "run_multistart",
     "start_seeds",
-    "tally_starts",
+    "stored_tally",
     "trajectory_distance",
 ]
 
@@ -210,32 +210,6 @@ def optima_rule(
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class StartTally:
-    """What a ``keep_results=False`` multistart knows of its starts, computed once at its end.
-
-    The accessors of :class:`MultistartResult` answer from it in time and
-    memory of the number of optima, not of starts.
-
-    Attributes
-    ----------
-    status_counts : mapping of str to int
-        Number of starts per status (``"error"``: raised or crashed).
-    n_converged : int
-        Number of starts whose solve succeeded.
-    best : StartOutcome or None
-        Converged start with the lowest objective, with its result.
-    optima : tuple of LocalOptimum
-        The distinct optima at the default tolerances (1e-5, 1e-2 rad),
-        lowest first; members are read from the folder when asked for.
-    """
-
-    status_counts: Mapping[str, int]
-    n_converged: int
-    best: StartOutcome | None
-    optima: tuple[LocalOptimum, ...]
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
 class MultistartResult:
     """All starts of a multistart, with the best one and the distinct optima.
 
@@ -256,11 +230,11 @@ class MultistartResult:
     resumed : int
         Number of starts loaded from the output directory instead of solved.
     tally : StartTally or None
-        ``keep_results=False``: the counts, best start and default distinct
-        optima, computed once at the end of the sweep; ``best``,
-        ``converged``, ``status_counts()``, ``distinct_optima()`` (default
-        tolerances) and ``summary(starts=False)`` answer from it without
-        reading the starts. ``None`` when the starts are held (a tuple).
+        ``keep_results=False``: the counts and the default distinct optima
+        (``found``; the best start is the first one's), computed once at the
+        end of the sweep; ``best``, ``converged``, ``status_counts()``,
+        ``distinct_optima()`` (default tolerances) and ``summary(starts=False)``
+        answer from it without reading the starts. ``None`` when the starts are held (a tuple).
     """
 
     starts: Sequence[StartOutcome]
@@ -269,7 +243,7 @@ class MultistartResult:
     seed: int
     wall_time: float = 0.0
     resumed: int = 0
-    tally: StartTally | None = None
+    tally: StartTally[tuple[LocalOptimum, ...]] | None = None
 
     @property
     def n_starts(self) -> int:
@@ -303,7 +277,7 @@ class MultistartResult:
     def best(self) -> StartOutcome | None:
         """Converged start of lowest objective, the first of ties (``None``: none converged)."""
         if self.tally is not None:
-            return self.tally.best
+            return self.tally.found[0].best if self.tally.found else None
         ok = self.converged
         return min(ok, key=lambda s: s.objective) if ok else None
 
@@ -346,7 +320,7 @@ class MultistartResult:
                 name="objective_tol",
             )
         if self.tally is not None and (objective_tol, traj_tol) == _DEFAULT_TOLS:
-            return self.tally.optima
+            return self.tally.found
         clusters = cluster_optima(
             self.converged,
             objective=lambda s: s.objective,
@@ -395,12 +369,12 @@ class MultistartResult:
         return out
 
 
-def tally_starts(
+def stored_tally(
     jobs: StartJobs,
     outcomes: Mapping[str, StartOutcome],
     clusters: Sequence[Sequence[str]],
     store: SweepStore,
-) -> StartTally:
+) -> StartTally[tuple[LocalOptimum, ...]]:
     """Count the starts of a ``keep_results=False`` sweep once and name its optima.
 
     Parameters
@@ -417,21 +391,15 @@ def tally_starts(
     Returns
     -------
     StartTally
-        Counts per status, converged count, the best start (the first
-        cluster's representative: lowest objective, first in start order, as
-        :attr:`MultistartResult.best`) and the optima with lazy members.
+        Counts per status (by status), converged count and the optima with
+        lazy members (``found``); the first cluster's representative (lowest
+        objective, first in start order) is :attr:`MultistartResult.best`.
     """
-    counts = count_starts(jobs, store)
     n = len(jobs)
     optima = tuple(
         LocalOptimum(members=OptimumMembers(keys, outcomes), n_starts=n) for keys in clusters
     )
-    return StartTally(
-        status_counts=counts.statuses,
-        n_converged=counts.converged,
-        best=optima[0].best if optima else None,
-        optima=optima,
-    )
+    return tally_starts(start_states(jobs, store), found=optima, by_status=True)
 
 
 def run_multistart(
@@ -483,7 +451,8 @@ def run_multistart(
         are read from ``out`` when asked for, and the counts per status, the
         best start and the default ``distinct_optima()`` (with member counts;
         only each representative's ``result`` is held) are computed once at
-        the end, so the accessors cost nothing per start (see :class:`StartTally`).
+        the end, so the accessors cost nothing per start (see
+        :class:`~youbot_opt.sweeps.multistart.StartTally`).
 
     Returns
     -------
@@ -541,7 +510,7 @@ def run_multistart(
     else:  # counted once here; the accessors answer from the tally
         assert store is not None
         starts = StoredStarts(jobs, outcomes)
-        tally = tally_starts(jobs, outcomes, clusters, store)
+        tally = stored_tally(jobs, outcomes, clusters, store)
     return MultistartResult(
         starts=starts,
         beta=beta,
