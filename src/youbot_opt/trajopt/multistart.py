@@ -3,7 +3,7 @@
 Owns :func:`run_multistart` (the study's 50 random starts per ``beta``: random
 feasible spline guesses, optionally plus the straight line, each seeded from
 ``SeedSequence(seed).spawn`` so results do not depend on the executor),
-:class:`MultistartResult`, :class:`LocalOptimum` and :func:`trajectory_distance`.
+:class:`MultistartResult`, :class:`TrajOptOptimum` and :func:`trajectory_distance`.
 With ``keep_results=False`` the result holds no start: its tally (counts, optima)
 is computed once at the end and the starts are read from the folder.
 How starts run is one :class:`~youbot_opt.sweeps.options.SweepOptions`; the job
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import Counter
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -25,13 +24,19 @@ import numpy as np
 from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.multistart import StartTally, tally_starts
+from youbot_opt.sweeps.multistart import (
+    LazyStarts,
+    LocalOptimum,
+    Multistart,
+    OptimumMembers,
+    StartTally,
+    tally_starts,
+)
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore, open_store
 from youbot_opt.trajopt.solver import TrajOptSolver
-from youbot_opt.trajopt.stored_starts import ConvergedStarts, OptimumMembers, StoredStarts
 from youbot_opt.trajopt.sweep import (
     StartJobs,
     StartOutcome,
@@ -45,10 +50,10 @@ from youbot_opt.trajopt.sweep_store import jobs_making, result_codec, sweep_para
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
-    "LocalOptimum",
     "MultistartResult",
     "StartOutcome",
     "StoredStarts",
+    "TrajOptOptimum",
     "default_dt0",
     "optima_rule",
     "run_multistart",
@@ -61,38 +66,26 @@ _DEFAULT_TOLS = (1e-5, 1e-2)  # (relative, [rad]) of distinct_optima and optima_
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class LocalOptimum:
-    """A cluster of converged starts that reached the same local optimum.
+class TrajOptOptimum(LocalOptimum[StartOutcome]):
+    """A distinct local optimum of trajectory starts, with its ``T``, ``W`` and seeds.
 
     Attributes
     ----------
     members : sequence of StartOutcome
         The member starts, lowest objective first: a tuple, or with
-        ``keep_results=False`` a sequence of the member count reading each
-        member from the output folder when asked for (only the first is held).
+        ``keep_results=False`` an :class:`~youbot_opt.sweeps.multistart.OptimumMembers`
+        reading each member from the output folder when asked for (only the
+        first is held).
     n_starts : int
         Number of starts of the multistart (for :attr:`fraction`).
     """
 
-    members: Sequence[StartOutcome]
-    n_starts: int
-
     @classmethod
-    def of(cls, members: Sequence[StartOutcome], n_starts: int) -> LocalOptimum:
+    def of(cls, members: Sequence[StartOutcome], n_starts: int) -> TrajOptOptimum:
         """Build a cluster from its members (sorted by objective here)."""
         if not members:
             raise ParameterError("a local optimum needs at least one member", name="members")
         return cls(members=tuple(sorted(members, key=lambda s: s.objective)), n_starts=n_starts)
-
-    @property
-    def best(self) -> StartOutcome:
-        """The lowest member (its ``result`` is the representative trajectory)."""
-        return self.members[0]
-
-    @property
-    def objective(self) -> float:
-        """Lowest objective among the members."""
-        return self.best.objective
 
     @property
     def duration(self) -> float:
@@ -105,24 +98,9 @@ class LocalOptimum:
         return self.best.work
 
     @property
-    def count(self) -> int:
-        """Number of member starts."""
-        return len(self.members)
-
-    @property
-    def fraction(self) -> float:
-        """``count`` over the number of starts of the multistart."""
-        return self.count / max(self.n_starts, 1)
-
-    @property
     def seeds(self) -> tuple[int | None, ...]:
         """Seeds of the members (``None`` for the straight line); reads every member."""
         return tuple(s.seed for s in self.members)
-
-    @property
-    def objective_spread(self) -> float:
-        """Largest objective minus smallest among the members (the last member's)."""
-        return self.members[-1].objective - self.best.objective
 
     def summary(self, *, seeds: bool = True) -> JSONDict:
         """JSON-ready figures; ``seeds``: also every member's seed (reads every member)."""
@@ -144,6 +122,21 @@ class LocalOptimum:
             f"LocalOptimum(objective={self.objective:.6g}, count={self.count}, "
             f"duration={self.duration:.4g}, work={self.work:.4g})"
         )
+
+
+class StoredStarts(LazyStarts[StartOutcome]):
+    """The starts of a ``keep_results=False`` multistart, read from its folder when asked for.
+
+    Start ``i`` is ``outcomes[jobs[i].key]`` each time (its figures from the
+    sweep's journal; the kept optima in full), so a result of 10^5 starts
+    holds no start. Valid while the output folder is there.
+    """
+
+    def __init__(self, jobs: StartJobs, outcomes: Mapping[str, StartOutcome]) -> None:
+        super().__init__(len(jobs), lambda j: outcomes[jobs[j].key])
+
+    def __repr__(self) -> str:
+        return f"StoredStarts({len(self)} starts)"
 
 
 def trajectory_distance(a: Trajectory, b: Trajectory, n_samples: int = 201) -> float:
@@ -210,7 +203,7 @@ def optima_rule(
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class MultistartResult:
+class MultistartResult(Multistart[StartOutcome, tuple[TrajOptOptimum, ...]]):
     """All starts of a multistart, with the best one and the distinct optima.
 
     Attributes
@@ -243,35 +236,16 @@ class MultistartResult:
     seed: int
     wall_time: float = 0.0
     resumed: int = 0
-    tally: StartTally[tuple[LocalOptimum, ...]] | None = None
+    tally: StartTally[tuple[TrajOptOptimum, ...]] | None = None
 
-    @property
-    def n_starts(self) -> int:
-        """Number of starts."""
-        return len(self.starts)
+    statuses_sorted = True
 
-    @property
-    def n_converged(self) -> int:
-        """Number of starts whose solve succeeded."""
-        if self.tally is not None:
-            return self.tally.n_converged
-        return sum(s.success for s in self.starts)
+    def _starts(self) -> Sequence[StartOutcome]:
+        return self.starts
 
-    @property
-    def converged(self) -> Sequence[StartOutcome]:
-        """Starts whose solve succeeded, in start order.
-
-        A tuple; with ``keep_results=False`` a sequence of the counted length
-        that reads the starts from the folder as it is iterated (nothing held).
-        """
-        if self.tally is not None:
-            return ConvergedStarts(self.starts, self.tally.n_converged)
-        return tuple(s for s in self.starts if s.success)
-
-    @property
-    def success_rate(self) -> float:
-        """Fraction of starts that converged (0 if there are none)."""
-        return self.n_converged / self.n_starts if self.n_starts else 0.0
+    @staticmethod
+    def _status(start: StartOutcome) -> str:
+        return start.status
 
     @property
     def best(self) -> StartOutcome | None:
@@ -281,15 +255,9 @@ class MultistartResult:
         ok = self.converged
         return min(ok, key=lambda s: s.objective) if ok else None
 
-    def status_counts(self) -> dict[str, int]:
-        """Return the number of starts per status (``"error"``: raised or crashed), by status."""
-        if self.tally is not None:
-            return dict(self.tally.status_counts)
-        return dict(sorted(Counter(s.status for s in self.starts).items()))
-
     def distinct_optima(
         self, objective_tol: float = 1e-5, traj_tol: float = 1e-2
-    ) -> tuple[LocalOptimum, ...]:
+    ) -> tuple[TrajOptOptimum, ...]:
         """Cluster converged starts into distinct local optima.
 
         Starts are taken in order of increasing objective; each joins the first
@@ -311,7 +279,7 @@ class MultistartResult:
 
         Returns
         -------
-        tuple of LocalOptimum
+        tuple of TrajOptOptimum
             Sorted by objective, lowest first.
         """
         if not (objective_tol > 0 and traj_tol > 0):
@@ -328,7 +296,7 @@ class MultistartResult:
             obj_tol=objective_tol,
             dist_tol=traj_tol,
         )
-        return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
+        return tuple(TrajOptOptimum.of(m, self.n_starts) for m in clusters)
 
     def summary(
         self, objective_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
@@ -374,7 +342,7 @@ def stored_tally(
     outcomes: Mapping[str, StartOutcome],
     clusters: Sequence[Sequence[str]],
     store: SweepStore,
-) -> StartTally[tuple[LocalOptimum, ...]]:
+) -> StartTally[tuple[TrajOptOptimum, ...]]:
     """Count the starts of a ``keep_results=False`` sweep once and name its optima.
 
     Parameters
@@ -397,7 +365,8 @@ def stored_tally(
     """
     n = len(jobs)
     optima = tuple(
-        LocalOptimum(members=OptimumMembers(keys, outcomes), n_starts=n) for keys in clusters
+        TrajOptOptimum(members=OptimumMembers(keys, outcomes.__getitem__), n_starts=n)
+        for keys in clusters
     )
     return tally_starts(start_states(jobs, store), found=optima, by_status=True)
 
