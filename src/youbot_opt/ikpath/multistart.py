@@ -2,7 +2,7 @@
 
 Owns :func:`run_multistart` (any robot: a planar chain by the planar methods, any
 other by the general ones, as :func:`~youbot_opt.ikpath.solve.solve` chooses),
-:class:`MultistartResult`, :class:`LocalOptimum`, :func:`configuration_distance`
+:class:`MultistartResult`, :class:`IKPathOptimum`, :func:`configuration_distance`
 and :func:`cluster_minima`. The starts are drawn in the parent process, so they
 do not depend on the executor; how they run (crash-isolated workers, one retry,
 resumable ``out`` directory) is one :class:`~youbot_opt.sweeps.options.SweepOptions`
@@ -57,11 +57,10 @@ from youbot_opt.ikpath.sweep import (
     progress_callbacks,
     result_codec,
     solve_starts,
-    status_counts,
     store_params,
     stream_starts,
 )
-from youbot_opt.sweeps.multistart import StartTally
+from youbot_opt.sweeps.multistart import LocalOptimum, Multistart, OptimumMembers, StartTally
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
@@ -69,7 +68,7 @@ from youbot_opt.sweeps.selection import Clusters
 from youbot_opt.sweeps.store import open_store
 
 __all__ = [
-    "LocalOptimum",
+    "IKPathOptimum",
     "MultistartResult",
     "Progress",
     "START_KINDS",
@@ -91,31 +90,34 @@ in one call before the first solve.
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class LocalOptimum:
-    """One distinct local minimum found by multistart.
+class IKPathOptimum(LocalOptimum[IKPathResult]):
+    """One distinct local minimum found by multistart, with its start indices.
 
     Attributes
     ----------
-    objective : float
-        ``E`` of the representative in [rad^2].
-    count : int
-        Number of starts that converged to it.
+    members : sequence of IKPathResult
+        The member results, the representative (lowest ``E`` in [rad^2]) first,
+        then by ``E``: a tuple, or with ``keep_results=False`` an
+        :class:`~youbot_opt.sweeps.multistart.OptimumMembers` loading each
+        from the output folder when asked for (the representative is held).
+    n_starts : int
+        Number of starts of the multistart (for :attr:`fraction`).
     start_indices : sequence of int
         Which starts, ascending (0 = the zero vector): a tuple, or with
         ``keep_results=False`` a :class:`~youbot_opt.ikpath.stored.ClusterIndices`
         read from the output folder when iterated.
-    result : IKPathResult
-        Representative (lowest ``E`` in the cluster).
     """
 
-    objective: float
-    count: int
     start_indices: Sequence[int]
-    result: IKPathResult
+
+    @property
+    def result(self) -> IKPathResult:
+        """The representative (lowest ``E`` in the cluster): :attr:`best`."""
+        return self.best
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class MultistartResult:
+class MultistartResult(Multistart[IKPathResult, int]):
     """All starts of a multistart run and the minima they found.
 
     Attributes
@@ -136,7 +138,7 @@ class MultistartResult:
         a :class:`~youbot_opt.ikpath.stored.StoredResults` that holds the
         minima's results and loads any other from :attr:`output` when indexed
         (valid while that folder is there).
-    minima : tuple of LocalOptimum
+    minima : tuple of IKPathOptimum
         Distinct minima of the successful starts, best (lowest E) first.
     verdicts : tuple of ReachVerdict
         Planar reachability verdicts of the targets (empty if not checked).
@@ -172,7 +174,7 @@ class MultistartResult:
     start_kind: str
     planar: bool
     results: Sequence[IKPathResult]
-    minima: tuple[LocalOptimum, ...]
+    minima: tuple[IKPathOptimum, ...]
     verdicts: tuple[ReachVerdict, ...]
     wall_time: float
     n_workers: int
@@ -185,10 +187,12 @@ class MultistartResult:
     time_budget: float | None = None
     not_run: int = 0
 
-    @property
-    def n_starts(self) -> int:
-        """Number of starts that ran (or were loaded from :attr:`output`)."""
-        return len(self.results)
+    def _starts(self) -> Sequence[IKPathResult]:
+        return self.results
+
+    @staticmethod
+    def _status(start: IKPathResult) -> str:
+        return start.status.value
 
     @property
     def planned_starts(self) -> int:
@@ -199,13 +203,6 @@ class MultistartResult:
     def budget_reached(self) -> bool:
         """Whether the time budget stopped the run before every planned start ran."""
         return self.not_run > 0
-
-    @property
-    def n_converged(self) -> int:
-        """Number of successful starts (they met the targets)."""
-        if self.tally is not None:
-            return self.tally.n_converged
-        return sum(r.success for r in self.results)
 
     @property
     def best(self) -> IKPathResult:
@@ -235,19 +232,13 @@ class MultistartResult:
         """How many starts found the best minimum."""
         return self.minima[0].count if self.minima else 0
 
-    def status_counts(self) -> dict[str, int]:
-        """Count the starts per status value."""
-        if self.tally is not None:
-            return dict(self.tally.status_counts)
-        return status_counts(self.results)
-
     def starts_per_second(self) -> float:
         """Throughput in [1/s]."""
         return self.n_starts / self.wall_time if self.wall_time > 0 else math.inf
 
     def distinct_optima(
         self, objective_tol: float = 1e-6, q_tol: float = 1e-3
-    ) -> tuple[LocalOptimum, ...]:
+    ) -> tuple[IKPathOptimum, ...]:
         """Re-cluster the successful results with other tolerances (see :func:`cluster_minima`).
 
         With ``keep_results=False`` the run's own tolerances return :attr:`minima`;
@@ -268,7 +259,7 @@ class MultistartResult:
                 raise ParameterError(f"{name} must be >= 0, got {tol!r}", name=name, value=tol)
         kept, clusters = results.cluster(_minima_rule(objective_tol, q_tol, distance))
         reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
-        return _stored_minima(clusters, reps)
+        return _stored_minima(clusters, reps, results)
 
 
 def configuration_distance(qa: Array, qb: Array) -> float:
@@ -339,7 +330,7 @@ def cluster_minima(
     objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
     distance: Callable[[IKPathResult, IKPathResult], float] | None = None,
-) -> tuple[LocalOptimum, ...]:
+) -> tuple[IKPathOptimum, ...]:
     """Group successful results into distinct local minima, best first.
 
     Two successful results are the same minimum when their ``E`` agree to
@@ -360,7 +351,7 @@ def cluster_minima(
 
     Returns
     -------
-    tuple of LocalOptimum
+    tuple of IKPathOptimum
         Sorted by objective.
     """
     groups = cluster_optima(
@@ -371,11 +362,10 @@ def cluster_minima(
         dist_tol=q_tol,
     )
     return tuple(
-        LocalOptimum(
-            objective=results[g[0]].objective,
-            count=len(g),
+        IKPathOptimum(
+            members=tuple(results[i] for i in g),
+            n_starts=len(results),
             start_indices=tuple(sorted(g)),
-            result=results[g[0]],
         )
         for g in groups
     )
@@ -685,7 +675,8 @@ def _run(
             return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
         not_run = streamed.not_run
-        minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
+        minima = _stored_minima(streamed.minima, streamed.kept, streamed.results)
+        tally = streamed.tally
     else:  # the starts were drawn together
         outcome = solve_starts(
             problem, np.asarray(x0s), method=method, options=options, sweep=sweep,
@@ -738,25 +729,31 @@ def _minima_rule(
 
 
 def _stored_minima(
-    minima: Sequence[ClusterIndices] | Clusters, kept: dict[int, IKPathResult]
-) -> tuple[LocalOptimum, ...]:
-    """Return the :class:`LocalOptimum` s of a ``keep_results=False`` selection (lazy indices)."""
+    minima: Sequence[ClusterIndices] | Clusters,
+    kept: dict[int, IKPathResult],
+    results: Sequence[IKPathResult],
+) -> tuple[IKPathOptimum, ...]:
+    """Return the :class:`IKPathOptimum` s of a ``keep_results=False`` selection (lazy members).
+
+    ``kept``: the representatives by start index (held); the other members
+    are read from ``results`` (the output folder) when asked for.
+    """
     if isinstance(minima, Clusters):
         minima = tuple(
             ClusterIndices(minima, c, _key_index, sorted_order=False) for c in range(len(minima))
         )
-    out = []
-    for members in minima:
-        result = kept[members[0]]  # the representative: first in cluster order
-        out.append(
-            LocalOptimum(
-                objective=result.objective,
-                count=len(members),
-                start_indices=members.ascending(),
-                result=result,
-            )
+
+    def read(i: int) -> IKPathResult:
+        return kept[i] if i in kept else results[i]
+
+    return tuple(
+        IKPathOptimum(
+            members=OptimumMembers(members, read),
+            n_starts=len(results),
+            start_indices=members.ascending(),
         )
-    return tuple(out)
+        for members in minima
+    )
 
 
 def _key_index(key: str) -> int:
