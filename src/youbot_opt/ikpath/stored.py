@@ -21,6 +21,7 @@ from typing import Generic, TypeVar
 
 from youbot_opt._checks import to_float, to_int
 from youbot_opt.sweeps.lazy import LazySequence, ListEquality
+from youbot_opt.sweeps.multistart import LazyStarts
 from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.selection import Clusters, stream_optima
 
@@ -125,7 +126,7 @@ def closest_start(summaries: Iterable[StartSummary[R]]) -> int:
     return closest
 
 
-class StoredResults(LazySequence[R]):
+class StoredResults(LazyStarts[R]):
     """The full results of a ``keep_results=False`` multistart, loaded when asked for.
 
     ``results[i]`` is the kept result of start ``i`` (best and distinct
@@ -159,25 +160,17 @@ class StoredResults(LazySequence[R]):
         items: Mapping[str, StartSummary[R]],
         full: Callable[[str], StartSummary[R]],
     ) -> None:
-        self._n, self._load, self._summary, self._kept = n_starts, load, summary, dict(kept)
+        held = dict(kept)
+        super().__init__(n_starts, lambda j: held[j] if j in held else load(j))
+        self._summary, self._kept = summary, held
         self._items, self._full = items, full
-
-    def __len__(self) -> int:
-        return self._n
-
-    noun = "start"
-
-    def _item(self, j: int) -> R:
-        if j in self._kept:
-            return self._kept[j]
-        return self._load(j)
 
     def index(self, value: object, start: int = 0, stop: int | None = None) -> int:
         """Start index of a kept result (identity), else a search through the folder."""
         for j, r in self._kept.items():
-            if r is value and start <= j < (self._n if stop is None else stop):
+            if r is value and start <= j < (len(self) if stop is None else stop):
                 return j
-        return super().index(value, start, self._n if stop is None else stop)
+        return super().index(value, start, len(self) if stop is None else stop)
 
     @property
     def held(self) -> int:
@@ -190,7 +183,7 @@ class StoredResults(LazySequence[R]):
 
     def summaries(self) -> Iterator[StartSummary[R]]:
         """Every start's figures in start order, read one at a time from the journal."""
-        return (self._summary(i) for i in range(self._n))
+        return (self._summary(i) for i in range(len(self)))
 
     def cluster(
         self, rule: KeepRule[StartSummary[R]]
@@ -204,7 +197,7 @@ class StoredResults(LazySequence[R]):
         return stream_optima(self._items, rule, self._full)
 
     def __repr__(self) -> str:
-        return f"StoredResults({self._n} starts, {len(self._kept)} held)"
+        return f"StoredResults({len(self)} starts, {len(self._kept)} held)"
 
 
 class ClusterIndices(ListEquality, LazySequence[int]):

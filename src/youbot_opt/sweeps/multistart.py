@@ -34,6 +34,7 @@ __all__ = [
 
 F = TypeVar("F")
 K = TypeVar("K")
+T = TypeVar("T")
 
 
 class Start(Protocol):
@@ -223,25 +224,26 @@ class Multistart(Generic[S, F]):
         )
 
 
-class LazyStarts(ListEquality, LazySequence[S]):
-    """Starts of a lean multistart, read when asked for: start ``j`` is ``read(j)``.
+class LazyStarts(ListEquality, LazySequence[T]):
+    """Per-start items of a lean multistart, read when asked for: item ``j`` is ``read(j)``.
 
-    Nothing per start is held; equal to a tuple of the same starts (a slice
-    is a tuple). Valid while the output folder is there.
+    The starts, their results or their attempt counts: nothing per start is
+    held; equal to a tuple of the same items (a slice is a tuple). Valid while
+    the output folder is there.
     """
 
     noun = "start"
 
-    def __init__(self, n: int, read: Callable[[int], S]) -> None:
+    def __init__(self, n: int, read: Callable[[int], T]) -> None:
         self._n, self._read = n, read
 
     def __len__(self) -> int:
         return self._n
 
-    def _item(self, j: int) -> S:
+    def _item(self, j: int) -> T:
         return self._read(j)
 
-    def _slice(self, s: slice) -> tuple[S, ...]:
+    def _slice(self, s: slice) -> tuple[T, ...]:
         return tuple(self._item(j) for j in range(len(self))[s])
 
 
