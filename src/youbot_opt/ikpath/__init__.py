@@ -20,7 +20,7 @@ from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.methods.bfgs import BFGSResult, minimize_bfgs, strong_wolfe_line_search
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, solve_ipopt
 from youbot_opt.ikpath.multistart import (
-    LocalOptimum,
+    IKPathOptimum,
     MultistartResult,
     cluster_minima,
     configuration_distance,
@@ -53,6 +53,7 @@ from youbot_opt.nlp.ipopt import IpoptOptions
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.robot.planar import PlanarChain, TipKinematics, chain_from_robot, youbot_chain
 from youbot_opt.robot.source import RobotSource
+from youbot_opt.sweeps.multistart import LocalOptimum
 
 __all__ = [
     "ALOptions",
@@ -61,6 +62,7 @@ __all__ = [
     "EXAMPLES",
     "Evaluation",
     "IKClearance",
+    "IKPathOptimum",
     "IKPathResult",
     "IpoptIKSolver",
     "IpoptOptions",

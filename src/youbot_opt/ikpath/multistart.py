@@ -2,7 +2,7 @@
 
 Owns :func:`run_multistart` (any robot: a planar chain by the planar methods, any
 other by the general ones, as :func:`~youbot_opt.ikpath.solve.solve` chooses),
-:class:`MultistartResult`, :class:`LocalOptimum`, :func:`configuration_distance`
+:class:`MultistartResult`, :class:`IKPathOptimum`, :func:`configuration_distance`
 and :func:`cluster_minima`. The starts are drawn in the parent process, so they
 do not depend on the executor; how they run (crash-isolated workers, one retry,
 resumable ``out`` directory) is one :class:`~youbot_opt.sweeps.options.SweepOptions`
@@ -48,7 +48,7 @@ from youbot_opt.ikpath.starts import (
     make_starts_3d,
     periodic_joints,
 )
-from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StartTally, StoredResults
+from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StoredResults
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
     STARTS_3D,
@@ -57,10 +57,10 @@ from youbot_opt.ikpath.sweep import (
     progress_callbacks,
     result_codec,
     solve_starts,
-    status_counts,
     store_params,
     stream_starts,
 )
+from youbot_opt.sweeps.multistart import LocalOptimum, Multistart, OptimumMembers, StartTally
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
@@ -68,7 +68,7 @@ from youbot_opt.sweeps.selection import Clusters
 from youbot_opt.sweeps.store import open_store
 
 __all__ = [
-    "LocalOptimum",
+    "IKPathOptimum",
     "MultistartResult",
     "Progress",
     "START_KINDS",
@@ -90,31 +90,34 @@ in one call before the first solve.
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class LocalOptimum:
-    """One distinct local minimum found by multistart.
+class IKPathOptimum(LocalOptimum[IKPathResult]):
+    """One distinct local minimum found by multistart, with its start indices.
 
     Attributes
     ----------
-    objective : float
-        ``E`` of the representative in [rad^2].
-    count : int
-        Number of starts that converged to it.
+    members : sequence of IKPathResult
+        The member results, the representative (lowest ``E`` in [rad^2]) first,
+        then by ``E``: a tuple, or with ``keep_results=False`` an
+        :class:`~youbot_opt.sweeps.multistart.OptimumMembers` loading each
+        from the output folder when asked for (the representative is held).
+    n_starts : int
+        Number of starts of the multistart (for :attr:`fraction`).
     start_indices : sequence of int
         Which starts, ascending (0 = the zero vector): a tuple, or with
         ``keep_results=False`` a :class:`~youbot_opt.ikpath.stored.ClusterIndices`
         read from the output folder when iterated.
-    result : IKPathResult
-        Representative (lowest ``E`` in the cluster).
     """
 
-    objective: float
-    count: int
     start_indices: Sequence[int]
-    result: IKPathResult
+
+    @property
+    def result(self) -> IKPathResult:
+        """The representative (lowest ``E`` in the cluster): :attr:`best`."""
+        return self.best
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class MultistartResult:
+class MultistartResult(Multistart[IKPathResult, int]):
     """All starts of a multistart run and the minima they found.
 
     Attributes
@@ -135,7 +138,7 @@ class MultistartResult:
         a :class:`~youbot_opt.ikpath.stored.StoredResults` that holds the
         minima's results and loads any other from :attr:`output` when indexed
         (valid while that folder is there).
-    minima : tuple of LocalOptimum
+    minima : tuple of IKPathOptimum
         Distinct minima of the successful starts, best (lowest E) first.
     verdicts : tuple of ReachVerdict
         Planar reachability verdicts of the targets (empty if not checked).
@@ -152,7 +155,8 @@ class MultistartResult:
     output : Path or None
         Output directory the starts were saved to (``None``: not saved).
     tally : StartTally or None
-        ``keep_results=False``: counts and the start closest to the targets,
+        ``keep_results=False``: counts and (``found``) the index of the start
+        closest to the targets,
         gathered in one pass at the end of the run; ``None`` otherwise.
     objective_tol, q_tol : float
         The clustering tolerances :attr:`minima` were chosen with.
@@ -170,23 +174,25 @@ class MultistartResult:
     start_kind: str
     planar: bool
     results: Sequence[IKPathResult]
-    minima: tuple[LocalOptimum, ...]
+    minima: tuple[IKPathOptimum, ...]
     verdicts: tuple[ReachVerdict, ...]
     wall_time: float
     n_workers: int
     attempts: Sequence[int] = ()
     resumed: int = 0
     output: Path | None = None
-    tally: StartTally | None = None
+    tally: StartTally[int] | None = None
     objective_tol: float = 1e-6
     q_tol: float = 1e-3
     time_budget: float | None = None
     not_run: int = 0
 
-    @property
-    def n_starts(self) -> int:
-        """Number of starts that ran (or were loaded from :attr:`output`)."""
-        return len(self.results)
+    def _starts(self) -> Sequence[IKPathResult]:
+        return self.results
+
+    @staticmethod
+    def _status(start: IKPathResult) -> str:
+        return start.status.value
 
     @property
     def planned_starts(self) -> int:
@@ -199,13 +205,6 @@ class MultistartResult:
         return self.not_run > 0
 
     @property
-    def n_converged(self) -> int:
-        """Number of successful starts (they met the targets)."""
-        if self.tally is not None:
-            return self.tally.n_converged
-        return sum(r.success for r in self.results)
-
-    @property
     def best(self) -> IKPathResult:
         """Best successful result, or the start closest to the targets if none succeeded.
 
@@ -215,7 +214,7 @@ class MultistartResult:
         if self.minima:
             return self.minima[0].result
         if self.tally is not None:
-            return self.results[self.tally.closest]
+            return self.results[self.tally.found]
         return min(
             self.results,
             key=lambda r: (r.max_position_error() + r.max_orientation_error(), r.objective),
@@ -225,7 +224,7 @@ class MultistartResult:
     def best_index(self) -> int:
         """Start index of :attr:`best` (no search through the folder)."""
         if self.tally is not None and not self.minima:
-            return self.tally.closest
+            return self.tally.found
         return self.results.index(self.best)  # StoredResults: found among the held ones
 
     @property
@@ -233,19 +232,13 @@ class MultistartResult:
         """How many starts found the best minimum."""
         return self.minima[0].count if self.minima else 0
 
-    def status_counts(self) -> dict[str, int]:
-        """Count the starts per status value."""
-        if self.tally is not None:
-            return dict(self.tally.status_counts)
-        return status_counts(self.results)
-
     def starts_per_second(self) -> float:
         """Throughput in [1/s]."""
         return self.n_starts / self.wall_time if self.wall_time > 0 else math.inf
 
     def distinct_optima(
         self, objective_tol: float = 1e-6, q_tol: float = 1e-3
-    ) -> tuple[LocalOptimum, ...]:
+    ) -> tuple[IKPathOptimum, ...]:
         """Re-cluster the successful results with other tolerances (see :func:`cluster_minima`).
 
         With ``keep_results=False`` the run's own tolerances return :attr:`minima`;
@@ -266,7 +259,7 @@ class MultistartResult:
                 raise ParameterError(f"{name} must be >= 0, got {tol!r}", name=name, value=tol)
         kept, clusters = results.cluster(_minima_rule(objective_tol, q_tol, distance))
         reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
-        return _stored_minima(clusters, reps)
+        return _stored_minima(clusters, reps, results)
 
 
 def configuration_distance(qa: Array, qb: Array) -> float:
@@ -337,7 +330,7 @@ def cluster_minima(
     objective_tol: float = 1e-6,
     q_tol: float = 1e-3,
     distance: Callable[[IKPathResult, IKPathResult], float] | None = None,
-) -> tuple[LocalOptimum, ...]:
+) -> tuple[IKPathOptimum, ...]:
     """Group successful results into distinct local minima, best first.
 
     Two successful results are the same minimum when their ``E`` agree to
@@ -358,7 +351,7 @@ def cluster_minima(
 
     Returns
     -------
-    tuple of LocalOptimum
+    tuple of IKPathOptimum
         Sorted by objective.
     """
     groups = cluster_optima(
@@ -369,11 +362,10 @@ def cluster_minima(
         dist_tol=q_tol,
     )
     return tuple(
-        LocalOptimum(
-            objective=results[g[0]].objective,
-            count=len(g),
+        IKPathOptimum(
+            members=tuple(results[i] for i in g),
+            n_starts=len(results),
             start_indices=tuple(sorted(g)),
-            result=results[g[0]],
         )
         for g in groups
     )
@@ -670,7 +662,7 @@ def _run(
     on_resumed, on_final = progress_callbacks(sweep.progress, len(x0s))
     results: Sequence[IKPathResult]
     attempts: Sequence[int]
-    tally: StartTally | None = None
+    tally: StartTally[int] | None = None
     deadline = None if budget is None else t0 + budget - time.perf_counter() + time.monotonic()
     if not sweep.keep_results:
         assert store is not None  # SweepOptions requires out= with keep_results=False
@@ -683,7 +675,8 @@ def _run(
             return streamed
         results, attempts, resumed = streamed.results, streamed.attempts, streamed.resumed
         not_run = streamed.not_run
-        minima, tally = _stored_minima(streamed.minima, streamed.kept), streamed.tally
+        minima = _stored_minima(streamed.minima, streamed.kept, streamed.results)
+        tally = streamed.tally
     else:  # the starts were drawn together
         outcome = solve_starts(
             problem, np.asarray(x0s), method=method, options=options, sweep=sweep,
@@ -736,25 +729,31 @@ def _minima_rule(
 
 
 def _stored_minima(
-    minima: Sequence[ClusterIndices] | Clusters, kept: dict[int, IKPathResult]
-) -> tuple[LocalOptimum, ...]:
-    """Return the :class:`LocalOptimum` s of a ``keep_results=False`` selection (lazy indices)."""
+    minima: Sequence[ClusterIndices] | Clusters,
+    kept: dict[int, IKPathResult],
+    results: Sequence[IKPathResult],
+) -> tuple[IKPathOptimum, ...]:
+    """Return the :class:`IKPathOptimum` s of a ``keep_results=False`` selection (lazy members).
+
+    ``kept``: the representatives by start index (held); the other members
+    are read from ``results`` (the output folder) when asked for.
+    """
     if isinstance(minima, Clusters):
         minima = tuple(
             ClusterIndices(minima, c, _key_index, sorted_order=False) for c in range(len(minima))
         )
-    out = []
-    for members in minima:
-        result = kept[members[0]]  # the representative: first in cluster order
-        out.append(
-            LocalOptimum(
-                objective=result.objective,
-                count=len(members),
-                start_indices=members.ascending(),
-                result=result,
-            )
+
+    def read(i: int) -> IKPathResult:
+        return kept[i] if i in kept else results[i]
+
+    return tuple(
+        IKPathOptimum(
+            members=OptimumMembers(members, read),
+            n_starts=len(results),
+            start_indices=members.ascending(),
         )
-    return tuple(out)
+        for members in minima
+    )
 
 
 def _key_index(key: str) -> int:

@@ -1,9 +1,9 @@
 """The starts of an IK multistart run with ``keep_results=False``: summaries, read on demand.
 
 Owns :class:`StartSummary` (one start's figures, read from the sweep journal),
-:class:`StartTally` (counts and the fallback best, gathered in one streamed
-pass), :class:`StoredResults` (the full results as a sequence that loads each
-from the output folder when asked for) and :class:`ClusterIndices` (the start
+:func:`closest_start` (the fallback best, found in one streamed pass),
+:class:`StoredResults` (the full results as a sequence that loads each from the
+output folder when asked for) and :class:`ClusterIndices` (the start
 indices of one distinct minimum, read from the optima members table). The
 driver holds none of them per start; :mod:`youbot_opt.ikpath.sweep` makes them.
 
@@ -21,10 +21,11 @@ from typing import Generic, TypeVar
 
 from youbot_opt._checks import to_float, to_int
 from youbot_opt.sweeps.lazy import LazySequence, ListEquality
+from youbot_opt.sweeps.multistart import LazyStarts
 from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.selection import Clusters, stream_optima
 
-__all__ = ["ClusterIndices", "StartSummary", "StartTally", "StoredResults", "tally_starts"]
+__all__ = ["ClusterIndices", "StartSummary", "StoredResults", "closest_start"]
 
 R = TypeVar("R")
 
@@ -109,51 +110,23 @@ class StartSummary(Generic[R]):
         return self.max_residual + self.max_orientation_error
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class StartTally:
-    """What a ``keep_results=False`` multistart knows of all its starts, gathered in one pass.
+def closest_start(summaries: Iterable[StartSummary[R]]) -> int:
+    """Return the index of the start closest to meeting the targets, in one pass.
 
-    Attributes
-    ----------
-    n_starts : int
-        Number of starts.
-    n_converged : int
-        Successful starts (they met the targets).
-    status_counts : dict of str to int
-        Starts per status value.
-    closest : int
-        Index of the start closest to meeting the targets (smallest
-        :attr:`StartSummary.miss`, then smallest ``E``, then lowest index): the
-        best when nothing succeeded.
+    Smallest :attr:`StartSummary.miss`, then smallest ``E``, then the first
+    (lowest index), as ``min`` over the results in start order finds it: the
+    best when nothing succeeded (0 if there is no start).
     """
-
-    n_starts: int
-    n_converged: int
-    status_counts: dict[str, int]
-    closest: int
-
-
-def tally_starts(summaries: Iterable[StartSummary[R]]) -> StartTally:
-    """Count the starts and find the closest one in one pass (``E`` breaks ties of the miss).
-
-    The closest start is the first one (lowest index) of smallest rank, as
-    ``min`` over the results in start order finds it.
-    """
-    n = ok = 0
-    counts: dict[str, int] = {}
     best: tuple[float, ...] | None = None
     closest = 0
     for s in summaries:
-        n += 1
-        ok += s.success
-        counts[s.status] = counts.get(s.status, 0) + 1
         rank = (s.miss, s.objective)
         if best is None or rank < best:
             best, closest = rank, s.index
-    return StartTally(n_starts=n, n_converged=ok, status_counts=counts, closest=closest)
+    return closest
 
 
-class StoredResults(LazySequence[R]):
+class StoredResults(LazyStarts[R]):
     """The full results of a ``keep_results=False`` multistart, loaded when asked for.
 
     ``results[i]`` is the kept result of start ``i`` (best and distinct
@@ -187,25 +160,17 @@ class StoredResults(LazySequence[R]):
         items: Mapping[str, StartSummary[R]],
         full: Callable[[str], StartSummary[R]],
     ) -> None:
-        self._n, self._load, self._summary, self._kept = n_starts, load, summary, dict(kept)
+        held = dict(kept)
+        super().__init__(n_starts, lambda j: held[j] if j in held else load(j))
+        self._summary, self._kept = summary, held
         self._items, self._full = items, full
-
-    def __len__(self) -> int:
-        return self._n
-
-    noun = "start"
-
-    def _item(self, j: int) -> R:
-        if j in self._kept:
-            return self._kept[j]
-        return self._load(j)
 
     def index(self, value: object, start: int = 0, stop: int | None = None) -> int:
         """Start index of a kept result (identity), else a search through the folder."""
         for j, r in self._kept.items():
-            if r is value and start <= j < (self._n if stop is None else stop):
+            if r is value and start <= j < (len(self) if stop is None else stop):
                 return j
-        return super().index(value, start, self._n if stop is None else stop)
+        return super().index(value, start, len(self) if stop is None else stop)
 
     @property
     def held(self) -> int:
@@ -218,7 +183,7 @@ class StoredResults(LazySequence[R]):
 
     def summaries(self) -> Iterator[StartSummary[R]]:
         """Every start's figures in start order, read one at a time from the journal."""
-        return (self._summary(i) for i in range(self._n))
+        return (self._summary(i) for i in range(len(self)))
 
     def cluster(
         self, rule: KeepRule[StartSummary[R]]
@@ -232,7 +197,7 @@ class StoredResults(LazySequence[R]):
         return stream_optima(self._items, rule, self._full)
 
     def __repr__(self) -> str:
-        return f"StoredResults({self._n} starts, {len(self._kept)} held)"
+        return f"StoredResults({len(self)} starts, {len(self._kept)} held)"
 
 
 class ClusterIndices(ListEquality, LazySequence[int]):

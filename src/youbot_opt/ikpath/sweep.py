@@ -41,12 +41,11 @@ from youbot_opt.ikpath.result import IKPathResult, build_result
 from youbot_opt.ikpath.stored import (
     ClusterIndices,
     StartSummary,
-    StartTally,
     StoredResults,
-    tally_starts,
+    closest_start,
 )
 from youbot_opt.nlp.status import SolveStatus
-from youbot_opt.sweeps.lazy import LazySequence
+from youbot_opt.sweeps.multistart import LazyStarts, StartTally, tally_starts
 from youbot_opt.sweeps.optima import KeepRule
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.pool import Task, TaskOutcome
@@ -724,8 +723,8 @@ class StreamedOutcome(NamedTuple, Generic[ResultT]):
     """Start indices of each distinct minimum in cluster order (lowest ``E`` first)."""
     kept: dict[int, ResultT]
     """The representatives' full results, by start index."""
-    tally: StartTally
-    """Counts per status, successes and the start closest to the targets."""
+    tally: StartTally[int]
+    """Counts per status, successes and (``found``) the start closest to the targets."""
     not_run: int = 0
     """Starts a deadline left unrun: they follow the starts of ``results``."""
 
@@ -877,13 +876,16 @@ def stream_starts(
     )  # fmt: skip
     return StreamedOutcome(
         results=results,
-        attempts=_Attempts(ran, lambda i: got.attempts[start_key(i, n)]),
+        attempts=LazyStarts(ran, lambda i: got.attempts[start_key(i, n)]),
         resumed=got.resumed,
         minima=tuple(
             ClusterIndices(clusters, c, index_of, sorted_order=False) for c in range(len(clusters))
         ),
         kept=kept,
-        tally=tally_starts(results.summaries()),
+        tally=tally_starts(
+            ((s.status, s.success) for s in results.summaries()),
+            found=closest_start(results.summaries()),
+        ),
         not_run=got.not_run,
     )
 
@@ -899,18 +901,3 @@ def _payload(
 def json_summary(figures: Callable[[ResultT], JSONDict], index: int, result: ResultT) -> JSONDict:
     """Return a start's journal summary as the store reads it back (JSON round trip)."""
     return json.loads(json.dumps(_summary(figures, index, result)))
-
-
-class _Attempts(LazySequence[int]):
-    """Attempts per start index, read from the store when asked for."""
-
-    noun = "start"
-
-    def __init__(self, n: int, get: Callable[[int], int]) -> None:
-        self._n, self._get = n, get
-
-    def __len__(self) -> int:
-        return self._n
-
-    def _item(self, j: int) -> int:
-        return self._get(j)

@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Generic, NamedTuple, TypeVar
+from typing import Generic, NamedTuple, Protocol, TypeVar
 
 from youbot_opt._files import json_roundtrip
 from youbot_opt.exceptions import ParameterError
@@ -41,10 +41,26 @@ __all__ = [
     "run_resumable",
 ]
 
-Describe = Callable[[str, tuple[Any, ...], Any], tuple[Any, dict[str, Any]]]
-"""``(key, args, value) -> (payload, summary)``: what a worker saves of a task's value."""
-
 T = TypeVar("T")
+V = TypeVar("V")
+P = TypeVar("P")
+V_contra = TypeVar("V_contra", contravariant=True)
+P_co = TypeVar("P_co", covariant=True)
+
+
+class Describe(Protocol[V_contra, P_co]):
+    """``(key, args, value) -> (payload, summary)``: what a worker saves of a task's value.
+
+    ``value`` is what the task's function returned for ``args``; the payload is
+    what the store's codec writes, the summary the item's JSON figures.
+    """
+
+    def __call__(
+        self, key: str, args: tuple[object, ...], value: V_contra, /
+    ) -> tuple[P_co, Mapping[str, object]]:
+        """Return the payload and the summary of ``value``, the task ``key``'s value."""
+        ...
+
 
 CHUNK = 4096
 """Tasks handed to the executor at once when ``keep_results=False`` (bounded driver memory)."""
@@ -177,10 +193,10 @@ class StoredAttempts(Mapping[str, int]):
 
 def run_and_write(
     writer: ItemWriter,
-    describe: Describe,
+    describe: Describe[V, P],
     send_value: bool,
     key: str,
-    fn: Callable[..., object],
+    fn: Callable[..., V],
     args: tuple[object, ...],
 ) -> WrittenItem:
     """Worker task: run ``fn(*args)`` and write the item's payload into the store's folder.
@@ -209,7 +225,7 @@ def run_resumable(
     initargs: tuple[object, ...] = (),
     on_resumed: Callable[[dict[str, T]], None] | None = None,
     on_final: Callable[[str, T, int], None] | None = None,
-    describe: Describe | None = None,
+    describe: Describe[V, P] | None = None,
     light: Callable[[str, ItemRecord], T] | None = None,
     keep: KeepRule[T] | None = None,
     deadline: float | None = None,
@@ -373,7 +389,7 @@ def _stream_all(
     initargs: tuple[object, ...],
     on_resumed: Callable[[Mapping[str, T]], None] | None,
     on_final: Callable[[str, T, int], None] | None,
-    describe: Describe | None,
+    describe: Describe[V, P] | None,
     light: Callable[[str, ItemRecord], T],
     deadline: float | None,
 ) -> Resumed[T] | ShardReport:
@@ -561,7 +577,7 @@ def _run_all(
     initargs: tuple[object, ...],
     on_resumed: Callable[[dict[str, T]], None] | None,
     on_final: Callable[[str, T, int], None] | None,
-    describe: Describe | None,
+    describe: Describe[V, P] | None,
     light: Callable[[str, ItemRecord], T] | None,
     keep_all: bool,
     deadline: float | None,

@@ -27,7 +27,7 @@ from youbot_opt.trajopt.multistart import (
     MultistartResult,
     StoredStarts,
     optima_rule,
-    tally_starts,
+    stored_tally,
 )
 from youbot_opt.trajopt.result import ActiveBound
 from youbot_opt.trajopt.solver import TrajOptSolver
@@ -269,7 +269,7 @@ def bound_scaling_study(
                 beta=beta,
                 bound_scale=s,
                 seed=seed,
-                tally=tally_starts(jobs, outcomes, mine, store),
+                tally=stored_tally(jobs, outcomes, mine, store),
             )
         best = ms.best
         active = (

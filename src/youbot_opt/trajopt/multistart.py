@@ -3,9 +3,9 @@
 Owns :func:`run_multistart` (the study's 50 random starts per ``beta``: random
 feasible spline guesses, optionally plus the straight line, each seeded from
 ``SeedSequence(seed).spawn`` so results do not depend on the executor),
-:class:`MultistartResult`, :class:`LocalOptimum` and :func:`trajectory_distance`.
-With ``keep_results=False`` the result holds no start: :class:`StartTally` (counts,
-best, optima) is computed once at the end and the starts are read from the folder.
+:class:`MultistartResult`, :class:`TrajOptOptimum` and :func:`trajectory_distance`.
+With ``keep_results=False`` the result holds no start: its tally (counts, optima)
+is computed once at the end and the starts are read from the folder.
 How starts run is one :class:`~youbot_opt.sweeps.options.SweepOptions`; the job
 machinery is :mod:`youbot_opt.trajopt.sweep`.
 
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import Counter
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -25,35 +24,41 @@ import numpy as np
 from youbot_opt._checks import check_beta, check_bound_scale
 from youbot_opt._typing import JSONDict
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.multistart import (
+    LazyStarts,
+    LocalOptimum,
+    Multistart,
+    OptimumMembers,
+    StartTally,
+    tally_starts,
+)
 from youbot_opt.sweeps.optima import KeepRule, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore, open_store
 from youbot_opt.trajopt.solver import TrajOptSolver
-from youbot_opt.trajopt.stored_starts import ConvergedStarts, OptimumMembers, StoredStarts
 from youbot_opt.trajopt.sweep import (
     StartJobs,
     StartOutcome,
     check_solver,
-    count_starts,
     default_dt0,
     solve_starts,
     start_seeds,
+    start_states,
 )
 from youbot_opt.trajopt.sweep_store import jobs_making, result_codec, sweep_params
 from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
-    "LocalOptimum",
     "MultistartResult",
     "StartOutcome",
-    "StartTally",
     "StoredStarts",
+    "TrajOptOptimum",
     "default_dt0",
     "optima_rule",
     "run_multistart",
     "start_seeds",
-    "tally_starts",
+    "stored_tally",
     "trajectory_distance",
 ]
 
@@ -61,38 +66,26 @@ _DEFAULT_TOLS = (1e-5, 1e-2)  # (relative, [rad]) of distinct_optima and optima_
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class LocalOptimum:
-    """A cluster of converged starts that reached the same local optimum.
+class TrajOptOptimum(LocalOptimum[StartOutcome]):
+    """A distinct local optimum of trajectory starts, with its ``T``, ``W`` and seeds.
 
     Attributes
     ----------
     members : sequence of StartOutcome
         The member starts, lowest objective first: a tuple, or with
-        ``keep_results=False`` a sequence of the member count reading each
-        member from the output folder when asked for (only the first is held).
+        ``keep_results=False`` an :class:`~youbot_opt.sweeps.multistart.OptimumMembers`
+        reading each member from the output folder when asked for (only the
+        first is held).
     n_starts : int
         Number of starts of the multistart (for :attr:`fraction`).
     """
 
-    members: Sequence[StartOutcome]
-    n_starts: int
-
     @classmethod
-    def of(cls, members: Sequence[StartOutcome], n_starts: int) -> LocalOptimum:
+    def of(cls, members: Sequence[StartOutcome], n_starts: int) -> TrajOptOptimum:
         """Build a cluster from its members (sorted by objective here)."""
         if not members:
             raise ParameterError("a local optimum needs at least one member", name="members")
         return cls(members=tuple(sorted(members, key=lambda s: s.objective)), n_starts=n_starts)
-
-    @property
-    def best(self) -> StartOutcome:
-        """The lowest member (its ``result`` is the representative trajectory)."""
-        return self.members[0]
-
-    @property
-    def objective(self) -> float:
-        """Lowest objective among the members."""
-        return self.best.objective
 
     @property
     def duration(self) -> float:
@@ -105,24 +98,9 @@ class LocalOptimum:
         return self.best.work
 
     @property
-    def count(self) -> int:
-        """Number of member starts."""
-        return len(self.members)
-
-    @property
-    def fraction(self) -> float:
-        """``count`` over the number of starts of the multistart."""
-        return self.count / max(self.n_starts, 1)
-
-    @property
     def seeds(self) -> tuple[int | None, ...]:
         """Seeds of the members (``None`` for the straight line); reads every member."""
         return tuple(s.seed for s in self.members)
-
-    @property
-    def objective_spread(self) -> float:
-        """Largest objective minus smallest among the members (the last member's)."""
-        return self.members[-1].objective - self.best.objective
 
     def summary(self, *, seeds: bool = True) -> JSONDict:
         """JSON-ready figures; ``seeds``: also every member's seed (reads every member)."""
@@ -144,6 +122,21 @@ class LocalOptimum:
             f"LocalOptimum(objective={self.objective:.6g}, count={self.count}, "
             f"duration={self.duration:.4g}, work={self.work:.4g})"
         )
+
+
+class StoredStarts(LazyStarts[StartOutcome]):
+    """The starts of a ``keep_results=False`` multistart, read from its folder when asked for.
+
+    Start ``i`` is ``outcomes[jobs[i].key]`` each time (its figures from the
+    sweep's journal; the kept optima in full), so a result of 10^5 starts
+    holds no start. Valid while the output folder is there.
+    """
+
+    def __init__(self, jobs: StartJobs, outcomes: Mapping[str, StartOutcome]) -> None:
+        super().__init__(len(jobs), lambda j: outcomes[jobs[j].key])
+
+    def __repr__(self) -> str:
+        return f"StoredStarts({len(self)} starts)"
 
 
 def trajectory_distance(a: Trajectory, b: Trajectory, n_samples: int = 201) -> float:
@@ -210,33 +203,7 @@ def optima_rule(
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class StartTally:
-    """What a ``keep_results=False`` multistart knows of its starts, computed once at its end.
-
-    The accessors of :class:`MultistartResult` answer from it in time and
-    memory of the number of optima, not of starts.
-
-    Attributes
-    ----------
-    status_counts : mapping of str to int
-        Number of starts per status (``"error"``: raised or crashed).
-    n_converged : int
-        Number of starts whose solve succeeded.
-    best : StartOutcome or None
-        Converged start with the lowest objective, with its result.
-    optima : tuple of LocalOptimum
-        The distinct optima at the default tolerances (1e-5, 1e-2 rad),
-        lowest first; members are read from the folder when asked for.
-    """
-
-    status_counts: Mapping[str, int]
-    n_converged: int
-    best: StartOutcome | None
-    optima: tuple[LocalOptimum, ...]
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class MultistartResult:
+class MultistartResult(Multistart[StartOutcome, tuple[TrajOptOptimum, ...]]):
     """All starts of a multistart, with the best one and the distinct optima.
 
     Attributes
@@ -256,11 +223,11 @@ class MultistartResult:
     resumed : int
         Number of starts loaded from the output directory instead of solved.
     tally : StartTally or None
-        ``keep_results=False``: the counts, best start and default distinct
-        optima, computed once at the end of the sweep; ``best``,
-        ``converged``, ``status_counts()``, ``distinct_optima()`` (default
-        tolerances) and ``summary(starts=False)`` answer from it without
-        reading the starts. ``None`` when the starts are held (a tuple).
+        ``keep_results=False``: the counts and the default distinct optima
+        (``found``; the best start is the first one's), computed once at the
+        end of the sweep; ``best``, ``converged``, ``status_counts()``,
+        ``distinct_optima()`` (default tolerances) and ``summary(starts=False)``
+        answer from it without reading the starts. ``None`` when the starts are held (a tuple).
     """
 
     starts: Sequence[StartOutcome]
@@ -269,53 +236,28 @@ class MultistartResult:
     seed: int
     wall_time: float = 0.0
     resumed: int = 0
-    tally: StartTally | None = None
+    tally: StartTally[tuple[TrajOptOptimum, ...]] | None = None
 
-    @property
-    def n_starts(self) -> int:
-        """Number of starts."""
-        return len(self.starts)
+    statuses_sorted = True
 
-    @property
-    def n_converged(self) -> int:
-        """Number of starts whose solve succeeded."""
-        if self.tally is not None:
-            return self.tally.n_converged
-        return sum(s.success for s in self.starts)
+    def _starts(self) -> Sequence[StartOutcome]:
+        return self.starts
 
-    @property
-    def converged(self) -> Sequence[StartOutcome]:
-        """Starts whose solve succeeded, in start order.
-
-        A tuple; with ``keep_results=False`` a sequence of the counted length
-        that reads the starts from the folder as it is iterated (nothing held).
-        """
-        if self.tally is not None:
-            return ConvergedStarts(self.starts, self.tally.n_converged)
-        return tuple(s for s in self.starts if s.success)
-
-    @property
-    def success_rate(self) -> float:
-        """Fraction of starts that converged (0 if there are none)."""
-        return self.n_converged / self.n_starts if self.n_starts else 0.0
+    @staticmethod
+    def _status(start: StartOutcome) -> str:
+        return start.status
 
     @property
     def best(self) -> StartOutcome | None:
         """Converged start of lowest objective, the first of ties (``None``: none converged)."""
         if self.tally is not None:
-            return self.tally.best
+            return self.tally.found[0].best if self.tally.found else None
         ok = self.converged
         return min(ok, key=lambda s: s.objective) if ok else None
 
-    def status_counts(self) -> dict[str, int]:
-        """Return the number of starts per status (``"error"``: raised or crashed), by status."""
-        if self.tally is not None:
-            return dict(self.tally.status_counts)
-        return dict(sorted(Counter(s.status for s in self.starts).items()))
-
     def distinct_optima(
         self, objective_tol: float = 1e-5, traj_tol: float = 1e-2
-    ) -> tuple[LocalOptimum, ...]:
+    ) -> tuple[TrajOptOptimum, ...]:
         """Cluster converged starts into distinct local optima.
 
         Starts are taken in order of increasing objective; each joins the first
@@ -337,7 +279,7 @@ class MultistartResult:
 
         Returns
         -------
-        tuple of LocalOptimum
+        tuple of TrajOptOptimum
             Sorted by objective, lowest first.
         """
         if not (objective_tol > 0 and traj_tol > 0):
@@ -346,7 +288,7 @@ class MultistartResult:
                 name="objective_tol",
             )
         if self.tally is not None and (objective_tol, traj_tol) == _DEFAULT_TOLS:
-            return self.tally.optima
+            return self.tally.found
         clusters = cluster_optima(
             self.converged,
             objective=lambda s: s.objective,
@@ -354,7 +296,7 @@ class MultistartResult:
             obj_tol=objective_tol,
             dist_tol=traj_tol,
         )
-        return tuple(LocalOptimum.of(m, self.n_starts) for m in clusters)
+        return tuple(TrajOptOptimum.of(m, self.n_starts) for m in clusters)
 
     def summary(
         self, objective_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
@@ -395,12 +337,12 @@ class MultistartResult:
         return out
 
 
-def tally_starts(
+def stored_tally(
     jobs: StartJobs,
     outcomes: Mapping[str, StartOutcome],
     clusters: Sequence[Sequence[str]],
     store: SweepStore,
-) -> StartTally:
+) -> StartTally[tuple[TrajOptOptimum, ...]]:
     """Count the starts of a ``keep_results=False`` sweep once and name its optima.
 
     Parameters
@@ -417,21 +359,16 @@ def tally_starts(
     Returns
     -------
     StartTally
-        Counts per status, converged count, the best start (the first
-        cluster's representative: lowest objective, first in start order, as
-        :attr:`MultistartResult.best`) and the optima with lazy members.
+        Counts per status (by status), converged count and the optima with
+        lazy members (``found``); the first cluster's representative (lowest
+        objective, first in start order) is :attr:`MultistartResult.best`.
     """
-    counts = count_starts(jobs, store)
     n = len(jobs)
     optima = tuple(
-        LocalOptimum(members=OptimumMembers(keys, outcomes), n_starts=n) for keys in clusters
+        TrajOptOptimum(members=OptimumMembers(keys, outcomes.__getitem__), n_starts=n)
+        for keys in clusters
     )
-    return StartTally(
-        status_counts=counts.statuses,
-        n_converged=counts.converged,
-        best=optima[0].best if optima else None,
-        optima=optima,
-    )
+    return tally_starts(start_states(jobs, store), found=optima, by_status=True)
 
 
 def run_multistart(
@@ -483,7 +420,8 @@ def run_multistart(
         are read from ``out`` when asked for, and the counts per status, the
         best start and the default ``distinct_optima()`` (with member counts;
         only each representative's ``result`` is held) are computed once at
-        the end, so the accessors cost nothing per start (see :class:`StartTally`).
+        the end, so the accessors cost nothing per start (see
+        :class:`~youbot_opt.sweeps.multistart.StartTally`).
 
     Returns
     -------
@@ -541,7 +479,7 @@ def run_multistart(
     else:  # counted once here; the accessors answer from the tally
         assert store is not None
         starts = StoredStarts(jobs, outcomes)
-        tally = tally_starts(jobs, outcomes, clusters, store)
+        tally = stored_tally(jobs, outcomes, clusters, store)
     return MultistartResult(
         starts=starts,
         beta=beta,

@@ -5,7 +5,7 @@ bound-scaling study add to the robot-agnostic sweep engine (:mod:`youbot_opt.swe
 :func:`start_seeds`, :func:`make_jobs` (:class:`StartJobs`, :class:`StartJobChain`:
 jobs made from their index), the worker task that solves a job's guess with the
 worker's solver, and :func:`solve_starts`, the resumable start loop as
-:class:`StartOutcome` s (:func:`count_starts` tallies a stored sweep). Their
+:class:`StartOutcome` s (:func:`start_states` reads a stored sweep's statuses). Their
 store is :mod:`youbot_opt.trajopt.sweep_store`.
 
     outcomes, resumed, _ = solve_starts(solver, make_jobs(8, seed=0, beta=0.5, bound_scale=1.0,
@@ -19,8 +19,7 @@ import dataclasses
 import logging
 import math
 import time
-from collections import Counter
-from collections.abc import Callable, MutableMapping, Sequence
+from collections.abc import Callable, Iterator, MutableMapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
@@ -44,16 +43,15 @@ from youbot_opt.trajopt.trajectory import Trajectory
 
 __all__ = [
     "SolvedStarts",
-    "StartCounts",
     "StartJobChain",
     "StartJobs",
     "StartOutcome",
     "check_solver",
-    "count_starts",
     "default_dt0",
     "make_jobs",
     "solve_starts",
     "start_seeds",
+    "start_states",
     "worker_solver",
 ]
 
@@ -413,39 +411,28 @@ def solve_starts(
     return SolvedStarts(items, got.resumed, clusters)
 
 
-class StartCounts(NamedTuple):
-    """Outcomes of finished starts counted (:func:`count_starts`)."""
-
-    statuses: dict[str, int]
-    """Number of starts per status (``"error"``: raised or crashed), sorted by status."""
-    converged: int
-    """Number of starts whose solve succeeded."""
-
-
-def count_starts(jobs: Sequence[_StartJob], store: SweepStore) -> StartCounts:
-    """Count the statuses of finished starts from their records in ``store``.
+def start_states(jobs: Sequence[_StartJob], store: SweepStore) -> Iterator[tuple[str, bool]]:
+    """Yield each finished start's status and success from its record in ``store``.
 
     One pass over the jobs reading each start's summary from the store's
     journal (as :class:`StartOutcome` s read back are made), holding nothing
-    per start: what a ``keep_results=False`` multistart computes once.
+    per start: what a ``keep_results=False`` multistart counts once
+    (:func:`~youbot_opt.sweeps.multistart.tally_starts`). A start that failed
+    every attempt is ``("error", False)``.
 
     Raises
     ------
     ResultFileError
         If a start has no record in ``store`` (it has not finished).
     """
-    statuses: Counter[str] = Counter()
-    converged = 0
     for job in jobs:
         record = store.record(job.key)
         if record is None:
             raise ResultFileError(f"start {job.key!r} has no record in {store.directory}")
         if record.state == "failed":
-            statuses["error"] += 1
-            continue
-        statuses[str(record.summary["status"])] += 1
-        converged += bool(record.summary["success"])
-    return StartCounts(dict(sorted(statuses.items())), converged)
+            yield "error", False
+        else:
+            yield str(record.summary["status"]), bool(record.summary["success"])
 
 
 def _describe_start(
