@@ -21,6 +21,7 @@ from youbot_opt.nlp.codegen import (
     compile_flags,
     compile_function,
     find_compiler,
+    lock_path,
 )
 
 pytestmark = pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
@@ -91,7 +92,7 @@ def test_lock_of_a_dead_compile_is_reclaimed(
     _wait_unlocked(tmp_path)
     library = next(tmp_path.glob("tiny_*.so"))
     library.unlink()
-    lock = library.with_suffix(".lock")
+    lock = lock_path(library)
     lock.write_text(str(os.getpid()))  # alive: this process
     with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
         assert compile_function(f, wait=False) is f
