@@ -67,7 +67,9 @@ WAIT_SECONDS = 3.0
 uses CasADi's virtual machine (ur5 about 16 s, panda about 45 s); docs/design.md, "Time to
 first solve"."""
 
+_CLEANED: set[Path] = set()  # caches cleaned of orphans by this process
 _LAUNCHED: set[int] = set()  # pids of the background compilers this process started
+_LOCKED: set[str] = set()  # the locks this process created for them
 _ANNOUNCED: set[frozenset[tuple[str, int | None]]] = set()  # compiles in progress already named
 
 # Compiles a batch of generated C files, ``jobs`` at a time; one process per run. Standard
@@ -349,6 +351,9 @@ def compile_functions(
     if flags is None:
         flags = compile_flags(compiler)
     directory = cache_dir()
+    if directory not in _CLEANED and directory.is_dir():
+        _CLEANED.add(directory)  # once per process and cache
+        _clean_orphans(directory)
     result = list(functions)
     missing: list[tuple[int, _Job]] = []
     for i, (function, jacobian) in enumerate(zip(functions, jacobians, strict=True)):
@@ -373,7 +378,6 @@ def compile_functions(
     if not missing:
         return result
     directory.mkdir(parents=True, exist_ok=True)
-    _clean_orphans(directory)
     jobs = [job for _, job in missing]
     batch = _batch_name(label, jobs)
     meanwhile = any(result[i] is not job.function for i, job in missing)
@@ -617,6 +621,7 @@ def _compile_in_background(
     """Start one detached compiler process for the libraries nobody is compiling; log one line."""
     mine: list[_Job] = []
     others: dict[str, tuple[int | None, float, float | None]] = {}
+    starting: set[str] = set()
     for job in jobs:
         lock = lock_path(job.library)
         holder = _holder(lock)
@@ -629,6 +634,8 @@ def _compile_in_background(
             mine.append(job)
         else:
             others[job.function.name()] = holder
+            if holder[0] is None and str(lock) in _LOCKED:  # our worker, its pid not written yet
+                starting.add(job.function.name())
     ours = {str(lock_path(job.library)) for job in mine}
     queued = sum(
         1 for lock in directory.glob(f"*.{_user_tag()}.lock") if str(lock) not in ours
@@ -652,6 +659,7 @@ def _compile_in_background(
             return
         pid = proc.pid
         _LAUNCHED.add(pid)
+        _LOCKED.update(str(lock_path(job.library)) for job in mine)
     meanwhile_text = (
         "the portable compiled code of this cache meanwhile"
         if meanwhile
@@ -690,7 +698,9 @@ def _compile_in_background(
             )
     holders = {(name, holder[0]) for name, holder in others.items()}
     key = frozenset(holders | {(job.function.name(), pid) for job in mine})
-    own = not mine and all(holder[0] in _LAUNCHED for holder in others.values())
+    own = not mine and all(
+        holder[0] in _LAUNCHED or name in starting for name, holder in others.items()
+    )
     level = logging.DEBUG if own or key in _ANNOUNCED else logging.INFO
     _ANNOUNCED.add(key)
     _log.log(level, "; ".join(text))
