@@ -61,11 +61,12 @@ SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured 
 NATIVE_MULTIPLIER = 1.27  # gcc -O2 -march=native over -O2, ur5 kernels: 19.1 s against 15.0 s
 STALE_LOCK = 1800.0  # [s] a background compile older than this is presumed dead
 NO_PID_GRACE = 60.0  # [s] a lock or build folder still without its compiler's pid is orphaned
-WAIT_SECONDS = 3.0
-"""[s] ``wait=None``: compile now when the compile is estimated to take at most this long
-(the youBot's three kernels, about 1 s on 2 cores), else in the background while this run
-uses CasADi's virtual machine (ur5 about 16 s, panda about 45 s); docs/design.md, "Time to
-first solve"."""
+WAIT_SECONDS = 0.5
+"""[s] ``wait=None``: compile now when the batch is estimated to take at most this long (a
+two-link arm), else in the background while this run uses CasADi's virtual machine. Measured
+(docs/design.md, "Time to first solve"): even the youBot's three kernels (about 1 s estimated,
+3.5 s on a loaded 2-core machine) cost a cold ``youbot-opt solve`` more when compiled first than
+the virtual machine does until the background compile is ready for the run's later rounds."""
 
 _CLEANED: set[Path] = set()  # caches cleaned of orphans by this process
 _LAUNCHED: set[int] = set()  # pids of the background compilers this process started
@@ -675,7 +676,7 @@ def _compile_in_background(
             f"{f', after {queued} other compile(s) of this cache' if queued > 0 else ''}; "
             f"cached in {directory}); this solve runs {meanwhile_text}; the compiler goes on "
             "after this command returns, and a run started after it has finished uses the "
-            "compiled code"
+            "compiled code (so do this run's later builds)"
         )
     if others:
         running = max(age for _, age, _ in others.values())

@@ -138,7 +138,7 @@ class TrajOptSolver:
         as C compiled by the system compiler and cached on disk
         (:mod:`youbot_opt.nlp.codegen`). True (default): use the cached
         libraries; if they are missing, compile them now when that is short
-        (``codegen.WAIT_SECONDS``: the youBot's), else in one background process
+        (``codegen.WAIT_SECONDS``: a two-link arm's), else in one background process
         for the next build and run this one in CasADi's virtual machine (same
         results; the compile takes from seconds to minutes per robot, which a
         first solve should not wait for). ``"wait"``: compile now. False: never

@@ -110,9 +110,9 @@ def compile_kernels(
     """Compile the kernels to C, cached on disk (:func:`youbot_opt.nlp.codegen.compile_functions`).
 
     The missing ones are compiled in one batch: now (``wait`` True), in one
-    background process (False), or now only when that is short (None: the
-    youBot's, not ur5's; docs/design.md). Returns ``kernels`` itself (the same
-    object, after the codegen warning) if any kernel cannot be compiled, or is
+    background process (False), or now only when that is short (None: a
+    two-link arm's, not the youBot's; docs/design.md). Returns ``kernels``
+    itself (the same object, after the codegen warning) if any kernel cannot be compiled, or is
     not cached yet and is compiling in the background for the next build
     (``label`` names it in the log). The compiled ``forward`` kernel carries its
     compiled Jacobian (first derivatives), so an NLP Function built on it can be
