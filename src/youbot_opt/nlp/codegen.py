@@ -628,7 +628,7 @@ def _compile_in_background(
         holder = _holder(lock)
         if holder is None:
             try:
-                os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+                os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
             except FileExistsError:  # another process got there first
                 holder = _holder(lock) or (None, 0.0, job.seconds)
         if holder is None:
@@ -705,17 +705,3 @@ def _compile_in_background(
     level = logging.DEBUG if own or key in _ANNOUNCED else logging.INFO
     _ANNOUNCED.add(key)
     _log.log(level, "; ".join(text))
-
-
-def _holder_alive(lock: Path) -> bool | None:
-    """Whether the process named in this user's ``lock`` runs (:func:`_pid_alive`).
-
-    Raises
-    ------
-    FileNotFoundError
-        If there is no lock.
-    """
-    fields = lock.read_text(errors="replace").split()
-    if not fields or not fields[0].isdigit():
-        return None
-    return _pid_alive(int(fields[0]))
