@@ -1,11 +1,12 @@
 """Compile small CasADi Functions to C with the system compiler, cached on disk.
 
-:func:`compile_function` generates C for a Function, hashes it with the
+:func:`compile_functions` generates C for Functions, hashes it with the
 compiler command and loads ``<cache>/<name>_<hash>.so`` (``$YOUBOT_OPT_CACHE``,
-else ``$XDG_CACHE_HOME/youbot_opt/jit``), compiling a missing library now or
-in the background (docs/design.md, "Time to first solve"), for this CPU
-(:func:`compile_flags`). Without a C compiler the Function is returned
-unchanged with a warning.
+else ``$XDG_CACHE_HOME/youbot_opt/jit``), compiling the missing libraries in
+one batch, now or in one background process (docs/design.md, "Time to first
+solve"), for this CPU (:func:`compile_flags`); :func:`compile_function` does
+it for one. Without a C compiler the Functions are returned unchanged with a
+warning.
 
 >>> fast = compile_function(fn, wait=True)  # doctest: +SKIP
 """
