@@ -569,7 +569,7 @@ def _prepare(
     """Write the sources into a new build folder; return it and the worker's spec (JSON)."""
     tmp = Path(tempfile.mkdtemp(dir=directory, prefix=f".build-{_user_tag()}-"))
     items = []
-    for job in jobs:
+    for job in sorted(jobs, key=lambda job: -job.seconds):  # the longest first (the Hessian)
         source = tmp / f"{job.library.stem}.c"
         source.write_text(job.code)
         items.append(
