@@ -417,3 +417,17 @@ def test_a_queued_compile_of_a_library_made_meanwhile_exits_without_compiling(
     _wait_unlocked_mine(tmp_path)
     assert not marker.exists()
     assert not list(tmp_path.glob(".build-*"))
+
+
+def test_compilers_run_side_by_side_only_on_idle_cores(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One compiler per idle core (at least one); YOUBOT_OPT_COMPILE_JOBS overrides."""
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.delenv("YOUBOT_OPT_COMPILE_JOBS", raising=False)
+    monkeypatch.setattr(codegen.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(codegen.os, "getloadavg", lambda: (0.2, 0.2, 0.2))
+    assert codegen._jobs(3) == 2 and codegen._jobs(1) == 1
+    monkeypatch.setattr(codegen.os, "getloadavg", lambda: (12.0, 12.0, 12.0))
+    assert codegen._jobs(3) == 1  # measured: no faster side by side on a loaded machine
+    monkeypatch.setenv("YOUBOT_OPT_COMPILE_JOBS", "3")
+    assert codegen._jobs(3) == 3 and codegen._jobs(2) == 2
