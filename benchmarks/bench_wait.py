@@ -21,9 +21,9 @@ less inflated by other processes than its wall time). Cases:
   no sphere fits) and **warm** (the same cache again, after the background
   compiles of the cold run have finished: what every later run pays); ``bg``
   is how long the cold run's background compile went on after it returned
-  (its kernels compiled as many at a time as there are cores); with
+  (its kernels compiled as many at a time as there are idle cores); with
   ``--compare-jobs`` a second cold run compiles one kernel at a time
-  (``YOUBOT_OPT_COMPILE_JOBS=1``, as before one batch per run), for the
+  (``YOUBOT_OPT_COMPILE_JOBS=1``: one at a time, as before this batch), for the
   before/after of the time to compiled code;
 * **ikpath, ur5**: ``youbot-opt ikpath --robot ur5 --target X Y Z ...`` with 4
   and 6 position targets (the tool0 positions of in-limit configurations drawn
@@ -323,7 +323,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{r['warm_s'] / _target(r['robot'], 'warm'):>12.2f}  {r['folder']}")  # fmt: skip
     jobs = [r for r in rows if "background_one_job_s" in r]
     if jobs:
-        print(f"\n{'time to compiled code':<24}{'1 at a time':>12}{'per core':>10}"
+        print(f"\n{'time to compiled code':<24}{'1 at a time':>12}{'default':>10}"
               f"{'cold, 1':>9}{'cold':>7}")  # fmt: skip
         for r in jobs:
             print(f"{r['case']:<24}{r['background_one_job_s']:>12.1f}"
