@@ -12,6 +12,9 @@ times load + build + solve:
   process while this solve runs in CasADi's virtual machine;
 * **warm**: the same, after that background compile has finished (the kernels
   load from the cache): the path every later solve takes;
+* ``--rule``: cold again with the rule that compiles short compiles now
+  turned off (``codegen.WAIT_SECONDS = 0``: background compile, VM solve), to
+  check the rule where it compiles now (the youBot);
 * ``--baseline``: what the first solve cost before (``compile="wait"``: compile
   the kernels, then solve), in another empty cache; ``warm`` is also today's
   warm path, so the printed warm ratio compares it with the cold-baseline
@@ -52,6 +55,10 @@ def _child(robot_name: str, compile_mode: str) -> dict[str, Any]:
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
+    if compile_mode == "vm":  # the background path even where the rule compiles now
+        from youbot_opt.nlp import codegen
+
+        codegen.WAIT_SECONDS = 0.0
     tic, cpu = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # mimic joints locked, e.g. panda's finger
@@ -118,6 +125,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", default=["ur5", "panda"])
     parser.add_argument("--baseline", action="store_true", help="also time compile-then-solve")
+    parser.add_argument(
+        "--rule",
+        action="store_true",
+        help="also time cold with the short-compile rule off (WAIT_SECONDS = 0: the VM)",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     rows = []
@@ -128,6 +140,10 @@ def main(argv: list[str] | None = None) -> int:
             waited = _wait_for_background(cache)
             warm = _run(robot, "background", cache)
             row = {"robot": robot, "cold": cold, "background_wait_s": waited, "warm": warm}
+        if args.rule:
+            with tempfile.TemporaryDirectory(prefix="youbot_first_solve_") as tmp:
+                row["vm"] = _run(robot, "vm", Path(tmp))
+                _wait_for_background(Path(tmp))
         if args.baseline:
             with tempfile.TemporaryDirectory(prefix="youbot_first_solve_") as tmp:
                 row["baseline"] = _run(robot, "wait", Path(tmp))
@@ -156,6 +172,13 @@ def main(argv: list[str] | None = None) -> int:
             f"{warm['build_s']:.2f}, solve "
             f"{warm['solve_s']:.2f}, compiled={warm['compiled']})"
         )
+        if "vm" in row:
+            vm = row["vm"]
+            print(
+                f"{'':>8} cold with the rule off (background compile, VM): {vm['total_s']:.2f} s "
+                f"wall, {vm['cpu_s']:.2f} s CPU (build {vm['build_s']:.2f}, solve "
+                f"{vm['solve_s']:.2f}); cold above compiled now: {cold['compiled']}"
+            )
         if "baseline" in row:
             base = row["baseline"]
             print(

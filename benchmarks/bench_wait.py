@@ -1,6 +1,7 @@
 """The user's wait (issue 27, item 6): the command line as a user runs it, wall time.
 
-Run ``python benchmarks/bench_wait.py [--quick] [--repeats N] [--reference-starts K] [--json]``.
+Run ``python benchmarks/bench_wait.py [--quick] [--repeats N] [--reference-starts K]
+[--robots ur5 panda xarm7] [--compare-jobs] [--keep DIR] [--json]``.
 
 Each case runs ``youbot-opt`` in a fresh interpreter (``python -m youbot_opt``),
 with default settings (refinement on), and times the whole command: start-up,
@@ -14,9 +15,16 @@ less inflated by other processes than its wall time). Cases:
 * **solve, panda**: ``--robot panda --lock panda_finger_joint1=0.02`` (the
   fingers locked, as the finger note advises), start and goal at 35 % and 65 %
   of each arm joint's range (as ``bench_first_solve.py``);
+* **solve, xarm7**: a vendor arm, UFACTORY's own xArm7 description as
+  example-robot-data ships it (``xarm_description``), start and goal as panda's;
 * each **cold** (``YOUBOT_OPT_CACHE`` a fresh empty folder: nothing compiled,
   no sphere fits) and **warm** (the same cache again, after the background
-  compiles of the cold run have finished: what every later run pays);
+  compiles of the cold run have finished: what every later run pays); ``bg``
+  is how long the cold run's background compile went on after it returned
+  (its kernels compiled as many at a time as there are idle cores); with
+  ``--compare-jobs`` a second cold run compiles one kernel at a time
+  (``YOUBOT_OPT_COMPILE_JOBS=1``: one at a time, as before this batch), for the
+  before/after of the time to compiled code;
 * **ikpath, ur5**: ``youbot-opt ikpath --robot ur5 --target X Y Z ...`` with 4
   and 6 position targets (the tool0 positions of in-limit configurations drawn
   with ``numpy.random.default_rng(2026)``, limits clipped to ``[-pi, pi]``),
@@ -24,7 +32,10 @@ less inflated by other processes than its wall time). Cases:
   ``--reference-starts K`` (K > 0) also ``--starts K`` for the best known ``E``
   to compare with (slow: minutes for K = 1000).
 
-A plan counts only when certified and its run folder holds ``summary.json``.
+A plan counts only when certified and its run folder holds ``summary.json``
+(``--keep DIR`` keeps the run folders; the table names each warm run's).
+Each time is also printed as a ratio of its target (1.00 = on target; the
+vendor arm's targets are twice ur5's and panda's).
 The machine's load average is printed: wall times on a shared machine are
 inflated by other processes. ``--quick``: one repeat, no reference starts.
 Targets (issue 27, 2 cores): warm <= 1.5 s, cold <= 5 s for ur5 and panda; the
@@ -50,16 +61,24 @@ import numpy as np
 UR5 = (["0", "-1.2", "1", "-0.5", "0.3", "0"], ["0.8", "-0.6", "0.4", "-1.2", "-0.3", "0.5"])
 PANDA_LOCK = ["--lock", "panda_finger_joint1=0.02"]
 TARGETS = {"warm": 1.5, "cold": 5.0, "ikpath": 10.0}  # [s] wall, issue 27
+VENDOR = {"xarm7"}  # vendor arms: targets 2x (issue 27)
+ROBOTS = ("ur5", "panda", "xarm7")
 
 
-def _panda_start_goal() -> tuple[list[str], list[str]]:
+def _target(robot: str, kind: str) -> float:
+    return TARGETS[kind] * (2.0 if robot in VENDOR else 1.0)
+
+
+def _start_goal(name: str) -> tuple[list[str], list[str]]:
+    """Start and goal at 35 % and 65 % of each joint's range (panda's fingers locked)."""
     import warnings
 
     from youbot_opt.robot.load import load_model
 
+    locks = {"panda_finger_joint1": 0.02} if name == "panda" else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        robot = load_model("panda", lock_joints={"panda_finger_joint1": 0.02})
+        robot = load_model(name, lock_joints=locks)
     lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
     start, goal = lo + 0.35 * (hi - lo), lo + 0.65 * (hi - lo)
     return [f"{x:.6f}" for x in start], [f"{x:.6f}" for x in goal]
@@ -87,8 +106,10 @@ def _ur5_targets(n: int, seed: int = 2026) -> list[list[str]]:
 _CPU: list[float] = []  # CPU time [s] (user + system) of each command, in order
 
 
-def _cli(args: list[str], cache: Path) -> tuple[float, subprocess.CompletedProcess[str]]:
-    env = {**os.environ, "YOUBOT_OPT_CACHE": str(cache)}
+def _cli(
+    args: list[str], cache: Path, env_extra: dict[str, str] | None = None
+) -> tuple[float, subprocess.CompletedProcess[str]]:
+    env = {**os.environ, "YOUBOT_OPT_CACHE": str(cache), **(env_extra or {})}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     tic = time.perf_counter()
     done = subprocess.run(
@@ -115,7 +136,7 @@ def lock_is_stale(lock: Path, now: float | None = None) -> str | None:
     from youbot_opt.nlp.codegen import STALE_LOCK
 
     try:
-        text = lock.read_text(errors="replace").strip()
+        text = (lock.read_text(errors="replace").split() or [""])[0]  # pid, then the estimate
         age = (time.time() if now is None else now) - lock.stat().st_mtime
     except FileNotFoundError:
         return None  # released meanwhile: not stale, simply gone
@@ -127,8 +148,10 @@ def lock_is_stale(lock: Path, now: float | None = None) -> str | None:
         os.kill(int(text), 0)
     except ProcessLookupError:
         return f"its compiler (pid {text}) is not running"
-    except (PermissionError, OSError, OverflowError):
-        return None  # another user's process, or unknown: wait for it
+    except PermissionError:  # locks are per user: that pid is not this user's compiler
+        return f"its pid {text} is another user's process"
+    except (OSError, OverflowError):
+        return None  # unknown: wait for it
     return None
 
 
@@ -151,9 +174,12 @@ def _wait_for_background(cache: Path, timeout: float = 900.0) -> float:
     return time.perf_counter() - tic
 
 
-def solve_case(robot: str, args: list[str], repeats: int, work: Path) -> dict[str, Any]:
+def solve_case(
+    robot: str, args: list[str], repeats: int, work: Path, compare_jobs: bool = False
+) -> dict[str, Any]:
     """Cold then warm runs of one ``solve`` command; medians of ``repeats``."""
     cold, warm, waits, warm_cpu = [], [], [], []
+    folder = ""
     summary: dict[str, Any] = {}
     for rep in range(repeats):
         cache = work / f"cache-{robot}-{rep}"
@@ -167,13 +193,27 @@ def solve_case(robot: str, args: list[str], repeats: int, work: Path) -> dict[st
             times.append(wall if ok else float("nan"))
             if kind == "warm":
                 warm_cpu.append(_CPU[-1])
+                folder = str(out)
             if not ok:
                 print(f"  {robot} {kind}: exit {done.returncode}\n{done.stderr[-2000:]}")
             if kind == "cold":
                 waits.append(_wait_for_background(cache))
     rounds = summary.get("refinement") or {}
+    before: dict[str, float] = {}
+    if compare_jobs:  # the time to compiled code with one compiler at a time
+        cache = work / f"cache-{robot}-one-job"
+        cache.mkdir()
+        wall, done = _cli(
+            [*args, "--out", str(work / f"{robot}-cold-one-job")],
+            cache,
+            {"YOUBOT_OPT_COMPILE_JOBS": "1"},
+        )
+        before = {"cold_one_job_s": wall, "background_one_job_s": _wait_for_background(cache)}
     return {
+        **before,
         "case": f"solve {robot}",
+        "robot": robot,
+        "folder": folder,
         "cold_s": statistics.median(cold),
         "warm_s": statistics.median(warm),
         "warm_cpu_s": statistics.median(warm_cpu),
@@ -230,7 +270,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--reference-starts", type=int, default=200)
     parser.add_argument("--targets", type=int, nargs="+", default=[4, 6])
-    parser.add_argument("--robots", nargs="+", default=["ur5", "panda"], choices=["ur5", "panda"])
+    parser.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=ROBOTS)
+    parser.add_argument(
+        "--compare-jobs", action="store_true", help="also a cold run compiling 1 kernel at a time"
+    )
+    parser.add_argument("--keep", type=Path, default=None, help="keep the run folders here")
     parser.add_argument("--no-solve", action="store_true")
     parser.add_argument("--no-ikpath", action="store_true")
     parser.add_argument("--json", action="store_true")
@@ -240,15 +284,19 @@ def main(argv: list[str] | None = None) -> int:
     load = os.getloadavg()
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="bench_wait-") as tmp:
-        work = Path(tmp)
+        work = Path(tmp) if opts.keep is None else opts.keep
+        work.mkdir(parents=True, exist_ok=True)
         if not opts.no_solve:
-            start, goal = _panda_start_goal()
-            cases = {
-                "ur5": ["solve", "--robot", "ur5", "--start", *UR5[0], "--goal", *UR5[1]],
-                "panda": ["solve", "--robot", "panda", *PANDA_LOCK, "--start", *start]
-                + ["--goal", *goal],
-            }
-            rows += [solve_case(name, cases[name], repeats, work) for name in opts.robots]
+            cases = {"ur5": ["solve", "--robot", "ur5", "--start", *UR5[0], "--goal", *UR5[1]]}
+            for name in ("panda", "xarm7"):
+                start, goal = _start_goal(name)
+                lock = PANDA_LOCK if name == "panda" else []
+                cases[name] = ["solve", "--robot", name, *lock, "--start", *start]
+                cases[name] += ["--goal", *goal]
+            rows += [
+                solve_case(name, cases[name], repeats, work, opts.compare_jobs)
+                for name in opts.robots
+            ]
         if not opts.no_ikpath:
             rows += [ikpath_case(n, repeats, reference, work) for n in opts.targets]
     if opts.json:
@@ -264,9 +312,23 @@ def main(argv: list[str] | None = None) -> int:
                   f"{r['n_knots'] or 0:>6}{r['rounds'] or 0:>7}"
                   f"{r['objective'] or float('nan'):>12.4f}"
                   f"{r['files']:>6}")  # fmt: skip
-    print(f"targets: warm <= {TARGETS['warm']} s, cold <= {TARGETS['cold']} s "
+    print(f"targets: warm <= {TARGETS['warm']} s, cold <= {TARGETS['cold']} s, vendor arms "
+          f"({', '.join(sorted(VENDOR))}) 2x "
           "(cpu: the warm command's user + system CPU time; bg: wait for the cold run's "
           "background compile after it returned)")  # fmt: skip
+    print(f"\n{'case':<24}{'cold/target':>12}{'warm/target':>12}  warm run folder")
+    for r in rows:
+        if r["case"].startswith("solve"):
+            print(f"{r['case']:<24}{r['cold_s'] / _target(r['robot'], 'cold'):>12.2f}"
+                  f"{r['warm_s'] / _target(r['robot'], 'warm'):>12.2f}  {r['folder']}")  # fmt: skip
+    jobs = [r for r in rows if "background_one_job_s" in r]
+    if jobs:
+        print(f"\n{'time to compiled code':<24}{'1 at a time':>12}{'default':>10}"
+              f"{'cold, 1':>9}{'cold':>7}")  # fmt: skip
+        for r in jobs:
+            print(f"{r['case']:<24}{r['background_one_job_s']:>12.1f}"
+                  f"{r['background_compile_s']:>10.1f}{r['cold_one_job_s']:>9.2f}"
+                  f"{r['cold_s']:>7.2f}")  # fmt: skip
     ik = [r for r in rows if r["case"].startswith("ikpath")]
     if ik:
         print(f"\n{'case':<24}{'wall [s]':>9}{'cpu [s]':>8}{'E default':>11}{'ref starts':>11}"

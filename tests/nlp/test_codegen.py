@@ -21,6 +21,7 @@ from youbot_opt.nlp.codegen import (
     compile_flags,
     compile_function,
     find_compiler,
+    lock_path,
 )
 
 pytestmark = pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
@@ -91,7 +92,7 @@ def test_lock_of_a_dead_compile_is_reclaimed(
     _wait_unlocked(tmp_path)
     library = next(tmp_path.glob("tiny_*.so"))
     library.unlink()
-    lock = library.with_suffix(".lock")
+    lock = lock_path(library)
     lock.write_text(str(os.getpid()))  # alive: this process
     with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
         assert compile_function(f, wait=False) is f
@@ -180,3 +181,253 @@ def test_native_and_portable_kernels_agree(tmp_path: Path, monkeypatch: pytest.M
         q, v, tau, w = (rng.uniform(-2.0, 2.0, robot.nv) for _ in range(4))
         a, b = np.asarray(native(q, v, tau, w)), np.asarray(portable(q, v, tau, w))
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max())
+
+
+def _slow_compiler(tmp_path: Path, seconds: float, marker: Path | None = None) -> str:
+    """A compiler wrapper that sleeps ``seconds`` (and touches ``marker``) before gcc."""
+    real = find_compiler()
+    assert real is not None
+    script = tmp_path / "slow" / Path(real).name  # same name: same cache keys
+    script.parent.mkdir(exist_ok=True)
+    touch = f'touch "{marker}"\n' if marker is not None else ""
+    script.write_text(f'#!/bin/sh\n{touch}sleep {seconds}\nexec "{real}" "$@"\n')
+    script.chmod(0o755)
+    return str(script)
+
+
+def _fresh_process_state(monkeypatch: pytest.MonkeyPatch) -> None:
+    """As in a new run: no cache cleaned, nothing launched or announced yet."""
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.setattr(codegen, "_CLEANED", set())
+    monkeypatch.setattr(codegen, "_LAUNCHED", set())
+    monkeypatch.setattr(codegen, "_LOCKED", set())
+    monkeypatch.setattr(codegen, "_ANNOUNCED", set())
+
+
+@pytest.mark.skipif(os.name != "posix", reason="process groups and pids are POSIX")
+def test_a_killed_compile_leaves_nothing_behind(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Worker and compiler SIGKILLed (or a reboot): the next run removes the lock and build dir."""
+    import signal
+
+    cache = tmp_path / "cache"
+    real = find_compiler()
+    assert real is not None
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(cache))
+    monkeypatch.setenv("CC", _slow_compiler(tmp_path, 30))
+    flags = compile_flags(real)  # not the wrapper's: it sleeps for that check too
+    _fresh_process_state(monkeypatch)
+    f = _function(4.5)
+    assert compile_function(f, wait=False, flags=flags) is f
+    (lock,) = cache.glob("*.lock")
+    tic = time.perf_counter()
+    while not lock.read_text().strip():  # the worker writes its pid as it starts
+        assert time.perf_counter() - tic < 30
+        time.sleep(0.05)
+    pid = int(lock.read_text().split()[0])
+    assert len(list(cache.glob(".build-*"))) == 1
+    os.killpg(pid, signal.SIGKILL)  # the worker's session: it and the compiler it started
+    os.waitpid(pid, 0)  # reaped (a run's compiler is reaped by init once the run has ended)
+    assert lock.exists() and list(cache.glob(".build-*"))  # what a killed compile leaves
+    _fresh_process_state(monkeypatch)  # the next run
+    monkeypatch.setenv("CC", real)
+    assert compile_function(_function(5.5), wait=True) is not None  # any call on this cache
+    assert not lock.exists()
+    assert not list(cache.glob(".build-*"))
+
+
+def test_another_users_lock_does_not_block(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Another user's compile of the same kernel (live) does not hold this user's back.
+
+    Its lock carries its uid in the name, so this user's run starts its own
+    compile; and this user's lock naming a pid that now belongs to another
+    user (``os.kill`` raises PermissionError: the compiler ended, its pid was
+    reused) is taken over at once.
+    """
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f = _function(6.5)
+    assert compile_function(f, wait=True) is not f
+    library = next(tmp_path.glob("tiny_*.so"))
+    library.unlink()
+    other = library.with_name(f"{library.stem}.u{os.getuid() + 1}.lock")
+    other.write_text(f"{os.getpid()}\n30.0\n")  # another user's live compile
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        assert compile_function(f, wait=False) is f
+    assert "to C in the background" in caplog.text
+    _wait_unlocked_mine(tmp_path)
+    assert library.is_file() and other.is_file()  # not this user's to remove
+    library.unlink()
+    mine = lock_path(library)
+    mine.write_text(f"{os.getpid()}\n30.0\n")
+    real_kill = os.kill
+
+    def kill(pid: int, sig: int) -> None:
+        if pid == os.getpid() and sig == 0:
+            raise PermissionError(1, "Operation not permitted")
+        real_kill(pid, sig)
+
+    monkeypatch.setattr(codegen.os, "kill", kill)
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        assert compile_function(f, wait=False) is f
+    assert "to C in the background" in caplog.text
+    assert "another process" not in caplog.text
+    monkeypatch.setattr(codegen.os, "kill", real_kill)
+    _wait_unlocked_mine(tmp_path)
+    assert library.is_file()
+
+
+def _wait_unlocked_mine(cache: Path, timeout: float = 120.0) -> None:
+    tic = time.perf_counter()
+    while any(cache.glob(f"*.u{os.getuid()}.lock")):
+        assert time.perf_counter() - tic < timeout, "background compile did not finish"
+        time.sleep(0.1)
+
+
+_RUN = """
+import logging, sys, casadi as ca
+from youbot_opt.nlp import codegen
+from youbot_opt.trajopt.transcription.derivatives import Kernels, compile_kernels
+logging.basicConfig(stream=sys.stderr, level=logging.WARNING, format="youbot-opt: %(message)s")
+logging.getLogger("youbot_opt.nlp.codegen").setLevel(logging.INFO)
+x = ca.SX.sym("x", 2)
+tag = float(sys.argv[1])
+codegen.WAIT_SECONDS = 0.0  # as for a robot whose kernels take long to compile
+kernels = Kernels(*(ca.Function(n, [x], [ca.sin(x) * x + tag + i]) for i, n in
+                    enumerate(("fd_value", "fd_jacobian", "fd_hessian"))))
+for _ in range(3):  # three refinement rounds, three solver builds
+    compiled = compile_kernels(kernels, wait=None, label="tiny's dynamics")
+print(compiled is kernels)
+"""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="a shell-script compiler")
+def test_one_line_per_run_and_the_next_run_is_told_how_long(tmp_path: Path) -> None:
+    """A run that starts compiles says so in one stderr line, whatever it builds.
+
+    Three kernels in one background process; a run started while they compile
+    says how long they have been running and about how long is left; a run
+    after they finish uses them and says nothing.
+    """
+    cache = tmp_path / "cache"
+    env = {
+        **os.environ,
+        "YOUBOT_OPT_CACHE": str(cache),
+        "CC": _slow_compiler(tmp_path, 3),
+        "YOUBOT_OPT_NATIVE": "0",  # no flag check (the wrapper sleeps for it too)
+        "PYTHONPATH": os.pathsep.join(sys.path),
+    }
+
+    def run() -> tuple[str, list[str]]:
+        done = subprocess.run(  # noqa: S603
+            [sys.executable, "-c", _RUN, "7.5"], env=env, capture_output=True, text=True
+        )
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip(), [line for line in done.stderr.splitlines() if line]
+
+    out, lines = run()
+    assert out == "True"  # the virtual machine this time
+    assert len(lines) == 1, lines
+    assert "compiling tiny's dynamics (fd_value, fd_jacobian, fd_hessian) to C in the " in lines[0]
+    assert f"cached in {cache}" in lines[0]
+    assert "a run started after it has finished uses the compiled code" in lines[0]
+    time.sleep(1.0)
+    out, lines = run()
+    assert out == "True"
+    assert len(lines) == 1, lines
+    assert "being compiled by another process (running " in lines[0]
+    assert " s left" in lines[0]
+    _wait_unlocked_mine(cache)
+    out, lines = run()
+    assert out == "False" and lines == []  # compiled code, nothing to say
+    assert len(list(cache.glob("fd_*.so"))) == 3
+
+
+def test_a_short_compile_is_done_now(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """wait=None: compiled now when estimated within WAIT_SECONDS, else in the background."""
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f, g = _function(8.5), _function(9.5)
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        assert compile_function(f, wait=None) is not f
+    assert "to C now" in caplog.text
+    monkeypatch.setattr(codegen, "WAIT_SECONDS", 0.0)
+    assert compile_function(g, wait=None) is g
+    _wait_unlocked_mine(tmp_path)
+    assert compile_function(g, wait=None) is not g
+
+
+def test_the_portable_library_is_used_while_the_native_one_compiles(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The native library missing, the portable one cached: it runs meanwhile (not the VM)."""
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f = _function(10.5)
+    native = ("-O2", NATIVE_FLAG, "-fPIC", "-shared")
+    portable = compile_function(f, wait=True, flags=COMPILE_FLAGS)
+    assert portable is not f
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        meanwhile = compile_function(f, wait=None, flags=native)
+    assert meanwhile is not f
+    assert "runs the portable compiled code of this cache meanwhile" in caplog.text
+    x = np.array([0.3, -1.7])
+    np.testing.assert_allclose(np.asarray(meanwhile(x)), np.asarray(f(x)), rtol=0, atol=1e-15)
+    _wait_unlocked_mine(tmp_path)
+    assert len(list(tmp_path.glob("tiny_*.so"))) == 2  # the native one arrived
+
+
+@pytest.mark.skipif(os.name != "posix", reason="flock and a shell-script compiler")
+def test_a_queued_compile_of_a_library_made_meanwhile_exits_without_compiling(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Queued behind this user's slot, a compile whose library appeared meanwhile is skipped."""
+    import fcntl
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f = _function(11.5)
+    assert compile_function(f, wait=True) is not f
+    library = next(tmp_path.glob("tiny_*.so"))
+    built = tmp_path / "built.so"
+    library.rename(built)
+    marker = tmp_path / "compiler-ran"
+    flags = compile_flags(find_compiler() or "gcc")
+    monkeypatch.setenv("CC", _slow_compiler(tmp_path, 0, marker))
+    slot = open(tmp_path / f".compile-slot-u{os.getuid()}", "a")  # noqa: SIM115
+    fcntl.flock(slot, fcntl.LOCK_EX)  # another batch of this user is compiling
+    try:
+        assert compile_function(f, wait=False, flags=flags) is f
+        time.sleep(0.5)
+    finally:
+        built.rename(library)  # produced meanwhile by another process
+        fcntl.flock(slot, fcntl.LOCK_UN)
+        slot.close()
+    _wait_unlocked_mine(tmp_path)
+    assert not marker.exists()
+    assert not list(tmp_path.glob(".build-*"))
+
+
+def test_compilers_run_side_by_side_only_on_idle_cores(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One compiler per idle core (at least one); YOUBOT_OPT_COMPILE_JOBS overrides."""
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.delenv("YOUBOT_OPT_COMPILE_JOBS", raising=False)
+    monkeypatch.setattr(codegen.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(codegen.os, "getloadavg", lambda: (0.2, 0.2, 0.2))
+    assert codegen._jobs(3) == 2 and codegen._jobs(1) == 1
+    monkeypatch.setattr(codegen.os, "getloadavg", lambda: (12.0, 12.0, 12.0))
+    assert codegen._jobs(3) == 1  # measured: no faster side by side on a loaded machine
+    monkeypatch.setenv("YOUBOT_OPT_COMPILE_JOBS", "3")
+    assert codegen._jobs(3) == 3 and codegen._jobs(2) == 2

@@ -46,6 +46,24 @@ def test_stale_locks_are_named_and_live_ones_are_not(tmp_path):
     os.utime(empty, (now - bench.NO_PID_GRACE - 10, now - bench.NO_PID_GRACE - 10))
     assert "no compiler pid" in bench.lock_is_stale(empty)
     assert bench.lock_is_stale(tmp_path / "gone.lock") is None
+    with_estimate = tmp_path / "estimate.lock"
+    with_estimate.write_text(f"{os.getpid()}\n42.0\n")  # the compiler's pid, then its estimate
+    assert bench.lock_is_stale(with_estimate) is None
+    with_estimate.write_text(f"{_dead_pid()}\n42.0\n")
+    assert "not running" in bench.lock_is_stale(with_estimate)
+
+
+def test_a_lock_naming_another_users_process_is_stale(tmp_path, monkeypatch):
+    """Locks are per user: a pid that is another user's process is not this user's compiler."""
+    bench = _bench()
+    lock = tmp_path / "kernel.u0.lock"
+    lock.write_text("4242\n10.0\n")
+
+    def kill(pid, sig):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(bench.os, "kill", kill)
+    assert "another user's process" in bench.lock_is_stale(lock)
 
 
 def test_wait_returns_at_once_on_a_stale_lock(tmp_path, capsys):

@@ -1,11 +1,12 @@
 """Compile small CasADi Functions to C with the system compiler, cached on disk.
 
-:func:`compile_function` generates C for a Function, hashes it with the
+:func:`compile_functions` generates C for Functions, hashes it with the
 compiler command and loads ``<cache>/<name>_<hash>.so`` (``$YOUBOT_OPT_CACHE``,
-else ``$XDG_CACHE_HOME/youbot_opt/jit``), compiling a missing library now or
-in the background (docs/design.md, "Time to first solve"), for this CPU
-(:func:`compile_flags`). Without a C compiler the Function is returned
-unchanged with a warning.
+else ``$XDG_CACHE_HOME/youbot_opt/jit``), compiling the missing libraries in
+one batch, now or in one background process (docs/design.md, "Time to first
+solve"), for this CPU (:func:`compile_flags`); :func:`compile_function` does
+it for one. Without a C compiler the Functions are returned unchanged with a
+warning.
 
 >>> fast = compile_function(fn, wait=True)  # doctest: +SKIP
 """
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import logging
 import os
 import platform
@@ -23,7 +25,9 @@ import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 
@@ -35,9 +39,11 @@ __all__ = [
     "cache_dir",
     "compile_flags",
     "compile_function",
+    "compile_functions",
     "cpu_fingerprint",
     "estimated_compile_time",
     "find_compiler",
+    "lock_path",
 ]
 
 _log = logging.getLogger(__name__)
@@ -55,35 +61,90 @@ cache name includes :func:`cpu_fingerprint`. ``YOUBOT_OPT_NATIVE=0`` turns it of
 SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured on ur5's kernels
 NATIVE_MULTIPLIER = 1.27  # gcc -O2 -march=native over -O2, ur5 kernels: 19.1 s against 15.0 s
 STALE_LOCK = 1800.0  # [s] a background compile older than this is presumed dead
+NO_PID_GRACE = 60.0  # [s] a lock or build folder still without its compiler's pid is orphaned
+WAIT_SECONDS = 0.5
+"""[s] ``wait=None``: compile now when the batch is estimated to take at most this long (a
+two-link arm), else in the background while this run uses CasADi's virtual machine. Measured
+(docs/design.md, "Time to first solve"): even the youBot's three kernels (about 1 s estimated,
+3.5 s on a loaded 2-core machine) cost a cold ``youbot-opt solve`` more when compiled first than
+the virtual machine does until the background compile is ready for the run's later rounds."""
 
-_BACKGROUND_SCRIPT = """
-import os, shutil, subprocess, sys
-compiler, source, target, library, lock, failed, tmp, *flags = sys.argv[1:]
+_CLEANED: set[Path] = set()  # caches cleaned of orphans by this process
+_LAUNCHED: set[int] = set()  # pids of the background compilers this process started
+_LOCKED: set[str] = set()  # the locks this process created for them
+_ANNOUNCED: set[frozenset[tuple[str, int | None]]] = set()  # compiles in progress already named
+
+# Compiles a batch of generated C files, ``jobs`` at a time; one process per run. Standard
+# library only (it runs detached from the package). In the background it writes its pid into
+# the build folder and into each library's lock (who holds them: a dead holder's are cleaned
+# up by the next run), lowers its priority, takes this user's compile slot (one batch at a
+# time per user and cache), skips a library another process has produced meanwhile, releases
+# each lock as soon as its library is in place, and records a failure in ``<library>.failed``.
+# It prints ``{library: compiler error}`` for the compiles that failed.
+_WORKER = r"""
+import json, os, shutil, subprocess, sys, time
+spec = json.loads(sys.argv[1])
+tmp, items, pid, errors = spec["tmp"], spec["items"], os.getpid(), {}
+def release(item):
+    try:
+        with open(item["lock"]) as held:
+            mine = held.read().split()[:1] == [str(pid)]
+        if mine:
+            os.remove(item["lock"])
+    except (OSError, KeyError):
+        pass
 try:
-    with open(lock, "w") as out:
-        out.write(str(os.getpid()))  # who holds the lock: a dead holder's lock is reclaimed
-    if hasattr(os, "nice"):
-        os.nice(19)  # leave the cores to the solve that is running meanwhile
-    slot = open(os.path.join(os.path.dirname(library), ".compile-slot"), "w")
-    try:
-        import fcntl
-        fcntl.flock(slot, fcntl.LOCK_EX)  # one background compile at a time per cache
-    except ImportError:
-        pass
-    done = subprocess.run(
-        [compiler, *flags, source, "-o", target, "-lm"], capture_output=True, text=True
-    )
-    if done.returncode == 0:
-        os.replace(target, library)
-    else:
-        with open(failed, "w") as out:
-            out.write(done.stderr[-2000:])
+    with open(os.path.join(tmp, "pid"), "w") as out:
+        out.write(str(pid))
+    if spec["background"]:
+        for item in items:
+            with open(item["lock"], "w") as out:
+                out.write("%d\n%.1f\n" % (pid, item["seconds"]))
+        if hasattr(os, "nice"):
+            os.nice(19)  # leave the cores to the solve that is running meanwhile
+        slot = open(spec["slot"], "a")
+        try:
+            import fcntl
+            fcntl.flock(slot, fcntl.LOCK_EX)  # one batch at a time per user and cache
+        except ImportError:
+            pass
+    queue, running = list(items), []
+    while queue or running:
+        while queue and len(running) < spec["jobs"]:
+            item = queue.pop(0)
+            if os.path.exists(item["library"]):  # another process produced it meanwhile
+                release(item)
+                continue
+            log = open(item["target"] + ".log", "w")
+            command = [spec["compiler"], *spec["flags"], item["source"], "-o", item["target"]]
+            command.append("-lm")
+            proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=log)
+            running.append((item, proc, log))
+        time.sleep(0.02)
+        for entry in list(running):
+            item, proc, log = entry
+            if proc.poll() is None:
+                continue
+            running.remove(entry)
+            log.close()
+            if proc.returncode == 0:
+                try:
+                    os.replace(item["target"], item["library"])
+                except OSError:
+                    if not os.path.exists(item["library"]):
+                        raise
+            else:
+                with open(log.name, errors="replace") as text:
+                    errors[item["library"]] = text.read()[-2000:] or "exit %d" % proc.returncode
+                if spec["background"]:
+                    with open(item["failed"], "w") as out:
+                        out.write(errors[item["library"]])
+            release(item)
 finally:
+    for item in items:
+        release(item)
     shutil.rmtree(tmp, ignore_errors=True)
-    try:
-        os.remove(lock)
-    except OSError:
-        pass
+print(json.dumps(errors))
 """
 
 
@@ -172,11 +233,13 @@ def compile_function(
     function: ca.Function,
     *,
     flags: tuple[str, ...] | None = None,
-    wait: bool = True,
+    wait: bool | None = True,
     label: str | None = None,
     with_jacobian: bool = False,
 ) -> ca.Function:
     """Compiled, disk-cached equivalent of ``function`` (or ``function`` itself).
+
+    One Function of :func:`compile_functions`.
 
     Parameters
     ----------
@@ -185,12 +248,13 @@ def compile_function(
     flags : tuple of str, optional
         Compiler flags; :func:`compile_flags` of the compiler by default
         (portable flags plus ``-march=native`` where supported).
-    wait : bool
+    wait : bool or None
         If the library is not cached: True compiles it now (can take minutes
         for a 7-dof robot's Hessian kernel); False starts the compiler in a
         detached, lower-priority process and returns ``function`` uncompiled,
         so the caller runs CasADi's virtual machine this time and loads the
-        library from the cache next time.
+        library from the cache next time; None: now if that is estimated to
+        take at most :data:`WAIT_SECONDS`, else in the background.
     label : str, optional
         What the Function belongs to, for the log (e.g. ``"panda's dynamics"``).
     with_jacobian : bool
@@ -212,8 +276,71 @@ def compile_function(
         If no compiler is found or compilation fails (now, or in an earlier
         background process); ``function`` is returned.
     """
-    name = function.name()
-    what = f"{label} ({name})" if label else name
+    return compile_functions(
+        [function], flags=flags, wait=wait, label=label, with_jacobian=[with_jacobian]
+    )[0]
+
+
+class _Job(NamedTuple):
+    """One Function's library: its C code, where it goes, the estimated compile time."""
+
+    function: ca.Function
+    code: str
+    library: Path
+    seconds: float
+    portable: Path | None  # the portable library of the same code (native flags only)
+
+
+def compile_functions(
+    functions: Sequence[ca.Function],
+    *,
+    flags: tuple[str, ...] | None = None,
+    wait: bool | None = True,
+    label: str | None = None,
+    with_jacobian: Sequence[bool] | None = None,
+) -> list[ca.Function]:
+    """Compiled, disk-cached equivalents of ``functions``, missing ones compiled in one batch.
+
+    Each library is ``<cache>/<name>_<hash>.so`` (:func:`cache_dir`; the hash
+    covers the code, the compiler, its flags, CasADi's version and, with
+    :data:`NATIVE_FLAG`, :func:`cpu_fingerprint`) and is loaded when it is
+    there. The missing ones are compiled by one process, as many at a time as
+    there are cores (``YOUBOT_OPT_COMPILE_JOBS`` to change that): now, or in
+    the background (``wait``); one log line says which, how long, where, and
+    when the compiled code will be used. Where a native library is missing but
+    the portable one of the same code is cached, that one is used meanwhile.
+    Lock files and the compile slot are per user, so one user's compiles never
+    queue behind another's in a shared cache; locks and build folders left by
+    a dead compiler (killed, or a reboot) are removed by the next call.
+
+    Parameters
+    ----------
+    functions : sequence of casadi.Function
+        Functions CasADi can generate C code for.
+    flags, label
+        As :func:`compile_function`.
+    wait : bool or None
+        As :func:`compile_function`; None decides for the whole batch (its
+        estimated wall time against :data:`WAIT_SECONDS`; never waits when a
+        portable library can be used meanwhile).
+    with_jacobian : sequence of bool, optional
+        Per Function, as :func:`compile_function`'s ``with_jacobian``.
+
+    Returns
+    -------
+    list of casadi.Function
+        Per Function, the compiled one when its library is available (the
+        portable one meanwhile, see above), else the Function itself.
+
+    Warns
+    -----
+    YoubotOptWarning
+        As :func:`compile_function`.
+    """
+    functions = list(functions)
+    jacobians = list(with_jacobian) if with_jacobian is not None else [False] * len(functions)
+    names = ", ".join(f.name() for f in functions)
+    what = f"{label} ({names})" if label else names
     compiler = find_compiler()
     if compiler is None:
         warnings.warn(
@@ -222,152 +349,369 @@ def compile_function(
             YoubotOptWarning,
             stacklevel=2,
         )
-        return function
+        return functions
     if flags is None:
         flags = compile_flags(compiler)
+    directory = cache_dir()
+    if directory not in _CLEANED and directory.is_dir():
+        _CLEANED.add(directory)  # once per process and cache
+        _clean_orphans(directory)
+    result = list(functions)
+    missing: list[tuple[int, _Job]] = []
+    for i, (function, jacobian) in enumerate(zip(functions, jacobians, strict=True)):
+        job = _job(function, jacobian, compiler, flags, directory)
+        if job.library.is_file():
+            result[i] = ca.external(function.name(), str(job.library))
+            continue
+        failed = job.library.with_suffix(".failed")
+        if failed.is_file():
+            warnings.warn(
+                f"compiling {label + ' ' if label else ''}({function.name()}) failed earlier "
+                f"({failed}: {failed.read_text(errors='replace').strip()[:300]}); using "
+                "CasADi's virtual machine instead (slower, same results); delete that file "
+                "to retry",
+                YoubotOptWarning,
+                stacklevel=2,
+            )
+            continue
+        if job.portable is not None and job.portable.is_file():
+            result[i] = ca.external(function.name(), str(job.portable))
+        missing.append((i, job))
+    if not missing:
+        return result
+    directory.mkdir(parents=True, exist_ok=True)
+    jobs = [job for _, job in missing]
+    batch = _batch_name(label, jobs)
+    meanwhile = any(result[i] is not job.function for i, job in missing)
+    if wait is None:
+        wait = not meanwhile and _wall_estimate(jobs) <= WAIT_SECONDS
+    if not wait:
+        _compile_in_background(jobs, compiler, flags, directory, batch, meanwhile)
+        return result
+    _log.info(
+        "compiling %s to C now (%.0f kB, about %.0f s, %d at a time), cached in %s for later runs",
+        batch,
+        sum(len(job.code) for job in jobs) / 1e3,
+        _wall_estimate(jobs),
+        _jobs(len(jobs)),
+        directory,
+    )
+    errors = _run_worker(jobs, compiler, flags, directory)
+    for i, job in missing:
+        if job.library.is_file():
+            result[i] = ca.external(job.function.name(), str(job.library))
+            continue
+        detail = errors.get(str(job.library), "no library produced")
+        warnings.warn(
+            f"compiling {label + ' ' if label else ''}({job.function.name()}) failed "
+            f"({detail.strip()[:300]}); using CasADi's virtual machine instead (slower, same "
+            "results)",
+            YoubotOptWarning,
+            stacklevel=2,
+        )
+    return result
+
+
+def _job(
+    function: ca.Function, jacobian: bool, compiler: str, flags: tuple[str, ...], directory: Path
+) -> _Job:
+    """Generate ``function``'s C code and name its library (and its portable twin)."""
+    name = function.name()
     gen = ca.CodeGenerator(name, {"with_header": False})
     gen.add(function)
-    if with_jacobian:
+    if jacobian:
         gen.add(function.jacobian())  # named jac_<name>: external() loads it as the Jacobian
+
     code = gen.dump()
-    key = hashlib.sha256(
-        "\0".join(
-            [
-                code,
-                Path(compiler).name,
-                *flags,
-                str(getattr(ca, "__version__", "unknown")),
-                *([cpu_fingerprint()] if NATIVE_FLAG in flags else []),
-            ]
-        ).encode()
-    ).hexdigest()[:20]
-    directory = cache_dir()
-    library = directory / f"{name}_{key}.so"
-    if library.is_file():
-        return ca.external(name, str(library))
-    failed = library.with_suffix(".failed")
-    if failed.is_file():
-        warnings.warn(
-            f"compiling {what} failed earlier ({failed}: "
-            f"{failed.read_text(errors='replace').strip()[:300]}); using CasADi's virtual "
-            "machine instead (slower, same results); delete that file to retry",
-            YoubotOptWarning,
-            stacklevel=2,
-        )
-        return function
-    seconds = estimated_compile_time(code, flags)
-    if not wait:
-        _compile_in_background(code, compiler, flags, directory, library, what, seconds)
-        return function
-    _log.info(
-        "compiling %s to C (%.0f kB), about %.0f s, cached in %s for next time",
-        what,
-        len(code) / 1e3,
-        seconds,
-        directory,
-    )
-    try:
-        _compile(code, compiler, flags, directory, library)
-    except (OSError, subprocess.CalledProcessError) as exc:
-        detail = getattr(exc, "stderr", "") or str(exc)
-        warnings.warn(
-            f"compiling {what} failed ({detail.strip()[:300]}); using CasADi's virtual "
-            "machine instead (slower, same results)",
-            YoubotOptWarning,
-            stacklevel=2,
-        )
-        return function
-    return ca.external(name, str(library))
+
+    def library(options: tuple[str, ...]) -> Path:
+        key = hashlib.sha256(
+            "\0".join(
+                [
+                    code,
+                    Path(compiler).name,
+                    *options,
+                    str(getattr(ca, "__version__", "unknown")),
+                    *([cpu_fingerprint()] if NATIVE_FLAG in options else []),
+                ]
+            ).encode()
+        ).hexdigest()[:20]
+        return directory / f"{name}_{key}.so"
+
+    portable = None
+    if NATIVE_FLAG in flags:
+        portable = library(tuple(flag for flag in flags if flag != NATIVE_FLAG))
+    return _Job(function, code, library(flags), estimated_compile_time(code, flags), portable)
 
 
-def _compile_in_background(
-    code: str,
-    compiler: str,
-    flags: tuple[str, ...],
-    directory: Path,
-    library: Path,
-    what: str,
-    seconds: float,
-) -> None:
-    """Start a detached compiler process for ``library`` unless one is already running."""
-    directory.mkdir(parents=True, exist_ok=True)
-    lock = library.with_suffix(".lock")
-    try:
-        alive = _holder_alive(lock)
-        if alive or (alive is None and time.time() - lock.stat().st_mtime < STALE_LOCK):
-            _log.info(
-                "%s is being compiled by another process; this solve runs CasADi's virtual "
-                "machine, a run started after that compile has finished the compiled code",
-                what,
-            )
-            return
-        lock.unlink()  # a dead process's lock
-    except FileNotFoundError:
-        pass
-    queued = sum(1 for other in directory.glob("*.lock") if other != lock)
-    try:
-        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
-    except FileExistsError:  # another process got there first
-        return
-    tmp = Path(tempfile.mkdtemp(dir=directory, prefix=".build-"))
-    source = tmp / f"{library.stem}.c"
-    source.write_text(code)
-    args = [str(source), str(tmp / library.name), str(library), str(lock)]
-    args += [str(library.with_suffix(".failed")), str(tmp)]
-    subprocess.Popen(  # noqa: S603 - our own script and the compiler found on PATH
-        [sys.executable, "-c", _BACKGROUND_SCRIPT, compiler, *args, *flags],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,  # survives the end of this process
-    )
-    _log.info(
-        "compiling %s to C in the background (%.0f kB, about %.0f s%s); this solve runs "
-        "CasADi's virtual machine; the compiler goes on after this command returns, and a run "
-        "started after it has finished uses the compiled code (cached in %s)",
-        what,
-        len(code) / 1e3,
-        seconds,
-        f", after {queued} other compile(s) of this cache" if queued else "",
-        directory,
-    )
+def _batch_name(label: str | None, jobs: Sequence[_Job]) -> str:
+    """``"ur5's dynamics (fd_value, fd_hessian)"``: what the log line names."""
+    names = ", ".join(job.function.name() for job in jobs)
+    return f"{label} ({names})" if label else names
 
 
-def _holder_alive(lock: Path) -> bool | None:
-    """Whether the process named in ``lock`` is running; None if unknown (no PID, not POSIX).
+def _jobs(count: int) -> int:
+    """Return how many compilers run at once (at most ``count``): the idle cores.
 
-    Raises
-    ------
-    FileNotFoundError
-        If there is no lock.
+    ``YOUBOT_OPT_COMPILE_JOBS`` if set, else the cores less the load average
+    (rounded), at least 1: on 2 cores with a load average of 12 the xArm7's
+    kernels were ready after 347 s one at a time and 367 s two at a time.
     """
-    text = lock.read_text(errors="replace").strip()
-    if os.name != "posix" or not text.isdigit():  # os.kill(pid, 0) signals on Windows
+    env = os.environ.get("YOUBOT_OPT_COMPILE_JOBS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return max(1, min(count, int(env)))
+    if hasattr(os, "sched_getaffinity"):
+        cores = len(os.sched_getaffinity(0))
+    else:
+        cores = os.cpu_count() or 1
+    try:
+        idle = cores - round(os.getloadavg()[0])
+    except (AttributeError, OSError):  # no load average (Windows)
+        idle = cores
+    return max(1, min(count, idle))
+
+
+def _wall_estimate(jobs: Sequence[_Job]) -> float:
+    """Estimated wall time [s] of the batch: the longest first, each to the least busy core."""
+    busy = [0.0] * _jobs(len(jobs))
+    for seconds in sorted((job.seconds for job in jobs), reverse=True):
+        busy[busy.index(min(busy))] += seconds
+    return max(busy, default=0.0)
+
+
+def _user_tag() -> str:
+    """``u<uid>``: names this user's lock and slot files in a cache other users may share."""
+    if hasattr(os, "getuid"):
+        return f"u{os.getuid()}"
+    name = os.environ.get("USERNAME") or os.environ.get("USER") or ""
+    return "u" + "".join(c if c.isalnum() else "_" for c in name)
+
+
+def lock_path(library: Path) -> Path:
+    """Return this user's lock of a background compile of ``library`` (``<stem>.u<uid>.lock``)."""
+    return library.with_name(f"{library.stem}.{_user_tag()}.lock")
+
+
+def _pid_alive(pid: int) -> bool | None:
+    """Whether process ``pid`` runs as this user; None if unknown (not POSIX).
+
+    A pid that belongs to another user's process (``PermissionError``) is not
+    this user's compiler: the number was reused after that compiler ended.
+    """
+    if os.name != "posix":  # os.kill(pid, 0) signals on Windows
         return None
     try:
-        os.kill(int(text), 0)
-    except ProcessLookupError:
+        os.kill(pid, 0)
+    except (ProcessLookupError, PermissionError):
         return False
-    except PermissionError:  # another user's process
-        return True
     except (OSError, OverflowError):
         return None
     return True
 
 
-def _compile(
-    code: str, compiler: str, flags: tuple[str, ...], directory: Path, library: Path
-) -> None:
-    """Compile ``code`` into ``library`` atomically."""
-    directory.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        source = Path(tmp) / f"{library.stem}.c"
-        source.write_text(code)
-        target = Path(tmp) / library.name
-        subprocess.run(
-            [compiler, *flags, str(source), "-o", str(target), "-lm"],
-            check=True,
-            capture_output=True,
-            text=True,
+def _holder(lock: Path) -> tuple[int | None, float, float | None] | None:
+    """Return the live holder of this user's ``lock``: (pid, age [s], estimate [s]) or None.
+
+    A lock whose compiler has ended (or whose pid is another user's process),
+    one still without a pid after :data:`NO_PID_GRACE`, and one older than
+    :data:`STALE_LOCK` without a known holder are removed: free.
+    """
+    try:
+        fields = lock.read_text(errors="replace").split()
+        age = time.time() - lock.stat().st_mtime
+    except FileNotFoundError:
+        return None
+    pid = int(fields[0]) if fields and fields[0].isdigit() else None
+    try:
+        estimate: float | None = float(fields[1]) if len(fields) > 1 else None
+    except ValueError:
+        estimate = None
+    alive = _pid_alive(pid) if pid is not None else None
+    grace = NO_PID_GRACE if pid is None and os.name == "posix" else STALE_LOCK
+    if alive is False or (alive is None and age > grace):
+        try:
+            lock.unlink()
+        except FileNotFoundError:
+            pass
+        return None
+    return pid, age, estimate
+
+
+def _clean_orphans(directory: Path) -> None:
+    """Remove this user's locks and ``.build-*`` folders whose compiler is dead."""
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    now = time.time()
+    for lock in directory.glob("*.lock"):
+        try:
+            if uid is not None and lock.stat().st_uid != uid:
+                continue  # another user's: not for this user to judge
+        except FileNotFoundError:
+            continue
+        _holder(lock)
+    for build in directory.glob(".build-*"):
+        try:
+            stat = build.stat()
+            if uid is not None and stat.st_uid != uid:
+                continue
+            text = (build / "pid").read_text().strip()
+        except FileNotFoundError:
+            text = ""
+        except OSError:
+            continue
+        age = now - stat.st_mtime
+        dead = age > STALE_LOCK or (not text and age > NO_PID_GRACE)
+        if text.isdigit() and _pid_alive(int(text)) is False:
+            dead = True
+        if dead:
+            _log.debug("removing %s, left by a compile that ended", build)
+            shutil.rmtree(build, ignore_errors=True)
+
+
+def _prepare(
+    jobs: Sequence[_Job],
+    compiler: str,
+    flags: tuple[str, ...],
+    directory: Path,
+    *,
+    background: bool,
+) -> tuple[Path, str]:
+    """Write the sources into a new build folder; return it and the worker's spec (JSON)."""
+    tmp = Path(tempfile.mkdtemp(dir=directory, prefix=f".build-{_user_tag()}-"))
+    items = []
+    for job in sorted(jobs, key=lambda job: -job.seconds):  # the longest first (the Hessian)
+        source = tmp / f"{job.library.stem}.c"
+        source.write_text(job.code)
+        items.append(
+            {
+                "source": str(source),
+                "target": str(tmp / job.library.name),
+                "library": str(job.library),
+                "lock": str(lock_path(job.library)),
+                "failed": str(job.library.with_suffix(".failed")),
+                "seconds": job.seconds,
+            }
         )
-        os.replace(target, library)
+    spec = {
+        "compiler": compiler,
+        "flags": list(flags),
+        "jobs": _jobs(len(jobs)),
+        "tmp": str(tmp),
+        "slot": str(directory / f".compile-slot-{_user_tag()}"),
+        "background": background,
+        "items": items,
+    }
+    return tmp, json.dumps(spec)
+
+
+def _run_worker(
+    jobs: Sequence[_Job], compiler: str, flags: tuple[str, ...], directory: Path
+) -> dict[str, str]:
+    """Compile ``jobs`` now; return ``{library: error}`` of the failed ones."""
+    tmp, spec = _prepare(jobs, compiler, flags, directory, background=False)
+    try:
+        done = subprocess.run(  # noqa: S603 - our own script and the compiler found on PATH
+            [sys.executable, "-c", _WORKER, spec], capture_output=True, text=True, check=False
+        )
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        errors = json.loads(done.stdout.strip().splitlines()[-1])
+    except (IndexError, json.JSONDecodeError):
+        errors = {str(job.library): done.stderr[-2000:] for job in jobs}
+    return {str(k): str(v) for k, v in errors.items()}
+
+
+def _compile_in_background(
+    jobs: Sequence[_Job],
+    compiler: str,
+    flags: tuple[str, ...],
+    directory: Path,
+    batch: str,
+    meanwhile: bool,
+) -> None:
+    """Start one detached compiler process for the libraries nobody is compiling; log one line."""
+    mine: list[_Job] = []
+    others: dict[str, tuple[int | None, float, float | None]] = {}
+    starting: set[str] = set()
+    for job in jobs:
+        lock = lock_path(job.library)
+        holder = _holder(lock)
+        if holder is None:
+            try:
+                os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+            except FileExistsError:  # another process got there first
+                holder = _holder(lock) or (None, 0.0, job.seconds)
+        if holder is None:
+            mine.append(job)
+        else:
+            others[job.function.name()] = holder
+            if holder[0] is None and str(lock) in _LOCKED:  # our worker, its pid not written yet
+                starting.add(job.function.name())
+    ours = {str(lock_path(job.library)) for job in mine}
+    queued = sum(
+        1 for lock in directory.glob(f"*.{_user_tag()}.lock") if str(lock) not in ours
+    ) - len(others)
+    pid: int | None = None
+    if mine:
+        tmp, spec = _prepare(mine, compiler, flags, directory, background=True)
+        try:
+            proc = subprocess.Popen(  # noqa: S603 - our own script and the compiler found on PATH
+                [sys.executable, "-c", _WORKER, spec],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                start_new_session=True,  # survives the end of this process
+            )
+        except OSError as exc:
+            shutil.rmtree(tmp, ignore_errors=True)
+            for job in mine:
+                lock_path(job.library).unlink(missing_ok=True)
+            _log.warning("could not start the compiler for %s (%s)", batch, exc)
+            return
+        pid = proc.pid
+        _LAUNCHED.add(pid)
+        _LOCKED.update(str(lock_path(job.library)) for job in mine)
+    meanwhile_text = (
+        "the portable compiled code of this cache meanwhile"
+        if meanwhile
+        else "CasADi's virtual machine"
+    )
+    text = []
+    if mine:
+        label = batch.split(" (")[0] if " (" in batch else ""
+        text.append(
+            f"compiling {_batch_name(label or None, mine)} to C in the background "
+            f"({sum(len(job.code) for job in mine) / 1e3:.0f} kB, about "
+            f"{_wall_estimate(mine):.0f} s, {_jobs(len(mine))} at a time"
+            f"{f', after {queued} other compile(s) of this cache' if queued > 0 else ''}; "
+            f"cached in {directory}); this solve runs {meanwhile_text}; the compiler goes on "
+            "after this command returns, and a run started after it has finished uses the "
+            "compiled code (so do this run's later builds)"
+        )
+    if others:
+        running = max(age for _, age, _ in others.values())
+        left = max(
+            (max(0.0, (est if est is not None else 0.0) - age) for _, age, est in others.values()),
+            default=0.0,
+        )
+        names = ", ".join(others)
+        if mine:
+            text.append(
+                f"{names} already being compiled by another process (running {running:.0f} s, "
+                f"about {left:.0f} s left)"
+            )
+        else:
+            text.append(
+                f"{batch} is being compiled by another process (running {running:.0f} s, "
+                f"about {left:.0f} s left; cached in {directory}); this solve runs "
+                f"{meanwhile_text}, a run started after that compile has finished uses the "
+                "compiled code"
+            )
+    holders = {(name, holder[0]) for name, holder in others.items()}
+    key = frozenset(holders | {(job.function.name(), pid) for job in mine})
+    own = not mine and all(
+        holder[0] in _LAUNCHED or name in starting for name, holder in others.items()
+    )
+    level = logging.DEBUG if own or key in _ANNOUNCED else logging.INFO
+    _ANNOUNCED.add(key)
+    _log.log(level, "; ".join(text))

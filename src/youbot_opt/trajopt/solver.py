@@ -137,7 +137,8 @@ class TrajOptSolver:
         Run the per-point dynamics kernels (value, Jacobian, weighted Hessian)
         as C compiled by the system compiler and cached on disk
         (:mod:`youbot_opt.nlp.codegen`). True (default): use the cached
-        libraries; if they are missing, compile them in a background process
+        libraries; if they are missing, compile them now when that is short
+        (``codegen.WAIT_SECONDS``: a two-link arm's), else in one background process
         for the next build and run this one in CasADi's virtual machine (same
         results; the compile takes from seconds to minutes per robot, which a
         first solve should not wait for). ``"wait"``: compile now. False: never
@@ -202,7 +203,7 @@ class TrajOptSolver:
             # possible): O(1) symbolic work on the dynamics, however many knots.
             kernels = dynamics_kernels(dynamics.forward_dynamics)
             label = f"{problem.robot.name}'s dynamics"
-            wait = compile == "wait"
+            wait = True if compile == "wait" else None  # None: now only if short
             fast = compile_kernels(kernels, wait=wait, label=label) if compile else kernels
             self.compiled = fast is not kernels
             self._kernels = (fast, kernels)

@@ -104,23 +104,26 @@ def dynamics_kernels(forward_dynamics: ca.Function) -> Kernels:
     )
 
 
-def compile_kernels(kernels: Kernels, *, wait: bool = True, label: str | None = None) -> Kernels:
-    """Compile the kernels to C, cached on disk (:func:`youbot_opt.nlp.codegen.compile_function`).
+def compile_kernels(
+    kernels: Kernels, *, wait: bool | None = True, label: str | None = None
+) -> Kernels:
+    """Compile the kernels to C, cached on disk (:func:`youbot_opt.nlp.codegen.compile_functions`).
 
-    Returns ``kernels`` itself (the same object, after the codegen warning) if
-    any kernel cannot be compiled, or is not cached yet and ``wait`` is False
-    (then it compiles in the background for the next build; ``label`` names it
-    in the log). The compiled ``forward`` kernel carries its compiled Jacobian
-    (first derivatives), so an NLP Function built on it can be handed to
-    ``nlpsol``, which differentiates it once (reverse mode) when it is created;
-    the other two compiled kernels have no derivatives.
+    The missing ones are compiled in one batch: now (``wait`` True), in one
+    background process (False), or now only when that is short (None: a
+    two-link arm's, not the youBot's; docs/design.md). Returns ``kernels``
+    itself (the same object, after the codegen warning) if any kernel cannot be compiled, or is
+    not cached yet and is compiling in the background for the next build
+    (``label`` names it in the log). The compiled ``forward`` kernel carries its
+    compiled Jacobian (first derivatives), so an NLP Function built on it can be
+    handed to ``nlpsol``, which differentiates it once (reverse mode) when it is
+    created; the other two compiled kernels have no derivatives.
     """
-    from youbot_opt.nlp.codegen import compile_function
+    from youbot_opt.nlp.codegen import compile_functions
 
     compiled = Kernels(
-        *(
-            compile_function(k, wait=wait, label=label, with_jacobian=k is kernels.forward)
-            for k in kernels
+        *compile_functions(
+            kernels, wait=wait, label=label, with_jacobian=[k is kernels.forward for k in kernels]
         )
     )
     if any(c is k for c, k in zip(compiled, kernels, strict=True)):
