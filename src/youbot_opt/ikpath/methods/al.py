@@ -281,6 +281,7 @@ class ALRun(NamedTuple):
             message=self.message,
             start=start,
             history=self.history,
+            clearance_multipliers=self.clearance_multipliers,
         )
 
 
@@ -296,6 +297,7 @@ class ALResultFields(TypedDict):
     message: str
     start: Array
     history: tuple[OuterIterate, ...]
+    clearance_multipliers: Array
 
 
 def run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOptions) -> ALRun:
