@@ -11,6 +11,7 @@ constraints of its NLP, is the independent reference; coal's certificate
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,7 +20,15 @@ import pytest
 
 from youbot_opt.collision import Box, Obstacle, Scene
 from youbot_opt.collision.clearance import Clearance
+from youbot_opt.exceptions import ResultFileError
 from youbot_opt.ikpath.clearance import IKClearance, certify_path_clearance
+from youbot_opt.ikpath.io import (
+    SCHEMA,
+    SCHEMA_VERSION,
+    encode_document,
+    load_result,
+    save_result,
+)
 from youbot_opt.ikpath.methods.al import (
     AL_OPTIONS_3D,
     _clearance_term,
@@ -31,6 +40,7 @@ from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
+from youbot_opt.robot.source import RobotSource
 
 MARGIN = 0.01  # [m]
 TARGETS = (Target(position=(0.4, 0.2, 0.3)), Target(position=(0.3, -0.3, 0.4)))
@@ -184,3 +194,106 @@ def test_inactive_clearance_leaves_the_iterates_unchanged(
     np.testing.assert_array_equal(a.x, b.x)
     np.testing.assert_array_equal(a.multipliers, b.multipliers)
     assert not np.any(b.clearance_multipliers)
+
+
+#: The clearance rows' multipliers [rad^2/m] at a KKT point solve the stationarity
+#: condition; both methods stop with a projected gradient <= 1e-8 rad and the active
+#: rows' gradients have norm ~0.5 m/rad, so their sums agree to ~1e-7 absolute on
+#: nu ~ 0.066 (measured 7e-8 relative): 1e-5 relative leaves room for rounding.
+NU_RTOL = 1e-5
+#: IPOPT leaves an inactive row nu ~ (final barrier mu) / g: measured <= 3.1e-11.
+IPOPT_INACTIVE_NU = 1e-10
+
+
+def test_al_and_ipopt_clearance_multipliers_agree(
+    problem: CyclicIKProblem, ipopt: IKPathResult, al: IKPathResult
+) -> None:
+    """The result's ``clearance_multipliers``: the same active rows, the same sensitivity."""
+    rows = _rows(problem)
+    assert al.clearance_multipliers is not None and ipopt.clearance_multipliers is not None
+    nu_al, nu_ip = al.clearance_multipliers, ipopt.clearance_multipliers
+    assert nu_al.shape == nu_ip.shape == (len(rows.labels),)
+    assert np.all(nu_al >= 0.0) and np.all(nu_ip >= 0.0)
+    x = al.configurations.ravel()
+    active = np.flatnonzero(np.abs(rows.rows(x) - MARGIN) <= 1e-9)  # at the margin
+    inactive = np.setdiff1d(np.arange(nu_al.size), active)
+    assert np.all(nu_al[inactive] == 0.0)
+    assert np.all(nu_ip[inactive] < IPOPT_INACTIVE_NU)
+    assert np.all(nu_ip[active] > 1e-3)
+    # Two targets: leg 1 is leg 0 reversed, so the two active forearm/box rows have the
+    # same gradient and only their sum is determined (the split is not identifiable:
+    # IPOPT splits it about evenly, the AL's SQP phase holds one row of the two).
+    assert len(active) == 2
+    jac = rows.rows_jacobian(x)[active]
+    np.testing.assert_allclose(jac[0], jac[1], atol=1e-8)
+    assert float(np.sum(nu_al[active])) == pytest.approx(float(np.sum(nu_ip[active])), rel=NU_RTOL)
+    assert float(np.sum(nu_al)) > 1e-2  # the box costs E: dE/d margin > 0
+
+
+def test_clearance_multipliers_round_trip_and_forged_ones_are_refused(
+    problem: CyclicIKProblem, al: IKPathResult, tmp_path: Path
+) -> None:
+    """Saved and read back; negative, NaN, short or non-complementary lists refused by key."""
+    source = RobotSource.of(problem.robot_model)
+    path = save_result(al, tmp_path / "al.json", source)
+    back = load_result(path)
+    assert back.success and back.clearance_multipliers is not None
+    assert al.clearance_multipliers is not None
+    np.testing.assert_array_equal(back.clearance_multipliers, al.clearance_multipliers)
+    doc = json.loads(path.read_text())
+    body = doc["result"]
+    nu = list(body["clearance_multipliers"])
+    inactive = int(np.flatnonzero(np.asarray(nu) == 0.0)[0])
+
+    def forged(name: str, value: object) -> Path:
+        out = tmp_path / f"{name}.json"
+        out.write_bytes(
+            encode_document(SCHEMA, SCHEMA_VERSION, {**body, "clearance_multipliers": value})
+        )
+        return out
+
+    negative = nu.copy()
+    negative[3] = -0.5
+    with pytest.raises(ResultFileError, match=r"clearance_multipliers\[3\] = -0.5 .*>= 0"):
+        load_result(forged("negative", negative))
+    nan = nu.copy()
+    nan[5] = None  # JSON has no NaN: a null entry
+    with pytest.raises(ResultFileError, match=r"clearance_multipliers\[5\] = nan .*finite"):
+        load_result(forged("nan", nan))
+    with pytest.raises(ResultFileError, match=r"clearance_multipliers must be a list of numbers"):
+        load_result(forged("text", ["0.1"] * len(nu)))
+    with pytest.raises(ResultFileError, match=r"clearance_multipliers has 3 entries"):
+        load_result(forged("short", nu[:3]))
+    loose = nu.copy()
+    loose[inactive] = 1.0  # a row far from the margin cannot hold E up
+    with pytest.raises(
+        ResultFileError, match=rf"clearance_multipliers\[{inactive}\].*complementary"
+    ):
+        load_result(forged("loose", loose))
+    assert load_result(forged("none", None)).clearance_multipliers is None  # an older file
+
+
+def test_sqp_phase_with_clearance_rows_polishes_the_al(
+    problem: CyclicIKProblem, q_free: np.ndarray, ipopt: IKPathResult, al: IKPathResult
+) -> None:
+    """``newton_final`` with the AL's active rows as equalities: closer to KKT than the AL alone."""
+    rows = _rows(problem)
+    assert "SQP steps" in al.message and "clearance rows held as equalities" in al.message
+    _assert_feasible(problem, al)
+    alone = solve(problem, method="al", x0=q_free, options=dataclasses.replace(
+        AL_OPTIONS_3D, newton_final=False))  # fmt: skip
+    _assert_feasible(problem, alone)
+    assert "SQP" not in alone.message
+
+    def kkt(result: IKPathResult) -> float:
+        x = result.configurations.ravel()
+        assert result.clearance_multipliers is not None
+        ev = problem.evaluate(x)
+        jtnu = rows.rows_jacobian(x).T @ result.clearance_multipliers
+        return first_order_multipliers(
+            ev._replace(gradient=ev.gradient - jtnu), x, problem.lower, problem.upper
+        )[1]
+
+    assert kkt(al) < kkt(alone)  # measured 5e-11 against 3e-9 rad
+    assert np.max(problem.residuals(al.configurations.ravel())) < 1e-9
+    assert al.objective == pytest.approx(ipopt.objective, abs=E_TOL)  # measured 3e-13

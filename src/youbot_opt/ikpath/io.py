@@ -61,6 +61,7 @@ DEFAULT_LOAD_MARGIN = 0.0
 """The loader's clearance [m] of a path with a scene: no penetration (coal)."""
 
 __all__ = [
+    "COMPLEMENTARITY_TOL",
     "RECHECK_TOL",
     "SCHEMA",
     "SCHEMA_VERSION",
@@ -89,6 +90,11 @@ RECHECK_TOL = 1e-9
 """Largest accepted ``|stored - recomputed|`` of E [rad^2] and of the residuals or target
 errors [m, rad] of an IK-path file: both come from the same float64 formulas, which agree
 across CPUs to ~1e-15; a target moved by more than 1e-9 m (or a changed robot) is detected."""
+COMPLEMENTARITY_TOL = 1e-9
+"""Largest accepted ``nu_i |g_i|`` [rad^2], relative to ``max(1, E)``, of a file's clearance
+multipliers against the recomputed rows ``g = rows(x) - margin`` of a claimed success: the
+solvers stop with ``|g_i| <= 1e-10`` m on an active row (AL) or ``nu_i g_i`` near IPOPT's
+final barrier parameter on an inactive one (measured on ur5 and a box: 1.3e-13 for both)."""
 
 
 def finite_or_none(x: float) -> float | None:
@@ -426,6 +432,10 @@ def _body_3d(
         # coal's certificate at the problem's margin, for the reader: load_result
         # recomputes it from the configurations, never reads it.
         "clearance_certificate": _certificate_json(result.clearance),
+        # nu >= 0 [rad^2/m] per clearance row; data: load_result re-checks them
+        "clearance_multipliers": (
+            None if result.clearance_multipliers is None else result.clearance_multipliers.tolist()
+        ),
     }
 
 
@@ -545,12 +555,73 @@ def _parse_3d(
         history=history,
         # recomputed at the problem's margin, never the file's clearance_certificate
         clearance=(None if problem.clearance_rows is None else certify_path_clearance(problem, q)),
+        clearance_multipliers=_clearance_multipliers_of(body, problem, source),
     )
     return (
         result,
         np.array(body["position_errors"], dtype=float),
         np.array(body["orientation_errors"], dtype=float),
     )
+
+
+def _clearance_multipliers_of(
+    body: dict[str, Any], problem: CyclicIKProblem, source: Path
+) -> np.ndarray | None:
+    """Read the file's clearance multipliers [rad^2/m]: one finite ``nu >= 0`` per row, or None.
+
+    A file without them (or without a clearance) gives None; negative, non-finite
+    (a JSON null reads as NaN) or non-numeric entries, a count other than the
+    problem's rows, or multipliers of a problem without clearance are refused
+    naming the key.
+    """
+    raw = body.get("clearance_multipliers")
+    rows = problem.clearance_rows
+    if raw is None:
+        return None
+    key = "clearance_multipliers"
+    if rows is None:
+        raise ResultFileError(f"{source}: {key} given for a problem without clearance")
+    numbers = isinstance(raw, list) and all(
+        v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in raw
+    )
+    if not numbers:
+        raise ResultFileError(f"{source}: {key} must be a list of numbers [rad^2/m]")
+    nu = np.array([math.nan if v is None else v for v in raw], dtype=float)  # null: NaN
+    if nu.shape != (len(rows.labels),):
+        raise ResultFileError(
+            f"{source}: {key} has {nu.size} entries, the problem has {len(rows.labels)} "
+            "clearance rows"
+        )
+    bad = np.flatnonzero(~(np.isfinite(nu) & (nu >= 0.0)))
+    if bad.size:
+        i = int(bad[0])
+        raise ResultFileError(
+            f"{source}: {key}[{i}] = {float(nu[i]):g} ({rows.labels[i]}): a clearance multiplier "
+            "must be finite and >= 0"
+        )
+    return nu
+
+
+def _check_complementarity(source: Path, result: IKPathResult) -> None:
+    """Refuse a claimed success whose clearance multipliers are > 0 on rows away from the margin.
+
+    ``nu_i |g_i| <= COMPLEMENTARITY_TOL * max(1, E)`` with ``g`` recomputed from the
+    configurations (the file's multipliers are data, not evidence).
+    """
+    nu = result.clearance_multipliers
+    rows = result.problem.clearance_rows
+    if nu is None or rows is None or not nu.size:
+        return
+    g = rows.rows(result.configurations.ravel()) - rows.spec.margin
+    product = nu * np.abs(g)
+    allowed = COMPLEMENTARITY_TOL * max(1.0, abs(result.objective))
+    i = int(np.argmax(product))
+    if product[i] > allowed:
+        raise ResultFileError(
+            f"{source}: clearance_multipliers[{i}] = {nu[i]:.6g} rad^2/m on row "
+            f"{rows.labels[i]!r} at {g[i]:.3g} m from the margin: nu |g| = {product[i]:.3g} "
+            f"> {allowed:.3g} rad^2 (not complementary)"
+        )
 
 
 def _load_3d(
@@ -622,6 +693,7 @@ def _load_3d(
                     f"{whose} clearance {cert.margin:g} m (coal): {a} / {b} at "
                     f"{cert.closest_distance:.4g} m, leg {int(cert.closest_time)}"
                 )
+        _check_complementarity(source, result)
     return result
 
 

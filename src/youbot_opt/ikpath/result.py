@@ -155,6 +155,12 @@ class IKPathResult:
         by :func:`build_result` (so by every solve and on loading); a claimed
         success whose path it does not certify is downgraded. None without a
         clearance (or without pairs).
+    clearance_multipliers : ndarray, shape (n_rows,), or None
+        Multipliers ``nu >= 0`` of the clearance rows ``g = rows(x) - margin >= 0``
+        (:class:`~youbot_opt.ikpath.clearance.IKClearance`, same order) in
+        [rad^2/m]: the sensitivity of E to the margin of each row, ``dE/d margin_i``
+        at a KKT point (sign convention ``grad E = J^T lambda + J_g^T nu``); zero
+        on an inactive row. None without a clearance (or from a method that gives none).
 
     Notes
     -----
@@ -184,6 +190,7 @@ class IKPathResult:
     constraint_tol: float | None = None
     history: tuple[OuterIterate, ...] = field(default=())
     clearance: ClearanceCertificate | None = None
+    clearance_multipliers: Array | None = None
 
     def __post_init__(self) -> None:
         for key in (
@@ -196,6 +203,10 @@ class IKPathResult:
             arr = np.array(getattr(self, key), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
+        if self.clearance_multipliers is not None:
+            nu = np.array(self.clearance_multipliers, dtype=float).ravel()
+            nu.setflags(write=False)
+            object.__setattr__(self, "clearance_multipliers", nu)
         tol = self.constraint_tol
         if tol is not None and not (tol > 0.0 and math.isfinite(tol)):
             raise ParameterError(
@@ -391,6 +402,8 @@ def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
         "limit_violation": result.limit_violation,
         "multipliers": result.multipliers,
     }
+    if result.clearance_multipliers is not None:
+        figures["clearance_multipliers"] = result.clearance_multipliers
     nonfinite = [k for k, v in figures.items() if not np.all(np.isfinite(v))]
     if nonfinite:
         return SolveStatus.NON_FINITE, f"non-finite values in {', '.join(nonfinite)}"
@@ -431,6 +444,9 @@ def _recheck(result: IKPathResult) -> tuple[SolveStatus, str] | None:
             )
     if excess > 0.0:
         wrong.append(f"joint limits violated by {excess:.3g} rad")
+    nu = result.clearance_multipliers
+    if nu is not None and np.any(nu < 0.0):
+        wrong.append(f"clearance multipliers negative (down to {float(np.min(nu)):.3g} rad^2/m)")
     cert = result.clearance
     if cert is not None and not cert.certified:
         a, b = cert.closest_pair
@@ -488,6 +504,7 @@ def build_result(
     inner_iterations: int = 0,
     constraint_tol: float | None = None,
     history: tuple[OuterIterate, ...] = (),
+    clearance_multipliers: Array | None = None,
 ) -> IKPathResult:
     """Assemble an :class:`IKPathResult`, recomputing E, target errors and limit violation.
 
@@ -497,7 +514,8 @@ def build_result(
     evaluation (CasADi for IPOPT). ``constraint_tol``
     [m] is the planar methods' largest accepted ``|c_i|`` (None: the targets'
     own tolerances decide); a claimed success is re-checked against it and
-    downgraded if it fails (:func:`checked`). A failed solve without
+    downgraded if it fails (:func:`checked`). ``clearance_multipliers`` [rad^2/m]
+    are kept only when the problem has clearance rows. A failed solve without
     ``constraint_tol`` names its blocking target (the largest relative miss)
     in the message.
     """
@@ -525,6 +543,11 @@ def build_result(
             constraint_tol=None if constraint_tol is None else float(constraint_tol),
             history=history,
             clearance=certificate,
+            clearance_multipliers=(
+                None
+                if problem.clearance_rows is None or clearance_multipliers is None
+                else np.asarray(clearance_multipliers, dtype=float)
+            ),
         )
     )
     if constraint_tol is None and not result.success:

@@ -6,8 +6,8 @@ Nocedal and Wright, *Numerical Optimization* (2nd ed.), Algorithm 17.4
 Powell-Hestenes-Rockafellar terms; the inner solver is
 :func:`~youbot_opt.ikpath.methods.bfgs.minimize_bfgs` (or SciPy's L-BFGS-B). Spec
 ``docs/ikpath.md``; the outer loop, the stopping test, the stall rules and the
-inequality rows in docs/design.md, "Module notes". 3-D problems without clearance
-switch on a final phase of SQP steps (``ALOptions.newton_final``).
+inequality rows in docs/design.md, "Module notes". 3-D problems switch on a final
+phase of SQP steps (``ALOptions.newton_final``; with clearance rows, the AL's active set).
 
 >>> result = solve_augmented_lagrangian(problem, x0, ALOptions())  # doctest: +SKIP
 """
@@ -101,8 +101,8 @@ class ALOptions:
         the problem's ``lagrangian_hessian``. Off by
         default (the planar solver is the study's method as published); on for
         3-D problems, whose nearly singular pose Jacobians make the first-order
-        multiplier updates crawl (docs/ikpath.md). Never tried on a problem with
-        clearance rows (its KKT system holds only the target rows).
+        multiplier updates crawl (docs/ikpath.md). With clearance rows the rows with
+        ``nu > 0`` are held as equalities (:func:`_final_phase_cleared`).
     newton_violation : float
         ``max |c_i|`` in [m] at which the final phase is tried.
     """
@@ -281,6 +281,7 @@ class ALRun(NamedTuple):
             message=self.message,
             start=start,
             history=self.history,
+            clearance_multipliers=self.clearance_multipliers,
         )
 
 
@@ -296,6 +297,7 @@ class ALResultFields(TypedDict):
     message: str
     start: Array
     history: tuple[OuterIterate, ...]
+    clearance_multipliers: Array
 
 
 def run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOptions) -> ALRun:
@@ -428,6 +430,27 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
                 f"projected gradient {stationarity:.2e} ({inner_msg})"
             )
             break
+        if opts.newton_final and rows is not None and violation <= opts.newton_violation:
+            final = _final_phase_cleared(
+                problem,
+                rows,
+                x,
+                lam - mu * c if stationarity_al <= stationarity_ls else lam_ls,
+                nu_new,
+                mu,
+                opts,
+                data,
+                deadline,
+                start_iteration=k + 1,
+                iterations=_FINAL_PHASE_STEPS,
+            )
+            _log.debug("AL %d: final phase with clearance rows: %s", k, final.message)
+            if final.status is SolveStatus.SOLVED:
+                history.extend(final.history)
+                status, x, lam = final.status, final.x, final.multipliers
+                nu = final.clearance_multipliers
+                message = f"{final.message}{_clearance_note(rows, x, nu)}"
+                break
         if opts.newton_final and rows is None and violation <= opts.newton_violation:
             final = _final_phase(
                 problem,  # type: ignore[arg-type]
@@ -530,6 +553,7 @@ class _FinalPhase(NamedTuple):
     multipliers: Array
     history: list[OuterIterate]
     sqp_steps: int
+    clearance_multipliers: Array = _NO_ROWS
 
 
 def _final_phase(
@@ -656,6 +680,173 @@ def _final_phase(
     return _FinalPhase(
         SolveStatus.MAX_ITERATIONS, "outer iteration limit reached", x, lam, history, steps
     )
+
+
+def _final_phase_cleared(
+    problem: CyclicIKProblem,
+    rows: IKClearance,
+    x: Array,
+    lam: Array,
+    nu: Array,
+    mu: float,
+    opts: ALOptions,
+    data: pin.Data,
+    deadline: float | None,
+    *,
+    start_iteration: int,
+    iterations: int,
+) -> _FinalPhase:
+    """Run the final phase of :func:`_final_phase` with clearance rows, by the AL's active set.
+
+    The rows with ``nu > 0`` enter the KKT system as equalities ``g_i = 0`` (with
+    their multipliers; a row whose gradient depends on the target rows' and the rows
+    already taken, such as the same leg step of a two-target cycle walked back, is
+    left out and checked like an inactive one). The Hessian adds ``-sum nu_i d2 g_i``
+    (central differences of the reverse-mode ``J_g^T nu``). The phase ends without a
+    result (the AL goes on from its own iterate) when a step would give an active row
+    ``nu < 0`` (the active set changed) or leave an inactive row below
+    ``margin - constraint_tol``. It succeeds only at a point meeting the main loop's
+    stopping test with every row.
+    """
+    lower, upper = problem.lower, problem.upper
+    s = problem.n_targets
+    m = lam.size
+    margin = rows.spec.margin
+    history: list[OuterIterate] = []
+    x = np.asarray(x, dtype=float).copy()
+    kept = _independent_rows(problem, rows, x, nu, data)
+    others = np.setdiff1d(np.arange(nu.size), kept)
+    y = np.concatenate([np.asarray(lam, dtype=float), nu[kept]])
+
+    def stacked(xk: Array) -> Array:
+        return np.concatenate([problem.constraints(xk, data), rows.rows(xk)[kept] - margin])
+
+    def merit(xk: Array, yk: Array) -> float:
+        hk = stacked(xk)
+        return problem.objective(xk) - float(yk @ hk) + 0.5 * mu * float(hk @ hk)
+
+    def ended(status: SolveStatus, why: str, steps: int) -> _FinalPhase:
+        return _FinalPhase(status, why, x, y[:m], history, steps)
+
+    steps = 0
+    for k in range(start_iteration, start_iteration + max(iterations, 1)):
+        ev = problem.evaluate(x, data)
+        g = rows.rows(x) - margin
+        h = np.concatenate([ev.constraints, g[kept]])
+        jg = rows.rows_jacobian(x)[kept]
+        jac = np.vstack([_dense_jacobian(ev), jg])
+        nu_full = np.zeros(nu.size)
+        nu_full[kept] = y[m:]
+        grad_l = ev.gradient - jac.T @ y
+        below = max(0.0, -float(np.min(g[others]))) if others.size else 0.0
+        violation = max(float(np.max(np.abs(h))), below)
+        shifted = ev._replace(gradient=ev.gradient - jg.T @ y[m:])
+        lam_ls, stationarity_ls = first_order_multipliers(shifted, x, lower, upper)
+        stationarity_own = float(np.max(np.abs(x - np.clip(x - grad_l, lower, upper))))
+        stationarity = min(stationarity_own, stationarity_ls)
+        history.append(
+            OuterIterate(k, x.reshape(s, -1).copy(), ev.objective, violation, stationarity, mu, 0)
+        )
+        if not (math.isfinite(violation) and math.isfinite(stationarity)):
+            return ended(SolveStatus.NON_FINITE, "non-finite constraint or gradient", steps)
+        if violation <= opts.constraint_tol and stationarity <= opts.stationarity_tol:
+            lam_out = y[:m] if stationarity_own <= stationarity_ls else lam_ls
+            message = (
+                f"|c| = {violation:.2e} <= {opts.constraint_tol:g} and projected "
+                f"gradient {stationarity:.2e} <= {opts.stationarity_tol:g} (final phase from "
+                f"outer iteration {start_iteration}: {steps} SQP steps, {kept.size} clearance "
+                "rows held as equalities)"
+            )
+            return _FinalPhase(SolveStatus.SOLVED, message, x, lam_out, history, steps, nu_full)
+        if _past(deadline):
+            return ended(SolveStatus.MAX_TIME, "wall-time limit in the final phase", steps)
+        with np.errstate(over="ignore", invalid="ignore"):
+            hess = problem.lagrangian_hessian(x, y[:m], data) - _rows_hessian(rows, x, nu_full)
+        free = ~(((x <= lower) & (grad_l > 0.0)) | ((x >= upper) & (grad_l < 0.0)))
+        for _ in range(x.size + 1):
+            step = _sqp_step(jac, hess, grad_l, h, free)
+            if step is None:
+                return ended(SolveStatus.STALLED, "singular KKT system in the final phase", steps)
+            p, taken, dy = step
+            out = free & (((x <= lower) & (p < 0.0)) | ((x >= upper) & (p > 0.0)))
+            if not np.any(out):
+                break
+            free = free & ~out
+        y_new = y.copy()
+        y_new[taken] += dy
+        if np.any(y_new[m:] < 0.0):
+            return ended(SolveStatus.STALLED, "a clearance row left the active set", steps)
+        slope_e = float((ev.gradient - jac.T @ y_new) @ p)
+        slope_c = float((jac.T @ h) @ p)
+        while not slope_e + mu * slope_c < 0.0:
+            if mu * opts.penalty_growth > _MERIT_PENALTY_MAX:
+                return ended(SolveStatus.STALLED, "merit penalty limit in the final phase", steps)
+            mu *= opts.penalty_growth
+        slope = slope_e + mu * slope_c
+        alpha = min(1.0, _NEWTON_MAX_STEP / max(float(np.max(np.abs(p))), 1e-300))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            to_lo = np.where(p < 0.0, (lower - x) / p, np.inf)
+            to_hi = np.where(p > 0.0, (upper - x) / p, np.inf)
+        alpha = min(alpha, float(np.min(np.minimum(to_lo, to_hi))))
+        phi0 = merit(x, y_new)
+        noise = 1e-13 * (1.0 + abs(phi0))
+        for _ in range(_MERIT_BACKTRACKS):
+            x_new = np.clip(x + alpha * p, lower, upper)
+            if merit(x_new, y_new) <= phi0 + 1e-4 * alpha * slope + noise:
+                break
+            alpha *= 0.5
+        else:
+            return ended(SolveStatus.STALLED, "no decrease of the merit function", steps)
+        g_new = rows.rows(x_new) - margin
+        if others.size and float(np.min(g_new[others])) < -opts.constraint_tol:
+            i = int(others[np.argmin(g_new[others])])
+            why = f"the step takes inactive row {rows.labels[i]!r} below the margin"
+            return ended(SolveStatus.STALLED, why, steps)
+        steps += 1
+        x, y = x_new, y_new
+    return ended(SolveStatus.MAX_ITERATIONS, "outer iteration limit reached", steps)
+
+
+def _independent_rows(
+    problem: CyclicIKProblem, rows: IKClearance, x: Array, nu: Array, data: pin.Data
+) -> npt.NDArray[np.int_]:
+    """Rows with ``nu > 0`` whose gradients are independent of the target rows' and each other's.
+
+    Taken by decreasing ``nu``; a row is left out when its gradient adds a singular
+    value below 1e-6 of the largest (the same leg step walked back, a dependent pair).
+    """
+    jc = _dense_jacobian(problem.evaluate(x, data))
+    basis = jc[np.any(jc != 0.0, axis=1)]
+    candidates = np.flatnonzero(nu > 0.0)
+    if not candidates.size:
+        return candidates
+    jg = rows.rows_jacobian(x)
+    kept = []
+    for i in candidates[np.argsort(-nu[candidates], kind="stable")]:
+        trial = np.vstack([basis, jg[i]])
+        sv = np.linalg.svd(trial, compute_uv=False)
+        if sv.size == trial.shape[0] and sv[-1] > 1e-6 * sv[0]:
+            basis = trial
+            kept.append(int(i))
+    return np.array(sorted(kept), dtype=int)
+
+
+_ROW_HESSIAN_STEP = 1e-6  # central-difference step [rad] of the clearance rows' Hessian
+
+
+def _rows_hessian(rows: IKClearance, x: Array, w: Array) -> Array:
+    """``sum_i w_i d2 g_i`` at ``x`` (symmetric), by central differences of ``J_g^T w``."""
+    n = x.size
+    out = np.zeros((n, n))
+    if not np.any(w):
+        return out
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = _ROW_HESSIAN_STEP
+        plus = rows.rows_jacobian_transposed(x + e, w)
+        minus = rows.rows_jacobian_transposed(x - e, w)
+        out[:, j] = (plus - minus) / (2.0 * _ROW_HESSIAN_STEP)
+    return 0.5 * (out + out.T)
 
 
 _FINAL_PHASE_STEPS = 30  # SQP steps of one attempt of the final phase

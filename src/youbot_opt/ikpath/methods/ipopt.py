@@ -450,6 +450,7 @@ class IpoptIKSolver3D:
             ineqs += ineq
             self._rows.append(rows)
         self._n_eq = int(sum(e.shape[0] for e in eqs))
+        self._n_ineq = len(ineqs)
         clear = problem.clearance_rows  # rows >= the margin (docs/ikpath.md, "Clearance")
         clear_rows = clear.function(x) if clear is not None else ca.SX(0, 1)
         margin = clear.spec.margin if clear is not None else 0.0
@@ -479,7 +480,13 @@ class IpoptIKSolver3D:
         if not np.all(np.isfinite(x)):
             status, x = SolveStatus.NON_FINITE, start
         x = np.clip(x, prob.lower, prob.upper)
-        lam_g = -np.array(sol["lam_g"], dtype=float).ravel()[: self._n_eq]
+        lam_all = -np.array(sol["lam_g"], dtype=float).ravel()
+        lam_g = lam_all[: self._n_eq]
+        # The clearance rows' lam_g (CasADi's Lagrangian f + lam_g^T g: <= 0 on a row at
+        # its lower bound) as nu = -lam_g >= 0, the AL's convention; IPOPT's interior
+        # point leaves inactive rows ~ barrier mu / g (tiny, > 0: 3e-13..3e-11 on ur5 and a
+        # box); a rounding of the wrong sign is set to 0.
+        nu = np.maximum(lam_all[self._n_eq + self._n_ineq :], 0.0)
         multipliers = np.zeros((prob.n_targets, prob.block_rows))
         at = 0
         for j, rows in enumerate(self._rows):
@@ -495,6 +502,7 @@ class IpoptIKSolver3D:
             wall_time=wall,
             message=ret,
             start=start,
+            clearance_multipliers=nu,
         )
 
 
