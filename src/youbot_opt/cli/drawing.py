@@ -40,7 +40,7 @@ __all__ = ["FigureJob", "Drawing", "draw_job", "save_figure", "DRAWING_PROCESSES
 _log = logging.getLogger("youbot_opt.cli.output")  # the "not drawn" lines, as before
 
 DRAWING_PROCESSES = 2
-"""The most processes that draw one run's figures (2 cores: measured, docs/design.md)."""
+"""The most processes that draw one run's figures (the 2-core target machine: one per core)."""
 
 _PARENT_POLL = 0.2  # [s] how often a drawing process checks that its parent is alive
 
