@@ -188,3 +188,19 @@ def test_drawing_stop_leaves_no_process(tmp_path: Path) -> None:
     drawing.stop()
     assert not any(p.is_alive() for p in children)
     assert not (tmp_path / "late.png").exists()
+
+
+def test_a_reused_study_folder_keeps_no_stale_refinement_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A study rerun into the folder of one that drew per-plan figures: those are gone."""
+    folder = tmp_path / "run"
+    folder.mkdir()
+    for name in ("refinement_1.png", "refinement_2.png", "bound_scaling.png"):
+        (folder / name).write_bytes(b"earlier run")
+    argv = ["pareto", "--betas", "0.5", "--knots", "15", "--workers", "0", "--quiet", "--json"]
+    assert main([*argv, "--out", str(folder)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    pngs = sorted(p.name for p in folder.glob("*.png"))
+    assert pngs == sorted(f for f in summary["files"] if f.endswith(".png"))
+    assert "refinement.png" in pngs and "refinement_1.png" not in pngs
