@@ -27,6 +27,7 @@ from typing import TextIO, cast
 import numpy as np
 
 from youbot_opt._typing import JSONDict
+from youbot_opt.cli.drawing import save_figure
 from youbot_opt.cli.flags import clearance_of, loading_options, report_shard, scheduler_address
 from youbot_opt.cli.ikpath_text import (
     STARTS_FILE,
@@ -47,7 +48,6 @@ from youbot_opt.cli.output import (
     print_outputs,
     replay_or_warn,
     run_folder,
-    save_figure,
     write_summary,
 )
 from youbot_opt.cli.parser import PLANAR_REACH_EVALUATIONS, START_KIND_NAMES

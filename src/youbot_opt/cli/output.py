@@ -15,6 +15,7 @@ import datetime as _dt
 import json
 import logging
 import math
+import re
 import sys
 import time
 import warnings
@@ -29,6 +30,7 @@ from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 if TYPE_CHECKING:  # matplotlib, the plots and the replay load when a run draws (issue 27)
     from matplotlib.figure import Figure
 
+    from youbot_opt.cli.drawing import FigureJob
     from youbot_opt.trajopt.multistart import MultistartResult
     from youbot_opt.trajopt.refine import Refinement
     from youbot_opt.trajopt.result import TrajOptResult
@@ -41,10 +43,11 @@ __all__ = [
     "optima_replay",
     "print_json",
     "print_outputs",
+    "remove_stale_figures",
     "replay_html",
     "report_outputs",
     "run_folder",
-    "save_figure",
+    "solve_figures",
     "write_solve_outputs",
     "write_summary",
 ]
@@ -112,27 +115,29 @@ def print_json(doc: Mapping[str, object], stream: IO[str] | None = None) -> None
     print(json.dumps(json_ready(doc), indent=2), file=sys.stdout if stream is None else stream)
 
 
-def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
-    """Save a matplotlib figure as ``folder/name`` (PNG unless a suffix is given); close it.
+OWN_FIGURES = re.compile(
+    r"(trajectory|arm|convergence|multistart|refinement(_[1-9][0-9]*)?|clearance|tool"
+    r"|pareto|bound_scaling)\.png"
+)
+"""Names of the figures the trajectory commands write (``solve``, ``main``, the studies)."""
 
-    A figure with a layout engine (the package's figures are constrained) is
-    saved as laid out: cropping it to its tight bounding box as well measured
-    half of the time a solve's figures took (issue 27). A figure without one
-    is cropped. A figure made without pyplot is drawn on Agg directly, and
-    pyplot is imported only to close a figure that pyplot manages.
+
+def remove_stale_figures(folder: Path, written: Iterable[Path]) -> list[Path]:
+    """Remove the figures of an earlier run in a reused ``folder``; return what was removed.
+
+    Only regular files named as the trajectory commands name their figures
+    (:data:`OWN_FIGURES`, e.g. ``refinement_3.png`` of a study that refined
+    three plans) and not among ``written`` are removed: the folder then holds
+    the figures its ``summary.json`` lists. Any other file is left alone.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    path = Path(folder) / (name if Path(name).suffix else f"{name}.png")
-    if fig.canvas.manager is None:  # not a pyplot figure: draw straight on Agg
-        FigureCanvasAgg(fig)
-    tight = None if fig.get_layout_engine() is not None else "tight"
-    fig.savefig(path, dpi=dpi, bbox_inches=tight)
-    if fig.canvas.manager is not None:
-        import matplotlib.pyplot as plt
-
-        plt.close(fig)
-    return path
+    keep = {Path(f).name for f in written}
+    removed = []
+    for path in sorted(folder.iterdir()):
+        if OWN_FIGURES.fullmatch(path.name) and path.name not in keep and path.is_file():
+            if not path.is_symlink():
+                path.unlink(missing_ok=True)
+                removed.append(path)
+    return removed
 
 
 def print_outputs(
@@ -214,12 +219,42 @@ def draw_figure(
     folder: Path, name: str, make: Callable[..., Figure], *args: object, **kwargs: object
 ) -> Path | None:
     """Draw and save one figure; a figure that cannot be drawn is logged and skipped."""
-    try:
-        fig = make(*args, **kwargs)
-    except ParameterError as exc:  # e.g. no converged run to draw
-        _log.warning("figure %s not drawn: %s", name, exc)
-        return None
-    return save_figure(fig, folder, name)
+    from youbot_opt.cli.drawing import FigureJob, draw_job
+
+    path, skipped = draw_job(folder, FigureJob(name, make, args, kwargs))
+    if skipped is not None:
+        _log.warning("%s", skipped)
+    return path
+
+
+def solve_figures(
+    result: TrajOptResult,
+    multistart: MultistartResult | None = None,
+    refinement: Refinement | None = None,
+) -> list[FigureJob]:
+    """Return the figures of a solve (:func:`write_solve_outputs`), in the order they are listed."""
+    from youbot_opt.cli.drawing import FigureJob
+
+    plots = "youbot_opt.viz.plots.trajopt:"  # matplotlib loads where the figures are drawn
+    jobs = []
+    if result.trajectory is not None:
+        jobs.append(FigureJob("trajectory.png", plots + "plot_trajectory", (result,)))
+        jobs.append(FigureJob("arm.png", plots + "plot_arm_2d", (None, result)))
+    if refinement is not None:
+        jobs.append(FigureJob("refinement.png", plots + "plot_refinement", (refinement,)))
+    runs: MultistartResult | Refinement | list[TrajOptResult] = [result]
+    if multistart is not None:  # every start's solve
+        runs = multistart
+    elif refinement is not None:  # every round's solve
+        runs = refinement
+    jobs.append(FigureJob("convergence.png", plots + "plot_convergence", (runs,)))
+    if multistart is not None:
+        jobs.append(
+            FigureJob(
+                "multistart.png", "youbot_opt.viz.plots.studies:plot_multistart", (multistart,)
+            )
+        )
+    return jobs
 
 
 def write_solve_outputs(
@@ -229,8 +264,15 @@ def write_solve_outputs(
     multistart: MultistartResult | None = None,
     *,
     refinement: Refinement | None = None,
+    extra_figures: Sequence[FigureJob] = (),
+    figures: bool = True,
 ) -> list[Path]:
     """Write a solve's result, figures, replay and summary into ``folder``.
+
+    The figures are drawn in forked processes (:class:`~youbot_opt.cli.drawing.Drawing`)
+    while the result and the replay are written here; every file exists when
+    this returns, and a figure of an earlier run in a reused folder that this
+    run does not write is removed (:func:`remove_stale_figures`).
 
     Parameters
     ----------
@@ -246,40 +288,40 @@ def write_solve_outputs(
     refinement : Refinement, optional
         The record of the refinement that made ``result``: saved with it, drawn
         (``refinement.png``) and summarised (``"refinement"``).
+    extra_figures : sequence of FigureJob
+        More figures (``clearance.png``, ``tool.png``), listed after the replay.
+    figures : bool
+        False (``--no-figures``): no figure at all, only the result, the
+        replay and the summary.
 
     Returns
     -------
     list of Path
         The files written, ``summary.json`` last.
     """
+    from youbot_opt.cli.drawing import Drawing
     from youbot_opt.trajopt.io import save_result
-    from youbot_opt.viz.plots import (
-        plot_arm_2d,
-        plot_convergence,
-        plot_multistart,
-        plot_trajectory,
-    )
-    from youbot_opt.viz.plots.trajopt import plot_refinement
 
-    files: list[Path | None] = [save_result(result, folder / "result.npz", refinement=refinement)]
-    if result.trajectory is not None:
-        files.append(draw_figure(folder, "trajectory.png", plot_trajectory, result))
-        files.append(draw_figure(folder, "arm.png", plot_arm_2d, None, result))
+    jobs = [*solve_figures(result, multistart, refinement), *extra_figures] if figures else []
+    drawing = Drawing(folder, jobs)  # drawn in other processes from here on
+    try:
+        npz = save_result(result, folder / "result.npz", refinement=refinement)
+        if multistart is not None:
+            replay = optima_replay(folder, multistart)
+        else:
+            replay = None
+            if result.trajectory is not None:
+                replay = replay_html(folder, [result], [f"f = {result.objective:.5g}"])
+        drawn = dict(zip([j.name for j in jobs], drawing.wait(), strict=True))
+    finally:
+        drawing.stop()
     if refinement is not None:
-        files.append(draw_figure(folder, "refinement.png", plot_refinement, refinement))
         summary["refinement"] = refinement.summary()
-    runs: MultistartResult | Refinement | list[TrajOptResult] = [result]
-    if multistart is not None:  # every start's solve
-        runs = multistart
-    elif refinement is not None:  # every round's solve
-        runs = refinement
-    files.append(draw_figure(folder, "convergence.png", plot_convergence, runs))
-    if multistart is not None:
-        files.append(draw_figure(folder, "multistart.png", plot_multistart, multistart))
-        files.append(optima_replay(folder, multistart))
-    elif result.trajectory is not None:
-        files.append(replay_html(folder, [result], [f"f = {result.objective:.5g}"]))
+    extra = {j.name for j in extra_figures}
+    files = [npz, *(p for n, p in drawn.items() if n not in extra), replay]
+    files += [p for n, p in drawn.items() if n in extra]
     written = [f for f in files if f is not None]
+    remove_stale_figures(folder, written)
     summary["output_folder"] = str(folder.resolve())
     summary["files"] = [f.name for f in written] + ["summary.json"]
     written.append(write_summary(folder, summary))

@@ -613,6 +613,11 @@ def _solve(sub: _Sub) -> None:
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
     )
+    p.add_argument(
+        "--no-figures",
+        action="store_true",
+        help="write no figure (*.png): the result, replay.html and summary.json only",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _clearance_arguments(p)
     _tool_arguments(p)

@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt._files import read_regular_file
-from youbot_opt.cli.output import print_outputs, run_folder, save_figure, write_summary
+from youbot_opt.cli.drawing import save_figure
+from youbot_opt.cli.output import print_outputs, run_folder, write_summary
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.reproduction.figures import FIGURES

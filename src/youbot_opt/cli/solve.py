@@ -25,6 +25,7 @@ import numpy as np
 from youbot_opt._checks import check_beta
 from youbot_opt._files import json_ready
 from youbot_opt._typing import JSONDict
+from youbot_opt.cli.drawing import FigureJob
 from youbot_opt.cli.flags import (
     clearance_of,
     ipopt_options,
@@ -135,6 +136,9 @@ def _representative(ms: MultistartResult) -> TrajOptResult | None:
     return min(failed, key=lambda r: (not math.isfinite(r.max_violation), r.max_violation))
 
 
+_PLOTS = "youbot_opt.viz.plots"
+
+
 STARTS_FOLDER = "starts"
 """Sub-folder of ``solve --starts K --out D`` where the starts are saved (a rerun resumes)."""
 
@@ -239,19 +243,19 @@ def run(args: argparse.Namespace) -> int:
         if ms is None and result.success and not problem.robot.name.startswith("youbot"):
             print(MULTISTART_HINT)
         print(flush=True)
-    files = write_solve_outputs(
-        folder, result, summary, ms if has_optimum else None, refinement=record
-    )
+    more: list[FigureJob] = []  # matplotlib loads where they are drawn
     if problem.clearance is not None and result.trajectory is not None:
-        from youbot_opt.viz.plots.trajopt import plot_clearance
-
-        plot_clearance(result).savefig(folder / "clearance.png", dpi=120)
-        files.append(folder / "clearance.png")
+        more.append(
+            FigureJob(
+                "clearance.png", f"{_PLOTS}.trajopt:plot_clearance", (result,), optional=False
+            )
+        )
     if problem.tool and result.trajectory is not None:
-        from youbot_opt.viz.plots.tool import plot_tool
-
-        plot_tool(result).savefig(folder / "tool.png", dpi=120)
-        files.append(folder / "tool.png")
+        more.append(FigureJob("tool.png", f"{_PLOTS}.tool:plot_tool", (result,), optional=False))
+    files = write_solve_outputs(
+        folder, result, summary, ms if has_optimum else None, refinement=record,
+        extra_figures=more, figures=not args.no_figures,
+    )  # fmt: skip
     if args.json:
         print(json.dumps(json_ready(summary)))
     report_outputs(folder, files, args.json)

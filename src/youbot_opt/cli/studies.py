@@ -33,6 +33,7 @@ from youbot_opt.cli.output import (
     draw_figure,
     open_folder,
     optima_replay,
+    remove_stale_figures,
     replay_html,
     report_outputs,
     write_summary,
@@ -188,6 +189,7 @@ def _emit(
 ) -> None:
     """Write summary.json, print the table (or the JSON) and where the outputs are."""
     written = [f for f in files if f is not None]
+    remove_stale_figures(folder, written)  # a reused --out: an earlier run's refinement_<k>.png
     stores = [*_STORE, *([REFINED] if (folder / REFINED).is_dir() else [])]
     summary["output_folder"] = str(folder.resolve())
     folders = [f"{name}/" for name in stores[1:]]

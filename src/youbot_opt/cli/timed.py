@@ -137,7 +137,9 @@ def run_solve(args: argparse.Namespace, problem: TrajOptProblem, method: str) ->
         print()
         print("\n".join(timed_lines(timed, certificate, table=False)), flush=True)
     folder = open_folder("solve", args.out)
-    files = write_solve_outputs(folder, timed.result, summary, refinement=timed.refinement)
+    files = write_solve_outputs(
+        folder, timed.result, summary, refinement=timed.refinement, figures=not args.no_figures
+    )
     if args.json:
         print(json.dumps(json_ready(summary)))
     report_outputs(folder, files, args.json)

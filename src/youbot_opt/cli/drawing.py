@@ -1,0 +1,250 @@
+"""A run's figures drawn in forked processes while the run writes its other files (#27).
+
+:class:`Drawing` forks (Linux) up to :data:`DRAWING_PROCESSES` processes that
+inherit the results in memory and draw there, while the caller writes the rest;
+:meth:`Drawing.wait` returns the paths in job order once every process ended,
+raising a job's error (the child's traceback a note on it) and giving its
+warnings and "not drawn" lines here. Without ``fork``: drawn here on wait.
+:func:`save_figure` writes one figure atomically. Why: docs/design.md.
+
+>>> drawing = Drawing(folder, [FigureJob("arm.png", plot_arm_2d, (None, result))])  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import multiprocessing
+import os
+import signal
+import threading
+import time
+import traceback
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from youbot_opt._files import atomic_writer
+from youbot_opt.exceptions import ParameterError
+
+if TYPE_CHECKING:
+    from multiprocessing.process import BaseProcess
+
+    from matplotlib.figure import Figure
+
+__all__ = ["FigureJob", "Drawing", "draw_job", "save_figure", "DRAWING_PROCESSES"]
+
+_log = logging.getLogger("youbot_opt.cli.output")  # the "not drawn" lines, as before
+
+DRAWING_PROCESSES = 2
+"""The most processes that draw one run's figures (the 2-core target machine: one per core)."""
+
+_PARENT_POLL = 0.2  # [s] how often a drawing process checks that its parent is alive
+
+
+@dataclass(frozen=True)
+class FigureJob:
+    """One figure of a run: ``make(*args, **kwargs)`` saved as ``folder/name``.
+
+    ``make`` is the function, or its ``"module:name"`` (imported where the
+    figure is drawn: the caller need not load matplotlib).
+
+    ``optional``: a :class:`~youbot_opt.exceptions.ParameterError` from ``make``
+    (e.g. no converged run to draw) is logged and the figure skipped; otherwise
+    it propagates like any other error.
+    """
+
+    name: str
+    make: Callable[..., Figure] | str
+    args: tuple[object, ...] = ()
+    kwargs: Mapping[str, object] = field(default_factory=dict)
+    optional: bool = True
+
+
+def draw_job(folder: Path, job: FigureJob) -> tuple[Path | None, str | None]:
+    """Draw and save one figure here; return its path, or None and why it was skipped."""
+    make = job.make
+    if isinstance(make, str):
+        module, _, name = make.partition(":")
+        make = getattr(importlib.import_module(module), name)
+    try:
+        fig = make(*job.args, **dict(job.kwargs))
+    except ParameterError as exc:
+        if not job.optional:
+            raise
+        return None, f"figure {job.name} not drawn: {exc}"
+    return save_figure(fig, folder, job.name), None
+
+
+def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
+    """Save a matplotlib figure as ``folder/name`` (PNG unless a suffix is given); close it.
+
+    The file is written atomically (a temporary file renamed over it): a run
+    stopped while drawing leaves no half-written figure. A figure with a layout
+    engine (the package's figures are constrained) is saved as laid out:
+    cropping it to its tight bounding box as well measured half of the time a
+    solve's figures took (issue 27). A figure without one is cropped. A figure
+    made without pyplot is drawn on Agg directly, and pyplot is imported only to
+    close a figure that pyplot manages.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    path = Path(folder) / (name if Path(name).suffix else f"{name}.png")
+    if fig.canvas.manager is None:  # not a pyplot figure: draw straight on Agg
+        FigureCanvasAgg(fig)
+    tight = None if fig.get_layout_engine() is not None else "tight"
+    with atomic_writer(path) as handle:
+        fig.savefig(handle, format=path.suffix[1:], dpi=dpi, bbox_inches=tight)
+    if fig.canvas.manager is not None:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+    return path
+
+
+_Drawn = tuple[int, Path | None, str | None, list[warnings.WarningMessage]]
+
+
+def _draw_jobs(folder: Path, jobs: Sequence[tuple[int, FigureJob]]) -> list[_Drawn]:
+    out: list[_Drawn] = []
+    for i, job in jobs:
+        with warnings.catch_warnings(record=True) as caught:
+            path, skipped = draw_job(folder, job)
+        out.append((i, path, skipped, list(caught)))
+    return out
+
+
+def _watch_parent(parent: int) -> None:
+    while True:
+        time.sleep(_PARENT_POLL)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def _child(conn: Connection, folder: Path, jobs: list[tuple[int, FigureJob]], parent: int) -> None:
+    """Body of a drawing process: draw ``jobs``, send ``("ok", drawn)`` or ``("error", exc)``."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    try:
+        try:
+            message: tuple[str, object] = ("ok", _draw_jobs(folder, jobs))
+        except BaseException as exc:  # noqa: BLE001 - every error goes back to the parent
+            exc.add_note("in the figure process:\n" + traceback.format_exc().rstrip())
+            message = ("error", exc)
+        try:
+            conn.send(message)
+        except Exception as exc:  # noqa: BLE001 - what does not pickle goes as text
+            what = message[1] if message[0] == "error" else exc
+            conn.send(("error", RuntimeError(f"{type(what).__name__}: {what}")))
+    finally:
+        conn.close()
+
+
+def _forks() -> bool:
+    from youbot_opt.sweeps.pool import process_context
+
+    return process_context().get_start_method() == "fork"
+
+
+class Drawing:
+    """The figures of a run, drawn in up to ``processes`` forked processes from construction.
+
+    Parameters
+    ----------
+    folder : Path
+        Where the figures go.
+    jobs : sequence of FigureJob
+        The figures, in the order :meth:`wait` returns their paths.
+    processes : int
+        The most drawing processes (jobs are dealt to them in turn); 0, or a
+        platform without ``fork``: drawn in this process by :meth:`wait`.
+    """
+
+    def __init__(
+        self, folder: Path, jobs: Sequence[FigureJob], processes: int = DRAWING_PROCESSES
+    ) -> None:
+        self.folder = folder
+        self.jobs = list(jobs)
+        self._children: list[tuple[BaseProcess, Connection]] = []
+        n = min(processes, len(self.jobs))
+        if n < 1 or not _forks():
+            return
+        if n > 1:  # imported once here, not once per child (matplotlib: about 0.6 s of CPU)
+            for job in self.jobs:
+                if isinstance(job.make, str):
+                    importlib.import_module(job.make.partition(":")[0])
+        ctx = multiprocessing.get_context("fork")  # the children inherit the results
+        indexed = list(enumerate(self.jobs))
+        try:
+            for k in range(n):
+                recv, send = ctx.Pipe(duplex=False)
+                proc = ctx.Process(
+                    target=_child,
+                    args=(send, folder, indexed[k::n], os.getpid()),
+                    name=f"youbot-opt figures {k + 1}",
+                    daemon=True,  # ended by multiprocessing when this process exits
+                )
+                proc.start()
+                send.close()
+                self._children.append((proc, recv))
+        except BaseException:
+            self.stop()
+            raise
+
+    def wait(self) -> list[Path | None]:
+        """Wait for every figure; return their paths in job order (None: skipped, logged).
+
+        Raises the first error of the jobs (in job order), after every drawing
+        process has ended.
+        """
+        if not self._children:
+            drawn = _draw_jobs(self.folder, list(enumerate(self.jobs)))
+            return self._report(drawn)
+        drawn = []
+        errors: list[tuple[int, BaseException]] = []
+        for k, (proc, recv) in enumerate(self._children):
+            first = k  # the first job of child k is job k (dealt in turn)
+            try:
+                kind, payload = recv.recv()
+            except EOFError:
+                proc.join()
+                kind, payload = (
+                    "error",
+                    RuntimeError(
+                        f"the process drawing {self.jobs[first].name} ended with exit code "
+                        f"{proc.exitcode} before it reported"
+                    ),
+                )
+            proc.join()
+            recv.close()
+            if kind == "error":
+                assert isinstance(payload, BaseException)
+                errors.append((first, payload))
+            else:
+                assert isinstance(payload, list)
+                drawn += payload
+        self._children = []
+        if errors:
+            raise min(errors, key=lambda e: e[0])[1]
+        return self._report(sorted(drawn, key=lambda d: d[0]))
+
+    def _report(self, drawn: list[_Drawn]) -> list[Path | None]:
+        """Give the jobs' warnings and skip lines here; return the paths in job order."""
+        for _, _, skipped, caught in drawn:
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            if skipped is not None:
+                _log.warning("%s", skipped)
+        return [path for _, path, _, _ in drawn]
+
+    def stop(self) -> None:
+        """Terminate the drawing processes still running (after an error or Ctrl-C here)."""
+        for proc, recv in self._children:
+            if proc.is_alive():
+                proc.terminate()
+            proc.join()
+            recv.close()
+        self._children = []

@@ -1,0 +1,206 @@
+"""The run folder of `youbot-opt solve` with its figures drawn in other processes (#27 item 2).
+
+The figures are drawn in forked processes while the result and the replay are
+written (:class:`youbot_opt.cli.drawing.Drawing`): the folder must still hold
+every listed file when the command returns, a figure that cannot be written must
+fail the command with the one-line error, ``--no-figures`` writes none, and a
+reused ``--out`` keeps no figure of an earlier run that ``summary.json`` does not
+list.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import logging
+import os
+import stat
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+
+from youbot_opt.cli import main
+from youbot_opt.cli.drawing import Drawing, FigureJob
+from youbot_opt.cli.output import remove_stale_figures
+from youbot_opt.exceptions import ParameterError, YoubotOptWarning
+
+QUICK = ["--knots", "15"]
+SOLVE_FILES = [
+    "result.npz", "trajectory.png", "arm.png", "refinement.png", "convergence.png",
+    "replay.html", "summary.json",
+]  # fmt: skip
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+
+
+def _summary(folder: Path) -> dict[str, object]:
+    return json.loads((folder / "summary.json").read_text())
+
+
+def test_solve_folder_is_complete_when_the_command_returns(tmp_path: Path) -> None:
+    """Every listed file exists, is a regular file of mode 644 (umask 022), no temporary left."""
+    old = os.umask(0o022)
+    try:
+        assert main(["solve", *QUICK, "--quiet", "--out", "run"]) == 0
+    finally:
+        os.umask(old)
+    folder = tmp_path / "run"
+    assert _summary(folder)["files"] == SOLVE_FILES
+    for name in SOLVE_FILES:
+        info = (folder / name).stat()
+        assert stat.S_ISREG(info.st_mode) and info.st_size > 0
+        assert stat.S_IMODE(info.st_mode) == 0o644, name
+    assert sorted(p.name for p in folder.iterdir()) == sorted(SOLVE_FILES)  # no .tmp-*
+
+
+def test_solve_no_figures_writes_no_png(tmp_path: Path) -> None:
+    """`--no-figures`: the result, the replay and the summary only."""
+    assert main(["solve", *QUICK, "--quiet", "--no-figures", "--out", "run"]) == 0
+    folder = tmp_path / "run"
+    assert _summary(folder)["files"] == ["result.npz", "replay.html", "summary.json"]
+    assert not list(folder.glob("*.png"))
+
+
+def test_a_figure_that_cannot_be_written_fails_with_one_line(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A full disk while a figure is saved (in the drawing process): exit 2, one line naming it."""
+    import youbot_opt.viz.plots.trajopt as plots
+
+    def full(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "run" / "arm.png"))
+
+    monkeypatch.setattr(plots, "plot_arm_2d", full)  # inherited by the forked process
+    assert main(["solve", *QUICK, "--quiet", "--out", "run"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("youbot-opt: error: cannot use ")
+    assert "arm.png" in err[0] and "free space" in err[0]
+    assert not (tmp_path / "run" / "summary.json").exists()  # the run did not complete
+
+
+def test_reused_folder_keeps_no_stale_figure(tmp_path: Path) -> None:
+    """A rerun into the same --out removes our figures it did not write, nothing else."""
+    folder = tmp_path / "run"
+    folder.mkdir()
+    for name in ("refinement_2.png", "multistart.png", "pareto.png", "notes.png", "arm.svg"):
+        (folder / name).write_bytes(b"earlier run")
+    assert main(["solve", *QUICK, "--quiet", "--out", "run"]) == 0
+    assert _summary(folder)["files"] == SOLVE_FILES
+    pngs = sorted(p.name for p in folder.glob("*.png"))
+    listed = sorted(str(n) for n in SOLVE_FILES if n.endswith(".png"))
+    assert pngs == sorted([*listed, "notes.png"])  # not ours: left alone
+    assert (folder / "arm.svg").exists()
+    assert main(["solve", *QUICK, "--quiet", "--no-refine", "--out", "run"]) == 0
+    assert not (folder / "refinement.png").exists()  # the refined run's, not this one's
+    assert sorted(p.name for p in folder.glob("*.png")) == [
+        "arm.png", "convergence.png", "notes.png", "trajectory.png",
+    ]  # fmt: skip
+
+
+def test_remove_stale_figures_leaves_links_and_others(tmp_path: Path) -> None:
+    """Only regular files with our figure names and not written now go."""
+    for name in ("refinement_1.png", "refinement_7.png", "refinement_x.png", "tool.png"):
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "clearance.png").symlink_to(tmp_path / "tool.png")
+    removed = remove_stale_figures(tmp_path, [tmp_path / "refinement_1.png"])
+    assert sorted(p.name for p in removed) == ["refinement_7.png", "tool.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "clearance.png", "refinement_1.png", "refinement_x.png",
+    ]  # fmt: skip
+
+
+# ------------------------------------------------------------- Drawing itself
+def _figure(label: str) -> object:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4, 3))
+    fig.add_subplot().set_title(label)
+    return fig
+
+
+def _raises(message: str) -> object:
+    raise ValueError(message)
+
+
+def _skipped() -> object:
+    raise ParameterError("nothing to draw", name="result")
+
+
+def _warns(label: str) -> object:
+    warnings.warn(f"careful with {label}", YoubotOptWarning, stacklevel=1)
+    return _figure(label)
+
+
+def _sleeps() -> object:
+    time.sleep(60)
+    return _figure("late")
+
+
+def test_drawing_returns_paths_in_job_order(tmp_path: Path) -> None:
+    """Paths in job order across processes; a skipped figure is None and logged."""
+    jobs = [FigureJob(f"f{k}.png", _figure, (f"figure {k}",)) for k in range(3)]
+    jobs.insert(1, FigureJob("skip.png", _skipped))
+    drawing = Drawing(tmp_path, jobs, processes=2)
+    try:
+        paths = drawing.wait()
+    finally:
+        drawing.stop()
+    assert paths == [tmp_path / "f0.png", None, tmp_path / "f1.png", tmp_path / "f2.png"]
+    assert all(p.stat().st_size > 0 for p in paths if p is not None)
+
+
+def test_drawing_gives_warnings_and_skip_lines_here(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A child's warnings are warned again here; its "not drawn" line logged here."""
+    drawing = Drawing(tmp_path, [FigureJob("w.png", _warns, ("w",)), FigureJob("s.png", _skipped)])
+    with caplog.at_level(logging.WARNING), pytest.warns(YoubotOptWarning, match="careful with w"):
+        assert drawing.wait() == [tmp_path / "w.png", None]
+    assert "figure s.png not drawn: nothing to draw" in caplog.text
+
+
+def test_drawing_raises_the_childs_error(tmp_path: Path) -> None:
+    """An error in a drawing process is raised by wait(), with the child's traceback as a note."""
+    drawing = Drawing(
+        tmp_path, [FigureJob("a.png", _figure, ("a",)), FigureJob("b.png", _raises, ("bad",))]
+    )
+    try:
+        with pytest.raises(ValueError, match="bad") as caught:
+            drawing.wait()
+    finally:
+        drawing.stop()
+    assert any("in the figure process" in note for note in caught.value.__notes__)
+    required = FigureJob("c.png", _skipped, optional=False)
+    with pytest.raises(ParameterError, match="nothing to draw"):
+        Drawing(tmp_path, [required]).wait()
+
+
+def test_drawing_stop_leaves_no_process(tmp_path: Path) -> None:
+    """stop() (the caller's finally on an error or Ctrl-C) terminates a drawing process."""
+    drawing = Drawing(tmp_path, [FigureJob("late.png", _sleeps)], processes=1)
+    children = [proc for proc, _ in drawing._children]
+    assert children and all(p.is_alive() for p in children)
+    drawing.stop()
+    assert not any(p.is_alive() for p in children)
+    assert not (tmp_path / "late.png").exists()
+
+
+def test_a_reused_study_folder_keeps_no_stale_refinement_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A study rerun into the folder of one that drew per-plan figures: those are gone."""
+    folder = tmp_path / "run"
+    folder.mkdir()
+    for name in ("refinement_1.png", "refinement_2.png", "bound_scaling.png"):
+        (folder / name).write_bytes(b"earlier run")
+    argv = ["pareto", "--betas", "0.5", "--knots", "15", "--workers", "0", "--quiet", "--json"]
+    assert main([*argv, "--out", str(folder)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    pngs = sorted(p.name for p in folder.glob("*.png"))
+    assert pngs == sorted(f for f in summary["files"] if f.endswith(".png"))
+    assert "refinement.png" in pngs and "refinement_1.png" not in pngs
