@@ -549,6 +549,14 @@ def compare_solves(
             r["T"] = r["duration_s"]
             r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
             rows[name].append(r)
+        for name, rs in rows.items():  # one line per plan: a run cut short keeps its pairs
+            if len(rs) == i + 1:
+                r = rs[-1]
+                line = {"pair": i, "solver": name, "ok": bool(r["ok"]),
+                        "certified": bool(r["cert"].certified),
+                        "closest_m": float(r["cert"].closest_distance), "wall_s": r["wall_s"],
+                        "cpu_s": r["cpu_s"], "T": r["T"], "f": r.get("f")}  # fmt: skip
+                print("plan " + json.dumps(line), flush=True)
     print(
         f"\nSolves around the scene: {len(pairs)} start/goal pairs ({describe}, "
         f"both ends >= {MARGIN} m by coal), margin {MARGIN} m, "
@@ -775,6 +783,7 @@ def main() -> int:
     parser.add_argument(
         "--all", action="store_true", help="{ur5, panda} x {pillar, shelf} of benchmarks/scenes"
     )
+    parser.add_argument("--robots", default="ur5,panda", help="--all's robots")
     parser.add_argument("--knots", type=int, default=16)
     parser.add_argument("--samples", type=int, default=4, help="samples between two knots")
     parser.add_argument("--repeats", type=int, default=5, help="timing passes")
@@ -802,7 +811,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         if args.all:
-            for robot_name in ("ur5", "panda"):
+            for robot_name in args.robots.split(","):
                 for scene in SCENES:
                     path = SCENES_DIR / f"{robot_name}_{scene}.json"
                     cells.append(run_cell(robot_name, path, args, folder))
