@@ -1,18 +1,29 @@
 """Clearance side by side with Drake (issue 28, item 8): the same scene, robot and configurations.
 
-Run ``python benchmarks/bench_scene.py [--quick] [--scene FILE] [--robot ur5] [--pairs N]
-[--no-refine] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
+Run ``python benchmarks/bench_scene.py [--quick] [--all [--robots ur5,panda]]
+[--scene FILE] [--robot ur5|panda] [--pairs N] [--no-refine] [--refine-pairs N]
+[--no-dense] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
 (``pip install -e ".[bench]"``); without it the script prints that and exits
 with 2, measuring nothing.
 
 * **The scene** is a scene file of our format (``--scene``; by default the cell
   of notebook 08: a table, a shelf panel and a box held by ``tool0``) read by
-  :func:`youbot_opt.collision.load_scene`. Drake gets the same primitives as
+  :func:`youbot_opt.collision.load_scene`. ``--all`` runs the four cells
+  {ur5, panda} x {``pick_place_pillar``, ``shelf_reach``} of
+  ``benchmarks/scenes`` (written by ``benchmarks/scenes/make_scenes.py``:
+  one scene file per robot, placed from its reach, and 20 seeded start/goal
+  pairs in ``<robot>_<scene>_pairs.json`` whose straight joint-space line
+  collides), one after the other, then a summary table. A scene file with a
+  ``<stem>_pairs.json`` beside it is solved on those pairs. Drake gets the same primitives as
   Drake shapes (boxes as ``Box``, ...), world-fixed ones on the world body and
   carried ones on the carrying link's body at the same pose.
-* **The robot** is parsed by Drake's ``Parser`` from the same URDF text (its
-  visual and collision elements taken out), and each collision geometry of our
-  model is registered on the same body at the same pose: a mesh as a ``Convex``
+* **The robot** (``--robot``; ``panda`` with its finger joint locked at 0,
+  as ``--lock panda_finger_joint1=0`` does in the CLI, its mimic following) is
+  parsed by Drake's ``Parser`` from the same URDF text (its visual and
+  collision elements taken out, each locked joint made ``fixed`` at its locked
+  position by :func:`weld_locked`, the root link welded to the world), and
+  each collision geometry of our model is registered on the same body at the
+  same pose: a mesh as a ``Convex``
   read from an ``.obj`` file holding the convex hull of the mesh's vertices
   (:func:`hull_obj_text`), the solid coal measures too; a primitive as itself.
   Collision filters leave exactly our robot-vs-scene pairs (no self pairs, no
@@ -25,9 +36,10 @@ with 2, measuring nothing.
   max |ours - Drake| [m], the closest pair each reports, and the time per
   configuration of each (forward kinematics included; medians of ``--repeats``
   passes, in the same run).
-* **Solves** on ``--pairs`` start/goal pairs (notebook 08's pick and place,
-  then seeded perturbations of both, each end within the limits and at least
-  the margin from the scene by coal): ours (``TrajOptSolver.solve`` on one
+* **Solves** on ``--pairs`` start/goal pairs (the scene's pairs file, else
+  notebook 08's pick and place, then seeded perturbations of both, each end
+  within the limits and at least the margin from the scene by coal): ours
+  (``TrajOptSolver.solve`` on one
   built solver, full dynamics, torque limits and the clearance rows; also the
   whole of ``refine()``, and the same solver without the scene: what the
   scene costs) against Drake's ``KinematicTrajectoryOptimization`` with
