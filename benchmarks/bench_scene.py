@@ -1,18 +1,29 @@
 """Clearance side by side with Drake (issue 28, item 8): the same scene, robot and configurations.
 
-Run ``python benchmarks/bench_scene.py [--quick] [--scene FILE] [--robot ur5] [--pairs N]
-[--no-refine] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
+Run ``python benchmarks/bench_scene.py [--quick] [--all [--robots ur5,panda]]
+[--scene FILE] [--robot ur5|panda] [--pairs N] [--no-refine] [--refine-pairs N]
+[--no-dense] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
 (``pip install -e ".[bench]"``); without it the script prints that and exits
 with 2, measuring nothing.
 
 * **The scene** is a scene file of our format (``--scene``; by default the cell
   of notebook 08: a table, a shelf panel and a box held by ``tool0``) read by
-  :func:`youbot_opt.collision.load_scene`. Drake gets the same primitives as
+  :func:`youbot_opt.collision.load_scene`. ``--all`` runs the four cells
+  {ur5, panda} x {``pick_place_pillar``, ``shelf_reach``} of
+  ``benchmarks/scenes`` (written by ``benchmarks/scenes/make_scenes.py``:
+  one scene file per robot, placed from its reach, and 20 seeded start/goal
+  pairs in ``<robot>_<scene>_pairs.json`` whose straight joint-space line
+  collides), one after the other, then a summary table. A scene file with a
+  ``<stem>_pairs.json`` beside it is solved on those pairs. Drake gets the same primitives as
   Drake shapes (boxes as ``Box``, ...), world-fixed ones on the world body and
   carried ones on the carrying link's body at the same pose.
-* **The robot** is parsed by Drake's ``Parser`` from the same URDF text (its
-  visual and collision elements taken out), and each collision geometry of our
-  model is registered on the same body at the same pose: a mesh as a ``Convex``
+* **The robot** (``--robot``; ``panda`` with its finger joint locked at 0,
+  as ``--lock panda_finger_joint1=0`` does in the CLI, its mimic following) is
+  parsed by Drake's ``Parser`` from the same URDF text (its visual and
+  collision elements taken out, each locked joint made ``fixed`` at its locked
+  position by :func:`weld_locked`, the root link welded to the world), and
+  each collision geometry of our model is registered on the same body at the
+  same pose: a mesh as a ``Convex``
   read from an ``.obj`` file holding the convex hull of the mesh's vertices
   (:func:`hull_obj_text`), the solid coal measures too; a primitive as itself.
   Collision filters leave exactly our robot-vs-scene pairs (no self pairs, no
@@ -25,9 +36,10 @@ with 2, measuring nothing.
   max |ours - Drake| [m], the closest pair each reports, and the time per
   configuration of each (forward kinematics included; medians of ``--repeats``
   passes, in the same run).
-* **Solves** on ``--pairs`` start/goal pairs (notebook 08's pick and place,
-  then seeded perturbations of both, each end within the limits and at least
-  the margin from the scene by coal): ours (``TrajOptSolver.solve`` on one
+* **Solves** on ``--pairs`` start/goal pairs (the scene's pairs file, else
+  notebook 08's pick and place, then seeded perturbations of both, each end
+  within the limits and at least the margin from the scene by coal): ours
+  (``TrajOptSolver.solve`` on one
   built solver, full dynamics, torque limits and the clearance rows; also the
   whole of ``refine()``, and the same solver without the scene: what the
   scene costs) against Drake's ``KinematicTrajectoryOptimization`` with
@@ -61,6 +73,8 @@ ROBOT = "ur5"
 Q_PICK = np.array([-0.6, -1.0, 1.6, -2.1, -1.57, 0.0])  # [rad] notebook 08's pick pose
 Q_PLACE = np.array([0.6, -1.0, 1.6, -2.1, -1.57, 0.0])  # [rad] and place pose
 MARGIN = 0.01  # [m]
+SCENES_DIR = Path(__file__).resolve().parent / "scenes"
+SCENES = ("pick_place_pillar", "shelf_reach")
 BETA = 0.5
 #: The cell of notebook 08 (a table, a shelf panel on it, a box held by the tool).
 CELL = {
@@ -110,6 +124,60 @@ def strip_geometry(urdf: str) -> str:
     return re.sub(r"<(visual|collision)\b.*?</\1>", "", urdf, flags=re.DOTALL)
 
 
+def weld_locked(urdf: str, locked: tuple[tuple[str, float], ...]) -> str:
+    """Return URDF text with each joint of ``locked`` made ``fixed`` at its locked position.
+
+    ``locked`` is :attr:`RobotModel.locked_joints` (mimic joints included, at
+    their values): the joint's origin takes the motion (a prismatic joint's
+    translation along its axis, a revolute joint's rotation about it) and its
+    ``<mimic>`` goes, so Drake welds the same bodies where our model has them.
+    """
+    import xml.etree.ElementTree as ET
+
+    import pinocchio as pin
+
+    values = dict(locked)
+    root = ET.fromstring(urdf)
+    for joint in root.iter("joint"):
+        name = joint.get("name", "")
+        if name not in values:
+            continue
+        kind = joint.get("type")
+        axis_el = joint.find("axis")
+        axis = np.array([float(v) for v in (axis_el.get("xyz", "1 0 0") if axis_el is not None
+                                          else "1 0 0").split()])  # fmt: skip
+        origin = joint.find("origin")
+        if origin is None:
+            origin = ET.SubElement(joint, "origin")
+        xyz = np.array([float(v) for v in origin.get("xyz", "0 0 0").split()])
+        rpy = np.array([float(v) for v in origin.get("rpy", "0 0 0").split()])
+        rot = pin.rpy.rpyToMatrix(rpy)
+        value = values[name]
+        if kind == "prismatic":
+            xyz = xyz + rot @ (value * axis)
+        elif kind in ("revolute", "continuous"):
+            rot = rot @ pin.exp3(value * axis / np.linalg.norm(axis))
+        else:
+            raise NotImplementedError(f"{name}: cannot weld a {kind} joint")
+        origin.set("xyz", " ".join(f"{v:.12g}" for v in xyz))
+        origin.set("rpy", " ".join(f"{v:.12g}" for v in pin.rpy.matrixToRpy(rot)))
+        joint.set("type", "fixed")
+        for child in list(joint):
+            if child.tag in ("mimic", "axis", "limit", "dynamics", "safety_controller"):
+                joint.remove(child)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _root_link(urdf: str) -> str:
+    """The URDF's root link: the one no joint has as its child."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(urdf)
+    children = {c.get("link") for c in root.iter("child")}
+    (name,) = [n for link in root.iter("link") if (n := link.get("name", "")) not in children]
+    return name
+
+
 def _timed(fn: Callable[[], Any]) -> tuple[Any, float, float]:
     """``fn()``, its wall time and its CPU time in [s]."""
     wall, cpu = time.perf_counter(), time.process_time()
@@ -156,8 +224,12 @@ class DrakeScene:
 
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
-        urdf = strip_geometry(Path(robot.urdf_path).read_text(encoding="utf-8"))
+        urdf = Path(robot.urdf_path).read_text(encoding="utf-8")
+        urdf = strip_geometry(weld_locked(urdf, robot.locked_joints))
         (instance,) = Parser(plant).AddModelsFromString(urdf, "urdf")
+        root = _root_link(urdf)
+        if root != "world":  # our models have a fixed base: weld the root link at the origin
+            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root, instance))
         model = robot.model
         names: dict[Any, str] = {}
 
@@ -356,14 +428,16 @@ def drake_kinematic_solve(
 # -- the benchmark --------------------------------------------------------------------
 
 
-def _solve_ours(robot: Any, clearance: Any, n_knots: int) -> dict[str, Any]:
+def _solve_ours(
+    robot: Any, clearance: Any, n_knots: int, pair: tuple[np.ndarray, np.ndarray]
+) -> dict[str, Any]:
     from youbot_opt.trajopt.problem import BoundaryState, TrajOptProblem
     from youbot_opt.trajopt.solver import TrajOptSolver
 
     problem = TrajOptProblem(
         robot=robot,
-        start=BoundaryState(q=Q_PICK),
-        goal=BoundaryState(q=Q_PLACE),
+        start=BoundaryState(q=np.asarray(pair[0], dtype=float)),
+        goal=BoundaryState(q=np.asarray(pair[1], dtype=float)),
         n_knots=n_knots,
         clearance=clearance,
     )
@@ -417,8 +491,11 @@ def compare_solves(
     ours: dict[str, Any],
     *,
     n_knots: int,
-    n_pairs: int,
+    pairs: list[tuple[np.ndarray, np.ndarray]],
     with_refine: bool = True,
+    refine_pairs: int | None = None,
+    dense: bool = True,
+    describe: str = "notebook 08's pick and place and seeded perturbations",
 ) -> dict[str, Any]:
     """Ours (with and without the scene) and Drake's kinematic optimisation on start/goal pairs.
 
@@ -437,7 +514,6 @@ def compare_solves(
     free = TrajOptSolver(dataclasses.replace(solver.problem, clearance=None), "hermite_simpson")
     free.solve(beta=BETA)  # warm-up
     n_points = 2 * n_knots - 1  # knots and Hermite-Simpson midpoints
-    pairs = _start_goal_pairs(robot, checker, max(n_pairs, 1))
     rows: dict[str, list[dict[str, Any]]] = {
         "ours": [], "ours, refined (refine())": [], "ours, free space": [],
         "Drake kinematic, snopt": [],
@@ -445,11 +521,13 @@ def compare_solves(
     }  # fmt: skip
     if not with_refine:
         del rows["ours, refined (refine())"]
+    if not dense:
+        del rows[f"Drake kinematic, snopt, {4 * n_points} pts"]
     for i, (q0, q1) in enumerate(pairs):
         print(f"pair {i + 1}/{len(pairs)} ...", file=sys.stderr, flush=True)
         runs = [("ours", solver), ("ours, refined (refine())", None), ("ours, free space", free)]
         for name, s in runs:
-            if name not in rows:
+            if name not in rows or (s is None and refine_pairs is not None and i >= refine_pairs):
                 continue
             if s is None:  # the whole of refine(): round 0's solve, certificates, new grids
                 refined, wall, cpu = _timed(
@@ -469,6 +547,8 @@ def compare_solves(
             )  # fmt: skip
         for solver_name, n_s in (("snopt", 1), ("ipopt", 1), ("snopt", 4)):
             name = f"Drake kinematic, {solver_name}" + (f", {4 * n_points} pts" if n_s > 1 else "")
+            if name not in rows:
+                continue
             try:
                 r = drake_kinematic_solve(
                     drake, robot, q0, q1, margin=MARGIN, n_samples=n_s * n_points,
@@ -481,9 +561,17 @@ def compare_solves(
             r["T"] = r["duration_s"]
             r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
             rows[name].append(r)
+        for name, rs in rows.items():  # one line per plan: a run cut short keeps its pairs
+            if len(rs) == i + 1:
+                r = rs[-1]
+                line = {"pair": i, "solver": name, "ok": bool(r["ok"]),
+                        "certified": bool(r["cert"].certified),
+                        "closest_m": float(r["cert"].closest_distance), "wall_s": r["wall_s"],
+                        "cpu_s": r["cpu_s"], "T": r["T"], "f": r.get("f")}  # fmt: skip
+                print("plan " + json.dumps(line), flush=True)
     print(
-        f"\nSolves around the scene: {len(pairs)} start/goal pairs (notebook 08's pick and place "
-        f"and seeded perturbations, both ends >= {MARGIN} m by coal), margin {MARGIN} m, "
+        f"\nSolves around the scene: {len(pairs)} start/goal pairs ({describe}, "
+        f"both ends >= {MARGIN} m by coal), margin {MARGIN} m, "
         f"{n_points} constrained points per plan. ok: the solver's success and coal's "
         "certificate of the margin (less 1 mm) over the whole plan, the same exact checker for "
         "all; penetr. and min clearance: over the plans the solver calls a success."
@@ -506,7 +594,7 @@ def compare_solves(
         f = f"{statistics.median(r['f'] for r in rs):>7.3f}" if "f" in rs[0] else f"{'-':>7}"
         lowest = min((r["cert"].closest_distance for r in rs if r["ok"]), default=np.nan)
         base = base or wall
-        summary[name] = {"ok": ok, "solver_ok": solver_ok, "penetrations": pen,
+        summary[name] = {"n": len(rs), "ok": ok, "solver_ok": solver_ok, "penetrations": pen,
                          "median_wall_s": wall, "median_cpu_s": cpu, "median_T_s": dur,
                          "f": f.strip(), "min_clearance_m": lowest}  # fmt: skip
         print(
@@ -517,6 +605,20 @@ def compare_solves(
         "medians over the pairs; ours keeps the dynamics and torque limits; Drake's problem has "
         "no dynamics (B-spline path, minimum T + path length): a kinematic reference"
     )
+    scene_rows, free_rows = rows["ours"], rows["ours, free space"]
+    if scene_rows and free_rows:  # what the scene costs, pair by pair (medians of the ratios)
+        cost = {
+            key: statistics.median(
+                a[key] / b[key] for a, b in zip(scene_rows, free_rows, strict=True)
+            )
+            for key in ("wall_s", "T", "f")
+        }
+        summary["scene_cost"] = cost
+        print(
+            f"the scene against free space, the same pairs (medians of per-pair ratios): "
+            f"solve time {cost['wall_s']:.2f}x, motion time T {cost['T']:.2f}x, "
+            f"objective {cost['f']:.2f}x"
+        )
     return summary
 
 
@@ -525,19 +627,189 @@ def _closest(d: np.ndarray, pairs: tuple[tuple[str, str], ...]) -> tuple[str, fl
     return f"{pairs[k][0]} - {pairs[k][1]}", float(d[k])
 
 
+def _load_robot(name: str) -> Any:
+    """The robot as the scenes' pairs were made for (panda: fingers locked), else the zoo's."""
+    sys.path.insert(0, str(SCENES_DIR))
+    try:
+        from make_scenes import ROBOTS, load_robot  # type: ignore[import-not-found]
+    finally:
+        sys.path.remove(str(SCENES_DIR))
+    if name in ROBOTS:
+        return load_robot(name)
+    from youbot_opt.robot.load import load_model
+
+    return load_model(name)
+
+
+def _file_pairs(scene: Path, n: int) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """The first ``n`` pairs of ``<scene stem>_pairs.json`` beside the scene file, if any."""
+    path = scene.with_name(f"{scene.stem}_pairs.json")
+    if not path.is_file():
+        return None
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    return [(np.asarray(a, dtype=float), np.asarray(b, dtype=float)) for a, b in doc["pairs"][:n]]
+
+
+def run_cell(robot_name: str, path: Path, args: argparse.Namespace, folder: Path) -> dict[str, Any]:
+    """One robot in one scene: distances side by side with Drake, then the solves."""
+    import pinocchio as pin
+
+    from youbot_opt.collision import Clearance, clearance_checker, load_scene
+
+    robot = _load_robot(robot_name)
+    out: dict[str, Any] = {"robot": robot_name, "scene": path.name}
+    scene = load_scene(path)
+    clearance = Clearance(scene=scene, margin=MARGIN, self_collision=False)
+    checker = clearance_checker(robot, clearance)
+    pairs = _file_pairs(path, args.pairs)
+    describe = f"the seeded pairs of {path.stem}_pairs.json"
+    if pairs is None:  # notebook 08's pick and place (ur5's joints)
+        if robot_name != ROBOT:
+            raise SystemExit(f"bench_scene: no {path.stem}_pairs.json for {robot_name}")
+        pairs = _start_goal_pairs(robot, checker, max(args.pairs, 1))
+        describe = "notebook 08's pick and place and seeded perturbations"
+    sub = folder / f"{robot_name}_{path.stem}"
+    sub.mkdir(exist_ok=True)
+    drake, drake_build, _ = _timed(lambda: DrakeScene(robot, checker, sub))
+    scene_pairs = drake.pairs
+    print(
+        f"\n=== {robot_name} in {path.name}: {len(scene.obstacles)} obstacles, "
+        f"{len(scene_pairs)} robot-vs-scene pairs, {robot.model.nq} joints"
+        + (f" (locked: {dict(robot.locked_joints)})" if robot.locked_joints else "")
+        + f"; Drake diagram built in {drake_build:.2f} s",
+        flush=True,
+    )
+
+    ours = _solve_ours(robot, clearance, args.knots, pairs[0])
+    plan = ours["result"].trajectory
+    t = np.asarray(plan.t, dtype=float)
+    k = args.samples + 1
+    times = np.concatenate(
+        [np.linspace(t[i], t[i + 1], k + 1)[:-1] for i in range(len(t) - 1)] + [t[-1:]]
+    )
+    qs = np.asarray(plan(times), dtype=float)
+    frames = [
+        f.name
+        for f in robot.model.frames
+        if f.type == pin.FrameType.BODY and drake.plant.HasFrameNamed(f.name)
+    ]
+    pose_err = drake.link_pose_error(robot, frames, qs[:: max(len(qs) // 10, 1)])
+
+    coal_d = np.array([checker.distances(robot, q) for q in qs])
+    drake_d = np.array([drake.distances(q) for q in qs])
+    diff = np.abs(coal_d - drake_d)
+    worst = np.unravel_index(int(np.nanargmax(diff)), diff.shape)
+    agree = int(sum(np.argmin(a) == np.nanargmin(b) for a, b in zip(coal_d, drake_d, strict=True)))
+    i_min = int(np.argmin(coal_d.min(axis=1)))
+    ours_pair, ours_min = _closest(coal_d[i_min], scene_pairs)
+    j_min = int(np.nanargmin(np.nanmin(drake_d, axis=1)))
+    drake_pair, drake_min = _closest(drake_d[j_min], scene_pairs)
+
+    cpu_ours, cpu_drake, wall_ours, wall_drake = [], [], [], []
+    for _ in range(args.repeats):  # alternating passes, same machine state
+        _, w, c = _timed(lambda: [checker.distances(robot, q) for q in qs])
+        wall_ours.append(w / len(qs))
+        cpu_ours.append(c / len(qs))
+        _, w, c = _timed(lambda: [drake.distances(q) for q in qs])
+        wall_drake.append(w / len(qs))
+        cpu_drake.append(c / len(qs))
+    per_ours, per_drake = statistics.median(wall_ours), statistics.median(wall_drake)
+    out["distances"] = {
+        "configurations": len(qs),
+        "pairs": len(scene_pairs),
+        "max_abs_diff_m": float(np.nanmax(diff)),
+        "worst_pair": " - ".join(scene_pairs[worst[1]]),
+        "frame_position_error_m": pose_err,
+        "same_closest_pair": agree,
+        "ours_closest": [ours_pair, ours_min, float(times[i_min])],
+        "drake_closest": [drake_pair, drake_min, float(times[j_min])],
+        "ours_s_per_config": per_ours,
+        "drake_s_per_config": per_drake,
+        "ours_cpu_per_config": statistics.median(cpu_ours),
+        "drake_cpu_per_config": statistics.median(cpu_drake),
+    }
+    print(
+        f"\nDistances at {len(qs)} configurations ({len(t)} knots of our plan of the first pair "
+        f"and {args.samples} samples between each two), {len(scene_pairs)} pairs each; "
+        f"{len(frames)} frames agree to {pose_err:.1e} m"
+    )
+    print(f"{'':<32} {'ours (coal)':>24} {'Drake (SceneGraph)':>24}")
+    worst_pair = out["distances"]["worst_pair"]
+    print(f"{'max |ours - Drake| [m]':<32} {np.nanmax(diff):>49.2e}   ({worst_pair})")
+    print(f"{'closest pair':<32} {ours_pair:>24} {drake_pair:>24}")
+    print(f"{'  its distance [m]':<32} {ours_min:>24.5f} {drake_min:>24.5f}")
+    print(f"{'same closest pair per config':<32} {agree:>49d} / {len(qs)}")
+    print(
+        f"{'time per configuration [us]':<32} {1e6 * per_ours:>24.1f} {1e6 * per_drake:>24.1f}"
+        f"   (Drake / ours {per_drake / per_ours:.2f}x, wall, median of {args.repeats})"
+    )
+    print(
+        f"{'  CPU per configuration [us]':<32} {1e6 * statistics.median(cpu_ours):>24.1f} "
+        f"{1e6 * statistics.median(cpu_drake):>24.1f}",
+        flush=True,
+    )
+    if not args.no_solve:
+        out["solves"] = compare_solves(
+            robot, checker, clearance, drake, ours, n_knots=args.knots, pairs=pairs,
+            with_refine=not args.no_refine, refine_pairs=args.refine_pairs,
+            dense=not args.no_dense, describe=describe,
+        )  # fmt: skip
+    return out
+
+
+def print_summary(cells: list[dict[str, Any]]) -> None:
+    """One table over the cells: per cell and solver, success, penetrations, median times."""
+    print(
+        "\n=== Summary: ok = the solver's success and coal's certificate of the margin over the "
+        "whole plan; penetr. = solver-successful plans with a coal distance < 0 between knots; "
+        "times: medians over the pairs"
+    )
+    print(
+        f"{'cell':<26} {'solver':<34} {'ok':>7} {'penetr.':>7} {'wall [s]':>9} {'CPU [s]':>8} "
+        f"{'T [s]':>6}"
+    )
+    for cell in cells:
+        solves = cell.get("solves", {})
+        name = f"{cell['robot']} {Path(cell['scene']).stem.split('_', 1)[-1]}"
+        for solver, row in solves.items():
+            if not isinstance(row, dict) or "ok" not in row:
+                continue
+            print(
+                f"{name:<26} {solver:<34} {row['ok']:>3}/{row['n']:<3} {row['penetrations']:>7} "
+                f"{row['median_wall_s']:>9.3f} {row['median_cpu_s']:>8.3f} "
+                f"{row['median_T_s']:>6.3f}"
+            )
+        if "scene_cost" in solves:
+            cost = solves["scene_cost"]
+            print(
+                f"{name:<26} {'scene / free space (ours, per pair)':<34} "
+                f"time {cost['wall_s']:.2f}x, T {cost['T']:.2f}x, objective {cost['f']:.2f}x"
+            )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10 knots, 2 pairs, no refine")
     parser.add_argument("--scene", type=Path, help="scene file (default: notebook 08's cell)")
-    parser.add_argument("--robot", default=ROBOT)
+    parser.add_argument("--robot", default=ROBOT, help="ur5 or panda (fingers locked), ...")
+    parser.add_argument(
+        "--all", action="store_true", help="{ur5, panda} x {pillar, shelf} of benchmarks/scenes"
+    )
+    parser.add_argument("--robots", default="ur5,panda", help="--all's robots")
     parser.add_argument("--knots", type=int, default=16)
     parser.add_argument("--samples", type=int, default=4, help="samples between two knots")
     parser.add_argument("--repeats", type=int, default=5, help="timing passes")
-    parser.add_argument("--pairs", type=int, default=10, help="start/goal pairs to solve")
+    parser.add_argument("--pairs", type=int, default=None, help="start/goal pairs (10; --all 20)")
     parser.add_argument("--no-solve", action="store_true", help="skip the solve comparison")
     parser.add_argument("--no-refine", action="store_true", help="skip refine() (slow)")
+    parser.add_argument(
+        "--refine-pairs", type=int, default=None, help="refine() on the first N pairs only"
+    )
+    parser.add_argument("--no-dense", action="store_true", help="skip Drake SNOPT at 4x samples")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    if args.pairs is None:
+        args.pairs = 20 if args.all else 10
     if args.quick:
         args.knots, args.samples, args.repeats, args.pairs = 10, 1, 2, 2
         args.no_refine = True
@@ -547,100 +819,23 @@ def main() -> int:
         print(f"bench_scene: pydrake is not installed ({exc}): {DRAKE_HINT}", file=sys.stderr)
         return 2
 
-    from youbot_opt.collision import Clearance, clearance_checker, load_scene
-    from youbot_opt.robot.load import load_model
-
-    robot = load_model(args.robot)
-    out: dict[str, Any] = {"robot": args.robot}
+    cells: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        path = args.scene
-        if path is None:
-            path = folder / "cell.json"
-            path.write_text(json.dumps(CELL), encoding="utf-8")
-        scene = load_scene(path)
-        clearance = Clearance(scene=scene, margin=MARGIN, self_collision=False)
-        checker = clearance_checker(robot, clearance)
-        drake, drake_build, _ = _timed(lambda: DrakeScene(robot, checker, folder))
-        pairs = drake.pairs
-        print(
-            f"{args.robot} in {path.name}: {len(scene.obstacles)} obstacles, {len(pairs)} "
-            f"robot-vs-scene pairs; Drake diagram built in {drake_build:.2f} s"
-        )
-
-        ours = _solve_ours(robot, clearance, args.knots)
-        plan = ours["result"].trajectory
-        t = np.asarray(plan.t, dtype=float)
-        k = args.samples + 1
-        times = np.concatenate(
-            [np.linspace(t[i], t[i + 1], k + 1)[:-1] for i in range(len(t) - 1)] + [t[-1:]]
-        )
-        qs = np.asarray(plan(times), dtype=float)
-        frames = ["tool0", "wrist_2_link", "forearm_link"]
-        pose_err = drake.link_pose_error(robot, frames, qs[:: max(len(qs) // 10, 1)])
-
-        coal_d = np.array([checker.distances(robot, q) for q in qs])
-        drake_d = np.array([drake.distances(q) for q in qs])
-        diff = np.abs(coal_d - drake_d)
-        worst = np.unravel_index(int(np.nanargmax(diff)), diff.shape)
-        agree = int(
-            sum(np.argmin(a) == np.nanargmin(b) for a, b in zip(coal_d, drake_d, strict=True))
-        )
-        i_min = int(np.argmin(coal_d.min(axis=1)))
-        ours_pair, ours_min = _closest(coal_d[i_min], pairs)
-        j_min = int(np.nanargmin(np.nanmin(drake_d, axis=1)))
-        drake_pair, drake_min = _closest(drake_d[j_min], pairs)
-
-        cpu_ours, cpu_drake, wall_ours, wall_drake = [], [], [], []
-        for _ in range(args.repeats):  # alternating passes, same machine state
-            _, w, c = _timed(lambda: [checker.distances(robot, q) for q in qs])
-            wall_ours.append(w / len(qs))
-            cpu_ours.append(c / len(qs))
-            _, w, c = _timed(lambda: [drake.distances(q) for q in qs])
-            wall_drake.append(w / len(qs))
-            cpu_drake.append(c / len(qs))
-        per_ours, per_drake = statistics.median(wall_ours), statistics.median(wall_drake)
-        out["distances"] = {
-            "configurations": len(qs),
-            "pairs": len(pairs),
-            "max_abs_diff_m": float(np.nanmax(diff)),
-            "worst_pair": " - ".join(pairs[worst[1]]),
-            "frame_position_error_m": pose_err,
-            "same_closest_pair": agree,
-            "ours_closest": [ours_pair, ours_min, float(times[i_min])],
-            "drake_closest": [drake_pair, drake_min, float(times[j_min])],
-            "ours_s_per_config": per_ours,
-            "drake_s_per_config": per_drake,
-            "ours_cpu_per_config": statistics.median(cpu_ours),
-            "drake_cpu_per_config": statistics.median(cpu_drake),
-        }
-        print(
-            f"\nDistances at {len(qs)} configurations ({len(t)} knots of our plan and "
-            f"{args.samples} samples between each two), {len(pairs)} pairs each; "
-            f"frames agree to {pose_err:.1e} m"
-        )
-        print(f"{'':<32} {'ours (coal)':>24} {'Drake (SceneGraph)':>24}")
-        worst_pair = out["distances"]["worst_pair"]
-        print(f"{'max |ours - Drake| [m]':<32} {np.nanmax(diff):>49.2e}   ({worst_pair})")
-        print(f"{'closest pair':<32} {ours_pair:>24} {drake_pair:>24}")
-        print(f"{'  its distance [m]':<32} {ours_min:>24.5f} {drake_min:>24.5f}")
-        print(f"{'same closest pair per config':<32} {agree:>49d} / {len(qs)}")
-        print(
-            f"{'time per configuration [us]':<32} {1e6 * per_ours:>24.1f} {1e6 * per_drake:>24.1f}"
-            f"   (Drake / ours {per_drake / per_ours:.2f}x, wall, median of {args.repeats})"
-        )
-        print(
-            f"{'  CPU per configuration [us]':<32} {1e6 * statistics.median(cpu_ours):>24.1f} "
-            f"{1e6 * statistics.median(cpu_drake):>24.1f}"
-        )
-
-        if not args.no_solve:
-            out["solves"] = compare_solves(
-                robot, checker, clearance, drake, ours, n_knots=args.knots, n_pairs=args.pairs,
-                with_refine=not args.no_refine,
-            )  # fmt: skip
+        if args.all:
+            for robot_name in args.robots.split(","):
+                for scene in SCENES:
+                    path = SCENES_DIR / f"{robot_name}_{scene}.json"
+                    cells.append(run_cell(robot_name, path, args, folder))
+            print_summary(cells)
+        else:
+            path = args.scene
+            if path is None:
+                path = folder / "cell.json"
+                path.write_text(json.dumps(CELL), encoding="utf-8")
+            cells.append(run_cell(args.robot, path, args, folder))
     if args.json:
-        print(json.dumps(out, default=float))
+        print(json.dumps(cells if args.all else cells[0], default=float))
     return 0
 
 
