@@ -5,10 +5,9 @@ every sweep runs), :mod:`.pool` (the crash-isolating worker pool and
 ``run_tasks``), :mod:`.tasks` (tasks, outcomes, retry queues), :mod:`.distributed`
 and :mod:`.scheduler` (Dask), :mod:`.store` (the resumable on-disk store),
 :mod:`.records` and :mod:`.journal` (its item files and summary journal),
-:mod:`.resume` (the item loop over the store), :mod:`.worker_solver` (a built
-solver, cached once per worker), :mod:`.optima` (a sweep's distinct local optima) and
-:mod:`.multistart` (one multistart result, local optimum and tally, generic over the start).
-The trajectory and IK-path sweeps supply only their tasks and payloads.
+:mod:`.resume` (the item loop over the store), :mod:`.worker_solver` (a built solver
+per worker), :mod:`.optima` (distinct local optima), :mod:`.multistart` (one multistart
+result, local optimum and tally). Trajectory and IK-path sweeps supply tasks and payloads.
 
     from youbot_opt.sweeps.options import SweepOptions
 """
