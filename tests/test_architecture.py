@@ -456,26 +456,11 @@ def _any_aliases(path: Path) -> list[str]:
     return found
 
 
-#: Modules whose ``Expr = Any`` alias still stands (#26): their expressions mix CasADi SX, MX,
-#: DM, NumPy arrays and 0/None placeholders, and casadi's stubs refuse an ``SX | MX`` union in
-#: arithmetic; typing them (TypeVars over SX/MX) is open work. An entry goes with its alias.
-ANY_ALIAS_EXEMPT: tuple[str, ...] = (
-    "youbot_opt.collision.distance",
-    "youbot_opt.collision.model",
-    "youbot_opt.dynamics.spatial_algebra",
-    "youbot_opt.dynamics.symbolic",
-)
-
-
 def test_no_alias_of_any():
     """No module names ``Any`` under another name: such an alias passes the ``Any`` rule unseen."""
-    found = {
-        module: [f"{module}.{name} = Any" for name in _any_aliases(path)]
-        for module, path in MODULES.items()
-    }
-    stale = [m for m in ANY_ALIAS_EXEMPT if not found.get(m)]
-    assert not stale, "exempted but without an alias of Any (drop them): " + ", ".join(stale)
-    bad = [hit for module, hits in found.items() if module not in ANY_ALIAS_EXEMPT for hit in hits]
+    bad = [
+        f"{module}.{name} = Any" for module, path in MODULES.items() for name in _any_aliases(path)
+    ]
     assert not bad, "\n".join(bad)
 
 
