@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = ["SymbolicModel", "build_symbolic_model", "FUNCTION_OPTIONS"]
 
-FUNCTION_OPTIONS: dict[str, Any] = {"cse": True}
+FUNCTION_OPTIONS: dict[str, bool] = {"cse": True}
 """Options for every Function built here (common-subexpression elimination)."""
 
 #: An expression of this module: SX, or a DM constant not yet combined with one (the
