@@ -12,7 +12,7 @@ below it. Distances to a box or a cylinder are C1 outside the solid.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypeVar
 
 import casadi as ca
 import numpy as np
@@ -30,17 +30,19 @@ __all__ = [
     "soft_min",
 ]
 
-Expr = Any
+#: A CasADi expression: the result has the argument's type (DM listed first: DM in, DM out);
+#: a DM point may join an SX or MX one, as CasADi's own operators allow.
+_E = TypeVar("_E", ca.DM, ca.SX, ca.MX)
 #: Smoothing length of the norm in [m] (distances are at most this much low).
 NORM_EPS = 1e-6
 
 
-def smooth_norm(x: Expr) -> Expr:
+def smooth_norm(x: _E) -> _E:
     """Return ``sqrt(|x|^2 + eps^2) - eps`` [m]: smooth, in ``[|x| - eps, |x|]``."""
     return ca.sqrt(ca.sumsqr(x) + NORM_EPS**2) - NORM_EPS
 
 
-def soft_min(values: Expr, tau: float) -> Expr:
+def soft_min(values: _E, tau: float) -> _E:
     """Return ``-tau log sum exp(-v / tau)``: in ``[min v - tau log n, min v]``.
 
     Parameters
@@ -59,17 +61,17 @@ def soft_min(values: Expr, tau: float) -> Expr:
     return low - tau * ca.log(ca.sum1(ca.exp(-(values - low) / tau)))
 
 
-def point_point_distance(x: Expr, center: Expr) -> Expr:
+def point_point_distance(x: _E, center: _E | ca.DM) -> _E:
     """Distance [m] between two points (smoothed norm)."""
     return smooth_norm(x - center)
 
 
-def point_halfspace_distance(x: Expr) -> Expr:
+def point_halfspace_distance(x: _E) -> _E:
     """Signed distance [m] of a point (in the half-space's frame) to ``z <= 0``."""
     return x[2]
 
 
-def _outside_inside(q: Expr) -> Expr:
+def _outside_inside(q: _E) -> _E:
     """``|max(q, 0)| + min(max_i q_i, 0)``: the signed distance of a box-like gap ``q``."""
     n = q.shape[0]
     outside = smooth_norm(ca.fmax(q, 0))
@@ -79,18 +81,18 @@ def _outside_inside(q: Expr) -> Expr:
     return outside + ca.fmin(inside, 0)
 
 
-def point_box_distance(x: Expr, half: Array) -> Expr:
+def point_box_distance(x: _E, half: Array) -> _E:
     """Signed distance [m] of a point (in the box's frame) to a box of half sizes ``half`` [m]."""
     return _outside_inside(ca.fabs(x) - ca.DM(np.asarray(half, dtype=float)))
 
 
-def point_cylinder_distance(x: Expr, radius: float, half_length: float) -> Expr:
+def point_cylinder_distance(x: _E, radius: float, half_length: float) -> _E:
     """Signed distance [m] of a point (in the cylinder's frame) to a cylinder about z."""
     rho = smooth_norm(x[0:2])
     return _outside_inside(ca.vertcat(rho - radius, ca.fabs(x[2]) - half_length))
 
 
-def point_capsule_distance(x: Expr, radius: float, half_length: float) -> Expr:
+def point_capsule_distance(x: _E, radius: float, half_length: float) -> _E:
     """Signed distance [m] of a point (in the capsule's frame) to a capsule about z."""
     z = ca.fmin(ca.fmax(x[2], -half_length), half_length)
     return smooth_norm(x - ca.vertcat(0, 0, z)) - radius

@@ -12,8 +12,8 @@ distance is at most coal's (:mod:`.exact`) and within its ``tolerance`` of it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -40,7 +40,6 @@ __all__ = [
 
 #: Smoothing length of the soft minimum over ball pairs, in [m].
 DEFAULT_TAU = 1e-3
-Expr = Any
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -186,17 +185,17 @@ class CollisionModel:
         rotations = ca.SX.sym("rotations", 3, 3 * n)
         translations = ca.SX.sym("translations", 3, n)
 
-        def placement(joint: int) -> tuple[Expr, Expr]:
+        def placement(joint: int) -> tuple[ca.SX, ca.SX]:
             if joint == 0:
                 return ca.SX.eye(3), ca.SX.zeros(3)
             return rotations[:, 3 * (joint - 1) : 3 * joint], translations[:, joint - 1]
 
-        def world_balls(link: LinkBalls) -> list[Expr]:
+        def world_balls(link: LinkBalls) -> list[ca.SX]:
             rot, pos = placement(link.joint)
             return [rot @ ca.DM(c) + pos for c in link.centers]
 
         centres = [world_balls(link) for link in self.links]
-        out: list[Expr] = []
+        out: list[ca.SX] = []
         for a, b in self.self_pairs:
             la, lb = self.links[a], self.links[b]
             values = [
@@ -254,13 +253,19 @@ class CollisionModel:
         d = self.distance_function()(rotations, translations)
         return ca.Function("collision_distances_q", [q], [d], ["q"], ["distance"], {"cse": True})
 
-    def _link_obstacle(self, centres: list[Expr], radii: Array, index: int, placement: Any) -> Expr:
+    def _link_obstacle(
+        self,
+        centres: list[ca.SX],
+        radii: Array,
+        index: int,
+        placement: Callable[[int], tuple[ca.SX, ca.SX]],
+    ) -> ca.SX:
         placed = self.obstacles[index]
         rot_j, pos_j = placement(placed.joint)
         rot = rot_j @ ca.DM(placed.rotation)
         pos = rot_j @ ca.DM(placed.translation) + pos_j
         shape = placed.obstacle.shape
-        values = []
+        values: list[ca.SX] = []
         for c, r in zip(centres, radii, strict=True):
             local = rot.T @ (c - pos)
             if placed.balls is not None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib.util
 import logging
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -62,7 +62,7 @@ _Q = "joint positions in [rad] or [m]"
 _V = "joint velocities in [rad/s] or [m/s]"
 
 
-def _vector(name: str, value: Any, size: int, meaning: str) -> Array:
+def _vector(name: str, value: ArrayLike, size: int, meaning: str) -> Array:
     """Return ``value`` as a finite float array of shape (size,), else raise ParameterError.
 
     A column ``(size, 1)`` or row ``(1, size)`` is accepted and flattened. The
@@ -186,7 +186,7 @@ class Dynamics:
         return np.asarray(self.inverse_dynamics(*args), dtype=float).reshape(-1)
 
 
-def _symbolic(model: Any, damping: Array) -> Dynamics:
+def _symbolic(model: pin.Model, damping: Array) -> Dynamics:
     from youbot_opt.dynamics.symbolic import FUNCTION_OPTIONS, build_symbolic_model
 
     sym = build_symbolic_model(model)
@@ -218,7 +218,7 @@ def _symbolic(model: Any, damping: Array) -> Dynamics:
     )
 
 
-def _pinocchio(model: Any, damping: Array) -> Dynamics:
+def _pinocchio(model: pin.Model, damping: Array) -> Dynamics:
     from youbot_opt.dynamics.callback import build_callbacks
 
     pin_model = as_pin_model(model)
@@ -234,7 +234,7 @@ def _pinocchio(model: Any, damping: Array) -> Dynamics:
     )
 
 
-def _pinocchio_casadi(model: Any, damping: Array) -> Dynamics:
+def _pinocchio_casadi(model: pin.Model, damping: Array) -> Dynamics:
     if not _has_pinocchio_casadi():
         raise ParameterError(
             "backend 'pinocchio_casadi' is unavailable: the PyPI 'pin' wheel is built without "

@@ -11,7 +11,7 @@ Reference: Featherstone, *Rigid Body Dynamics Algorithms* (2008), ch. 2.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypeVar
 
 import casadi as ca
 import numpy as np
@@ -32,11 +32,12 @@ __all__ = [
     "rotation_about_axis",
 ]
 
-Expr = Any
-"""A CasADi expression (``SX``, ``MX`` or ``DM``)."""
+#: A CasADi expression: the result has the arguments' type; a DM argument (a constant) may
+#: join SX or MX ones, as CasADi's own operators allow (DM listed first: all-DM gives DM).
+_E = TypeVar("_E", ca.DM, ca.SX, ca.MX)
 
 
-def skew(x: Expr) -> Expr:
+def skew(x: _E) -> _E:
     """Return the (3, 3) cross-product matrix ``[x]`` with ``[x] y = x × y``.
 
     Parameters
@@ -52,7 +53,9 @@ def skew(x: Expr) -> Expr:
     return ca.skew(x)
 
 
-def compose(rot_a: Expr, pos_a: Expr, rot_b: Expr, pos_b: Expr) -> tuple[Expr, Expr]:
+def compose(
+    rot_a: _E | ca.DM, pos_a: _E | ca.DM, rot_b: _E | ca.DM, pos_b: _E | ca.DM
+) -> tuple[_E | ca.DM, _E | ca.DM]:
     """Compose two transforms: ``(a * b)`` maps frame c -> frame a if b: c -> b, a: b -> a.
 
     Parameters
@@ -65,12 +68,13 @@ def compose(rot_a: Expr, pos_a: Expr, rot_b: Expr, pos_b: Expr) -> tuple[Expr, E
     Returns
     -------
     tuple of casadi expressions
-        Rotation (3, 3) and translation (3, 1) in [m] of ``a * b``.
+        Rotation (3, 3) and translation (3, 1) in [m] of ``a * b``; each one DM if
+        its own inputs are (the rotation of two DM rotations is DM).
     """
     return ca.mtimes(rot_a, rot_b), pos_a + ca.mtimes(rot_a, pos_b)
 
 
-def act_motion(rot: Expr, pos: Expr, motion: Expr) -> Expr:
+def act_motion(rot: _E | ca.DM, pos: _E | ca.DM, motion: _E | ca.DM) -> _E:
     """Map a motion vector from the child frame to the parent frame.
 
     Parameters
@@ -90,7 +94,7 @@ def act_motion(rot: Expr, pos: Expr, motion: Expr) -> Expr:
     return ca.vertcat(v, w)
 
 
-def act_inv_motion(rot: Expr, pos: Expr, motion: Expr) -> Expr:
+def act_inv_motion(rot: _E | ca.DM, pos: _E | ca.DM, motion: _E | ca.DM) -> _E:
     """Map a motion vector from the parent frame to the child frame.
 
     Parameters
@@ -110,7 +114,7 @@ def act_inv_motion(rot: Expr, pos: Expr, motion: Expr) -> Expr:
     return ca.vertcat(ca.mtimes(rot.T, v), ca.mtimes(rot.T, w))
 
 
-def act_force(rot: Expr, pos: Expr, force: Expr) -> Expr:
+def act_force(rot: _E | ca.DM, pos: _E | ca.DM, force: _E | ca.DM) -> _E:
     """Map a force vector from the child frame to the parent frame.
 
     Parameters
@@ -130,7 +134,7 @@ def act_force(rot: Expr, pos: Expr, force: Expr) -> Expr:
     return ca.vertcat(f, n)
 
 
-def act_inv_force(rot: Expr, pos: Expr, force: Expr) -> Expr:
+def act_inv_force(rot: _E | ca.DM, pos: _E | ca.DM, force: _E | ca.DM) -> _E:
     """Map a force vector from the parent frame to the child frame.
 
     Parameters
@@ -150,7 +154,7 @@ def act_inv_force(rot: Expr, pos: Expr, force: Expr) -> Expr:
     return ca.vertcat(ca.mtimes(rot.T, f), ca.mtimes(rot.T, n))
 
 
-def cross_motion(motion: Expr, other: Expr) -> Expr:
+def cross_motion(motion: _E | ca.DM, other: _E | ca.DM) -> _E:
     """Spatial cross product of two motions, ``motion × other``.
 
     Parameters
@@ -168,7 +172,7 @@ def cross_motion(motion: Expr, other: Expr) -> Expr:
     return ca.vertcat(ca.cross(w, v2) + ca.cross(v, w2), ca.cross(w, w2))
 
 
-def cross_force(motion: Expr, force: Expr) -> Expr:
+def cross_force(motion: _E | ca.DM, force: _E | ca.DM) -> _E:
     """Spatial cross product of a motion with a force, ``motion ×* force``.
 
     Parameters
@@ -215,7 +219,7 @@ def inertia_matrix(mass: float, lever: Array, rotational: Array) -> Array:
     return out
 
 
-def _force_action_matrix(rot: Expr, pos: Expr) -> Expr:
+def _force_action_matrix(rot: _E | ca.DM, pos: _E | ca.DM) -> _E:
     """Return the (6, 6) matrix of :func:`act_force` for the transform ``(rot, pos)``."""
     zero = ca.DM.zeros(3, 3)
     return ca.vertcat(
@@ -224,7 +228,7 @@ def _force_action_matrix(rot: Expr, pos: Expr) -> Expr:
     )
 
 
-def act_inertia(rot: Expr, pos: Expr, inertia: Expr) -> Expr:
+def act_inertia(rot: _E | ca.DM, pos: _E | ca.DM, inertia: _E | ca.DM) -> _E:
     """Express a (6, 6) spatial inertia of the child frame in the parent frame.
 
     Parameters
@@ -243,7 +247,7 @@ def act_inertia(rot: Expr, pos: Expr, inertia: Expr) -> Expr:
     return ca.mtimes(ca.mtimes(xf, inertia), xf.T)
 
 
-def rotation_about_axis(axis: Array, angle: Expr) -> Expr:
+def rotation_about_axis(axis: Array, angle: _E) -> _E:
     """Rotation matrix for ``angle`` [rad] about a unit ``axis`` (Rodrigues).
 
     Exact closed forms are used for the coordinate axes (Pinocchio's RX/RY/RZ);

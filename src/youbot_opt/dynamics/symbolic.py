@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -31,11 +31,13 @@ if TYPE_CHECKING:
 
 __all__ = ["SymbolicModel", "build_symbolic_model", "FUNCTION_OPTIONS"]
 
-FUNCTION_OPTIONS: dict[str, Any] = {"cse": True}
+FUNCTION_OPTIONS: dict[str, bool] = {"cse": True}
 """Options for every Function built here (common-subexpression elimination)."""
 
-Expr = Any
-_Placement = tuple[Expr, Expr]
+#: An expression of this module: SX, or a DM constant not yet combined with one (the
+#: Functions are built on ``SX`` symbols; CasADi's operators take the two together).
+_Sym = ca.SX | ca.DM
+_Placement = tuple[_Sym, _Sym]
 
 
 def _subspace(joint: JointSpec) -> Array:
@@ -48,16 +50,16 @@ def _subspace(joint: JointSpec) -> Array:
     return s
 
 
-def _dot(s: Array, vec: Expr) -> Expr:
+def _dot(s: Array, vec: _Sym) -> _Sym | float:
     """``sᵀ vec`` for a constant (6,) vector, skipping its zero entries."""
-    out: Expr = 0
+    out: _Sym | float = 0
     for k in range(6):
         if s[k] != 0.0:
             out = out + float(s[k]) * vec[k]
     return out
 
 
-def _joint_placements(tree: TreeSpec, q: Expr) -> list[_Placement]:
+def _joint_placements(tree: TreeSpec, q: ca.SX) -> list[_Placement]:
     """Placement ``liMi(q)`` of each joint frame in its parent joint frame."""
     out: list[_Placement] = []
     for joint in tree.joints:
@@ -81,7 +83,7 @@ def _world_placements(tree: TreeSpec, local: list[_Placement]) -> list[_Placemen
     return world
 
 
-def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
+def _rnea(tree: TreeSpec, q: ca.SX, v: ca.SX, a: ca.SX) -> ca.SX:
     """Joint torques ``M a + C v + g`` (plus armature ``a``) by recursive Newton-Euler.
 
     Gravity always enters, as in Pinocchio, through the fictitious root
@@ -91,9 +93,9 @@ def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
     local = _joint_placements(tree, q)
     n = len(tree.joints)
     root_acc = ca.DM(-tree.gravity)
-    vel: list[Expr] = []
-    acc: list[Expr] = []
-    forces: list[Expr] = []
+    vel: list[_Sym] = []
+    acc: list[_Sym] = []
+    forces: list[_Sym] = []
     for i, joint in enumerate(tree.joints):
         s = ca.DM(_subspace(joint))
         vj = s * v[joint.index_v]
@@ -109,7 +111,7 @@ def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
         vel.append(vi)
         acc.append(ai)
         forces.append(fi)
-    tau: list[Expr] = [0] * tree.nv
+    tau: list[_Sym | float] = [0] * tree.nv
     for i in range(n - 1, -1, -1):
         joint = tree.joints[i]
         tau[joint.index_v] = _dot(_subspace(joint), forces[i]) + joint.armature * a[joint.index_v]
@@ -120,10 +122,10 @@ def _rnea(tree: TreeSpec, q: Expr, v: Expr, a: Expr) -> Expr:
     return ca.vertcat(*tau)
 
 
-def _crba(tree: TreeSpec, q: Expr) -> Expr:
+def _crba(tree: TreeSpec, q: ca.SX) -> ca.SX:
     """Joint-space inertia matrix M(q) (armature on the diagonal) by the CRBA."""
     local = _joint_placements(tree, q)
-    composite: list[Expr] = [ca.DM(joint.inertia) for joint in tree.joints]
+    composite: list[_Sym] = [ca.DM(joint.inertia) for joint in tree.joints]
     for i in range(len(tree.joints) - 1, -1, -1):
         parent = tree.joints[i].parent
         if parent > 0:
@@ -146,14 +148,14 @@ def _crba(tree: TreeSpec, q: Expr) -> Expr:
     return mass
 
 
-def _aba(tree: TreeSpec, q: Expr, v: Expr, tau: Expr) -> Expr:
+def _aba(tree: TreeSpec, q: ca.SX, v: ca.SX, tau: ca.SX) -> ca.SX:
     """Joint accelerations by Featherstone's articulated-body algorithm."""
     local = _joint_placements(tree, q)
     n = len(tree.joints)
-    vel: list[Expr] = []
-    bias_acc: list[Expr] = []
-    art_inertia: list[Expr] = []
-    bias_force: list[Expr] = []
+    vel: list[_Sym] = []
+    bias_acc: list[_Sym] = []
+    art_inertia: list[_Sym] = []
+    bias_force: list[_Sym] = []
     for i, joint in enumerate(tree.joints):
         vj = ca.DM(_subspace(joint)) * v[joint.index_v]
         if joint.parent == 0:
@@ -165,9 +167,9 @@ def _aba(tree: TreeSpec, q: Expr, v: Expr, tau: Expr) -> Expr:
         bias_acc.append(spatial_algebra.cross_motion(vi, vj))
         art_inertia.append(inertia)
         bias_force.append(spatial_algebra.cross_force(vi, ca.mtimes(inertia, vi)))
-    u_vec: list[Expr] = [None] * n
-    d_inv: list[Expr] = [None] * n
-    u_tau: list[Expr] = [None] * n
+    u_vec: dict[int, _Sym] = {}
+    d_inv: dict[int, _Sym | float] = {}
+    u_tau: dict[int, _Sym | float] = {}
     for i in range(n - 1, -1, -1):
         joint = tree.joints[i]
         s = ca.DM(_subspace(joint))
@@ -183,8 +185,8 @@ def _aba(tree: TreeSpec, q: Expr, v: Expr, tau: Expr) -> Expr:
             art_inertia[p] = art_inertia[p] + spatial_algebra.act_inertia(*local[i], reduced)
             bias_force[p] = bias_force[p] + spatial_algebra.act_force(*local[i], force)
     root_acc = ca.DM(-tree.gravity)
-    acc: list[Expr] = [None] * n
-    qdd: list[Expr] = [0] * tree.nv
+    acc: dict[int, _Sym] = {}
+    qdd: list[_Sym | float] = [0] * tree.nv
     for i, joint in enumerate(tree.joints):
         parent_acc = root_acc if joint.parent == 0 else acc[joint.parent - 1]
         ai = spatial_algebra.act_inv_motion(*local[i], parent_acc) + bias_acc[i]
@@ -195,7 +197,7 @@ def _aba(tree: TreeSpec, q: Expr, v: Expr, tau: Expr) -> Expr:
 
 
 def _function(
-    name: str, inputs: list[Expr], outputs: list[Expr], in_names: list[str], out_names: list[str]
+    name: str, inputs: list[_Sym], outputs: list[_Sym], in_names: list[str], out_names: list[str]
 ) -> ca.Function:
     return ca.Function(name, inputs, outputs, in_names, out_names, FUNCTION_OPTIONS)
 
@@ -277,6 +279,8 @@ class SymbolicModel:
         frame = frames[frame_name]
         q = ca.SX.sym("q", self.nq)
         rot0, pos0 = ca.DM(frame.rotation), ca.DM(frame.translation)
+        rot: _Sym
+        pos: _Sym
         if frame.parent_joint == 0:
             rot, pos = ca.SX(rot0), ca.SX(pos0)
         else:
