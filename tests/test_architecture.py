@@ -351,10 +351,9 @@ ANY_EXEMPT: dict[str, str] = {}
 #: Module-level type aliases (``module.Name``) that still hold Any, each with its cause: a
 #: public signature may name them. An entry goes when its cause does (a stale one fails).
 ANY_ALIAS_EXEMPT: dict[str, str] = {
-    "youbot_opt.sweeps.resume.Describe": "generic Protocol pending (slice multistart)",
     "youbot_opt.ikpath.sweep._Outcome": (
         "StartSummary[Any] in the progress callbacks of solve_starts/stream_starts: the"
-        " summaries' result type is being reworked (slice multistart: ikpath/stored.py)"
+        " stream is generic over its result type (ResultT), the callbacks are not yet"
     ),
 }
 
