@@ -18,6 +18,7 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple, TypedDict
 
@@ -657,19 +658,8 @@ def _final_phase(
                 return _FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
             mu *= opts.penalty_growth
         slope = slope_e + mu * slope_c
-        alpha = min(1.0, _NEWTON_MAX_STEP / max(float(np.max(np.abs(p))), 1e-300))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            to_lo = np.where(p < 0.0, (lower - x) / p, np.inf)
-            to_hi = np.where(p > 0.0, (upper - x) / p, np.inf)
-        alpha = min(alpha, float(np.min(np.minimum(to_lo, to_hi))))
-        phi0 = merit(x, lam_new)
-        noise = 1e-13 * (1.0 + abs(phi0))
-        for _ in range(_MERIT_BACKTRACKS):
-            x_new = np.clip(x + alpha * p, lower, upper)
-            if merit(x_new, lam_new) <= phi0 + 1e-4 * alpha * slope + noise:
-                break
-            alpha *= 0.5
-        else:
+        x_new = _merit_backtrack(x, p, lower, upper, slope, merit, lam_new)
+        if x_new is None:
             message = (
                 f"no decrease of the merit function in the final phase with |c| = "
                 f"{violation:.2e} m{_licq_note(ev, lam, mu)}"
@@ -783,19 +773,8 @@ def _final_phase_cleared(
                 return ended(SolveStatus.STALLED, "merit penalty limit in the final phase", steps)
             mu *= opts.penalty_growth
         slope = slope_e + mu * slope_c
-        alpha = min(1.0, _NEWTON_MAX_STEP / max(float(np.max(np.abs(p))), 1e-300))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            to_lo = np.where(p < 0.0, (lower - x) / p, np.inf)
-            to_hi = np.where(p > 0.0, (upper - x) / p, np.inf)
-        alpha = min(alpha, float(np.min(np.minimum(to_lo, to_hi))))
-        phi0 = merit(x, y_new)
-        noise = 1e-13 * (1.0 + abs(phi0))
-        for _ in range(_MERIT_BACKTRACKS):
-            x_new = np.clip(x + alpha * p, lower, upper)
-            if merit(x_new, y_new) <= phi0 + 1e-4 * alpha * slope + noise:
-                break
-            alpha *= 0.5
-        else:
+        x_new = _merit_backtrack(x, p, lower, upper, slope, merit, y_new)
+        if x_new is None:
             return ended(SolveStatus.STALLED, "no decrease of the merit function", steps)
         g_new = rows.rows(x_new) - margin
         if others.size and float(np.min(g_new[others])) < -opts.constraint_tol:
@@ -853,6 +832,36 @@ _FINAL_PHASE_STEPS = 30  # SQP steps of one attempt of the final phase
 _MERIT_PENALTY_MAX = 1e14  # largest mu of the final phase's merit function
 _MERIT_BACKTRACKS = 40  # halvings of an SQP step before the final phase gives up
 _NEWTON_MAX_STEP = 0.5  # largest step of one joint [rad] in the final phase
+
+
+def _merit_backtrack(
+    x: Array,
+    p: Array,
+    lower: Array,
+    upper: Array,
+    slope: float,
+    merit: Callable[[Array, Array], float],
+    multipliers: Array,
+) -> Array | None:
+    """Backtrack an SQP step ``p`` on ``merit(., multipliers)`` (Armijo 1e-4; None: no decrease).
+
+    The first step is cut to :data:`_NEWTON_MAX_STEP` [rad] per joint and to the
+    bounds; each trial is clipped to ``[lower, upper]``; ``slope`` is the merit's
+    directional derivative along ``p`` (negative). Shared by both final phases.
+    """
+    alpha = min(1.0, _NEWTON_MAX_STEP / max(float(np.max(np.abs(p))), 1e-300))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        to_lo = np.where(p < 0.0, (lower - x) / p, np.inf)
+        to_hi = np.where(p > 0.0, (upper - x) / p, np.inf)
+    alpha = min(alpha, float(np.min(np.minimum(to_lo, to_hi))))
+    phi0 = merit(x, multipliers)
+    noise = 1e-13 * (1.0 + abs(phi0))
+    for _ in range(_MERIT_BACKTRACKS):
+        x_new = np.clip(x + alpha * p, lower, upper)
+        if merit(x_new, multipliers) <= phi0 + 1e-4 * alpha * slope + noise:
+            return x_new
+        alpha *= 0.5
+    return None
 
 
 def _sqp_step(
