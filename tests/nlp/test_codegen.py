@@ -205,6 +205,72 @@ def _fresh_process_state(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(codegen, "_ANNOUNCED", set())
 
 
+@pytest.mark.skipif(os.name != "posix", reason="a shell script stands for the compiler")
+@pytest.mark.parametrize("removed", ["source", "folder"])
+def test_a_build_folder_removed_under_the_compiler_is_no_failure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, removed: str
+) -> None:
+    """Build files removed while the compiler runs: no .failed marker; the next run compiles.
+
+    (Seen in a shared cache: a cleanup removed a compile's folder, the compiler
+    failed on its vanished files and the failure was recorded for good, so
+    every later run of that arm ran in CasADi's virtual machine.)
+    """
+    cache = tmp_path / "cache"
+    real = find_compiler()
+    assert real is not None
+    script = tmp_path / "vanish" / Path(real).name  # same name: same cache keys
+    script.parent.mkdir()
+    target = '"$a"' if removed == "source" else '"$(dirname "$a")"'
+    script.write_text(  # removes the source it is given (or its folder), fails as gcc would
+        f'#!/bin/sh\nfor a in "$@"; do case "$a" in *.c) rm -rf {target};; esac; done\n'
+        'echo "cc1: fatal error: no such file or directory" >&2\nexit 1\n'
+    )
+    script.chmod(0o755)
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(cache))
+    monkeypatch.setenv("CC", str(script))
+    flags = compile_flags(real)
+    _fresh_process_state(monkeypatch)
+    f = _function(6.5)
+    assert compile_function(f, wait=False, flags=flags) is f
+    _wait_unlocked(cache)
+    assert not list(cache.glob("*.failed"))
+    assert not list(cache.glob("tiny_*.so"))
+    _fresh_process_state(monkeypatch)  # the next run, with a compiler that works
+    monkeypatch.setenv("CC", real)
+    assert compile_function(f, wait=False, flags=flags) is f
+    _wait_unlocked(cache)
+    assert len(list(cache.glob("tiny_*.so"))) == 1
+    assert compile_function(f, wait=False, flags=flags) is not f
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the compiler's pid is checked on POSIX")
+def test_a_live_compilers_old_build_folder_is_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A build folder older than STALE_LOCK whose compiler still runs (queued, slow) stays."""
+    from youbot_opt.nlp import codegen
+
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    live, dead = cache / ".build-live", cache / ".build-dead"
+    for folder, pid in ((live, os.getpid()), (dead, _ended_pid())):
+        folder.mkdir()
+        (folder / "pid").write_text(str(pid))
+        old = time.time() - 2 * codegen.STALE_LOCK
+        os.utime(folder, (old, old))
+    codegen._clean_orphans(cache)
+    assert live.is_dir()
+    assert not dead.exists()
+
+
+def _ended_pid() -> int:
+    """The pid of a process that has ended (and been reaped)."""
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])  # noqa: S603
+    proc.wait()
+    return proc.pid
+
+
 @pytest.mark.skipif(os.name != "posix", reason="process groups and pids are POSIX")
 def test_a_killed_compile_leaves_nothing_behind(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch

@@ -62,6 +62,7 @@ SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured 
 NATIVE_MULTIPLIER = 1.27  # gcc -O2 -march=native over -O2, ur5 kernels: 19.1 s against 15.0 s
 STALE_LOCK = 1800.0  # [s] a background compile older than this is presumed dead
 NO_PID_GRACE = 60.0  # [s] a lock or build folder still without its compiler's pid is orphaned
+REUSED_PID_AGE = 86400.0  # [s] a build folder this old whose pid runs: the number was reused
 WAIT_SECONDS = 0.5
 """[s] ``wait=None``: compile now when the batch is estimated to take at most this long (a
 two-link arm), else in the background while this run uses CasADi's virtual machine. Measured
@@ -79,7 +80,8 @@ _ANNOUNCED: set[frozenset[tuple[str, int | None]]] = set()  # compiles in progre
 # the build folder and into each library's lock (who holds them: a dead holder's are cleaned
 # up by the next run), lowers its priority, takes this user's compile slot (one batch at a
 # time per user and cache), skips a library another process has produced meanwhile, releases
-# each lock as soon as its library is in place, and records a failure in ``<library>.failed``.
+# each lock as soon as its library is in place, and records a compiler's failure in
+# ``<library>.failed`` (not a build folder removed under it: the next run compiles again).
 # It prints ``{library: compiler error}`` for the compiles that failed.
 _WORKER = r"""
 import json, os, shutil, subprocess, sys, time
@@ -115,7 +117,12 @@ try:
             if os.path.exists(item["library"]):  # another process produced it meanwhile
                 release(item)
                 continue
-            log = open(item["target"] + ".log", "w")
+            try:
+                log = open(item["target"] + ".log", "w")
+            except OSError:  # the build folder was removed: nothing to compile, no marker
+                errors[item["library"]] = "the build folder was removed before the compile"
+                release(item)
+                continue
             command = [spec["compiler"], *spec["flags"], item["source"], "-o", item["target"]]
             command.append("-lm")
             proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=log)
@@ -134,9 +141,17 @@ try:
                     if not os.path.exists(item["library"]):
                         raise
             else:
-                with open(log.name, errors="replace") as text:
-                    errors[item["library"]] = text.read()[-2000:] or "exit %d" % proc.returncode
-                if spec["background"]:
+                try:
+                    with open(log.name, errors="replace") as text:
+                        errors[item["library"]] = text.read()[-2000:] or "exit %d" % proc.returncode
+                except OSError:
+                    errors[item["library"]] = "exit %d" % proc.returncode
+                # a build folder removed under the compiler is no compiler error: no marker,
+                # the next run compiles it again
+                intact = os.path.isfile(item["source"])
+                if not intact:
+                    errors[item["library"]] += " (the build folder was removed meanwhile)"
+                if spec["background"] and intact:
                     with open(item["failed"], "w") as out:
                         out.write(errors[item["library"]])
             release(item)
@@ -559,9 +574,11 @@ def _clean_orphans(directory: Path) -> None:
         except OSError:
             continue
         age = now - stat.st_mtime
-        dead = age > STALE_LOCK or (not text and age > NO_PID_GRACE)
-        if text.isdigit() and _pid_alive(int(text)) is False:
-            dead = True
+        if text.isdigit():  # a live compiler's folder stays however long it waits or runs
+            alive = _pid_alive(int(text))
+            dead = alive is False or age > (STALE_LOCK if alive is None else REUSED_PID_AGE)
+        else:  # its worker writes the pid first thing: none after the grace, none to come
+            dead = age > NO_PID_GRACE
         if dead:
             _log.debug("removing %s, left by a compile that ended", build)
             shutil.rmtree(build, ignore_errors=True)
