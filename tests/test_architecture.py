@@ -350,12 +350,7 @@ ANY_EXEMPT: dict[str, str] = {}
 
 #: Module-level type aliases (``module.Name``) that still hold Any, each with its cause: a
 #: public signature may name them. An entry goes when its cause does (a stale one fails).
-ANY_ALIAS_EXEMPT: dict[str, str] = {
-    "youbot_opt.ikpath.sweep._Outcome": (
-        "StartSummary[Any] in the progress callbacks of solve_starts/stream_starts: the"
-        " stream is generic over its result type (ResultT), the callbacks are not yet"
-    ),
-}
+ANY_ALIAS_EXEMPT: dict[str, str] = {}
 
 _PUBLIC_DUNDERS = ("__init__", "__call__")
 

@@ -21,7 +21,7 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Generic, NamedTuple, TypeVar
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
@@ -61,6 +61,7 @@ __all__ = [
     "STARTS_3D",
     "SWEEP_KIND",
     "SWEEP_KIND_3D",
+    "StartOutcome",
     "StartSolvers",
     "StreamedOutcome",
     "SweepOutcome",
@@ -90,7 +91,20 @@ _PAYLOAD_SUFFIX_3D = ".spatial"  # JSON of encode_result (".json" names the reco
 
 ProblemT = TypeVar("ProblemT")
 ResultT = TypeVar("ResultT", bound=IKPathResult)
-_Outcome = IKPathResult | StartSummary[Any]
+
+
+class StartOutcome(Protocol):
+    """What the progress callbacks read of a final start: a result or a :class:`StartSummary`."""
+
+    @property
+    def success(self) -> bool:
+        """Whether the start met the targets."""
+        ...
+
+    @property
+    def objective(self) -> float:
+        """``E`` in [rad^2]."""
+        ...
 
 
 def _solve_al(problem: CyclicIKProblem, options: ALOptions | None, x0: Array) -> IKPathResult:
@@ -559,7 +573,7 @@ def status_counts(results: Iterable[IKPathResult]) -> dict[str, int]:
 
 def progress_callbacks(
     progress: Callable[[int, int, float], None] | None, total: int
-) -> tuple[Callable[[Iterable[_Outcome]], None], Callable[[int, _Outcome], None]]:
+) -> tuple[Callable[[Iterable[StartOutcome]], None], Callable[[int, StartOutcome], None]]:
     """Return the ``on_resumed`` and ``on_final`` of :func:`solve_starts` that feed ``progress``.
 
     ``progress(done, total, best)`` hears of the starts loaded from the store in
@@ -570,7 +584,7 @@ def progress_callbacks(
     best = math.inf
     done = 0
 
-    def on_resumed(results: Iterable[_Outcome]) -> None:
+    def on_resumed(results: Iterable[StartOutcome]) -> None:
         nonlocal best, done
         done, best = 0, math.inf
         for r in results:  # one pass (a stream when keep_results=False)
@@ -580,7 +594,7 @@ def progress_callbacks(
         if progress is not None and done:
             progress(done, total, best)
 
-    def on_final(index: int, result: _Outcome) -> None:
+    def on_final(index: int, result: StartOutcome) -> None:
         nonlocal best, done
         done += 1
         if result.success:
@@ -741,8 +755,8 @@ def stream_starts(
     distance: Callable[[ResultT, ResultT], float],
     objective_tol: float,
     q_tol: float,
-    on_resumed: Callable[[Iterable[_Outcome]], None] | None = None,
-    on_final: Callable[[int, _Outcome], None] | None = None,
+    on_resumed: Callable[[Iterable[StartOutcome]], None] | None = None,
+    on_final: Callable[[int, StartOutcome], None] | None = None,
     deadline: float | None = None,
 ) -> StreamedOutcome[ResultT] | ShardReport:
     """Solve every start with ``keep_results=False``: summaries streamed, the minima kept.
