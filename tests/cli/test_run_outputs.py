@@ -66,6 +66,17 @@ def test_solve_no_figures_writes_no_png(tmp_path: Path) -> None:
     assert not list(folder.glob("*.png"))
 
 
+def test_main_no_figures_after_a_run_with_them(tmp_path: Path) -> None:
+    """`youbot-opt main --no-figures` into a folder of an earlier main run: no png is left."""
+    assert main(["main", "--out", "run"]) == 0
+    folder = tmp_path / "run"
+    assert _summary(folder)["files"] == SOLVE_FILES
+    assert main(["main", "--no-figures", "--out", "run"]) == 0
+    assert _summary(folder)["files"] == ["result.npz", "replay.html", "summary.json"]
+    assert not list(folder.glob("*.png"))
+    assert sorted(p.name for p in folder.iterdir()) == ["replay.html", "result.npz", "summary.json"]
+
+
 def test_a_figure_that_cannot_be_written_fails_with_one_line(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:

@@ -60,7 +60,9 @@ def run(args: argparse.Namespace) -> int:
         len(result.active_bounds(1e-6)) if result.trajectory is not None else 0
     )
     folder = open_folder("main", args.out)
-    files = write_solve_outputs(folder, result, summary, refinement=record)
+    files = write_solve_outputs(
+        folder, result, summary, refinement=record, figures=not args.no_figures
+    )
     print()
     report_outputs(folder, files, as_json=False)
     print(f"main job done in {time.perf_counter() - tic:.2f} s")

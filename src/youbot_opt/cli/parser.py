@@ -522,6 +522,11 @@ def _main(sub: _Sub) -> None:
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/main-<date>-<time>)",
     )
+    p.add_argument(
+        "--no-figures",
+        action="store_true",
+        help="write no figure (*.png): the result, replay.html and summary.json only",
+    )
     _refine_arguments(p, grid="the study's 50-knot grid")
 
 
