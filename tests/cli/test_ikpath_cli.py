@@ -254,3 +254,19 @@ def test_spatial_target_of_wrong_length_exits_2(capsys):
     argv = ["ikpath", "--robot", "ur5", "--target", "1", "2", "3", "4", "--target", "0", "0", "1"]
     assert main(argv) == 2
     assert "spatial targets take X Y Z" in capsys.readouterr().err
+
+
+def test_a_reused_folder_keeps_no_stale_ikpath_figure(capsys, tmp_path):
+    """An earlier run's ikpath figures this run does not write go; foreign files stay."""
+    out = tmp_path / "run"
+    out.mkdir()
+    for name in ("ikpath_arm.png", "ikpath_minima.png", "ikpath_path3d.png", "notes.png"):
+        (out / name).write_bytes(b"old")
+    argv = ["ikpath", "--lengths", "3", "2", "2", "--target", "0", "7.1", "--target", "0", "7",
+            "--out", str(out), "--json"]  # fmt: skip
+    code, doc, _ = _json(capsys, argv)
+    assert code == 2 and doc["status"] == "unreachable"  # only the workspace figure is drawn
+    assert sorted(p.name for p in out.iterdir()) == [
+        "ikpath_workspace.png", "notes.png", "summary.json"
+    ]  # fmt: skip
+    assert doc["files"] == ["ikpath_workspace.png", "summary.json"]

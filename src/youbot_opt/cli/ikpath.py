@@ -46,6 +46,7 @@ from youbot_opt.cli.ikpath_text import (
 from youbot_opt.cli.output import (
     print_json,
     print_outputs,
+    remove_stale_figures,
     replay_or_warn,
     run_folder,
     write_summary,
@@ -416,7 +417,11 @@ def _finish(
     print_text: Callable[[], None],
     errors: list[str],
 ) -> None:
-    """Write ``summary.json`` (naming the files), print it or its text, the folder and errors."""
+    """Write ``summary.json`` (naming the files), print it or its text, the folder and errors.
+
+    A reused ``--out`` keeps no figure of an earlier run that this one did not write.
+    """
+    remove_stale_figures(folder, files)
     doc["output_folder"] = str(folder.resolve())
     doc["files"] = [f.name for f in files] + ["summary.json"]
     files.append(write_summary(folder, doc))

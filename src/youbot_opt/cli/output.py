@@ -117,15 +117,16 @@ def print_json(doc: Mapping[str, object], stream: IO[str] | None = None) -> None
 
 OWN_FIGURES = re.compile(
     r"(trajectory|arm|convergence|multistart|refinement(_[1-9][0-9]*)?|clearance|tool"
-    r"|pareto|bound_scaling)\.png"
+    r"|pareto|bound_scaling"
+    r"|ikpath_(workspace|arm|convergence|minima|legs|path3d))\.png"
 )
-"""Names of the figures the trajectory commands write (``solve``, ``main``, the studies)."""
+"""Names of the figures our commands write (``solve``, ``main``, the studies, ``ikpath``)."""
 
 
 def remove_stale_figures(folder: Path, written: Iterable[Path]) -> list[Path]:
     """Remove the figures of an earlier run in a reused ``folder``; return what was removed.
 
-    Only regular files named as the trajectory commands name their figures
+    Only regular files named as our commands name their figures
     (:data:`OWN_FIGURES`, e.g. ``refinement_3.png`` of a study that refined
     three plans) and not among ``written`` are removed: the folder then holds
     the figures its ``summary.json`` lists. Any other file is left alone.
