@@ -18,6 +18,7 @@ import pytest
 import umsgpack
 from PIL import Image
 
+from youbot_opt._files import read_json_lines
 from youbot_opt.cli import main
 from youbot_opt.trajopt.io import load_result
 
@@ -161,6 +162,10 @@ def test_multistart_folder_resumes(capsys: pytest.CaptureFixture[str], tmp_path:
     _check_folder(folder, summary, ["multistart.png", "convergence.png", "trajectory.png"])
     assert (folder / "manifest.json").exists()  # the sweep store shares the run folder
     assert len(list((folder / "items").glob("*/*.npz"))) == 2  # fanned out: items/<hh>/
+    assert summary["starts_file"] == "starts.jsonl" and "starts.jsonl" in summary["files"]
+    rows = list(read_json_lines(folder / "starts.jsonl"))  # one row a start, as summary's
+    assert [{k: v for k, v in r.items() if k != "optimum"} for r in rows] == summary["starts"]
+    assert [r["optimum"] for r in rows] == [None, None]  # results kept: no representative
     nodes, animated = _replay_nodes(folder / "replay.html")
     assert animated and len(nodes) == len(summary["distinct_optima"])
     assert main([*argv, "--json"]) == 0
@@ -235,6 +240,13 @@ def test_multistart_no_keep_results_reports_what_keeping_them_does(
     assert main([*argv, "--no-keep-results", "--out", str(tmp_path / "lean")]) == 0
     lean = json.loads(capsys.readouterr().out)
     assert "starts" in kept and "starts" not in lean
+    kept_rows = list(read_json_lines(tmp_path / "keep" / "starts.jsonl"))
+    lean_rows = list(read_json_lines(tmp_path / "lean" / "starts.jsonl"))
+    assert [r["key"] for r in lean_rows] == [r["key"] for r in kept["starts"]]  # still written
+    best = min((r for r in lean_rows if r["success"]), key=lambda r: r["objective"])
+    assert best["key"] == lean["best"]["key"] and best["optimum"] == best["key"]
+    assert {r["optimum"] for r in lean_rows if r["success"]} <= {r["key"] for r in lean_rows}
+    assert _timeless([{**r, "optimum": None} for r in lean_rows]) == _timeless(kept_rows)
     for optimum in kept["distinct_optima"]:
         optimum.pop("seeds")
     kept.pop("starts")

@@ -30,7 +30,6 @@ from youbot_opt._typing import JSONDict
 from youbot_opt.cli.drawing import save_figure
 from youbot_opt.cli.flags import clearance_of, loading_options, report_shard, scheduler_address
 from youbot_opt.cli.ikpath_text import (
-    STARTS_FILE,
     StartsFile,
     add_result_3d,
     clearance_summary,
@@ -44,6 +43,7 @@ from youbot_opt.cli.ikpath_text import (
     write_starts,
 )
 from youbot_opt.cli.output import (
+    STARTS_FILE,
     print_json,
     print_outputs,
     remove_stale_figures,

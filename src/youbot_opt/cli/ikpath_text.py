@@ -22,6 +22,7 @@ import numpy as np
 
 from youbot_opt._files import write_json_lines
 from youbot_opt._typing import JSONDict
+from youbot_opt.cli.output import STARTS_FILE
 from youbot_opt.collision.clearance import Clearance, ClearanceCertificate
 from youbot_opt.ikpath.examples import STUDY_E_A
 from youbot_opt.ikpath.multistart import MultistartResult
@@ -32,7 +33,6 @@ from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 
 __all__ = [
-    "STARTS_FILE",
     "StartsFile",
     "add_result_3d",
     "budget_fields",
@@ -48,10 +48,6 @@ __all__ = [
     "warn_undecided_planar",
     "write_starts",
 ]
-
-
-STARTS_FILE = "starts.jsonl"
-"""The run folder's per-start rows, one JSON object a line (named in ``summary.json``)."""
 
 
 class StartsFile(NamedTuple):

@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # matplotlib, the plots and the replay load when a run draws 
 
 __all__ = [
     "DEFAULT_ROOT",
+    "STARTS_FILE",
     "ProgressLine",
     "draw_figure",
     "open_folder",
@@ -56,6 +57,12 @@ _log = logging.getLogger(__name__)
 
 DEFAULT_ROOT = Path("youbot_opt_runs")
 """Parent of the per-run folders made when no ``--out`` is given (relative to the cwd)."""
+
+STARTS_FILE = "starts.jsonl"
+"""A multistart run's per-start rows, one JSON object a line (``summary.json``'s ``starts_file``).
+
+Written by ``youbot-opt ikpath`` and ``youbot-opt multistart`` (JSON Lines).
+"""
 
 
 def run_folder(

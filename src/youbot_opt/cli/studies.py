@@ -20,15 +20,17 @@ import itertools
 import json
 import math
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 
 from youbot_opt._checks import check_beta, check_bound_scale
-from youbot_opt._files import json_ready
+from youbot_opt._files import json_ready, write_json_lines
 from youbot_opt._typing import JSONDict
 from youbot_opt.cli.flags import clearance_of, ipopt_options, report_shard, scheduler_address
 from youbot_opt.cli.output import (
+    STARTS_FILE,
     ProgressLine,
     draw_figure,
     open_folder,
@@ -52,6 +54,7 @@ from youbot_opt.trajopt.pareto import pareto_sweep, point_key
 from youbot_opt.trajopt.refine import Refinement
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.sweep import StartOutcome
 from youbot_opt.viz.plots import (
     plot_bound_scaling,
     plot_convergence,
@@ -205,6 +208,21 @@ def _emit(
     print(f"rerun with --out {folder} to resume", file=stream)
 
 
+def _write_starts(folder: Path, starts: Iterable[StartOutcome]) -> Path:
+    """Write one JSON object per start to ``folder/starts.jsonl``; return the path.
+
+    Each row is the start's :meth:`~youbot_opt.trajopt.sweep.StartOutcome.summary`
+    (``key``, ``index``, ``seed``, ``guess``, ``status``, ``success``, ``objective``,
+    ``duration_s``, ``work`` [N^2 m^2 s], ``iterations``, ``solve_time_s``,
+    ``guess_time_s``, ``attempts``, ``reason``: the rows of ``summary.json``'s
+    ``starts``) and ``optimum`` (``--no-keep-results``: the key of its distinct
+    optimum's representative; else null). Streamed: a million starts never sit in memory.
+    """
+    path = folder / STARTS_FILE
+    write_json_lines(path, ({**s.summary(), "optimum": s.optimum} for s in starts))
+    return path
+
+
 # ----------------------------------------------------------------- commands
 def multistart(args: argparse.Namespace) -> int:
     """Run ``youbot-opt multistart``; returns the exit code."""
@@ -240,6 +258,8 @@ def multistart(args: argparse.Namespace) -> int:
     for s in itertools.islice(failed, 10):
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
     summary = res.summary(args.obj_tol, args.traj_tol)
+    summary["starts_file"] = STARTS_FILE
+    starts_file = _write_starts(folder, res.starts)
     best = (
         [("best start", res.best.key, res.best.result)]
         if res.best is not None and res.best.result
@@ -249,6 +269,7 @@ def multistart(args: argparse.Namespace) -> int:
     refined, lines, summary["refinement"] = refine_many(solver, best, args, quiet, folder)
     table += lines
     files: list[Path | None] = refinement_figures(folder, refined, [label for label, *_ in best])
+    files.append(starts_file)
     if res.best is not None and res.best.result is not None:
         plan, record = refined[0] if refined else (res.best.result, None)  # --no-refine: grid's
         summary["plan"] = {**plan.summary(), "certified": record is not None and record.certified}

@@ -61,7 +61,7 @@ __all__ = [
     "STARTS_3D",
     "SWEEP_KIND",
     "SWEEP_KIND_3D",
-    "StartOutcome",
+    "StartScore",
     "StartSolvers",
     "StreamedOutcome",
     "SweepOutcome",
@@ -93,7 +93,7 @@ ProblemT = TypeVar("ProblemT")
 ResultT = TypeVar("ResultT", bound=IKPathResult)
 
 
-class StartOutcome(Protocol):
+class StartScore(Protocol):
     """What the progress callbacks read of a final start: a result or a :class:`StartSummary`."""
 
     @property
@@ -573,7 +573,7 @@ def status_counts(results: Iterable[IKPathResult]) -> dict[str, int]:
 
 def progress_callbacks(
     progress: Callable[[int, int, float], None] | None, total: int
-) -> tuple[Callable[[Iterable[StartOutcome]], None], Callable[[int, StartOutcome], None]]:
+) -> tuple[Callable[[Iterable[StartScore]], None], Callable[[int, StartScore], None]]:
     """Return the ``on_resumed`` and ``on_final`` of :func:`solve_starts` that feed ``progress``.
 
     ``progress(done, total, best)`` hears of the starts loaded from the store in
@@ -584,7 +584,7 @@ def progress_callbacks(
     best = math.inf
     done = 0
 
-    def on_resumed(results: Iterable[StartOutcome]) -> None:
+    def on_resumed(results: Iterable[StartScore]) -> None:
         nonlocal best, done
         done, best = 0, math.inf
         for r in results:  # one pass (a stream when keep_results=False)
@@ -594,7 +594,7 @@ def progress_callbacks(
         if progress is not None and done:
             progress(done, total, best)
 
-    def on_final(index: int, result: StartOutcome) -> None:
+    def on_final(index: int, result: StartScore) -> None:
         nonlocal best, done
         done += 1
         if result.success:
@@ -755,8 +755,8 @@ def stream_starts(
     distance: Callable[[ResultT, ResultT], float],
     objective_tol: float,
     q_tol: float,
-    on_resumed: Callable[[Iterable[StartOutcome]], None] | None = None,
-    on_final: Callable[[int, StartOutcome], None] | None = None,
+    on_resumed: Callable[[Iterable[StartScore]], None] | None = None,
+    on_final: Callable[[int, StartScore], None] | None = None,
     deadline: float | None = None,
 ) -> StreamedOutcome[ResultT] | ShardReport:
     """Solve every start with ``keep_results=False``: summaries streamed, the minima kept.
