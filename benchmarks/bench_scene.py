@@ -507,6 +507,7 @@ def compare_solves(
     """
     import dataclasses
 
+    from youbot_opt.exceptions import ParameterError
     from youbot_opt.trajopt.refine import refine
     from youbot_opt.trajopt.solver import TrajOptSolver
 
@@ -529,15 +530,23 @@ def compare_solves(
         for name, s in runs:
             if name not in rows or (s is None and refine_pairs is not None and i >= refine_pairs):
                 continue
-            if s is None:  # the whole of refine(): round 0's solve, certificates, new grids
-                refined, wall, cpu = _timed(
-                    lambda a=q0, b=q1: refine(solver, beta=BETA, start=a, goal=b)
-                )
-                result = refined.result
-            else:
-                result, wall, cpu = _timed(
-                    lambda s=s, a=q0, b=q1: s.solve(beta=BETA, start=a, goal=b)
-                )
+            try:
+                if s is None:  # the whole of refine(): round 0's solve, certificates, new grids
+                    refined, wall, cpu = _timed(
+                        lambda a=q0, b=q1: refine(solver, beta=BETA, start=a, goal=b)
+                    )
+                    result = refined.result
+                else:
+                    result, wall, cpu = _timed(
+                        lambda s=s, a=q0, b=q1: s.solve(beta=BETA, start=a, goal=b)
+                    )
+            except ParameterError as exc:  # an end the NLP cannot hold (its balls): refused
+                print(f"{name}, pair {i}: refused: {exc}", file=sys.stderr, flush=True)
+                rows[name].append(
+                    {"ok": False, "refused": str(exc), "wall_s": np.nan, "cpu_s": np.nan,
+                     "T": np.nan, "cert": None, "f": np.nan}
+                )  # fmt: skip
+                continue
             plan = result.trajectory
             t = np.asarray(plan.t, dtype=float)
             cert = _certify(checker, robot, plan, float(t[0]), float(t[-1]), n_knots)
@@ -564,10 +573,12 @@ def compare_solves(
         for name, rs in rows.items():  # one line per plan: a run cut short keeps its pairs
             if len(rs) == i + 1:
                 r = rs[-1]
+                cert = r["cert"]
                 line = {"pair": i, "solver": name, "ok": bool(r["ok"]),
-                        "certified": bool(r["cert"].certified),
-                        "closest_m": float(r["cert"].closest_distance), "wall_s": r["wall_s"],
-                        "cpu_s": r["cpu_s"], "T": r["T"], "f": r.get("f")}  # fmt: skip
+                        "certified": cert is not None and bool(cert.certified),
+                        "closest_m": None if cert is None else float(cert.closest_distance),
+                        "wall_s": r["wall_s"], "cpu_s": r["cpu_s"], "T": r["T"], "f": r.get("f"),
+                        "refused": r.get("refused")}  # fmt: skip
                 print("plan " + json.dumps(line), flush=True)
     print(
         f"\nSolves around the scene: {len(pairs)} start/goal pairs ({describe}, "
@@ -582,7 +593,13 @@ def compare_solves(
     )
     summary: dict[str, Any] = {"pairs": len(pairs), "n_points": n_points}
     base = None
-    for name, rs in rows.items():
+    refusals = []
+    for name, every in rows.items():
+        if not every:
+            continue
+        rs = [r for r in every if r["cert"] is not None]  # solved (refused: no plan)
+        if len(rs) < len(every):
+            refusals.append(f"{name}: {len(every) - len(rs)} of {len(every)} pairs refused")
         if not rs:
             continue
         ok = sum(r["ok"] and r["cert"].certified for r in rs)
@@ -594,23 +611,26 @@ def compare_solves(
         f = f"{statistics.median(r['f'] for r in rs):>7.3f}" if "f" in rs[0] else f"{'-':>7}"
         lowest = min((r["cert"].closest_distance for r in rs if r["ok"]), default=np.nan)
         base = base or wall
-        summary[name] = {"n": len(rs), "ok": ok, "solver_ok": solver_ok, "penetrations": pen,
+        summary[name] = {"n": len(every), "ok": ok, "solver_ok": solver_ok, "penetrations": pen,
+                         "refused": len(every) - len(rs),
                          "median_wall_s": wall, "median_cpu_s": cpu, "median_T_s": dur,
                          "f": f.strip(), "min_clearance_m": lowest}  # fmt: skip
         print(
-            f"{name:<32} {ok:>3}/{len(rs):<2} {solver_ok:>9} {pen:>7} {wall:>9.3f} {cpu:>8.3f} "
+            f"{name:<32} {ok:>3}/{len(every):<2} {solver_ok:>9} {pen:>7} {wall:>9.3f} {cpu:>8.3f} "
             f"{dur:>6.3f} {f} {lowest:>18.5f}   ({wall / base:.2f}x ours)"
         )
+    for line in refusals:  # before IPOPT: an end whose bounding balls lack the margin
+        print(f"{line} before solving (an end's bounding balls below the margin; medians over "
+              "the others)")  # fmt: skip
     print(
         "medians over the pairs; ours keeps the dynamics and torque limits; Drake's problem has "
         "no dynamics (B-spline path, minimum T + path length): a kinematic reference"
     )
     scene_rows, free_rows = rows["ours"], rows["ours, free space"]
     if scene_rows and free_rows:  # what the scene costs, pair by pair (medians of the ratios)
+        both = [(a, b) for a, b in zip(scene_rows, free_rows, strict=True) if a["cert"] is not None]
         cost = {
-            key: statistics.median(
-                a[key] / b[key] for a, b in zip(scene_rows, free_rows, strict=True)
-            )
+            key: statistics.median(a[key] / b[key] for a, b in both) if both else np.nan
             for key in ("wall_s", "T", "f")
         }
         summary["scene_cost"] = cost

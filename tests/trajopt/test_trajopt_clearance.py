@@ -183,3 +183,31 @@ def test_ball_overshoot_at_the_start_refused(free: TrajOptProblem) -> None:
     problem = dataclasses.replace(free, clearance=Clearance(margin=0.093))
     with pytest.raises(ParameterError, match=r"start: the bounding balls of pair 'arm_link_1_0"):
         TrajOptSolver(problem)
+
+
+def test_ball_overshoot_at_an_overridden_start_refused(free: TrajOptProblem) -> None:
+    """A start given to ``solve()`` is held to the NLP's ball margin as a built one is.
+
+    The study's start to itself with the elbow opened by 0.2 rad, a 90 mm
+    self-collision margin: both ends clear it by coal and by the balls, so the
+    solver builds. The start then turned by -0.3 rad at the first joint keeps
+    coal's 94.7 mm but brings a pair's balls to 87.2 mm: the NLP would be
+    infeasible at its fixed first knot, so ``solve(start=...)`` refuses it
+    before IPOPT runs, naming the pair and both distances (before, only coal
+    was asked and IPOPT ran an infeasible NLP: issue 28's ur5 shelf pairs).
+    """
+    goal = np.array(STUDY_Q_START, dtype=float)
+    goal[2] += 0.2
+    problem = dataclasses.replace(
+        free, goal=BoundaryState(q=goal), clearance=Clearance(margin=0.09)
+    )
+    solver = TrajOptSolver(problem)
+    start = np.array(STUDY_Q_START, dtype=float)
+    start[0] -= 0.3
+    rows = clearance_constraint(problem)
+    assert rows is not None
+    balls = np.asarray(rows.function(start, np.zeros(3)), dtype=float).ravel()
+    checker = clearance_checker(problem.robot, problem.clearance)
+    assert balls.min() < 0.09 <= checker.distances(problem.robot, start).min()  # the premise
+    with pytest.raises(ParameterError, match=r"start: the bounding balls of pair .* \(coal: "):
+        solver.solve(beta=0.5, start=start)

@@ -40,13 +40,32 @@ __all__ = [
 ]
 
 
-def require_model_clearance(problem: TrajOptProblem, constraint: PathConstraint) -> None:
+def require_model_clearance(
+    problem: TrajOptProblem,
+    constraint: PathConstraint,
+    *,
+    checker: ExactChecker | None = None,
+    start: Array | None = None,
+    goal: Array | None = None,
+) -> None:
     """Refuse a start or goal whose bounding-ball distance is below the margin.
 
     The NLP holds the conservative ball distances (never above coal's) at
     every knot, the first and last included, and those are fixed: a pair whose
     balls overshoot its geometry by more than its coal clearance minus the
     margin makes the NLP infeasible from the start, whatever coal says.
+
+    Parameters
+    ----------
+    problem : TrajOptProblem
+        The problem (its clearance made ``constraint``).
+    constraint : PathConstraint
+        The problem's clearance rows (:func:`clearance_constraint`).
+    checker : ExactChecker, optional
+        Coal's solids for the message's exact distance (built when not given).
+    start, goal : ndarray, shape (nq,), optional
+        Configurations [rad] ([m] for prismatic joints) that replace the
+        problem's (a solve's overridden boundary states).
 
     Raises
     ------
@@ -56,15 +75,20 @@ def require_model_clearance(problem: TrajOptProblem, constraint: PathConstraint)
         pair disabled).
     """
     assert problem.clearance is not None
-    checker = clearance_checker(problem.robot, problem.clearance)
-    for what, state in (("start", problem.start), ("goal", problem.goal)):
+    ends = (
+        ("start", problem.start.q if start is None else start),
+        ("goal", problem.goal.q if goal is None else goal),
+    )
+    for what, q in ends:
         zero = np.zeros(problem.nv)
-        model = np.asarray(constraint.function(state.q, zero), dtype=float).ravel()
+        model = np.asarray(constraint.function(q, zero), dtype=float).ravel()
         bad = np.flatnonzero(model < constraint.lower)
         if bad.size == 0:
             continue
         i = int(bad[np.argmin(model[bad] - constraint.lower[bad])])
-        exact = checker.distances(problem.robot, state.q)
+        if checker is None:
+            checker = clearance_checker(problem.robot, problem.clearance)
+        exact = checker.distances(problem.robot, q)
         raise ParameterError(
             f"{what}: the bounding balls of pair {constraint.labels[i]!r} are "
             f"{model[i]:.4g} m apart (coal: {float(exact[i]):.4g} m), below the margin "

@@ -501,10 +501,13 @@ class TrajOptSolver:
 
         The problem's own ends were checked when the NLP was built; overridden ones
         are checked here the same way (coal's exact distances; the checker is built
-        once per solver), so a state inside an obstacle never reaches IPOPT.
+        once per solver), so a state inside an obstacle never reaches IPOPT; nor does
+        one whose bounding balls lack the margin the NLP holds at its fixed ends
+        (:func:`~youbot_opt.trajopt.clearance.require_model_clearance`: the NLP
+        would be infeasible from the start).
         """
         from youbot_opt.collision.clearance import clearance_checker
-        from youbot_opt.trajopt.clearance import check_boundary_clearance
+        from youbot_opt.trajopt.clearance import check_boundary_clearance, require_model_clearance
 
         clearance = self.problem.clearance
         assert clearance is not None
@@ -513,6 +516,11 @@ class TrajOptSolver:
         check_boundary_clearance(
             self.problem, self._checker, margin=clearance.margin, start=start, goal=goal
         )
+        rows = next((c for c in self._paths if c.name == "clearance"), None)
+        if rows is not None:
+            require_model_clearance(
+                self.problem, rows, checker=self._checker, start=start, goal=goal
+            )
 
     def _best_iterate(
         self,
