@@ -215,3 +215,28 @@ def test_a_reused_study_folder_keeps_no_stale_refinement_figure(
     pngs = sorted(p.name for p in folder.glob("*.png"))
     assert pngs == sorted(f for f in summary["files"] if f.endswith(".png"))
     assert "refinement.png" in pngs and "refinement_1.png" not in pngs
+
+
+@pytest.mark.parametrize("command", ["multistart", "pareto", "bounds"])
+def test_study_commands_take_no_figures(command: str) -> None:
+    """The study sweeps take `--no-figures` as solve and main do."""
+    from youbot_opt.cli.parser import parse
+
+    assert parse([command, "--no-figures"]).no_figures is True
+    assert parse([command]).no_figures is False
+
+
+def test_multistart_no_figures_after_a_run_with_them(tmp_path: Path) -> None:
+    """A reused `multistart --out` rerun with `--no-figures`: no png of ours left, others kept."""
+    argv = ["multistart", "--starts", "2", *QUICK, "--workers", "0", "--quiet", "--out", "ms"]
+    assert main(argv) == 0
+    folder = tmp_path / "ms"
+    pngs = ["refinement.png", "multistart.png", "convergence.png", "trajectory.png"]
+    assert [f for f in _summary(folder)["files"] if str(f).endswith(".png")] == pngs  # type: ignore[attr-defined]
+    (folder / "notes.png").write_bytes(b"not ours")
+    before = sorted(p.name for p in folder.iterdir())
+    assert main([*argv, "--no-figures"]) == 0
+    files = _summary(folder)["files"]
+    assert not [f for f in files if str(f).endswith(".png")]  # type: ignore[attr-defined]
+    assert sorted(p.name for p in folder.iterdir()) == sorted(set(before) - set(pngs))
+    assert (folder / "notes.png").read_bytes() == b"not ours"

@@ -750,6 +750,11 @@ def _study_common(p: argparse.ArgumentParser) -> None:
         "recorded as failed and retried once (default: none; needs --workers >= 1)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument(
+        "--no-figures",
+        action="store_true",
+        help="write no figure (*.png): the results, replay.html and summary.json only",
+    )
     _scheduler_args(p)
     _keep_results_arg(p)  # --no-keep-results: the starts stay in the folder (10^4+ starts)
     _refine_arguments(p, unrefined="the reported plans are neither refined nor certified")

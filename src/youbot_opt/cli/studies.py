@@ -20,8 +20,9 @@ import itertools
 import json
 import math
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -183,6 +184,23 @@ def _fmt(x: float, spec: str = ".6g") -> str:
 _STORE = ("manifest.json", "items")  # the sweep store's files, at the top of the run folder
 
 
+def _figure(
+    args: argparse.Namespace, folder: Path, name: str, make: Callable[..., Any], *data: object
+) -> Path | None:
+    """Draw one figure into ``folder``, or none with ``--no-figures``."""
+    return None if args.no_figures else draw_figure(folder, name, make, *data)
+
+
+def _refinement_figures(
+    args: argparse.Namespace,
+    folder: Path,
+    refined: list[tuple[TrajOptResult, Refinement | None]],
+    labels: list[str],
+) -> list[Path | None]:
+    """Draw the refined plans' figures (:func:`refinement_figures`); none with ``--no-figures``."""
+    return [] if args.no_figures else refinement_figures(folder, refined, labels)
+
+
 def _emit(
     args: argparse.Namespace,
     folder: Path,
@@ -268,16 +286,17 @@ def multistart(args: argparse.Namespace) -> int:
     quiet = args.quiet or args.json
     refined, lines, summary["refinement"] = refine_many(solver, best, args, quiet, folder)
     table += lines
-    files: list[Path | None] = refinement_figures(folder, refined, [label for label, *_ in best])
+    labels = [label for label, *_ in best]
+    files: list[Path | None] = _refinement_figures(args, folder, refined, labels)
     files.append(starts_file)
     if res.best is not None and res.best.result is not None:
         plan, record = refined[0] if refined else (res.best.result, None)  # --no-refine: grid's
         summary["plan"] = {**plan.summary(), "certified": record is not None and record.certified}
         files += [
             save_result(plan, folder / "result.npz", refinement=record),
-            draw_figure(folder, "multistart.png", plot_multistart, res),
-            draw_figure(folder, "convergence.png", plot_convergence, res),
-            draw_figure(folder, "trajectory.png", plot_trajectory, plan),
+            _figure(args, folder, "multistart.png", plot_multistart, res),
+            _figure(args, folder, "convergence.png", plot_convergence, res),
+            _figure(args, folder, "trajectory.png", plot_trajectory, plan),
             optima_replay(folder, res, args.obj_tol, args.traj_tol),
         ]
     _emit(args, folder, summary, table, files)
@@ -309,7 +328,8 @@ def pareto(args: argparse.Namespace) -> int:
     items = [(f"beta = {p.beta:g}", keys[id(p)], p.result) for p in best if p.result is not None]
     plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json, folder)
     table += lines
-    files: list[Path | None] = refinement_figures(folder, plans, [label for label, *_ in items])
+    labels = [label for label, *_ in items]
+    files: list[Path | None] = _refinement_figures(args, folder, plans, labels)
     if best:
         picks = sorted({round(i * (len(best) - 1) / 4) for i in range(5)})  # ends + 3 between
         picks.sort(key=lambda i: best[i].beta)
@@ -320,7 +340,7 @@ def pareto(args: argparse.Namespace) -> int:
             for i, x in zip(picks, shown, strict=True)
         ]
         files += [
-            draw_figure(folder, "pareto.png", plot_pareto, front),
+            _figure(args, folder, "pareto.png", plot_pareto, front),
             replay_html(folder, shown, labels),
         ]
     _emit(args, folder, {**pareto_summary(front), "refinement": refined}, table, files)
@@ -366,7 +386,7 @@ def bounds(args: argparse.Namespace) -> int:
     items = [(f"scale {r.bound_scale:.3f}", key, x) for r, key, x in solved]
     plans, lines, refined = refine_many(solver, items, args, args.quiet or args.json, folder)
     table += lines
-    files += refinement_figures(folder, plans, [label for label, *_ in items])
+    files += _refinement_figures(args, folder, plans, [label for label, *_ in items])
     if solved:
         shown = [p for p, _ in plans] or [x for *_, x in solved]  # --no-refine: the grid's
         labels = [
@@ -374,7 +394,7 @@ def bounds(args: argparse.Namespace) -> int:
             for (r, *_), x in zip(solved, shown, strict=True)
         ]
         files += [
-            draw_figure(folder, "bound_scaling.png", plot_bound_scaling, res),
+            _figure(args, folder, "bound_scaling.png", plot_bound_scaling, res),
             replay_html(folder, shown, labels),
         ]
     _emit(args, folder, {**res.summary(), "refinement": refined}, table, files)
