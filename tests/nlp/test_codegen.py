@@ -534,3 +534,23 @@ def test_orphan_cleaning_spares_a_live_compile_however_old(
     _wait_unlocked(cache)
     assert not list(cache.glob("*.failed"))
     assert len(list(cache.glob("tiny_*.so"))) == 1
+
+
+def test_an_old_failed_marker_is_retried(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A .failed marker older than FAILED_RETRY is removed and the library compiled again."""
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f = _function(15.5)
+    assert compile_function(f, wait=True) is not f
+    (library,) = tmp_path.glob("tiny_*.so")
+    library.unlink()
+    failed = library.with_suffix(".failed")
+    failed.write_text("cc1: a failure of long ago")
+    with pytest.warns(YoubotOptWarning, match="failed earlier"):
+        assert compile_function(f, wait=True) is f  # a recent marker holds
+    old = time.time() - codegen.FAILED_RETRY - 10
+    os.utime(failed, (old, old))
+    assert compile_function(f, wait=True) is not f
+    assert library.is_file() and not failed.exists()

@@ -62,6 +62,11 @@ SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured 
 NATIVE_MULTIPLIER = 1.27  # gcc -O2 -march=native over -O2, ur5 kernels: 19.1 s against 15.0 s
 STALE_LOCK = 1800.0  # [s] a background compile older than this is presumed dead
 NO_PID_GRACE = 60.0  # [s] a lock still without its compiler's pid is orphaned
+FAILED_RETRY = 86400.0
+"""[s] A ``<library>.failed`` marker older than this is removed and the library compiled again.
+The library's name already hashes its code, the compiler's name, the flags and CasADi's version,
+so a marker only outlives what caused it when the compiler was upgraded under the same name, or
+the failure was not the code's (a full disk, a killed compiler): retried daily, not every run."""
 WAIT_SECONDS = 0.5
 """[s] ``wait=None``: compile now when the batch is estimated to take at most this long (a
 two-link arm), else in the background while this run uses CasADi's virtual machine. Measured
@@ -377,12 +382,17 @@ def compile_functions(
             result[i] = ca.external(function.name(), str(job.library))
             continue
         failed = job.library.with_suffix(".failed")
+        if failed.is_file() and _expired(failed):
+            _log.info(
+                "retrying %s, failed more than %.0f h ago", job.library.name, FAILED_RETRY / 3600
+            )
+            failed.unlink(missing_ok=True)
         if failed.is_file():
             warnings.warn(
                 f"compiling {label + ' ' if label else ''}({function.name()}) failed earlier "
                 f"({failed}: {failed.read_text(errors='replace').strip()[:300]}); using "
                 "CasADi's virtual machine instead (slower, same results); delete that file "
-                "to retry",
+                f"to retry now (retried after {FAILED_RETRY / 3600:.0f} h)",
                 YoubotOptWarning,
                 stacklevel=2,
             )
@@ -423,6 +433,14 @@ def compile_functions(
             stacklevel=2,
         )
     return result
+
+
+def _expired(failed: Path) -> bool:
+    """Whether the ``.failed`` marker is older than :data:`FAILED_RETRY`."""
+    try:
+        return time.time() - failed.stat().st_mtime > FAILED_RETRY
+    except FileNotFoundError:
+        return False
 
 
 def _job(
