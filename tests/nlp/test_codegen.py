@@ -244,33 +244,6 @@ def test_a_build_folder_removed_under_the_compiler_is_no_failure(
     assert compile_function(f, wait=False, flags=flags) is not f
 
 
-@pytest.mark.skipif(os.name != "posix", reason="the compiler's pid is checked on POSIX")
-def test_a_live_compilers_old_build_folder_is_kept(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A build folder older than STALE_LOCK whose compiler still runs (queued, slow) stays."""
-    from youbot_opt.nlp import codegen
-
-    cache = tmp_path / "cache"
-    cache.mkdir()
-    live, dead = cache / ".build-live", cache / ".build-dead"
-    for folder, pid in ((live, os.getpid()), (dead, _ended_pid())):
-        folder.mkdir()
-        (folder / "pid").write_text(str(pid))
-        old = time.time() - 2 * codegen.STALE_LOCK
-        os.utime(folder, (old, old))
-    codegen._clean_orphans(cache)
-    assert live.is_dir()
-    assert not dead.exists()
-
-
-def _ended_pid() -> int:
-    """The pid of a process that has ended (and been reaped)."""
-    proc = subprocess.Popen([sys.executable, "-c", "pass"])  # noqa: S603
-    proc.wait()
-    return proc.pid
-
-
 @pytest.mark.skipif(os.name != "posix", reason="process groups and pids are POSIX")
 def test_a_killed_compile_leaves_nothing_behind(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
@@ -497,3 +470,126 @@ def test_compilers_run_side_by_side_only_on_idle_cores(monkeypatch: pytest.Monke
     assert codegen._jobs(3) == 1  # measured: no faster side by side on a loaded machine
     monkeypatch.setenv("YOUBOT_OPT_COMPILE_JOBS", "3")
     assert codegen._jobs(3) == 3 and codegen._jobs(2) == 2
+
+
+def _wait_for_worker(cache: Path, timeout: float = 30.0) -> Path:
+    """The build folder of the background compile just started, once its worker has its pid."""
+    tic = time.perf_counter()
+    while True:
+        builds = [b for b in cache.glob(".build-*") if (b / "pid").is_file()]
+        locks = list(cache.glob("*.lock"))
+        if builds and locks and all(lock.read_text().strip() for lock in locks):
+            return builds[0]
+        assert time.perf_counter() - tic < timeout, "the worker did not start"
+        time.sleep(0.05)
+
+
+@pytest.mark.skipif(os.name != "posix", reason="a shell-script compiler")
+def test_a_build_folder_removed_under_the_compiler_records_no_failure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Its files vanishing is not a compiler error: no .failed marker, the next run compiles."""
+    cache = tmp_path / "cache"
+    real = find_compiler()
+    assert real is not None
+    flags = compile_flags(real)
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(cache))
+    monkeypatch.setenv("CC", _slow_compiler(tmp_path, 2))
+    _fresh_process_state(monkeypatch)
+    f = _function(12.5)
+    assert compile_function(f, wait=False, flags=flags) is f
+    build = _wait_for_worker(cache)
+    shutil.rmtree(build)  # what an orphan cleaning once did to a live compile
+    _wait_unlocked(cache)
+    assert not list(cache.glob("*.failed"))
+    assert not list(cache.glob("tiny_*.so"))
+    _fresh_process_state(monkeypatch)  # the next run retries
+    monkeypatch.setenv("CC", real)
+    assert compile_function(f, wait=True, flags=flags) is not f
+    assert len(list(cache.glob("tiny_*.so"))) == 1
+
+
+def test_a_genuine_compiler_error_is_still_recorded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The real compiler rejecting its command line leaves a .failed marker with its message."""
+    real = find_compiler()
+    assert real is not None
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f = _function(13.5)
+    flags = (*COMPILE_FLAGS, "-fno-such-option-youbot-opt")
+    assert compile_function(f, wait=False, flags=flags) is f
+    _wait_unlocked(tmp_path)
+    (failed,) = tmp_path.glob("*.failed")
+    assert "no-such-option-youbot-opt" in failed.read_text()
+    assert not list(tmp_path.glob(".build-*"))
+    with pytest.warns(YoubotOptWarning, match="failed earlier"):
+        assert compile_function(f, wait=False, flags=flags) is f
+
+
+@pytest.mark.skipif(os.name != "posix", reason="pids and a shell-script compiler")
+def test_orphan_cleaning_spares_a_live_compile_however_old(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A build folder older than STALE_LOCK whose worker runs is kept; its library lands.
+
+    A folder naming a live process that is not its worker (pid reuse), or a
+    dead owner and no worker, is removed; one whose owner lives is kept.
+    """
+    from youbot_opt.nlp import codegen
+
+    cache = tmp_path / "cache"
+    real = find_compiler()
+    assert real is not None
+    flags = compile_flags(real)
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(cache))
+    monkeypatch.setenv("CC", _slow_compiler(tmp_path, 3))
+    _fresh_process_state(monkeypatch)
+    f = _function(14.5)
+    assert compile_function(f, wait=False, flags=flags) is f
+    build = _wait_for_worker(cache)
+    old = time.time() - codegen.STALE_LOCK - 10
+    os.utime(build, (old, old))  # a compile queued or running for longer than STALE_LOCK
+    reused = cache / ".build-reused"
+    reused.mkdir()
+    (reused / "pid").write_text(str(os.getpid()))  # alive, but not a worker of this folder
+    dead_owner = cache / ".build-dead-owner"
+    dead_owner.mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])  # noqa: S603
+    dead.wait()
+    (dead_owner / "owner").write_text(str(dead.pid))
+    live_owner = cache / ".build-live-owner"
+    live_owner.mkdir()
+    (live_owner / "owner").write_text(str(os.getpid()))
+    past_grace = time.time() - codegen.NO_PID_GRACE - 10
+    os.utime(live_owner, (past_grace, past_grace))
+    _fresh_process_state(monkeypatch)  # the next run cleans the cache
+    codegen._clean_orphans(cache)
+    assert build.is_dir() and live_owner.is_dir()
+    if Path("/proc/self/cmdline").is_file():
+        assert not reused.exists()
+    assert not dead_owner.exists()
+    _wait_unlocked(cache)
+    assert not list(cache.glob("*.failed"))
+    assert len(list(cache.glob("tiny_*.so"))) == 1
+
+
+def test_an_old_failed_marker_is_retried(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A .failed marker older than FAILED_RETRY is removed and the library compiled again."""
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    f = _function(15.5)
+    assert compile_function(f, wait=True) is not f
+    (library,) = tmp_path.glob("tiny_*.so")
+    library.unlink()
+    failed = library.with_suffix(".failed")
+    failed.write_text("cc1: a failure of long ago")
+    with pytest.warns(YoubotOptWarning, match="failed earlier"):
+        assert compile_function(f, wait=True) is f  # a recent marker holds
+    old = time.time() - codegen.FAILED_RETRY - 10
+    os.utime(failed, (old, old))
+    assert compile_function(f, wait=True) is not f
+    assert library.is_file() and not failed.exists()

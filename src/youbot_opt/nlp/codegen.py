@@ -61,8 +61,12 @@ cache name includes :func:`cpu_fingerprint`. ``YOUBOT_OPT_NATIVE=0`` turns it of
 SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured on ur5's kernels
 NATIVE_MULTIPLIER = 1.27  # gcc -O2 -march=native over -O2, ur5 kernels: 19.1 s against 15.0 s
 STALE_LOCK = 1800.0  # [s] a background compile older than this is presumed dead
-NO_PID_GRACE = 60.0  # [s] a lock or build folder still without its compiler's pid is orphaned
-REUSED_PID_AGE = 86400.0  # [s] a build folder this old whose pid runs: the number was reused
+NO_PID_GRACE = 60.0  # [s] a lock still without its compiler's pid is orphaned
+FAILED_RETRY = 86400.0
+"""[s] A ``<library>.failed`` marker older than this is removed and the library compiled again.
+The library's name already hashes its code, the compiler's name, the flags and CasADi's version,
+so a marker only outlives what caused it when the compiler was upgraded under the same name, or
+the failure was not the code's (a full disk, a killed compiler): retried daily, not every run."""
 WAIT_SECONDS = 0.5
 """[s] ``wait=None``: compile now when the batch is estimated to take at most this long (a
 two-link arm), else in the background while this run uses CasADi's virtual machine. Measured
@@ -80,9 +84,9 @@ _ANNOUNCED: set[frozenset[tuple[str, int | None]]] = set()  # compiles in progre
 # the build folder and into each library's lock (who holds them: a dead holder's are cleaned
 # up by the next run), lowers its priority, takes this user's compile slot (one batch at a
 # time per user and cache), skips a library another process has produced meanwhile, releases
-# each lock as soon as its library is in place, and records a compiler's failure in
-# ``<library>.failed`` (not a build folder removed under it: the next run compiles again).
-# It prints ``{library: compiler error}`` for the compiles that failed.
+# each lock as soon as its library is in place, and records a failure in ``<library>.failed``
+# unless its build folder or source vanished meanwhile (removed under it: not a compiler error,
+# so the next run retries). It prints ``{library: compiler error}`` for the compiles that failed.
 _WORKER = r"""
 import json, os, shutil, subprocess, sys, time
 spec = json.loads(sys.argv[1])
@@ -117,12 +121,11 @@ try:
             if os.path.exists(item["library"]):  # another process produced it meanwhile
                 release(item)
                 continue
-            try:
-                log = open(item["target"] + ".log", "w")
-            except OSError:  # the build folder was removed: nothing to compile, no marker
-                errors[item["library"]] = "the build folder was removed before the compile"
+            if not os.path.isfile(item["source"]):  # the build folder was removed: no marker
+                errors[item["library"]] = "build folder %s removed before the compile" % tmp
                 release(item)
                 continue
+            log = open(item["target"] + ".log", "w+", errors="replace")  # read back through it
             command = [spec["compiler"], *spec["flags"], item["source"], "-o", item["target"]]
             command.append("-lm")
             proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=log)
@@ -133,27 +136,27 @@ try:
             if proc.poll() is None:
                 continue
             running.remove(entry)
-            log.close()
             if proc.returncode == 0:
                 try:
                     os.replace(item["target"], item["library"])
                 except OSError:
-                    if not os.path.exists(item["library"]):
+                    if os.path.isdir(tmp) and not os.path.exists(item["library"]):
                         raise
+                    if not os.path.exists(item["library"]):
+                        errors[item["library"]] = "build folder %s removed before " % tmp
+                        errors[item["library"]] += "its library was moved into the cache"
             else:
-                try:
-                    with open(log.name, errors="replace") as text:
-                        errors[item["library"]] = text.read()[-2000:] or "exit %d" % proc.returncode
-                except OSError:
-                    errors[item["library"]] = "exit %d" % proc.returncode
-                # a build folder removed under the compiler is no compiler error: no marker,
-                # the next run compiles it again
-                intact = os.path.isfile(item["source"])
-                if not intact:
-                    errors[item["library"]] += " (the build folder was removed meanwhile)"
-                if spec["background"] and intact:
-                    with open(item["failed"], "w") as out:
-                        out.write(errors[item["library"]])
+                log.seek(0)
+                text = log.read()[-2000:] or "exit %d" % proc.returncode
+                if os.path.isdir(tmp) and os.path.isfile(item["source"]):
+                    errors[item["library"]] = text
+                    if spec["background"]:
+                        with open(item["failed"], "w") as out:
+                            out.write(text)
+                else:  # the build folder was removed under the compiler: retried next run
+                    errors[item["library"]] = "build folder %s removed during the compile; " % tmp
+                    errors[item["library"]] += "not recorded as failed: " + text
+            log.close()
             release(item)
 finally:
     for item in items:
@@ -379,12 +382,17 @@ def compile_functions(
             result[i] = ca.external(function.name(), str(job.library))
             continue
         failed = job.library.with_suffix(".failed")
+        if failed.is_file() and _expired(failed):
+            _log.info(
+                "retrying %s, failed more than %.0f h ago", job.library.name, FAILED_RETRY / 3600
+            )
+            failed.unlink(missing_ok=True)
         if failed.is_file():
             warnings.warn(
                 f"compiling {label + ' ' if label else ''}({function.name()}) failed earlier "
                 f"({failed}: {failed.read_text(errors='replace').strip()[:300]}); using "
                 "CasADi's virtual machine instead (slower, same results); delete that file "
-                "to retry",
+                f"to retry now (retried after {FAILED_RETRY / 3600:.0f} h)",
                 YoubotOptWarning,
                 stacklevel=2,
             )
@@ -425,6 +433,14 @@ def compile_functions(
             stacklevel=2,
         )
     return result
+
+
+def _expired(failed: Path) -> bool:
+    """Whether the ``.failed`` marker is older than :data:`FAILED_RETRY`."""
+    try:
+        return time.time() - failed.stat().st_mtime > FAILED_RETRY
+    except FileNotFoundError:
+        return False
 
 
 def _job(
@@ -566,22 +582,70 @@ def _clean_orphans(directory: Path) -> None:
     for build in directory.glob(".build-*"):
         try:
             stat = build.stat()
-            if uid is not None and stat.st_uid != uid:
-                continue
-            text = (build / "pid").read_text().strip()
-        except FileNotFoundError:
-            text = ""
         except OSError:
             continue
-        age = now - stat.st_mtime
-        if text.isdigit():  # a live compiler's folder stays however long it waits or runs
-            alive = _pid_alive(int(text))
-            dead = alive is False or age > (STALE_LOCK if alive is None else REUSED_PID_AGE)
-        else:  # its worker writes the pid first thing: none after the grace, none to come
-            dead = age > NO_PID_GRACE
-        if dead:
+        if uid is not None and stat.st_uid != uid:
+            continue
+        if _build_dead(build, now - stat.st_mtime):
             _log.debug("removing %s, left by a compile that ended", build)
             shutil.rmtree(build, ignore_errors=True)
+
+
+def _read_pid(path: Path) -> int | None:
+    """Return the process id written in ``path``, or None (no file, empty, not a number)."""
+    try:
+        text = path.read_text(errors="replace").strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def _runs_worker_of(pid: int, build: Path) -> bool | None:
+    """Whether process ``pid`` is the worker compiling in ``build``; None if unknown.
+
+    The worker's command line holds its spec, which names the build folder; a
+    live process whose command line does not (Linux ``/proc``) is another
+    program that got the number after the worker ended. An empty command line
+    (seen right after ``Popen`` returns, before the exec shows) says nothing.
+    """
+    try:
+        command = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+    except OSError:
+        return None
+    if not command:  # still being started (between fork and exec), or a zombie
+        return None
+    return str(build) in command or json.dumps(str(build))[1:-1] in command
+
+
+def _build_dead(build: Path, age: float) -> bool:
+    """Whether the compile of build folder ``build`` (its last change ``age`` [s] ago) has ended.
+
+    A folder whose worker (``pid``) runs is never removed, however long its
+    compile takes or waits for this user's compile slot (a removal under a
+    running compiler is what once recorded spurious ``.failed`` markers); a
+    worker pid that now names another program (pid reuse) or no process means
+    ended; a live one whose command line is empty (between fork and exec, the
+    moment the caller has written its pid; or a zombie) counts as running for
+    up to :data:`STALE_LOCK`. Before the worker's pid is in, the process that made the folder
+    (``owner``) vouches for it (a foreground compile's caller, or a background
+    one's until it has written the worker's pid) for up to :data:`STALE_LOCK`;
+    a folder with neither (an older version's, or written between ``mkdtemp``
+    and the owner file) ends after :data:`STALE_LOCK` too: an orphaned folder
+    costs disk space only, a removed live one a compile.
+    """
+    worker = _read_pid(build / "pid")
+    if worker is not None:
+        alive = _pid_alive(worker)
+        if alive is None:  # not POSIX: no way to tell
+            return age > STALE_LOCK
+        if not alive:
+            return True
+        runs = _runs_worker_of(worker, build)
+        return runs is False or (runs is None and age > STALE_LOCK)
+    owner = _read_pid(build / "owner")
+    if owner is not None and _pid_alive(owner) is False:
+        return True
+    return age > STALE_LOCK
 
 
 def _prepare(
@@ -594,6 +658,7 @@ def _prepare(
 ) -> tuple[Path, str]:
     """Write the sources into a new build folder; return it and the worker's spec (JSON)."""
     tmp = Path(tempfile.mkdtemp(dir=directory, prefix=f".build-{_user_tag()}-"))
+    (tmp / "owner").write_text(str(os.getpid()))  # vouches for the folder until the worker's pid
     items = []
     for job in sorted(jobs, key=lambda job: -job.seconds):  # the longest first (the Hessian)
         source = tmp / f"{job.library.stem}.c"
@@ -620,21 +685,40 @@ def _prepare(
     return tmp, json.dumps(spec)
 
 
+def _write_pid(tmp: Path, pid: int) -> None:
+    """Write the worker's ``pid`` into its build folder (it does too, as it starts).
+
+    Written by the caller as well, so that no run's orphan cleaning sees the
+    folder without a live pid while the worker's interpreter is still starting
+    (seconds on a loaded machine) after a background compile's caller has ended.
+    """
+    try:
+        (tmp / "pid").write_text(str(pid))
+    except OSError:  # the worker has finished and removed the folder already
+        pass
+
+
 def _run_worker(
     jobs: Sequence[_Job], compiler: str, flags: tuple[str, ...], directory: Path
 ) -> dict[str, str]:
     """Compile ``jobs`` now; return ``{library: error}`` of the failed ones."""
     tmp, spec = _prepare(jobs, compiler, flags, directory, background=False)
     try:
-        done = subprocess.run(  # noqa: S603 - our own script and the compiler found on PATH
-            [sys.executable, "-c", _WORKER, spec], capture_output=True, text=True, check=False
-        )
+        with subprocess.Popen(  # noqa: S603 - our own script and the compiler found on PATH
+            [sys.executable, "-c", _WORKER, spec],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        ) as proc:
+            _write_pid(tmp, proc.pid)
+            stdout, stderr = proc.communicate()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     try:
-        errors = json.loads(done.stdout.strip().splitlines()[-1])
+        errors = json.loads(stdout.strip().splitlines()[-1])
     except (IndexError, json.JSONDecodeError):
-        errors = {str(job.library): done.stderr[-2000:] for job in jobs}
+        errors = {str(job.library): stderr[-2000:] for job in jobs}
     return {str(k): str(v) for k, v in errors.items()}
 
 
@@ -686,6 +770,7 @@ def _compile_in_background(
             _log.warning("could not start the compiler for %s (%s)", batch, exc)
             return
         pid = proc.pid
+        _write_pid(tmp, pid)
         _LAUNCHED.add(pid)
         _LOCKED.update(str(lock_path(job.library)) for job in mine)
     meanwhile_text = (
