@@ -270,3 +270,18 @@ def test_a_reused_folder_keeps_no_stale_ikpath_figure(capsys, tmp_path):
         "ikpath_workspace.png", "notes.png", "summary.json"
     ]  # fmt: skip
     assert doc["files"] == ["ikpath_workspace.png", "summary.json"]
+
+
+def test_no_figures_after_a_run_with_them(capsys, tmp_path):
+    """`--no-figures` into the folder of a run with figures: no ikpath_*.png left, others stay."""
+    out = tmp_path / "run"
+    argv = ["ikpath", "--example", "B", "--json", "--no-progress", "--no-replay",
+            "--out", str(out)]  # fmt: skip
+    code, doc, _ = _json(capsys, argv)
+    assert code == 0 and "ikpath_workspace.png" in doc["files"]
+    (out / "notes.png").write_bytes(b"not ours")
+    code, doc, _ = _json(capsys, [*argv, "--no-figures"])
+    assert code == 0 and not [f for f in doc["files"] if f.endswith(".png")]
+    assert not list(out.glob("ikpath_*.png"))
+    assert (out / "notes.png").read_bytes() == b"not ours"
+    assert "result.json" in doc["files"] and (out / "result.json").is_file()

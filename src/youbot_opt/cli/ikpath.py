@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
-from typing import TextIO, cast
+from typing import Any, TextIO, cast
 
 import numpy as np
 
@@ -381,6 +381,13 @@ def _executor(args: argparse.Namespace, spatial: bool) -> str:
     return "process" if args.starts > 1 else "serial"
 
 
+def _figure(
+    args: argparse.Namespace, folder: Path, name: str, draw: Callable[[], Any]
+) -> list[Path]:
+    """Draw and save one figure as ``folder/name``; none with ``--no-figures``."""
+    return [] if args.no_figures else [save_figure(draw(), folder, name)]
+
+
 def _planar_outputs(
     args: argparse.Namespace,
     folder: Path,
@@ -389,13 +396,13 @@ def _planar_outputs(
     ms: MultistartResult | None,
 ) -> list[Path]:
     """Write a planar run's figures, replay and saved result; return the folder's files."""
-    files = [save_figure(plot_workspace(problem, verdicts), folder, "ikpath_workspace.png")]
+    files = _figure(args, folder, "ikpath_workspace.png", lambda: plot_workspace(problem, verdicts))
     if ms is not None:
         best = ms.best
-        files.append(save_figure(plot_path(best), folder, "ikpath_arm.png"))
+        files += _figure(args, folder, "ikpath_arm.png", lambda: plot_path(best))
         if best.history:
-            files.append(save_figure(plot_convergence(best), folder, "ikpath_convergence.png"))
-        files.append(save_figure(plot_minima(ms), folder, "ikpath_minima.png"))
+            files += _figure(args, folder, "ikpath_convergence.png", lambda: plot_convergence(best))
+        files += _figure(args, folder, "ikpath_minima.png", lambda: plot_minima(ms))
         files.append(save_result(best, folder / "result.json"))
         files.append(folder / STARTS_FILE)
         if not args.no_replay:
@@ -601,8 +608,8 @@ def _run_3d(args: argparse.Namespace) -> int:
             doc["clearance"] = clearance_summary(clearance, args.scene, best.clearance)
         source = RobotSource.of(robot, strict=not args.lenient)
         files.append(save_result(best, folder / "result.json", source))
-        files.append(save_figure(plot_leg_motion(best), folder, "ikpath_legs.png"))
-        files.append(save_figure(plot_path(best), folder, "ikpath_path3d.png"))
+        files += _figure(args, folder, "ikpath_legs.png", lambda: plot_leg_motion(best))
+        files += _figure(args, folder, "ikpath_path3d.png", lambda: plot_path(best))
         if not args.no_replay:
             page = replay_or_warn(
                 lambda: export_ikpath_html(

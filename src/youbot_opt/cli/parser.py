@@ -975,6 +975,7 @@ def _ikpath(sub: _Sub) -> None:
         "(default 1)",
     )
     out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
+    out.add_argument("--no-figures", action="store_true", help="write no figure (ikpath_*.png)")
     _keep_results_arg(out)
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
