@@ -69,3 +69,19 @@ def test_wrong_inner_shape_is_refused_by_field(
     lines = [x for x in err.splitlines() if x.startswith("youbot-opt: error:")]
     assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
     assert f"field {field}" in lines[0] and str(path) in lines[0]
+
+
+def test_no_figures_rerun_keeps_no_stale_figure(document: dict[str, Any], tmp_path: Path) -> None:
+    """`--from-json` into a folder with figures, then `--no-figures`: no repro_*.png left."""
+    path = tmp_path / "study.json"
+    path.write_text(json.dumps(document))
+    out = tmp_path / "o"
+    assert main(["reproduce-study1", "--from-json", str(path), "--out", str(out)]) == 0
+    drawn = sorted(p.name for p in out.glob("repro_*.png"))
+    assert drawn
+    (out / "notes.png").write_bytes(b"not ours")
+    before = sorted(p.name for p in out.iterdir())
+    argv = ["reproduce-study1", "--from-json", str(path), "--out", str(out), "--no-figures"]
+    assert main(argv) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(set(before) - set(drawn))
+    assert (out / "notes.png").read_bytes() == b"not ours"

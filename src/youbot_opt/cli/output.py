@@ -125,9 +125,11 @@ def print_json(doc: Mapping[str, object], stream: IO[str] | None = None) -> None
 OWN_FIGURES = re.compile(
     r"(trajectory|arm|convergence|multistart|refinement(_[1-9][0-9]*)?|clearance|tool"
     r"|pareto|bound_scaling"
-    r"|ikpath_(workspace|arm|convergence|minima|legs|path3d))\.png"
+    r"|ikpath_(workspace|arm|convergence|minima|legs|path3d)"
+    r"|repro_(base_case|pareto|refinement))\.png"
 )
-"""Names of the figures our commands write (``solve``, ``main``, the studies, ``ikpath``)."""
+"""Names of the figures our commands write (``solve``, ``main``, the studies, ``ikpath``,
+``reproduce-study1``)."""
 
 
 def remove_stale_figures(folder: Path, written: Iterable[Path]) -> list[Path]:

@@ -832,6 +832,8 @@ def _reproduce(sub: _Sub) -> None:
     p.add_argument("--serial", action="store_true", help="run starts in this process")
     p.add_argument("--from-json", default=None, metavar="FILE",
                    help="rebuild the tables from a saved JSON file, without solving")  # fmt: skip
+    p.add_argument("--no-figures", action="store_true",
+                   help="write no figure (repro_*.png)")  # fmt: skip
 
 
 IKPATH_DESCRIPTION = """\

@@ -23,7 +23,7 @@ from typing import Any
 
 from youbot_opt._files import read_regular_file
 from youbot_opt.cli.drawing import save_figure
-from youbot_opt.cli.output import print_outputs, run_folder, write_summary
+from youbot_opt.cli.output import print_outputs, remove_stale_figures, run_folder, write_summary
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError, ResultFileError
 from youbot_opt.reproduction.figures import FIGURES
@@ -116,12 +116,14 @@ def _tracked(value: Any, path: str, seen: _Seen) -> Any:
     return value
 
 
-def _from_json(data: dict[str, Any], path: str, folder: Path) -> tuple[list[Path], bool]:
+def _from_json(
+    data: dict[str, Any], path: str, folder: Path, figures: bool = True
+) -> tuple[list[Path], bool]:
     """Write the outputs of a ``--from-json`` document; a wrong-shaped field is named."""
     seen = _Seen()
     tracked = _Fields(data, "data", seen)
     try:
-        files = _write_outputs(tracked, {}, folder)
+        files = _write_outputs(tracked, {}, folder, figures)
         return files, _converged(tracked)
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
         what = f"{type(exc).__name__}: {str(exc)[:_MAX_SHOWN]}"
@@ -150,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             ) from exc
         _check_reproduction_json(data, args.from_json)
         folder = run_folder("reproduce-study1", args.out)
-        files, ok = _from_json(data, args.from_json, folder)
+        files, ok = _from_json(data, args.from_json, folder, not args.no_figures)
         print((folder / files[1].name).read_text())
         print_outputs(folder, files)
         return 0 if ok else 1
@@ -179,14 +181,20 @@ def run(args: argparse.Namespace) -> int:
 
         reproduction = reproduce_study1(config, progress=progress)
         data, results = reproduction.to_json(), reproduction.results
-    files = _write_outputs(data, results, folder)
+    files = _write_outputs(data, results, folder, not args.no_figures)
     print((folder / files[1].name).read_text())
     print_outputs(folder, files)
     return 0 if _converged(data) else 1
 
 
-def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) -> list[Path]:
-    """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first)."""
+def _write_outputs(
+    data: dict[str, Any], results: dict[str, Any], folder: Path, figures: bool = True
+) -> list[Path]:
+    """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first).
+
+    ``figures`` False (``--no-figures``): no ``repro_*.png``. A reused folder keeps
+    no figure of ours that this run did not write.
+    """
     files = list(write_report(data, folder))
     if results:  # the solves first: nothing below can lose them
         (folder / "results").mkdir(exist_ok=True)
@@ -195,8 +203,9 @@ def _write_outputs(data: dict[str, Any], results: dict[str, Any], folder: Path) 
         files.append(folder / "results")
     files.append(write_summary(folder, _summary(data)))
     for stem, (drawable, draw) in FIGURES.items():
-        if drawable(data):
+        if figures and drawable(data):
             files.append(save_figure(draw(data), folder, f"{stem}.png", dpi=90))
+    remove_stale_figures(folder, files)
     return files
 
 
