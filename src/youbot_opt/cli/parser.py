@@ -507,6 +507,15 @@ def _tool_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _no_figures_argument(p: argparse._ActionsContainer, names: str = "*.png") -> None:
+    """``--no-figures``: the command draws no figure (``names``); its other files are written."""
+    p.add_argument(
+        "--no-figures",
+        action="store_true",
+        help=f"write no figure ({names}); every other file of the run folder is written",
+    )
+
+
 def _main(sub: _Sub) -> None:
     p = sub.add_parser(
         "main",
@@ -522,11 +531,7 @@ def _main(sub: _Sub) -> None:
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/main-<date>-<time>)",
     )
-    p.add_argument(
-        "--no-figures",
-        action="store_true",
-        help="write no figure (*.png): the result, replay.html and summary.json only",
-    )
+    _no_figures_argument(p)
     _refine_arguments(p, grid="the study's 50-knot grid")
 
 
@@ -618,11 +623,7 @@ def _solve(sub: _Sub) -> None:
         metavar="DIR",
         help="output folder (default: a new youbot_opt_runs/solve-<date>-<time>)",
     )
-    p.add_argument(
-        "--no-figures",
-        action="store_true",
-        help="write no figure (*.png): the result, replay.html and summary.json only",
-    )
+    _no_figures_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _clearance_arguments(p)
     _tool_arguments(p)
@@ -750,11 +751,7 @@ def _study_common(p: argparse.ArgumentParser) -> None:
         "recorded as failed and retried once (default: none; needs --workers >= 1)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    p.add_argument(
-        "--no-figures",
-        action="store_true",
-        help="write no figure (*.png): the results, replay.html and summary.json only",
-    )
+    _no_figures_argument(p)
     _scheduler_args(p)
     _keep_results_arg(p)  # --no-keep-results: the starts stay in the folder (10^4+ starts)
     _refine_arguments(p, unrefined="the reported plans are neither refined nor certified")
@@ -832,8 +829,7 @@ def _reproduce(sub: _Sub) -> None:
     p.add_argument("--serial", action="store_true", help="run starts in this process")
     p.add_argument("--from-json", default=None, metavar="FILE",
                    help="rebuild the tables from a saved JSON file, without solving")  # fmt: skip
-    p.add_argument("--no-figures", action="store_true",
-                   help="write no figure (repro_*.png)")  # fmt: skip
+    _no_figures_argument(p, "repro_*.png")
 
 
 IKPATH_DESCRIPTION = """\
@@ -977,7 +973,7 @@ def _ikpath(sub: _Sub) -> None:
         "(default 1)",
     )
     out.add_argument("--no-replay", action="store_true", help="do not write replay.html")
-    out.add_argument("--no-figures", action="store_true", help="write no figure (ikpath_*.png)")
+    _no_figures_argument(out, "ikpath_*.png")
     _keep_results_arg(out)
     out.add_argument("--json", action="store_true", help="print one JSON object")
     out.add_argument("--no-progress", action="store_true", help="no progress on stderr")
