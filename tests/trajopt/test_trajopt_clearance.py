@@ -171,7 +171,7 @@ def test_refinement_removes_a_clip_between_knots(free: TrajOptProblem) -> None:
 
 
 def test_ball_overshoot_at_the_start_refused(free: TrajOptProblem) -> None:
-    """Self-collision on the youBot: a margin the balls cannot meet at the start is refused.
+    """Without an end window, a margin the balls cannot meet at the start is refused.
 
     Coal clears ('arm_link_1_0', 'arm_link_3_0') at the study's start by 94.7 mm,
     their balls by 91.0 mm: with a 93 mm margin the NLP would be infeasible at
@@ -180,13 +180,13 @@ def test_ball_overshoot_at_the_start_refused(free: TrajOptProblem) -> None:
     A 1 cm margin, refused by the slab fit of before (6 mm there), is accepted.
     """
     TrajOptSolver(dataclasses.replace(free, clearance=Clearance(margin=MARGIN)))
-    problem = dataclasses.replace(free, clearance=Clearance(margin=0.093))
+    problem = dataclasses.replace(free, clearance=Clearance(margin=0.093, end_window=0.0))
     with pytest.raises(ParameterError, match=r"start: the bounding balls of pair 'arm_link_1_0"):
         TrajOptSolver(problem)
 
 
 def test_ball_overshoot_at_an_overridden_start_refused(free: TrajOptProblem) -> None:
-    """A start given to ``solve()`` is held to the NLP's ball margin as a built one is.
+    """Without an end window a start given to ``solve()`` is held to the ball margin.
 
     The study's start to itself with the elbow opened by 0.2 rad, a 90 mm
     self-collision margin: both ends clear it by coal and by the balls, so the
@@ -199,7 +199,7 @@ def test_ball_overshoot_at_an_overridden_start_refused(free: TrajOptProblem) -> 
     goal = np.array(STUDY_Q_START, dtype=float)
     goal[2] += 0.2
     problem = dataclasses.replace(
-        free, goal=BoundaryState(q=goal), clearance=Clearance(margin=0.09)
+        free, goal=BoundaryState(q=goal), clearance=Clearance(margin=0.09, end_window=0.0)
     )
     solver = TrajOptSolver(problem)
     start = np.array(STUDY_Q_START, dtype=float)
@@ -211,3 +211,78 @@ def test_ball_overshoot_at_an_overridden_start_refused(free: TrajOptProblem) -> 
     assert balls.min() < 0.09 <= checker.distances(problem.robot, start).min()  # the premise
     with pytest.raises(ParameterError, match=r"start: the bounding balls of pair .* \(coal: "):
         solver.solve(beta=0.5, start=start)
+
+
+def test_end_window_ramps_the_rows_from_the_ends(free: TrajOptProblem) -> None:
+    """With the default end window the 93 mm margin the balls miss at both ends is solved.
+
+    Coal keeps 93 mm at the study's start and goal, but the balls of one pair
+    are 91.0 mm apart at both ends and those of another 71.0 mm at the goal
+    (without the window: refused, above). The
+    NLP's lower bounds of such a pair are the straight ramp from its ball
+    distance at the end (s = 0, or 1) to 93 mm at s = 0.1 (or 0.9), 93 mm
+    elsewhere, computed here row by row from the rows' function at the ends and
+    the knot and midpoint times ``k / 19`` and ``(k + 1/2) / 19``. The plan is
+    then judged by coal as any: its certificate proves the margin (less its
+    1 mm tolerance) at every time, the ramped stretches included.
+    """
+    margin = 0.093
+    clearance = Clearance(margin=margin)
+    assert clearance.end_window == 0.1
+    problem = dataclasses.replace(free, clearance=clearance)
+    solver = TrajOptSolver(problem, "hermite_simpson")
+    rows = clearance_constraint(problem)
+    assert rows is not None and rows.end_window == 0.1
+    ends = [
+        np.asarray(rows.function(state.q, np.zeros(3)), dtype=float).ravel()
+        for state in (problem.start, problem.goal)
+    ]
+    assert (ends[0] < margin).sum() == 1 and (ends[1] < margin).sum() == 2  # the premise
+    lbg = solver.nlp.constraints.unpack(solver.nlp_bounds()[2])
+    for block, s in (
+        ("clearance_knots", np.arange(20) / 19),
+        ("clearance_midpoints", (np.arange(19) + 0.5) / 19),
+    ):
+        expected = np.full((s.size, rows.width), margin)
+        for end, share in zip(ends, (s, 1.0 - s), strict=True):
+            for i in np.flatnonzero(end < margin):
+                ramp = end[i] + (margin - end[i]) * np.minimum(share / 0.1, 1.0)
+                expected[:, i] = np.minimum(expected[:, i], ramp)
+        np.testing.assert_allclose(lbg[block], expected, rtol=0, atol=1e-15)
+        assert np.all(lbg[block][(s >= 0.1) & (s <= 0.9)] == margin)
+    result = solver.solve(beta=0.5)
+    assert result.status.success and result.trajectory is not None
+    checker = clearance_checker(problem.robot, clearance)
+    cert = certify_plan_clearance(result.trajectory, problem.robot, checker, margin=margin)
+    assert cert.certified, cert
+
+
+@pytest.mark.parametrize("method", ["trapezoidal", "hermite_simpson", "radau"])
+def test_point_times_are_where_the_points_lie(free: TrajOptProblem, method: str) -> None:
+    """``point_times`` on a non-uniform grid: each path point's state is the plan's there.
+
+    Independent of the times' formula: the solved plan's own interpolant
+    (:class:`Trajectory`, the method's polynomial) evaluated at ``T s`` equals
+    the NLP's point values (Hermite-Simpson's midpoint and Radau's stage
+    variables; the trapezoid's midpoint expression
+    ``(q_k + q_{k+1}) / 2 + h_k (v_k - v_{k+1}) / 8``) to the solver's rounding.
+    """
+    coarse = dataclasses.replace(free, n_knots=8)
+    fractions = np.array([1.0, 2.0, 1.0, 3.0, 1.0, 1.0, 2.0])
+    solver = TrajOptSolver(coarse, method).on_grid(fractions)
+    result = solver.solve(beta=0.5)
+    assert result.status.success and result.trajectory is not None
+    times = solver.method.point_times(8)
+    assert set(times) == {"knots", *solver.method.interior_points}
+    total = result.duration
+    q = result.variables["q"]
+    np.testing.assert_allclose(result.trajectory(total * times["knots"]), q, atol=1e-12)
+    if method == "trapezoidal":
+        v, h = result.variables["v"], total * fractions / fractions.sum()
+        mid = 0.5 * (q[:-1] + q[1:]) + h[:, None] * (v[:-1] - v[1:]) / 8
+        groups = {"midpoints": mid}
+    else:
+        names = {"midpoints": "q_mid", "stage1": "q_stage1", "stage2": "q_stage2"}
+        groups = {g: result.variables[names[g]] for g in times if g != "knots"}
+    for group, values in groups.items():
+        np.testing.assert_allclose(result.trajectory(total * times[group]), values, atol=1e-9)

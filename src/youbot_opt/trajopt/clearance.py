@@ -48,12 +48,16 @@ def require_model_clearance(
     start: Array | None = None,
     goal: Array | None = None,
 ) -> None:
-    """Refuse a start or goal whose bounding-ball distance is below the margin.
+    """Refuse a start or goal whose bounding-ball distance is below the margin (no end window).
 
-    The NLP holds the conservative ball distances (never above coal's) at
-    every knot, the first and last included, and those are fixed: a pair whose
-    balls overshoot its geometry by more than its coal clearance minus the
-    margin makes the NLP infeasible from the start, whatever coal says.
+    Without an end window (``Clearance(end_window=0)``) the NLP holds the
+    conservative ball distances (never above coal's) at every knot, the first
+    and last included, and those are fixed: a pair whose balls overshoot its
+    geometry by more than its coal clearance minus the margin makes the NLP
+    infeasible from the start, whatever coal says. With an end window
+    (``constraint.end_window`` > 0, the default) such a pair's rows ramp up from
+    the end's own ball distance (:class:`~youbot_opt.trajopt.transcription.path.PathRamp`)
+    and nothing is refused here.
 
     Parameters
     ----------
@@ -75,6 +79,8 @@ def require_model_clearance(
         pair disabled).
     """
     assert problem.clearance is not None
+    if constraint.end_window > 0:
+        return
     ends = (
         ("start", problem.start.q if start is None else start),
         ("goal", problem.goal.q if goal is None else goal),
@@ -92,8 +98,9 @@ def require_model_clearance(
         raise ParameterError(
             f"{what}: the bounding balls of pair {constraint.labels[i]!r} are "
             f"{model[i]:.4g} m apart (coal: {float(exact[i]):.4g} m), below the margin "
-            f"{problem.clearance.margin:g} m the NLP holds at every knot: the balls overshoot "
-            "the geometry; use a smaller margin, disable the pair, or leave self-collision out",
+            f"{problem.clearance.margin:g} m the NLP holds at every knot with end_window=0: the "
+            "balls overshoot the geometry; use an end window (Clearance(end_window=0.1)), a "
+            "smaller margin, disable the pair, or leave self-collision out",
             name=what,
             value=float(model[i]),
         )
@@ -132,7 +139,10 @@ def clearance_constraint(problem: TrajOptProblem) -> PathConstraint | None:
     Rows: every checked pair's conservative distance [m] (never above coal's
     exact one), held at or above ``problem.clearance.margin``; the exact
     clearance is then at least the margin at every point the transcription
-    constrains (knots and interior points).
+    constrains (knots and interior points) -- but within the clearance's
+    ``end_window`` of a fixed end where the pair's balls lack the margin there,
+    whose rows ramp up from the end's ball distance (coal's certificate judges
+    the plan there as everywhere).
 
     Parameters
     ----------
@@ -161,6 +171,7 @@ def clearance_constraint(problem: TrajOptProblem) -> PathConstraint | None:
         lower=np.full(model.n_pairs, spec.margin),
         upper=np.full(model.n_pairs, np.inf),
         labels=tuple(f"{a} / {b}" for a, b in model.pair_names),
+        end_window=spec.end_window,
     )
 
 

@@ -501,8 +501,9 @@ class TrajOptSolver:
 
         The problem's own ends were checked when the NLP was built; overridden ones
         are checked here the same way (coal's exact distances; the checker is built
-        once per solver), so a state inside an obstacle never reaches IPOPT; nor does
-        one whose bounding balls lack the margin the NLP holds at its fixed ends
+        once per solver), so a state inside an obstacle never reaches IPOPT; nor does,
+        without an end window, one whose bounding balls lack the margin the NLP then
+        holds at its fixed ends
         (:func:`~youbot_opt.trajopt.clearance.require_model_clearance`: the NLP
         would be infeasible from the start).
         """

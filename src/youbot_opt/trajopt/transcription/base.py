@@ -28,7 +28,7 @@ from youbot_opt.exceptions import ParameterError, TranscriptionError
 from youbot_opt.trajopt.objectives import duration, objective_value
 from youbot_opt.trajopt.quadrature import QuadratureRule, grid_weights, quadrature_weights
 from youbot_opt.trajopt.trajectory import Interpolation, Trajectory
-from youbot_opt.trajopt.transcription.path import PathConstraint
+from youbot_opt.trajopt.transcription.path import PathConstraint, PathRamp
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import BoundaryState, JointBounds, TrajOptProblem
@@ -160,6 +160,10 @@ class TranscribedNLP:
         Inequality blocks of ``g`` from :class:`PathConstraint` s (``clearance_knots``,
         ``clearance_midpoints``, ...) -> their ``(lower, upper)`` row bounds, shape
         ``(width,)`` each; empty without path constraints.
+    path_ramps : mapping of str to PathRamp
+        Path-constraint blocks whose lower bounds ramp from their values at the
+        fixed ends (:attr:`PathConstraint.end_window` > 0) -> how
+        (:meth:`constraint_bounds` sets them from the start and goal).
     """
 
     method: str
@@ -178,6 +182,7 @@ class TranscribedNLP:
     path_bounds: Mapping[str, str] = field(default_factory=dict)
     unbounded: tuple[str, ...] = ()
     path_limits: Mapping[str, tuple[Array, Array]] = field(default_factory=dict)
+    path_ramps: Mapping[str, PathRamp] = field(default_factory=dict)
 
     @property
     def n_variables(self) -> int:
@@ -242,6 +247,10 @@ class TranscribedNLP:
         upper = dict(values)
         for name, (lower_row, upper_row) in self.path_limits.items():
             values[name], upper[name] = lower_row, upper_row
+        for name, ramp in self.path_ramps.items():
+            values[name] = ramp.lower(
+                self.path_limits[name][0], (start.q, start.velocity), (goal.q, goal.velocity)
+            )
         if not self.path_bounds:
             return self.constraints.pack(values), self.constraints.pack(upper)
         if bounds is None:
@@ -290,6 +299,9 @@ class Transcription(ABC):
     rule: ClassVar[QuadratureRule]
     unbounded: ClassVar[tuple[str, ...]] = ()
     """Variable blocks without bounds of their own (implied by path constraints)."""
+    interior_points: ClassVar[Mapping[str, float]] = MappingProxyType({})
+    """Path-point groups other than ``"knots"`` (:meth:`path_points`) -> where in
+    each interval they lie, as a fraction of its length (one column an interval)."""
     fractions: Array | None = None
     """The grid's interval fractions (``None``: uniform; also for subclasses that
     define their own ``__init__``)."""
@@ -339,6 +351,23 @@ class Transcription(ABC):
         if self.fractions is None:
             return np.arange(n_knots, dtype=np.float64) * np.float64(dt)
         return np.concatenate(([0.0], np.cumsum(dt * self.ratios(n_knots))))
+
+    def point_times(self, n_knots: int) -> dict[str, Array]:
+        """Normalised times in [0, 1] of each :meth:`path_points` group's columns.
+
+        Knot ``k`` at ``sum(fractions[:k])`` (``k / (N - 1)`` on the uniform
+        grid), an interior group at :attr:`interior_points` of each interval.
+        """
+        if self.fractions is None:
+            edges = np.linspace(0.0, 1.0, n_knots)
+        else:
+            self.check_size(n_knots)
+            edges = np.concatenate(([0.0], np.cumsum(self.fractions)))
+            edges[-1] = 1.0
+        left, length = edges[:-1], np.diff(edges)
+        times = {"knots": edges}
+        times.update({g: left + c * length for g, c in self.interior_points.items()})
+        return times
 
     def check_size(self, n_knots: int) -> None:
         """Raise :class:`TranscriptionError` unless the grid has ``n_knots - 1`` intervals."""
@@ -486,7 +515,20 @@ class Transcription(ABC):
             path_bounds=dict(parts.path_bounds),
             unbounded=tuple(self.unbounded),
             path_limits=dict(parts.path_limits),
+            path_ramps=self.path_ramps(n, paths),
         )
+
+    def path_ramps(self, n_knots: int, paths: tuple[PathConstraint, ...]) -> dict[str, PathRamp]:
+        """Return the :class:`PathRamp` of each block of a path constraint with an end window."""
+        ramps: dict[str, PathRamp] = {}
+        times = self.point_times(n_knots) if any(c.end_window > 0 for c in paths) else {}
+        for constraint in paths:
+            if constraint.end_window > 0:
+                for group, s in times.items():
+                    ramps[f"{constraint.name}_{group}"] = PathRamp(
+                        function=constraint.function, window=constraint.end_window, times=s
+                    )
+        return ramps
 
     def expressions(
         self,

@@ -13,6 +13,8 @@ The derivation, and why the separated form is kept, are in docs/collocation.md.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import ClassVar, TypeVar
 
 import casadi as ca
@@ -34,6 +36,7 @@ class HermiteSimpsonCollocation(Transcription):
     interpolation = "hermite_simpson"
     rule = "simpson"
     unbounded: ClassVar[tuple[str, ...]] = ("q_mid", "v_mid")
+    interior_points: ClassVar[Mapping[str, float]] = MappingProxyType({"midpoints": 0.5})
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """Knot and midpoint ``q, v, tau`` and ``dt``: ``3 nv (2N - 1) + 1`` variables."""

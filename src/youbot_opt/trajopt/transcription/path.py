@@ -1,13 +1,12 @@
 """Path constraints: a CasADi function of the joint state held within bounds along the motion.
 
-A :class:`PathConstraint` is ``c(q, v)`` (one row per labelled quantity) with
-lower and upper bounds; a transcription evaluates it at its knots and at its
-interior points (Hermite-Simpson's midpoints, Radau's stages, the trapezoid's
-interval midpoints; :meth:`Transcription.path_points
-<youbot_opt.trajopt.transcription.base.Transcription.path_points>`) as inequality
-blocks ``<name>_<group>`` of ``g``. Clearance (#28) is the first one
-(:func:`youbot_opt.trajopt.clearance.clearance_constraint`); tool constraints
-(#30) take the same form.
+A :class:`PathConstraint` is ``c(q, v)`` (rows labelled) with lower and upper
+bounds, evaluated at the knots and interior points of :meth:`Transcription.path_points
+<youbot_opt.trajopt.transcription.base.Transcription.path_points>` as blocks
+``<name>_<group>`` of ``g``: clearance (#28,
+:func:`youbot_opt.trajopt.clearance.clearance_constraint`), tool constraints (#30).
+Near a fixed end where a row misses its lower bound, a :class:`PathRamp` bounds it
+by a ramp from its value there instead (the clearance balls' overshoot).
 
     PathConstraint(name="clearance", function=f, lower=margin, upper=np.inf, labels=pairs)
 """
@@ -23,7 +22,7 @@ import numpy as np
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["PathConstraint"]
+__all__ = ["PathConstraint", "PathRamp"]
 
 _E = TypeVar("_E", ca.SX, ca.MX)  # a CasADi expression: evaluated on either, returned alike
 
@@ -42,6 +41,10 @@ class PathConstraint:
         Bounds of each row (``-inf`` / ``inf``: none); scalars are broadcast.
     labels : tuple of str
         One name per row (e.g. ``"link / obstacle"``), for reports.
+    end_window : float
+        Fraction of the normalised time, in [0, 0.5], over which a row below its
+        lower bound at the fixed start (goal) ramps up to it (:class:`PathRamp`);
+        0 (default): the bounds hold at every point, the ends included.
     """
 
     name: str
@@ -49,6 +52,7 @@ class PathConstraint:
     lower: Array
     upper: Array
     labels: tuple[str, ...] = ()
+    end_window: float = 0.0
 
     def __post_init__(self) -> None:
         fn = self.function
@@ -71,6 +75,15 @@ class PathConstraint:
                 f"path constraint {self.name!r}: {len(labels)} labels for {m} rows", name="labels"
             )
         object.__setattr__(self, "labels", labels)
+        window = float(self.end_window)
+        if not 0.0 <= window <= 0.5:
+            raise ParameterError(
+                f"path constraint {self.name!r}: end_window must be in [0, 0.5] (a fraction "
+                f"of the normalised time), got {self.end_window!r}",
+                name="end_window",
+                value=self.end_window,
+            )
+        object.__setattr__(self, "end_window", window)
 
     @property
     def width(self) -> int:
@@ -84,3 +97,50 @@ class PathConstraint:
             return mapped(q, v)
         assert isinstance(q, ca.MX) and isinstance(v, ca.MX)
         return mapped(q, v)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PathRamp:
+    """Lower bounds of one path-constraint block that ramp up from the fixed ends.
+
+    A row whose value ``e`` at the start is below its lower bound ``b`` is held
+    at or above ``e + (b - e) min(s / w, 1)`` at normalised time ``s``, and
+    likewise from the goal (``1 - s``); the smaller of the two ramps and ``b``
+    applies. Rows that keep ``b`` at both ends keep ``b`` everywhere.
+
+    Attributes
+    ----------
+    function : casadi.Function
+        The constraint's ``(q (nv,), v (nv,)) -> c (m,)``.
+    window : float
+        The ramp's length ``w`` in (0, 0.5], a fraction of the normalised time.
+    times : ndarray, shape (count,)
+        Normalised times ``s`` in [0, 1] of the block's points
+        (:meth:`~youbot_opt.trajopt.transcription.base.Transcription.point_times`).
+    """
+
+    function: ca.Function
+    window: float
+    times: Array
+
+    def lower(self, bound: Array, start: tuple[Array, Array], goal: tuple[Array, Array]) -> Array:
+        """Return the block's lower bounds, shape ``(count, m)``, for these ends.
+
+        Parameters
+        ----------
+        bound : ndarray, shape (m,)
+            The rows' own lower bounds (in the rows' units; ``-inf``: none).
+        start, goal : tuple of (ndarray, ndarray)
+            The fixed ends' ``(q, v)``: configuration in [rad] ([m] for
+            prismatic joints), velocity in [rad/s] ([m/s]).
+        """
+        bound = np.asarray(bound, dtype=float)
+        s = np.asarray(self.times, dtype=float)[:, None]
+        out = np.broadcast_to(bound, (s.shape[0], bound.size)).copy()
+        for (q, v), share in ((start, s), (goal, 1.0 - s)):
+            end = np.asarray(self.function(q, v), dtype=float).ravel()
+            short = end < bound
+            if np.any(short):
+                ramp = end + (bound - end) * np.minimum(share / self.window, 1.0)
+                out[:, short] = np.minimum(out[:, short], ramp[:, short])
+        return out

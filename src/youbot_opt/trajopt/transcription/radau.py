@@ -13,7 +13,8 @@ bounds by their Bernstein control points (linear rows). Why: docs/refinement.md.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar, TypeVar
 
 import casadi as ca
@@ -57,6 +58,9 @@ class RadauCollocation(Transcription):
     interpolation = "radau"
     rule = "radau"
     unbounded: ClassVar[tuple[str, ...]] = ("q_stage1", "v_stage1", "q_stage2", "v_stage2")
+    interior_points: ClassVar[Mapping[str, float]] = MappingProxyType(
+        {s: float(c) for s, c in zip(_STAGES, quadrature.RADAU_NODES[:2], strict=True)}
+    )
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """Knot and stage ``q, v, tau`` and ``dt``: ``3 nv (3N - 2) + 1`` variables."""

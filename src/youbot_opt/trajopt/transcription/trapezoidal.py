@@ -10,7 +10,9 @@ torque. The equations and counts: the class docstring.
 
 from __future__ import annotations
 
-from typing import TypeVar
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import ClassVar, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -49,6 +51,7 @@ class TrapezoidalCollocation(Transcription):
     name = "trapezoidal"
     interpolation = "trapezoidal"
     rule = "trapezoidal"
+    interior_points: ClassVar[Mapping[str, float]] = MappingProxyType({"midpoints": 0.5})
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """``q, v, tau`` of shape ``(nv, N)`` and the scalar ``dt``: ``3 nv N + 1`` variables."""
