@@ -38,6 +38,25 @@ def test_flags_build_the_clearance(command: str, tmp_path) -> None:
     assert clearance_of(parse([command])) is None  # no flag: the scene-less problem
 
 
+@pytest.mark.parametrize("command", ["solve", "multistart", "pareto"])
+def test_end_window_flag(command: str) -> None:
+    """--end-window reaches the Clearance (default 0.1); out of [0, 0.5] or alone refused."""
+    assert clearance_of(parse([command, "--margin", "0.01"])).end_window == 0.1
+    spec = clearance_of(parse([command, "--margin", "0.01", "--end-window", "0"]))
+    assert spec is not None and spec.end_window == 0.0
+    with pytest.raises(ParameterError, match=r"end_window must be in \[0, 0.5\].*got 0.6"):
+        clearance_of(parse([command, "--margin", "0.01", "--end-window", "0.6"]))
+    with pytest.raises(ParameterError, match="--end-window needs --scene"):
+        clearance_of(parse([command, "--end-window", "0.2"]))
+
+
+def test_ikpath_has_no_end_window() -> None:
+    """A cyclic IK path has no fixed ends: ikpath does not take --end-window."""
+    assert not hasattr(parse(["ikpath", "--margin", "0.01"]), "end_window")
+    with pytest.raises(SystemExit):
+        parse(["ikpath", "--margin", "0.01", "--end-window", "0.1"])
+
+
 def test_no_self_collision_alone_refused() -> None:
     """--no-self-collision without --scene has nothing to check: refused, naming it."""
     with pytest.raises(ParameterError, match="--no-self-collision needs --scene"):

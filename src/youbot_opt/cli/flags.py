@@ -213,9 +213,11 @@ def clearance_of(args: argparse.Namespace, robot: RobotModel | None = None) -> C
     margin = getattr(args, "margin", None)
     srdf = getattr(args, "srdf", None)
     disable = [tuple(pair) for pair in getattr(args, "disable_pair", None) or ()]
+    end_window = getattr(args, "end_window", None)
     if scene_file is None and margin is None:
         for flag, given in (
             ("no_self_collision", getattr(args, "no_self_collision", False)),
+            ("end_window", end_window is not None),
             ("srdf", srdf is not None),
             ("disable_pair", bool(disable)),
         ):
@@ -238,4 +240,5 @@ def clearance_of(args: argparse.Namespace, robot: RobotModel | None = None) -> C
         margin=0.0 if margin is None else margin,
         self_collision=not args.no_self_collision,
         pairs=pairs,
+        **({} if end_window is None else {"end_window": end_window}),
     )

@@ -443,8 +443,11 @@ def _pair_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _clearance_arguments(p: argparse.ArgumentParser) -> None:
-    """Add ``--scene``, ``--margin``, ``--no-self-collision`` and the pair flags (#28)."""
+def _clearance_arguments(p: argparse.ArgumentParser, *, ends: bool = True) -> None:
+    """Add ``--scene``, ``--margin``, ``--no-self-collision`` and the pair flags (#28).
+
+    ``ends``: also ``--end-window`` (a trajectory's fixed ends; not the cyclic IK path's).
+    """
     p.add_argument(
         "--scene",
         type=Path,
@@ -465,6 +468,16 @@ def _clearance_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="with --scene: do not keep the robot's own links apart (the SRDF's active pairs)",
     )
+    if ends:
+        p.add_argument(
+            "--end-window",
+            type=float,
+            default=None,
+            metavar="F",
+            help="fraction of the motion's duration (0 to 0.5) over which a pair whose bounding "
+            "balls miss the margin at the start or goal must reach it (default 0.1; 0: such "
+            "ends are refused; docs/scene.md)",
+        )
     _pair_arguments(p)
 
 
@@ -990,7 +1003,7 @@ def _ikpath(sub: _Sub) -> None:
         metavar="N",
         help="with --timed: knots of each segment, its ends included (default 20)",
     )
-    _clearance_arguments(p)  # 3-D robots, both methods (docs/ikpath.md, "Clearance")
+    _clearance_arguments(p, ends=False)  # 3-D robots, both methods (docs/ikpath.md)
     _refine_arguments(p, grid="with --timed, the timed plan's grid")
 
 
