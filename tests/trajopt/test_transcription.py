@@ -350,3 +350,78 @@ def test_grid_validation(youbot, dynamics):
     np.testing.assert_allclose(method.fractions, [1 / 3, 2 / 3])
     with pytest.raises(TranscriptionError, match="2 intervals"):
         method.build(study1_problem(5, robot=youbot), dynamics.forward_dynamics)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_cache, monkeypatch):
+    """Path rows assembled from their own kernels equal CasADi's AD of the NLP (1e-9).
+
+    Two path constraints: the youBot's self-collision clearance (bounding-ball
+    distances, a soft-min) and a made-up ``(q0 v1, sin q2)``. Their rows at the
+    knots and at the interior points that are variables (Hermite-Simpson's
+    midpoints, Radau's stages) come from the per-point kernels, SX and, with a
+    compiler, compiled; the trapezoid's midpoints (an expression of the knots)
+    stay in the SX graph. f, g, the Jacobian and the Hessian of the Lagrangian
+    (random multipliers) must equal the plain NLP's, differentiated by CasADi.
+    """
+    from youbot_opt.collision.clearance import Clearance
+    from youbot_opt.nlp.codegen import find_compiler
+    from youbot_opt.trajopt.clearance import clearance_constraint
+    from youbot_opt.trajopt.transcription.derivatives import (
+        compile_path_kernels,
+        dynamics_kernels,
+        path_kernels,
+        structured_functions,
+    )
+    from youbot_opt.trajopt.transcription.path import PathConstraint
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
+    problem = study1_problem(5, robot=youbot, clearance=Clearance(margin=0.01))
+    rows = clearance_constraint(problem)
+    assert rows is not None
+    q, v = ca.SX.sym("q", 3), ca.SX.sym("v", 3)
+    toy = PathConstraint(
+        name="toy",
+        function=ca.Function("toy", [q, v], [ca.vertcat(q[0] * v[1], ca.sin(q[2]))]),
+        lower=-1.0,
+        upper=1.0,
+    )
+    paths = (rows, toy)
+    nlp = method.build(problem, dynamics.forward_dynamics, paths)
+    kernels = dynamics_kernels(dynamics.forward_dynamics)
+    own = tuple(path_kernels(c) for c in paths)
+    variants = [structured_functions(method, problem, kernels, paths=paths, path_kernels=own)]
+    if find_compiler() is not None:
+        compiled = tuple(compile_path_kernels(k) for k in own)
+        assert all(c is not k for c, k in zip(compiled, own, strict=True))
+        variants.append(
+            structured_functions(method, problem, kernels, paths=paths, path_kernels=compiled)
+        )
+    box = {
+        "q": (youbot.q_lower, youbot.q_upper),
+        "v": (-youbot.velocity_limit, youbot.velocity_limit),
+        "tau": (-youbot.effort_limit, youbot.effort_limit),
+    }
+    values = {
+        name: rng.uniform(*box[name.split("_")[0]], (block.count, 3))
+        for name, block in nlp.variables.blocks.items()
+        if name != "dt"
+    }
+    values["dt"] = rng.uniform(0.02, 0.2)
+    x = nlp.variables.pack(values)
+    lam_g = rng.normal(size=nlp.n_constraints)
+    lag = 0.7 * nlp.f + ca.dot(ca.MX(lam_g), nlp.g)
+    plain = ca.Function(
+        "plain",
+        [nlp.x, nlp.p],
+        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
+    )
+    reference = [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
+    assert np.count_nonzero(reference[2][nlp.constraints["clearance_knots"].offset :]) > 0
+    for fns in variants:
+        f1, g1 = fns.nlp(x, 0.3)
+        _, jac1 = fns.jac_g(x, 0.3)
+        hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
+        # as above: two assembly routes of the same derivatives, entries O(1e3) at most
+        for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
+            np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)

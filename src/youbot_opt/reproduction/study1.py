@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack
 
@@ -224,6 +225,7 @@ class StudyTranscription(TrapezoidalCollocation):
         accel: dict[str, _E],
         beta: _E,
         paths: tuple[PathConstraint, ...] = (),
+        path_values: Mapping[str, _E] | None = None,
     ) -> Expressions[_E]:
         """Build the trapezoidal pieces, with the time term of deviation (4).
 
@@ -240,7 +242,7 @@ class StudyTranscription(TrapezoidalCollocation):
                 f"robot already applies damping {own.tolist()} N m s/rad, so it would count twice; "
                 "load the robot without damping (study1_problem()) or switch deviation (3) off"
             )
-        parts = super().expressions(problem, sym, accel, beta, paths)
+        parts = super().expressions(problem, sym, accel, beta, paths, path_values)
         if not self.deviations.time_n_dt:
             return parts
         total = self.deviations.duration(sym["dt"], problem.n_knots)

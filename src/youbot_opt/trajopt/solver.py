@@ -54,8 +54,11 @@ from youbot_opt.trajopt.transcription import Transcription, get_transcription
 from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
 from youbot_opt.trajopt.transcription.derivatives import (
     Kernels,
+    PathKernels,
     compile_kernels,
+    compile_path_kernels,
     dynamics_kernels,
+    path_kernels,
     structured_functions,
 )
 from youbot_opt.trajopt.transcription.path import PathConstraint
@@ -208,6 +211,18 @@ class TrajOptSolver:
             self.compiled = fast is not kernels
             self._kernels = (fast, kernels)
         self._paths = _path_constraints(problem)
+        # the path rows' own per-point kernels (compiled like the dynamics'), so that
+        # IPOPT's Jacobian and Hessian of the clearance rows run compiled code too
+        self._path_kernels: tuple[PathKernels, ...] | None = None
+        if self._kernels is not None and self._paths:
+            own = [path_kernels(c) for c in self._paths]
+            if compile:
+                robot = problem.robot.name
+                own = [
+                    compile_path_kernels(k, wait=wait, label=f"{robot}'s {c.name} rows")
+                    for k, c in zip(own, self._paths, strict=True)
+                ]
+            self._path_kernels = tuple(own)
         self._checker: ExactChecker | None = None  # coal's solids, for overridden ends
         self._build(tic)
 
@@ -225,7 +240,14 @@ class TrajOptSolver:
             forward = fast.forward
             # the compiled forward kernel carries its Jacobian: IPOPT's constraint
             # evaluations and the NLP gradient CasADi builds from ``nlp`` run compiled too
-            fns = structured_functions(self.method, problem, fast, values=fast, paths=self._paths)
+            fns = structured_functions(
+                self.method,
+                problem,
+                fast,
+                values=fast,
+                paths=self._paths,
+                path_kernels=self._path_kernels,
+            )
             self._nlp_function = fns.nlp
             self._derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g}
             if self._exact_hessian:
@@ -321,6 +343,7 @@ class TrajOptSolver:
         new.feasibility_tol, new.compiled = self.feasibility_tol, self.compiled
         new._exact_hessian, new._kernels = self._exact_hessian, self._kernels
         new._paths, new._checker = self._paths, self._checker  # the same coal solids
+        new._path_kernels = self._path_kernels
         new._build(tic)
         return new
 

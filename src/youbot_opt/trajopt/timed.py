@@ -167,9 +167,10 @@ class _Segmented(Transcription):
         accel: dict[str, Any],
         beta: Any,
         paths: tuple[PathConstraint, ...] = (),
+        path_values: Any = None,
     ) -> Any:
         """Return the plain expressions plus the ``waypoint_position`` rows (inner ends)."""
-        parts = super().expressions(problem, sym, accel, beta, paths)
+        parts = super().expressions(problem, sym, accel, beta, paths, path_values)
         knots = [int(k) for k in self.ends[1:-1]]
         pinned = ca.horzcat(*[sym["q"][:, k] for k in knots])
         blocks = [(b.name, b.width, b.count) for b in parts.constraints.blocks.values()]

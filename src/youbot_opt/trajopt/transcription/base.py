@@ -537,11 +537,14 @@ class Transcription(ABC):
         accel: dict[str, _E],
         beta: _E,
         paths: tuple[PathConstraint, ...] = (),
+        path_values: Mapping[str, _E] | None = None,
     ) -> Expressions[_E]:
         """Objective, constraints and their terms from variables and accelerations.
 
         Works with SX and MX alike; :meth:`build` passes the mapped dynamics as
-        ``accel``, :mod:`youbot_opt.trajopt.transcription.derivatives` passes free symbols.
+        ``accel``, :mod:`youbot_opt.trajopt.transcription.derivatives` passes free symbols,
+        and as ``path_values`` free symbols for path-constraint blocks (``<name>_<group>``
+        -> ``(m, count)``) it evaluates itself; the other blocks evaluate ``paths``.
         """
         n = problem.n_knots
         q, v = sym["q"], sym["v"]
@@ -559,7 +562,10 @@ class Transcription(ABC):
         for constraint in paths:
             for group, (qp, vp) in points.items():
                 name = f"{constraint.name}_{group}"
-                g_blocks.append((name, constraint.evaluate(qp, vp)))
+                if path_values is not None and name in path_values:
+                    g_blocks.append((name, path_values[name]))
+                else:
+                    g_blocks.append((name, constraint.evaluate(qp, vp)))
                 limits[name] = (constraint.lower, constraint.upper)
         g = ca.vertcat(*[ca.vec(expr) for _, expr in g_blocks])
         constraints = Layout([(name, expr.size1(), expr.size2()) for name, expr in g_blocks])

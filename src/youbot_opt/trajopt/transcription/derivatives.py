@@ -14,6 +14,7 @@ own derivatives of the plain NLP. Derivation and rationale: docs/design.md,
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import casadi as ca
@@ -28,8 +29,11 @@ if TYPE_CHECKING:
 __all__ = [
     "NLPFunctions",
     "Kernels",
+    "PathKernels",
     "compile_kernels",
+    "compile_path_kernels",
     "dynamics_kernels",
+    "path_kernels",
     "structured_functions",
 ]
 
@@ -43,6 +47,17 @@ class Kernels(NamedTuple):
     """``(q, v, tau) -> (a, J)`` with ``J = da/d(q, v, tau)`` of shape (nv, 3 nv)."""
     hessian: ca.Function
     """``(q, v, tau, w) -> H = sum_i w_i d^2 a_i / d(q, v, tau)^2`` (3 nv, 3 nv)."""
+
+
+class PathKernels(NamedTuple):
+    """Per-point kernels of one path constraint ``c(q, v)`` (CasADi Functions of one point)."""
+
+    value: ca.Function
+    """``(q, v) -> c`` (m,)."""
+    jacobian: ca.Function
+    """``(q, v) -> (c, J)`` with ``J = dc/d(q, v)`` of shape (m, 2 nv)."""
+    hessian: ca.Function
+    """``(q, v, w) -> H = sum_i w_i d^2 c_i / d(q, v)^2`` (2 nv, 2 nv)."""
 
 
 class NLPFunctions(NamedTuple):
@@ -137,6 +152,88 @@ def _block_diagonal(values: Any, rows: int, cols: int, count: int) -> Any:
     return ca.SX(pattern, ca.vec(values))
 
 
+def path_kernels(constraint: PathConstraint) -> PathKernels:
+    """Value, Jacobian and weighted-Hessian kernels of a path constraint's ``c(q, v)``.
+
+    Parameters
+    ----------
+    constraint : PathConstraint
+        Its ``function`` maps ``(q (nv,), v (nv,)) -> c (m,)`` (SX, twice differentiable).
+
+    Returns
+    -------
+    PathKernels
+        The three per-point Functions (SX, not compiled), named after the constraint.
+    """
+    fn = constraint.function
+    if not fn.is_a("SXFunction"):
+        fn = fn.expand()
+    nv, m = fn.size1_in(0), fn.size1_out(0)
+    q, v, w = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("w", m)
+    c = fn(q, v)
+    z = ca.vertcat(q, v)
+    opts = {"cse": True}
+    name = f"path_{constraint.name}"
+    return PathKernels(
+        value=ca.Function(f"{name}_value", [q, v], [c], ["q", "v"], ["c"], opts),
+        jacobian=ca.Function(
+            f"{name}_jacobian",
+            [q, v],
+            [c, ca.densify(ca.jacobian(c, z))],
+            ["q", "v"],
+            ["c", "J"],
+            opts,
+        ),  # fmt: skip
+        hessian=ca.Function(
+            f"{name}_hessian",
+            [q, v, w],
+            [ca.densify(ca.hessian(ca.dot(w, c), z)[0])],
+            ["q", "v", "w"],
+            ["H"],
+            opts,
+        ),  # fmt: skip
+    )
+
+
+def compile_path_kernels(
+    kernels: PathKernels, *, wait: bool | None = True, label: str | None = None
+) -> PathKernels:
+    """Compile a path constraint's kernels to C, as :func:`compile_kernels` the dynamics'.
+
+    Returns ``kernels`` itself when any of the three is not compiled (yet).
+    """
+    from youbot_opt.nlp.codegen import compile_functions
+
+    compiled = PathKernels(
+        *compile_functions(
+            kernels, wait=wait, label=label, with_jacobian=[k is kernels.value for k in kernels]
+        )
+    )
+    if any(c is k for c, k in zip(compiled, kernels, strict=True)):
+        return kernels
+    return compiled
+
+
+class _PointSet(NamedTuple):
+    """One kernel mapped over the points of one group: the dynamics', or a path row block's.
+
+    ``values`` (rows, points), ``jacobians`` (rows, width points) and ``hessians``
+    (width, width points) are the SX symbols standing for the kernel outputs;
+    ``select`` picks the points' inputs ``z`` (width each, point-major) out of ``x``.
+    """
+
+    points: int
+    rows: int
+    width: int
+    select: ca.DM
+    values: ca.SX
+    jacobians: ca.SX
+    hessians: ca.SX
+    value: ca.Function
+    jacobian: ca.Function
+    hessian: ca.Function
+
+
 def structured_functions(
     method: Transcription,
     problem: TrajOptProblem,
@@ -144,6 +241,7 @@ def structured_functions(
     *,
     values: Kernels | None = None,
     paths: tuple[PathConstraint, ...] = (),
+    path_kernels: tuple[PathKernels, ...] | None = None,
 ) -> NLPFunctions:
     """Build the NLP and its exact derivatives from per-point kernels.
 
@@ -160,8 +258,13 @@ def structured_functions(
         ``forward`` must be differentiable by CasADi (the SX kernel, or a
         compiled one from :func:`compile_kernels`, which carries its Jacobian).
     paths : tuple of PathConstraint
-        Path constraints of the NLP (SX Functions of ``(q, v)``; their exact
-        derivatives come from ``x`` directly, as they involve no dynamics).
+        Path constraints of the NLP (SX Functions of ``(q, v)``).
+    path_kernels : tuple of PathKernels, optional
+        One per path constraint (:func:`path_kernels`, possibly compiled): each
+        constraint's rows at a group of points that are plain variables (the
+        knots; Hermite-Simpson's midpoints; Radau's stages) are then assembled
+        from them like the dynamics; elsewhere (the trapezoid's midpoints, an
+        expression of the knots) and without them, from ``x`` directly in SX.
 
     Returns
     -------
@@ -178,20 +281,62 @@ def structured_functions(
     groups = list(points)
     counts = {g: points[g][0].size2() for g in groups}
     accel = {g: ca.SX.sym(f"a_{g}", nv, counts[g]) for g in groups}
-    jac_sym = {g: ca.SX.sym(f"J_{g}", nv, 3 * nv * counts[g]) for g in groups}
-    hess_sym = {g: ca.SX.sym(f"H_{g}", 3 * nv, 3 * nv * counts[g]) for g in groups}
-    parts = method.expressions(problem, sym, accel, beta, paths)
+
+    def selection(columns: Any) -> ca.DM:
+        return ca.evalf(ca.jacobian(ca.vec(ca.vertcat(*columns)), x))
+
+    sets = [
+        _PointSet(
+            points=counts[g],
+            rows=nv,
+            width=3 * nv,
+            select=selection(points[g]),
+            values=accel[g],
+            jacobians=ca.SX.sym(f"J_{g}", nv, 3 * nv * counts[g]),
+            hessians=ca.SX.sym(f"H_{g}", 3 * nv, 3 * nv * counts[g]),
+            value=values.forward,
+            jacobian=kernels.jacobian,
+            hessian=kernels.hessian,
+        )  # fmt: skip
+        for g in groups
+    ]
+    path_values: dict[str, ca.SX] = {}
+    if path_kernels is not None and paths:
+        if len(path_kernels) != len(paths):
+            raise TranscriptionError(
+                f"{len(path_kernels)} path kernels for {len(paths)} path constraints"
+            )
+        for constraint, pk in zip(paths, path_kernels, strict=True):
+            for grp, (qp, vp) in method.path_points(sym).items():
+                if not ca.vertcat(qp, vp).is_valid_input():  # an expression: SX below
+                    continue
+                count, m, name = qp.size2(), constraint.width, f"{constraint.name}_{grp}"
+                path_values[name] = ca.SX.sym(f"c_{name}", m, count)
+                sets.append(
+                    _PointSet(
+                        points=count,
+                        rows=m,
+                        width=2 * nv,
+                        select=selection((qp, vp)),
+                        values=path_values[name],
+                        jacobians=ca.SX.sym(f"Jc_{name}", m, 2 * nv * count),
+                        hessians=ca.SX.sym(f"Hc_{name}", 2 * nv, 2 * nv * count),
+                        value=pk.value,
+                        jacobian=pk.jacobian,
+                        hessian=pk.hessian,
+                    )  # fmt: skip
+                )
+    parts = method.expressions(problem, sym, accel, beta, paths, path_values or None)
     f, g = parts.f, parts.g
     lam_g = ca.SX.sym("lam_g", g.numel())
     lam_f = ca.SX.sym("lam_f")
 
-    # Selection z = P x of each group's point states, point-major (q_k, v_k, tau_k).
-    select = {grp: ca.evalf(ca.jacobian(ca.vec(ca.vertcat(*points[grp])), x)) for grp in groups}
-    a_all = ca.vertcat(*[ca.vec(accel[grp]) for grp in groups])
+    # g = g(x, A, C): affine in the kernel outputs (accelerations A, path rows C)
+    a_all = ca.vertcat(*[ca.vec(ps.values) for ps in sets])
     j_ax = ca.vertcat(
         *[
-            ca.mtimes(_block_diagonal(jac_sym[grp], nv, 3 * nv, counts[grp]), select[grp])
-            for grp in groups
+            ca.mtimes(_block_diagonal(ps.jacobians, ps.rows, ps.width, ps.points), ps.select)
+            for ps in sets
         ]
     )
     jac_g = ca.jacobian(g, x) + ca.mtimes(ca.jacobian(g, a_all), j_ax)
@@ -204,44 +349,43 @@ def structured_functions(
     l_aa = ca.jacobian(grad_a, a_all)
     if l_aa.nnz() > 0:  # not for collocation (g is affine in A); kept for generality
         hess = hess + ca.mtimes(ca.mtimes(j_ax.T, l_aa), j_ax)
-    for grp in groups:
-        block = _block_diagonal(hess_sym[grp], 3 * nv, 3 * nv, counts[grp])
-        hess = hess + ca.mtimes(ca.mtimes(select[grp].T, block), select[grp])
-    weights = ca.vertsplit(grad_a, [0, *_offsets(nv, counts, groups)])
-    weights = [ca.reshape(w, nv, counts[grp]) for w, grp in zip(weights, groups, strict=True)]
+    for ps in sets:
+        block = _block_diagonal(ps.hessians, ps.width, ps.width, ps.points)
+        hess = hess + ca.mtimes(ca.mtimes(ps.select.T, block), ps.select)
+    offsets = list(itertools.accumulate(ps.rows * ps.points for ps in sets))
+    weights = ca.vertsplit(grad_a, [0, *offsets])
+    weights = [ca.reshape(w, ps.rows, ps.points) for w, ps in zip(weights, sets, strict=True)]
 
-    a_in = [accel[grp] for grp in groups]
-    j_in = [jac_sym[grp] for grp in groups]
-    h_in = [hess_sym[grp] for grp in groups]
+    v_in = [ps.values for ps in sets]
+    j_in = [ps.jacobians for ps in sets]
+    h_in = [ps.hessians for ps in sets]
     f_sx = ca.Function("nlp_f_sx", [x, beta], [f])  # f never involves A: no dynamics
-    g_sx = ca.Function("nlp_g_sx", [x, *a_in, beta], [g])
+    g_sx = ca.Function("nlp_g_sx", [x, *v_in, beta], [g])
     grad_sx = ca.Function("nlp_grad_f_sx", [x, beta], [f, ca.gradient(f, x)])
-    jac_sx = ca.Function("nlp_jac_g_sx", [x, *a_in, *j_in, beta], [g, jac_g])
-    weight_sx = ca.Function("nlp_weights_sx", [x, *a_in, lam_g, lam_f, beta], weights)
+    jac_sx = ca.Function("nlp_jac_g_sx", [x, *v_in, *j_in, beta], [g, jac_g])
+    weight_sx = ca.Function("nlp_weights_sx", [x, *v_in, lam_g, lam_f, beta], weights)
     hess_sx = ca.Function(
-        "nlp_hess_sx", [x, *a_in, *j_in, *h_in, lam_g, lam_f, beta], [ca.triu(hess)]
+        "nlp_hess_sx", [x, *v_in, *j_in, *h_in, lam_g, lam_f, beta], [ca.triu(hess)]
     )
 
-    # MX wrappers: slice the point states out of x, map the kernels, assemble.
+    # MX wrappers: slice the point inputs out of x, map the kernels, assemble.
     xm, pm = ca.MX.sym("x", x.numel()), ca.MX.sym("p")
     lfm, lgm = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
 
-    def states(grp: str) -> list[Any]:
-        z = ca.reshape(ca.mtimes(ca.DM(select[grp]), xm), 3 * nv, counts[grp])
-        return [z[:nv, :], z[nv : 2 * nv, :], z[2 * nv :, :]]
+    def inputs(ps: _PointSet) -> list[Any]:
+        z = ca.reshape(ca.mtimes(ps.select, xm), ps.width, ps.points)
+        return ca.vertsplit(z, list(range(0, ps.width + 1, nv)))
 
-    zs = {grp: states(grp) for grp in groups}
-    a_val = [values.forward.map(counts[grp])(*zs[grp]) for grp in groups]
-    f_val, g_val = f_sx(xm, pm), g_sx(xm, *a_val, pm)
-    jac_out = {grp: kernels.jacobian.map(counts[grp])(*zs[grp]) for grp in groups}
-    a_k = [jac_out[grp][0] for grp in groups]
-    j_k = [jac_out[grp][1] for grp in groups]
-    g_k, jac_val = jac_sx(xm, *a_k, *j_k, pm)
-    w_out = weight_sx(xm, *a_k, lgm, lfm, pm)
-    w_k: list[Any] = [w_out] if len(groups) == 1 else list(w_out)
-    h_k = [
-        kernels.hessian.map(counts[grp])(*zs[grp], w) for grp, w in zip(groups, w_k, strict=True)
-    ]
+    zs = [inputs(ps) for ps in sets]
+    vals = [ps.value.map(ps.points)(*z) for ps, z in zip(sets, zs, strict=True)]
+    f_val, g_val = f_sx(xm, pm), g_sx(xm, *vals, pm)
+    jac_out = [ps.jacobian.map(ps.points)(*z) for ps, z in zip(sets, zs, strict=True)]
+    v_k = [out[0] for out in jac_out]
+    j_k = [out[1] for out in jac_out]
+    g_k, jac_val = jac_sx(xm, *v_k, *j_k, pm)
+    w_out = weight_sx(xm, *v_k, lgm, lfm, pm)
+    w_k: list[Any] = [w_out] if len(sets) == 1 else list(w_out)
+    h_k = [ps.hessian.map(ps.points)(*z, w) for ps, z, w in zip(sets, zs, w_k, strict=True)]
     f_g, grad_val = grad_sx(xm, pm)
     return NLPFunctions(
         nlp=ca.Function("nlp", [xm, pm], [f_val, g_val], ["x", "p"], ["f", "g"]),
@@ -250,17 +394,8 @@ def structured_functions(
         hess_lag=ca.Function(
             "nlp_hess_l",
             [xm, pm, lfm, lgm],
-            [hess_sx(xm, *a_k, *j_k, *h_k, lgm, lfm, pm)],
+            [hess_sx(xm, *v_k, *j_k, *h_k, lgm, lfm, pm)],
             ["x", "p", "lam_f", "lam_g"],
             ["triu_hess_gamma_x_x"],
         ),
     )
-
-
-def _offsets(nv: int, counts: dict[str, int], groups: list[str]) -> list[int]:
-    """Cumulative row offsets of the groups' accelerations in the stacked ``A``."""
-    out, total = [], 0
-    for grp in groups:
-        total += nv * counts[grp]
-        out.append(total)
-    return out
