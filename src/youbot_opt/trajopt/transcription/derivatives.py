@@ -55,9 +55,10 @@ class PathKernels(NamedTuple):
     value: ca.Function
     """``(q, v) -> c`` (m,)."""
     jacobian: ca.Function
-    """``(q, v) -> (c, J)`` with ``J = dc/d(q, v)`` of shape (m, 2 nv)."""
+    """``(q, v) -> (c, J)`` with ``J = dc/dz`` of shape (m, dim z), ``z = (q, v)``, or
+    ``z = q`` when ``c`` does not depend on ``v``."""
     hessian: ca.Function
-    """``(q, v, w) -> H = sum_i w_i d^2 c_i / d(q, v)^2`` (2 nv, 2 nv)."""
+    """``(q, v, w) -> H = sum_i w_i d^2 c_i / dz^2`` (dim z, dim z)."""
 
 
 class NLPFunctions(NamedTuple):
@@ -171,7 +172,9 @@ def path_kernels(constraint: PathConstraint) -> PathKernels:
     nv, m = fn.size1_in(0), fn.size1_out(0)
     q, v, w = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("w", m)
     c = fn(q, v)
-    z = ca.vertcat(q, v)
+    # derivatives in (q, v), or in q alone when c ignores v (clearance): no structural
+    # zeros of dc/dv in the NLP's Jacobian and Hessian, nor in IPOPT's factorisation
+    z = ca.vertcat(q, v) if ca.depends_on(c, v) else q
     opts = {"cse": True}
     name = f"path_{constraint.name}"
     return PathKernels(
@@ -219,13 +222,17 @@ class _PointSet(NamedTuple):
 
     ``values`` (rows, points), ``jacobians`` (rows, width points) and ``hessians``
     (width, width points) are the SX symbols standing for the kernel outputs;
-    ``select`` picks the points' inputs ``z`` (width each, point-major) out of ``x``.
+    ``select`` picks the points' coordinates ``z`` the derivatives are taken in
+    (width each, point-major) out of ``x``, ``arguments`` the kernels' inputs
+    (``n_in`` blocks of ``nv`` each, point-major).
     """
 
     points: int
     rows: int
     width: int
     select: ca.DM
+    arguments: ca.DM
+    n_in: int
     values: ca.SX
     jacobians: ca.SX
     hessians: ca.SX
@@ -291,6 +298,8 @@ def structured_functions(
             rows=nv,
             width=3 * nv,
             select=selection(points[g]),
+            arguments=selection(points[g]),
+            n_in=3,
             values=accel[g],
             jacobians=ca.SX.sym(f"J_{g}", nv, 3 * nv * counts[g]),
             hessians=ca.SX.sym(f"H_{g}", 3 * nv, 3 * nv * counts[g]),
@@ -311,16 +320,19 @@ def structured_functions(
                 if not ca.vertcat(qp, vp).is_valid_input():  # an expression: SX below
                     continue
                 count, m, name = qp.size2(), constraint.width, f"{constraint.name}_{grp}"
+                width = int(pk.jacobian.size2_out(1))  # nv (q) or 2 nv (q, v)
                 path_values[name] = ca.SX.sym(f"c_{name}", m, count)
                 sets.append(
                     _PointSet(
                         points=count,
                         rows=m,
-                        width=2 * nv,
-                        select=selection((qp, vp)),
+                        width=width,
+                        select=selection((qp, vp) if width == 2 * nv else (qp,)),
+                        arguments=selection((qp, vp)),
+                        n_in=2,
                         values=path_values[name],
-                        jacobians=ca.SX.sym(f"Jc_{name}", m, 2 * nv * count),
-                        hessians=ca.SX.sym(f"Hc_{name}", 2 * nv, 2 * nv * count),
+                        jacobians=ca.SX.sym(f"Jc_{name}", m, width * count),
+                        hessians=ca.SX.sym(f"Hc_{name}", width, width * count),
                         value=pk.value,
                         jacobian=pk.jacobian,
                         hessian=pk.hessian,
@@ -373,8 +385,8 @@ def structured_functions(
     lfm, lgm = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
 
     def inputs(ps: _PointSet) -> list[Any]:
-        z = ca.reshape(ca.mtimes(ps.select, xm), ps.width, ps.points)
-        return ca.vertsplit(z, list(range(0, ps.width + 1, nv)))
+        z = ca.reshape(ca.mtimes(ps.arguments, xm), ps.n_in * nv, ps.points)
+        return ca.vertsplit(z, list(range(0, ps.n_in * nv + 1, nv)))
 
     zs = [inputs(ps) for ps in sets]
     vals = [ps.value.map(ps.points)(*z) for ps, z in zip(sets, zs, strict=True)]
