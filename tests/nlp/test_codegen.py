@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import shutil
@@ -593,3 +594,49 @@ def test_an_old_failed_marker_is_retried(tmp_path: Path, monkeypatch: pytest.Mon
     os.utime(failed, (old, old))
     assert compile_function(f, wait=True) is not f
     assert library.is_file() and not failed.exists()
+
+
+def test_an_indexed_batch_loads_without_its_functions(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``index=`` records the batch once its libraries are there; ``load_indexed`` finds them.
+
+    The loaded Functions evaluate as the originals (and the first, compiled with
+    its Jacobian, differentiates); another index, a library removed, a malformed
+    index file or other flags (no ``-march=native``) find nothing.
+    """
+    from youbot_opt.nlp.codegen import compile_functions, load_indexed
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    f, g = _function(0.25), _function(0.75)
+    assert load_indexed("two tiny ones") is None
+    compiled = compile_functions(
+        [f, g], wait=True, with_jacobian=[True, False], index="two tiny ones"
+    )
+    assert all(c is not o for c, o in zip(compiled, (f, g), strict=True))
+    found = load_indexed("two tiny ones")
+    assert found is not None and len(found) == 2
+    x = np.array([0.3, -1.7])
+    for loaded, original in zip(found, (f, g), strict=True):
+        np.testing.assert_allclose(
+            np.asarray(loaded(x)), np.asarray(original(x)), rtol=0, atol=1e-15
+        )
+    xs = ca.MX.sym("x", 2)
+    jac = ca.Function("j", [xs], [ca.jacobian(found[0](xs), xs)])
+    np.testing.assert_allclose(np.diag(np.asarray(jac(x))), np.sin(x) + x * np.cos(x), atol=1e-12)
+    assert load_indexed("another batch") is None
+    compiler = find_compiler()
+    assert compiler is not None
+    native = NATIVE_FLAG in compile_flags(compiler)
+    monkeypatch.setenv("YOUBOT_OPT_NATIVE", "0")
+    if native:  # the index names the flags: the portable build was never recorded
+        assert load_indexed("two tiny ones") is None
+    monkeypatch.delenv("YOUBOT_OPT_NATIVE")
+    (index_file,) = tmp_path.glob("index_*.json")
+    index_file.write_text("{not json", encoding="utf-8")
+    assert load_indexed("two tiny ones") is None
+    compile_functions([f, g], wait=True, with_jacobian=[True, False], index="two tiny ones")
+    assert load_indexed("two tiny ones") is not None  # the libraries were there: rewritten
+    first_library = json.loads(index_file.read_text(encoding="utf-8"))[0][1]
+    (tmp_path / first_library).unlink()
+    assert load_indexed("two tiny ones") is None

@@ -711,3 +711,42 @@ def test_cli_spline_guess_at_five_knots_uses_the_multistart_dt0(in_tmp, capsys, 
     assert json.loads(capsys.readouterr().out)["success"] is True
     guess = load_result(in_tmp / "run" / "result.npz").guess
     assert guess.duration == pytest.approx(4 * default_dt0(study1_problem(5)), rel=1e-12)
+
+
+def test_cached_kernels_load_without_being_derived(youbot, monkeypatch, tmp_path):
+    """A second solver of one robot loads its compiled kernels by what they derive from.
+
+    The first build (into an empty cache) derives and compiles the kernels and
+    indexes them by the forward dynamics; the second must not derive them
+    (``dynamics_kernels`` is made to fail) and reaches the first's optimum:
+    the same compiled code, the same IPOPT steps (1e-12 relative). A robot
+    whose dynamics differ (damped) is not found by that index.
+    """
+    from youbot_opt.nlp.codegen import find_compiler
+    from youbot_opt.trajopt import solver as solver_module
+
+    if find_compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    problem = study1_problem(8, robot=youbot)
+    first = TrajOptSolver(problem, compile="wait")
+    assert first.compiled
+    expected = first.solve(beta=0.5)
+
+    def underived(*_: object) -> None:
+        raise AssertionError("the cached kernels were derived again")
+
+    monkeypatch.setattr(solver_module, "dynamics_kernels", underived)
+    second = TrajOptSolver(problem, compile="wait")
+    assert second.compiled
+    again = second.solve(beta=0.5)
+    assert again.success and again.objective == pytest.approx(expected.objective, rel=1e-12)
+    elbow = load_model("youbot", lock_joints={"arm_joint_3": 0.0})  # 2 joints: other dynamics
+    other = TrajOptProblem(
+        robot=elbow,
+        start=BoundaryState(q=np.array([-0.5, -0.5])),
+        goal=BoundaryState(q=np.array([0.5, 0.5])),
+        n_knots=8,
+    )
+    with pytest.raises(AssertionError, match="derived again"):
+        TrajOptSolver(other, compile="wait")

@@ -286,3 +286,37 @@ def test_point_times_are_where_the_points_lie(free: TrajOptProblem, method: str)
         groups = {g: result.variables[names[g]] for g in times if g != "knots"}
     for group, values in groups.items():
         np.testing.assert_allclose(result.trajectory(total * times[group]), values, atol=1e-9)
+
+
+def test_cached_path_kernels_load_without_being_derived(
+    free: TrajOptProblem, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A second solver of one scene loads its clearance rows' compiled kernels underived.
+
+    As the dynamics' kernels (tests/trajopt/test_solve.py): ``path_kernels`` made
+    to fail, the second build still finds the rows' kernels by the rows' Function,
+    and the solve reaches the first's optimum (the same compiled code: 1e-12).
+    """
+    from youbot_opt.nlp.codegen import find_compiler
+    from youbot_opt.trajopt import solver as solver_module
+
+    if find_compiler() is None:
+        pytest.skip("no C compiler")
+    problem = dataclasses.replace(free, n_knots=8, clearance=_ball_over_tip(free))
+    first = TrajOptSolver(problem, "hermite_simpson", compile="wait")
+    expected = first.solve(beta=0.5)
+
+    def underived(*_: object) -> None:
+        raise AssertionError("the cached path kernels were derived again")
+
+    monkeypatch.setattr(solver_module, "path_kernels", underived)
+    second = TrajOptSolver(problem, "hermite_simpson", compile="wait")
+    again = second.solve(beta=0.5)
+    assert again.status.success == expected.status.success
+    assert again.objective == pytest.approx(expected.objective, rel=1e-12)
+    moved = dataclasses.replace(problem.clearance, margin=0.02)  # a bound, not the Function
+    TrajOptSolver(dataclasses.replace(problem, clearance=moved), "hermite_simpson")
+    farther = Obstacle(name="ball", shape=Sphere(radius=0.03), xyz=(0.0, 0.5, 0.9))
+    other = dataclasses.replace(problem.clearance, scene=Scene((farther,)))
+    with pytest.raises(AssertionError, match="derived again"):
+        TrajOptSolver(dataclasses.replace(problem, clearance=other), "hermite_simpson")

@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import casadi as ca
 
+from youbot_opt._files import atomic_write_text
 from youbot_opt.exceptions import YoubotOptWarning
 
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "cpu_fingerprint",
     "estimated_compile_time",
     "find_compiler",
+    "load_indexed",
     "lock_path",
 ]
 
@@ -316,6 +318,7 @@ def compile_functions(
     wait: bool | None = True,
     label: str | None = None,
     with_jacobian: Sequence[bool] | None = None,
+    index: str | None = None,
 ) -> list[ca.Function]:
     """Compiled, disk-cached equivalents of ``functions``, missing ones compiled in one batch.
 
@@ -343,6 +346,12 @@ def compile_functions(
         portable library can be used meanwhile).
     with_jacobian : sequence of bool, optional
         Per Function, as :func:`compile_function`'s ``with_jacobian``.
+    index : str, optional
+        What the caller derived ``functions`` from, deterministically (e.g. the
+        serialised Function they differentiate and the deriving code): once
+        every library of the batch is loaded from this cache, an index file
+        maps it to them, and :func:`load_indexed` then loads them without the
+        Functions (whose building and code generation cost more than the load).
 
     Returns
     -------
@@ -376,8 +385,10 @@ def compile_functions(
         _clean_orphans(directory)
     result = list(functions)
     missing: list[tuple[int, _Job]] = []
+    jobs_of: list[_Job] = []
     for i, (function, jacobian) in enumerate(zip(functions, jacobians, strict=True)):
         job = _job(function, jacobian, compiler, flags, directory)
+        jobs_of.append(job)
         if job.library.is_file():
             result[i] = ca.external(function.name(), str(job.library))
             continue
@@ -401,6 +412,8 @@ def compile_functions(
             result[i] = ca.external(function.name(), str(job.portable))
         missing.append((i, job))
     if not missing:
+        if index is not None:
+            _write_index(directory, index, compiler, flags, functions, jobs_of)
         return result
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [job for _, job in missing]
@@ -420,6 +433,8 @@ def compile_functions(
         directory,
     )
     errors = _run_worker(jobs, compiler, flags, directory)
+    if index is not None and all(job.library.is_file() for job in jobs_of):
+        _write_index(directory, index, compiler, flags, functions, jobs_of)
     for i, job in missing:
         if job.library.is_file():
             result[i] = ca.external(job.function.name(), str(job.library))
@@ -433,6 +448,72 @@ def compile_functions(
             stacklevel=2,
         )
     return result
+
+
+def _index_path(directory: Path, index: str, compiler: str, flags: tuple[str, ...]) -> Path:
+    """``<cache>/index_<hash>.json``: the hash covers what a library name's hash does but code."""
+    key = hashlib.sha256(
+        "\0".join(
+            [
+                index,
+                Path(compiler).name,
+                *flags,
+                str(getattr(ca, "__version__", "unknown")),
+                *([cpu_fingerprint()] if NATIVE_FLAG in flags else []),
+            ]
+        ).encode()
+    ).hexdigest()[:20]
+    return directory / f"index_{key}.json"
+
+
+def _write_index(
+    directory: Path,
+    index: str,
+    compiler: str,
+    flags: tuple[str, ...],
+    functions: Sequence[ca.Function],
+    jobs: Sequence[_Job],
+) -> None:
+    """Record which libraries hold the batch derived from ``index`` (best effort)."""
+    doc = [[f.name(), job.library.name] for f, job in zip(functions, jobs, strict=True)]
+    path = _index_path(directory, index, compiler, flags)
+    try:
+        if json.loads(path.read_text(encoding="utf-8")) == doc:
+            return
+    except (OSError, ValueError):  # missing or malformed: written below
+        pass
+    try:
+        atomic_write_text(path, json.dumps(doc))
+    except OSError as exc:  # a read-only cache costs time only
+        _log.debug("cannot write the kernel index %s: %s", path, exc)
+
+
+def load_indexed(index: str) -> list[ca.Function] | None:
+    """Return the compiled Functions a batch derived from ``index`` was, or None.
+
+    None unless a C compiler is found, :func:`compile_functions` recorded the
+    batch with this ``index`` for this compiler, its flags, CasADi's version
+    (and, with :data:`NATIVE_FLAG`, this CPU), and every library it names is
+    in the cache; a malformed index file reads as missing. Each Function
+    comes with its compiled Jacobian when its library has one.
+    """
+    compiler = find_compiler()
+    if compiler is None:
+        return None
+    directory = cache_dir()
+    path = _index_path(directory, index, compiler, compile_flags(compiler))
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        entries = [(str(name), directory / str(lib)) for name, lib in doc]
+    except (OSError, ValueError, TypeError):
+        return None
+    if not entries or not all(lib.is_file() and lib.parent == directory for _, lib in entries):
+        return None
+    try:
+        return [ca.external(name, str(lib)) for name, lib in entries]
+    except RuntimeError as exc:  # a library that does not load: build the Functions again
+        _log.debug("cannot load the kernels of index %s: %s", path, exc)
+        return None
 
 
 def _expired(failed: Path) -> bool:

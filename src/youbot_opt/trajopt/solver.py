@@ -55,6 +55,8 @@ from youbot_opt.trajopt.transcription.base import BOUND_NAMES, TranscribedNLP
 from youbot_opt.trajopt.transcription.derivatives import (
     Kernels,
     PathKernels,
+    cached_kernels,
+    cached_path_kernels,
     compile_kernels,
     compile_path_kernels,
     dynamics_kernels,
@@ -200,29 +202,35 @@ class TrajOptSolver:
         symbolic = self.backend in _SECOND_ORDER_BACKENDS
         self._exact_hessian = self.options.exact_hessian(symbolic)
         self.compiled = False
-        self._kernels: tuple[Kernels, Kernels] | None = None
+        self._kernels: Kernels | None = None
+        wait = True if compile == "wait" else None  # None: now only if short
         if symbolic:
             # Structured exact derivatives from per-point kernels (compiled to C when
-            # possible): O(1) symbolic work on the dynamics, however many knots.
-            kernels = dynamics_kernels(dynamics.forward_dynamics)
-            label = f"{problem.robot.name}'s dynamics"
-            wait = True if compile == "wait" else None  # None: now only if short
-            fast = compile_kernels(kernels, wait=wait, label=label) if compile else kernels
-            self.compiled = fast is not kernels
-            self._kernels = (fast, kernels)
+            # possible): O(1) symbolic work on the dynamics, however many knots. Compiled
+            # kernels found in the cache by what they derive from are loaded underived.
+            fd = dynamics.forward_dynamics
+            found = cached_kernels(fd) if compile else None
+            if found is None:
+                kernels = dynamics_kernels(fd)
+                label = f"{problem.robot.name}'s dynamics"
+                found = (
+                    compile_kernels(kernels, wait=wait, label=label, source=fd)
+                    if compile
+                    else kernels
+                )
+                self.compiled = found is not kernels
+            else:
+                self.compiled = True
+            self._kernels = found
         self._paths = _path_constraints(problem)
         # the path rows' own per-point kernels (compiled like the dynamics'), so that
         # IPOPT's Jacobian and Hessian of the clearance rows run compiled code too
         self._path_kernels: tuple[PathKernels, ...] | None = None
         if self._kernels is not None and self._paths:
-            own = [path_kernels(c) for c in self._paths]
-            if compile:
-                robot = problem.robot.name
-                own = [
-                    compile_path_kernels(k, wait=wait, label=f"{robot}'s {c.name} rows")
-                    for k, c in zip(own, self._paths, strict=True)
-                ]
-            self._path_kernels = tuple(own)
+            self._path_kernels = tuple(
+                _path_kernels(c, compile=bool(compile), wait=wait, robot=problem.robot.name)
+                for c in self._paths
+            )
         self._checker: ExactChecker | None = None  # coal's solids, for overridden ends
         self._build(tic)
 
@@ -236,7 +244,7 @@ class TrajOptSolver:
         # the knot accelerations of each result, from the compiled kernel when there is one
         forward = self.dynamics.forward_dynamics
         if self._kernels is not None:
-            fast, kernels = self._kernels
+            fast = self._kernels
             forward = fast.forward
             # the compiled forward kernel carries its Jacobian: IPOPT's constraint
             # evaluations and the NLP gradient CasADi builds from ``nlp`` run compiled too
@@ -795,6 +803,19 @@ def _path_constraints(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:
         return tool
     require_model_clearance(problem, constraint)
     return (constraint, *tool)
+
+
+def _path_kernels(
+    constraint: PathConstraint, *, compile: bool, wait: bool | None, robot: str
+) -> PathKernels:
+    """Return a path constraint's kernels: compiled from the cache, compiled now or later, or SX."""
+    if compile and (found := cached_path_kernels(constraint)) is not None:
+        return found
+    own = path_kernels(constraint)
+    if not compile:
+        return own
+    label = f"{robot}'s {constraint.name} rows"
+    return compile_path_kernels(own, wait=wait, label=label, source=constraint)
 
 
 def _tool_constraint(problem: TrajOptProblem) -> tuple[PathConstraint, ...]:

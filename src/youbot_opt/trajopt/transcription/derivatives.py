@@ -14,7 +14,10 @@ own derivatives of the plain NLP. Derivation and rationale: docs/design.md,
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import itertools
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import casadi as ca
@@ -30,8 +33,11 @@ __all__ = [
     "NLPFunctions",
     "Kernels",
     "PathKernels",
+    "cached_kernels",
+    "cached_path_kernels",
     "compile_kernels",
     "compile_path_kernels",
+    "derivation_index",
     "dynamics_kernels",
     "path_kernels",
     "structured_functions",
@@ -120,8 +126,41 @@ def dynamics_kernels(forward_dynamics: ca.Function) -> Kernels:
     )
 
 
+def derivation_index(function: ca.Function, *derive: Callable[..., object]) -> str | None:
+    """Name what per-point kernels are derived from: ``function`` and the deriving code.
+
+    The key :func:`youbot_opt.nlp.codegen.load_indexed` finds compiled kernels
+    by without deriving them again: the serialised ``function`` (deterministic
+    for one model) and the source of the functions that derive and compile
+    the kernels; None when that source cannot be read (no index then).
+    """
+    try:
+        code = "\0".join(inspect.getsource(f) for f in derive)
+    except (OSError, TypeError):
+        return None
+    text = function.serialize()
+    return hashlib.sha256(f"{code}\0{text}".encode()).hexdigest()
+
+
+def cached_kernels(forward_dynamics: ca.Function) -> Kernels | None:
+    """Return the compiled kernels of ``forward_dynamics`` if the cache has them, else None.
+
+    Found by :func:`derivation_index` (the kernels are not derived: that and
+    their code generation take longer than the load, about 0.7 s for ur5).
+    """
+    from youbot_opt.nlp.codegen import load_indexed
+
+    index = derivation_index(forward_dynamics, dynamics_kernels, compile_kernels)
+    found = None if index is None else load_indexed(index)
+    return None if found is None or len(found) != len(Kernels._fields) else Kernels(*found)
+
+
 def compile_kernels(
-    kernels: Kernels, *, wait: bool | None = True, label: str | None = None
+    kernels: Kernels,
+    *,
+    wait: bool | None = True,
+    label: str | None = None,
+    source: ca.Function | None = None,
 ) -> Kernels:
     """Compile the kernels to C, cached on disk (:func:`youbot_opt.nlp.codegen.compile_functions`).
 
@@ -133,13 +172,20 @@ def compile_kernels(
     (``label`` names it in the log). The compiled ``forward`` kernel carries its
     compiled Jacobian (first derivatives), so an NLP Function built on it can be
     handed to ``nlpsol``, which differentiates it once (reverse mode) when it is
-    created; the other two compiled kernels have no derivatives.
+    created; the other two compiled kernels have no derivatives. ``source``: the
+    forward dynamics the kernels were derived from, which indexes them for
+    :func:`cached_kernels`.
     """
     from youbot_opt.nlp.codegen import compile_functions
 
+    index = None if source is None else derivation_index(source, dynamics_kernels, compile_kernels)
     compiled = Kernels(
         *compile_functions(
-            kernels, wait=wait, label=label, with_jacobian=[k is kernels.forward for k in kernels]
+            kernels,
+            wait=wait,
+            label=label,
+            with_jacobian=[k is kernels.forward for k in kernels],
+            index=index,
         )
     )
     if any(c is k for c, k in zip(compiled, kernels, strict=True)):
@@ -198,18 +244,45 @@ def path_kernels(constraint: PathConstraint) -> PathKernels:
     )
 
 
+def cached_path_kernels(constraint: PathConstraint) -> PathKernels | None:
+    """Return the compiled kernels of a path constraint if the cache has them, else None.
+
+    As :func:`cached_kernels`, keyed by the constraint's Function.
+    """
+    from youbot_opt.nlp.codegen import load_indexed
+
+    index = derivation_index(constraint.function, path_kernels, compile_path_kernels)
+    found = None if index is None else load_indexed(index)
+    return None if found is None or len(found) != len(PathKernels._fields) else PathKernels(*found)
+
+
 def compile_path_kernels(
-    kernels: PathKernels, *, wait: bool | None = True, label: str | None = None
+    kernels: PathKernels,
+    *,
+    wait: bool | None = True,
+    label: str | None = None,
+    source: PathConstraint | None = None,
 ) -> PathKernels:
     """Compile a path constraint's kernels to C, as :func:`compile_kernels` the dynamics'.
 
-    Returns ``kernels`` itself when any of the three is not compiled (yet).
+    Returns ``kernels`` itself when any of the three is not compiled (yet);
+    ``source``, the constraint they were derived from, indexes them for
+    :func:`cached_path_kernels`.
     """
     from youbot_opt.nlp.codegen import compile_functions
 
+    index = (
+        None
+        if source is None
+        else derivation_index(source.function, path_kernels, compile_path_kernels)
+    )
     compiled = PathKernels(
         *compile_functions(
-            kernels, wait=wait, label=label, with_jacobian=[k is kernels.value for k in kernels]
+            kernels,
+            wait=wait,
+            label=label,
+            with_jacobian=[k is kernels.value for k in kernels],
+            index=index,
         )
     )
     if any(c is k for c, k in zip(compiled, kernels, strict=True)):
