@@ -13,7 +13,10 @@ study's planar convention (spec ``trajopt.md``). Loading is
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import hashlib
+import threading
+import weakref
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Literal, NamedTuple
 
@@ -185,6 +188,16 @@ class RobotModel:
     payload : Payload or None
         The payload :attr:`model` carries (:meth:`with_payload`), its frame
         resolved; None when it carries none.
+
+    Notes
+    -----
+    A robot pickles without its visual geometry (meshes to draw: 176 MB of
+    ur5's 186 MB pickle), which is what a sweep sends to its workers with
+    every task and receives back with every result. The process that pickled
+    it puts it back on unpickling (results come back whole); any other process
+    gets a robot with an empty :attr:`visual_model` (workers never draw; to draw
+    elsewhere, load the robot again). The collision geometry travels: a
+    clearance needs it.
     """
 
     name: str
@@ -201,6 +214,12 @@ class RobotModel:
 
     def __post_init__(self) -> None:
         self.frame_id(self.tip_frame)  # raises FrameNotFound listing the frames
+
+    def __reduce__(self) -> tuple[object, ...]:
+        """Pickle without the visual geometry; this process restores it (see Notes)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state["visual_model"] = pin.GeometryModel()
+        return (_unpickle_robot, (state, _hold_visual(self.visual_model)))
 
     def with_payload(self, payload: Payload) -> RobotModel:
         """Return this robot carrying ``payload`` (:func:`~youbot_opt.robot.payload.add_payload`).
@@ -409,6 +428,65 @@ class RobotModel:
             package_dirs=(),
             tip_frame=tip,
         )
+
+
+# Visual geometry of the robots pickled by this process, by a digest of what it
+# draws: unpickling here puts it back (weak references: a robot dropped frees it).
+_VISUALS: dict[str, weakref.ref[pin.GeometryModel]] = {}
+_VISUALS_LOCK = threading.Lock()
+
+
+def _visual_digest(visual: pin.GeometryModel) -> str:
+    """Return a digest of what ``visual`` draws: names, frames, placements, meshes, colours."""
+    h = hashlib.sha256()
+    for go in visual.geometryObjects:
+        h.update(
+            "\0".join(
+                [
+                    go.name,
+                    str(go.parentJoint),
+                    str(go.parentFrame),
+                    go.meshPath,
+                    type(go.geometry).__name__,
+                ]
+            ).encode()
+        )
+        h.update(np.asarray(go.placement.homogeneous, dtype=float).tobytes())
+        h.update(np.asarray(go.meshScale, dtype=float).tobytes())
+        h.update(np.asarray(go.meshColor, dtype=float).tobytes())
+    return f"{visual.ngeoms}:{h.hexdigest()}"
+
+
+# The empty visual models of robots unpickled without their meshes -> the key of those
+# meshes, which pickling such a robot again passes on (a worker's result goes home whole).
+_AWAY: weakref.WeakKeyDictionary[pin.GeometryModel, str] = weakref.WeakKeyDictionary()
+
+
+def _hold_visual(visual: pin.GeometryModel) -> str:
+    """Remember ``visual`` for this process's unpickling; return its key ("" when none)."""
+    if visual.ngeoms == 0:
+        with _VISUALS_LOCK:
+            return _AWAY.get(visual, "")
+    key = _visual_digest(visual)  # content, not process: forked workers hold the same
+    with _VISUALS_LOCK:
+        for dead in [k for k, ref in _VISUALS.items() if ref() is None]:
+            del _VISUALS[dead]
+        _VISUALS[key] = weakref.ref(visual)
+    return key
+
+
+def _unpickle_robot(state: dict[str, object], visual_key: str) -> RobotModel:
+    """Rebuild a pickled :class:`RobotModel`, its visual geometry if this process holds it."""
+    if visual_key:
+        with _VISUALS_LOCK:
+            ref = _VISUALS.get(visual_key)
+        visual = None if ref is None else ref()
+        if visual is not None:
+            state = {**state, "visual_model": visual}
+        else:
+            with _VISUALS_LOCK:
+                _AWAY[state["visual_model"]] = visual_key  # type: ignore[index]
+    return RobotModel(**state)  # type: ignore[arg-type]
 
 
 def as_robot_model(robot: RobotModel | pin.Model) -> RobotModel:
