@@ -753,8 +753,8 @@ def stream_starts(
     solvers: StartSolvers[ProblemT, ResultT],
     store: SweepStore,
     distance: Callable[[ResultT, ResultT], float],
-    objective_tol: float,
-    q_tol: float,
+    obj_tol: float,
+    dist_tol: float,
     on_resumed: Callable[[Iterable[StartScore]], None] | None = None,
     on_final: Callable[[int, StartScore], None] | None = None,
     deadline: float | None = None,
@@ -764,8 +764,8 @@ def stream_starts(
     As :func:`solve_starts`, but a start is drawn (``starts[i]``) only when its
     task is made, each start's figures are read back from the store's journal
     as :class:`~youbot_opt.ikpath.stored.StartSummary` when needed, and only the
-    distinct minima (``cluster_optima``'s rule with ``objective_tol`` on ``E`` and
-    ``q_tol`` on ``distance``, chosen by
+    distinct minima (``cluster_optima``'s rule with ``obj_tol`` on ``E`` and
+    ``dist_tol`` on ``distance``, chosen by
     :func:`~youbot_opt.sweeps.selection.stream_optima`) are held in full.
 
     Parameters
@@ -776,8 +776,9 @@ def stream_starts(
         The output folder (required: the results not kept stay there).
     distance : callable ``(a, b) -> float``
         Distance in [rad] of two successful results' configurations.
-    objective_tol, q_tol : float
-        Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
+    obj_tol, dist_tol : float
+        Relative tolerance on ``E`` and tolerance in [rad] on ``distance`` (both
+        finite and > 0).
     problem, method, options, sweep, solvers, on_resumed, on_final, deadline
         As :func:`solve_starts`; ``on_resumed`` is given an iterable, read once.
 
@@ -849,8 +850,8 @@ def stream_starts(
     rule: KeepRule[StartSummary[ResultT]] = KeepRule(
         objective=lambda s: s.objective if s.success else None,
         distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=objective_tol,
-        dist_tol=q_tol,
+        obj_tol=obj_tol,
+        dist_tol=dist_tol,
     )
     got = run_resumable(
         tasks,
