@@ -48,12 +48,13 @@ from youbot_opt.ikpath.starts import (
     make_starts_3d,
     periodic_joints,
 )
-from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StoredResults
+from youbot_opt.ikpath.stored import ClusterIndices, StoredResults
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
     STARTS_3D,
     SWEEP_KIND,
     SWEEP_KIND_3D,
+    minima_rule,
     progress_callbacks,
     result_codec,
     solve_starts,
@@ -61,7 +62,7 @@ from youbot_opt.ikpath.sweep import (
     stream_starts,
 )
 from youbot_opt.sweeps.multistart import LocalOptimum, Multistart, OptimumMembers, StartTally
-from youbot_opt.sweeps.optima import KeepRule, check_tolerances, cluster_optima
+from youbot_opt.sweeps.optima import check_tolerances, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.selection import Clusters
@@ -271,7 +272,7 @@ class MultistartResult(Multistart[IKPathResult, int]):
             return cluster_minima(results, obj_tol=obj_tol, dist_tol=dist_tol, distance=distance)
         if (obj_tol, dist_tol) == (self.obj_tol, self.dist_tol):
             return self.minima
-        kept, clusters = results.cluster(_minima_rule(obj_tol, dist_tol, distance))
+        kept, clusters = results.cluster(minima_rule(obj_tol, dist_tol, distance))
         reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
         return _stored_minima(clusters, reps, results)
 
@@ -741,18 +742,6 @@ def _run(
 
 def _count(n_starts: int | None, default: int) -> int:
     return default if n_starts is None else n_starts
-
-
-def _minima_rule(
-    obj_tol: float, dist_tol: float, distance: Callable[[IKPathResult, IKPathResult], float]
-) -> KeepRule[StartSummary[IKPathResult]]:
-    """:func:`cluster_minima`'s rule over start summaries holding their results."""
-    return KeepRule(
-        objective=lambda s: s.objective if s.success else None,
-        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=obj_tol,
-        dist_tol=dist_tol,
-    )
 
 
 def _stored_minima(

@@ -67,6 +67,7 @@ __all__ = [
     "SweepOutcome",
     "crashed_result",
     "encoded_saver",
+    "minima_rule",
     "options_json",
     "progress_callbacks",
     "status_counts",
@@ -743,6 +744,23 @@ class StreamedOutcome(NamedTuple, Generic[ResultT]):
     """Starts a deadline left unrun: they follow the starts of ``results``."""
 
 
+def minima_rule(
+    obj_tol: float, dist_tol: float, distance: Callable[[ResultT, ResultT], float]
+) -> KeepRule[StartSummary[ResultT]]:
+    """Return the distinct minima's rule over start summaries holding their results.
+
+    :func:`~youbot_opt.ikpath.multistart.cluster_minima`'s rule: successful
+    starts by ``E``, ``obj_tol`` relative on ``E``, ``dist_tol`` in [rad] on
+    ``distance`` of their results (both finite and > 0, checked here).
+    """
+    return KeepRule(
+        objective=lambda s: s.objective if s.success else None,
+        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
+        obj_tol=obj_tol,
+        dist_tol=dist_tol,
+    )
+
+
 def stream_starts(
     problem: ProblemT,
     starts: Sequence[Array] | Array,
@@ -847,12 +865,7 @@ def stream_starts(
         result: ResultT = o.value if o.ok else crashed(i, str(o.error))
         return of(i, result, o.attempts)
 
-    rule: KeepRule[StartSummary[ResultT]] = KeepRule(
-        objective=lambda s: s.objective if s.success else None,
-        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=obj_tol,
-        dist_tol=dist_tol,
-    )
+    rule = minima_rule(obj_tol, dist_tol, distance)
     got = run_resumable(
         tasks,
         store=store,
