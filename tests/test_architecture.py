@@ -348,10 +348,6 @@ NO_ANY_PACKAGES: tuple[str, ...] = (
 #: entry goes when its cause does (and one that no longer matches fails the rule).
 ANY_EXEMPT: dict[str, str] = {}
 
-#: Module-level type aliases (``module.Name``) that still hold Any, each with its cause: a
-#: public signature may name them. An entry goes when its cause does (a stale one fails).
-ANY_ALIAS_EXEMPT: dict[str, str] = {}
-
 _PUBLIC_DUNDERS = ("__init__", "__call__")
 
 
@@ -469,44 +465,34 @@ def _imported_any_names(tree: ast.Module, names: dict[str, set[str]]) -> set[str
     return found
 
 
-def _any_names() -> tuple[dict[str, frozenset[str]], set[str]]:
-    """Per module, the names that stand for a type holding Any, and the exempted aliases seen.
+def _any_names() -> dict[str, frozenset[str]]:
+    """Per module, the names that stand for a type holding Any.
 
     A name is one if the module binds it to a value naming Any or such a name
     (``JSON = dict[str, Any]``, ``Rows = list[JSON]``), or imports it from a module
     where it is one (re-exports included; ``mod.JSON`` for an imported module), found
     to a fixed point over the package.
-    An alias listed in :data:`ANY_ALIAS_EXEMPT` is not one.
     """
     trees = {module: _parsed(path, path.read_text()) for module, path in MODULES.items()}
     names: dict[str, set[str]] = {module: set() for module in MODULES}
-    exempted: set[str] = set()
     changed = True
     while changed:
         changed = False
         for module, tree in trees.items():
             known = frozenset(names[module])
-            found = set()
-            for name, value in _alias_values(tree).items():
-                if _mentions_any(value, known):
-                    if f"{module}.{name}" in ANY_ALIAS_EXEMPT:
-                        exempted.add(f"{module}.{name}")
-                    else:
-                        found.add(name)
+            found = {
+                name for name, value in _alias_values(tree).items() if _mentions_any(value, known)
+            }
             found |= _imported_any_names(tree, names)
             if found - names[module]:
                 names[module] |= found
                 changed = True
-    return {module: frozenset(found) for module, found in names.items()}, exempted
+    return {module: frozenset(found) for module, found in names.items()}
 
 
 def test_no_any_in_a_public_signature():
     """No public signature of the covered packages names Any, directly or through an alias."""
-    aliases, exempted = _any_names()
-    stale_aliases = sorted(set(ANY_ALIAS_EXEMPT) - exempted)
-    assert not stale_aliases, "alias exempted but holds no Any (drop it): " + ", ".join(
-        stale_aliases
-    )
+    aliases = _any_names()
     found = [
         hit
         for module, path in MODULES.items()
@@ -565,7 +551,7 @@ def test_the_any_rule_catches_a_planted_violation(tmp_path, source, caught):
     MODULES[planted] = tmp_path / "planted_check.py"
     MODULES[planted].write_text(source)
     try:
-        hits = _any_in_public_signatures(planted, MODULES[planted], _any_names()[0][planted])
+        hits = _any_in_public_signatures(planted, MODULES[planted], _any_names()[planted])
         assert bool(hits) is caught, hits
         if caught:
             with pytest.raises(AssertionError):
@@ -593,7 +579,7 @@ def test_the_any_rule_follows_an_imported_alias(tmp_path):
         MODULES[module] = tmp_path / f"{module.rsplit('.', 1)[1]}.py"
         MODULES[module].write_text(source)
     try:
-        names = _any_names()[0]
+        names = _any_names()
         use, dotted = (f"youbot_opt.{NO_ANY_PACKAGES[0]}.planted_{s}" for s in ("use", "dotted"))
         assert _any_in_public_signatures(use, MODULES[use], names[use]) == [f"{use}.f(d)"]
         assert _any_in_public_signatures(dotted, MODULES[dotted], names[dotted]) == [

@@ -17,6 +17,11 @@ from youbot_opt.cli import main
             "--max-iter must be in 0..2147483647, got 2147483648",
         ),
         (["solve", "--max-iter", "x"], "--max-iter must be an integer in 0..2147483647"),
+        (["multistart", "--obj-tol", "0"], "--obj-tol must be in (0, 1.79769e+308], got 0"),
+        (["multistart", "--dist-tol", "-0.1"], "--dist-tol must be in (0, 1.79769e+308], got -0.1"),
+        (["multistart", "--dist-tol", "nan"], "--dist-tol must be in (0, 1.79769e+308], got nan"),
+        (["multistart", "--obj-tol", "inf"], "--obj-tol must be in (0, 1.79769e+308], got inf"),
+        (["multistart", "--traj-tol", "1e-2"], "unrecognized arguments: --traj-tol"),
     ],
 )
 def test_out_of_range_numbers_are_refused_at_parse_time(argv, message, tmp_path, capsys):

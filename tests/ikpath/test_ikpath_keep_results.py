@@ -20,6 +20,7 @@ from test_ikpath_solvers import LA, LB, TARGETS_2
 from _sigkill import ITEM_SLEEP, kill_repeatedly
 from youbot_opt._files import read_json_lines
 from youbot_opt.cli import main
+from youbot_opt.exceptions import ParameterError
 from youbot_opt.ikpath.methods.al import ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
@@ -88,12 +89,15 @@ def test_planar_lean_run_equals_the_full_run(two_link, tmp_path, workers, faults
         assert crashed.status is SolveStatus.CRASHED and "worker process crashed" in crashed.message
     # Other tolerances: re-clustered from the folder, equal to the full run's re-clustering.
     # Coarser ones merge distinct minima (14 -> 11 here); finer ones may split one.
-    coarse = _minima(full.distinct_optima(objective_tol=0.1, q_tol=3.0))
+    coarse = _minima(full.distinct_optima(obj_tol=0.1, dist_tol=3.0))
     assert len(coarse) < len(full.minima)
-    assert _minima(lean.distinct_optima(objective_tol=0.1, q_tol=3.0)) == coarse
-    fine = _minima(full.distinct_optima(objective_tol=1e-12, q_tol=1e-9))
-    assert _minima(lean.distinct_optima(objective_tol=1e-12, q_tol=1e-9)) == fine
+    assert _minima(lean.distinct_optima(obj_tol=0.1, dist_tol=3.0)) == coarse
+    fine = _minima(full.distinct_optima(obj_tol=1e-12, dist_tol=1e-9))
+    assert _minima(lean.distinct_optima(obj_tol=1e-12, dist_tol=1e-9)) == fine
     assert lean.distinct_optima() is lean.minima  # the run's own tolerances
+    for bad in ({"obj_tol": 0.0}, {"dist_tol": -1.0}, {"dist_tol": float("nan")}):
+        with pytest.raises(ParameterError, match=next(iter(bad))):  # refused before any load
+            lean.distinct_optima(**bad)
 
 
 def test_planar_nothing_succeeded_best_is_the_start_closest_to_the_targets(two_link, tmp_path):

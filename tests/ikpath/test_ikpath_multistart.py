@@ -152,7 +152,7 @@ def test_configuration_distance_ignores_common_2pi_shifts(rng):
 def test_clustering_merges_equal_minima(two_link):
     """Results within the tolerances form one minimum whose count is the number of members."""
     res = run_multistart(two_link, n_starts=10, seed=2, sweep=SweepOptions(workers=1))
-    merged = cluster_minima(res.results, objective_tol=1e6, q_tol=1e6)
+    merged = cluster_minima(res.results, obj_tol=1e6, dist_tol=1e6)
     assert len(merged) == 1 and merged[0].count == res.n_converged
     again = res.distinct_optima()  # default tolerances: the same clustering as res.minima
     assert [(m.objective, m.count, m.start_indices) for m in again] == [
@@ -166,6 +166,31 @@ def test_clustering_merges_equal_minima(two_link):
                 configuration_distance(a.result.configurations, b.result.configurations) > 1e-3
             )
     assert sum(m.count for m in again) == res.n_converged
+    # The counts (and members) the clustering gave before its tolerances were named
+    # obj_tol / dist_tol (objective_tol / q_tol then), at the defaults and a coarser pair.
+    assert [m.count for m in again] == [2, 1, 1, 1, 1, 1, 1, 1, 1]
+    coarse = res.distinct_optima(obj_tol=0.1, dist_tol=3.0)
+    assert [m.start_indices for m in coarse] == [(4, 6), (0,), (1,), (9,), (7, 8), (2,), (3, 5)]
+    assert [m.start_indices for m in cluster_minima(res.results, obj_tol=0.1, dist_tol=3.0)] == [
+        m.start_indices for m in coarse
+    ]
+
+
+@pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan"), float("inf")])
+@pytest.mark.parametrize("name", ["obj_tol", "dist_tol"])
+def test_tolerances_not_finite_and_positive_are_refused(two_link, tmp_path, name, bad):
+    """obj_tol and dist_tol must be finite and > 0: ParameterError naming the argument, from
+    cluster_minima, distinct_optima and run_multistart (before any start runs)."""
+    with pytest.raises(ParameterError, match=f"{name} must be a finite number > 0") as info:
+        cluster_minima([], **{name: bad})
+    assert info.value.name == name
+    out = tmp_path / "run"
+    with pytest.raises(ParameterError, match=f"{name} must be a finite number > 0"):
+        run_multistart(two_link, n_starts=2, sweep=SweepOptions(workers=1, out=out), **{name: bad})
+    assert not out.exists()
+    res = run_multistart(two_link, n_starts=2, seed=0, sweep=SweepOptions(workers=1))
+    with pytest.raises(ParameterError, match=name):
+        res.distinct_optima(**{name: bad})
 
 
 def test_starts_are_per_index_and_old_stores_are_carried_by_the_script(tmp_path):

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.optima import cluster_optima
+from youbot_opt.sweeps.optima import KeepRule, check_tolerances, cluster_optima
 
 
 def _cluster(items, obj_tol=1e-6, dist_tol=1e-3):  # type: ignore[no-untyped-def]
@@ -39,9 +40,25 @@ def test_distance_is_measured_to_the_representative_only() -> None:
     assert _cluster(items) == [[(1.0, 0.0), (1.0, 0.0008)], [(1.0, 0.0016)]]
 
 
-def test_negative_tolerances_are_refused() -> None:
-    """A negative or NaN tolerance raises ParameterError naming it."""
-    with pytest.raises(ParameterError, match="obj_tol and dist_tol"):
-        _cluster([(1.0, 0.0)], obj_tol=-1.0)
-    with pytest.raises(ParameterError, match="obj_tol and dist_tol"):
-        _cluster([(1.0, 0.0)], dist_tol=float("nan"))
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+@pytest.mark.parametrize("name", ["obj_tol", "dist_tol"])
+def test_tolerances_not_finite_and_positive_are_refused(name: str, bad: float) -> None:
+    """A zero, negative, NaN or infinite tolerance raises ParameterError naming it, also
+    when a KeepRule with a distance is made; the best-only rule has no tolerances."""
+    with pytest.raises(ParameterError, match=f"{name} must be a finite number > 0") as info:
+        _cluster([(1.0, 0.0)], **{name: bad})
+    assert info.value.name == name
+    assert info.value.value is bad
+    tols = {"obj_tol": 1e-6, "dist_tol": 1e-3, name: bad}
+    with pytest.raises(ParameterError, match=name):
+        KeepRule(objective=lambda p: p[0], distance=lambda a, b: 0.0, **tols)
+    assert KeepRule(objective=lambda p: p[0], **tols).distance is None
+    with pytest.raises(ParameterError, match=name):
+        check_tolerances(**tols)
+
+
+def test_check_tolerances_returns_floats() -> None:
+    """Integers and numpy scalars are taken as floats; a bool is refused."""
+    assert check_tolerances(1, np.float32(0.5)) == (1.0, 0.5)
+    with pytest.raises(ParameterError, match="obj_tol"):
+        check_tolerances(True, 1.0)

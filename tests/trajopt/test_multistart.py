@@ -87,7 +87,7 @@ def test_distinct_optima_cluster_by_objective_and_trajectory() -> None:
     """Equal f and path -> one optimum; equal f but another path, or another f -> separate."""
     q0, q1 = np.zeros(3), np.ones(3)
     a = _line(q0, q1, 2.0)
-    b = _line(q0 + 0.2, q1 + 0.2, 2.0)  # distance 0.2 rad > traj_tol
+    b = _line(q0 + 0.2, q1 + 0.2, 2.0)  # distance 0.2 rad > dist_tol
     starts = (
         _start("s1", 9.0, a),
         _start("s2", 9.0 + 1e-8, _line(q0, q1, 2.5)),  # same path and f: joins s1
@@ -95,11 +95,24 @@ def test_distinct_optima_cluster_by_objective_and_trajectory() -> None:
         _start("s4", 11.0, a),
     )
     ms = MultistartResult(starts=starts, beta=0.5, bound_scale=1.0, seed=0)
-    optima = ms.distinct_optima(objective_tol=1e-6, traj_tol=1e-2)
+    optima = ms.distinct_optima(obj_tol=1e-6, dist_tol=1e-2)
     assert [(o.objective, o.count) for o in optima] == [(9.0, 2), (9.0, 1), (11.0, 1)]
     assert optima[0].seeds == (1, 2)
     assert ms.best is not None and ms.best.key == "s1"
     assert ms.success_rate == 1.0
+
+
+@pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan"), float("inf")])
+@pytest.mark.parametrize("name", ["obj_tol", "dist_tol"])
+def test_distinct_optima_refuses_tolerances_not_finite_and_positive(name: str, bad: float) -> None:
+    """obj_tol and dist_tol must be finite and > 0 (a zero dist_tol would make every start its
+    own optimum): ParameterError naming the argument, from distinct_optima and summary."""
+    a = _line(np.zeros(3), np.ones(3), 2.0)
+    ms = MultistartResult(starts=(_start("s1", 9.0, a),), beta=0.5, bound_scale=1.0, seed=0)
+    for method in (ms.distinct_optima, ms.summary):
+        with pytest.raises(ParameterError, match=f"{name} must be a finite number > 0") as info:
+            method(**{name: bad})  # type: ignore[operator]
+        assert info.value.name == name
 
 
 def test_parallel_equals_serial_and_reproduces_single_solves(solver: TrajOptSolver) -> None:
@@ -228,7 +241,15 @@ def test_cli_multistart_reports_the_refined_plan(
 
 @pytest.mark.parametrize(
     "argv",
-    [["--starts", "-3"], ["--beta", "2"], ["--knots", "1"], ["--workers", "-1"], ["--starts", "x"]],
+    [
+        ["--starts", "-3"],
+        ["--beta", "2"],
+        ["--knots", "1"],
+        ["--workers", "-1"],
+        ["--starts", "x"],
+        ["--obj-tol", "0"],
+        ["--dist-tol", "-1e-2"],
+    ],
 )
 def test_cli_multistart_bad_input_exits_2(argv: list[str]) -> None:
     """Bad command-line values exit with status 2."""

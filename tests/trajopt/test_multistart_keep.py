@@ -91,6 +91,15 @@ def test_lean_result_equals_the_full_one_and_reads_no_start(
     counts = full.status_counts()
     assert counts["error"] == 1 and sum(counts.values()) == 11  # the injected failure
     assert len(full.distinct_optima()) == 3
+    # The counts the clustering gave before its tolerances were named obj_tol / dist_tol
+    # (objective_tol / traj_tol then), at the defaults and two other pairs.
+    for tols, before in (
+        ((1e-5, 1e-2), [1, 4, 5]),
+        ((1e-3, 1e-1), [1, 4, 5]),
+        ((0.1, 10.0), [1, 9]),
+    ):
+        assert [o.count for o in full.distinct_optima(*tols)] == before
+        assert [o.count for o in full.distinct_optima(obj_tol=tols[0], dist_tol=tols[1])] == before
     for lean in (fresh, again):
         assert lean.tally is not None and full.tally is None
         assert lean.status_counts() == counts

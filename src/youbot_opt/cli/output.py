@@ -341,12 +341,12 @@ def write_solve_outputs(
 def optima_replay(
     folder: Path,
     multistart: MultistartResult,
-    objective_tol: float = 1e-5,
-    traj_tol: float = 1e-2,
+    obj_tol: float = 1e-5,
+    dist_tol: float = 1e-2,
     limit: int = 6,
 ) -> Path | None:
     """Write ``replay.html`` with up to ``limit`` distinct optima of a multistart, side by side."""
-    optima = multistart.distinct_optima(objective_tol, traj_tol)[:limit]
+    optima = multistart.distinct_optima(obj_tol, dist_tol)[:limit]
     labels = [
         f"optimum {i + 1}: f = {o.objective:.5g}, {o.count} of {o.n_starts} starts"
         for i, o in enumerate(optima)

@@ -784,15 +784,15 @@ def _studies(sub: _Sub) -> None:
     _clearance_arguments(p)
     p.add_argument(
         "--obj-tol",
-        type=float,
+        type=float_in_range("--obj-tol", 0.0, sys.float_info.max),
         default=1e-5,
-        help="relative objective tolerance of the distinct-optima clustering",
+        help="relative objective tolerance of the distinct-optima clustering (> 0; default 1e-5)",
     )
     p.add_argument(
-        "--traj-tol",
-        type=float,
+        "--dist-tol",
+        type=float_in_range("--dist-tol", 0.0, sys.float_info.max),
         default=1e-2,
-        help="trajectory distance tolerance in [rad] of the clustering",
+        help="trajectory distance tolerance in [rad] of the clustering (> 0; default 1e-2)",
     )
 
     p = sub.add_parser(

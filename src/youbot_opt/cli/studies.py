@@ -260,7 +260,7 @@ def multistart(args: argparse.Namespace) -> int:
     prog.close()
     if isinstance(res, ShardReport):  # --shard I/K solved its share
         return report_shard(res)
-    optima = res.distinct_optima(args.obj_tol, args.traj_tol)
+    optima = res.distinct_optima(args.obj_tol, args.dist_tol)
     table = [
         f"multistart: beta = {res.beta:g}, {res.n_starts} starts (seed {res.seed}), "
         f"success rate {100 * res.success_rate:.0f} %, {res.resumed} resumed, "
@@ -275,7 +275,7 @@ def multistart(args: argparse.Namespace) -> int:
     failed = (s for s in res.starts if not s.success)  # streamed with --no-keep-results
     for s in itertools.islice(failed, 10):
         table.append(f"  not converged: {s.key} (seed {s.seed}): {s.status}: {s.reason}")
-    summary = res.summary(args.obj_tol, args.traj_tol)
+    summary = res.summary(args.obj_tol, args.dist_tol)
     summary["starts_file"] = STARTS_FILE
     starts_file = _write_starts(folder, res.starts)
     best = (
@@ -297,7 +297,7 @@ def multistart(args: argparse.Namespace) -> int:
             _figure(args, folder, "multistart.png", plot_multistart, res),
             _figure(args, folder, "convergence.png", plot_convergence, res),
             _figure(args, folder, "trajectory.png", plot_trajectory, plan),
-            optima_replay(folder, res, args.obj_tol, args.traj_tol),
+            optima_replay(folder, res, args.obj_tol, args.dist_tol),
         ]
     _emit(args, folder, summary, table, files)
     return 0 if res.best is not None and _all_certified(refined) else 1

@@ -48,12 +48,13 @@ from youbot_opt.ikpath.starts import (
     make_starts_3d,
     periodic_joints,
 )
-from youbot_opt.ikpath.stored import ClusterIndices, StartSummary, StoredResults
+from youbot_opt.ikpath.stored import ClusterIndices, StoredResults
 from youbot_opt.ikpath.sweep import (
     PLANAR_STARTS,
     STARTS_3D,
     SWEEP_KIND,
     SWEEP_KIND_3D,
+    minima_rule,
     progress_callbacks,
     result_codec,
     solve_starts,
@@ -61,7 +62,7 @@ from youbot_opt.ikpath.sweep import (
     stream_starts,
 )
 from youbot_opt.sweeps.multistart import LocalOptimum, Multistart, OptimumMembers, StartTally
-from youbot_opt.sweeps.optima import KeepRule, cluster_optima
+from youbot_opt.sweeps.optima import check_tolerances, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions, resolve_executor
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.selection import Clusters
@@ -158,8 +159,8 @@ class MultistartResult(Multistart[IKPathResult, int]):
         ``keep_results=False``: counts and (``found``) the index of the start
         closest to the targets,
         gathered in one pass at the end of the run; ``None`` otherwise.
-    objective_tol, q_tol : float
-        The clustering tolerances :attr:`minima` were chosen with.
+    obj_tol, dist_tol : float
+        The clustering tolerances :attr:`minima` were chosen with (relative; [rad]).
     time_budget : float or None
         The automatic starts' wall-time budget in [s] (``None``: starts asked for,
         which all run).
@@ -182,8 +183,8 @@ class MultistartResult(Multistart[IKPathResult, int]):
     resumed: int = 0
     output: Path | None = None
     tally: StartTally[int] | None = None
-    objective_tol: float = 1e-6
-    q_tol: float = 1e-3
+    obj_tol: float = 1e-6
+    dist_tol: float = 1e-3
     time_budget: float | None = None
     not_run: int = 0
 
@@ -237,7 +238,7 @@ class MultistartResult(Multistart[IKPathResult, int]):
         return self.n_starts / self.wall_time if self.wall_time > 0 else math.inf
 
     def distinct_optima(
-        self, objective_tol: float = 1e-6, q_tol: float = 1e-3
+        self, obj_tol: float = 1e-6, dist_tol: float = 1e-3
     ) -> tuple[IKPathOptimum, ...]:
         """Re-cluster the successful results with other tolerances (see :func:`cluster_minima`).
 
@@ -245,19 +246,33 @@ class MultistartResult(Multistart[IKPathResult, int]):
         others re-cluster from the output folder, streamed (each successful
         start's result loaded once, one at a time; the members go to a
         temporary table), with the same result as ``keep_results=True``.
+
+        Parameters
+        ----------
+        obj_tol : float
+            Relative tolerance on ``E`` (dimensionless, finite, > 0; default 1e-6).
+        dist_tol : float
+            Tolerance in [rad] on :func:`minimum_distance` (finite, > 0; default
+            1e-3 rad).
+
+        Returns
+        -------
+        tuple of IKPathOptimum
+            Sorted by objective, best first.
+
+        Raises
+        ------
+        ParameterError
+            If a tolerance is not finite and > 0 (named in the error).
         """
+        obj_tol, dist_tol = check_tolerances(obj_tol, dist_tol)
         results = self.results
         distance = minimum_distance(self.problem, planar=self.planar)
         if not isinstance(results, StoredResults):
-            return cluster_minima(
-                results, objective_tol=objective_tol, q_tol=q_tol, distance=distance
-            )
-        if (objective_tol, q_tol) == (self.objective_tol, self.q_tol):
+            return cluster_minima(results, obj_tol=obj_tol, dist_tol=dist_tol, distance=distance)
+        if (obj_tol, dist_tol) == (self.obj_tol, self.dist_tol):
             return self.minima
-        for name, tol in (("objective_tol", objective_tol), ("q_tol", q_tol)):
-            if not tol >= 0:
-                raise ParameterError(f"{name} must be >= 0, got {tol!r}", name=name, value=tol)
-        kept, clusters = results.cluster(_minima_rule(objective_tol, q_tol, distance))
+        kept, clusters = results.cluster(minima_rule(obj_tol, dist_tol, distance))
         reps = {_key_index(k): s.result for k, s in kept.items() if s.result is not None}
         return _stored_minima(clusters, reps, results)
 
@@ -327,24 +342,27 @@ def _distance_3d(
 def cluster_minima(
     results: Sequence[IKPathResult],
     *,
-    objective_tol: float = 1e-6,
-    q_tol: float = 1e-3,
+    obj_tol: float = 1e-6,
+    dist_tol: float = 1e-3,
     distance: Callable[[IKPathResult, IKPathResult], float] | None = None,
 ) -> tuple[IKPathOptimum, ...]:
     """Group successful results into distinct local minima, best first.
 
     Two successful results are the same minimum when their ``E`` agree to
-    ``objective_tol`` (relative) and their configurations to ``q_tol`` [rad] modulo
-    common 2 pi shifts (:func:`configuration_distance`).
+    ``obj_tol`` (relative) and their configurations to ``dist_tol`` [rad] modulo
+    common 2 pi shifts (:func:`configuration_distance`): the shared rule
+    :func:`youbot_opt.sweeps.optima.cluster_optima` over the successes, each
+    cluster an :class:`IKPathOptimum`.
 
     Parameters
     ----------
     results : sequence of IKPathResult
         Results in start order (index = start index).
-    objective_tol : float
-        Relative tolerance on ``E`` (``|dE| <= objective_tol * max(1, E)``).
-    q_tol : float
-        Tolerance in [rad] on ``distance``.
+    obj_tol : float
+        Relative tolerance on ``E`` (dimensionless, finite, > 0):
+        ``|E - E_c| <= obj_tol max(1, |E_c|)``.
+    dist_tol : float
+        Tolerance in [rad] on ``distance`` (finite, > 0).
     distance : callable ``(a, b) -> float``, optional
         How far apart two results are in [rad] (default: :func:`configuration_distance`
         of their configurations; see :func:`minimum_distance`).
@@ -353,13 +371,18 @@ def cluster_minima(
     -------
     tuple of IKPathOptimum
         Sorted by objective.
+
+    Raises
+    ------
+    ParameterError
+        If a tolerance is not finite and > 0 (named in the error).
     """
     groups = cluster_optima(
         (i for i, r in enumerate(results) if r.success),
         objective=lambda i: results[i].objective,
         distance=lambda i, j: (distance or _planar_distance)(results[i], results[j]),
-        obj_tol=objective_tol,
-        dist_tol=q_tol,
+        obj_tol=obj_tol,
+        dist_tol=dist_tol,
     )
     return tuple(
         IKPathOptimum(
@@ -381,8 +404,8 @@ def run_multistart(
     options: ALOptions | IpoptOptions | None = None,
     planar: bool | None = None,
     check_reachability: bool = True,
-    objective_tol: float = 1e-6,
-    q_tol: float = 1e-3,
+    obj_tol: float = 1e-6,
+    dist_tol: float = 1e-3,
     verdicts: Sequence[ReachVerdict] | Sequence[ReachVerdict3D] | None = None,
     workers: int | None = None,
     time_budget: float | None = None,
@@ -427,8 +450,11 @@ def run_multistart(
         Planar methods: decide every target's reachability first (raises
         ``UnreachableTarget``, warns about undecided ones); ignored when
         ``verdicts`` are given.
-    objective_tol, q_tol : float
-        Clustering tolerances (see :func:`cluster_minima` and :func:`minimum_distance`).
+    obj_tol : float
+        Relative tolerance on ``E`` of the clustering into minima (dimensionless,
+        finite, > 0; see :func:`cluster_minima`).
+    dist_tol : float
+        Tolerance in [rad] on :func:`minimum_distance` of the clustering (finite, > 0).
     verdicts : sequence of ReachVerdict or ReachVerdict3D, optional
         Their witnesses make a start of the automatic starts. Planar methods:
         verdicts of the targets already decided by the caller (e.g. with
@@ -479,8 +505,9 @@ def run_multistart(
         For an unknown method or start kind, foreign options, ``method="ipopt"``
         on a chain with fewer than 2 free joints, ``planar=True`` without a
         chain or with a clearance, ``workers`` contradicting ``sweep.workers``, an ``out``
-        holding another sweep, or a ``time_budget`` that is not a positive,
-        finite time or comes with starts asked for.
+        holding another sweep, a ``time_budget`` that is not a positive,
+        finite time or comes with starts asked for, or a tolerance that is not
+        finite and > 0 (checked before any start runs).
     UnreachableTarget
         Planar methods: if ``check_reachability`` and a target is unreachable.
     ResultFileError
@@ -488,6 +515,7 @@ def run_multistart(
     """
     t0 = time.perf_counter()
     check_method(method, options)
+    obj_tol, dist_tol = check_tolerances(obj_tol, dist_tol)
     use_planar = uses_planar_methods(problem, method, planar)
     if workers is not None:
         if sweep.workers is not None and sweep.workers != workers:
@@ -505,14 +533,14 @@ def run_multistart(
         return _run_planar(
             problem, t0, method=method, n_starts=n_starts, seed=seed,
             starts="feasible" if starts is None else starts, options=options,
-            check_reachability=check_reachability, objective_tol=objective_tol, q_tol=q_tol,
+            check_reachability=check_reachability, obj_tol=obj_tol, dist_tol=dist_tol,
             verdicts=verdicts, sweep=sweep, budget=budget,  # type: ignore[arg-type]
         )  # fmt: skip
     if starts is None:
         starts = "feasible" if problem.chain is not None else "mixed"
     return _run_3d(
         problem, t0, method=method, n_starts=n_starts, seed=seed, starts=starts,
-        options=options, objective_tol=objective_tol, q_tol=q_tol, verdicts=verdicts,
+        options=options, obj_tol=obj_tol, dist_tol=dist_tol, verdicts=verdicts,
         sweep=sweep, budget=budget,
     )  # fmt: skip
 
@@ -542,8 +570,8 @@ def _run_planar(
     starts: str,
     options: ALOptions | IpoptOptions | None,
     check_reachability: bool,
-    objective_tol: float,
-    q_tol: float,
+    obj_tol: float,
+    dist_tol: float,
     verdicts: Sequence[ReachVerdict] | None,
     sweep: SweepOptions,
     budget: float | None,
@@ -568,7 +596,7 @@ def _run_planar(
     executor, n_workers = resolve_executor(sweep)
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
-        planar=True, verdicts=found, objective_tol=objective_tol, q_tol=q_tol,
+        planar=True, verdicts=found, obj_tol=obj_tol, dist_tol=dist_tol,
         sweep=replace(sweep, executor=executor, workers=n_workers), budget=budget,
     )  # fmt: skip
 
@@ -582,8 +610,8 @@ def _run_3d(
     seed: int,
     starts: str,
     options: ALOptions | IpoptOptions | None,
-    objective_tol: float,
-    q_tol: float,
+    obj_tol: float,
+    dist_tol: float,
     verdicts: Sequence[ReachVerdict] | Sequence[ReachVerdict3D] | None,
     sweep: SweepOptions,
     budget: float | None,
@@ -619,7 +647,7 @@ def _run_3d(
     executor, n_workers = resolve_executor(sweep)
     return _run(
         problem, t0, x0s, method=method, seed=seed, starts=starts, options=options,
-        planar=False, verdicts=(), objective_tol=objective_tol, q_tol=q_tol,
+        planar=False, verdicts=(), obj_tol=obj_tol, dist_tol=dist_tol,
         sweep=replace(sweep, executor=executor, workers=n_workers), budget=budget,
     )  # fmt: skip
 
@@ -635,8 +663,8 @@ def _run(
     options: ALOptions | IpoptOptions | None,
     planar: bool,
     verdicts: tuple[ReachVerdict, ...],
-    objective_tol: float,
-    q_tol: float,
+    obj_tol: float,
+    dist_tol: float,
     sweep: SweepOptions,
     budget: float | None,
 ) -> MultistartResult | ShardReport:
@@ -668,7 +696,7 @@ def _run(
         assert store is not None  # SweepOptions requires out= with keep_results=False
         streamed = stream_starts(
             problem, x0s, method=method, options=options, sweep=sweep, solvers=solvers,
-            store=store, distance=distance, objective_tol=objective_tol, q_tol=q_tol,
+            store=store, distance=distance, obj_tol=obj_tol, dist_tol=dist_tol,
             on_resumed=on_resumed, on_final=on_final, deadline=deadline,
         )  # fmt: skip
         if isinstance(streamed, ShardReport):
@@ -688,7 +716,7 @@ def _run(
         results, attempts, resumed = outcome.results, outcome.attempts, outcome.resumed
         not_run = outcome.not_run
         minima = cluster_minima(
-            outcome.results, objective_tol=objective_tol, q_tol=q_tol, distance=distance
+            outcome.results, obj_tol=obj_tol, dist_tol=dist_tol, distance=distance
         )
     return MultistartResult(
         problem=problem,
@@ -705,8 +733,8 @@ def _run(
         resumed=resumed,
         output=None if store is None else store.directory,
         tally=tally,
-        objective_tol=objective_tol,
-        q_tol=q_tol,
+        obj_tol=obj_tol,
+        dist_tol=dist_tol,
         time_budget=budget,
         not_run=not_run,
     )
@@ -714,18 +742,6 @@ def _run(
 
 def _count(n_starts: int | None, default: int) -> int:
     return default if n_starts is None else n_starts
-
-
-def _minima_rule(
-    objective_tol: float, q_tol: float, distance: Callable[[IKPathResult, IKPathResult], float]
-) -> KeepRule[StartSummary[IKPathResult]]:
-    """:func:`cluster_minima`'s rule over start summaries holding their results."""
-    return KeepRule(
-        objective=lambda s: s.objective if s.success else None,
-        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=objective_tol,
-        dist_tol=q_tol,
-    )
 
 
 def _stored_minima(

@@ -67,6 +67,7 @@ __all__ = [
     "SweepOutcome",
     "crashed_result",
     "encoded_saver",
+    "minima_rule",
     "options_json",
     "progress_callbacks",
     "status_counts",
@@ -743,6 +744,23 @@ class StreamedOutcome(NamedTuple, Generic[ResultT]):
     """Starts a deadline left unrun: they follow the starts of ``results``."""
 
 
+def minima_rule(
+    obj_tol: float, dist_tol: float, distance: Callable[[ResultT, ResultT], float]
+) -> KeepRule[StartSummary[ResultT]]:
+    """Return the distinct minima's rule over start summaries holding their results.
+
+    :func:`~youbot_opt.ikpath.multistart.cluster_minima`'s rule: successful
+    starts by ``E``, ``obj_tol`` relative on ``E``, ``dist_tol`` in [rad] on
+    ``distance`` of their results (both finite and > 0, checked here).
+    """
+    return KeepRule(
+        objective=lambda s: s.objective if s.success else None,
+        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
+        obj_tol=obj_tol,
+        dist_tol=dist_tol,
+    )
+
+
 def stream_starts(
     problem: ProblemT,
     starts: Sequence[Array] | Array,
@@ -753,8 +771,8 @@ def stream_starts(
     solvers: StartSolvers[ProblemT, ResultT],
     store: SweepStore,
     distance: Callable[[ResultT, ResultT], float],
-    objective_tol: float,
-    q_tol: float,
+    obj_tol: float,
+    dist_tol: float,
     on_resumed: Callable[[Iterable[StartScore]], None] | None = None,
     on_final: Callable[[int, StartScore], None] | None = None,
     deadline: float | None = None,
@@ -764,8 +782,8 @@ def stream_starts(
     As :func:`solve_starts`, but a start is drawn (``starts[i]``) only when its
     task is made, each start's figures are read back from the store's journal
     as :class:`~youbot_opt.ikpath.stored.StartSummary` when needed, and only the
-    distinct minima (``cluster_optima``'s rule with ``objective_tol`` on ``E`` and
-    ``q_tol`` on ``distance``, chosen by
+    distinct minima (``cluster_optima``'s rule with ``obj_tol`` on ``E`` and
+    ``dist_tol`` on ``distance``, chosen by
     :func:`~youbot_opt.sweeps.selection.stream_optima`) are held in full.
 
     Parameters
@@ -776,8 +794,9 @@ def stream_starts(
         The output folder (required: the results not kept stay there).
     distance : callable ``(a, b) -> float``
         Distance in [rad] of two successful results' configurations.
-    objective_tol, q_tol : float
-        Relative tolerance on ``E`` and tolerance in [rad] on ``distance``.
+    obj_tol, dist_tol : float
+        Relative tolerance on ``E`` and tolerance in [rad] on ``distance`` (both
+        finite and > 0).
     problem, method, options, sweep, solvers, on_resumed, on_final, deadline
         As :func:`solve_starts`; ``on_resumed`` is given an iterable, read once.
 
@@ -846,12 +865,7 @@ def stream_starts(
         result: ResultT = o.value if o.ok else crashed(i, str(o.error))
         return of(i, result, o.attempts)
 
-    rule: KeepRule[StartSummary[ResultT]] = KeepRule(
-        objective=lambda s: s.objective if s.success else None,
-        distance=lambda a, b: distance(a.result, b.result),  # type: ignore[arg-type]
-        obj_tol=objective_tol,
-        dist_tol=q_tol,
-    )
+    rule = minima_rule(obj_tol, dist_tol, distance)
     got = run_resumable(
         tasks,
         store=store,

@@ -214,7 +214,7 @@ def optima_record(
     solvers: ArmSolvers,
     *,
     with_trajectory: bool = False,
-    objective_tol: float = 1e-6,
+    obj_tol: float = 1e-6,
 ) -> JSONDict:
     """Best record plus every distinct optimum (objective, T, W, count) of a multistart.
 
@@ -228,8 +228,9 @@ def optima_record(
         Source of the arm models for the certificates.
     with_trajectory : bool
         Add the best solve's knot arrays (``trajectory``: t, q, v, tau) to its record.
-    objective_tol : float
-        Relative objective tolerance of the clustering into optima.
+    obj_tol : float
+        Relative objective tolerance of the clustering into optima (the
+        trajectory distance tolerance is 1e-2 rad, the multistart's default).
 
     Returns
     -------
@@ -238,7 +239,7 @@ def optima_record(
         ``wall_time_s``, ``best`` (:func:`record`) and ``optima``.
     """
     optima = []
-    for opt in ms.distinct_optima(objective_tol=objective_tol, traj_tol=1e-2):
+    for opt in ms.distinct_optima(obj_tol=obj_tol, dist_tol=1e-2):
         res = opt.best.result
         assert res is not None
         optima.append({

@@ -146,8 +146,8 @@ def vertex_multistart(
 def cluster_optima(
     results: Sequence[TrajOptResult],
     objective: Callable[[TrajOptResult], float],
-    objective_tol: float = 1e-6,
-    traj_tol: float = 1e-2,
+    obj_tol: float = 1e-6,
+    dist_tol: float = 1e-2,
 ) -> list[list[TrajOptResult]]:
     """Group converged results into distinct local optima, lowest objective first.
 
@@ -157,10 +157,12 @@ def cluster_optima(
         Solves (failed ones are ignored).
     objective : callable
         The objective to compare (e.g. the study's, with ``T = n dt``).
-    objective_tol : float
-        Relative objective tolerance: ``|f - f_c| <= objective_tol max(1, |f_c|)``.
-    traj_tol : float
-        Largest :func:`youbot_opt.trajopt.multistart.trajectory_distance` in [rad] within a cluster.
+    obj_tol : float
+        Relative objective tolerance (dimensionless, finite, > 0):
+        ``|f - f_c| <= obj_tol max(1, |f_c|)``.
+    dist_tol : float
+        Largest :func:`youbot_opt.trajopt.multistart.trajectory_distance` in [rad] to a
+        cluster's representative (finite, > 0).
 
     Returns
     -------
@@ -171,8 +173,8 @@ def cluster_optima(
         (r for r in results if r.success),
         objective=objective,
         distance=_result_distance,
-        obj_tol=objective_tol,
-        dist_tol=traj_tol,
+        obj_tol=obj_tol,
+        dist_tol=dist_tol,
     )
 
 

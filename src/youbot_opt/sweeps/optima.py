@@ -5,7 +5,8 @@ distinct local optima: items in order of increasing objective, each joining the
 first cluster whose representative is within ``obj_tol`` (relative) in
 objective and ``dist_tol`` in the caller's ``distance`` (:func:`cluster_optima`);
 :func:`select_optima` applies it to a ``keep_results=False`` sweep, loading one
-full item at a time. Each caller keeps its own tolerances and distance.
+full item at a time. Each caller keeps its own distance and default tolerances,
+named ``obj_tol`` and ``dist_tol`` everywhere, finite and > 0 (:func:`check_tolerances`).
 
     clusters = cluster_optima(results, objective=lambda r: r.objective,
                               distance=my_distance, obj_tol=1e-6, dist_tol=1e-3)
@@ -20,9 +21,51 @@ from typing import Generic, TypeVar
 
 from youbot_opt.exceptions import ParameterError
 
-__all__ = ["KeepRule", "cluster_optima", "select_optima"]
+__all__ = ["KeepRule", "check_tolerances", "cluster_optima", "select_optima"]
 
 T = TypeVar("T")
+
+
+def check_tolerances(obj_tol: float, dist_tol: float) -> tuple[float, float]:
+    """Return the clustering tolerances as floats if both are finite and > 0.
+
+    A zero tolerance is refused: with ``dist_tol = 0`` every item would be its
+    own optimum unless bitwise equal to a representative (and ``obj_tol = 0``
+    likewise in objective), which no solver's output is.
+
+    Parameters
+    ----------
+    obj_tol : float
+        Relative objective tolerance (dimensionless):
+        ``|f - f_c| <= obj_tol max(1, |f_c|)``.
+    dist_tol : float
+        Distance tolerance, in the unit of the caller's distance ([rad] for
+        the trajectory and IK-path distances).
+
+    Returns
+    -------
+    tuple of float
+        ``(obj_tol, dist_tol)``.
+
+    Raises
+    ------
+    ParameterError
+        Naming the first bad tolerance (``name`` ``"obj_tol"`` or ``"dist_tol"``,
+        its ``value``) if it is not a finite number > 0 (zero, negative, NaN,
+        infinite, a bool or not a number).
+    """
+    checked = []
+    for name, tol in (("obj_tol", obj_tol), ("dist_tol", dist_tol)):
+        try:
+            value = float(tol)
+        except (TypeError, ValueError):
+            value = math.nan
+        if isinstance(tol, bool) or not (math.isfinite(value) and value > 0):
+            raise ParameterError(
+                f"{name} must be a finite number > 0, got {tol!r}", name=name, value=tol
+            )
+        checked.append(value)
+    return checked[0], checked[1]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -36,9 +79,12 @@ class KeepRule(Generic[T]):
         ``None`` (or NaN) for an item that did not converge.
     distance : callable ``(a, b) -> float`` or None
         Distance of two full items, in the unit of ``dist_tol``; ``None``
-        keeps only the best item (one cluster, no item loaded but the best).
+        keeps only the best item (one cluster, no item loaded but the best;
+        the tolerances are then unused).
     obj_tol, dist_tol : float
-        The tolerances of :func:`cluster_optima` (the caller's defaults).
+        The tolerances of :func:`cluster_optima` (the caller's defaults);
+        with a ``distance``, both finite and > 0 (:func:`check_tolerances`,
+        checked when the rule is made).
     group : callable ``(item) -> hashable``, optional
         Items of different groups are never clustered together (e.g. the
         bound scales of a bound-scaling study: the best of each is kept).
@@ -49,6 +95,10 @@ class KeepRule(Generic[T]):
     obj_tol: float = 0.0
     dist_tol: float = 0.0
     group: Callable[[T], Hashable] | None = None
+
+    def __post_init__(self) -> None:
+        if self.distance is not None:
+            check_tolerances(self.obj_tol, self.dist_tol)
 
 
 def cluster_optima(
@@ -70,9 +120,10 @@ def cluster_optima(
     distance : callable ``(a, b) -> float``
         Distance of two items, in the unit of ``dist_tol`` (e.g. [rad]).
     obj_tol : float
-        Relative objective tolerance (>= 0): ``|f - f_c| <= obj_tol max(1, |f_c|)``.
+        Relative objective tolerance (dimensionless, finite, > 0):
+        ``|f - f_c| <= obj_tol max(1, |f_c|)``.
     dist_tol : float
-        Largest ``distance`` to a cluster's representative (>= 0).
+        Largest ``distance`` to a cluster's representative (finite, > 0).
 
     Returns
     -------
@@ -84,12 +135,9 @@ def cluster_optima(
     Raises
     ------
     ParameterError
-        If a tolerance is negative or NaN.
+        If a tolerance is not finite and > 0 (:func:`check_tolerances`).
     """
-    if not (obj_tol >= 0 and dist_tol >= 0):
-        raise ParameterError(
-            f"obj_tol and dist_tol must be >= 0, got {obj_tol!r}, {dist_tol!r}", name="obj_tol"
-        )
+    check_tolerances(obj_tol, dist_tol)
     clusters: list[list[T]] = []
     for item in sorted(items, key=objective):
         f = objective(item)
@@ -120,7 +168,7 @@ def select_optima(
     items : mapping of str to item
         Light items (their summaries), by key.
     rule : KeepRule
-        Objective, distance and tolerances.
+        Objective, distance and tolerances (checked when the rule was made).
     load : callable ``(key) -> item``
         The full item of a key (e.g. from the sweep's store).
 
@@ -143,11 +191,6 @@ def select_optima(
             kept_all.update(part[0])
             clusters_all += part[1]
         return kept_all, clusters_all
-    if not (rule.obj_tol >= 0 and rule.dist_tol >= 0):
-        raise ParameterError(
-            f"obj_tol and dist_tol must be >= 0, got {rule.obj_tol!r}, {rule.dist_tol!r}",
-            name="obj_tol",
-        )
     ranked: list[tuple[float, str]] = []
     for key, item in items.items():
         f = rule.objective(item)

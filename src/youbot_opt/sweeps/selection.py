@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import TypeVar
 
 from youbot_opt._files import fsync_dir
-from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.index import CACHE_KIB
 from youbot_opt.sweeps.lazy import LazySequence, ListEquality
 from youbot_opt.sweeps.optima import KeepRule
@@ -213,7 +212,8 @@ def stream_optima(
     items : mapping of str to item
         Light items (their summaries), by key; iterated twice at most.
     rule : KeepRule
-        Objective, distance, tolerances and groups.
+        Objective, distance, tolerances and groups (tolerances checked when the
+        rule was made).
     load : callable ``(key) -> item``
         The full item of a key; called only where ``select_optima`` calls it.
 
@@ -222,17 +222,7 @@ def stream_optima(
     tuple of (dict, Clusters)
         The full representatives by key and the clusters, equal to
         ``select_optima``'s (same representatives, members, order).
-
-    Raises
-    ------
-    ParameterError
-        If a tolerance is negative or NaN.
     """
-    if not (rule.obj_tol >= 0 and rule.dist_tol >= 0):
-        raise ParameterError(
-            f"obj_tol and dist_tol must be >= 0, got {rule.obj_tol!r}, {rule.dist_tol!r}",
-            name="obj_tol",
-        )
     out = Clusters._new()
     db = out._db
     db.execute("CREATE TEMP TABLE r (g INTEGER, f REAL, p INTEGER, k TEXT)")

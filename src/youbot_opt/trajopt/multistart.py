@@ -32,7 +32,7 @@ from youbot_opt.sweeps.multistart import (
     StartTally,
     tally_starts,
 )
-from youbot_opt.sweeps.optima import KeepRule, cluster_optima
+from youbot_opt.sweeps.optima import KeepRule, check_tolerances, cluster_optima
 from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.sweeps.store import SweepStore, open_store
@@ -256,14 +256,15 @@ class MultistartResult(Multistart[StartOutcome, tuple[TrajOptOptimum, ...]]):
         return min(ok, key=lambda s: s.objective) if ok else None
 
     def distinct_optima(
-        self, objective_tol: float = 1e-5, traj_tol: float = 1e-2
+        self, obj_tol: float = 1e-5, dist_tol: float = 1e-2
     ) -> tuple[TrajOptOptimum, ...]:
         """Cluster converged starts into distinct local optima.
 
         Starts are taken in order of increasing objective; each joins the first
-        cluster whose lowest member is within ``objective_tol`` (relative,
-        ``|f - f_c| <= objective_tol max(1, |f_c|)``) in objective and within
-        ``traj_tol`` in :func:`trajectory_distance`, else starts a new cluster.
+        cluster whose lowest member is within ``obj_tol`` (relative,
+        ``|f - f_c| <= obj_tol max(1, |f_c|)``) in objective and within
+        ``dist_tol`` in :func:`trajectory_distance`, else starts a new cluster
+        (:func:`youbot_opt.sweeps.optima.cluster_optima`).
         With ``keep_results=False`` the default tolerances return the optima
         the sweep chose (members read from the folder when asked for); other
         tolerances re-cluster every converged start's figures, keeping the
@@ -272,41 +273,43 @@ class MultistartResult(Multistart[StartOutcome, tuple[TrajOptOptimum, ...]]):
 
         Parameters
         ----------
-        objective_tol : float
-            Relative objective tolerance (> 0).
-        traj_tol : float
-            Trajectory distance tolerance in [rad] (> 0).
+        obj_tol : float
+            Relative objective tolerance (dimensionless, finite, > 0; default 1e-5).
+        dist_tol : float
+            Tolerance in [rad] on :func:`trajectory_distance` (finite, > 0;
+            default 1e-2 rad).
 
         Returns
         -------
         tuple of TrajOptOptimum
             Sorted by objective, lowest first.
+
+        Raises
+        ------
+        ParameterError
+            If a tolerance is not finite and > 0 (named in the error).
         """
-        if not (objective_tol > 0 and traj_tol > 0):
-            raise ParameterError(
-                f"objective_tol and traj_tol must be > 0, got {objective_tol!r}, {traj_tol!r}",
-                name="objective_tol",
-            )
-        if self.tally is not None and (objective_tol, traj_tol) == _DEFAULT_TOLS:
+        obj_tol, dist_tol = check_tolerances(obj_tol, dist_tol)
+        if self.tally is not None and (obj_tol, dist_tol) == _DEFAULT_TOLS:
             return self.tally.found
         clusters = cluster_optima(
             self.converged,
             objective=lambda s: s.objective,
             distance=_start_distance,
-            obj_tol=objective_tol,
-            dist_tol=traj_tol,
+            obj_tol=obj_tol,
+            dist_tol=dist_tol,
         )
         return tuple(TrajOptOptimum.of(m, self.n_starts) for m in clusters)
 
     def summary(
-        self, objective_tol: float = 1e-5, traj_tol: float = 1e-2, *, starts: bool | None = None
+        self, obj_tol: float = 1e-5, dist_tol: float = 1e-2, *, starts: bool | None = None
     ) -> JSONDict:
         """JSON-ready summary: rates, status counts, best start, distinct optima, every start.
 
         Parameters
         ----------
-        objective_tol, traj_tol : float
-            Tolerances of :meth:`distinct_optima`.
+        obj_tol, dist_tol : float
+            Tolerances of :meth:`distinct_optima` (relative; [rad]).
         starts : bool, optional
             Include every start's figures (``"starts"``) and every optimum's
             member seeds (``"seeds"``); default: when the starts are held
@@ -329,7 +332,7 @@ class MultistartResult(Multistart[StartOutcome, tuple[TrajOptOptimum, ...]]):
             "wall_time_s": self.wall_time,
             "best": None if best is None else best.summary(),
             "distinct_optima": [
-                o.summary(seeds=full) for o in self.distinct_optima(objective_tol, traj_tol)
+                o.summary(seeds=full) for o in self.distinct_optima(obj_tol, dist_tol)
             ],
         }
         if full:

@@ -287,8 +287,8 @@ def _bin_edges(values: np.ndarray, bins: int | Sequence[float]) -> np.ndarray:
 def plot_multistart(
     ms: MultistartResult,
     *,
-    objective_tol: float = 1e-5,
-    traj_tol: float = 1e-2,
+    obj_tol: float = 1e-5,
+    dist_tol: float = 1e-2,
     bins: int | Sequence[float] = 40,
     max_marked: int = 8,
     title: str | None = None,
@@ -306,7 +306,7 @@ def plot_multistart(
     ----------
     ms : MultistartResult
         The multistart (:func:`youbot_opt.trajopt.multistart.run_multistart`).
-    objective_tol, traj_tol : float
+    obj_tol, dist_tol : float
         Clustering tolerances of :meth:`MultistartResult.distinct_optima`
         (relative objective; trajectory distance in [rad]).
     bins : int or sequence of float
@@ -338,7 +338,7 @@ def plot_multistart(
             f"no start of the multistart converged ({ms.n_starts} starts)", name="ms"
         )
     objectives = np.array([s.objective for s in converged], dtype=float)
-    optima = ms.distinct_optima(objective_tol, traj_tol)
+    optima = ms.distinct_optima(obj_tol, dist_tol)
     fig = Figure(figsize=figsize, layout="constrained")
     ax, bars = fig.subplots(1, 2, width_ratios=(3, 2))
     edges = _bin_edges(objectives, bins)
