@@ -344,10 +344,6 @@ NO_ANY_PACKAGES: tuple[str, ...] = (
     "trajopt",
 )
 
-#: Public names of the covered packages still annotated with Any, each with its cause; an
-#: entry goes when its cause does (and one that no longer matches fails the rule).
-ANY_EXEMPT: dict[str, str] = {}
-
 _PUBLIC_DUNDERS = ("__init__", "__call__")
 
 
@@ -499,9 +495,6 @@ def test_no_any_in_a_public_signature():
         if _top(module) in NO_ANY_PACKAGES
         for hit in _any_in_public_signatures(module, path, aliases[module])
     ]
-    stale = sorted(set(ANY_EXEMPT) - set(found))
-    assert not stale, "exempted but no longer annotated with Any (drop them):\n" + "\n".join(stale)
-    found = [hit for hit in found if hit not in ANY_EXEMPT]
     assert not found, "\n".join(found)
 
 
