@@ -392,14 +392,13 @@ class CyclicIKProblem:
         return key
 
     def __reduce__(self) -> tuple[Any, ...]:
-        """Pickle by the defining fields, without the robot's geometry (meshes)."""
+        """Pickle by the defining fields, without the robot's meshes (see RobotModel)."""
         robot: RobotModel | PlanarChain
         if isinstance(self.robot, PlanarChain):
             robot = self.robot
         else:
-            robot = replace(  # a clearance needs the collision geometry, never the visual
-                self.robot_model,
-                visual_model=pin.GeometryModel(),
+            robot = replace(  # a clearance needs the collision geometry (the visual one
+                self.robot_model,  # never travels: RobotModel's pickle leaves it home)
                 collision_model=(
                     self.robot_model.collision_model
                     if self.clearance is not None
