@@ -26,6 +26,7 @@ __all__ = [
     "MAX_SHOWN_CHARS",
     "check_beta",
     "check_bound_scale",
+    "check_end_window",
     "check_finite",
     "check_int",
     "check_nonnegative",
@@ -224,6 +225,28 @@ def check_unit_interval(value: Any, name: str, *, note: str = "") -> float:
     if not (math.isfinite(x) and 0.0 <= x <= 1.0):
         raise ParameterError(
             f"{name} must be in [0, 1]{note}, got {shown(value)}", name=name, value=value
+        )
+    return x
+
+
+def check_end_window(value: Any, name: str = "end_window") -> float:
+    """Return ``value`` as a float after checking it lies in [0, 0.5].
+
+    An end window: the fraction of a motion's (normalised) duration next to
+    each fixed end over which a path constraint ramps up to its bound.
+
+    Raises
+    ------
+    ParameterError
+        If ``value`` is not a number, not finite, or outside [0, 0.5].
+    """
+    x = _real(value, name, "a number in [0, 0.5]")
+    if not (math.isfinite(x) and 0.0 <= x <= 0.5):
+        raise ParameterError(
+            f"{name} must be in [0, 0.5] (a fraction of the motion's duration at each end), "
+            f"got {shown(value)}",
+            name=name,
+            value=value,
         )
     return x
 

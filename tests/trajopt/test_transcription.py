@@ -183,6 +183,34 @@ def test_dynamics_of_the_wrong_size_is_rejected(youbot):
         TrapezoidalCollocation().build(study1_problem(5, robot=youbot), bad)
 
 
+def _plain_derivatives(nlp, youbot, rng):
+    """A random point within the youBot's bounds, random multipliers, and CasADi's AD there.
+
+    Returns ``x``, ``lam_g`` and the plain NLP's ``f``, ``g``, Jacobian and upper
+    Hessian of ``0.7 f + lam_g . g`` at ``(x, beta = 0.3)``, dense.
+    """
+    box = {
+        "q": (youbot.q_lower, youbot.q_upper),
+        "v": (-youbot.velocity_limit, youbot.velocity_limit),
+        "tau": (-youbot.effort_limit, youbot.effort_limit),
+    }
+    values = {
+        name: rng.uniform(*box[name.split("_")[0]], (block.count, 3))
+        for name, block in nlp.variables.blocks.items()
+        if name != "dt"
+    }
+    values["dt"] = rng.uniform(0.02, 0.2)
+    x = nlp.variables.pack(values)
+    lam_g = rng.normal(size=nlp.n_constraints)
+    lag = 0.7 * nlp.f + ca.dot(ca.MX(lam_g), nlp.g)
+    plain = ca.Function(
+        "plain",
+        [nlp.x, nlp.p],
+        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
+    )
+    return x, lam_g, [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
+
+
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
 def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
     """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9).
@@ -208,26 +236,7 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
         assert compiled is not kernels
         variants.append(structured_functions(method, problem, compiled, values=kernels))
         variants.append(structured_functions(method, problem, compiled, values=compiled))
-    box = {
-        "q": (youbot.q_lower, youbot.q_upper),
-        "v": (-youbot.velocity_limit, youbot.velocity_limit),
-        "tau": (-youbot.effort_limit, youbot.effort_limit),
-    }
-    values = {
-        name: rng.uniform(*box[name.split("_")[0]], (block.count, 3))
-        for name, block in nlp.variables.blocks.items()
-        if name != "dt"
-    }
-    values["dt"] = rng.uniform(0.02, 0.2)
-    x = nlp.variables.pack(values)
-    lam_g = rng.normal(size=nlp.n_constraints)
-    lag = 0.7 * nlp.f + ca.dot(ca.MX(lam_g), nlp.g)
-    plain = ca.Function(
-        "plain",
-        [nlp.x, nlp.p],
-        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
-    )
-    reference = [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
+    x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
     for fns in variants:
         f1, g1 = fns.nlp(x, 0.3)
         _, jac1 = fns.jac_g(x, 0.3)
@@ -397,26 +406,7 @@ def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_ca
         variants.append(
             structured_functions(method, problem, kernels, paths=paths, path_kernels=compiled)
         )
-    box = {
-        "q": (youbot.q_lower, youbot.q_upper),
-        "v": (-youbot.velocity_limit, youbot.velocity_limit),
-        "tau": (-youbot.effort_limit, youbot.effort_limit),
-    }
-    values = {
-        name: rng.uniform(*box[name.split("_")[0]], (block.count, 3))
-        for name, block in nlp.variables.blocks.items()
-        if name != "dt"
-    }
-    values["dt"] = rng.uniform(0.02, 0.2)
-    x = nlp.variables.pack(values)
-    lam_g = rng.normal(size=nlp.n_constraints)
-    lag = 0.7 * nlp.f + ca.dot(ca.MX(lam_g), nlp.g)
-    plain = ca.Function(
-        "plain",
-        [nlp.x, nlp.p],
-        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
-    )
-    reference = [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
+    x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
     assert np.count_nonzero(reference[2][nlp.constraints["clearance_knots"].offset :]) > 0
     for fns in variants:
         f1, g1 = fns.nlp(x, 0.3)

@@ -19,7 +19,7 @@ from typing import cast
 
 import numpy as np
 
-from youbot_opt._checks import check_finite, check_nonnegative, check_positive
+from youbot_opt._checks import check_end_window, check_nonnegative, check_positive
 from youbot_opt._typing import Array, JSONDict
 from youbot_opt.collision.exact import ExactChecker, exact_checker
 from youbot_opt.collision.model import CollisionModel, build_collision_model
@@ -95,14 +95,7 @@ class Clearance:
             )
         object.__setattr__(self, "margin", check_nonnegative(self.margin, "margin", unit="m"))
         object.__setattr__(self, "self_collision", bool(self.self_collision))
-        window = check_finite(self.end_window, "end_window")
-        if not 0.0 <= window <= 0.5:
-            raise ParameterError(
-                f"end_window must be in [0, 0.5] (a fraction of the motion's duration for each "
-                f"end), got {self.end_window!r}",
-                name="end_window",
-                value=self.end_window,
-            )
+        window = check_end_window(self.end_window)
         object.__setattr__(self, "end_window", window)
 
 

@@ -18,7 +18,7 @@ import hashlib
 import inspect
 import itertools
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
 import casadi as ca
 
@@ -148,11 +148,7 @@ def cached_kernels(forward_dynamics: ca.Function) -> Kernels | None:
     Found by :func:`derivation_index` (the kernels are not derived: that and
     their code generation take longer than the load, about 0.7 s for ur5).
     """
-    from youbot_opt.nlp.codegen import load_indexed
-
-    index = derivation_index(forward_dynamics, dynamics_kernels, compile_kernels)
-    found = None if index is None else load_indexed(index)
-    return None if found is None or len(found) != len(Kernels._fields) else Kernels(*found)
+    return _cached(Kernels, derivation_index(forward_dynamics, dynamics_kernels, _compiled))
 
 
 def compile_kernels(
@@ -176,15 +172,31 @@ def compile_kernels(
     forward dynamics the kernels were derived from, which indexes them for
     :func:`cached_kernels`.
     """
+    index = None if source is None else derivation_index(source, dynamics_kernels, _compiled)
+    return _compiled(kernels, wait=wait, label=label, index=index)
+
+
+_K = TypeVar("_K", "Kernels", "PathKernels")
+
+
+def _cached(kind: type[_K], index: str | None) -> _K | None:
+    """Return the compiled kernels of ``kind`` indexed by ``index`` if the cache has them."""
+    from youbot_opt.nlp.codegen import load_indexed
+
+    found = None if index is None else load_indexed(index)
+    return None if found is None or len(found) != len(kind._fields) else kind(*found)
+
+
+def _compiled(kernels: _K, *, wait: bool | None, label: str | None, index: str | None) -> _K:
+    """Return ``kernels`` compiled (the first, the value, with its Jacobian), else themselves."""
     from youbot_opt.nlp.codegen import compile_functions
 
-    index = None if source is None else derivation_index(source, dynamics_kernels, compile_kernels)
-    compiled = Kernels(
+    compiled = type(kernels)(
         *compile_functions(
             kernels,
             wait=wait,
             label=label,
-            with_jacobian=[k is kernels.forward for k in kernels],
+            with_jacobian=[k is kernels[0] for k in kernels],
             index=index,
         )
     )
@@ -249,11 +261,8 @@ def cached_path_kernels(constraint: PathConstraint) -> PathKernels | None:
 
     As :func:`cached_kernels`, keyed by the constraint's Function.
     """
-    from youbot_opt.nlp.codegen import load_indexed
-
-    index = derivation_index(constraint.function, path_kernels, compile_path_kernels)
-    found = None if index is None else load_indexed(index)
-    return None if found is None or len(found) != len(PathKernels._fields) else PathKernels(*found)
+    index = derivation_index(constraint.function, path_kernels, _compiled)
+    return _cached(PathKernels, index)
 
 
 def compile_path_kernels(
@@ -269,25 +278,8 @@ def compile_path_kernels(
     ``source``, the constraint they were derived from, indexes them for
     :func:`cached_path_kernels`.
     """
-    from youbot_opt.nlp.codegen import compile_functions
-
-    index = (
-        None
-        if source is None
-        else derivation_index(source.function, path_kernels, compile_path_kernels)
-    )
-    compiled = PathKernels(
-        *compile_functions(
-            kernels,
-            wait=wait,
-            label=label,
-            with_jacobian=[k is kernels.value for k in kernels],
-            index=index,
-        )
-    )
-    if any(c is k for c, k in zip(compiled, kernels, strict=True)):
-        return kernels
-    return compiled
+    index = None if source is None else derivation_index(source.function, path_kernels, _compiled)
+    return _compiled(kernels, wait=wait, label=label, index=index)
 
 
 class _PointSet(NamedTuple):

@@ -19,6 +19,7 @@ from typing import TypeVar
 import casadi as ca
 import numpy as np
 
+from youbot_opt._checks import check_end_window
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError
 
@@ -75,14 +76,7 @@ class PathConstraint:
                 f"path constraint {self.name!r}: {len(labels)} labels for {m} rows", name="labels"
             )
         object.__setattr__(self, "labels", labels)
-        window = float(self.end_window)
-        if not 0.0 <= window <= 0.5:
-            raise ParameterError(
-                f"path constraint {self.name!r}: end_window must be in [0, 0.5] (a fraction "
-                f"of the normalised time), got {self.end_window!r}",
-                name="end_window",
-                value=self.end_window,
-            )
+        window = check_end_window(self.end_window)
         object.__setattr__(self, "end_window", window)
 
     @property
