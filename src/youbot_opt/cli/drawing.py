@@ -54,7 +54,7 @@ class FigureJob:
 
     ``optional``: a :class:`~youbot_opt.exceptions.ParameterError` from ``make``
     (e.g. no converged run to draw) is logged and the figure skipped; otherwise
-    it propagates like any other error.
+    it propagates like any other error. ``dpi``: the resolution it is saved at.
     """
 
     name: str
@@ -62,6 +62,7 @@ class FigureJob:
     args: tuple[object, ...] = ()
     kwargs: Mapping[str, object] = field(default_factory=dict)
     optional: bool = True
+    dpi: int = 120
 
 
 def draw_job(folder: Path, job: FigureJob) -> tuple[Path | None, str | None]:
@@ -76,7 +77,7 @@ def draw_job(folder: Path, job: FigureJob) -> tuple[Path | None, str | None]:
         if not job.optional:
             raise
         return None, f"figure {job.name} not drawn: {exc}"
-    return save_figure(fig, folder, job.name), None
+    return save_figure(fig, folder, job.name, dpi=job.dpi), None
 
 
 def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
