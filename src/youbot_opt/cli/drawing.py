@@ -110,12 +110,13 @@ _Drawn = tuple[int, Path | None, str | None, list[warnings.WarningMessage]]
 
 
 def _draw_jobs(folder: Path, jobs: Sequence[tuple[int, FigureJob]]) -> list[_Drawn]:
-    out: list[_Drawn] = []
-    for i, job in jobs:
-        with warnings.catch_warnings(record=True) as caught:
-            path, skipped = draw_job(folder, job)
-        out.append((i, path, skipped, list(caught)))
-    return out
+    return [_draw_one(folder, i, job) for i, job in jobs]
+
+
+def _draw_one(folder: Path, i: int, job: FigureJob) -> _Drawn:
+    with warnings.catch_warnings(record=True) as caught:
+        path, skipped = draw_job(folder, job)
+    return i, path, skipped, list(caught)
 
 
 def _watch_parent(parent: int) -> None:
@@ -125,21 +126,50 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
-def _child(conn: Connection, folder: Path, jobs: list[tuple[int, FigureJob]], parent: int) -> None:
-    """Body of a drawing process: draw ``jobs``, send ``("ok", drawn)`` or ``("error", exc)``."""
+class _Queue:
+    """The jobs' shared queue: the next job to take, and the job each process draws."""
+
+    def __init__(self, ctx: multiprocessing.context.BaseContext, processes: int) -> None:
+        self.next = ctx.Value("i", 0)  # the next job to take (under its lock)
+        self.current = ctx.Array("i", [-1] * processes, lock=False)  # each process's job
+
+    def take(self, k: int) -> int:
+        """Take the next job for process ``k``; return its index."""
+        with self.next.get_lock():
+            i = self.current[k] = self.next.value
+            self.next.value += 1
+        return int(i)
+
+
+def _child(
+    conn: Connection,
+    folder: Path,
+    jobs: list[FigureJob],
+    queue: _Queue,
+    k: int,
+    parent: int,
+) -> None:
+    """Body of drawing process ``k``: draw the jobs it takes from ``queue`` until none is left.
+
+    Sends ``("ok", drawn)``, or ``("error", (i, exc))`` at job ``i``'s error.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    drawn: list[_Drawn] = []
     try:
         try:
-            message: tuple[str, object] = ("ok", _draw_jobs(folder, jobs))
+            while (i := queue.take(k)) < len(jobs):
+                drawn.append(_draw_one(folder, i, jobs[i]))
+            message: tuple[str, object] = ("ok", drawn)
         except BaseException as exc:  # noqa: BLE001 - every error goes back to the parent
             exc.add_note("in the figure process:\n" + traceback.format_exc().rstrip())
-            message = ("error", exc)
+            message = ("error", (queue.current[k], exc))
         try:
             conn.send(message)
         except Exception as exc:  # noqa: BLE001 - what does not pickle goes as text
-            what = message[1] if message[0] == "error" else exc
-            conn.send(("error", RuntimeError(f"{type(what).__name__}: {what}")))
+            what = message[1][1] if message[0] == "error" else exc  # type: ignore[index]
+            error = RuntimeError(f"{type(what).__name__}: {what}")
+            conn.send(("error", (queue.current[k], error)))
     finally:
         conn.close()
 
@@ -160,7 +190,8 @@ class Drawing:
     jobs : sequence of FigureJob
         The figures, in the order :meth:`wait` returns their paths.
     processes : int
-        The most drawing processes (jobs are dealt to them in turn); 0, or a
+        The most drawing processes (each takes the next job when it has drawn
+        one: the figures' costs differ, this balances them); 0, or a
         platform without ``fork``: drawn in this process by :meth:`wait`.
     """
 
@@ -178,13 +209,13 @@ class Drawing:
                 if isinstance(job.make, str):
                     importlib.import_module(job.make.partition(":")[0])
         ctx = multiprocessing.get_context("fork")  # the children inherit the results
-        indexed = list(enumerate(self.jobs))
+        self._queue = _Queue(ctx, n)  # each takes the next job when done: balanced
         try:
             for k in range(n):
                 recv, send = ctx.Pipe(duplex=False)
                 proc = ctx.Process(
                     target=_child,
-                    args=(send, folder, indexed[k::n], os.getpid()),
+                    args=(send, folder, self.jobs, self._queue, k, os.getpid()),
                     name=f"youbot-opt figures {k + 1}",
                     daemon=True,  # ended by multiprocessing when this process exits
                 )
@@ -207,23 +238,27 @@ class Drawing:
         drawn = []
         errors: list[tuple[int, BaseException]] = []
         for k, (proc, recv) in enumerate(self._children):
-            first = k  # the first job of child k is job k (dealt in turn)
             try:
                 kind, payload = recv.recv()
             except EOFError:
                 proc.join()
+                i = self._queue.current[k]
+                what = self.jobs[i].name if 0 <= i < len(self.jobs) else "figures"
                 kind, payload = (
                     "error",
-                    RuntimeError(
-                        f"the process drawing {self.jobs[first].name} ended with exit code "
-                        f"{proc.exitcode} before it reported"
+                    (
+                        max(i, 0),
+                        RuntimeError(
+                            f"the process drawing {what} ended with exit code "
+                            f"{proc.exitcode} before it reported"
+                        ),
                     ),
                 )
             proc.join()
             recv.close()
             if kind == "error":
-                assert isinstance(payload, BaseException)
-                errors.append((first, payload))
+                assert isinstance(payload, tuple)
+                errors.append(payload)
             else:
                 assert isinstance(payload, list)
                 drawn += payload
