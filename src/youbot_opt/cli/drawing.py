@@ -12,6 +12,7 @@ warnings and "not drawn" lines here. Without ``fork``: drawn here on wait.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
 import multiprocessing
@@ -174,6 +175,53 @@ def _child(
         conn.close()
 
 
+def _first_child(
+    sends: list[Connection], folder: Path, jobs: list[FigureJob], queue: _Queue, parent: int
+) -> None:
+    """Body of the first drawing process: import the plots, fork the others, draw with them.
+
+    The figures' modules (matplotlib: about 0.6 s) are imported here, once, while
+    the caller writes its other files; the processes forked here share them.
+    Ended (``Drawing.stop``), it ends those first; it returns once they ended.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    pids: list[int] = []
+
+    def end(signum: int, frame: object) -> None:
+        for pid in pids:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGTERM)
+                os.waitpid(pid, 0)
+        os._exit(1)
+
+    signal.signal(signal.SIGTERM, end)
+    if len(sends) > 1:
+        for job in jobs:
+            if isinstance(job.make, str):
+                with contextlib.suppress(Exception):  # raised where the job is drawn
+                    importlib.import_module(job.make.partition(":")[0])
+    for k in range(1, len(sends)):
+        pid = os.fork()
+        if pid == 0:  # drawing process k
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            code = 1
+            try:
+                for other in (*sends[:k], *sends[k + 1 :]):
+                    other.close()
+                _child(sends[k], folder, jobs, queue, k, os.getppid())
+                code = 0
+            finally:
+                os._exit(code)
+        pids.append(pid)
+        sends[k].close()
+    try:
+        _child(sends[0], folder, jobs, queue, 0, parent)
+    finally:
+        for pid in pids:
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
+
+
 def _forks() -> bool:
     from youbot_opt.sweeps.pool import process_context
 
@@ -200,31 +248,31 @@ class Drawing:
     ) -> None:
         self.folder = folder
         self.jobs = list(jobs)
-        self._children: list[tuple[BaseProcess, Connection]] = []
+        self._children: list[tuple[BaseProcess, Connection]] = []  # the first process
+        self._others: list[Connection] = []  # the pipes of the processes it forks
         n = min(processes, len(self.jobs))
         if n < 1 or not _forks():
             return
-        if n > 1:  # imported once here, not once per child (matplotlib: about 0.6 s of CPU)
-            for job in self.jobs:
-                if isinstance(job.make, str):
-                    importlib.import_module(job.make.partition(":")[0])
         ctx = multiprocessing.get_context("fork")  # the children inherit the results
         self._queue = _Queue(ctx, n)  # each takes the next job when done: balanced
+        pipes = [ctx.Pipe(duplex=False) for _ in range(n)]
         try:
-            for k in range(n):
-                recv, send = ctx.Pipe(duplex=False)
-                proc = ctx.Process(
-                    target=_child,
-                    args=(send, folder, self.jobs, self._queue, k, os.getpid()),
-                    name=f"youbot-opt figures {k + 1}",
-                    daemon=True,  # ended by multiprocessing when this process exits
-                )
-                proc.start()
-                send.close()
-                self._children.append((proc, recv))
+            proc = ctx.Process(
+                target=_first_child,
+                args=([send for _, send in pipes], folder, self.jobs, self._queue, os.getpid()),
+                name="youbot-opt figures",
+                daemon=True,  # ended by multiprocessing when this process exits
+            )
+            proc.start()
         except BaseException:
-            self.stop()
+            for recv, send in pipes:
+                recv.close()
+                send.close()
             raise
+        for _, send in pipes:
+            send.close()
+        self._children.append((proc, pipes[0][0]))
+        self._others = [recv for recv, _ in pipes[1:]]
 
     def wait(self) -> list[Path | None]:
         """Wait for every figure; return their paths in job order (None: skipped, logged).
@@ -237,24 +285,24 @@ class Drawing:
             return self._report(drawn)
         drawn = []
         errors: list[tuple[int, BaseException]] = []
-        for k, (proc, recv) in enumerate(self._children):
+        proc, first = self._children[0]
+        for k, recv in enumerate([first, *self._others]):
             try:
                 kind, payload = recv.recv()
             except EOFError:
-                proc.join()
                 i = self._queue.current[k]
-                what = self.jobs[i].name if 0 <= i < len(self.jobs) else "figures"
+                what = self.jobs[i].name if 0 <= i < len(self.jobs) else "the figures"
+                how = "ended"
+                if k == 0:
+                    proc.join()
+                    how = f"ended with exit code {proc.exitcode}"
                 kind, payload = (
                     "error",
                     (
                         max(i, 0),
-                        RuntimeError(
-                            f"the process drawing {what} ended with exit code "
-                            f"{proc.exitcode} before it reported"
-                        ),
+                        RuntimeError(f"the process drawing {what} {how} before it reported"),
                     ),
                 )
-            proc.join()
             recv.close()
             if kind == "error":
                 assert isinstance(payload, tuple)
@@ -262,6 +310,8 @@ class Drawing:
             else:
                 assert isinstance(payload, list)
                 drawn += payload
+        proc.join()  # after the processes it forked
+        self._others = []
         self._children = []
         if errors:
             raise min(errors, key=lambda e: e[0])[1]
@@ -280,7 +330,10 @@ class Drawing:
         """Terminate the drawing processes still running (after an error or Ctrl-C here)."""
         for proc, recv in self._children:
             if proc.is_alive():
-                proc.terminate()
+                proc.terminate()  # it ends the processes it forked first
             proc.join()
             recv.close()
+        for recv in self._others:
+            recv.close()
         self._children = []
+        self._others = []
