@@ -1,7 +1,8 @@
 """A run's figures drawn in forked processes while the run writes its other files (#27).
 
-:class:`Drawing` forks (Linux) up to :data:`DRAWING_PROCESSES` processes that
-inherit the results in memory and draw there, while the caller writes the rest;
+:class:`Drawing` forks (Linux) a process that imports the plots and forks the
+others (up to :data:`DRAWING_PROCESSES`); they inherit the results in memory and
+draw there, each taking the next figure when done, while the caller writes the rest;
 :meth:`Drawing.wait` returns the paths in job order once every process ended,
 raising a job's error (the child's traceback a note on it) and giving its
 warnings and "not drawn" lines here. Without ``fork``: drawn here on wait.
