@@ -85,3 +85,31 @@ def test_no_figures_rerun_keeps_no_stale_figure(document: dict[str, Any], tmp_pa
     assert main(argv) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(set(before) - set(drawn))
     assert (out / "notes.png").read_bytes() == b"not ours"
+
+
+def test_figures_drawn_in_other_processes_are_there_on_return(
+    document: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run's repro_*.png are drawn by `cli.drawing.Drawing` while the rest is written.
+
+    Every one is in the folder when the outputs are written; a figure that
+    fails there raises here.
+    """
+    from youbot_opt.cli import reproduce
+    from youbot_opt.reproduction import figures
+
+    files = reproduce._write_outputs(document, {}, tmp_path / "a")
+    pngs = [f for f in files if f.suffix == ".png"]
+    assert sorted(p.name for p in pngs) == sorted(
+        f"{stem}.png" for stem, (drawable, _) in figures.FIGURES.items() if drawable(document)
+    )
+    assert pngs and all(p.stat().st_size > 0 for p in pngs)
+
+    def fails(data: object) -> object:
+        raise RuntimeError("the Pareto figure broke")
+
+    broken = {**figures.FIGURES, "repro_pareto": (lambda data: True, fails)}
+    monkeypatch.setattr(reproduce, "FIGURES", broken)
+    with pytest.raises(RuntimeError, match="the Pareto figure broke") as caught:
+        reproduce._write_outputs(document, {}, tmp_path / "b")
+    assert any("in the figure process" in note for note in caught.value.__notes__)

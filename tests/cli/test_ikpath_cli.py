@@ -285,3 +285,44 @@ def test_no_figures_after_a_run_with_them(capsys, tmp_path):
     assert not list(out.glob("ikpath_*.png"))
     assert (out / "notes.png").read_bytes() == b"not ours"
     assert "result.json" in doc["files"] and (out / "result.json").is_file()
+
+
+def test_figures_are_drawn_in_another_process_and_there_on_return(capsys, tmp_path, monkeypatch):
+    """The figures are drawn by `cli.drawing.Drawing` (forked): every one listed is there."""
+    import os
+
+    from youbot_opt.viz.plots import ikpath as plots
+
+    notes = tmp_path / "pids"
+    notes.mkdir()
+    drawn = plots.plot_workspace
+
+    def noting(*args, **kwargs):
+        (notes / str(os.getpid())).touch()
+        return drawn(*args, **kwargs)
+
+    monkeypatch.setattr(plots, "plot_workspace", noting)
+    out = tmp_path / "run"
+    argv = ["ikpath", "--example", "B", "--json", "--no-progress", "--no-replay",
+            "--out", str(out)]  # fmt: skip
+    code, doc, _ = _json(capsys, argv)
+    assert code == 0
+    pngs = [f for f in doc["files"] if f.endswith(".png")]
+    assert pngs[0] == "ikpath_workspace.png" and len(pngs) >= 3
+    assert all((out / f).stat().st_size > 0 for f in pngs)
+    drawers = {p.name for p in notes.iterdir()}
+    assert drawers and str(os.getpid()) not in drawers
+
+
+def test_a_failing_figure_is_raised_here(tmp_path, monkeypatch):
+    """An error drawing an ikpath figure (in its drawing process) is raised by the command."""
+    from youbot_opt.viz.plots import ikpath as plots
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("the minima figure broke")
+
+    monkeypatch.setattr(plots, "plot_minima", fails)
+    argv = ["ikpath", "--example", "B", "--no-progress", "--no-replay", "--out", str(tmp_path)]
+    with pytest.raises(RuntimeError, match="the minima figure broke") as caught:
+        main(argv)
+    assert any("in the figure process" in note for note in caught.value.__notes__)

@@ -240,3 +240,53 @@ def test_multistart_no_figures_after_a_run_with_them(tmp_path: Path) -> None:
     assert not [f for f in files if str(f).endswith(".png")]  # type: ignore[attr-defined]
     assert sorted(p.name for p in folder.iterdir()) == sorted(set(before) - set(pngs))
     assert (folder / "notes.png").read_bytes() == b"not ours"
+
+
+def _sleeps_noting(note: str) -> object:
+    Path(note).write_text(str(os.getpid()))
+    time.sleep(60)
+    return _figure("late")
+
+
+def test_drawing_stop_ends_the_processes_the_first_one_forked(tmp_path: Path) -> None:
+    """stop() with two drawing processes: the one the first forked ends too (no orphan)."""
+    notes = [tmp_path / f"pid{k}" for k in range(2)]
+    jobs = [FigureJob(f"late{k}.png", _sleeps_noting, (str(n),)) for k, n in enumerate(notes)]
+    drawing = Drawing(tmp_path, jobs, processes=2)
+    deadline = time.monotonic() + 30
+    while not all(n.exists() and n.read_text() for n in notes) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    pids = {int(n.read_text()) for n in notes}
+    assert len(pids) == 2 and os.getpid() not in pids  # two processes, neither this one
+    drawing.stop()
+    for pid in pids:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+    assert not list(tmp_path.glob("late*.png"))
+
+
+def test_drawing_spreads_the_jobs_over_its_processes(tmp_path: Path) -> None:
+    """Every job is drawn once, outside this process; an error of any job is raised here."""
+    seen: list[str] = []
+
+    def noting(label: str) -> object:
+        fig = _figure(label)
+        seen.append(label)  # in the drawing process's copy only
+        return fig
+
+    jobs = [FigureJob(f"f{k}.png", noting, (f"figure {k}",)) for k in range(5)]
+    drawing = Drawing(tmp_path, jobs, processes=2)
+    try:
+        paths = drawing.wait()
+    finally:
+        drawing.stop()
+    assert paths == [tmp_path / f"f{k}.png" for k in range(5)] and not seen
+    assert all(p.stat().st_size > 0 for p in paths if p is not None)
+    failing = [FigureJob(f"g{k}.png", _figure, (f"g{k}",)) for k in range(4)]
+    failing.insert(3, FigureJob("bad.png", _raises, ("bad figure",)))
+    drawing = Drawing(tmp_path, failing, processes=2)
+    try:
+        with pytest.raises(ValueError, match="bad figure"):
+            drawing.wait()
+    finally:
+        drawing.stop()

@@ -299,3 +299,39 @@ def test_plot_refinements_overview_names_each_mark_and_the_failed_plan(refinemen
         plot_refinements([refinement, failed], ["beta = 0.3"])
     with pytest.raises(ParameterError, match="no refinement"):
         plot_refinements([], [])
+
+
+def _inside_and_apart(fig) -> None:
+    """Every axes (labels, ticks, titles) and legend drawn inside the canvas, none overlapping.
+
+    An independent check of the figures' layout: the bounding boxes the
+    renderer reports after drawing, in pixels (1 px of slack for rounding).
+    """
+    from matplotlib.transforms import Bbox
+
+    _render(fig)
+    renderer = fig.canvas.get_renderer()
+    canvas = fig.bbox.padded(1.0)
+    boxes = [(f"axes {k} ({ax.get_ylabel()!r})", ax.get_tightbbox(renderer))
+             for k, ax in enumerate(fig.axes)]  # fmt: skip
+    boxes += [(f"legend {k}", leg.get_window_extent(renderer)) for k, leg in enumerate(fig.legends)]
+    for what, box in boxes:
+        assert box is not None and Bbox.union([canvas, box]).bounds == canvas.bounds, (what, box)
+    for a, (what_a, box_a) in enumerate(boxes):
+        for what_b, box_b in boxes[a + 1 :]:
+            inter = Bbox.intersection(box_a.padded(-1.0), box_b.padded(-1.0))
+            assert inter is None or inter.width * inter.height < 1.0, (what_a, what_b)
+
+
+def test_the_solve_figures_are_inside_the_canvas_and_apart(result, refinement):
+    """The figures a solve writes: nothing clipped by the canvas, no label over another axes."""
+    from youbot_opt.viz.plots.trajopt import plot_refinement
+
+    for fig in (
+        plot_trajectory(result),
+        plot_arm_2d(None, result),
+        plot_convergence([result]),
+        plot_convergence(refinement),
+        plot_refinement(refinement),
+    ):
+        _inside_and_apart(fig)

@@ -1,7 +1,8 @@
 """A run's figures drawn in forked processes while the run writes its other files (#27).
 
-:class:`Drawing` forks (Linux) up to :data:`DRAWING_PROCESSES` processes that
-inherit the results in memory and draw there, while the caller writes the rest;
+:class:`Drawing` forks (Linux) a process that imports the plots and forks the
+others (up to :data:`DRAWING_PROCESSES`); they inherit the results in memory and
+draw there, each taking the next figure when done, while the caller writes the rest;
 :meth:`Drawing.wait` returns the paths in job order once every process ended,
 raising a job's error (the child's traceback a note on it) and giving its
 warnings and "not drawn" lines here. Without ``fork``: drawn here on wait.
@@ -12,6 +13,7 @@ warnings and "not drawn" lines here. Without ``fork``: drawn here on wait.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
 import multiprocessing
@@ -54,7 +56,7 @@ class FigureJob:
 
     ``optional``: a :class:`~youbot_opt.exceptions.ParameterError` from ``make``
     (e.g. no converged run to draw) is logged and the figure skipped; otherwise
-    it propagates like any other error.
+    it propagates like any other error. ``dpi``: the resolution it is saved at.
     """
 
     name: str
@@ -62,6 +64,7 @@ class FigureJob:
     args: tuple[object, ...] = ()
     kwargs: Mapping[str, object] = field(default_factory=dict)
     optional: bool = True
+    dpi: int = 120
 
 
 def draw_job(folder: Path, job: FigureJob) -> tuple[Path | None, str | None]:
@@ -76,7 +79,7 @@ def draw_job(folder: Path, job: FigureJob) -> tuple[Path | None, str | None]:
         if not job.optional:
             raise
         return None, f"figure {job.name} not drawn: {exc}"
-    return save_figure(fig, folder, job.name), None
+    return save_figure(fig, folder, job.name, dpi=job.dpi), None
 
 
 def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
@@ -109,12 +112,13 @@ _Drawn = tuple[int, Path | None, str | None, list[warnings.WarningMessage]]
 
 
 def _draw_jobs(folder: Path, jobs: Sequence[tuple[int, FigureJob]]) -> list[_Drawn]:
-    out: list[_Drawn] = []
-    for i, job in jobs:
-        with warnings.catch_warnings(record=True) as caught:
-            path, skipped = draw_job(folder, job)
-        out.append((i, path, skipped, list(caught)))
-    return out
+    return [_draw_one(folder, i, job) for i, job in jobs]
+
+
+def _draw_one(folder: Path, i: int, job: FigureJob) -> _Drawn:
+    with warnings.catch_warnings(record=True) as caught:
+        path, skipped = draw_job(folder, job)
+    return i, path, skipped, list(caught)
 
 
 def _watch_parent(parent: int) -> None:
@@ -124,23 +128,99 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
-def _child(conn: Connection, folder: Path, jobs: list[tuple[int, FigureJob]], parent: int) -> None:
-    """Body of a drawing process: draw ``jobs``, send ``("ok", drawn)`` or ``("error", exc)``."""
+class _Queue:
+    """The jobs' shared queue: the next job to take, and the job each process draws."""
+
+    def __init__(self, ctx: multiprocessing.context.BaseContext, processes: int) -> None:
+        self.next = ctx.Value("i", 0)  # the next job to take (under its lock)
+        self.current = ctx.Array("i", [-1] * processes, lock=False)  # each process's job
+
+    def take(self, k: int) -> int:
+        """Take the next job for process ``k``; return its index."""
+        with self.next.get_lock():
+            i = self.current[k] = self.next.value
+            self.next.value += 1
+        return int(i)
+
+
+def _child(
+    conn: Connection,
+    folder: Path,
+    jobs: list[FigureJob],
+    queue: _Queue,
+    k: int,
+    parent: int,
+) -> None:
+    """Body of drawing process ``k``: draw the jobs it takes from ``queue`` until none is left.
+
+    Sends ``("ok", drawn)``, or ``("error", (i, exc))`` at job ``i``'s error.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    drawn: list[_Drawn] = []
     try:
         try:
-            message: tuple[str, object] = ("ok", _draw_jobs(folder, jobs))
+            while (i := queue.take(k)) < len(jobs):
+                drawn.append(_draw_one(folder, i, jobs[i]))
+            message: tuple[str, object] = ("ok", drawn)
         except BaseException as exc:  # noqa: BLE001 - every error goes back to the parent
             exc.add_note("in the figure process:\n" + traceback.format_exc().rstrip())
-            message = ("error", exc)
+            message = ("error", (queue.current[k], exc))
         try:
             conn.send(message)
         except Exception as exc:  # noqa: BLE001 - what does not pickle goes as text
-            what = message[1] if message[0] == "error" else exc
-            conn.send(("error", RuntimeError(f"{type(what).__name__}: {what}")))
+            what = message[1][1] if message[0] == "error" else exc  # type: ignore[index]
+            error = RuntimeError(f"{type(what).__name__}: {what}")
+            conn.send(("error", (queue.current[k], error)))
     finally:
         conn.close()
+
+
+def _first_child(
+    sends: list[Connection], folder: Path, jobs: list[FigureJob], queue: _Queue, parent: int
+) -> None:
+    """Body of the first drawing process: import the plots, fork the others, draw with them.
+
+    The figures' modules (matplotlib: about 0.6 s) are imported here, once, while
+    the caller writes its other files; the processes forked here share them.
+    Ended (``Drawing.stop``), it ends those first; it returns once they ended.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    pids: list[int] = []
+
+    def end(signum: int, frame: object) -> None:
+        for pid in pids:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGTERM)
+                os.waitpid(pid, 0)
+        os._exit(1)
+
+    signal.signal(signal.SIGTERM, end)
+    if len(sends) > 1:
+        for job in jobs:
+            if isinstance(job.make, str):
+                with contextlib.suppress(Exception):  # raised where the job is drawn
+                    importlib.import_module(job.make.partition(":")[0])
+    for k in range(1, len(sends)):
+        pid = os.fork()
+        if pid == 0:  # drawing process k
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            code = 1
+            try:
+                for other in (*sends[:k], *sends[k + 1 :]):
+                    other.close()
+                _child(sends[k], folder, jobs, queue, k, os.getppid())
+                code = 0
+            finally:
+                os._exit(code)
+        pids.append(pid)
+        sends[k].close()
+    try:
+        _child(sends[0], folder, jobs, queue, 0, parent)
+    finally:
+        for pid in pids:
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
 
 
 def _forks() -> bool:
@@ -159,7 +239,8 @@ class Drawing:
     jobs : sequence of FigureJob
         The figures, in the order :meth:`wait` returns their paths.
     processes : int
-        The most drawing processes (jobs are dealt to them in turn); 0, or a
+        The most drawing processes (each takes the next job when it has drawn
+        one: the figures' costs differ, this balances them); 0, or a
         platform without ``fork``: drawn in this process by :meth:`wait`.
     """
 
@@ -168,31 +249,31 @@ class Drawing:
     ) -> None:
         self.folder = folder
         self.jobs = list(jobs)
-        self._children: list[tuple[BaseProcess, Connection]] = []
+        self._children: list[tuple[BaseProcess, Connection]] = []  # the first process
+        self._others: list[Connection] = []  # the pipes of the processes it forks
         n = min(processes, len(self.jobs))
         if n < 1 or not _forks():
             return
-        if n > 1:  # imported once here, not once per child (matplotlib: about 0.6 s of CPU)
-            for job in self.jobs:
-                if isinstance(job.make, str):
-                    importlib.import_module(job.make.partition(":")[0])
         ctx = multiprocessing.get_context("fork")  # the children inherit the results
-        indexed = list(enumerate(self.jobs))
+        self._queue = _Queue(ctx, n)  # each takes the next job when done: balanced
+        pipes = [ctx.Pipe(duplex=False) for _ in range(n)]
         try:
-            for k in range(n):
-                recv, send = ctx.Pipe(duplex=False)
-                proc = ctx.Process(
-                    target=_child,
-                    args=(send, folder, indexed[k::n], os.getpid()),
-                    name=f"youbot-opt figures {k + 1}",
-                    daemon=True,  # ended by multiprocessing when this process exits
-                )
-                proc.start()
-                send.close()
-                self._children.append((proc, recv))
+            proc = ctx.Process(
+                target=_first_child,
+                args=([send for _, send in pipes], folder, self.jobs, self._queue, os.getpid()),
+                name="youbot-opt figures",
+                daemon=True,  # ended by multiprocessing when this process exits
+            )
+            proc.start()
         except BaseException:
-            self.stop()
+            for recv, send in pipes:
+                recv.close()
+                send.close()
             raise
+        for _, send in pipes:
+            send.close()
+        self._children.append((proc, pipes[0][0]))
+        self._others = [recv for recv, _ in pipes[1:]]
 
     def wait(self) -> list[Path | None]:
         """Wait for every figure; return their paths in job order (None: skipped, logged).
@@ -205,27 +286,33 @@ class Drawing:
             return self._report(drawn)
         drawn = []
         errors: list[tuple[int, BaseException]] = []
-        for k, (proc, recv) in enumerate(self._children):
-            first = k  # the first job of child k is job k (dealt in turn)
+        proc, first = self._children[0]
+        for k, recv in enumerate([first, *self._others]):
             try:
                 kind, payload = recv.recv()
             except EOFError:
-                proc.join()
+                i = self._queue.current[k]
+                what = self.jobs[i].name if 0 <= i < len(self.jobs) else "the figures"
+                how = "ended"
+                if k == 0:
+                    proc.join()
+                    how = f"ended with exit code {proc.exitcode}"
                 kind, payload = (
                     "error",
-                    RuntimeError(
-                        f"the process drawing {self.jobs[first].name} ended with exit code "
-                        f"{proc.exitcode} before it reported"
+                    (
+                        max(i, 0),
+                        RuntimeError(f"the process drawing {what} {how} before it reported"),
                     ),
                 )
-            proc.join()
             recv.close()
             if kind == "error":
-                assert isinstance(payload, BaseException)
-                errors.append((first, payload))
+                assert isinstance(payload, tuple)
+                errors.append(payload)
             else:
                 assert isinstance(payload, list)
                 drawn += payload
+        proc.join()  # after the processes it forked
+        self._others = []
         self._children = []
         if errors:
             raise min(errors, key=lambda e: e[0])[1]
@@ -244,7 +331,10 @@ class Drawing:
         """Terminate the drawing processes still running (after an error or Ctrl-C here)."""
         for proc, recv in self._children:
             if proc.is_alive():
-                proc.terminate()
+                proc.terminate()  # it ends the processes it forked first
             proc.join()
             recv.close()
+        for recv in self._others:
+            recv.close()
         self._children = []
+        self._others = []

@@ -22,12 +22,12 @@ from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
-from typing import Any, TextIO, cast
+from typing import TextIO, cast
 
 import numpy as np
 
 from youbot_opt._typing import JSONDict
-from youbot_opt.cli.drawing import save_figure
+from youbot_opt.cli.drawing import Drawing, FigureJob
 from youbot_opt.cli.flags import clearance_of, loading_options, report_shard, scheduler_address
 from youbot_opt.cli.ikpath_text import (
     StartsFile,
@@ -74,13 +74,6 @@ from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.sweeps.resume import ShardReport
 from youbot_opt.viz.meshcat.ikpath import export_ikpath_html
 from youbot_opt.viz.meshcat.scene import RobotLike
-from youbot_opt.viz.plots.ikpath import (
-    plot_convergence,
-    plot_leg_motion,
-    plot_minima,
-    plot_path,
-    plot_workspace,
-)
 
 __all__ = ["SPATIAL_DEFAULT_START_KIND", "StartProgress", "run", "start_sweep"]
 
@@ -381,11 +374,28 @@ def _executor(args: argparse.Namespace, spatial: bool) -> str:
     return "process" if args.starts > 1 else "serial"
 
 
-def _figure(
-    args: argparse.Namespace, folder: Path, name: str, draw: Callable[[], Any]
-) -> list[Path]:
-    """Draw and save one figure as ``folder/name``; none with ``--no-figures``."""
-    return [] if args.no_figures else [save_figure(draw(), folder, name)]
+_PLOTS = "youbot_opt.viz.plots.ikpath:"  # matplotlib loads where the figures are drawn
+
+
+def _figure(name: str, make: str, *args: object) -> FigureJob:
+    """Return the job drawing ``viz.plots.ikpath``'s ``make(*args)``; its errors propagate."""
+    return FigureJob(name, _PLOTS + make, args, optional=False)
+
+
+def _draw_while(
+    args: argparse.Namespace, folder: Path, jobs: list[FigureJob], rest: Callable[[], list[Path]]
+) -> tuple[list[Path], list[Path]]:
+    """Draw ``jobs`` (none with ``--no-figures``) in other processes while ``rest()`` writes.
+
+    Returns the figures written and what ``rest`` returned; every file exists then.
+    """
+    drawing = Drawing(folder, [] if args.no_figures else jobs)  # drawn elsewhere from here on
+    try:
+        written = rest()
+        drawn = drawing.wait()
+    finally:
+        drawing.stop()
+    return [p for p in drawn if p is not None], written
 
 
 def _planar_outputs(
@@ -396,14 +406,17 @@ def _planar_outputs(
     ms: MultistartResult | None,
 ) -> list[Path]:
     """Write a planar run's figures, replay and saved result; return the folder's files."""
-    files = _figure(args, folder, "ikpath_workspace.png", lambda: plot_workspace(problem, verdicts))
-    if ms is not None:
-        best = ms.best
-        files += _figure(args, folder, "ikpath_arm.png", lambda: plot_path(best))
-        if best.history:
-            files += _figure(args, folder, "ikpath_convergence.png", lambda: plot_convergence(best))
-        files += _figure(args, folder, "ikpath_minima.png", lambda: plot_minima(ms))
-        files.append(save_result(best, folder / "result.json"))
+    jobs = [_figure("ikpath_workspace.png", "plot_workspace", problem, verdicts)]
+    if ms is None:
+        return _draw_while(args, folder, jobs, list)[0]
+    best = ms.best
+    jobs.append(_figure("ikpath_arm.png", "plot_path", best))
+    if best.history:
+        jobs.append(_figure("ikpath_convergence.png", "plot_convergence", best))
+    jobs.append(_figure("ikpath_minima.png", "plot_minima", ms))
+
+    def rest() -> list[Path]:
+        files = [save_result(best, folder / "result.json")]
         files.append(folder / STARTS_FILE)
         if not args.no_replay:
             page = replay_or_warn(
@@ -412,8 +425,10 @@ def _planar_outputs(
                 )
             )
             files += [page] if page is not None else []
-        files += [folder / "manifest.json", folder / "items"]  # the starts, by the sweep store
-    return files
+        return files + [folder / "manifest.json", folder / "items"]  # the starts' sweep store
+
+    figures, files = _draw_while(args, folder, jobs, rest)
+    return figures + files
 
 
 def _finish(
@@ -607,10 +622,14 @@ def _run_3d(args: argparse.Namespace) -> int:
         if clearance is not None:
             doc["clearance"] = clearance_summary(clearance, args.scene, best.clearance)
         source = RobotSource.of(robot, strict=not args.lenient)
-        files.append(save_result(best, folder / "result.json", source))
-        files += _figure(args, folder, "ikpath_legs.png", lambda: plot_leg_motion(best))
-        files += _figure(args, folder, "ikpath_path3d.png", lambda: plot_path(best))
-        if not args.no_replay:
+        jobs = [
+            _figure("ikpath_legs.png", "plot_leg_motion", best),
+            _figure("ikpath_path3d.png", "plot_path", best),
+        ]
+
+        def replay() -> list[Path]:
+            if args.no_replay:
+                return []
             page = replay_or_warn(
                 lambda: export_ikpath_html(
                     best,
@@ -619,7 +638,15 @@ def _run_3d(args: argparse.Namespace) -> int:
                     segment_time=args.segment_time,
                 )
             )
-            files += [page] if page is not None else []
+            return [page] if page is not None else []
+
+        figures, pages = _draw_while(
+            args,
+            folder,
+            jobs,
+            lambda: [save_result(best, folder / "result.json", source), *replay()],
+        )
+        files += [pages[0], *figures, *pages[1:]]  # result.json, the figures, the replay
         files += [starts.path, folder / "manifest.json", folder / "items"]  # the starts
         code = 0 if best.success else 1
     else:

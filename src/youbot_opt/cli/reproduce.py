@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from youbot_opt._files import read_regular_file
-from youbot_opt.cli.drawing import save_figure
+from youbot_opt.cli.drawing import DRAWING_PROCESSES, Drawing, FigureJob
 from youbot_opt.cli.output import print_outputs, remove_stale_figures, run_folder, write_summary
 from youbot_opt.cli.run_size import check_trajopt_size
 from youbot_opt.exceptions import ParameterError, ResultFileError
@@ -123,7 +123,7 @@ def _from_json(
     seen = _Seen()
     tracked = _Fields(data, "data", seen)
     try:
-        files = _write_outputs(tracked, {}, folder, figures)
+        files = _write_outputs(tracked, {}, folder, figures, processes=0)  # seen.last: here
         return files, _converged(tracked)
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
         what = f"{type(exc).__name__}: {str(exc)[:_MAX_SHOWN]}"
@@ -188,25 +188,46 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _write_outputs(
-    data: dict[str, Any], results: dict[str, Any], folder: Path, figures: bool = True
+    data: dict[str, Any],
+    results: dict[str, Any],
+    folder: Path,
+    figures: bool = True,
+    processes: int = DRAWING_PROCESSES,
 ) -> list[Path]:
     """Write the JSON, markdown, summary, figures and result files; return them (JSON, md first).
 
-    ``figures`` False (``--no-figures``): no ``repro_*.png``. A reused folder keeps
-    no figure of ours that this run did not write.
+    The figures are drawn in ``processes`` other processes (:class:`Drawing`)
+    while the results and the summary are written; 0: here, last, as before
+    (a ``--from-json`` document: its fields are then read in the order its
+    errors name them). A drawing error propagates. ``figures`` False
+    (``--no-figures``): no ``repro_*.png``. A reused folder keeps no figure of
+    ours that this run did not write.
     """
     files = list(write_report(data, folder))
-    if results:  # the solves first: nothing below can lose them
-        (folder / "results").mkdir(exist_ok=True)
-        for name, result in results.items():
-            save_result(result, folder / "results" / f"{name}.npz")
-        files.append(folder / "results")
-    files.append(write_summary(folder, _summary(data)))
-    for stem, (drawable, draw) in FIGURES.items():
-        if figures and drawable(data):
-            files.append(save_figure(draw(data), folder, f"{stem}.png", dpi=90))
+    drawing = Drawing(folder, _figures(data, figures) if processes else [], processes)
+    try:  # drawn elsewhere from here on
+        if results:  # the solves first: nothing below can lose them
+            (folder / "results").mkdir(exist_ok=True)
+            for name, result in results.items():
+                save_result(result, folder / "results" / f"{name}.npz")
+            files.append(folder / "results")
+        files.append(write_summary(folder, _summary(data)))
+        if not processes:
+            drawing = Drawing(folder, _figures(data, figures), 0)
+        files += [p for p in drawing.wait() if p is not None]
+    finally:
+        drawing.stop()
     remove_stale_figures(folder, files)
     return files
+
+
+def _figures(data: dict[str, Any], figures: bool) -> list[FigureJob]:
+    """Return the ``repro_*.png`` jobs that ``data`` can draw (none if not ``figures``)."""
+    return [
+        FigureJob(f"{stem}.png", draw, (data,), optional=False, dpi=90)
+        for stem, (drawable, draw) in FIGURES.items()
+        if figures and drawable(data)
+    ]
 
 
 def _summary(data: dict[str, Any]) -> dict[str, Any]:
