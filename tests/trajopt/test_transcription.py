@@ -211,6 +211,19 @@ def _plain_derivatives(nlp, youbot, rng):
     return x, lam_g, [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
 
 
+def _assert_same_derivatives(fns, x, lam_g, reference):
+    """``fns``' f, g, Jacobian and Hessian at ``x`` equal :func:`_plain_derivatives`' (1e-9).
+
+    Same derivatives by two assembly routes; entries are O(1e3) at most (1/I of
+    the wrist), so 1e-9 absolute is ~1e4 ulps.
+    """
+    f1, g1 = fns.nlp(x, 0.3)
+    _, jac1 = fns.jac_g(x, 0.3)
+    hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
+    for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
+        np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
+
+
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
 def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
     """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9).
@@ -238,13 +251,7 @@ def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
         variants.append(structured_functions(method, problem, compiled, values=compiled))
     x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
     for fns in variants:
-        f1, g1 = fns.nlp(x, 0.3)
-        _, jac1 = fns.jac_g(x, 0.3)
-        hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
-        # Same derivatives by two assembly routes; entries are O(1e3) at most (1/I
-        # of the wrist), so 1e-9 absolute is ~1e4 ulps.
-        for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
-            np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
+        _assert_same_derivatives(fns, x, lam_g, reference)
         xs, lams = ca.MX.sym("x", x.size), ca.MX.sym("lam", lam_g.size)
         _, g_sym = fns.nlp(xs, 0.3)
         grad = ca.Function("grad", [xs, lams], [ca.gradient(ca.dot(lams, g_sym), xs)])
@@ -409,9 +416,4 @@ def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_ca
     x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
     assert np.count_nonzero(reference[2][nlp.constraints["clearance_knots"].offset :]) > 0
     for fns in variants:
-        f1, g1 = fns.nlp(x, 0.3)
-        _, jac1 = fns.jac_g(x, 0.3)
-        hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
-        # as above: two assembly routes of the same derivatives, entries O(1e3) at most
-        for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
-            np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
+        _assert_same_derivatives(fns, x, lam_g, reference)

@@ -450,12 +450,12 @@ def compile_functions(
     return result
 
 
-def _index_path(directory: Path, index: str, compiler: str, flags: tuple[str, ...]) -> Path:
-    """``<cache>/index_<hash>.json``: the hash covers what a library name's hash does but code."""
-    key = hashlib.sha256(
+def _cache_key(text: str, compiler: str, flags: tuple[str, ...]) -> str:
+    """Hash ``text`` with the compiler, its flags, CasADi's version and (native) the CPU."""
+    return hashlib.sha256(
         "\0".join(
             [
-                index,
+                text,
                 Path(compiler).name,
                 *flags,
                 str(getattr(ca, "__version__", "unknown")),
@@ -463,7 +463,11 @@ def _index_path(directory: Path, index: str, compiler: str, flags: tuple[str, ..
             ]
         ).encode()
     ).hexdigest()[:20]
-    return directory / f"index_{key}.json"
+
+
+def _index_path(directory: Path, index: str, compiler: str, flags: tuple[str, ...]) -> Path:
+    """``<cache>/index_<hash>.json``: the hash covers what a library name's hash does but code."""
+    return directory / f"index_{_cache_key(index, compiler, flags)}.json"
 
 
 def _write_index(
@@ -537,18 +541,7 @@ def _job(
     code = gen.dump()
 
     def library(options: tuple[str, ...]) -> Path:
-        key = hashlib.sha256(
-            "\0".join(
-                [
-                    code,
-                    Path(compiler).name,
-                    *options,
-                    str(getattr(ca, "__version__", "unknown")),
-                    *([cpu_fingerprint()] if NATIVE_FLAG in options else []),
-                ]
-            ).encode()
-        ).hexdigest()[:20]
-        return directory / f"{name}_{key}.so"
+        return directory / f"{name}_{_cache_key(code, compiler, options)}.so"
 
     portable = None
     if NATIVE_FLAG in flags:
