@@ -42,6 +42,7 @@ __all__ = [
     "BOUND_NAMES",
     "variable_family",
     "check_fractions",
+    "grid_edges",
     "grid_times",
     "step_ratios",
 ]
@@ -247,10 +248,15 @@ class TranscribedNLP:
         upper = dict(values)
         for name, (lower_row, upper_row) in self.path_limits.items():
             values[name], upper[name] = lower_row, upper_row
+        ends: dict[int, tuple[Array, Array]] = {}  # rows' values at the ends, by Function
         for name, ramp in self.path_ramps.items():
-            values[name] = ramp.lower(
-                self.path_limits[name][0], (start.q, start.velocity), (goal.q, goal.velocity)
-            )
+            key = id(ramp.function)
+            if key not in ends:
+                ends[key] = (
+                    np.asarray(ramp.function(start.q, start.velocity), dtype=float).ravel(),
+                    np.asarray(ramp.function(goal.q, goal.velocity), dtype=float).ravel(),
+                )
+            values[name] = ramp.lower(self.path_limits[name][0], *ends[key])
         if not self.path_bounds:
             return self.constraints.pack(values), self.constraints.pack(upper)
         if bounds is None:
@@ -362,8 +368,7 @@ class Transcription(ABC):
             edges = np.linspace(0.0, 1.0, n_knots)
         else:
             self.check_size(n_knots)
-            edges = np.concatenate(([0.0], np.cumsum(self.fractions)))
-            edges[-1] = 1.0
+            edges = grid_edges(self.fractions)
         left, length = edges[:-1], np.diff(edges)
         times = {"knots": edges}
         times.update({g: left + c * length for g, c in self.interior_points.items()})
@@ -654,9 +659,14 @@ def grid_times(guess: Trajectory, fractions: Array) -> tuple[float, Array]:
     total = guess.duration
     if not math.isfinite(total) or total <= 0.0:
         raise TranscriptionError(f"guess duration must be > 0 [s], got {total}")
+    return total / fractions.size, guess.t[0] + total * grid_edges(fractions)
+
+
+def grid_edges(fractions: Array) -> Array:
+    """Knots of a grid in normalised time: ``0, cumsum(fractions)``, the last exactly 1."""
     edges = np.concatenate(([0.0], np.cumsum(fractions)))
     edges[-1] = 1.0
-    return total / fractions.size, guess.t[0] + total * edges
+    return edges
 
 
 class Expressions(NamedTuple, Generic[_E]):

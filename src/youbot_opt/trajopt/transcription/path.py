@@ -117,22 +117,22 @@ class PathRamp:
     window: float
     times: Array
 
-    def lower(self, bound: Array, start: tuple[Array, Array], goal: tuple[Array, Array]) -> Array:
+    def lower(self, bound: Array, at_start: Array, at_goal: Array) -> Array:
         """Return the block's lower bounds, shape ``(count, m)``, for these ends.
 
         Parameters
         ----------
         bound : ndarray, shape (m,)
             The rows' own lower bounds (in the rows' units; ``-inf``: none).
-        start, goal : tuple of (ndarray, ndarray)
-            The fixed ends' ``(q, v)``: configuration in [rad] ([m] for
-            prismatic joints), velocity in [rad/s] ([m/s]).
+        at_start, at_goal : ndarray, shape (m,)
+            The rows' values :attr:`function` takes at the fixed start and goal
+            (their configurations and velocities), in the rows' units.
         """
         bound = np.asarray(bound, dtype=float)
         s = np.asarray(self.times, dtype=float)[:, None]
         out = np.broadcast_to(bound, (s.shape[0], bound.size)).copy()
-        for (q, v), share in ((start, s), (goal, 1.0 - s)):
-            end = np.asarray(self.function(q, v), dtype=float).ravel()
+        for end, share in ((at_start, s), (at_goal, 1.0 - s)):
+            end = np.asarray(end, dtype=float).ravel()
             short = end < bound
             if np.any(short):
                 ramp = end + (bound - end) * np.minimum(share / self.window, 1.0)
