@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from youbot_opt.cli import main
-from youbot_opt.cli.drawing import Drawing, FigureJob
+from youbot_opt.cli.drawing import Drawing, DrawingAhead, FigureJob
 from youbot_opt.cli.output import remove_stale_figures
 from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 
@@ -290,3 +290,92 @@ def test_drawing_spreads_the_jobs_over_its_processes(tmp_path: Path) -> None:
             drawing.wait()
     finally:
         drawing.stop()
+
+
+# ------------------------------------------------------------- DrawingAhead
+class _Shared:
+    """An object a run holds before its results exist (its robot); warmed ahead."""
+
+    warmed_by: int | None = None
+
+
+def _writes_note(folder: Path, shared: _Shared) -> Path:
+    """A job that writes its own file (as the replay page does): who warmed ``shared``."""
+    path = folder / "note.txt"
+    path.write_text(f"{shared.warmed_by} {os.getpid()}")
+    return path
+
+
+def _writes_nothing() -> None:
+    return None
+
+
+def test_drawing_ahead_warms_the_shared_objects_and_draws_the_jobs_handed_later(
+    tmp_path: Path,
+) -> None:
+    """The process forked ahead warms ``shared`` and gets it by reference with the jobs.
+
+    The job sees the warmed object (the warming process's pid, not this one's,
+    where ``warmed_by`` stays None); a job that writes its own file returns its
+    path, one that writes nothing None; figures come back in job order.
+    """
+    shared = _Shared()
+    ahead = DrawingAhead([shared], ["matplotlib.figure"], warm=lambda: _warm(shared))
+    jobs = [
+        FigureJob("note.txt", _writes_note, (tmp_path, shared), optional=False),
+        FigureJob("f0.png", _figure, ("f0",)),
+        FigureJob("none.html", _writes_nothing),
+        FigureJob("f1.png", _figure, ("f1",)),
+    ]
+    drawing = ahead.draw(tmp_path, jobs)
+    try:
+        paths = drawing.wait()
+    finally:
+        drawing.stop()
+        ahead.stop()
+    assert paths == [tmp_path / "note.txt", tmp_path / "f0.png", None, tmp_path / "f1.png"]
+    warmed_by, drawn_by = (int(x) for x in (tmp_path / "note.txt").read_text().split())
+    assert shared.warmed_by is None and os.getpid() not in (warmed_by, drawn_by)
+    assert (tmp_path / "f1.png").stat().st_size > 0
+
+
+def _warm(shared: _Shared) -> None:
+    shared.warmed_by = os.getpid()
+
+
+@pytest.mark.parametrize("n_jobs", [1, 3])
+def test_drawing_ahead_with_fewer_or_more_jobs_than_processes(tmp_path: Path, n_jobs: int) -> None:
+    """One job on two processes does not wait for the idle one; three share two processes."""
+    ahead = DrawingAhead([], processes=2)
+    jobs = [FigureJob(f"f{k}.png", _figure, (f"f{k}",)) for k in range(n_jobs)]
+    drawing = ahead.draw(tmp_path, jobs)
+    try:
+        assert drawing.wait() == [tmp_path / f"f{k}.png" for k in range(n_jobs)]
+    finally:
+        drawing.stop()
+
+
+def test_drawing_ahead_draws_jobs_that_do_not_pickle_by_forking_then(tmp_path: Path) -> None:
+    """A local function as a job cannot be sent: the figures are drawn as a plain Drawing."""
+    ahead = DrawingAhead([])
+    process = ahead._proc
+
+    def local(label: str) -> object:
+        return _figure(label)
+
+    drawing = ahead.draw(tmp_path, [FigureJob("local.png", local, ("local",))])
+    try:
+        assert drawing.wait() == [tmp_path / "local.png"]
+    finally:
+        drawing.stop()
+    assert process is not None and not process.is_alive()  # the one ahead was ended
+
+
+def test_drawing_ahead_stopped_without_jobs_leaves_no_process() -> None:
+    """A run that ends before its outputs (an error) stops the process ahead: none is left."""
+    ahead = DrawingAhead([], ["matplotlib.figure"])
+    process = ahead._proc
+    assert process is not None and process.is_alive()
+    ahead.stop()
+    assert not process.is_alive() and process.exitcode == 0
+    ahead.stop()  # twice: nothing to do

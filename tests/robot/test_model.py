@@ -138,3 +138,78 @@ def test_a_pickled_robot_leaves_its_meshes_home():
     assert back == robot and back.visual_model is robot.visual_model
     lean = dataclasses.replace(robot, visual_model=pin.GeometryModel())
     assert pickle.loads(pickle.dumps(lean)).visual_model.ngeoms == 0  # nothing to restore
+
+
+def _geometry_rows(geometry: pin.GeometryModel) -> list[tuple[object, ...]]:
+    """What a geometry model draws: name, joint, frame, mesh, scale and placement per object."""
+    return [
+        (
+            go.name,
+            int(go.parentJoint),
+            int(go.parentFrame),
+            go.meshPath,
+            tuple(np.round(go.meshScale, 12)),
+            tuple(np.round(go.placement.homogeneous.ravel(), 12)),
+        )
+        for go in geometry.geometryObjects
+    ]
+
+
+@pytest.mark.parametrize(
+    ("name", "lock"),
+    [("ur5", None), ("panda", {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.01})],
+)
+def test_a_deferred_visual_geometry_is_read_when_first_read_and_equals_the_eager_one(
+    name, lock
+) -> None:
+    """load_model(defer_visual=True) reads the meshes at the first read, as the eager load does.
+
+    The deferred geometry of a reduced model (panda's fingers locked) is the
+    eager reduced model's, object by object; copies made meanwhile (a payload,
+    other coordinates) keep it unread.
+    """
+    from youbot_opt.dynamics.coordinates import angle_robot
+    from youbot_opt.robot.payload import Payload
+
+    eager = load_model(name, lock_joints=lock)
+    lazy = load_model(name, lock_joints=lock, defer_visual=True)
+    field = RobotModel.visual_model
+    assert not field.is_built(lazy)
+    carried = lazy.with_payload(Payload(mass=0.5))
+    turned = angle_robot(lazy)
+    assert lazy == eager and not field.is_built(carried) and not field.is_built(turned)
+    assert not field.is_built(lazy)
+    assert _geometry_rows(lazy.visual_model) == _geometry_rows(eager.visual_model)
+    assert field.is_built(lazy) and lazy.visual_model is lazy.visual_model  # built once
+    assert _geometry_rows(carried.visual_model) == _geometry_rows(eager.visual_model)
+    assert eager.visual_model.ngeoms > 0
+
+
+def test_a_deferred_visual_geometry_travels_as_its_builder():
+    """Pickled before it is read, a robot carries the builder (not meshes) and draws anywhere.
+
+    The pickle is under the collision geometry plus 1 MB; in a spawned process
+    the geometry is built on its read (the eager robot's there: 0, the meshes
+    stay home).
+    """
+    import multiprocessing
+    import pickle
+
+    eager = load_model("ur5")
+    lazy = load_model("ur5", defer_visual=True)
+    data = pickle.dumps(lazy)
+    assert len(data) < len(pickle.dumps(lazy.collision_model)) + 1_000_000
+    assert not RobotModel.visual_model.is_built(pickle.loads(data))
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        count, _ = pool.apply(_visual_count, (lazy,))
+    assert count == eager.visual_model.ngeoms > 0
+
+
+def test_a_geometry_builder_must_build_a_geometry_model():
+    """A visual_model neither a GeometryModel nor callable, or building another type: refused."""
+    youbot = load_model("youbot")
+    with pytest.raises(ParameterError, match="visual_model must be a pinocchio.GeometryModel"):
+        dataclasses.replace(youbot, visual_model=3)
+    odd = dataclasses.replace(youbot, visual_model=lambda: "mesh")
+    with pytest.raises(ParameterError, match="builder of visual_model returned str"):
+        odd.visual_model  # noqa: B018 - the read builds

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import io
 import logging
 import multiprocessing
 import os
+import pickle
 import signal
 import threading
 import time
@@ -37,7 +39,7 @@ if TYPE_CHECKING:
 
     from matplotlib.figure import Figure
 
-__all__ = ["FigureJob", "Drawing", "draw_job", "save_figure", "DRAWING_PROCESSES"]
+__all__ = ["FigureJob", "Drawing", "DrawingAhead", "draw_job", "save_figure", "DRAWING_PROCESSES"]
 
 _log = logging.getLogger("youbot_opt.cli.output")  # the "not drawn" lines, as before
 
@@ -52,7 +54,9 @@ class FigureJob:
     """One figure of a run: ``make(*args, **kwargs)`` saved as ``folder/name``.
 
     ``make`` is the function, or its ``"module:name"`` (imported where the
-    figure is drawn: the caller need not load matplotlib).
+    figure is drawn: the caller need not load matplotlib). It returns the
+    figure, or writes its file itself and returns its path (the replay page),
+    or None when it wrote nothing (its warning says why).
 
     ``optional``: a :class:`~youbot_opt.exceptions.ParameterError` from ``make``
     (e.g. no converged run to draw) is logged and the figure skipped; otherwise
@@ -60,7 +64,7 @@ class FigureJob:
     """
 
     name: str
-    make: Callable[..., Figure] | str
+    make: Callable[..., Figure | Path | None] | str
     args: tuple[object, ...] = ()
     kwargs: Mapping[str, object] = field(default_factory=dict)
     optional: bool = True
@@ -74,12 +78,14 @@ def draw_job(folder: Path, job: FigureJob) -> tuple[Path | None, str | None]:
         module, _, name = make.partition(":")
         make = getattr(importlib.import_module(module), name)
     try:
-        fig = make(*job.args, **dict(job.kwargs))
+        made = make(*job.args, **dict(job.kwargs))
     except ParameterError as exc:
         if not job.optional:
             raise
         return None, f"figure {job.name} not drawn: {exc}"
-    return save_figure(fig, folder, job.name, dpi=job.dpi), None
+    if made is None or isinstance(made, Path):  # it wrote its own file (the replay page)
+        return made, None
+    return save_figure(made, folder, job.name, dpi=job.dpi), None
 
 
 def save_figure(fig: Figure, folder: str | Path, name: str, *, dpi: int = 120) -> Path:
@@ -275,6 +281,22 @@ class Drawing:
         self._children.append((proc, pipes[0][0]))
         self._others = [recv for recv, _ in pipes[1:]]
 
+    @classmethod
+    def _adopt(
+        cls,
+        folder: Path,
+        jobs: Sequence[FigureJob],
+        first: tuple[BaseProcess, Connection],
+        others: list[Connection],
+        queue: _Queue,
+    ) -> Drawing:
+        """Return a Drawing of processes already running (:meth:`DrawingAhead.draw`)."""
+        drawing = cls(folder, jobs, processes=0)
+        drawing._children = [first]
+        drawing._others = others
+        drawing._queue = queue
+        return drawing
+
     def wait(self) -> list[Path | None]:
         """Wait for every figure; return their paths in job order (None: skipped, logged).
 
@@ -338,3 +360,166 @@ class Drawing:
             recv.close()
         self._children = []
         self._others = []
+
+
+class _SharedPickler(pickle.Pickler):
+    """Pickles the objects of ``shared`` (by identity) as their keys: the receiver has them."""
+
+    def __init__(self, file: io.BytesIO, keys: Mapping[int, str]) -> None:
+        super().__init__(file, protocol=pickle.HIGHEST_PROTOCOL)
+        self._keys = keys
+
+    def persistent_id(self, obj: object) -> str | None:
+        return self._keys.get(id(obj))
+
+
+class _SharedUnpickler(pickle.Unpickler):
+    """Reads what :class:`_SharedPickler` wrote, the shared objects taken from ``shared``."""
+
+    def __init__(self, file: io.BytesIO, shared: Mapping[str, object]) -> None:
+        super().__init__(file)
+        self._shared = shared
+
+    def persistent_load(self, pid: object) -> object:
+        return self._shared[str(pid)]
+
+
+def _ahead_child(
+    commands: Connection,
+    parent_end: Connection,
+    sends: list[Connection],
+    queue: _Queue,
+    parent: int,
+    shared: Mapping[str, object],
+    modules: Sequence[str],
+    warm: Callable[[], object] | None,
+) -> None:
+    """Body of a drawing process forked ahead: import, warm, wait for the jobs, draw them.
+
+    The modules and ``warm()`` (e.g. reading the robot's meshes) are done while
+    the run still computes; then the jobs come through ``commands`` (pickled,
+    the shared objects by key) and it draws as :func:`_first_child`. An end of
+    ``commands`` without jobs (the run ended otherwise) ends it.
+    """
+    parent_end.close()  # the copy forked with it: else ``commands`` never ends
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    for module in modules:
+        with contextlib.suppress(Exception):  # raised where the job is drawn, if at all
+            importlib.import_module(module)
+    if warm is not None:
+        with contextlib.suppress(Exception):  # raised again where the job needs it
+            warm()
+    try:
+        data = commands.recv_bytes()
+    except EOFError:
+        os._exit(0)
+    commands.close()
+    folder, jobs = _SharedUnpickler(io.BytesIO(data), shared).load()
+    n = max(1, min(len(sends), len(jobs)))
+    for unused in sends[n:]:  # fewer jobs than processes: those report nothing
+        unused.send(("ok", []))
+        unused.close()
+    _first_child(sends[:n], folder, jobs, queue, parent)
+
+
+class DrawingAhead:
+    """Drawing processes forked before the run's results exist, which prepare while it computes.
+
+    The first drawing process imports ``modules`` (matplotlib and the plots,
+    about 0.4 s; the replay's meshcat) and calls ``warm()`` (e.g. reads the
+    robot's meshes, 0.27 s for ur5) on another core while the run solves and
+    certifies; :meth:`draw` then hands it the jobs, pickled with the
+    ``shared`` objects (those it inherited, such as the robot) sent by
+    reference, and returns the :class:`Drawing` to wait for. Jobs that do not
+    pickle, or a platform without ``fork``, are drawn by a plain
+    :class:`Drawing`.
+
+    Parameters
+    ----------
+    shared : sequence of object
+        Objects the jobs will reference that exist now (the robot, the
+        problem): sent by reference, so the meshes read by ``warm`` are used.
+    modules : sequence of str
+        Modules to import ahead.
+    warm : callable, optional
+        Called in the drawing process once the modules are imported.
+    processes : int
+        The most drawing processes (:class:`Drawing`).
+    """
+
+    def __init__(
+        self,
+        shared: Sequence[object],
+        modules: Sequence[str] = (),
+        warm: Callable[[], object] | None = None,
+        processes: int = DRAWING_PROCESSES,
+    ) -> None:
+        self._keys = {id(obj): f"shared{i}" for i, obj in enumerate(shared)}
+        self._shared = list(shared)  # alive while pickled by identity
+        self._processes = processes
+        self._proc: BaseProcess | None = None
+        if processes < 1 or not _forks():
+            return
+        ctx = multiprocessing.get_context("fork")
+        self._queue = _Queue(ctx, processes)
+        pipes = [ctx.Pipe(duplex=False) for _ in range(processes)]
+        commands, self._commands = ctx.Pipe(duplex=False)
+        by_key = {key: obj for obj in shared for key in [self._keys[id(obj)]]}
+        try:
+            proc = ctx.Process(
+                target=_ahead_child,
+                args=(commands, self._commands, [send for _, send in pipes], self._queue,
+                      os.getpid(), by_key, tuple(modules), warm),
+                name="youbot-opt figures",
+                daemon=True,
+            )  # fmt: skip
+            proc.start()
+        except BaseException:
+            for recv, send in pipes:
+                recv.close()
+                send.close()
+            commands.close()
+            self._commands.close()
+            raise
+        commands.close()
+        for _, send in pipes:
+            send.close()
+        self._proc = proc
+        self._recvs = [recv for recv, _ in pipes]
+
+    def draw(self, folder: Path, jobs: Sequence[FigureJob]) -> Drawing:
+        """Hand ``jobs`` to the drawing processes; return the :class:`Drawing` to wait for.
+
+        Called once. Without a process ahead (none started, or the jobs do not
+        pickle), a plain :class:`Drawing` draws them.
+        """
+        jobs = list(jobs)
+        if self._proc is None or not jobs:
+            self.stop()
+            return Drawing(folder, jobs, self._processes)
+        buffer = io.BytesIO()
+        try:
+            _SharedPickler(buffer, self._keys).dump((folder, jobs))
+        except Exception as exc:  # noqa: BLE001 - e.g. a local function as a job: fork now
+            _log.debug("figures drawn by processes forked now: the jobs do not pickle (%s)", exc)
+            self.stop()
+            return Drawing(folder, jobs, self._processes)
+        proc = self._proc
+        self._commands.send_bytes(buffer.getvalue())
+        self._commands.close()
+        self._proc = None
+        return Drawing._adopt(folder, jobs, (proc, self._recvs[0]), self._recvs[1:], self._queue)
+
+    def stop(self) -> None:
+        """End the drawing process if no jobs were handed to it (the run ended otherwise)."""
+        if self._proc is None:
+            return
+        proc, self._proc = self._proc, None
+        self._commands.close()  # its end of input: it exits
+        proc.join(timeout=5.0)
+        if proc.is_alive():
+            proc.terminate()
+            proc.join()
+        for recv in self._recvs:
+            recv.close()

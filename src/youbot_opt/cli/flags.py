@@ -105,6 +105,7 @@ def load_robot(args: argparse.Namespace, *, damping: float | None = None) -> Rob
         tip_frame=args.tip_frame,
         damping=damping,
         payload=payload_of(args),
+        defer_visual=True,  # meshes read where the replay is drawn (another process)
         **loading_options(args),
     )
     flush_warnings()  # the loader's warnings, grouped, before the run

@@ -19,10 +19,17 @@ import time
 
 from youbot_opt._typing import JSONDict
 from youbot_opt._version import __version__
-from youbot_opt.cli.output import open_folder, report_outputs, write_solve_outputs
+from youbot_opt.cli.drawing import DrawingAhead
+from youbot_opt.cli.output import (
+    open_folder,
+    report_outputs,
+    solve_drawing_ahead,
+    write_solve_outputs,
+)
 from youbot_opt.cli.refinement import refine_result
 from youbot_opt.cli.trajopt_text import certificate_of, format_result
 from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.trajopt.problem import TrajOptProblem
 from youbot_opt.trajopt.solver import TrajOptSolver
 
 __all__ = ["run"]
@@ -34,7 +41,19 @@ def run(args: argparse.Namespace) -> int:
     grid = "refined from 50 knots" if args.refine else "50 fixed knots"
     print(f"youbot_opt {__version__}: study-1 base case (beta = 0.5, {grid}, trapezoidal, "
           "straight-line start)\n")  # fmt: skip
-    solver = TrajOptSolver(study1_problem(50), "trapezoidal")
+    problem = study1_problem(50)
+    ahead = solve_drawing_ahead(problem.robot, problem, figures=not args.no_figures)
+    try:
+        return _main_job(args, problem, ahead, tic)
+    finally:
+        ahead.stop()  # when no output was drawn (handed over, it is the drawing's)
+
+
+def _main_job(
+    args: argparse.Namespace, problem: TrajOptProblem, ahead: DrawingAhead, tic: float
+) -> int:
+    """Solve, refine, print and write the run folder (``ahead`` draws its figures and replay)."""
+    solver = TrajOptSolver(problem, "trapezoidal")
     result = solver.solve(beta=0.5)
     nlp = solver.nlp
     print(f"NLP build     {solver.build_time:.3f} s "
@@ -61,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     )
     folder = open_folder("main", args.out)
     files = write_solve_outputs(
-        folder, result, summary, refinement=record, figures=not args.no_figures
+        folder, result, summary, refinement=record, figures=not args.no_figures, ahead=ahead
     )
     print()
     report_outputs(folder, files, as_json=False)

@@ -30,13 +30,15 @@ from youbot_opt.exceptions import ParameterError, YoubotOptWarning
 if TYPE_CHECKING:  # matplotlib, the plots and the replay load when a run draws (issue 27)
     from matplotlib.figure import Figure
 
-    from youbot_opt.cli.drawing import FigureJob
+    from youbot_opt.cli.drawing import DrawingAhead, FigureJob
+    from youbot_opt.robot.model import RobotModel
     from youbot_opt.trajopt.multistart import MultistartResult
     from youbot_opt.trajopt.refine import Refinement
     from youbot_opt.trajopt.result import TrajOptResult
 
 __all__ = [
     "DEFAULT_ROOT",
+    "REPLAY",
     "STARTS_FILE",
     "ProgressLine",
     "draw_figure",
@@ -48,6 +50,7 @@ __all__ = [
     "replay_html",
     "report_outputs",
     "run_folder",
+    "solve_drawing_ahead",
     "solve_figures",
     "write_solve_outputs",
     "write_summary",
@@ -57,6 +60,9 @@ _log = logging.getLogger(__name__)
 
 DEFAULT_ROOT = Path("youbot_opt_runs")
 """Parent of the per-run folders made when no ``--out`` is given (relative to the cwd)."""
+
+REPLAY = "replay.html"
+"""The replay page's file name in a run folder."""
 
 STARTS_FILE = "starts.jsonl"
 """A multistart run's per-start rows, one JSON object a line (``summary.json``'s ``starts_file``).
@@ -276,13 +282,15 @@ def write_solve_outputs(
     refinement: Refinement | None = None,
     extra_figures: Sequence[FigureJob] = (),
     figures: bool = True,
+    ahead: DrawingAhead | None = None,
 ) -> list[Path]:
     """Write a solve's result, figures, replay and summary into ``folder``.
 
-    The figures are drawn in forked processes (:class:`~youbot_opt.cli.drawing.Drawing`)
-    while the result and the replay are written here; every file exists when
-    this returns, and a figure of an earlier run in a reused folder that this
-    run does not write is removed (:func:`remove_stale_figures`).
+    The figures and the replay page are drawn in forked processes
+    (:class:`~youbot_opt.cli.drawing.Drawing`; the replay first: it reads the
+    meshes) while the result is written here; every file exists when this
+    returns, and a figure of an earlier run in a reused folder that this run
+    does not write is removed (:func:`remove_stale_figures`).
 
     Parameters
     ----------
@@ -303,28 +311,34 @@ def write_solve_outputs(
     figures : bool
         False (``--no-figures``): no figure at all, only the result, the
         replay and the summary.
+    ahead : DrawingAhead, optional
+        Drawing processes started before the solve (:func:`solve_drawing_ahead`),
+        which draw the figures and the replay; by default forked here.
 
     Returns
     -------
     list of Path
         The files written, ``summary.json`` last.
     """
-    from youbot_opt.cli.drawing import Drawing
+    from youbot_opt.cli.drawing import Drawing, FigureJob
     from youbot_opt.trajopt.io import save_result
 
     jobs = [*solve_figures(result, multistart, refinement), *extra_figures] if figures else []
-    drawing = Drawing(folder, jobs)  # drawn in other processes from here on
+    here = "youbot_opt.cli.output:"
+    if multistart is not None:
+        jobs.insert(0, FigureJob(REPLAY, here + "optima_replay", (folder, multistart), {}, False))
+    elif result.trajectory is not None:  # first: the longest job (meshes read, meshcat loaded)
+        labels = [f"f = {result.objective:.5g}"]
+        jobs.insert(
+            0, FigureJob(REPLAY, here + "replay_html", (folder, [result], labels), {}, False)
+        )
+    drawing = Drawing(folder, jobs) if ahead is None else ahead.draw(folder, jobs)
     try:
         npz = save_result(result, folder / "result.npz", refinement=refinement)
-        if multistart is not None:
-            replay = optima_replay(folder, multistart)
-        else:
-            replay = None
-            if result.trajectory is not None:
-                replay = replay_html(folder, [result], [f"f = {result.objective:.5g}"])
         drawn = dict(zip([j.name for j in jobs], drawing.wait(), strict=True))
     finally:
         drawing.stop()
+    replay = drawn.pop(REPLAY, None)
     if refinement is not None:
         summary["refinement"] = refinement.summary()
     extra = {j.name for j in extra_figures}
@@ -336,6 +350,21 @@ def write_solve_outputs(
     summary["files"] = [f.name for f in written] + ["summary.json"]
     written.append(write_summary(folder, summary))
     return written
+
+
+def solve_drawing_ahead(robot: RobotModel, problem: object, *, figures: bool) -> DrawingAhead:
+    """Start the drawing processes of a solve's outputs before it solves (:class:`DrawingAhead`).
+
+    They import the plots (unless ``figures`` is False) and the replay's
+    modules, and read the robot's meshes, on another core while the run
+    computes; ``problem`` (and ``robot``) are sent to them by reference.
+    """
+    from youbot_opt.cli.drawing import DrawingAhead
+
+    modules = ["youbot_opt.viz.meshcat.replay", "youbot_opt.viz.meshcat.results"]
+    if figures:
+        modules.insert(0, "youbot_opt.viz.plots.trajopt")
+    return DrawingAhead([robot, problem], modules, warm=lambda: robot.visual_model)
 
 
 def optima_replay(
@@ -374,13 +403,11 @@ def replay_html(
         problem = kept[0][0].problem
         scene = None if problem.clearance is None else problem.clearance.scene
         return replay_or_warn(
-            lambda: export_html(
-                problem.robot, traj.t, traj.q, folder / "replay.html", obstacles=scene
-            )
+            lambda: export_html(problem.robot, traj.t, traj.q, folder / REPLAY, obstacles=scene)
         )
     return replay_or_warn(
         lambda: export_results_html(
-            [r for r, _ in kept], folder / "replay.html", labels=[lab for _, lab in kept]
+            [r for r, _ in kept], folder / REPLAY, labels=[lab for _, lab in kept]
         )
     )
 

@@ -25,7 +25,7 @@ import numpy as np
 from youbot_opt._checks import check_beta
 from youbot_opt._files import json_ready
 from youbot_opt._typing import JSONDict
-from youbot_opt.cli.drawing import FigureJob
+from youbot_opt.cli.drawing import DrawingAhead, FigureJob
 from youbot_opt.cli.flags import (
     clearance_of,
     ipopt_options,
@@ -37,6 +37,7 @@ from youbot_opt.cli.output import (
     ProgressLine,
     open_folder,
     report_outputs,
+    solve_drawing_ahead,
     write_solve_outputs,
     write_summary,
 )
@@ -189,6 +190,15 @@ def run(args: argparse.Namespace) -> int:
         n_starts=args.starts,
         max_knots=args.max_knots if args.refine else 0,
     )  # noqa: E501
+    ahead = solve_drawing_ahead(problem.robot, problem, figures=not args.no_figures)
+    try:
+        return _solve(args, problem, ahead)
+    finally:
+        ahead.stop()  # when no output was drawn (handed over, it is the drawing's)
+
+
+def _solve(args: argparse.Namespace, problem: TrajOptProblem, ahead: DrawingAhead) -> int:
+    """Solve, refine, print and write the run folder (``ahead`` draws its figures and replay)."""
     solver = TrajOptSolver(problem, transcription(args), ipopt_options(args), args.backend)
     extra: JSONDict = {"build_time_s": solver.build_time}
     ms = None
@@ -254,7 +264,7 @@ def run(args: argparse.Namespace) -> int:
         more.append(FigureJob("tool.png", f"{_PLOTS}.tool:plot_tool", (result,), optional=False))
     files = write_solve_outputs(
         folder, result, summary, ms if has_optimum else None, refinement=record,
-        extra_figures=more, figures=not args.no_figures,
+        extra_figures=more, figures=not args.no_figures, ahead=ahead,
     )  # fmt: skip
     if args.json:
         print(json.dumps(json_ready(summary)))

@@ -13,8 +13,6 @@ Example: ``q_pin = to_pin_configuration(model, theta)``; ``pin.aba(model, data, 
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
@@ -187,4 +185,4 @@ def angle_robot(robot: RobotModel) -> RobotModel:
     """
     if not continuous_joints(robot.model):
         return robot
-    return dataclasses.replace(robot, model=angle_model(robot.model))
+    return robot.with_model(angle_model(robot.model))

@@ -12,6 +12,7 @@ caller's.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -37,7 +38,12 @@ from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.params import YOUBOT_PLANAR, ArmParameters
 from youbot_opt.robot.payload import Payload
 from youbot_opt.robot.urdf import TIP_FRAME, urdf_string
-from youbot_opt.robot.urdf_check.loader import load_urdf_strict
+from youbot_opt.robot.urdf_check.loader import (
+    LoadedURDF,
+    VisualBuilder,
+    load_urdf_strict,
+    locked_reference,
+)
 from youbot_opt.robot.urdf_check.size import SizeLimits
 
 __all__ = ["MAX_JOINT_DAMPING", "load_model"]
@@ -63,8 +69,12 @@ def _build_pinocchio_models(
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
     size_limits: SizeLimits | None = None,
-) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
-    """Build (model, visual, collision) from a URDF file; the single Pinocchio entry point."""
+    defer_visual: bool = False,
+) -> tuple[pin.Model, pin.GeometryModel | VisualBuilder, pin.GeometryModel]:
+    """Build (model, visual, collision) from a URDF file; the single Pinocchio entry point.
+
+    Under ``defer_visual`` the visual geometry is its :class:`VisualBuilder`.
+    """
     if not path.is_file():
         raise RobotNotFound(
             f"URDF file {str(path)!r} does not exist", path=str(path), available=available_robots()
@@ -72,10 +82,15 @@ def _build_pinocchio_models(
     # The strict loader refuses malformed XML, DOCTYPE/entities, resources outside
     # ``package_dirs`` and physically invalid models, each with a URDFError (a ModelError).
     loaded = load_urdf_strict(
-        path, package_dirs, strict=strict, locked=locked, size_limits=size_limits
+        path,
+        package_dirs,
+        strict=strict,
+        locked=locked,
+        size_limits=size_limits,
+        defer_visual=defer_visual,
     )
-    model, visual, collision = loaded.model, loaded.visual_model, loaded.collision_model
-    return model, visual, collision
+    visual = LoadedURDF.visual_model.held(loaded)  # deferred: its builder, not read here
+    return loaded.model, visual, loaded.collision_model
 
 
 def _check_damping(damping: float | None) -> float | None:
@@ -167,24 +182,22 @@ def _check_lock(
 
 def _lock(
     model: pin.Model,
-    visual: pin.GeometryModel,
+    visual: pin.GeometryModel | VisualBuilder,
     collision: pin.GeometryModel,
     locked: tuple[tuple[str, float], ...],
-) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
-    """Build Pinocchio's reduced model with the ``locked`` joints held at their positions."""
+) -> tuple[pin.Model, pin.GeometryModel | VisualBuilder, pin.GeometryModel]:
+    """Build Pinocchio's reduced model with the ``locked`` joints held at their positions.
+
+    A visual geometry not built yet (a :class:`VisualBuilder`) is reduced when built.
+    """
     if not locked:
         return model, visual, collision
-    q_ref = pin.neutral(model)
-    ids = []
-    for name, value in locked:
-        jid = model.getJointId(name)
-        joint = model.joints[jid]
-        if joint.nq == 1:
-            q_ref[joint.idx_q] = value
-        else:  # continuous: (cos, sin) of the angle
-            q_ref[joint.idx_q : joint.idx_q + 2] = (math.cos(value), math.sin(value))
-        ids.append(jid)
-    reduced, (vis, col) = pin.buildReducedModel(model, [visual, collision], ids, q_ref)
+    ids, q_ref = locked_reference(model, locked)
+    if isinstance(visual, VisualBuilder):
+        reduced, (col,) = pin.buildReducedModel(model, [collision], ids, q_ref)
+        vis: pin.GeometryModel | VisualBuilder = dataclasses.replace(visual, locked=locked)
+    else:
+        reduced, (vis, col) = pin.buildReducedModel(model, [visual, collision], ids, q_ref)
     reduced.name = model.name
     return reduced, vis, col
 
@@ -199,6 +212,7 @@ def load_model(
     lock_joints: Mapping[str, float] | None = None,
     size_limits: SizeLimits | None = None,
     payload: Payload | None = None,
+    defer_visual: bool = False,
 ) -> RobotModel:
     """Load a robot model.
 
@@ -252,6 +266,13 @@ def load_model(
     payload : Payload, optional
         A payload the robot carries (:meth:`RobotModel.with_payload`), in its
         frame (the tip frame when the payload names none).
+    defer_visual : bool
+        False (default): the visual geometry (meshes to draw) is read here.
+        True: read on the first read of :attr:`RobotModel.visual_model` (a URDF's;
+        an MJCF file's is read here): a run that draws nothing, or draws in
+        another process, does not read them (ur5's: 0.27 s). Every mesh
+        reference is checked here either way; the files must still be there
+        when the geometry is read.
 
     Returns
     -------
@@ -300,7 +321,12 @@ def load_model(
             path = Path(tmp) / _BUILT_FILE
             path.write_text(text, encoding="utf-8")
             built = _build_pinocchio_models(
-                path, extra, strict=strict, locked=locked_names, size_limits=sizes
+                path,
+                extra,
+                strict=strict,
+                locked=locked_names,
+                size_limits=sizes,
+                defer_visual=defer_visual,
             )
         name, urdf_path, dirs, tip = source.name, None, extra, TIP_FRAME
     elif isinstance(source, str) and (found := find_robot(source)) is not None:
@@ -311,7 +337,12 @@ def load_model(
         else:
             dirs = (*example_package_dirs(urdf_path), *extra)
         built = _build_pinocchio_models(
-            urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+            urdf_path,
+            dirs,
+            strict=strict,
+            locked=locked_names,
+            size_limits=sizes,
+            defer_visual=defer_visual,
         )
         name = catalogue_name = source
         mimic_source = urdf_path
@@ -340,7 +371,12 @@ def load_model(
             mimic_source = None  # MJCF has no <mimic>; equality couplings are refused
         else:
             built = _build_pinocchio_models(
-                urdf_path, dirs, strict=strict, locked=locked_names, size_limits=sizes
+                urdf_path,
+                dirs,
+                strict=strict,
+                locked=locked_names,
+                size_limits=sizes,
+                defer_visual=defer_visual,
             )
             mimic_source = urdf_path
         name, tip = built[0].name or urdf_path.stem, None

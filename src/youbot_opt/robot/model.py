@@ -16,7 +16,8 @@ from __future__ import annotations
 import hashlib
 import threading
 import weakref
-from dataclasses import dataclass, fields, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Literal, NamedTuple
 
@@ -31,6 +32,8 @@ from youbot_opt.robot.payload import Payload, add_payload
 
 __all__ = [
     "RobotModel",
+    "GeometryBuilder",
+    "LazyGeometry",
     "JointBounds",
     "JointUnits",
     "REVOLUTE_UNITS",
@@ -153,7 +156,76 @@ def _read_only(a: ArrayLike) -> Array:
     return out
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+GeometryBuilder = Callable[[], pin.GeometryModel]
+"""A function (picklable: a frozen dataclass with ``__call__``) that builds a geometry model."""
+
+_BUILD_LOCK = threading.RLock()
+
+
+class LazyGeometry:
+    """A dataclass field holding a ``pinocchio.GeometryModel``, or the function that builds it.
+
+    Assigned a :data:`GeometryBuilder`, the field calls it on its first read and
+    keeps what it returns: a robot's visual meshes (0.27 s for ur5's ``.dae``
+    files) are read only by the runs that draw. Assigned a ``GeometryModel``, it
+    holds it. The field is the class attribute; the value lives in the
+    instance's ``__dict__`` (so the dataclass may not use ``slots``).
+
+    Parameters
+    ----------
+    name : str
+        The field's name.
+    """
+
+    def __init__(self, name: str) -> None:
+        self._key = f"{name}_value"
+        self._name = name
+
+    def __get__(self, obj: object, objtype: type | None = None) -> pin.GeometryModel:
+        if obj is None:
+            return self  # the class's attribute: the field's default marker
+        value = obj.__dict__[self._key]
+        if isinstance(value, pin.GeometryModel):
+            return value
+        with _BUILD_LOCK:  # two threads reading it first build it once
+            value = obj.__dict__[self._key]
+            if not isinstance(value, pin.GeometryModel):
+                value = value()
+                if not isinstance(value, pin.GeometryModel):
+                    raise ParameterError(
+                        f"the builder of {self._name} returned {type(value).__name__}, "
+                        "expected a pinocchio.GeometryModel",
+                        name=self._name,
+                    )
+                obj.__dict__[self._key] = value
+        return value
+
+    def __set__(self, obj: object, value: pin.GeometryModel | GeometryBuilder) -> None:
+        if value is self:  # not given: no geometry
+            value = pin.GeometryModel()
+        if not (isinstance(value, pin.GeometryModel) or callable(value)):
+            raise ParameterError(
+                f"{self._name} must be a pinocchio.GeometryModel or a function building one, "
+                f"got {type(value).__name__}",
+                name=self._name,
+                value=value,
+            )
+        obj.__dict__[self._key] = value
+
+    def held(self, obj: object) -> pin.GeometryModel | GeometryBuilder:
+        """Return what ``obj`` holds: the model, or its builder if it was never read."""
+        value: pin.GeometryModel | GeometryBuilder = obj.__dict__[self._key]
+        return value
+
+    def is_built(self, obj: object) -> bool:
+        """Return whether ``obj``'s geometry exists (given, or built by a read)."""
+        return isinstance(obj.__dict__[self._key], pin.GeometryModel)
+
+
+_VISUAL_FIELD = LazyGeometry("visual_model")
+
+
+@dataclass(frozen=True, kw_only=True)
 class RobotModel:
     """A loaded robot: Pinocchio model, geometry, tip frame and SI limits.
 
@@ -164,7 +236,10 @@ class RobotModel:
     model : pinocchio.Model
         Kinematic and inertial model; treat as read-only.
     visual_model : pinocchio.GeometryModel
-        Geometry to draw.
+        Geometry to draw. It may be given as a :data:`GeometryBuilder`, called on
+        the first read (:class:`LazyGeometry`): :func:`~youbot_opt.robot.load.load_model`
+        does so, and a run that draws nothing never reads the meshes. Not
+        compared by ``==`` (what a robot draws does not change what it is).
     collision_model : pinocchio.GeometryModel
         Geometry for collision checks.
     urdf_path : pathlib.Path or None
@@ -196,13 +271,14 @@ class RobotModel:
     every task and receives back with every result. The process that pickled
     it puts it back on unpickling (results come back whole); any other process
     gets a robot with an empty :attr:`visual_model` (workers never draw; to draw
-    elsewhere, load the robot again). The collision geometry travels: a
-    clearance needs it.
+    elsewhere, load the robot again). A visual geometry never read travels as
+    its builder instead (a few kB), and is built where it is first read. The
+    collision geometry travels: a clearance needs it.
     """
 
     name: str
     model: pin.Model
-    visual_model: pin.GeometryModel
+    visual_model: pin.GeometryModel = field(default=_VISUAL_FIELD, compare=False)  # noqa: RUF009
     collision_model: pin.GeometryModel
     urdf_path: Path | None
     package_dirs: tuple[Path, ...]
@@ -216,10 +292,49 @@ class RobotModel:
         self.frame_id(self.tip_frame)  # raises FrameNotFound listing the frames
 
     def __reduce__(self) -> tuple[object, ...]:
-        """Pickle without the visual geometry; this process restores it (see Notes)."""
-        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        """Pickle without the visual geometry; this process restores it (see Notes).
+
+        A visual geometry never read travels as its builder (a few kB: the
+        receiver builds it if it draws).
+        """
+        state = self._state()
+        if not _VISUAL_FIELD.is_built(self):
+            return (_unpickle_robot, (state, ""))
         state["visual_model"] = pin.GeometryModel()
         return (_unpickle_robot, (state, _hold_visual(self.visual_model)))
+
+    def _state(self) -> dict[str, object]:
+        """Return the fields by name, the visual geometry as held (unbuilt if never read)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "visual_model"}
+        state["visual_model"] = _VISUAL_FIELD.held(self)
+        return state
+
+    def with_model(self, model: pin.Model) -> RobotModel:
+        """Return this robot with another Pinocchio model of the same joints and frames.
+
+        The geometry is kept as it is (a visual geometry never read stays unread),
+        which :func:`dataclasses.replace` would not do.
+
+        Parameters
+        ----------
+        model : pinocchio.Model
+            The model (e.g. with a payload's inertia, or other coordinates).
+
+        Returns
+        -------
+        RobotModel
+            The copy.
+
+        Raises
+        ------
+        ParameterError
+            If ``model`` is not a ``pinocchio.Model``.
+        """
+        if not isinstance(model, pin.Model):
+            raise ParameterError(
+                f"model must be a pinocchio.Model, got {type(model).__name__}", name="model"
+            )
+        return RobotModel(**{**self._state(), "model": model})  # type: ignore[arg-type]
 
     def with_payload(self, payload: Payload) -> RobotModel:
         """Return this robot carrying ``payload`` (:func:`~youbot_opt.robot.payload.add_payload`).
@@ -256,7 +371,8 @@ class RobotModel:
             )
         frame = self.tip_frame if payload.frame is None else payload.frame
         model = add_payload(self.model, self.frame_id(frame), payload)
-        return replace(self, model=model, payload=replace(payload, frame=frame))
+        state = {**self._state(), "model": model, "payload": replace(payload, frame=frame)}
+        return RobotModel(**state)  # type: ignore[arg-type]
 
     @property
     def nq(self) -> int:

@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import tempfile
 import warnings
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +37,7 @@ from youbot_opt.exceptions import (
     URDFError,
     YoubotOptWarning,
 )
+from youbot_opt.robot.model import LazyGeometry
 from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
 from youbot_opt.robot.urdf_check.geometry_cache import mesh_loader
 from youbot_opt.robot.urdf_check.resources import (
@@ -58,6 +61,8 @@ from youbot_opt.robot.urdf_check.xml import Site, fail, parse_xml_strict, root_o
 
 __all__ = [
     "LoadedURDF",
+    "VisualBuilder",
+    "locked_reference",
     "MAX_URDF_BYTES",
     "load_urdf_strict",
     "check_urdf_text",
@@ -87,7 +92,7 @@ _LIMIT_MATCH_RTOL = 1e-12
 _FINITE_RULE = "every <origin> is in range: placements, spatial inertias and M(q) are finite"
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, kw_only=True)
 class LoadedURDF:
     """A URDF file that passed every rule, loaded into Pinocchio.
 
@@ -96,7 +101,9 @@ class LoadedURDF:
     model : pinocchio.Model
         Kinematic and inertial model (fixed base, mimic joints as ordinary joints).
     visual_model : pinocchio.GeometryModel
-        Visual geometries; mesh paths are the checked absolute paths.
+        Visual geometries; mesh paths are the checked absolute paths. Under
+        ``load_urdf_strict(defer_visual=True)`` built (its meshes read) on its
+        first read, by a :class:`VisualBuilder`.
     collision_model : pinocchio.GeometryModel
         Collision geometries; mesh paths are the checked absolute paths.
     path : Path
@@ -107,10 +114,129 @@ class LoadedURDF:
     """
 
     model: pin.Model
-    visual_model: pin.GeometryModel
+    visual_model: pin.GeometryModel = field(  # noqa: RUF009
+        default=LazyGeometry("visual_model"), compare=False
+    )
     collision_model: pin.GeometryModel
     path: Path
     resources: tuple[Path, ...] = ()
+
+
+_T = TypeVar("_T")
+
+
+def _built_by_pinocchio(name: str, build: Callable[[], _T]) -> _T:
+    """Return ``build()``, Pinocchio's parser output logged; its refusal an InvalidModelError."""
+    error: Exception | None = None
+    with _c_stderr_captured() as report:
+        try:
+            built = build()
+        except (ValueError, RuntimeError) as e:
+            error = e
+    parser_output = report[0] if report else ""
+    if error is not None:
+        problem = (
+            f"Pinocchio refused the checked description: {error}; "
+            f"its parser said: {parser_output or '-'}"
+        )
+        raise fail(
+            InvalidModelError, Site(name, "<robot>", None), problem, "Pinocchio builds the model"
+        ) from error
+    if parser_output:
+        logger.warning("Pinocchio's URDF parser reported for %s: %s", name, parser_output)
+    return built
+
+
+def locked_reference(
+    model: pin.Model, locked: Sequence[tuple[str, float]]
+) -> tuple[list[int], np.ndarray]:
+    """Return the joint ids of ``locked`` and the configuration holding them, for a reduced model.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The full model.
+    locked : sequence of (str, float)
+        Joint names and positions in [rad] (or [m]); a continuous joint's angle.
+
+    Returns
+    -------
+    ids : list of int
+        The joints' indices in ``model``.
+    q_ref : ndarray, shape (model.nq,)
+        The neutral configuration with each locked joint at its position.
+    """
+    q_ref = pin.neutral(model)
+    ids = []
+    for name, value in locked:
+        jid = model.getJointId(name)
+        joint = model.joints[jid]
+        if joint.nq == 1:
+            q_ref[joint.idx_q] = value
+        else:  # continuous: (cos, sin) of the angle
+            q_ref[joint.idx_q : joint.idx_q + 2] = (math.cos(value), math.sin(value))
+        ids.append(jid)
+    return ids, q_ref
+
+
+@dataclass(frozen=True)
+class VisualBuilder:
+    """Builds the visual geometry of a checked URDF (its meshes read), when first drawn.
+
+    :func:`load_urdf_strict` checks every reference at load; this reads the
+    meshes. A picklable value (text and paths): a robot sent to another process
+    carries it, not the meshes.
+
+    Attributes
+    ----------
+    text : str
+        The checked description, each mesh and texture reference replaced by its
+        checked absolute path.
+    package_dirs : tuple of str
+        The folders references resolve in.
+    meshes : tuple of str
+        The mesh files the description references (checked for changes by the
+        mesh cache, :func:`~youbot_opt.robot.urdf_check.geometry_cache.mesh_loader`).
+    path : str
+        The file, for messages.
+    locked : tuple of (str, float)
+        Joints held at a position in [rad] or [m]: the geometry of the reduced
+        model (:func:`locked_reference`).
+    """
+
+    text: str
+    package_dirs: tuple[str, ...]
+    meshes: tuple[str, ...]
+    path: str
+    locked: tuple[tuple[str, float], ...] = ()
+
+    def __call__(self) -> pin.GeometryModel:
+        """Build the visual geometry model (of the reduced model when joints are locked).
+
+        Raises
+        ------
+        InvalidModelError
+            If Pinocchio refuses a visual mesh (a URDFError naming the file).
+        """
+
+        def build() -> tuple[pin.Model, pin.GeometryModel]:
+            with mesh_loader(self.meshes) as loader:
+                model = pin.buildModelFromXML(self.text)
+                visual = pin.buildGeomFromUrdfString(
+                    model,
+                    self.text,
+                    pin.GeometryType.VISUAL,
+                    package_dirs=list(self.package_dirs),
+                    mesh_loader=loader,
+                )
+            return model, visual
+
+        model, visual = _built_by_pinocchio(self.path, build)
+        if not self.locked:
+            return visual
+        ids, q_ref = locked_reference(model, self.locked)
+        _, (reduced,) = pin.buildReducedModel(model, [visual], ids, q_ref)
+        return reduced
 
 
 def _read_and_check(
@@ -431,6 +557,7 @@ def load_urdf_strict(
     strict: bool = True,
     locked: frozenset[str] = frozenset(),
     size_limits: SizeLimits | None = None,
+    defer_visual: bool = False,
 ) -> LoadedURDF:
     """Check a URDF file, load it into Pinocchio and check the result.
 
@@ -473,6 +600,11 @@ def load_urdf_strict(
         Size limits of the file (counts of joints, degrees of freedom, chain
         length, XML nesting and elements); by default the environment
         variables' or the module constants (:class:`SizeLimits`).
+    defer_visual : bool
+        False (default): the visual geometry is built here. True: it is built
+        (its meshes read) on its first read, by a :class:`VisualBuilder`; every
+        reference is checked here either way, and the mesh files must still be
+        there when it is read.
 
     Returns
     -------
@@ -505,34 +637,22 @@ def load_urdf_strict(
         elem.set(attr, os.fspath(real))
     text = etree.tostring(root_of(tree, name), encoding="unicode")
     dirs = [os.fspath(d) for d in allowed_roots(package_dirs)]
-    error: Exception | None = None
-    meshes = [real for elem, _, real in references if elem.tag == "mesh"]
-    with _c_stderr_captured() as report, mesh_loader(meshes) as loader:
-        try:
+    meshes = tuple(os.fspath(real) for elem, _, real in references if elem.tag == "mesh")
+
+    def build() -> tuple[pin.Model, pin.GeometryModel]:
+        with mesh_loader(meshes) as loader:
             model = pin.buildModelFromXML(text)
-            visual = pin.buildGeomFromUrdfString(
-                model, text, pin.GeometryType.VISUAL, package_dirs=dirs, mesh_loader=loader
-            )
             collision = pin.buildGeomFromUrdfString(
                 model, text, pin.GeometryType.COLLISION, package_dirs=dirs, mesh_loader=loader
             )
-        except (ValueError, RuntimeError) as e:
-            error = e
-    parser_output = report[0] if report else ""
-    if error is not None:
-        problem = (
-            f"Pinocchio refused the checked description: {error}; "
-            f"its parser said: {parser_output or '-'}"
-        )
-        raise fail(
-            InvalidModelError, Site(name, "<robot>", None), problem, "Pinocchio builds the model"
-        ) from error
-    if parser_output:
-        logger.warning("Pinocchio's URDF parser reported for %s: %s", name, parser_output)
+        return model, collision
+
+    model, collision = _built_by_pinocchio(name, build)
     check_model(model, tree, name)
+    visual = VisualBuilder(text, tuple(dirs), meshes, name)
     return LoadedURDF(
         model=model,
-        visual_model=visual,
+        visual_model=visual if defer_visual else visual(),
         collision_model=collision,
         path=Path(name).absolute(),
         resources=resources,
