@@ -13,6 +13,7 @@ caller's.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import os
@@ -312,6 +313,13 @@ def load_model(
     gravity: float | None = None
     locked_names = frozenset(str(k) for k in (lock_joints or {}))
     tip: str | None
+    build = functools.partial(
+        _build_pinocchio_models,
+        strict=strict,
+        locked=locked_names,
+        size_limits=sizes,
+        defer_visual=defer_visual,
+    )
     catalogue_name: str | None = None  # set only when loaded by name from the catalogue
     mimic_source: Path | None = None  # the URDF whose <mimic> joints are locked
     if isinstance(source, ArmParameters):
@@ -320,14 +328,7 @@ def load_model(
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / _BUILT_FILE
             path.write_text(text, encoding="utf-8")
-            built = _build_pinocchio_models(
-                path,
-                extra,
-                strict=strict,
-                locked=locked_names,
-                size_limits=sizes,
-                defer_visual=defer_visual,
-            )
+            built = build(path, extra)
         name, urdf_path, dirs, tip = source.name, None, extra, TIP_FRAME
     elif isinstance(source, str) and (found := find_robot(source)) is not None:
         urdf_path, tip = found
@@ -336,14 +337,7 @@ def load_model(
             dirs = (urdf_path.parent, *extra)
         else:
             dirs = (*example_package_dirs(urdf_path), *extra)
-        built = _build_pinocchio_models(
-            urdf_path,
-            dirs,
-            strict=strict,
-            locked=locked_names,
-            size_limits=sizes,
-            defer_visual=defer_visual,
-        )
+        built = build(urdf_path, dirs)
         name = catalogue_name = source
         mimic_source = urdf_path
     elif isinstance(source, str | os.PathLike):
@@ -370,14 +364,7 @@ def load_model(
             built = (mjcf.model, mjcf.visual_model, mjcf.collision_model)
             mimic_source = None  # MJCF has no <mimic>; equality couplings are refused
         else:
-            built = _build_pinocchio_models(
-                urdf_path,
-                dirs,
-                strict=strict,
-                locked=locked_names,
-                size_limits=sizes,
-                defer_visual=defer_visual,
-            )
+            built = build(urdf_path, dirs)
             mimic_source = urdf_path
         name, tip = built[0].name or urdf_path.stem, None
     else:
