@@ -336,7 +336,7 @@ def test_a_rebuild_in_another_thread_does_not_lend_its_rows(arm: RobotModel) -> 
     base = _problem(arm, _disc(1.2, 0.0))
     other = _problem(arm, _disc(1.3, 0.0))
     pickle.dumps(base)  # base's rows are now in the process's cache under its key
-    key = base._clearance_key(base.robot_model)
+    key = base._rows_key  # set by the pickling above
     inside, leave = threading.Event(), threading.Event()
 
     def unpickling_base() -> None:  # stands for a thread paused inside _rebuild_problem
