@@ -300,6 +300,6 @@ def test_sqp_phase_with_clearance_rows_polishes_the_al(
             ev._replace(gradient=ev.gradient - jtnu), x, problem.lower, problem.upper
         )[1]
 
-    assert kkt(al) < kkt(alone)  # measured 5e-11 against 3e-9 rad
+    assert kkt(al) < kkt(alone)  # measured 4.5e-11 against 6.4e-9 rad
     assert np.max(problem.residuals(al.configurations.ravel())) < 1e-9
-    assert al.objective == pytest.approx(ipopt.objective, abs=E_TOL)  # measured 3e-13
+    assert al.objective == pytest.approx(ipopt.objective, abs=E_TOL)  # measured 4e-14
