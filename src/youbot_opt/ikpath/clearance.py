@@ -1,7 +1,7 @@
 r"""Clearance of the cyclic IK path: rows at the targets and along the legs, certified (#28).
 
 The path is the straight line in joint space between consecutive configurations,
-closing the cycle. :class:`IKClearance` holds one row per leg step and pair: half
+closing the cycle. :class:`IKClearance` holds one row per distinct leg step and pair: half
 the sum of the step's two ball distances less the step's point-motion bound,
 which makes coal's clearance at least the margin everywhere on the path.
 :func:`require_path_clearance` refuses a start or a target inside an obstacle;
@@ -39,6 +39,7 @@ __all__ = [
     "DEFAULT_LEG_SAMPLES",
     "IKClearance",
     "certify_path_clearance",
+    "path_legs",
     "require_path_clearance",
 ]
 
@@ -84,6 +85,11 @@ class IKClearance:
     ``1e-12`` it was ``1e6`` and a start whose legs ended with a joint at rest
     took over a minute per inner solve).
 
+    Each distinct row is built once (:func:`path_legs`): with two targets leg 1
+    is leg 0 walked back, whose samples and steps are leg 0's, so only leg 0's
+    rows are built; they hold both legs (a repeated row would leave its
+    multipliers determined only as a sum).
+
     Attributes
     ----------
     spec : Clearance
@@ -92,26 +98,30 @@ class IKClearance:
         coal's solids of the pairs (the certificate's).
     leg_samples : int
         Interior samples ``K`` per leg.
+    legs : tuple of int
+        The legs the rows are built on, in row order (:func:`path_legs`).
     rates : ndarray, shape (n_pairs, n)
         ``R``: bound [m/rad] (or [m/m]) on how far a point of either solid of a
         pair moves per unit step of each active joint.
     distance : casadi.Function
         Active angles ``theta (n,)`` -> ball distances ``(n_pairs,)`` [m].
     function : casadi.Function
-        ``x (n s,)`` -> rows ``(s (K + 1) n_pairs,)`` [m], leg-major, then step,
-        then pair; each held at or above ``spec.margin``.
+        ``x (n s,)`` -> rows ``(len(legs) (K + 1) n_pairs,)`` [m], leg-major,
+        then step, then pair; each held at or above ``spec.margin``.
     jacobian : casadi.Function
         ``x`` -> ``d rows / d x`` (dense).
     transposed_product : casadi.Function
         ``(x, w)`` -> ``(d rows / d x)^T w`` (reverse mode, without the dense
         Jacobian: the augmented Lagrangian's gradient).
     labels : tuple of str
-        Per row: ``"leg j step k: a / b"``.
+        Per row: ``"leg j step k: a / b"`` (with two targets, leg 0's step ``k``
+        is also leg 1's step ``K - k``).
     """
 
     spec: Clearance
     checker: ExactChecker
     leg_samples: int
+    legs: tuple[int, ...]
     rates: Array
     distance: ca.Function
     function: ca.Function
@@ -159,14 +169,18 @@ class IKClearance:
         distance = ca.Function("ik_clearance_distance", [theta], [d_theta], ["theta"], ["d"])
         s, n, k1 = problem.n_targets, problem.n_joints, leg_samples + 1
         x = ca.SX.sym("x", s * n)
+        q = [x[j * n : (j + 1) * n] for j in range(s)]
+        at_target = [distance(qj) for qj in q]  # once each: the ends of two legs
         rows, labels = [], []
         names = checker.model.pair_names
         rate = ca.DM(rates)
-        for j in range(s):
-            qa, qb = x[j * n : (j + 1) * n], x[((j + 1) % s) * n : ((j + 1) % s + 1) * n]
+        legs = path_legs(s)
+        for j in legs:
+            qa, qb = q[j], q[(j + 1) % s]
             dq = qb - qa
             reach = (rate @ ca.sqrt(dq * dq + _ABS_EPS2)) / k1 if n_pairs else ca.SX(0, 1)
-            ds = [distance(qa + (k / k1) * dq) for k in range(k1 + 1)]
+            inner = [distance(qa + (k / k1) * dq) for k in range(1, k1)]
+            ds = [at_target[j], *inner, at_target[(j + 1) % s]]
             for k in range(k1):
                 rows.append(0.5 * (ds[k] + ds[k + 1] - reach))
                 labels += [f"leg {j} step {k}: {a} / {b}" for a, b in names]
@@ -176,6 +190,7 @@ class IKClearance:
             spec=spec,
             checker=checker,
             leg_samples=leg_samples,
+            legs=legs,
             rates=rates,
             distance=distance,
             function=ca.Function("ik_clearance", [x], [g], ["x"], ["rows"]),
@@ -198,6 +213,28 @@ class IKClearance:
         """Return ``(d rows / d x)^T w``, shape (n s,), for row weights ``w`` (n_rows,)."""
         out = self.transposed_product(np.asarray(x, dtype=float), np.asarray(w, dtype=float))
         return np.asarray(out, dtype=float).ravel()
+
+
+def path_legs(n_targets: int) -> tuple[int, ...]:
+    """Return the legs whose clearance rows are built, one per distinct set of samples.
+
+    Leg ``j`` runs from ``q_j`` to ``q_{(j+1) mod s}``. Two legs sample the same
+    configurations, whatever ``x``, only when they join the same two targets:
+    for ``s = 2`` leg 1 is leg 0 walked back (its step ``k`` is leg 0's step
+    ``K - k``, the same row), so leg 0 alone is built. For ``s >= 3`` the legs
+    join distinct pairs of targets and each is built.
+
+    Parameters
+    ----------
+    n_targets : int
+        Number of targets ``s >= 2``.
+
+    Returns
+    -------
+    tuple of int
+        ``(0,)`` for ``s = 2``, else ``(0, ..., s - 1)``.
+    """
+    return (0,) if n_targets == 2 else tuple(range(n_targets))
 
 
 def require_path_clearance(problem: ClearedPath, x0: Array | None) -> None:

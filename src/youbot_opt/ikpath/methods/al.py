@@ -690,7 +690,7 @@ def _final_phase_cleared(
 
     The rows with ``nu > 0`` enter the KKT system as equalities ``g_i = 0`` (with
     their multipliers; a row whose gradient depends on the target rows' and the rows
-    already taken, such as the same leg step of a two-target cycle walked back, is
+    already taken, as when more rows are active than the path has free directions, is
     left out and checked like an inactive one). The Hessian adds ``-sum nu_i d2 g_i``
     (central differences of the reverse-mode ``J_g^T nu``). The phase ends without a
     result (the AL goes on from its own iterate) when a step would give an active row
@@ -792,7 +792,7 @@ def _independent_rows(
     """Rows with ``nu > 0`` whose gradients are independent of the target rows' and each other's.
 
     Taken by decreasing ``nu``; a row is left out when its gradient adds a singular
-    value below 1e-6 of the largest (the same leg step walked back, a dependent pair).
+    value below 1e-6 of the largest (a dependent row: its multiplier would not be determined).
     """
     jc = _dense_jacobian(problem.evaluate(x, data))
     basis = jc[np.any(jc != 0.0, axis=1)]
