@@ -5,9 +5,8 @@ Modules: :mod:`.shapes` and :mod:`.scene` (:class:`Scene`, furniture URDFs),
 :mod:`.spheres` (bounding balls, cached, with their overshoot),
 :mod:`.distance` (smooth CasADi distances), :mod:`.model`
 (:class:`CollisionModel`: the distances as a Function of the joints'
-placements), :mod:`.exact` (coal's exact distances), :mod:`.clearance`
-(:class:`Clearance`, the spec both optimisers take) and :mod:`.packed` (the
-meshes as arrays, for other processes). ``__init__.pyi``'s names load lazily.
+placements), :mod:`.exact` (coal's exact distances) and :mod:`.clearance`
+(:class:`Clearance`, the spec both optimisers take). ``__init__.pyi``'s names load lazily.
 
     from youbot_opt.collision import Scene, build_collision_model
 """

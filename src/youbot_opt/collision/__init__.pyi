@@ -21,11 +21,6 @@ from .model import (
     build_collision_model as build_collision_model,
     joint_placements as joint_placements,
 )
-from .packed import (
-    PackedGeometry as PackedGeometry,
-    PackedMesh as PackedMesh,
-    pack_geometry as pack_geometry,
-)
 from .pairs import (
     CollisionPairs as CollisionPairs,
     pairs_report as pairs_report,

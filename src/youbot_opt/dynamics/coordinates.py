@@ -185,4 +185,4 @@ def angle_robot(robot: RobotModel) -> RobotModel:
     """
     if not continuous_joints(robot.model):
         return robot
-    return robot.with_model(angle_model(robot.model))
+    return robot.replace(model=angle_model(robot.model))

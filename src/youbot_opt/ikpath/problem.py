@@ -19,7 +19,7 @@ import pickle
 import threading
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple, cast
 
 import numpy as np
@@ -29,7 +29,6 @@ from numpy.typing import ArrayLike
 
 from youbot_opt._typing import Array
 from youbot_opt.collision.clearance import Clearance
-from youbot_opt.collision.packed import PackedGeometry, pack_geometry
 from youbot_opt.exceptions import ModelError, ParameterError
 from youbot_opt.ikpath.clearance import (
     DEFAULT_LEG_SAMPLES,
@@ -227,7 +226,6 @@ class CyclicIKProblem:
     neutral_rotation: Array = field(init=False)
     clearance_rows: IKClearance | None = field(init=False, repr=False)
     _rows_key: str | None = field(init=False, repr=False, compare=False, default=None)
-    _packed: PackedGeometry | None = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self) -> None:
         robot: object = self.robot
@@ -376,12 +374,10 @@ class CyclicIKProblem:
             _remember_rows(key, rows)
         return rows
 
-    def _clearance_key(
-        self, robot: RobotModel | PlanarChain, geometry: PackedGeometry | None
-    ) -> str | None:
+    def _clearance_key(self, robot: RobotModel | PlanarChain) -> str | None:
         """Digest of what :meth:`IKClearance.build` reads (None without a clearance).
 
-        The robot (its model; ``geometry``: its collision geometry, packed), the
+        The robot (its model and collision geometry, packed by its pickle), the
         frame, the clearance (scene, margin, self-collision), the leg samples and
         the targets' count: equal digests mean equal rows. Computed once per problem.
         """
@@ -389,41 +385,25 @@ class CyclicIKProblem:
             return None
         key = self._rows_key
         if key is None:
-            made_of = (
-                robot,
-                None if geometry is None else geometry.digest,
-                self.frame,
-                self.clearance,
-                self.leg_samples,
-                self.n_targets,
-            )
+            made_of = (robot, self.frame, self.clearance, self.leg_samples, self.n_targets)
             key = hashlib.sha256(pickle.dumps(made_of, protocol=5)).hexdigest()
             object.__setattr__(self, "_rows_key", key)
             _remember_rows(key, self.clearance_rows)
         return key
 
-    def _packed_geometry(self) -> PackedGeometry | None:
-        """Return the robot's collision geometry packed (None: a chain, or no clearance), once."""
-        if self.clearance is None or isinstance(self.robot, PlanarChain):
-            return None
-        if self._packed is None:
-            object.__setattr__(self, "_packed", pack_geometry(self.robot_model.collision_model))
-        return self._packed
-
     def __reduce__(self) -> tuple[Any, ...]:
         """Pickle by the defining fields, the robot's meshes left out or packed.
 
         The visual geometry never travels (RobotModel's pickle leaves it home);
-        the collision geometry travels packed when a clearance needs it
-        (:func:`~youbot_opt.collision.packed.pack_geometry`: its meshes as
-        arrays, ur5's 9.9 MB as 0.14 MB), else not at all.
+        the collision geometry travels packed when a clearance needs it (the
+        robot's pickle: its meshes as arrays, ur5's 9.9 MB as 0.14 MB), else
+        not at all.
         """
         robot: RobotModel | PlanarChain
-        geometry = self._packed_geometry()
-        if isinstance(self.robot, PlanarChain):
+        if isinstance(self.robot, PlanarChain) or self.clearance is not None:
             robot = self.robot
         else:
-            robot = replace(self.robot_model, collision_model=pin.GeometryModel())
+            robot = self.robot_model.replace(collision_model=pin.GeometryModel())
         spec = {
             "robot": robot,
             "targets": self.targets,
@@ -435,7 +415,7 @@ class CyclicIKProblem:
             "clearance": self.clearance,
             "leg_samples": self.leg_samples,
         }
-        return (_rebuild_problem, (spec, self._clearance_key(robot, geometry), geometry))
+        return (_rebuild_problem, (spec, self._clearance_key(robot)))
 
     @property
     def planar_chain(self) -> PlanarChain:
@@ -946,16 +926,9 @@ def _remember_rows(key: str, rows: IKClearance | None) -> None:
         _BUILT_ROWS.popitem(last=False)
 
 
-def _rebuild_problem(
-    spec: dict[str, Any], rows_key: str | None = None, geometry: PackedGeometry | None = None
-) -> CyclicIKProblem:
-    if geometry is not None:
-        spec = {**spec, "robot": replace(spec["robot"], collision_model=geometry.unpack())}
+def _rebuild_problem(spec: dict[str, Any], rows_key: str | None = None) -> CyclicIKProblem:
     _REBUILDING.key = rows_key
     try:
-        problem = CyclicIKProblem(**spec)
+        return CyclicIKProblem(**spec)
     finally:
         _REBUILDING.key = None
-    if geometry is not None:
-        object.__setattr__(problem, "_packed", geometry)  # pickled again as it came
-    return problem

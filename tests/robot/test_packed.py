@@ -10,9 +10,15 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from youbot_opt.collision.packed import pack_geometry
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
+from youbot_opt.robot.packed import pack_geometry
+
+@pytest.fixture(scope="module")
+def ur5() -> RobotModel:
+    return load_model("ur5")
+
 
 #: Pinocchio's text archive of one geometry object without its mesh (name, frames,
 #: placement, mesh path, scale, colour, material): 1.3 KB measured on the ur5.
