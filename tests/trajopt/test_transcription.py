@@ -186,8 +186,8 @@ def test_dynamics_of_the_wrong_size_is_rejected(youbot):
 def _plain_derivatives(nlp, youbot, rng):
     """A random point within the youBot's bounds, random multipliers, and CasADi's AD there.
 
-    Returns ``x``, ``lam_g`` and the plain NLP's ``f``, ``g``, Jacobian and upper
-    Hessian of ``0.7 f + lam_g . g`` at ``(x, beta = 0.3)``, dense.
+    Returns ``x``, ``lam_g`` and the plain NLP's ``f``, ``g``, Jacobian, upper
+    Hessian of ``0.7 f + lam_g . g`` and gradient of ``f`` at ``(x, beta = 0.3)``, dense.
     """
     box = {
         "q": (youbot.q_lower, youbot.q_upper),
@@ -206,13 +206,19 @@ def _plain_derivatives(nlp, youbot, rng):
     plain = ca.Function(
         "plain",
         [nlp.x, nlp.p],
-        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
+        [
+            nlp.f,
+            nlp.g,
+            ca.jacobian(nlp.g, nlp.x),
+            ca.triu(ca.hessian(lag, nlp.x)[0]),
+            ca.gradient(nlp.f, nlp.x),
+        ],
     )
     return x, lam_g, [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
 
 
 def _assert_same_derivatives(fns, x, lam_g, reference):
-    """``fns``' f, g, Jacobian and Hessian at ``x`` equal :func:`_plain_derivatives`' (1e-9).
+    """``fns``' f, g, Jacobian, Hessian and gradient equal :func:`_plain_derivatives`' (1e-9).
 
     Same derivatives by two assembly routes; entries are O(1e3) at most (1/I of
     the wrist), so 1e-9 absolute is ~1e4 ulps.
@@ -220,12 +226,14 @@ def _assert_same_derivatives(fns, x, lam_g, reference):
     f1, g1 = fns.nlp(x, 0.3)
     _, jac1 = fns.jac_g(x, 0.3)
     hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
-    for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
+    f2, grad1 = fns.grad_f(x, 0.3)
+    assert float(f2) == pytest.approx(float(f1), rel=1e-14)
+    for a, b in zip(reference, (f1, g1, jac1, hess1, grad1), strict=True):
         np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
 
 
 def _assert_same_patterns(fns, nlp, graph=None):
-    """The Jacobian's pattern holds the plain NLP's; both patterns are the ``graph`` route's.
+    """The Jacobian's pattern holds the plain NLP's; all patterns are the ``graph`` route's.
 
     The kernels' Jacobians and Hessians are dense blocks, where CasADi's AD of
     the plain NLP knows that a clearance row ignores some joints and that the
@@ -236,6 +244,7 @@ def _assert_same_patterns(fns, nlp, graph=None):
     """
     assert ca.jacobian(nlp.g, nlp.x).sparsity().is_subset(fns.jac_g.sparsity_out(1))
     if graph is not None:
+        assert fns.grad_f.sparsity_out(1) == graph.grad_f.sparsity_out(1)
         assert fns.jac_g.sparsity_out(1) == graph.jac_g.sparsity_out(1)
         assert fns.hess_lag.sparsity_out(0) == graph.hess_lag.sparsity_out(0)
 

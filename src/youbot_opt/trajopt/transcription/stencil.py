@@ -22,7 +22,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from youbot_opt.trajopt.objectives import objective_value
+from youbot_opt.exceptions import TranscriptionError
+from youbot_opt.trajopt.objectives import duration, objective_value
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import TrajOptProblem
@@ -381,6 +382,80 @@ class _Entries:
         return ca.MX(pattern, values)
 
 
+def _objective(
+    method: Transcription, blocks: list[tuple[str, int, int]], xm: Any, pm: Any, lfm: Any
+) -> tuple[Any, Any, tuple[Any, _Ints, _Ints, _Ints, Any]]:
+    """Return ``f``, its gradient and its Hessian's entries, from the work's weighted sum.
+
+    ``f = objective_value(duration(dt, N), dt S, beta)`` with ``S = sum w . (tau . tau)``
+    over the torque columns (:meth:`Transcription.time_and_work`): its derivatives in
+    the scalars ``(dt, S)`` come from SX, the torques' by the chain rule. Entries of a
+    zero weight or of a derivative that is structurally zero are left out, as SX does.
+    The Hessian's entries are ``(values, rows, cols, positions, scale)`` for
+    :meth:`_Entries.add`.
+    """
+    n = next(c for name, _, c in blocks if name == "q")
+    offsets, offset = {}, 0
+    for name, width, count in blocks:
+        offsets[name] = offset
+        offset += width * count
+    n_x, dt_index = offset, offsets["dt"]
+    dt, total, beta = ca.SX.sym("dt"), ca.SX.sym("S"), ca.SX.sym("beta")
+    f = objective_value(duration(dt, n), dt * total, beta)
+    first = ca.gradient(f, ca.vertcat(dt, total))
+    second = ca.hessian(f, ca.vertcat(dt, total))[0]
+    if not second[1, 1].is_zero():
+        raise TranscriptionError("the objective is not affine in the work")
+    terms = ca.Function(
+        "objective_terms", [dt, total, beta], [f, first[0], first[1], second[0, 0], second[0, 1]]
+    )
+    total_m: Any = 0
+    taus, weights, rows = [], [], []
+    for name, w in method.work_weights(n):
+        width = next(wd for nm, wd, _ in blocks if nm == name)
+        tau = ca.reshape(xm[offsets[name] : offsets[name] + width * w.size], width, w.size)
+        term = ca.mtimes(ca.sum1(tau**2), ca.DM(w))
+        total_m = term if isinstance(total_m, int) else total_m + term
+        used = np.flatnonzero(w != 0.0)
+        index = (offsets[name] + used[:, None] * width + np.arange(width)[None, :]).ravel()
+        taus.append(xm[index.tolist()])
+        weights.append(np.repeat(2.0 * w[used], width))
+        rows.append(index)
+    f_m, f_dt, f_s, f_dtdt, f_dts = terms(xm[dt_index], total_m, pm)
+    tau_rows = np.concatenate(rows)
+    twice_w = ca.DM(np.concatenate(weights).tolist())
+    tau_w = ca.vertcat(*taus) * twice_w  # 2 w tau: dS / dtau
+    dt_at = np.array([dt_index])
+
+    def entries(parts: list[tuple[ca.SX, Any, Any, _Ints, _Ints]]) -> tuple[Any, _Ints, _Ints]:
+        """Stack the parts ``(derivative in SX, in MX, factor, rows, cols)`` that are not zero."""
+        kept = [(d * v, r, c) for sx, d, v, r, c in parts if not sx.is_zero()]
+        values = ca.vertcat(*[v for v, _, _ in kept])
+        return (
+            values,
+            np.concatenate([r for _, r, _ in kept]),
+            np.concatenate([c for *_, c in kept]),
+        )
+
+    grad_values, grad_rows, _ = entries(
+        [(first[1], f_s, tau_w, tau_rows, tau_rows), (first[0], f_dt, 1.0, dt_at, dt_at)]
+    )
+    grad = _Entries()
+    grad.add(grad_values, grad_rows, np.zeros_like(grad_rows), np.arange(grad_rows.size))
+    hess_values, hess_rows, hess_cols = entries(
+        [
+            (first[1], lfm * f_s, twice_w, tau_rows, tau_rows),
+            (second[0, 1], lfm * f_dts, tau_w, tau_rows, np.full(tau_rows.size, dt_index)),
+            (second[0, 0], lfm * f_dtdt, 1.0, dt_at, dt_at),
+        ]
+    )
+    return (
+        f_m,
+        ca.densify(grad.matrix(n_x, 1)),  # dense, as CasADi's gradient
+        (hess_values, hess_rows, hess_cols, np.arange(hess_rows.size), 1.0),
+    )
+
+
 def stencil_functions(
     stencil: IntervalStencil,
     method: Transcription,
@@ -477,15 +552,7 @@ def stencil_functions(
         args = args if extra is None else [*args[:-1], extra, args[-1]]
         return fn.map(m)(*args) if kind == "interval" else fn(*args)
 
-    # f and its derivatives: SX at the NLP's size (a sum of squares)
-    sym = {name: ca.SX.sym(name, w, c) for name, w, c in blocks}
-    x_sx = ca.vertcat(*[ca.vec(sym[name]) for name, _, _ in blocks])
-    beta, lam_f = ca.SX.sym("beta"), ca.SX.sym("lam_f")
-    f = objective_value(*method.time_and_work(sym, n), beta)
-    f_hess = ca.triu(ca.hessian(lam_f * f, x_sx)[0])
-    f_sx = ca.Function("nlp_f_sx", [x_sx, beta], [f])
-    grad_sx = ca.Function("nlp_grad_f_sx", [x_sx, beta], [f, ca.gradient(f, x_sx)])
-    fh_sx = ca.Function("nlp_f_hess_sx", [x_sx, beta, lam_f], [f_hess.nz[:]])
+    f_val, grad_val, f_hess = _objective(method, blocks, xm, pm, lfm)
 
     def g_of(outputs: list[tuple[Any, _Ints]]) -> Any:
         """``g`` from (values, their global rows) pieces."""
@@ -538,8 +605,7 @@ def stencil_functions(
 
     # ---- hess_lag: objective, stencil terms, kernel Hessians at the points
     entries = _Entries()
-    fr, fc = _triplet(f_hess)
-    entries.add(fh_sx(xm, pm, lfm), fr, fc, np.arange(fr.size))
+    entries.add(*f_hess)
     w_entries = _Entries()
     lam_rows = [lgm[global_rows(kind).ravel().tolist()] for _, kind in sets]
     for (rs, kind), lam in zip(sets, lam_rows, strict=True):
@@ -568,11 +634,9 @@ def stencil_functions(
         entries.add(ca.vec(hk), rows, cols, pos)
     hess_val = entries.matrix(n_x, n_x)
 
-    f_val = f_sx(xm, pm)
-    f_g, grad_val = grad_sx(xm, pm)
     return (
         ca.Function("nlp", [xm, pm], [f_val, g_val], ["x", "p"], ["f", "g"]),
-        ca.Function("nlp_grad_f", [xm, pm], [f_g, grad_val], ["x", "p"], ["f", "grad_f_x"]),
+        ca.Function("nlp_grad_f", [xm, pm], [f_val, grad_val], ["x", "p"], ["f", "grad_f_x"]),
         ca.Function("nlp_jac_g", [xm, pm], [g_jac, jac_val], ["x", "p"], ["g", "jac_g_x"]),
         ca.Function(
             "nlp_hess_l",
