@@ -514,3 +514,29 @@ def test_structured_path_rows_match_casadi(
         _assert_same_patterns(fns, nlp, graph)
         for variant in (fns, graph):
             _assert_same_derivatives(variant, x, lam_g, reference)
+
+
+def test_sparse_entries_sum_duplicates_and_scale(rng):
+    """SparseEntries equals a dense numpy accumulation of the same entries (exact sums)."""
+    from youbot_opt.trajopt.transcription.scatter import SparseEntries, upper_entries
+
+    a, b = ca.MX.sym("a", 6), ca.MX.sym("b", 9)
+    entries = SparseEntries()
+    rows_a, cols_a, pos_a = np.array([0, 2, 2, 4]), np.array([1, 1, 1, 3]), np.array([5, 0, 3, 1])
+    scale_a = np.array([1.0, 2.0, -0.5, 3.0])
+    entries.add(a, rows_a, cols_a, pos_a, scale_a)
+    block = np.array([[1, 4, 2]])  # a symmetric 3x3 block (column-major in b) at rows 1, 4, 2
+    rows_b, cols_b, pos_b = upper_entries(3, 1, block)
+    entries.add(b, rows_b, cols_b, pos_b)
+    fn = ca.Function("m", [a, b], [entries.matrix(5, 5)])
+    av, bm = rng.normal(size=6), rng.normal(size=(3, 3))
+    bm = bm + bm.T
+    expected = np.zeros((5, 5))
+    np.add.at(expected, (rows_a, cols_a), scale_a * av[pos_a])
+    np.add.at(expected, (rows_b, cols_b), bm.ravel(order="F")[pos_b])
+    got = fn(av, bm.ravel(order="F"))
+    np.testing.assert_array_equal(np.asarray(ca.densify(got)), expected)  # same sums, same order
+    assert got.nnz() == np.count_nonzero(expected)  # no entry is zero by chance
+    assert set(zip(rows_b, cols_b, strict=True)) == {
+        (1, 1), (1, 4), (1, 2), (4, 4), (2, 4), (2, 2)
+    }  # fmt: skip

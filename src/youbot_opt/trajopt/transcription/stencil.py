@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import casadi as ca
 import numpy as np
-from numpy.typing import NDArray
 
 from youbot_opt.exceptions import TranscriptionError
 from youbot_opt.trajopt.objectives import duration, objective_value
+from youbot_opt.trajopt.transcription.scatter import Indices, SparseEntries, upper_entries
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import TrajOptProblem
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = ["IntervalStencil", "interval_stencil", "stencil_functions"]
 
-_Ints = NDArray[np.int64]
+_Ints = Indices
 
 
 class _RowSet(NamedTuple):
@@ -314,74 +314,6 @@ def _global_points(idx: _Ints, count: int, gmap: _Ints) -> _Ints:
     return np.asarray(gmap[k[:, None], idx[col]], dtype=np.int64)
 
 
-def _upper_entries(width: int, count: int, z: _Ints) -> tuple[_Ints, _Ints, _Ints]:
-    """Upper-triangle entries of ``count`` dense symmetric ``width``-blocks stored side by side.
-
-    Returns the global rows and columns (``z`` (count, width): each block's
-    coordinates) and the column-major positions of the entries in the stored
-    ``(width, width count)`` matrix.
-    """
-    i, j = np.triu_indices(width)
-    p = np.arange(count)[:, None]
-    a, b = z[p, i[None, :]], z[p, j[None, :]]
-    pos = (p * width + j[None, :]) * width + i[None, :]
-    return np.minimum(a, b).ravel(), np.maximum(a, b).ravel(), pos.ravel()
-
-
-class _Entries:
-    """Entries ``(row, col)`` of a sparse matrix drawn from a stack of source vectors."""
-
-    def __init__(self) -> None:
-        self.rows: list[_Ints] = []
-        self.cols: list[_Ints] = []
-        self.src: list[_Ints] = []
-        self.scale: list[Any] = []
-        self.values: list[Any] = []
-        self.size = 0
-
-    def add(self, values: Any, rows: Any, cols: Any, pos: Any, scale: Any = 1.0) -> None:
-        """Add entries ``(rows, cols)``: ``scale`` times the entries ``pos`` of ``values``."""
-        rows = np.asarray(rows, dtype=np.int64)
-        self.rows.append(rows.ravel())
-        self.cols.append(np.asarray(cols, dtype=np.int64).ravel())
-        self.src.append(self.size + np.asarray(pos, dtype=np.int64).ravel())
-        self.scale.append(np.broadcast_to(np.asarray(scale, dtype=float), rows.shape).ravel())
-        self.values.append(values)
-        self.size += int(values.numel())
-
-    def matrix(self, n_rows: int, n_cols: int) -> Any:
-        """Return the sparse MX matrix of the entries, duplicates summed.
-
-        Its nonzeros are sums of layers, each a gather of the sources (one
-        ``GetNonzeros``) times its scale: layer ``j`` holds the ``j``-th entry
-        of each nonzero (a zero appended to the sources pads the shorter sums).
-        """
-        rows, cols = np.concatenate(self.rows), np.concatenate(self.cols)
-        src, scale = np.concatenate(self.src), np.concatenate(self.scale)
-        # the pattern in compressed-column order, and each entry's nonzero
-        keys, nz = np.unique(cols * n_rows + rows, return_inverse=True)
-        colind = np.searchsorted(keys // n_rows, np.arange(n_cols + 1))
-        pattern = ca.Sparsity(n_rows, n_cols, colind.tolist(), (keys % n_rows).tolist())
-        order = np.argsort(nz, kind="stable")
-        first = np.searchsorted(nz[order], np.arange(keys.size))
-        rank = np.empty_like(nz)
-        rank[order] = np.arange(nz.size) - first[nz[order]]
-        sources = ca.vertcat(*self.values, ca.MX(1, 1))  # the zero: index self.size
-        total = None
-        for layer in range(int(rank.max(initial=-1)) + 1):
-            at = rank == layer
-            index = np.full(keys.size, self.size, dtype=np.int64)
-            index[nz[at]] = src[at]
-            term = sources[index.tolist()]
-            factor = np.ones(keys.size)
-            factor[nz[at]] = scale[at]
-            if np.any(factor != 1.0):
-                term = term * ca.DM(factor)
-            total = term if total is None else total + term
-        values = ca.MX(0, 1) if total is None else total
-        return ca.MX(pattern, values)
-
-
 def _objective(
     method: Transcription, blocks: list[tuple[str, int, int]], xm: Any, pm: Any, lfm: Any
 ) -> tuple[Any, Any, tuple[Any, _Ints, _Ints, _Ints, Any]]:
@@ -392,7 +324,7 @@ def _objective(
     the scalars ``(dt, S)`` come from SX, the torques' by the chain rule. Entries of a
     zero weight or of a derivative that is structurally zero are left out, as SX does.
     The Hessian's entries are ``(values, rows, cols, positions, scale)`` for
-    :meth:`_Entries.add`.
+    :meth:`SparseEntries.add`.
     """
     n = next(c for name, _, c in blocks if name == "q")
     offsets, offset = {}, 0
@@ -409,18 +341,19 @@ def _objective(
     terms = ca.Function(
         "objective_terms", [dt, total, beta], [f, first[0], first[1], second[0, 0], second[0, 1]]
     )
-    total_m: Any = 0
-    taus, weights, rows = [], [], []
+    sums, taus, weights, rows = [], [], [], []
     for name, w in method.work_weights(n):
         width = next(wd for nm, wd, _ in blocks if nm == name)
         tau = ca.reshape(xm[offsets[name] : offsets[name] + width * w.size], width, w.size)
-        term = ca.mtimes(ca.sum1(tau**2), ca.DM(w))
-        total_m = term if isinstance(total_m, int) else total_m + term
+        sums.append(ca.mtimes(ca.sum1(tau**2), ca.DM(w)))
         used = np.flatnonzero(w != 0.0)
         index = (offsets[name] + used[:, None] * width + np.arange(width)[None, :]).ravel()
         taus.append(xm[index.tolist()])
         weights.append(np.repeat(2.0 * w[used], width))
         rows.append(index)
+    total_m = sums[0]
+    for term in sums[1:]:  # in time_and_work's order
+        total_m = total_m + term
     f_m, f_dt, f_s, f_dtdt, f_dts = terms(xm[dt_index], total_m, pm)
     tau_rows = np.concatenate(rows)
     twice_w = ca.DM(np.concatenate(weights).tolist())
@@ -440,7 +373,7 @@ def _objective(
     grad_values, grad_rows, _ = entries(
         [(first[1], f_s, tau_w, tau_rows, tau_rows), (first[0], f_dt, 1.0, dt_at, dt_at)]
     )
-    grad = _Entries()
+    grad = SparseEntries()
     grad.add(grad_values, grad_rows, np.zeros_like(grad_rows), np.arange(grad_rows.size))
     hess_values, hess_rows, hess_cols = entries(
         [
@@ -579,7 +512,7 @@ def stencil_functions(
     jac_out = [kernels[1].map(z.shape[0])(*a) for z, a in zip(z_dyn, dyn_in, strict=True)]
     a_jac = ca.horzcat(*[o[0] for o in jac_out])
     j_jac = ca.horzcat(*[o[1] for o in jac_out])
-    entries = _Entries()
+    entries = SparseEntries()
     g_parts = []
     jac_in = {kind: stencil_inputs(kind, a_jac, j_jac) for _, kind in sets}
     for rs, kind in sets:
@@ -604,9 +537,9 @@ def stencil_functions(
     jac_val = entries.matrix(n_g, n_x)
 
     # ---- hess_lag: objective, stencil terms, kernel Hessians at the points
-    entries = _Entries()
+    entries = SparseEntries()
     entries.add(*f_hess)
-    w_entries = _Entries()
+    w_entries = SparseEntries()
     lam_rows = [lgm[global_rows(kind).ravel().tolist()] for _, kind in sets]
     for (rs, kind), lam in zip(sets, lam_rows, strict=True):
         k = ks[kind]
@@ -623,14 +556,14 @@ def stencil_functions(
         count = z.shape[0]
         w_g = weights[:, int(starts[gi_]) : int(starts[gi_]) + count]
         hk = kernels[2].map(count)(*args, w_g)
-        rows, cols, pos = _upper_entries(3 * nv, count, z)
+        rows, cols, pos = upper_entries(3 * nv, count, z)
         entries.add(ca.vec(hk), rows, cols, pos)
     for i, (pk, args) in enumerate(zip(path_k, path_in, strict=True)):
         count = z_path[i].shape[0]
         mw, width = int(pk[0].size1_out(0)), int(pk[2].size1_out(0))
         lam_c = ca.reshape(lgm[path_rows(i).tolist()], mw, count)
         hk = pk[2].map(count)(*args, lam_c)
-        rows, cols, pos = _upper_entries(width, count, z_path[i][:, :width])
+        rows, cols, pos = upper_entries(width, count, z_path[i][:, :width])
         entries.add(ca.vec(hk), rows, cols, pos)
     hess_val = entries.matrix(n_x, n_x)
 
