@@ -97,23 +97,26 @@ class SparseEntries:
         """
         rows, cols = np.concatenate(self.rows), np.concatenate(self.cols)
         src, scale = np.concatenate(self.src), np.concatenate(self.scale)
-        # the pattern in compressed-column order, and each entry's nonzero
-        keys, nz = np.unique(cols * n_rows + rows, return_inverse=True)
-        colind = np.searchsorted(keys // n_rows, np.arange(n_cols + 1))
-        pattern = ca.Sparsity(n_rows, n_cols, colind.tolist(), (keys % n_rows).tolist())
-        order = np.argsort(nz, kind="stable")
-        first = np.searchsorted(nz[order], np.arange(keys.size))
-        rank = np.empty_like(nz)
-        rank[order] = np.arange(nz.size) - first[nz[order]]
+        # the entries sorted in compressed-column order; each one's nonzero and rank in it
+        keys = cols * n_rows + rows
+        order = np.argsort(keys, kind="stable")
+        ordered = keys[order]
+        first = np.ones(ordered.size, dtype=bool)
+        first[1:] = ordered[1:] != ordered[:-1]
+        unique = ordered[first]
+        nz = np.cumsum(first) - 1
+        rank = np.arange(ordered.size) - np.flatnonzero(first)[nz]
+        colind = np.searchsorted(unique // n_rows, np.arange(n_cols + 1))
+        pattern = ca.Sparsity(n_rows, n_cols, colind.tolist(), (unique % n_rows).tolist())
         sources = ca.vertcat(*self.values, ca.MX(1, 1))  # the zero: index self.size
         total: ca.MX | None = None
         for layer in range(int(rank.max(initial=-1)) + 1):
             at = rank == layer
-            index = np.full(keys.size, self.size, dtype=np.int64)
-            index[nz[at]] = src[at]
+            index = np.full(unique.size, self.size, dtype=np.int64)
+            index[nz[at]] = src[order[at]]
             term = sources[index.tolist()]
-            factor = np.ones(keys.size)
-            factor[nz[at]] = scale[at]
+            factor = np.ones(unique.size)
+            factor[nz[at]] = scale[order[at]]
             if np.any(factor != 1.0):
                 term = term * ca.DM(factor.tolist())
             total = term if total is None else total + term
