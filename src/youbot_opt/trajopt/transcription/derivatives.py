@@ -6,10 +6,10 @@ and the objective does not involve ``A``; so the gradient, the constraint Jacobi
 and the Lagrangian Hessian follow by the chain rule from three small per-point
 kernels -- ``a``, ``dA/dz`` and ``sum_i w_i nabla^2 FD_i`` (:func:`dynamics_kernels`)
 -- mapped over the points and optionally compiled to C (:func:`compile_kernels`).
-:func:`structured_functions` returns them with the signatures of ``nlpsol``'s
-``grad_f``, ``jac_g`` and ``hess_lag`` options; they are tested against CasADi's
-own derivatives of the plain NLP. Derivation and rationale: docs/design.md,
-"Module notes".
+:func:`structured_functions` returns them in ``nlpsol``'s ``grad_f``, ``jac_g`` and
+``hess_lag`` signatures, assembled from one interval's stencil (:mod:`.stencil`) or
+the whole SX graph; both are tested against CasADi's AD of the plain NLP.
+Rationale: docs/design.md, "Module notes".
 """
 
 from __future__ import annotations
@@ -23,11 +23,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 import casadi as ca
 
 from youbot_opt.exceptions import TranscriptionError
+from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollocation
+from youbot_opt.trajopt.transcription.radau import RadauCollocation
 from youbot_opt.trajopt.transcription.stencil import (
     IntervalStencil,
     interval_stencil,
     stencil_functions,
 )
+from youbot_opt.trajopt.transcription.trapezoidal import TrapezoidalCollocation
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import TrajOptProblem
@@ -318,17 +321,13 @@ def stencil_of(
     paths: tuple[PathConstraint, ...] = (),
     path_kernels: tuple[PathKernels, ...] | None = None,
 ) -> IntervalStencil | None:
-    """One interval of ``method`` differentiated once, or None where it does not apply.
+    """Return one interval of ``method`` differentiated once, or None where it does not apply.
 
     It applies to the built-in schemes (not to subclasses, which may change the
     rows) whose path rows come from their kernels (``path_kernels``) or that
     have none; it does not depend on the grid or the number of knots, so one
     serves every refinement round (:func:`structured_functions`).
     """
-    from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollocation
-    from youbot_opt.trajopt.transcription.radau import RadauCollocation
-    from youbot_opt.trajopt.transcription.trapezoidal import TrapezoidalCollocation
-
     schemes = (TrapezoidalCollocation, HermiteSimpsonCollocation, RadauCollocation)
     if type(method) not in schemes or (paths and path_kernels is None):
         return None
