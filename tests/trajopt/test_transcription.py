@@ -186,8 +186,8 @@ def test_dynamics_of_the_wrong_size_is_rejected(youbot):
 def _plain_derivatives(nlp, youbot, rng):
     """A random point within the youBot's bounds, random multipliers, and CasADi's AD there.
 
-    Returns ``x``, ``lam_g`` and the plain NLP's ``f``, ``g``, Jacobian and upper
-    Hessian of ``0.7 f + lam_g . g`` at ``(x, beta = 0.3)``, dense.
+    Returns ``x``, ``lam_g`` and the plain NLP's ``f``, ``g``, Jacobian, upper
+    Hessian of ``0.7 f + lam_g . g`` and gradient of ``f`` at ``(x, beta = 0.3)``, dense.
     """
     box = {
         "q": (youbot.q_lower, youbot.q_upper),
@@ -206,13 +206,19 @@ def _plain_derivatives(nlp, youbot, rng):
     plain = ca.Function(
         "plain",
         [nlp.x, nlp.p],
-        [nlp.f, nlp.g, ca.jacobian(nlp.g, nlp.x), ca.triu(ca.hessian(lag, nlp.x)[0])],
+        [
+            nlp.f,
+            nlp.g,
+            ca.jacobian(nlp.g, nlp.x),
+            ca.triu(ca.hessian(lag, nlp.x)[0]),
+            ca.gradient(nlp.f, nlp.x),
+        ],
     )
     return x, lam_g, [np.asarray(ca.densify(m)) for m in plain(x, 0.3)]
 
 
 def _assert_same_derivatives(fns, x, lam_g, reference):
-    """``fns``' f, g, Jacobian and Hessian at ``x`` equal :func:`_plain_derivatives`' (1e-9).
+    """``fns``' f, g, Jacobian, Hessian and gradient equal :func:`_plain_derivatives`' (1e-9).
 
     Same derivatives by two assembly routes; entries are O(1e3) at most (1/I of
     the wrist), so 1e-9 absolute is ~1e4 ulps.
@@ -220,44 +226,125 @@ def _assert_same_derivatives(fns, x, lam_g, reference):
     f1, g1 = fns.nlp(x, 0.3)
     _, jac1 = fns.jac_g(x, 0.3)
     hess1 = fns.hess_lag(x, 0.3, 0.7, lam_g)
-    for a, b in zip(reference, (f1, g1, jac1, hess1), strict=True):
+    f2, grad1 = fns.grad_f(x, 0.3)
+    assert float(f2) == pytest.approx(float(f1), rel=1e-14)
+    for a, b in zip(reference, (f1, g1, jac1, hess1, grad1), strict=True):
         np.testing.assert_allclose(a, np.asarray(ca.densify(b)), atol=1e-9)
 
 
+def _assert_same_patterns(fns, nlp, graph=None):
+    """The Jacobian's pattern holds the plain NLP's; all patterns are the ``graph`` route's.
+
+    The kernels' Jacobians and Hessians are dense blocks, where CasADi's AD of
+    the plain NLP knows that a clearance row ignores some joints and that the
+    accelerations are affine in the torques; and SX drops what MX keeps of a
+    zero weight (Radau's knot torque ``tau_0`` in the work), so the Hessian's
+    pattern need not hold the plain one. The values are compared with the
+    plain NLP's by :func:`_assert_same_derivatives`.
+    """
+    assert ca.jacobian(nlp.g, nlp.x).sparsity().is_subset(fns.jac_g.sparsity_out(1))
+    if graph is not None:
+        assert fns.grad_f.sparsity_out(1) == graph.grad_f.sparsity_out(1)
+        assert fns.jac_g.sparsity_out(1) == graph.jac_g.sparsity_out(1)
+        assert fns.hess_lag.sparsity_out(0) == graph.hess_lag.sparsity_out(0)
+
+
+GRIDS = {"uniform": None, "graded": [1.0, 3.0, 0.5, 2.0, 1.0]}  # 6 knots
+
+
+@pytest.mark.parametrize("grid", list(GRIDS))
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
-def test_structured_derivatives_match_casadi(youbot, dynamics, method, rng):
+def test_structured_derivatives_match_casadi(youbot, dynamics, method, grid, rng):
     """The solver's structured f, g, Jacobian and Hessian equal CasADi's AD of the NLP (1e-9).
 
-    With compiled kernels, ``nlp`` may be built on the compiled forward kernel
-    (as the solver does): CasADi must then differentiate it through the
-    kernel's compiled Jacobian, and its reverse-mode gradient of ``lam . g``
-    must equal the reference ``J^T lam``.
+    Both assembly routes -- one interval's stencil mapped over the grid (the
+    default) and the whole NLP's SX graph -- on a uniform and a graded grid,
+    with the patterns of :func:`_assert_same_patterns`. With compiled kernels,
+    ``nlp`` may be built on the compiled forward kernel (as the solver does):
+    CasADi must then differentiate it through the kernel's compiled Jacobian,
+    and its reverse-mode gradient of ``lam . g`` must equal the reference ``J^T lam``.
     """
     from youbot_opt.nlp.codegen import find_compiler
     from youbot_opt.trajopt.transcription.derivatives import (
         compile_kernels,
         dynamics_kernels,
+        stencil_of,
         structured_functions,
     )
 
+    method = method.with_fractions(GRIDS[grid])
     problem = study1_problem(6, robot=youbot)
     nlp = method.build(problem, dynamics.forward_dynamics)
     kernels = dynamics_kernels(dynamics.forward_dynamics)
-    variants = [structured_functions(method, problem, kernels)]
+    assert stencil_of(method, problem) is not None
+    kernel_sets = [(kernels, kernels)]
     if find_compiler() is not None:  # the compiled kernels must agree too
         compiled = compile_kernels(kernels)
         assert compiled is not kernels
-        variants.append(structured_functions(method, problem, compiled, values=kernels))
-        variants.append(structured_functions(method, problem, compiled, values=compiled))
+        kernel_sets += [(compiled, kernels), (compiled, compiled)]
     x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
-    for fns in variants:
-        _assert_same_derivatives(fns, x, lam_g, reference)
-        xs, lams = ca.MX.sym("x", x.size), ca.MX.sym("lam", lam_g.size)
-        _, g_sym = fns.nlp(xs, 0.3)
-        grad = ca.Function("grad", [xs, lams], [ca.gradient(ca.dot(lams, g_sym), xs)])
-        np.testing.assert_allclose(
-            reference[2].T @ lam_g, np.asarray(grad(x, lam_g)).ravel(), atol=1e-9
-        )
+    for own, values in kernel_sets:
+        graph = structured_functions(method, problem, own, values=values, per_interval=False)
+        fns = structured_functions(method, problem, own, values=values)
+        _assert_same_patterns(fns, nlp, graph)
+        assert fns.jac_g.sparsity_out(1) == ca.jacobian(nlp.g, nlp.x).sparsity()
+        for variant in (fns, graph):
+            _assert_same_derivatives(variant, x, lam_g, reference)
+            xs, lams = ca.MX.sym("x", x.size), ca.MX.sym("lam", lam_g.size)
+            _, g_sym = variant.nlp(xs, 0.3)
+            grad = ca.Function("grad", [xs, lams], [ca.gradient(ca.dot(lams, g_sym), xs)])
+            np.testing.assert_allclose(
+                reference[2].T @ lam_g, np.asarray(grad(x, lam_g)).ravel(), atol=1e-9
+            )
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_structured_derivatives_on_one_interval(youbot, dynamics, method, rng):
+    """On 2 knots the stencil's first and last rows share the one interval (1e-9 to CasADi)."""
+    from youbot_opt.trajopt.transcription.derivatives import dynamics_kernels, structured_functions
+
+    problem = study1_problem(2, robot=youbot)
+    nlp = method.build(problem, dynamics.forward_dynamics)
+    fns = structured_functions(method, problem, dynamics_kernels(dynamics.forward_dynamics))
+    x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
+    _assert_same_derivatives(fns, x, lam_g, reference)
+    _assert_same_patterns(fns, nlp)
+
+
+def test_stencil_route_is_for_the_builtin_schemes(youbot):
+    """A subclass (which may change the rows) and SX path rows take the whole-graph route."""
+    from youbot_opt.trajopt.transcription.derivatives import stencil_of
+    from youbot_opt.trajopt.transcription.path import PathConstraint
+
+    class Renamed(TrapezoidalCollocation):
+        name = "renamed"
+
+    problem = study1_problem(5, robot=youbot)
+    q, v = ca.SX.sym("q", 3), ca.SX.sym("v", 3)
+    toy = PathConstraint(
+        name="toy", function=ca.Function("toy", [q, v], [q[0] * v[1]]), lower=-1.0, upper=1.0
+    )
+    assert stencil_of(TrapezoidalCollocation(), problem) is not None
+    assert stencil_of(Renamed(), problem) is None
+    assert stencil_of(TrapezoidalCollocation(), problem, (toy,)) is None  # no path kernels
+
+
+def test_refinement_rounds_reuse_the_stencil(monkeypatch):
+    """A solver on another grid reuses its scheme's stencil; another scheme derives its own."""
+    import youbot_opt.trajopt.solver as solver_module
+
+    calls = []
+    original = solver_module.stencil_of
+
+    def counted(method, *args):
+        calls.append(method.name)
+        return original(method, *args)
+
+    monkeypatch.setattr(solver_module, "stencil_of", counted)
+    solver = solver_module.TrajOptSolver(study1_problem(6), "trapezoidal", compile=False)
+    finer = solver.on_grid(np.arange(1.0, 9.0)).on_grid(np.ones(11))
+    finer.with_method("hermite_simpson").on_grid(np.ones(4))
+    assert calls == ["trapezoidal", "hermite_simpson"]
 
 
 # ------------------------------------------------------------ non-uniform grids
@@ -368,8 +455,11 @@ def test_grid_validation(youbot, dynamics):
         method.build(study1_problem(5, robot=youbot), dynamics.forward_dynamics)
 
 
+@pytest.mark.parametrize("grid", list(GRIDS))
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
-def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_cache, monkeypatch):
+def test_structured_path_rows_match_casadi(
+    youbot, dynamics, method, grid, rng, fit_cache, monkeypatch
+):
     """Path rows assembled from their own kernels equal CasADi's AD of the NLP (1e-9).
 
     Two path constraints: the youBot's self-collision clearance (bounding-ball
@@ -378,7 +468,9 @@ def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_ca
     midpoints, Radau's stages) come from the per-point kernels, SX and, with a
     compiler, compiled; the trapezoid's midpoints (an expression of the knots)
     stay in the SX graph. f, g, the Jacobian and the Hessian of the Lagrangian
-    (random multipliers) must equal the plain NLP's, differentiated by CasADi.
+    (random multipliers) must equal the plain NLP's, differentiated by CasADi,
+    by both assembly routes (the interval stencil and the whole SX graph), on a
+    uniform and a graded grid.
     """
     from youbot_opt.collision.clearance import Clearance
     from youbot_opt.nlp.codegen import find_compiler
@@ -392,7 +484,8 @@ def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_ca
     from youbot_opt.trajopt.transcription.path import PathConstraint
 
     monkeypatch.setenv("YOUBOT_OPT_CACHE", str(fit_cache))
-    problem = study1_problem(5, robot=youbot, clearance=Clearance(margin=0.01))
+    method = method.with_fractions(GRIDS[grid])
+    problem = study1_problem(6, robot=youbot, clearance=Clearance(margin=0.01))
     rows = clearance_constraint(problem)
     assert rows is not None
     q, v = ca.SX.sym("q", 3), ca.SX.sym("v", 3)
@@ -406,14 +499,44 @@ def test_structured_path_rows_match_casadi(youbot, dynamics, method, rng, fit_ca
     nlp = method.build(problem, dynamics.forward_dynamics, paths)
     kernels = dynamics_kernels(dynamics.forward_dynamics)
     own = tuple(path_kernels(c) for c in paths)
-    variants = [structured_functions(method, problem, kernels, paths=paths, path_kernels=own)]
+    path_sets = [own]
     if find_compiler() is not None:
         compiled = tuple(compile_path_kernels(k) for k in own)
         assert all(c is not k for c, k in zip(compiled, own, strict=True))
-        variants.append(
-            structured_functions(method, problem, kernels, paths=paths, path_kernels=compiled)
-        )
+        path_sets.append(compiled)
     x, lam_g, reference = _plain_derivatives(nlp, youbot, rng)
     assert np.count_nonzero(reference[2][nlp.constraints["clearance_knots"].offset :]) > 0
-    for fns in variants:
-        _assert_same_derivatives(fns, x, lam_g, reference)
+    for pk in path_sets:
+        graph = structured_functions(
+            method, problem, kernels, paths=paths, path_kernels=pk, per_interval=False
+        )
+        fns = structured_functions(method, problem, kernels, paths=paths, path_kernels=pk)
+        _assert_same_patterns(fns, nlp, graph)
+        for variant in (fns, graph):
+            _assert_same_derivatives(variant, x, lam_g, reference)
+
+
+def test_sparse_entries_sum_duplicates_and_scale(rng):
+    """SparseEntries equals a dense numpy accumulation of the same entries (exact sums)."""
+    from youbot_opt.trajopt.transcription.scatter import SparseEntries, upper_entries
+
+    a, b = ca.MX.sym("a", 6), ca.MX.sym("b", 9)
+    entries = SparseEntries()
+    rows_a, cols_a, pos_a = np.array([0, 2, 2, 4]), np.array([1, 1, 1, 3]), np.array([5, 0, 3, 1])
+    scale_a = np.array([1.0, 2.0, -0.5, 3.0])
+    entries.add(a, rows_a, cols_a, pos_a, scale_a)
+    block = np.array([[1, 4, 2]])  # a symmetric 3x3 block (column-major in b) at rows 1, 4, 2
+    rows_b, cols_b, pos_b = upper_entries(3, 1, block)
+    entries.add(b, rows_b, cols_b, pos_b)
+    fn = ca.Function("m", [a, b], [entries.matrix(5, 5)])
+    av, bm = rng.normal(size=6), rng.normal(size=(3, 3))
+    bm = bm + bm.T
+    expected = np.zeros((5, 5))
+    np.add.at(expected, (rows_a, cols_a), scale_a * av[pos_a])
+    np.add.at(expected, (rows_b, cols_b), bm.ravel(order="F")[pos_b])
+    got = fn(av, bm.ravel(order="F"))
+    np.testing.assert_array_equal(np.asarray(ca.densify(got)), expected)  # same sums, same order
+    assert got.nnz() == np.count_nonzero(expected)  # no entry is zero by chance
+    assert set(zip(rows_b, cols_b, strict=True)) == {
+        (1, 1), (1, 4), (1, 2), (4, 4), (2, 4), (2, 2)
+    }  # fmt: skip

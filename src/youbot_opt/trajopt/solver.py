@@ -61,9 +61,11 @@ from youbot_opt.trajopt.transcription.derivatives import (
     compile_path_kernels,
     dynamics_kernels,
     path_kernels,
+    stencil_of,
     structured_functions,
 )
 from youbot_opt.trajopt.transcription.path import PathConstraint
+from youbot_opt.trajopt.transcription.stencil import IntervalStencil
 
 if TYPE_CHECKING:
     from youbot_opt.collision.exact import ExactChecker
@@ -232,6 +234,9 @@ class TrajOptSolver:
                 for c in self._paths
             )
         self._checker: ExactChecker | None = None  # coal's solids, for overridden ends
+        # each scheme's interval stencil (structured_functions), by scheme class: it does
+        # not depend on the grid, so the solvers on_grid and with_method make share it
+        self._stencils: dict[type[Transcription], IntervalStencil | None] = {}
         self._build(tic)
 
     def _build(self, tic: float) -> None:
@@ -246,6 +251,12 @@ class TrajOptSolver:
         if self._kernels is not None:
             fast = self._kernels
             forward = fast.forward
+            scheme = type(self.method)
+            if scheme not in self._stencils:
+                self._stencils[scheme] = stencil_of(
+                    self.method, problem, self._paths, self._path_kernels
+                )
+            stencil = self._stencils[scheme]
             # the compiled forward kernel carries its Jacobian: IPOPT's constraint
             # evaluations and the NLP gradient CasADi builds from ``nlp`` run compiled too
             fns = structured_functions(
@@ -255,6 +266,8 @@ class TrajOptSolver:
                 values=fast,
                 paths=self._paths,
                 path_kernels=self._path_kernels,
+                stencil=stencil,
+                per_interval=stencil is not None,
             )
             self._nlp_function = fns.nlp
             self._derivatives = {"grad_f": fns.grad_f, "jac_g": fns.jac_g}
@@ -351,7 +364,7 @@ class TrajOptSolver:
         new.feasibility_tol, new.compiled = self.feasibility_tol, self.compiled
         new._exact_hessian, new._kernels = self._exact_hessian, self._kernels
         new._paths, new._checker = self._paths, self._checker  # the same coal solids
-        new._path_kernels = self._path_kernels
+        new._path_kernels, new._stencils = self._path_kernels, self._stencils
         new._build(tic)
         return new
 

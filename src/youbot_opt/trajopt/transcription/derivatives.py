@@ -6,10 +6,10 @@ and the objective does not involve ``A``; so the gradient, the constraint Jacobi
 and the Lagrangian Hessian follow by the chain rule from three small per-point
 kernels -- ``a``, ``dA/dz`` and ``sum_i w_i nabla^2 FD_i`` (:func:`dynamics_kernels`)
 -- mapped over the points and optionally compiled to C (:func:`compile_kernels`).
-:func:`structured_functions` returns them with the signatures of ``nlpsol``'s
-``grad_f``, ``jac_g`` and ``hess_lag`` options; they are tested against CasADi's
-own derivatives of the plain NLP. Derivation and rationale: docs/design.md,
-"Module notes".
+:func:`structured_functions` returns them in ``nlpsol``'s ``grad_f``, ``jac_g`` and
+``hess_lag`` signatures, assembled from one interval's stencil (:mod:`.stencil`) or
+the whole SX graph; both are tested against CasADi's AD of the plain NLP.
+Rationale: docs/design.md, "Module notes".
 """
 
 from __future__ import annotations
@@ -23,6 +23,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 import casadi as ca
 
 from youbot_opt.exceptions import TranscriptionError
+from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollocation
+from youbot_opt.trajopt.transcription.radau import RadauCollocation
+from youbot_opt.trajopt.transcription.stencil import (
+    IntervalStencil,
+    interval_stencil,
+    stencil_functions,
+)
+from youbot_opt.trajopt.transcription.trapezoidal import TrapezoidalCollocation
 
 if TYPE_CHECKING:
     from youbot_opt.trajopt.problem import TrajOptProblem
@@ -40,6 +48,7 @@ __all__ = [
     "derivation_index",
     "dynamics_kernels",
     "path_kernels",
+    "stencil_of",
     "structured_functions",
 ]
 
@@ -306,6 +315,25 @@ class _PointSet(NamedTuple):
     hessian: ca.Function
 
 
+def stencil_of(
+    method: Transcription,
+    problem: TrajOptProblem,
+    paths: tuple[PathConstraint, ...] = (),
+    path_kernels: tuple[PathKernels, ...] | None = None,
+) -> IntervalStencil | None:
+    """Return one interval of ``method`` differentiated once, or None where it does not apply.
+
+    It applies to the built-in schemes (not to subclasses, which may change the
+    rows) whose path rows come from their kernels (``path_kernels``) or that
+    have none; it does not depend on the grid or the number of knots, so one
+    serves every refinement round (:func:`structured_functions`).
+    """
+    schemes = (TrapezoidalCollocation, HermiteSimpsonCollocation, RadauCollocation)
+    if type(method) not in schemes or (paths and path_kernels is None):
+        return None
+    return interval_stencil(method, problem, paths, [True] * len(paths))
+
+
 def structured_functions(
     method: Transcription,
     problem: TrajOptProblem,
@@ -314,6 +342,8 @@ def structured_functions(
     values: Kernels | None = None,
     paths: tuple[PathConstraint, ...] = (),
     path_kernels: tuple[PathKernels, ...] | None = None,
+    stencil: IntervalStencil | None = None,
+    per_interval: bool = True,
 ) -> NLPFunctions:
     """Build the NLP and its exact derivatives from per-point kernels.
 
@@ -337,6 +367,15 @@ def structured_functions(
         knots; Hermite-Simpson's midpoints; Radau's stages) are then assembled
         from them like the dynamics; elsewhere (the trapezoid's midpoints, an
         expression of the knots) and without them, from ``x`` directly in SX.
+    stencil : IntervalStencil, optional
+        :func:`stencil_of` this scheme, problem and path constraints, reused
+        across grids (derived here when omitted).
+    per_interval : bool
+        Assemble from one interval's stencil mapped over the grid
+        (:mod:`~youbot_opt.trajopt.transcription.stencil`) when the scheme allows
+        (True, default), else differentiate the whole NLP's SX graph: the same
+        NLP and derivatives (the stencil's route costs no symbolic work at the
+        NLP's size).
 
     Returns
     -------
@@ -344,6 +383,15 @@ def structured_functions(
         ``nlp``, ``grad_f``, ``jac_g`` and ``hess_lag``.
     """
     values = kernels if values is None else values
+    if per_interval:
+        if stencil is None:
+            stencil = stencil_of(method, problem, paths, path_kernels)
+        if stencil is not None:
+            return NLPFunctions(
+                *stencil_functions(
+                    stencil, method, problem, kernels, values.forward, path_kernels or ()
+                )
+            )
     nv, n = problem.nv, problem.n_knots
     blocks = method.variable_blocks(nv, n)
     sym = {name: ca.SX.sym(name, width, count) for name, width, count in blocks}
