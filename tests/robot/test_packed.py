@@ -15,6 +15,7 @@ from youbot_opt.robot.load import load_model
 from youbot_opt.robot.model import RobotModel
 from youbot_opt.robot.packed import pack_geometry
 
+
 @pytest.fixture(scope="module")
 def ur5() -> RobotModel:
     return load_model("ur5")
