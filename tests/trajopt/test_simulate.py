@@ -239,7 +239,7 @@ def test_batch_is_each_simulation_alone(ur5, ur5_plan) -> None:
 
 
 def test_interval_integration_matches_per_interval_reference(youbot, ur5, ur5_plan) -> None:
-    """integrate_intervals = one solve_ivp per interval at 1e-4 tighter tolerances.
+    """integrate_intervals = one solve_ivp per interval at 1e-3 tighter tolerances.
 
     Each interval is one short integration, so its error stays within ten of its
     tolerance (1e-10 relative, 1e-12 absolute).
@@ -257,7 +257,7 @@ def test_interval_integration_matches_per_interval_reference(youbot, ur5, ur5_pl
 
             x0 = np.concatenate([plan.q[k], plan.v[k]])
             end = solve_ivp(
-                rhs, (plan.t[k], plan.t[k + 1]), x0, method="DOP853", rtol=1e-14, atol=1e-16
+                rhs, (plan.t[k], plan.t[k + 1]), x0, method="DOP853", rtol=1e-13, atol=1e-15
             ).y[:, -1]  # fmt: skip
             got = np.concatenate([q_end[k], v_end[k]])
             assert np.all(np.abs(got - end) <= 10.0 * (1e-12 + 1e-10 * np.abs(end)))
@@ -328,6 +328,7 @@ def test_a_deadline_midway_keeps_the_intervals_before_it(youbot, youbot_plan, mo
     assert np.all(np.isnan(sim.q[k * M + 1 :])) and np.all(np.isnan(sim.v[k * M + 1 :]))
 
 
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # the state overflows
 @pytest.mark.parametrize("method", ["DOP853", "RK45"])
 def test_an_integrator_failure_stops_where_it_happens(youbot, method) -> None:
     """A torque of 1e200 from knot 12 on: the state overflows, the integrator fails in

@@ -702,10 +702,9 @@ class _Dop853March:
                     return
                 if not stepper.step(t_end):
                     if len(rows) > 1:  # each simulation alone: it fails alone, or goes on
+                        h = stepper.h_abs if math.isfinite(stepper.h_abs) else None
                         for i, r in enumerate(rows):
-                            self._march(
-                                [r], k, stepper.t, stepper.y[i : i + 1].copy(), stepper.h_abs, done
-                            )
+                            self._march([r], k, stepper.t, stepper.y[i : i + 1].copy(), h, done)
                         return
                     r = rows[0]
                     reached = self.times[done] if done > k * m else knots[k]
