@@ -156,3 +156,24 @@ def test_a_nan_derivative_fails_the_step_and_keeps_the_state() -> None:
 
     at_start = Dop853(nan, 0.0, np.array([[1.0, 0.0]]), rtol=RTOL, atol=ATOL, t_bound=2.0)
     assert not at_start.step(2.0) and at_start.message == TOO_SMALL_STEP and at_start.t == 0.0
+
+
+def test_the_dense_output_is_the_steps_after_a_refresh() -> None:
+    """A knot changes ``fun`` and ``refresh`` re-evaluates f: the last step's interpolant,
+    built before the change, stays the step's (and ends on the step's state)."""
+    forcing = {"on": 1.0}
+
+    def fun(t: float, y: np.ndarray) -> np.ndarray:
+        out = _pendulum(t, y)
+        out[:, 1] += forcing["on"]
+        return out
+
+    stepper = Dop853(fun, 0.0, np.array([[1.0, 0.0]]), rtol=RTOL, atol=ATOL, t_bound=1.0)
+    assert stepper.step(0.3)
+    inside = np.linspace(stepper.t_old, stepper.t, 5)
+    want, f_step = stepper.dense(inside), stepper.f.copy()
+    forcing["on"] = -5.0  # the next interval's right-hand side
+    stepper.refresh()
+    assert not np.array_equal(stepper.f, f_step)
+    np.testing.assert_array_equal(stepper.dense(inside), want)
+    np.testing.assert_allclose(stepper.dense(np.array([stepper.t]))[0], stepper.y, rtol=1e-14)

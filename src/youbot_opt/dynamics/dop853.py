@@ -275,7 +275,6 @@ class Dop853:
             first_step = initial_step(fun, self.t, self.y, self.f, t_bound, self.rtol, self.atol)
         self.h_abs = float(first_step)
         self.message = ""
-        self._f_old = self.f
         rows, n = self.y.shape
         self._KY = np.empty((17, rows * n))  # y, then the stages (13-15 for the dense output)
         self._K = self._KY[1:].reshape(16, rows, n)
@@ -286,7 +285,10 @@ class Dop853:
         self._dense_ready = False
 
     def refresh(self) -> None:
-        """Re-evaluate ``f = fun(t, y)`` (after ``fun`` changed at the current time)."""
+        """Re-evaluate ``f = fun(t, y)`` (after ``fun`` changed at the current time).
+
+        The last step's dense output, if already evaluated, stays the step's.
+        """
         self.nfev += 1
         self.f = self.fun(self.t, self.y)
 
@@ -348,7 +350,7 @@ class Dop853:
                 break
             h_abs *= max(_MIN_FACTOR, _SAFETY * error**_EXPONENT)
             rejected = True
-        self.t_old, self.y_old, self._f_old = t, y, self.f
+        self.t_old, self.y_old = t, y
         self.t, self.y, self.f = t_new, y_new, K[_N_STAGES].copy()
         self._h, self.h_abs = h, h_next
         self._dense_ready = False
@@ -369,6 +371,9 @@ class Dop853:
 
     def dense(self, t: Array) -> Array:
         """Evaluate the last step's continuous extension (7th order) at times ``t``.
+
+        The first call after a step evaluates ``fun`` three more times (the
+        extension's stages): make it before ``fun`` changes.
 
         Parameters
         ----------
@@ -409,7 +414,7 @@ class Dop853:
             K[s] = self.fun(t_old + _C[s] * h, x.reshape(rows, n))
         self.nfev += 3
         delta = self.y.reshape(-1) - KY[0]
-        f_old, f = self._f_old.reshape(-1), self.f.reshape(-1)
+        f_old, f = self._K_flat[0], self._K_flat[_N_STAGES]  # the step's, whatever refresh did
         F = self._F
         F[0] = delta
         F[1] = h * f_old - delta
