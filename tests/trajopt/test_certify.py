@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import time
 
 import numpy as np
 import pinocchio as pin
@@ -431,3 +432,29 @@ def test_study1_hermite_simpson_certificates_improve_with_knots() -> None:
             assert cert.local_position_max < previous.local_position_max / 4
             assert cert.feedback_rms < previous.feedback_rms / 3
         previous = cert
+
+
+def test_time_running_out_during_the_simulations_leaves_their_figures_unknown(
+    youbot, exact, monkeypatch
+) -> None:
+    """The deadline passes during the tracking and open-loop simulations (one stacked run):
+    the local errors are measured, the simulations' figures NaN, the certificate incomplete.
+
+    A fake clock (one second a reading) puts the deadline ten readings past the
+    one-interval integrations, whose readings are counted first.
+    """
+    traj = exact(30)
+    clock = iter(range(10**9))
+    monkeypatch.setattr(time, "perf_counter", lambda: float(next(clock)))
+    integrate_intervals(traj, youbot, deadline=1e18)  # the readings the local integrations take
+    readings = next(clock)
+    clock = iter(range(10**9))
+    cert = certify(traj, youbot, time_limit=float(readings + 10))
+    monkeypatch.undo()
+    assert cert.incomplete == (
+        f"time limit {readings + 10:.3g} s reached during the tracking and open-loop simulations"
+    )
+    assert np.all(np.isfinite(cert.local_position_error)) and cert.local_position_max < 1e-6
+    assert np.all(np.isnan(cert.feedback_rms_ratio)) and np.isnan(cert.tracking_position_error)
+    assert math.isnan(cert.open_loop_final_error) and math.isnan(cert.open_loop_divergence_time)
+    assert not cert.ok

@@ -40,7 +40,7 @@ from youbot_opt.trajopt.simulate import (
     PDGains,
     integrate_intervals,
     sample_times,
-    simulate,
+    simulate_batch,
 )
 from youbot_opt.trajopt.tool_certificate import ToolCertificate, certify_plan_tool
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -591,12 +591,13 @@ def certify(
     local_v = np.max(np.abs(v_end - trajectory.v[1:]), axis=1)
     incomplete = _out_of_time(deadline, limit, "the one-interval integrations")
 
-    sim = simulate(
-        trajectory, model, damping=use_damping, gains=gains,
-        samples_per_interval=samples_per_interval, rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
-        deadline=deadline if not incomplete else tic,
+    sim, open_loop = simulate_batch(
+        trajectory, model, damping=use_damping, gains=(gains, None),
+        stop_deviation=(None, open_loop_stop), samples_per_interval=samples_per_interval,
+        rtol=TRACKING_RTOL, atol=TRACKING_ATOL, deadline=deadline if not incomplete else tic,
     )  # fmt: skip
-    incomplete = incomplete or _out_of_time(deadline, limit, "the tracking simulation")
+    stage = "the tracking and open-loop simulations"
+    incomplete = incomplete or _out_of_time(deadline, limit, stage)
     fb, plan_tau = sim.tau_feedback, sim.tau_plan
     rms = _ratio(
         np.sqrt(np.trapezoid(fb**2, sim.t, axis=0)),
@@ -607,13 +608,6 @@ def certify(
         rms = peak = np.full(model.nv, np.nan)
     track_q = float(np.max(np.abs(sim.q - trajectory(sim.t))))
     track_v = float(np.max(np.abs(sim.v - trajectory.velocity(sim.t))))
-
-    open_loop = simulate(
-        trajectory, model, damping=use_damping, samples_per_interval=1,
-        stop_deviation=open_loop_stop, rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
-        deadline=deadline if not incomplete else tic,
-    )  # fmt: skip
-    incomplete = incomplete or _out_of_time(deadline, limit, "the open-loop simulation")
     if incomplete:
         ol_final = ol_time = math.nan
     elif open_loop.stop_time is None:

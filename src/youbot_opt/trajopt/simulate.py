@@ -4,10 +4,10 @@ Owns the code path :mod:`youbot_opt.trajopt.certify` and
 :mod:`youbot_opt.trajopt.check` verify plans with, independent of the
 collocation equations (spec ``trajopt.md``, "prove each trajectory by forward
 simulation"): :func:`integrate_intervals` (one interval from every knot) and
-:func:`simulate` (the whole motion, open loop or with :class:`PDGains`), all
-integrated by SciPy's ``solve_ivp`` (DOP853, or Radau where the damping is
-stiff: :func:`integration_method`), with the accelerations of
-:func:`youbot_opt.dynamics.numeric.batched_aba`. Robots with ``nq == nv`` only.
+:func:`simulate` / :func:`simulate_batch` (the whole motion, open loop or with
+:class:`PDGains`), integrated by :class:`~youbot_opt.dynamics.dop853.Dop853`, or
+SciPy's Radau where the damping is stiff (:func:`integration_method`), with
+Pinocchio's ABA. Robots with ``nq == nv`` only.
 
 >>> sim = simulate(result.trajectory, robot, gains=PDGains())  # doctest: +SKIP
 """
@@ -15,7 +15,9 @@ stiff: :func:`integration_method`), with the accelerations of
 from __future__ import annotations
 
 import logging
+import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -23,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.dop853 import Dop853
 from youbot_opt.dynamics.numeric import (
     STIFF_RATIO,
     RobotLike,
@@ -41,6 +44,7 @@ __all__ = [
     "integrate_intervals",
     "integration_method",
     "simulate",
+    "simulate_batch",
     "sample_times",
 ]
 
@@ -296,13 +300,14 @@ def integrate_intervals(
     damping : bool, optional
         Apply the robot's joint damping ``b`` [N m s/rad] (``tau - b v``).
     rtol : float, optional
-        Relative tolerance of ``solve_ivp``.
+        Relative tolerance of the integrator.
     atol : float, optional
-        Absolute tolerance of ``solve_ivp`` in [rad] and [rad/s].
+        Absolute tolerance of the integrator in [rad] and [rad/s].
     method : str, optional
-        ``solve_ivp`` method; ``"auto"`` (default) is DOP853, or Radau with the
-        block-diagonal Jacobian pattern when the damping is stiff on the grid
-        (:func:`integration_method`).
+        ``"DOP853"`` (:class:`~youbot_opt.dynamics.dop853.Dop853`, SciPy's
+        algorithm without SciPy), another ``solve_ivp`` method, or ``"auto"``
+        (default): DOP853, or Radau with the block-diagonal Jacobian pattern
+        when the damping is stiff on the grid (:func:`integration_method`).
     deadline : float, optional
         A ``time.perf_counter()`` value [s] after which the integration stops
         (then the result is NaN, as for a failure).
@@ -319,9 +324,6 @@ def integrate_intervals(
     ParameterError
         If the trajectory and the robot disagree in size or the robot is unsupported.
     """
-    from scipy import sparse  # SciPy: only when the certificate integrates
-    from scipy.integrate import solve_ivp
-
     robot = as_numeric_robot(robot)
     _check_dimensions(trajectory, robot)
     batch = batched_aba(robot, damping=damping)
@@ -329,32 +331,62 @@ def integrate_intervals(
     nv = robot.nv
     h = polys.h
     n = h.size
+    # the torque coefficients as one (4, n nv) block: powers(s) @ block = all torques at s
+    tau_block = polys.coef[:, :, polys.nq + nv :].transpose(1, 0, 2).reshape(4, n * nv)
+    rate = np.repeat(h, 2 * nv).reshape(n, 2 * nv)  # d/ds = h d/dt
 
     def rhs(s: float, x: Array) -> Array:
-        _check_deadline(deadline)
         state = x.reshape(n, 2 * nv)
-        q, v = state[:, :nv], state[:, nv:]
-        acc = batch(q, v, polys.torques(s))
-        return (np.hstack([v, acc]) * h[:, None]).ravel()
+        out = np.empty((n, 2 * nv))
+        out[:, :nv] = state[:, nv:]
+        out[:, nv:] = batch(state[:, :nv], state[:, nv:], (_powers(s) @ tau_block).reshape(n, nv))
+        out *= rate
+        return out.reshape(x.shape)
 
-    x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).ravel()
+    x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).reshape(1, -1)
     method = integration_method(method, trajectory, robot, damping=damping)
-    extra = {}
-    if method in ("Radau", "BDF"):  # intervals are independent: a block-diagonal Jacobian
-        extra["jac_sparsity"] = sparse.block_diag([np.ones((2 * nv, 2 * nv))] * n, format="csc")
-    try:
-        sol = solve_ivp(rhs, (0.0, 1.0), x0, method=method, rtol=rtol, atol=atol, **extra)
-    except _Deadline:
-        _LOG.warning("local integration stopped: time limit reached")
-        nan = np.full((n, nv), np.nan)
-        return nan, nan.copy()
-    if not sol.success:
-        _LOG.warning("local integration failed: %s", sol.message)
-        nan = np.full((n, nv), np.nan)
-        return nan, nan.copy()
-    end = sol.y[:, -1].reshape(n, 2 * nv)
-    _LOG.debug("local integration (%s): %d intervals, %d RHS evaluations", method, n, sol.nfev)
+    nan = np.full((n, nv), np.nan)
+    if method == "DOP853":
+        if _passed(deadline):
+            _LOG.warning("local integration stopped: time limit reached")
+            return nan, nan.copy()
+        stepper = Dop853(rhs, 0.0, x0, rtol=rtol, atol=atol, t_bound=1.0)
+        while stepper.t < 1.0:
+            if _passed(deadline):
+                _LOG.warning("local integration stopped: time limit reached")
+                return nan, nan.copy()
+            if not stepper.step(1.0):
+                _LOG.warning("local integration failed: %s", stepper.message)
+                return nan, nan.copy()
+        end, nfev = stepper.y.reshape(n, 2 * nv), stepper.nfev
+    else:
+        from scipy import sparse  # SciPy: only for its implicit methods (stiff damping)
+        from scipy.integrate import solve_ivp
+
+        def rhs_flat(s: float, x: Array) -> Array:
+            _check_deadline(deadline)
+            return rhs(s, x).ravel()
+
+        extra = {}
+        if method in ("Radau", "BDF"):  # intervals are independent: a block-diagonal Jacobian
+            extra["jac_sparsity"] = sparse.block_diag([np.ones((2 * nv, 2 * nv))] * n, format="csc")
+        try:
+            sol = solve_ivp(
+                rhs_flat, (0.0, 1.0), x0.ravel(), method=method, rtol=rtol, atol=atol, **extra
+            )
+        except _Deadline:
+            _LOG.warning("local integration stopped: time limit reached")
+            return nan, nan.copy()
+        if not sol.success:
+            _LOG.warning("local integration failed: %s", sol.message)
+            return nan, nan.copy()
+        end, nfev = sol.y[:, -1].reshape(n, 2 * nv), sol.nfev
+    _LOG.debug("local integration (%s): %d intervals, %d RHS evaluations", method, n, nfev)
     return end[:, :nv], end[:, nv:]
+
+
+def _passed(deadline: float | None) -> bool:
+    return deadline is not None and time.perf_counter() > deadline
 
 
 def simulate(
@@ -374,8 +406,9 @@ def simulate(
 
     The torque applied is ``trajectory.torque(t)`` plus, when ``gains`` is given,
     ``Kp (trajectory(t) - q) + Kd (trajectory.velocity(t) - v)`` (see
-    :class:`PDGains`). The integration restarts at every knot (the interpolants
-    have kinks there), the state being carried over.
+    :class:`PDGains`). No integrator step crosses a knot (the interpolants have
+    kinks there): each interval is integrated from the state reached at its
+    left knot (:func:`simulate_batch` with one simulation).
 
     Parameters
     ----------
@@ -395,8 +428,10 @@ def simulate(
     rtol, atol : float, optional
         Integrator tolerances (``atol`` in [rad] and [rad/s]).
     method : str, optional
-        ``solve_ivp`` method; ``"auto"`` (default): DOP853, or Radau when the
-        damping is stiff on the grid (:func:`integration_method`).
+        ``"DOP853"`` (:class:`~youbot_opt.dynamics.dop853.Dop853`), another
+        ``solve_ivp`` method (restarted at every knot), or ``"auto"`` (default):
+        DOP853, or Radau when the damping is stiff on the grid
+        (:func:`integration_method`).
     deadline : float, optional
         A ``time.perf_counter()`` value [s] after which the simulation stops
         (``stop_time`` and ``message`` say where), as for an integrator failure.
@@ -412,35 +447,380 @@ def simulate(
         If sizes disagree, the robot or interpolant is unsupported, or
         ``stop_deviation`` is not positive.
     """
-    from scipy.integrate import solve_ivp  # SciPy: only when the certificate integrates
+    return simulate_batch(
+        trajectory, robot, damping=damping, gains=(gains,), stop_deviation=(stop_deviation,),
+        samples_per_interval=samples_per_interval, rtol=rtol, atol=atol, method=method,
+        deadline=deadline,
+    )[0]  # fmt: skip
 
+
+def simulate_batch(
+    trajectory: Trajectory,
+    robot: RobotLike,
+    *,
+    gains: Sequence[PDGains | None],
+    stop_deviation: Sequence[float | None],
+    damping: bool = True,
+    samples_per_interval: int = 20,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+    method: str = "auto",
+    deadline: float | None = None,
+) -> tuple[Simulation, ...]:
+    """Simulate the motion several times at once: one simulation per entry of ``gains``.
+
+    Simulation ``i`` is :func:`simulate` with ``gains[i]`` and
+    ``stop_deviation[i]``. With DOP853 the simulations are one stacked ODE
+    (one integrator for all, common steps, each simulation's error held to
+    the tolerances: the integrator's overhead is paid once); a simulation that
+    stops leaves the stack, and if the stack's step fails, each simulation
+    goes on alone (each fails alone). Other methods run the simulations one
+    after another.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The plan, with N knots.
+    robot : RobotModel or pinocchio.Model
+        The robot (``nq == nv``).
+    gains : sequence of PDGains or None
+        Feedback gains of each simulation (``None``: open loop).
+    stop_deviation : sequence of float or None
+        Each simulation's stop deviation in [rad] (see :func:`simulate`).
+    damping, samples_per_interval, rtol, atol, method, deadline
+        As :func:`simulate`, for every simulation.
+
+    Returns
+    -------
+    tuple of Simulation
+        One per entry of ``gains``, in order.
+
+    Raises
+    ------
+    ParameterError
+        As :func:`simulate`, or if ``gains`` and ``stop_deviation`` are empty or
+        differ in length.
+    """
     robot = as_numeric_robot(robot)
     _check_dimensions(trajectory, robot)
-    if stop_deviation is not None and not stop_deviation > 0.0:
+    gains, stops = tuple(gains), tuple(stop_deviation)
+    if not gains or len(gains) != len(stops):
         raise ParameterError(
-            f"stop_deviation must be > 0 [rad] or None, got {stop_deviation!r}",
+            f"gains and stop_deviation must have one entry per simulation, got "
+            f"{len(gains)} and {len(stops)}",
             name="stop_deviation",
-            value=stop_deviation,
+            value=stops,
         )
-    model, data = robot.model, robot.model.createData()
-    nv = model.nv
+    for stop in stops:
+        if stop is not None and not stop > 0.0:
+            raise ParameterError(
+                f"stop_deviation must be > 0 [rad] or None, got {stop!r}",
+                name="stop_deviation",
+                value=stop,
+            )
     method = integration_method(method, trajectory, robot, damping=damping)
     polys = _IntervalPolynomials(trajectory)
-    m = int(samples_per_interval)
-    times = sample_times(trajectory.t, m)
-    n = trajectory.n_knots - 1
-    if gains is None:
-        kp = kd = np.zeros((n, nv, nv))
+    times = sample_times(trajectory.t, samples_per_interval)
+    loops = [_ClosedLoop(trajectory, robot, polys, g, damping) for g in gains]
+    if method == "DOP853":
+        march = _Dop853March(
+            trajectory, robot, polys, loops, stops, times, int(samples_per_interval),
+            rtol=rtol, atol=atol, deadline=deadline,
+        )  # fmt: skip
+        march.run()
+        results = [
+            (march.states[i], march.stop_time[i], march.message[i]) for i in range(len(loops))
+        ]
     else:
-        kp, kd = gains.matrices(robot, trajectory(polys.t0 + 0.5 * polys.h))
-    gain = np.concatenate([kp, kd], axis=2)  # (n, nv, 2 nv) acting on [q, v]
-    # Net joint torque tau_plan + K (x_plan - x) - b v = (closed-loop cubic in s) - K' x.
-    net_coef = polys.coef[:, :, 2 * nv :] + np.einsum(
-        "kij,ksj->ksi", gain, polys.coef[:, :, : 2 * nv]
-    )
-    gain_state = gain.copy()
-    gain_state[:, :, nv:] += np.diag(acting_damping(robot, damping))
-    q_coef = polys.coef[:, :, :nv]
+        results = [
+            _simulate_scipy(
+                trajectory, robot, polys, loop, stop, times, int(samples_per_interval),
+                method=method, rtol=rtol, atol=atol, deadline=deadline,
+            )
+            for loop, stop in zip(loops, stops, strict=True)
+        ]  # fmt: skip
+    nv = robot.nv
+    tau_plan = trajectory.torque(times)
+    # Sample j belongs to interval (j - 1) // m (sample 0 to interval 0).
+    interval = np.maximum(np.arange(times.size) - 1, 0) // int(samples_per_interval)
+    plan = np.hstack([trajectory(times), trajectory.velocity(times)])
+    out = []
+    for i, (loop, (states, stop_time, message)) in enumerate(zip(loops, results, strict=True)):
+        tau_fb = np.einsum("jab,jb->ja", loop.gain[interval], plan - states)
+        out.append(
+            Simulation(
+                t=times if i == 0 else times.copy(),
+                q=states[:, :nv],
+                v=states[:, nv:],
+                tau_plan=tau_plan if i == 0 else tau_plan.copy(),
+                tau_feedback=tau_fb,
+                stop_time=stop_time,
+                message=message,
+            )
+        )
+    return tuple(out)
+
+
+class _ClosedLoop:
+    """One simulation's torque law per interval: ``tau = poly(s) @ net[k] - state_gain[k] @ x``.
+
+    ``gain[k]`` (nv, 2 nv) is the PD feedback on ``[q, v]`` (zero open loop);
+    the net joint torque ``tau_plan + K (x_plan - x) - b v`` is the closed-loop
+    cubic ``net[k]`` (4, nv) in the local time s minus ``state_gain[k] @ x``
+    (``K`` plus the damping on ``v``).
+    """
+
+    def __init__(
+        self,
+        trajectory: Trajectory,
+        robot: RobotModel,
+        polys: _IntervalPolynomials,
+        gains: PDGains | None,
+        damping: bool,
+    ) -> None:
+        nv, n = robot.nv, trajectory.n_knots - 1
+        if gains is None:
+            kp = kd = np.zeros((n, nv, nv))
+        else:
+            kp, kd = gains.matrices(robot, trajectory(polys.t0 + 0.5 * polys.h))
+        self.gain = np.concatenate([kp, kd], axis=2)  # (n, nv, 2 nv) acting on [q, v]
+        self.net = polys.coef[:, :, 2 * nv :] + np.einsum(
+            "kij,ksj->ksi", self.gain, polys.coef[:, :, : 2 * nv]
+        )
+        self.state_gain = self.gain.copy()
+        self.state_gain[:, :, nv:] += np.diag(acting_damping(robot, damping))
+
+
+class _Dop853March:
+    """The simulations of :func:`simulate_batch` as one stacked ODE, knot to knot.
+
+    Rows of the stack are the simulations still running (``active``). Steps end
+    on every knot (the torque law changes there), the step size carried over;
+    samples inside a step come from the dense output.
+    """
+
+    def __init__(
+        self,
+        trajectory: Trajectory,
+        robot: RobotModel,
+        polys: _IntervalPolynomials,
+        loops: list[_ClosedLoop],
+        stops: tuple[float | None, ...],
+        times: Array,
+        m: int,
+        *,
+        rtol: float,
+        atol: float,
+        deadline: float | None,
+    ) -> None:
+        self.t = trajectory.t
+        self.polys, self.m, self.times = polys, m, times
+        self.stops = stops
+        self.rtol, self.atol, self.deadline = rtol, atol, deadline
+        self.nv = nv = robot.nv
+        self.model, self.data = robot.model, robot.model.createData()  # damping: in state_gain
+        # torque = [1, s, s^2, s^3, q, v] @ law[k, run]: the cubic, then minus the state gain
+        self.law = np.stack(
+            [np.concatenate([lp.net, -lp.state_gain.transpose(0, 2, 1)], axis=1) for lp in loops],
+            axis=1,
+        )  # (n, runs, 4 + 2 nv, nv)
+        self.q_coef = polys.coef[:, :, :nv]
+        runs = len(loops)
+        self.states = [np.full((times.size, 2 * nv), np.nan) for _ in range(runs)]
+        x0 = np.concatenate([trajectory.q[0], trajectory.v[0]])
+        for states in self.states:
+            states[0] = x0
+        self.stop_time: list[float | None] = [None] * runs
+        self.message = [""] * runs
+        # the interval being integrated: set by _select
+        self._t0 = self._h = 0.0
+        self._law = self.law[0]
+        self._z = np.ones((runs, self.law.shape[2]))  # [1, s, s^2, s^3, q, v] of each row
+
+    # ------------------------------------------------------------ the ODE
+    def _select(self, k: int, rows: list[int]) -> None:
+        self._t0, self._h = float(self.polys.t0[k]), float(self.polys.h[k])
+        self._law = self.law[k, rows]
+        self._z = np.ones((len(rows), self.law.shape[2]))
+
+    def _rhs(self, t: float, x: Array) -> Array:
+        nv, model, data, law, z = self.nv, self.model, self.data, self._law, self._z
+        s = (t - self._t0) / self._h
+        z[:, 1] = s
+        z[:, 2] = s * s
+        z[:, 3] = s * s * s
+        z[:, 4:] = x
+        out = np.empty_like(x)
+        out[:, :nv] = x[:, nv:]
+        for i in range(x.shape[0]):  # one pin.aba a row: faster than a batch of one or two
+            out[i, nv:] = pin.aba(model, data, x[i, :nv], x[i, nv:], z[i] @ law[i])
+        return out
+
+    def _deviation(self, k: int, t: float, q: Array) -> float:
+        """``max_i |q_i - q_plan_i(t)|`` in [rad] in interval ``k``."""
+        q_plan = _powers((t - self.polys.t0[k]) / self.polys.h[k]) @ self.q_coef[k]
+        return float(np.max(np.abs(q - q_plan)))
+
+    # ------------------------------------------------------------ the march
+    def run(self) -> None:
+        """Integrate every simulation to the end, or to its stop."""
+        x0 = np.stack([s[0] for s in self.states])
+        self._march(list(range(len(self.states))), 0, float(self.t[0]), x0, None, 0)
+
+    def _march(
+        self, rows: list[int], k_start: int, t: float, x: Array, h_abs: float | None, done: int
+    ) -> None:
+        """Integrate ``rows`` from state ``x`` at time ``t`` in interval ``k_start`` on.
+
+        ``h_abs`` is the first step size (None: chosen); samples up to ``done``
+        are filled.
+        """
+        m, nv, knots = self.m, self.nv, self.t
+        stepper: Dop853 | None = None
+        for k in range(k_start, knots.size - 1):
+            if _passed(self.deadline):
+                for r in rows:
+                    self.states[r][k * m + 1 :] = np.nan
+                    self._stop(r, float(knots[k]), f"time limit reached in interval {k}")
+                return
+            self._select(k, rows)
+            t_end = float(knots[k + 1])
+            if stepper is None:
+                stepper = Dop853(
+                    self._rhs, t, x, rtol=self.rtol, atol=self.atol, t_bound=t_end,
+                    first_step=h_abs,
+                )  # fmt: skip
+            else:
+                stepper.refresh()  # the torque law of interval k
+                done = k * m
+            g_old = [self._gap(r, k, stepper.t, stepper.y[i, :nv]) for i, r in enumerate(rows)]
+            while stepper.t < t_end:
+                if _passed(self.deadline):
+                    for r in rows:
+                        self.states[r][k * m + 1 :] = np.nan
+                        self._stop(r, float(knots[k]), f"time limit reached in interval {k}")
+                    return
+                if not stepper.step(t_end):
+                    if len(rows) > 1:  # each simulation alone: it fails alone, or goes on
+                        h = stepper.h_abs if math.isfinite(stepper.h_abs) else None
+                        for i, r in enumerate(rows):
+                            self._march([r], k, stepper.t, stepper.y[i : i + 1].copy(), h, done)
+                        return
+                    r = rows[0]
+                    reached = self.times[done] if done > k * m else knots[k]
+                    self._stop(
+                        r, float(reached), f"integrator failed in interval {k}: {stepper.message}"
+                    )
+                    return
+                upto = k * m + int(np.searchsorted(self.times[k * m + 1 : (k + 1) * m + 1],
+                                                   stepper.t, side="right"))  # fmt: skip
+                stopped = self._events(rows, k, stepper, g_old)
+                self._sample(rows, stepper, done, upto, stopped)
+                done = upto
+                if stopped:
+                    rows_left = [r for r in rows if r not in stopped]
+                    if not rows_left:
+                        return
+                    keep = [i for i, r in enumerate(rows) if r not in stopped]
+                    self._select(k, rows_left)
+                    stepper = Dop853(
+                        self._rhs, stepper.t, stepper.y[keep], rtol=self.rtol, atol=self.atol,
+                        t_bound=t_end, first_step=stepper.h_abs, f0=stepper.f[keep],
+                    )  # fmt: skip
+                    g_old = [g for i, g in enumerate(g_old) if i in keep]
+                    rows = rows_left
+
+    def _gap(self, r: int, k: int, t: float, q: Array) -> float:
+        """Return simulation ``r``'s stop event: deviation minus stop (< 0 before), or -inf."""
+        stop = self.stops[r]
+        return -math.inf if stop is None else self._deviation(k, t, q) - stop
+
+    def _events(
+        self, rows: list[int], k: int, stepper: Dop853, g_old: list[float]
+    ) -> dict[int, float]:
+        """Return the simulations that reached their stop in the last step: row -> time [s]."""
+        nv = self.nv
+        stopped: dict[int, float] = {}
+        for i, r in enumerate(rows):
+            if self.stops[r] is None:
+                continue
+            g_new = self._gap(r, k, stepper.t, stepper.y[i, :nv])
+            if g_old[i] <= 0.0 <= g_new:
+                root = self._root(r, i, k, stepper)
+                stopped[r] = root
+                self._stop(r, root, f"deviation from the plan reached {self.stops[r]:g} rad")
+            g_old[i] = g_new
+        return stopped
+
+    def _root(self, r: int, i: int, k: int, stepper: Dop853) -> float:
+        """Return the time [s] in the last step at which simulation ``r`` (row ``i``) stopped.
+
+        Bisection on the dense output to SciPy's event tolerance (4 eps,
+        absolute and relative): ``gap(lo) <= 0 <= gap(hi)``.
+        """
+        lo, hi = stepper.t_old, stepper.t
+        nv = self.nv
+        while hi - lo > _ROOT_TOL * (1.0 + abs(hi)):
+            mid = 0.5 * (lo + hi)
+            if mid <= lo or mid >= hi:
+                break
+            q = stepper.dense(np.array([mid]))[0, i, :nv]
+            if self._gap(r, k, mid, q) < 0.0:
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
+
+    def _sample(
+        self, rows: list[int], stepper: Dop853, done: int, upto: int, stopped: dict[int, float]
+    ) -> None:
+        """Fill samples ``done + 1 .. upto`` (those in the last step) of each row.
+
+        A simulation stopped in the step gets the samples up to its stop time only.
+        """
+        if upto <= done:
+            return
+        times = self.times[done + 1 : upto + 1]
+        inside = times < stepper.t
+        values = np.empty((times.size, len(rows), 2 * self.nv))
+        if np.any(inside):
+            values[inside] = stepper.dense(times[inside])
+        values[~inside] = stepper.y
+        for i, r in enumerate(rows):
+            keep = times <= stopped.get(r, math.inf)
+            self.states[r][done + 1 : upto + 1][keep] = values[keep, i]
+
+    def _stop(self, r: int, time: float, message: str) -> None:
+        self.stop_time[r] = time
+        self.message[r] = message
+        if message.startswith(("time limit", "integrator failed")):
+            _LOG.warning("simulation stopped: %s", message)
+
+
+_ROOT_TOL = 4.0 * np.finfo(float).eps  # SciPy's event tolerance
+
+
+def _simulate_scipy(
+    trajectory: Trajectory,
+    robot: RobotModel,
+    polys: _IntervalPolynomials,
+    loop: _ClosedLoop,
+    stop_deviation: float | None,
+    times: Array,
+    m: int,
+    *,
+    method: str,
+    rtol: float,
+    atol: float,
+    deadline: float | None,
+) -> tuple[Array, float | None, str]:
+    """One simulation with ``solve_ivp`` restarted at every knot: states, stop time, message."""
+    from scipy.integrate import solve_ivp  # SciPy: only for its implicit methods (stiff damping)
+
+    model, data = robot.model, robot.model.createData()
+    nv = model.nv
+    n = trajectory.n_knots - 1
+    net_coef, gain_state, q_coef = loop.net, loop.state_gain, polys.coef[:, :, :nv]
     states = np.full((times.size, 2 * nv), np.nan)
     states[0] = np.concatenate([trajectory.q[0], trajectory.v[0]])
     stop_time: float | None = None
@@ -484,17 +864,8 @@ def simulate(
             message = f"deviation from the plan reached {stop_deviation:g} rad"
             break
         if not sol.success or got != m:
-            stop_time = float(sol.t[-1]) if sol.t.size else float(span[0])
+            stop_time = float(sol.t[-1]) if len(sol.t) else float(span[0])  # t: [] if none
             message = f"integrator failed in interval {k}: {sol.message}"
             _LOG.warning("simulation stopped: %s", message)
             break
-    q, v = states[:, :nv], states[:, nv:]
-    tau_plan = trajectory.torque(times)
-    # Sample j belongs to interval (j - 1) // m (sample 0 to interval 0).
-    interval = np.maximum(np.arange(times.size) - 1, 0) // m
-    error = np.hstack([trajectory(times) - q, trajectory.velocity(times) - v])
-    tau_fb = np.einsum("jab,jb->ja", gain[interval], error)
-    return Simulation(
-        t=times, q=q, v=v, tau_plan=tau_plan, tau_feedback=tau_fb, stop_time=stop_time,
-        message=message,
-    )  # fmt: skip
+    return states, stop_time, message
