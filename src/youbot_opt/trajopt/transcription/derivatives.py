@@ -27,6 +27,7 @@ from youbot_opt.trajopt.transcription.hermite_simpson import HermiteSimpsonCollo
 from youbot_opt.trajopt.transcription.radau import RadauCollocation
 from youbot_opt.trajopt.transcription.stencil import (
     IntervalStencil,
+    chain_rule,
     interval_stencil,
     stencil_functions,
 )
@@ -464,16 +465,7 @@ def structured_functions(
             for ps in sets
         ]
     )
-    jac_g = ca.jacobian(g, x) + ca.mtimes(ca.jacobian(g, a_all), j_ax)
-
-    lag = lam_f * f + ca.dot(lam_g, g)
-    grad_a = ca.gradient(lag, a_all)
-    hess = ca.hessian(lag, x)[0]
-    cross = ca.mtimes(j_ax.T, ca.jacobian(grad_a, x))
-    hess = hess + cross + cross.T
-    l_aa = ca.jacobian(grad_a, a_all)
-    if l_aa.nnz() > 0:  # not for collocation (g is affine in A); kept for generality
-        hess = hess + ca.mtimes(ca.mtimes(j_ax.T, l_aa), j_ax)
+    jac_g, hess, grad_a = chain_rule(g, x, a_all, j_ax, lam_f * f + ca.dot(lam_g, g))
     for ps in sets:
         block = _block_diagonal(ps.hessians, ps.width, ps.width, ps.points)
         hess = hess + ca.mtimes(ca.mtimes(ps.select.T, block), ps.select)

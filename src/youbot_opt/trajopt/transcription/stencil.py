@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from youbot_opt.trajopt.transcription.base import Transcription
     from youbot_opt.trajopt.transcription.path import PathConstraint
 
-__all__ = ["IntervalStencil", "interval_stencil", "stencil_functions"]
+__all__ = ["IntervalStencil", "chain_rule", "interval_stencil", "stencil_functions"]
 
 _Ints = Indices
 
@@ -106,6 +106,46 @@ def _triplet(m: ca.SX) -> tuple[_Ints, _Ints]:
     return np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
 
 
+def chain_rule(g: ca.SX, x: ca.SX, a: ca.SX, j_ax: ca.SX, lag: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Return ``dg/dx``, ``d2 lag/dx2`` and ``d lag/da`` of expressions in ``x`` and ``a(x)``.
+
+    ``g`` and ``lag`` are written in the free symbols ``x`` and ``a``; ``a``
+    stands for the per-point kernels' outputs, whose Jacobian ``j_ax`` is given.
+    The Hessian leaves out ``sum_i (d lag/d a_i) d2 a_i/dx2`` (the kernels' own
+    Hessians, which the caller adds weighted by ``d lag/da``):
+    ``lag_xx + J^T lag_ax + lag_xa J + J^T lag_aa J``.
+
+    Parameters
+    ----------
+    g : casadi.SX
+        The rows, a column.
+    x, a : casadi.SX
+        The variables and the kernel outputs (columns of symbols).
+    j_ax : casadi.SX
+        ``da/dx``, sparse.
+    lag : casadi.SX
+        A scalar (the rows weighted by their multipliers, plus the objective's term).
+
+    Returns
+    -------
+    jac : casadi.SX
+        ``dg/dx``.
+    hess : casadi.SX
+        ``d2 lag/dx2`` without the kernels' second derivatives (symmetric, full).
+    grad_a : casadi.SX
+        ``d lag/da``: the weights of the kernels' Hessians.
+    """
+    jac = ca.jacobian(g, x) + ca.mtimes(ca.jacobian(g, a), j_ax)
+    grad_a = ca.gradient(lag, a)
+    hess = ca.hessian(lag, x)[0]
+    cross = ca.mtimes(j_ax.T, ca.jacobian(grad_a, x))
+    hess = hess + cross + cross.T
+    l_aa = ca.jacobian(grad_a, a)
+    if l_aa.nnz() > 0:  # not for collocation (g is affine in a); kept for generality
+        hess = hess + ca.mtimes(ca.mtimes(j_ax.T, l_aa), j_ax)
+    return jac, hess, grad_a
+
+
 def _row_set(
     rows: _Ints, g: ca.SX, s: ca.SX, h: ca.SX, a: ca.SX, jac: ca.SX, z_of_point: _Ints
 ) -> _RowSet:
@@ -126,16 +166,7 @@ def _row_set(
     order = np.empty(src.size, dtype=np.int64)
     order[np.asarray(mapping, dtype=np.int64)] = src
     j_az = ca.SX(sp, ca.vec(jac)[order.tolist()])
-    a_vec = ca.vec(a)
-    jac_z = ca.jacobian(gr, z) + ca.mtimes(ca.jacobian(gr, a_vec), j_az)
-    lag = ca.dot(lam, gr)
-    grad_a = ca.gradient(lag, a_vec)
-    hess = ca.hessian(lag, z)[0]
-    cross = ca.mtimes(j_az.T, ca.jacobian(grad_a, z))
-    hess = hess + cross + cross.T
-    l_aa = ca.jacobian(grad_a, a_vec)
-    if l_aa.nnz() > 0:  # not for collocation (g is affine in a); kept for generality
-        hess = hess + ca.mtimes(ca.mtimes(j_az.T, l_aa), j_az)
+    jac_z, hess, grad_a = chain_rule(gr, z, ca.vec(a), j_az, ca.dot(lam, gr))
     upper = ca.triu(hess)
     jr, jc = _triplet(jac_z)
     hr, hc = _triplet(upper)
