@@ -348,10 +348,12 @@ def compile_functions(
         Per Function, as :func:`compile_function`'s ``with_jacobian``.
     index : str, optional
         What the caller derived ``functions`` from, deterministically (e.g. the
-        serialised Function they differentiate and the deriving code): once
-        every library of the batch is loaded from this cache, an index file
-        maps it to them, and :func:`load_indexed` then loads them without the
-        Functions (whose building and code generation cost more than the load).
+        serialised Function they differentiate and the deriving code): an index
+        file maps it to the batch's libraries (written when they are loaded from
+        this cache, or when their background compile starts: read only once
+        every library exists), and :func:`load_indexed` then loads them without
+        the Functions (whose building and code generation cost more than the
+        load; a warm ur5 run's first build 0.35 s more without it).
 
     Returns
     -------
@@ -423,6 +425,8 @@ def compile_functions(
         wait = not meanwhile and _wall_estimate(jobs) <= WAIT_SECONDS
     if not wait:
         _compile_in_background(jobs, compiler, flags, directory, batch, meanwhile)
+        if index is not None:  # read once every library exists: the first later run is fast
+            _write_index(directory, index, compiler, flags, functions, jobs_of)
         return result
     _log.info(
         "compiling %s to C now (%.0f kB, about %.0f s, %d at a time), cached in %s for later runs",
