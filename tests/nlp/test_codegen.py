@@ -60,6 +60,16 @@ def test_background_compile_returns_now_and_caches(
     np.testing.assert_allclose(np.asarray(second(x)), np.asarray(f(x)), rtol=0, atol=1e-15)
 
 
+def _assert_loaded_as(found: list[ca.Function] | None, originals: tuple[ca.Function, ...]) -> None:
+    """The indexed Functions evaluate as the originals (same IEEE operations: to 1e-15)."""
+    assert found is not None and len(found) == len(originals)
+    x = np.array([0.3, -1.7])
+    for loaded, original in zip(found, originals, strict=True):
+        np.testing.assert_allclose(
+            np.asarray(loaded(x)), np.asarray(original(x)), rtol=0, atol=1e-15
+        )
+
+
 def test_a_background_compile_is_indexed_for_the_next_run(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -67,8 +77,8 @@ def test_a_background_compile_is_indexed_for_the_next_run(
 
     The first run after the compile then loads the libraries without deriving
     the Functions again (before, only a run that found them wrote the index, so
-    that run paid the derivation: 0.35 s on ur5); while the libraries are
-    missing the index finds nothing.
+    that run paid the derivation: 0.35 s on ur5). The index names exactly the
+    libraries the compile made.
     """
     from youbot_opt.nlp.codegen import compile_functions, load_indexed
 
@@ -77,16 +87,11 @@ def test_a_background_compile_is_indexed_for_the_next_run(
     compiled = compile_functions([f, g], wait=False, index="indexed ahead")
     assert compiled[0] is f and compiled[1] is g  # this run: CasADi's virtual machine
     assert len(list(tmp_path.glob("index_*.json"))) == 1
-    if list(tmp_path.glob("*.lock")):  # still compiling: the index reads as missing
-        assert load_indexed("indexed ahead") is None or not list(tmp_path.glob("*.lock"))
     _wait_unlocked(tmp_path)
-    found = load_indexed("indexed ahead")
-    assert found is not None and len(found) == 2
-    x = np.array([0.3, -1.7])
-    for loaded, original in zip(found, (f, g), strict=True):
-        np.testing.assert_allclose(
-            np.asarray(loaded(x)), np.asarray(original(x)), rtol=0, atol=1e-15
-        )
+    (index_file,) = tmp_path.glob("index_*.json")
+    named = sorted(lib for _, lib in json.loads(index_file.read_text(encoding="utf-8")))
+    assert named == sorted(p.name for p in tmp_path.glob("tiny_*.so"))  # what was compiled
+    _assert_loaded_as(load_indexed("indexed ahead"), (f, g))
 
 
 def test_fresh_lock_means_no_second_compile(
@@ -653,12 +658,9 @@ def test_an_indexed_batch_loads_without_its_functions(
     )
     assert all(c is not o for c, o in zip(compiled, (f, g), strict=True))
     found = load_indexed("two tiny ones")
-    assert found is not None and len(found) == 2
+    _assert_loaded_as(found, (f, g))
+    assert found is not None
     x = np.array([0.3, -1.7])
-    for loaded, original in zip(found, (f, g), strict=True):
-        np.testing.assert_allclose(
-            np.asarray(loaded(x)), np.asarray(original(x)), rtol=0, atol=1e-15
-        )
     xs = ca.MX.sym("x", 2)
     jac = ca.Function("j", [xs], [ca.jacobian(found[0](xs), xs)])
     np.testing.assert_allclose(np.diag(np.asarray(jac(x))), np.sin(x) + x * np.cos(x), atol=1e-12)

@@ -465,12 +465,11 @@ class DrawingAhead:
         self._queue = _Queue(ctx, processes)
         pipes = [ctx.Pipe(duplex=False) for _ in range(processes)]
         commands, self._commands = ctx.Pipe(duplex=False)
-        by_key = {key: obj for obj in shared for key in [self._keys[id(obj)]]}
         try:
             proc = ctx.Process(
                 target=_ahead_child,
                 args=(commands, self._commands, [send for _, send in pipes], self._queue,
-                      os.getpid(), by_key, tuple(modules), warm),
+                      os.getpid(), {self._keys[id(o)]: o for o in shared}, tuple(modules), warm),
                 name="youbot-opt figures",
                 daemon=True,
             )  # fmt: skip

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"youbot_opt {__version__}: study-1 base case (beta = 0.5, {grid}, trapezoidal, "
           "straight-line start)\n")  # fmt: skip
     problem = study1_problem(50)
-    ahead = solve_drawing_ahead(problem.robot, problem, figures=not args.no_figures)
+    ahead = solve_drawing_ahead(problem, figures=not args.no_figures)
     try:
         return _main_job(args, problem, ahead, tic)
     finally:

@@ -31,8 +31,8 @@ if TYPE_CHECKING:  # matplotlib, the plots and the replay load when a run draws 
     from matplotlib.figure import Figure
 
     from youbot_opt.cli.drawing import DrawingAhead, FigureJob
-    from youbot_opt.robot.model import RobotModel
     from youbot_opt.trajopt.multistart import MultistartResult
+    from youbot_opt.trajopt.problem import TrajOptProblem
     from youbot_opt.trajopt.refine import Refinement
     from youbot_opt.trajopt.result import TrajOptResult
 
@@ -326,11 +326,13 @@ def write_solve_outputs(
     jobs = [*solve_figures(result, multistart, refinement), *extra_figures] if figures else []
     here = "youbot_opt.cli.output:"
     if multistart is not None:
-        jobs.insert(0, FigureJob(REPLAY, here + "optima_replay", (folder, multistart), {}, False))
+        jobs.insert(
+            0, FigureJob(REPLAY, here + "optima_replay", (folder, multistart), optional=False)
+        )
     elif result.trajectory is not None:  # first: the longest job (meshes read, meshcat loaded)
         labels = [f"f = {result.objective:.5g}"]
         jobs.insert(
-            0, FigureJob(REPLAY, here + "replay_html", (folder, [result], labels), {}, False)
+            0, FigureJob(REPLAY, here + "replay_html", (folder, [result], labels), optional=False)
         )
     drawing = Drawing(folder, jobs) if ahead is None else ahead.draw(folder, jobs)
     try:
@@ -352,13 +354,14 @@ def write_solve_outputs(
     return written
 
 
-def solve_drawing_ahead(robot: RobotModel, problem: object, *, figures: bool) -> DrawingAhead:
+def solve_drawing_ahead(problem: TrajOptProblem, *, figures: bool) -> DrawingAhead:
     """Start the drawing processes of a solve's outputs before it solves (:class:`DrawingAhead`).
 
     They import the plots (unless ``figures`` is False) and the replay's
-    modules, and read the robot's meshes, on another core while the run
-    computes; ``problem`` (and ``robot``) are sent to them by reference.
+    modules, and read the problem's robot's meshes, on another core while the
+    run computes; the problem and its robot are sent to them by reference.
     """
+    robot = problem.robot
     from youbot_opt.cli.drawing import DrawingAhead
 
     modules = ["youbot_opt.viz.meshcat.replay", "youbot_opt.viz.meshcat.results"]

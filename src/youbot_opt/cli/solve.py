@@ -190,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
         n_starts=args.starts,
         max_knots=args.max_knots if args.refine else 0,
     )  # noqa: E501
-    ahead = solve_drawing_ahead(problem.robot, problem, figures=not args.no_figures)
+    ahead = solve_drawing_ahead(problem, figures=not args.no_figures)
     try:
         return _solve(args, problem, ahead)
     finally:
