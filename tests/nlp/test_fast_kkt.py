@@ -46,12 +46,12 @@ def test_bound_relaxation_stays_within_a_share_of_the_tolerance() -> None:
     assert bound_relaxation(youbot, 1e-7)["bound_relax_factor"] == pytest.approx(1e-8 / 9.5)
 
 
-@pytest.mark.parametrize("method", ["trapezoidal", "hermite_simpson"])
+@pytest.mark.parametrize("method", ["trapezoidal", "hermite_simpson", "radau"])
 def test_fast_kkt_changes_the_steps_not_the_optimum(method: str) -> None:
     """Study-1 problem at 20 knots: the same local optimum with and without fast_kkt.
 
-    fast_kkt includes MUMPS's AMD ordering: a different elimination order, so
-    the Newton steps differ by rounding only.
+    fast_kkt includes MUMPS's AMD ordering (AMF for Radau): a different
+    elimination order, so the Newton steps differ by rounding only.
 
     Both runs stop at IPOPT's tol = 1e-8 on the same KKT point: measured, their
     objectives differ by 4e-16 relative and their knots by 2e-13 rad (here the
@@ -68,3 +68,43 @@ def test_fast_kkt_changes_the_steps_not_the_optimum(method: str) -> None:
     assert fast.success and plain.success, (fast.message, plain.message)
     assert fast.objective == pytest.approx(plain.objective, rel=1e-8)
     np.testing.assert_allclose(fast.variables["q"], plain.variables["q"], atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("method", "order"), [("trapezoidal", 0), ("hermite_simpson", 0), ("radau", 2)]
+)
+def test_each_scheme_sets_its_mumps_ordering(
+    method: str, order: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The IPOPT instances a solver builds (cold and warm) get the scheme's ordering.
+
+    Only where FAST_KKT's ordering applies (fast_kkt on, MUMPS); ``extra`` wins.
+    """
+    import casadi as ca
+
+    from youbot_opt.reproduction.study1 import study1_problem
+    from youbot_opt.trajopt.solver import TrajOptSolver
+
+    seen: list[dict[str, object]] = []
+    build = ca.nlpsol
+
+    def spy(name: str, plugin: str, nlp: object, opts: dict[str, object]) -> object:
+        seen.append(dict(opts["ipopt"]))  # type: ignore[call-overload]
+        return build(name, plugin, nlp, opts)
+
+    monkeypatch.setattr(ca, "nlpsol", spy)
+    problem = study1_problem(8)
+    cases = [
+        (IpoptOptions(), order),
+        (IpoptOptions(extra={"mumps_pivot_order": 5}), 5),
+        (IpoptOptions(fast_kkt=False), None),
+        (IpoptOptions(linear_solver="spral"), None),
+    ]
+    for options, expected in cases:
+        seen.clear()
+        solver = TrajOptSolver(problem, method, options)
+        first = solver.solve(beta=0.5)
+        solver.solve(beta=0.5, guess=first, warm_start=True)
+        assert len(seen) == 2, seen  # the cold and the warm instance
+        for ipopt in seen:
+            assert ipopt.get("mumps_pivot_order") == expected, (options, ipopt)

@@ -368,11 +368,23 @@ class TrajOptSolver:
         new._build(tic)
         return new
 
+    def _kkt(self, relax: Mapping[str, IpoptValue]) -> dict[str, IpoptValue]:
+        """Return the NLP's own IPOPT settings: the bound relaxation and the MUMPS ordering.
+
+        The ordering (:attr:`Transcription.mumps_pivot_order`) replaces
+        :data:`~youbot_opt.nlp.ipopt.FAST_KKT`'s only where that applies (``fast_kkt``
+        on, MUMPS the linear solver); :attr:`IpoptOptions.extra` overrides both.
+        """
+        settings: dict[str, IpoptValue] = dict(relax)
+        if self.options.fast_kkt and self.options.linear_solver == "mumps":
+            settings["mumps_pivot_order"] = self.method.mumps_pivot_order
+        return settings
+
     def _cold(self, relax: Mapping[str, IpoptValue]) -> Any:
         """Return the cold-start IPOPT instance of a bound relaxation (built on first use)."""
         key = relax.get("bound_relax_factor")
         if key not in self._cold_solvers:
-            opts = self.options.to_casadi(self._exact_hessian, solver_settings=relax)
+            opts = self.options.to_casadi(self._exact_hessian, solver_settings=self._kkt(relax))
             opts["iteration_callback"] = self._recorder
             self._cold_solvers[key] = ca.nlpsol(
                 "trajopt", "ipopt", self._nlp_function, {**opts, **self._derivatives}
@@ -603,7 +615,7 @@ class TrajOptSolver:
         key = relax.get("bound_relax_factor")
         if key not in self._warm_solvers:
             opts = self.options.to_casadi(
-                self._exact_hessian, warm_start=True, solver_settings=relax
+                self._exact_hessian, warm_start=True, solver_settings=self._kkt(relax)
             )
             opts["iteration_callback"] = self._recorder
             if self._derivatives:

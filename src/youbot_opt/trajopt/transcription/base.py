@@ -308,6 +308,11 @@ class Transcription(ABC):
     interior_points: ClassVar[Mapping[str, float]] = MappingProxyType({})
     """Path-point groups other than ``"knots"`` (:meth:`path_points`) -> where in
     each interval they lie, as a fraction of its length (one column an interval)."""
+    mumps_pivot_order: ClassVar[int] = 0
+    """MUMPS's fill-reducing ordering of this scheme's KKT matrices when
+    :attr:`~youbot_opt.nlp.ipopt.IpoptOptions.fast_kkt` is on and MUMPS solves
+    them (IPOPT's ``mumps_pivot_order``: 0 AMD, :data:`~youbot_opt.nlp.ipopt.FAST_KKT`'s;
+    2 AMF). ``IpoptOptions.extra`` overrides it; docs/design.md has the measurements."""
     fractions: Array | None = None
     """The grid's interval fractions (``None``: uniform; also for subclasses that
     define their own ``__init__``)."""

@@ -61,6 +61,8 @@ class RadauCollocation(Transcription):
     interior_points: ClassVar[Mapping[str, float]] = MappingProxyType(
         {s: float(c) for s, c in zip(_STAGES, quadrature.RADAU_NODES[:2], strict=True)}
     )
+    mumps_pivot_order: ClassVar[int] = 2
+    """AMF: 10-22 % less time per IPOPT iteration than AMD on ur5 and panda (docs/design.md)."""
 
     def variable_blocks(self, nv: int, n_knots: int) -> list[tuple[str, int, int]]:
         """Knot and stage ``q, v, tau`` and ``dt``: ``3 nv (3N - 2) + 1`` variables."""
