@@ -151,7 +151,15 @@ def _rms_rows(x: Array) -> Array:
 
 
 def initial_step(
-    fun: Rhs, t0: float, y0: Array, f0: Array, t_bound: float, rtol: float, atol: float
+    fun: Rhs,
+    t0: float,
+    y0: Array,
+    f0: Array,
+    t_bound: float,
+    rtol: float,
+    atol: float,
+    *,
+    order: int = 7,
 ) -> float:
     """Choose a first step size, as Hairer's ``dop853.f`` and SciPy's ``select_initial_step``.
 
@@ -171,6 +179,9 @@ def initial_step(
         End of the integration (the step does not exceed ``t_bound - t0``).
     rtol, atol : float
         Relative and absolute tolerances.
+    order : int, optional
+        Order of the method's error estimate (7 for DOP853, 3 for Radau IIA):
+        the local error is taken as proportional to ``h**(order + 1)``.
 
     Returns
     -------
@@ -195,7 +206,7 @@ def initial_step(
         h1_rows = np.where(
             (d1 <= 1e-15) & (d2 <= 1e-15),
             max(1e-6, h0 * 1e-3),
-            (0.01 / np.maximum(d1, d2)) ** (1.0 / 8.0),
+            (0.01 / np.maximum(d1, d2)) ** (1.0 / (order + 1)),
         )
     if np.isnan(h1_rows).any():
         return float("nan")

@@ -6,8 +6,8 @@ collocation equations (spec ``trajopt.md``, "prove each trajectory by forward
 simulation"): :func:`integrate_intervals` (one interval from every knot) and
 :func:`simulate` / :func:`simulate_batch` (the whole motion, open loop or with
 :class:`PDGains`), integrated by :class:`~youbot_opt.dynamics.dop853.Dop853`, or
-SciPy's Radau where the damping is stiff (:func:`integration_method`), with
-Pinocchio's ABA. Robots with ``nq == nv`` only.
+:class:`~youbot_opt.dynamics.radau5.Radau5` where the damping is stiff
+(:func:`integration_method`), with Pinocchio's ABA. Robots with ``nq == nv``.
 
 >>> sim = simulate(result.trajectory, robot, gains=PDGains())  # doctest: +SKIP
 """
@@ -34,6 +34,7 @@ from youbot_opt.dynamics.numeric import (
     batched_aba,
     damping_rate,
 )
+from youbot_opt.dynamics.radau5 import Radau5
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.model import RobotModel, as_robot_model
 from youbot_opt.trajopt.trajectory import Trajectory
@@ -54,6 +55,11 @@ DEFAULT_RTOL = 1e-10
 """Default relative tolerance of the integrator (DOP853)."""
 DEFAULT_ATOL = 1e-12
 """Default absolute tolerance of the integrator, in [rad] and [rad/s]."""
+
+
+_OWN_METHODS = ("DOP853", "Radau")
+"""Methods integrated by our own steppers (:class:`Dop853`, :class:`Radau5`); any
+other ``solve_ivp`` method name goes to SciPy, restarted at every knot."""
 
 
 class _Deadline(Exception):
@@ -305,9 +311,11 @@ def integrate_intervals(
         Absolute tolerance of the integrator in [rad] and [rad/s].
     method : str, optional
         ``"DOP853"`` (:class:`~youbot_opt.dynamics.dop853.Dop853`, SciPy's
-        algorithm without SciPy), another ``solve_ivp`` method, or ``"auto"``
-        (default): DOP853, or Radau with the block-diagonal Jacobian pattern
-        when the damping is stiff on the grid (:func:`integration_method`).
+        algorithm without SciPy), ``"Radau"``
+        (:class:`~youbot_opt.dynamics.radau5.Radau5`, likewise, with the
+        analytic block-diagonal Jacobian), another ``solve_ivp`` method (SciPy),
+        or ``"auto"`` (default): DOP853, or Radau when the damping is stiff on
+        the grid (:func:`integration_method`).
     deadline : float, optional
         A ``time.perf_counter()`` value [s] after which the integration stops
         (then the result is NaN, as for a failure).
@@ -346,11 +354,16 @@ def integrate_intervals(
     x0 = np.hstack([trajectory.q[:-1], trajectory.v[:-1]]).reshape(1, -1)
     method = integration_method(method, trajectory, robot, damping=damping)
     nan = np.full((n, nv), np.nan)
-    if method == "DOP853":
+    if method in _OWN_METHODS:
         if _passed(deadline):
             _LOG.warning("local integration stopped: time limit reached")
             return nan, nan.copy()
-        stepper = Dop853(rhs, 0.0, x0, rtol=rtol, atol=atol, t_bound=1.0)
+        stepper: Dop853 | Radau5
+        if method == "Radau":
+            jac = _IntervalJacobian(robot, tau_block, h, damping)
+            stepper = Radau5(rhs, jac, 0.0, x0, rtol=rtol, atol=atol, t_bound=1.0)
+        else:
+            stepper = Dop853(rhs, 0.0, x0, rtol=rtol, atol=atol, t_bound=1.0)
         while stepper.t < 1.0:
             if _passed(deadline):
                 _LOG.warning("local integration stopped: time limit reached")
@@ -387,6 +400,47 @@ def integrate_intervals(
 
 def _passed(deadline: float | None) -> bool:
     return deadline is not None and time.perf_counter() > deadline
+
+
+def _state_jacobian(da_dq: Array, da_dv: Array, minv: Array, dtau_dx: Array) -> Array:
+    """``d[v, a]/d[q, v]`` (2 nv, 2 nv) of ``a = ABA(q, v, tau(q, v))``, ``tau`` affine in x."""
+    nv = da_dq.shape[0]
+    out = np.zeros((2 * nv, 2 * nv))
+    out[:nv, nv:] = np.eye(nv)
+    out[nv:, :nv] = da_dq
+    out[nv:, nv:] = da_dv
+    out[nv:] += minv @ dtau_dx
+    return out
+
+
+class _IntervalJacobian:
+    """The analytic Jacobian blocks of :func:`integrate_intervals`' stacked ODE.
+
+    Interval k's block is ``h[k] d[v, a]/d[q, v]`` with Pinocchio's ABA
+    derivatives (``computeABADerivatives``: da/dq, da/dv and M^-1) and the
+    damping torque ``-b v`` (``dtau/dv = -b``): one derivative call per interval,
+    where finite differences would need 2 nv batched ABA calls.
+    """
+
+    def __init__(self, robot: RobotModel, tau_block: Array, h: Array, damping: bool) -> None:
+        self.model, self.data = robot.model, robot.model.createData()
+        self.nv = nv = robot.nv
+        self.b = acting_damping(robot, damping)
+        self.tau_block, self.h = tau_block, h
+        self.dtau_dx = np.zeros((nv, 2 * nv))
+        self.dtau_dx[:, nv:] = -np.diag(self.b)
+
+    def __call__(self, s: float, x: Array) -> Array:
+        nv, n = self.nv, self.h.size
+        state = x.reshape(n, 2 * nv)
+        tau = (_powers(s) @ self.tau_block).reshape(n, nv) - self.b * state[:, nv:]
+        blocks = np.empty((n, 2 * nv, 2 * nv))
+        for k in range(n):
+            da_dq, da_dv, minv = pin.computeABADerivatives(
+                self.model, self.data, state[k, :nv], state[k, nv:], tau[k]
+            )
+            blocks[k] = self.h[k] * _state_jacobian(da_dq, da_dv, minv, self.dtau_dx)
+        return blocks
 
 
 def simulate(
@@ -428,10 +482,11 @@ def simulate(
     rtol, atol : float, optional
         Integrator tolerances (``atol`` in [rad] and [rad/s]).
     method : str, optional
-        ``"DOP853"`` (:class:`~youbot_opt.dynamics.dop853.Dop853`), another
-        ``solve_ivp`` method (restarted at every knot), or ``"auto"`` (default):
-        DOP853, or Radau when the damping is stiff on the grid
-        (:func:`integration_method`).
+        ``"DOP853"`` (:class:`~youbot_opt.dynamics.dop853.Dop853`), ``"Radau"``
+        (:class:`~youbot_opt.dynamics.radau5.Radau5`, with the analytic
+        Jacobian), another ``solve_ivp`` method (SciPy, restarted at every
+        knot), or ``"auto"`` (default): DOP853, or Radau when the damping is
+        stiff on the grid (:func:`integration_method`).
     deadline : float, optional
         A ``time.perf_counter()`` value [s] after which the simulation stops
         (``stop_time`` and ``message`` say where), as for an integrator failure.
@@ -470,7 +525,7 @@ def simulate_batch(
     """Simulate the motion several times at once: one simulation per entry of ``gains``.
 
     Simulation ``i`` is :func:`simulate` with ``gains[i]`` and
-    ``stop_deviation[i]``. With DOP853 the simulations are one stacked ODE
+    ``stop_deviation[i]``. With DOP853 or Radau the simulations are one stacked ODE
     (one integrator for all, common steps, each simulation's error held to
     the tolerances: the integrator's overhead is paid once); a simulation that
     stops leaves the stack, and if the stack's step fails, each simulation
@@ -522,10 +577,10 @@ def simulate_batch(
     polys = _IntervalPolynomials(trajectory)
     times = sample_times(trajectory.t, samples_per_interval)
     loops = [_ClosedLoop(trajectory, robot, polys, g, damping) for g in gains]
-    if method == "DOP853":
-        march = _Dop853March(
+    if method in _OWN_METHODS:
+        march = _March(
             trajectory, robot, polys, loops, stops, times, int(samples_per_interval),
-            rtol=rtol, atol=atol, deadline=deadline,
+            rtol=rtol, atol=atol, deadline=deadline, stiff=method == "Radau",
         )  # fmt: skip
         march.run()
         results = [
@@ -591,12 +646,14 @@ class _ClosedLoop:
         self.state_gain[:, :, nv:] += np.diag(acting_damping(robot, damping))
 
 
-class _Dop853March:
+class _March:
     """The simulations of :func:`simulate_batch` as one stacked ODE, knot to knot.
 
     Rows of the stack are the simulations still running (``active``). Steps end
-    on every knot (the torque law changes there), the step size carried over;
-    samples inside a step come from the dense output.
+    on every knot (the torque law changes there), the step size carried over
+    (and for Radau the Jacobian and its factorisations); samples inside a step
+    come from the dense output. ``stiff``: :class:`Radau5` with the analytic
+    Jacobian (:meth:`_jac`), else :class:`Dop853`.
     """
 
     def __init__(
@@ -612,8 +669,10 @@ class _Dop853March:
         rtol: float,
         atol: float,
         deadline: float | None,
+        stiff: bool = False,
     ) -> None:
         self.t = trajectory.t
+        self.stiff = stiff
         self.polys, self.m, self.times = polys, m, times
         self.stops = stops
         self.rtol, self.atol, self.deadline = rtol, atol, deadline
@@ -656,6 +715,36 @@ class _Dop853March:
             out[i, nv:] = pin.aba(model, data, x[i, :nv], x[i, nv:], z[i] @ law[i])
         return out
 
+    def _jac(self, t: float, x: Array) -> Array:
+        """Jacobian blocks of :meth:`_rhs`, one a row: ABA derivatives and the torque law."""
+        nv, model, data, law, z = self.nv, self.model, self.data, self._law, self._z
+        s = (t - self._t0) / self._h
+        z[:, 1] = s
+        z[:, 2] = s * s
+        z[:, 3] = s * s * s
+        z[:, 4:] = x
+        blocks = np.empty((x.shape[0], 2 * nv, 2 * nv))
+        for i in range(x.shape[0]):
+            da_dq, da_dv, minv = pin.computeABADerivatives(
+                model, data, x[i, :nv], x[i, nv:], z[i] @ law[i]
+            )
+            blocks[i] = _state_jacobian(da_dq, da_dv, minv, law[i, 4:].T)  # dtau/dx = law's
+        return blocks
+
+    def _stepper(
+        self, t: float, x: Array, t_bound: float, h_abs: float | None, f0: Array | None = None
+    ) -> Dop853 | Radau5:
+        """Return a new stepper for the rows selected (:meth:`_select`)."""
+        if self.stiff:
+            return Radau5(
+                self._rhs, self._jac, t, x, rtol=self.rtol, atol=self.atol, t_bound=t_bound,
+                first_step=h_abs, f0=f0,
+            )  # fmt: skip
+        return Dop853(
+            self._rhs, t, x, rtol=self.rtol, atol=self.atol, t_bound=t_bound, first_step=h_abs,
+            f0=f0,
+        )  # fmt: skip
+
     def _deviation(self, k: int, t: float, q: Array) -> float:
         """``max_i |q_i - q_plan_i(t)|`` in [rad] in interval ``k``."""
         q_plan = _powers((t - self.polys.t0[k]) / self.polys.h[k]) @ self.q_coef[k]
@@ -676,7 +765,7 @@ class _Dop853March:
         are filled.
         """
         m, nv, knots = self.m, self.nv, self.t
-        stepper: Dop853 | None = None
+        stepper: Dop853 | Radau5 | None = None
         for k in range(k_start, knots.size - 1):
             if _passed(self.deadline):
                 for r in rows:
@@ -686,10 +775,7 @@ class _Dop853March:
             self._select(k, rows)
             t_end = float(knots[k + 1])
             if stepper is None:
-                stepper = Dop853(
-                    self._rhs, t, x, rtol=self.rtol, atol=self.atol, t_bound=t_end,
-                    first_step=h_abs,
-                )  # fmt: skip
+                stepper = self._stepper(t, x, t_end, h_abs)
             else:
                 stepper.refresh()  # the torque law of interval k
                 done = k * m
@@ -723,10 +809,9 @@ class _Dop853March:
                         return
                     keep = [i for i, r in enumerate(rows) if r not in stopped]
                     self._select(k, rows_left)
-                    stepper = Dop853(
-                        self._rhs, stepper.t, stepper.y[keep], rtol=self.rtol, atol=self.atol,
-                        t_bound=t_end, first_step=stepper.h_abs, f0=stepper.f[keep],
-                    )  # fmt: skip
+                    stepper = self._stepper(
+                        stepper.t, stepper.y[keep], t_end, stepper.h_abs, stepper.f[keep]
+                    )
                     g_old = [g for i, g in enumerate(g_old) if i in keep]
                     rows = rows_left
 
@@ -736,7 +821,7 @@ class _Dop853March:
         return -math.inf if stop is None else self._deviation(k, t, q) - stop
 
     def _events(
-        self, rows: list[int], k: int, stepper: Dop853, g_old: list[float]
+        self, rows: list[int], k: int, stepper: Dop853 | Radau5, g_old: list[float]
     ) -> dict[int, float]:
         """Return the simulations that reached their stop in the last step: row -> time [s]."""
         nv = self.nv
@@ -752,7 +837,7 @@ class _Dop853March:
             g_old[i] = g_new
         return stopped
 
-    def _root(self, r: int, i: int, k: int, stepper: Dop853) -> float:
+    def _root(self, r: int, i: int, k: int, stepper: Dop853 | Radau5) -> float:
         """Return the time [s] in the last step at which simulation ``r`` (row ``i``) stopped.
 
         Bisection on the dense output to SciPy's event tolerance (4 eps,
@@ -772,7 +857,12 @@ class _Dop853March:
         return 0.5 * (lo + hi)
 
     def _sample(
-        self, rows: list[int], stepper: Dop853, done: int, upto: int, stopped: dict[int, float]
+        self,
+        rows: list[int],
+        stepper: Dop853 | Radau5,
+        done: int,
+        upto: int,
+        stopped: dict[int, float],
     ) -> None:
         """Fill samples ``done + 1 .. upto`` (those in the last step) of each row.
 
