@@ -1,8 +1,9 @@
 """Clearance side by side with Drake (issue 28, item 8): the same scene, robot and configurations.
 
 Run ``python benchmarks/bench_scene.py [--quick] [--all [--robots ur5,panda]]
-[--scene FILE] [--robot ur5|panda] [--pairs N] [--no-refine] [--refine-pairs N]
-[--no-dense] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
+[--scene FILE] [--robot ur5|panda] [--pairs N] [--first-pair K] [--no-refine]
+[--refine-pairs N] [--no-dense] [--no-dircol] [--dircol-pairs N]
+[--dircol-cost simpson|trapezoid] [--no-solve] [--json]``. Drake comes with the ``bench`` extra
 (``pip install -e ".[bench]"``); without it the script prints that and exits
 with 2, measuring nothing.
 
@@ -45,9 +46,16 @@ with 2, measuring nothing.
   scene costs) against Drake's ``KinematicTrajectoryOptimization`` with
   ``MinimumDistanceLowerBoundConstraint`` at as many path samples as we have
   constrained points (SNOPT and IPOPT), and at four times as many (SNOPT).
-  Drake's problem has **no dynamics** (a B-spline path with duration,
+  That problem has **no dynamics** (a B-spline path with duration,
   velocity and position bounds, minimum time plus path length): it is a
-  kinematic reference, not the same problem. Every plan is then judged by one
+  kinematic reference, not the same problem. Drake on **our dynamic problem**
+  (:class:`DrakeDircol`, unless ``--no-dircol``; ``--dircol-pairs N``: the
+  first N pairs only): ``DirectCollocation`` on a plant from the same URDF
+  text, every joint actuated, gravity, our bounds, knots, free equal steps,
+  ``beta T + (1 - beta) W`` and the ends at rest, with
+  ``MinimumDistanceLowerBoundConstraint`` (the margin) at every knot, from
+  our straight-line guess (SNOPT and IPOPT; the differences from ours are in
+  the class's docstring and docs/scene.md). Every plan is then judged by one
   exact checker, coal's certificate of docs/scene.md (samples and the
   point-speed bound): success is the solver's success and the margin, less
   1 mm, certified over the whole plan.
@@ -198,8 +206,9 @@ class DrakeScene:
     """Our robot and scene in a Drake diagram (``MultibodyPlant`` + ``SceneGraph``).
 
     Attributes set: ``plant``, ``scene_graph``, ``diagram``, ``context``,
-    ``plant_context``, ``names`` (GeometryId -> our geometry or obstacle name),
-    ``order`` (our q index -> Drake's), ``pairs`` (our scene pairs as name pairs).
+    ``plant_context``, ``urdf`` (the text parsed), ``names`` (GeometryId -> our
+    geometry or obstacle name), ``order`` (our q index -> Drake's), ``pairs``
+    (our scene pairs as name pairs).
     """
 
     def __init__(self, robot: Any, checker: Any, folder: Path) -> None:
@@ -299,6 +308,7 @@ class DrakeScene:
                     CollisionFilterDeclaration().ExcludeBetween(GeometrySet(a), GeometrySet(b))
                 )
         self.diagram = builder.Build()
+        self.urdf = urdf  # the text Drake parsed (locked joints welded, no geometry)
         self.context = self.diagram.CreateDefaultContext()
         self.plant, self.scene_graph = plant, scene_graph
         self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
@@ -425,6 +435,221 @@ def drake_kinematic_solve(
     }
 
 
+class DrakeDircol:
+    """Drake's ``DirectCollocation`` of our dynamic problem around the scene (one per cell).
+
+    The same problem as ours as far as Drake's transcription allows:
+
+    * **dynamics**: a ``MultibodyPlant`` parsed from the text ``drake`` parsed
+      (:attr:`DrakeScene.urdf`: the same bodies, inertias, joint damping,
+      locked joints welded, root welded), gravity on, one ``JointActuator``
+      per joint of our model (the parser makes one only for a joint with a
+      ``<transmission>``: the ur5's, not the panda's), no collision geometry:
+      the scene's plant is continuous, and a continuous plant with geometry
+      computes contact forces from its ``SceneGraph`` inside the dynamics,
+      which ours has not; ``dynamics_error`` is the largest
+      ``|a_drake - a_pinocchio|`` over random states (damping included);
+    * **transcription**: ``n_knots`` knots, equal free steps in ``[dt_min,
+      min(dt_max, 1 s)]`` (ours: ``[dt_min, dt_max]``, unbounded above by
+      default; Drake needs a finite step), cubic Hermite states and a
+      first-order-hold torque with the dynamics collocated at the interval
+      midpoints (Hermite-Simpson, compressed; ours is separated with a free
+      midpoint torque);
+    * **bounds**: our position, velocity and torque limits at scale 1 (the
+      problem's :meth:`bounds`) at every knot (ours also bounds the Bernstein
+      control points of the position and velocity cubics between knots);
+      start and goal at rest;
+    * **objective**: ``beta T + (1 - beta) W``, ``beta`` 0.5. ``cost="simpson"``
+      (default): ``W = sum_i h/6 (u_i.u_i + 4 u_m.u_m + u_{i+1}.u_{i+1})`` with
+      ``u_m`` the mean of the knot torques (Drake's midpoint torque): our
+      Simpson rule on Drake's torque, i.e. the exact integral of its
+      piecewise-linear torque, added as ``prog.AddCost`` per interval;
+      ``cost="trapezoid"``: ``AddRunningCost(u.u)``, Drake's own running cost
+      (the trapezoidal rule over the knots);
+    * **clearance**: ``MinimumDistanceLowerBoundConstraint`` (``margin``,
+      influence distance ``margin + 0.05`` m, our robot-vs-scene pairs through
+      the scene's filters) on the positions of every knot (ours: knots and
+      midpoints).
+
+    The program is built once; :meth:`solve` sets the start and goal and the
+    guess: the straight joint-space line over 4.9 s (our default guess,
+    ``straight_line_guess``: constant velocity, inverse-dynamics torques).
+    """
+
+    def __init__(
+        self,
+        drake: DrakeScene,
+        problem: Any,
+        *,
+        margin: float,
+        beta: float = BETA,
+        cost: str = "simpson",
+        ipopt_tol: float = 1e-8,
+    ) -> None:
+        import pinocchio as pin
+        from pydrake.multibody.inverse_kinematics import MinimumDistanceLowerBoundConstraint
+        from pydrake.multibody.parsing import Parser
+        from pydrake.multibody.plant import MultibodyPlant
+        from pydrake.planning import DirectCollocation
+        from pydrake.solvers import IpoptSolver, SolverOptions
+
+        if cost not in ("simpson", "trapezoid"):
+            raise ValueError(f"cost must be simpson or trapezoid, got {cost!r}")
+        robot = problem.robot
+        plant = MultibodyPlant(0.0)
+        (instance,) = Parser(plant).AddModelsFromString(drake.urdf, "urdf")
+        root = _root_link(drake.urdf)
+        if root != "world":
+            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root, instance))
+        names = [robot.model.names[j] for j in range(1, robot.model.njoints)]
+        actuated = {
+            plant.get_joint_actuator(a).joint().name() for a in plant.GetJointActuatorIndices()
+        }
+        self.added_actuators = [n for n in names if n not in actuated]
+        for name in self.added_actuators:
+            plant.AddJointActuator(f"{name}_actuator", plant.GetJointByName(name, instance))
+        plant.Finalize()
+        if plant.num_actuators() != len(names):
+            raise ValueError(f"{plant.num_actuators()} actuators for {len(names)} joints")
+        joints = [plant.GetJointByName(n, instance) for n in names]
+        if [j.position_start() for j in joints] != list(drake.order):
+            raise ValueError("the dynamics plant's joint order differs from the scene's")
+        if any(j.velocity_start() != j.position_start() for j in joints):
+            raise ValueError("a joint's velocity index differs from its position index")
+        by_joint = {
+            plant.get_joint_actuator(a).joint().name(): plant.get_joint_actuator(a).input_start()
+            for a in plant.GetJointActuatorIndices()
+        }
+        self.u_order = np.array([by_joint[n] for n in names])  # our joint j -> Drake's input
+        self.plant, self.drake, self.problem, self.beta = plant, drake, problem, beta
+        self.nq = nq = plant.num_positions()
+        self.cost = cost
+
+        # the same robot: forward dynamics against Pinocchio's (with our damping)
+        model = robot.model
+        data = model.createData()
+        damping = np.asarray(robot.damping, dtype=float) if problem.damping else 0.0
+        context = plant.CreateDefaultContext()
+        rng = np.random.default_rng(0)
+        err = 0.0
+        for _ in range(5):
+            q, v, tau = (rng.uniform(-1.0, 1.0, nq) for _ in range(3))
+            plant.SetPositions(context, drake.to_drake(q))
+            plant.SetVelocities(context, drake.to_drake(v))
+            plant.get_actuation_input_port().FixValue(context, self._u(tau))
+            a = drake.from_drake(plant.EvalTimeDerivatives(context).CopyToVector()[nq:])
+            err = max(err, float(np.max(np.abs(a - pin.aba(model, data, q, v, tau - damping * v)))))
+        self.dynamics_error = err
+
+        n = problem.n_knots
+        self.dt_max = min(problem.dt_max, 1.0)  # Drake needs a finite step (T <= 15 s at 16 knots)
+        dircol = DirectCollocation(
+            plant, plant.CreateDefaultContext(), n, problem.dt_min, self.dt_max,
+            plant.get_actuation_input_port().get_index(),
+        )  # fmt: skip
+        prog = dircol.prog()
+        dircol.AddEqualTimeIntervalsConstraints()
+        b = problem.bounds(1.0)
+        x_lo = np.concatenate([drake.to_drake(b.q_lower), drake.to_drake(b.v_lower)])
+        x_hi = np.concatenate([drake.to_drake(b.q_upper), drake.to_drake(b.v_upper)])
+        u_lo, u_hi = self._u(b.tau_lower), self._u(b.tau_upper)
+        for k in range(n):
+            prog.AddBoundingBoxConstraint(x_lo, x_hi, dircol.state(k))
+            prog.AddBoundingBoxConstraint(u_lo, u_hi, dircol.input(k))
+        rest = np.zeros(2 * nq)
+        self.ends = [
+            prog.AddBoundingBoxConstraint(rest, rest, dircol.initial_state()),
+            prog.AddBoundingBoxConstraint(rest, rest, dircol.final_state()),
+        ]
+        if cost == "simpson":
+            for i in range(n - 1):
+                u0, u1 = dircol.input(i), dircol.input(i + 1)
+                um = 0.5 * (u0 + u1)
+                h = np.ravel(dircol.time_step(i))[0]
+                prog.AddCost((1.0 - beta) * h / 6.0 * (u0.dot(u0) + 4.0 * um.dot(um) + u1.dot(u1)))
+        else:
+            u = dircol.input()
+            dircol.AddRunningCost((1.0 - beta) * u.dot(u))
+        dircol.AddFinalCost(beta * dircol.time()[0])
+        self.clearance = MinimumDistanceLowerBoundConstraint(
+            drake.plant, margin, drake.plant_context, None, 0.05
+        )
+        for k in range(n):
+            prog.AddConstraint(self.clearance, dircol.state(k)[:nq])
+        self.dircol, self.prog = dircol, prog
+        self.ipopt_options = SolverOptions()
+        self.ipopt_options.SetOption(IpoptSolver.id(), "tol", float(ipopt_tol))
+
+    def _u(self, tau: np.ndarray) -> np.ndarray:
+        """Our torques (our joint order) as Drake's actuation input."""
+        out = np.zeros(len(self.u_order))
+        out[self.u_order] = tau
+        return out
+
+    def objective(self, times: np.ndarray, u: np.ndarray) -> tuple[float, float]:
+        """``(f, W)`` of Drake's plan: ``W`` the exact integral of its piecewise-linear torque."""
+        h = np.diff(times)
+        u0, u1 = u[:-1], u[1:]
+        um = 0.5 * (u0 + u1)
+        per = (u0 * u0).sum(axis=1) + 4.0 * (um * um).sum(axis=1) + (u1 * u1).sum(axis=1)
+        work = float(np.sum(h / 6.0 * per))
+        total = float(times[-1] - times[0])
+        return self.beta * total + (1.0 - self.beta) * work, work
+
+    def solve(self, q_start: np.ndarray, q_goal: np.ndarray, solver_name: str) -> dict[str, Any]:
+        """One solve from the straight line (SNOPT or IPOPT); the plan and its times."""
+        from pydrake.solvers import IpoptSolver, SnoptSolver
+        from pydrake.trajectories import PiecewisePolynomial
+
+        from youbot_opt.trajopt.guess import straight_line_guess
+        from youbot_opt.trajopt.problem import BoundaryState
+
+        drake, nq = self.drake, self.nq
+        zero = np.zeros(nq)
+        for binding, q in zip(self.ends, (q_start, q_goal), strict=True):
+            x = np.concatenate([drake.to_drake(np.asarray(q, dtype=float)), zero])
+            binding.evaluator().set_bounds(x, x)
+        line = straight_line_guess(
+            self.problem, start=BoundaryState(q=np.asarray(q_start, dtype=float)),
+            goal=BoundaryState(q=np.asarray(q_goal, dtype=float)),
+        )  # fmt: skip
+        t = np.asarray(line.t, dtype=float)
+        x_guess = np.vstack(
+            [np.array([drake.to_drake(q) for q in line.q]).T,
+             np.array([drake.to_drake(v) for v in line.v]).T]
+        )  # fmt: skip
+        u_guess = np.array([self._u(tau) for tau in line.tau]).T
+        self.dircol.SetInitialTrajectory(
+            PiecewisePolynomial.FirstOrderHold(t, u_guess),
+            PiecewisePolynomial.FirstOrderHold(t, x_guess),
+        )
+        if solver_name == "snopt":
+            solver: Any = SnoptSolver()
+            options = None
+        else:
+            solver, options = IpoptSolver(), self.ipopt_options
+        result, wall, cpu = _timed(lambda: solver.Solve(self.prog, None, options))
+        states = self.dircol.ReconstructStateTrajectory(result)
+        times = np.asarray(self.dircol.GetSampleTimes(result), dtype=float)
+        u = np.asarray(self.dircol.GetInputSamples(result), dtype=float).T
+        f, work = self.objective(times, u)
+        return {
+            "solver": solver_name,
+            "success": bool(result.is_success()),
+            "status": str(result.get_solution_result()),
+            "wall_s": wall,
+            "cpu_s": cpu,
+            "duration_s": float(times[-1] - times[0]),
+            "f": f,
+            "W": work,
+            "drake_cost": float(result.get_optimal_cost()),
+            "dt_at_max": bool(np.max(np.diff(times)) > self.dt_max * (1 - 1e-6)),
+            "motion": lambda s: drake.from_drake(states.value(s)[:nq].ravel()),
+            "t_start": float(times[0]),
+            "t_end": float(times[-1]),
+        }
+
+
 # -- the benchmark --------------------------------------------------------------------
 
 
@@ -496,8 +721,14 @@ def compare_solves(
     refine_pairs: int | None = None,
     dense: bool = True,
     describe: str = "notebook 08's pick and place and seeded perturbations",
+    dircol: bool = True,
+    dircol_pairs: int | None = None,
+    dircol_cost: str = "simpson",
 ) -> dict[str, Any]:
-    """Ours (with and without the scene) and Drake's kinematic optimisation on start/goal pairs.
+    """Ours (with and without the scene) and Drake (kinematic; dynamic) on start/goal pairs.
+
+    Drake's dynamic problem (:class:`DrakeDircol`, SNOPT and IPOPT) runs on the
+    first ``dircol_pairs`` pairs (all when ``None``) when ``dircol``.
 
     Success: the solver says so and one exact checker (coal, the certificate
     of docs/scene.md: samples and the point-speed bound) certifies
@@ -524,6 +755,21 @@ def compare_solves(
         del rows["ours, refined (refine())"]
     if not dense:
         del rows[f"Drake kinematic, snopt, {4 * n_points} pts"]
+    dyn: DrakeDircol | None = None
+    if dircol:
+        dyn, build_wall, _ = _timed(
+            lambda: DrakeDircol(
+                drake, solver.problem, margin=MARGIN, cost=dircol_cost,
+                ipopt_tol=float(solver.options.tol),
+            )
+        )  # fmt: skip
+        rows.update({"Drake dircol, snopt": [], "Drake dircol, ipopt": []})
+        print(
+            f"Drake DirectCollocation built in {build_wall:.2f} s: {n_knots} knots, "
+            f"{dircol_cost} cost, actuators added to {len(dyn.added_actuators)} joints, "
+            f"max |a_drake - a_pinocchio| = {dyn.dynamics_error:.1e} rad/s^2",
+            flush=True,
+        )
     for i, (q0, q1) in enumerate(pairs):
         print(f"pair {i + 1}/{len(pairs)} ...", file=sys.stderr, flush=True)
         runs = [("ours", solver), ("ours, refined (refine())", None), ("ours, free space", free)]
@@ -570,6 +816,19 @@ def compare_solves(
             r["T"] = r["duration_s"]
             r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
             rows[name].append(r)
+        for solver_name in ("snopt", "ipopt"):
+            if dyn is None or (dircol_pairs is not None and i >= dircol_pairs):
+                continue
+            name = f"Drake dircol, {solver_name}"
+            try:
+                r = dyn.solve(q0, q1, solver_name)
+            except Exception as exc:  # noqa: BLE001 - a solver not built in, reported
+                print(f"{name}: not run ({exc})")
+                continue
+            r["ok"] = r.pop("success")
+            r["T"] = r["duration_s"]
+            r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
+            rows[name].append(r)
         for name, rs in rows.items():  # one line per plan: a run cut short keeps its pairs
             if len(rs) == i + 1:
                 r = rs[-1]
@@ -578,7 +837,7 @@ def compare_solves(
                         "certified": cert is not None and bool(cert.certified),
                         "closest_m": None if cert is None else float(cert.closest_distance),
                         "wall_s": r["wall_s"], "cpu_s": r["cpu_s"], "T": r["T"], "f": r.get("f"),
-                        "refused": r.get("refused")}  # fmt: skip
+                        "refused": r.get("refused"), "status": r.get("status")}  # fmt: skip
                 print("plan " + json.dumps(line), flush=True)
     print(
         f"\nSolves around the scene: {len(pairs)} start/goal pairs ({describe}, "
@@ -589,10 +848,10 @@ def compare_solves(
     )
     print(
         f"{'':<32} {'ok':>6} {'solver ok':>9} {'penetr.':>7} {'wall [s]':>9} {'CPU [s]':>8} "
-        f"{'T [s]':>6} {'f ours':>7} {'min clearance [m]':>18}"
+        f"{'T [s]':>6} {'f':>7} {'min clearance [m]':>18}"
     )
     summary: dict[str, Any] = {"pairs": len(pairs), "n_points": n_points}
-    base = None
+    base = base_cpu = None
     refusals = []
     for name, every in rows.items():
         if not every:
@@ -611,21 +870,32 @@ def compare_solves(
         f = f"{statistics.median(r['f'] for r in rs):>7.3f}" if "f" in rs[0] else f"{'-':>7}"
         lowest = min((r["cert"].closest_distance for r in rs if r["ok"]), default=np.nan)
         base = base or wall
+        base_cpu = base_cpu or cpu
         summary[name] = {"n": len(every), "ok": ok, "solver_ok": solver_ok, "penetrations": pen,
                          "refused": len(every) - len(rs),
                          "median_wall_s": wall, "median_cpu_s": cpu, "median_T_s": dur,
                          "f": f.strip(), "min_clearance_m": lowest}  # fmt: skip
+        if "status" in rs[0]:  # Drake dircol: how each solve ended, and a step at its bound
+            statuses = [r["status"] for r in rs]
+            summary[name]["statuses"] = {k: statuses.count(k) for k in sorted(set(statuses))}
+            summary[name]["dt_at_max"] = sum(r["dt_at_max"] for r in rs)
         print(
             f"{name:<32} {ok:>3}/{len(every):<2} {solver_ok:>9} {pen:>7} {wall:>9.3f} {cpu:>8.3f} "
-            f"{dur:>6.3f} {f} {lowest:>18.5f}   ({wall / base:.2f}x ours)"
+            f"{dur:>6.3f} {f} {lowest:>18.5f}   (wall {wall / base:.2f}x, "
+            f"CPU {cpu / base_cpu:.2f}x ours)"
         )
     for line in refusals:  # before IPOPT: an end whose bounding balls lack the margin
         print(f"{line} before solving (an end's bounding balls below the margin; medians over "
               "the others)")  # fmt: skip
     print(
-        "medians over the pairs; ours keeps the dynamics and torque limits; Drake's problem has "
-        "no dynamics (B-spline path, minimum T + path length): a kinematic reference"
+        "medians over the pairs; ours keeps the dynamics and torque limits; Drake kinematic has "
+        "no dynamics (B-spline path, minimum T + path length): a kinematic reference; Drake "
+        "dircol is our dynamic problem in DirectCollocation (clearance at the knots only; "
+        "f = beta T + (1 - beta) W for ours and dircol)"
     )
+    if dyn is not None:
+        summary["dircol"] = {"dynamics_error": dyn.dynamics_error, "cost": dyn.cost,
+                             "added_actuators": dyn.added_actuators}  # fmt: skip
     scene_rows, free_rows = rows["ours"], rows["ours, free space"]
     if scene_rows and free_rows:  # what the scene costs, pair by pair (medians of the ratios)
         both = [(a, b) for a, b in zip(scene_rows, free_rows, strict=True) if a["cert"] is not None]
@@ -681,8 +951,10 @@ def run_cell(robot_name: str, path: Path, args: argparse.Namespace, folder: Path
     scene = load_scene(path)
     clearance = Clearance(scene=scene, margin=MARGIN, self_collision=False)
     checker = clearance_checker(robot, clearance)
-    pairs = _file_pairs(path, args.pairs)
-    describe = f"the seeded pairs of {path.stem}_pairs.json"
+    pairs = _file_pairs(path, args.first_pair + args.pairs)
+    if pairs is not None:
+        pairs = pairs[args.first_pair :]
+    describe = f"the seeded pairs of {path.stem}_pairs.json from pair {args.first_pair}"
     if pairs is None:  # notebook 08's pick and place (ur5's joints)
         if robot_name != ROBOT:
             raise SystemExit(f"bench_scene: no {path.stem}_pairs.json for {robot_name}")
@@ -772,7 +1044,8 @@ def run_cell(robot_name: str, path: Path, args: argparse.Namespace, folder: Path
         out["solves"] = compare_solves(
             robot, checker, clearance, drake, ours, n_knots=args.knots, pairs=pairs,
             with_refine=not args.no_refine, refine_pairs=args.refine_pairs,
-            dense=not args.no_dense, describe=describe,
+            dense=not args.no_dense, describe=describe, dircol=not args.no_dircol,
+            dircol_pairs=args.dircol_pairs, dircol_cost=args.dircol_cost,
         )  # fmt: skip
     return out
 
@@ -785,19 +1058,21 @@ def print_summary(cells: list[dict[str, Any]]) -> None:
         "times: medians over the pairs"
     )
     print(
-        f"{'cell':<26} {'solver':<34} {'ok':>7} {'penetr.':>7} {'wall [s]':>9} {'CPU [s]':>8} "
-        f"{'T [s]':>6}"
+        f"{'cell':<26} {'solver':<34} {'ok':>7} {'solver ok':>9} {'penetr.':>7} {'wall [s]':>9} "
+        f"{'CPU [s]':>8} {'CPU / ours':>10} {'T [s]':>6} {'f':>7}"
     )
     for cell in cells:
         solves = cell.get("solves", {})
         name = f"{cell['robot']} {Path(cell['scene']).stem.split('_', 1)[-1]}"
+        ours_cpu = solves.get("ours", {}).get("median_cpu_s", np.nan)
         for solver, row in solves.items():
             if not isinstance(row, dict) or "ok" not in row:
                 continue
             print(
-                f"{name:<26} {solver:<34} {row['ok']:>3}/{row['n']:<3} {row['penetrations']:>7} "
-                f"{row['median_wall_s']:>9.3f} {row['median_cpu_s']:>8.3f} "
-                f"{row['median_T_s']:>6.3f}"
+                f"{name:<26} {solver:<34} {row['ok']:>3}/{row['n']:<3} {row['solver_ok']:>9} "
+                f"{row['penetrations']:>7} {row['median_wall_s']:>9.3f} "
+                f"{row['median_cpu_s']:>8.3f} {row['median_cpu_s'] / ours_cpu:>9.2f}x "
+                f"{row['median_T_s']:>6.3f} {row['f']:>7}"
             )
         if "scene_cost" in solves:
             cost = solves["scene_cost"]
@@ -820,12 +1095,25 @@ def main() -> int:
     parser.add_argument("--samples", type=int, default=4, help="samples between two knots")
     parser.add_argument("--repeats", type=int, default=5, help="timing passes")
     parser.add_argument("--pairs", type=int, default=None, help="start/goal pairs (10; --all 20)")
+    parser.add_argument(
+        "--first-pair", type=int, default=0, help="skip the pairs file's first K pairs"
+    )
     parser.add_argument("--no-solve", action="store_true", help="skip the solve comparison")
     parser.add_argument("--no-refine", action="store_true", help="skip refine() (slow)")
     parser.add_argument(
         "--refine-pairs", type=int, default=None, help="refine() on the first N pairs only"
     )
     parser.add_argument("--no-dense", action="store_true", help="skip Drake SNOPT at 4x samples")
+    parser.add_argument(
+        "--no-dircol", action="store_true", help="skip Drake's DirectCollocation (dynamic problem)"
+    )
+    parser.add_argument(
+        "--dircol-pairs", type=int, default=None, help="DirectCollocation on the first N pairs only"
+    )
+    parser.add_argument(
+        "--dircol-cost", choices=("simpson", "trapezoid"), default="simpson",
+        help="DirectCollocation's W: Simpson on its torque (default) or AddRunningCost",
+    )  # fmt: skip
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     if args.pairs is None:
