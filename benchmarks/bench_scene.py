@@ -770,6 +770,14 @@ def compare_solves(
             f"max |a_drake - a_pinocchio| = {dyn.dynamics_error:.1e} rad/s^2",
             flush=True,
         )
+
+    def record(name: str, r: dict[str, Any]) -> None:
+        """Add a Drake plan's row, judged by the same certificate as ours."""
+        r["ok"] = r.pop("success")
+        r["T"] = r["duration_s"]
+        r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
+        rows[name].append(r)
+
     for i, (q0, q1) in enumerate(pairs):
         print(f"pair {i + 1}/{len(pairs)} ...", file=sys.stderr, flush=True)
         runs = [("ours", solver), ("ours, refined (refine())", None), ("ours, free space", free)]
@@ -812,10 +820,7 @@ def compare_solves(
             except Exception as exc:  # noqa: BLE001 - a solver not built in, reported
                 print(f"{name}: not run ({exc})")
                 continue
-            r["ok"] = r.pop("success")
-            r["T"] = r["duration_s"]
-            r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
-            rows[name].append(r)
+            record(name, r)
         for solver_name in ("snopt", "ipopt"):
             if dyn is None or (dircol_pairs is not None and i >= dircol_pairs):
                 continue
@@ -825,10 +830,7 @@ def compare_solves(
             except Exception as exc:  # noqa: BLE001 - a solver not built in, reported
                 print(f"{name}: not run ({exc})")
                 continue
-            r["ok"] = r.pop("success")
-            r["T"] = r["duration_s"]
-            r["cert"] = _certify(checker, robot, r.pop("motion"), r["t_start"], r["t_end"], n_knots)
-            rows[name].append(r)
+            record(name, r)
         for name, rs in rows.items():  # one line per plan: a run cut short keeps its pairs
             if len(rs) == i + 1:
                 r = rs[-1]

@@ -702,32 +702,31 @@ class _March:
         self._law = self.law[k, rows]
         self._z = np.ones((len(rows), self.law.shape[2]))
 
-    def _rhs(self, t: float, x: Array) -> Array:
-        nv, model, data, law, z = self.nv, self.model, self.data, self._law, self._z
+    def _torques(self, t: float, x: Array) -> list[Array]:
+        """Return the torque law's torques in [N m] at time ``t`` [s], one a row of ``x``."""
+        law, z = self._law, self._z
         s = (t - self._t0) / self._h
         z[:, 1] = s
         z[:, 2] = s * s
         z[:, 3] = s * s * s
         z[:, 4:] = x
+        return [z[i] @ law[i] for i in range(x.shape[0])]
+
+    def _rhs(self, t: float, x: Array) -> Array:
+        nv, model, data = self.nv, self.model, self.data
         out = np.empty_like(x)
         out[:, :nv] = x[:, nv:]
-        for i in range(x.shape[0]):  # one pin.aba a row: faster than a batch of one or two
-            out[i, nv:] = pin.aba(model, data, x[i, :nv], x[i, nv:], z[i] @ law[i])
+        # one pin.aba a row: faster than a batch of one or two
+        for i, tau in enumerate(self._torques(t, x)):
+            out[i, nv:] = pin.aba(model, data, x[i, :nv], x[i, nv:], tau)
         return out
 
     def _jac(self, t: float, x: Array) -> Array:
         """Jacobian blocks of :meth:`_rhs`, one a row: ABA derivatives and the torque law."""
-        nv, model, data, law, z = self.nv, self.model, self.data, self._law, self._z
-        s = (t - self._t0) / self._h
-        z[:, 1] = s
-        z[:, 2] = s * s
-        z[:, 3] = s * s * s
-        z[:, 4:] = x
+        nv, model, data, law = self.nv, self.model, self.data, self._law
         blocks = np.empty((x.shape[0], 2 * nv, 2 * nv))
-        for i in range(x.shape[0]):
-            da_dq, da_dv, minv = pin.computeABADerivatives(
-                model, data, x[i, :nv], x[i, nv:], z[i] @ law[i]
-            )
+        for i, tau in enumerate(self._torques(t, x)):
+            da_dq, da_dv, minv = pin.computeABADerivatives(model, data, x[i, :nv], x[i, nv:], tau)
             blocks[i] = _state_jacobian(da_dq, da_dv, minv, law[i, 4:].T)  # dtau/dx = law's
         return blocks
 
