@@ -32,9 +32,9 @@ from youbot_opt.ikpath.io import (
 from youbot_opt.ikpath.methods.al import (
     AL_OPTIONS_3D,
     _clearance_term,
-    first_order_multipliers,
     run_augmented_lagrangian,
 )
+from youbot_opt.ikpath.methods.sqp import first_order_multipliers
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import solve

@@ -18,7 +18,7 @@ import pinocchio as pin
 import pytest
 
 from youbot_opt.cli import main
-from youbot_opt.ikpath.methods.al import _sqp_step
+from youbot_opt.ikpath.methods.sqp import _sqp_step
 from youbot_opt.ikpath.multistart import free_joints, minimum_distance, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve

@@ -14,10 +14,10 @@ from youbot_opt.exceptions import ParameterError, SolveFailed, UnreachableTarget
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.methods.al import (
     ALOptions,
-    first_order_multipliers,
     solve_augmented_lagrangian,
 )
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver, IpoptOptions
+from youbot_opt.ikpath.methods.sqp import first_order_multipliers
 from youbot_opt.ikpath.multistart import configuration_distance
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.solve import solve
@@ -189,7 +189,6 @@ def test_first_order_multipliers_match_the_kkt_point():
 _LBFGSB_RUN = """
 from youbot_opt.ikpath.methods.al import (
     ALOptions,
-    first_order_multipliers,
     solve_augmented_lagrangian,
 )
 from youbot_opt.ikpath.examples import example_problem
