@@ -16,7 +16,8 @@ from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.load import load_model
 from youbot_opt.trajopt import simulate as simulate_module
 from youbot_opt.trajopt.certify import TRACKING_ATOL, TRACKING_RTOL, certify
-from youbot_opt.trajopt.refine import RefinementBudget, predicted_knots, refine
+from youbot_opt.trajopt.mesh import predicted_knots
+from youbot_opt.trajopt.refine import RefinementBudget, refine
 from youbot_opt.trajopt.simulate import integrate_intervals, integration_method, simulate_batch
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory

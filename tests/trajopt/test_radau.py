@@ -22,7 +22,7 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt import quadrature
 from youbot_opt.trajopt.certify import certify
-from youbot_opt.trajopt.mesh_error import collocation_error, interval_errors
+from youbot_opt.trajopt.mesh import collocation_error, interval_errors
 from youbot_opt.trajopt.refine import RefinementBudget, refine
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory

@@ -1,4 +1,4 @@
-"""Collocation-error estimate and mesh refinement (trajopt.mesh_error, trajopt.refine).
+"""Collocation-error estimate and mesh refinement (trajopt.mesh, trajopt.refine).
 
 References: the estimate against closed forms on a double integrator (a
 prismatic slider, ``pin.aba`` gives ``a = tau / m``); refined plans against
@@ -18,15 +18,15 @@ from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.trajopt.certify import certify, check_bounds
 from youbot_opt.trajopt.io import load_refined, load_result, save_result
-from youbot_opt.trajopt.mesh_error import collocation_error, interval_errors
-from youbot_opt.trajopt.refine import (
-    RefinementBudget,
+from youbot_opt.trajopt.mesh import (
+    collocation_error,
+    interval_errors,
     observed_exponents,
-    refine,
     solution_moved,
     split_grid,
     switching_intervals,
 )
+from youbot_opt.trajopt.refine import RefinementBudget, refine
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.transcription import HermiteSimpsonCollocation
 

@@ -33,7 +33,7 @@ from youbot_opt.robot.source import urdf_digest
 from youbot_opt.sweeps.store import SCHEMA_VERSION, Codec, SweepStore, open_store
 from youbot_opt.trajopt.certify import Tolerances
 from youbot_opt.trajopt.clearance import certify_plan_clearance
-from youbot_opt.trajopt.mesh_error import collocation_error
+from youbot_opt.trajopt.mesh import collocation_error
 from youbot_opt.trajopt.optimality import first_order
 from youbot_opt.trajopt.refine import Refined, RefinementBudget
 from youbot_opt.trajopt.result import TrajOptResult

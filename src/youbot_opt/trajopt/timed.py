@@ -116,7 +116,7 @@ class _Segmented(Transcription):
 
         ``fractions`` are the new grid's interval fractions of ``T``, ``boundaries``
         the inner segment ends as fractions of ``T`` on that grid (what
-        :func:`~youbot_opt.trajopt.refine.split_grid` keeps: it splits intervals,
+        :func:`~youbot_opt.trajopt.mesh.split_grid` keeps: it splits intervals,
         never moves a knot).
         """
         f = np.asarray(fractions, dtype=float)

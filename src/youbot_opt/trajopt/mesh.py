@@ -1,21 +1,23 @@
-r"""Collocation-error estimate per interval: :func:`collocation_error`.
+r"""The collocation mesh: each interval's error, and the next mesh from it.
 
-The state interpolant the transcription implies is put back into the dynamics
-(Pinocchio's ``pin.aba``, not the NLP's) and the residual
-``|x'_interp - f(x_interp, tau_interp)|`` is integrated over each interval by
-composite Gauss-Legendre quadrature: the absolute local error in state units
-([rad], [rad/s]), made relative by Betts' scale ``1 + max_k(|x_i|, |x_i'|)``
-(Betts, *Practical Methods for Optimal Control*, ch. 4). The interpolants,
-rationale and measurements: docs/refinement.md, "The collocation-error estimate".
+:func:`collocation_error` puts the state interpolant the transcription implies
+back into the dynamics (Pinocchio's ``pin.aba``, not the NLP's) and integrates
+``|x'_interp - f(x_interp, tau_interp)|`` over each interval (composite
+Gauss-Legendre), relative to Betts' scale ``1 + max_k(|x_i|, |x_i'|)`` (Betts,
+*Practical Methods for Optimal Control*, ch. 4). :func:`split_grid` turns the
+errors into the next mesh at ``e ~ h^m`` (:data:`ERROR_EXPONENTS`, the exponents
+seen: :func:`observed_exponents`). Rationale: docs/refinement.md.
 
 >>> collocation_error(result).max  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from youbot_opt._checks import check_int
 from youbot_opt._typing import Array
@@ -24,7 +26,19 @@ from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt import quadrature
 from youbot_opt.trajopt.result import TrajOptResult
 
-__all__ = ["CollocationError", "ORDERS", "collocation_error", "interval_errors"]
+__all__ = [
+    "CollocationError",
+    "ERROR_EXPONENTS",
+    "MOVED",
+    "ORDERS",
+    "collocation_error",
+    "interval_errors",
+    "observed_exponents",
+    "predicted_knots",
+    "solution_moved",
+    "split_grid",
+    "switching_intervals",
+]
 
 ORDERS: dict[str, int] = {"trapezoidal": 2, "hermite_simpson": 4, "radau": 5}
 """Order ``p`` of each transcription: the local error of an interval of length
@@ -226,3 +240,153 @@ def collocation_error(
         result.problem.robot, mid=mid, stages=stages, damping=result.problem.damping,  # type: ignore[arg-type]
         segments=segments, points=points,
     )  # fmt: skip
+
+
+ERROR_EXPONENTS: dict[str, int] = {"trapezoidal": 3, "hermite_simpson": 4, "radau": 4}
+"""Exponent ``m`` of the interval error estimate, ``e ~ h^m``: ``p + 1 = 3`` for
+trapezoidal collocation (order 2); 4 for Hermite-Simpson, whose residual along
+its cubic is ``|a_k - 2 a_m + a_{k+1}| h^2 / 48 ~ h^4`` (derived in
+tests/trajopt/test_refine.py), one power below its O(h^5) state error; 4 for
+Radau IIA too: its cubic satisfies the dynamics at three nodes, so the residual
+between them is ``O(h^3)`` and its integral ``O(h^4)`` (stage order 3), below
+the method's order 5 at the knots."""
+
+
+def split_grid(
+    t: Array, errors: Array, tolerance: float, exponent: float | Array, max_pieces: int
+) -> tuple[Array, NDArray[np.intp]]:
+    """Split the intervals whose error exceeds ``tolerance``.
+
+    Interval ``k`` with error ``e_k > tolerance`` becomes
+    ``min(max_pieces, ceil((e_k / tolerance)^(1 / m_k)))`` (at least 2)
+    equal pieces, the count that brings ``e ~ h^m_k`` within the tolerance;
+    ``exponent`` is ``m``, one for all intervals or one per interval
+    (:func:`observed_exponents`).
+
+    Returns
+    -------
+    fractions : ndarray
+        The new grid's interval fractions of ``T`` (summing to 1).
+    parent : ndarray of int
+        For each new interval, the index of the interval it came from.
+    """
+    h = np.diff(np.asarray(t, dtype=float))
+    ratio = np.asarray(errors, dtype=float) / tolerance
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pieces = np.ceil(ratio ** (1.0 / np.asarray(exponent, dtype=float)))
+    pieces = np.where(ratio > 1.0, np.clip(pieces, 2, max_pieces), 1).astype(np.intp)
+    parent = np.repeat(np.arange(h.size), pieces)
+    fractions = np.repeat(h / pieces, pieces)
+    return fractions / fractions.sum(), parent
+
+
+def observed_exponents(
+    parent_errors: Array,
+    errors: Array,
+    parent: NDArray[np.intp],
+    exponent: float | Array,
+    stretch: float = 1.0,
+) -> Array:
+    """Per-interval error exponents seen in the last split (Betts' order reduction).
+
+    A piece of an interval split into ``p`` pieces should have the error
+    ``e_parent / p^m``; where the solution is not smooth (a torque switching
+    between bounds) it falls more slowly. The exponent each piece showed,
+    ``log(e_parent / e_piece) / log(p)``, clipped to ``[1, m]``, predicts its
+    next split (Betts, *Practical Methods for Optimal Control*, sec. 4.7.4,
+    estimates the order reduction the same way). Unsplit intervals keep their
+    parent's exponent. The grid is kept as fractions of the duration, so when
+    the new solve's duration is ``stretch`` times the old one every interval
+    is ``stretch`` times longer: the parent's error is first carried to the
+    new duration, ``e_parent stretch^m``.
+
+    Parameters
+    ----------
+    parent_errors : ndarray, shape (n_old,)
+        Relative errors of the previous grid's intervals.
+    errors : ndarray, shape (n_new,)
+        Relative errors of the new grid's intervals.
+    parent : ndarray of int, shape (n_new,)
+        Each new interval's interval on the previous grid (:func:`split_grid`).
+    exponent : float or ndarray, shape (n_old,)
+        The exponents the previous split assumed (the method's at most).
+    stretch : float
+        New duration over old duration (1: the same ``T``).
+
+    Returns
+    -------
+    ndarray, shape (n_new,)
+        The exponent of each new interval.
+    """
+    m_old = np.broadcast_to(np.asarray(exponent, dtype=float), parent_errors.shape)[parent]
+    pieces = np.bincount(parent, minlength=parent_errors.size)[parent]
+    m_max = float(np.max(m_old, initial=1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        seen = np.log(parent_errors[parent] * stretch**m_old / errors) / np.log(pieces)
+    seen = np.clip(np.nan_to_num(seen, nan=m_max, posinf=m_max), 1.0, m_max)
+    return np.where(pieces > 1, seen, m_old)
+
+
+MOVED = 0.01
+"""Relative change of the duration ``T`` between two rounds above which the
+solution has moved: its features (bound switches, the fast transients of a
+light or damped joint) are no longer where the previous grid's fractions of
+``T`` put them, so the fall of the error from the old grid to the new one
+measures the move, not the error's order, and :func:`refine` does not trust
+:func:`observed_exponents` across it (docs/refinement.md, "A solution that moves")."""
+
+
+def solution_moved(old_duration: float, new_duration: float) -> bool:
+    """Return True when the duration changed by more than :data:`MOVED` (relative).
+
+    Parameters
+    ----------
+    old_duration, new_duration : float
+        ``T`` [s] of the previous and the new round.
+    """
+    stretch = new_duration / old_duration if old_duration > 0.0 else math.inf
+    return not (math.isfinite(stretch) and abs(stretch - 1.0) <= MOVED)
+
+
+def switching_intervals(result: TrajOptResult, relative: float = 1e-6) -> NDArray[np.bool_]:
+    """Intervals at whose two knots a different set of joint bounds is active.
+
+    A position, velocity or torque bound counts as active at a knot when the
+    value is within ``relative`` of the bound's range from it. Where the active
+    set changes inside an interval the solution's derivative jumps there, and
+    the interval's error falls more slowly than the method's ``h^m`` (Betts,
+    sec. 4.7.4: order reduction at constraint switches); :func:`refine` splits
+    such intervals of the first grid as if ``m = 1``, the lowest exponent
+    :func:`observed_exponents` allows.
+
+    Returns
+    -------
+    ndarray of bool, shape (n_knots - 1,)
+        True where the active set changes across the interval.
+    """
+    bounds = result.bounds()
+    active = []
+    for name, lower, upper in (
+        ("q", bounds.q_lower, bounds.q_upper),
+        ("v", bounds.v_lower, bounds.v_upper),
+        ("tau", bounds.tau_lower, bounds.tau_upper),
+    ):
+        x = np.asarray(result.variables[name], dtype=float)
+        span = np.asarray(upper - lower, dtype=float)
+        margin = relative * np.where(np.isfinite(span), span, 0.0)
+        active.append((upper - x <= margin) | (x - lower <= margin))  # never at an infinite one
+    switches = np.hstack(active)
+    return np.any(switches[1:] != switches[:-1], axis=1)
+
+
+def predicted_knots(errors: Array, tolerance: float, exponent: float | Array) -> int:
+    """Knots a grid would need for every interval to reach ``tolerance``, at ``e ~ h^m``.
+
+    Interval ``k`` needs ``max(1, ceil((e_k / tolerance)^(1 / m_k)))`` pieces
+    (:func:`split_grid` without its cap on pieces per round).
+    """
+    ratio = np.asarray(errors, dtype=float) / tolerance
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pieces = np.ceil(ratio ** (1.0 / np.asarray(exponent, dtype=float)))
+    pieces = np.where(ratio > 1.0, np.maximum(pieces, 2.0), 1.0)
+    return int(min(np.sum(pieces), 1e15)) + 1
