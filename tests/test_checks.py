@@ -10,6 +10,7 @@ import pytest
 from youbot_opt._checks import (
     check_beta,
     check_bound_scale,
+    check_end_window,
     check_finite,
     check_int,
     check_nonnegative,
@@ -61,6 +62,20 @@ def test_check_unit_interval() -> None:
             check_unit_interval(bad, "w")
     with pytest.raises(ParameterError, match=r"w must be a number in \[0, 1\], got 'x'"):
         check_unit_interval("x", "w")
+
+
+def test_check_end_window() -> None:
+    """[0, 0.5] passes, ends included; outside, NaN and non-numbers are refused by name."""
+    assert check_end_window(0) == 0.0 and check_end_window(0.5) == 0.5
+    for bad in (-1e-9, 0.5 + 1e-9, math.nan):
+        with pytest.raises(
+            ParameterError,
+            match=r"end_window must be in \[0, 0\.5\] \(a fraction of the motion's duration "
+            r"at each end\), got",
+        ):
+            check_end_window(bad)
+    with pytest.raises(ParameterError, match=r"w must be a number in \[0, 0\.5\], got 'x'"):
+        check_end_window("x", "w")
 
 
 @pytest.mark.parametrize("minimum", [0, 1])

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import Any, SupportsFloat, SupportsIndex, SupportsInt
+from typing import Any, Literal, SupportsFloat, SupportsIndex, SupportsInt
 
 import numpy as np
 
@@ -101,6 +101,38 @@ def _unit(unit: str | None) -> str:
     return f" [{unit}]" if unit else ""
 
 
+def _against_zero(
+    value: Any, name: str, relation: Literal[">", ">="], *, unit: str | None, note: str
+) -> float:
+    """``float(value)`` if finite and ``> 0`` or ``>= 0`` (``relation``), else a ParameterError.
+
+    The one text of :func:`check_positive` and :func:`check_nonnegative`:
+    ``"<name> must be finite and <relation> 0 [<unit>]<note>, got <value>"``.
+    """
+    x = _real(value, name, f"a number {relation} 0")
+    if not (math.isfinite(x) and (x > 0.0 if relation == ">" else x >= 0.0)):
+        raise ParameterError(
+            f"{name} must be finite and {relation} 0{_unit(unit)}{note}, got {shown(value)}",
+            name=name,
+            value=value,
+        )
+    return x
+
+
+def _in_zero_to(value: Any, name: str, upper: float, *, note: str) -> float:
+    """``float(value)`` if it lies in ``[0, upper]``, else a ParameterError.
+
+    The one text of :func:`check_unit_interval` and :func:`check_end_window`:
+    ``"<name> must be in [0, <upper>]<note>, got <value>"``.
+    """
+    x = _real(value, name, f"a number in [0, {upper:g}]")
+    if not (math.isfinite(x) and 0.0 <= x <= upper):
+        raise ParameterError(
+            f"{name} must be in [0, {upper:g}]{note}, got {shown(value)}", name=name, value=value
+        )
+    return x
+
+
 def check_finite(value: Any, name: str, *, unit: str | None = None) -> float:
     """Return ``value`` as a float after checking it is a finite real number.
 
@@ -155,14 +187,7 @@ def check_positive(value: Any, name: str, *, unit: str | None = None, note: str 
     ParameterError
         ``"<name> must be finite and > 0 [<unit>]<note>, got <value>"`` otherwise.
     """
-    x = _real(value, name, "a number > 0")
-    if not (math.isfinite(x) and x > 0.0):
-        raise ParameterError(
-            f"{name} must be finite and > 0{_unit(unit)}{note}, got {shown(value)}",
-            name=name,
-            value=value,
-        )
-    return x
+    return _against_zero(value, name, ">", unit=unit, note=note)
 
 
 def check_nonnegative(value: Any, name: str, *, unit: str | None = None, note: str = "") -> float:
@@ -189,14 +214,7 @@ def check_nonnegative(value: Any, name: str, *, unit: str | None = None, note: s
     ParameterError
         ``"<name> must be finite and >= 0 [<unit>]<note>, got <value>"`` otherwise.
     """
-    x = _real(value, name, "a number >= 0")
-    if not (math.isfinite(x) and x >= 0.0):
-        raise ParameterError(
-            f"{name} must be finite and >= 0{_unit(unit)}{note}, got {shown(value)}",
-            name=name,
-            value=value,
-        )
-    return x
+    return _against_zero(value, name, ">=", unit=unit, note=note)
 
 
 def check_unit_interval(value: Any, name: str, *, note: str = "") -> float:
@@ -221,12 +239,7 @@ def check_unit_interval(value: Any, name: str, *, note: str = "") -> float:
     ParameterError
         If ``value`` is not a number, NaN, or outside [0, 1].
     """
-    x = _real(value, name, "a number in [0, 1]")
-    if not (math.isfinite(x) and 0.0 <= x <= 1.0):
-        raise ParameterError(
-            f"{name} must be in [0, 1]{note}, got {shown(value)}", name=name, value=value
-        )
-    return x
+    return _in_zero_to(value, name, 1.0, note=note)
 
 
 def check_end_window(value: Any, name: str = "end_window") -> float:
@@ -240,15 +253,7 @@ def check_end_window(value: Any, name: str = "end_window") -> float:
     ParameterError
         If ``value`` is not a number, not finite, or outside [0, 0.5].
     """
-    x = _real(value, name, "a number in [0, 0.5]")
-    if not (math.isfinite(x) and 0.0 <= x <= 0.5):
-        raise ParameterError(
-            f"{name} must be in [0, 0.5] (a fraction of the motion's duration at each end), "
-            f"got {shown(value)}",
-            name=name,
-            value=value,
-        )
-    return x
+    return _in_zero_to(value, name, 0.5, note=" (a fraction of the motion's duration at each end)")
 
 
 def check_int(value: Any, name: str, *, minimum: int = 0) -> int:

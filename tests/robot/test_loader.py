@@ -40,8 +40,14 @@ from youbot_opt.exceptions import (
 )
 from youbot_opt.robot.load import load_model
 from youbot_opt.robot.urdf_check import loader
-from youbot_opt.robot.urdf_check.loader import check_model, check_urdf_text, load_urdf_strict
+from youbot_opt.robot.urdf_check.loader import (
+    check_model,
+    check_urdf_text,
+    load_urdf_strict,
+    read_description,
+)
 from youbot_opt.robot.urdf_check.resources import check_mesh
+from youbot_opt.robot.urdf_check.size import SizeLimits
 from youbot_opt.robot.urdf_check.xml import Site, parse_number, parse_xml_strict
 
 HERE = Path(__file__).resolve().parent
@@ -306,6 +312,37 @@ def test_urdf_path_must_be_a_small_regular_file(tmp_path: Path, monkeypatch) -> 
     monkeypatch.setattr(loader, "MAX_URDF_BYTES", 100)
     with pytest.raises(UnsafeURDFError, match="larger than 100 bytes"):
         load_urdf_strict(CORPUS / "valid" / "minimal.urdf", [])
+
+
+@pytest.mark.parametrize("kind", ["URDF", "MJCF"])
+def test_read_description_parses_as_lxml_and_names_the_kind(
+    kind: str, tmp_path: Path, monkeypatch
+) -> None:
+    """read_description: the tree lxml reads; missing, special, DOCTYPE, unreadable: refused."""
+    path = CORPUS / "valid" / "minimal.urdf"
+    tree = read_description(path, kind, SizeLimits())
+    reference = etree.parse(str(path), etree.XMLParser(remove_comments=True, remove_pis=True))
+    assert [(e.tag, e.sourceline, dict(e.attrib)) for e in tree.iter()] == [
+        (e.tag, e.sourceline, dict(e.attrib)) for e in reference.iter()
+    ]
+    missing = tmp_path / "missing.xml"
+    with pytest.raises(RobotNotFound, match=f"^{kind} file '{missing}' does not exist$"):
+        read_description(missing, kind, SizeLimits())
+    fifo = tmp_path / "robot.xml"
+    os.mkfifo(fifo)
+    with pytest.raises(UnsafeURDFError, match=f"{kind} '{fifo}' is not a regular file"):
+        read_description(fifo, kind, SizeLimits())
+    with pytest.raises(UnsafeURDFError, match="DOCTYPE"):
+        read_description(CORPUS / "unsafe_xml" / "plain_doctype.urdf", kind, SizeLimits())
+    with pytest.raises(UnsafeURDFError):
+        read_description(path, kind, SizeLimits(max_xml_elements=1))
+
+    def unreadable(*args: object) -> bytes:
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(loader, "read_regular_file", unreadable)
+    with pytest.raises(ModelError, match=f"^cannot read {kind} file '{path}': .*Permission denied"):
+        read_description(path, kind, SizeLimits())
 
 
 def test_load_model_names_a_fifo_or_a_device_for_what_it_is(tmp_path: Path) -> None:

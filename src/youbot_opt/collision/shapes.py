@@ -48,11 +48,11 @@ def _size(value: object, name: str) -> float:
 
 def _sizes(values: object, name: str) -> tuple[float, float, float]:
     """Return three sizes [m] from a sequence of three numbers."""
-    if isinstance(values, str | bytes) or not isinstance(values, Sequence | np.ndarray):
-        raise ParameterError(
-            f"{name} must be three numbers in [m], got {shown(values)}", name=name, value=values
-        )
-    if len(values) != 3:
+    if (
+        isinstance(values, str | bytes)
+        or not isinstance(values, Sequence | np.ndarray)
+        or len(values) != 3
+    ):
         raise ParameterError(
             f"{name} must be three numbers in [m], got {shown(values)}", name=name, value=values
         )

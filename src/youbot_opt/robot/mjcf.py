@@ -28,16 +28,14 @@ from lxml import etree
 from youbot_opt.exceptions import (
     InvalidModelError,
     ModelError,
-    RobotNotFound,
     UnsafeURDFError,
     URDFStructureError,
     YoubotOptWarning,
 )
 from youbot_opt.robot.urdf_check.dynamics_defined import check_dynamics_defined
-from youbot_opt.robot.urdf_check.loader import MAX_URDF_BYTES
-from youbot_opt.robot.urdf_check.resources import read_regular_file
+from youbot_opt.robot.urdf_check.loader import read_description
 from youbot_opt.robot.urdf_check.size import SizeLimits
-from youbot_opt.robot.urdf_check.xml import Site, fail, local_name, parse_xml_strict, site
+from youbot_opt.robot.urdf_check.xml import Site, fail, local_name, site
 
 __all__ = ["LoadedMJCF", "REFUSED_ELEMENTS", "is_mjcf", "load_mjcf_strict"]
 
@@ -348,17 +346,7 @@ def load_mjcf_strict(
     """
     sizes = (size_limits or SizeLimits()).resolved()
     name = os.fspath(path)
-    if not os.path.exists(name):
-        raise RobotNotFound(f"MJCF file {name!r} does not exist", path=name)
-    try:
-        data = read_regular_file(
-            Path(name), MAX_URDF_BYTES, Site(name, "file", None), "MJCF", UnsafeURDFError
-        )
-    except OSError as e:
-        raise ModelError(f"cannot read MJCF file {name!r}: {e}", path=name) from e
-    tree = parse_xml_strict(
-        data, name, max_depth=sizes.max_xml_depth, max_elements=sizes.max_xml_elements
-    )
+    tree = read_description(name, "MJCF", sizes)
     root = tree.getroot()
     if local_name(root.tag) != "mujoco":
         problem = f"the root element is <{local_name(root.tag)}>, not <mujoco>"

@@ -65,6 +65,7 @@ __all__ = [
     "locked_reference",
     "MAX_URDF_BYTES",
     "load_urdf_strict",
+    "read_description",
     "check_urdf_text",
     "check_model",
     "inertia_policy",
@@ -239,6 +240,59 @@ class VisualBuilder:
         return reduced
 
 
+def read_description(
+    path: str | os.PathLike[str], kind: str, size_limits: SizeLimits
+) -> etree._ElementTree:
+    """Read a robot description file (URDF, MJCF) as a hostile file and parse it strictly.
+
+    The file must exist and be a regular file of at most :data:`MAX_URDF_BYTES`
+    [bytes]; its XML is parsed with every ``DOCTYPE`` and entity refused, under
+    the nesting and element limits of ``size_limits``.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    kind : str
+        What the file is (``"URDF"``, ``"MJCF"``), for the messages.
+    size_limits : SizeLimits
+        Its ``max_xml_depth`` [levels] and ``max_xml_elements`` [count] apply
+        (None: the environment variable's or the default).
+
+    Returns
+    -------
+    lxml.etree._ElementTree
+        The parsed file; each element has a ``sourceline`` (1-based line).
+
+    Raises
+    ------
+    RobotNotFound
+        ``"<kind> file '<path>' does not exist"``.
+    ModelError
+        ``"cannot read <kind> file '<path>': <reason>"`` (permissions).
+    UnsafeURDFError
+        Not a regular file, larger than :data:`MAX_URDF_BYTES`, a ``DOCTYPE``,
+        or too deep or too many elements.
+    URDFSyntaxError
+        Malformed XML.
+    """
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise RobotNotFound(f"{kind} file {name!r} does not exist", path=name)
+    try:
+        data = read_regular_file(
+            Path(name), MAX_URDF_BYTES, Site(name, "file", None), kind, UnsafeURDFError
+        )
+    except OSError as e:
+        raise ModelError(f"cannot read {kind} file {name!r}: {e}", path=name) from e
+    return parse_xml_strict(
+        data,
+        name,
+        max_depth=size_limits.max_xml_depth,
+        max_elements=size_limits.max_xml_elements,
+    )
+
+
 def _read_and_check(
     path: str | os.PathLike[str],
     package_dirs: Sequence[str | os.PathLike[str]],
@@ -256,17 +310,7 @@ def _read_and_check(
         )
     roots = allowed_roots(package_dirs)
     name = os.fspath(path)
-    if not os.path.exists(name):
-        raise RobotNotFound(f"URDF file {name!r} does not exist", path=name)
-    try:
-        data = read_regular_file(
-            Path(name), MAX_URDF_BYTES, Site(name, "file", None), "URDF", UnsafeURDFError
-        )
-    except OSError as e:
-        raise ModelError(f"cannot read URDF file {name!r}: {e}", path=name) from e
-    tree = parse_xml_strict(
-        data, name, max_depth=sizes.max_xml_depth, max_elements=sizes.max_xml_elements
-    )
+    tree = read_description(name, "URDF", sizes)
     # before the quadratic rules and Pinocchio's recursive parser
     check_urdf_size(
         tree, name, max_joints=sizes.max_joints, max_depth=sizes.max_tree_depth,
