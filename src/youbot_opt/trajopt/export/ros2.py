@@ -28,7 +28,7 @@ from youbot_opt._files import atomic_write_text
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
 from youbot_opt.robot.model import JointUnits
-from youbot_opt.trajopt.export.files import writable_target
+from youbot_opt.trajopt.export.files import read_json_document, writable_target
 from youbot_opt.trajopt.export.samples import SampledTrajectory
 
 __all__ = [
@@ -156,10 +156,7 @@ def read_ros2_message(path: str | os.PathLike[str]) -> SampledTrajectory:
         If the file is missing, not JSON, or not a ``JointTrajectory``.
     """
     source = str(path)
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ResultFileError(f"cannot read {source}: {exc}") from exc
+    doc = read_json_document(path)
     if not isinstance(doc, dict) or "points" not in doc or "joint_names" not in doc:
         raise ResultFileError(f"{source}: not a JointTrajectory (no joint_names and points)")
     return _from_message(doc["joint_names"], list(doc["points"]), source, lambda p, f: p[f])
