@@ -29,7 +29,7 @@ from youbot_opt._files import (
     schema_header,
 )
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
-from youbot_opt.robot.model import JointUnits
+from youbot_opt.robot.model import PRISMATIC_UNITS, REVOLUTE_UNITS, JointUnits
 from youbot_opt.trajopt.export.samples import SampledTrajectory, acceleration_unit
 
 __all__ = [
@@ -58,11 +58,7 @@ def _unit(units: JointUnits, field: str) -> str:
 
 
 def _units_from(position: str) -> JointUnits:
-    return (
-        JointUnits("m", "m/s", "N", True)
-        if position == "m"
-        else JointUnits("rad", "rad/s", "N m", False)
-    )
+    return PRISMATIC_UNITS if position == "m" else REVOLUTE_UNITS
 
 
 def writable_target(path: str | os.PathLike[str]) -> Path:

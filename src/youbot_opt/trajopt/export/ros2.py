@@ -27,7 +27,7 @@ import numpy as np
 from youbot_opt._files import atomic_write_text
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
-from youbot_opt.robot.model import JointUnits
+from youbot_opt.robot.model import REVOLUTE_UNITS
 from youbot_opt.trajopt.export.files import read_json_document, writable_target
 from youbot_opt.trajopt.export.samples import SampledTrajectory
 
@@ -137,7 +137,7 @@ def _from_message(names: Any, points: list[Any], source: str, get: Any) -> Sampl
             a=arrays["accelerations"],
             tau=arrays["effort"],
             joint_names=names,
-            units=tuple(JointUnits("rad", "rad/s", "N m", False) for _ in names),
+            units=(REVOLUTE_UNITS,) * len(names),
             rate_hz=1.0 / float(time[1] - time[0]),
         )
     except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
