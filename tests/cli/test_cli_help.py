@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import shlex
 import subprocess
@@ -13,7 +14,7 @@ from types import SimpleNamespace
 import pytest
 
 from youbot_opt.cli import build_parser
-from youbot_opt.cli.pareto_table import distinct_points, pareto_summary, pareto_table
+from youbot_opt.cli.pareto_table import distinct_points, pareto_summary, pareto_table, table_number
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 SPHINX = re.compile(r"``|:(mod|func|class|meth|attr|data|exc|obj):`")
@@ -180,6 +181,16 @@ def test_pareto_table_counts_distinct_points_and_gives_w_its_unit():
     summary = pareto_summary(_front())
     assert summary["n_distinct"] == 2 and summary["distinct_rtol"] == 1e-6
     assert summary["distinct_points"][1]["betas"] == [0.85, 0.90, 0.95]
+
+
+def test_table_number_prints_a_dash_for_a_failed_solve():
+    """Sweep tables (pareto, bounds) print finite numbers with their spec, '-' for NaN or inf."""
+    assert table_number(1.3611110987882373, ".4f") == "1.3611"
+    assert table_number(16.349019245941378, ".5f") == "16.34902"
+    assert table_number(-2.5e-7, ".3g") == "-2.5e-07"
+    assert [table_number(x, ".4f") for x in (math.nan, math.inf, -math.inf)] == ["-"] * 3
+    row = pareto_table(_front())[6]  # beta = 0.99 did not converge: T, W and f are dashes
+    assert row.split()[:4] == ["0.990", "-", "-", "-"]
 
 
 def test_readme_unreachable_command_is_refused(tmp_path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -238,3 +239,27 @@ def test_readers_refuse_other_files(samples, tmp_path):
         read_ros2_message(write_json(samples, tmp_path / "s.json"))
     with pytest.raises(ResultFileError, match="does not exist"):
         write_csv(samples, tmp_path / "missing" / "x.csv")
+
+
+def test_read_json_document_parses_the_file_or_says_it_cannot_read_it(tmp_path):
+    """read_json_document returns what the text says; missing, non-UTF-8 or non-JSON files raise.
+
+    Both JSON readers (samples and ROS 2 message) report such files with its wording.
+    """
+    from youbot_opt.trajopt.export.files import read_json_document
+
+    good = tmp_path / "good.json"
+    good.write_text('{"a": [1, 2.5, null], "b": "x", "c": true}\n', encoding="utf-8")
+    assert read_json_document(good) == {"a": [1, 2.5, None], "b": "x", "c": True}
+    scalar = tmp_path / "scalar.json"
+    scalar.write_text("3.25", encoding="utf-8")
+    assert read_json_document(scalar) == 3.25
+    bad_json = tmp_path / "bad.json"
+    bad_json.write_text("{not json", encoding="utf-8")
+    bad_utf8 = tmp_path / "latin1.json"
+    bad_utf8.write_bytes(b'{"a": "\xe9"}')
+    missing = tmp_path / "missing.json"
+    for path in (bad_json, bad_utf8, missing):
+        for reader in (read_json_document, read_json, read_ros2_message):
+            with pytest.raises(ResultFileError, match="^" + re.escape(f"cannot read {path}: ")):
+                reader(path)

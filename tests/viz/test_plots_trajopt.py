@@ -21,6 +21,7 @@ from youbot_opt.trajopt.multistart import run_multistart
 from youbot_opt.trajopt.solver import TrajOptSolver
 from youbot_opt.trajopt.trajectory import Trajectory
 from youbot_opt.viz.plots import plot_arm_2d, plot_convergence, plot_trajectory
+from youbot_opt.viz.plots.trajopt import plan_times
 
 N_KNOTS = 20  # small problem: the figures, not the study's numbers, are under test
 SCALE = 0.9  # bound scale of the solve drawn (the bounds drawn must follow it)
@@ -335,3 +336,12 @@ def test_the_solve_figures_are_inside_the_canvas_and_apart(result, refinement):
         plot_refinement(refinement),
     ):
         _inside_and_apart(fig)
+
+
+def test_plan_times_span_the_plan_evenly_with_at_least_its_ends():
+    """plan_times: ``samples`` times from the first knot to the last, evenly spaced; >= 2."""
+    z = np.zeros((3, 1))
+    plan = Trajectory(t=[0.5, 0.9, 2.5], q=z, v=z, a=z, tau=z)
+    np.testing.assert_array_equal(plan_times(plan, 5), [0.5, 1.0, 1.5, 2.0, 2.5])
+    for samples in (1, 0, -3):
+        np.testing.assert_array_equal(plan_times(plan, samples), [0.5, 2.5])

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from youbot_opt._typing import JSONDict
 from youbot_opt.trajopt.pareto import ParetoFront, ParetoPoint
 
-__all__ = ["DISTINCT_RTOL", "distinct_points", "pareto_summary", "pareto_table"]
+__all__ = ["DISTINCT_RTOL", "distinct_points", "pareto_summary", "pareto_table", "table_number"]
 
 DISTINCT_RTOL = 1e-6
 """Relative tolerance on T and W under which two points are the same point (IPOPT tol 1e-8)."""
@@ -59,7 +59,22 @@ def distinct_points(
     return sorted(groups, key=lambda g: g[0].beta)
 
 
-def _fmt(x: float, spec: str) -> str:
+def table_number(x: float, spec: str) -> str:
+    """Return a number as a sweep table prints it: ``format(x, spec)``, or ``-`` if not finite.
+
+    Parameters
+    ----------
+    x : float
+        The value, in its column's unit (e.g. T in [s], W in [N^2 m^2 s]); NaN
+        or infinite for a solve that did not converge.
+    spec : str
+        Format specification (e.g. ``".4f"``).
+
+    Returns
+    -------
+    str
+        The cell's text, without padding.
+    """
     return format(x, spec) if math.isfinite(x) else "-"
 
 
@@ -94,8 +109,9 @@ def pareto_table(front: ParetoFront, rtol: float = DISTINCT_RTOL) -> list[str]:
         mark = " (dominated)" if p.dominated and p.success else ""
         point = f"P{number[id(p)]}" if id(p) in number else "-"
         lines.append(
-            f"{p.beta:>6.3f} {_fmt(p.duration, '.4f'):>9} {_fmt(p.work, '.4f'):>14} "
-            f"{_fmt(p.objective, '.5f'):>11} {p.iterations:>5} {p.start:>10} {point:>5}  "
+            f"{p.beta:>6.3f} {table_number(p.duration, '.4f'):>9} "
+            f"{table_number(p.work, '.4f'):>14} {table_number(p.objective, '.5f'):>11} "
+            f"{p.iterations:>5} {p.start:>10} {point:>5}  "
             f"{p.status}{mark}"
         )
     for k, group in enumerate(groups):

@@ -41,7 +41,7 @@ from youbot_opt.cli.output import (
     report_outputs,
     write_summary,
 )
-from youbot_opt.cli.pareto_table import pareto_summary, pareto_table
+from youbot_opt.cli.pareto_table import pareto_summary, pareto_table, table_number
 from youbot_opt.cli.refinement import REFINED, refine_many, refinement_figures
 from youbot_opt.cli.run_size import check_sweep_values, check_trajopt_size
 from youbot_opt.exceptions import ParameterError
@@ -175,10 +175,6 @@ def _sweep(args: argparse.Namespace, progress: ProgressLine, folder: Path) -> Sw
 def _all_certified(plans: list[tuple[TrajOptResult, Refinement | None]]) -> bool:
     """Whether every refined plan is certified (vacuously true with ``--no-refine``)."""
     return all(record is not None and record.certified for _, record in plans)
-
-
-def _fmt(x: float, spec: str = ".6g") -> str:
-    return format(x, spec) if math.isfinite(x) else "-"
 
 
 _STORE = ("manifest.json", "items")  # the sweep store's files, at the top of the run folder
@@ -373,8 +369,8 @@ def bounds(args: argparse.Namespace) -> int:
     for r in res.rows:
         active = ", ".join(f"{k} x{n}" for k, n in r.active_counts().items()) or "-"
         table.append(
-            f"{r.bound_scale:>6.3f} {_fmt(r.objective, '.5f'):>11} "
-            f"{_fmt(r.duration, '.4f'):>9} {_fmt(r.work, '.4f'):>11} "
+            f"{r.bound_scale:>6.3f} {table_number(r.objective, '.5f'):>11} "
+            f"{table_number(r.duration, '.4f'):>9} {table_number(r.work, '.4f'):>11} "
             f"{100 * r.multistart.success_rate:>5.0f}%  {active}"
         )
     files: list[Path | None] = []

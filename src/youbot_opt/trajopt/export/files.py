@@ -29,7 +29,7 @@ from youbot_opt._files import (
     schema_header,
 )
 from youbot_opt.exceptions import ResultFileError, YoubotOptError
-from youbot_opt.robot.model import JointUnits
+from youbot_opt.robot.model import PRISMATIC_UNITS, REVOLUTE_UNITS, JointUnits
 from youbot_opt.trajopt.export.samples import SampledTrajectory, acceleration_unit
 
 __all__ = [
@@ -37,6 +37,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "read_csv",
     "read_json",
+    "read_json_document",
     "writable_target",
     "write_csv",
     "write_json",
@@ -57,11 +58,7 @@ def _unit(units: JointUnits, field: str) -> str:
 
 
 def _units_from(position: str) -> JointUnits:
-    return (
-        JointUnits("m", "m/s", "N", True)
-        if position == "m"
-        else JointUnits("rad", "rad/s", "N m", False)
-    )
+    return PRISMATIC_UNITS if position == "m" else REVOLUTE_UNITS
 
 
 def writable_target(path: str | os.PathLike[str]) -> Path:
@@ -70,6 +67,31 @@ def writable_target(path: str | os.PathLike[str]) -> Path:
     if not target.parent.is_dir():
         raise ResultFileError(f"cannot write {target}: directory {target.parent} does not exist")
     return target
+
+
+def read_json_document(path: str | os.PathLike[str]) -> object:
+    """Return the parsed JSON of the file at ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file (UTF-8).
+
+    Returns
+    -------
+    object
+        The document: a dict, list, str, int, float, bool or None.
+
+    Raises
+    ------
+    ResultFileError
+        ``cannot read <path>: <reason>`` if the file is missing or unreadable,
+        not UTF-8, or not JSON.
+    """
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ResultFileError(f"cannot read {path}: {exc}") from exc
 
 
 def write_csv(samples: SampledTrajectory, path: str | os.PathLike[str]) -> Path:
@@ -236,11 +258,9 @@ def read_json(path: str | os.PathLike[str]) -> SampledTrajectory:
         checksum does not match.
     """
     source = str(path)
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ResultFileError(f"cannot read {source}: {exc}") from exc
+    doc = read_json_document(path)
     check_schema_header(doc, schema=SCHEMA, supported=SCHEMA_VERSION, source=source)
+    assert isinstance(doc, dict)  # check_schema_header raised otherwise
     body = doc.get("samples")
     if not isinstance(body, dict) or json_digest(body) != doc.get("sha256"):
         raise ResultFileError(f"{source}: checksum mismatch (corrupted or edited file)")

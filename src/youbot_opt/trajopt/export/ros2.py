@@ -27,8 +27,8 @@ import numpy as np
 from youbot_opt._files import atomic_write_text
 from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, ResultFileError, YoubotOptError
-from youbot_opt.robot.model import JointUnits
-from youbot_opt.trajopt.export.files import writable_target
+from youbot_opt.robot.model import REVOLUTE_UNITS
+from youbot_opt.trajopt.export.files import read_json_document, writable_target
 from youbot_opt.trajopt.export.samples import SampledTrajectory
 
 __all__ = [
@@ -137,7 +137,7 @@ def _from_message(names: Any, points: list[Any], source: str, get: Any) -> Sampl
             a=arrays["accelerations"],
             tau=arrays["effort"],
             joint_names=names,
-            units=tuple(JointUnits("rad", "rad/s", "N m", False) for _ in names),
+            units=(REVOLUTE_UNITS,) * len(names),
             rate_hz=1.0 / float(time[1] - time[0]),
         )
     except (KeyError, TypeError, ValueError, YoubotOptError) as exc:
@@ -156,10 +156,7 @@ def read_ros2_message(path: str | os.PathLike[str]) -> SampledTrajectory:
         If the file is missing, not JSON, or not a ``JointTrajectory``.
     """
     source = str(path)
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ResultFileError(f"cannot read {source}: {exc}") from exc
+    doc = read_json_document(path)
     if not isinstance(doc, dict) or "points" not in doc or "joint_names" not in doc:
         raise ResultFileError(f"{source}: not a JointTrajectory (no joint_names and points)")
     return _from_message(doc["joint_names"], list(doc["points"]), source, lambda p, f: p[f])

@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.tool import KeepAxis, tool_measures
-from youbot_opt.viz.plots.trajopt import joint_colour, new_figure
+from youbot_opt.viz.plots.trajopt import joint_colour, new_figure, plan_times
 
 __all__ = ["plot_tool"]
 
@@ -49,7 +49,7 @@ def plot_tool(result: TrajOptResult, *, samples: int = 400) -> Figure:
             "plot_tool needs a result with a trajectory and tool constraints", name="result"
         )
     robot = result.problem.robot
-    t = np.linspace(float(traj.t[0]), float(traj.t[-1]), max(int(samples), 2))
+    t = plan_times(traj, samples)
     q = np.asarray(traj(t), dtype=float)
     v = np.asarray(traj.velocity(t), dtype=float)
     m = tool_measures(robot, tool, q, v)

@@ -46,6 +46,7 @@ __all__ = [
     "plot_refinement",
     "plot_refinements",
     "plot_clearance",
+    "plan_times",
     "QUANTITIES",
 ]
 
@@ -75,6 +76,24 @@ def new_figure(
     fig = Figure(figsize=figsize, layout="constrained")
     axes = fig.subplots(nrows, ncols, sharex=sharex, squeeze=False)
     return fig, axes
+
+
+def plan_times(trajectory: Trajectory, samples: int) -> Array:
+    """Return evenly spaced times over a plan, its first and last knot included.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The plan.
+    samples : int
+        How many times; fewer than 2 gives 2 (the ends).
+
+    Returns
+    -------
+    ndarray, shape (max(samples, 2),)
+        Times in [s] from ``trajectory.t[0]`` to ``trajectory.t[-1]``.
+    """
+    return np.linspace(float(trajectory.t[0]), float(trajectory.t[-1]), max(int(samples), 2))
 
 
 def bound_pairs(bounds: JointBounds) -> dict[str, tuple[Array, Array]]:
@@ -794,7 +813,7 @@ def plot_clearance(result: TrajOptResult, *, samples: int = 400) -> Figure:
     groups: dict[str, list[int]] = {}
     for i, (_, b) in enumerate(names):
         groups.setdefault(b if b in obstacles else "self-collision", []).append(i)
-    t = np.linspace(float(traj.t[0]), float(traj.t[-1]), max(int(samples), 2))
+    t = plan_times(traj, samples)
     d = np.array([checker.distances(robot, traj(ti)) for ti in t]).reshape(t.size, len(names))
     dk = np.array([checker.distances(robot, q) for q in traj.q]).reshape(len(traj.t), len(names))
     fig, axes = new_figure(1, 1, (7.0, 3.6))
