@@ -242,15 +242,7 @@ class Dop853(Stepper):
         The first call after a step evaluates ``fun`` three more times (the
         extension's stages): make it before ``fun`` changes.
 
-        Parameters
-        ----------
-        t : ndarray, shape (m,)
-            Times in ``[t_old, t]`` of the last accepted step.
-
-        Returns
-        -------
-        ndarray, shape (m, rows, n)
-            The interpolated states.
+        See :meth:`Stepper.dense <youbot_opt.dynamics.stepper.Stepper.dense>`.
         """
         rows, n = self.y.shape
         if not self._dense_ready:

@@ -339,15 +339,7 @@ class Radau5(Stepper):
     def dense(self, t: Array) -> Array:
         """Evaluate the last step's collocation polynomial (3rd degree) at times ``t``.
 
-        Parameters
-        ----------
-        t : ndarray, shape (m,)
-            Times in ``[t_old, t]`` of the last accepted step.
-
-        Returns
-        -------
-        ndarray, shape (m, rows, n)
-            The interpolated states.
+        See :meth:`Stepper.dense <youbot_opt.dynamics.stepper.Stepper.dense>`.
         """
         if self._Q is None:
             raise RuntimeError("no step taken yet")
