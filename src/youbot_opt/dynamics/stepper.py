@@ -12,6 +12,7 @@ step-size controller's bounds and the trial step, each as SciPy's ``solve_ivp``.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import ClassVar, NamedTuple
 
@@ -208,7 +209,7 @@ def next_step_size(
     return h_next
 
 
-class Stepper:
+class Stepper(ABC):
     """An adaptive integrator of a stack of rows, one accepted step at a time.
 
     The stepper holds the current time ``t``, state ``y`` and derivative ``f``
@@ -295,6 +296,7 @@ class Stepper:
         self.nfev += 1
         self.f = np.array(self.fun(self.t, self.y), dtype=float)
 
+    @abstractmethod
     def step(self, t_bound: float) -> bool:
         """Take one accepted step towards ``t_bound``, at most to ``t_bound``.
 
@@ -315,8 +317,8 @@ class Stepper:
             if the step size fell below :func:`min_step` at ``t`` (``message``
             says so; the state is unchanged).
         """
-        raise NotImplementedError
 
+    @abstractmethod
     def dense(self, t: Array) -> Array:
         """Evaluate the last step's continuous extension at times ``t``.
 
@@ -330,7 +332,6 @@ class Stepper:
         ndarray, shape (m, rows, n)
             The interpolated states.
         """
-        raise NotImplementedError
 
     def _accept(self, t_new: float, y_new: Array, f_new: Array, h: float, h_next: float) -> None:
         """Advance to an accepted step's end (``h`` its size, ``h_next`` the next to try)."""
