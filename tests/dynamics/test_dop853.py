@@ -9,7 +9,8 @@ from scipy.integrate._ivp import dop853_coefficients as scipy_coefficients
 from scipy.linalg import expm
 
 from youbot_opt.dynamics import dop853
-from youbot_opt.dynamics.dop853 import TOO_SMALL_STEP, Dop853
+from youbot_opt.dynamics.dop853 import Dop853
+from youbot_opt.dynamics.stepper import TOO_SMALL_STEP
 
 RTOL, ATOL = 1e-10, 1e-12
 

@@ -11,8 +11,8 @@ from scipy.integrate._ivp import radau as scipy_radau
 from scipy.linalg import expm
 
 from youbot_opt.dynamics import radau5
-from youbot_opt.dynamics.dop853 import TOO_SMALL_STEP
 from youbot_opt.dynamics.radau5 import Radau5
+from youbot_opt.dynamics.stepper import MAX_FACTOR, MIN_FACTOR, TOO_SMALL_STEP
 
 MU = 100.0  # Van der Pol's stiffness: relaxation phases at rate ~ MU, jumps in ~ 1 / MU
 
@@ -71,7 +71,7 @@ def test_coefficients_are_scipys() -> None:
     assert radau5._MU_REAL == scipy_radau.MU_REAL
     assert radau5._MU_COMPLEX == scipy_radau.MU_COMPLEX
     assert radau5._NEWTON_MAXITER == scipy_radau.NEWTON_MAXITER
-    assert (radau5._MIN_FACTOR, radau5._MAX_FACTOR) == (
+    assert (MIN_FACTOR, MAX_FACTOR) == (
         scipy_radau.MIN_FACTOR,
         scipy_radau.MAX_FACTOR,
     )

@@ -12,8 +12,10 @@ angle coordinates. The backends compared: docs/design.md, "Module notes".
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -56,10 +58,6 @@ def available_backends() -> tuple[str, ...]:
     """
     extra = ("pinocchio_casadi",) if _has_pinocchio_casadi() else ()
     return ("symbolic", "pinocchio", *extra)
-
-
-_Q = "joint positions in [rad] or [m]"
-_V = "joint velocities in [rad/s] or [m/s]"
 
 
 def _vector(name: str, value: ArrayLike, size: int, meaning: str) -> Array:
@@ -149,12 +147,7 @@ class Dynamics:
         ParameterError
             If an input has the wrong shape or is not finite.
         """
-        args = (
-            _vector("q", q, self.nq, _Q),
-            _vector("v", v, self.nv, _V),
-            _vector("tau", tau, self.nv, "joint torques in [N m]"),
-        )
-        return np.asarray(self.forward_dynamics(*args), dtype=float).reshape(-1)
+        return self._evaluate(self.forward_dynamics, q, v, ("tau", tau, "joint torques in [N m]"))
 
     def inverse(self, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> Array:
         """Evaluate the inverse dynamics numerically.
@@ -178,36 +171,47 @@ class Dynamics:
         ParameterError
             If an input has the wrong shape or is not finite.
         """
-        args = (
-            _vector("q", q, self.nq, _Q),
-            _vector("v", v, self.nv, _V),
-            _vector("a", a, self.nv, "joint accelerations in [rad/s^2]"),
+        return self._evaluate(
+            self.inverse_dynamics, q, v, ("a", a, "joint accelerations in [rad/s^2]")
         )
-        return np.asarray(self.inverse_dynamics(*args), dtype=float).reshape(-1)
+
+    def _evaluate(
+        self, function: ca.Function, q: ArrayLike, v: ArrayLike, x: tuple[str, ArrayLike, str]
+    ) -> Array:
+        """Evaluate ``function`` at the checked ``(q, v, x)``; ``x`` is (name, value, meaning)."""
+        name, value, meaning = x
+        args = (
+            _vector("q", q, self.nq, "joint positions in [rad] or [m]"),
+            _vector("v", v, self.nv, "joint velocities in [rad/s] or [m/s]"),
+            _vector(name, value, self.nv, meaning),
+        )
+        return np.asarray(function(*args), dtype=float).reshape(-1)
+
+
+_SXDynamics = Callable[[ca.SX, ca.SX, ca.SX], ca.SX]
+"""An undamped ``aba(q, v, tau)`` or ``rnea(q, v, a)`` on SX symbols."""
+
+
+def _damped_functions(
+    nv: int, damping: Array, aba: _SXDynamics, rnea: _SXDynamics, options: dict[str, bool]
+) -> tuple[ca.Function, ca.Function]:
+    """Build ``forward_dynamics`` = aba(q, v, tau - b v) and ``inverse_dynamics`` = rnea + b v."""
+    q, v, u = (ca.SX.sym(name, nv) for name in ("q", "v", "u"))
+    b = ca.DM(damping)
+    forward = ca.Function(
+        "forward_dynamics", [q, v, u], [aba(q, v, u - b * v)], ["q", "v", "tau"], ["a"], options
+    )
+    inverse = ca.Function(
+        "inverse_dynamics", [q, v, u], [rnea(q, v, u) + b * v], ["q", "v", "a"], ["tau"], options
+    )
+    return forward, inverse
 
 
 def _symbolic(model: pin.Model, damping: Array) -> Dynamics:
     from youbot_opt.dynamics.symbolic import FUNCTION_OPTIONS, build_symbolic_model
 
     sym = build_symbolic_model(model)
-    q, v, u = (ca.SX.sym(name, sym.nv) for name in ("q", "v", "u"))
-    b = ca.DM(damping)
-    forward = ca.Function(
-        "forward_dynamics",
-        [q, v, u],
-        [sym.aba(q, v, u - b * v)],
-        ["q", "v", "tau"],
-        ["a"],
-        FUNCTION_OPTIONS,
-    )
-    inverse = ca.Function(
-        "inverse_dynamics",
-        [q, v, u],
-        [sym.rnea(q, v, u) + b * v],
-        ["q", "v", "a"],
-        ["tau"],
-        FUNCTION_OPTIONS,
-    )
+    forward, inverse = _damped_functions(sym.nv, damping, sym.aba, sym.rnea, FUNCTION_OPTIONS)
     return Dynamics(
         backend="symbolic",
         nq=sym.nq,
@@ -248,21 +252,12 @@ def _pinocchio_casadi(model: pin.Model, damping: Array) -> Dynamics:
     pin_model = as_pin_model(model)  # pragma: no cover
     cmodel = cpin.Model(pin_model)  # pragma: no cover
     cdata = cmodel.createData()  # pragma: no cover
-    q, v, u = (ca.SX.sym(n, pin_model.nv) for n in ("q", "v", "u"))  # pragma: no cover
-    b = ca.DM(damping)  # pragma: no cover
-    forward = ca.Function(  # pragma: no cover
-        "forward_dynamics",
-        [q, v, u],
-        [cpin.aba(cmodel, cdata, q, v, u - b * v)],
-        ["q", "v", "tau"],
-        ["a"],
-    )
-    inverse = ca.Function(  # pragma: no cover
-        "inverse_dynamics",
-        [q, v, u],
-        [cpin.rnea(cmodel, cdata, q, v, u) + b * v],
-        ["q", "v", "a"],
-        ["tau"],
+    forward, inverse = _damped_functions(  # pragma: no cover
+        pin_model.nv,
+        damping,
+        functools.partial(cpin.aba, cmodel, cdata),
+        functools.partial(cpin.rnea, cmodel, cdata),
+        {},
     )
     return Dynamics(  # pragma: no cover
         backend="pinocchio_casadi",

@@ -5,7 +5,8 @@ Owns the adaptive integrator of the certificate's simulations
 Wanner, *Solving ODEs I*, II.10) step for step as SciPy's
 ``solve_ivp(method="DOP853")``, without importing ``scipy.integrate``. The state
 is a stack of rows, each held to the tolerances; :class:`Dop853` takes one step
-at a time, so a caller can stop on a knot, an event or a deadline.
+at a time (a :class:`~youbot_opt.dynamics.stepper.Stepper`), so a caller can stop
+on a knot, an event or a deadline.
 
 >>> stepper = Dop853(fun, 0.0, y0, rtol=1e-10, atol=1e-12, t_bound=1.0)  # doctest: +SKIP
 >>> while stepper.t < 1.0 and stepper.step(1.0): pass  # doctest: +SKIP
@@ -13,23 +14,23 @@ at a time, so a caller can stop on a knot, an event or a deadline.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from youbot_opt._typing import Array
+from youbot_opt.dynamics.stepper import (
+    MAX_FACTOR,
+    MIN_FACTOR,
+    SAFETY,
+    TOO_SMALL_STEP,
+    Rhs,
+    Stepper,
+    min_step,
+    next_step_size,
+    trial_step,
+)
 
-__all__ = ["TOO_SMALL_STEP", "Dop853", "initial_step"]
+__all__ = ["Dop853"]
 
-Rhs = Callable[[float, Array], Array]
-"""``f(t, y) -> dy/dt`` on a stack of rows, shape (rows, n) in and out."""
-
-TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
-"""Why a step fails: SciPy's message for the same condition."""
-
-_SAFETY = 0.9  # step-size control, as dop853.f and SciPy
-_MIN_FACTOR = 0.2  # largest decrease of a step
-_MAX_FACTOR = 10.0  # largest increase of a step
 _EXPONENT = -1.0 / 8.0  # -1 / (error estimator order + 1)
 _N_STAGES = 12
 
@@ -145,120 +146,18 @@ _D = _dense_matrix(_D_ROWS, (4, 16))
 _E53 = np.stack([_E5, _E3])  # both error estimates in one product
 
 
-def _rms_rows(x: Array) -> Array:
-    """RMS norm of each row of ``x`` (shape (rows, n))."""
-    return np.sqrt(np.einsum("ij,ij->i", x, x) / x.shape[1])
-
-
-def initial_step(
-    fun: Rhs,
-    t0: float,
-    y0: Array,
-    f0: Array,
-    t_bound: float,
-    rtol: float,
-    atol: float,
-    *,
-    order: int = 7,
-) -> float:
-    """Choose a first step size, as Hairer's ``dop853.f`` and SciPy's ``select_initial_step``.
-
-    Each row's suggestion is computed from the sizes of ``y0``, ``f0`` and a
-    difference estimate of the second derivative (one more evaluation of
-    ``fun``); the smallest row's is returned (one row: SciPy's value).
-
-    Parameters
-    ----------
-    fun : callable
-        Right-hand side ``f(t, y)`` on a stack of rows.
-    t0 : float
-        Initial time.
-    y0, f0 : ndarray, shape (rows, n)
-        Initial state and its derivative ``fun(t0, y0)``.
-    t_bound : float
-        End of the integration (the step does not exceed ``t_bound - t0``).
-    rtol, atol : float
-        Relative and absolute tolerances.
-    order : int, optional
-        Order of the method's error estimate (7 for DOP853, 3 for Radau IIA):
-        the local error is taken as proportional to ``h**(order + 1)``.
-
-    Returns
-    -------
-    float
-        The suggested first step (> 0) in the unit of ``t``, or NaN if the
-        derivative is not finite.
-    """
-    length = abs(t_bound - t0)
-    if length == 0.0:
-        return 0.0
-    with np.errstate(all="ignore"):  # a state or derivative that is not finite gives NaN
-        scale = atol + np.abs(y0) * rtol
-        d0, d1 = _rms_rows(y0 / scale), _rms_rows(f0 / scale)
-        h0_rows = np.where((d0 < 1e-5) | (d1 < 1e-5), 1e-6, 0.01 * d0 / d1)
-    if not np.all(np.isfinite(h0_rows)):
-        return float("nan")  # the first step fails
-    h0 = min(float(np.min(h0_rows)), length)
-    direction = 1.0 if t_bound > t0 else -1.0
-    f1 = fun(t0 + h0 * direction, y0 + h0 * direction * f0)
-    with np.errstate(all="ignore"):
-        d2 = _rms_rows((f1 - f0) / scale) / h0
-        h1_rows = np.where(
-            (d1 <= 1e-15) & (d2 <= 1e-15),
-            max(1e-6, h0 * 1e-3),
-            (0.01 / np.maximum(d1, d2)) ** (1.0 / (order + 1)),
-        )
-    if np.isnan(h1_rows).any():
-        return float("nan")
-    return float(min(100.0 * h0, float(np.min(h1_rows)), length))
-
-
-class Dop853:
+class Dop853(Stepper):
     """DOP853 integration of a stack of rows, one accepted step at a time.
 
-    The stepper holds the current time ``t``, state ``y`` and derivative ``f``
-    (``fun(t, y)``) and the next step size. :meth:`step` takes one accepted step
-    towards ``t_bound`` without passing it; :meth:`dense` evaluates the last
-    step's continuous extension. The error of a step is measured per row (the
-    scaled 5th/3rd-order estimate of ``dop853.f``, RMS over the row) and the
-    largest row's decides: with one row this is SciPy's DOP853 exactly.
-
-    Parameters
-    ----------
-    fun : callable
-        Right-hand side ``f(t, y)``, shape (rows, n) in and out. A step never
-        evaluates it beyond ``t_bound``, so ``fun`` may change where a caller
-        stops (a knot): then call :meth:`refresh`.
-    t0 : float
-        Initial time.
-    y0 : ndarray, shape (rows, n)
-        Initial state.
-    rtol, atol : float
-        Relative and absolute tolerances (``atol`` in the unit of ``y``).
-    t_bound : float
-        Where the first step is aimed (for :func:`initial_step`).
-    first_step : float, optional
-        The first step size; by default :func:`initial_step`'s.
-    f0 : ndarray, shape (rows, n), optional
-        ``fun(t0, y0)`` if known.
-
-    Attributes
-    ----------
-    t : float
-        Current time.
-    y : ndarray, shape (rows, n)
-        Current state.
-    f : ndarray, shape (rows, n)
-        ``fun(t, y)``.
-    h_abs : float
-        Size of the next step to try.
-    t_old : float
-        Start of the last accepted step (``t0`` before any).
-    nfev : int
-        Evaluations of ``fun`` so far.
-    message : str
-        Why the last :meth:`step` failed ("" if it did not).
+    A :class:`~youbot_opt.dynamics.stepper.Stepper` (its parameters and
+    attributes): :meth:`step` takes one accepted step towards ``t_bound``
+    without passing it; :meth:`dense` evaluates the last step's continuous
+    extension. The error of a step is measured per row (the scaled 5th/3rd-order
+    estimate of ``dop853.f``, RMS over the row) and the largest row's decides:
+    with one row this is SciPy's DOP853 exactly.
     """
+
+    error_order = 7
 
     def __init__(
         self,
@@ -272,73 +171,35 @@ class Dop853:
         first_step: float | None = None,
         f0: Array | None = None,
     ) -> None:
-        self.fun = fun
-        self.rtol, self.atol = float(rtol), float(atol)
-        self.t = self.t_old = float(t0)
-        self.y = self.y_old = np.array(y0, dtype=float)
-        self.nfev = 0
-        if f0 is None:
-            self.refresh()
-        else:
-            self.f = np.array(f0, dtype=float)
-        if first_step is None:
-            self.nfev += 1
-            first_step = initial_step(fun, self.t, self.y, self.f, t_bound, self.rtol, self.atol)
-        self.h_abs = float(first_step)
-        self.message = ""
+        super().__init__(
+            fun, t0, y0, rtol=rtol, atol=atol, t_bound=t_bound, first_step=first_step, f0=f0
+        )
         rows, n = self.y.shape
         self._KY = np.empty((17, rows * n))  # y, then the stages (13-15 for the dense output)
         self._K = self._KY[1:].reshape(16, rows, n)
         self._K_flat = self._KY[1:]
         self._coef = np.ones((16, 17))  # [1, h A]: row s makes stage s from KY
         self._F = np.empty((7, rows * n))  # the dense output's polynomial
-        self._h = 0.0
         self._dense_ready = False
-
-    def refresh(self) -> None:
-        """Re-evaluate ``f = fun(t, y)`` (after ``fun`` changed at the current time).
-
-        The last step's dense output, if already evaluated, stays the step's.
-        """
-        self.nfev += 1
-        self.f = self.fun(self.t, self.y)
 
     def step(self, t_bound: float) -> bool:
         """Take one accepted step towards ``t_bound``, at most to ``t_bound``.
 
-        The step size is the controller's, cut to end on ``t_bound`` if it would
-        pass it; a rejected step is retried smaller. After a cut step, the next
-        step may again be as long as the one before the cut.
-
-        Parameters
-        ----------
-        t_bound : float
-            The time not to pass (> ``t``).
-
-        Returns
-        -------
-        bool
-            True once a step is accepted (``t``, ``y``, ``f`` advanced); False
-            if the step size fell below the spacing of floating-point numbers at
-            ``t`` (``message`` says so; the state is unchanged).
+        See :meth:`Stepper.step <youbot_opt.dynamics.stepper.Stepper.step>`.
         """
         t, y, fun = self.t, self.y, self.fun
         rows, n = y.shape
-        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
-        h_abs = max(self.h_abs, min_step) if self.h_abs == self.h_abs else self.h_abs
+        smallest = min_step(t)
+        h_abs = max(self.h_abs, smallest) if self.h_abs == self.h_abs else self.h_abs
         wanted, rejected = h_abs, False
         KY, K = self._KY, self._K
         KY[0] = y.reshape(-1)  # row 0 of KY is y, rows 1.. the stages: one product per stage
         coef = self._coef
         while True:
-            if not h_abs >= min_step:  # NaN-safe: a NaN size fails too
+            if not h_abs >= smallest:  # NaN-safe: a NaN size fails too
                 self.message = TOO_SMALL_STEP
                 return False
-            t_new = t + h_abs
-            cut = t_new >= t_bound
-            if cut:
-                t_new = t_bound
-            h = t_new - t
+            t_new, h, cut = trial_step(t, h_abs, t_bound)
             h_abs = abs(h)
             np.multiply(_A, h, out=coef[:, 1:])  # coef = [1, h A]
             K[0] = self.f
@@ -350,22 +211,17 @@ class Dop853:
             scale = self.atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
             error = self._error_norm(h, scale)
             if error < 1.0:
-                factor = _MAX_FACTOR
+                factor = MAX_FACTOR
                 if error > 0.0:
-                    factor = min(_MAX_FACTOR, _SAFETY * error**_EXPONENT)
+                    factor = min(MAX_FACTOR, SAFETY * error**_EXPONENT)
                 if rejected:
                     factor = min(1.0, factor)
-                h_next = h_abs * factor
-                if cut and not rejected and factor >= 1.0:
-                    h_next = max(h_next, wanted)  # the cut, not the error, made the step short
                 break
-            h_abs *= max(_MIN_FACTOR, _SAFETY * error**_EXPONENT)
+            h_abs *= max(MIN_FACTOR, SAFETY * error**_EXPONENT)
             rejected = True
-        self.t_old, self.y_old = t, y
-        self.t, self.y, self.f = t_new, y_new, K[_N_STAGES].copy()
-        self._h, self.h_abs = h, h_next
+        h_next = next_step_size(h_abs, factor, wanted=wanted, cut=cut, rejected=rejected)
+        self._accept(t_new, y_new, K[_N_STAGES].copy(), h, h_next)
         self._dense_ready = False
-        self.message = ""
         return True
 
     def _error_norm(self, h: float, scale: Array) -> float:
@@ -386,15 +242,7 @@ class Dop853:
         The first call after a step evaluates ``fun`` three more times (the
         extension's stages): make it before ``fun`` changes.
 
-        Parameters
-        ----------
-        t : ndarray, shape (m,)
-            Times in ``[t_old, t]`` of the last accepted step.
-
-        Returns
-        -------
-        ndarray, shape (m, rows, n)
-            The interpolated states.
+        See :meth:`Stepper.dense <youbot_opt.dynamics.stepper.Stepper.dense>`.
         """
         rows, n = self.y.shape
         if not self._dense_ready:

@@ -18,12 +18,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from youbot_opt._typing import Array
-from youbot_opt.dynamics.dop853 import TOO_SMALL_STEP, initial_step
+from youbot_opt.dynamics.stepper import (
+    MAX_FACTOR,
+    MIN_FACTOR,
+    SAFETY,
+    TOO_SMALL_STEP,
+    Rhs,
+    Stepper,
+    min_step,
+    next_step_size,
+    trial_step,
+)
 
 __all__ = ["Jacobian", "Radau5"]
-
-Rhs = Callable[[float, Array], Array]
-"""``f(t, y) -> dy/dt`` on a stack of rows, shape (rows, n) in and out."""
 
 Jacobian = Callable[[float, Array], Array]
 """``jac(t, y) -> blocks``: the diagonal blocks, shape (B, nb, nb), of ``df/dy``
@@ -61,8 +68,6 @@ for _array in (_C, _E, _T, _TI, _TI_REAL, _TI_COMPLEX, _P):
     _array.setflags(write=False)
 
 _NEWTON_MAXITER = 6  # Newton iterations of one collocation solve
-_MIN_FACTOR = 0.2  # largest decrease of a step
-_MAX_FACTOR = 10.0  # largest increase of a step
 _EPS = float(np.finfo(float).eps)
 _SAME_H = 1e-6  # relative change of h below which a factorisation is reused (see step)
 
@@ -79,15 +84,15 @@ def _predict_factor(
         return float(min(1.0, multiplier) * np.float64(error_norm) ** -0.25)
 
 
-class Radau5:
+class Radau5(Stepper):
     """Radau IIA (order 5) integration of a stack of rows, one accepted step at a time.
 
-    The stepper holds the current time ``t``, state ``y``, derivative ``f``,
-    the Jacobian blocks and their factorisations, and the next step size.
-    :meth:`step` takes one accepted step towards ``t_bound`` without passing
-    it; :meth:`dense` evaluates the last step's collocation polynomial. Errors
-    (and Newton increments) are measured per row (RMS over the row) and the
-    largest row's decides: with one row and one block this is SciPy's Radau.
+    A :class:`~youbot_opt.dynamics.stepper.Stepper` that also holds the
+    Jacobian blocks and their factorisations. :meth:`step` takes one accepted
+    step towards ``t_bound`` without passing it; :meth:`dense` evaluates the
+    last step's collocation polynomial. Errors (and Newton increments) are
+    measured per row (RMS over the row) and the largest row's decides: with one
+    row and one block this is SciPy's Radau.
 
     Two departures from SciPy, both for stepping from knot to knot: a step cut
     to end on ``t_bound`` refactors the Newton matrices if ``h`` changed by more
@@ -98,44 +103,24 @@ class Radau5:
     Parameters
     ----------
     fun : callable
-        Right-hand side ``f(t, y)``, shape (rows, n) in and out. A step never
-        evaluates it beyond ``t_bound``; where ``fun`` changes (a knot) call
-        :meth:`refresh`.
+        Right-hand side ``f(t, y)``, shape (rows, n) in and out (see
+        :class:`~youbot_opt.dynamics.stepper.Stepper`).
     jac : callable
         ``jac(t, y)``: the diagonal blocks of ``df/dy`` over the flattened
         state, shape (B, nb, nb) with ``B nb = rows n`` (see :data:`Jacobian`).
-    t0 : float
-        Initial time.
-    y0 : ndarray, shape (rows, n)
-        Initial state.
-    rtol, atol : float
-        Relative and absolute tolerances (``atol`` in the unit of ``y``).
-    t_bound : float
-        Where the first step is aimed (for the initial step size).
-    first_step : float, optional
-        The first step size; by default SciPy's choice (Hairer's, for the
-        3rd-order error estimate).
-    f0 : ndarray, shape (rows, n), optional
-        ``fun(t0, y0)`` if known.
+    t0, y0, rtol, atol, t_bound, first_step, f0
+        As :class:`~youbot_opt.dynamics.stepper.Stepper` (the first step by
+        default SciPy's choice: Hairer's, for the 3rd-order error estimate).
 
     Attributes
     ----------
-    t : float
-        Current time.
-    y : ndarray, shape (rows, n)
-        Current state.
-    f : ndarray, shape (rows, n)
-        ``fun(t, y)``.
-    h_abs : float
-        Size of the next step to try.
-    t_old : float
-        Start of the last accepted step (``t0`` before any).
-    nfev, njev, nlu : int
-        Evaluations of ``fun`` and ``jac``, and factorisations (real and
-        complex counted apart, as SciPy), so far.
-    message : str
-        Why the last :meth:`step` failed ("" if it did not).
+    njev, nlu : int
+        Evaluations of ``jac``, and factorisations (real and complex counted
+        apart, as SciPy), so far; the others are the
+        :class:`~youbot_opt.dynamics.stepper.Stepper`'s.
     """
+
+    error_order = 3
 
     def __init__(
         self,
@@ -150,33 +135,20 @@ class Radau5:
         first_step: float | None = None,
         f0: Array | None = None,
     ) -> None:
-        self.fun, self.jac = fun, jac
-        self.rtol, self.atol = float(rtol), float(atol)
-        self.t = self.t_old = float(t0)
-        self.y = self.y_old = np.array(y0, dtype=float)
-        self.nfev = self.njev = self.nlu = 0
-        if f0 is None:
-            self.nfev += 1
-            self.f = np.array(fun(self.t, self.y), dtype=float)
-        else:
-            self.f = np.array(f0, dtype=float)
-        if first_step is None:
-            self.nfev += 1
-            first_step = initial_step(
-                fun, self.t, self.y, self.f, t_bound, self.rtol, self.atol, order=3
-            )
-        self.h_abs = float(first_step)
+        super().__init__(
+            fun, t0, y0, rtol=rtol, atol=atol, t_bound=t_bound, first_step=first_step, f0=f0
+        )
+        self.jac = jac
+        self.njev = self.nlu = 0
         self.h_abs_old: float | None = None
         self.error_norm_old: float | None = None
         self.newton_tol = max(10.0 * _EPS / self.rtol, min(0.03, self.rtol**0.5))
-        self.message = ""
         self._J = self._jacobian(self.t, self.y)
         self._current_jac = True
         self._inv_real: Array | None = None  # (mu_real / h - J)^-1, block by block
         self._inv_complex: NDArray[np.complex128] | None = None
         self._lu_h = 0.0  # the h the inverses were made for
         self._Q: Array | None = None  # the last step's dense output, shape (3, rows n)
-        self._h = 0.0
 
     # ------------------------------------------------------------ pieces
     def _jacobian(self, t: float, y: Array) -> Array:
@@ -269,44 +241,29 @@ class Radau5:
         failure re-evaluates the Jacobian); the last step's dense output stays
         the step's.
         """
-        self.nfev += 1
-        self.f = np.array(self.fun(self.t, self.y), dtype=float)
+        super().refresh()
         self._current_jac = False
 
     def step(self, t_bound: float) -> bool:
         """Take one accepted step towards ``t_bound``, at most to ``t_bound``.
 
-        Parameters
-        ----------
-        t_bound : float
-            The time not to pass (> ``t``).
-
-        Returns
-        -------
-        bool
-            True once a step is accepted (``t``, ``y``, ``f`` advanced); False
-            if the step size fell below the spacing of floating-point numbers at
-            ``t`` (``message`` says so; the state is unchanged).
+        See :meth:`Stepper.step <youbot_opt.dynamics.stepper.Stepper.step>`.
         """
         t = self.t
         y = self.y.reshape(-1)
         f = self.f.reshape(-1)
         atol, rtol = self.atol, self.rtol
-        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        smallest = min_step(t)
         h_abs_old, error_norm_old = self.h_abs_old, self.error_norm_old
         h_abs = self.h_abs
-        if h_abs < min_step:
-            h_abs, h_abs_old, error_norm_old = min_step, None, None
+        if h_abs < smallest:
+            h_abs, h_abs_old, error_norm_old = smallest, None, None
         wanted, rejected = h_abs, False
         while True:
-            if not h_abs >= min_step:  # NaN-safe: a NaN size fails too
+            if not h_abs >= smallest:  # NaN-safe: a NaN size fails too
                 self.message = TOO_SMALL_STEP
                 return False
-            t_new = t + h_abs
-            cut = t_new >= t_bound
-            if cut:
-                t_new = t_bound
-            h = t_new - t
+            t_new, h, cut = trial_step(t, h_abs, t_bound)
             h_abs = abs(h)
             if self._Q is None:
                 Z0 = np.zeros((3, y.size))
@@ -336,7 +293,7 @@ class Radau5:
             scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
             with np.errstate(all="ignore"):
                 error_norm = self._norm(error / scale)
-            safety = 0.9 * (2 * _NEWTON_MAXITER + 1) / (2 * _NEWTON_MAXITER + n_iter)
+            safety = SAFETY * (2 * _NEWTON_MAXITER + 1) / (2 * _NEWTON_MAXITER + n_iter)
             if rejected and error_norm > 1.0:
                 error = self._solve(self._inv_real, self._eval(t, y + error) + ZE)
                 with np.errstate(all="ignore"):
@@ -346,21 +303,19 @@ class Radau5:
             if np.isfinite(error_norm):
                 factor = _predict_factor(h_abs, h_abs_old, error_norm, error_norm_old)
             else:
-                factor = _MIN_FACTOR  # a state that is not finite: rejected, then failed
-            h_abs *= max(_MIN_FACTOR, safety * factor)
+                factor = MIN_FACTOR  # a state that is not finite: rejected, then failed
+            h_abs *= max(MIN_FACTOR, safety * factor)
             self._inv_real = self._inv_complex = None
             rejected = True
 
         recompute_jac = n_iter > 2 and rate is not None and rate > 1e-3
         factor = _predict_factor(h_abs, h_abs_old, error_norm, error_norm_old)
-        factor = min(_MAX_FACTOR, safety * factor)
+        factor = min(MAX_FACTOR, safety * factor)
         if not recompute_jac and factor < 1.2:
             factor = 1.0
         else:
             self._inv_real = self._inv_complex = None
-        h_next = h_abs * factor
-        if cut and not rejected and factor >= 1.0 and wanted > h_next:
-            h_next = wanted  # the cut, not the error, made the step short
+        h_next = next_step_size(h_abs, factor, wanted=wanted, cut=cut, rejected=rejected)
         f_new = self._eval(t_new, y_new)
         y_new_rows = y_new.reshape(self.y.shape)
         if recompute_jac:
@@ -370,12 +325,8 @@ class Radau5:
             self._current_jac = False
         self.h_abs_old = self.h_abs
         self.error_norm_old = error_norm
-        self.h_abs = h_next
-        self.t_old, self.y_old = t, self.y
-        self.t, self.y, self.f = t_new, y_new_rows, f_new.reshape(self.y.shape)
-        self._h = h
+        self._accept(t_new, y_new_rows, f_new.reshape(self.y.shape), h, h_next)
         self._Q = _P.T.dot(Z)
-        self.message = ""
         return True
 
     def _dense_flat(self, t: Array) -> Array:
@@ -388,15 +339,7 @@ class Radau5:
     def dense(self, t: Array) -> Array:
         """Evaluate the last step's collocation polynomial (3rd degree) at times ``t``.
 
-        Parameters
-        ----------
-        t : ndarray, shape (m,)
-            Times in ``[t_old, t]`` of the last accepted step.
-
-        Returns
-        -------
-        ndarray, shape (m, rows, n)
-            The interpolated states.
+        See :meth:`Stepper.dense <youbot_opt.dynamics.stepper.Stepper.dense>`.
         """
         if self._Q is None:
             raise RuntimeError("no step taken yet")
