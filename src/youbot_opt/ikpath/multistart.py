@@ -588,7 +588,7 @@ def _run_planar(
     if starts == BRANCH_KIND:
         x0s = BranchStarts(problem, n_starts, seed, verdicts=found, planar=True)
         if sweep.keep_results:
-            x0s = np.array([x0s[k] for k in range(len(x0s))])
+            x0s = _drawn(x0s)
     elif not sweep.keep_results:  # each start drawn as its task is made
         x0s = PlanarStarts(problem, _count(n_starts, 100), seed, kind=starts, verdicts=found)
     else:
@@ -634,12 +634,12 @@ def _run_3d(
     if starts == BRANCH_KIND:
         x0s = BranchStarts(problem, n_starts, seed, verdicts=verdicts or ())
         if sweep.keep_results:
-            x0s = np.array([x0s[k] for k in range(len(x0s))])
+            x0s = _drawn(x0s)
     elif starts == "feasible":
         found = check_planar(problem)
         x0s = PlanarStarts(problem, _count(n_starts, 16), seed, kind="feasible", verdicts=found)
         if sweep.keep_results:
-            x0s = np.array([x0s[k] for k in range(len(x0s))])
+            x0s = _drawn(x0s)
     elif sweep.keep_results:
         x0s = make_starts_3d(problem, _count(n_starts, 16), seed, kind=starts)
     else:  # each start drawn as its task is made
@@ -650,6 +650,11 @@ def _run_3d(
         planar=False, verdicts=(), obj_tol=obj_tol, dist_tol=dist_tol,
         sweep=replace(sweep, executor=executor, workers=n_workers), budget=budget,
     )  # fmt: skip
+
+
+def _drawn(starts: PlanarStarts | BranchStarts) -> Array:
+    """Every start of a lazy sequence, drawn now: ``(n_starts, n s)`` [rad] (or [m])."""
+    return np.array([starts[k] for k in range(len(starts))])
 
 
 def _run(

@@ -128,7 +128,7 @@ def _constraint_tol(method: str, options: ALOptions | IpoptOptions | None) -> fl
 
 def crashed_result(
     build: Callable[..., ResultT],
-    problem: CyclicIKProblem | CyclicIKProblem,
+    problem: CyclicIKProblem,
     method: str,
     x0: Array,
     message: str,

@@ -419,7 +419,7 @@ def _stream_all(
 
     def todo() -> Iterator[Task]:
         for pos, key in enumerate(task_keys(tasks)):
-            if shard is not None and pos % shard[1] != shard[0] - 1:
+            if shard is not None and not _in_shard(pos, shard):
                 continue  # another shard's item
             again, made = store.needs_work(key, max_attempts)
             if not again:
@@ -434,13 +434,9 @@ def _stream_all(
     def record(o: TaskOutcome, chunk: dict[str, Task], redo: list[Task]) -> None:
         nonlocal finished
         if o.ok and isinstance(o.value, WrittenItem) and writer is not None:
-            written = o.value
-            if "attempts" in written.summary:
-                written = replace(written, summary={**written.summary, "attempts": o.attempts})
-            rec = store.accept(o.key, written, attempts=o.attempts)
+            rec = _accept_written(store, o.key, o.value, o.attempts)
             if rec is None:  # refused (warned): a failed attempt, retried if attempts remain
-                why = "its worker-written payload was refused (checksum or file mismatch)"
-                rec = store.write_failed(o.key, why, attempts=o.attempts)
+                rec = store.write_failed(o.key, _REFUSED_PAYLOAD, attempts=o.attempts)
                 if o.attempts < max_attempts:
                     redo.append(replace(chunk[o.key], attempts=o.attempts))
                     return
@@ -526,6 +522,28 @@ def _stream_all(
     return Resumed(items=items, attempts=StoredAttempts(tasks, store), resumed=resumed)
 
 
+_REFUSED_PAYLOAD = "its worker-written payload was refused (checksum or file mismatch)"
+"""Why a worker-written payload that the store refused counts as a failed attempt."""
+
+
+def _accept_written(
+    store: SweepStore, key: str, written: WrittenItem, attempts: int
+) -> ItemRecord | None:
+    """Record a worker-written payload under its final attempt count (None: refused, warned).
+
+    The attempt count in the summary, if it has one, is the outcome's: the worker
+    could not know it.
+    """
+    if "attempts" in written.summary:
+        written = replace(written, summary={**written.summary, "attempts": attempts})
+    return store.accept(key, written, attempts=attempts)
+
+
+def _in_shard(pos: int, shard: tuple[int, int]) -> bool:
+    """Whether the task at 0-based position ``pos`` is shard ``(i, n)``'s (``i`` 1-based)."""
+    return pos % shard[1] == shard[0] - 1
+
+
 def _head(tasks: Sequence[Task], count: int) -> Sequence[Task]:
     """Return the first ``count`` tasks (a :class:`TaskSequence` stays lazy)."""
     return tasks.head(count) if isinstance(tasks, TaskSequence) else tasks[:count]
@@ -607,7 +625,7 @@ def _run_all(
     resumed_keys = set(items)
     shard = options.shard
     if shard is not None:  # only this shard's positions; the others are other jobs' work
-        mine = {t.key for pos, t in enumerate(tasks) if pos % shard[1] == shard[0] - 1}
+        mine = {t.key for pos, t in enumerate(tasks) if _in_shard(pos, shard)}
         todo = [t for t in todo if t.key in mine]
     if on_resumed is not None:
         on_resumed(dict(items))
@@ -635,11 +653,9 @@ def _run_all(
             return
         if o.ok and isinstance(o.value, WrittenItem) and writer is not None:
             written = o.value
-            if "attempts" in written.summary:
-                written = replace(written, summary={**written.summary, "attempts": o.attempts})
-            rec = store.accept(o.key, written, attempts=o.attempts)
+            rec = _accept_written(store, o.key, written, o.attempts)
             if rec is None:  # refused (warned): a failed attempt, retried if attempts remain
-                why = "its worker-written payload was refused (checksum or file mismatch)"
+                why = _REFUSED_PAYLOAD
                 store.write_failed(o.key, why, attempts=o.attempts)
                 failed = replace(o, value=None, error=why, final=o.attempts >= max_attempts)
                 if failed.final:

@@ -435,43 +435,40 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
                 f"projected gradient {stationarity:.2e} ({inner_msg})"
             )
             break
-        if opts.newton_final and rows is not None and violation <= opts.newton_violation:
-            final = final_phase_with_rows(
-                problem,
-                rows,
-                x,
-                lam - mu * c if stationarity_al <= stationarity_ls else lam_ls,
-                nu_new,
-                mu,
-                opts,
-                data,
-                deadline,
-                start_iteration=k + 1,
-                iterations=FINAL_PHASE_STEPS,
-            )
-            _log.debug("AL %d: final phase with clearance rows: %s", k, final.message)
+        if opts.newton_final and violation <= opts.newton_violation:
+            lam_start = lam - mu * c if stationarity_al <= stationarity_ls else lam_ls
+            if rows is None:
+                final = final_phase(
+                    problem,
+                    x,
+                    lam_start,
+                    mu,
+                    opts,
+                    data,
+                    deadline,
+                    start_iteration=k + 1,
+                    iterations=FINAL_PHASE_STEPS,
+                )
+            else:
+                final = final_phase_with_rows(
+                    problem,
+                    rows,
+                    x,
+                    lam_start,
+                    nu_new,
+                    mu,
+                    opts,
+                    data,
+                    deadline,
+                    start_iteration=k + 1,
+                    iterations=FINAL_PHASE_STEPS,
+                )
+            _log.debug("AL %d: final phase (%d clearance rows): %s", k, nu.size, final.message)
             if final.status is SolveStatus.SOLVED:
                 history.extend(final.history)
                 status, x, lam = final.status, final.x, final.multipliers
-                nu = final.clearance_multipliers
+                nu = nu if rows is None else final.clearance_multipliers
                 message = f"{final.message}{_clearance_note(rows, x, nu)}"
-                break
-        if opts.newton_final and rows is None and violation <= opts.newton_violation:
-            final = final_phase(
-                problem,  # type: ignore[arg-type]
-                x,
-                lam - mu * c if stationarity_al <= stationarity_ls else lam_ls,
-                mu,
-                opts,
-                data,
-                deadline,
-                start_iteration=k + 1,
-                iterations=FINAL_PHASE_STEPS,
-            )
-            _log.debug("AL %d: final phase: %s", k, final.message)
-            if final.status is SolveStatus.SOLVED:
-                history.extend(final.history)
-                status, message, x, lam = final.status, final.message, final.x, final.multipliers
                 break
         if violation <= eta:
             # An inner solve that could not move (its line search lost in the rounding

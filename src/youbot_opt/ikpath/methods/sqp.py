@@ -155,17 +155,11 @@ def final_phase(
             return FinalPhase(SolveStatus.MAX_TIME, message, x, lam, history, steps)
         with np.errstate(over="ignore", invalid="ignore"):
             hess = problem.lagrangian_hessian(x, lam, data)
-        free = ~(((x <= lower) & (grad_l > 0.0)) | ((x >= upper) & (grad_l < 0.0)))
-        for _ in range(x.size + 1):  # joints at a limit that the step pushes out are fixed
-            step = _sqp_step(jac, hess, grad_l, c, free)
-            if step is None:
-                message = "singular or non-finite KKT system in the final phase"
-                return FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
-            p, rows, dlam = step
-            out = free & (((x <= lower) & (p < 0.0)) | ((x >= upper) & (p > 0.0)))
-            if not np.any(out):
-                break
-            free = free & ~out
+        step = _held_step(jac, hess, grad_l, c, x, lower, upper)
+        if step is None:
+            message = "singular or non-finite KKT system in the final phase"
+            return FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
+        p, rows, dlam = step
         lam_new = lam.copy()
         lam_new[rows] += dlam
         # Slope of the merit along p: (grad E - J^T lam_new) p - mu |c|^2 = -p^T H p - mu |c|^2.
@@ -274,16 +268,10 @@ def final_phase_with_rows(
             return ended(SolveStatus.MAX_TIME, "wall-time limit in the final phase", steps)
         with np.errstate(over="ignore", invalid="ignore"):
             hess = problem.lagrangian_hessian(x, y[:m], data) - _rows_hessian(rows, x, nu_full)
-        free = ~(((x <= lower) & (grad_l > 0.0)) | ((x >= upper) & (grad_l < 0.0)))
-        for _ in range(x.size + 1):
-            step = _sqp_step(jac, hess, grad_l, h, free)
-            if step is None:
-                return ended(SolveStatus.STALLED, "singular KKT system in the final phase", steps)
-            p, taken, dy = step
-            out = free & (((x <= lower) & (p < 0.0)) | ((x >= upper) & (p > 0.0)))
-            if not np.any(out):
-                break
-            free = free & ~out
+        step = _held_step(jac, hess, grad_l, h, x, lower, upper)
+        if step is None:
+            return ended(SolveStatus.STALLED, "singular KKT system in the final phase", steps)
+        p, taken, dy = step
         y_new = y.copy()
         y_new[taken] += dy
         if np.any(y_new[m:] < 0.0):
@@ -384,6 +372,30 @@ def _merit_backtrack(
             return x_new
         alpha *= 0.5
     return None
+
+
+def _held_step(
+    jac: Array, hess: Array, grad_l: Array, c: Array, x: Array, lower: Array, upper: Array
+) -> tuple[Array, npt.NDArray[np.bool_], Array] | None:
+    """Newton step of :func:`_sqp_step` with the joints at a limit held there, or None.
+
+    A joint at a limit whose Lagrangian gradient ``grad_l`` points out of the box
+    ``[lower, upper]`` [rad] is held from the start (the projected BFGS's binding
+    set); one whose step points out is held and the step solved again. Shared by
+    both final phases.
+    """
+    free = ~(((x <= lower) & (grad_l > 0.0)) | ((x >= upper) & (grad_l < 0.0)))
+    step = None
+    for _ in range(x.size + 1):
+        step = _sqp_step(jac, hess, grad_l, c, free)
+        if step is None:
+            return None
+        p = step[0]
+        out = free & (((x <= lower) & (p < 0.0)) | ((x >= upper) & (p > 0.0)))
+        if not np.any(out):
+            break
+        free = free & ~out
+    return step
 
 
 def _sqp_step(

@@ -213,6 +213,36 @@ def _verdict(
     )
 
 
+def _exact_verdict(
+    chain: PlanarChain,
+    p: Array,
+    index: int,
+    *,
+    method: str,
+    q: Array,
+    distance: float,
+    limited: bool,
+    tol: float,
+) -> ReachVerdict:
+    """Verdict of a closed-form ``method`` from the exact ``distance`` [m] to the workspace.
+
+    Reachable when ``distance <= tol``; ``q`` [rad] is the nearest configuration.
+    """
+    status = Reachability.REACHABLE if distance <= tol else Reachability.UNREACHABLE
+    return _verdict(
+        chain,
+        p,
+        index,
+        status=status,
+        method=method,
+        q=q,
+        lower=distance,
+        limited=limited,
+        tol=tol,
+        evaluations=1,
+    )
+
+
 def _annulus(chain: PlanarChain, p: Array, index: int, tol: float, limited: bool) -> ReachVerdict:
     """Exact verdict without joint limits."""
     r_min, r_max = chain.reach
@@ -222,18 +252,8 @@ def _annulus(chain: PlanarChain, p: Array, index: int, tol: float, limited: bool
     u = v / r if r > 0.0 else np.array([1.0, 0.0])
     goal = u * min(max(r, r_min), r_max)
     q = _q_from_phi(chain, _unlimited_angles(chain.lengths, float(goal[0]), float(goal[1])))
-    status = Reachability.REACHABLE if dist <= tol else Reachability.UNREACHABLE
-    return _verdict(
-        chain,
-        p,
-        index,
-        status=status,
-        method="annulus",
-        q=q,
-        lower=dist,
-        limited=limited,
-        tol=tol,
-        evaluations=1,
+    return _exact_verdict(
+        chain, p, index, method="annulus", q=q, distance=dist, limited=limited, tol=tol
     )
 
 
@@ -329,18 +349,8 @@ def _closed_form(
         )
         d, theta = near.distance, np.array([near.alpha, near.beta])
     q = np.clip(theta - chain.angle_offset, chain.q_lower, chain.q_upper)
-    status = Reachability.REACHABLE if d <= tol else Reachability.UNREACHABLE
-    return _verdict(
-        chain,
-        p,
-        index,
-        status=status,
-        method="closed_form",
-        q=q,
-        lower=d,
-        limited=True,
-        tol=tol,
-        evaluations=1,
+    return _exact_verdict(
+        chain, p, index, method="closed_form", q=q, distance=d, limited=True, tol=tol
     )
 
 
