@@ -14,8 +14,8 @@ from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.examples import example_problem
 from youbot_opt.ikpath.geometry import two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability import Reachability
 from youbot_opt.ikpath.reachability.planar import (
-    Reachability,
     check_reachability,
     decide_reachability,
     require_reachable,

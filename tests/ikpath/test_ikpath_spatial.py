@@ -11,7 +11,8 @@ from youbot_opt.ikpath.dls import dls_ik, greedy_path
 from youbot_opt.ikpath.examples import EXAMPLES, example_problem
 from youbot_opt.ikpath.methods.al import ALOptions, solve_augmented_lagrangian
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
+from youbot_opt.ikpath.reachability import Reachability
+from youbot_opt.ikpath.reachability.general import check_reachability_3d
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.starts import make_starts_3d
 from youbot_opt.ikpath.targets import Target
@@ -132,7 +133,7 @@ def test_unreachable_target_refused_with_its_reach_sphere_certificate():
     far = Target(position=(3.0, 0.0, 0.5))
     bad = problem.with_targets((*problem.targets[:2], far))
     verdicts = check_reachability_3d(bad)
-    assert verdicts[2].status is Reachability3D.UNREACHABLE
+    assert verdicts[2].status is Reachability.UNREACHABLE
     assert verdicts[2].distance > verdicts[2].reach  # the certificate
     # UR5's reach is about 1 m: the sphere must be sound (>= the true reach) yet below 3 m.
     assert 0.9 < verdicts[2].reach < 3.0

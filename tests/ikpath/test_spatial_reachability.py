@@ -13,14 +13,14 @@ from youbot_opt.cli import main
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.dls import random_theta
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability import Reachability
 from youbot_opt.ikpath.reachability.general import (
-    Reachability3D,
     check_reachability_3d,
     interval_search,
     joint_box,
 )
 from youbot_opt.ikpath.reachability.interval import IntervalChain, sin_cos
-from youbot_opt.ikpath.reachability.planar import Reachability, decide_reachability
+from youbot_opt.ikpath.reachability.planar import decide_reachability
 from youbot_opt.ikpath.solve import solve
 from youbot_opt.ikpath.targets import Target
 from youbot_opt.robot.load import load_model
@@ -182,12 +182,12 @@ def test_planar_example_unreachable_targets_agree_with_the_planar_decision(tmp_p
     expected = [decide_reachability(chain, p).status for p in points]  # the independent oracle
     assert expected == [Reachability.UNREACHABLE] * 3 + [Reachability.REACHABLE] * 2
     assert [v.method for v in verdicts[:3]] == ["reach_sphere", "interval", "interval"]
-    assert all(v.status is Reachability3D.UNREACHABLE for v in verdicts[:3])
+    assert all(v.status is Reachability.UNREACHABLE for v in verdicts[:3])
     assert verdicts[1].distance < verdicts[1].reach  # inside the sphere: only the interval proof
     assert verdicts[1].boxes > 0 and "excludes every box" in verdicts[1].message
     data = model.createData()
     for v, p in zip(verdicts[3:], points[3:], strict=True):  # witnesses checked by Pinocchio
-        assert v.status is Reachability3D.REACHABLE
+        assert v.status is Reachability.REACHABLE
         assert np.all(np.abs(v.witness) <= limit)
         pin.framesForwardKinematics(model, data, problem.configuration(v.witness))
         assert np.linalg.norm(data.oMf[problem.frame_id].translation - (*p, 0.0)) <= 1e-6
@@ -199,11 +199,11 @@ def test_annulus_hole_is_certified_without_limits(tmp_path):
     model = _planar(tmp_path, (5.0, 1.5, 1.5), 3.0)
     inf = np.full(3, np.inf)
     for p, status in (
-        ((1.9, 0.0), Reachability3D.UNREACHABLE),
-        ((2.05, 0.0), Reachability3D.REACHABLE),
+        ((1.9, 0.0), Reachability.UNREACHABLE),
+        ((2.05, 0.0), Reachability.REACHABLE),
     ):
         assert decide_reachability(PlanarChain(lengths=[5.0, 1.5, 1.5]), p).reachable is (
-            status is Reachability3D.REACHABLE
+            status is Reachability.REACHABLE
         )
         problem = _problem(model, _point_targets(p, p), q_lower=-inf, q_upper=inf)
         found = interval_search(problem, 0, **_BUDGET)
@@ -223,9 +223,7 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
         Target(position=(5.0, 1.0, 0.0)),  # the same point: reachable
     ]
     verdicts = check_reachability_3d(_problem(planar, targets))
-    assert [v.status for v in verdicts] == [Reachability3D.UNREACHABLE] * 2 + [
-        Reachability3D.REACHABLE
-    ]
+    assert [v.status for v in verdicts] == [Reachability.UNREACHABLE] * 2 + [Reachability.REACHABLE]
     assert all(v.method == "interval" for v in verdicts[:2])
 
     arm = _yaw_pitch_pitch(tmp_path)
@@ -237,9 +235,9 @@ def test_orientation_out_of_reach_is_certified(tmp_path):
     problem = base.with_targets((pose, roll))
     assert np.linalg.norm(reached.translation - base.reach_radius()[0]) < base.reach_radius()[1]
     found = interval_search(problem, 1, **_BUDGET)
-    assert found.status is Reachability3D.UNREACHABLE and found.by_orientation > 0
+    assert found.status is Reachability.UNREACHABLE and found.by_orientation > 0
     found = interval_search(problem, 0, **_BUDGET)  # the unrolled pose: a witness
-    assert found.status is Reachability3D.REACHABLE
+    assert found.status is Reachability.REACHABLE
     assert pose.met(problem.placement(found.witness))
 
 
@@ -257,7 +255,7 @@ def test_interval_search_never_refutes_a_reachable_target():
         target = Target(position=placement.translation, **kind)
         problem = base.with_targets((target, target))
         found = interval_search(problem, 0, max_boxes=20_000, max_seconds=600.0)
-        assert found.status is not Reachability3D.UNREACHABLE
+        assert found.status is not Reachability.UNREACHABLE
         if found.witness is not None:
             assert target.met(problem.placement(found.witness))
             assert np.all(found.witness >= problem.lower[:6])
@@ -280,7 +278,7 @@ def test_ur5_target_between_true_reach_and_reach_sphere_is_certified():
     )
     assert sampled < 1.0 < 1.1 < reach
     found = interval_search(base.with_targets((target, target)), 0, **_BUDGET)
-    assert found.status is Reachability3D.UNREACHABLE and found.pending == 0
+    assert found.status is Reachability.UNREACHABLE and found.pending == 0
 
 
 def test_joint_box_and_unsupported_joints(tmp_path):
@@ -364,10 +362,10 @@ def test_budget_exhausted_is_undecided_and_bad_arguments_are_refused():
     target = Target(position=centre + np.array([1.0, 0.0, 0.0]))
     problem = base.with_targets((target, target))
     found = interval_search(problem, 0, max_boxes=2000, max_seconds=600.0)
-    assert found.status is Reachability3D.UNDECIDED and found.witness is None
+    assert found.status is Reachability.UNDECIDED and found.witness is None
     assert found.boxes >= 2000 and found.pending > 0
     v = check_reachability_3d(problem, tries=1, interval_boxes=2000, interval_seconds=600.0)[0]
-    assert v.status is Reachability3D.UNDECIDED and v.method == "none" and v.boxes >= 2000
+    assert v.status is Reachability.UNDECIDED and v.method == "none" and v.boxes >= 2000
     assert "interval search undecided after" in v.message
     with pytest.raises(ParameterError, match=r"j must be a target index in \[0, 1\], got 2"):
         interval_search(problem, 2)

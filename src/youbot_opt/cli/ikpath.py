@@ -61,8 +61,9 @@ from youbot_opt.ikpath.io import RobotSource, save_result
 from youbot_opt.ikpath.methods.al import AL_OPTIONS_3D, ALOptions
 from youbot_opt.ikpath.multistart import MultistartResult, run_multistart
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.general import Reachability3D, check_reachability_3d
-from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, check_reachability
+from youbot_opt.ikpath.reachability import Reachability
+from youbot_opt.ikpath.reachability.general import check_reachability_3d
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, check_reachability
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.starts import AUTOMATIC_TIME_BUDGET, BRANCH_KIND
 from youbot_opt.ikpath.targets import Target, load_targets, position_targets, quaternion_to_matrix
@@ -594,7 +595,7 @@ def _run_3d(args: argparse.Namespace) -> int:
     verdicts = check_reachability_3d(problem, **budget)
     folder = run_folder("ikpath", args.out)
     doc = summary_3d(args, problem, robot.name, verdicts)
-    unreachable = [v for v in verdicts if v.status is Reachability3D.UNREACHABLE]
+    unreachable = [v for v in verdicts if v.status is Reachability.UNREACHABLE]
     files: list[Path] = []
     code = 2
     starts: StartsFile | None = None

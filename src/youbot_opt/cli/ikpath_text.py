@@ -27,8 +27,9 @@ from youbot_opt.collision.clearance import Clearance, ClearanceCertificate
 from youbot_opt.ikpath.examples import STUDY_E_A
 from youbot_opt.ikpath.multistart import MultistartResult
 from youbot_opt.ikpath.problem import CyclicIKProblem
-from youbot_opt.ikpath.reachability.general import Reachability3D, ReachVerdict3D
-from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict
+from youbot_opt.ikpath.reachability import Reachability
+from youbot_opt.ikpath.reachability.general import ReachVerdict3D
+from youbot_opt.ikpath.reachability.planar import ReachVerdict
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.stored import StartSummary, StoredResults
 
@@ -462,7 +463,7 @@ def add_result_3d(
 def warn_undecided_3d(verdicts: Sequence[ReachVerdict3D]) -> None:
     """Warn on stderr about every target whose reachability was not decided."""
     for v in verdicts:
-        if v.status is Reachability3D.UNDECIDED:
+        if v.status is Reachability.UNDECIDED:
             print(
                 f"youbot-opt: warning: reachability of target {v.index} is undecided "
                 f"({v.message}); solving anyway (a failed solve may mean it is unreachable; "

@@ -28,13 +28,9 @@ from youbot_opt.ikpath.multistart import (
     run_multistart,
 )
 from youbot_opt.ikpath.problem import CyclicIKProblem, Evaluation
-from youbot_opt.ikpath.reachability.general import (
-    Reachability3D,
-    ReachVerdict3D,
-    check_reachability_3d,
-)
+from youbot_opt.ikpath.reachability import Reachability
+from youbot_opt.ikpath.reachability.general import ReachVerdict3D, check_reachability_3d
 from youbot_opt.ikpath.reachability.planar import (
-    Reachability,
     ReachVerdict,
     check_reachability,
     decide_reachability,
@@ -77,7 +73,6 @@ __all__ = [
     "Reachability",
     "RobotSource",
     "STUDY_E_A",
-    "Reachability3D",
     "Target",
     "ReachVerdict3D",
     "SolveStatus",

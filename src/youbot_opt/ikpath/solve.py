@@ -25,8 +25,9 @@ from youbot_opt.ikpath.methods.al import (
 )
 from youbot_opt.ikpath.methods.ipopt import IpoptIKSolver3D, solve_ipopt, solve_ipopt_3d
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability import Reachability
 from youbot_opt.ikpath.reachability.general import require_reachable_3d
-from youbot_opt.ikpath.reachability.planar import Reachability, ReachVerdict, require_reachable
+from youbot_opt.ikpath.reachability.planar import ReachVerdict, require_reachable
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.nlp.ipopt import IpoptOptions
 

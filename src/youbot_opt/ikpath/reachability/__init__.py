@@ -6,4 +6,18 @@ decides 3-D targets by a witness, the reach sphere or the interval bounds of
 :mod:`.interval`.
 
     from youbot_opt.ikpath.reachability.planar import check_reachability
+
+The verdict, :class:`Reachability`, is one type for both.
 """
+
+from enum import Enum
+
+__all__ = ["Reachability"]
+
+
+class Reachability(Enum):
+    """Verdict on one target: reachable, unreachable, or undecided by the search's budget."""
+
+    REACHABLE = "reachable"
+    UNREACHABLE = "unreachable"
+    UNDECIDED = "undecided"

@@ -58,7 +58,7 @@ class SearchOutcome(NamedTuple):
     ----------
     status : str
         ``"reachable"``, ``"unreachable"`` or ``"undecided"`` (the values of
-        :class:`~youbot_opt.ikpath.reachability.planar.Reachability`).
+        :class:`~youbot_opt.ikpath.reachability.Reachability`).
     q : ndarray, shape (n,)
         Best configuration found in [rad], within the limits (the witness if reachable).
     distance_lower : float

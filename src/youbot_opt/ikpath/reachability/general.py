@@ -17,7 +17,6 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
@@ -29,6 +28,7 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.dls import dls_ik, random_theta
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability import Reachability
 from youbot_opt.ikpath.reachability.branch_and_bound import bisect_boxes
 from youbot_opt.ikpath.reachability.interval import (
     ROUNDING_RELATIVE,
@@ -42,7 +42,6 @@ __all__ = [
     "DEFAULT_INTERVAL_BOXES",
     "DEFAULT_INTERVAL_SECONDS",
     "IntervalOutcome",
-    "Reachability3D",
     "ReachVerdict3D",
     "check_reachability_3d",
     "interval_search",
@@ -63,14 +62,6 @@ _MAX_POLISH = 8  # DLS polishes from promising midpoints per target
 _DECISION_MARGIN = 1e-12  # [1] below the rounding of the trace/cosine thresholds
 
 
-class Reachability3D(Enum):
-    """Verdict on one 3-D target (interval search; planar chains: reachability.planar)."""
-
-    REACHABLE = "reachable"
-    UNREACHABLE = "unreachable"
-    UNDECIDED = "undecided"
-
-
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class ReachVerdict3D:
     """Reachability of one target, with its witness or certificate.
@@ -79,7 +70,7 @@ class ReachVerdict3D:
     ----------
     index : int
         Target index (0-based).
-    status : Reachability3D
+    status : Reachability
         The verdict.
     witness : ndarray or None
         Joint values [rad] (or [m]) within the limits meeting the target,
@@ -101,7 +92,7 @@ class ReachVerdict3D:
     """
 
     index: int
-    status: Reachability3D
+    status: Reachability
     witness: Array | None
     distance: float
     reach: float
@@ -116,7 +107,7 @@ class IntervalOutcome(NamedTuple):
 
     Attributes
     ----------
-    status : Reachability3D
+    status : Reachability
         UNREACHABLE (every box excluded), REACHABLE (witness) or UNDECIDED (budget).
     witness : ndarray or None
         Joint values within the limits meeting the target (REACHABLE only).
@@ -133,7 +124,7 @@ class IntervalOutcome(NamedTuple):
         Wall time [s].
     """
 
-    status: Reachability3D
+    status: Reachability
     witness: Array | None
     boxes: int
     depth: int
@@ -310,7 +301,7 @@ def interval_search(
     last_polish = math.inf
     data = problem.create_data()
 
-    def outcome(status: Reachability3D, witness: Array | None = None) -> IntervalOutcome:
+    def outcome(status: Reachability, witness: Array | None = None) -> IntervalOutcome:
         pending = sum(chunk[0].shape[0] for chunk in stack)
         seconds = time.perf_counter() - start
         _log.debug(
@@ -326,7 +317,7 @@ def interval_search(
 
     while stack:
         if boxes >= max_boxes or time.perf_counter() - start >= max_seconds:
-            return outcome(Reachability3D.UNDECIDED)
+            return outcome(Reachability.UNDECIDED)
         b_lo, b_hi, b_depth = _pop_batch(stack)
         bounds = chain.placement(b_lo, b_hi)
         rot, pos = bounds.rotation, bounds.translation
@@ -345,16 +336,16 @@ def interval_search(
         best = int(np.argmin(miss))
         mid = 0.5 * (b_lo[best] + b_hi[best])
         if target.met(problem.placement(mid, data)):
-            return outcome(Reachability3D.REACHABLE, mid)
+            return outcome(Reachability.REACHABLE, mid)
         if polishes < _MAX_POLISH and miss[best] < 0.5 * last_polish:
             polishes += 1
             last_polish = float(miss[best])
             theta, met = _dls(problem, j, mid, data, restarts=0, max_iterations=100)
             if met:
-                return outcome(Reachability3D.REACHABLE, theta)
+                return outcome(Reachability.REACHABLE, theta)
         c_lo, c_hi = bisect_boxes(b_lo, b_hi, scale)
         stack.append((c_lo, c_hi, np.concatenate([b_depth, b_depth]) + 1))
-    return outcome(Reachability3D.UNREACHABLE)
+    return outcome(Reachability.UNREACHABLE)
 
 
 def _interval_message(j: int, target: Target, found: IntervalOutcome) -> str:
@@ -415,7 +406,7 @@ def check_reachability_3d(
         dist = float(np.linalg.norm(target.position - centre))
 
         def verdict(
-            status: Reachability3D,
+            status: Reachability,
             message: str,
             method: str,
             witness: Array | None = None,
@@ -441,11 +432,11 @@ def check_reachability_3d(
                 f"joint at {centre.tolist()}, beyond the reach sphere of radius {reach:.4g} m "
                 "(sum of link lengths)"
             )
-            out.append(verdict(Reachability3D.UNREACHABLE, message, "reach_sphere"))
+            out.append(verdict(Reachability.UNREACHABLE, message, "reach_sphere"))
             continue
         theta, met = _dls(problem, j, np.zeros(problem.n_joints), data)
         if met:
-            out.append(verdict(Reachability3D.REACHABLE, "DLS witness", "dls", theta))
+            out.append(verdict(Reachability.REACHABLE, "DLS witness", "dls", theta))
             continue
         found, note = None, ""
         if interval_seconds > 0.0 and interval_boxes > 0:
@@ -455,13 +446,13 @@ def check_reachability_3d(
                 )
             except ParameterError as err:  # a joint type or travel the search cannot box
                 note = f"; no interval bound: {err}"
-        if found is not None and found.status is Reachability3D.UNREACHABLE:
+        if found is not None and found.status is Reachability.UNREACHABLE:
             message = _interval_message(j, target, found)
-            out.append(verdict(Reachability3D.UNREACHABLE, message, "interval", None, found))
+            out.append(verdict(Reachability.UNREACHABLE, message, "interval", None, found))
             continue
         if found is not None and found.witness is not None:
             message = "interval-search witness"
-            out.append(verdict(Reachability3D.REACHABLE, message, "interval", found.witness, found))
+            out.append(verdict(Reachability.REACHABLE, message, "interval", found.witness, found))
             continue
         if found is not None:
             note = (
@@ -475,10 +466,10 @@ def check_reachability_3d(
                 witness = theta
                 break
         if witness is not None:
-            out.append(verdict(Reachability3D.REACHABLE, "DLS witness", "dls", witness, found))
+            out.append(verdict(Reachability.REACHABLE, "DLS witness", "dls", witness, found))
             continue
         message = f"target {j}: inside the reach sphere but no witness in {tries} DLS tries{note}"
-        out.append(verdict(Reachability3D.UNDECIDED, message, "none", None, found))
+        out.append(verdict(Reachability.UNDECIDED, message, "none", None, found))
     return tuple(out)
 
 
@@ -500,7 +491,7 @@ def require_reachable_3d(
         problem, interval_boxes=interval_boxes, interval_seconds=interval_seconds
     )
     for v in verdicts:
-        if v.status is Reachability3D.UNREACHABLE:
+        if v.status is Reachability.UNREACHABLE:
             raise UnreachableTarget(
                 f"unreachable: {v.message}",
                 index=v.index,

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from enum import Enum
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,24 +22,16 @@ from youbot_opt._typing import Array
 from youbot_opt.exceptions import ParameterError, UnreachableTarget
 from youbot_opt.ikpath.geometry import TWO_PI, nearest_on_arc, two_link_nearest
 from youbot_opt.ikpath.problem import CyclicIKProblem
+from youbot_opt.ikpath.reachability import Reachability
 from youbot_opt.ikpath.reachability.branch_and_bound import BranchAndBound
 from youbot_opt.robot.planar import PlanarChain
 
 __all__ = [
-    "Reachability",
     "ReachVerdict",
     "decide_reachability",
     "check_reachability",
     "require_reachable",
 ]
-
-
-class Reachability(Enum):
-    """Verdict on one target."""
-
-    REACHABLE = "reachable"
-    UNREACHABLE = "unreachable"
-    UNDECIDED = "undecided"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
