@@ -8,6 +8,7 @@ from scipy.integrate import solve_ivp
 from scipy.integrate._ivp import dop853_coefficients as scipy_coefficients
 from scipy.linalg import expm
 
+from _steppers import step_to_end
 from youbot_opt.dynamics import dop853
 from youbot_opt.dynamics.dop853 import Dop853
 from youbot_opt.dynamics.stepper import TOO_SMALL_STEP
@@ -25,11 +26,7 @@ def _pendulum(t: float, y: np.ndarray) -> np.ndarray:
 
 def _integrate(fun, y0: np.ndarray, t_end: float, **kwargs) -> tuple[Dop853, list[float]]:
     stepper = Dop853(fun, 0.0, y0, t_bound=t_end, **kwargs)
-    times = [stepper.t]
-    while stepper.t < t_end:
-        assert stepper.step(t_end), stepper.message
-        times.append(stepper.t)
-    return stepper, times
+    return stepper, step_to_end(stepper, t_end)
 
 
 def test_coefficients_are_scipys() -> None:

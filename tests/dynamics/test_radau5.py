@@ -10,6 +10,7 @@ from scipy.integrate import solve_ivp
 from scipy.integrate._ivp import radau as scipy_radau
 from scipy.linalg import expm
 
+from _steppers import step_to_end
 from youbot_opt.dynamics import radau5
 from youbot_opt.dynamics.radau5 import Radau5
 from youbot_opt.dynamics.stepper import MAX_FACTOR, MIN_FACTOR, TOO_SMALL_STEP
@@ -49,11 +50,7 @@ def _vdp_reference(t_end: float) -> np.ndarray:
 
 def _integrate(fun, jac, y0: np.ndarray, t_end: float, **kwargs) -> tuple[Radau5, list[float]]:
     stepper = Radau5(fun, jac, 0.0, y0, t_bound=t_end, **kwargs)
-    times = [stepper.t]
-    while stepper.t < t_end:
-        assert stepper.step(t_end), stepper.message
-        times.append(stepper.t)
-    return stepper, times
+    return stepper, step_to_end(stepper, t_end)
 
 
 def test_coefficients_are_scipys() -> None:
