@@ -22,7 +22,8 @@ Everything is measured in one run, so the ratios compare like with like:
   beta = 0.05 ... 0.95, each point warm-started from its neighbour.
 * **Side by side with Drake** (issue 13, item 7; ``--side-by-side`` runs only
   this): the base case through ``TrajOptSolver.solve()`` as a user calls it
-  (solver built as a user builds it, one warm-up solve, then medians), both
+  (solver built as a user builds it, warmed up past the expansion of its NLP
+  functions, then medians; the assembled functions' solves reported too), both
   transcriptions, against Drake with IPOPT on the same robot (parsed from the
   same URDF), start, bounds, objective and tolerance: our trapezoidal NLP
   hand-built in a ``MathematicalProgram``, and Drake's ``DirectCollocation``
@@ -74,7 +75,7 @@ from youbot_opt.sweeps.options import SweepOptions
 from youbot_opt.trajopt.guess import resolve_guess
 from youbot_opt.trajopt.multistart import run_multistart
 from youbot_opt.trajopt.pareto import DEFAULT_BETAS, pareto_sweep
-from youbot_opt.trajopt.solver import TrajOptSolver
+from youbot_opt.trajopt.solver import EXPAND_AFTER_SOLVES, TrajOptSolver
 
 TARGET_SOLVE_CPU = 0.05  # [s] base case, CPU
 TARGET_BUILD = 0.5  # [s] base case NLP build (cached kernels)
@@ -769,9 +770,11 @@ def side_by_side(
     ``options`` are our solvers' IPOPT options (default: the library's; e.g.
     another linear solver); Drake keeps its own IPOPT settings and MUMPS.
 
-    Each of our solvers is built as a user builds it and warmed up with one
-    solve; then ``drake_repeats`` rounds each run, per method, one uncounted
-    warm-up solve of ours (Drake's run has evicted our caches), about
+    Each of our solvers is built as a user builds it and warmed up past the
+    expansion of its NLP functions (``EXPAND_AFTER_SOLVES + 1`` solves, those
+    before it timed and reported as the assembled functions' CPU); then
+    ``drake_repeats`` rounds each run, per method, one uncounted warm-up solve
+    of ours (Drake's run has evicted our caches), about
     ``ours_total / drake_repeats`` counted ones (at least ``ours_total`` in all)
     and one Drake solve, so both see the same machine state. Medians are reported.
     Drake is skipped (with the install hint) when pydrake is not installed.
@@ -779,8 +782,15 @@ def side_by_side(
     for m in METHODS:  # fill the kernel cache first (a user's second session)
         TrajOptSolver(study1_problem(50), m, compile="wait")
     ours = {m: TrajOptSolver(study1_problem(50), m, options) for m in METHODS}
-    for solver in ours.values():
-        solver.solve(beta=BETA)  # warm-up (first call)
+    assembled: dict[str, list[float]] = {m: [] for m in METHODS}
+    for m, solver in ours.items():
+        # warm-up: the first call, then the solves before the functions' expansion
+        # (TrajOptSolver: a solver solved more than EXPAND_AFTER_SOLVES times runs
+        # them as SX), timed as the "assembled" column; the counted runs come after
+        solver.solve(beta=BETA)
+        for _ in range(EXPAND_AFTER_SOLVES - 1):
+            assembled[m].append(_timed(lambda s=solver: s.solve(beta=BETA))[2])
+        solver.solve(beta=BETA)  # the expansion and the first solve after it
     try:
         drake: DrakeBaselines | None = DrakeBaselines(ours["trapezoidal"], BETA)
         note = ""
@@ -818,7 +828,8 @@ def side_by_side(
         res = last[m]
         r.update(n_ours=len(runs[m]["cpu"]), n_drake=len(runs[m]["drake_cpu"]))
         r.update(objective=res.objective, iterations=res.iterations, status=res.status.value)
-        r.update(compiled=ours[m].compiled)
+        r.update(compiled=ours[m].compiled, expanded=ours[m].expanded)
+        r.update(assembled_cpu=statistics.median(assembled[m]) if assembled[m] else float("nan"))
         if m in drake_f:
             r.update(drake_objective=drake_f[m][0], drake_success=drake_f[m][1])
             r.update(ratio_cpu=r["drake_cpu"] / r["cpu"], ratio_wall=r["drake_wall"] / r["wall"])
@@ -863,7 +874,9 @@ def print_side_by_side(sbs: dict[str, Any]) -> None:
             f"{'compiled' if r['compiled'] else 'in the CasADi VM'}), {r['n_drake']} of Drake; "
             "the IPOPT call "
             f"(with the best-iterate callback) {r['ipopt_cpu']:.4f} s CPU, the rest of solve() "
-            f"(guess, result, independent pin.aba check) {outside:.4f} s"
+            f"(guess, result, independent pin.aba check) {outside:.4f} s; functions "
+            f"{'expanded to SX' if r['expanded'] else 'assembled (MX)'}, the "
+            f"{EXPAND_AFTER_SOLVES - 1} solves before the expansion {r['assembled_cpu']:.4f} s CPU"
         )
     if sbs["note"]:
         print(sbs["note"])

@@ -750,3 +750,53 @@ def test_cached_kernels_load_without_being_derived(youbot, monkeypatch, tmp_path
     )
     with pytest.raises(AssertionError, match="derived again"):
         TrajOptSolver(other, compile="wait")
+
+
+def test_a_solver_solved_often_expands_its_functions_to_sx(youbot, monkeypatch):
+    """After ``EXPAND_AFTER_SOLVES`` solves the NLP functions run as SX, with the same values.
+
+    The expanded functions are the assembled (MX) ones' arithmetic as one SX graph
+    each, the compiled kernels left as calls: at a random point their values and
+    derivatives agree to 1e-12 relative (the same operations, compiled kernels
+    shared), and the solves on either side of the switch reach the same optimum
+    (1e-9 relative: both converge to IPOPT's tol = 1e-8 on the same NLP, as the
+    VM/compiled test above). A solver solved fewer times keeps the MX functions.
+    """
+    from youbot_opt.nlp.codegen import find_compiler
+    from youbot_opt.trajopt import solver as solver_module
+
+    if find_compiler() is None:
+        pytest.skip("no C compiler: the expansion needs compiled kernels")
+    monkeypatch.setattr(solver_module, "EXPAND_AFTER_SOLVES", 2)
+    solver = TrajOptSolver(study1_problem(robot=youbot), compile="wait")
+    assert solver.compiled
+    assembled = solver.first_order_functions()
+    assert all(fn.is_a("MXFunction") for fn in assembled)
+    before = [solver.solve(beta=0.5) for _ in range(2)]
+    assert not solver.expanded
+    after = solver.solve(beta=0.5)
+    assert solver.expanded
+    expanded = solver.first_order_functions()
+    assert all(fn.is_a("SXFunction") for fn in expanded)
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-0.5, 0.5, solver.nlp.n_variables)
+    x[-1] = 0.05  # dt [s]
+    for old, new in zip(assembled, expanded, strict=True):
+        for a, b in zip(old(x, 0.5), new(x, 0.5), strict=True):
+            a, b = np.asarray(ca.densify(a)), np.asarray(ca.densify(b))
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, float(np.max(np.abs(a))))
+    for r in (*before, after):
+        assert r.success and r.objective == pytest.approx(before[0].objective, rel=1e-9)
+
+
+def test_a_solver_on_vm_kernels_is_not_expanded(youbot, monkeypatch):
+    """Kernels in CasADi's VM are never expanded (that would inline the dynamics' derivatives)."""
+    from youbot_opt.trajopt import solver as solver_module
+
+    monkeypatch.setattr(solver_module, "EXPAND_AFTER_SOLVES", 1)
+    solver = TrajOptSolver(study1_problem(8, robot=youbot), compile=False)
+    assert not solver.compiled
+    for _ in range(3):
+        assert solver.solve(beta=0.5).success
+    assert not solver.expanded
+    assert all(fn.is_a("MXFunction") for fn in solver.first_order_functions())

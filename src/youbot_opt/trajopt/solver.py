@@ -75,6 +75,8 @@ __all__ = ["TrajOptSolver", "solve", "auto_transcription", "DEFAULT_FEASIBILITY_
 _log = logging.getLogger(__name__)
 
 _SECOND_ORDER_BACKENDS = ("symbolic", "pinocchio_casadi")
+EXPAND_AFTER_SOLVES = 20
+"""Solves after which a solver's NLP functions are expanded to SX (:class:`TrajOptSolver`)."""
 
 BoundaryLike = BoundaryState | tuple[ArrayLike, ArrayLike] | ArrayLike
 """A boundary state: a :class:`BoundaryState`, a ``(q, v)`` pair or a ``q`` vector (at rest)."""
@@ -289,6 +291,8 @@ class TrajOptSolver:
         self._cold_solvers: dict[IpoptValue | None, Any] = {}
         self._warm_solvers: dict[IpoptValue | None, Any] = {}
         self._first_order: tuple[ca.Function, ca.Function] | None = None
+        self._solves = 0
+        self.expanded = False
         self.build_time = time.perf_counter() - tic
         _log.debug("built %s NLP in %.3f s", self.method.name, self.build_time)
 
@@ -367,6 +371,32 @@ class TrajOptSolver:
         new._path_kernels, new._stencils = self._path_kernels, self._stencils
         new._build(tic)
         return new
+
+    def _expand_on_reuse(self) -> None:
+        """Expand the NLP's functions to SX at the solve after :data:`EXPAND_AFTER_SOLVES`.
+
+        The assembled functions (:func:`structured_functions`) are MX graphs: cheap
+        to build, with a few copies per call (the stencil route's gathers and
+        scatters). ``Function.expand`` writes the same arithmetic as one SX graph
+        each, the compiled kernels left as calls, which runs faster but costs
+        about as much as a few dozen solves' copies to build (docs/design.md,
+        "Assembled or expanded"). A solver solved once (the command line, each
+        refinement round) never pays for it; one solved many times (a sweep, a
+        multistart, a benchmark) pays it once, after its copies have cost about
+        as much. Only with compiled kernels: expanding SX kernels would inline
+        the dynamics' derivatives at every point.
+        """
+        self._solves += 1
+        if self._solves != EXPAND_AFTER_SOLVES + 1 or not self._derivatives:
+            return
+        kernels = [*(self._kernels or ()), *(f for pk in self._path_kernels or () for f in pk)]
+        if not kernels or not all(k.is_a("External") for k in kernels):
+            return
+        self._nlp_function = self._nlp_function.expand()
+        self._derivatives = {name: fn.expand() for name, fn in self._derivatives.items()}
+        self._cold_solvers.clear()
+        self._warm_solvers.clear()
+        self.expanded = True
 
     def _kkt(self, relax: Mapping[str, IpoptValue]) -> dict[str, IpoptValue]:
         """Return the NLP's own IPOPT settings: the bound relaxation and the MUMPS ordering.
@@ -510,6 +540,7 @@ class TrajOptSolver:
             warm = self._initial_point(initial)
         lbx, ubx, lbg, ubg = self.nlp_bounds(bound_scale, start_state, goal_state)
         relax = bound_relaxation((lbx, ubx, lbg, ubg), self.feasibility_tol)
+        self._expand_on_reuse()
         if warm is not None:
             x0, lam_x0, lam_g0 = warm
             solver = self._warm(relax)
