@@ -168,6 +168,10 @@ class TrajOptSolver:
         created on the first solve).
     compiled : bool
         Whether the solver runs compiled dynamics kernels.
+    expanded : bool
+        Whether its NLP functions run expanded to SX: from the solve after
+        :data:`EXPAND_AFTER_SOLVES`, with compiled kernels only (docs/design.md,
+        "Assembled or expanded").
     """
 
     def __init__(
