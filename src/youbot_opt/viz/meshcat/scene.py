@@ -555,12 +555,36 @@ def animation(
         The animation, to be sent with ``vis.set_animation``.
     """
     result = ma.Animation(default_framerate=fps)
+    frames = ((np.asarray(times, dtype=float) - times[0]) * fps).tolist()
     for run, run_nodes in zip(runs, nodes, strict=True):
-        for time_s, q in zip(times, _sample(robot.model, run.t, run.q, times), strict=True):
-            with result.at_frame(vis, float((time_s - times[0]) * fps)) as frame:
-                for node, pose in zip(run_nodes, _geometry_poses(robot, run, q), strict=True):
-                    frame[node].set_transform(pose)
+        # (frames, objects, 4, 4): each object's poses over the clip, one track each
+        poses = np.array(
+            [_geometry_poses(robot, run, q) for q in _sample(robot.model, run.t, run.q, times)]
+        )
+        for k, node in enumerate(run_nodes):
+            clip = ma.AnimationClip(fps=fps)
+            clip.tracks["position"] = ma.AnimationTrack(
+                "position", "vector3", list(frames), poses[:, k, :3, 3].tolist()
+            )
+            clip.tracks["quaternion"] = ma.AnimationTrack(
+                "quaternion",
+                "quaternion",
+                list(frames),
+                _three_quaternions(poses[:, k, :3, :3]).tolist(),
+            )
+            result.clips[vis[node].path] = clip
     return result
+
+
+def _three_quaternions(rotations: Array) -> Array:
+    """Quaternions ``(x, y, z, w)`` of rotation matrices ``(n, 3, 3)``, as meshcat keys them.
+
+    The order is three.js's; the sign is meshcat's (``w >= 0``, as
+    ``meshcat.animation.js_quaternion``), so consecutive keys interpolate as before.
+    """
+    quaternions = np.array([pin.Quaternion(r).coeffs() for r in rotations]).reshape(-1, 4)
+    quaternions[quaternions[:, 3] < 0.0] *= -1.0
+    return quaternions
 
 
 def set_camera(vis: meshcat.Visualizer, points: Array, *, centred: bool) -> Array:
