@@ -116,16 +116,19 @@ def test_help_and_argument_errors_import_no_solver(argv, heavy):
 
 def test_parser_choices_match_the_library():
     """The choices spelled out in the CLI (to keep --help fast) equal the library's."""
+    from typing import get_args
+
     from youbot_opt.cli import parser
     from youbot_opt.ikpath.examples import EXAMPLES
     from youbot_opt.ikpath.solve import METHODS
     from youbot_opt.ikpath.starts import START_KINDS
-    from youbot_opt.nlp.ipopt import LINEAR_SOLVERS
+    from youbot_opt.nlp.ipopt import LINEAR_SOLVERS, HessianMode
 
     assert parser.EXAMPLE_NAMES == tuple(sorted(EXAMPLES))
     assert parser.METHOD_NAMES == tuple(METHODS)
     assert parser.START_KIND_NAMES == tuple(START_KINDS)
     assert parser.LINEAR_SOLVER_NAMES == LINEAR_SOLVERS
+    assert parser.HESSIAN_NAMES == get_args(HessianMode)
 
 
 def _point(beta, duration, work, success=True, dominated=False):

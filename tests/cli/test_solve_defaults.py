@@ -110,3 +110,36 @@ def test_no_refine_fallback_keeps_hermite_simpson_in_the_budget(command):
     assert refinement_budget(parse([command, "--no-refine-fallback"])) == RefinementBudget(
         fallback=False
     )
+
+
+@pytest.mark.parametrize("hessian", ["exact", "limited-memory"])
+def test_solve_takes_the_hessian_and_records_it(hessian, tmp_path, capsys):
+    """``--hessian`` reaches IPOPT: the plan is the library's with that Hessian, and says so.
+
+    The command's objective equals a library solve with ``IpoptOptions(hessian=...)``
+    on the same problem (1e-9 relative: the same NLP, options and start, so the same
+    IPOPT steps), and the run's summary records the Hessian it used.
+    """
+    import json
+
+    from youbot_opt.nlp.ipopt import IpoptOptions
+
+    argv = ["solve", "--knots", "15", "--no-refine", "--no-figures", "--hessian", hessian]
+    assert main([*argv, "--json", "--out", str(tmp_path / "run")]) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["hessian"] == hessian
+    options = IpoptOptions(hessian=hessian)
+    expected = TrajOptSolver(study1_problem(15), "trapezoidal", options).solve(beta=0.5)
+    assert expected.success
+    assert summary["objective"] == pytest.approx(expected.objective, rel=1e-9)
+    capsys.readouterr()
+
+
+def test_the_default_hessian_is_the_exact_one(tmp_path, capsys):
+    """No ``--hessian``: the exact Hessian (the symbolic backend has it), recorded as such."""
+    import json
+
+    argv = ["solve", "--knots", "15", "--no-refine", "--no-figures", "--json"]
+    assert main([*argv, "--out", str(tmp_path / "run")]) == 0
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["hessian"] == "exact"
+    capsys.readouterr()

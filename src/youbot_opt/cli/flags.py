@@ -145,9 +145,13 @@ def payload_of(args: argparse.Namespace) -> Payload | None:
 
 
 def ipopt_options(args: argparse.Namespace) -> IpoptOptions:
-    """Return the :class:`IpoptOptions` of ``--max-iter``, ``--linear-solver`` and its library."""
+    """Return the :class:`IpoptOptions` of ``--max-iter``, ``--hessian`` and ``--linear-solver``.
+
+    ``--linear-solver-library`` too: the library IPOPT loads the linear solver from.
+    """
     return IpoptOptions(
         max_iter=args.max_iter,
+        hessian=args.hessian,
         linear_solver=args.linear_solver,
         linear_solver_library=args.linear_solver_library,
     )

@@ -29,6 +29,7 @@ __all__ = [
     "DEFAULT_COMMAND",
     "DEFAULT_TRANSCRIPTION",
     "EXAMPLE_NAMES",
+    "HESSIAN_NAMES",
     "LINEAR_SOLVER_NAMES",
     "MAX_ITER_LIMIT",
     "METHOD_NAMES",
@@ -73,8 +74,9 @@ MAX_SEGMENT_TIME = 60.0
 SEED_LIMIT = 2**32 - 1
 
 # The library's choices, spelled out so that building the parser imports no solver;
-# tests/cli/test_cli_help.py checks them against nlp.ipopt.LINEAR_SOLVERS and
-# ikpath's EXAMPLES, METHODS and START_KINDS.
+# tests/cli/test_cli_help.py checks them against nlp.ipopt.LINEAR_SOLVERS and HessianMode,
+# and ikpath's EXAMPLES, METHODS and START_KINDS.
+HESSIAN_NAMES: tuple[str, ...] = ("auto", "exact", "limited-memory")
 LINEAR_SOLVER_NAMES: tuple[str, ...] = (
     "mumps",
     "spral",
@@ -352,12 +354,22 @@ def _robot_arguments(parser: argparse.ArgumentParser, *, default: str = "youbot"
 
 
 def _ipopt_arguments(p: argparse.ArgumentParser) -> None:
-    """IPOPT's iteration cap and linear solver."""
+    """IPOPT's iteration cap, Hessian and linear solver."""
     p.add_argument(
         "--max-iter",
         type=int_in_range("--max-iter", 0, MAX_ITER_LIMIT),
         default=3000,
         help="IPOPT iteration cap (default 3000)",
+    )
+    p.add_argument(
+        "--hessian",
+        choices=HESSIAN_NAMES,
+        default="auto",
+        help="IPOPT's Hessian of the Lagrangian: exact (the dynamics' second-derivative "
+        "kernel) or limited-memory (L-BFGS: no such kernel, so far cheaper while the kernels "
+        "run in CasADi's virtual machine, but more iterations once compiled, and it may "
+        "reach another local optimum; docs/design.md, 'Exact or limited-memory'); default "
+        "auto: exact where the backend has it",
     )
     p.add_argument(
         "--linear-solver",

@@ -200,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
 def _solve(args: argparse.Namespace, problem: TrajOptProblem, ahead: DrawingAhead) -> int:
     """Solve, refine, print and write the run folder (``ahead`` draws its figures and replay)."""
     solver = TrajOptSolver(problem, transcription(args), ipopt_options(args), args.backend)
-    extra: JSONDict = {"build_time_s": solver.build_time}
+    extra: JSONDict = {"build_time_s": solver.build_time, "hessian": solver.hessian}
     ms = None
     if args.starts > 1:
         ms = _multistart(args, solver)

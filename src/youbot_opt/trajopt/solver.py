@@ -376,6 +376,11 @@ class TrajOptSolver:
         new._build(tic)
         return new
 
+    @property
+    def hessian(self) -> str:
+        """IPOPT's Hessian of the Lagrangian here: ``"exact"`` or ``"limited-memory"``."""
+        return "exact" if self._exact_hessian else "limited-memory"
+
     def _expand_on_reuse(self) -> None:
         """Expand the NLP's functions to SX at the solve after :data:`EXPAND_AFTER_SOLVES`.
 
