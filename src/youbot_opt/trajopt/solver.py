@@ -70,7 +70,13 @@ from youbot_opt.trajopt.transcription.stencil import IntervalStencil
 if TYPE_CHECKING:
     from youbot_opt.collision.exact import ExactChecker
 
-__all__ = ["TrajOptSolver", "solve", "auto_transcription", "DEFAULT_FEASIBILITY_TOL"]
+__all__ = [
+    "TrajOptSolver",
+    "solve",
+    "auto_transcription",
+    "DEFAULT_FEASIBILITY_TOL",
+    "EXPAND_AFTER_SOLVES",
+]
 
 _log = logging.getLogger(__name__)
 

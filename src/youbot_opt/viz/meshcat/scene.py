@@ -561,6 +561,8 @@ def animation(
         poses = np.array(
             [_geometry_poses(robot, run, q) for q in _sample(robot.model, run.t, run.q, times)]
         )
+        if poses.shape[1] != len(run_nodes):
+            raise ValueError(f"{poses.shape[1]} poses for {len(run_nodes)} scene nodes")
         for k, node in enumerate(run_nodes):
             clip = ma.AnimationClip(fps=fps)
             clip.tracks["position"] = ma.AnimationTrack(
