@@ -383,6 +383,7 @@ logging.getLogger("youbot_opt.nlp.codegen").setLevel(logging.INFO)
 x = ca.SX.sym("x", 2)
 tag = float(sys.argv[1])
 codegen.WAIT_SECONDS = 0.0  # as for a robot whose kernels take long to compile
+codegen.QUICK_WAIT_SECONDS = 0.0  # and too long for a quick build: the virtual machine
 kernels = Kernels(*(ca.Function(n, [x], [ca.sin(x) * x + tag + i]) for i, n in
                     enumerate(("fd_value", "fd_jacobian", "fd_hessian"))))
 for _ in range(3):  # three refinement rounds, three solver builds
@@ -446,9 +447,65 @@ def test_a_short_compile_is_done_now(
         assert compile_function(f, wait=None) is not f
     assert "to C now" in caplog.text
     monkeypatch.setattr(codegen, "WAIT_SECONDS", 0.0)
+    monkeypatch.setattr(codegen, "QUICK_WAIT_SECONDS", 0.0)  # no quick build: the VM
     assert compile_function(g, wait=None) is g
     _wait_unlocked_mine(tmp_path)
     assert compile_function(g, wait=None) is not g
+
+
+def test_a_batch_sent_to_the_background_runs_its_quick_build_meanwhile(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """wait=None, too long to wait for: the quick build (-O0) is compiled now and runs meanwhile.
+
+    It gives the virtual machine's values (1e-15: the same operations, unoptimised),
+    the log line says what runs, and once the optimised library has arrived the next
+    call loads that one (it still works with the quick library deleted). A cached
+    quick build is used by a later call without compiling again; ``wait=False`` and a
+    quick build estimated over QUICK_WAIT_SECONDS leave the virtual machine.
+    """
+    from youbot_opt.nlp import codegen
+
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(tmp_path))
+    _fresh_process_state(monkeypatch)
+    monkeypatch.setattr(codegen, "WAIT_SECONDS", 0.0)
+    f = _function(11.5)
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        meanwhile = compile_function(f, wait=None, flags=COMPILE_FLAGS)
+    assert meanwhile is not f
+    assert "this solve runs code compiled just now without optimisation (-O0" in caplog.text
+    x = np.array([0.3, -1.7])
+    np.testing.assert_allclose(np.asarray(meanwhile(x)), np.asarray(f(x)), rtol=0, atol=1e-15)
+    _wait_unlocked_mine(tmp_path)
+    libraries = sorted(tmp_path.glob("tiny_*.so"))
+    assert len(libraries) == 2  # the quick build and the optimised one
+    quick = [
+        lib
+        for lib in libraries
+        if lib.name
+        == codegen._job(  # noqa: SLF001
+            f, False, find_compiler() or "", codegen.QUICK_FLAGS, tmp_path
+        ).library.name
+    ]
+    assert len(quick) == 1
+    quick[0].unlink()
+    assert compile_function(f, wait=None, flags=COMPILE_FLAGS) is not f  # the optimised one
+
+    g = _function(12.5)
+    assert compile_function(g, wait=True, flags=codegen.QUICK_FLAGS) is not g
+    monkeypatch.setattr(codegen, "QUICK_WAIT_SECONDS", 0.0)  # cannot build one now
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        assert compile_function(g, wait=None, flags=COMPILE_FLAGS) is not g
+    assert "this solve runs the quick build (-O0) of this cache meanwhile" in caplog.text
+    _wait_unlocked_mine(tmp_path)
+
+    h = _function(13.5)
+    assert compile_function(h, wait=None, flags=COMPILE_FLAGS) is h  # estimated too long
+    monkeypatch.setattr(codegen, "QUICK_WAIT_SECONDS", 10.0)
+    k = _function(14.5)
+    assert compile_function(k, wait=False, flags=COMPILE_FLAGS) is k  # asked not to wait
+    _wait_unlocked_mine(tmp_path)
 
 
 def test_the_portable_library_is_used_while_the_native_one_compiles(

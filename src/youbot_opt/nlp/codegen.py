@@ -37,6 +37,7 @@ from youbot_opt.exceptions import YoubotOptWarning
 __all__ = [
     "COMPILE_FLAGS",
     "NATIVE_FLAG",
+    "QUICK_FLAGS",
     "cache_dir",
     "compile_flags",
     "compile_function",
@@ -59,6 +60,19 @@ NATIVE_FLAG = "-march=native"
 kernel of panda runs 2.4x faster (4.49 -> 1.90 ms for 80 points), ur5's 1.4x, the youBot's
 1.1x; gcc takes about a quarter longer. The library is then tied to this CPU model, so its
 cache name includes :func:`cpu_fingerprint`. ``YOUBOT_OPT_NATIVE=0`` turns it off."""
+
+QUICK_FLAGS: tuple[str, ...] = ("-O0", "-fPIC", "-shared")
+"""Flags of the quick build a cold run compiles now and runs while the optimised one compiles in
+the background: gcc -O0 builds panda's kernels (3.35 MB of C) in 3.0 s of CPU (2.1 s on 2 cores)
+against about 73 s at -O2 with -march=native, and they run 4.3-4.8x faster than CasADi's
+virtual machine (4.5x slower than the optimised build; docs/design.md, "Time to first solve")."""
+
+QUICK_SECONDS_PER_MEGABYTE = (
+    1.0  # [s/MB] gcc -O0 on CasADi's generated C, panda's kernels: 0.9-0.95
+)
+QUICK_WAIT_SECONDS = 10.0
+"""[s] The longest quick build (:data:`QUICK_FLAGS`, estimated) a cold run waits for; a larger
+batch runs in CasADi's virtual machine until the optimised build is ready."""
 
 SECONDS_PER_MEGABYTE = 13.0  # [s/MB] gcc -O2 on CasADi's generated C, measured on ur5's kernels
 NATIVE_MULTIPLIER = 1.27  # gcc -O2 -march=native over -O2, ur5 kernels: 19.1 s against 15.0 s
@@ -169,7 +183,12 @@ print(json.dumps(errors))
 
 
 def estimated_compile_time(code: str, flags: tuple[str, ...] = COMPILE_FLAGS) -> float:
-    """Rough wall time in [s] to compile generated C ``code`` (-O2: 13 s per MB; native +27 %)."""
+    """Rough wall time in [s] to compile generated C ``code`` (-O2: 13 s per MB; native +27 %).
+
+    With ``-O0`` (:data:`QUICK_FLAGS`): 1 s per MB.
+    """
+    if "-O0" in flags:
+        return QUICK_SECONDS_PER_MEGABYTE * len(code) / 1e6
     native = NATIVE_MULTIPLIER if NATIVE_FLAG in flags else 1.0
     return SECONDS_PER_MEGABYTE * native * len(code) / 1e6
 
@@ -274,7 +293,8 @@ def compile_function(
         detached, lower-priority process and returns ``function`` uncompiled,
         so the caller runs CasADi's virtual machine this time and loads the
         library from the cache next time; None: now if that is estimated to
-        take at most :data:`WAIT_SECONDS`, else in the background.
+        take at most :data:`WAIT_SECONDS`, else in the background, with a quick
+        build (:data:`QUICK_FLAGS`, compiled now when short) meanwhile.
     label : str, optional
         What the Function belongs to, for the log (e.g. ``"panda's dynamics"``).
     with_jacobian : bool
@@ -309,6 +329,7 @@ class _Job(NamedTuple):
     library: Path
     seconds: float
     portable: Path | None  # the portable library of the same code (native flags only)
+    quick: Path | None  # the quick build of the same code (QUICK_FLAGS; None when those are used)
 
 
 def compile_functions(
@@ -329,7 +350,11 @@ def compile_functions(
     there are cores (``YOUBOT_OPT_COMPILE_JOBS`` to change that): now, or in
     the background (``wait``); one log line says which, how long, where, and
     when the compiled code will be used. Where a native library is missing but
-    the portable one of the same code is cached, that one is used meanwhile.
+    the portable one of the same code is cached, that one is used meanwhile, else
+    its quick build (:data:`QUICK_FLAGS`) when cached; a batch that goes to the
+    background automatically (``wait=None``) with neither gets its quick build
+    compiled now first, when that is estimated to take at most
+    :data:`QUICK_WAIT_SECONDS` (panda's kernels: about 2 s).
     Lock files and the compile slot are per user, so one user's compiles never
     queue behind another's in a shared cache; locks and build folders left by
     a dead compiler (killed, or a reboot) are removed by the next call.
@@ -343,7 +368,7 @@ def compile_functions(
     wait : bool or None
         As :func:`compile_function`; None decides for the whole batch (its
         estimated wall time against :data:`WAIT_SECONDS`; never waits when a
-        portable library can be used meanwhile).
+        portable library or a quick build can be used meanwhile).
     with_jacobian : sequence of bool, optional
         Per Function, as :func:`compile_function`'s ``with_jacobian``.
     index : str, optional
@@ -359,7 +384,8 @@ def compile_functions(
     -------
     list of casadi.Function
         Per Function, the compiled one when its library is available (the
-        portable one meanwhile, see above), else the Function itself.
+        portable one or the quick build meanwhile, see above), else the Function
+        itself.
 
     Warns
     -----
@@ -386,6 +412,7 @@ def compile_functions(
         _CLEANED.add(directory)  # once per process and cache
         _clean_orphans(directory)
     result = list(functions)
+    kinds: list[str | None] = [None] * len(functions)  # what runs meanwhile (_MEANWHILE)
     missing: list[tuple[int, _Job]] = []
     jobs_of: list[_Job] = []
     for i, (function, jacobian) in enumerate(zip(functions, jacobians, strict=True)):
@@ -410,8 +437,10 @@ def compile_functions(
                 stacklevel=2,
             )
             continue
-        if job.portable is not None and job.portable.is_file():
-            result[i] = ca.external(function.name(), str(job.portable))
+        for kind, path in (("portable", job.portable), ("quick", job.quick)):  # faster first
+            if path is not None and path.is_file():
+                result[i], kinds[i] = ca.external(function.name(), str(path)), kind
+                break
         missing.append((i, job))
     if not missing:
         if index is not None:
@@ -421,10 +450,14 @@ def compile_functions(
     jobs = [job for _, job in missing]
     batch = _batch_name(label, jobs)
     meanwhile = any(result[i] is not job.function for i, job in missing)
+    automatic = wait is None
     if wait is None:
         wait = not meanwhile and _wall_estimate(jobs) <= WAIT_SECONDS
     if not wait:
-        _compile_in_background(jobs, compiler, flags, directory, batch, meanwhile)
+        if automatic:  # the quick build now, when short; the optimised one starts after it
+            _quick_build(missing, result, kinds, compiler, directory)
+        meanwhile_text = _meanwhile_text([kinds[i] for i, _ in missing])
+        _compile_in_background(jobs, compiler, flags, directory, batch, meanwhile_text)
         if index is not None:  # read once every library exists: the first later run is fast
             _write_index(directory, index, compiler, flags, functions, jobs_of)
         return result
@@ -550,7 +583,65 @@ def _job(
     portable = None
     if NATIVE_FLAG in flags:
         portable = library(tuple(flag for flag in flags if flag != NATIVE_FLAG))
-    return _Job(function, code, library(flags), estimated_compile_time(code, flags), portable)
+    quick = None if flags == QUICK_FLAGS else library(QUICK_FLAGS)
+    seconds = estimated_compile_time(code, flags)
+    return _Job(function, code, library(flags), seconds, portable, quick)
+
+
+_MEANWHILE = {
+    "portable": "the portable compiled code of this cache",
+    "quick": "the quick build (-O0) of this cache",
+    "quick now": "code compiled just now without optimisation (-O0: about 4x faster than "
+    "CasADi's virtual machine)",
+}
+
+
+def _meanwhile_text(kinds: Sequence[str | None]) -> str:
+    """Say what a run uses while its libraries compile: ``kinds`` per missing one (None: the VM)."""
+    used = [_MEANWHILE[kind] for kind in dict.fromkeys(kinds) if kind is not None]
+    if not used:
+        return "CasADi's virtual machine"
+    vm = " and CasADi's virtual machine" if None in kinds else ""
+    return " and ".join(used) + vm + " meanwhile"
+
+
+def _quick_build(
+    missing: Sequence[tuple[int, _Job]],
+    result: list[ca.Function],
+    kinds: list[str | None],
+    compiler: str,
+    directory: Path,
+) -> None:
+    """Compile now, with :data:`QUICK_FLAGS`, the missing libraries that would run in the VM.
+
+    Only when the batch is estimated to take at most :data:`QUICK_WAIT_SECONDS`;
+    each one built replaces its Function in ``result`` (``kinds``: ``"quick now"``).
+    A failed quick build leaves the VM (the optimised build reports its own errors).
+    """
+    todo = [(i, job) for i, job in missing if kinds[i] is None and job.quick is not None]
+    builds = [
+        job._replace(
+            library=job.quick,
+            seconds=estimated_compile_time(job.code, QUICK_FLAGS),
+            portable=None,
+            quick=None,
+        )
+        for _, job in todo
+        if job.quick is not None
+    ]
+    if not builds or _wall_estimate(builds) > QUICK_WAIT_SECONDS:
+        return
+    # every core: this run waits for them, and the optimised build starts after
+    errors = _run_worker(builds, compiler, QUICK_FLAGS, directory, parallel=_cores())
+    for (i, job), build in zip(todo, builds, strict=True):
+        if build.library.is_file():
+            result[i], kinds[i] = ca.external(job.function.name(), str(build.library)), "quick now"
+        else:
+            _log.debug(
+                "quick build of %s failed: %s",
+                job.function.name(),
+                errors.get(str(build.library), "no library produced")[:300],
+            )
 
 
 def _batch_name(label: str | None, jobs: Sequence[_Job]) -> str:
@@ -569,15 +660,19 @@ def _jobs(count: int) -> int:
     env = os.environ.get("YOUBOT_OPT_COMPILE_JOBS", "").strip()
     if env.isdigit() and int(env) > 0:
         return max(1, min(count, int(env)))
-    if hasattr(os, "sched_getaffinity"):
-        cores = len(os.sched_getaffinity(0))
-    else:
-        cores = os.cpu_count() or 1
+    cores = _cores()
     try:
         idle = cores - round(os.getloadavg()[0])
     except (AttributeError, OSError):  # no load average (Windows)
         idle = cores
     return max(1, min(count, idle))
+
+
+def _cores() -> int:
+    """Return how many cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
 
 
 def _wall_estimate(jobs: Sequence[_Job]) -> float:
@@ -733,8 +828,12 @@ def _prepare(
     directory: Path,
     *,
     background: bool,
+    parallel: int | None = None,
 ) -> tuple[Path, str]:
-    """Write the sources into a new build folder; return it and the worker's spec (JSON)."""
+    """Write the sources into a new build folder; return it and the worker's spec (JSON).
+
+    ``parallel``: compilers at a time (default :func:`_jobs`, the idle cores).
+    """
     tmp = Path(tempfile.mkdtemp(dir=directory, prefix=f".build-{_user_tag()}-"))
     (tmp / "owner").write_text(str(os.getpid()))  # vouches for the folder until the worker's pid
     items = []
@@ -754,7 +853,7 @@ def _prepare(
     spec = {
         "compiler": compiler,
         "flags": list(flags),
-        "jobs": _jobs(len(jobs)),
+        "jobs": _jobs(len(jobs)) if parallel is None else max(1, min(parallel, len(jobs))),
         "tmp": str(tmp),
         "slot": str(directory / f".compile-slot-{_user_tag()}"),
         "background": background,
@@ -777,10 +876,14 @@ def _write_pid(tmp: Path, pid: int) -> None:
 
 
 def _run_worker(
-    jobs: Sequence[_Job], compiler: str, flags: tuple[str, ...], directory: Path
+    jobs: Sequence[_Job],
+    compiler: str,
+    flags: tuple[str, ...],
+    directory: Path,
+    parallel: int | None = None,
 ) -> dict[str, str]:
-    """Compile ``jobs`` now; return ``{library: error}`` of the failed ones."""
-    tmp, spec = _prepare(jobs, compiler, flags, directory, background=False)
+    """Compile ``jobs`` now (``parallel`` as :func:`_prepare`); return ``{library: error}``."""
+    tmp, spec = _prepare(jobs, compiler, flags, directory, background=False, parallel=parallel)
     try:
         with subprocess.Popen(  # noqa: S603 - our own script and the compiler found on PATH
             [sys.executable, "-c", _WORKER, spec],
@@ -806,9 +909,12 @@ def _compile_in_background(
     flags: tuple[str, ...],
     directory: Path,
     batch: str,
-    meanwhile: bool,
+    meanwhile_text: str,
 ) -> None:
-    """Start one detached compiler process for the libraries nobody is compiling; log one line."""
+    """Start one detached compiler process for the libraries nobody is compiling; log one line.
+
+    ``meanwhile_text`` says what the run uses until they are ready (:func:`_meanwhile_text`).
+    """
     mine: list[_Job] = []
     others: dict[str, tuple[int | None, float, float | None]] = {}
     starting: set[str] = set()
@@ -851,11 +957,6 @@ def _compile_in_background(
         _write_pid(tmp, pid)
         _LAUNCHED.add(pid)
         _LOCKED.update(str(lock_path(job.library)) for job in mine)
-    meanwhile_text = (
-        "the portable compiled code of this cache meanwhile"
-        if meanwhile
-        else "CasADi's virtual machine"
-    )
     text = []
     if mine:
         label = batch.split(" (")[0] if " (" in batch else ""
