@@ -453,6 +453,21 @@ def test_a_short_compile_is_done_now(
     assert compile_function(g, wait=None) is not g
 
 
+def _runs_meanwhile(
+    f: ca.Function, flags: tuple[str, ...], caplog: pytest.LogCaptureFixture, says: str
+) -> None:
+    """``wait=None`` on a missing library returns other compiled code meanwhile, saying which.
+
+    Its values are ``f``'s to 1e-15 (the same operations, compiled otherwise).
+    """
+    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
+        meanwhile = compile_function(f, wait=None, flags=flags)
+    assert meanwhile is not f
+    assert f"this solve runs {says}" in caplog.text
+    x = np.array([0.3, -1.7])
+    np.testing.assert_allclose(np.asarray(meanwhile(x)), np.asarray(f(x)), rtol=0, atol=1e-15)
+
+
 def test_a_batch_sent_to_the_background_runs_its_quick_build_meanwhile(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -470,12 +485,7 @@ def test_a_batch_sent_to_the_background_runs_its_quick_build_meanwhile(
     _fresh_process_state(monkeypatch)
     monkeypatch.setattr(codegen, "WAIT_SECONDS", 0.0)
     f = _function(11.5)
-    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
-        meanwhile = compile_function(f, wait=None, flags=COMPILE_FLAGS)
-    assert meanwhile is not f
-    assert "this solve runs code compiled just now without optimisation (-O0" in caplog.text
-    x = np.array([0.3, -1.7])
-    np.testing.assert_allclose(np.asarray(meanwhile(x)), np.asarray(f(x)), rtol=0, atol=1e-15)
+    _runs_meanwhile(f, COMPILE_FLAGS, caplog, "code compiled just now without optimisation (-O0")
     _wait_unlocked_mine(tmp_path)
     libraries = sorted(tmp_path.glob("tiny_*.so"))
     assert len(libraries) == 2  # the quick build and the optimised one
@@ -518,12 +528,7 @@ def test_the_portable_library_is_used_while_the_native_one_compiles(
     native = ("-O2", NATIVE_FLAG, "-fPIC", "-shared")
     portable = compile_function(f, wait=True, flags=COMPILE_FLAGS)
     assert portable is not f
-    with caplog.at_level(logging.INFO, logger="youbot_opt.nlp.codegen"):
-        meanwhile = compile_function(f, wait=None, flags=native)
-    assert meanwhile is not f
-    assert "runs the portable compiled code of this cache meanwhile" in caplog.text
-    x = np.array([0.3, -1.7])
-    np.testing.assert_allclose(np.asarray(meanwhile(x)), np.asarray(f(x)), rtol=0, atol=1e-15)
+    _runs_meanwhile(f, native, caplog, "the portable compiled code of this cache meanwhile")
     _wait_unlocked_mine(tmp_path)
     assert len(list(tmp_path.glob("tiny_*.so"))) == 2  # the native one arrived
 
