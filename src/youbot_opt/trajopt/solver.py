@@ -154,10 +154,12 @@ class TrajOptSolver:
         (:mod:`youbot_opt.nlp.codegen`). True (default): use the cached
         libraries; if they are missing, compile them now when that is short
         (``codegen.WAIT_SECONDS``: a two-link arm's), else in one background process
-        for the next build and run this one in CasADi's virtual machine (same
-        results; the compile takes from seconds to minutes per robot, which a
-        first solve should not wait for). ``"wait"``: compile now. False: never
-        compile. Only used by the second-order backends.
+        for the next build and run this one on a quick unoptimised build
+        (``codegen.QUICK_FLAGS``, compiled first when that takes at most
+        ``codegen.QUICK_WAIT_SECONDS``: panda's in about 2 s), or else in CasADi's
+        virtual machine (same results; the optimised compile takes from seconds to
+        minutes per robot, which a first solve should not wait for). ``"wait"``:
+        compile now. False: never compile. Only used by the second-order backends.
 
     Raises
     ------
