@@ -151,6 +151,15 @@ def test_solve_with_starts_replays_the_distinct_optima(capsys: pytest.CaptureFix
     assert "side by side" in (folder / "replay.html").read_text()
 
 
+def test_multistart_records_the_hessian_it_ran(capsys: pytest.CaptureFixture[str]) -> None:
+    """`multistart --hessian limited-memory`: IPOPT's L-BFGS runs, and the summary says so."""
+    argv = ["multistart", "--starts", "2", *QUICK, "--workers", "0", "--quiet", "--json"]
+    assert main([*argv, "--hessian", "limited-memory"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["hessian"] == "limited-memory"
+    assert summary["best"] is not None
+
+
 def test_multistart_folder_resumes(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """`multistart --out DIR` writes figures, replay and a store that a rerun resumes from."""
     argv = ["multistart", "--starts", "2", *QUICK, "--workers", "0", "--quiet", "--out", "ms"]
@@ -193,6 +202,7 @@ def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
     base = [*QUICK, "--workers", "0", "--quiet", "--json"]
     assert main(["pareto", "--betas", "0.3,0.7", *base]) == 0
     front = json.loads(capsys.readouterr().out)
+    assert front["hessian"] == "exact"  # the default, recorded
     folder = Path(front["output_folder"])
     _check_folder(folder, front, ["pareto.png", "refinement_1.png", "refinement_2.png"])
     nodes, _ = _replay_nodes(folder / "replay.html")
@@ -204,6 +214,7 @@ def test_pareto_and_bounds_folders(capsys: pytest.CaptureFixture[str]) -> None:
         assert f"{record['label']}: T = {record['rounds'][-1]['duration_s']:.3f} s" in page
     assert main(["bounds", "--scales", "1,0.9", "--starts", "0", *base]) == 0
     study = json.loads(capsys.readouterr().out)
+    assert study["hessian"] == "exact"
     folder = Path(study["output_folder"])
     _check_folder(folder, study, ["bound_scaling.png", "refinement_1.png", "refinement_2.png"])
     page = (folder / "replay.html").read_text()

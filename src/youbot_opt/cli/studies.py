@@ -203,8 +203,13 @@ def _emit(
     summary: JSONDict,
     table: list[str],
     files: list[Path | None],
+    solver: TrajOptSolver,
 ) -> None:
-    """Write summary.json, print the table (or the JSON) and where the outputs are."""
+    """Write summary.json, print the table (or the JSON) and where the outputs are.
+
+    The summary also records the Hessian IPOPT ran (``"hessian"``, ``--hessian``).
+    """
+    summary["hessian"] = solver.hessian
     written = [f for f in files if f is not None]
     remove_stale_figures(folder, written)  # a reused --out: an earlier run's refinement_<k>.png
     stores = [*_STORE, *([REFINED] if (folder / REFINED).is_dir() else [])]
@@ -295,7 +300,7 @@ def multistart(args: argparse.Namespace) -> int:
             _figure(args, folder, "trajectory.png", plot_trajectory, plan),
             optima_replay(folder, res, args.obj_tol, args.dist_tol),
         ]
-    _emit(args, folder, summary, table, files)
+    _emit(args, folder, summary, table, files, solver)
     return 0 if res.best is not None and _all_certified(refined) else 1
 
 
@@ -339,7 +344,7 @@ def pareto(args: argparse.Namespace) -> int:
             _figure(args, folder, "pareto.png", plot_pareto, front),
             replay_html(folder, shown, labels),
         ]
-    _emit(args, folder, {**pareto_summary(front), "refinement": refined}, table, files)
+    _emit(args, folder, {**pareto_summary(front), "refinement": refined}, table, files, solver)
     return 0 if front.nondominated() and _all_certified(plans) else 1
 
 
@@ -393,5 +398,5 @@ def bounds(args: argparse.Namespace) -> int:
             _figure(args, folder, "bound_scaling.png", plot_bound_scaling, res),
             replay_html(folder, shown, labels),
         ]
-    _emit(args, folder, {**res.summary(), "refinement": refined}, table, files)
+    _emit(args, folder, {**res.summary(), "refinement": refined}, table, files, solver)
     return 0 if all(r.best is not None for r in res.rows) and _all_certified(plans) else 1
