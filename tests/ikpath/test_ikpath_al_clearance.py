@@ -34,7 +34,7 @@ from youbot_opt.ikpath.methods.al import (
     _clearance_term,
     run_augmented_lagrangian,
 )
-from youbot_opt.ikpath.methods.sqp import first_order_multipliers
+from youbot_opt.ikpath.methods.sqp import final_phase, first_order_multipliers
 from youbot_opt.ikpath.problem import CyclicIKProblem
 from youbot_opt.ikpath.result import IKPathResult
 from youbot_opt.ikpath.solve import solve
@@ -303,3 +303,15 @@ def test_sqp_phase_with_clearance_rows_polishes_the_al(
     assert kkt(al) < kkt(alone)  # measured 4.5e-11 against 6.4e-9 rad
     assert np.max(problem.residuals(al.configurations.ravel())) < 1e-9
     assert al.objective == pytest.approx(ipopt.objective, abs=E_TOL)  # measured 4e-14
+
+
+def test_the_final_phase_with_rows_needs_their_multipliers(
+    problem: CyclicIKProblem, q_free: np.ndarray
+) -> None:
+    """``final_phase(rows=...)`` without ``nu`` is refused, naming what is missing."""
+    lam = np.zeros(problem.n_constraints)
+    with pytest.raises(ValueError, match="needs their multipliers nu"):
+        final_phase(
+            problem, q_free.ravel(), lam, 10.0, AL_OPTIONS_3D, problem.model.createData(), None,
+            start_iteration=1, iterations=1, rows=_rows(problem),
+        )  # fmt: skip

@@ -35,7 +35,6 @@ from youbot_opt.ikpath.methods.sqp import (
     FINAL_PHASE_STEPS,
     NO_ROWS,
     final_phase,
-    final_phase_with_rows,
     first_order_multipliers,
     licq_note,
 )
@@ -107,7 +106,7 @@ class ALOptions:
         3-D problems, whose nearly singular pose Jacobians make the first-order
         multiplier updates crawl (docs/ikpath.md). With clearance rows the rows with
         ``nu > 0`` are held as equalities
-        (:func:`~youbot_opt.ikpath.methods.sqp.final_phase_with_rows`).
+        (:func:`~youbot_opt.ikpath.methods.sqp.final_phase` with the rows).
     newton_violation : float
         ``max |c_i|`` in [m] at which the final phase is tried.
     """
@@ -437,32 +436,11 @@ def _run_augmented_lagrangian(problem: CyclicIKProblem, start: Array, opts: ALOp
             break
         if opts.newton_final and violation <= opts.newton_violation:
             lam_start = lam - mu * c if stationarity_al <= stationarity_ls else lam_ls
-            if rows is None:
-                final = final_phase(
-                    problem,
-                    x,
-                    lam_start,
-                    mu,
-                    opts,
-                    data,
-                    deadline,
-                    start_iteration=k + 1,
-                    iterations=FINAL_PHASE_STEPS,
-                )
-            else:
-                final = final_phase_with_rows(
-                    problem,
-                    rows,
-                    x,
-                    lam_start,
-                    nu_new,
-                    mu,
-                    opts,
-                    data,
-                    deadline,
-                    start_iteration=k + 1,
-                    iterations=FINAL_PHASE_STEPS,
-                )
+            final = final_phase(
+                problem, x, lam_start, mu, opts, data, deadline,
+                start_iteration=k + 1, iterations=FINAL_PHASE_STEPS,
+                rows=rows, nu=nu_new,
+            )  # fmt: skip
             _log.debug("AL %d: final phase (%d clearance rows): %s", k, nu.size, final.message)
             if final.status is SolveStatus.SOLVED:
                 history.extend(final.history)

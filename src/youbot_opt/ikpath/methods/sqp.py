@@ -35,7 +35,6 @@ __all__ = [
     "FinalPhaseOptions",
     "NO_ROWS",
     "final_phase",
-    "final_phase_with_rows",
     "first_order_multipliers",
     "licq_note",
 ]
@@ -90,6 +89,8 @@ def final_phase(
     *,
     start_iteration: int,
     iterations: int,
+    rows: IKClearance | None = None,
+    nu: Array | None = None,
 ) -> FinalPhase:
     """Run the safeguarded final phase: SQP steps with the augmented Lagrangian as merit.
 
@@ -103,7 +104,17 @@ def final_phase(
     on ``L_A(., lam + p_lam; mu)`` (N&W, sec. 18.5: its slope is ``-p^T H p - mu |c|^2``,
     and ``mu`` grows tenfold while it is not negative). Steps are capped at 0.5 rad
     per joint. The stopping test and its multipliers are the main loop's.
+
+    With clearance ``rows`` and their AL multipliers ``nu`` (one per row, >= 0), the
+    AL's active rows are held as equalities (:func:`_final_phase_with_rows`).
     """
+    if rows is not None:
+        if nu is None:
+            raise ValueError("the final phase with clearance rows needs their multipliers nu")
+        return _final_phase_with_rows(
+            problem, rows, x, lam, nu, mu, opts, data, deadline,
+            start_iteration=start_iteration, iterations=iterations,
+        )  # fmt: skip
     lower, upper = problem.lower, problem.upper
     s = problem.n_targets
     history: list[OuterIterate] = []
@@ -159,9 +170,9 @@ def final_phase(
         if step is None:
             message = "singular or non-finite KKT system in the final phase"
             return FinalPhase(SolveStatus.STALLED, message, x, lam, history, steps)
-        p, rows, dlam = step
+        p, kkt_rows, dlam = step
         lam_new = lam.copy()
-        lam_new[rows] += dlam
+        lam_new[kkt_rows] += dlam
         # Slope of the merit along p: (grad E - J^T lam_new) p - mu |c|^2 = -p^T H p - mu |c|^2.
         slope_e = float((ev.gradient - jac.T @ lam_new) @ p)
         slope_c = float((jac.T @ c) @ p)
@@ -188,7 +199,7 @@ def final_phase(
     )
 
 
-def final_phase_with_rows(
+def _final_phase_with_rows(
     problem: CyclicIKProblem,
     rows: IKClearance,
     x: Array,
