@@ -74,7 +74,7 @@ def _target(robot: str, kind: str) -> float:
     return TARGETS[kind] * (2.0 if robot in VENDOR else 1.0)
 
 
-def _start_goal(name: str) -> tuple[list[str], list[str]]:
+def start_goal(name: str) -> tuple[list[str], list[str]]:
     """Start and goal at 35 % and 65 % of each joint's range (panda's fingers locked)."""
     import warnings
 
@@ -317,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
         if not opts.no_solve:
             cases = {"ur5": ["solve", "--robot", "ur5", "--start", *UR5[0], "--goal", *UR5[1]]}
             for name in ("panda", "xarm7"):
-                start, goal = _start_goal(name)
+                start, goal = start_goal(name)
                 lock = PANDA_LOCK if name == "panda" else []
                 cases[name] = ["solve", "--robot", name, *lock, "--start", *start]
                 cases[name] += ["--goal", *goal]
