@@ -143,3 +143,31 @@ def test_the_default_hessian_is_the_exact_one(tmp_path, capsys):
     assert main([*argv, "--out", str(tmp_path / "run")]) == 0
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["hessian"] == "exact"
     capsys.readouterr()
+
+
+@pytest.mark.parametrize(("cores", "processes"), [(4, 2), (2, 2), (1, 1)])
+@pytest.mark.parametrize("refined", [True, False])
+def test_a_single_plans_certificate_takes_two_processes_where_there_are_two_cores(
+    cores, processes, refined, tmp_path, capsys, monkeypatch
+):
+    """``solve`` certifies its one plan with ``certify(processes=2)`` on two cores or more
+    (the one-interval integrations beside the tracking simulations), 1 on one core; refined
+    (the refinement's certificates) or not (``--no-refine``: the plan's own certificate)."""
+    import youbot_opt.cli.refinement as cli_refinement
+    import youbot_opt.cli.trajopt_text as cli_text
+    import youbot_opt.trajopt.refine as refine_module
+    from youbot_opt.trajopt.certify import certify
+
+    asked: list[int] = []
+
+    def recording(*args, processes=1, **kwargs):
+        asked.append(processes)
+        return certify(*args, processes=processes, **kwargs)
+
+    monkeypatch.setattr(cli_refinement, "default_workers", lambda: cores)
+    monkeypatch.setattr(refine_module, "certify", recording)
+    monkeypatch.setattr(cli_text, "certify", recording)
+    argv = ["solve", "--knots", "15", "--no-figures", "--json", "--out", str(tmp_path / "run")]
+    main(argv if refined else [*argv, "--no-refine"])
+    capsys.readouterr()
+    assert asked and set(asked) == {processes}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
 import re
 import time
@@ -15,6 +16,7 @@ from scipy.linalg import expm
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.robot.load import load_model
+from youbot_opt.sweeps.forked import can_fork
 from youbot_opt.trajopt.certify import (
     Tolerances,
     certify,
@@ -368,6 +370,51 @@ def test_bad_inputs_raise(youbot) -> None:
         PDGains(bandwidth=-1.0)
     with pytest.raises(ParameterError, match="Trajectory or a result"):
         certify(object(), youbot)
+    with pytest.raises(ParameterError, match="processes"):
+        certify(traj, youbot, processes=0)
+
+
+def _figures(cert) -> list[np.ndarray]:
+    """Every simulated figure of a certificate, as arrays."""
+    return [
+        cert.local_position_error, cert.local_velocity_error, cert.feedback_rms_ratio,
+        cert.feedback_peak_ratio, np.array([cert.tracking_position_error,
+        cert.tracking_velocity_error, cert.open_loop_final_error,
+        cert.open_loop_divergence_time]),
+    ]  # fmt: skip
+
+
+@pytest.mark.skipif(not can_fork(), reason="the forked integrations need fork (Linux)")
+def test_two_processes_give_the_same_certificate(youbot, exact) -> None:
+    """The one-interval integrations in a forked process: the same computation, the same figures.
+
+    Bit for bit: the child runs the same code on the same inputs (it is a copy
+    of this process), only at the same time as the tracking simulations here.
+    A wrong plan (torques 5 % high) is used so that every figure is non-zero.
+    """
+    traj = exact(30)
+    wrong = Trajectory(t=traj.t, q=traj.q, v=traj.v, a=traj.a, tau=1.05 * traj.tau)
+    for plan in (traj, wrong):
+        one, two = certify(plan, youbot), certify(plan, youbot, processes=2)
+        for a, b in zip(_figures(one), _figures(two), strict=True):
+            np.testing.assert_array_equal(a, b)
+        assert one.ok == two.ok and two.incomplete == ""
+    assert not certify(wrong, youbot, processes=2).ok
+
+
+@pytest.mark.skipif(not can_fork(), reason="the forked integrations need fork (Linux)")
+def test_two_processes_out_of_time_say_both_stages_and_log_here(youbot, exact, caplog) -> None:
+    """A deadline already passed stops both at once: every figure NaN, the certificate
+    incomplete naming both stages, and the forked integrations' log line given here."""
+    with caplog.at_level(logging.WARNING, logger="youbot_opt.trajopt.simulate"):
+        cert = certify(exact(30), youbot, time_limit=1e-9, processes=2)
+    assert cert.incomplete == (
+        "time limit 1e-09 s reached during the one-interval integrations and the tracking and "
+        "open-loop simulations"
+    )
+    assert np.all(np.isnan(cert.local_position_error)) and np.isnan(cert.tracking_position_error)
+    assert not cert.ok
+    assert "local integration stopped: time limit reached" in caplog.text
 
 
 # ---------------------------------------------------------------- the real solver, study 1

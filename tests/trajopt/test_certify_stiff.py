@@ -14,6 +14,7 @@ from youbot_opt.dynamics.numeric import STIFF_RATIO, damping_rate
 from youbot_opt.dynamics.radau5 import Radau5
 from youbot_opt.reproduction.study1 import study1_problem
 from youbot_opt.robot.load import load_model
+from youbot_opt.sweeps.forked import can_fork
 from youbot_opt.trajopt import simulate as simulate_module
 from youbot_opt.trajopt.certify import TRACKING_ATOL, TRACKING_RTOL, certify
 from youbot_opt.trajopt.mesh import predicted_knots
@@ -206,3 +207,15 @@ def test_a_stiff_certificate_is_scipys_radaus_without_scipy(
         np.testing.assert_allclose(getattr(ours, name), getattr(scipys, name), rtol=1e-3, atol=0)
     assert math.isinf(ours.open_loop_divergence_time)
     assert math.isinf(scipys.open_loop_divergence_time)
+
+
+@pytest.mark.skipif(not can_fork(), reason="the forked integrations need fork (Linux)")
+def test_a_stiff_certificate_in_two_processes_is_the_same(stiff_youbot, stiff_plan) -> None:
+    """Radau5's one-interval integrations in a forked process: the same figures, bit for bit."""
+    one = certify(stiff_plan, robot=stiff_youbot)
+    two = certify(stiff_plan, robot=stiff_youbot, processes=2)
+    for name in ("local_position_error", "local_velocity_error", "feedback_rms_ratio",
+                 "feedback_peak_ratio"):  # fmt: skip
+        np.testing.assert_array_equal(getattr(one, name), getattr(two, name))
+    assert one.tracking_position_error == two.tracking_position_error
+    assert one.ok == two.ok and two.incomplete == ""

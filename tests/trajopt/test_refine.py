@@ -16,6 +16,7 @@ import pytest
 from youbot_opt.exceptions import ParameterError, ResultFileError, SolveFailed
 from youbot_opt.nlp.status import SolveStatus
 from youbot_opt.reproduction.study1 import study1_problem
+from youbot_opt.sweeps.forked import can_fork
 from youbot_opt.trajopt.certify import certify, check_bounds
 from youbot_opt.trajopt.io import load_refined, load_result, save_result
 from youbot_opt.trajopt.mesh import (
@@ -208,6 +209,20 @@ def test_refinement_certifies_the_base_case(base_refined):
     assert r.objective == pytest.approx(F_CONVERGED, rel=5e-3)
     assert r.duration == pytest.approx(T_CONVERGED, rel=1e-2)
     assert [x.n_knots for x in record.rounds] == sorted(x.n_knots for x in record.rounds)
+
+
+@pytest.mark.skipif(not can_fork(), reason="the forked integrations need fork (Linux)")
+def test_two_certificate_processes_refine_the_same_way(base_refined):
+    """``processes=2`` changes where the certificate's integrations run, nothing else:
+    the same rounds, plan and verdict, the final certificate's figures bit for bit."""
+    again = refine(TrajOptSolver(study1_problem(50), "trapezoidal"), beta=0.5, processes=2)
+    _same_rounds(base_refined, again)
+    one, two = base_refined.refinement.certificate, again.refinement.certificate
+    assert one is not None and two is not None and two.ok
+    np.testing.assert_array_equal(one.local_position_error, two.local_position_error)
+    np.testing.assert_array_equal(one.feedback_rms_ratio, two.feedback_rms_ratio)
+    with pytest.raises(ParameterError, match="processes"):
+        refine(TrajOptSolver(study1_problem(50), "trapezoidal"), processes=0)
 
 
 def test_refined_result_round_trips_through_a_file(base_refined, tmp_path):

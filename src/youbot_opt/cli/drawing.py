@@ -22,7 +22,6 @@ import os
 import pickle
 import signal
 import threading
-import time
 import traceback
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -33,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from youbot_opt._files import atomic_writer
 from youbot_opt.exceptions import ParameterError
+from youbot_opt.sweeps.forked import watch_parent
 
 if TYPE_CHECKING:
     from multiprocessing.process import BaseProcess
@@ -45,8 +45,6 @@ _log = logging.getLogger("youbot_opt.cli.output")  # the "not drawn" lines, as b
 
 DRAWING_PROCESSES = 2
 """The most processes that draw one run's figures (the 2-core target machine: one per core)."""
-
-_PARENT_POLL = 0.2  # [s] how often a drawing process checks that its parent is alive
 
 
 @dataclass(frozen=True)
@@ -127,13 +125,6 @@ def _draw_one(folder: Path, i: int, job: FigureJob) -> _Drawn:
     return i, path, skipped, list(caught)
 
 
-def _watch_parent(parent: int) -> None:
-    while True:
-        time.sleep(_PARENT_POLL)
-        if os.getppid() != parent:
-            os._exit(1)
-
-
 class _Queue:
     """The jobs' shared queue: the next job to take, and the job each process draws."""
 
@@ -162,7 +153,7 @@ def _child(
     Sends ``("ok", drawn)``, or ``("error", (i, exc))`` at job ``i``'s error.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    threading.Thread(target=watch_parent, args=(parent,), daemon=True).start()
     drawn: list[_Drawn] = []
     try:
         try:
@@ -403,7 +394,7 @@ def _ahead_child(
     """
     parent_end.close()  # the copy forked with it: else ``commands`` never ends
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    threading.Thread(target=watch_parent, args=(parent,), daemon=True).start()
     for module in modules:
         with contextlib.suppress(Exception):  # raised where the job is drawn, if at all
             importlib.import_module(module)

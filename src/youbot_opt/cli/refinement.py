@@ -35,6 +35,7 @@ from youbot_opt.trajopt.sweep_store import open_refined, refined_key
 __all__ = [
     "PER_PLAN_FIGURES",
     "REFINED",
+    "certificate_processes",
     "refine_many",
     "refine_result",
     "refinement_budget",
@@ -48,6 +49,16 @@ __all__ = [
 REFINED = "refined"
 """The run folder's store of refined plans (:func:`refine_many`; a sweep store of kind
 ``"refined"``, its payloads result files with their refinement record)."""
+
+
+def certificate_processes() -> int:
+    """Return how many processes one plan's certificate uses: 2 on two cores or more, else 1.
+
+    A single plan's command has the machine to itself while it certifies
+    (:func:`~youbot_opt.trajopt.certify.certify`'s ``processes``); the plans of
+    a study certified in workers keep 1 each.
+    """
+    return min(2, default_workers())
 
 
 def refinement_budget(args: argparse.Namespace) -> RefinementBudget:
@@ -78,8 +89,9 @@ def refine_result(
     if not getattr(args, "refine", False) or result is None or result.trajectory is None:
         return None
     return refine(
-        solver, first=result, budget=refinement_budget(args), progress=round_printer(quiet)
-    )
+        solver, first=result, budget=refinement_budget(args), progress=round_printer(quiet),
+        processes=certificate_processes(),
+    )  # fmt: skip
 
 
 def round_printer(quiet: bool = False) -> Callable[[RefinementRound], None]:

@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 from typing import cast
 
 from youbot_opt.cli.advice import gripper_note
-from youbot_opt.cli.refinement import refinement_table
+from youbot_opt.cli.refinement import certificate_processes, refinement_table
 from youbot_opt.robot.model import JointUnits
 from youbot_opt.trajopt.certify import Certificate, certify
 from youbot_opt.trajopt.refine import Refinement
@@ -36,7 +36,7 @@ def certificate_of(result: TrajOptResult, record: Refinement | None = None) -> C
         return None
     if record is not None and record.certificate is not None:
         return record.certificate  # the last round's, already computed
-    return certify(result)
+    return certify(result, processes=certificate_processes())
 
 
 def _status_line(result: TrajOptResult, record: Refinement | None) -> str:

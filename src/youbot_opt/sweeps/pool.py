@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Literal, Union
 
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.distributed import run_batch, run_dask
+from youbot_opt.sweeps.forked import watch_parent
 from youbot_opt.sweeps.scheduler import (
     cluster_threads,
     connect,
@@ -57,7 +58,6 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-_PARENT_POLL = 0.2  # [s] how often a worker checks that its parent is alive
 _STOP_WAIT = 5.0  # [s] a stopping worker gets this long to exit before it is killed
 
 
@@ -85,13 +85,6 @@ def _recv(conn: Connection) -> Any:
 
 
 # ------------------------------------------------------------------ workers
-def _watch_parent(parent: int) -> None:
-    while True:
-        time.sleep(_PARENT_POLL)
-        if os.getppid() != parent:
-            os._exit(1)
-
-
 def _worker_main(
     conn: Connection,
     parent: int,
@@ -100,7 +93,7 @@ def _worker_main(
     init_blob: bytes | None,
 ) -> None:
     """Body of a worker process: run ``(key, fn, args)`` messages until ``None`` or EOF."""
-    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    threading.Thread(target=watch_parent, args=(parent,), daemon=True).start()
     init_error = None
     try:
         if init_blob is not None:  # spawned: the initializer came pickled

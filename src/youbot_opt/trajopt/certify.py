@@ -13,6 +13,7 @@ open-loop drift (reported, never tested) and the bounds at and between knots
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -21,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from youbot_opt._checks import check_time_limit
+from youbot_opt._checks import check_int, check_time_limit
 from youbot_opt._typing import Array, JSONDict
 from youbot_opt.dynamics.coordinates import angle_robot
 from youbot_opt.dynamics.numeric import RobotLike
@@ -33,6 +34,7 @@ from youbot_opt.robot.model import (
     RobotModel,
     as_robot_model,
 )
+from youbot_opt.sweeps.forked import ForkedCall, can_fork
 from youbot_opt.trajopt.result import TrajOptResult
 from youbot_opt.trajopt.simulate import (
     DEFAULT_ATOL,
@@ -531,6 +533,7 @@ def certify(
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
     time_limit: float | None = None,
+    processes: int = 1,
 ) -> Certificate:
     """Check a plan by forward simulation with ``pin.aba``, independently of its transcription.
 
@@ -567,6 +570,14 @@ def certify(
         :attr:`Certificate.incomplete` says where it stopped: the certificate
         fails (stiff robots, such as light fingers under 20 rad/s tracking,
         can take minutes).
+    processes : int, optional
+        Processes the simulations may use (>= 1). With 2 or more (and
+        ``fork``, Linux), the one-interval integrations run in a forked
+        process while this one runs the tracking and open-loop simulations:
+        the same figures, about a third less wall time on a long certificate
+        (the xArm7's stiff 106-knot plan: 1.10 -> 0.72 s), and a few
+        milliseconds either way on a short one. 1 (default): one after the
+        other, here (what a worker of a sweep, whose cores are taken, wants).
 
     Returns
     -------
@@ -584,20 +595,30 @@ def certify(
     deadline = None if limit is None else tic + limit
     trajectory, model, bounds, use_damping = _resolve(plan, robot, bounds, bound_scale, damping)
     gains = PDGains() if gains is None else gains
-    q_end, v_end = integrate_intervals(
-        trajectory, model, damping=use_damping, rtol=rtol, atol=atol, deadline=deadline
-    )
+    processes = check_int(processes, "processes", minimum=1)
+    local = functools.partial(
+        integrate_intervals, trajectory, model, damping=use_damping, rtol=rtol, atol=atol,
+        deadline=deadline,
+    )  # fmt: skip
+    tracking = functools.partial(
+        simulate_batch, trajectory, model, damping=use_damping, gains=(gains, None),
+        stop_deviation=(None, open_loop_stop), samples_per_interval=samples_per_interval,
+        rtol=TRACKING_RTOL, atol=TRACKING_ATOL,
+    )  # fmt: skip
+    if processes > 1 and can_fork():  # the one-interval integrations beside the others
+        with ForkedCall(local) as forked:
+            sim, open_loop = tracking(deadline=deadline)
+            q_end, v_end = forked.result()
+        stage = "the one-interval integrations and the tracking and open-loop simulations"
+        incomplete = _out_of_time(deadline, limit, stage)
+    else:
+        q_end, v_end = local()
+        incomplete = _out_of_time(deadline, limit, "the one-interval integrations")
+        sim, open_loop = tracking(deadline=deadline if not incomplete else tic)
+        stage = "the tracking and open-loop simulations"
+        incomplete = incomplete or _out_of_time(deadline, limit, stage)
     local_q = np.max(np.abs(q_end - trajectory.q[1:]), axis=1)
     local_v = np.max(np.abs(v_end - trajectory.v[1:]), axis=1)
-    incomplete = _out_of_time(deadline, limit, "the one-interval integrations")
-
-    sim, open_loop = simulate_batch(
-        trajectory, model, damping=use_damping, gains=(gains, None),
-        stop_deviation=(None, open_loop_stop), samples_per_interval=samples_per_interval,
-        rtol=TRACKING_RTOL, atol=TRACKING_ATOL, deadline=deadline if not incomplete else tic,
-    )  # fmt: skip
-    stage = "the tracking and open-loop simulations"
-    incomplete = incomplete or _out_of_time(deadline, limit, stage)
     fb, plan_tau = sim.tau_feedback, sim.tau_plan
     rms = _ratio(
         np.sqrt(np.trapezoid(fb**2, sim.t, axis=0)),

@@ -515,13 +515,13 @@ class _Checks(NamedTuple):
 
 
 def _certificate(
-    result: TrajOptResult, budget: RefinementBudget, deadline: float | None
+    result: TrajOptResult, budget: RefinementBudget, deadline: float | None, processes: int
 ) -> Certificate | None:
     """Return the full certificate (forward simulation) within the time budget's rest."""
     limit = None if deadline is None else deadline - time.perf_counter()
     if limit is not None and limit <= 0.0:  # none left: not certified, said by the caller
         return None
-    return certify(result, tolerances=budget.tolerances, time_limit=limit)
+    return certify(result, tolerances=budget.tolerances, time_limit=limit, processes=processes)
 
 
 def _check(
@@ -529,6 +529,7 @@ def _check(
     budget: RefinementBudget,
     deadline: float | None,
     checker: ExactChecker | None = None,
+    processes: int = 1,
 ) -> _Checks:
     """Error estimate first; the forward simulation only when the plan may pass.
 
@@ -549,7 +550,7 @@ def _check(
         error = collocation_error(result)
         wanted = budget.certify_every_round or error.max <= budget.tolerance
         if result.success and budget.certify and wanted:
-            cert = _certificate(result, budget, deadline)
+            cert = _certificate(result, budget, deadline, processes)
         elif result.success and budget.certify:
             bounds = _bound_checks(result, budget.tolerances)
         spec = result.problem.clearance
@@ -668,6 +669,7 @@ def refine(
     budget: RefinementBudget | None = None,
     progress: Callable[[RefinementRound], None] | None = None,
     first: TrajOptResult | None = None,
+    processes: int = 1,
 ) -> Refined:
     """Solve, then refine the grid until the plan is certified or the budget runs out.
 
@@ -690,6 +692,10 @@ def refine(
         A result already solved on ``solver``'s grid (e.g. the best start of a
         multistart): round 0 uses it instead of solving again. Its ``beta``,
         bound scale and boundary states then override the arguments.
+    processes : int, optional
+        Processes each certificate's simulations may use (:func:`certify`'s
+        ``processes``; 1 by default, as in a sweep's workers; the command line
+        gives a single plan 2 on a machine with two cores or more).
 
     Returns
     -------
@@ -711,6 +717,7 @@ def refine(
     budget = RefinementBudget() if budget is None else budget
     if not isinstance(budget, RefinementBudget):
         raise ParameterError("budget must be a RefinementBudget", name="budget")
+    processes = check_int(processes, "processes", minimum=1)
     exponent = ERROR_EXPONENTS.get(solver.method.name)
     if exponent is None:
         raise ParameterError(
@@ -745,7 +752,7 @@ def refine(
     tool: tuple[ToolCertificate, ...] = ()
     while True:
         check_tic = time.perf_counter()
-        checks = _check(result, budget, deadline, checker)
+        checks = _check(result, budget, deadline, checker, processes)
         error, cert, clear, tool = checks.error, checks.cert, checks.clear, checks.tool
         record = _record(len(rounds), result, checks, solve_time, 0.0)
         if (
@@ -807,7 +814,7 @@ def refine(
         if reason:
             if cert is None and result.success and budget.certify:
                 # the plan returned has its full certificate, certified or not
-                cert = _certificate(result, budget, deadline)
+                cert = _certificate(result, budget, deadline, processes)
                 checks = checks._replace(cert=cert, tool=cert.tool or tool if cert else tool)
                 record = _record(record.index, result, checks, solve_time, 0.0)
                 overshoot = overshoot_note(result, cert if cert is not None else checks.bounds)
