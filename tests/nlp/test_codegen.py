@@ -742,3 +742,32 @@ def test_an_indexed_batch_loads_without_its_functions(
     first_library = json.loads(index_file.read_text(encoding="utf-8"))[0][1]
     (tmp_path / first_library).unlink()
     assert load_indexed("two tiny ones") is None
+
+
+@pytest.mark.skipif(not hasattr(os, "getpriority"), reason="POSIX priorities")
+def test_the_background_compiler_yields_in_its_own_session_and_autogroup(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The background worker runs in a session of its own at nice 19, and (Linux with
+    autogroups) so does its session's group: nice acts only inside a group, so without
+    it the compiler took a full share of the cores from the run that started it."""
+    cache = tmp_path / "cache"
+    real = find_compiler()
+    assert real is not None
+    monkeypatch.setenv("YOUBOT_OPT_CACHE", str(cache))
+    monkeypatch.setenv("CC", _slow_compiler(tmp_path, 3))
+    _fresh_process_state(monkeypatch)
+    f = _function(15.5)
+    assert compile_function(f, wait=False, flags=compile_flags(real)) is f
+    pid = int((_wait_for_worker(cache) / "pid").read_text())
+    group = Path(f"/proc/{pid}/autogroup")
+    tic = time.perf_counter()
+    while True:  # the worker lowers its priority just after writing its pid
+        nice = os.getpriority(os.PRIO_PROCESS, pid)
+        grouped = not group.is_file() or group.read_text().split()[-1] == "19"
+        if nice == 19 and grouped:
+            break
+        assert time.perf_counter() - tic < 2.5, (nice, group.read_text() if group.is_file() else "")
+        time.sleep(0.02)
+    assert os.getsid(pid) != os.getsid(0)
+    _wait_unlocked(cache)

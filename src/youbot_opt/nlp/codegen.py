@@ -98,13 +98,14 @@ _ANNOUNCED: set[frozenset[tuple[str, int | None]]] = set()  # compiles in progre
 # Compiles a batch of generated C files, ``jobs`` at a time; one process per run. Standard
 # library only (it runs detached from the package). In the background it writes its pid into
 # the build folder and into each library's lock (who holds them: a dead holder's are cleaned
-# up by the next run), lowers its priority, takes this user's compile slot (one batch at a
-# time per user and cache), skips a library another process has produced meanwhile, releases
-# each lock as soon as its library is in place, and records a failure in ``<library>.failed``
-# unless its build folder or source vanished meanwhile (removed under it: not a compiler error,
-# so the next run retries). It prints ``{library: compiler error}`` for the compiles that failed.
+# up by the next run), lowers its priority (nice 19, and on Linux its session's autogroup's:
+# nice acts only within a group), takes this user's compile slot (one batch at a time per user
+# and cache), skips a library another process has produced meanwhile, releases each lock as
+# soon as its library is in place, and records a failure in ``<library>.failed`` unless its
+# build folder or source vanished meanwhile (removed under it: not a compiler error, so the
+# next run retries). It prints ``{library: compiler error}`` for the compiles that failed.
 _WORKER = r"""
-import json, os, shutil, subprocess, sys, time
+import errno, json, os, shutil, subprocess, sys, time
 spec = json.loads(sys.argv[1])
 tmp, items, pid, errors = spec["tmp"], spec["items"], os.getpid(), {}
 def release(item):
@@ -124,6 +125,15 @@ try:
                 out.write("%d\n%.1f\n" % (pid, item["seconds"]))
         if hasattr(os, "nice"):
             os.nice(19)  # leave the cores to the solve that is running meanwhile
+        for attempt in range(3):  # Linux: nice acts within a session's autogroup; lower ours
+            try:
+                with open("/proc/self/autogroup", "w") as group:
+                    group.write("19")
+                break
+            except OSError as exc:  # none (not Linux, autogroups off) or busy: EAGAIN, retried
+                if exc.errno != errno.EAGAIN:
+                    break
+                time.sleep(0.15)
         slot = open(spec["slot"], "a")
         try:
             import fcntl
