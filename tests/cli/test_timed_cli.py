@@ -171,3 +171,25 @@ def test_solve_waypoints_falls_back_to_the_trapezoid_on_a_ur5(tmp_path, capsys):
     rounds = doc["timed"]["refinement"]["rounds"]
     assert [r["method"] for r in rounds] == ["hermite_simpson", "trapezoidal"]
     assert doc["method"] == "trapezoidal" and doc["timed"]["waypoint_error_rad"] <= 1e-6
+
+
+def test_the_timed_plans_certificates_take_two_processes(tmp_path, capsys, monkeypatch):
+    """``solve --waypoints``: one plan, so its refinement certifies with ``processes=2`` on two
+    cores or more, as ``solve`` does (the same figures: tests/trajopt/test_certify.py)."""
+    import youbot_opt.cli.refinement as cli_refinement
+    import youbot_opt.trajopt.refine as refine_module
+    from youbot_opt.trajopt.certify import certify
+
+    asked: list[int] = []
+
+    def recording(*args, processes=1, **kwargs):
+        asked.append(processes)
+        return certify(*args, processes=processes, **kwargs)
+
+    monkeypatch.setattr(cli_refinement, "default_workers", lambda: 2)
+    monkeypatch.setattr(refine_module, "certify", recording)
+    (tmp_path / "w.json").write_text(json.dumps({"q": WAYPOINTS}))
+    argv = ["solve", "--waypoints", "w.json", "--segment-knots", "15", "--no-figures"]
+    code, doc, _ = _json(capsys, [*argv, "--json", "--out", "run"])
+    assert code == 0 and doc["certified"]
+    assert asked and set(asked) == {2}

@@ -24,6 +24,7 @@ from youbot_opt._typing import JSONDict
 from youbot_opt.cli.flags import ipopt_options
 from youbot_opt.cli.output import open_folder, report_outputs, write_solve_outputs
 from youbot_opt.cli.refinement import (
+    certificate_processes,
     refinement_budget,
     refinement_table,
     round_printer,
@@ -102,7 +103,10 @@ def _refined(
     if not getattr(args, "refine", True) or timed.result.trajectory is None:
         return timed
     budget = refinement_budget(args)
-    return solver.refine(first=timed, budget=budget, progress=round_printer(quiet))
+    return solver.refine(
+        first=timed, budget=budget, progress=round_printer(quiet),
+        processes=certificate_processes(),
+    )  # fmt: skip
 
 
 def _certificate(timed: TimedResult) -> Certificate | None:

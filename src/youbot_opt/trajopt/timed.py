@@ -539,6 +539,7 @@ class TimedSolver:
         budget: RefinementBudget | None = None,
         progress: Callable[[RefinementRound], None] | None = None,
         first: TimedResult | None = None,
+        processes: int = 1,
     ) -> TimedResult:
         """Solve, then refine within the segments until certified or the budget runs out.
 
@@ -561,6 +562,9 @@ class TimedSolver:
             Called with each :class:`~youbot_opt.trajopt.refine.RefinementRound`.
         first : TimedResult, optional
             This solver's :meth:`solve` result, refined instead of solving again.
+        processes : int, optional
+            Processes each certificate's simulations may use (as
+            :func:`~youbot_opt.trajopt.refine.refine`'s; 1 by default).
 
         Returns
         -------
@@ -572,7 +576,10 @@ class TimedSolver:
             first = self.solve(beta=beta, bound_scale=bound_scale)
         elif first.result.problem.n_knots != self.problem.n_knots:
             raise ParameterError("first must be this solver's solve() result", name="first")
-        refined = refine(self._segments, first=first.result, budget=budget, progress=progress)
+        refined = refine(
+            self._segments, first=first.result, budget=budget, progress=progress,
+            processes=processes,
+        )  # fmt: skip
         return dataclasses.replace(self._timed(refined.result), refinement=refined.refinement)
 
     def _timed(self, result: TrajOptResult) -> TimedResult:
