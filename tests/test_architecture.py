@@ -25,6 +25,7 @@ LAYERS: dict[str, int] = {
     "_typing": 0,
     "_checks": 0,
     "_files": 0,
+    "_cores": 0,
     "_version": 0,
     "robot": 1,
     "dynamics": 2,
@@ -151,7 +152,8 @@ def test_no_private_names_across_modules():
             )
             private_name = name is not None and name.startswith("_") and name != "__version__"
             if (
-                private_module and not dep.endswith(("_typing", "_checks", "_files", "_version"))
+                private_module
+                and not dep.endswith(("_typing", "_checks", "_files", "_cores", "_version"))
             ) or (private_name and dep not in {"youbot_opt._version"}):
                 bad.append(f"{m}:{line}: from {target} import {name}")
     assert not bad, "private names imported across modules:\n" + "\n".join(bad)
@@ -189,7 +191,8 @@ def test_no_module_imports_a_cli_module():
 
 
 def test_layer_0_imports_only_layer_0():
-    """The plain helpers (exceptions, _typing, _checks, _files, _version) import only each other."""
+    """The plain helpers (exceptions, _typing, _checks, _files, _cores, _version) import only
+    each other."""
     bad = [
         f"{m}:{line}: imports {_resolve(target, name)}"
         for m, imports in GRAPH.items()

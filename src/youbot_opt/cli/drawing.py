@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 from youbot_opt._files import atomic_writer
 from youbot_opt.exceptions import ParameterError
-from youbot_opt.sweeps.forked import watch_parent
+from youbot_opt.sweeps.forked import can_fork, watch_parent
 
 if TYPE_CHECKING:
     from multiprocessing.process import BaseProcess
@@ -220,12 +220,6 @@ def _first_child(
                 os.waitpid(pid, 0)
 
 
-def _forks() -> bool:
-    from youbot_opt.sweeps.pool import process_context
-
-    return process_context().get_start_method() == "fork"
-
-
 class Drawing:
     """The figures of a run, drawn in up to ``processes`` forked processes from construction.
 
@@ -249,7 +243,7 @@ class Drawing:
         self._children: list[tuple[BaseProcess, Connection]] = []  # the first process
         self._others: list[Connection] = []  # the pipes of the processes it forks
         n = min(processes, len(self.jobs))
-        if n < 1 or not _forks():
+        if n < 1 or not can_fork():
             return
         ctx = multiprocessing.get_context("fork")  # the children inherit the results
         self._queue = _Queue(ctx, n)  # each takes the next job when done: balanced
@@ -450,7 +444,7 @@ class DrawingAhead:
         self._shared = list(shared)  # alive while pickled by identity
         self._processes = processes
         self._proc: BaseProcess | None = None
-        if processes < 1 or not _forks():
+        if processes < 1 or not can_fork():
             return
         ctx = multiprocessing.get_context("fork")
         self._queue = _Queue(ctx, processes)

@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import casadi as ca
 
+from youbot_opt._cores import usable_cores
 from youbot_opt._files import atomic_write_text
 from youbot_opt.exceptions import YoubotOptWarning
 
@@ -628,22 +629,21 @@ def _quick_build(
     each one built replaces its Function in ``result`` (``kinds``: ``"quick now"``).
     A failed quick build leaves the VM (the optimised build reports its own errors).
     """
-    todo = [(i, job) for i, job in missing if kinds[i] is None and job.quick is not None]
+    todo = [(i, job, job.quick) for i, job in missing if kinds[i] is None and job.quick]
     builds = [
         job._replace(
-            library=job.quick,
+            library=quick,
             seconds=estimated_compile_time(job.code, QUICK_FLAGS),
             portable=None,
             quick=None,
         )
-        for _, job in todo
-        if job.quick is not None
+        for _, job, quick in todo
     ]
     if not builds or _wall_estimate(builds) > QUICK_WAIT_SECONDS:
         return
     # every core: this run waits for them, and the optimised build starts after
-    errors = _run_worker(builds, compiler, QUICK_FLAGS, directory, parallel=_cores())
-    for (i, job), build in zip(todo, builds, strict=True):
+    errors = _run_worker(builds, compiler, QUICK_FLAGS, directory, parallel=usable_cores())
+    for (i, job, _), build in zip(todo, builds, strict=True):
         if build.library.is_file():
             result[i], kinds[i] = ca.external(job.function.name(), str(build.library)), "quick now"
         else:
@@ -670,19 +670,12 @@ def _jobs(count: int) -> int:
     env = os.environ.get("YOUBOT_OPT_COMPILE_JOBS", "").strip()
     if env.isdigit() and int(env) > 0:
         return max(1, min(count, int(env)))
-    cores = _cores()
+    cores = usable_cores()
     try:
         idle = cores - round(os.getloadavg()[0])
     except (AttributeError, OSError):  # no load average (Windows)
         idle = cores
     return max(1, min(count, idle))
-
-
-def _cores() -> int:
-    """Return how many cores this process may run on."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
 
 
 def _wall_estimate(jobs: Sequence[_Job]) -> float:

@@ -19,7 +19,6 @@ import multiprocessing
 import os
 import pickle
 import signal
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -31,9 +30,10 @@ from multiprocessing.connection import wait as wait_ready
 from multiprocessing.context import BaseContext
 from typing import TYPE_CHECKING, Any, Literal, Union
 
+from youbot_opt._cores import usable_cores
 from youbot_opt.exceptions import ParameterError
 from youbot_opt.sweeps.distributed import run_batch, run_dask
-from youbot_opt.sweeps.forked import watch_parent
+from youbot_opt.sweeps.forked import can_fork, watch_parent
 from youbot_opt.sweeps.scheduler import (
     cluster_threads,
     connect,
@@ -63,17 +63,12 @@ _STOP_WAIT = 5.0  # [s] a stopping worker gets this long to exit before it is ki
 
 def default_workers() -> int:
     """Count the CPUs this process may use (at least 1)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    return usable_cores()
 
 
 def process_context() -> BaseContext:
     """Multiprocessing context of the pools created here: ``fork`` on Linux, else ``spawn``."""
-    if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("fork")
-    return multiprocessing.get_context("spawn")
+    return multiprocessing.get_context("fork" if can_fork() else "spawn")
 
 
 def _send(conn: Connection, obj: Any) -> None:
